@@ -1,0 +1,1 @@
+"""rblog's click front end (installed as the package ``rblog_cli``)."""

@@ -1,0 +1,61 @@
+"""One exception family for rblog.
+
+Every error a user can cause (a bad scene, an unreadable log, an unwritable output path, a run
+that diverges) is an :class:`RblogError`. The CLI prints ``str(err)`` as one line and exits with
+``err.exit_code``; anything else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+
+class RblogError(Exception):
+    """Base of all errors rblog raises for a user's input or environment."""
+
+    exit_code = 2
+
+
+class SceneError(RblogError):
+    """A scene file is missing, malformed, or holds a value outside what is allowed.
+
+    The message names the file, the key path (``body[2].mass``) and what was expected.
+    """
+
+    def __init__(self, path: str, key: str, expected: str):
+        self.path, self.key, self.expected = str(path), key, expected
+        where = f"{self.path}: {key}" if key else self.path
+        super().__init__(f"{where}: {expected}")
+
+
+class LogReadError(RblogError):
+    """A log file is missing, not a log of a format rblog reads, or unreadable."""
+
+    def __init__(self, path: str, problem: str):
+        self.path, self.problem = str(path), problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class LogWriteError(RblogError):
+    """An output log cannot be created or written (bad path, no permission, disk full)."""
+
+    def __init__(self, path: str, problem: str):
+        self.path, self.problem = str(path), problem
+        super().__init__(f"{self.path}: cannot write log: {problem}")
+
+
+class SimulationDiverged(RblogError):
+    """The state became NaN or infinite. Logs are finalized up to the last good sample."""
+
+    exit_code = 3
+
+    def __init__(self, step: int, time_s: float, body: int, body_name: str):
+        self.step, self.time_s, self.body, self.body_name = step, time_s, body, body_name
+        super().__init__(
+            f"simulation diverged at step {step} (t = {time_s:.6g} s): body {body} "
+            f"({body_name!r}) has a non-finite state; logs keep every sample before it"
+        )
+
+
+class RunInterrupted(RblogError):
+    """The user interrupted the run (Ctrl-C). Logs are finalized up to the last good sample."""
+
+    exit_code = 130
