@@ -87,6 +87,10 @@ class Contacts:
     def __len__(self) -> int:
         return len(self.step)
 
+    def select(self, mask: np.ndarray) -> "Contacts":
+        """The contacts where ``mask`` (K,) is true."""
+        return Contacts(**{f.name: getattr(self, f.name)[mask] for f in fields(Contacts)})
+
     @staticmethod
     def concat(parts: list["Contacts"]) -> "Contacts":
         if not parts:
@@ -189,8 +193,7 @@ class Trajectory:
         steps = kw["step"]
         c = self.contacts
         if len(c) and len(steps):
-            keep = (c.step >= steps[0]) & (c.step <= steps[-1])
-            c = Contacts(**{f.name: getattr(c, f.name)[keep] for f in fields(Contacts)})
+            c = c.select((c.step >= steps[0]) & (c.step <= steps[-1]))
         return Trajectory(self.model, self.info, contacts=c, truncated=self.truncated,
                           warnings=list(self.warnings), **kw)
 

@@ -1,0 +1,167 @@
+"""``rblog``: the command-line front end. It parses, calls the library, and prints; nothing else.
+
+Known errors (rblog.errors.RblogError) print one line and exit with the error's code (2 for bad
+input); anything else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import click
+
+from rblog.errors import RblogError
+from rblog.rotation import ORTHO_CODES
+from rblog.scene import INTEGRATORS
+
+
+def _fail(err: RblogError):
+    click.echo(f"rblog: error: {err}", err=True)
+    sys.exit(err.exit_code)
+
+
+class _Progress:
+    """A progress bar on stderr that appears only when the run will take more than ~1 s."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.bar = None
+        self.t0 = time.perf_counter()
+
+    def __call__(self, done: int, total: int):
+        from rblog.constants import PROGRESS_MIN_WALL_S
+
+        if not self.enabled:
+            return
+        if self.bar is None:
+            elapsed = time.perf_counter() - self.t0
+            if done >= total or elapsed / done * (total - done) < PROGRESS_MIN_WALL_S:
+                return
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+            from rich.console import Console
+
+            self.bar = Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                                TimeRemainingColumn(), console=Console(stderr=True), transient=True)
+            self.bar.start()
+            self.task = self.bar.add_task("run", total=total)
+        self.bar.update(self.task, completed=done)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.stop()
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="rblog")
+def main():
+    """rblog: simulate rigid bodies, record what happened, audit the recording."""
+
+
+@main.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=str))
+def validate(scene):
+    """Check a scene file without running it."""
+    from rblog.scene import load_scene
+
+    try:
+        s = load_scene(scene)
+    except RblogError as e:
+        _fail(e)
+    click.echo(f"{scene}: ok ({s.model.n_bodies} bodies, {s.sim.n_steps} steps of "
+               f"{s.sim.dt:g} s, integrator {s.sim.integrator})")
+
+
+@main.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=str))
+@click.option("--dt", type=float, help="Time step (s); overrides [sim] dt.")
+@click.option("--duration", type=float, help="Simulated time (s); overrides [sim] duration.")
+@click.option("--integrator", type=click.Choice(INTEGRATORS), help="Integrator; overrides [sim].")
+@click.option("--orthonormalize", type=click.Choice(sorted(ORTHO_CODES)),
+              help="seed: polar|gram-schmidt|none; seed-quat: normalize|none.")
+@click.option("--rrd", type=click.Path(dir_okay=False, path_type=str), help="Write a Rerun log here.")
+@click.option("--mcap", type=click.Path(dir_okay=False, path_type=str), help="Write an MCAP log here.")
+@click.option("--no-log", is_flag=True, help="Write no log (by default, SCENE-STEM.rrd and .mcap).")
+@click.option("--log-every", type=click.IntRange(min=1), help="Log every K-th step.")
+@click.option("--log-rate", type=click.FloatRange(min=0, min_open=True),
+              help="Log at HZ samples per simulated second (default 100).")
+@click.option("--spawn", is_flag=True, help="Also stream to a new Rerun viewer.")
+@click.option("--connect", "connect_url", help="Also stream to a running Rerun viewer at this URL.")
+@click.option("--explain", is_flag=True, help="Print the stages chosen for this scene and why.")
+@click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
+def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, no_log, log_every, log_rate,
+        spawn, connect_url, explain, all_stages, as_json):
+    """Simulate SCENE (a .toml file) and record it."""
+    from rblog.scene import load_scene
+    from rblog.simulate import run as run_scene
+    from rblog.stages import plan_stages
+
+    if log_every is not None and log_rate is not None:
+        _fail(RblogError("give --log-every or --log-rate, not both"))
+    try:
+        s = load_scene(scene)
+        if explain:
+            plan = plan_stages(s, duration or s.sim.duration, force_contacts=all_stages)
+            if plan.contacts:
+                from rblog.rotation import METHOD_CODES, ORTHO_ALLOWED
+
+                integ = integrator or s.sim.integrator
+                plan.make_contact_world(METHOD_CODES[integ], ORTHO_CODES[ORTHO_ALLOWED[integ][1]])
+            for stage, why in plan.stages:
+                click.echo(f"{stage:<28} {why}", err=as_json)
+        recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url)
+        prog = _Progress(enabled=sys.stderr.isatty())
+        try:
+            summary = run_scene(
+                s, dt=dt, duration=duration, integrator=integrator, orthonormalize=orthonormalize,
+                log_every=log_every, log_rate=log_rate, recorders=recorders, progress=prog,
+                notice=lambda m: click.echo(m, err=True), force_contacts=all_stages)
+        finally:
+            prog.close()
+    except RblogError as e:
+        _fail(e)
+    d = summary.to_dict()
+    d["logs"] = paths
+    if as_json:
+        click.echo(json.dumps(d))
+        return
+    click.echo(
+        f"{scene}: {summary.steps} steps x {summary.bodies} bodies, {summary.sim_time_s:g} s "
+        f"simulated in {summary.wall_time_s:.3f} s wall ({summary.steps_per_s:,.0f} steps/s, "
+        f"{summary.body_steps_per_s:,.0f} body-steps/s)")
+    click.echo(f"  integrator {summary.integrator} (orthonormalize {summary.orthonormalize}), "
+               f"dt {summary.dt:g} s, logged every {summary.log_every} steps ({summary.samples} samples)")
+    click.echo(f"  energy drift (rel)      {summary.energy_drift_rel:.3e}")
+    click.echo(f"  |L| drift (rel)         {summary.angular_momentum_drift_rel:.3e}")
+    click.echo(f"  max ||R^T R - I||_F     {summary.ortho_error_max:.3e}")
+    for p in paths:
+        click.echo(f"  wrote {p}")
+
+
+def _recorders(scene, rrd, mcap, no_log, spawn, connect_url):
+    """The log writers asked for; by default SCENE-STEM.rrd and SCENE-STEM.mcap in the cwd."""
+    if no_log and (rrd or mcap):
+        raise RblogError("--no-log contradicts --rrd/--mcap")
+    if not (rrd or mcap or no_log):
+        stem = Path(scene).stem
+        rrd, mcap = f"{stem}.rrd", f"{stem}.mcap"
+    recorders, paths = [], []
+    if rrd or spawn or connect_url:
+        from rblog.record.rerun_writer import RerunRecorder
+
+        recorders.append(RerunRecorder(rrd, spawn=spawn, connect_url=connect_url))
+        if rrd:
+            paths.append(rrd)
+    if mcap:
+        from rblog.record.mcap_writer import McapRecorder
+
+        recorders.append(McapRecorder(mcap))
+        paths.append(mcap)
+    return recorders, paths
+
+
+if __name__ == "__main__":
+    main()

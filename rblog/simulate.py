@@ -1,0 +1,346 @@
+"""The run loop: choose the stages a scene needs, advance in compiled blocks, hand each block of
+samples to the recorders, and keep the summary figures.
+
+Python runs once per block (at most BLOCK_MAX_SAMPLES samples / BLOCK_MAX_BODY_STEPS body-steps),
+never per step. A diverging, interrupted or failing run closes every recorder with what was
+written so far, so logs stay readable up to the last good sample.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+from . import __version__
+from .constants import (
+    BLOCK_MAX_BODY_STEPS,
+    BLOCK_MAX_SAMPLES,
+    COMPILE_NOTICE_AFTER_S,
+    DEFAULT_LOG_RATE_HZ,
+)
+from .errors import RunInterrupted, SceneError, SimulationDiverged
+from .kernels import advance_free
+from .model import Model
+from .rotation import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES
+from .scene import Scene
+from .stages import Plan, plan_stages
+from .trajectory import RunInfo, Trajectory, derive
+
+
+class Recorder(Protocol):
+    """What the run loop needs of a log writer (see rblog.record)."""
+
+    def open(self, model: Model, info: RunInfo) -> None: ...
+    def write(self, block: Trajectory) -> None: ...
+    def close(self, truncated: bool = False, reason: str | None = None) -> None: ...
+
+
+class TrajectoryCollector:
+    """A recorder that keeps the whole run in memory (tests, benchmarks, small runs)."""
+
+    def __init__(self):
+        self.blocks: list[Trajectory] = []
+        self.truncated = False
+
+    def open(self, model, info):
+        self.blocks = []
+
+    def write(self, block):
+        self.blocks.append(block)
+
+    def close(self, truncated=False, reason=None):
+        self.truncated = truncated
+
+    @property
+    def trajectory(self) -> Trajectory:
+        traj = Trajectory.concat(self.blocks)
+        traj.truncated = self.truncated
+        return traj
+
+
+@dataclass
+class RunSummary:
+    """Figures of a finished (or stopped) run. Drifts are over the logged samples.
+
+    energy_drift_rel: max |E - E0| / |E0| of the total energy (kinetic + gravity potential,
+        potential zero at the world origin).
+    angular_momentum_drift_rel: max over bodies of | |L_i| - |L_i0| | / |L_i0| (spin angular
+        momentum about each body's centre of mass; 0 for bodies with no initial spin).
+    ortho_error_max: max ||R^T R - I||_F over bodies and samples.
+    """
+
+    status: str
+    steps: int
+    bodies: int
+    samples: int
+    sim_time_s: float
+    wall_time_s: float
+    steps_per_s: float
+    body_steps_per_s: float
+    energy_drift_rel: float
+    angular_momentum_drift_rel: float
+    ortho_error_max: float
+    quat_norm_error_max: float
+    integrator: str
+    orthonormalize: str
+    dt: float
+    log_every: int
+    stages: list[str] = field(default_factory=list)
+    message: str = ""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class _Drift:
+    """Running maxima of the summary figures over blocks."""
+
+    def __init__(self):
+        self.e0 = None
+        self.l0 = None
+        self.energy = 0.0
+        self.spin = 0.0
+        self.ortho = 0.0
+        self.qnorm = 0.0
+
+    def update(self, b: Trajectory):
+        if b.n_samples == 0:
+            return
+        if self.e0 is None:
+            self.e0 = float(b.total_energy[0])
+            self.l0 = np.linalg.norm(b.angular_momentum[0], axis=-1)
+        scale = abs(self.e0) if self.e0 != 0 else 1.0
+        self.energy = max(self.energy, float(np.max(np.abs(b.total_energy - self.e0))) / scale)
+        spin = np.linalg.norm(b.angular_momentum, axis=-1)
+        has = self.l0 > 0
+        if np.any(has):
+            d = np.abs(spin[:, has] - self.l0[has]) / self.l0[has]
+            self.spin = max(self.spin, float(d.max()))
+        self.ortho = max(self.ortho, float(b.ortho_error.max()))
+        self.qnorm = max(self.qnorm, float(np.abs(b.quat_norm_error).max()))
+
+
+def resolve_log_every(dt: float, log_every: int | None, log_rate: float | None) -> int:
+    """Steps between logged samples from --log-every or --log-rate (Hz of simulated time)."""
+    if log_every is not None:
+        return max(1, int(log_every))
+    rate = log_rate if log_rate is not None else DEFAULT_LOG_RATE_HZ
+    return max(1, int(round(1.0 / (rate * dt))))
+
+
+def run(
+    scene: Scene,
+    *,
+    dt: float | None = None,
+    duration: float | None = None,
+    integrator: str | None = None,
+    orthonormalize: str | None = None,
+    log_every: int | None = None,
+    log_rate: float | None = None,
+    recorders: list[Recorder] | tuple = (),
+    progress: Callable[[int, int], None] | None = None,
+    notice: Callable[[str], None] | None = None,
+    force_contacts: bool = False,
+) -> RunSummary:
+    """Simulate ``scene`` and stream samples to ``recorders``.
+
+    Options override the scene's ``[sim]`` values. ``progress(done_steps, total_steps)`` is called
+    after every block; ``notice(msg)`` gets one-line notices (kernel compilation).
+
+    Raises:
+        SceneError: an option is out of range.
+        SimulationDiverged: the state became non-finite (logs closed up to the last good sample).
+        RunInterrupted: Ctrl-C (logs closed up to the last good sample).
+    """
+    sim = scene.sim
+    dt = sim.dt if dt is None else dt
+    duration = sim.duration if duration is None else duration
+    if not (dt > 0 and np.isfinite(dt)):
+        raise SceneError(scene.path, "--dt", f"expected a positive number, got {dt}")
+    if not (duration > 0 and np.isfinite(duration)):
+        raise SceneError(scene.path, "--duration", f"expected a positive number, got {duration}")
+    integrator = integrator or sim.integrator
+    if integrator not in ORTHO_ALLOWED:
+        raise SceneError(scene.path, "--integrator",
+                         f"expected one of {', '.join(ORTHO_ALLOWED)}, got {integrator!r}")
+    allowed, default_ortho = ORTHO_ALLOWED[integrator]
+    ortho = orthonormalize or (sim.orthonormalize if sim.integrator == integrator else None) or default_ortho
+    if ortho not in allowed:
+        raise SceneError(scene.path, "--orthonormalize",
+                         f"integrator {integrator} takes {' or '.join(allowed)}, got {ortho!r}")
+    if log_every is None and log_rate is None:
+        log_every, log_rate = sim.log_every, sim.log_rate
+    stride = resolve_log_every(dt, log_every, log_rate)
+    n_total = max(1, int(round(duration / dt)))
+    model = scene.model
+    n_bodies = model.n_bodies
+    method, ortho_code = METHOD_CODES[integrator], ORTHO_CODES[ortho]
+
+    plan = plan_stages(scene, duration, force_contacts=force_contacts)
+    info = RunInfo(
+        integrator=integrator, orthonormalize=ortho, dt=dt, log_every=stride,
+        duration_s=n_total * dt, rblog_version=__version__, scene_path=scene.path,
+        scene_toml=scene.toml_text, scene_resolved=scene.resolved, seed=sim.seed,
+        writer=f"rblog {__version__}",
+    )
+    st = scene.state.copy()
+    advance = _make_advance(plan, model, method, ortho_code)
+
+    samples_per_block = int(max(1, min(BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_STEPS // max(1, n_bodies * stride))))
+    steps_per_block = samples_per_block * stride
+    bufs = (
+        np.empty((samples_per_block + 1, n_bodies, 3)),
+        np.empty((samples_per_block + 1, n_bodies, 3)),
+        np.empty((samples_per_block + 1, n_bodies, 4)),
+        np.empty((samples_per_block + 1, n_bodies, 3, 3)),
+        np.empty((samples_per_block + 1, n_bodies, 3)),
+    )
+
+    # load (or compile, the first time) the kernels before the clock starts
+    with _CompileNotice(notice):
+        advance(dt, 0, stride, False, st.copy(), bufs)
+
+    drift = _Drift()
+    opened: list[Recorder] = []
+    done = 0
+    n_samples = 0
+    status, message = "ok", ""
+    t_start = time.perf_counter()
+    try:
+        for r in recorders:
+            r.open(model, info)
+            opened.append(r)
+        first = derive(model, info, np.array([0]), np.array([0.0]), st.position[None].copy(),
+                       st.linear_momentum[None].copy(), st.quat_wxyz[None].copy(),
+                       st.rotation[None].copy(), st.angular_momentum_world[None].copy())
+        _emit(first, drift, opened)
+        n_samples += 1
+        while done < n_total:
+            n = min(steps_per_block, n_total - done)
+            sample_last = (done + n == n_total) and (n % stride != 0)
+            ns, bad_step, bad_body, contacts = advance(dt, n, stride, sample_last, st, bufs)
+            local = np.arange(1, n // stride + 1) * stride
+            if sample_last:
+                local = np.append(local, n)
+            keep = len(local) if bad_step < 0 else int(np.searchsorted(local, bad_step))
+            local = local[:keep]
+            if keep:
+                steps = done + local
+                if contacts is not None:
+                    contacts.step = contacts.step + done
+                    contacts.t = contacts.step * dt
+                    if bad_step >= 0:
+                        contacts = contacts.select(contacts.step < done + bad_step)
+                block = derive(model, info, steps, steps * dt, *(b[:keep].copy() for b in bufs),
+                               contacts=contacts)
+                _emit(block, drift, opened)
+                n_samples += keep
+            if bad_step >= 0:
+                bad_global = done + bad_step
+                done = bad_global - 1
+                raise SimulationDiverged(bad_global, bad_global * dt, int(bad_body),
+                                         model.body_name[bad_body])
+            done += n
+            if progress is not None:
+                progress(done, n_total)
+    except KeyboardInterrupt:
+        status, message = "interrupted", f"interrupted at step {done}"
+        _close_all(opened, True, message)
+        raise RunInterrupted(
+            f"run interrupted at step {done} (t = {done * dt:.6g} s); logs keep every sample "
+            "written before it") from None
+    except SimulationDiverged as e:
+        _close_all(opened, True, str(e))
+        raise
+    except BaseException as e:
+        _close_all(opened, True, f"run failed: {e}")
+        raise
+    _close_all(opened, False, None)
+    wall = time.perf_counter() - t_start
+    return RunSummary(
+        status=status, steps=done, bodies=n_bodies, samples=n_samples, sim_time_s=done * dt,
+        wall_time_s=wall, steps_per_s=done / wall if wall > 0 else float("inf"),
+        body_steps_per_s=done * n_bodies / wall if wall > 0 else float("inf"),
+        energy_drift_rel=drift.energy, angular_momentum_drift_rel=drift.spin,
+        ortho_error_max=drift.ortho, quat_norm_error_max=drift.qnorm, integrator=integrator,
+        orthonormalize=ortho, dt=dt, log_every=stride, stages=[s for s, _ in plan.stages],
+        message=message,
+    )
+
+
+def simulate(scene: Scene, **kwargs) -> tuple[Trajectory, RunSummary]:
+    """Run ``scene`` keeping every logged sample in memory; returns (trajectory, summary)."""
+    col = TrajectoryCollector()
+    recorders = [col, *kwargs.pop("recorders", ())]
+    summary = run(scene, recorders=recorders, **kwargs)
+    return col.trajectory, summary
+
+
+def _emit(block: Trajectory, drift: _Drift, recorders):
+    drift.update(block)
+    for r in recorders:
+        r.write(block)
+
+
+def _close_all(recorders, truncated, reason):
+    errors = []
+    for r in recorders:
+        try:
+            r.close(truncated=truncated, reason=reason)
+        except Exception as e:  # close every log even if one fails
+            errors.append(e)
+    if errors:
+        raise errors[0]
+
+
+def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int):
+    """The block-advance function for the chosen stages."""
+    if plan.contacts:
+        world = plan.make_contact_world(method, ortho_code)
+
+        def advance(dt, n, stride, sample_last, st, bufs):
+            return world.advance(dt, n, stride, sample_last, st.position, st.linear_momentum,
+                                 st.quat_wxyz, st.rotation, st.angular_momentum_world, *bufs)
+
+        return advance
+
+    inv_mass = 1.0 / model.body_mass
+    inv_inertia = np.ascontiguousarray(1.0 / model.body_inertia_diag)
+    force = np.ascontiguousarray(model.body_mass[:, None] * model.gravity[None, :] + model.body_force_world)
+    torque = np.ascontiguousarray(model.body_torque_world)
+
+    def advance(dt, n, stride, sample_last, st, bufs):
+        ns, bad_step, bad_body = advance_free(
+            method, ortho_code, dt, n, stride, sample_last, inv_mass, inv_inertia, force, torque,
+            st.position, st.linear_momentum, st.quat_wxyz, st.rotation, st.angular_momentum_world,
+            *bufs)
+        return ns, bad_step, bad_body, None
+
+    return advance
+
+
+class _CompileNotice:
+    """Prints a one-line notice if the first compiled call takes long (numba compiling)."""
+
+    def __init__(self, notice):
+        self.notice = notice
+        self.timer = None
+
+    def __enter__(self):
+        if self.notice is not None:
+            self.timer = threading.Timer(
+                COMPILE_NOTICE_AFTER_S, self.notice,
+                ("compiling kernels (first run only; cached afterwards)...",))
+            self.timer.daemon = True
+            self.timer.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
+        return False
