@@ -1,0 +1,227 @@
+"""What both log formats share: the static model and run metadata as flat named arrays, view
+names, and simulated time in nanoseconds. See docs/log-format.md."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+
+from ..model import Model
+from ..trajectory import BODY_CHANNELS, TOTAL_CHANNELS, RunInfo
+
+#: version of the log contract (docs/log-format.md) this module writes and reads
+LOG_FORMAT_VERSION = 1
+#: Rerun application id of rblog recordings
+APPLICATION_ID = "rblog"
+#: length of a contact-force arrow in the Rerun view (m per N of mean force over the step)
+CONTACT_ARROW_M_PER_N = 0.01
+
+#: Model fields: name -> (kind, trailing shape per body / per static box, or None for a scalar)
+#: kinds: "f" float64, "i" int64, "b" bool, "s" strings
+MODEL_FIELDS: dict[str, tuple[str, tuple[int, ...] | None]] = {
+    "body_name": ("s", ()),
+    "body_shape": ("i", ()),
+    "body_size": ("f", (3,)),
+    "body_mass": ("f", ()),
+    "body_inertia_diag": ("f", (3,)),
+    "body_force_world": ("f", (3,)),
+    "body_torque_world": ("f", (3,)),
+    "body_restitution": ("f", ()),
+    "body_friction": ("f", ()),
+    "body_group": ("i", ()),
+    "gravity": ("f", None),  # (3,)
+    "ground": ("b", None),
+    "ground_normal": ("f", None),  # (3,)
+    "ground_offset": ("f", None),
+    "ground_restitution": ("f", None),
+    "ground_friction": ("f", None),
+    "static_box_position": ("f", (3,)),
+    "static_box_quat_wxyz": ("f", (4,)),
+    "static_box_half_extents": ("f", (3,)),
+    "static_box_restitution": ("f", ()),
+    "static_box_friction": ("f", ()),
+}
+_SCALAR_MODEL_FIELDS = ("ground", "ground_offset", "ground_restitution", "ground_friction")
+
+#: RunInfo fields as logged: name -> kind ("s", "f", "i"); scene_resolved travels as JSON text
+INFO_FIELDS: dict[str, str] = {
+    "integrator": "s",
+    "orthonormalize": "s",
+    "dt": "f",
+    "log_every": "i",
+    "duration_s": "f",
+    "rblog_version": "s",
+    "scene_path": "s",
+    "scene_toml": "s",
+    "scene_resolved_json": "s",
+    "seed": "i",
+    "writer": "s",
+}
+
+STATE_CHANNELS = {**BODY_CHANNELS, **TOTAL_CHANNELS}
+
+
+def model_to_arrays(model: Model) -> dict[str, object]:
+    """Every Model field as a flat array (list of str for names; 1-element arrays for scalars)."""
+    out: dict[str, object] = {}
+    for name, (kind, _) in MODEL_FIELDS.items():
+        v = getattr(model, name)
+        if kind == "s":
+            out[name] = [str(x) for x in v]
+        elif kind == "b":
+            out[name] = np.array([bool(v)])
+        elif kind == "i":
+            out[name] = np.asarray(v, np.int64).reshape(-1)
+        else:
+            out[name] = np.asarray(v, np.float64).reshape(-1)
+    return out
+
+
+def model_from_arrays(d: dict[str, object]) -> Model:
+    """Rebuild a Model from flat arrays (missing static-box fields mean no static boxes)."""
+    names = [str(x) for x in d["body_name"]]
+    n = len(names)
+    kw: dict[str, object] = {"body_name": names}
+    for name, (kind, shape) in MODEL_FIELDS.items():
+        if name == "body_name":
+            continue
+        v = d.get(name)
+        if name in _SCALAR_MODEL_FIELDS:
+            if v is None:
+                continue
+            a = np.asarray(v).reshape(-1)
+            kw[name] = bool(a[0]) if kind == "b" else float(a[0])
+            continue
+        dtype = np.int64 if kind == "i" else np.float64
+        if shape is None:  # gravity, ground_normal
+            if v is not None:
+                kw[name] = np.asarray(v, dtype).reshape(3)
+            continue
+        if v is None:
+            if name.startswith("static_box"):
+                kw[name] = np.zeros((0, *shape), dtype)
+                continue
+            raise KeyError(name)
+        a = np.asarray(v, dtype)
+        count = n if name.startswith("body_") else -1
+        kw[name] = a.reshape(count, *shape)
+    return Model(**kw)
+
+
+def info_to_fields(info: RunInfo) -> dict[str, object]:
+    """RunInfo as logged scalars (seed omitted when None)."""
+    out: dict[str, object] = {
+        "integrator": str(info.integrator),
+        "orthonormalize": str(info.orthonormalize),
+        "dt": float(info.dt),
+        "log_every": int(info.log_every),
+        "duration_s": float(info.duration_s),
+        "rblog_version": str(info.rblog_version),
+        "scene_path": str(info.scene_path),
+        "scene_toml": str(info.scene_toml),
+        "scene_resolved_json": json.dumps(info.scene_resolved, default=_json_default),
+        "writer": str(info.writer),
+    }
+    if info.seed is not None:
+        out["seed"] = int(info.seed)
+    return out
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    return str(o)
+
+
+def info_from_fields(d: dict[str, object]) -> RunInfo:
+    resolved = d.get("scene_resolved_json") or "{}"
+    try:
+        scene_resolved = json.loads(resolved)
+    except ValueError:
+        scene_resolved = {}
+    seed = d.get("seed")
+    return RunInfo(
+        integrator=str(d.get("integrator", "")),
+        orthonormalize=str(d.get("orthonormalize", "")),
+        dt=float(d.get("dt", 0.0)),
+        log_every=int(d.get("log_every", 1)),
+        duration_s=float(d.get("duration_s", 0.0)),
+        rblog_version=str(d.get("rblog_version", "")),
+        scene_path=str(d.get("scene_path", "")),
+        scene_toml=str(d.get("scene_toml", "")),
+        scene_resolved=scene_resolved if isinstance(scene_resolved, dict) else {},
+        seed=None if seed is None else int(seed),
+        writer=str(d.get("writer", "")),
+    )
+
+
+_BAD = re.compile(r"[^A-Za-z0-9_-]")
+
+
+def view_names(names: list[str]) -> list[str]:
+    """ASCII names for entity paths and frame ids: unique, ``[A-Za-z0-9_-]`` only."""
+    out: list[str] = []
+    seen: set[str] = set()
+    for i, name in enumerate(names):
+        v = _BAD.sub("_", str(name)) or f"body_{i}"
+        if v in seen or v == "world":
+            v = f"{v}_{i}"
+        seen.add(v)
+        out.append(v)
+    return out
+
+
+def time_ns(t: np.ndarray) -> np.ndarray:
+    """Simulated time (s) as int64 nanoseconds for viewer timelines (rounded, clamped at 0)."""
+    ns = np.rint(np.asarray(t, np.float64) * 1e9)
+    ns = np.nan_to_num(ns, nan=0.0, posinf=2**62, neginf=0.0)
+    return np.clip(ns, 0, 2**62).astype(np.int64)
+
+
+def block_arrays(block, n: int) -> dict[str, np.ndarray]:
+    """The block's state channels as contiguous float64 (T, k) arrays, k values per sample."""
+    T = len(block.t)
+    out = {}
+    for name in STATE_CHANNELS:
+        a = np.ascontiguousarray(getattr(block, name), np.float64)
+        out[name] = a.reshape(T, -1)
+    return out
+
+
+def expected_width(name: str, n: int) -> int:
+    shape = STATE_CHANNELS[name]
+    k = int(np.prod(shape)) if shape else 1
+    return k * n if name in BODY_CHANNELS else k
+
+
+#: half thickness of the box drawn for the ground plane in the viewers (m)
+GROUND_HALF_THICKNESS = 0.01
+
+
+def ground_box(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A thin box whose top face is the ground plane, for the viewers.
+
+    Returns (centre (3,), quat_wxyz (4,) rotating +z onto the ground normal, half extents (3,)).
+    Its half width is 10 m or enough to hold the static boxes.
+    """
+    n = np.asarray(model.ground_normal, np.float64)
+    n = n / (np.linalg.norm(n) or 1.0)
+    reach = 10.0
+    if len(model.static_box_position):
+        reach = max(reach, float(np.max(np.abs(model.static_box_position)
+                                        + np.linalg.norm(model.static_box_half_extents, axis=1)[:, None])))
+    center = n * (float(model.ground_offset) - GROUND_HALF_THICKNESS)
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, n)
+    s = np.linalg.norm(axis)
+    c = float(np.dot(z, n))
+    if s < 1e-12:
+        q = np.array([1.0, 0.0, 0.0, 0.0]) if c > 0 else np.array([0.0, 1.0, 0.0, 0.0])
+    else:
+        angle = np.arctan2(s, c)
+        q = np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis / s])
+    return center, q, np.array([reach, reach, GROUND_HALF_THICKNESS])

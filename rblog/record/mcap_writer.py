@@ -1,0 +1,389 @@
+"""Write a run to an MCAP file: protobuf messages, every schema embedded (docs/log-format.md).
+
+Topics: ``/rblog/run`` (static model and metadata), ``/rblog/state`` (full float64 state, one
+message per sample), ``/rblog/contacts``, ``/rblog/metrics`` (plot-friendly totals), ``/tf``
+(``foxglove.FrameTransforms``), ``/scene`` (``foxglove.SceneUpdate``) and ``/rblog/status``.
+
+The per-sample messages are encoded from numpy buffers a whole block at a time (see
+``schema.encode_rows`` and ``_tf_rows``); Python only loops over samples to hand the bytes to the
+MCAP writer. Chunks are finalized every ``CHUNK_BYTES`` of messages or ``FLUSH_EVERY_S`` of wall
+time, whichever comes first, so memory stays bounded and a killed process loses at most that much.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from foxglove_schemas_protobuf.Color_pb2 import Color
+from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.KeyValuePair_pb2 import KeyValuePair
+from foxglove_schemas_protobuf.Pose_pb2 import Pose
+from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
+from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+from mcap.writer import CompressionType, Writer
+from mcap_protobuf.schema import build_file_descriptor_set
+
+from .. import __version__
+from ..errors import LogWriteError
+from ..model import SHAPE_SPHERE, Model
+from ..trajectory import Contacts, RunInfo, Trajectory
+from . import _common as C
+from . import schema as S
+
+#: chunk size (bytes of uncompressed messages); also the most a killed writer loses
+CHUNK_BYTES = 1 << 20
+#: a chunk is also finalized (and the file flushed) when this much wall time passed since the last
+FLUSH_EVERY_S = 1.0
+
+TOPIC_RUN = "/rblog/run"
+TOPIC_STATE = "/rblog/state"
+TOPIC_CONTACTS = "/rblog/contacts"
+TOPIC_METRICS = "/rblog/metrics"
+TOPIC_STATUS = "/rblog/status"
+TOPIC_TF = "/tf"
+TOPIC_SCENE = "/scene"
+
+
+def _compression() -> CompressionType:
+    """zstd when the ``zstandard`` package is present (a dependency of ``mcap``), else lz4, else
+    none. Overridable with ``RBLOG_MCAP_COMPRESSION`` = zstd | lz4 | none."""
+    import os
+
+    want = os.environ.get("RBLOG_MCAP_COMPRESSION", "").lower()
+    table = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+    if want in table:
+        return table[want]
+    try:
+        import zstandard  # noqa: F401
+
+        return CompressionType.ZSTD
+    except ImportError:
+        pass
+    try:
+        import lz4  # noqa: F401
+
+        return CompressionType.LZ4
+    except ImportError:
+        return CompressionType.NONE
+
+
+class McapRecorder:
+    """Records a run into ``path`` (.mcap). See docs/log-format.md for the layout."""
+
+    def __init__(self, path: str):
+        self.path = str(path)
+        self._fh = None
+        self._w: Writer | None = None
+        self._closed = False
+        self._last_ns = 0
+        self._last_flush = 0.0
+        self.samples_written = 0
+
+    # --- lifecycle ------------------------------------------------------------------------------
+
+    def open(self, model: Model, info: RunInfo) -> None:
+        """Create the file and write the header, schemas, run record and scene."""
+        try:
+            self._fh = open(self.path, "wb")
+        except OSError as e:
+            raise LogWriteError(self.path, e.strerror or str(e)) from None
+        try:
+            self._model = model
+            self._n = model.n_bodies
+            self._names = C.view_names(model.body_name)
+            self._w = Writer(self._fh, chunk_size=CHUNK_BYTES, compression=_compression())
+            self._w.start(profile="", library=f"rblog {__version__}")
+            self._register_channels()
+            self._write_run(model, info)
+            self._write_scene(model)
+            self._w.add_metadata("rblog", {k: str(v) for k, v in C.info_to_fields(info).items()
+                                           if k not in ("scene_toml", "scene_resolved_json")})
+            self._tf_tmpl = _TfEncoder(self._names)
+            self._flush(force=True)
+        except OSError as e:
+            self._abandon()
+            raise LogWriteError(self.path, e.strerror or str(e)) from None
+
+    def write(self, block: Trajectory) -> None:
+        """Append a block of samples (and its contacts)."""
+        if self._w is None or self._closed:
+            raise LogWriteError(self.path, "recorder is not open")
+        T = len(block.t)
+        try:
+            if T:
+                self._write_samples(block)
+            self._write_contacts(block.contacts)
+            self._flush()
+        except OSError as e:
+            raise LogWriteError(self.path, e.strerror or str(e)) from None
+
+    def close(self, truncated: bool = False, reason: str | None = None) -> None:
+        """Write the status record, the summary and the footer; safe to call twice or after an
+        error (a file left without footer is still read by rblog.load)."""
+        if self._closed:
+            return
+        self._closed = True
+        if self._w is None:
+            self._abandon()
+            return
+        err = None
+        try:
+            status = S.message_class("Status")(complete=not truncated, truncated=bool(truncated),
+                                               reason=reason or "")
+            self._w.add_message(self._ch[TOPIC_STATUS], self._last_ns, status.SerializeToString(),
+                                self._last_ns)
+            self._w.finish()
+        except (OSError, ValueError) as e:
+            err = e
+        finally:
+            try:
+                self._fh.close()
+            except OSError as e:
+                err = err or e
+        if err is not None:
+            raise LogWriteError(self.path, getattr(err, "strerror", None) or str(err)) from None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
+
+    # --- internals ------------------------------------------------------------------------------
+
+    def _abandon(self):
+        self._closed = True
+        if self._fh is not None:
+            try:
+                self._fh.close()
+            except OSError:
+                pass
+
+    def _register_channels(self):
+        w = self._w
+        rblog_data = S.file_descriptor_set_bytes()
+        self._ch: dict[str, int] = {}
+        for topic, name in ((TOPIC_RUN, "Run"), (TOPIC_STATE, "State"),
+                            (TOPIC_CONTACTS, "Contacts"), (TOPIC_METRICS, "Metrics"),
+                            (TOPIC_STATUS, "Status")):
+            sid = w.register_schema(f"rblog.{name}", "protobuf", rblog_data)
+            self._ch[topic] = w.register_channel(topic, "protobuf", sid)
+        for topic, cls in ((TOPIC_TF, FrameTransforms), (TOPIC_SCENE, SceneUpdate)):
+            data = build_file_descriptor_set(cls).SerializeToString()
+            sid = w.register_schema(cls.DESCRIPTOR.full_name, "protobuf", data)
+            self._ch[topic] = w.register_channel(topic, "protobuf", sid)
+
+    def _write_run(self, model: Model, info: RunInfo):
+        msg = S.message_class("Run")(rblog_log_format=C.LOG_FORMAT_VERSION)
+        for k, v in C.info_to_fields(info).items():
+            setattr(msg, k, v)
+        for k, v in C.model_to_arrays(model).items():
+            if k == "ground":
+                msg.ground = bool(v[0])
+            elif k in ("ground_offset", "ground_restitution", "ground_friction"):
+                setattr(msg, k, float(v[0]))
+            else:
+                getattr(msg, k).extend(v.tolist() if isinstance(v, np.ndarray) else v)
+        self._w.add_message(self._ch[TOPIC_RUN], 0, msg.SerializeToString(), 0)
+
+    def _write_scene(self, model: Model):
+        upd = SceneUpdate()
+        for i, name in enumerate(self._names):
+            ent = upd.entities.add(frame_id=name, id=f"body/{name}", frame_locked=True)
+            ent.metadata.append(KeyValuePair(key="name", value=str(model.body_name[i])))
+            size = np.asarray(model.body_size[i], np.float64)
+            if int(model.body_shape[i]) == SHAPE_SPHERE:
+                d = 2.0 * float(size[0])
+                ent.spheres.append(SpherePrimitive(pose=_pose(), size=Vector3(x=d, y=d, z=d),
+                                                   color=_color(i, 0.9)))
+            else:
+                ent.cubes.append(CubePrimitive(pose=_pose(), size=_vec(2.0 * size),
+                                               color=_color(i, 0.9)))
+        if model.ground:
+            center, quat_wxyz, half = C.ground_box(model)
+            ent = upd.entities.add(frame_id="world", id="ground", frame_locked=True)
+            ent.cubes.append(CubePrimitive(pose=_pose(center, quat_wxyz), size=_vec(2.0 * half),
+                                           color=Color(r=0.5, g=0.5, b=0.5, a=0.6)))
+        for j in range(len(model.static_box_position)):
+            ent = upd.entities.add(frame_id="world", id=f"static_box_{j}", frame_locked=True)
+            ent.cubes.append(CubePrimitive(
+                pose=_pose(model.static_box_position[j], model.static_box_quat_wxyz[j]),
+                size=_vec(2.0 * np.asarray(model.static_box_half_extents[j])),
+                color=Color(r=0.6, g=0.6, b=0.65, a=0.8)))
+        self._w.add_message(self._ch[TOPIC_SCENE], 0, upd.SerializeToString(), 0)
+
+    def _write_samples(self, block: Trajectory):
+        T, n = len(block.t), self._n
+        a = C.block_arrays(block, n)
+        for name, arr in a.items():
+            if arr.shape[1] != C.expected_width(name, n):
+                raise ValueError(f"{name}: {arr.shape[1]} values per sample, expected "
+                                 f"{C.expected_width(name, n)} for {n} bodies")
+        step = np.asarray(block.step, np.int64)
+        t = np.asarray(block.t, np.float64)
+        ns = C.time_ns(t)
+        state_parts = [("sfixed64", 1, step), ("double", 2, t)]
+        for num, name, _, _ in S.MESSAGES["State"][2:-1]:
+            state_parts.append(("packed_double", num, a[name]))
+        state_parts.append(("double", 17, a["total_energy"]))
+        state = S.encode_rows(T, state_parts)
+        metrics = S.encode_rows(T, [
+            ("sfixed64", 1, step), ("double", 2, t),
+            ("double", 3, a["total_energy"]),
+            ("double", 4, a["energy_translational"].sum(axis=1)),
+            ("double", 5, a["energy_rotational"].sum(axis=1)),
+            ("double", 6, a["energy_potential"].sum(axis=1)),
+            ("packed_double", 7, a["total_linear_momentum"]),
+            ("packed_double", 8, a["total_angular_momentum"]),
+            ("double", 9, _max0(a["ortho_error"])),
+            ("double", 10, _max0(np.abs(a["quat_norm_error"]))),
+        ])
+        tf = self._tf_tmpl.rows(ns, a["position"].reshape(T, n, 3),
+                                a["quat_wxyz"].reshape(T, n, 4))
+        add = self._w.add_message
+        ch_state, ch_metrics, ch_tf = self._ch[TOPIC_STATE], self._ch[TOPIC_METRICS], self._ch[TOPIC_TF]
+        nsl = ns.tolist()
+        for i in range(T):
+            ti = nsl[i]
+            add(ch_state, ti, state[i].tobytes(), ti)
+            add(ch_metrics, ti, metrics[i].tobytes(), ti)
+            add(ch_tf, ti, tf[i], ti)
+        self._last_ns = max(self._last_ns, nsl[-1])
+        self.samples_written += T
+
+    def _write_contacts(self, c: Contacts):
+        if not len(c):
+            return
+        step = np.asarray(c.step, np.int64)
+        t = np.asarray(c.t, np.float64)
+        # runs of equal (step, t): one message each
+        cut = np.flatnonzero((step[1:] != step[:-1]) | (t[1:] != t[:-1])) + 1
+        bounds = np.concatenate([[0], cut, [len(step)]])
+        ns = C.time_ns(t)
+        ch = self._ch[TOPIC_CONTACTS]
+        fields = (
+            (3, c.body_a, "i"), (4, c.body_b, "i"), (5, c.point, "f"), (6, c.normal, "f"),
+            (7, c.separation, "f"), (8, c.normal_impulse, "f"), (9, c.friction_impulse, "f"),
+            (10, c.kind, "i"),
+        )
+        for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+            parts = [S.sfixed64_field(1, step[lo]), S.double_field(2, t[lo])]
+            for num, arr, kind in fields:
+                v = arr[lo:hi]
+                parts.append(S.packed_sfixed32(num, v) if kind == "i" else S.packed_doubles(num, v))
+            ti = int(ns[lo])
+            self._w.add_message(ch, ti, b"".join(parts), ti)
+            self._last_ns = max(self._last_ns, ti)
+
+    def _flush(self, force: bool = False):
+        now = time.monotonic()
+        if force or now - self._last_flush >= FLUSH_EVERY_S:
+            self._w.flush()  # finalizes the chunk in progress and flushes the file object
+            self._last_flush = now
+
+
+def _max0(a: np.ndarray) -> np.ndarray:
+    return a.max(axis=1) if a.shape[1] else np.zeros(a.shape[0])
+
+
+def _vec(v) -> Vector3:
+    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def _pose(position=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0)) -> Pose:
+    q = quat_wxyz
+    return Pose(position=_vec(position),
+                orientation=Quaternion(x=float(q[1]), y=float(q[2]), z=float(q[3]), w=float(q[0])))
+
+
+_PALETTE = np.array([[0.12, 0.47, 0.71], [1.0, 0.5, 0.05], [0.17, 0.63, 0.17], [0.84, 0.15, 0.16],
+                     [0.58, 0.4, 0.74], [0.55, 0.34, 0.29], [0.89, 0.47, 0.76], [0.74, 0.74, 0.13],
+                     [0.09, 0.75, 0.81]])
+
+
+def _color(i: int, alpha: float) -> Color:
+    r, g, b = _PALETTE[i % len(_PALETTE)]
+    return Color(r=float(r), g=float(g), b=float(b), a=alpha)
+
+
+class _TfEncoder:
+    """Encodes ``foxglove.FrameTransforms`` messages (one transform per body) for a whole block.
+
+    Wire layout of each transform (field numbers of foxglove.FrameTransform): 1 timestamp
+    {1 seconds, 2 nanos}, 2 parent "world", 3 child name, 4 translation {1 x, 2 y, 3 z}, 5 rotation
+    {1 x, 2 y, 3 z, 4 w}. Bodies whose names have the same length share a byte layout, so each
+    such group is filled with a few strided numpy assignments.
+    """
+
+    def __init__(self, names: list[str]):
+        self.groups: dict[int, list[int]] = {}
+        self.names = [n.encode("ascii") for n in names]
+        for i, nb in enumerate(self.names):
+            self.groups.setdefault(len(nb), []).append(i)
+        self._cache: dict[tuple[int, int], tuple] = {}
+
+    def _layout(self, lts: int, name_len: int):
+        key = (lts, name_len)
+        if key not in self._cache:
+            idx = self.groups[name_len]
+            head_after_ts = S.len_field(2, b"world")
+            translation_hdr = S.tag(4, 2) + S.varint(27)
+            rotation_hdr = S.tag(5, 2) + S.varint(36)
+            sub_len = (2 + lts) + len(head_after_ts) + (len(S.tag(3, 2)) + len(S.varint(name_len))
+                                                        + name_len) + 2 + 27 + 2 + 36
+            rows, offsets = [], None
+            for i in idx:
+                parts = [S.tag(1, 2) + S.varint(sub_len), S.tag(1, 2) + S.varint(lts)]
+                ts_off = sum(map(len, parts))
+                parts += [b"\0" * lts, head_after_ts, S.len_field(3, self.names[i]), translation_hdr]
+                offs = []
+                for k, fno in enumerate((1, 2, 3)):
+                    parts.append(S.tag(fno, 1))
+                    offs.append(sum(map(len, parts)))
+                    parts.append(b"\0" * 8)
+                parts.append(rotation_hdr)
+                for fno in (1, 2, 3, 4):
+                    parts.append(S.tag(fno, 1))
+                    offs.append(sum(map(len, parts)))
+                    parts.append(b"\0" * 8)
+                rows.append(b"".join(parts))
+                offsets = (ts_off, offs)
+            tmpl = np.frombuffer(b"".join(rows), np.uint8).reshape(len(idx), -1)
+            self._cache[key] = (np.array(idx), tmpl, offsets)
+        return self._cache[key]
+
+    def rows(self, ns: np.ndarray, position: np.ndarray, quat_wxyz: np.ndarray) -> list[bytes]:
+        T = len(ns)
+        sec, nanos = np.divmod(ns, 1_000_000_000)
+        ts = [S.tag(1, 0) + S.varint(s) + S.tag(2, 0) + S.varint(n)
+              for s, n in zip(sec.tolist(), nanos.tolist())]
+        # doubles in wire order: x, y, z, qx, qy, qz, qw
+        dbl = np.concatenate([position, quat_wxyz[..., 1:], quat_wxyz[..., :1]], axis=-1)
+        dbl = np.ascontiguousarray(dbl, "<f8").view(np.uint8).reshape(T, -1, 7, 8)
+        out: list[bytes] = [b""] * T
+        by_len: dict[int, list[int]] = {}
+        for i, b in enumerate(ts):
+            by_len.setdefault(len(b), []).append(i)
+        for lts, rows_i in by_len.items():
+            r = np.array(rows_i)
+            tsa = np.frombuffer(b"".join(ts[i] for i in rows_i), np.uint8).reshape(len(r), lts)
+            d_r = dbl[r]
+            pieces = []
+            for name_len in self.groups:
+                idx, tmpl, (ts_off, offs) = self._layout(lts, name_len)
+                arr = np.empty((len(r), *tmpl.shape), np.uint8)
+                arr[:] = tmpl
+                arr[:, :, ts_off:ts_off + lts] = tsa[:, None, :]
+                d = d_r[:, idx]
+                for k, o in enumerate(offs):
+                    arr[:, :, o:o + 8] = d[:, :, k]
+                pieces.append(arr.reshape(len(r), -1))
+            msgs = np.concatenate(pieces, axis=1) if len(pieces) > 1 else pieces[0]
+            for j, i in enumerate(rows_i):
+                out[i] = msgs[j].tobytes()
+        return out

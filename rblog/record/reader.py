@@ -1,0 +1,422 @@
+"""Read an rblog log (.rrd or .mcap) back into one :class:`~rblog.trajectory.Trajectory`.
+
+Only the canonical channels are read (``rblog/...`` entities, ``/rblog/...`` topics; see
+docs/log-format.md); their float64 values come back bit-identical to what was written. A file
+cut short (a killed writer) is read up to its last complete record and marked ``truncated``.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import tempfile
+import warnings
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import LogReadError
+from ..trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Contacts, Trajectory
+from . import _common as C
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+RRD_MAGIC = b"RRF2"
+
+_CONTACT_INT = {"step": np.int64, "body_a": np.int64, "body_b": np.int64, "kind": np.int8}
+_CONTACT_VEC = ("point", "normal", "friction_impulse")
+
+
+def load(path: str | os.PathLike) -> Trajectory:
+    """Read a log written by rblog (or by any program following docs/log-format.md).
+
+    Raises LogReadError (one line, naming the file) when the file is missing, is not a log of a
+    known format, or holds no readable sample.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise LogReadError(str(path), "no such file")
+    if p.is_dir():
+        raise LogReadError(str(path), "is a directory, not a log file")
+    try:
+        with open(p, "rb") as f:
+            head = f.read(8)
+    except OSError as e:
+        raise LogReadError(str(path), e.strerror or str(e)) from None
+    if not head:
+        raise LogReadError(str(path), "empty file")
+    if head.startswith(MCAP_MAGIC[: len(head)]) and len(head) == 8:
+        return _load_mcap(p)
+    if head.startswith(RRD_MAGIC):
+        return _load_rrd(p)
+    if p.suffix.lower() in (".mcap", ".rrd") and len(head) < 8:
+        raise LogReadError(str(path), "file too short to hold a log")
+    raise LogReadError(str(path), "not an MCAP or Rerun (.rrd) log (unrecognized file header)")
+
+
+# --- assembling ---------------------------------------------------------------------------------
+
+class _Collector:
+    """Gathers static records, samples and contacts from either format and builds the result."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.run: dict[str, object] | None = None
+        self.model: dict[str, object] | None = None
+        self.status: dict[str, object] | None = None
+        self.samples: dict[str, list[np.ndarray]] = {k: [] for k in ("step", "t", *C.STATE_CHANNELS)}
+        self.contacts: list[dict[str, np.ndarray]] = []
+        self.cut: str | None = None  # why reading stopped early, if it did
+        self.warnings: list[str] = []
+
+    def add_samples(self, cols: dict[str, np.ndarray], n: int) -> None:
+        """cols: 'step' (R,), 't' (R,), and each state channel (R, k) for R samples."""
+        R = len(cols["step"])
+        good = np.ones(R, bool)
+        if np.shape(cols.get("t")) != (R,):
+            good[:] = False
+        for name in C.STATE_CHANNELS:
+            a = cols.get(name)
+            if a is None or a.shape != (R, C.expected_width(name, n)):
+                good[:] = False
+        if not good.all():
+            self.warnings.append(f"dropped {int((~good).sum())} sample(s) with missing or "
+                                 "mis-sized channels")
+            if not good.any():
+                return
+        for k in self.samples:
+            self.samples[k].append(np.asarray(cols[k])[good])
+
+    def build(self) -> Trajectory:
+        where = str(self.path)
+        if self.run is None or self.model is None:
+            if self.cut:
+                raise LogReadError(where, f"no readable run record ({self.cut})")
+            raise LogReadError(where, "no rblog run record: not a log written by rblog")
+        try:
+            model = C.model_from_arrays(self.model)
+            info = C.info_from_fields(self.run)
+        except (KeyError, ValueError, TypeError) as e:
+            raise LogReadError(where, f"malformed run record ({e})") from None
+        n = model.n_bodies
+        if self.samples["step"]:
+            cat = {k: np.concatenate(v) for k, v in self.samples.items()}
+        else:
+            cat = {"step": np.zeros(0, np.int64), "t": np.zeros(0)}
+            cat.update({k: np.zeros((0, C.expected_width(k, n))) for k in C.STATE_CHANNELS})
+        order = np.argsort(cat["step"], kind="stable")
+        T = len(order)
+        kw = {"step": cat["step"][order].astype(np.int64), "t": cat["t"][order].astype(np.float64)}
+        for name, shape in BODY_CHANNELS.items():
+            kw[name] = cat[name][order].astype(np.float64, copy=False).reshape(T, n, *shape)
+        for name, shape in TOTAL_CHANNELS.items():
+            kw[name] = cat[name][order].astype(np.float64, copy=False).reshape(T, *shape)
+        truncated = False
+        warns = list(self.warnings)
+        if self.status is None:
+            truncated = True
+            why = self.cut or "the log has no end record"
+            warns.insert(0, f"log ends early ({why}); the writer did not close it, read {T} samples")
+        elif bool(self.status.get("truncated", False)):
+            truncated = True
+            reason = str(self.status.get("reason") or "")
+            warns.insert(0, f"run ended early: {reason}" if reason else "run ended early")
+        elif self.cut:
+            truncated = True
+            warns.insert(0, f"log ends early ({self.cut}); read {T} samples")
+        if truncated and T == 0:
+            raise LogReadError(where, "log ends before its first sample"
+                               + (f" ({self.cut})" if self.cut else ""))
+        return Trajectory(model=model, info=info, contacts=self._contacts(), truncated=truncated,
+                          warnings=warns, **kw)
+
+    def _contacts(self) -> Contacts:
+        if not self.contacts:
+            return Contacts.empty()
+        kw = {}
+        for f in fields(Contacts):
+            a = np.concatenate([c[f.name] for c in self.contacts])
+            if f.name in _CONTACT_INT:
+                kw[f.name] = a.astype(_CONTACT_INT[f.name])
+            elif f.name in _CONTACT_VEC:
+                kw[f.name] = a.astype(np.float64, copy=False).reshape(-1, 3)
+            else:
+                kw[f.name] = a.astype(np.float64, copy=False)
+        return Contacts(**kw)
+
+
+# --- MCAP ---------------------------------------------------------------------------------------
+
+def _load_mcap(path: Path) -> Trajectory:
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    col = _Collector(path)
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    decoders: dict[int, object] = {}
+    factory = DecoderFactory()
+    state_rows: list = []
+    n_bodies: int | None = None
+
+    def flush_state():
+        if state_rows and n_bodies is not None:
+            col.add_samples(_state_columns(state_rows), n_bodies)
+        state_rows.clear()
+
+    try:
+        with open(path, "rb") as f:
+            reader = StreamReader(f, validate_crcs=True)
+            for rec in reader.records:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec
+                elif isinstance(rec, Channel):
+                    channels[rec.id] = rec
+                elif isinstance(rec, Message):
+                    ch = channels.get(rec.channel_id)
+                    sch = schemas.get(ch.schema_id) if ch else None
+                    if sch is None or not sch.name.startswith("rblog."):
+                        continue
+                    dec = decoders.get(sch.id)
+                    if dec is None:
+                        dec = decoders[sch.id] = factory.decoder_for(ch.message_encoding, sch)
+                    if dec is None:
+                        continue
+                    msg = dec(rec.data)
+                    kind = sch.name[len("rblog."):]
+                    if kind == "State":
+                        state_rows.append(msg)
+                        if len(state_rows) >= 4096:
+                            flush_state()
+                    elif kind == "Contacts":
+                        col.contacts.append(_contacts_of(msg))
+                    elif kind == "Run":
+                        col.run, col.model = _run_of(msg)
+                        n_bodies = len(col.model["body_name"])
+                    elif kind == "Status":
+                        col.status = {"complete": msg.complete, "truncated": msg.truncated,
+                                      "reason": msg.reason}
+    except Exception as e:  # noqa: BLE001 - any failure past the header means a cut/corrupt tail
+        col.cut = _short(e, "the file is cut or corrupt after this point")
+    flush_state()
+    if n_bodies is None and col.run is None and col.cut and not schemas:
+        raise LogReadError(str(path), f"unreadable MCAP file ({col.cut})")
+    return col.build()
+
+
+def _short(e: BaseException, fallback: str) -> str:
+    msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
+    name = type(e).__name__
+    return f"{name}: {msg}"[:200] if msg else f"{name}: {fallback}"
+
+
+def _state_columns(rows: list) -> dict[str, np.ndarray]:
+    cols: dict[str, np.ndarray] = {
+        "step": np.array([m.step for m in rows], np.int64),
+        "t": np.array([m.t for m in rows], np.float64),
+        "total_energy": np.array([m.total_energy for m in rows], np.float64).reshape(-1, 1),
+    }
+    for name in C.STATE_CHANNELS:
+        if name == "total_energy":
+            continue
+        lists = [getattr(m, name) for m in rows]
+        width = len(lists[0])
+        if all(len(x) == width for x in lists):
+            cols[name] = np.array(lists, np.float64).reshape(len(rows), width)
+        else:  # ragged: let add_samples drop the whole batch with a warning
+            cols[name] = np.zeros((len(rows), 0))
+    return cols
+
+
+def _contacts_of(msg) -> dict[str, np.ndarray]:
+    k = len(msg.body_a)
+    out = {
+        "step": np.full(k, msg.step, np.int64),
+        "t": np.full(k, msg.t, np.float64),
+        "body_a": np.array(msg.body_a, np.int64),
+        "body_b": np.array(msg.body_b, np.int64),
+        "kind": np.array(msg.kind, np.int64),
+    }
+    for name in ("point", "normal", "separation", "normal_impulse", "friction_impulse"):
+        out[name] = np.array(getattr(msg, name), np.float64)
+    return out
+
+
+def _run_of(msg) -> tuple[dict, dict]:
+    run: dict[str, object] = {}
+    for name in C.INFO_FIELDS:
+        if name == "seed":
+            if msg.HasField("seed"):
+                run["seed"] = msg.seed
+        else:
+            run[name] = getattr(msg, name)
+    model: dict[str, object] = {}
+    for name, (kind, _) in C.MODEL_FIELDS.items():
+        v = getattr(msg, name)
+        if kind == "s":
+            model[name] = list(v)
+        elif name in ("ground", "ground_offset", "ground_restitution", "ground_friction"):
+            model[name] = np.array([v])
+        else:
+            model[name] = np.array(v, np.int64 if kind == "i" else np.float64)
+    return run, model
+
+
+# --- Rerun --------------------------------------------------------------------------------------
+
+def _load_rrd(path: Path) -> Trajectory:
+    col = _Collector(path)
+    try:
+        _read_rrd_into(col, path)
+    except Exception as e:  # noqa: BLE001 - the SDK reports a cut file as a RuntimeError
+        first = _short(e, "unreadable")
+        prefix_len = _rrd_complete_prefix(path)
+        if prefix_len is None:
+            raise LogReadError(str(path), f"unreadable Rerun file ({first})") from None
+        col = _Collector(path)
+        col.cut = "the file is cut after its last complete message"
+        fd, tmp = tempfile.mkstemp(suffix=".rrd")
+        try:
+            with os.fdopen(fd, "wb") as out, open(path, "rb") as src:
+                remaining = prefix_len
+                while remaining:
+                    buf = src.read(min(remaining, 1 << 24))
+                    if not buf:
+                        break
+                    out.write(buf)
+                    remaining -= len(buf)
+            try:
+                _read_rrd_into(col, Path(tmp))
+            except Exception as e2:  # noqa: BLE001
+                raise LogReadError(str(path), f"unreadable Rerun file ({_short(e2, first)})") from None
+        finally:
+            os.unlink(tmp)
+        col.path = path
+    return col.build()
+
+
+def _rrd_complete_prefix(path: Path) -> int | None:
+    """Length of the longest prefix of complete messages of an .rrd file, or None if the file
+    does not even have a stream header.
+
+    Stream framing (rerun 0.41): a 12-byte header ``RRF2`` + version + options, then messages of
+    ``kind: u64 LE, length: u64 LE, payload[length]``; kind 0 ends the stream.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        head = f.read(12)
+        if len(head) < 12 or not head.startswith(RRD_MAGIC):
+            return None
+        off = 12
+        while off + 16 <= size:
+            f.seek(off)
+            kind, length = struct.unpack("<QQ", f.read(16))
+            if off + 16 + length > size:
+                break
+            off += 16 + length
+            if kind == 0:
+                break
+    return off
+
+
+def _read_rrd_into(col: _Collector, path: Path) -> None:
+    import rerun as rr
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "no footer" on cut or streamed files: expected
+        reader = rr.chunk.RrdReader(path)
+        recs = reader.recordings()
+        if not recs:
+            raise LogReadError(str(col.path), "Rerun file holds no recording")
+        stores = [s for s in recs if s.application_id == C.APPLICATION_ID] or recs
+        state: list[dict[str, np.ndarray]] = []
+        for chunk in reader.stream(store=stores[0]):
+            ent = chunk.entity_path.lstrip("/")
+            if not ent.startswith("rblog/"):
+                continue
+            batch = chunk.to_record_batch()
+            comps = _components(batch)
+            if ent == "rblog/run":
+                col.run = {**(col.run or {}), **{k: _scalar(v[-1]) for k, v in comps.items()
+                                                 if v and v[-1] is not None and len(v[-1])}}
+            elif ent == "rblog/model":
+                col.model = {**(col.model or {}), **{k: v[-1] for k, v in comps.items()
+                                                     if v and v[-1] is not None}}
+            elif ent == "rblog/status":
+                col.status = {k: _scalar(v[-1]) for k, v in comps.items() if v and v[-1] is not None}
+            elif ent == "rblog/state":
+                if "step" in batch.schema.names:
+                    comps["step"] = np.asarray(batch.column("step").to_numpy(), np.int64)
+                state.append(comps)
+            elif ent == "rblog/contacts":
+                _rrd_contacts(col, comps)
+    if col.model is None:
+        return
+    n = len(col.model["body_name"])
+    for comps in state:
+        col.add_samples(_rrd_state_columns(comps, n), n)
+
+
+def _components(batch) -> dict[str, list]:
+    """Data columns of a chunk, by component name: one array (or None) per row."""
+    out: dict[str, list] = {}
+    for i, field in enumerate(batch.schema):
+        meta = field.metadata or {}
+        if meta.get(b"rerun:kind") != b"data":
+            continue
+        name = (meta.get(b"rerun:component") or field.name.encode()).decode()
+        name = name.rsplit(":", 1)[-1]
+        out[name] = _rows(batch.column(i))
+    return out
+
+
+def _rows(column) -> list:
+    """A list<T> column as one numpy array (or list of str) per row; None for null rows."""
+    import pyarrow as pa
+
+    values = column.values
+    offsets = np.asarray(column.offsets.to_numpy(zero_copy_only=False), np.int64)
+    if pa.types.is_string(values.type) or pa.types.is_large_string(values.type):
+        flat = values.to_pylist()
+    else:
+        flat = values.to_numpy(zero_copy_only=False)
+    valid = column.is_valid().to_numpy(zero_copy_only=False)
+    return [flat[offsets[i]:offsets[i + 1]] if valid[i] else None for i in range(len(column))]
+
+
+def _scalar(v):
+    if isinstance(v, list):
+        return v[0] if v else None
+    a = np.asarray(v)
+    return a.reshape(-1)[0].item() if a.size else None
+
+
+def _rrd_state_columns(comps: dict[str, list], n: int) -> dict[str, np.ndarray]:
+    R = len(comps.get("step", []))
+    cols: dict[str, np.ndarray] = {"step": comps.get("step", np.zeros(0, np.int64))}
+    for name in ("t", *C.STATE_CHANNELS):
+        rows = comps.get(name)
+        width = 1 if name == "t" else C.expected_width(name, n)
+        if rows is None or len(rows) != R or any(r is None or len(r) != width for r in rows):
+            cols[name] = np.zeros((R, 0))
+            continue
+        cols[name] = np.concatenate(rows).astype(np.float64, copy=False).reshape(R, width) if R \
+            else np.zeros((0, width))
+    if cols["t"].shape[1:] == (1,):
+        cols["t"] = cols["t"].reshape(-1)
+    return cols
+
+
+def _rrd_contacts(col: _Collector, comps: dict[str, list]) -> None:
+    names = [f.name for f in fields(Contacts)]
+    rows = len(comps.get("body_a", []))
+    for i in range(rows):
+        rec = {}
+        for name in names:
+            v = comps.get(name)
+            if v is None or v[i] is None:
+                break
+            rec[name] = np.asarray(v[i])
+        else:
+            col.contacts.append(rec)
