@@ -171,7 +171,7 @@ def polar(m):
         d = max(abs(n00 - a00), abs(n01 - a01), abs(n02 - a02), abs(n10 - a10), abs(n11 - a11),
                 abs(n12 - a12), abs(n20 - a20), abs(n21 - a21), abs(n22 - a22))
         a00, a01, a02, a10, a11, a12, a20, a21, a22 = n00, n01, n02, n10, n11, n12, n20, n21, n22
-        if d <= POLAR_TOL:
+        if d <= POLAR_TOL:  # quadratic convergence: the new iterate is within ~d^2 of the limit
             break
     return (a00, a01, a02, a10, a11, a12, a20, a21, a22)
 
@@ -204,6 +204,36 @@ def _qdot(w, x, y, z, m_inv, lx, ly, lz):
     ox, oy, oz = omega_world(m, m_inv[0], m_inv[1], m_inv[2], lx, ly, lz)
     dw, dx, dy, dz = quat_mul(0.0, ox, oy, oz, w, x, y, z)
     return 0.5 * dw, 0.5 * dx, 0.5 * dy, 0.5 * dz
+
+
+# Exact flows of H_k = Lb_k^2 / (2 I_k) over time s, given s/I_k: rotate the body about its own
+# axis k by theta = s Lb_k / I_k and Lb by -theta. Half-angle sine/cosine for the quaternion, the
+# full angle's from the double-angle formulas: one sin/cos pair per sub-step.
+@jit
+def _flow_x(w, x, y, z, b0, b1, b2, s_inv_i):
+    th = s_inv_i * b0
+    ch, sh = math.cos(0.5 * th), math.sin(0.5 * th)
+    c, sn = ch * ch - sh * sh, 2.0 * ch * sh
+    return (ch * w - sh * x, ch * x + sh * w, ch * y + sh * z, ch * z - sh * y,
+            b0, c * b1 + sn * b2, c * b2 - sn * b1)
+
+
+@jit
+def _flow_y(w, x, y, z, b0, b1, b2, s_inv_i):
+    th = s_inv_i * b1
+    ch, sh = math.cos(0.5 * th), math.sin(0.5 * th)
+    c, sn = ch * ch - sh * sh, 2.0 * ch * sh
+    return (ch * w - sh * y, ch * x - sh * z, ch * y + sh * w, ch * z + sh * x,
+            c * b0 - sn * b2, b1, c * b2 + sn * b0)
+
+
+@jit
+def _flow_z(w, x, y, z, b0, b1, b2, s_inv_i):
+    th = s_inv_i * b2
+    ch, sh = math.cos(0.5 * th), math.sin(0.5 * th)
+    c, sn = ch * ch - sh * sh, 2.0 * ch * sh
+    return (ch * w - sh * z, ch * x + sh * y, ch * y - sh * x, ch * z + sh * w,
+            c * b0 + sn * b1, c * b1 - sn * b0, b2)
 
 
 @jit
@@ -259,27 +289,12 @@ def drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_ine
         b0 = m00 * lx + m10 * ly + m20 * lz
         b1 = m01 * lx + m11 * ly + m21 * lz
         b2 = m02 * lx + m12 * ly + m22 * lz
-        for k in range(5):
-            axis = k if k < 3 else 4 - k
-            s = h if k == 2 else 0.5 * h
-            if axis == 0:
-                th = s * b0 * ii[0]
-                c, sn = math.cos(th), math.sin(th)
-                b1, b2 = c * b1 + sn * b2, -sn * b1 + c * b2
-                ch, sh = math.cos(0.5 * th), math.sin(0.5 * th)
-                w, x, y, z = quat_mul(w, x, y, z, ch, sh, 0.0, 0.0)
-            elif axis == 1:
-                th = s * b1 * ii[1]
-                c, sn = math.cos(th), math.sin(th)
-                b2, b0 = c * b2 + sn * b0, -sn * b2 + c * b0
-                ch, sh = math.cos(0.5 * th), math.sin(0.5 * th)
-                w, x, y, z = quat_mul(w, x, y, z, ch, 0.0, sh, 0.0)
-            else:
-                th = s * b2 * ii[2]
-                c, sn = math.cos(th), math.sin(th)
-                b0, b1 = c * b0 + sn * b1, -sn * b0 + c * b1
-                ch, sh = math.cos(0.5 * th), math.sin(0.5 * th)
-                w, x, y, z = quat_mul(w, x, y, z, ch, 0.0, 0.0, sh)
+        hh = 0.5 * h
+        w, x, y, z, b0, b1, b2 = _flow_x(w, x, y, z, b0, b1, b2, hh * ii[0])
+        w, x, y, z, b0, b1, b2 = _flow_y(w, x, y, z, b0, b1, b2, hh * ii[1])
+        w, x, y, z, b0, b1, b2 = _flow_z(w, x, y, z, b0, b1, b2, h * ii[2])
+        w, x, y, z, b0, b1, b2 = _flow_y(w, x, y, z, b0, b1, b2, hh * ii[1])
+        w, x, y, z, b0, b1, b2 = _flow_x(w, x, y, z, b0, b1, b2, hh * ii[0])
         w, x, y, z = normalize4(w, x, y, z)
         quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
         store_mat(rotation, i, quat_to_mat(w, x, y, z))

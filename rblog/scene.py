@@ -22,7 +22,7 @@ from .constants import QUAT_MIN_NORM
 
 INTEGRATORS = tuple(ORTHO_ALLOWED)
 #: the default integrator; chosen by benchmarks/bench_integrators.py (see benchmarks/RESULTS.md)
-DEFAULT_INTEGRATOR = "splitting"
+DEFAULT_INTEGRATOR = "rk4"
 
 SIM_KEYS = {"dt", "duration", "gravity", "integrator", "orthonormalize", "seed", "log_every",
             "log_rate"}

@@ -1,0 +1,188 @@
+"""Engine-core benchmark: ns per body-step of every integrator at 1, 100 and 10,000 free bodies,
+side by side with the comparators (the same `seed` step in pure numpy, vectorized over bodies),
+plus accuracy for cost on the tumbling box (what picks the default integrator), the kernels'
+first-run compile time and the warm start-up time of `rblog run`.
+
+    python benchmarks/bench_integrators.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from rblog.kernels import advance_free  # noqa: E402
+from rblog.rotation import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES  # noqa: E402
+from rblog.scene import parse_scene  # noqa: E402
+from rblog.simulate import simulate  # noqa: E402
+
+
+def random_bodies(n: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    inertia = rng.uniform(0.5, 2.0, (n, 3))
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    from rblog.rotation import quat_to_matrix_np
+
+    return dict(
+        inv_mass=np.ones(n), inv_inertia=1.0 / inertia, force=np.zeros((n, 3)) + [0, 0, -9.81],
+        torque=np.zeros((n, 3)), position=rng.normal(size=(n, 3)), momentum=rng.normal(size=(n, 3)),
+        quat=q, rot=quat_to_matrix_np(q), L=rng.normal(size=(n, 3)) * 2.0,
+    )
+
+
+def time_kernel(integrator: str, n: int, steps: int, repeats: int = 3) -> float:
+    """Best-of-repeats ns per body-step of advance_free (one sample at the end)."""
+    b = random_bodies(n)
+    ortho = ORTHO_CODES[ORTHO_ALLOWED[integrator][1]]
+    out = [np.empty((1, n, 3)), np.empty((1, n, 3)), np.empty((1, n, 4)), np.empty((1, n, 3, 3)),
+           np.empty((1, n, 3))]
+    best = np.inf
+    for _ in range(repeats):
+        st = [b["position"].copy(), b["momentum"].copy(), b["quat"].copy(), b["rot"].copy(), b["L"].copy()]
+        t0 = time.perf_counter()
+        advance_free(METHOD_CODES[integrator], ortho, 1e-3, steps, steps, False, b["inv_mass"],
+                     b["inv_inertia"], b["force"], b["torque"], *st, *out)
+        best = min(best, time.perf_counter() - t0)
+    return best / (n * steps) * 1e9
+
+
+def numpy_seed_step_ns(n: int, steps: int) -> float:
+    """The notes' step in plain numpy, vectorized over bodies (the comparator)."""
+    b = random_bodies(n)
+    x, p, r, lw = b["position"].copy(), b["momentum"].copy(), b["rot"].copy(), b["L"].copy()
+    f, im, ii, h = b["force"], b["inv_mass"][:, None], b["inv_inertia"], 1e-3
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        p += h * f
+        x += h * p * im
+        lb = np.einsum("nji,nj->ni", r, lw) * ii
+        w = np.einsum("nij,nj->ni", r, lb)
+        wx = np.zeros((n, 3, 3))
+        wx[:, 0, 1], wx[:, 0, 2], wx[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+        wx[:, 1, 0], wx[:, 2, 0], wx[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+        r = r + h * wx @ r
+        u, _, vt = np.linalg.svd(r)
+        r = u @ vt
+    return (time.perf_counter() - t0) / (n * steps) * 1e9
+
+
+TUMBLING = """
+[sim]
+dt = {dt}
+duration = 20.0
+gravity = [0, 0, 0]
+[[body]]
+shape = "box"
+half_extents = [0.3, 0.2, 0.1]
+mass = 1.0
+inertia_diag = [1.0, 2.0, 3.0]
+angular_velocity_body = [0.05, 2.0, 0.05]
+"""
+
+
+def exact_omega_y_flips():
+    """Sign changes of omega_y in [0, 20] s from the Jacobi-elliptic solution (scipy)."""
+    from scipy.special import ellipj, ellipk
+
+    i1, i2, i3 = 1.0, 2.0, 3.0
+    w0 = np.array([0.05, 2.0, 0.05])
+    e2 = np.sum(np.array([i1, i2, i3]) * w0**2)   # 2E
+    l2 = np.sum((np.array([i1, i2, i3]) * w0) ** 2)
+    # L^2 > 2E I2: omega_1 oscillates (dn), omega_2 and omega_3 are sn/cn-like
+    lam = np.sqrt((i3 - i2) * (l2 - e2 * i1) / (i1 * i2 * i3))
+    k2 = (i2 - i1) * (e2 * i3 - l2) / ((i3 - i2) * (l2 - e2 * i1))
+    K = ellipk(k2)
+    # omega_2 = w2max * sn(lam t + t0) up to sign; zeros at lam t + t0 = 2 K j
+    w2max = np.sqrt((e2 * i3 - l2) / (i2 * (i3 - i2)))
+    # phase: sn(t0) = w0[1]/w2max with the right quadrant (omega_2 decreasing? check cn sign)
+    from scipy.special import ellipkinc
+
+    u0 = ellipkinc(np.arcsin(np.clip(w0[1] / w2max, -1, 1)), k2)
+    # omega_2 is at (near) its maximum: u0 ~ K; zeros at u = 2K, 4K, ...
+    zeros = [(2 * K * j - u0) / lam for j in range(1, 10)]
+    return [z for z in zeros if 0 < z < 20], ellipj
+
+
+def flip_times(traj):
+    wb = np.einsum("tji,tj->ti", traj.rotation[:, 0], traj.angular_velocity[:, 0])
+    s = np.sign(wb[:, 1])
+    idx = np.nonzero(s[1:] != s[:-1])[0]
+    t = traj.t
+    # linear interpolation of the zero crossing
+    return [t[i] - wb[i, 1] * (t[i + 1] - t[i]) / (wb[i + 1, 1] - wb[i, 1]) for i in idx]
+
+
+def accuracy_for_cost(quick: bool):
+    exact, _ = exact_omega_y_flips()
+    rows = []
+    dts = [2e-2, 1e-2, 5e-3, 2e-3, 1e-3] if not quick else [1e-2, 2e-3]
+    for integ in METHOD_CODES:
+        for dt in dts:
+            scene = parse_scene(TUMBLING.format(dt=dt), "tumbling")
+            t0 = time.perf_counter()
+            traj, summ = simulate(scene, integrator=integ, log_every=1)
+            wall = time.perf_counter() - t0
+            ns = time_kernel(integ, 1, int(round(20 / dt)), repeats=2)
+            flips = flip_times(traj)
+            if len(flips) == len(exact):
+                err = max(abs(a - b) for a, b in zip(flips, exact))
+            else:
+                err = float("inf")
+            rows.append((integ, dt, ns * 20 / dt * 1e-9 * 1e3, err, summ.energy_drift_rel, len(flips)))
+    return exact, rows
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    steps = {1: 200_000, 100: 5_000, 10_000: 100}
+    if args.quick:
+        steps = {1: 20_000, 100: 500, 10_000: 10}
+
+    # compile time: fresh numba cache dir in a subprocess
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "rblog_cli.main", "run", str(ROOT / "samples/free_fall.toml"),
+                        "--no-log", "--duration", "0.001"], env=env, check=True, capture_output=True)
+        cold = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "rblog_cli.main", "run", str(ROOT / "samples/free_fall.toml"),
+                        "--no-log", "--duration", "0.001"], env=env, check=True, capture_output=True)
+        warm = time.perf_counter() - t0
+    rblog = shutil.which("rblog") or "rblog"
+    print(f"rblog run start-up: first run (compiling kernels) {cold:.1f} s, warm (cached) {warm:.2f} s")
+    print()
+    print("ns per body-step (lower is better), free bodies with gravity, one sample per call")
+    print(f"{'integrator':<12}" + "".join(f"{n:>12,d}" for n in steps) + "   bodies")
+    for integ in METHOD_CODES:
+        time_kernel(integ, 1, 10)  # load
+        print(f"{integ:<12}" + "".join(f"{time_kernel(integ, n, s):>12.1f}" for n, s in steps.items()))
+    np_steps = {1: 2000, 100: 200, 10_000: 5} if not args.quick else {1: 200, 100: 20, 10_000: 2}
+    print(f"{'numpy seed':<12}" + "".join(f"{numpy_seed_step_ns(n, s):>12.1f}" for n, s in np_steps.items())
+          + "   (comparator: the same step in vectorized numpy, SVD polar)")
+    print()
+    exact, rows = accuracy_for_cost(args.quick)
+    print("accuracy for cost: tumbling box (I = 1,2,3; omega0 = 0.05,2,0.05), 20 s; exact flips at "
+          + ", ".join(f"{t:.6f}" for t in exact) + " s")
+    print(f"{'integrator':<12}{'dt':>8}{'ms/run':>10}{'flip time err (s)':>20}{'energy drift':>15}")
+    for integ, dt, ms, err, ed, nf in rows:
+        e = f"{err:.2e}" if np.isfinite(err) else f"{nf} flips (wrong)"
+        print(f"{integ:<12}{dt:>8g}{ms:>10.3f}{e:>20}{ed:>15.2e}")
+
+
+if __name__ == "__main__":
+    main()
