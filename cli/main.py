@@ -141,6 +141,90 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, no_log, log_
         click.echo(f"  wrote {p}")
 
 
+@main.command()
+@click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=str))
+@click.option("--only", help="Comma-separated analyzers to run (default: all).")
+@click.option("--skip", help="Comma-separated analyzers to leave out.")
+@click.option("--tol", "tols", multiple=True, metavar="ANALYZER.NAME=VALUE",
+              help="Override a tolerance, e.g. --tol penetration.max_depth_m=2e-3 (repeatable).")
+@click.option("--list", "list_only", is_flag=True, help="List the analyzers and their tolerances.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON document.")
+def check(logs, only, skip, tols, list_only, as_json):
+    """Audit saved logs (.rrd or .mcap): rigidity, collision momentum, resting-contact
+    penetration, energy, tunneling. Exit 0 when clean, 1 when something is flagged, 2 when a file
+    cannot be read."""
+    from rblog.analyze import ANALYZERS, check as run_checks
+    from rblog.record.reader import load
+
+    if list_only:
+        for name, cls in ANALYZERS.items():
+            click.echo(f"{name:<14} {cls.description}")
+        return
+    names = set(ANALYZERS)
+    sel_only = _names(only, names, "--only")
+    sel_skip = _names(skip, names, "--skip")
+    tolerances = {}
+    for t in tols:
+        key, eq, val = t.partition("=")
+        try:
+            tolerances[key.strip()] = float(val)
+        except ValueError:
+            _fail(RblogError(f"--tol {t}: expected ANALYZER.NAME=NUMBER"))
+        if not eq or key.split(".")[0] not in names:
+            _fail(RblogError(f"--tol {t}: expected ANALYZER.NAME=NUMBER with ANALYZER one of "
+                             f"{', '.join(sorted(names))}"))
+    report, flagged = [], False
+    for path in logs:
+        try:
+            traj = load(path)
+            results = run_checks(traj, only=sel_only, skip=sel_skip, tolerances=tolerances)
+        except RblogError as e:
+            _fail(e)
+        for w in traj.warnings:
+            click.echo(f"rblog: warning: {path}: {w}", err=True)
+        flagged |= any(not r.passed and not r.skipped for r in results)
+        report.append({"log": path, "samples": traj.n_samples, "bodies": traj.n_bodies,
+                       "truncated": traj.truncated, "warnings": list(traj.warnings),
+                       "results": [r.to_dict() for r in results]})
+        if not as_json:
+            _print_report(path, traj, results)
+    if as_json:
+        click.echo(json.dumps({"logs": report, "passed": not flagged}, indent=1))
+    sys.exit(1 if flagged else 0)
+
+
+def _names(csv, known, opt):
+    if not csv:
+        return None
+    out = [n.strip() for n in csv.split(",") if n.strip()]
+    bad = [n for n in out if n not in known]
+    if bad:
+        _fail(RblogError(f"{opt}: unknown analyzer {bad[0]!r} (expected one of "
+                         f"{', '.join(sorted(known))})"))
+    return out
+
+
+def _print_report(path, traj, results):
+    names = traj.model.body_name
+    flag = " (truncated)" if traj.truncated else ""
+    click.echo(f"{path}: {traj.n_samples} samples x {traj.n_bodies} bodies, "
+               f"t = 0..{traj.t[-1] if traj.n_samples else 0:g} s{flag}")
+    for r in results:
+        verdict = "SKIP" if r.skipped else ("pass" if r.passed else "FAIL")
+        line = f"  {verdict:<4} {r.analyzer:<14}"
+        if not r.skipped:
+            line += f" worst {r.worst_value:.3g} {r.unit} (tol {r.tolerance:.3g})"
+            if r.worst_t is not None:
+                line += f" at t = {r.worst_t:.4g} s, step {r.worst_step}"
+            if r.worst_bodies:
+                shown = ", ".join(names[b] if 0 <= b < len(names) else "static" for b in r.worst_bodies[:3])
+                more = f" +{len(r.worst_bodies) - 3}" if len(r.worst_bodies) > 3 else ""
+                line += f" [{shown}{more}]"
+        click.echo(line)
+        if r.reason:
+            click.echo(f"       {r.reason}")
+
+
 def _recorders(scene, rrd, mcap, no_log, spawn, connect_url):
     """The log writers asked for; by default SCENE-STEM.rrd and SCENE-STEM.mcap in the cwd."""
     if no_log and (rrd or mcap):
