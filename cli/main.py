@@ -114,6 +114,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, no_log, log_
                 click.echo(f"{stage:<28} {why}", err=as_json)
         recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url)
         prog = _Progress(enabled=sys.stderr.isatty())
+        _sigterm_as_interrupt()
         try:
             summary = run_scene(
                 s, dt=dt, duration=duration, integrator=integrator, orthonormalize=orthonormalize,
@@ -223,6 +224,19 @@ def _print_report(path, traj, results):
         click.echo(line)
         if r.reason:
             click.echo(f"       {r.reason}")
+
+
+def _sigterm_as_interrupt():
+    """Let `kill` (SIGTERM) stop a run like Ctrl-C does, so the logs are finalized."""
+    import signal
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread (e.g. embedded use)
+        pass
 
 
 def _recorders(scene, rrd, mcap, no_log, spawn, connect_url):
