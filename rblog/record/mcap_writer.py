@@ -39,6 +39,10 @@ from . import schema as S
 CHUNK_BYTES = 1 << 20
 #: a chunk is also finalized (and the file flushed) when this much wall time passed since the last
 FLUSH_EVERY_S = 1.0
+#: chunk compression. Measured on 100 bodies (noisy float64 state): none 362, lz4 332, zstd 301
+#: bytes per body-sample at ~1 : 1.3 : 2.5 write cost; smooth or resting states compress far
+#: better. lz4 is the cheap middle; Foxglove and Rerun read all three.
+DEFAULT_COMPRESSION = "lz4"
 
 TOPIC_RUN = "/rblog/run"
 TOPIC_STATE = "/rblog/state"
@@ -49,34 +53,34 @@ TOPIC_TF = "/tf"
 TOPIC_SCENE = "/scene"
 
 
-def _compression() -> CompressionType:
-    """zstd when the ``zstandard`` package is present (a dependency of ``mcap``), else lz4, else
-    none. Overridable with ``RBLOG_MCAP_COMPRESSION`` = zstd | lz4 | none."""
-    import os
+_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                "none": CompressionType.NONE}
 
-    want = os.environ.get("RBLOG_MCAP_COMPRESSION", "").lower()
-    table = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
-    if want in table:
-        return table[want]
-    try:
-        import zstandard  # noqa: F401
 
-        return CompressionType.ZSTD
-    except ImportError:
-        pass
-    try:
-        import lz4  # noqa: F401
-
-        return CompressionType.LZ4
-    except ImportError:
-        return CompressionType.NONE
+def _compression(name: str) -> CompressionType:
+    """The chunk compression: ``name`` if its package is importable (``lz4`` and ``zstandard``
+    are dependencies of ``mcap``), else none."""
+    if name == "zstd":
+        try:
+            import zstandard  # noqa: F401
+        except ImportError:
+            return CompressionType.NONE
+    elif name == "lz4":
+        try:
+            import lz4.frame  # noqa: F401
+        except ImportError:
+            return CompressionType.NONE
+    return _COMPRESSION[name]
 
 
 class McapRecorder:
     """Records a run into ``path`` (.mcap). See docs/log-format.md for the layout."""
 
-    def __init__(self, path: str):
+    def __init__(self, path: str, *, compression: str = DEFAULT_COMPRESSION):
+        if compression not in _COMPRESSION:
+            raise ValueError(f"compression must be one of {sorted(_COMPRESSION)}")
         self.path = str(path)
+        self.compression = compression
         self._fh = None
         self._w: Writer | None = None
         self._closed = False
@@ -96,7 +100,7 @@ class McapRecorder:
             self._model = model
             self._n = model.n_bodies
             self._names = C.view_names(model.body_name)
-            self._w = Writer(self._fh, chunk_size=CHUNK_BYTES, compression=_compression())
+            self._w = Writer(self._fh, chunk_size=CHUNK_BYTES, compression=_compression(self.compression))
             self._w.start(profile="", library=f"rblog {__version__}")
             self._register_channels()
             self._write_run(model, info)
@@ -325,9 +329,11 @@ class _TfEncoder:
         self.names = [n.encode("ascii") for n in names]
         for i, nb in enumerate(self.names):
             self.groups.setdefault(len(nb), []).append(i)
+        self.group_idx = {k: np.array(v) for k, v in self.groups.items()}
         self._cache: dict[tuple[int, int], tuple] = {}
 
     def _layout(self, lts: int, name_len: int):
+        """Template bytes (bodies, L) and a structured dtype addressing the variable fields."""
         key = (lts, name_len)
         if key not in self._cache:
             idx = self.groups[name_len]
@@ -336,53 +342,58 @@ class _TfEncoder:
             rotation_hdr = S.tag(5, 2) + S.varint(36)
             sub_len = (2 + lts) + len(head_after_ts) + (len(S.tag(3, 2)) + len(S.varint(name_len))
                                                         + name_len) + 2 + 27 + 2 + 36
-            rows, offsets = [], None
+            rows, offs = [], {}
             for i in idx:
                 parts = [S.tag(1, 2) + S.varint(sub_len), S.tag(1, 2) + S.varint(lts)]
-                ts_off = sum(map(len, parts))
+                offs["ts"] = sum(map(len, parts))
                 parts += [b"\0" * lts, head_after_ts, S.len_field(3, self.names[i]), translation_hdr]
-                offs = []
-                for k, fno in enumerate((1, 2, 3)):
+                for fno, key_ in ((1, "x"), (2, "y"), (3, "z")):
                     parts.append(S.tag(fno, 1))
-                    offs.append(sum(map(len, parts)))
+                    offs[key_] = sum(map(len, parts))
                     parts.append(b"\0" * 8)
                 parts.append(rotation_hdr)
-                for fno in (1, 2, 3, 4):
+                for fno, key_ in ((1, "qx"), (2, "qy"), (3, "qz"), (4, "qw")):
                     parts.append(S.tag(fno, 1))
-                    offs.append(sum(map(len, parts)))
+                    offs[key_] = sum(map(len, parts))
                     parts.append(b"\0" * 8)
                 rows.append(b"".join(parts))
-                offsets = (ts_off, offs)
             tmpl = np.frombuffer(b"".join(rows), np.uint8).reshape(len(idx), -1)
-            self._cache[key] = (np.array(idx), tmpl, offsets)
+            names = list(offs)
+            dtype = np.dtype({"names": names,
+                              "formats": [(np.uint8, (lts,))] + ["<f8"] * 7,
+                              "offsets": [offs[k] for k in names], "itemsize": tmpl.shape[1]})
+            self._cache[(lts, name_len)] = (np.array(idx), tmpl, dtype)
         return self._cache[key]
 
     def rows(self, ns: np.ndarray, position: np.ndarray, quat_wxyz: np.ndarray) -> list[bytes]:
+        """One serialized FrameTransforms per sample: ns (T,), position (T, N, 3),
+        quat_wxyz (T, N, 4)."""
         T = len(ns)
         sec, nanos = np.divmod(ns, 1_000_000_000)
-        ts = [S.tag(1, 0) + S.varint(s) + S.tag(2, 0) + S.varint(n)
+        ts = [b"\x08" + S.varint(s) + b"\x10" + S.varint(n)
               for s, n in zip(sec.tolist(), nanos.tolist())]
-        # doubles in wire order: x, y, z, qx, qy, qz, qw
+        # per name-length group: (T, bodies, 7) doubles in wire order x, y, z, qx, qy, qz, qw
         dbl = np.concatenate([position, quat_wxyz[..., 1:], quat_wxyz[..., :1]], axis=-1)
-        dbl = np.ascontiguousarray(dbl, "<f8").view(np.uint8).reshape(T, -1, 7, 8)
+        per_group = {name_len: dbl[:, idx] for name_len, idx in self.group_idx.items()}
         out: list[bytes] = [b""] * T
         by_len: dict[int, list[int]] = {}
         for i, b in enumerate(ts):
             by_len.setdefault(len(b), []).append(i)
         for lts, rows_i in by_len.items():
-            r = np.array(rows_i)
-            tsa = np.frombuffer(b"".join(ts[i] for i in rows_i), np.uint8).reshape(len(r), lts)
-            d_r = dbl[r]
+            tg = len(rows_i)
+            r = slice(None) if tg == T else np.array(rows_i)
+            tsa = np.frombuffer(b"".join([ts[i] for i in rows_i]), np.uint8).reshape(tg, lts)
             pieces = []
-            for name_len in self.groups:
-                idx, tmpl, (ts_off, offs) = self._layout(lts, name_len)
-                arr = np.empty((len(r), *tmpl.shape), np.uint8)
-                arr[:] = tmpl
-                arr[:, :, ts_off:ts_off + lts] = tsa[:, None, :]
-                d = d_r[:, idx]
-                for k, o in enumerate(offs):
-                    arr[:, :, o:o + 8] = d[:, :, k]
-                pieces.append(arr.reshape(len(r), -1))
+            for name_len, d in per_group.items():
+                _, tmpl, dtype = self._layout(lts, name_len)
+                raw = np.empty((tg, tmpl.size), np.uint8)
+                raw.reshape(tg, *tmpl.shape)[:] = tmpl
+                sv = raw.view(dtype)  # (tg, bodies)
+                sv["ts"] = tsa[:, None, :]
+                dr = d[r]
+                for k, key in enumerate(("x", "y", "z", "qx", "qy", "qz", "qw")):
+                    sv[key] = dr[..., k]
+                pieces.append(raw)
             msgs = np.concatenate(pieces, axis=1) if len(pieces) > 1 else pieces[0]
             for j, i in enumerate(rows_i):
                 out[i] = msgs[j].tobytes()

@@ -160,9 +160,11 @@ def _load_mcap(path: Path) -> Trajectory:
     state_rows: list = []
     n_bodies: int | None = None
 
+    state_cls = None
+
     def flush_state():
-        if state_rows and n_bodies is not None:
-            col.add_samples(_state_columns(state_rows), n_bodies)
+        if state_rows and n_bodies is not None and state_cls is not None:
+            col.add_samples(_decode_states(state_rows, state_cls), n_bodies)
         state_rows.clear()
 
     try:
@@ -183,13 +185,16 @@ def _load_mcap(path: Path) -> Trajectory:
                         dec = decoders[sch.id] = factory.decoder_for(ch.message_encoding, sch)
                     if dec is None:
                         continue
-                    msg = dec(rec.data)
                     kind = sch.name[len("rblog."):]
-                    if kind == "State":
-                        state_rows.append(msg)
+                    if kind == "State":  # decoded in batches, see _decode_states
+                        if state_cls is None:
+                            state_cls = type(dec(b""))
+                        state_rows.append(rec.data)
                         if len(state_rows) >= 4096:
                             flush_state()
-                    elif kind == "Contacts":
+                        continue
+                    msg = dec(rec.data)
+                    if kind == "Contacts":
                         col.contacts.append(_contacts_of(msg))
                     elif kind == "Run":
                         col.run, col.model = _run_of(msg)
@@ -209,6 +214,116 @@ def _short(e: BaseException, fallback: str) -> str:
     msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
     name = type(e).__name__
     return f"{name}: {msg}"[:200] if msg else f"{name}: {fallback}"
+
+
+def _decode_states(datas: list[bytes], cls) -> dict[str, np.ndarray]:
+    """Decode serialized ``rblog.State`` messages into columns (R, width).
+
+    Fast path: messages of equal length whose tags and lengths are byte-identical (what any
+    encoder writing fixed-width fields produces) are stacked and sliced with numpy. Anything else
+    goes through the protobuf runtime with the log's own schema.
+    """
+    fields_by_number = {f.number: f.name for f in cls.DESCRIPTOR.fields}
+    by_len: dict[int, list[int]] = {}
+    for i, d in enumerate(datas):
+        by_len.setdefault(len(d), []).append(i)
+    parts: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
+    for length, idx in by_len.items():
+        group = [datas[i] for i in idx]
+        cols = _fast_states(group, fields_by_number) if length else None
+        if cols is None:
+            cols = _state_columns([cls.FromString(d) for d in group])
+        parts.append((np.array(idx), cols))
+    if len(parts) == 1:
+        return parts[0][1]
+    order = np.argsort(np.concatenate([p[0] for p in parts]), kind="stable")
+    out = {}
+    for name in parts[0][1]:
+        pieces = [p[1][name] for p in parts]
+        if len({x.shape[1:] for x in pieces}) != 1:  # ragged across groups
+            out[name] = np.zeros((len(order), 0))
+        else:
+            out[name] = np.concatenate(pieces)[order]
+    return out
+
+
+def _fast_states(group: list[bytes], fields_by_number: dict[int, str]) -> dict | None:
+    layout = _wire_layout(group[0])
+    if layout is None:
+        return None
+    L = len(group[0])
+    structure = np.ones(L, bool)
+    found: dict[str, tuple[int, int, int]] = {}
+    for number, wire_type, off, size in layout:
+        structure[off:off + size] = False
+        name = fields_by_number.get(number)
+        if name is None:
+            continue
+        if name in found:  # a repeated field written unpacked: use the slow path
+            return None
+        found[name] = (wire_type, off, size)
+    needed = ("step", "t", *C.STATE_CHANNELS)
+    if any(n not in found for n in needed):
+        return None
+    arr = np.frombuffer(b"".join(group), np.uint8).reshape(len(group), L)
+    if not (arr[:, structure] == arr[0, structure]).all():
+        return None
+    cols: dict[str, np.ndarray] = {}
+    for name in needed:
+        wire_type, off, size = found[name]
+        if size % 8 or wire_type not in (1, 2):
+            return None
+        block = np.ascontiguousarray(arr[:, off:off + size])
+        dtype = "<i8" if name == "step" else "<f8"
+        cols[name] = block.view(dtype).reshape(len(group), size // 8)
+    cols["step"] = cols["step"].reshape(-1).astype(np.int64)
+    cols["t"] = cols["t"].reshape(-1).astype(np.float64)
+    for name in C.STATE_CHANNELS:
+        cols[name] = cols[name].astype(np.float64)
+    return cols
+
+
+def _wire_layout(data: bytes) -> list[tuple[int, int, int, int]] | None:
+    """Top-level fields of a protobuf message: (number, wire type, payload offset, payload size);
+    None when the bytes do not parse."""
+    out = []
+    pos, end = 0, len(data)
+    try:
+        while pos < end:
+            key, pos = _read_varint(data, pos)
+            number, wire_type = key >> 3, key & 7
+            if wire_type == 0:
+                start = pos
+                _, pos = _read_varint(data, pos)
+                out.append((number, 0, start, pos - start))
+            elif wire_type == 1:
+                out.append((number, 1, pos, 8))
+                pos += 8
+            elif wire_type == 2:
+                size, pos = _read_varint(data, pos)
+                out.append((number, 2, pos, size))
+                pos += size
+            elif wire_type == 5:
+                out.append((number, 5, pos, 4))
+                pos += 4
+            else:
+                return None
+    except IndexError:
+        return None
+    return out if pos == end else None
+
+
+def _read_varint(data: bytes, pos: int) -> tuple[int, int]:
+    result = shift = 0
+    while True:
+        b = data[pos]
+        pos += 1
+        result |= (b & 0x7F) << shift
+        if not b & 0x80:
+            return result, pos
+        shift += 7
+        if shift > 63:
+            raise IndexError("varint too long")
 
 
 def _state_columns(rows: list) -> dict[str, np.ndarray]:
@@ -336,7 +451,7 @@ def _read_rrd_into(col: _Collector, path: Path) -> None:
             if not ent.startswith("rblog/"):
                 continue
             batch = chunk.to_record_batch()
-            comps = _components(batch)
+            comps = _components(batch) if ent != "rblog/state" else {}
             if ent == "rblog/run":
                 col.run = {**(col.run or {}), **{k: _scalar(v[-1]) for k, v in comps.items()
                                                  if v and v[-1] is not None and len(v[-1])}}
@@ -346,6 +461,7 @@ def _read_rrd_into(col: _Collector, path: Path) -> None:
             elif ent == "rblog/status":
                 col.status = {k: _scalar(v[-1]) for k, v in comps.items() if v and v[-1] is not None}
             elif ent == "rblog/state":
+                comps = _components(batch, flat=True)
                 if "step" in batch.schema.names:
                     comps["step"] = np.asarray(batch.column("step").to_numpy(), np.int64)
                 state.append(comps)
@@ -358,31 +474,40 @@ def _read_rrd_into(col: _Collector, path: Path) -> None:
         col.add_samples(_rrd_state_columns(comps, n), n)
 
 
-def _components(batch) -> dict[str, list]:
-    """Data columns of a chunk, by component name: one array (or None) per row."""
-    out: dict[str, list] = {}
+def _components(batch, flat: bool = False) -> dict[str, object]:
+    """Data columns of a chunk, by component name: with ``flat``, (values, offsets, valid) numpy
+    triples; otherwise one array (or list of str, or None) per row."""
+    out: dict[str, object] = {}
     for i, field in enumerate(batch.schema):
         meta = field.metadata or {}
         if meta.get(b"rerun:kind") != b"data":
             continue
         name = (meta.get(b"rerun:component") or field.name.encode()).decode()
         name = name.rsplit(":", 1)[-1]
-        out[name] = _rows(batch.column(i))
+        out[name] = _flat(batch.column(i)) if flat else _rows(batch.column(i))
     return out
+
+
+def _flat(column):
+    """A list<T> column as (values, offsets, valid) numpy arrays."""
+    import pyarrow as pa
+
+    values = column.values
+    if pa.types.is_string(values.type) or pa.types.is_large_string(values.type):
+        flat = np.array(values.to_pylist(), dtype=object)
+    else:
+        flat = values.to_numpy(zero_copy_only=False)
+    offsets = np.asarray(column.offsets.to_numpy(zero_copy_only=False), np.int64)
+    valid = np.asarray(column.is_valid().to_numpy(zero_copy_only=False), bool)
+    return flat, offsets, valid
 
 
 def _rows(column) -> list:
     """A list<T> column as one numpy array (or list of str) per row; None for null rows."""
-    import pyarrow as pa
-
-    values = column.values
-    offsets = np.asarray(column.offsets.to_numpy(zero_copy_only=False), np.int64)
-    if pa.types.is_string(values.type) or pa.types.is_large_string(values.type):
-        flat = values.to_pylist()
-    else:
-        flat = values.to_numpy(zero_copy_only=False)
-    valid = column.is_valid().to_numpy(zero_copy_only=False)
-    return [flat[offsets[i]:offsets[i + 1]] if valid[i] else None for i in range(len(column))]
+    flat, offsets, valid = _flat(column)
+    if flat.dtype == object:
+        flat = list(flat)
+    return [flat[offsets[i]:offsets[i + 1]] if valid[i] else None for i in range(len(valid))]
 
 
 def _scalar(v):
@@ -392,17 +517,25 @@ def _scalar(v):
     return a.reshape(-1)[0].item() if a.size else None
 
 
-def _rrd_state_columns(comps: dict[str, list], n: int) -> dict[str, np.ndarray]:
-    R = len(comps.get("step", []))
-    cols: dict[str, np.ndarray] = {"step": comps.get("step", np.zeros(0, np.int64))}
+def _rrd_state_columns(comps: dict[str, object], n: int) -> dict[str, np.ndarray]:
+    """(values, offsets, valid) per channel -> (R, width) arrays; a channel whose rows are not all
+    present with the expected width becomes (R, 0) so that add_samples drops the rows."""
+    step = comps.get("step")
+    R = 0 if step is None else len(step)
+    cols: dict[str, np.ndarray] = {"step": step if step is not None else np.zeros(0, np.int64)}
     for name in ("t", *C.STATE_CHANNELS):
-        rows = comps.get(name)
         width = 1 if name == "t" else C.expected_width(name, n)
-        if rows is None or len(rows) != R or any(r is None or len(r) != width for r in rows):
+        got = comps.get(name)
+        ok = got is not None
+        if ok:
+            values, offsets, valid = got
+            ok = (len(valid) == R and bool(valid.all()) and len(offsets) == R + 1
+                  and bool((np.diff(offsets) == width).all()) and values.dtype != object)
+        if not ok:
             cols[name] = np.zeros((R, 0))
             continue
-        cols[name] = np.concatenate(rows).astype(np.float64, copy=False).reshape(R, width) if R \
-            else np.zeros((0, width))
+        cols[name] = values[offsets[0]:offsets[0] + R * width].astype(np.float64, copy=False) \
+            .reshape(R, width)
     if cols["t"].shape[1:] == (1,):
         cols["t"] = cols["t"].reshape(-1)
     return cols

@@ -1,0 +1,329 @@
+"""Write a run to a Rerun recording (.rrd file, live viewer, or both). See docs/log-format.md.
+
+Everything goes through a dedicated ``rr.RecordingStream`` (never the global one), one
+``send_columns`` call per entity per block: the float64 canonical channels under ``rblog/...`` and
+the float32 view entities under ``world/...`` and ``plots/...``. Arrow arrays are built straight
+from the block's numpy buffers (no per-sample Python).
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+
+import numpy as np
+import pyarrow as pa
+import rerun as rr
+import rerun.blueprint as rrb
+
+from ..errors import LogWriteError
+from ..model import SHAPE_SPHERE, Model
+from ..trajectory import Contacts, RunInfo, Trajectory
+from . import _common as C
+
+#: the file sink is flushed (blocking) at most this often (wall s); the SDK also flushes on its
+#: own every 200 ms or 1 MiB
+FLUSH_EVERY_S = 1.0
+#: default gRPC address of a viewer started with ``spawn=True``
+SPAWN_PORT = 9876
+
+_PALETTE = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189],
+                     [140, 86, 75], [227, 119, 194], [188, 189, 34], [23, 190, 207]], np.uint8)
+
+
+class _Column:
+    """A ready-made component column (``rr.ComponentColumn`` protocol) over an Arrow array."""
+
+    __slots__ = ("_desc", "_arr")
+
+    def __init__(self, desc: rr.ComponentDescriptor, values: pa.Array, offsets: np.ndarray):
+        self._desc = desc
+        self._arr = pa.ListArray.from_arrays(pa.array(np.asarray(offsets, np.int32)), values)
+
+    def component_descriptor(self) -> rr.ComponentDescriptor:
+        return self._desc
+
+    def as_arrow_array(self) -> pa.Array:
+        return self._arr
+
+
+def _fixed(values: np.ndarray, width: int, dtype=np.float32) -> pa.Array:
+    flat = np.ascontiguousarray(values, dtype).reshape(-1)
+    return pa.FixedSizeListArray.from_arrays(pa.array(flat), width)
+
+
+def _descriptors(columns) -> dict[str, rr.ComponentDescriptor]:
+    out = {}
+    for c in columns:
+        d = c.component_descriptor()
+        out[d.component.rsplit(":", 1)[-1]] = d
+    return out
+
+
+class RerunRecorder:
+    """Records a run to ``path`` (.rrd), and/or to a live viewer (``spawn`` / ``connect_url``)."""
+
+    def __init__(self, path: str | None, *, spawn: bool = False, connect_url: str | None = None):
+        self.path = None if path is None else str(path)
+        self.spawn = spawn
+        self.connect_url = connect_url
+        self._rec: rr.RecordingStream | None = None
+        self._closed = False
+        self._last_flush = 0.0
+        self.samples_written = 0
+
+    # --- lifecycle ------------------------------------------------------------------------------
+
+    def open(self, model: Model, info: RunInfo) -> None:
+        """Create the recording and its sinks, then log the static data and the blueprint."""
+        where = self.path or self.connect_url or "rerun viewer"
+        if self.path is None and not self.spawn and not self.connect_url:
+            raise LogWriteError(where, "no output: give a file path, spawn=True or connect_url")
+        if self.path is not None:
+            try:  # fail early, with the OS's words, before the SDK gets the path
+                with open(self.path, "wb"):
+                    pass
+            except OSError as e:
+                raise LogWriteError(self.path, e.strerror or str(e)) from None
+        self._model = model
+        self._n = model.n_bodies
+        self._names = C.view_names(model.body_name)
+        self._dt = float(info.dt) if info.dt else 1.0
+        rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=uuid.uuid4())
+        sinks = []
+        try:
+            if self.path is not None:
+                sinks.append(rr.FileSink(self.path))
+            url = self.connect_url
+            if self.spawn:
+                rr.spawn(port=SPAWN_PORT, connect=False, recording=rec)
+                url = url or f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"
+            if url:
+                sinks.append(rr.GrpcSink(url))
+            rec.set_sinks(*sinks, default_blueprint=_blueprint())
+        except (RuntimeError, ValueError, OSError) as e:
+            raise LogWriteError(where, str(e).splitlines()[0] if str(e) else type(e).__name__) from None
+        self._rec = rec
+        self._init_descriptors()
+        self._log_static(model, info)
+        self._flush(force=True)
+
+    def write(self, block: Trajectory) -> None:
+        """Append a block of samples (and its contacts): a few send_columns calls, no per-sample
+        Python."""
+        if self._rec is None or self._closed:
+            raise LogWriteError(self.path or "rerun", "recorder is not open")
+        T = len(block.t)
+        if T:
+            self._write_samples(block)
+        self._write_contacts(block)
+        self._flush()
+
+    def close(self, truncated: bool = False, reason: str | None = None) -> None:
+        """Log the status record, flush, and finalize the file (footer). Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        rec = self._rec
+        if rec is None:
+            return
+        try:
+            rec.log("rblog/status", rr.AnyValues(complete=np.array([not truncated]),
+                                                 truncated=np.array([bool(truncated)]),
+                                                 reason=reason or ""), static=True)
+            rec.flush()
+        finally:
+            rec.disconnect()  # closes the file sink: writes the footer
+            self._rec = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
+
+    # --- internals ------------------------------------------------------------------------------
+
+    def _init_descriptors(self):
+        z3, z4 = np.zeros((1, 3)), np.array([[0.0, 0.0, 0.0, 1.0]])
+        self._d_tf = _descriptors(rr.Transform3D.columns(translation=z3, quaternion=z4))
+        self._d_scalar = _descriptors(rr.Scalars.columns(scalars=[0.0]))["scalars"]
+        self._d_pts = _descriptors(rr.Points3D.columns(positions=z3))["positions"]
+        self._d_arrows = _descriptors(rr.Arrows3D.columns(vectors=z3, origins=z3))
+        self._d_any = {}
+
+    def _any(self, name: str) -> rr.ComponentDescriptor:
+        d = self._d_any.get(name)
+        if d is None:
+            d = self._d_any[name] = rr.ComponentDescriptor(name)
+        return d
+
+    def _log_static(self, model: Model, info: RunInfo):
+        rec = self._rec
+        run = {k: (np.array([v], np.int64) if isinstance(v, int) else v)
+               for k, v in C.info_to_fields(info).items()}
+        run["rblog_log_format"] = np.array([C.LOG_FORMAT_VERSION], np.int64)
+        rec.log("rblog/run", rr.AnyValues(**run), static=True)
+        rec.log("rblog/model", rr.AnyValues(**C.model_to_arrays(model)), static=True)
+
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        if model.ground:
+            center, q, half = C.ground_box(model)
+            rec.log("world/ground", rr.Boxes3D(centers=[center], half_sizes=[half],
+                                               quaternions=[rr.Quaternion(xyzw=[*q[1:], q[0]])],
+                                               colors=[[128, 128, 128, 160]], fill_mode="solid"),
+                    static=True)
+        for j in range(len(model.static_box_position)):
+            q = model.static_box_quat_wxyz[j]
+            rec.log(f"world/statics/{j}", rr.Boxes3D(
+                centers=[model.static_box_position[j]], half_sizes=[model.static_box_half_extents[j]],
+                quaternions=[rr.Quaternion(xyzw=[*q[1:], q[0]])], colors=[[150, 150, 165, 200]],
+                fill_mode="solid"), static=True)
+        for i, name in enumerate(self._names):
+            color = _PALETTE[i % len(_PALETTE)]
+            size = np.asarray(model.body_size[i], np.float64)
+            label = str(model.body_name[i])
+            if int(model.body_shape[i]) == SHAPE_SPHERE:
+                geom = rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], colors=[color], labels=[label],
+                                       fill_mode="solid")
+            else:
+                geom = rr.Boxes3D(half_sizes=[size], colors=[color], labels=[label],
+                                  fill_mode="solid")
+            rec.log(f"world/bodies/{name}", geom, static=True)
+        for ent, names in (("plots/momentum/linear", ["x", "y", "z"]),
+                           ("plots/momentum/angular", ["x", "y", "z"])):
+            rec.log(ent, rr.SeriesLines(names=names), static=True)
+        for ent, name in (("plots/energy/total", "total"),
+                          ("plots/energy/translational", "translational"),
+                          ("plots/energy/rotational", "rotational"),
+                          ("plots/energy/potential", "potential"),
+                          ("plots/error/ortho_max", "max |R^T R - I|"),
+                          ("plots/error/quat_norm_max", "max ||q| - 1|")):
+            rec.log(ent, rr.SeriesLines(names=[name]), static=True)
+        rec.log("world/contacts", rr.Points3D.from_fields(radii=[0.02], colors=[[230, 30, 30]]),
+                static=True)
+        rec.log("world/contacts/impulses", rr.Arrows3D.from_fields(colors=[[230, 120, 30]]),
+                static=True)
+
+    def _send(self, entity: str, indexes, columns):
+        self._rec.send_columns(entity, indexes=indexes, columns=columns)
+
+    def _write_samples(self, block: Trajectory):
+        T, n = len(block.t), self._n
+        a = C.block_arrays(block, n)
+        for name, arr in a.items():
+            if arr.shape[1] != C.expected_width(name, n):
+                raise ValueError(f"{name}: {arr.shape[1]} values per sample, expected "
+                                 f"{C.expected_width(name, n)} for {n} bodies")
+        step = np.asarray(block.step, np.int64)
+        t = np.ascontiguousarray(block.t, np.float64)
+        idx = [rr.TimeColumn("step", sequence=step),
+               rr.TimeColumn("sim_time", duration=C.time_ns(t).astype("timedelta64[ns]"))]
+        rows = np.arange(T + 1)
+        # canonical float64 state: one row per sample
+        cols = [_Column(self._any("t"), pa.array(t), rows)]
+        for name, arr in a.items():
+            cols.append(_Column(self._any(name), pa.array(arr.reshape(-1)), rows * arr.shape[1]))
+        self._send("rblog/state", idx, cols)
+
+        # per-body transforms (float32; view only)
+        pos = np.ascontiguousarray(a["position"].reshape(T, n, 3).transpose(1, 0, 2), np.float32)
+        q = a["quat_wxyz"].reshape(T, n, 4)
+        quat = np.ascontiguousarray(np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+                                    .transpose(1, 0, 2), np.float32)
+        d_tr, d_q = self._d_tf["translation"], self._d_tf["quaternion"]
+        for i, name in enumerate(self._names):
+            self._send(f"world/bodies/{name}", idx, [
+                _Column(d_tr, _fixed(pos[i], 3), rows), _Column(d_q, _fixed(quat[i], 4), rows)])
+
+        # plots
+        def scalars(entity, values):
+            v = np.ascontiguousarray(values, np.float64).reshape(T, -1)
+            self._send(entity, idx, [_Column(self._d_scalar, pa.array(v.reshape(-1)),
+                                             rows * v.shape[1])])
+
+        scalars("plots/energy/total", a["total_energy"])
+        scalars("plots/energy/translational", a["energy_translational"].sum(axis=1))
+        scalars("plots/energy/rotational", a["energy_rotational"].sum(axis=1))
+        scalars("plots/energy/potential", a["energy_potential"].sum(axis=1))
+        scalars("plots/momentum/linear", a["total_linear_momentum"])
+        scalars("plots/momentum/angular", a["total_angular_momentum"])
+        scalars("plots/error/ortho_max", a["ortho_error"].max(axis=1) if n else np.zeros(T))
+        scalars("plots/error/quat_norm_max",
+                np.abs(a["quat_norm_error"]).max(axis=1) if n else np.zeros(T))
+        self.samples_written += T
+
+    def _write_contacts(self, block: Trajectory):
+        c: Contacts = block.contacts
+        T = len(block.t)
+        if len(c):
+            step = np.asarray(c.step, np.int64)
+            t = np.asarray(c.t, np.float64)
+            cut = np.flatnonzero((step[1:] != step[:-1]) | (t[1:] != t[:-1])) + 1
+            bounds = np.concatenate([[0], cut, [len(step)]])
+            first = bounds[:-1]
+            idx = [rr.TimeColumn("step", sequence=step[first]),
+                   rr.TimeColumn("sim_time", duration=C.time_ns(t[first]).astype("timedelta64[ns]"))]
+            cols = []
+            for name in ("step", "body_a", "body_b", "kind"):
+                cols.append(_Column(self._any(name), pa.array(np.asarray(getattr(c, name), np.int64)),
+                                    bounds))
+            for name in ("t", "separation", "normal_impulse"):
+                cols.append(_Column(self._any(name),
+                                    pa.array(np.asarray(getattr(c, name), np.float64)), bounds))
+            for name in ("point", "normal", "friction_impulse"):
+                v = np.ascontiguousarray(getattr(c, name), np.float64).reshape(-1)
+                cols.append(_Column(self._any(name), pa.array(v), bounds * 3))
+            self._send("rblog/contacts", idx, cols)
+        if not T:
+            return
+        # view: the contacts of each sample's step (an empty row clears the previous ones)
+        bstep = np.asarray(block.step, np.int64)
+        if len(c):
+            cstep = np.asarray(c.step, np.int64)
+            keep = np.isin(cstep, bstep)
+            order = np.flatnonzero(keep)[np.argsort(cstep[keep], kind="stable")]
+            sorted_steps = cstep[order]
+            lo = np.searchsorted(sorted_steps, bstep, "left")
+            hi = np.searchsorted(sorted_steps, bstep, "right")
+            counts = hi - lo
+            sel = np.concatenate([order[l:h] for l, h in zip(lo, hi)]) if counts.sum() else \
+                np.zeros(0, np.int64)
+        else:
+            counts = np.zeros(T, np.int64)
+            sel = np.zeros(0, np.int64)
+        if not counts.any() and not getattr(self, "_had_contacts", False):
+            return  # nothing to show and nothing to clear
+        self._had_contacts = bool(counts[-1]) if T else False
+        offsets = np.concatenate([[0], np.cumsum(counts)])
+        idx = [rr.TimeColumn("step", sequence=bstep),
+               rr.TimeColumn("sim_time", duration=C.time_ns(block.t).astype("timedelta64[ns]"))]
+        pts = c.point[sel] if len(sel) else np.zeros((0, 3))
+        imp = (c.normal_impulse[sel, None] * c.normal[sel] + c.friction_impulse[sel]) if len(sel) \
+            else np.zeros((0, 3))
+        vec = imp / self._dt * C.CONTACT_ARROW_M_PER_N
+        self._send("world/contacts", idx, [_Column(self._d_pts, _fixed(pts, 3), offsets)])
+        self._send("world/contacts/impulses", idx, [
+            _Column(self._d_arrows["vectors"], _fixed(vec, 3), offsets),
+            _Column(self._d_arrows["origins"], _fixed(pts, 3), offsets)])
+
+    def _flush(self, force: bool = False):
+        now = time.monotonic()
+        if force or now - self._last_flush >= FLUSH_EVERY_S:
+            self._rec.flush()
+            self._last_flush = now
+
+
+def _blueprint() -> rrb.Blueprint:
+    """3D view of the world beside the energy, momentum and error plots."""
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(origin="world", name="bodies"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="plots/energy", name="energy (J)"),
+                rrb.TimeSeriesView(origin="plots/momentum", name="total momentum"),
+                rrb.TimeSeriesView(origin="plots/error", name="max drift errors"),
+            ),
+            column_shares=[3, 2],
+        ),
+    )
