@@ -121,9 +121,9 @@ class _Collector:
             truncated = True
             reason = str(self.status.get("reason") or "")
             warns.insert(0, f"run ended early: {reason}" if reason else "run ended early")
-        elif self.cut:
-            truncated = True
-            warns.insert(0, f"log ends early ({self.cut}); read {T} samples")
+        elif self.cut:  # the end record was read, so every sample was: only the index is hurt
+            warns.insert(0, f"the log's index or footer is damaged ({self.cut}); all {T} samples "
+                            "were read")
         if truncated and T == 0:
             raise LogReadError(where, "log ends before its first sample"
                                + (f" ({self.cut})" if self.cut else ""))
