@@ -192,7 +192,18 @@ def test_rerun_file_verifies(tmp_path, traj):
 
     reader = rr.chunk.RrdReader(path)
     assert reader.blueprints(), "default blueprint missing"
-    entities = {c.entity_path for c in reader.stream()}
+    chunks = list(reader.stream())
+    entities = {c.entity_path for c in chunks}
+    # the view transforms are the float32 positions and xyzw quaternions of each body
+    for i, name in enumerate(["spinning_box_0", "falling_ball_1", "spinning_box_2"]):
+        rows = [c.to_record_batch() for c in chunks if c.entity_path == f"/world/bodies/{name}"
+                and not c.is_static]
+        tr_ = np.concatenate([np.stack(b.column("Transform3D:translation").to_pylist())
+                              .reshape(-1, 3) for b in rows])
+        qt = np.concatenate([np.stack(b.column("Transform3D:quaternion").to_pylist())
+                             .reshape(-1, 4) for b in rows])
+        assert np.array_equal(tr_, traj.position[:, i].astype(np.float32))
+        assert np.array_equal(qt, traj.quat_xyzw[:, i].astype(np.float32))
     for ent in ("/rblog/run", "/rblog/model", "/rblog/state", "/rblog/contacts", "/rblog/status",
                 "/world/ground", "/world/bodies/spinning_box_0", "/world/bodies/falling_ball_1",
                 "/world/contacts", "/plots/energy/total", "/plots/momentum/linear"):
@@ -519,3 +530,71 @@ def test_schema_matches_the_contract_doc():
                                          body, re.M)}
         assert declared == {name: (num, typ, (label + " ") if label else "")
                             for num, name, typ, label in fields_}, msg
+
+
+def test_rerun_file_and_live_viewer(tmp_path, traj):
+    """With a path and a viewer URL, the file is complete and the stream goes to the server."""
+    import socket
+
+    import rerun as rr
+
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    server = rr.RecordingStream("rblog-test-server")
+    url = server.serve_grpc(grpc_port=port)
+    try:
+        path = tmp_path / "live.rrd"
+        write(RerunRecorder(str(path), connect_url=url), traj)
+        assert_same(traj, load(path))
+    finally:
+        server.disconnect()
+
+
+# --- cost ------------------------------------------------------------------------------------------
+
+@pytest.mark.slow
+@pytest.mark.parametrize("n", [1, 10, 100])
+def test_write_cost(tmp_path, n, capsys):
+    """Prints bytes per body-sample and CPU/wall cost per sample; run with
+    ``pytest -m slow -s tests/test_record.py -k write_cost``."""
+    import time
+
+    T, B = 256, 8
+    base = make_traj(T=T, n=n, contacts=False)
+    rng = np.random.default_rng(0)  # noise: real states do not compress like closed forms
+    for name in (*BODY_CHANNELS, *TOTAL_CHANNELS):
+        a = getattr(base, name)
+        setattr(base, name, a + rng.normal(size=a.shape) * 1e-3)
+    blocks = []
+    for b in range(B):
+        x = base.slice(slice(0, T))
+        x.step, x.t = x.step + b * T, x.t + b * T * base.info.dt
+        blocks.append(x)
+    lines = []
+    for label, make in (("rrd", lambda p: RerunRecorder(p)),
+                        ("mcap lz4", lambda p: McapRecorder(p)),
+                        ("mcap zstd", lambda p: McapRecorder(p, compression="zstd")),
+                        ("mcap none", lambda p: McapRecorder(p, compression="none"))):
+        path = str(tmp_path / f"cost.{label.split()[0]}")
+        rec = make(path)
+        rec.open(base.model, base.info)
+        rec.write(blocks[0])
+        w0, c0 = time.perf_counter(), time.process_time()
+        for x in blocks[1:]:
+            rec.write(x)
+        rec.close()
+        wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+        S_ = (B - 1) * T
+        size = os.path.getsize(path)
+        l0 = time.perf_counter()
+        back = load(path)
+        load_s = time.perf_counter() - l0
+        assert back.n_samples == B * T
+        lines.append(f"N={n:4d} {label:10s}: {size / (B * T * n):7.1f} B/body-sample  "
+                     f"write {1e6 * cpu / S_:7.1f} us CPU ({1e6 * wall / S_:7.1f} wall) per sample "
+                     f"= {1e6 * cpu / S_ / n:6.3f} us per body-sample; load "
+                     f"{1e6 * load_s / (B * T):6.1f} us/sample")
+    with capsys.disabled():
+        print("\n" + "\n".join(lines))

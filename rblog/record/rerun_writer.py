@@ -36,9 +36,11 @@ class _Column:
 
     __slots__ = ("_desc", "_arr")
 
-    def __init__(self, desc: rr.ComponentDescriptor, values: pa.Array, offsets: np.ndarray):
+    def __init__(self, desc: rr.ComponentDescriptor, values: pa.Array, offsets):
         self._desc = desc
-        self._arr = pa.ListArray.from_arrays(pa.array(np.asarray(offsets, np.int32)), values)
+        if not isinstance(offsets, pa.Array):
+            offsets = pa.array(np.asarray(offsets, np.int32))
+        self._arr = pa.ListArray.from_arrays(offsets, values)
 
     def component_descriptor(self) -> rr.ComponentDescriptor:
         return self._desc
@@ -67,7 +69,9 @@ class RerunRecorder:
         self.path = None if path is None else str(path)
         self.spawn = spawn
         self.connect_url = connect_url
-        self._rec: rr.RecordingStream | None = None
+        self._rec: rr.RecordingStream | None = None  # the file's stream
+        self._live: rr.RecordingStream | None = None  # the viewer's stream
+        self._streams: list[rr.RecordingStream] = []
         self._closed = False
         self._last_flush = 0.0
         self.samples_written = 0
@@ -89,21 +93,26 @@ class RerunRecorder:
         self._n = model.n_bodies
         self._names = C.view_names(model.body_name)
         self._dt = float(info.dt) if info.dt else 1.0
-        rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=uuid.uuid4())
-        sinks = []
+        # The file and the live viewer get separate streams (same recording id), so a viewer
+        # that is missing or goes away never blocks or breaks the file: the live stream is
+        # best-effort and never flushed with a wait.
+        rid = str(uuid.uuid4())
         try:
             if self.path is not None:
-                sinks.append(rr.FileSink(self.path))
+                self._rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
+                self._rec.set_sinks(rr.FileSink(self.path), default_blueprint=_blueprint())
+                self._streams.append(self._rec)
             url = self.connect_url
             if self.spawn:
-                rr.spawn(port=SPAWN_PORT, connect=False, recording=rec)
+                rr.spawn(port=SPAWN_PORT, connect=False)
                 url = url or f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"
             if url:
-                sinks.append(rr.GrpcSink(url))
-            rec.set_sinks(*sinks, default_blueprint=_blueprint())
+                self._live = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
+                self._live.set_sinks(rr.GrpcSink(url), default_blueprint=_blueprint())
+                self._streams.append(self._live)
         except (RuntimeError, ValueError, OSError) as e:
+            self._disconnect_all()
             raise LogWriteError(where, str(e).splitlines()[0] if str(e) else type(e).__name__) from None
-        self._rec = rec
         self._init_descriptors()
         self._log_static(model, info)
         self._flush(force=True)
@@ -111,7 +120,7 @@ class RerunRecorder:
     def write(self, block: Trajectory) -> None:
         """Append a block of samples (and its contacts): a few send_columns calls, no per-sample
         Python."""
-        if self._rec is None or self._closed:
+        if not self._streams or self._closed:
             raise LogWriteError(self.path or "rerun", "recorder is not open")
         T = len(block.t)
         if T:
@@ -124,17 +133,28 @@ class RerunRecorder:
         if self._closed:
             return
         self._closed = True
-        rec = self._rec
-        if rec is None:
+        if not self._streams:
             return
         try:
-            rec.log("rblog/status", rr.AnyValues(complete=np.array([not truncated]),
-                                                 truncated=np.array([bool(truncated)]),
-                                                 reason=reason or ""), static=True)
-            rec.flush()
+            status = rr.AnyValues(complete=np.array([not truncated]),
+                                  truncated=np.array([bool(truncated)]), reason=reason or "")
+            for rec in self._streams:
+                rec.log("rblog/status", status, static=True)
+            if self._rec is not None:
+                self._rec.flush()
+        except RuntimeError as e:
+            raise LogWriteError(self.path or "rerun", str(e).splitlines()[0]) from None
         finally:
-            rec.disconnect()  # closes the file sink: writes the footer
-            self._rec = None
+            self._disconnect_all()
+
+    def _disconnect_all(self):
+        for rec in self._streams:
+            try:
+                rec.disconnect()  # closes the file sink, writing its footer
+            except RuntimeError:  # a viewer that went away
+                pass
+        self._streams = []
+        self._rec = self._live = None
 
     def __enter__(self):
         return self
@@ -159,7 +179,10 @@ class RerunRecorder:
         return d
 
     def _log_static(self, model: Model, info: RunInfo):
-        rec = self._rec
+        for rec in self._streams:
+            self._log_static_to(rec, model, info)
+
+    def _log_static_to(self, rec: rr.RecordingStream, model: Model, info: RunInfo):
         run = {k: (np.array([v], np.int64) if isinstance(v, int) else v)
                for k, v in C.info_to_fields(info).items()}
         run["rblog_log_format"] = np.array([C.LOG_FORMAT_VERSION], np.int64)
@@ -206,7 +229,8 @@ class RerunRecorder:
                 static=True)
 
     def _send(self, entity: str, indexes, columns):
-        self._rec.send_columns(entity, indexes=indexes, columns=columns)
+        for rec in self._streams:
+            rec.send_columns(entity, indexes=indexes, columns=columns)
 
     def _write_samples(self, block: Trajectory):
         T, n = len(block.t), self._n
@@ -232,9 +256,12 @@ class RerunRecorder:
         quat = np.ascontiguousarray(np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
                                     .transpose(1, 0, 2), np.float32)
         d_tr, d_q = self._d_tf["translation"], self._d_tf["quaternion"]
+        pos_all, quat_all = _fixed(pos, 3), _fixed(quat, 4)  # bodies * T entries, sliced per body
+        offsets = pa.array(rows.astype(np.int32))
         for i, name in enumerate(self._names):
             self._send(f"world/bodies/{name}", idx, [
-                _Column(d_tr, _fixed(pos[i], 3), rows), _Column(d_q, _fixed(quat[i], 4), rows)])
+                _Column(d_tr, pos_all.slice(i * T, T), offsets),
+                _Column(d_q, quat_all.slice(i * T, T), offsets)])
 
         # plots
         def scalars(entity, values):
@@ -309,7 +336,7 @@ class RerunRecorder:
 
     def _flush(self, force: bool = False):
         now = time.monotonic()
-        if force or now - self._last_flush >= FLUSH_EVERY_S:
+        if self._rec is not None and (force or now - self._last_flush >= FLUSH_EVERY_S):
             self._rec.flush()
             self._last_flush = now
 
