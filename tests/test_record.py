@@ -210,6 +210,21 @@ def test_rerun_file_verifies(tmp_path, traj):
         assert ent in entities, ent
 
 
+def test_long_run_rrd_has_no_footer_and_still_reads(tmp_path, traj, monkeypatch):
+    from rblog.record import rerun_writer
+
+    monkeypatch.setattr(rerun_writer, "RRD_FOOTER_MAX_CHUNKS", 0)  # as if the run were long
+    path = tmp_path / "long.rrd"
+    rec = write(RerunRecorder(str(path)), traj)
+    assert not rec.write_footer
+    back = load(path)
+    assert not back.truncated and back.warnings == []
+    assert_same(traj, back)
+    out = subprocess.run([sys.executable, "-m", "rerun", "rrd", "verify", "--check-footers",
+                          "false", str(path)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
 def test_every_mcap_message_decodes_with_its_schema(tmp_path, traj):
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory

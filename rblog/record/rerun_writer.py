@@ -8,6 +8,7 @@ from the block's numpy buffers (no per-sample Python).
 
 from __future__ import annotations
 
+import math
 import time
 import uuid
 
@@ -24,6 +25,11 @@ from . import _common as C
 #: the file sink is flushed (blocking) at most this often (wall s); the SDK also flushes on its
 #: own every 200 ms or 1 MiB
 FLUSH_EVERY_S = 1.0
+#: The .rrd footer (a manifest of every chunk, for random access) is held in memory until the
+#: file is closed: ~7 KB per chunk, and a block costs one chunk per body plus ~12. A run expected
+#: to log more chunks than this is written without footer (still a valid .rrd; the viewer and
+#: rblog.load read it; ``rerun rrd optimize`` can add one), so that memory stays bounded.
+RRD_FOOTER_MAX_CHUNKS = 8192
 #: default gRPC address of a viewer started with ``spawn=True``
 SPAWN_PORT = 9876
 
@@ -93,6 +99,7 @@ class RerunRecorder:
         self._n = model.n_bodies
         self._names = C.view_names(model.body_name)
         self._dt = float(info.dt) if info.dt else 1.0
+        self.write_footer = _expected_chunks(model, info) <= RRD_FOOTER_MAX_CHUNKS
         # The file and the live viewer get separate streams (same recording id), so a viewer
         # that is missing or goes away never blocks or breaks the file: the live stream is
         # best-effort and never flushed with a wait.
@@ -100,7 +107,8 @@ class RerunRecorder:
         try:
             if self.path is not None:
                 self._rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
-                self._rec.set_sinks(rr.FileSink(self.path), default_blueprint=_blueprint())
+                self._rec.set_sinks(rr.FileSink(self.path, write_footer=self.write_footer),
+                                    default_blueprint=_blueprint())
                 self._streams.append(self._rec)
             url = self.connect_url
             if self.spawn:
@@ -339,6 +347,21 @@ class RerunRecorder:
         if self._rec is not None and (force or now - self._last_flush >= FLUSH_EVERY_S):
             self._rec.flush()
             self._last_flush = now
+
+
+def _expected_chunks(model: Model, info: RunInfo) -> float:
+    """Chunks the run will log, from its duration and the simulator's block sizes."""
+    from ..constants import BLOCK_MAX_BODY_STEPS, BLOCK_MAX_SAMPLES
+
+    try:
+        samples = float(info.duration_s) / (float(info.dt) * max(int(info.log_every), 1)) + 1
+    except (ZeroDivisionError, ValueError, TypeError):
+        return math.inf
+    if not math.isfinite(samples):
+        return math.inf
+    n = max(model.n_bodies, 1)
+    per_block = max(1, min(BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_STEPS // (n * max(int(info.log_every), 1))))
+    return math.ceil(samples / per_block) * (n + 12)
 
 
 def _blueprint() -> rrb.Blueprint:
