@@ -100,7 +100,8 @@ class McapRecorder:
             self._model = model
             self._n = model.n_bodies
             self._names = C.view_names(model.body_name)
-            self._w = Writer(self._fh, chunk_size=CHUNK_BYTES, compression=_compression(self.compression))
+            self._w = Writer(self._fh, chunk_size=CHUNK_BYTES,
+                             compression=_compression(self.compression))
             self._w.start(profile="", library=f"rblog {__version__}")
             self._register_channels()
             self._write_run(model, info)

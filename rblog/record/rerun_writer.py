@@ -30,6 +30,8 @@ FLUSH_EVERY_S = 1.0
 #: to log more chunks than this is written without footer (still a valid .rrd; the viewer and
 #: rblog.load read it; ``rerun rrd optimize`` can add one), so that memory stays bounded.
 RRD_FOOTER_MAX_CHUNKS = 8192
+#: bodies' names are drawn in the 3D view for scenes of at most this many bodies (else on hover)
+LABELS_MAX_BODIES = 12
 #: default gRPC address of a viewer started with ``spawn=True``
 SPAWN_PORT = 9876
 
@@ -210,16 +212,17 @@ class RerunRecorder:
                 centers=[model.static_box_position[j]], half_sizes=[model.static_box_half_extents[j]],
                 quaternions=[rr.Quaternion(xyzw=[*q[1:], q[0]])], colors=[[150, 150, 165, 200]],
                 fill_mode="solid"), static=True)
+        show_labels = len(self._names) <= LABELS_MAX_BODIES
         for i, name in enumerate(self._names):
             color = _PALETTE[i % len(_PALETTE)]
             size = np.asarray(model.body_size[i], np.float64)
             label = str(model.body_name[i])
             if int(model.body_shape[i]) == SHAPE_SPHERE:
                 geom = rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], colors=[color], labels=[label],
-                                       fill_mode="solid")
+                                       show_labels=show_labels, fill_mode="solid")
             else:
                 geom = rr.Boxes3D(half_sizes=[size], colors=[color], labels=[label],
-                                  fill_mode="solid")
+                                  show_labels=show_labels, fill_mode="solid")
             rec.log(f"world/bodies/{name}", geom, static=True)
         for ent, names in (("plots/momentum/linear", ["x", "y", "z"]),
                            ("plots/momentum/angular", ["x", "y", "z"])):
