@@ -321,7 +321,18 @@ def drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_ine
 def sync_quat(method, quat_wxyz, rotation, i):
     """Make q[i] describe R[i] for the integrator that advances R (seed); no-op for the others."""
     if method == METHOD_SEED:
-        w, x, y, z = mat_to_quat(load_mat(rotation, i))
+        # the rotation part of R (its polar factor): without orthonormalization R = s Q drifts
+        # in scale, and Shepperd's formula assumes unit scale. Divide out the largest entry
+        # first so that a huge (but finite) R does not overflow in the cofactors.
+        m = load_mat(rotation, i)
+        big = 0.0
+        for v in m:
+            big = max(big, abs(v))
+        if big > 0.0 and math.isfinite(big):
+            inv = 1.0 / big
+            m = (m[0] * inv, m[1] * inv, m[2] * inv, m[3] * inv, m[4] * inv, m[5] * inv,
+                 m[6] * inv, m[7] * inv, m[8] * inv)
+        w, x, y, z = mat_to_quat(polar(m))
         quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
 
 

@@ -441,8 +441,14 @@ def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> list[dict]:
         if speed:
             body["velocity"] = body["velocity"] + vmag[i] * vdir[i]
         if spin:
-            base = body["angular_velocity"] if body["angular_velocity"] is not None else np.zeros(3)
+            if body["angular_velocity"] is not None:
+                base = body["angular_velocity"]
+            elif body["angular_velocity_body"] is not None:
+                base = quat_to_matrix_np(body["quat_wxyz"]) @ body["angular_velocity_body"]
+            else:
+                base = np.zeros(3)
             body["angular_velocity"] = base + wmag[i] * wdir[i]
+            body["angular_velocity_body"] = None
         out.append(body)
     return out
 
