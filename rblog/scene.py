@@ -121,10 +121,11 @@ class _Ctx:
             self.fail(key, f"expected an integer >= {lo}, got {v}")
         return int(v)
 
-    def vec(self, v, key, n=3, *, positive=False) -> np.ndarray:
+    def vec(self, v, key, n=3, *, positive=False, nonneg=False) -> np.ndarray:
         if not isinstance(v, list) or len(v) != n:
             self.fail(key, f"expected a list of {n} numbers, got {_show(v)}")
-        return np.array([self.num(x, f"{key}[{i}]", positive=positive) for i, x in enumerate(v)])
+        return np.array([self.num(x, f"{key}[{i}]", positive=positive, nonneg=nonneg)
+                         for i, x in enumerate(v)])
 
     def string(self, v, key, choices=None) -> str:
         if not isinstance(v, str):
@@ -396,7 +397,7 @@ def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> list[dict]:
             ctx.fail(f"{key}.count", "a grid layout takes grid = [nx, ny, nz], not count")
         sp = g.get("spacing", 1.0)
         spacing = (np.full(3, ctx.num(sp, f"{key}.spacing", positive=True))
-                   if not isinstance(sp, list) else ctx.vec(sp, f"{key}.spacing", positive=True))
+                   if not isinstance(sp, list) else ctx.vec(sp, f"{key}.spacing", nonneg=True))
         origin = ctx.vec(g.get("origin", [0, 0, 0]), f"{key}.origin")
         idx = np.stack(np.meshgrid(*[np.arange(c) for c in counts], indexing="ij"), -1).reshape(-1, 3)
         positions = origin + idx * spacing
