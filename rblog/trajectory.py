@@ -192,8 +192,10 @@ class Trajectory:
         kw = {name: getattr(self, name)[sl] for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS)}
         steps = kw["step"]
         c = self.contacts
-        if len(c) and len(steps):
+        if len(steps):
             c = c.select((c.step >= steps[0]) & (c.step <= steps[-1]))
+        else:
+            c = Contacts.empty()
         return Trajectory(self.model, self.info, contacts=c, truncated=self.truncated,
                           warnings=list(self.warnings), **kw)
 
