@@ -8,6 +8,7 @@ written so far, so logs stay readable up to the last good sample.
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 from dataclasses import asdict, dataclass, field
@@ -203,9 +204,12 @@ def run(
     # load (or compile, the first time) the kernels before the clock starts
     with _CompileNotice(notice):
         advance(dt, 0, stride, False, st.copy(), bufs)
+        derive(model, info, np.array([0]), np.array([0.0]), st.position[None], st.linear_momentum[None],
+               st.quat_wxyz[None], st.rotation[None], st.angular_momentum_world[None])
 
     drift = _Drift()
     opened: list[Recorder] = []
+    writer: _BlockWriter | None = None
     done = 0
     n_samples = 0
     status, message = "ok", ""
@@ -214,10 +218,10 @@ def run(
         for r in recorders:
             r.open(model, info)
             opened.append(r)
-        first = derive(model, info, np.array([0]), np.array([0.0]), st.position[None].copy(),
-                       st.linear_momentum[None].copy(), st.quat_wxyz[None].copy(),
-                       st.rotation[None].copy(), st.angular_momentum_world[None].copy())
-        _emit(first, drift, opened)
+        writer = _BlockWriter(model, info, drift, opened)
+        writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
+                      st.quat_wxyz[None].copy(), st.rotation[None].copy(),
+                      st.angular_momentum_world[None].copy(), None)
         n_samples += 1
         while done < n_total:
             n = min(steps_per_block, n_total - done)
@@ -229,15 +233,11 @@ def run(
             keep = len(local) if bad_step < 0 else int(np.searchsorted(local, bad_step))
             local = local[:keep]
             if keep:
-                steps = done + local
                 if contacts is not None:
                     contacts.step = contacts.step + done
-                    contacts.t = contacts.step * dt
                     if bad_step >= 0:
                         contacts = contacts.select(contacts.step < done + bad_step)
-                block = derive(model, info, steps, steps * dt, *(b[:keep].copy() for b in bufs),
-                               contacts=contacts)
-                _emit(block, drift, opened)
+                writer.submit(done + local, *(b[:keep].copy() for b in bufs), contacts)
                 n_samples += keep
             if bad_step >= 0:
                 bad_global = done + bad_step
@@ -247,16 +247,20 @@ def run(
             done += n
             if progress is not None:
                 progress(done, n_total)
+        writer.finish()
     except KeyboardInterrupt:
         status, message = "interrupted", f"interrupted at step {done}"
+        _finish_quietly(writer)
         _close_all(opened, True, message)
         raise RunInterrupted(
             f"run interrupted at step {done} (t = {done * dt:.6g} s); logs keep every sample "
             "written before it") from None
     except SimulationDiverged as e:
+        _finish_quietly(writer)
         _close_all(opened, True, str(e))
         raise
     except BaseException as e:
+        _finish_quietly(writer)
         _close_all(opened, True, f"run failed: {e}")
         raise
     _close_all(opened, False, None)
@@ -280,10 +284,64 @@ def simulate(scene: Scene, **kwargs) -> tuple[Trajectory, RunSummary]:
     return col.trajectory, summary
 
 
-def _emit(block: Trajectory, drift: _Drift, recorders):
-    drift.update(block)
-    for r in recorders:
-        r.write(block)
+class _BlockWriter:
+    """Derives each block's channels and hands it to the recorders on a worker thread, so that
+    logging block k overlaps stepping block k+1 (the kernels release the GIL). Blocks are
+    written in order; the queue is bounded, so memory stays bounded. A recorder's error stops
+    the run at the next block."""
+
+    QUEUE_BLOCKS = 2
+
+    def __init__(self, model: Model, info: RunInfo, drift: _Drift, recorders):
+        self.model, self.info, self.drift, self.recorders = model, info, drift, recorders
+        self.queue: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._loop, name="rblog-writer", daemon=True)
+        self.thread.start()
+
+    def submit(self, steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+               contacts):
+        if self.error is not None:
+            raise self.error
+        self.queue.put((steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+                        contacts))
+
+    def _loop(self):
+        dt = self.info.dt
+        while True:
+            item = self.queue.get()
+            if item is None:
+                return
+            if self.error is not None:
+                continue  # drain after a failure
+            steps, x, p, q, r, lw, contacts = item
+            try:
+                if contacts is not None:
+                    contacts.t = contacts.step * dt
+                block = derive(self.model, self.info, steps, steps * dt, x, p, q, r, lw,
+                               contacts=contacts)
+                self.drift.update(block)
+                for rec in self.recorders:
+                    rec.write(block)
+            except BaseException as e:  # re-raised in the run loop
+                self.error = e
+
+    def finish(self):
+        """Write every queued block, stop the thread, and re-raise a recorder's error."""
+        self.queue.put(None)
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+
+
+def _finish_quietly(writer: _BlockWriter | None):
+    """On the way out of a failed run: write what was queued (good samples), swallow errors."""
+    if writer is None:
+        return
+    try:
+        writer.finish()
+    except BaseException:
+        pass
 
 
 def _close_all(recorders, truncated, reason):

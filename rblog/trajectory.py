@@ -234,20 +234,17 @@ def derive(
     The angular velocity is ``R diag(1/I_body) R^T L`` with the logged R, exactly as the notes'
     integrator computes it, so a non-orthonormal R shows up in omega and in the energy.
     """
-    m = model.body_mass
-    inv_i = model.body_inv_inertia_diag
-    velocity = linear_momentum / m[None, :, None]
-    l_body = np.einsum("tnji,tnj->tni", rotation, angular_momentum)  # R^T L
-    omega = np.einsum("tnij,tnj->tni", rotation, l_body * inv_i[None])
-    e_trans = 0.5 * np.einsum("tni,tni->tn", linear_momentum, velocity)
-    e_rot = 0.5 * np.einsum("tni,tni->tn", angular_momentum, omega)
-    e_pot = -m[None, :] * np.einsum("tni,i->tn", position, model.gravity)
-    rtr = np.einsum("tnki,tnkj->tnij", rotation, rotation)
-    rtr[..., 0, 0] -= 1.0
-    rtr[..., 1, 1] -= 1.0
-    rtr[..., 2, 2] -= 1.0
-    ortho = np.sqrt(np.einsum("tnij,tnij->tn", rtr, rtr))
-    qnorm = np.linalg.norm(quat_wxyz, axis=-1) - 1.0
+    from .kernels import derive_channels
+
+    c = np.ascontiguousarray
+    position, linear_momentum, quat_wxyz, rotation, angular_momentum = (
+        c(a, dtype=np.float64) for a in (position, linear_momentum, quat_wxyz, rotation, angular_momentum))
+    shape_tn = position.shape[:2]
+    velocity, omega = np.empty_like(position), np.empty_like(position)
+    e_trans, e_rot, e_pot, ortho, qnorm = (np.empty(shape_tn) for _ in range(5))
+    derive_channels(c(model.body_mass, dtype=np.float64), c(model.body_inv_inertia_diag, dtype=np.float64),
+                    c(model.gravity, dtype=np.float64), position, linear_momentum, quat_wxyz, rotation,
+                    angular_momentum, velocity, omega, e_trans, e_rot, e_pot, ortho, qnorm)
     total_p = linear_momentum.sum(axis=1)
     total_l = (np.cross(position, linear_momentum) + angular_momentum).sum(axis=1)
     total_e = (e_trans + e_rot + e_pot).sum(axis=1)
