@@ -110,7 +110,7 @@ class RerunRecorder:
             if self.path is not None:
                 self._rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
                 self._rec.set_sinks(rr.FileSink(self.path, write_footer=self.write_footer),
-                                    default_blueprint=_blueprint())
+                                    default_blueprint=_blueprint(model, info))
                 self._streams.append(self._rec)
             url = self.connect_url
             if self.spawn:
@@ -118,7 +118,7 @@ class RerunRecorder:
                 url = url or f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"
             if url:
                 self._live = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
-                self._live.set_sinks(rr.GrpcSink(url), default_blueprint=_blueprint())
+                self._live.set_sinks(rr.GrpcSink(url), default_blueprint=_blueprint(model, info))
                 self._streams.append(self._live)
         except (RuntimeError, ValueError, OSError) as e:
             self._disconnect_all()
@@ -224,8 +224,8 @@ class RerunRecorder:
                 geom = rr.Boxes3D(half_sizes=[size], colors=[color], labels=[label],
                                   show_labels=show_labels, fill_mode="solid")
             rec.log(f"world/bodies/{name}", geom, static=True)
-        for ent, names in (("plots/momentum/linear", ["x", "y", "z"]),
-                           ("plots/momentum/angular", ["x", "y", "z"])):
+        for ent, names in (("plots/momentum/linear", ["P_x", "P_y", "P_z"]),
+                           ("plots/momentum/angular", ["L_x", "L_y", "L_z"])):
             rec.log(ent, rr.SeriesLines(names=names), static=True)
         for ent, name in (("plots/energy/total", "total"),
                           ("plots/energy/translational", "translational"),
@@ -367,11 +367,22 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
     return math.ceil(samples / per_block) * (n + 12)
 
 
-def _blueprint() -> rrb.Blueprint:
-    """3D view of the world beside the energy, momentum and error plots."""
+def _blueprint(model: Model, info: RunInfo) -> rrb.Blueprint:
+    """3D view of the world beside the energy, momentum and error plots. The camera frames the
+    bodies' starting positions (from the resolved scene, when the log has one)."""
+    eye = None
+    bodies = (info.scene_resolved or {}).get("body") or []
+    if bodies and all("position" in b for b in bodies):
+        pos = np.asarray([b["position"] for b in bodies], np.float64)
+        radius = float(np.max(np.linalg.norm(model.body_size, axis=1)))
+        lo, hi = pos.min(axis=0) - radius, pos.max(axis=0) + radius
+        centre = 0.5 * (lo + hi)
+        extent = max(float(np.max(hi - lo)), 1.0)
+        eye = rrb.EyeControls3D(position=centre + extent * np.array([1.2, -1.8, 1.0]),
+                                look_target=centre)
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="bodies"),
+            rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye),
             rrb.Vertical(
                 rrb.TimeSeriesView(origin="plots/energy", name="energy (J)"),
                 rrb.TimeSeriesView(origin="plots/momentum", name="total momentum"),
