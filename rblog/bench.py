@@ -58,8 +58,9 @@ DTS = (2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4)
 DTS_QUICK = (2e-2, 1e-2, 5e-3)
 #: problems of --quick (all of them: they are small); the full study runs the same set
 PROBLEMS_QUICK = tuple(PROBLEMS)
-#: timing runs: best of this many
+#: timing runs: best of this many (--quick: TIMING_REPEATS_QUICK)
 TIMING_REPEATS = 5
+TIMING_REPEATS_QUICK = 2
 #: free-body timing runs are lengthened to at least this many steps (amortizes the ~0.2 ms
 #: fixed cost of a run); at most this factor longer than the problem
 TIMING_MIN_STEPS = 20_000
@@ -132,7 +133,8 @@ def _score(row: dict, problem: Problem, samples: Samples):
     row.update(problem.invariants(samples))
 
 
-def run_rblog(problem: Problem, spec: str, dt: float, *, timing: bool = True) -> dict:
+def run_rblog(problem: Problem, spec: str, dt: float, *, timing: bool = True,
+              repeats: int = TIMING_REPEATS) -> dict:
     """One accuracy run (and its timing) of rblog on ``problem``; never raises for a run that
     fails: the row's status says ``diverged``, ``unavailable`` or ``error``."""
     from .scene import parse_scene
@@ -154,7 +156,7 @@ def run_rblog(problem: Problem, spec: str, dt: float, *, timing: bool = True) ->
             t_scene = scene if stretch == 1 else parse_scene(
                 problem.scene_toml(dt, problem.duration * stretch), f"<{problem.name}>")
             best, steps = math.inf, n
-            for _ in range(TIMING_REPEATS):
+            for _ in range(repeats):
                 s = run(t_scene, integrator=integ, orthonormalize=ortho, log_every=10**12)
                 best, steps = min(best, s.wall_time_s), s.steps
             _set_timing(row, best, steps, dt)
@@ -175,7 +177,8 @@ def _set_timing(row: dict, wall: float, steps: int, dt: float):
     row["ns_per_step"] = wall / steps * 1e9
 
 
-def run_peer(peer, problem: Problem, integrator: str, dt: float, *, timing: bool = True) -> dict:
+def run_peer(peer, problem: Problem, integrator: str, dt: float, *, timing: bool = True,
+             repeats: int = TIMING_REPEATS) -> dict:
     """One run of a peer engine (see rblog.peers), scored like rblog's."""
     row = new_row(peer.name, problem.name, integrator, dt)
     why = peer.supports(problem)
@@ -194,7 +197,7 @@ def run_peer(peer, problem: Problem, integrator: str, dt: float, *, timing: bool
             if problem.extend_for_timing and steps < TIMING_MIN_STEPS:
                 duration *= min(TIMING_MAX_STRETCH, math.ceil(TIMING_MIN_STEPS / steps))
             best, n = math.inf, steps
-            for _ in range(TIMING_REPEATS):
+            for _ in range(repeats):
                 wall, n = peer.time(problem, integrator, dt, duration)
                 best = min(best, wall)
             _set_timing(row, best, n, dt)
@@ -262,6 +265,7 @@ def run_bench(
     peer_objs = peers_mod.available_peers(peers)
     say = progress or (lambda msg: None)
     contact_ok, contact_why = contact_engine_status()
+    repeats = TIMING_REPEATS_QUICK if quick else TIMING_REPEATS
 
     rows, plist, notes = [], [], []
     for n in names:
@@ -279,7 +283,7 @@ def run_bench(
                     rows.append(r)
                     continue
                 say(f"rblog {p.name} {spec} dt={dt:g}")
-                r = run_rblog(p, spec, dt)
+                r = run_rblog(p, spec, dt, repeats=repeats)
                 rows.append(r)
                 if r["status"] == "unavailable" and info["available"]:
                     info.update(available=False, reason=r["message"])
@@ -287,7 +291,7 @@ def run_bench(
             for integ in peer.integrators:
                 for dt in dt_list:
                     say(f"{peer.name} {p.name} {integ} dt={dt:g}")
-                    rows.append(run_peer(peer, p, integ, dt))
+                    rows.append(run_peer(peer, p, integ, dt, repeats=repeats))
     for name in (peers or ()):
         if name not in [q.name for q in peer_objs]:
             notes.append(f"peer {name}: {peers_mod.unavailable_reason(name)}")

@@ -252,8 +252,8 @@ def build_cases(quick: bool) -> list[Case]:
                 + _body("heavy", "box", (0.2, 0.2, 0.1), 1000.0, (0, 0, 0.3)),
                 1e-3, t_mr, check=_check_stack([(0, 0, 0.1), (0, 0, 0.3)], 0.05, 0.02))]))
 
-    n_mc = 1000 if quick else 10_000
-    t_mc = 0.3 if quick else 1.0
+    n_mc = 200 if quick else 10_000
+    t_mc = 0.2 if quick else 1.0
     side = int(math.ceil(math.sqrt(n_mc)))
     cases.append(Case("many-contact", f"{n_mc:,} balls dropped onto the ground, {t_mc:g} s, "
                       "dt = 1 ms", True, [
