@@ -1,1 +1,86 @@
-"""rblog.analyze."""
+"""Physics analyzers for recorded runs (`rblog check`).
+
+Each analyzer takes a :class:`rblog.trajectory.Trajectory` (what a log reader returns: logged
+channels, model, run info, contacts) and returns a :class:`Result`; it never uses simulator
+internals, so a log written by another program is checked the same way.
+
+Example::
+
+    from rblog.analyze import check
+    results = check(traj, skip=["tunneling"], tolerances={"penetration.depth_m": 5e-4})
+    clean = all(r.passed for r in results)
+
+Analyzers (default tolerances and their reasons: rblog/analyze/tolerances.py):
+
+* ``drift``: rigidity of the logged rotation (orthonormality, det, |q|, body-fixed distances).
+* ``momentum``: momentum conservation in collisions, friction cone, restitution, impact energy.
+* ``penetration``: depth, jitter and creep of resting contacts, recomputed from poses.
+* ``energy``: drift while only conservative forces act; gain across contacts.
+* ``tunneling``: bodies passing through the ground, static boxes or each other between samples.
+"""
+
+from __future__ import annotations
+
+from ..trajectory import Trajectory
+from .base import Analyzer, CheckOptionError, Context, Finding, Result
+from .drift import DriftAnalyzer
+from .energy import EnergyAnalyzer
+from .momentum import MomentumAnalyzer
+from .penetration import PenetrationAnalyzer
+from .tunneling import TunnelingAnalyzer
+
+#: name -> analyzer class, in report order
+ANALYZERS: dict[str, type[Analyzer]] = {
+    cls.name: cls
+    for cls in (DriftAnalyzer, MomentumAnalyzer, PenetrationAnalyzer, EnergyAnalyzer,
+                TunnelingAnalyzer)
+}
+
+
+def split_tolerances(tolerances: dict | None) -> dict[str, dict[str, float]]:
+    """``{"energy.drift_rel": 1e-2}`` -> ``{"energy": {"drift_rel": 1e-2}}``; unknown analyzer or
+    tolerance names raise :class:`CheckOptionError` (a one-line message naming what exists)."""
+    out: dict[str, dict[str, float]] = {name: {} for name in ANALYZERS}
+    for key, value in (tolerances or {}).items():
+        name, dot, tol_name = str(key).partition(".")
+        if not dot or name not in ANALYZERS:
+            raise CheckOptionError(
+                f"unknown tolerance {key!r}: expected <analyzer>.<name> with analyzer one of "
+                + ", ".join(ANALYZERS))
+        if tol_name not in ANALYZERS[name].defaults:
+            raise CheckOptionError(
+                f"unknown tolerance {key!r}; {name} has: "
+                + ", ".join(sorted(ANALYZERS[name].defaults)))
+        out[name][tol_name] = value
+    return out
+
+
+def default_tolerances() -> dict[str, float]:
+    """Every tolerance as ``{"analyzer.name": default}``."""
+    return {f"{n}.{k}": v for n, cls in ANALYZERS.items() for k, v in cls.defaults.items()}
+
+
+def check(traj: Trajectory, only=None, skip=None, tolerances: dict | None = None) -> list[Result]:
+    """Run the analyzers on ``traj`` and return their results, in ANALYZERS order.
+
+    Args:
+        only: names of the analyzers to run (default: all).
+        skip: names of analyzers not to run.
+        tolerances: overrides keyed ``"<analyzer>.<tolerance>"``.
+    """
+    for names in (only or ()), (skip or ()):
+        for name in names:
+            if name not in ANALYZERS:
+                raise CheckOptionError(
+                    f"unknown analyzer {name!r}; known: " + ", ".join(ANALYZERS))
+    per = split_tolerances(tolerances)
+    selected = [n for n in ANALYZERS if (not only or n in only) and n not in (skip or ())]
+    analyzers = [ANALYZERS[n](**per[n]) for n in selected]
+    ctx = Context(traj)
+    return [a.run(traj, ctx) for a in analyzers]
+
+
+__all__ = [
+    "ANALYZERS", "Analyzer", "CheckOptionError", "Context", "Finding", "Result", "check",
+    "default_tolerances", "split_tolerances",
+]

@@ -1,0 +1,623 @@
+"""What every analyzer shares: the Finding / Result records, the Analyzer base class, and the
+Context that computes, once per trajectory, what several analyzers need.
+
+Derivations used by the analyzers (all from logged channels + model, never simulator internals):
+
+* Contact impulse of body i over the sample interval [k, k+1] (length Δt):
+  ``J = P(k+1) - P(k) - (m g + F) Δt`` and, about its centre, ``H = L(k+1) - L(k) - τ Δt``
+  (F, τ: the model's constant applied force and torque). Constant forces change momentum exactly
+  in every integrator, so a free body has J = H = 0 to round-off; a nonzero one is a contact
+  (or a fault).
+* A contact can have happened in [k, k+1] between two shapes only if their separation at k or
+  k+1 is within the distance they can sweep in Δt: ``Δt (max |v| + ρ max |ω|)`` for each body
+  (ρ: bounding radius) plus the contact distance. Logged contacts of the interval's steps count
+  too.
+* Contact groups: bodies (per interval) joined by such possible contacts, and kept when at least
+  one member's momentum jumped. A group with no static geometry in reach is closed: its momentum
+  must be conserved. Computed for every interval at once (label propagation on the edge list).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from ..errors import RblogError
+from ..model import Model
+from ..trajectory import STATIC_BODY, Trajectory
+from . import geometry
+from . import tolerances as tol
+
+
+class CheckOptionError(RblogError):
+    """An unknown analyzer or tolerance name, or a tolerance that is not a number."""
+
+
+def _json_float(x):
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _json(v):
+    if isinstance(v, dict):
+        return {str(k): _json(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_json(x) for x in v]
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return _json_float(v)
+    if isinstance(v, np.ndarray):
+        return _json(v.tolist())
+    return v
+
+
+@dataclass
+class Finding:
+    """One flagged problem.
+
+    Attributes:
+        analyzer: name of the analyzer.  message: one-line reason.
+        value, tolerance, unit: the measured value against its tolerance.
+        step, t: when (step index and simulated time of the sample where it shows).
+        bodies: which bodies (indices; names via model.body_name).
+    """
+
+    analyzer: str
+    message: str
+    value: float
+    tolerance: float
+    unit: str
+    step: int
+    t: float
+    bodies: list[int]
+
+    def to_dict(self) -> dict:
+        return _json(asdict(self))
+
+
+@dataclass
+class Result:
+    """One analyzer's verdict on one trajectory.
+
+    ``worst_*`` is the measurement closest to (or furthest past) its tolerance, also when the
+    trajectory passes. ``events`` lists what the analyzer measured that is not a problem in itself
+    (impacts with their effective restitution, resting intervals), at most MAX_EVENTS of them.
+    """
+
+    analyzer: str
+    passed: bool
+    worst_value: float
+    tolerance: float
+    unit: str
+    worst_step: int | None
+    worst_t: float | None
+    worst_bodies: list[int]
+    reason: str
+    findings: list[Finding] = field(default_factory=list)
+    stats: dict[str, float] = field(default_factory=dict)
+    skipped: bool = False
+    events: list[dict] = field(default_factory=list)
+
+    def to_dict(self, model: Model | None = None) -> dict:
+        """JSON-able dict (non-finite floats become None); with ``model``, body names too."""
+        d = _json(asdict(self))
+        if model is not None:
+            d["worst_body_names"] = [model.body_name[i] for i in self.worst_bodies]
+            for f, fd in zip(self.findings, d["findings"]):
+                fd["body_names"] = [model.body_name[i] for i in f.bodies]
+        return d
+
+
+class Worst:
+    """Keeps the measurement with the largest value/tolerance ratio offered so far."""
+
+    def __init__(self, unit: str, tolerance: float):
+        self.ratio = -math.inf
+        self.value = 0.0
+        self.tolerance = tolerance
+        self.unit = unit
+        self.step: int | None = None
+        self.t: float | None = None
+        self.bodies: list[int] = []
+        self.what = ""
+
+    def offer(self, ratio, value, tolerance, unit, step=None, t=None, bodies=(), what=""):
+        if ratio is not None and not np.isnan(ratio) and ratio > self.ratio:
+            self.ratio, self.value, self.tolerance, self.unit = float(ratio), float(value), \
+                float(tolerance), unit
+            self.step = None if step is None else int(step)
+            self.t = None if t is None else float(t)
+            self.bodies = [int(b) for b in bodies]
+            self.what = what
+
+    def offer_array(self, value, tolerance, unit, steps, ts, bodies, what=""):
+        """Offer the worst of arrays: value, tolerance (or scalar) (P,); bodies (P, k) or (P,)."""
+        value = np.asarray(value, float)
+        if value.size == 0:
+            return
+        tol_ = np.broadcast_to(np.asarray(tolerance, float), value.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(tol_ > 0, value / tol_, np.where(value > 0, np.inf, 0.0))
+        ratio = np.where(np.isnan(ratio), -np.inf, ratio)
+        i = int(np.argmax(ratio))
+        b = np.atleast_1d(np.asarray(bodies)[i]).tolist() if len(bodies) else []
+        self.offer(ratio[i], value[i], tol_[i], unit, steps[i], ts[i], b, what)
+
+
+class Analyzer:
+    """Base class. Subclasses set ``name``, ``description``, ``defaults`` and ``units``
+    (tolerance name -> default value / unit) and implement :meth:`analyze`."""
+
+    name: str = ""
+    description: str = ""
+    #: tolerance name -> default value
+    defaults: dict[str, float] = {}
+    #: tolerance name -> unit
+    units: dict[str, str] = {}
+
+    def __init__(self, **tolerances):
+        self.tol = dict(self.defaults)
+        for k, v in tolerances.items():
+            if k not in self.defaults:
+                raise CheckOptionError(
+                    f"unknown tolerance {self.name}.{k}; {self.name} has: "
+                    + ", ".join(sorted(self.defaults))
+                )
+            try:
+                self.tol[k] = float(v)
+            except (TypeError, ValueError):
+                raise CheckOptionError(f"tolerance {self.name}.{k} must be a number, got {v!r}")
+            if not math.isfinite(self.tol[k]) or self.tol[k] < 0:
+                raise CheckOptionError(f"tolerance {self.name}.{k} must be finite and >= 0")
+
+    def run(self, traj: Trajectory, ctx: "Context | None" = None) -> Result:
+        """Analyze ``traj`` (``ctx`` shares work between analyzers of one trajectory)."""
+        ctx = ctx if ctx is not None else Context(traj)
+        if traj.n_samples == 0:
+            return self.skip("the log holds no samples")
+        return self.analyze(ctx)
+
+    def analyze(self, ctx: "Context") -> Result:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    # --- helpers for subclasses ---------------------------------------------------------------
+    def skip(self, reason: str) -> Result:
+        return Result(self.name, True, 0.0, 0.0, "", None, None, [], reason, skipped=True)
+
+    def result(self, worst: Worst, findings: list[Finding], stats: dict, events=(), ok_reason="",
+               n_findings: int | None = None) -> Result:
+        """Assemble a Result: findings sorted worst first and capped at MAX_FINDINGS."""
+        findings = sorted(findings, key=lambda f: -(f.value / f.tolerance if f.tolerance > 0
+                                                    else math.inf))
+        total = len(findings) if n_findings is None else n_findings
+        stats = dict(stats)
+        stats["findings"] = float(total)
+        events = list(events)
+        if total:
+            first = findings[0]
+            more = f" (+{total - 1} more)" if total > 1 else ""
+            reason = first.message + more
+        elif worst.step is not None:
+            u = "" if worst.unit in ("", "1") else f" {worst.unit}"
+            reason = ok_reason or (f"worst {worst.what}: {worst.value:.3g}{u} <= "
+                                   f"{worst.tolerance:.3g}{u} at t = {worst.t:.6g} s")
+        else:
+            reason = ok_reason or "nothing to check"
+        return Result(
+            analyzer=self.name, passed=total == 0,
+            worst_value=worst.value if worst.step is not None else 0.0,
+            tolerance=worst.tolerance, unit=worst.unit, worst_step=worst.step, worst_t=worst.t,
+            worst_bodies=worst.bodies, reason=reason, findings=findings[: tol.MAX_FINDINGS],
+            stats={k: float(v) for k, v in stats.items()}, events=events[: tol.MAX_EVENTS],
+        )
+
+
+def body_label(model: Model, i: int) -> str:
+    return f"body {i} ({model.body_name[i]!r})" if 0 <= i < model.n_bodies else "static geometry"
+
+
+# --- shared computations ----------------------------------------------------------------------
+@dataclass
+class Groups:
+    """Contact groups per sample interval (see the module docstring).
+
+    Attributes:
+        k: (C,) interval index of each group.  size: (C,) members.
+        static: (C,) True when static geometry (ground, static boxes) is in reach of a member.
+        static_features: (C,) number of distinct static features in reach (ground, each box).
+        static_id: (C,) the static feature in reach when exactly one: -1 ground, m static box m.
+        mem_group, mem_k, mem_i: (Q,) members, sorted by group.
+    """
+
+    k: np.ndarray
+    size: np.ndarray
+    static: np.ndarray
+    static_features: np.ndarray
+    static_id: np.ndarray
+    mem_group: np.ndarray
+    mem_k: np.ndarray
+    mem_i: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.k)
+
+    @property
+    def starts(self) -> np.ndarray:
+        """(C,) index of each group's first member."""
+        if not hasattr(self, "_starts"):
+            self._starts = np.searchsorted(self.mem_group, np.arange(len(self.k)))
+        return self._starts
+
+    def sum(self, per_member: np.ndarray) -> np.ndarray:
+        """Sum per group of a (Q, ...) per-member array."""
+        if not len(self.k):
+            return np.zeros((0,) + per_member.shape[1:])
+        return np.add.reduceat(per_member, self.starts, axis=0)
+
+    def max(self, per_member: np.ndarray) -> np.ndarray:
+        """Max per group of a (Q, ...) per-member array."""
+        if not len(self.k):
+            return np.zeros((0,) + per_member.shape[1:])
+        return np.maximum.reduceat(per_member, self.starts, axis=0)
+
+    def subset(self, sel: np.ndarray) -> "Groups":
+        """The groups where ``sel`` (C,) is true, renumbered 0..; ``.index`` maps them back."""
+        idx = np.nonzero(sel)[0]
+        keep = sel[self.mem_group]
+        remap = np.cumsum(sel) - 1
+        sub = Groups(k=self.k[idx], size=self.size[idx], static=self.static[idx],
+                     static_features=self.static_features[idx], static_id=self.static_id[idx],
+                     mem_group=remap[self.mem_group[keep]], mem_k=self.mem_k[keep],
+                     mem_i=self.mem_i[keep])
+        sub.index = idx
+        return sub
+
+    def members(self, j: int) -> list[int]:
+        """Body indices of group j."""
+        lo = self.starts[j]
+        hi = self.starts[j + 1] if j + 1 < len(self.k) else len(self.mem_i)
+        return [int(b) for b in self.mem_i[lo:hi]]
+
+
+def _components(n_nodes: int, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Connected-component label (smallest node id) of nodes 0..n_nodes-1 given edges u-v."""
+    lab = np.arange(n_nodes)
+    if len(u) == 0:
+        return lab
+    while True:
+        m = np.minimum(lab[u], lab[v])
+        new = lab.copy()
+        np.minimum.at(new, u, m)
+        np.minimum.at(new, v, m)
+        # pointer jumping
+        while True:
+            nxt = new[new]
+            if np.array_equal(nxt, new):
+                break
+            new = nxt
+        if np.array_equal(new, lab):
+            return lab
+        lab = new
+
+
+
+@njit(cache=True, nogil=True)
+def _kinematics(t, position, velocity, momentum, ang_momentum, omega, mass, force, torque, rho,
+                inertia_max, jump_rel, speed, spin, ke, u, jump, sweep):
+    """One pass over the samples: |v|, |w|, kinetic energy P.P/2m + L.w/2, potential -(m g + F).x
+    (T, N); and per interval (T-1, N): jump (momentum change beyond (m g + F) dt or torque dt)
+    and sweep (how far any point of the body can move)."""
+    t_n, n = position.shape[0], position.shape[1]
+    for k in range(t_n):
+        for b in range(n):
+            v = velocity[k, b]
+            w = omega[k, b]
+            p = momentum[k, b]
+            l_ = ang_momentum[k, b]
+            x = position[k, b]
+            speed[k, b] = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            spin[k, b] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+            ke[k, b] = (0.5 * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) / mass[b]
+                        + 0.5 * (l_[0] * w[0] + l_[1] * w[1] + l_[2] * w[2]))
+            u[k, b] = -(force[b, 0] * x[0] + force[b, 1] * x[1] + force[b, 2] * x[2])
+    for k in range(t_n - 1):
+        dt = t[k + 1] - t[k]
+        for b in range(n):
+            a2 = (force[b, 0] ** 2 + force[b, 1] ** 2 + force[b, 2] ** 2) / mass[b] ** 2
+            amag = math.sqrt(a2)
+            jj = 0.0
+            hh = 0.0
+            l0 = 0.0
+            l1 = 0.0
+            for d in range(3):
+                jd = momentum[k + 1, b, d] - momentum[k, b, d] - force[b, d] * dt
+                hd = ang_momentum[k + 1, b, d] - ang_momentum[k, b, d] - torque[b, d] * dt
+                jj += jd * jd
+                hh += hd * hd
+                l0 += ang_momentum[k, b, d] ** 2
+                l1 += ang_momentum[k + 1, b, d] ** 2
+            sp = max(speed[k, b], speed[k + 1, b])
+            p_scale = mass[b] * (sp + amag * dt + 1e-9)
+            l_scale = math.sqrt(max(l0, l1)) + inertia_max[b] * 1e-9
+            jump[k, b] = (math.sqrt(jj) > jump_rel * p_scale) or (math.sqrt(hh) > jump_rel * l_scale)
+            sweep[k, b] = (dt * (sp + rho[b] * max(spin[k, b], spin[k + 1, b]))
+                           + 0.5 * amag * dt * dt)
+
+
+class Context:
+    """Computations several analyzers share, done once per trajectory and cached.
+
+    Analyzers never read simulator internals: only ``traj`` (channels, model, info, contacts).
+    """
+
+    def __init__(self, traj: Trajectory):
+        self.traj = traj
+        self.model = traj.model
+        self._cache: dict[Any, Any] = {}
+
+    def cached(self, key, fn):
+        if key not in self._cache:
+            self._cache[key] = fn()
+        return self._cache[key]
+
+    # --- basic kinematics ---------------------------------------------------------------------
+    @property
+    def dts(self) -> np.ndarray:
+        """(T-1,) sample intervals (s)."""
+        return self.cached("dts", lambda: np.diff(self.traj.t))
+
+    @property
+    def dt_step(self) -> float:
+        """The integrator step (s): RunInfo.dt, or the smallest sample interval if not logged."""
+        def f():
+            dt = getattr(self.traj.info, "dt", 0.0) or 0.0
+            if dt > 0 and math.isfinite(dt):
+                return float(dt)
+            d = self.dts
+            return float(d[d > 0].min()) if (d > 0).any() else 0.0
+        return self.cached("dt_step", f)
+
+    @property
+    def mass(self) -> np.ndarray:
+        return np.asarray(self.model.body_mass, float)
+
+    @property
+    def accel(self) -> np.ndarray:
+        """(N, 3) acceleration of a free body: g + F/m (m/s^2)."""
+        return self.cached("accel", lambda: np.asarray(self.model.gravity, float)[None, :]
+                           + np.asarray(self.model.body_force_world, float) / self.mass[:, None])
+
+    @property
+    def has_torque(self) -> np.ndarray:
+        return self.cached("torque", lambda: np.abs(
+            np.asarray(self.model.body_torque_world, float)).max(axis=1) > 0)
+
+    def _kin(self):
+        def f():
+            tr = self.traj
+            t_n, n = tr.n_samples, tr.n_bodies
+            out = [np.empty((t_n, n)) for _ in range(4)]
+            kn = max(t_n - 1, 0)
+            jump = np.empty((kn, n), np.bool_)
+            sweep = np.empty((kn, n))
+            c = np.ascontiguousarray
+            _kinematics(c(tr.t, dtype=np.float64), c(tr.position, dtype=np.float64),
+                        c(tr.velocity, dtype=np.float64), c(tr.linear_momentum, dtype=np.float64),
+                        c(tr.angular_momentum, dtype=np.float64),
+                        c(tr.angular_velocity, dtype=np.float64), self.mass,
+                        c(self.mass[:, None] * self.accel),
+                        c(np.asarray(self.model.body_torque_world, float)), self.rho,
+                        np.asarray(self.model.body_inertia_diag, float).max(axis=1),
+                        tol.MOMENTUM_JUMP_REL, *out, jump, sweep)
+            return dict(speed=out[0], spin=out[1], ke=out[2], u=out[3], jump=jump, sweep=sweep)
+        return self.cached("kin", f)
+
+    @property
+    def speed(self) -> np.ndarray:
+        """(T, N) |v| (m/s)."""
+        return self._kin()["speed"]
+
+    @property
+    def spin(self) -> np.ndarray:
+        """(T, N) |ω| (rad/s)."""
+        return self._kin()["spin"]
+
+    @property
+    def rho(self) -> np.ndarray:
+        return self.cached("rho", lambda: geometry.bounding_radius(self.model))
+
+    def impulse(self, k: np.ndarray, i: np.ndarray) -> np.ndarray:
+        """(P, 3) contact impulse of bodies i over intervals k (N s):
+        ``J = P(k+1) - P(k) - (m g + F) dt``. Constant forces change momentum exactly in every
+        integrator, so a free body has J = 0 to round-off."""
+        p = self.traj.linear_momentum
+        force = self.mass[i, None] * self.accel[i]
+        return p[k + 1, i] - p[k, i] - self.dts[k, None] * force
+
+    def jumps(self) -> np.ndarray:
+        """(T-1, N) True where the momentum (or angular momentum) changed beyond what gravity and
+        the applied force and torque explain, by more than MOMENTUM_JUMP_REL of its scale
+        m (|v| + |a| dt) (or |L|)."""
+        return self._kin()["jump"]
+
+    def proximity(self, pad: float) -> geometry.Proximity:
+        tr = self.traj
+        return self.cached(("prox", pad), lambda: geometry.proximity(
+            self.model, tr.position, tr.rotation, pad, self.sweep() if tr.n_samples > 1 else None))
+
+    def sweep(self) -> np.ndarray:
+        """(T-1, N) how far any point of a body can move over each interval (m):
+        ``dt (max |v| + ρ max |ω|) + |a| dt² / 2`` (ρ: bounding radius)."""
+        return self._kin()["sweep"]
+
+    def contact_interval_of_steps(self, steps: np.ndarray) -> np.ndarray:
+        """Interval index k (contacts of steps in (step[k], step[k+1]]) or -1."""
+        st = self.traj.step
+        k = np.searchsorted(st, steps, side="left") - 1
+        return np.where((k >= 0) & (k < len(st) - 1), k, -1)
+
+    def touches(self, cd: float):
+        """Possible contacts per interval.
+
+        Returns dict: ``ground`` (T-1, N) bool, ``static_rows`` (indices into the proximity
+        interval table of body-static rows in reach), ``dyn_k, dyn_a, dyn_b`` body-body edges
+        (unique, a < b),
+        ``any`` (T-1, N) bool, ``n_static`` (T-1, N) number of static features in reach,
+        ``static_id`` (T-1, N) the last one seen (-1 ground, m box).
+        """
+        def f():
+            tr = self.traj
+            t_n, n = tr.n_samples, tr.n_bodies
+            kn = max(t_n - 1, 0)
+            prox = self.proximity(cd)
+            sw = self.sweep()
+            ground = np.zeros((kn, n), bool)
+            if prox.ground_sep is not None and kn:
+                g = prox.ground_sep
+                ground = np.minimum(g[:-1], g[1:]) <= sw + cd
+            reach = np.minimum(prox.iv_sep0, prox.iv_sep1) <= (
+                sw[prox.iv_k, prox.iv_a] + np.where(prox.iv_b < n, sw[prox.iv_k, np.minimum(
+                    prox.iv_b, n - 1)], 0.0) + cd)
+            is_dyn = prox.iv_b < n
+            dk, da, db = prox.iv_k[reach & is_dyn], prox.iv_a[reach & is_dyn], \
+                prox.iv_b[reach & is_dyn]
+            srow = np.nonzero(reach & ~is_dyn)[0]
+            n_static = ground.astype(np.int64)
+            static_id = np.where(ground, -1, -2)
+            n_static += np.bincount(prox.iv_k[srow] * n + prox.iv_a[srow],
+                                    minlength=kn * n).reshape(kn, n)
+            static_id[prox.iv_k[srow], prox.iv_a[srow]] = prox.iv_b[srow] - n
+            # logged contacts of the interval's steps
+            c = tr.contacts
+            if len(c) and kn:
+                ck = self.contact_interval_of_steps(c.step)
+                ok = ck >= 0
+                ca, cb = c.body_a[ok].astype(np.int64), c.body_b[ok].astype(np.int64)
+                ck = ck[ok]
+                valid = (ca >= 0) & (ca < n)
+                st = valid & (cb == STATIC_BODY)
+                dyn = valid & (cb >= 0) & (cb < n) & (cb != ca)
+                extra = st & (n_static[ck, ca] == 0)
+                n_static[ck[extra], ca[extra]] = 1
+                static_id[ck[extra], ca[extra]] = -3  # unknown static feature
+                dk = np.concatenate([dk, ck[dyn]])
+                da = np.concatenate([da, np.minimum(ca, cb)[dyn]])
+                db = np.concatenate([db, np.maximum(ca, cb)[dyn]])
+                if len(dk):
+                    key = np.unique((dk * n + da) * n + db)
+                    dk, da, db = key // (n * n), (key // n) % n, key % n
+            anyt = n_static > 0
+            anyt[dk, da] = True
+            anyt[dk, db] = True
+            return dict(ground=ground, static_rows=srow, dyn_k=dk, dyn_a=da, dyn_b=db, any=anyt,
+                        n_static=n_static, static_id=static_id)
+        return self.cached(("touch", cd), f)
+
+    def groups(self, cd: float) -> Groups:
+        """Contact groups with at least one jumped member (see the module docstring)."""
+        def f():
+            n = self.traj.n_bodies
+            jump = self.jumps()
+            tch = self.touches(cd)
+            jk, ji = np.nonzero(jump)
+            node_ids = np.concatenate([jk * n + ji, tch["dyn_k"] * n + tch["dyn_a"],
+                                       tch["dyn_k"] * n + tch["dyn_b"]])
+            nodes, inv = np.unique(node_ids, return_inverse=True)
+            nj = len(jk)
+            ne = len(tch["dyn_k"])
+            u, v = inv[nj:nj + ne], inv[nj + ne:]
+            lab = _components(len(nodes), u, v)
+            jumped = np.zeros(len(nodes), bool)
+            jumped[inv[:nj]] = True
+            has_jump = np.zeros(len(nodes), bool)
+            has_jump[lab[jumped]] = True
+            keep = has_jump[lab]
+            nodes_k, nodes_i, lab = nodes[keep] // n, nodes[keep] % n, lab[keep]
+            roots, gid = np.unique(lab, return_inverse=True)
+            order = np.argsort(gid, kind="stable")
+            gid, nodes_k, nodes_i = gid[order], nodes_k[order], nodes_i[order]
+            c = len(roots)
+            size = np.bincount(gid, minlength=c)
+            nst = tch["n_static"][nodes_k, nodes_i]
+            n_static_feat = np.bincount(gid, weights=nst, minlength=c).astype(np.int64)
+            sid = np.full(c, -2, np.int64)
+            sid[gid] = np.where(nst > 0, tch["static_id"][nodes_k, nodes_i], -2)
+            # the static id of a group is well defined only with one member touching one feature
+            starts = np.searchsorted(gid, np.arange(c))
+            return Groups(k=nodes_k[starts] if c else np.zeros(0, np.int64), size=size,
+                          static=n_static_feat > 0, static_features=n_static_feat,
+                          static_id=sid, mem_group=gid, mem_k=nodes_k, mem_i=nodes_i)
+        return self.cached(("groups", cd), f)
+
+    # --- energy ------------------------------------------------------------------------------
+    def energies(self):
+        """(KE (T, N), U (T, N)): kinetic energy recomputed from the logged momenta and angular
+        velocity, and the potential of gravity plus constant applied forces (-(m g + F).x)."""
+        k = self._kin()
+        return k["ke"], k["u"]
+
+    def group_energy(self, cd: float, rel: float, position_correction_m: float):
+        """Energy change of each contact group across its interval, and what may explain it.
+
+        Returns dict of (C,) arrays: ``change`` (J, kinetic + potential of gravity and applied
+        forces), ``allowed`` (J): m |a| dt (|v_k| + |v_k+1|) / 2 per member (the shadow energy of
+        a first-order gravity step) + m |a| position_correction_m per member (an engine lifting a
+        body out of penetration) + rel x ``ke_scale``; ``ke_scale`` (J, members' max kinetic
+        energy at the two samples), ``restitution`` (the largest configured restitution in
+        play: members', and the static features' in reach) and ``torque_free``.
+        """
+        def f():
+            grp = self.groups(cd)
+            c = len(grp)
+            g, mk, mi = grp.mem_group, grp.mem_k, grp.mem_i
+            ke, u = self.energies()
+            e = ke + u
+            mm = self.mass[mi]
+            amag = np.linalg.norm(self.accel, axis=1)[mi]
+            sp0, sp1 = self.speed[mk, mi], self.speed[mk + 1, mi]
+            change = grp.sum(e[mk + 1, mi] - e[mk, mi])
+            ke_scale = grp.sum(np.maximum(ke[mk, mi], ke[mk + 1, mi]))
+            base = grp.sum(0.5 * mm * amag * self.dt_step * (sp0 + sp1)
+                           + mm * amag * position_correction_m)
+            rest = grp.max(np.asarray(self.model.body_restitution, float)[mi])
+            sid = np.where(grp.static_features == 1, grp.static_id, -2)
+            s_rest, _ = static_material(self.model, sid)
+            rest = np.where(grp.static, np.maximum(rest, s_rest), rest)
+            torque_free = grp.sum(self.has_torque[mi].astype(float)) == 0
+            return dict(change=change, base=base, ke_scale=ke_scale, restitution=rest,
+                        torque_free=torque_free)
+        d = dict(self.cached(("group_energy", cd, position_correction_m), f))
+        d["allowed"] = d["base"] + rel * d["ke_scale"]
+        return d
+
+
+def static_material(model: Model, static_id: np.ndarray):
+    """(restitution, friction) of static features: -1 ground, m static box m, other: worst case
+    (max restitution, max friction over every static feature)."""
+    rest = np.concatenate([[model.ground_restitution],
+                           np.asarray(model.static_box_restitution, float)])
+    fric = np.concatenate([[model.ground_friction], np.asarray(model.static_box_friction, float)])
+    idx = np.where(static_id >= 0, static_id + 1, 0)
+    unknown = static_id < -1
+    r = np.where(unknown, rest.max(), rest[np.minimum(idx, len(rest) - 1)])
+    f = np.where(unknown, fric.max(), fric[np.minimum(idx, len(fric) - 1)])
+    return r, f
+
+
+def combine_friction(mu_a, mu_b):
+    """Friction of a pair: sqrt(mu_a mu_b) (geometric mean, Box2D's b2MixFriction)."""
+    return np.sqrt(np.asarray(mu_a, float) * np.asarray(mu_b, float))
+
+
+def combine_restitution(e_a, e_b):
+    """Restitution of a pair: max(e_a, e_b) (Box2D's b2MixRestitution)."""
+    return np.maximum(e_a, e_b)

@@ -1,0 +1,208 @@
+"""Energy: drift while only conservative forces act, and gain across contacts.
+
+Each body's energy is recomputed from the logged state: ``P.P / 2m + L.ω / 2`` (logged momenta
+and angular velocity) plus the potential of gravity and of its constant applied force,
+``-(m g + F).x`` (a constant force is conservative: its work is F.Δx). A constant applied torque is
+not (its work depends on the path of the rotation), so bodies with one are left out (skipped with
+a reason when that is every body).
+
+* Drift: over every stretch of samples in which a body cannot touch anything (recomputed geometry,
+  swept over each interval, and the logged contacts), ``|E(t) - E(start)|`` must stay within
+  ``DRIFT_REL x scale + m |a| dt (|v(t)| + |v(start)|) / 2``. The scale is the energy that moves:
+  ``max(max kinetic energy, range of potential energy)`` over the stretch (floor: ENERGY_FLOOR per
+  kg). Total energy |E0| is no scale: the potential's zero (the world origin) is arbitrary, and a
+  body dropped from rest at z = 0 has E0 = 0. The second term is exact for a first-order
+  (symplectic Euler) gravity step, whose conserved shadow energy is E - m g.v dt / 2; dt is the
+  integrator step from the log (RunInfo.dt).
+* Gain across a contact: for every contact group (bodies that touched during a sample interval,
+  see Context.groups), the energy of the members must not grow by more than the same dt term,
+  ``m |g| POSITION_CORRECTION_M`` (an engine lifting a body out of penetration) and
+  CONTACT_GAIN_REL of their kinetic energy, unless a configured restitution exceeds 1. Static
+  geometry does no work, and a collision between bodies cannot add energy with e <= 1.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import tolerances as T
+from .base import Analyzer, Context, Finding, Result, Worst, body_label
+
+_TINY = 1e-300
+
+
+class EnergyAnalyzer(Analyzer):
+    name = "energy"
+    description = ("energy drift of free bodies under conservative forces, and energy gain "
+                   "across contacts")
+    defaults = {
+        "drift_rel": T.ENERGY_DRIFT_REL,
+        "contact_gain_rel": T.ENERGY_CONTACT_GAIN_REL,
+        "position_correction_m": T.ENERGY_POSITION_CORRECTION_M,
+        "floor_j_per_kg": T.ENERGY_FLOOR_J_PER_KG,
+        "contact_distance_m": T.CONTACT_DISTANCE_M,
+    }
+    units = {"position_correction_m": "m", "floor_j_per_kg": "J/kg", "contact_distance_m": "m"}
+
+    def analyze(self, ctx: Context) -> Result:
+        tr = ctx.traj
+        model = tr.model
+        if tr.n_samples < 2:
+            return self.skip("needs at least two samples")
+        if ctx.has_torque.all():
+            return self.skip("every body has a constant applied torque (not conservative)")
+        n, t_n = tr.n_bodies, tr.n_samples
+        cd = self.tol["contact_distance_m"]
+        t, step = tr.t, tr.step
+        worst = Worst("1", self.tol["drift_rel"])
+        findings: list[Finding] = []
+        stats: dict[str, float] = {}
+        n_found = 0
+        ke, u = ctx.energies()
+        e = ke + u
+        m = ctx.mass
+        amag = np.linalg.norm(ctx.accel, axis=1)
+        sp = ctx.speed
+        tch = ctx.touches(cd)
+
+        # ---- drift over contact-free stretches
+        free = np.ascontiguousarray(~tch["any"] & ~ctx.has_torque[None, :])  # (T-1, N)
+        cap = 1024
+        while True:
+            segs = np.empty((cap, 4), np.int64)  # body, first sample, last sample, worst sample
+            vals = np.empty((cap, 5))  # worst ratio, rel, tol rel, scale, rate (rel/s)
+            cnt = _free_drift(free, t, e, ke, u, sp, m, amag, ctx.dt_step, self.tol["drift_rel"],
+                              self.tol["floor_j_per_kg"], segs, vals)
+            if cnt <= cap:
+                break
+            cap = cnt
+        segs, vals = segs[:cnt], vals[:cnt]
+        stats["free_stretches"] = float(cnt)
+        if cnt:
+            j = int(np.argmax(vals[:, 0]))
+            b, k = int(segs[j, 0]), int(segs[j, 3])
+            worst.offer(vals[j, 0], vals[j, 1], vals[j, 2], "1", step[k], t[k], [b],
+                        "relative energy drift in a contact-free stretch")
+            bad = np.nonzero(vals[:, 0] > 1.0)[0]
+            n_found += len(bad)
+            for s_ in bad[np.argsort(-vals[bad, 0])][: T.MAX_FINDINGS]:
+                b, k0, k = int(segs[s_, 0]), int(segs[s_, 1]), int(segs[s_, 3])
+                ratio, rel, tol_rel, scale, rate = vals[s_]
+                findings.append(Finding(
+                    self.name,
+                    f"{body_label(model, b)}: energy drifts by {e[k, b] - e[k0, b]:+.3g} J "
+                    f"({rel:.3g} of its energy scale {scale:.3g} J, tol {tol_rel:.3g}) "
+                    f"between t = {t[k0]:.6g} and {t[k]:.6g} s with no contact "
+                    f"(rate {rate:+.3g}/s)",
+                    float(rel), float(tol_rel), "1", int(step[k]), float(t[k]), [b]))
+
+        # ---- gain across contacts
+        grp = ctx.groups(cd)
+        if len(grp):
+            gen = ctx.group_energy(cd, self.tol["contact_gain_rel"],
+                                   self.tol["position_correction_m"])
+            check = (gen["restitution"] <= 1.0) & gen["torque_free"]
+            scale = gen["ke_scale"] + _TINY
+            gain_rel = gen["change"] / scale
+            allow_rel = gen["allowed"] / scale
+            cidx = np.nonzero(check)[0]
+            stats["contact_intervals"] = float(len(cidx))
+            gk = grp.k
+            first = np.searchsorted(grp.mem_group, np.arange(len(grp)))
+            if len(cidx):
+                stats["contact_gain_rel_max"] = float(gain_rel[cidx].max())
+                worst.offer_array(gain_rel[cidx], allow_rel[cidx], "1", step[gk[cidx] + 1],
+                                  t[gk[cidx] + 1], grp.mem_i[first[cidx]],
+                                  "energy gain across a contact (relative to kinetic energy)")
+            bad = np.nonzero(check & (gen["change"] > gen["allowed"]))[0]
+            n_found += len(bad)
+            bad = bad[np.argsort(-(gain_rel[bad] / np.maximum(allow_rel[bad], _TINY)))]
+            for j in bad[: T.MAX_FINDINGS]:
+                lo = np.searchsorted(grp.mem_group, j)
+                hi = np.searchsorted(grp.mem_group, j, side="right")
+                bodies = [int(x) for x in grp.mem_i[lo:hi]]
+                who = " and ".join(body_label(model, x) for x in bodies[:3]) + \
+                    (" ..." if len(bodies) > 3 else "")
+                what = "static geometry" if grp.static[j] else "each other"
+                findings.append(Finding(
+                    self.name,
+                    f"{who}: energy grows by {gen['change'][j]:.3g} J across a contact with {what} "
+                    f"between t = {t[gk[j]]:.6g} and {t[gk[j] + 1]:.6g} s (allowed "
+                    f"{gen['allowed'][j]:.3g} J with restitution <= 1)",
+                    float(gain_rel[j]), float(allow_rel[j]), "1", int(step[gk[j] + 1]),
+                    float(t[gk[j] + 1]), bodies))
+        if ctx.has_torque.any():
+            stats["bodies_with_torque_skipped"] = float(ctx.has_torque.sum())
+        return self.result(worst, findings, stats, n_findings=n_found)
+
+
+@njit(cache=True, nogil=True)
+def _free_drift(free, t, e, ke, u, speed, mass, amag, dt, drift_rel, floor, segs, vals):
+    """Energy drift over each contact-free stretch (maximal run of free intervals of one body).
+
+    For each stretch [k0, k1] of body b: scale = max(max KE, max U - min U, floor m); at every
+    sample k, drift |E(k) - E(k0)| against drift_rel scale + m |a| dt (|v(k)| + |v(k0)|) / 2.
+    Writes per stretch (while it fits): segs = (b, k0, k1, worst k), vals = (worst ratio of drift
+    to allowed, its drift / scale, its allowed / scale, scale, least-squares slope of
+    (E - E(k0)) / scale against t). Returns the number of stretches."""
+    kn, n = free.shape
+    cap = segs.shape[0]
+    cnt = 0
+    for b in range(n):
+        k = 0
+        while k < kn:
+            if not free[k, b]:
+                k += 1
+                continue
+            k0 = k
+            while k < kn and free[k, b]:
+                k += 1
+            k1 = k  # last sample of the stretch (intervals k0 .. k1 - 1)
+            kmax = 0.0
+            umin = u[k0, b]
+            umax = u[k0, b]
+            for j in range(k0, k1 + 1):
+                kmax = max(kmax, ke[j, b])
+                umin = min(umin, u[j, b])
+                umax = max(umax, u[j, b])
+            scale = max(kmax, umax - umin, floor * mass[b])
+            best = -1.0
+            kb = k0
+            st = 0.0
+            sy = 0.0
+            stt = 0.0
+            sty = 0.0
+            for j in range(k0, k1 + 1):
+                d = e[j, b] - e[k0, b]
+                allow = drift_rel * scale + 0.5 * mass[b] * amag[b] * dt * (speed[j, b]
+                                                                           + speed[k0, b])
+                r = abs(d) / allow if allow > 0 else (math.inf if d != 0 else 0.0)
+                if r > best:
+                    best = r
+                    kb = j
+                tj = t[j] - t[k0]
+                y = d / scale
+                st += tj
+                sy += y
+                stt += tj * tj
+                sty += tj * y
+            npts = k1 - k0 + 1
+            den = npts * stt - st * st
+            if cnt < cap:
+                d = e[kb, b] - e[k0, b]
+                allow = drift_rel * scale + 0.5 * mass[b] * amag[b] * dt * (speed[kb, b]
+                                                                           + speed[k0, b])
+                segs[cnt, 0] = b
+                segs[cnt, 1] = k0
+                segs[cnt, 2] = k1
+                segs[cnt, 3] = kb
+                vals[cnt, 0] = best
+                vals[cnt, 1] = abs(d) / scale
+                vals[cnt, 2] = allow / scale
+                vals[cnt, 3] = scale
+                vals[cnt, 4] = (npts * sty - st * sy) / den if den > 0 else 0.0
+            cnt += 1
+    return cnt

@@ -1,0 +1,267 @@
+"""Penetration during resting contact, with jitter and creep.
+
+Separations are recomputed from the logged poses and the model's shapes (rblog.analyze.geometry),
+never taken from the contacts the simulator reported. Per sample, a body is in contact when a
+separation to the ground, a static box or another body is within CONTACT_DISTANCE_M; its primary
+support is the deepest of those, with a witness point on the contact (face, edge or corner
+centre).
+
+* Resting: in contact, and the contact point's velocity relative to the partner (``v + ω x r``,
+  minus the partner's) below REST_SPEED_MPS for at least REST_MIN_SAMPLES consecutive samples. A
+  sphere rolling without slip, and a box tipping over an edge, have a resting contact point; a
+  bouncing ball does not.
+* Per resting interval: max and mean depth, duration; after SETTLE_S, jitter (the largest
+  contact-point speed) and creep (the net tangential slip at the contact, counting only samples
+  slower than CREEP_SPEED_MPS, so that a body that starts to slide away is not creep).
+* Flags: resting depth beyond min(DEPTH_M, DEPTH_FRAC x the body's inner radius), any depth (an
+  impact too) beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x inner radius), jitter beyond
+  JITTER_MPS, creep beyond CREEP_M.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import geometry
+from . import tolerances as T
+from .base import Analyzer, Context, Finding, Result, Worst, body_label
+
+
+def _partner_label(model, b: int) -> str:
+    n = model.n_bodies
+    if b == -1:
+        return "the ground"
+    if b >= n:
+        return f"static box {b - n}"
+    return body_label(model, b)
+
+
+class PenetrationAnalyzer(Analyzer):
+    name = "penetration"
+    description = ("resting contact: depth recomputed from the poses, duration, jitter and creep; "
+                   "and the deepest penetration at any time")
+    defaults = {
+        "depth_m": T.PENETRATION_DEPTH_M,
+        "depth_frac": T.PENETRATION_DEPTH_FRAC,
+        "transient_depth_m": T.PENETRATION_TRANSIENT_DEPTH_M,
+        "transient_frac": T.PENETRATION_TRANSIENT_FRAC,
+        "rest_speed_mps": T.PENETRATION_REST_SPEED_MPS,
+        "rest_min_samples": T.PENETRATION_REST_MIN_SAMPLES,
+        "settle_s": T.PENETRATION_SETTLE_S,
+        "jitter_mps": T.PENETRATION_JITTER_MPS,
+        "creep_m": T.PENETRATION_CREEP_M,
+        "creep_speed_mps": T.PENETRATION_CREEP_SPEED_MPS,
+        "contact_distance_m": T.CONTACT_DISTANCE_M,
+    }
+    units = {"depth_m": "m", "transient_depth_m": "m", "rest_speed_mps": "m/s",
+             "rest_min_samples": "samples", "settle_s": "s", "jitter_mps": "m/s", "creep_m": "m",
+             "creep_speed_mps": "m/s", "contact_distance_m": "m"}
+
+    def contact_rows(self, ctx: Context):
+        """Body-level contact rows (sep <= contact distance), mirrored for body pairs.
+
+        Returns dict of (R,) arrays: k, i (body), b (partner: -1 ground, N+m static box, or a
+        body), sep, normal (partner -> body), point."""
+        tr = ctx.traj
+        model = tr.model
+        n = tr.n_bodies
+        cd = self.tol["contact_distance_m"]
+        prox = ctx.proximity(cd)
+        parts = []
+        if prox.ground_sep is not None:
+            gi, gk = np.nonzero(prox.ground_sep.T <= cd)  # body-major
+            pts = geometry.plane_witness(model, gi, tr.position[gk, gi], tr.rotation[gk, gi])
+            parts.append((gk, gi, np.full(len(gk), -1), prox.ground_sep[gk, gi],
+                          np.broadcast_to(np.asarray(model.ground_normal, float), (len(gk), 3)),
+                          pts))
+        near = prox.pair_sep <= cd
+        pk, pa, pb = prox.pair_k[near], prox.pair_a[near], prox.pair_b[near]
+        ps, pn, pp = prox.pair_sep[near], prox.pair_normal[near], prox.pair_point[near]
+        parts.append((pk, pa, pb, ps, pn, pp))
+        dyn = pb < n
+        parts.append((pk[dyn], pb[dyn], pa[dyn], ps[dyn], -pn[dyn], pp[dyn]))
+        parts = [p for p in parts if len(p[0])]
+        if not parts:
+            z = np.zeros(0, np.int64)
+            return dict(k=z, i=z, b=z, sep=np.zeros(0), normal=np.zeros((0, 3)),
+                        point=np.zeros((0, 3)), sorted_unique=True)
+        cat = [np.concatenate([p[j] for p in parts]) for j in range(6)]
+        out = dict(zip(("k", "i", "b", "sep", "normal", "point"), cat))
+        # ground rows alone come out body-major, one per sample: no sort needed
+        out["sorted_unique"] = len(parts) == 1 and prox.ground_sep is not None and \
+            len(parts[0][0]) == len(cat[0]) and (parts[0][2] == -1).all()
+        return out
+
+    def analyze(self, ctx: Context) -> Result:
+        tr = ctx.traj
+        model = tr.model
+        n, t_n = tr.n_bodies, tr.n_samples
+        if not model.ground and not len(model.static_box_position) and n < 2:
+            return self.skip("nothing to rest on: no ground, no static boxes, one body")
+        t, step = tr.t, tr.step
+        tol = self.tol
+        ri = geometry.inner_radius(model)
+        rest_tol = np.minimum(tol["depth_m"], tol["depth_frac"] * ri)
+        trans_tol = np.minimum(tol["transient_depth_m"], tol["transient_frac"] * ri)
+        worst = Worst("m", tol["depth_m"])
+        findings: list[Finding] = []
+        stats: dict[str, float] = {}
+        n_found = 0
+        events: list[dict] = []
+
+        rows = self.contact_rows(ctx)
+        k, i, b, sep = rows["k"], rows["i"], rows["b"], rows["sep"]
+        # primary support per (body, sample): the deepest row; kept in body-major order
+        key = i * t_n + k
+        if rows["sorted_unique"]:
+            firsts = np.arange(len(key))
+        else:
+            order = np.lexsort((sep, key))
+            key_s = key[order]
+            firsts = order[np.r_[True, key_s[1:] != key_s[:-1]]] if len(order) else order
+        pk, pi_, pb = k[firsts], i[firsts], b[firsts]
+        psep, pnorm, ppt = sep[firsts], rows["normal"][firsts], rows["point"][firsts]
+        depth = np.maximum(-psep, 0.0)
+        nrow = len(pk)
+        stats["depth_max_m"] = float(depth.max()) if nrow else 0.0
+
+        # ---- any-time depth (impacts included): the deepest sample of each body
+        if nrow:
+            worst.offer_array(depth, trans_tol[pi_], "m", step[pk], t[pk], pi_,
+                              "penetration depth at any time")
+            bstart = np.r_[0, np.nonzero(pi_[1:] != pi_[:-1])[0] + 1]
+            bmax = np.maximum.reduceat(depth, bstart)
+            bodies = pi_[bstart]
+            bad = np.nonzero(bmax > trans_tol[bodies])[0]
+            n_found += len(bad)
+            for j in bad:
+                lo = bstart[j]
+                hi = bstart[j + 1] if j + 1 < len(bstart) else nrow
+                r = lo + int(np.argmax(depth[lo:hi]))
+                bj = int(bodies[j])
+                findings.append(Finding(
+                    self.name,
+                    f"{body_label(model, bj)} sinks {depth[r] * 1e3:.3g} mm into "
+                    f"{_partner_label(model, int(pb[r]))} at t = {t[pk[r]]:.6g} s (tol "
+                    f"{trans_tol[bj] * 1e3:.3g} mm at any time)",
+                    float(depth[r]), float(trans_tol[bj]), "m", int(step[pk[r]]), float(t[pk[r]]),
+                    [bj]))
+
+        # ---- contact-point velocity relative to the partner, at the primary support
+        x = tr.position[pk, pi_]
+        cv = tr.velocity[pk, pi_] + np.cross(tr.angular_velocity[pk, pi_], ppt - x)
+        dyn = (pb >= 0) & (pb < n)
+        if dyn.any():
+            bk, bb = pk[dyn], pb[dyn]
+            cv[dyn] -= tr.velocity[bk, bb] + np.cross(tr.angular_velocity[bk, bb],
+                                                      ppt[dyn] - tr.position[bk, bb])
+        vn = np.einsum("ij,ij->i", cv, pnorm)
+        slip = cv - vn[:, None] * pnorm
+        cspeed = np.sqrt(np.einsum("ij,ij->i", cv, cv))
+        rest = cspeed <= tol["rest_speed_mps"]
+
+        # ---- resting intervals: runs of consecutive resting samples of one body (row space)
+        nxt_same = np.zeros(nrow, bool)
+        if nrow > 1:
+            nxt_same[:-1] = (pi_[1:] == pi_[:-1]) & (pk[1:] == pk[:-1] + 1)
+        link = rest & np.r_[nxt_same[:-1] & rest[1:], False] if nrow else rest
+        prev_link = np.r_[False, link[:-1]] if nrow else link
+        starts = np.nonzero(rest & ~prev_link)[0]
+        ends = np.nonzero(rest & ~link)[0]
+        long_ = (ends - starts + 1) >= tol["rest_min_samples"]
+        starts, ends = starts[long_], ends[long_]
+        nr = len(starts)
+        stats["rest_intervals"] = float(nr)
+        if nr:
+            idx = np.empty(2 * nr, np.int64)
+            idx[0::2] = starts
+            idx[1::2] = ends + 1
+
+            def red(ufunc, arr):
+                return ufunc.reduceat(np.append(arr, np.zeros((1,) + arr.shape[1:]), axis=0),
+                                      idx, axis=0)[0::2]
+
+            bs, ks, ke = pi_[starts], pk[starts], pk[ends]
+            r_max = red(np.maximum, depth)
+            r_mean = red(np.add, depth) / (ends - starts + 1)
+            dur = t[ke] - t[ks]
+            # run of each row (only meaningful inside runs)
+            marker = np.bincount(starts, minlength=nrow + 1) - np.bincount(ends + 1,
+                                                                           minlength=nrow + 1)
+            in_run = np.cumsum(marker)[:-1] > 0
+            run_of = np.maximum(np.cumsum(np.bincount(starts, minlength=nrow)) - 1, 0)
+            settled = in_run & (t[pk] >= t[ks][run_of] + tol["settle_s"])
+            jit = red(np.maximum, np.where(settled, cspeed, 0.0))
+            has_settled = red(np.maximum, settled.astype(float)) > 0
+            slow = settled & (np.sqrt(np.einsum("ij,ij->i", slip, slip)) <= tol["creep_speed_mps"])
+            s_f = np.where(slow[:, None], slip, 0.0)
+            # trapezoid over consecutive settled rows of the same run
+            both = settled[:-1] & settled[1:] & nxt_same[:-1]
+            contrib = np.zeros((nrow, 3))
+            contrib[:-1] = np.where(both[:, None], 0.5 * (s_f[:-1] + s_f[1:])
+                                    * (t[pk[1:]] - t[pk[:-1]])[:, None], 0.0)
+            creep = np.linalg.norm(red(np.add, contrib), axis=1)
+            jit = np.where(has_settled, jit, np.nan)
+            creep = np.where(has_settled, creep, np.nan)
+            partner = pb[starts]
+            stats["rest_depth_max_m"] = float(r_max.max())
+            stats["rest_depth_mean_m"] = float(np.average(r_mean, weights=ends - starts + 1))
+            stats["rest_duration_total_s"] = float(dur.sum())
+            if np.isfinite(jit).any():
+                stats["jitter_max_mps"] = float(np.nanmax(jit))
+                stats["creep_max_m"] = float(np.nanmax(creep))
+            # where in each run the depth is largest
+            at_max = np.nonzero(in_run & (depth == r_max[run_of]))[0]
+            runs_hit, first_hit = np.unique(run_of[at_max], return_index=True)
+            kdeep = ks.copy()
+            kdeep[runs_hit] = pk[at_max[first_hit]]
+            worst.offer_array(r_max, rest_tol[bs], "m", step[kdeep], t[kdeep], bs,
+                              "resting penetration depth")
+            fin = np.isfinite(jit)
+            if fin.any():
+                worst.offer_array(jit[fin], tol["jitter_mps"], "m/s", step[ke[fin]], t[ke[fin]],
+                                  bs[fin], "contact-point speed while resting (jitter)")
+                worst.offer_array(creep[fin], tol["creep_m"], "m", step[ke[fin]], t[ke[fin]],
+                                  bs[fin], "slip while resting (creep)")
+
+            def what_rest(r):
+                return (f"resting on {_partner_label(model, int(partner[r]))} from t = "
+                        f"{t[ks[r]]:.6g} s for {dur[r]:.3g} s")
+
+            checks = (
+                (r_max > rest_tol[bs], lambda r: Finding(
+                    self.name,
+                    f"{body_label(model, int(bs[r]))} {what_rest(r)}: sinks {r_max[r] * 1e3:.3g} mm "
+                    f"(mean {r_mean[r] * 1e3:.3g} mm; tol {rest_tol[bs[r]] * 1e3:.3g} mm)",
+                    float(r_max[r]), float(rest_tol[bs[r]]), "m", int(step[kdeep[r]]),
+                    float(t[kdeep[r]]), [int(bs[r])])),
+                (fin & (np.nan_to_num(jit) > tol["jitter_mps"]), lambda r: Finding(
+                    self.name,
+                    f"{body_label(model, int(bs[r]))} jitters {what_rest(r)}: contact point moves "
+                    f"at up to {jit[r]:.3g} m/s after settling (tol {tol['jitter_mps']:.3g} m/s)",
+                    float(jit[r]), tol["jitter_mps"], "m/s", int(step[ke[r]]), float(t[ke[r]]),
+                    [int(bs[r])])),
+                (fin & (np.nan_to_num(creep) > tol["creep_m"]), lambda r: Finding(
+                    self.name,
+                    f"{body_label(model, int(bs[r]))} creeps {what_rest(r)}: slides "
+                    f"{creep[r] * 1e3:.3g} mm at the contact while settled (tol "
+                    f"{tol['creep_m'] * 1e3:.3g} mm)",
+                    float(creep[r]), tol["creep_m"], "m", int(step[ke[r]]), float(t[ke[r]]),
+                    [int(bs[r])])),
+            )
+            for flag, make in checks:
+                idx_f = np.nonzero(flag)[0]
+                n_found += len(idx_f)
+                for r in idx_f[: T.MAX_FINDINGS]:
+                    findings.append(make(int(r)))
+            for r in range(min(nr, T.MAX_EVENTS)):
+                events.append({
+                    "kind": "rest", "body": int(bs[r]), "partner": int(partner[r]),
+                    "t_start": float(t[ks[r]]), "t_end": float(t[ke[r]]),
+                    "step_start": int(step[ks[r]]), "duration_s": float(dur[r]),
+                    "depth_max_m": float(r_max[r]), "depth_mean_m": float(r_mean[r]),
+                    "jitter_mps": None if np.isnan(jit[r]) else float(jit[r]),
+                    "creep_m": None if np.isnan(creep[r]) else float(creep[r]),
+                })
+        ok = "" if nr or nrow else "no contacts found"
+        return self.result(worst, findings, stats, events, ok_reason=ok, n_findings=n_found)

@@ -1,0 +1,127 @@
+"""Default tolerances of the `rblog check` analyzers, each named with its unit.
+
+Every analyzer takes overrides keyed ``"<analyzer>.<name>"`` where ``<name>`` is the lower-case
+constant name without the analyzer prefix: ``DRIFT_ORTHO_ERROR`` is ``drift.ortho_error``,
+``PENETRATION_DEPTH_M`` is ``penetration.depth_m``. Suffixes give the unit: ``_m`` metres,
+``_mps`` m/s, ``_s`` seconds, ``_rel`` / ``_frac`` dimensionless ratios, ``_samples`` a count.
+Ratios without a suffix (``ortho_error``) are dimensionless too.
+
+How they were chosen (numbers for the engine's defaults, dt = 1e-3 .. 1e-2 s, logged at 100 Hz):
+
+* Round-off of a correct float64 run is ~1e-16 per operation and grows like sqrt(steps): after
+  1e8 steps it is ~1e-12. Everything meant to hold "exactly" (rigidity, momentum in a collision)
+  is given 1e-6, six orders above round-off and many below any real fault (the lecture notes'
+  scheme without orthonormalization stretches a body by h*|w|^2 ~ 4e-3 per second at h = 1e-3,
+  w = 2 rad/s; the planted momentum faults are ~1e-2).
+* Energy is not conserved exactly by a correct integrator: a first-order (symplectic Euler)
+  gravity step keeps a shadow energy that differs from E by m g.v dt/2, so the energy analyzer
+  allows m |g| |v| dt/2 per sample on top of its relative tolerance (dt = ``RunInfo.dt``), and a
+  second-order rotation step has a bounded relative error ~(|w| dt)^2 ~ 1e-4 for 10 rad/s at
+  dt = 1e-3. The notes' `seed` scheme gains ~1.6e-3 of the energy in 5 s on the tumbling box at
+  dt = 1e-3 (7e-3 after 20 s), so 1e-3 separates the two.
+* Contact: the contact issue's targets are <= 0.1 mm resting penetration (0.5 mm in a 500-box
+  pile, 1 mm peak at a 4.4 m/s bounce) and ~1e-6 m/s at rest; the defaults here flag what a
+  viewer would show (a 1 mm sink, 1 mm/s shimmer, a 1 mm slide) rather than the engine targets,
+  so that logs of other engines are judged by what is visibly wrong. Tighten them with overrides
+  to test an engine against its own targets.
+"""
+
+from __future__ import annotations
+
+# --- shared geometry --------------------------------------------------------------------------
+#: Two surfaces closer than this (m) are "in contact" (resting detection, contact intervals).
+#: Engines keep resting contacts within ~0.1 mm (speculative margin) of touching; 1 mm also
+#: covers the separating-axis lower bound used for separated boxes.
+CONTACT_DISTANCE_M = 1e-3
+
+#: Most findings kept per analyzer (the worst first); the count of all is in stats.
+MAX_FINDINGS = 200
+#: Most events (impacts, resting intervals) listed per analyzer; all are counted in stats.
+MAX_EVENTS = 500
+
+# --- drift (rigidity) -------------------------------------------------------------------------
+#: ||R^T R - I||_F, recomputed from the logged rotation (dimensionless).
+DRIFT_ORTHO_ERROR = 1e-6
+#: |det R - 1| (dimensionless; a volume change).
+DRIFT_DET_ERROR = 1e-6
+#: ||q| - 1| of the logged quaternion (dimensionless).
+DRIFT_QUAT_NORM_ERROR = 1e-6
+#: Relative change of the distance between body-fixed points (box corners, +-radius along the
+#: axes) mapped by the logged rotation, vs their rigid distance: 1e-6 = 1 um per metre.
+DRIFT_DISTANCE_REL = 1e-6
+
+# --- momentum in collisions -------------------------------------------------------------------
+#: A body's momentum change between two samples that differs from (m g + F) dt by more than this
+#: fraction of its momentum scale m(|v| + |a| dt) marks a contact (or a fault); only a detector.
+MOMENTUM_JUMP_REL = 1e-9
+#: |sum of linear impulses| of a group of colliding bodies (no static geometry involved), relative
+#: to sum_i m_i |v_i| of the group.
+MOMENTUM_LINEAR_REL = 1e-6
+#: |change of the group's angular momentum about its centre of mass| minus applied torques,
+#: relative to sum_i (|L_i| + |x_i - c| |P_i|). Uniform gravity exerts no torque about the centre
+#: of mass, in continuous and in discrete (symplectic Euler) time, so this is exact; it is the
+#: angular momentum about the origin with the gravity torque c x M g removed.
+MOMENTUM_ANGULAR_REL = 1e-6
+#: Coulomb cone: |J_t| <= mu J_n + cone_rel |J| (impulse J over a sample interval, inferred from
+#: the momentum change, or as logged). Sums of in-cone impulses on one normal stay in the cone.
+MOMENTUM_CONE_REL = 1e-3
+#: Approach speed (m/s, normal, at the contact) above which a contact counts as an impact.
+MOMENTUM_IMPACT_SPEED_MPS = 0.1
+#: |e_effective - e_configured| allowed for a sphere's impact, on top of the discretization
+#: term (1 + e) |a_n| dt / |v_n| (an engine resolves the impact at a step boundary, up to dt
+#: away from the exact time of contact). 0.01 catches MuJoCo's e = 0.82 for a configured 0.8.
+MOMENTUM_RESTITUTION_ABS = 0.01
+#: Below this approach speed (m/s) a lower effective restitution is not flagged: engines use no
+#: restitution for slow impacts (Box2D's threshold is 1 m/s) so that bodies come to rest.
+MOMENTUM_RESTITUTION_MIN_SPEED_MPS = 1.0
+#: Kinetic + potential energy may grow across an impact (restitution <= 1) by at most this
+#: fraction of the colliding bodies' kinetic energy, besides the dt and position allowances.
+MOMENTUM_ENERGY_REL = 1e-3
+
+# --- penetration during resting contact -------------------------------------------------------
+#: Max resting depth (m), capped by DEPTH_FRAC of the body's smallest half-extent (radius): 1 mm is
+#: about one pixel at 1 m across a 1000-px view; a 1 cm marble gets 0.25 mm.
+PENETRATION_DEPTH_M = 1e-3
+PENETRATION_DEPTH_FRAC = 0.05
+#: Max depth at any sample, impacts included (m), capped by TRANSIENT_FRAC of the smallest
+#: half-extent: a momentary 5 mm sink at a fast impact is tolerable, 25% of the body is not.
+PENETRATION_TRANSIENT_DEPTH_M = 5e-3
+PENETRATION_TRANSIENT_FRAC = 0.25
+#: Resting: in contact with the contact point's speed (relative to the partner) below this (m/s),
+#: for at least REST_MIN_SAMPLES consecutive samples. A rolling sphere's contact point is at rest.
+PENETRATION_REST_SPEED_MPS = 0.05
+PENETRATION_REST_MIN_SAMPLES = 3
+#: Jitter and creep are measured after the body has rested this long (s): a body sliding to a
+#: stop from REST_SPEED under friction mu >= 0.05 needs < 0.1 s.
+PENETRATION_SETTLE_S = 0.1
+#: Max contact-point speed while settled (m/s): 1 mm/s is 10 um per frame at 100 Hz, below what
+#: shows; a good engine is at ~1e-6 m/s.
+PENETRATION_JITTER_MPS = 1e-3
+#: Max net slip at the contact while settled (m); only samples slower than CREEP_SPEED_MPS count,
+#: so that a body that slides off (a ramp steeper than its friction allows) is not creep.
+PENETRATION_CREEP_M = 1e-3
+PENETRATION_CREEP_SPEED_MPS = 1e-2
+
+# --- energy -----------------------------------------------------------------------------------
+#: Drift of a free body's energy over a contact-free stretch, relative to the stretch's energy
+#: scale max(max kinetic energy, range of potential energy) (the potential's zero is arbitrary, so
+#: |E0| is not a scale), on top of m |a| dt (|v_t| + |v_0|)/2 for first-order gravity steps.
+ENERGY_DRIFT_REL = 1e-3
+#: Gain of the colliding bodies' energy across a contact interval, relative to their kinetic
+#: energy, on top of the dt allowance and POSITION_CORRECTION_M below.
+ENERGY_CONTACT_GAIN_REL = 1e-3
+#: An engine's position correction may lift a body out of penetration (m): m |g| times this is
+#: allowed as potential-energy gain per contact interval (the resting depth tolerance).
+ENERGY_POSITION_CORRECTION_M = 1e-3
+#: Energy scales below this (J per kg of the body) count as zero motion: drift is then judged
+#: against this floor.
+ENERGY_FLOOR_J_PER_KG = 1e-9
+
+# --- tunneling --------------------------------------------------------------------------------
+#: How far a body's centre may cross the ground plane or enter a static box between two samples
+#: (m). A correct run never puts a centre inside solid geometry.
+TUNNELING_CROSSING_M = 0.0
+#: Two bodies tunnel through each other when the straight path between samples brings their
+#: centres closer than this fraction of the sum of their inner radii (sphere radius, smallest box
+#: half-extent) while they are apart at both samples.
+TUNNELING_PASS_FRAC = 0.5

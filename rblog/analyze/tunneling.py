@@ -1,0 +1,153 @@
+"""Tunneling: a body that passes through the ground, a static box or another body between two
+logged samples.
+
+* Ground: the centre's height above the plane goes from >= 0 at sample k to below
+  ``-CROSSING_M`` at k+1. A correct run never puts a centre under the ground (it would have sunk by
+  its whole inner radius); the value is how far below the centre ends up (m).
+* Static boxes: the straight path of the centre from k to k+1 enters the box (slab test in the
+  box frame) while the centre was outside it at k: the centre went into or through solid
+  geometry, also when both samples are outside a thin wall. The value is how deep the path goes
+  (m, depth of its midpoint inside the box, at least the crossing itself).
+* Two bodies: the straight relative path of their centres from k to k+1 comes closer than
+  ``PASS_FRAC x (r_a + r_b)`` (inner radii: sphere radius, smallest box half-extent) while they
+  are at least that far apart at both samples: they passed through each other. Legitimate
+  contact keeps the centres apart by about r_a + r_b (two spheres rolling around each other
+  would need to turn by 120 degrees in one interval to reach half of it).
+
+Candidates come from the broadphase of bounding spheres swept over each interval, so bodies that
+are far apart at both samples but meet in between are still examined.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import geometry
+from . import tolerances as T
+from .base import Analyzer, Context, Finding, Result, Worst, body_label
+
+
+class TunnelingAnalyzer(Analyzer):
+    name = "tunneling"
+    description = "bodies passing through the ground, static boxes or each other between samples"
+    defaults = {
+        "crossing_m": T.TUNNELING_CROSSING_M,
+        "pass_frac": T.TUNNELING_PASS_FRAC,
+        "contact_distance_m": T.CONTACT_DISTANCE_M,
+    }
+    units = {"crossing_m": "m", "contact_distance_m": "m"}
+
+    def analyze(self, ctx: Context) -> Result:
+        tr = ctx.traj
+        model = tr.model
+        n = tr.n_bodies
+        if not model.ground and not len(model.static_box_position) and n < 2:
+            return self.skip("nothing to pass through: no ground, no static boxes, one body")
+        if tr.n_samples < 2:
+            return self.skip("needs at least two samples")
+        t, step = tr.t, tr.step
+        prox = ctx.proximity(self.tol["contact_distance_m"])
+        cross = self.tol["crossing_m"]
+        worst = Worst("m", cross)
+        findings: list[Finding] = []
+        stats: dict[str, float] = {}
+        n_found = 0
+        # candidates: (kind, value m, interval k, body a, other b (-1 ground, N+m static))
+        found = []
+
+        if prox.ground_height is not None:
+            h = prox.ground_height
+            depth = -h[1:]  # how far below the plane the centre ends up
+            above = h[:-1] >= 0
+            kk, ii = np.nonzero(above)
+            if len(kk):
+                # worst: the deepest any centre gets right after being above (passes: negative)
+                j = int(np.argmax(depth[kk, ii]))
+                worst.offer(_ratio(depth[kk[j], ii[j]], cross), depth[kk[j], ii[j]], cross, "m",
+                            step[kk[j] + 1], t[kk[j] + 1], [ii[j]], "centre depth below ground")
+            hit = above & (depth > cross)
+            kk, ii = np.nonzero(hit)
+            found.append(("the ground", depth[kk, ii], kk, ii, np.full(len(kk), -1)))
+            stats["ground_crossings"] = float(len(kk))
+
+        iv_static = prox.iv_b >= n
+        if iv_static.any():
+            sx, sr, sh = geometry.static_boxes(model)
+            k, a, b = prox.iv_k[iv_static], prox.iv_a[iv_static], prox.iv_b[iv_static] - n
+            x0 = np.einsum("pji,pj->pi", sr[b], tr.position[k, a] - sx[b])  # box frame
+            x1 = np.einsum("pji,pj->pi", sr[b], tr.position[k + 1, a] - sx[b])
+            hb = sh[b] - cross
+            d = x1 - x0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ta = (-hb - x0) / d
+                tb = (hb - x0) / d
+            tmin = np.where(d != 0, np.minimum(ta, tb), np.where(np.abs(x0) <= hb, -np.inf, np.inf))
+            tmax = np.where(d != 0, np.maximum(ta, tb), np.where(np.abs(x0) <= hb, np.inf, -np.inf))
+            t_in = np.maximum(tmin.max(axis=1), 0.0)
+            t_out = np.minimum(tmax.min(axis=1), 1.0)
+            outside0 = (np.abs(x0) > sh[b]).any(axis=1)
+            enters = outside0 & (t_in <= t_out) & (hb > 0).all(axis=1)
+            t_mid = 0.5 * (np.where(enters, t_in, 0.0) + np.where(enters, t_out, 0.0))
+            mid = x0 + t_mid[:, None] * d
+            depth = np.where(enters, np.maximum((sh[b] - np.abs(mid)).min(axis=1), 0.0), -np.inf)
+            if len(depth):
+                j = int(np.argmax(depth))
+                if np.isfinite(depth[j]):
+                    worst.offer(_ratio(depth[j], cross), depth[j], cross, "m", step[k[j] + 1],
+                                t[k[j] + 1], [a[j]], "centre path depth inside a static box")
+            sel = enters & (depth > cross)
+            found.append(("static box", depth[sel], k[sel], a[sel], n + b[sel]))
+            stats["static_crossings"] = float(sel.sum())
+
+        iv_dyn = prox.iv_b < n
+        if iv_dyn.any():
+            k, a, b = prox.iv_k[iv_dyn], prox.iv_a[iv_dyn], prox.iv_b[iv_dyn]
+            ri = geometry.inner_radius(model)
+            thr = self.tol["pass_frac"] * (ri[a] + ri[b])
+            d0 = tr.position[k, a] - tr.position[k, b]
+            d1 = tr.position[k + 1, a] - tr.position[k + 1, b]
+            dd = d1 - d0
+            den = np.einsum("ij,ij->i", dd, dd)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = np.clip(np.where(den > 0, -np.einsum("ij,ij->i", d0, dd) / den, 0.0), 0, 1)
+            closest = np.linalg.norm(d0 + s[:, None] * dd, axis=1)
+            apart = (np.linalg.norm(d0, axis=1) >= thr) & (np.linalg.norm(d1, axis=1) >= thr)
+            depth = np.where(apart, thr - closest, -np.inf)
+            if len(depth):
+                j = int(np.argmax(depth))
+                if np.isfinite(depth[j]):
+                    worst.offer(_ratio(depth[j], cross), depth[j], cross, "m", step[k[j] + 1],
+                                t[k[j] + 1], [a[j], b[j]], "centre path overlap of two bodies")
+            sel = apart & (depth > cross)
+            found.append(("body", depth[sel], k[sel], a[sel], b[sel]))
+            stats["body_crossings"] = float(sel.sum())
+
+        for kind, val, kk, aa, bb in found:
+            n_found += len(val)
+            order = np.argsort(-val)[: T.MAX_FINDINGS]
+            for j in order:
+                k, a, b = int(kk[j]), int(aa[j]), int(bb[j])
+                if kind == "the ground":
+                    what = f"passes through the ground: its centre ends {val[j]:.3g} m below it"
+                    bodies = [a]
+                elif kind == "static box":
+                    what = (f"passes into static box {b - n}: its centre's path goes {val[j]:.3g} m "
+                            "deep")
+                    bodies = [a]
+                else:
+                    what = (f"passes through {body_label(model, b)}: their centres come "
+                            f"{val[j]:.3g} m closer than half their inner radii allow")
+                    bodies = [a, b]
+                findings.append(Finding(
+                    self.name,
+                    f"{body_label(model, a)} {what} between t = {t[k]:.6g} and {t[k + 1]:.6g} s",
+                    float(val[j]), cross, "m", int(step[k + 1]), float(t[k + 1]), bodies))
+        ok = "no body passes through the ground, a static box or another body between samples"
+        return self.result(worst, findings, stats, n_findings=n_found, ok_reason=ok)
+
+
+def _ratio(value, tolerance):
+    """value / tolerance with a zero tolerance: +inf past it, -inf (never worse) below."""
+    if tolerance > 0:
+        return value / tolerance
+    return np.inf if value > 0 else float(value)
