@@ -1,0 +1,106 @@
+"""Every tolerance and setting of the contact pipeline, with its unit and what it trades off.
+
+A scene may override any of them in an optional ``[contact]`` TOML table whose keys are the field
+names of :class:`ContactParams` (for example ``velocity_iterations = 12``). Lengths are in metres,
+speeds in m/s, times in seconds. The defaults are tuned for bodies of 1 cm to 1 m under Earth
+gravity at dt = 1e-3 to 1e-2 s; Box2D v3's ``constants.h`` is the model (its ``B2_LINEAR_SLOP``
+is 5 mm for games; rblog audits penetration, so its slop is 50x smaller).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+
+@dataclass
+class ContactParams:
+    """Settings of collision detection and the contact solver.
+
+    Attributes:
+        velocity_iterations: Gauss-Seidel sweeps over all contact points per step in the velocity
+            solve (sequential impulses with accumulated-impulse clamping). More sweeps make tall
+            stacks and piles stiffer; each sweep costs about as much as the narrowphase of a
+            box pair. Warm starting carries the impulses across steps, so 8 is plenty for resting
+            contact; impacts in piles converge over a few steps.
+        position_iterations: sweeps of the position correction (split impulses on pseudo
+            velocities, which move bodies but are thrown away, so no momentum or energy is ever
+            injected). 0 turns position correction off.
+        allowed_penetration: m. Penetration left uncorrected (Box2D's linear slop). Larger values
+            avoid pushing bodies apart and back again; smaller values keep bodies closer to the
+            surface. Resting bodies sit at most this deep.
+        position_correction_rate: fraction of the penetration beyond ``allowed_penetration``
+            removed per step by the split-impulse pass (Baumgarte factor, in (0, 1]). Higher values
+            fix penetration faster but overshoot where many contacts interact.
+        max_correction_speed: m/s. Cap on the pseudo velocity that removes penetration, so a deep
+            overlap is resolved over several steps instead of popping bodies apart.
+        speculative_distance: m. Contact points are generated while the surfaces are closer
+            than this plus the distance the pair can close in one step (relative speed times dt),
+            so fast bodies cannot tunnel through thin geometry. Larger values cost more contact
+            points; smaller values can miss contacts of rotating boxes.
+        restitution_threshold: m/s. Impacts slower than this (normal approach speed) are treated
+            as inelastic. Low values let resting bodies chatter; high values swallow gentle
+            bounces (Box2D v3 uses 1 m/s).
+        friction_anchor_distance: m. A new contact point takes over the warm-start impulses of a
+            point of the previous step when their feature ids match or, failing that, when they
+            lie within this distance. Too small loses warm starting when manifolds shift; too
+            large mixes up neighbouring points.
+        sleep: let bodies at rest sleep: an island of touching bodies whose speeds all stay
+            below ``sleep_speed`` for ``sleep_time`` stops being integrated and solved until an
+            awake body touches it. Only islands in contact with something sleep (a body drifting
+            slowly through empty space keeps moving).
+        sleep_speed: m/s. Speed below which a body counts as resting: the larger of its
+            centre-of-mass speed and its angular speed times its bounding radius. Higher values
+            freeze slow creeping earlier (Box2D v3 uses 5 cm/s; rblog audits motion, so 5 mm/s).
+        sleep_time: s. How long an island must stay below ``sleep_speed`` before it sleeps.
+        warm_starting: start each step's solve from the previous step's impulses (matched by
+            feature id). Turning it off is only useful to demonstrate why it exists.
+    """
+
+    velocity_iterations: int = 8
+    position_iterations: int = 3
+    allowed_penetration: float = 5e-5
+    position_correction_rate: float = 0.4
+    max_correction_speed: float = 1.0
+    speculative_distance: float = 0.01
+    restitution_threshold: float = 1.0
+    friction_anchor_distance: float = 0.005
+    sleep: bool = True
+    sleep_speed: float = 0.005
+    sleep_time: float = 0.5
+    warm_starting: bool = True
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field when a value is out of its range."""
+        checks = {
+            "velocity_iterations": self.velocity_iterations >= 1,
+            "position_iterations": self.position_iterations >= 0,
+            "allowed_penetration": self.allowed_penetration >= 0.0,
+            "position_correction_rate": 0.0 < self.position_correction_rate <= 1.0,
+            "max_correction_speed": self.max_correction_speed > 0.0,
+            "speculative_distance": self.speculative_distance >= 0.0,
+            "restitution_threshold": self.restitution_threshold >= 0.0,
+            "friction_anchor_distance": self.friction_anchor_distance >= 0.0,
+            "sleep_speed": self.sleep_speed >= 0.0,
+            "sleep_time": self.sleep_time >= 0.0,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"contact.{name} = {getattr(self, name)!r} is out of range")
+        for name in ("velocity_iterations", "position_iterations"):
+            if int(getattr(self, name)) != getattr(self, name):
+                raise ValueError(f"contact.{name} must be an integer")
+
+    @classmethod
+    def from_dict(cls, table: dict) -> "ContactParams":
+        """Build from a ``[contact]`` table; unknown keys raise ValueError listing the known ones."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(table) - known)
+        if unknown:
+            raise ValueError(f"unknown contact setting(s) {unknown}; known: {sorted(known)}")
+        return cls(**table)
+
+    def to_dict(self) -> dict:
+        return asdict(self)

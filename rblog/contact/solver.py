@@ -1,0 +1,537 @@
+"""Contact solver: sequential impulses (projected Gauss-Seidel) with accumulated-impulse clamping.
+
+Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
+``load_bodies`` -> ``prepare_contacts`` -> ``warm_start`` -> ``solve_velocities`` ->
+``relax_positions`` (split impulses) -> [integrate positions, in step.py] -> ``restitution``.
+
+Derivations
+-----------
+Velocity of the gap at a point with anchors r_a, r_b (normal n from b into a)::
+
+    vn = n . (v_a + w_a x r_a - v_b - w_b x r_b)            (> 0: separating)
+
+An impulse P at the point changes it through the effective mass
+``K = (m_a^-1 + m_b^-1) I - [r_a]x I_a^-1 [r_a]x - [r_b]x I_b^-1 [r_b]x`` (world inverse inertia
+``I^-1 = R diag(1/I_body) R^T``). Each sweep visits every point: for the normal row it computes the
+impulse increment that makes vn reach its target, adds it to the accumulated impulse, clamps the
+accumulated impulse to >= 0, and applies the difference (Catto 2005). Friction uses the 2x2
+tangent block of K and clamps the accumulated tangent impulse to the disc of radius mu * lambda_n
+(isotropic Coulomb cone). Equal and opposite impulses at the same point conserve the pair's linear
+momentum and its angular momentum about any point, to round-off.
+
+Targets: a penetrating or touching point (s <= 0) wants vn >= 0; a speculative point (s > 0)
+wants vn >= -s/h, i.e. the pair may close the gap within the step but not cross it. This is what
+stops fast bodies tunnelling, and stops a falling body exactly on the surface.
+
+Position correction by split impulses (Catto 2006; Bullet's split impulse): a second Gauss-Seidel
+pass on *pseudo velocities* (v', w') pushes penetrating points apart with target
+``vn' = min(beta * (-(s + slop)) / h, max_speed)``; positions move by h (v + v') and the pseudo
+velocities are then discarded. Real momenta never see the correction, so it injects neither
+momentum nor kinetic energy (the pseudo impulses are also equal and opposite, so the pair's
+centre of mass does not move either).
+
+Restitution (Box2D v3): after positions are integrated, points that were hit (solve impulse > 0)
+while approaching faster than the threshold get a normal velocity set from the approach velocity
+measured *before* the solve. rblog sharpens Box2D's rule with the step's exact energy balance: the
+gap s, its rate w and the relative normal acceleration a of the external forces (gravity) evolve
+under symplectic Euler, which conserves ``E = w^2/2 - a s + a h w/2`` exactly. The approach speed
+at contact is therefore ``u = sqrt(2 E)`` (from the start-of-step s0, w0), and the rebound rate w+
+is chosen so that the post-impact state at the end-of-step gap s1 has energy e^2 E:
+``w+^2/2 - a s1 + a h w+/2 = e^2 u^2/2``. Without external acceleration this is w+ = e |w0|;
+under gravity it makes bounce apexes e^(2n) h0 to ~1e-5 at dt = 1e-3 instead of ~1%.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from .manifold import (
+    MF_ACC, MF_E, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
+    PF_IMPACT, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS, PF_NMASS, PF_RA, PF_RB, PF_S, PF_SEND, PF_TK,
+    PF_W0, PF_WT,
+)
+
+
+@njit(cache=True, inline="always")
+def _smul(i0, i1, i2, i3, i4, i5, x, y, z):
+    """Symmetric 3x3 (xx, yy, zz, xy, xz, yz) times a vector."""
+    return (i0 * x + i3 * y + i4 * z, i3 * x + i1 * y + i5 * z, i4 * x + i5 * y + i2 * z)
+
+
+@njit(cache=True, inline="always")
+def _cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@njit(cache=True)
+def load_bodies(mi, n_man, n_dyn, iso_shortcut, iso, inv_mass, inv_inertia, rotation,
+                linear_momentum, angular_momentum, in_contact, bm, bI, bv, bw, bv0, bw0, pv, pw,
+                p0, l0):
+    """Mark the bodies of active manifolds and load their solver state.
+
+    bm: (N+1,) inverse mass, bI: (N+1, 6) world inverse inertia (xx, yy, zz, xy, xz, yz), bv/bw:
+    (N+1, 3) velocity and angular velocity (world), bv0/bw0 their values before the solve, pv/pw
+    pseudo velocities, p0/l0 momenta before the solve. Row N is the static dummy (all zero)."""
+    for i in range(n_dyn + 1):
+        in_contact[i] = 0
+    for m in range(n_man):
+        if mi[m, MI_ACTIVE]:
+            in_contact[mi[m, MI_A]] = 1
+            in_contact[mi[m, MI_B]] = 1
+    for i in range(n_dyn):
+        if not in_contact[i]:
+            continue
+        im = inv_mass[i]
+        bm[i] = im
+        if iso_shortcut and iso[i]:
+            # isotropic inertia: I^-1 is a scalar in every frame, no transform needed
+            s = inv_inertia[i, 0]
+            bI[i, 0], bI[i, 1], bI[i, 2] = s, s, s
+            bI[i, 3], bI[i, 4], bI[i, 5] = 0.0, 0.0, 0.0
+        else:
+            r = rotation[i]
+            d0, d1, d2 = inv_inertia[i, 0], inv_inertia[i, 1], inv_inertia[i, 2]
+            # R diag(d) R^T
+            bI[i, 0] = d0 * r[0, 0] * r[0, 0] + d1 * r[0, 1] * r[0, 1] + d2 * r[0, 2] * r[0, 2]
+            bI[i, 1] = d0 * r[1, 0] * r[1, 0] + d1 * r[1, 1] * r[1, 1] + d2 * r[1, 2] * r[1, 2]
+            bI[i, 2] = d0 * r[2, 0] * r[2, 0] + d1 * r[2, 1] * r[2, 1] + d2 * r[2, 2] * r[2, 2]
+            bI[i, 3] = d0 * r[0, 0] * r[1, 0] + d1 * r[0, 1] * r[1, 1] + d2 * r[0, 2] * r[1, 2]
+            bI[i, 4] = d0 * r[0, 0] * r[2, 0] + d1 * r[0, 1] * r[2, 1] + d2 * r[0, 2] * r[2, 2]
+            bI[i, 5] = d0 * r[1, 0] * r[2, 0] + d1 * r[1, 1] * r[2, 1] + d2 * r[1, 2] * r[2, 2]
+        for k in range(3):
+            p0[i, k] = linear_momentum[i, k]
+            l0[i, k] = angular_momentum[i, k]
+            bv[i, k] = linear_momentum[i, k] * im
+            bv0[i, k] = bv[i, k]
+            pv[i, k] = 0.0
+            pw[i, k] = 0.0
+        wx, wy, wz = _smul(bI[i, 0], bI[i, 1], bI[i, 2], bI[i, 3], bI[i, 4], bI[i, 5],
+                           l0[i, 0], l0[i, 1], l0[i, 2])
+        bw[i, 0], bw[i, 1], bw[i, 2] = wx, wy, wz
+        bw0[i, 0], bw0[i, 1], bw0[i, 2] = wx, wy, wz
+    # the static dummy: reset every step so that a bad value can never stick to it
+    s = n_dyn
+    bm[s] = 0.0
+    for k in range(3):
+        bv[s, k] = 0.0
+        bw[s, k] = 0.0
+        bv0[s, k] = 0.0
+        bw0[s, k] = 0.0
+        pv[s, k] = 0.0
+        pw[s, k] = 0.0
+    for k in range(6):
+        bI[s, k] = 0.0
+
+
+@njit(cache=True)
+def prepare_contacts(mi, mf, pf, n_man, bm, bI, bv, bw, h):
+    """Effective masses, and the gap velocity before the step (for restitution)."""
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        ma = bm[ia]
+        mb = bm[ib]
+        a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+        b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        acc = mf[m, MF_ACC]
+        vax, vay, vaz = bv[ia, 0], bv[ia, 1], bv[ia, 2]
+        wax, way, waz = bw[ia, 0], bw[ia, 1], bw[ia, 2]
+        vbx, vby, vbz = bv[ib, 0], bv[ib, 1], bv[ib, 2]
+        wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            # normal row
+            cax, cay, caz = _cross(rax, ray, raz, nx, ny, nz)
+            cbx, cby, cbz = _cross(rbx, rby, rbz, nx, ny, nz)
+            ix, iy, iz = _smul(a0, a1, a2, a3, a4, a5, cax, cay, caz)
+            jx, jy, jz = _smul(b0, b1, b2, b3, b4, b5, cbx, cby, cbz)
+            k = ma + mb + cax * ix + cay * iy + caz * iz + cbx * jx + cby * jy + cbz * jz
+            pf[p, PF_NMASS] = 1.0 / k if k > 0.0 else 0.0
+            # tangent block
+            ua1x, ua1y, ua1z = _cross(rax, ray, raz, t1x, t1y, t1z)
+            ua2x, ua2y, ua2z = _cross(rax, ray, raz, t2x, t2y, t2z)
+            ub1x, ub1y, ub1z = _cross(rbx, rby, rbz, t1x, t1y, t1z)
+            ub2x, ub2y, ub2z = _cross(rbx, rby, rbz, t2x, t2y, t2z)
+            ia1x, ia1y, ia1z = _smul(a0, a1, a2, a3, a4, a5, ua1x, ua1y, ua1z)
+            ia2x, ia2y, ia2z = _smul(a0, a1, a2, a3, a4, a5, ua2x, ua2y, ua2z)
+            ib1x, ib1y, ib1z = _smul(b0, b1, b2, b3, b4, b5, ub1x, ub1y, ub1z)
+            ib2x, ib2y, ib2z = _smul(b0, b1, b2, b3, b4, b5, ub2x, ub2y, ub2z)
+            k11 = ma + mb + ua1x * ia1x + ua1y * ia1y + ua1z * ia1z + ub1x * ib1x + ub1y * ib1y + ub1z * ib1z
+            k22 = ma + mb + ua2x * ia2x + ua2y * ia2y + ua2z * ia2z + ub2x * ib2x + ub2y * ib2y + ub2z * ib2z
+            k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y + ub1z * ib2z
+            det = k11 * k22 - k12 * k12
+            if det > 0.0:
+                inv = 1.0 / det
+                pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2] = k22 * inv, -k12 * inv, k11 * inv
+            else:
+                pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2] = 0.0, 0.0, 0.0
+            # gap velocity now (after the force kick), and before the kick
+            wxrax, wxray, wxraz = _cross(wax, way, waz, rax, ray, raz)
+            wxrbx, wxrby, wxrbz = _cross(wbx, wby, wbz, rbx, rby, rbz)
+            vn = (nx * (vax + wxrax - vbx - wxrbx) + ny * (vay + wxray - vby - wxrby)
+                  + nz * (vaz + wxraz - vbz - wxrbz))
+            pf[p, PF_W0] = vn - acc * h
+            pf[p, PF_LP] = 0.0
+            pf[p, PF_IMPACT] = 0.0
+
+
+@njit(cache=True)
+def warm_start(mi, mf, pf, n_man, bm, bI, bv, bw):
+    """Apply the impulses carried over from the previous step."""
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        ma = bm[ia]
+        mb = bm[ib]
+        a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+        b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        vax, vay, vaz = bv[ia, 0], bv[ia, 1], bv[ia, 2]
+        wax, way, waz = bw[ia, 0], bw[ia, 1], bw[ia, 2]
+        vbx, vby, vbz = bv[ib, 0], bv[ib, 1], bv[ib, 2]
+        wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            ln, l1, l2 = pf[p, PF_LN], pf[p, PF_L1], pf[p, PF_L2]
+            if ln == 0.0 and l1 == 0.0 and l2 == 0.0:
+                continue
+            px = ln * nx + l1 * t1x + l2 * t2x
+            py = ln * ny + l1 * t1y + l2 * t2y
+            pz = ln * nz + l1 * t1z + l2 * t2z
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            vax += ma * px
+            vay += ma * py
+            vaz += ma * pz
+            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+            dx, dy, dz = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+            wax += dx
+            way += dy
+            waz += dz
+            vbx -= mb * px
+            vby -= mb * py
+            vbz -= mb * pz
+            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+            dx, dy, dz = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+            wbx -= dx
+            wby -= dy
+            wbz -= dz
+        bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
+        bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
+        bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
+        bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
+
+
+@njit(cache=True)
+def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, n_iter):
+    """Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order)."""
+    for _ in range(n_iter):
+        for m in range(n_man):
+            if not mi[m, MI_ACTIVE]:
+                continue
+            ia = mi[m, MI_A]
+            ib = mi[m, MI_B]
+            ma = bm[ia]
+            mb = bm[ib]
+            a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+            b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+            nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+            t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+            t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+            mu = mf[m, MF_MU]
+            vax, vay, vaz = bv[ia, 0], bv[ia, 1], bv[ia, 2]
+            wax, way, waz = bw[ia, 0], bw[ia, 1], bw[ia, 2]
+            vbx, vby, vbz = bv[ib, 0], bv[ib, 1], bv[ib, 2]
+            wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
+            start = mi[m, MI_START]
+            end = start + mi[m, MI_COUNT]
+            # non-penetration
+            for p in range(start, end):
+                rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                # relative normal velocity at the contact (a minus b)
+                dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+                dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+                dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+                vn = dvx * nx + dvy * ny + dvz * nz
+                s = pf[p, PF_S]
+                # speculative: the gap may close within the step, not more
+                target = -s * inv_h if s > 0.0 else 0.0
+                # clamp the accumulated impulse
+                old = pf[p, PF_LN]
+                new = old + pf[p, PF_NMASS] * (target - vn)
+                if new < 0.0:
+                    new = 0.0
+                pf[p, PF_LN] = new
+                d = new - old
+                px, py, pz = d * nx, d * ny, d * nz
+                vax += ma * px
+                vay += ma * py
+                vaz += ma * pz
+                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                wax += ex
+                way += ey
+                waz += ez
+                vbx -= mb * px
+                vby -= mb * py
+                vbz -= mb * pz
+                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                wbx -= ex
+                wby -= ey
+                wbz -= ez
+            # friction
+            if mu > 0.0:
+                for p in range(start, end):
+                    rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                    rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                    dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+                    dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+                    dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+                    vt1 = dvx * t1x + dvy * t1y + dvz * t1z
+                    vt2 = dvx * t2x + dvy * t2y + dvz * t2z
+                    k11, k12, k22 = pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2]
+                    o1, o2 = pf[p, PF_L1], pf[p, PF_L2]
+                    n1 = o1 - (k11 * vt1 + k12 * vt2)
+                    n2 = o2 - (k12 * vt1 + k22 * vt2)
+                    # clamp the accumulated friction to the disc mu * lambda_n
+                    fmax = mu * pf[p, PF_LN]
+                    f2 = n1 * n1 + n2 * n2
+                    if f2 > fmax * fmax:
+                        sc = fmax / math.sqrt(f2)
+                        n1 *= sc
+                        n2 *= sc
+                    pf[p, PF_L1] = n1
+                    pf[p, PF_L2] = n2
+                    d1 = n1 - o1
+                    d2 = n2 - o2
+                    px = d1 * t1x + d2 * t2x
+                    py = d1 * t1y + d2 * t2y
+                    pz = d1 * t1z + d2 * t2z
+                    vax += ma * px
+                    vay += ma * py
+                    vaz += ma * pz
+                    cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                    ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                    wax += ex
+                    way += ey
+                    waz += ez
+                    vbx -= mb * px
+                    vby -= mb * py
+                    vbz -= mb * pz
+                    cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                    ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                    wbx -= ex
+                    wby -= ey
+                    wbz -= ez
+            bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
+            bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
+            bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
+            bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
+
+
+@njit(cache=True)
+def relax_positions(mi, mf, pf, n_man, bm, bI, pv, pw, inv_h, n_iter, slop, beta, max_speed):
+    """Split impulses: Gauss-Seidel on pseudo velocities that remove penetration beyond slop."""
+    for _ in range(n_iter):
+        for m in range(n_man):
+            if not mi[m, MI_ACTIVE]:
+                continue
+            ia = mi[m, MI_A]
+            ib = mi[m, MI_B]
+            start = mi[m, MI_START]
+            end = start + mi[m, MI_COUNT]
+            deep = False
+            for p in range(start, end):
+                if pf[p, PF_S] <= 0.0:
+                    deep = True
+            if not deep:
+                continue
+            ma = bm[ia]
+            mb = bm[ib]
+            a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+            b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+            nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+            vax, vay, vaz = pv[ia, 0], pv[ia, 1], pv[ia, 2]
+            wax, way, waz = pw[ia, 0], pw[ia, 1], pw[ia, 2]
+            vbx, vby, vbz = pv[ib, 0], pv[ib, 1], pv[ib, 2]
+            wbx, wby, wbz = pw[ib, 0], pw[ib, 1], pw[ib, 2]
+            for p in range(start, end):
+                s = pf[p, PF_S]
+                if s > 0.0:
+                    continue
+                rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+                dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+                dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+                vn = dvx * nx + dvy * ny + dvz * nz
+                target = -(s + slop) * beta * inv_h
+                if target < 0.0:
+                    target = 0.0
+                elif target > max_speed:
+                    target = max_speed
+                old = pf[p, PF_LP]
+                new = old + pf[p, PF_NMASS] * (target - vn)
+                if new < 0.0:
+                    new = 0.0
+                pf[p, PF_LP] = new
+                d = new - old
+                px, py, pz = d * nx, d * ny, d * nz
+                vax += ma * px
+                vay += ma * py
+                vaz += ma * pz
+                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                wax += ex
+                way += ey
+                waz += ez
+                vbx -= mb * px
+                vby -= mb * py
+                vbz -= mb * pz
+                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                wbx -= ex
+                wby -= ey
+                wbz -= ez
+            pv[ia, 0], pv[ia, 1], pv[ia, 2] = vax, vay, vaz
+            pw[ia, 0], pw[ia, 1], pw[ia, 2] = wax, way, waz
+            pv[ib, 0], pv[ib, 1], pv[ib, 2] = vbx, vby, vbz
+            pw[ib, 0], pw[ib, 1], pw[ib, 2] = wbx, wby, wbz
+
+
+@njit(cache=True, inline="always")
+def _gap_rate(v, w, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz):
+    dvx = v[ia, 0] + w[ia, 1] * raz - w[ia, 2] * ray - v[ib, 0] - w[ib, 1] * rbz + w[ib, 2] * rby
+    dvy = v[ia, 1] + w[ia, 2] * rax - w[ia, 0] * raz - v[ib, 1] - w[ib, 2] * rbx + w[ib, 0] * rbz
+    dvz = v[ia, 2] + w[ia, 0] * ray - w[ia, 1] * rax - v[ib, 2] - w[ib, 0] * rby + w[ib, 1] * rbx
+    return dvx * nx + dvy * ny + dvz * nz
+
+
+@njit(cache=True)
+def restitution(mi, mf, pf, n_man, bm, bI, bv, bw, pv, pw, h, threshold, n_iter):
+    """Store the solve's impulses for warm starting, estimate end-of-step gaps, then bounce.
+
+    A point bounces when its solve impulse is positive (it was hit), the gap was closing at the
+    start of the step, and its impact speed u exceeds ``threshold``. Returns the number of
+    impact points."""
+    n_impacts = 0
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+        e = mf[m, MF_E]
+        acc = mf[m, MF_ACC]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            vn = _gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
+            pn = _gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
+            s0 = pf[p, PF_S]
+            s1 = s0 + h * (vn + pn)
+            pf[p, PF_SEND] = s1
+            pf[p, PF_LWS] = pf[p, PF_LN]
+            pf[p, PF_WT] = -1.0
+            w0 = pf[p, PF_W0]
+            if w0 >= 0.0 or pf[p, PF_LN] <= 0.0:
+                continue
+            # approach speed at contact from the step's conserved energy (see module docstring)
+            u2 = w0 * w0 - 2.0 * acc * s0 + acc * h * w0
+            if u2 <= threshold * threshold:
+                continue
+            pf[p, PF_IMPACT] = 1.0
+            n_impacts += 1
+            if e <= 0.0:
+                continue
+            c = e * e * u2 + 2.0 * acc * s1
+            disc = acc * acc * h * h + 4.0 * c
+            if c > 0.0 and disc > 0.0:
+                pf[p, PF_WT] = 0.5 * (-acc * h + math.sqrt(disc))
+            else:
+                pf[p, PF_WT] = e * math.sqrt(u2)
+    if n_impacts == 0:
+        return 0
+    # Gauss-Seidel on the bounce targets of the impact points only
+    for _ in range(n_iter):
+        for m in range(n_man):
+            if not mi[m, MI_ACTIVE]:
+                continue
+            start = mi[m, MI_START]
+            end = start + mi[m, MI_COUNT]
+            any_target = False
+            for p in range(start, end):
+                if pf[p, PF_WT] >= 0.0:
+                    any_target = True
+            if not any_target:
+                continue
+            ia = mi[m, MI_A]
+            ib = mi[m, MI_B]
+            ma = bm[ia]
+            mb = bm[ib]
+            a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+            b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+            nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+            for p in range(start, end):
+                wt = pf[p, PF_WT]
+                if wt < 0.0:
+                    continue
+                rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                vn = _gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
+                old = pf[p, PF_LN]
+                new = old + pf[p, PF_NMASS] * (wt - vn)
+                if new < 0.0:
+                    new = 0.0
+                pf[p, PF_LN] = new
+                d = new - old
+                px, py, pz = d * nx, d * ny, d * nz
+                bv[ia, 0] += ma * px
+                bv[ia, 1] += ma * py
+                bv[ia, 2] += ma * pz
+                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                bw[ia, 0] += ex
+                bw[ia, 1] += ey
+                bw[ia, 2] += ez
+                bv[ib, 0] -= mb * px
+                bv[ib, 1] -= mb * py
+                bv[ib, 2] -= mb * pz
+                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                bw[ib, 0] -= ex
+                bw[ib, 1] -= ey
+                bw[ib, 2] -= ez
+    return n_impacts
+
+
+@njit(cache=True)
+def store_impulses(mi, mf, pf, n_man):
+    """Friction impulses as world vectors, so the next step can project them on its tangents."""
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            l1, l2 = pf[p, PF_L1], pf[p, PF_L2]
+            pf[p, PF_F] = l1 * t1x + l2 * t2x
+            pf[p, PF_F + 1] = l1 * t1y + l2 * t2y
+            pf[p, PF_F + 2] = l1 * t1z + l2 * t2z
