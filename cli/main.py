@@ -261,5 +261,10 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url):
     return recorders, paths
 
 
+from rblog_cli.bench_cmds import bench, stress  # noqa: E402
+
+main.add_command(bench)
+main.add_command(stress)
+
 if __name__ == "__main__":
     main()
