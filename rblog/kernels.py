@@ -1,7 +1,8 @@
 """Compiled kernels that advance free bodies (no contacts) many steps per call.
 
-Bodies are independent without contacts, so the loop runs bodies outer and steps inner: each
-body's state stays in registers/L1 for the whole block. The stages of one step, per integrator:
+Bodies are independent without contacts, so the loop runs over tiles of BODY_TILE bodies, steps
+inside a tile: the tile's state stays in L1 for the whole block, and samples are written for
+consecutive bodies. The stages of one step, per integrator:
 
 * ``seed`` / ``seed-quat`` (the lecture notes): P += h F; x += h P/m; L += h tau; rotate.
 * ``splitting``: kick half (P, L), drift (x += h P/m, exact-axis-rotation splitting), kick half.
@@ -25,6 +26,75 @@ from .rotation import (
 )
 
 
+#: bodies advanced together, steps inner: their state (~180 B each) stays in L1, and a sample's
+#: writes for consecutive bodies share cache lines (a bodies-outer loop wrote each body's samples
+#: a whole sample-row apart: one cache miss per channel per sample).
+BODY_TILE = 32
+
+
+@njit(inline="always")
+def _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
+               position, linear_momentum, quat_wxyz, rotation, angular_momentum):
+    """One step of body i, in place. Returns False if its state became non-finite."""
+    im = inv_mass[i]
+    fx, fy, fz = force_world[i, 0], force_world[i, 1], force_world[i, 2]
+    tx, ty, tz = torque_world[i, 0], torque_world[i, 1], torque_world[i, 2]
+    px, py, pz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
+    x, y, z = position[i, 0], position[i, 1], position[i, 2]
+    if method == METHOD_SPLITTING:
+        # kick half, drift, kick half
+        hh = 0.5 * dt
+        px += hh * fx
+        py += hh * fy
+        pz += hh * fz
+        angular_momentum[i, 0] += hh * tx
+        angular_momentum[i, 1] += hh * ty
+        angular_momentum[i, 2] += hh * tz
+        x += dt * px * im
+        y += dt * py * im
+        z += dt * pz * im
+        drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt)
+        px += hh * fx
+        py += hh * fy
+        pz += hh * fz
+        angular_momentum[i, 0] += hh * tx
+        angular_momentum[i, 1] += hh * ty
+        angular_momentum[i, 2] += hh * tz
+    elif method == METHOD_RK4:
+        # translation: exact for a constant force; rotation: RK4 with L(t) = L + t tau
+        hh = 0.5 * dt * dt * im
+        x += dt * px * im + hh * fx
+        y += dt * py * im + hh * fy
+        z += dt * pz * im + hh * fz
+        px += dt * fx
+        py += dt * fy
+        pz += dt * fz
+        drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt,
+                       tx, ty, tz)
+        angular_momentum[i, 0] += dt * tx
+        angular_momentum[i, 1] += dt * ty
+        angular_momentum[i, 2] += dt * tz
+    else:
+        # the notes: forward Euler on P and L, then x and R from the new values
+        px += dt * fx
+        py += dt * fy
+        pz += dt * fz
+        x += dt * px * im
+        y += dt * py * im
+        z += dt * pz * im
+        angular_momentum[i, 0] += dt * tx
+        angular_momentum[i, 1] += dt * ty
+        angular_momentum[i, 2] += dt * tz
+        drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt)
+    position[i, 0], position[i, 1], position[i, 2] = x, y, z
+    linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
+    # non-finite check: one sum covers position, momenta and part of the rotation
+    chk = (x + y + z + px + py + pz + angular_momentum[i, 0] + angular_momentum[i, 1]
+           + angular_momentum[i, 2] + rotation[i, 0, 0] + rotation[i, 1, 1] + rotation[i, 2, 2]
+           + rotation[i, 0, 1])
+    return math.isfinite(chk)
+
+
 @njit(cache=True, nogil=True)
 def advance_free(method, ortho, dt, n_steps, stride, sample_last,
                  inv_mass, inv_inertia, force_world, torque_world,
@@ -41,94 +111,44 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
         out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
 
     Returns:
-        (n_samples, bad_step, bad_body): samples written per body, and the first local step
-        (1-based) at which some body's state became non-finite (-1 if none) and that body.
-        After a bad step, that body's samples from that step on are garbage; the caller keeps
-        only samples taken before it.
+        (n_samples, bad_step, bad_body): samples written, and the first local step (1-based) at
+        which some body's state became non-finite (-1 if none) and that body. The caller keeps
+        only samples taken before a bad step.
     """
     n_bodies = position.shape[0]
     n_samples = 0
     bad_step = -1
     bad_body = -1
-    for i in range(n_bodies):
-        im = inv_mass[i]
-        fx, fy, fz = force_world[i, 0], force_world[i, 1], force_world[i, 2]
-        tx, ty, tz = torque_world[i, 0], torque_world[i, 1], torque_world[i, 2]
-        px, py, pz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
-        x, y, z = position[i, 0], position[i, 1], position[i, 2]
+    for t0 in range(0, n_bodies, BODY_TILE):
+        t1 = min(t0 + BODY_TILE, n_bodies)
         j = 0
         for s in range(1, n_steps + 1):
-            if method == METHOD_SPLITTING:
-                hh = 0.5 * dt
-                px += hh * fx
-                py += hh * fy
-                pz += hh * fz
-                angular_momentum[i, 0] += hh * tx
-                angular_momentum[i, 1] += hh * ty
-                angular_momentum[i, 2] += hh * tz
-                x += dt * px * im
-                y += dt * py * im
-                z += dt * pz * im
-                drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia,
-                               i, dt)
-                px += hh * fx
-                py += hh * fy
-                pz += hh * fz
-                angular_momentum[i, 0] += hh * tx
-                angular_momentum[i, 1] += hh * ty
-                angular_momentum[i, 2] += hh * tz
-            elif method == METHOD_RK4:
-                hh = 0.5 * dt * dt * im
-                x += dt * px * im + hh * fx
-                y += dt * py * im + hh * fy
-                z += dt * pz * im + hh * fz
-                px += dt * fx
-                py += dt * fy
-                pz += dt * fz
-                drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia,
-                               i, dt, tx, ty, tz)
-                angular_momentum[i, 0] += dt * tx
-                angular_momentum[i, 1] += dt * ty
-                angular_momentum[i, 2] += dt * tz
-            else:  # the notes: forward Euler on P and L, x and R from the new values
-                px += dt * fx
-                py += dt * fy
-                pz += dt * fz
-                x += dt * px * im
-                y += dt * py * im
-                z += dt * pz * im
-                angular_momentum[i, 0] += dt * tx
-                angular_momentum[i, 1] += dt * ty
-                angular_momentum[i, 2] += dt * tz
-                drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia,
-                               i, dt)
-            # non-finite check: one sum covers position, momenta and the rotation's diagonal
-            chk = (x + y + z + px + py + pz + angular_momentum[i, 0] + angular_momentum[i, 1]
-                   + angular_momentum[i, 2] + rotation[i, 0, 0] + rotation[i, 1, 1]
-                   + rotation[i, 2, 2] + rotation[i, 0, 1])
-            if not math.isfinite(chk):
-                if bad_step < 0 or s < bad_step:
-                    bad_step = s
-                    bad_body = i
+            ok = True
+            for i in range(t0, t1):
+                if not _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world,
+                                  torque_world, position, linear_momentum, quat_wxyz, rotation,
+                                  angular_momentum):
+                    if bad_step < 0 or s < bad_step:
+                        bad_step = s
+                        bad_body = i
+                    ok = False
+                    break
+            if not ok:
                 break
             if s % stride == 0 or (sample_last and s == n_steps):
-                sync_quat(method, quat_wxyz, rotation, i)
-                out_position[j, i, 0] = x
-                out_position[j, i, 1] = y
-                out_position[j, i, 2] = z
-                out_linear_momentum[j, i, 0] = px
-                out_linear_momentum[j, i, 1] = py
-                out_linear_momentum[j, i, 2] = pz
-                for a in range(3):
-                    out_angular_momentum[j, i, a] = angular_momentum[i, a]
-                    for b in range(3):
-                        out_rotation[j, i, a, b] = rotation[i, a, b]
-                for a in range(4):
-                    out_quat_wxyz[j, i, a] = quat_wxyz[i, a]
+                for i in range(t0, t1):
+                    sync_quat(method, quat_wxyz, rotation, i)
+                    for a in range(3):
+                        out_position[j, i, a] = position[i, a]
+                        out_linear_momentum[j, i, a] = linear_momentum[i, a]
+                        out_angular_momentum[j, i, a] = angular_momentum[i, a]
+                        for b in range(3):
+                            out_rotation[j, i, a, b] = rotation[i, a, b]
+                    for a in range(4):
+                        out_quat_wxyz[j, i, a] = quat_wxyz[i, a]
                 j += 1
-        position[i, 0], position[i, 1], position[i, 2] = x, y, z
-        linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
-        sync_quat(method, quat_wxyz, rotation, i)
+        for i in range(t0, t1):
+            sync_quat(method, quat_wxyz, rotation, i)
         if j > n_samples:
             n_samples = j
     return n_samples, bad_step, bad_body

@@ -193,13 +193,15 @@ def run(
 
     samples_per_block = int(max(1, min(BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_STEPS // max(1, n_bodies * stride))))
     steps_per_block = samples_per_block * stride
-    bufs = (
-        np.empty((samples_per_block + 1, n_bodies, 3)),
-        np.empty((samples_per_block + 1, n_bodies, 3)),
-        np.empty((samples_per_block + 1, n_bodies, 4)),
-        np.empty((samples_per_block + 1, n_bodies, 3, 3)),
-        np.empty((samples_per_block + 1, n_bodies, 3)),
-    )
+
+    def new_buffers():
+        """Sample buffers for one block. Fresh ones each block: the block is handed to the
+        recorders as is (no copy), and a recorder may keep it."""
+        s = samples_per_block + 1
+        return (np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 4)),
+                np.empty((s, n_bodies, 3, 3)), np.empty((s, n_bodies, 3)))
+
+    bufs = new_buffers()
 
     # load (or compile, the first time) the kernels before the clock starts
     with _CompileNotice(notice):
@@ -226,6 +228,7 @@ def run(
         while done < n_total:
             n = min(steps_per_block, n_total - done)
             sample_last = (done + n == n_total) and (n % stride != 0)
+            bufs = new_buffers()
             ns, bad_step, bad_body, contacts = advance(dt, n, stride, sample_last, st, bufs)
             local = np.arange(1, n // stride + 1) * stride
             if sample_last:
@@ -237,7 +240,7 @@ def run(
                     contacts.step = contacts.step + done
                     if bad_step >= 0:
                         contacts = contacts.select(contacts.step < done + bad_step)
-                writer.submit(done + local, *(b[:keep].copy() for b in bufs), contacts)
+                writer.submit(done + local, *(b[:keep] for b in bufs), contacts)
                 n_samples += keep
             if bad_step >= 0:
                 bad_global = done + bad_step
