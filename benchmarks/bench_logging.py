@@ -69,6 +69,8 @@ def main():
         ("mcap, every step", lambda: rblog.run(scene, log_every=1, recorders=[McapRecorder(mcap)], **kw)),
         ("rrd + mcap, every step", lambda: rblog.run(
             scene, log_every=1, recorders=[RerunRecorder(rrd), McapRecorder(mcap)], **kw)),
+        ("rrd + mcap, default 100 Hz", lambda: rblog.run(
+            scene, recorders=[RerunRecorder(rrd + "2"), McapRecorder(mcap + "2")], **kw)),
     ]
     print(f"{n} bodies, {args.steps} steps of 1 ms, integrator {args.integrator}; wall time of "
           "rblog.run (kernels loaded), best of 3")
