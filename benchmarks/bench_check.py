@@ -103,7 +103,8 @@ def synthetic(n_samples: int = 10_001, n_bodies: int = 100, dt: float = 1e-3, lo
     kk = len(k1)
     contacts = Contacts(
         step=step[k1], t=t[k1], body_a=b[j], body_b=np.full(kk, STATIC_BODY),
-        point=np.concatenate([xy[b[j]], np.zeros((kk, 1))], 1), normal=np.tile([0, 0, 1.0], (kk, 1)),
+        point=np.concatenate([xy[b[j]], np.zeros((kk, 1))], 1),
+        normal=np.tile([0, 0, 1.0], (kk, 1)),
         separation=np.zeros(kk), normal_impulse=2 * v0[j], friction_impulse=np.zeros((kk, 3)),
         kind=np.full(kk, CONTACT_IMPACT, np.int8),
     )

@@ -14,7 +14,11 @@ Derivations used by the analyzers (all from logged channels + model, never simul
   too.
 * Contact groups: bodies (per interval) joined by such possible contacts, and kept when at least
   one member's momentum jumped. A group with no static geometry in reach is closed: its momentum
-  must be conserved. Computed for every interval at once (label propagation on the edge list).
+  must be conserved. Computed in one compiled pass over the intervals (union-find).
+
+The per-sample work (kinematics, contact groups, and in the analyzers rigidity, geometry and
+energy stretches) runs in numba kernels (``cache=True``) over all bodies and samples; Python
+only handles the findings, which are few.
 """
 
 from __future__ import annotations
@@ -161,7 +165,7 @@ class Analyzer:
     description: str = ""
     #: tolerance name -> default value
     defaults: dict[str, float] = {}
-    #: tolerance name -> unit
+    #: tolerance name -> unit ("1" when not listed: a ratio)
     units: dict[str, str] = {}
 
     def __init__(self, **tolerances):
@@ -178,6 +182,11 @@ class Analyzer:
                 raise CheckOptionError(f"tolerance {self.name}.{k} must be a number, got {v!r}")
             if not math.isfinite(self.tol[k]) or self.tol[k] < 0:
                 raise CheckOptionError(f"tolerance {self.name}.{k} must be finite and >= 0")
+
+    @classmethod
+    def tolerance_table(cls) -> list[tuple[str, float, str]]:
+        """(``analyzer.name``, default, unit) of every tolerance, for listings (``--list``)."""
+        return [(f"{cls.name}.{k}", v, cls.units.get(k, "1")) for k, v in cls.defaults.items()]
 
     def run(self, traj: Trajectory, ctx: "Context | None" = None) -> Result:
         """Analyze ``traj`` (``ctx`` shares work between analyzers of one trajectory)."""
@@ -288,26 +297,102 @@ class Groups:
         return [int(b) for b in self.mem_i[lo:hi]]
 
 
-def _components(n_nodes: int, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Connected-component label (smallest node id) of nodes 0..n_nodes-1 given edges u-v."""
-    lab = np.arange(n_nodes)
-    if len(u) == 0:
-        return lab
-    while True:
-        m = np.minimum(lab[u], lab[v])
-        new = lab.copy()
-        np.minimum.at(new, u, m)
-        np.minimum.at(new, v, m)
-        # pointer jumping
-        while True:
-            nxt = new[new]
-            if np.array_equal(nxt, new):
-                break
-            new = nxt
-        if np.array_equal(new, lab):
-            return lab
-        lab = new
+@njit(cache=True, nogil=True)
+def _find(parent, a):
+    while parent[a] != a:
+        parent[a] = parent[parent[a]]
+        a = parent[a]
+    return a
 
+
+@njit(cache=True, nogil=True)
+def _groups_kernel(jump, n_static, static_id, ek, ea, eb, g_k, g_size, g_nstat, g_sid, m_k, m_i,
+                   m_g):
+    """Contact groups, interval by interval (edges sorted by interval): union-find over the
+    bodies joined by possible contacts, keeping the components with a jumped member. Writes
+    groups (interval, size, static features in reach, static id) and their members contiguous
+    per group, groups and members in body order; returns (groups, members)."""
+    kn, n = jump.shape
+    parent = np.arange(n)
+    touched = np.zeros(n, np.bool_)
+    has = np.zeros(n, np.bool_)
+    gid = np.full(n, -1)
+    fill = np.zeros(n, np.int64)
+    nodes = np.empty(n, np.int64)
+    c = 0
+    q = 0
+    e = 0
+    ne = ek.shape[0]
+    for k in range(kn):
+        cnt = 0
+        while e < ne and ek[e] == k:
+            a, b = ea[e], eb[e]
+            for v in (a, b):
+                if not touched[v]:
+                    touched[v] = True
+                    nodes[cnt] = v
+                    cnt += 1
+            ra, rb = _find(parent, a), _find(parent, b)
+            if ra < rb:
+                parent[rb] = ra
+            elif rb < ra:
+                parent[ra] = rb
+            e += 1
+        for v in range(n):
+            if jump[k, v] and not touched[v]:
+                touched[v] = True
+                nodes[cnt] = v
+                cnt += 1
+        if cnt == 0:
+            continue
+        nodes[:cnt].sort()
+        for j in range(cnt):
+            v = nodes[j]
+            if jump[k, v]:
+                has[_find(parent, v)] = True
+        c0 = c
+        for j in range(cnt):  # groups in the order of their smallest body
+            v = nodes[j]
+            r = _find(parent, v)
+            if has[r]:
+                if gid[r] < 0:
+                    gid[r] = c
+                    g_k[c] = k
+                    g_size[c] = 0
+                    g_nstat[c] = 0
+                    g_sid[c] = -2
+                    c += 1
+                g = gid[r]
+                g_size[g] += 1
+                g_nstat[g] += n_static[k, v]
+                if n_static[k, v] > 0:
+                    g_sid[g] = static_id[k, v]
+        # members, contiguous per group
+        start = q
+        for g in range(c0, c):
+            fill[g - c0] = start
+            start += g_size[g]
+        for j in range(cnt):
+            v = nodes[j]
+            r = _find(parent, v)
+            if has[r]:
+                g = gid[r]
+                pos = fill[g - c0]
+                m_k[pos] = k
+                m_i[pos] = v
+                m_g[pos] = g
+                fill[g - c0] += 1
+        q = start
+        for j in range(cnt):  # reset what this interval touched
+            v = nodes[j]
+            r = _find(parent, v)
+            has[r] = False
+            gid[r] = -1
+        for j in range(cnt):
+            v = nodes[j]
+            parent[v] = v
+            touched[v] = False
+    return c, q
 
 
 @njit(cache=True, nogil=True)
@@ -348,7 +433,8 @@ def _kinematics(t, position, velocity, momentum, ang_momentum, omega, mass, forc
             sp = max(speed[k, b], speed[k + 1, b])
             p_scale = mass[b] * (sp + amag * dt + 1e-9)
             l_scale = math.sqrt(max(l0, l1)) + inertia_max[b] * 1e-9
-            jump[k, b] = (math.sqrt(jj) > jump_rel * p_scale) or (math.sqrt(hh) > jump_rel * l_scale)
+            jump[k, b] = (math.sqrt(jj) > jump_rel * p_scale
+                          or math.sqrt(hh) > jump_rel * l_scale)
             sweep[k, b] = (dt * (sp + rho[b] * max(spin[k, b], spin[k + 1, b]))
                            + 0.5 * amag * dt * dt)
 
@@ -525,37 +611,18 @@ class Context:
     def groups(self, cd: float) -> Groups:
         """Contact groups with at least one jumped member (see the module docstring)."""
         def f():
-            n = self.traj.n_bodies
             jump = self.jumps()
             tch = self.touches(cd)
-            jk, ji = np.nonzero(jump)
-            node_ids = np.concatenate([jk * n + ji, tch["dyn_k"] * n + tch["dyn_a"],
-                                       tch["dyn_k"] * n + tch["dyn_b"]])
-            nodes, inv = np.unique(node_ids, return_inverse=True)
-            nj = len(jk)
-            ne = len(tch["dyn_k"])
-            u, v = inv[nj:nj + ne], inv[nj + ne:]
-            lab = _components(len(nodes), u, v)
-            jumped = np.zeros(len(nodes), bool)
-            jumped[inv[:nj]] = True
-            has_jump = np.zeros(len(nodes), bool)
-            has_jump[lab[jumped]] = True
-            keep = has_jump[lab]
-            nodes_k, nodes_i, lab = nodes[keep] // n, nodes[keep] % n, lab[keep]
-            roots, gid = np.unique(lab, return_inverse=True)
-            order = np.argsort(gid, kind="stable")
-            gid, nodes_k, nodes_i = gid[order], nodes_k[order], nodes_i[order]
-            c = len(roots)
-            size = np.bincount(gid, minlength=c)
-            nst = tch["n_static"][nodes_k, nodes_i]
-            n_static_feat = np.bincount(gid, weights=nst, minlength=c).astype(np.int64)
-            sid = np.full(c, -2, np.int64)
-            sid[gid] = np.where(nst > 0, tch["static_id"][nodes_k, nodes_i], -2)
-            # the static id of a group is well defined only with one member touching one feature
-            starts = np.searchsorted(gid, np.arange(c))
-            return Groups(k=nodes_k[starts] if c else np.zeros(0, np.int64), size=size,
-                          static=n_static_feat > 0, static_features=n_static_feat,
-                          static_id=sid, mem_group=gid, mem_k=nodes_k, mem_i=nodes_i)
+            order = np.argsort(tch["dyn_k"], kind="stable")
+            ek, ea, eb = tch["dyn_k"][order], tch["dyn_a"][order], tch["dyn_b"][order]
+            cap = int(jump.sum()) + 2 * len(ek)
+            g_k, g_size, g_nstat, g_sid = (np.empty(cap, np.int64) for _ in range(4))
+            m_k, m_i, m_g = (np.empty(cap, np.int64) for _ in range(3))
+            c, q = _groups_kernel(np.ascontiguousarray(jump), tch["n_static"], tch["static_id"],
+                                  ek, ea, eb, g_k, g_size, g_nstat, g_sid, m_k, m_i, m_g)
+            nst = g_nstat[:c]
+            return Groups(k=g_k[:c], size=g_size[:c], static=nst > 0, static_features=nst,
+                          static_id=g_sid[:c], mem_group=m_g[:q], mem_k=m_k[:q], mem_i=m_i[:q])
         return self.cached(("groups", cd), f)
 
     # --- energy ------------------------------------------------------------------------------
@@ -597,6 +664,9 @@ class Context:
                         torque_free=torque_free)
         d = dict(self.cached(("group_energy", cd, position_correction_m), f))
         d["allowed"] = d["base"] + rel * d["ke_scale"]
+        # scale for relative figures: the kinetic energy, plus the allowance (a group at rest has
+        # no kinetic energy)
+        d["scale"] = d["ke_scale"] + d["base"] + 1e-300
         return d
 
 

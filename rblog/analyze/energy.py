@@ -105,7 +105,7 @@ class EnergyAnalyzer(Analyzer):
             gen = ctx.group_energy(cd, self.tol["contact_gain_rel"],
                                    self.tol["position_correction_m"])
             check = (gen["restitution"] <= 1.0) & gen["torque_free"]
-            scale = gen["ke_scale"] + _TINY
+            scale = gen["scale"]
             gain_rel = gen["change"] / scale
             allow_rel = gen["allowed"] / scale
             cidx = np.nonzero(check)[0]
@@ -116,7 +116,8 @@ class EnergyAnalyzer(Analyzer):
                 stats["contact_gain_rel_max"] = float(gain_rel[cidx].max())
                 worst.offer_array(gain_rel[cidx], allow_rel[cidx], "1", step[gk[cidx] + 1],
                                   t[gk[cidx] + 1], grp.mem_i[first[cidx]],
-                                  "energy gain across a contact (relative to kinetic energy)")
+                                  "energy gain across a contact (relative to kinetic energy "
+                                  "+ allowance)")
             bad = np.nonzero(check & (gen["change"] > gen["allowed"]))[0]
             n_found += len(bad)
             bad = bad[np.argsort(-(gain_rel[bad] / np.maximum(allow_rel[bad], _TINY)))]

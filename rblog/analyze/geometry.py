@@ -24,14 +24,18 @@ Shape pairs (``a`` first):
   closest features), so a contact test with it errs towards "in contact".
 
 Static boxes and dynamic bodies share one index space in the pair tables: ``b < N`` is a body,
-``b = N + m`` is static box ``m``. Only candidate pairs from a broadphase are evaluated: a sweep
-(sort-and-sweep on the axis of largest spread, vectorized over every sample interval at once) of
-the bounding spheres swept over each interval [k, k+1], so that the same candidates serve the
-contact tests at both samples and the tunneling test between them.
+``b = N + m`` is static box ``m``. Only candidate pairs from a broadphase are evaluated: a
+compiled sort-and-sweep (on the axis of largest spread, insertion-sorted from the previous
+interval's order) of each body's bounding sphere swept over each sample interval [k, k+1] and
+grown by how far the body can stray from the straight path (a body that bounces back between
+samples is never on the chord), so that the same candidates serve the contact tests at both
+samples and the tunneling test between them. The narrowphase is numpy, vectorized over the
+candidates of every interval at once.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -126,97 +130,233 @@ def plane_witness(model: Model, body: np.ndarray, position: np.ndarray, rotation
     return np.where(sphere, p_sphere, p_box)
 
 
-# --- narrowphase, vectorized over P pairs ---------------------------------------------------------
+# --- narrowphase: compiled, one pair at a time --------------------------------------------------
+# Poses travel as tuples (no array views, so no reference counting in the inner loops): x is
+# (x0, x1, x2), r the row-major 9-tuple of the matrix (r[3 i + j] = R_ij), h the half extents.
+@njit(cache=True, nogil=True)
+def _box_point(x, r, h, d0, d1, d2):
+    """The point of box (x, r, h) furthest along (d0, d1, d2): the centre of the face, edge or
+    corner facing that way (axes within _FACE_EPS of perpendicular contribute their middle)."""
+    p0, p1, p2 = x[0], x[1], x[2]
+    for j in range(3):
+        proj = r[j] * d0 + r[3 + j] * d1 + r[6 + j] * d2
+        if proj > _FACE_EPS:
+            s = h[j]
+        elif proj < -_FACE_EPS:
+            s = -h[j]
+        else:
+            continue
+        p0 += s * r[j]
+        p1 += s * r[3 + j]
+        p2 += s * r[6 + j]
+    return p0, p1, p2
+
+
+@njit(cache=True, nogil=True)
+def _sphere_sphere(xa, ra, xb, rb):
+    """(sep, n0, n1, n2, p0, p1, p2) with n from b into a."""
+    d0, d1, d2 = xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]
+    dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if dist > 0:
+        n0, n1, n2 = d0 / dist, d1 / dist, d2 / dist
+    else:
+        n0, n1, n2 = 0.0, 0.0, 1.0
+    return (dist - ra - rb, n0, n1, n2,
+            0.5 * (xa[0] + xb[0] + n0 * (rb - ra)), 0.5 * (xa[1] + xb[1] + n1 * (rb - ra)),
+            0.5 * (xa[2] + xb[2] + n2 * (rb - ra)))
+
+
+@njit(cache=True, nogil=True)
+def _sphere_box(xs, r, xb, rb, hb):
+    """Sphere against box: (sep, n (from the box into the sphere), p on the box surface)."""
+    e0, e1, e2 = xs[0] - xb[0], xs[1] - xb[1], xs[2] - xb[2]
+    # sphere centre in the box frame: R^T (xs - xb), and its clamp to the box
+    l0 = rb[0] * e0 + rb[3] * e1 + rb[6] * e2
+    l1 = rb[1] * e0 + rb[4] * e1 + rb[7] * e2
+    l2 = rb[2] * e0 + rb[5] * e1 + rb[8] * e2
+    q0 = min(max(l0, -hb[0]), hb[0])
+    q1 = min(max(l1, -hb[1]), hb[1])
+    q2 = min(max(l2, -hb[2]), hb[2])
+    f0, f1, f2 = l0 - q0, l1 - q1, l2 - q2
+    dist = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    if dist > 0:
+        m0, m1, m2 = f0 / dist, f1 / dist, f2 / dist
+        sep = dist - r
+    else:  # inside: out through the nearest face
+        g0, g1, g2 = hb[0] - abs(l0), hb[1] - abs(l1), hb[2] - abs(l2)
+        m0 = m1 = m2 = 0.0
+        if g0 <= g1 and g0 <= g2:
+            m0 = 1.0 if l0 >= 0 else -1.0
+            q0 = m0 * hb[0]
+            sep = -g0 - r
+        elif g1 <= g2:
+            m1 = 1.0 if l1 >= 0 else -1.0
+            q1 = m1 * hb[1]
+            sep = -g1 - r
+        else:
+            m2 = 1.0 if l2 >= 0 else -1.0
+            q2 = m2 * hb[2]
+            sep = -g2 - r
+    n0 = rb[0] * m0 + rb[1] * m1 + rb[2] * m2
+    n1 = rb[3] * m0 + rb[4] * m1 + rb[5] * m2
+    n2 = rb[6] * m0 + rb[7] * m1 + rb[8] * m2
+    nn = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    return (sep, n0 / nn, n1 / nn, n2 / nn,
+            xb[0] + rb[0] * q0 + rb[1] * q1 + rb[2] * q2,
+            xb[1] + rb[3] * q0 + rb[4] * q1 + rb[5] * q2,
+            xb[2] + rb[6] * q0 + rb[7] * q1 + rb[8] * q2)
+
+
+@njit(cache=True, nogil=True)
+def _box_box(xa, ra, ha, xb, rb, hb):
+    """Separating-axis test over the 15 axes: (sep, n from b into a, witness point)."""
+    d0, d1, d2 = xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]
+    best_cmp = -math.inf
+    best = -math.inf
+    n0 = n1 = n2 = 0.0
+    for ax in range(15):
+        if ax < 3:
+            l0, l1, l2 = ra[ax], ra[3 + ax], ra[6 + ax]
+        elif ax < 6:
+            l0, l1, l2 = rb[ax - 3], rb[ax], rb[ax + 3]
+        else:
+            i, j = (ax - 6) // 3, (ax - 6) % 3
+            a0, a1, a2 = ra[i], ra[3 + i], ra[6 + i]
+            b0, b1, b2 = rb[j], rb[3 + j], rb[6 + j]
+            l0, l1, l2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        norm = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+        if norm <= _AXIS_EPS:
+            continue
+        l0, l1, l2 = l0 / norm, l1 / norm, l2 / norm
+        rad = 0.0
+        for j in range(3):
+            rad += ha[j] * abs(l0 * ra[j] + l1 * ra[3 + j] + l2 * ra[6 + j])
+            rad += hb[j] * abs(l0 * rb[j] + l1 * rb[3 + j] + l2 * rb[6 + j])
+        dc = l0 * d0 + l1 * d1 + l2 * d2
+        sv = abs(dc) - rad
+        # prefer face axes on ties (parallel faces give equal edge axes)
+        cmp = sv - 1e-12 * (1.0 + rad) if ax >= 6 else sv
+        if cmp > best_cmp:
+            best_cmp = cmp
+            best = sv
+            sg = 1.0 if dc >= 0 else -1.0
+            n0, n1, n2 = sg * l0, sg * l1, sg * l2
+    a0, a1, a2 = _box_point(xa, ra, ha, -n0, -n1, -n2)
+    b0, b1, b2 = _box_point(xb, rb, hb, n0, n1, n2)
+    return best, n0, n1, n2, 0.5 * (a0 + b0), 0.5 * (a1 + b1), 0.5 * (a2 + b2)
+
+
+@njit(cache=True, nogil=True)
+def _pair(sa, xa, ra, ha, sb, xb, rb, hb):
+    """Dispatch on the shape pair: (sep, n from b into a, point)."""
+    if sa == SHAPE_SPHERE and sb == SHAPE_SPHERE:
+        return _sphere_sphere(xa, ha[0], xb, hb[0])
+    if sa == SHAPE_SPHERE:
+        return _sphere_box(xa, ha[0], xb, rb, hb)
+    if sb == SHAPE_SPHERE:  # box a, sphere b: the sphere-box normal points into b; flip it
+        s_, n0, n1, n2, p0, p1, p2 = _sphere_box(xb, hb[0], xa, ra, ha)
+        return s_, -n0, -n1, -n2, p0, p1, p2
+    return _box_box(xa, ra, ha, xb, rb, hb)
+
+
+@njit(cache=True, nogil=True)
+def _vec(a, i, j):
+    return a[i, j, 0], a[i, j, 1], a[i, j, 2]
+
+
+@njit(cache=True, nogil=True)
+def _mat(a, i, j):
+    return (a[i, j, 0, 0], a[i, j, 0, 1], a[i, j, 0, 2], a[i, j, 1, 0], a[i, j, 1, 1],
+            a[i, j, 1, 2], a[i, j, 2, 0], a[i, j, 2, 1], a[i, j, 2, 2])
+
+
+@njit(cache=True, nogil=True)
+def _pairs_kernel(ks, a, b, position, rotation, shape, size, s_pos, s_rot, s_half, sep, nrm, pt,
+                  with_points):
+    """Geometry of rows (ks, a, b): b < N a body at sample ks, else static box b - N.
+
+    position (T, E, 3), rotation (T, E, 3, 3) and size (E, 3) cover bodies only; s_* the static
+    boxes as (1, M, 3), (1, M, 3, 3), (M, 3)."""
+    nb = position.shape[1]
+    for r in range(ks.shape[0]):
+        k, ia, ib = ks[r], a[r], b[r]
+        xa, ra, ha = _vec(position, k, ia), _mat(rotation, k, ia), (size[ia, 0], size[ia, 1],
+                                                                     size[ia, 2])
+        if ib < nb:
+            xb, rb, hb = _vec(position, k, ib), _mat(rotation, k, ib), (size[ib, 0], size[ib, 1],
+                                                                        size[ib, 2])
+            sb = shape[ib]
+        else:
+            m = ib - nb
+            xb, rb, hb = _vec(s_pos, 0, m), _mat(s_rot, 0, m), (s_half[m, 0], s_half[m, 1],
+                                                                 s_half[m, 2])
+            sb = SHAPE_BOX
+        out = _pair(shape[ia], xa, ra, ha, sb, xb, rb, hb)
+        sep[r] = out[0]
+        if with_points:
+            nrm[r, 0], nrm[r, 1], nrm[r, 2] = out[1], out[2], out[3]
+            pt[r, 0], pt[r, 1], pt[r, 2] = out[4], out[5], out[6]
+
+
+def pair_geometry(model: Model, position, rotation, ks, a, b, with_points: bool = True):
+    """Separation (R,), and unless ``with_points`` is False the normal b->a (R, 3) and witness
+    point (R, 3), of rows (ks, a, b)."""
+    sx, sr, sh = static_boxes(model)
+    r = len(ks)
+    sep = np.empty(r)
+    # (normals and points are only needed near contacts: skip the memory when not asked)
+    nrm, pt = (np.empty((r, 3)), np.empty((r, 3))) if with_points else (np.empty((0, 3)),) * 2
+    c = np.ascontiguousarray
+    _pairs_kernel(c(ks, dtype=np.int64), c(a, dtype=np.int64), c(b, dtype=np.int64),
+                  c(position, dtype=np.float64), c(rotation, dtype=np.float64),
+                  c(model.body_shape, dtype=np.int64), c(model.body_size, dtype=np.float64),
+                  c(sx[None]), c(sr[None]), c(sh), sep, nrm, pt, with_points)
+    return (sep, nrm, pt) if with_points else sep
+
+
+def _batch(shape_a, xa, ra, ha, shape_b, xb, rb, hb):
+    """P explicit pairs (for tests and one-off use) through the compiled narrowphase."""
+    p = len(xa)
+    pos = np.concatenate([xa, xb])[None]
+    rot = np.concatenate([ra, rb])[None]
+    size = np.concatenate([ha, hb])
+    model = Model(body_name=[""] * 2 * p, body_shape=np.concatenate([shape_a, shape_b]),
+                  body_size=size, body_mass=np.ones(2 * p), body_inertia_diag=np.ones((2 * p, 3)),
+                  body_force_world=np.zeros((2 * p, 3)), body_torque_world=np.zeros((2 * p, 3)),
+                  body_restitution=np.zeros(2 * p), body_friction=np.zeros(2 * p),
+                  body_group=np.zeros(2 * p, np.int64), gravity=np.zeros(3))
+    return pair_geometry(model, pos, rot, np.zeros(p, np.int64), np.arange(p),
+                         np.arange(p, 2 * p))
+
+
+def _eye(p):
+    return np.broadcast_to(np.eye(3), (p, 3, 3))
+
+
 def sphere_sphere(xa, ra, xb, rb):
-    """Spheres a, b: (sep (P,), normal b->a (P, 3), point (P, 3))."""
-    d = xa - xb
-    dist = np.linalg.norm(d, axis=-1)
-    safe = dist > 0
-    n = np.where(safe[:, None], d / np.where(safe, dist, 1.0)[:, None], np.array([0.0, 0.0, 1.0]))
-    sep = dist - ra - rb
-    point = 0.5 * ((xa - n * ra[:, None]) + (xb + n * rb[:, None]))
-    return sep, n, point
+    """Spheres: (sep (P,), normal b->a (P, 3), point (P, 3))."""
+    p = len(xa)
+    ha = np.zeros((p, 3))
+    hb = np.zeros((p, 3))
+    ha[:, 0], hb[:, 0] = ra, rb
+    z = np.zeros(p, np.int64)
+    return _batch(z, xa, _eye(p), ha, z, xb, _eye(p), hb)
 
 
 def sphere_box(xs, r, xb, rb, hb):
-    """Sphere (centre xs, radius r) against box (xb, rotation rb, half-extents hb).
-
-    Returns (sep, normal from the box into the sphere, point on the box surface)."""
-    p = np.einsum("pji,pj->pi", rb, xs - xb)  # sphere centre in the box frame (R^T d)
-    q = np.clip(p, -hb, hb)
-    diff = p - q
-    dist = np.linalg.norm(diff, axis=-1)
-    outside = dist > 0
-    # inside: push out through the nearest face
-    depth = hb - np.abs(p)
-    j = np.argmin(depth, axis=-1)
-    rows = np.arange(len(p))
-    sgn = np.where(p[rows, j] >= 0, 1.0, -1.0)
-    n_in = np.zeros_like(p)
-    n_in[rows, j] = sgn
-    q_in = p.copy()
-    q_in[rows, j] = sgn * hb[rows, j]
-    n_out = diff / np.where(outside, dist, 1.0)[:, None]
-    n_loc = np.where(outside[:, None], n_out, n_in)
-    q_loc = np.where(outside[:, None], q, q_in)
-    sep = np.where(outside, dist - r, -depth[rows, j] - r)
-    normal = np.einsum("pij,pj->pi", rb, n_loc)
-    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
-    point = xb + np.einsum("pij,pj->pi", rb, q_loc)
-    return sep, normal, point
+    """Sphere (xs, r) against box (xb, rotation rb, half extents hb): (sep, normal from the box
+    into the sphere, point on the box surface)."""
+    p = len(xs)
+    hs = np.zeros((p, 3))
+    hs[:, 0] = r
+    return _batch(np.zeros(p, np.int64), xs, _eye(p), hs, np.ones(p, np.int64), xb, rb, hb)
 
 
 def box_box(xa, ra, ha, xb, rb, hb):
     """Boxes a, b by the separating-axis test: (sep, normal b->a, point)."""
     p = len(xa)
-    cross = np.cross(ra[:, :, :, None], rb[:, :, None, :], axis=1)  # (P, 3, 3, 3): A_i x B_j
-    axes = np.concatenate(
-        [np.moveaxis(ra, 1, 2), np.moveaxis(rb, 1, 2), np.moveaxis(cross, 1, 3).reshape(p, 9, 3)],
-        axis=1,
-    )  # (P, 15, 3), rows are candidate axes
-    norm = np.linalg.norm(axes, axis=-1)
-    valid = norm > _AXIS_EPS
-    axes = axes / np.where(valid, norm, 1.0)[..., None]
-    proj_a = np.abs(np.einsum("pki,pij->pkj", axes, ra))
-    proj_b = np.abs(np.einsum("pki,pij->pkj", axes, rb))
-    rad = (proj_a * ha[:, None, :]).sum(-1) + (proj_b * hb[:, None, :]).sum(-1)
-    dc = np.einsum("pki,pi->pk", axes, xa - xb)
-    s = np.abs(dc) - rad
-    # prefer face axes on ties (parallel faces give equal edge axes): a bias far below any tolerance
-    s[:, 6:] -= 1e-12 * (1.0 + rad[:, 6:])
-    s = np.where(valid, s, -np.inf)
-    k = np.argmax(s, axis=1)
-    rows = np.arange(p)
-    sep = s[rows, k]
-    sep = np.where(k >= 6, sep + 1e-12 * (1.0 + rad[rows, k]), sep)
-    n = axes[rows, k] * np.where(dc[rows, k] >= 0, 1.0, -1.0)[:, None]
-    pa = _box_witness(xa, ra, ha, -n)
-    pb = _box_witness(xb, rb, hb, n)
-    return sep, n, 0.5 * (pa + pb)
-
-
-def _pair_geometry(shape_a, xa, ra, ha, shape_b, xb, rb, hb):
-    """Dispatch on the shape pair; every array has P rows. (sep, normal b->a, point)."""
-    p = len(xa)
-    sep = np.empty(p)
-    normal = np.empty((p, 3))
-    point = np.empty((p, 3))
-    sa = shape_a == SHAPE_SPHERE
-    sb = shape_b == SHAPE_SPHERE
-    m = sa & sb
-    if m.any():
-        sep[m], normal[m], point[m] = sphere_sphere(xa[m], ha[m, 0], xb[m], hb[m, 0])
-    m = sa & ~sb
-    if m.any():
-        sep[m], normal[m], point[m] = sphere_box(xa[m], ha[m, 0], xb[m], rb[m], hb[m])
-    m = ~sa & sb
-    if m.any():  # box a, sphere b: the sphere-box normal points into the sphere (b); flip it
-        s_, n_, p_ = sphere_box(xb[m], hb[m, 0], xa[m], ra[m], ha[m])
-        sep[m], normal[m], point[m] = s_, -n_, p_
-    m = ~sa & ~sb
-    if m.any():
-        sep[m], normal[m], point[m] = box_box(xa[m], ra[m], ha[m], xb[m], rb[m], hb[m])
-    return sep, normal, point
+    o = np.ones(p, np.int64)
+    return _batch(o, xa, ra, ha, o, xb, rb, hb)
 
 
 @dataclass
@@ -227,36 +367,47 @@ class Proximity:
         n_bodies, n_static: N bodies, M static boxes (entity b = N + m).
         ground_sep: (T, N) signed distance to the ground (m), or None without ground.
         ground_height: (T, N) centre height above the ground plane (m), or None.
-        pair_*: sample-level table of the candidate pairs, sorted by key (k, a, b): k (sample
-            index), a (< N), b (> a), sep (m), normal (b->a), point.
-        iv_*: interval-level table: candidate pairs whose swept bounding volumes overlap over the
-            interval [k, k+1]: k (interval index), a, b, and i0, i1 indices into the pair table of
-            the same pair at samples k and k+1.
+        iv_*: interval table: candidate pairs whose swept bounding volumes overlap over the
+            interval [k, k+1]: k (interval index), a (< N), b (> a; >= N static box b - N), and
+            their separations sep0, sep1 (m) at both samples. Normals and witness points come
+            from :meth:`iv_geometry` for the rows that need them.
     """
 
+    model: Model
+    position: np.ndarray
+    rotation: np.ndarray
     n_bodies: int
     n_static: int
     ground_sep: np.ndarray | None
     ground_height: np.ndarray | None
-    pair_k: np.ndarray
-    pair_a: np.ndarray
-    pair_b: np.ndarray
-    pair_sep: np.ndarray
-    pair_normal: np.ndarray
-    pair_point: np.ndarray
     iv_k: np.ndarray
     iv_a: np.ndarray
     iv_b: np.ndarray
-    iv_i0: np.ndarray
-    iv_i1: np.ndarray
+    iv_sep0: np.ndarray
+    iv_sep1: np.ndarray
 
-    @property
-    def iv_sep0(self) -> np.ndarray:
-        return self.pair_sep[self.iv_i0]
+    def iv_geometry(self, rows: np.ndarray, end):
+        """(sep, normal b->a, point) of interval rows ``rows`` at their sample k + end (end: 0,
+        1, or an array of them)."""
+        k = self.iv_k[rows] + (end if len(self.position) > 1 else 0)
+        return pair_geometry(self.model, self.position, self.rotation, k, self.iv_a[rows],
+                             self.iv_b[rows])
 
-    @property
-    def iv_sep1(self) -> np.ndarray:
-        return self.pair_sep[self.iv_i1]
+    def near_pairs(self, dist: float) -> dict:
+        """Sample table of the pairs closer than ``dist`` (m): dict of k (sample), a, b, sep, and
+        row, end (the interval row and which of its samples, for :meth:`iv_geometry`), from the
+        intervals' first samples and the last interval's last sample. A pair closer than the
+        pad at sample k is a candidate of both intervals that hold k (their volumes contain the
+        bounding spheres at k), so none is missed."""
+        t_n = len(self.position)
+        last_k = max(t_n - 2, 0)
+        r0 = np.nonzero(self.iv_sep0 <= dist)[0]
+        r1 = np.nonzero((self.iv_sep1 <= dist) & (self.iv_k == last_k))[0] if t_n > 1 else \
+            np.zeros(0, np.int64)
+        rows = np.concatenate([r0, r1])
+        end = np.concatenate([np.zeros(len(r0), np.int64), np.ones(len(r1), np.int64)])
+        return dict(k=self.iv_k[rows] + end, a=self.iv_a[rows], b=self.iv_b[rows],
+                    sep=np.concatenate([self.iv_sep0[r0], self.iv_sep1[r1]]), row=rows, end=end)
 
 
 def static_boxes(model: Model):
@@ -272,8 +423,10 @@ def static_boxes(model: Model):
 def _sweep_kernel(position, grow, s_lo, s_hi, group, axis, out_k, out_a, out_b):
     """Sort-and-sweep over every interval [k, k+1]: the AABB of a body is its centre's box over
     the two samples grown by ``grow[k, i]``; static boxes have fixed AABBs. Pairs overlapping on
-    all three axes (not static-static, not in different non-zero groups) are written to out_*
-    while they fit; returns how many there are (call again with room for them when more).
+    all three axes (not static-static, not in different non-zero groups) whose bounding spheres
+    also meet (for two bodies: spheres about the middle of each centre's chord, radius half the
+    chord plus ``grow``) are written to out_* while they fit; returns how many there are (call
+    again with room for them when more).
 
     The order of the previous interval seeds an insertion sort, so a scene that moves little
     between samples sorts in linear time."""
@@ -283,6 +436,8 @@ def _sweep_kernel(position, grow, s_lo, s_hi, group, axis, out_k, out_a, out_b):
     k_n = t_n - 1 if t_n > 1 else 1
     lo = np.empty((e, 3))
     hi = np.empty((e, 3))
+    mid = np.empty((n, 3))
+    reach = np.empty(n)
     for j in range(m):
         for d in range(3):
             lo[n + j, d] = s_lo[j, d]
@@ -294,12 +449,18 @@ def _sweep_kernel(position, grow, s_lo, s_hi, group, axis, out_k, out_a, out_b):
         k1 = k + 1 if t_n > 1 else k
         for i in range(n):
             g = grow[k, i]
+            half2 = 0.0
             for d in range(3):
                 a = position[k, i, d]
                 b = position[k1, i, d]
                 lo[i, d] = min(a, b) - g
                 hi[i, d] = max(a, b) + g
-        # insertion sort of the previous order on lo[:, axis]
+                mid[i, d] = 0.5 * (a + b)
+                half2 += 0.25 * (b - a) * (b - a)
+            reach[i] = g + math.sqrt(half2)  # a sphere about the chord's middle holds the path
+        # insertion sort of the previous order on lo[:, axis]; a full sort when that would take
+        # more than a few moves per entity (the first interval, bodies that jump around)
+        moves = 0
         for p in range(1, e):
             cur = order[p]
             key = lo[cur, axis]
@@ -308,6 +469,10 @@ def _sweep_kernel(position, grow, s_lo, s_hi, group, axis, out_k, out_a, out_b):
                 order[q + 1] = order[q]
                 q -= 1
             order[q + 1] = cur
+            moves += p - 1 - q
+            if moves > 8 * e + 64:
+                order = np.argsort(lo[:, axis])
+                break
         for p in range(e):
             i = order[p]
             for q in range(p + 1, e):
@@ -325,8 +490,14 @@ def _sweep_kernel(position, grow, s_lo, s_hi, group, axis, out_k, out_a, out_b):
                     continue
                 a = min(i, j)
                 b = max(i, j)
-                if b < n and group[a] != 0 and group[b] != 0 and group[a] != group[b]:
-                    continue
+                if b < n:
+                    if group[a] != 0 and group[b] != 0 and group[a] != group[b]:
+                        continue
+                    dd = 0.0
+                    for d in range(3):
+                        dd += (mid[a, d] - mid[b, d]) ** 2
+                    if dd > (reach[a] + reach[b]) ** 2:
+                        continue
                 if cnt < cap:
                     out_k[cnt] = k
                     out_a[cnt] = a
@@ -382,30 +553,12 @@ def proximity(model: Model, position: np.ndarray, rotation: np.ndarray, pad: flo
         grow = grow + sweep
     k, a, b = sweep_pairs(model, position, grow, pad)
 
-    # sample-level pairs: each candidate at both ends of its interval
+    # separations of every candidate at both ends of its interval
     k1 = k + 1 if t_n > 1 else k
-    key0 = (k * e + a) * e + b
-    key1 = (k1 * e + a) * e + b
-    keys, inv = np.unique(np.concatenate([key0, key1]), return_inverse=True)
-    pk = keys // (e * e)
-    pa = (keys // e) % e
-    pb = keys % e
-    xa = position[pk, pa]
-    ra_ = rotation[pk, pa]
-    size = np.asarray(model.body_size, float)
-    ha = size[pa]
-    dyn_b = pb < n
-    pbd = np.where(dyn_b, pb, 0)
-    pbs = np.where(dyn_b, 0, pb - n)
-    xb = np.where(dyn_b[:, None], position[pk, pbd], sx[pbs] if m else 0.0)
-    rb = np.where(dyn_b[:, None, None], rotation[pk, pbd], sr[pbs] if m else 0.0)
-    hb = np.where(dyn_b[:, None], size[pbd], sh[pbs] if m else 0.0)
-    shape_b = np.where(dyn_b, np.asarray(model.body_shape)[pbd], SHAPE_BOX)
-    sep, normal, point = _pair_geometry(np.asarray(model.body_shape)[pa], xa, ra_, ha,
-                                        shape_b, xb, rb, hb)
-    nk = len(k)
+    sep0 = pair_geometry(model, position, rotation, k, a, b, with_points=False)
+    sep1 = pair_geometry(model, position, rotation, k1, a, b, with_points=False)
     return Proximity(
+        model=model, position=position, rotation=rotation,
         n_bodies=n, n_static=m, ground_sep=ground_sep, ground_height=ground_height,
-        pair_k=pk, pair_a=pa, pair_b=pb, pair_sep=sep, pair_normal=normal, pair_point=point,
-        iv_k=k, iv_a=a, iv_b=b, iv_i0=inv[:nk], iv_i1=inv[nk:],
+        iv_k=k, iv_a=a, iv_b=b, iv_sep0=sep0, iv_sep1=sep1,
     )

@@ -57,7 +57,8 @@ def _contact_time(sep0, vn0, an, dt):
 
 
 def static_feature_of_points(model, point, normal):
-    """For logged contacts with static geometry: the feature (-1 ground, m box) nearest the point."""
+    """For logged contacts with static geometry: the feature nearest the point (-1 ground, m
+    static box m)."""
     k = len(point)
     best = np.full(k, np.inf)
     fid = np.full(k, -3, np.int64)
@@ -240,14 +241,13 @@ class MomentumAnalyzer(Analyzer):
         if not ok.any():
             return
         two, a, b, k, rows = two[ok], a[ok], b[ok], k[ok], rows[ok]
-        i0 = prox.iv_i0[rows]
-        nrm = prox.pair_normal[i0]
+        nrm = prox.iv_geometry(rows, 0)[1]
         acc = ctx.accel
         vn0 = np.einsum("ij,ij->i", tr.velocity[k, a] - tr.velocity[k, b], nrm)
         vn1 = np.einsum("ij,ij->i", tr.velocity[k + 1, a] - tr.velocity[k + 1, b], nrm)
         an = np.einsum("ij,ij->i", acc[a] - acc[b], nrm)
         dti = ctx.dts[k]
-        tc = _contact_time(prox.pair_sep[i0], vn0, an, dti)
+        tc = _contact_time(prox.iv_sep0[rows], vn0, an, dti)
         vminus = vn0 + an * tc
         vplus = vn1 - an * (dti - tc)
         imp = vminus < -self.tol["impact_speed_mps"]
@@ -284,10 +284,12 @@ class MomentumAnalyzer(Analyzer):
         sb = np.nonzero(~on_ground)[0]
         if len(sb):
             rows[sb], _ = self._interval_rows(k[sb], i[sb], n + sid[sb])
-            i0, i1 = prox.iv_i0[rows[sb]], prox.iv_i1[rows[sb]]
-            use1 = prox.pair_sep[i1] < prox.pair_sep[i0]
-            nrm[sb] = np.where(use1[:, None], prox.pair_normal[i1], prox.pair_normal[i0])
-            sep0[sb] = prox.pair_sep[i0]
+            r = rows[sb]
+            use1 = prox.iv_sep1[r] < prox.iv_sep0[r]
+            _, nn0, _ = prox.iv_geometry(r, 0)
+            _, nn1, _ = prox.iv_geometry(r, 1)
+            nrm[sb] = np.where(use1[:, None], nn1, nn0)
+            sep0[sb] = prox.iv_sep0[r]
 
         # Coulomb cone of the inferred impulse J = P(k+1) - P(k) - (m g + F) dt
         mu = combine_friction(np.asarray(model.body_friction, float)[i], s_fric)
@@ -331,8 +333,8 @@ class MomentumAnalyzer(Analyzer):
                                              tr.rotation[k[og] + 1, i[og]])
         if (~og).any():
             r = rows[cand][~og]
-            pt0[~og] = prox.pair_point[prox.iv_i0[r]]
-            pt1[~og] = prox.pair_point[prox.iv_i1[r]]
+            pt0[~og] = prox.iv_geometry(r, 0)[2]
+            pt1[~og] = prox.iv_geometry(r, 1)[2]
         vv0 = tr.velocity[k, i] + np.cross(tr.angular_velocity[k, i], pt0 - tr.position[k, i])
         vv1 = tr.velocity[k + 1, i] + np.cross(tr.angular_velocity[k + 1, i],
                                                pt1 - tr.position[k + 1, i])
@@ -380,7 +382,7 @@ class MomentumAnalyzer(Analyzer):
         gen = ctx.group_energy(self.tol["contact_distance_m"], self.tol["energy_rel"],
                                self.tol["position_correction_m"])
         d_e, allow = gen["change"], gen["allowed"]
-        ke_scale = gen["ke_scale"] + _TINY
+        ke_scale = gen["scale"]
         gain_rel, allow_rel = d_e / ke_scale, allow / ke_scale
         check = impact & (gen["restitution"] <= 1.0) & gen["torque_free"]
         eidx = np.nonzero(check)[0]
@@ -388,7 +390,8 @@ class MomentumAnalyzer(Analyzer):
             stats["impact_energy_gain_rel_max"] = float(gain_rel[eidx].max())
             self._worst.offer_array(gain_rel[eidx], allow_rel[eidx], "1", step[gk[eidx] + 1],
                                     t[gk[eidx] + 1], grp.mem_i[grp.starts[eidx]],
-                                    "energy gain at impact (relative to kinetic energy)")
+                                    "energy gain at impact (relative to kinetic energy "
+                                    "+ allowance)")
         self._add(check & (d_e > allow), gain_rel / np.maximum(allow_rel, _TINY),
                   lambda j: Finding(
                       self.name,

@@ -10,9 +10,13 @@ centre).
   minus the partner's) below REST_SPEED_MPS for at least REST_MIN_SAMPLES consecutive samples. A
   sphere rolling without slip, and a box tipping over an edge, have a resting contact point; a
   bouncing ball does not.
-* Per resting interval: max and mean depth, duration; after SETTLE_S, jitter (the largest
-  contact-point speed) and creep (the net tangential slip at the contact, counting only samples
-  slower than CREEP_SPEED_MPS, so that a body that starts to slide away is not creep).
+* Per resting interval: max and mean depth, duration; after SETTLE_S, the largest contact-point
+  speed, jitter and creep. Jitter is the alternating part of the contact-point velocity,
+  ``|v(k+1) - 2 v(k) + v(k-1)| / 4``: exactly the amplitude of a velocity that flips between
+  samples, and zero for any motion at constant acceleration, so a body that slides off slowly,
+  decelerates to a stop or tips over is not jitter. Creep is the net tangential slip at the
+  contact (integrated slip velocity), counting only samples slower than CREEP_SPEED_MPS, so that
+  a body that starts to slide away is not creep; a sphere rolling without slip does not creep.
 * Flags: resting depth beyond min(DEPTH_M, DEPTH_FRAC x the body's inner radius), any depth (an
   impact too) beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x inner radius), jitter beyond
   JITTER_MPS, creep beyond CREEP_M.
@@ -21,10 +25,34 @@ centre).
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from . import geometry
 from . import tolerances as T
 from .base import Analyzer, Context, Finding, Result, Worst, body_label
+
+
+@njit(cache=True, nogil=True)
+def _deepest(ground, cd, pk, pa, pb, ps, n, kind, ref):
+    """The deepest contact of each body at each sample: kind[i, k] (0 ground, 1 pair row as a,
+    2 pair row as b) and ref[i, k] (its pair row), among the ground (T, N) separations within cd
+    and the pair rows (pairs count for both bodies)."""
+    best = np.full(kind.shape, np.inf)
+    for k in range(ground.shape[0]):
+        for i in range(ground.shape[1]):
+            if ground[k, i] <= cd:
+                best[i, k] = ground[k, i]
+                kind[i, k] = 0
+    for r in range(pk.shape[0]):
+        k, a, b, sv = pk[r], pa[r], pb[r], ps[r]
+        if sv < best[a, k]:
+            best[a, k] = sv
+            kind[a, k] = 1
+            ref[a, k] = r
+        if b < n and sv < best[b, k]:
+            best[b, k] = sv
+            kind[b, k] = 2
+            ref[b, k] = r
 
 
 def _partner_label(model, b: int) -> str:
@@ -57,40 +85,48 @@ class PenetrationAnalyzer(Analyzer):
              "rest_min_samples": "samples", "settle_s": "s", "jitter_mps": "m/s", "creep_m": "m",
              "creep_speed_mps": "m/s", "contact_distance_m": "m"}
 
-    def contact_rows(self, ctx: Context):
-        """Body-level contact rows (sep <= contact distance), mirrored for body pairs.
+    def supports(self, ctx: Context):
+        """The primary support of each body at each sample where it touches something (within
+        the contact distance): the deepest of its contacts with the ground, static boxes and
+        other bodies (pairs count for both bodies).
 
-        Returns dict of (R,) arrays: k, i (body), b (partner: -1 ground, N+m static box, or a
-        body), sep, normal (partner -> body), point."""
+        Returns dict of (R,) arrays in body-major order (body, then sample): k, i (body), b
+        (partner: -1 ground, N+m static box m, or a body), sep, normal (partner -> body), point.
+        """
         tr = ctx.traj
         model = tr.model
-        n = tr.n_bodies
+        n, t_n = tr.n_bodies, tr.n_samples
         cd = self.tol["contact_distance_m"]
         prox = ctx.proximity(cd)
-        parts = []
-        if prox.ground_sep is not None:
-            gi, gk = np.nonzero(prox.ground_sep.T <= cd)  # body-major
-            pts = geometry.plane_witness(model, gi, tr.position[gk, gi], tr.rotation[gk, gi])
-            parts.append((gk, gi, np.full(len(gk), -1), prox.ground_sep[gk, gi],
-                          np.broadcast_to(np.asarray(model.ground_normal, float), (len(gk), 3)),
-                          pts))
-        near = prox.pair_sep <= cd
-        pk, pa, pb = prox.pair_k[near], prox.pair_a[near], prox.pair_b[near]
-        ps, pn, pp = prox.pair_sep[near], prox.pair_normal[near], prox.pair_point[near]
-        parts.append((pk, pa, pb, ps, pn, pp))
-        dyn = pb < n
-        parts.append((pk[dyn], pb[dyn], pa[dyn], ps[dyn], -pn[dyn], pp[dyn]))
-        parts = [p for p in parts if len(p[0])]
-        if not parts:
-            z = np.zeros(0, np.int64)
-            return dict(k=z, i=z, b=z, sep=np.zeros(0), normal=np.zeros((0, 3)),
-                        point=np.zeros((0, 3)), sorted_unique=True)
-        cat = [np.concatenate([p[j] for p in parts]) for j in range(6)]
-        out = dict(zip(("k", "i", "b", "sep", "normal", "point"), cat))
-        # ground rows alone come out body-major, one per sample: no sort needed
-        out["sorted_unique"] = len(parts) == 1 and prox.ground_sep is not None and \
-            len(parts[0][0]) == len(cat[0]) and (parts[0][2] == -1).all()
-        return out
+        near = prox.near_pairs(cd)
+        pk, pa, pb, ps = near["k"], near["a"], near["b"], near["sep"]
+        ground = prox.ground_sep if prox.ground_sep is not None else np.zeros((0, 0))
+        kind = np.full((n, t_n), -1, np.int8)  # -1 none, 0 ground, 1 pair as a, 2 pair as b
+        ref = np.zeros((n, t_n), np.int64)
+        _deepest(ground, cd, pk, pa, pb, ps, n, kind, ref)
+        i, k = np.nonzero(kind >= 0)  # body-major
+        src = kind[i, k]
+        ref = ref[i, k]
+        r = len(k)
+        b = np.full(r, -1, np.int64)
+        sep_out = np.empty(r)
+        normal = np.empty((r, 3))
+        point = np.empty((r, 3))
+        g = src == 0
+        if g.any():
+            sep_out[g] = prox.ground_sep[k[g], i[g]]
+            normal[g] = np.asarray(model.ground_normal, float)
+            point[g] = geometry.plane_witness(model, i[g], tr.position[k[g], i[g]],
+                                              tr.rotation[k[g], i[g]])
+        for which, sign in ((1, 1.0), (2, -1.0)):
+            m = src == which
+            if m.any():
+                rr = ref[m]
+                b[m] = pb[rr] if which == 1 else pa[rr]
+                sep_out[m], nn, pp = prox.iv_geometry(near["row"][rr], near["end"][rr])
+                normal[m] = sign * nn
+                point[m] = pp
+        return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point)
 
     def analyze(self, ctx: Context) -> Result:
         tr = ctx.traj
@@ -109,18 +145,9 @@ class PenetrationAnalyzer(Analyzer):
         n_found = 0
         events: list[dict] = []
 
-        rows = self.contact_rows(ctx)
-        k, i, b, sep = rows["k"], rows["i"], rows["b"], rows["sep"]
-        # primary support per (body, sample): the deepest row; kept in body-major order
-        key = i * t_n + k
-        if rows["sorted_unique"]:
-            firsts = np.arange(len(key))
-        else:
-            order = np.lexsort((sep, key))
-            key_s = key[order]
-            firsts = order[np.r_[True, key_s[1:] != key_s[:-1]]] if len(order) else order
-        pk, pi_, pb = k[firsts], i[firsts], b[firsts]
-        psep, pnorm, ppt = sep[firsts], rows["normal"][firsts], rows["point"][firsts]
+        sup = self.supports(ctx)
+        pk, pi_, pb = sup["k"], sup["i"], sup["b"]
+        psep, pnorm, ppt = sup["sep"], sup["normal"], sup["point"]
         depth = np.maximum(-psep, 0.0)
         nrow = len(pk)
         stats["depth_max_m"] = float(depth.max()) if nrow else 0.0
@@ -191,7 +218,15 @@ class PenetrationAnalyzer(Analyzer):
             in_run = np.cumsum(marker)[:-1] > 0
             run_of = np.maximum(np.cumsum(np.bincount(starts, minlength=nrow)) - 1, 0)
             settled = in_run & (t[pk] >= t[ks][run_of] + tol["settle_s"])
-            jit = red(np.maximum, np.where(settled, cspeed, 0.0))
+            speed_settled = red(np.maximum, np.where(settled, cspeed, 0.0))
+            # jitter: the alternating part of the contact-point velocity, |v+ - 2 v + v-| / 4,
+            # at settled rows whose neighbours are settled rows of the same run
+            osc = np.zeros(nrow)
+            if nrow > 2:
+                mid = settled[1:-1] & settled[:-2] & settled[2:] & nxt_same[:-2] & nxt_same[1:-1]
+                d2 = cv[2:] - 2.0 * cv[1:-1] + cv[:-2]
+                osc[1:-1] = np.where(mid, 0.25 * np.sqrt(np.einsum("ij,ij->i", d2, d2)), 0.0)
+            jit = red(np.maximum, osc)
             has_settled = red(np.maximum, settled.astype(float)) > 0
             slow = settled & (np.sqrt(np.einsum("ij,ij->i", slip, slip)) <= tol["creep_speed_mps"])
             s_f = np.where(slow[:, None], slip, 0.0)
@@ -203,12 +238,14 @@ class PenetrationAnalyzer(Analyzer):
             creep = np.linalg.norm(red(np.add, contrib), axis=1)
             jit = np.where(has_settled, jit, np.nan)
             creep = np.where(has_settled, creep, np.nan)
+            speed_settled = np.where(has_settled, speed_settled, np.nan)
             partner = pb[starts]
             stats["rest_depth_max_m"] = float(r_max.max())
             stats["rest_depth_mean_m"] = float(np.average(r_mean, weights=ends - starts + 1))
             stats["rest_duration_total_s"] = float(dur.sum())
             if np.isfinite(jit).any():
                 stats["jitter_max_mps"] = float(np.nanmax(jit))
+                stats["settled_speed_max_mps"] = float(np.nanmax(speed_settled))
                 stats["creep_max_m"] = float(np.nanmax(creep))
             # where in each run the depth is largest
             at_max = np.nonzero(in_run & (depth == r_max[run_of]))[0]
@@ -220,7 +257,7 @@ class PenetrationAnalyzer(Analyzer):
             fin = np.isfinite(jit)
             if fin.any():
                 worst.offer_array(jit[fin], tol["jitter_mps"], "m/s", step[ke[fin]], t[ke[fin]],
-                                  bs[fin], "contact-point speed while resting (jitter)")
+                                  bs[fin], "oscillating contact-point speed while resting (jitter)")
                 worst.offer_array(creep[fin], tol["creep_m"], "m", step[ke[fin]], t[ke[fin]],
                                   bs[fin], "slip while resting (creep)")
 
@@ -231,14 +268,16 @@ class PenetrationAnalyzer(Analyzer):
             checks = (
                 (r_max > rest_tol[bs], lambda r: Finding(
                     self.name,
-                    f"{body_label(model, int(bs[r]))} {what_rest(r)}: sinks {r_max[r] * 1e3:.3g} mm "
+                    f"{body_label(model, int(bs[r]))} {what_rest(r)}: sinks "
+                    f"{r_max[r] * 1e3:.3g} mm "
                     f"(mean {r_mean[r] * 1e3:.3g} mm; tol {rest_tol[bs[r]] * 1e3:.3g} mm)",
                     float(r_max[r]), float(rest_tol[bs[r]]), "m", int(step[kdeep[r]]),
                     float(t[kdeep[r]]), [int(bs[r])])),
                 (fin & (np.nan_to_num(jit) > tol["jitter_mps"]), lambda r: Finding(
                     self.name,
-                    f"{body_label(model, int(bs[r]))} jitters {what_rest(r)}: contact point moves "
-                    f"at up to {jit[r]:.3g} m/s after settling (tol {tol['jitter_mps']:.3g} m/s)",
+                    f"{body_label(model, int(bs[r]))} jitters {what_rest(r)}: its contact point "
+                    f"oscillates at up to {jit[r]:.3g} m/s after settling (tol "
+                    f"{tol['jitter_mps']:.3g} m/s)",
                     float(jit[r]), tol["jitter_mps"], "m/s", int(step[ke[r]]), float(t[ke[r]]),
                     [int(bs[r])])),
                 (fin & (np.nan_to_num(creep) > tol["creep_m"]), lambda r: Finding(
@@ -261,6 +300,8 @@ class PenetrationAnalyzer(Analyzer):
                     "step_start": int(step[ks[r]]), "duration_s": float(dur[r]),
                     "depth_max_m": float(r_max[r]), "depth_mean_m": float(r_mean[r]),
                     "jitter_mps": None if np.isnan(jit[r]) else float(jit[r]),
+                    "settled_speed_max_mps": None if np.isnan(speed_settled[r])
+                    else float(speed_settled[r]),
                     "creep_m": None if np.isnan(creep[r]) else float(creep[r]),
                 })
         ok = "" if nr or nrow else "no contacts found"
