@@ -46,7 +46,7 @@ PF_RA = 3  # anchor on a (3): point - x_a
 PF_RB = 6  # anchor on b (3): point - x_b (0 for static)
 PF_S = 9  # separation at the narrowphase (m), < 0 penetration
 PF_NMASS = 10  # 1 / (J M^-1 J^T) along the normal
-PF_TK = 11  # inverse of the 2x2 tangent mass matrix (3: k11, k12, k22)
+PF_TK = 11  # 2x2 tangent block of the effective inverse mass K (3: k11, k12, k22)
 PF_LN = 14  # accumulated normal impulse (N s)
 PF_L1 = 15  # accumulated friction impulse along t1
 PF_L2 = 16  # ... along t2
@@ -57,7 +57,8 @@ PF_F = 20  # friction impulse on a, world (3)
 PF_SEND = 23  # separation estimated at the end of the step (m)
 PF_IMPACT = 24  # 1.0 if the point was an impact (approach speed above the threshold)
 PF_WT = 25  # restitution's target gap velocity (m/s), < 0 when the point does not bounce
-PF_COLS = 26
+PF_KN = 26  # row of the manifold's normal block K_ij (4: one entry per point of the manifold)
+PF_COLS = 30
 
 #: contact log columns (the kernels append rows at sampled steps)
 LOG_STEP, LOG_A, LOG_B, LOG_KIND = 0, 1, 2, 3

@@ -66,8 +66,9 @@ MAX_CLIP_POINTS = 8
 MAX_MANIFOLD_POINTS = 4
 
 # Box-box axis preference (Gregorius): an edge axis replaces the best face axis only when its
-# separation exceeds EDGE_REL_TOL * face separation + AXIS_ABS_TOL; face B replaces face A only
-# when it exceeds FACE_REL_TOL * face A + AXIS_ABS_TOL. Prevents flip-flopping between nearly
+# separation exceeds the face's by (1 - EDGE_REL_TOL) |face separation| + AXIS_ABS_TOL; face B
+# replaces face A only when it exceeds it by (1 - FACE_REL_TOL) |sep A| + AXIS_ABS_TOL. (Gregorius
+# writes rel * sep + abs, which is right for overlaps only; |sep| keeps it right for gaps.) Prevents flip-flopping between nearly
 # equal axes, which would change the manifold (and lose warm starting) every step.
 EDGE_REL_TOL = 0.90
 FACE_REL_TOL = 0.98
@@ -464,10 +465,11 @@ def collide_box_box(ca, rota, ea, cb, rotb, eb, spec, nrm, pts, sep, fid, work, 
                 ei_best = i
                 ej_best = j
     face_sep = max(sep_a, sep_b)
-    if ei_best >= 0 and sep_e > EDGE_REL_TOL * face_sep + AXIS_ABS_TOL:
+    # relative margins taken on |separation| so that they favour faces for gaps and overlaps alike
+    if ei_best >= 0 and sep_e > face_sep + (1.0 - EDGE_REL_TOL) * abs(face_sep) + AXIS_ABS_TOL:
         return _edge_contact(ca, rota, ea, cb, rotb, eb, ei_best, ej_best, dx, dy, dz,
                              spec, nrm, pts, sep, fid)
-    if sep_b > FACE_REL_TOL * sep_a + AXIS_ABS_TOL:
+    if sep_b > sep_a + (1.0 - FACE_REL_TOL) * abs(sep_a) + AXIS_ABS_TOL:
         dbj = rotb[0, ax_b] * dx + rotb[1, ax_b] * dy + rotb[2, ax_b] * dz
         # reference face on b; its normal points from b towards a
         nsign = -1.0 if dbj > 0.0 else 1.0

@@ -15,8 +15,9 @@ An impulse P at the point changes it through the effective mass
 ``I^-1 = R diag(1/I_body) R^T``). Each sweep visits every point: for the normal row it computes the
 impulse increment that makes vn reach its target, adds it to the accumulated impulse, clamps the
 accumulated impulse to >= 0, and applies the difference (Catto 2005). Friction uses the 2x2
-tangent block of K and clamps the accumulated tangent impulse to the disc of radius mu * lambda_n
-(isotropic Coulomb cone). Equal and opposite impulses at the same point conserve the pair's linear
+tangent block of K; when the sticking impulse leaves the disc of radius mu * lambda_n (isotropic
+Coulomb cone) the point slides and gets the maximum-dissipation impulse on the circle, so that
+friction opposes the slip exactly (see _friction_impulse). Equal and opposite impulses at the same point conserve the pair's linear
 momentum and its angular momentum about any point, to round-off.
 
 Targets: a penetrating or touching point (s <= 0) wants vn >= 0; a speculative point (s > 0)
@@ -50,8 +51,18 @@ from numba import njit
 from .manifold import (
     MF_ACC, MF_E, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
     PF_IMPACT, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS, PF_NMASS, PF_RA, PF_RB, PF_S, PF_SEND, PF_TK,
-    PF_W0, PF_WT,
+    PF_W0, PF_WT, PF_KN,
 )
+
+
+#: Newton iterations of the sliding-friction impulse (converges from below in 3-5)
+FRICTION_NEWTON_ITERS = 8
+#: relative tolerance on |lambda| = mu lambda_n that ends them
+FRICTION_NEWTON_TOL = 1e-12
+#: relative diagonal regularisation of a manifold's normal block: four coplanar points have a
+#: rank-3 block (one self-equilibrated load pattern costs nothing); the regularised solve picks
+#: the smallest impulses, which keeps symmetric loads symmetric.
+BLOCK_REG = 1e-9
 
 
 @njit(cache=True, inline="always")
@@ -146,7 +157,19 @@ def prepare_contacts(mi, mf, pf, n_man, bm, bI, bv, bw, h):
         vbx, vby, vbz = bv[ib, 0], bv[ib, 1], bv[ib, 2]
         wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
         start = mi[m, MI_START]
-        for p in range(start, start + mi[m, MI_COUNT]):
+        cnt = mi[m, MI_COUNT]
+        # normal block K_ij = J_i M^-1 J_j^T of the manifold's points
+        for p in range(start, start + cnt):
+            cax, cay, caz = _cross(pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2], nx, ny, nz)
+            cbx, cby, cbz = _cross(pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2], nx, ny, nz)
+            ix, iy, iz = _smul(a0, a1, a2, a3, a4, a5, cax, cay, caz)
+            jx, jy, jz = _smul(b0, b1, b2, b3, b4, b5, cbx, cby, cbz)
+            for q in range(start, start + cnt):
+                dax, day, daz = _cross(pf[q, PF_RA], pf[q, PF_RA + 1], pf[q, PF_RA + 2], nx, ny, nz)
+                dbx, dby, dbz = _cross(pf[q, PF_RB], pf[q, PF_RB + 1], pf[q, PF_RB + 2], nx, ny, nz)
+                pf[p, PF_KN + q - start] = (ma + mb + dax * ix + day * iy + daz * iz
+                                            + dbx * jx + dby * jy + dbz * jz)
+        for p in range(start, start + cnt):
             rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
             rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
             # normal row
@@ -168,12 +191,7 @@ def prepare_contacts(mi, mf, pf, n_man, bm, bI, bv, bw, h):
             k11 = ma + mb + ua1x * ia1x + ua1y * ia1y + ua1z * ia1z + ub1x * ib1x + ub1y * ib1y + ub1z * ib1z
             k22 = ma + mb + ua2x * ia2x + ua2y * ia2y + ua2z * ia2z + ub2x * ib2x + ub2y * ib2y + ub2z * ib2z
             k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y + ub1z * ib2z
-            det = k11 * k22 - k12 * k12
-            if det > 0.0:
-                inv = 1.0 / det
-                pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2] = k22 * inv, -k12 * inv, k11 * inv
-            else:
-                pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2] = 0.0, 0.0, 0.0
+            pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2] = k11, k12, k22
             # gap velocity now (after the force kick), and before the kick
             wxrax, wxray, wxraz = _cross(wax, way, waz, rax, ray, raz)
             wxrbx, wxrby, wxrbz = _cross(wbx, wby, wbz, rbx, rby, rbz)
@@ -235,10 +253,91 @@ def warm_start(mi, mf, pf, n_man, bm, bI, bv, bw):
         bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
 
 
+@njit(cache=True, inline="always")
+def _friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, fmax):
+    """Accumulated friction impulse (t1, t2) after one Gauss-Seidel update of a point.
+
+    Sticking: the impulse that zeroes the slip, lambda = o - K^-1 vt. When that leaves the
+    Coulomb disc |lambda| <= fmax, the point slides and the impulse is the *maximum-dissipation*
+    one: the minimiser of the kinetic energy 1/2 (lambda - c)^T K (lambda - c) on the circle
+    |lambda| = fmax, lambda = (K + g I)^-1 K c with g >= 0 found by Newton on
+    1/|lambda(g)| = 1/fmax (More-Sorensen's secular equation). The slip after the impulse is
+    then -g lambda: friction opposes the sliding velocity exactly, which a radial projection of
+    the unconstrained impulse does not do when K couples the two tangents (off-centre points).
+    """
+    det0 = k11 * k22 - k12 * k12
+    if det0 <= 0.0 or fmax <= 0.0:
+        return 0.0, 0.0
+    # K c = K o - vt  (c: the sticking impulse)
+    kc1 = k11 * o1 + k12 * o2 - vt1
+    kc2 = k12 * o1 + k22 * o2 - vt2
+    g = 0.0
+    l1 = (k22 * kc1 - k12 * kc2) / det0
+    l2 = (k11 * kc2 - k12 * kc1) / det0
+    nl = math.sqrt(l1 * l1 + l2 * l2)
+    if nl <= fmax:
+        return l1, l2
+    for _ in range(FRICTION_NEWTON_ITERS):
+        a = k11 + g
+        d = k22 + g
+        det = a * d - k12 * k12
+        l1 = (d * kc1 - k12 * kc2) / det
+        l2 = (a * kc2 - k12 * kc1) / det
+        nl = math.sqrt(l1 * l1 + l2 * l2)
+        if nl <= fmax * (1.0 + FRICTION_NEWTON_TOL):
+            break
+        m1 = (d * l1 - k12 * l2) / det
+        m2 = (a * l2 - k12 * l1) / det
+        # f(g) = 1/fmax - 1/|l|,  f'(g) = -(l . (K + g I)^-1 l) / |l|^3
+        f = 1.0 / fmax - 1.0 / nl
+        fp = -(l1 * m1 + l2 * m2) / (nl * nl * nl)
+        g -= f / fp
+    sc = fmax / nl
+    return l1 * sc, l2 * sc
+
+
 @njit(cache=True)
-def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, n_iter):
-    """Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order)."""
-    for _ in range(n_iter):
+def _solve_block(a, n):
+    """Solve the n x n system in a[:n, :n] with right-hand side a[:n, 4] in place (Gaussian
+    elimination with partial pivoting); the solution ends in a[:n, 4]. False if singular."""
+    for c in range(n):
+        piv = c
+        for r in range(c + 1, n):
+            if abs(a[r, c]) > abs(a[piv, c]):
+                piv = r
+        if abs(a[piv, c]) <= 0.0:
+            return False
+        if piv != c:
+            for k in range(n):
+                t = a[c, k]
+                a[c, k] = a[piv, k]
+                a[piv, k] = t
+            t = a[c, 4]
+            a[c, 4] = a[piv, 4]
+            a[piv, 4] = t
+        for r in range(c + 1, n):
+            f = a[r, c] / a[c, c]
+            for k in range(c, n):
+                a[r, k] -= f * a[c, k]
+            a[r, 4] -= f * a[c, 4]
+    for c in range(n - 1, -1, -1):
+        x = a[c, 4]
+        for k in range(c + 1, n):
+            x -= a[c, k] * a[k, 4]
+        a[c, 4] = x / a[c, c]
+    return True
+
+
+@njit(cache=True)
+def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_iter, tol, blk):
+    """Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order).
+
+    Sweeps at least ``min_iter`` times, then until the largest velocity change a sweep makes at
+    any point is below ``tol`` (m/s), at most ``max_iter`` sweeps. Returns the sweeps done."""
+    it = 0
+    while it < max_iter:
+        it += 1
+        change = 0.0
         for m in range(n_man):
             if not mi[m, MI_ACTIVE]:
                 continue
@@ -258,8 +357,61 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, n_iter):
             wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
             start = mi[m, MI_START]
             end = start + mi[m, MI_COUNT]
-            # non-penetration
+            # non-penetration: the manifold's points together (block), else one by one
+            solved = False
+            cnt = end - start
+            if cnt > 1:
+                for i in range(cnt):
+                    p = start + i
+                    rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                    rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                    dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+                    dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+                    dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+                    vn = dvx * nx + dvy * ny + dvz * nz
+                    s = pf[p, PF_S]
+                    target = -s * inv_h if s > 0.0 else 0.0
+                    for j in range(cnt):
+                        blk[i, j] = pf[p, PF_KN + j]
+                    blk[i, i] += BLOCK_REG * pf[p, PF_KN + i]
+                    blk[i, 4] = target - vn
+                if _solve_block(blk, cnt):
+                    ok = True
+                    for i in range(cnt):
+                        if pf[start + i, PF_LN] + blk[i, 4] < 0.0:
+                            ok = False
+                    if ok:
+                        solved = True
+                        for i in range(cnt):
+                            p = start + i
+                            d = blk[i, 4]
+                            pf[p, PF_LN] += d
+                            if d != 0.0:
+                                dv = abs(d) / pf[p, PF_NMASS]
+                                if dv > change:
+                                    change = dv
+                            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                            px, py, pz = d * nx, d * ny, d * nz
+                            vax += ma * px
+                            vay += ma * py
+                            vaz += ma * pz
+                            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                            ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                            wax += ex
+                            way += ey
+                            waz += ez
+                            vbx -= mb * px
+                            vby -= mb * py
+                            vbz -= mb * pz
+                            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                            ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                            wbx -= ex
+                            wby -= ey
+                            wbz -= ez
             for p in range(start, end):
+                if solved:
+                    break
                 rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
                 rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
                 # relative normal velocity at the contact (a minus b)
@@ -277,6 +429,10 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, n_iter):
                     new = 0.0
                 pf[p, PF_LN] = new
                 d = new - old
+                if d != 0.0:
+                    dv = abs(d) / pf[p, PF_NMASS]
+                    if dv > change:
+                        change = dv
                 px, py, pz = d * nx, d * ny, d * nz
                 vax += ma * px
                 vay += ma * py
@@ -306,19 +462,15 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, n_iter):
                     vt2 = dvx * t2x + dvy * t2y + dvz * t2z
                     k11, k12, k22 = pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2]
                     o1, o2 = pf[p, PF_L1], pf[p, PF_L2]
-                    n1 = o1 - (k11 * vt1 + k12 * vt2)
-                    n2 = o2 - (k12 * vt1 + k22 * vt2)
-                    # clamp the accumulated friction to the disc mu * lambda_n
-                    fmax = mu * pf[p, PF_LN]
-                    f2 = n1 * n1 + n2 * n2
-                    if f2 > fmax * fmax:
-                        sc = fmax / math.sqrt(f2)
-                        n1 *= sc
-                        n2 *= sc
+                    n1, n2 = _friction_impulse(k11, k12, k22, o1, o2, vt1, vt2,
+                                               mu * pf[p, PF_LN])
                     pf[p, PF_L1] = n1
                     pf[p, PF_L2] = n2
                     d1 = n1 - o1
                     d2 = n2 - o2
+                    dv = abs(d1) * k11 + abs(d2) * k22
+                    if dv > change:
+                        change = dv
                     px = d1 * t1x + d2 * t2x
                     py = d1 * t1y + d2 * t2y
                     pz = d1 * t1z + d2 * t2z
@@ -342,6 +494,9 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, n_iter):
             bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
             bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
             bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
+        if it >= min_iter and change <= tol:
+            break
+    return it
 
 
 @njit(cache=True)

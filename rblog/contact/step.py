@@ -54,12 +54,14 @@ Bodies = namedtuple("Bodies", "geom size radius inv_mass inertia inv_inertia iso
 #: static geometry: static boxes (their AABBs precomputed) and the ground plane
 Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff g_e g_mu")
 #: stage switches and solver settings (see params.ContactParams)
-Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel n_pos slop beta max_speed "
+Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol n_pos slop "
+                                  "beta max_speed "
                                   "margin e_threshold anchor sleep_speed sleep_time warm")
 
 # indices into the stats array the kernel accumulates
-ST_STEPS, ST_PAIRS, ST_MANIFOLDS, ST_POINTS, ST_AWAKE, ST_IMPACTS, ST_WOKEN, ST_SLEPT = range(8)
-N_STATS = 8
+(ST_STEPS, ST_PAIRS, ST_MANIFOLDS, ST_POINTS, ST_AWAKE, ST_IMPACTS, ST_WOKEN, ST_SLEPT,
+ ST_SWEEPS) = range(9)
+N_STATS = 9
 
 
 @njit(cache=True)
@@ -179,6 +181,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
     fid = np.zeros(MAX_CLIP_POINTS, np.int64)
     work = np.zeros(32)
     poly = np.zeros((2, 2 * MAX_CLIP_POINTS, 4))
+    blk = np.zeros((4, 5))
     n_man = n_man0
     n_log = 0
     n_samples = 0
@@ -229,7 +232,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
             if cfg.warm:
                 warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw)
             # 7 solve
-            solve_velocities(mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h, cfg.n_vel)
+            stats[ST_SWEEPS] += solve_velocities(mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h,
+                                                 cfg.n_vel, cfg.max_vel, cfg.vel_tol, blk)
             # 8 relax: split-impulse position correction
             if cfg.n_pos > 0:
                 relax_positions(mi1, mf1, pf1, n_man, bm, bI, pv, pw, inv_h, cfg.n_pos, cfg.slop,

@@ -123,7 +123,8 @@ class ContactWorld:
             float(model.ground_friction))
         self._settings = Settings(
             self.do_kick, self.do_sleep, iso_shortcut, int(p.velocity_iterations),
-            int(p.position_iterations), float(p.allowed_penetration),
+            int(max(p.max_velocity_iterations, p.velocity_iterations)),
+            float(p.velocity_tolerance), int(p.position_iterations), float(p.allowed_penetration),
             float(p.position_correction_rate), float(p.max_correction_speed),
             float(p.speculative_distance), float(p.restitution_threshold),
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
@@ -147,7 +148,8 @@ class ContactWorld:
         self._log_i = np.zeros((64, LOG_I_COLS), np.int64)
         self._log_f = np.zeros((64, LOG_F_COLS))
         #: counters accumulated over all calls: steps with awake bodies, candidate pairs,
-        #: manifolds, points, awake body-steps, impact points, islands woken, bodies put to sleep
+        #: manifolds, points, awake body-steps, impact points, islands woken, bodies put to sleep,
+        #: velocity sweeps
         self.stats = np.zeros(N_STATS, np.int64)
 
     # ---- set-up helpers ---------------------------------------------------------------------
@@ -224,7 +226,8 @@ class ContactWorld:
         else:
             e.append(("inertia: R diag(1/I) R^T per body", "no body has isotropic inertia"))
         e.append(("solve: sequential impulses",
-                  f"{p.velocity_iterations} sweeps, Coulomb friction sqrt(mu_a mu_b), "
+                  f"{p.velocity_iterations} to {p.max_velocity_iterations} sweeps (until the "
+                  f"largest correction < {p.velocity_tolerance:g} m/s), Coulomb friction sqrt(mu_a mu_b), "
                   f"warm starting {'on' if p.warm_starting else 'off'}, speculative "
                   f"distance {p.speculative_distance:g} m + relative motion per step"))
         if p.position_iterations > 0:
