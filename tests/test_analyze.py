@@ -383,6 +383,24 @@ def sphere_hits_box(alter=1.0, e=1.0, duration=1.0):
     return build(model, t, x, v, r, np.zeros((len(t), 2, 3)))
 
 
+def ramp_box(theta=math.radians(30), mu=0.3, slide=True, duration=0.5):
+    """A 0.2 m cube on a ramp (a static box turned by theta about y, friction mu on both), either
+    sliding down at a = g (sin theta - mu cos theta) from rest, or resting (slide=False)."""
+    hh = 0.1
+    r_ramp = rot([0, 1, 0], theta)[0]
+    q_ramp = quat_of(r_ramp[None])[0]
+    model = make_model([dict(shape="box", size=(hh, hh, hh), mass=1.0, mu=mu)],
+                       statics=[dict(position=(0, 0, 0), quat=q_ramp, half=(2.0, 1.0, 0.1), mu=mu)])
+    t = times(duration)
+    u = r_ramp[:, 0]  # downhill along the ramp
+    p0 = r_ramp @ np.array([-1.0, 0.0, 0.1 + hh])
+    a = GM * (math.sin(theta) - mu * math.cos(theta)) if slide else 0.0
+    x = (p0 + 0.5 * a * t[:, None] ** 2 * u)[:, None]
+    v = (a * t[:, None] * u)[:, None]
+    r = np.broadcast_to(r_ramp, (len(t), 1, 3, 3))
+    return build(model, t, x, v, r, np.zeros((len(t), 1, 3)))
+
+
 # ---------------------------------------------------------------------------------------------
 # the clean direction: nothing is flagged
 
@@ -412,6 +430,8 @@ CLEAN = {
     "sliding_box": lambda: sliding_box()[0],
     "ball_on_static_box": lambda: ball_on_static_box(),
     "sphere_hits_box": lambda: sphere_hits_box(),
+    "box_slides_down_ramp": lambda: ramp_box(),
+    "box_rests_on_ramp": lambda: ramp_box(mu=0.7, slide=False),
 }
 
 
@@ -500,6 +520,24 @@ def test_ball_resting_on_a_static_box():
     bad = results(ball_on_static_box(sink=2e-3))["penetration"]
     assert not bad.passed and "static box 0" in bad.findings[0].message
     assert bad.worst_value == pytest.approx(2e-3, rel=1e-9)
+
+
+def test_collisions_are_found_without_logged_contacts():
+    """Without contacts in the log, the collision is found from the velocity jump."""
+    traj, _ = head_on(0.5)
+    traj.contacts = Contacts.empty()
+    mom = results(traj)["momentum"]
+    assert mom.passed
+    (ev,) = mom.events
+    assert ev["bodies"] == [0, 1]
+    assert ev["restitution_effective"] == pytest.approx(0.5, rel=1e-9)
+    bad, _ = head_on(0.5, alter_b=1.05)
+    bad.contacts = Contacts.empty()
+    assert "momentum" in flagged(bad)
+    ball, _ = bouncing_ball()
+    ball.contacts = Contacts.empty()
+    impacts = [ev for ev in results(ball)["momentum"].events if ev["kind"] == "impact"]
+    assert len(impacts) == 4
 
 
 # ---------------------------------------------------------------------------------------------
@@ -602,6 +640,15 @@ def test_momentum_flags_friction_beyond_the_cone():
     # theory: per interval J_n = m g dt, |J_t| = 2 mu m g dt, excess (|J_t| - mu J_n) / |J|
     jt, jn = 2 * 0.5, 1.0
     assert mom.worst_value == pytest.approx((jt - 0.5 * jn) / math.hypot(jt, jn), rel=1e-6)
+
+
+def test_momentum_flags_a_box_held_on_a_ramp_steeper_than_its_friction():
+    theta, mu = math.radians(30), 0.3  # tan 30 deg = 0.577 > 0.3: it must slide
+    mom = results(ramp_box(theta, mu, slide=False))["momentum"]
+    assert not mom.passed
+    # theory: J = m g dt (vertical); J_n = J cos theta, |J_t| = J sin theta
+    assert mom.worst_value == pytest.approx(math.sin(theta) - mu * math.cos(theta), rel=1e-9)
+    assert "static box 0" in mom.findings[0].message
 
 
 def test_momentum_flags_logged_impulse_outside_cone():
@@ -846,6 +893,19 @@ def test_result_to_dict_is_json_and_findings_name_bodies():
     assert s["passed"] is False and s["unit"] == "m"
     assert s["findings"][0]["body_names"] == ["b0"]
     assert s["worst_step"] == int(traj.step[np.searchsorted(traj.t, 1.0)])
+
+
+def test_nonfinite_state_is_reported_and_the_rest_analyzed():
+    traj = ballistic()
+    k = 40
+    traj.position[k:, 0, 2] = np.nan
+    res = results(traj)
+    d = res["drift"]
+    assert not d.passed
+    assert "non-finite" in d.findings[0].message and d.findings[0].t == pytest.approx(traj.t[k])
+    # the samples before are clean
+    assert all(r.passed for name, r in res.items() if name != "drift")
+    json.dumps(d.to_dict())
 
 
 def test_skips_when_the_log_lacks_what_is_needed():

@@ -189,10 +189,16 @@ class Analyzer:
         return [(f"{cls.name}.{k}", v, cls.units.get(k, "1")) for k, v in cls.defaults.items()]
 
     def run(self, traj: Trajectory, ctx: "Context | None" = None) -> Result:
-        """Analyze ``traj`` (``ctx`` shares work between analyzers of one trajectory)."""
+        """Analyze ``traj`` (``ctx`` shares work between analyzers of one trajectory).
+
+        A state that turns NaN or infinite ends the analysis at the sample before it (the drift
+        analyzer reports it)."""
         ctx = ctx if ctx is not None else Context(traj)
-        if traj.n_samples == 0:
-            return self.skip("the log holds no samples")
+        if ctx.traj.n_samples == 0:
+            if ctx.nonfinite is not None and self.name == "drift":
+                return self.analyze(ctx)
+            return self.skip("the log holds no samples" if ctx.nonfinite is None else
+                             "the first sample is already non-finite")
         return self.analyze(ctx)
 
     def analyze(self, ctx: "Context") -> Result:  # pragma: no cover - abstract
@@ -439,6 +445,26 @@ def _kinematics(t, position, velocity, momentum, ang_momentum, omega, mass, forc
                            + 0.5 * amag * dt * dt)
 
 
+_STATE_CHANNELS = ("position", "rotation", "quat_wxyz", "velocity", "linear_momentum",
+                   "angular_momentum", "angular_velocity")
+
+
+def _first_nonfinite(traj: Trajectory):
+    """(first sample index with a NaN or inf in a state channel, bodies), or (None, [])."""
+    t_n, n = traj.n_samples, traj.n_bodies
+    bad = np.zeros((t_n, n), bool)
+    for name in _STATE_CHANNELS:
+        arr = np.asarray(getattr(traj, name))
+        if arr.size:
+            bad |= ~np.isfinite(arr.reshape(t_n, n, -1)).all(axis=2)
+    bad_t = ~np.isfinite(np.asarray(traj.t, float))
+    rows = bad.any(axis=1) | bad_t
+    if not rows.any():
+        return None, []
+    k0 = int(np.argmax(rows))
+    return k0, [int(b) for b in np.nonzero(bad[k0])[0]]
+
+
 class Context:
     """Computations several analyzers share, done once per trajectory and cached.
 
@@ -446,9 +472,17 @@ class Context:
     """
 
     def __init__(self, traj: Trajectory):
-        self.traj = traj
         self.model = traj.model
         self._cache: dict[Any, Any] = {}
+        #: (sample index, bodies) of the first sample with a non-finite state, or None. The
+        #: analyzers then see the samples before it only (drift reports it as a finding).
+        self.nonfinite: tuple[int, list[int]] | None = None
+        self.full_traj = traj
+        self.traj = traj
+        k0, bodies = _first_nonfinite(traj)
+        if k0 is not None:
+            self.nonfinite = (k0, bodies)
+            self.traj = traj.slice(slice(0, k0))
 
     def cached(self, key, fn):
         if key not in self._cache:

@@ -121,6 +121,19 @@ class DriftAnalyzer(Analyzer):
         tr = ctx.traj
         model = tr.model
         t = tr.t
+        nonfinite = []
+        if ctx.nonfinite is not None:
+            k0, bad = ctx.nonfinite
+            full = ctx.full_traj
+            nonfinite.append(Finding(
+                self.name,
+                f"{', '.join(body_label(model, b) for b in bad[:3])}"
+                f"{' ...' if len(bad) > 3 else ''} has a non-finite state (NaN or inf) at t = "
+                f"{full.t[k0]:.6g} s (step {int(full.step[k0])}); analyzed up to the sample before",
+                float("inf"), 0.0, "1", int(full.step[k0]), float(full.t[k0]), bad))
+            if tr.n_samples == 0:
+                w = Worst("1", 0.0)
+                return self.result(w, nonfinite, {})
         mets = self.metrics(ctx)
         worst = Worst("1", self.tol["ortho_error"])
         stats: dict[str, float] = {}
@@ -184,4 +197,4 @@ class DriftAnalyzer(Analyzer):
             stats["worst_growth_per_s"] = float(slope[jw])
             stats["worst_log_growth_rate_per_s"] = float(log_rate[jw])
             stats["bodies_flagged"] = float(len(flagged))
-        return self.result(worst, findings, stats)
+        return self.result(worst, nonfinite + findings, stats)
