@@ -666,15 +666,18 @@ class Context:
         k = self._kin()
         return k["ke"], k["u"]
 
-    def group_energy(self, cd: float, rel: float, position_correction_m: float):
+    def group_energy(self, cd: float, rel: float, position_correction_m: float,
+                     dt_factor: float = tol.ENERGY_DT_FACTOR):
         """Energy change of each contact group across its interval, and what may explain it.
 
         Returns dict of (C,) arrays: ``change`` (J, kinetic + potential of gravity and applied
-        forces), ``allowed`` (J): m |a| dt (|v_k| + |v_k+1|) / 2 per member (the shadow energy of
-        a first-order gravity step) + m |a| position_correction_m per member (an engine lifting a
-        body out of penetration) + rel x ``ke_scale``; ``ke_scale`` (J, members' max kinetic
-        energy at the two samples), ``restitution`` (the largest configured restitution in
-        play: members', and the static features' in reach) and ``torque_free``.
+        forces); ``allowed`` (J): per member dt_factor m |a| dt (|v_k| + |v_k+1|) / 2 (the shadow
+        energy of a first-order gravity step) + m |a| position_correction_m (an engine lifting a
+        body out of penetration), plus rel x ``ke_scale``; ``ke_scale`` (J, the members' max
+        kinetic energy at the two samples); ``scale`` (ke_scale + the dt and position
+        allowances: the denominator of relative figures, finite for a group at rest);
+        ``restitution`` (the largest configured restitution in play: members', and the static
+        features' in reach) and ``torque_free``.
         """
         def f():
             grp = self.groups(cd)
@@ -687,7 +690,7 @@ class Context:
             sp0, sp1 = self.speed[mk, mi], self.speed[mk + 1, mi]
             change = grp.sum(e[mk + 1, mi] - e[mk, mi])
             ke_scale = grp.sum(np.maximum(ke[mk, mi], ke[mk + 1, mi]))
-            base = grp.sum(0.5 * mm * amag * self.dt_step * (sp0 + sp1)
+            base = grp.sum(0.5 * dt_factor * mm * amag * self.dt_step * (sp0 + sp1)
                            + mm * amag * position_correction_m)
             rest = grp.max(np.asarray(self.model.body_restitution, float)[mi])
             sid = np.where(grp.static_features == 1, grp.static_id, -2)
@@ -696,7 +699,7 @@ class Context:
             torque_free = grp.sum(self.has_torque[mi].astype(float)) == 0
             return dict(change=change, base=base, ke_scale=ke_scale, restitution=rest,
                         torque_free=torque_free)
-        d = dict(self.cached(("group_energy", cd, position_correction_m), f))
+        d = dict(self.cached(("group_energy", cd, position_correction_m, dt_factor), f))
         d["allowed"] = d["base"] + rel * d["ke_scale"]
         # scale for relative figures: the kinetic energy, plus the allowance (a group at rest has
         # no kinetic energy)

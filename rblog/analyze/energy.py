@@ -8,12 +8,14 @@ a reason when that is every body).
 
 * Drift: over every stretch of samples in which a body cannot touch anything (recomputed geometry,
   swept over each interval, and the logged contacts), ``|E(t) - E(start)|`` must stay within
-  ``DRIFT_REL x scale + m |a| dt (|v(t)| + |v(start)|) / 2``. The scale is the energy that moves:
-  ``max(max kinetic energy, range of potential energy)`` over the stretch (floor: ENERGY_FLOOR per
-  kg). Total energy |E0| is no scale: the potential's zero (the world origin) is arbitrary, and a
-  body dropped from rest at z = 0 has E0 = 0. The second term is exact for a first-order
-  (symplectic Euler) gravity step, whose conserved shadow energy is E - m g.v dt / 2; dt is the
-  integrator step from the log (RunInfo.dt).
+  ``DRIFT_REL x scale + DT_FACTOR x m |a| dt (|v(t)| + |v(start)|) / 2``. The scale is the
+  energy that moves: ``max(max kinetic energy, range of potential energy)`` over the stretch
+  (floor: ENERGY_FLOOR per kg). Total energy |E0| is no scale: the potential's zero (the world
+  origin) is arbitrary, and a body dropped from rest at z = 0 has E0 = 0. The second term: a
+  first-order (symplectic Euler) gravity step conserves the shadow energy E - m g.v dt / 2, so
+  E itself moves by up to m |g| dt (|v(t)| + |v(start)|) / 2 (reached at every pair of samples
+  symmetric about an apex), taken DT_FACTOR = 2 times for margin; dt is the integrator step from
+  the log (RunInfo.dt).
 * Gain across a contact: for every contact group (bodies that touched during a sample interval,
   see Context.groups), the energy of the members must not grow by more than the same dt term,
   ``m |g| POSITION_CORRECTION_M`` (an engine lifting a body out of penetration) and
@@ -42,6 +44,7 @@ class EnergyAnalyzer(Analyzer):
         "drift_rel": T.ENERGY_DRIFT_REL,
         "contact_gain_rel": T.ENERGY_CONTACT_GAIN_REL,
         "position_correction_m": T.ENERGY_POSITION_CORRECTION_M,
+        "dt_factor": T.ENERGY_DT_FACTOR,
         "floor_j_per_kg": T.ENERGY_FLOOR_J_PER_KG,
         "contact_distance_m": T.CONTACT_DISTANCE_M,
     }
@@ -74,7 +77,8 @@ class EnergyAnalyzer(Analyzer):
         while True:
             segs = np.empty((cap, 4), np.int64)  # body, first sample, last sample, worst sample
             vals = np.empty((cap, 5))  # worst ratio, rel, tol rel, scale, rate (rel/s)
-            cnt = _free_drift(free, t, e, ke, u, sp, m, amag, ctx.dt_step, self.tol["drift_rel"],
+            cnt = _free_drift(free, t, e, ke, u, sp, m, amag,
+                              ctx.dt_step * self.tol["dt_factor"], self.tol["drift_rel"],
                               self.tol["floor_j_per_kg"], segs, vals)
             if cnt <= cap:
                 break
@@ -103,7 +107,7 @@ class EnergyAnalyzer(Analyzer):
         grp = ctx.groups(cd)
         if len(grp):
             gen = ctx.group_energy(cd, self.tol["contact_gain_rel"],
-                                   self.tol["position_correction_m"])
+                                   self.tol["position_correction_m"], self.tol["dt_factor"])
             check = (gen["restitution"] <= 1.0) & gen["torque_free"]
             scale = gen["scale"]
             gain_rel = gen["change"] / scale

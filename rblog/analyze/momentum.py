@@ -95,6 +95,7 @@ class MomentumAnalyzer(Analyzer):
         "restitution_min_speed_mps": T.MOMENTUM_RESTITUTION_MIN_SPEED_MPS,
         "energy_rel": T.MOMENTUM_ENERGY_REL,
         "position_correction_m": T.ENERGY_POSITION_CORRECTION_M,
+        "dt_factor": T.ENERGY_DT_FACTOR,
         "contact_distance_m": T.CONTACT_DISTANCE_M,
     }
     units = {"impact_speed_mps": "m/s", "restitution_min_speed_mps": "m/s",
@@ -125,7 +126,8 @@ class MomentumAnalyzer(Analyzer):
         iidx = np.nonzero(impact)[0]
         stats["impacts"] = float(len(iidx))
         t, step = tr.t, tr.step
-        gen = ctx.group_energy(cd, self.tol["energy_rel"], self.tol["position_correction_m"])
+        gen = ctx.group_energy(cd, self.tol["energy_rel"], self.tol["position_correction_m"],
+                               self.tol["dt_factor"])
         events = []
         for j in iidx[: T.MAX_EVENTS]:
             e_eff, e_cfg = ev["e_eff"][j], ev["e_cfg"][j]
@@ -368,7 +370,7 @@ class MomentumAnalyzer(Analyzer):
         dev = np.abs(e_eff - e_cfg)
         judged = ev["sphere"] & impact & np.isfinite(dev)
         slow_low = (e_eff < e_cfg) & (approach < self.tol["restitution_min_speed_mps"])
-        ridx = np.nonzero(judged)[0]
+        ridx = np.nonzero(judged & ~slow_low)[0]
         if len(ridx):
             stats["restitution_abs_error_max"] = float(dev[ridx].max())
             self._worst.offer_array(dev[ridx], e_tol[ridx], "1", step[gk[ridx] + 1],
@@ -384,7 +386,7 @@ class MomentumAnalyzer(Analyzer):
                       float(t[gk[j] + 1]), grp.members(j)))
 
         gen = ctx.group_energy(self.tol["contact_distance_m"], self.tol["energy_rel"],
-                               self.tol["position_correction_m"])
+                               self.tol["position_correction_m"], self.tol["dt_factor"])
         d_e, allow = gen["change"], gen["allowed"]
         ke_scale = gen["scale"]
         gain_rel, allow_rel = d_e / ke_scale, allow / ke_scale
