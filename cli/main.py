@@ -214,7 +214,8 @@ def _print_report(path, traj, results):
         verdict = "SKIP" if r.skipped else ("pass" if r.passed else "FAIL")
         line = f"  {verdict:<4} {r.analyzer:<14}"
         if not r.skipped:
-            line += f" worst {r.worst_value:.3g} {r.unit} (tol {r.tolerance:.3g})"
+            unit = "" if r.unit in ("", "1") else f" {r.unit}"
+            line += f" worst {r.worst_value:.3g}{unit} (tol {r.tolerance:.3g}{unit})"
             if r.worst_t is not None:
                 line += f" at t = {r.worst_t:.4g} s, step {r.worst_step}"
             if r.worst_bodies:
