@@ -324,20 +324,17 @@ def _groups_kernel(jump, n_static, static_id, ek, ea, eb, g_k, g_size, g_nstat, 
     has = np.zeros(n, np.bool_)
     gid = np.full(n, -1)
     fill = np.zeros(n, np.int64)
-    nodes = np.empty(n, np.int64)
     c = 0
     q = 0
     e = 0
     ne = ek.shape[0]
     for k in range(kn):
-        cnt = 0
+        any_node = False
         while e < ne and ek[e] == k:
             a, b = ea[e], eb[e]
-            for v in (a, b):
-                if not touched[v]:
-                    touched[v] = True
-                    nodes[cnt] = v
-                    cnt += 1
+            touched[a] = True
+            touched[b] = True
+            any_node = True
             ra, rb = _find(parent, a), _find(parent, b)
             if ra < rb:
                 parent[rb] = ra
@@ -345,20 +342,18 @@ def _groups_kernel(jump, n_static, static_id, ek, ea, eb, g_k, g_size, g_nstat, 
                 parent[ra] = rb
             e += 1
         for v in range(n):
-            if jump[k, v] and not touched[v]:
-                touched[v] = True
-                nodes[cnt] = v
-                cnt += 1
-        if cnt == 0:
-            continue
-        nodes[:cnt].sort()
-        for j in range(cnt):
-            v = nodes[j]
             if jump[k, v]:
+                touched[v] = True
+                any_node = True
+        if not any_node:
+            continue
+        for v in range(n):
+            if touched[v] and jump[k, v]:
                 has[_find(parent, v)] = True
         c0 = c
-        for j in range(cnt):  # groups in the order of their smallest body
-            v = nodes[j]
+        for v in range(n):  # groups in the order of their smallest body
+            if not touched[v]:
+                continue
             r = _find(parent, v)
             if has[r]:
                 if gid[r] < 0:
@@ -378,8 +373,9 @@ def _groups_kernel(jump, n_static, static_id, ek, ea, eb, g_k, g_size, g_nstat, 
         for g in range(c0, c):
             fill[g - c0] = start
             start += g_size[g]
-        for j in range(cnt):
-            v = nodes[j]
+        for v in range(n):
+            if not touched[v]:
+                continue
             r = _find(parent, v)
             if has[r]:
                 g = gid[r]
@@ -389,15 +385,15 @@ def _groups_kernel(jump, n_static, static_id, ek, ea, eb, g_k, g_size, g_nstat, 
                 m_g[pos] = g
                 fill[g - c0] += 1
         q = start
-        for j in range(cnt):  # reset what this interval touched
-            v = nodes[j]
-            r = _find(parent, v)
-            has[r] = False
-            gid[r] = -1
-        for j in range(cnt):
-            v = nodes[j]
-            parent[v] = v
-            touched[v] = False
+        for v in range(n):  # reset what this interval touched
+            if touched[v]:
+                r = _find(parent, v)
+                has[r] = False
+                gid[r] = -1
+        for v in range(n):
+            if touched[v]:
+                parent[v] = v
+                touched[v] = False
     return c, q
 
 
