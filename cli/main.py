@@ -143,11 +143,11 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, no_log, log_
 
 
 @main.command()
-@click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=str))
+@click.argument("logs", nargs=-1, type=click.Path(dir_okay=False, path_type=str))
 @click.option("--only", help="Comma-separated analyzers to run (default: all).")
 @click.option("--skip", help="Comma-separated analyzers to leave out.")
 @click.option("--tol", "tols", multiple=True, metavar="ANALYZER.NAME=VALUE",
-              help="Override a tolerance, e.g. --tol penetration.max_depth_m=2e-3 (repeatable).")
+              help="Override a tolerance, e.g. --tol penetration.depth_m=2e-3 (repeatable; see --list).")
 @click.option("--list", "list_only", is_flag=True, help="List the analyzers and their tolerances.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON document.")
 def check(logs, only, skip, tols, list_only, as_json):
@@ -156,11 +156,16 @@ def check(logs, only, skip, tols, list_only, as_json):
     cannot be read."""
     from rblog.analyze import ANALYZERS, check as run_checks
     from rblog.record.reader import load
+    from rblog.simulate import CompileNotice
 
     if list_only:
         for name, cls in ANALYZERS.items():
             click.echo(f"{name:<14} {cls.description}")
+            for key, default, unit in cls.tolerance_table():
+                click.echo(f"    --tol {key}={default:g}  ({unit})")
         return
+    if not logs:
+        raise click.UsageError("give at least one LOG (.rrd or .mcap), or --list")
     names = set(ANALYZERS)
     sel_only = _names(only, names, "--only")
     sel_skip = _names(skip, names, "--skip")
@@ -178,7 +183,8 @@ def check(logs, only, skip, tols, list_only, as_json):
     for path in logs:
         try:
             traj = load(path)
-            results = run_checks(traj, only=sel_only, skip=sel_skip, tolerances=tolerances)
+            with CompileNotice(lambda m: click.echo(m, err=True)):
+                results = run_checks(traj, only=sel_only, skip=sel_skip, tolerances=tolerances)
         except RblogError as e:
             _fail(e)
         for w in traj.warnings:
@@ -186,7 +192,7 @@ def check(logs, only, skip, tols, list_only, as_json):
         flagged |= any(not r.passed and not r.skipped for r in results)
         report.append({"log": path, "samples": traj.n_samples, "bodies": traj.n_bodies,
                        "truncated": traj.truncated, "warnings": list(traj.warnings),
-                       "results": [r.to_dict() for r in results]})
+                       "results": [r.to_dict(traj.model) for r in results]})
         if not as_json:
             _print_report(path, traj, results)
     if as_json:

@@ -204,7 +204,7 @@ def run(
     bufs = new_buffers()
 
     # load (or compile, the first time) the kernels before the clock starts
-    with _CompileNotice(notice):
+    with CompileNotice(notice):
         advance(dt, 0, stride, False, st.copy(), bufs)
         derive(model, info, np.array([0]), np.array([0.0]), st.position[None], st.linear_momentum[None],
                st.quat_wxyz[None], st.rotation[None], st.angular_momentum_world[None])
@@ -384,8 +384,9 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int):
     return advance
 
 
-class _CompileNotice:
-    """Prints a one-line notice if the first compiled call takes long (numba compiling)."""
+class CompileNotice:
+    """Context manager: calls ``notice(msg)`` once if the block inside takes longer than
+    COMPILE_NOTICE_AFTER_S (numba compiling kernels on a first run)."""
 
     def __init__(self, notice):
         self.notice = notice
