@@ -117,7 +117,7 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
                   prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                   mi, mf, pf, pid, warm, anchor_distance, nrm, pts, sep, fid, work, poly):
     """Manifolds of the candidate pairs into (mi, mf, pf, pid), which must have room for
-    n_pairs manifolds and 4 n_pairs points. Returns (n_manifolds, n_points)."""
+    2 n_pairs manifolds and 8 n_pairs points. Returns (n_manifolds, n_points)."""
     n_shapes = n_dyn + n_static + 1
     n_man = 0
     n_pts = 0
@@ -125,29 +125,30 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
     for k in range(n_pairs):
         a = pairs[k, 0]
         b = pairs[k, 1]
-        key = a * n_shapes + b
+        key = a * n_shapes + b  # manifold keys are 2 key + part (part 1: a box pair's second)
         b_dyn = b < n_dyn
         a_awake = awake[a] != 0
         b_awake = b_dyn and awake[b] != 0
         if not a_awake and not b_awake:
-            # both sides still: carry the manifold over as it was
-            j = find_manifold(prev_keys, prev_idx, prev_n, key)
-            if j < 0:
-                continue
-            cnt = prev_mi[j, MI_COUNT]
-            for c in range(MI_COLS):
-                mi[n_man, c] = prev_mi[j, c]
-            for c in range(MF_COLS):
-                mf[n_man, c] = prev_mf[j, c]
-            ps = prev_mi[j, MI_START]
-            for q in range(cnt):
-                for c in range(PF_COLS):
-                    pf[n_pts + q, c] = prev_pf[ps + q, c]
-                pid[n_pts + q] = prev_pid[ps + q]
-            mi[n_man, MI_START] = n_pts
-            mi[n_man, MI_ACTIVE] = 0
-            n_man += 1
-            n_pts += cnt
+            # both sides still: carry the manifolds over as they were
+            for part in range(2):
+                j = find_manifold(prev_keys, prev_idx, prev_n, 2 * key + part)
+                if j < 0:
+                    continue
+                cnt = prev_mi[j, MI_COUNT]
+                for c in range(MI_COLS):
+                    mi[n_man, c] = prev_mi[j, c]
+                for c in range(MF_COLS):
+                    mf[n_man, c] = prev_mf[j, c]
+                ps = prev_mi[j, MI_START]
+                for q in range(cnt):
+                    for c in range(PF_COLS):
+                        pf[n_pts + q, c] = prev_pf[ps + q, c]
+                    pid[n_pts + q] = prev_pid[ps + q]
+                mi[n_man, MI_START] = n_pts
+                mi[n_man, MI_ACTIVE] = 0
+                n_man += 1
+                n_pts += cnt
             continue
         ga = geom[a]
         gb, cb, rotb, sb = pair_geometry(a, b, n_dyn, n_static, geom, size, position, rotation,
@@ -158,97 +159,120 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
         spec = margin + reach[a]
         if b_dyn:
             spec += reach[b]
-        cnt = collide(code, ga > gb, position[a], rotation[a], size[a], cb, rotb, sb, gn, goff,
+        res = collide(code, ga > gb, position[a], rotation[a], size[a], cb, rotb, sb, gn, goff,
                       spec, nrm, pts, sep, fid, work, poly)
-        if cnt <= 0:
+        if res <= 0:
             continue
-        m = n_man
-        n_man += 1
-        mi[m, MI_KEY] = key
-        mi[m, MI_A] = a if a_awake else n_dyn
-        mi[m, MI_B] = b if b_awake else n_dyn
-        mi[m, MI_REC_A] = a
-        mi[m, MI_REC_B] = b if b_dyn else STATIC_BODY
-        mi[m, MI_START] = n_pts
-        mi[m, MI_COUNT] = cnt
-        mi[m, MI_ACTIVE] = 1
-        nx, ny, nz = nrm[0], nrm[1], nrm[2]
-        t1x, t1y, t1z, t2x, t2y, t2z = tangent_basis(nx, ny, nz)
-        mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2] = nx, ny, nz
-        mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2] = t1x, t1y, t1z
-        mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2] = t2x, t2y, t2z
-        # materials and the gap acceleration n . (a_a - a_b) from external forces
-        ax, ay, az = 0.0, 0.0, 0.0
-        if a_awake:
-            ax, ay, az = accel[a, 0], accel[a, 1], accel[a, 2]
-        if b_dyn:
-            mu = math.sqrt(friction[a] * friction[b])
-            e = max(restitution[a], restitution[b])
-            if b_awake:
-                ax -= accel[b, 0]
-                ay -= accel[b, 1]
-                az -= accel[b, 2]
-        elif b < n_dyn + n_static:
-            mu = math.sqrt(friction[a] * sb_mu[b - n_dyn])
-            e = max(restitution[a], sb_e[b - n_dyn])
-        else:
-            mu = math.sqrt(friction[a] * g_mu)
-            e = max(restitution[a], g_e)
-        mf[m, MF_MU] = mu
-        mf[m, MF_E] = e
-        mf[m, MF_ACC] = nx * ax + ny * ay + nz * az
-        # warm starting from the previous step's manifold of this pair
-        j = -1
-        if warm:
-            j = find_manifold(prev_keys, prev_idx, prev_n, key)
-        pa = position[a]
-        for q in range(cnt):
-            p = n_pts + q
-            px, py, pz = pts[q, 0], pts[q, 1], pts[q, 2]
-            pf[p, PF_P], pf[p, PF_P + 1], pf[p, PF_P + 2] = px, py, pz
-            pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2] = px - pa[0], py - pa[1], pz - pa[2]
-            if b_dyn:
-                pb = position[b]
-                pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2] = px - pb[0], py - pb[1], pz - pb[2]
+        for part in range(2):
+            if part == 0:
+                cnt = res % 8
+                row = 0
             else:
-                pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2] = 0.0, 0.0, 0.0
-            pf[p, PF_S] = sep[q]
-            pf[p, PF_SEND] = sep[q]
-            pid[p] = fid[q]
-            ln = 0.0
-            l1 = 0.0
-            l2 = 0.0
-            if j >= 0:
-                ps = prev_mi[j, MI_START]
-                pc = prev_mi[j, MI_COUNT]
-                match = -1
+                cnt = res // 8
+                row = 4
+            if cnt == 0:
+                continue
+            n_man, n_pts = _add_manifold(
+                2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
+                position, restitution, friction, accel, sb_e, sb_mu, g_e, g_mu,
+                prev_mi, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
+                mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid)
+    return n_man, n_pts
+
+
+@njit(cache=True)
+def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
+                  position, restitution, friction, accel, sb_e, sb_mu, g_e, g_mu,
+                  prev_mi, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
+                  mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid):
+    """Append one manifold (points rows row.. of the collider's output) with warm starting."""
+    m = n_man
+    n_man += 1
+    mi[m, MI_KEY] = key
+    mi[m, MI_A] = a if a_awake else n_dyn
+    mi[m, MI_B] = b if b_awake else n_dyn
+    mi[m, MI_REC_A] = a
+    mi[m, MI_REC_B] = b if b_dyn else STATIC_BODY
+    mi[m, MI_START] = n_pts
+    mi[m, MI_COUNT] = cnt
+    mi[m, MI_ACTIVE] = 1
+    nx, ny, nz = nrm[3 * part], nrm[3 * part + 1], nrm[3 * part + 2]
+    t1x, t1y, t1z, t2x, t2y, t2z = tangent_basis(nx, ny, nz)
+    mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2] = nx, ny, nz
+    mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2] = t1x, t1y, t1z
+    mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2] = t2x, t2y, t2z
+    # materials and the gap acceleration n . (a_a - a_b) from external forces
+    ax, ay, az = 0.0, 0.0, 0.0
+    if a_awake:
+        ax, ay, az = accel[a, 0], accel[a, 1], accel[a, 2]
+    if b_dyn:
+        mu = math.sqrt(friction[a] * friction[b])
+        e = max(restitution[a], restitution[b])
+        if b_awake:
+            ax -= accel[b, 0]
+            ay -= accel[b, 1]
+            az -= accel[b, 2]
+    elif b < n_dyn + n_static:
+        mu = math.sqrt(friction[a] * sb_mu[b - n_dyn])
+        e = max(restitution[a], sb_e[b - n_dyn])
+    else:
+        mu = math.sqrt(friction[a] * g_mu)
+        e = max(restitution[a], g_e)
+    mf[m, MF_MU] = mu
+    mf[m, MF_E] = e
+    mf[m, MF_ACC] = nx * ax + ny * ay + nz * az
+    # warm starting from the previous step's manifold of this pair
+    j = -1
+    if warm:
+        j = find_manifold(prev_keys, prev_idx, prev_n, key)
+    pa = position[a]
+    for q in range(cnt):
+        p = n_pts + q
+        px, py, pz = pts[row + q, 0], pts[row + q, 1], pts[row + q, 2]
+        pf[p, PF_P], pf[p, PF_P + 1], pf[p, PF_P + 2] = px, py, pz
+        pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2] = px - pa[0], py - pa[1], pz - pa[2]
+        if b_dyn:
+            pb = position[b]
+            pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2] = px - pb[0], py - pb[1], pz - pb[2]
+        else:
+            pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2] = 0.0, 0.0, 0.0
+        pf[p, PF_S] = sep[row + q]
+        pf[p, PF_SEND] = sep[row + q]
+        pid[p] = fid[row + q]
+        ln = 0.0
+        l1 = 0.0
+        l2 = 0.0
+        if j >= 0:
+            ps = prev_mi[j, MI_START]
+            pc = prev_mi[j, MI_COUNT]
+            match = -1
+            for r in range(ps, ps + pc):
+                if prev_pid[r] == fid[row + q]:
+                    match = r
+                    break
+            if match < 0:
+                best = ad2
                 for r in range(ps, ps + pc):
-                    if prev_pid[r] == fid[q]:
+                    dx = prev_pf[r, PF_P] - px
+                    dy = prev_pf[r, PF_P + 1] - py
+                    dz = prev_pf[r, PF_P + 2] - pz
+                    d2 = dx * dx + dy * dy + dz * dz
+                    if d2 <= best:
+                        best = d2
                         match = r
-                        break
-                if match < 0:
-                    best = ad2
-                    for r in range(ps, ps + pc):
-                        dx = prev_pf[r, PF_P] - px
-                        dy = prev_pf[r, PF_P + 1] - py
-                        dz = prev_pf[r, PF_P + 2] - pz
-                        d2 = dx * dx + dy * dy + dz * dz
-                        if d2 <= best:
-                            best = d2
-                            match = r
-                if match >= 0:
-                    ln = prev_pf[match, PF_LWS]
-                    fx, fy, fz = prev_pf[match, PF_F], prev_pf[match, PF_F + 1], prev_pf[match, PF_F + 2]
-                    l1 = fx * t1x + fy * t1y + fz * t1z
-                    l2 = fx * t2x + fy * t2y + fz * t2z
-            pf[p, PF_LN] = ln
-            pf[p, PF_L1] = l1
-            pf[p, PF_L2] = l2
-            pf[p, PF_LWS] = ln
-            pf[p, PF_LP] = 0.0
-            pf[p, PF_W0] = 0.0
-            pf[p, PF_WT] = -1.0
-            pf[p, PF_IMPACT] = 0.0
-            pf[p, PF_F], pf[p, PF_F + 1], pf[p, PF_F + 2] = 0.0, 0.0, 0.0
-        n_pts += cnt
+            if match >= 0:
+                ln = prev_pf[match, PF_LWS]
+                fx, fy, fz = prev_pf[match, PF_F], prev_pf[match, PF_F + 1], prev_pf[match, PF_F + 2]
+                l1 = fx * t1x + fy * t1y + fz * t1z
+                l2 = fx * t2x + fy * t2y + fz * t2z
+        pf[p, PF_LN] = ln
+        pf[p, PF_L1] = l1
+        pf[p, PF_L2] = l2
+        pf[p, PF_LWS] = ln
+        pf[p, PF_LP] = 0.0
+        pf[p, PF_W0] = 0.0
+        pf[p, PF_WT] = -1.0
+        pf[p, PF_IMPACT] = 0.0
+        pf[p, PF_F], pf[p, PF_F + 1], pf[p, PF_F + 2] = 0.0, 0.0, 0.0
+    n_pts += cnt
     return n_man, n_pts

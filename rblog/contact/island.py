@@ -147,10 +147,12 @@ def wake_touched(pairs, n_pairs, n_dyn, n_static, geom, size, awake, sleep_timer
         ga = geom[a]
         code = COLLIDE_TABLE[min(ga, gb), max(ga, gb)]
         spec = margin + reach[a] + reach[b]
-        cnt = collide(code, ga > gb, position[a], rotation[a], size[a], cb, rotb, sb, gn, goff,
+        res = collide(code, ga > gb, position[a], rotation[a], size[a], cb, rotb, sb, gn, goff,
                       spec, nrm, pts, sep, fid, work, poly)
         close = reach[a] + reach[b] + slop
-        for q in range(cnt):
+        for q in range(8):
+            if (q < 4 and q >= res % 8) or (q >= 4 and q - 4 >= res // 8):
+                continue
             if sep[q] <= close:
                 n_woken += 1
                 wake_island(island_of[sleeper], n_dyn, awake, sleep_timer, island_of,

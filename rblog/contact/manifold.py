@@ -21,7 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 # ---- per manifold, int64 ----
-MI_KEY = 0  # pair key lo * n_shapes + hi (shape ids: bodies, then static boxes, then ground)
+MI_KEY = 0  # 2 (lo * n_shapes + hi) + part; shape ids: bodies, static boxes, ground; part 1 is
+#            a box pair's second manifold (face manifold beside an edge contact)
 MI_A = 1  # solver index of body a (or the static dummy)
 MI_B = 2  # solver index of body b (or the static dummy)
 MI_REC_A = 3  # body index of a for the record

@@ -61,8 +61,9 @@ COLLIDE_TABLE = np.full((3, 3), COLLIDE_NONE, np.int64)
 for (_lo, _hi), (_code, _name) in NARROWPHASE_TABLE.items():
     COLLIDE_TABLE[_lo, _hi] = _code
 
-#: max points a collider writes before reduction (clipped quad) and after it
-MAX_CLIP_POINTS = 8
+#: rows of the collider's point buffer: a first manifold (rows 0..3 after reduction, up to 8
+#: while clipping) and a box pair's second manifold (rows 4.., up to 8 while clipping)
+MAX_CLIP_POINTS = 12
 MAX_MANIFOLD_POINTS = 4
 
 # Box-box axis preference (Gregorius): an edge axis replaces the best face axis only when its
@@ -466,9 +467,25 @@ def collide_box_box(ca, rota, ea, cb, rotb, eb, spec, nrm, pts, sep, fid, work, 
                 ej_best = j
     face_sep = max(sep_a, sep_b)
     # relative margins taken on |separation| so that they favour faces for gaps and overlaps alike
-    if ei_best >= 0 and sep_e > face_sep + (1.0 - EDGE_REL_TOL) * abs(face_sep) + AXIS_ABS_TOL:
-        return _edge_contact(ca, rota, ea, cb, rotb, eb, ei_best, ej_best, dx, dy, dz,
-                             spec, nrm, pts, sep, fid)
+    edge_best = ei_best >= 0 and sep_e > face_sep + (1.0 - EDGE_REL_TOL) * abs(face_sep) + AXIS_ABS_TOL
+    if edge_best:
+        cnt = _edge_contact(ca, rota, ea, cb, rotb, eb, ei_best, ej_best, dx, dy, dz,
+                            spec, nrm, pts, sep, fid)
+        if cnt == 0 or face_sep > spec or face_sep < sep_e - spec:
+            return cnt
+        # The edges touch first, but a face is within reach of this step: a tumbling box would
+        # swing that face's corners in. Its face manifold goes in rows 4.. as a second manifold
+        # of the pair, with its own normal (nrm[3:6]), so both features are guarded.
+        cnt2 = _best_face_contact(ca, rota, ea, cb, rotb, eb, sep_a, ax_a, sep_b, ax_b, work,
+                                  dx, dy, dz, spec, nrm[3:6], pts[4:], sep[4:], fid[4:], poly)
+        return cnt + 8 * cnt2
+    return _best_face_contact(ca, rota, ea, cb, rotb, eb, sep_a, ax_a, sep_b, ax_b, work,
+                              dx, dy, dz, spec, nrm, pts, sep, fid, poly)
+
+
+@njit(cache=True)
+def _best_face_contact(ca, rota, ea, cb, rotb, eb, sep_a, ax_a, sep_b, ax_b, work, dx, dy, dz,
+                       spec, nrm, pts, sep, fid, poly):
     if sep_b > sep_a + (1.0 - FACE_REL_TOL) * abs(sep_a) + AXIS_ABS_TOL:
         dbj = rotb[0, ax_b] * dx + rotb[1, ax_b] * dy + rotb[2, ax_b] * dz
         # reference face on b; its normal points from b towards a
@@ -481,15 +498,14 @@ def collide_box_box(ca, rota, ea, cb, rotb, eb, spec, nrm, pts, sep, fid, work, 
 
 
 @njit(cache=True)
-def _edge_contact(ca, rota, ea, cb, rotb, eb, i, j, dx, dy, dz, spec, nrm, pts, sep, fid):
-    """Closest points of the supporting edges (a's edge along axis i, b's along axis j)."""
+def _edge_points(ca, rota, ea, cb, rotb, eb, i, j, dx, dy, dz):
+    """Closest points of the supporting edges (a's edge along axis i, b's along axis j), and a
+    feature id. Returns (qa, qb, id); the axis L = a_i x b_j is oriented from a to b."""
     uax, uay, uaz = rota[0, i], rota[1, i], rota[2, i]
     ubx, uby, ubz = rotb[0, j], rotb[1, j], rotb[2, j]
     lx = uay * ubz - uaz * uby
     ly = uaz * ubx - uax * ubz
     lz = uax * uby - uay * ubx
-    ln = math.sqrt(lx * lx + ly * ly + lz * lz)
-    lx, ly, lz = lx / ln, ly / ln, lz / ln
     if lx * dx + ly * dy + lz * dz < 0.0:  # orient from a to b
         lx, ly, lz = -lx, -ly, -lz
     # supporting edge of a (farthest along L) and of b (farthest along -L): their midpoints
@@ -527,8 +543,23 @@ def _edge_contact(ca, rota, ea, cb, rotb, eb, i, j, dx, dy, dz, spec, nrm, pts, 
     ta = min(max(ta, -ea[i]), ea[i])
     tb = min(max(b * ta + d2, -eb[j]), eb[j])
     ta = min(max(b * tb - d1, -ea[i]), ea[i])
-    qax, qay, qaz = pax + ta * uax, pay + ta * uay, paz + ta * uaz
-    qbx, qby, qbz = pbx + tb * ubx, pby + tb * uby, pbz + tb * ubz
+    code = 100000 + ((i * 3 + j) * 8 + code_a) * 8 + code_b
+    return (pax + ta * uax, pay + ta * uay, paz + ta * uaz,
+            pbx + tb * ubx, pby + tb * uby, pbz + tb * ubz, code)
+
+
+@njit(cache=True)
+def _edge_contact(ca, rota, ea, cb, rotb, eb, i, j, dx, dy, dz, spec, nrm, pts, sep, fid):
+    """One point between the supporting edges, normal along a_i x b_j (from b into a)."""
+    qax, qay, qaz, qbx, qby, qbz, code = _edge_points(ca, rota, ea, cb, rotb, eb, i, j,
+                                                      dx, dy, dz)
+    lx = rota[1, i] * rotb[2, j] - rota[2, i] * rotb[1, j]
+    ly = rota[2, i] * rotb[0, j] - rota[0, i] * rotb[2, j]
+    lz = rota[0, i] * rotb[1, j] - rota[1, i] * rotb[0, j]
+    ln = math.sqrt(lx * lx + ly * ly + lz * lz)
+    lx, ly, lz = lx / ln, ly / ln, lz / ln
+    if lx * dx + ly * dy + lz * dz < 0.0:
+        lx, ly, lz = -lx, -ly, -lz
     s = (qbx - qax) * lx + (qby - qay) * ly + (qbz - qaz) * lz
     if s > spec:
         return 0
@@ -537,7 +568,7 @@ def _edge_contact(ca, rota, ea, cb, rotb, eb, i, j, dx, dy, dz, spec, nrm, pts, 
     pts[0, 1] = 0.5 * (qay + qby)
     pts[0, 2] = 0.5 * (qaz + qbz)
     sep[0] = s
-    fid[0] = 100000 + ((i * 3 + j) * 8 + code_a) * 8 + code_b
+    fid[0] = code
     return 1
 
 
@@ -547,7 +578,10 @@ def collide(code, swap, ca, rota, sa, cb, rotb, sb, pn, poff, spec, nrm, pts, se
     """Run collider ``code`` for shapes a and b (size rows: radius in [0] or half extents).
 
     When ``swap`` the table's first shape is b: the collider runs as (b, a) and the normal is
-    negated so that it still points from b into a. For a plane, b's data is (pn, poff)."""
+    negated so that it still points from b into a. For a plane, b's data is (pn, poff).
+
+    Returns n1 + 8 n2: n1 points (rows 0..3, normal nrm[0:3]) and, for box-box edge contacts
+    with a face within reach, a second manifold of n2 points (rows 4..7, normal nrm[3:6])."""
     if code == COLLIDE_SPHERE_PLANE:
         return collide_sphere_plane(ca, sa[0], pn, poff, spec, nrm, pts, sep, fid)
     if code == COLLIDE_BOX_PLANE:
@@ -565,16 +599,18 @@ def collide(code, swap, ca, rota, sa, cb, rotb, sb, pn, poff, spec, nrm, pts, se
     else:
         n = -1  # no collider: the world checks the table up front, so this is a bug
     if swap and n > 0:
-        nrm[0], nrm[1], nrm[2] = -nrm[0], -nrm[1], -nrm[2]
+        for k in range(6):
+            nrm[k] = -nrm[k]
     return n
 
 
 def collide_np(geom_a, a_center, a_rot, a_size, geom_b, b_center=None, b_rot=None, b_size=None,
-               plane_normal=(0.0, 0.0, 1.0), plane_offset=0.0, spec=0.0):
+               plane_normal=(0.0, 0.0, 1.0), plane_offset=0.0, spec=0.0, second=False):
     """Python entry for tests and tools: the manifold of shape a vs shape b (or the plane).
 
     Returns (normal (3,), points (K, 3), separations (K,), feature ids (K,)); normal from b
-    into a. Raises UnsupportedShapePair for a pair with no collider."""
+    into a; ``second=True`` returns the second manifold of a box-box edge contact (K = 0 when
+    there is none). Raises UnsupportedShapePair for a pair with no collider."""
     key = (min(geom_a, geom_b), max(geom_a, geom_b))
     if key not in NARROWPHASE_TABLE:
         raise UnsupportedShapePair(geom_a, geom_b, "collide_np")
@@ -589,7 +625,7 @@ def collide_np(geom_a, a_center, a_rot, a_size, geom_b, b_center=None, b_rot=Non
     sb = np.zeros(3)
     if b_size is not None:
         sb[: np.size(b_size)] = np.ravel(b_size)
-    nrm = np.zeros(3)
+    nrm = np.zeros(6)
     pts = np.zeros((MAX_CLIP_POINTS, 3))
     sep = np.zeros(MAX_CLIP_POINTS)
     fid = np.zeros(MAX_CLIP_POINTS, np.int64)
@@ -597,4 +633,7 @@ def collide_np(geom_a, a_center, a_rot, a_size, geom_b, b_center=None, b_rot=Non
     poly = np.zeros((2, 2 * MAX_CLIP_POINTS, 4))
     n = collide(code, swap, ca, ra, sa, cb, rb, sb, f(plane_normal, 3), float(plane_offset),
                 float(spec), nrm, pts, sep, fid, work, poly)
-    return nrm, pts[:n].copy(), sep[:n].copy(), fid[:n].copy()
+    n1, n2 = n % 8, n // 8
+    if not second:
+        return nrm[:3].copy(), pts[:n1].copy(), sep[:n1].copy(), fid[:n1].copy()
+    return nrm[3:].copy(), pts[4:4 + n2].copy(), sep[4:4 + n2].copy(), fid[4:4 + n2].copy()

@@ -175,7 +175,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
     parent = np.zeros(n, np.int64)
     isl_time = np.zeros(n)
     isl_sup = np.zeros(n, np.int64)
-    nrm = np.zeros(3)
+    nrm = np.zeros(6)
     pts = np.zeros((MAX_CLIP_POINTS, 3))
     sep = np.zeros(MAX_CLIP_POINTS)
     fid = np.zeros(MAX_CLIP_POINTS, np.int64)
@@ -214,8 +214,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                     st.gn, st.goff, linear_momentum, angular_momentum, bd.force, bd.torque, h,
                     cfg.do_kick, nrm, pts, sep, fid, work, poly)
             # 4 collide: narrowphase into this step's buffers, warm starting from the last
-            mi1, mf1 = grow_manifolds(mi1, mf1, n_pairs)
-            pf1, pid1 = grow_points(pf1, pid1, 4 * n_pairs)
+            mi1, mf1 = grow_manifolds(mi1, mf1, 2 * n_pairs)
+            pf1, pid1 = grow_points(pf1, pid1, 8 * n_pairs)
             n_man, n_pts = collide_pairs(
                 pairs, n_pairs, n, ns, bd.geom, bd.size, awake, position, rotation, reach,
                 cfg.margin, bd.restitution, bd.friction, bd.accel, st.pos, st.rot, st.ext, st.e,
