@@ -261,7 +261,7 @@ def parse_scene(text: str, path: str = "<scene>") -> Scene:
 
     contact = {}
     if "contact" in doc:
-        contact = dict(ctx.table(doc["contact"], "contact"))
+        contact = _contact_table(ctx, ctx.table(doc["contact"], "contact"))
 
     model, state = _build(bodies, statics, gravity, ground, g_normal, g_offset, g_rest, g_fric)
     resolved["body"] = [
@@ -273,6 +273,34 @@ def parse_scene(text: str, path: str = "<scene>") -> Scene:
     if contact:
         resolved["contact"] = contact
     return Scene(path, text, model, state, sim, contact, resolved)
+
+
+def _contact_table(ctx: _Ctx, t: dict) -> dict:
+    """Check ``[contact]`` against the contact solver's settings (rblog.contact.params)."""
+    from dataclasses import fields
+
+    from .contact.params import ContactParams
+
+    defaults = ContactParams()
+    known = {f.name for f in fields(ContactParams)}
+    ctx.keys(t, "contact", known)
+    out = {}
+    for k, v in t.items():
+        d = getattr(defaults, k)
+        key = f"contact.{k}"
+        if isinstance(d, bool):
+            out[k] = ctx.boolean(v, key)
+        elif isinstance(d, int):
+            out[k] = ctx.integer(v, key)
+        else:
+            out[k] = ctx.num(v, key)
+    try:
+        ContactParams(**out)
+    except ValueError as e:
+        bad = next((k for k in out if f"contact.{k} " in str(e) or f"contact.{k}" in str(e)), "")
+        ctx.fail(f"contact.{bad}" if bad else "contact", str(e).split(" is ", 1)[-1]
+                 if " is " in str(e) else str(e))
+    return out
 
 
 def _orientation(ctx: _Ctx, d: dict, key: str) -> np.ndarray:

@@ -28,10 +28,10 @@ class Plan:
     _world: object = None
 
     def make_contact_world(self, method: int, ortho: int):
-        from .contact.params import params_from_table
+        from .contact.params import ContactParams
         from .contact.world import ContactWorld
 
-        params = params_from_table(self.scene.contact, self.scene.path)
+        params = ContactParams.from_dict(self.scene.contact)  # validated by the scene loader
         self._world = ContactWorld(self.scene.model, params, method, ortho,
                                    force_all_stages=self.force_all)
         self.stages = [("integrate", self.stages[0][1]), *self._world.explain()]
