@@ -86,9 +86,8 @@ def _grow_pairs(pairs):
 def sweep_and_prune(n_items, n_dyn, lo, hi, group, awake, pairs):
     """Candidate pairs (lo id, hi id) among items 0..n_items-1 whose AABBs overlap.
 
-    Skips static-static pairs, pairs in different non-zero groups, and pairs with no awake
-    dynamic body only when neither side can move (both are then emitted anyway so that the
-    narrowphase can carry their manifolds over; the caller decides). Returns (pairs, count);
+    Skips static-static pairs and pairs in different non-zero groups. Pairs of sleeping bodies
+    are emitted too (the collide stage carries their manifolds over). Returns (pairs, count);
     ``pairs`` is reallocated when full."""
     if n_items < 2:
         return pairs, 0
@@ -118,13 +117,14 @@ def sweep_and_prune(n_items, n_dyn, lo, hi, group, awake, pairs):
         hi_i = hi[i, best_axis]
         for jj in range(ii + 1, n_items):
             j = order[jj]
-            if lo[j, best_axis] > hi_i:
+            # written as "not overlapping" so that a NaN box never pairs with anything
+            if not lo[j, best_axis] <= hi_i:
                 break
             if i >= n_dyn and j >= n_dyn:
                 continue
-            if lo[j, ax1] > hi[i, ax1] or lo[i, ax1] > hi[j, ax1]:
+            if not (lo[j, ax1] <= hi[i, ax1] and lo[i, ax1] <= hi[j, ax1]):
                 continue
-            if lo[j, ax2] > hi[i, ax2] or lo[i, ax2] > hi[j, ax2]:
+            if not (lo[j, ax2] <= hi[i, ax2] and lo[i, ax2] <= hi[j, ax2]):
                 continue
             a = min(i, j)
             b = max(i, j)

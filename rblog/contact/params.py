@@ -62,10 +62,10 @@ class ContactParams:
 
     velocity_iterations: int = 4
     max_velocity_iterations: int = 200
-    velocity_tolerance: float = 1e-6
+    velocity_tolerance: float = 1e-4
     position_iterations: int = 3
     allowed_penetration: float = 5e-5
-    position_correction_rate: float = 0.4
+    position_correction_rate: float = 0.8
     max_correction_speed: float = 1.0
     speculative_distance: float = 0.01
     restitution_threshold: float = 1.0

@@ -10,12 +10,13 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     5  prepare          effective masses, pre-solve gap velocities (solver.py)
     6  warm start       apply last step's impulses
     7  solve            sequential impulses, Coulomb friction, speculative targets
-    8  relax            split-impulse position correction on pseudo velocities
+    8  relax            split-impulse position correction on pseudo velocities (the shift's
+                        orbital angular momentum h v' x P is handed back to the spin)
     9  integrate        x += h (v + v'), rotation by rotation.drift_rotation with the run's
                         integrator (the body's L and its current R, so gyroscopic motion is the
                         integrator's own); momenta P, L rebuilt from the solver's velocity changes
-    10 restitution      bounce impact points (energy-consistent rule, solver.py)
-    11 store impulses   friction as world vectors for the next step; P, L rebuilt again
+    10 restitution      bounce impact points (energy-consistent rule, solver.py), P += J, L += r x J
+    11 store impulses   friction as world vectors for the next step
     12 sleep            rest timers, islands, put resting islands to sleep (island.py)
 
 Translation is symplectic Euler (kick, then drift with the new velocity) for every integrator:
@@ -130,6 +131,15 @@ def _inertia_world_times(bd, rotation, i, x, y, z):
             r[2, 0] * b0 + r[2, 1] * b1 + r[2, 2] * b2)
 
 
+@njit(cache=True, inline="always")
+def _state_sum(i, position, linear_momentum, angular_momentum, rotation):
+    """One sum that is non-finite when any of the body's state is (position, momenta, R)."""
+    return (position[i, 0] + position[i, 1] + position[i, 2] + linear_momentum[i, 0]
+            + linear_momentum[i, 1] + linear_momentum[i, 2] + angular_momentum[i, 0]
+            + angular_momentum[i, 1] + angular_momentum[i, 2] + rotation[i, 0, 0]
+            + rotation[i, 1, 1] + rotation[i, 2, 2] + rotation[i, 0, 1])
+
+
 @njit(cache=True)
 def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                   position, linear_momentum, quat_wxyz, rotation, angular_momentum,
@@ -182,9 +192,17 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
     work = np.zeros(32)
     poly = np.zeros((2, 2 * MAX_CLIP_POINTS, 4))
     blk = np.zeros((4, 5))
+    hot = np.zeros(n + 1, np.int64)
+    dx_step = np.zeros((n + 1, 3))  # displacement this step (row n: the static dummy, 0)
     n_man = n_man0
     n_log = 0
     n_samples = 0
+    # garbage in: a non-finite state handed to this call is reported at its first step
+    for i in range(n):
+        if not math.isfinite(_state_sum(i, position, linear_momentum, angular_momentum,
+                                        rotation)):
+            return (0, 1, i, 0, log_i, log_f, mi0, mf0, pf0, pid0, n_man0, keys0, idx0, mi1,
+                    mf1, pf1, pid1, pairs)
     for s in range(1, n_steps + 1):
         n_awake = 0
         for i in range(n):
@@ -233,7 +251,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                 warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw)
             # 7 solve
             stats[ST_SWEEPS] += solve_velocities(mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h,
-                                                 cfg.n_vel, cfg.max_vel, cfg.vel_tol, blk)
+                                                 cfg.n_vel, cfg.max_vel, cfg.vel_tol, blk, hot)
             # 8 relax: split-impulse position correction
             if cfg.n_pos > 0:
                 relax_positions(mi1, mf1, pf1, n_man, bm, bI, pv, pw, inv_h, cfg.n_pos, cfg.slop,
@@ -249,7 +267,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                     _store_momenta(i, bd, rotation, linear_momentum, angular_momentum, bv, bw,
                                    bv0, bw0, p0, l0, cfg.iso_shortcut)
                     for k in range(3):
-                        position[i, k] += h * (linear_momentum[i, k] * im + pv[i, k])
+                        dx_step[i, k] = h * (linear_momentum[i, k] * im + pv[i, k])
+                        position[i, k] += dx_step[i, k]
                         l_drift[i, k] = angular_momentum[i, k]
                     if pw[i, 0] != 0.0 or pw[i, 1] != 0.0 or pw[i, 2] != 0.0:
                         # rotate by L + I_world w' so the pseudo spin goes through the integrator
@@ -267,17 +286,21 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                         position[i, k] += h * linear_momentum[i, k] * im
                 # one call site: drift_rotation is inlined, and it is large
                 drift_rotation(method, ortho, quat_wxyz, rotation, l_drift, bd.inv_inertia, i, h)
+                if in_contact[i] and (pv[i, 0] != 0.0 or pv[i, 1] != 0.0 or pv[i, 2] != 0.0):
+                    # the pseudo shift h v' moved the body's momentum line: give the orbital
+                    # change back to its spin so that sum(x x P + L) stays exact
+                    sx, sy, sz = h * pv[i, 0], h * pv[i, 1], h * pv[i, 2]
+                    qx, qy, qz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
+                    angular_momentum[i, 0] -= sy * qz - sz * qy
+                    angular_momentum[i, 1] -= sz * qx - sx * qz
+                    angular_momentum[i, 2] -= sx * qy - sy * qx
             # 10 restitution (also records the solve's impulses for warm starting)
             n_imp = restitution(mi1, mf1, pf1, n_man, bm, bI, bv, bw, pv, pw, h,
-                                cfg.e_threshold, cfg.n_vel)
+                                cfg.e_threshold, cfg.n_vel, dx_step, linear_momentum,
+                                angular_momentum)
             stats[ST_IMPACTS] += n_imp
-            # 11 store impulses; momenta again after the bounces
+            # 11 store impulses
             store_impulses(mi1, mf1, pf1, n_man)
-            if n_imp > 0:
-                for i in range(n):
-                    if awake[i] and in_contact[i]:
-                        _store_momenta(i, bd, rotation, linear_momentum, angular_momentum, bv,
-                                       bw, bv0, bw0, p0, l0, cfg.iso_shortcut)
             # this step's manifolds become "previous"
             keys0 = np.empty(max(n_man, 1), np.int64)
             idx0 = np.empty(max(n_man, 1), np.int64)
@@ -297,11 +320,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
             for i in range(n):
                 if not awake[i]:
                     continue
-                chk = (position[i, 0] + position[i, 1] + position[i, 2] + linear_momentum[i, 0]
-                       + linear_momentum[i, 1] + linear_momentum[i, 2] + angular_momentum[i, 0]
-                       + angular_momentum[i, 1] + angular_momentum[i, 2] + rotation[i, 0, 0]
-                       + rotation[i, 1, 1] + rotation[i, 2, 2] + rotation[i, 0, 1])
-                if not math.isfinite(chk):
+                if not math.isfinite(_state_sum(i, position, linear_momentum, angular_momentum,
+                                                rotation)):
                     return (n_samples, s, i, n_log, log_i, log_f, mi0, mf0, pf0, pid0, n_man0,
                             keys0, idx0, mi1, mf1, pf1, pid1, pairs)
         if s % stride == 0 or (sample_last and s == n_steps):
