@@ -7,9 +7,10 @@ linked by touching manifolds (a point with a positive impulse or a closed gap). 
 sleep when every member has rested for ``sleep_time`` and it touches something (the ground, a
 static box, a sleeping body, or another body): its momenta are zeroed and the step skips it.
 
-An awake body wakes a sleeping island when one of its manifolds with a member of that island
-could close within the step; the island's bodies then get this step's force kick and rejoin the
-solve. Sleeping bodies keep their manifolds (carried over), so their resting contacts still
+An awake body wakes a sleeping island when its motion (before this step's force kick) can close
+the gap to a member within the step; the island's bodies then get this step's kick and rejoin the
+solve. A sleeping body that an awake one pushes on anyway (it stood in as a static body in this
+step's solve) wakes after the step. Sleeping bodies keep their manifolds (carried over), so their resting contacts still
 appear in the contact log.
 """
 
@@ -19,7 +20,9 @@ import math
 
 from numba import njit
 
-from .manifold import MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_LWS, PF_SEND
+from .manifold import (
+    MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_LN, PF_LWS, PF_SEND,
+)
 from .narrowphase import collide
 from .collide import pair_geometry
 from .narrowphase import COLLIDE_TABLE
@@ -130,9 +133,10 @@ def wake_island(island, n_dyn, awake, sleep_timer, island_of, linear_momentum,
 def wake_touched(pairs, n_pairs, n_dyn, n_static, geom, size, awake, sleep_timer, island_of,
                  position, rotation, reach, margin, slop, sb_pos, sb_rot, sb_ext, gn, goff,
                  linear_momentum, angular_momentum, force, torque, h, do_kick,
-                 nrm, pts, sep, fid, work, poly):
-    """Wake the sleeping islands that an awake body may touch within this step. Returns the
-    number of islands woken."""
+                 nrm, pts, sep, fid, work, poly, inv_mass, accel, radius, inv_inertia):
+    """Wake the sleeping islands that an awake body will reach within this step, by its motion
+    before this step's force kick (a body resting beside a sleeper does not wake it; one that
+    pushes on it wakes it after the solve, see wake_pushed). Returns the islands woken."""
     n_woken = 0
     for k in range(n_pairs):
         a = pairs[k, 0]
@@ -142,6 +146,20 @@ def wake_touched(pairs, n_pairs, n_dyn, n_static, geom, size, awake, sleep_timer
         if (awake[a] != 0) == (awake[b] != 0):
             continue
         sleeper = b if awake[a] else a
+        mover = a if awake[a] else b
+        im = inv_mass[mover]
+        vx = linear_momentum[mover, 0] * im
+        vy = linear_momentum[mover, 1] * im
+        vz = linear_momentum[mover, 2] * im
+        if do_kick:
+            vx -= h * accel[mover, 0]
+            vy -= h * accel[mover, 1]
+            vz -= h * accel[mover, 2]
+        lx, ly, lz = (angular_momentum[mover, 0], angular_momentum[mover, 1],
+                      angular_momentum[mover, 2])
+        wmax = math.sqrt(lx * lx + ly * ly + lz * lz) * max(
+            inv_inertia[mover, 0], max(inv_inertia[mover, 1], inv_inertia[mover, 2]))
+        close = h * (math.sqrt(vx * vx + vy * vy + vz * vz) + wmax * radius[mover])
         gb, cb, rotb, sb = pair_geometry(a, b, n_dyn, n_static, geom, size, position, rotation,
                                          sb_pos, sb_rot, sb_ext)
         ga = geom[a]
@@ -149,13 +167,41 @@ def wake_touched(pairs, n_pairs, n_dyn, n_static, geom, size, awake, sleep_timer
         spec = margin + reach[a] + reach[b]
         res = collide(code, ga > gb, position[a], rotation[a], size[a], cb, rotb, sb, gn, goff,
                       spec, nrm, pts, sep, fid, work, poly)
-        close = reach[a] + reach[b] + slop
         for q in range(8):
             if (q < 4 and q >= res % 8) or (q >= 4 and q - 4 >= res // 8):
                 continue
-            if sep[q] <= close:
+            if sep[q] < close:
                 n_woken += 1
                 wake_island(island_of[sleeper], n_dyn, awake, sleep_timer, island_of,
                             linear_momentum, angular_momentum, force, torque, h, do_kick)
+                break
+    return n_woken
+
+
+@njit(cache=True)
+def wake_pushed(mi, pf, n_man, n_dyn, awake, sleep_timer, island_of, linear_momentum,
+                angular_momentum, force, torque, h):
+    """Wake the sleeping islands that an awake body pushed on in this step's solve (they stood
+    in as static bodies this step; from the next one they move). Returns the islands woken."""
+    n_woken = 0
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        a = mi[m, MI_REC_A]
+        b = mi[m, MI_REC_B]
+        sleeper = -1
+        if not awake[a]:
+            sleeper = a
+        elif b >= 0 and not awake[b]:
+            sleeper = b
+        if sleeper < 0:
+            continue
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            if pf[p, PF_LN] > 0.0:
+                n_woken += 1
+                # no kick: the island joins from the next step's kick on
+                wake_island(island_of[sleeper], n_dyn, awake, sleep_timer, island_of,
+                            linear_momentum, angular_momentum, force, torque, h, False)
                 break
     return n_woken

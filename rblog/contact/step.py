@@ -38,7 +38,7 @@ from ..rotation import drift_rotation, sync_quat
 from ..trajectory import CONTACT_IMPACT, CONTACT_RESTING
 from .broadphase import body_aabbs, sweep_and_prune
 from .collide import collide_pairs, grow_manifolds, grow_points, sort_manifolds
-from .island import update_sleep, wake_touched
+from .island import update_sleep, wake_pushed, wake_touched
 from .manifold import (
     LOG_A, LOG_B, LOG_F, LOG_F_COLS, LOG_I_COLS, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
     MF_N, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_IMPACT, PF_LN, PF_P, PF_SEND,
@@ -230,7 +230,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                     pairs, n_pairs, n, ns, bd.geom, bd.size, awake, sleep_timer, island_of,
                     position, rotation, reach, cfg.margin, cfg.slop, st.pos, st.rot, st.ext,
                     st.gn, st.goff, linear_momentum, angular_momentum, bd.force, bd.torque, h,
-                    cfg.do_kick, nrm, pts, sep, fid, work, poly)
+                    cfg.do_kick, nrm, pts, sep, fid, work, poly, bd.inv_mass, bd.accel, bd.radius,
+                    bd.inv_inertia)
             # 4 collide: narrowphase into this step's buffers, warm starting from the last
             mi1, mf1 = grow_manifolds(mi1, mf1, 2 * n_pairs)
             pf1, pid1 = grow_points(pf1, pid1, 8 * n_pairs)
@@ -310,7 +311,11 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
             pf0, pf1 = pf1, pf0
             pid0, pid1 = pid1, pid0
             n_man0 = n_man
-            # 12 sleep
+            # 12 sleep (and wake what was pushed on)
+            if cfg.do_sleep and n_awake < n:
+                stats[ST_WOKEN] += wake_pushed(mi0, pf0, n_man0, n, awake, sleep_timer, island_of,
+                                               linear_momentum, angular_momentum, bd.force,
+                                               bd.torque, h)
             if cfg.do_sleep:
                 stats[ST_SLEPT] += update_sleep(
                     n, mi0, pf0, n_man0, awake, sleep_timer, island_of, island_counter,
