@@ -30,17 +30,20 @@ from .rotation import (
 #: writes for consecutive bodies share cache lines (a bodies-outer loop wrote each body's samples
 #: a whole sample-row apart: one cache miss per channel per sample).
 BODY_TILE = 32
+#: ... but when samples are this many steps apart or more, the write pattern does not matter and
+#: one body at a time (its position and momentum in registers for the whole block) is faster.
+SPARSE_STRIDE = 8
 
 
 @njit(inline="always")
 def _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
-               position, linear_momentum, quat_wxyz, rotation, angular_momentum):
-    """One step of body i, in place. Returns False if its state became non-finite."""
+               quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz):
+    """One step of body i: orientation and L in place, position (x, y, z) and momentum
+    (px, py, pz) passed and returned as scalars (so a caller may keep them in registers).
+    Returns (ok, x, y, z, px, py, pz); ok is False if the state became non-finite."""
     im = inv_mass[i]
     fx, fy, fz = force_world[i, 0], force_world[i, 1], force_world[i, 2]
     tx, ty, tz = torque_world[i, 0], torque_world[i, 1], torque_world[i, 2]
-    px, py, pz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
-    x, y, z = position[i, 0], position[i, 1], position[i, 2]
     if method == METHOD_SPLITTING:
         # kick half, drift, kick half
         hh = 0.5 * dt
@@ -86,13 +89,26 @@ def _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_
         angular_momentum[i, 1] += dt * ty
         angular_momentum[i, 2] += dt * tz
         drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt)
-    position[i, 0], position[i, 1], position[i, 2] = x, y, z
-    linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
     # non-finite check: one sum covers position, momenta and part of the rotation
     chk = (x + y + z + px + py + pz + angular_momentum[i, 0] + angular_momentum[i, 1]
            + angular_momentum[i, 2] + rotation[i, 0, 0] + rotation[i, 1, 1] + rotation[i, 2, 2]
            + rotation[i, 0, 1])
-    return math.isfinite(chk)
+    return math.isfinite(chk), x, y, z, px, py, pz
+
+
+@njit(inline="always")
+def _write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+                  out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
+                  out_angular_momentum):
+    sync_quat(method, quat_wxyz, rotation, i)
+    for a in range(3):
+        out_position[j, i, a] = position[i, a]
+        out_linear_momentum[j, i, a] = linear_momentum[i, a]
+        out_angular_momentum[j, i, a] = angular_momentum[i, a]
+        for b in range(3):
+            out_rotation[j, i, a, b] = rotation[i, a, b]
+    for a in range(4):
+        out_quat_wxyz[j, i, a] = quat_wxyz[i, a]
 
 
 @njit(cache=True, nogil=True)
@@ -119,34 +135,58 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
     n_samples = 0
     bad_step = -1
     bad_body = -1
-    for t0 in range(0, n_bodies, BODY_TILE):
-        t1 = min(t0 + BODY_TILE, n_bodies)
+    # Sparse samples: one body at a time, position and momentum in registers for the block.
+    # Dense samples: tiles of bodies, so that a sample's writes share cache lines.
+    tile = 1 if stride >= SPARSE_STRIDE else BODY_TILE
+    for t0 in range(0, n_bodies, tile):
+        t1 = min(t0 + tile, n_bodies)
         j = 0
-        for s in range(1, n_steps + 1):
-            ok = True
-            for i in range(t0, t1):
-                if not _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world,
-                                  torque_world, position, linear_momentum, quat_wxyz, rotation,
-                                  angular_momentum):
+        if tile == 1:
+            i = t0
+            x, y, z = position[i, 0], position[i, 1], position[i, 2]
+            px, py, pz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
+            for s in range(1, n_steps + 1):
+                ok, x, y, z, px, py, pz = _step_body(
+                    method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
+                    quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz)
+                if not ok:
                     if bad_step < 0 or s < bad_step:
                         bad_step = s
                         bad_body = i
-                    ok = False
                     break
-            if not ok:
-                break
-            if s % stride == 0 or (sample_last and s == n_steps):
+                if s % stride == 0 or (sample_last and s == n_steps):
+                    position[i, 0], position[i, 1], position[i, 2] = x, y, z
+                    linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
+                    _write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
+                                  angular_momentum, out_position, out_linear_momentum,
+                                  out_quat_wxyz, out_rotation, out_angular_momentum)
+                    j += 1
+            position[i, 0], position[i, 1], position[i, 2] = x, y, z
+            linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
+        else:
+            for s in range(1, n_steps + 1):
+                ok = True
                 for i in range(t0, t1):
-                    sync_quat(method, quat_wxyz, rotation, i)
-                    for a in range(3):
-                        out_position[j, i, a] = position[i, a]
-                        out_linear_momentum[j, i, a] = linear_momentum[i, a]
-                        out_angular_momentum[j, i, a] = angular_momentum[i, a]
-                        for b in range(3):
-                            out_rotation[j, i, a, b] = rotation[i, a, b]
-                    for a in range(4):
-                        out_quat_wxyz[j, i, a] = quat_wxyz[i, a]
-                j += 1
+                    ok, x, y, z, px, py, pz = _step_body(
+                        method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
+                        quat_wxyz, rotation, angular_momentum, position[i, 0], position[i, 1],
+                        position[i, 2], linear_momentum[i, 0], linear_momentum[i, 1],
+                        linear_momentum[i, 2])
+                    position[i, 0], position[i, 1], position[i, 2] = x, y, z
+                    linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
+                    if not ok:
+                        if bad_step < 0 or s < bad_step:
+                            bad_step = s
+                            bad_body = i
+                        break
+                if not ok:
+                    break
+                if s % stride == 0 or (sample_last and s == n_steps):
+                    for i in range(t0, t1):
+                        _write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
+                                      angular_momentum, out_position, out_linear_momentum,
+                                      out_quat_wxyz, out_rotation, out_angular_momentum)
+                    j += 1
         for i in range(t0, t1):
             sync_quat(method, quat_wxyz, rotation, i)
         if j > n_samples:
