@@ -77,8 +77,10 @@ def static_box_aabbs(position, rotation, half_extents, margin):
 
 @njit(cache=True)
 def _grow_pairs(pairs):
-    out = np.empty((2 * pairs.shape[0], 2), np.int64)
-    out[: pairs.shape[0]] = pairs
+    out = np.empty((2 * pairs.shape[0] + 16, 2), np.int64)
+    for k in range(pairs.shape[0]):
+        out[k, 0] = pairs[k, 0]
+        out[k, 1] = pairs[k, 1]
     return out
 
 

@@ -82,8 +82,11 @@ def grow_manifolds(mi, mf, cap):
     new_cap = max(cap, 2 * mi.shape[0])
     mi2 = np.zeros((new_cap, MI_COLS), np.int64)
     mf2 = np.zeros((new_cap, MF_COLS))
-    mi2[: mi.shape[0]] = mi
-    mf2[: mf.shape[0]] = mf
+    for m in range(mi.shape[0]):
+        for c in range(MI_COLS):
+            mi2[m, c] = mi[m, c]
+        for c in range(MF_COLS):
+            mf2[m, c] = mf[m, c]
     return mi2, mf2
 
 
@@ -94,8 +97,10 @@ def grow_points(pf, pid, cap):
     new_cap = max(cap, 2 * pf.shape[0])
     pf2 = np.zeros((new_cap, PF_COLS))
     pid2 = np.zeros(new_cap, np.int64)
-    pf2[: pf.shape[0]] = pf
-    pid2[: pid.shape[0]] = pid
+    for p in range(pf.shape[0]):
+        for c in range(PF_COLS):
+            pf2[p, c] = pf[p, c]
+        pid2[p] = pid[p]
     return pf2, pid2
 
 

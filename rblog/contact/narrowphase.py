@@ -97,7 +97,7 @@ def collider_for(geom_a: int, geom_b: int) -> tuple[int, str]:
 
 # ---- small vector helpers ---------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _col(r, k):
     """Column k of a 3x3 rotation = body axis k in the world frame."""
     return r[0, k], r[1, k], r[2, k]
@@ -233,7 +233,7 @@ def collide_box_plane(ca, rota, ea, pn, poff, spec, nrm, pts, sep, fid):
     return count
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _swap_point(pts, sep, fid, i, j):
     if i == j:
         return

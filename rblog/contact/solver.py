@@ -65,13 +65,13 @@ FRICTION_NEWTON_TOL = 1e-12
 BLOCK_REG = 1e-9
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _smul(i0, i1, i2, i3, i4, i5, x, y, z):
     """Symmetric 3x3 (xx, yy, zz, xy, xz, yz) times a vector."""
     return (i0 * x + i3 * y + i4 * z, i3 * x + i1 * y + i5 * z, i4 * x + i5 * y + i2 * z)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
@@ -253,7 +253,7 @@ def warm_start(mi, mf, pf, n_man, bm, bI, bv, bw):
         bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, fmax):
     """Accumulated friction impulse (t1, t2) after one Gauss-Seidel update of a point.
 
@@ -596,7 +596,7 @@ def relax_positions(mi, mf, pf, n_man, bm, bI, pv, pw, inv_h, n_iter, slop, beta
             pw[ib, 0], pw[ib, 1], pw[ib, 2] = wbx, wby, wbz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _gap_rate(v, w, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz):
     dvx = v[ia, 0] + w[ia, 1] * raz - w[ia, 2] * ray - v[ib, 0] - w[ib, 1] * rbz + w[ib, 2] * rby
     dvy = v[ia, 1] + w[ia, 2] * rax - w[ia, 0] * raz - v[ib, 1] - w[ib, 2] * rbx + w[ib, 0] * rbz

@@ -36,7 +36,7 @@ from numba import njit
 
 from ..rotation import drift_rotation, sync_quat
 from ..trajectory import CONTACT_IMPACT, CONTACT_RESTING
-from .broadphase import body_aabbs, sweep_and_prune
+from .broadphase import _grow_pairs, body_aabbs, sweep_and_prune
 from .collide import collide_pairs, grow_manifolds, grow_points, sort_manifolds
 from .island import update_sleep, wake_pushed, wake_touched
 from .manifold import (
@@ -72,8 +72,11 @@ def _grow_log(log_i, log_f, need):
     cap = max(need, 2 * log_i.shape[0])
     li = np.zeros((cap, LOG_I_COLS), np.int64)
     lf = np.zeros((cap, LOG_F_COLS))
-    li[: log_i.shape[0]] = log_i
-    lf[: log_f.shape[0]] = log_f
+    for k in range(log_i.shape[0]):
+        for c in range(LOG_I_COLS):
+            li[k, c] = log_i[k, c]
+        for c in range(LOG_F_COLS):
+            lf[k, c] = log_f[k, c]
     return li, lf
 
 
@@ -91,9 +94,7 @@ def _ground_pairs(n_dyn, n_static, st, lo, hi, pairs, n_pairs):
         if gx * cx + gy * cy + gz * cz - st.goff - ext > 0.0:
             continue
         if n_pairs == pairs.shape[0]:
-            grown = np.empty((2 * pairs.shape[0] + 16, 2), np.int64)
-            grown[:n_pairs] = pairs[:n_pairs]
-            pairs = grown
+            pairs = _grow_pairs(pairs)
         pairs[n_pairs, 0] = i
         pairs[n_pairs, 1] = gid
         n_pairs += 1
@@ -119,7 +120,7 @@ def _store_momenta(i, bd, rotation, linear_momentum, angular_momentum, bv, bw, b
     angular_momentum[i, 2] = l0[i, 2] + lz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _inertia_world_times(bd, rotation, i, x, y, z):
     """R diag(I_body) R^T (x, y, z)."""
     r = rotation[i]
@@ -131,7 +132,20 @@ def _inertia_world_times(bd, rotation, i, x, y, z):
             r[2, 0] * b0 + r[2, 1] * b1 + r[2, 2] * b2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
+def _drift(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
+    """rotation.drift_rotation behind a call boundary: it is inlined here once, and the world
+    step calls this (compiling drift_rotation's four integrators into the large world step
+    itself would double its compile time)."""
+    drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
+
+
+@njit(cache=True)
+def _sync(method, quat_wxyz, rotation, i):
+    sync_quat(method, quat_wxyz, rotation, i)
+
+
+@njit(cache=True)
 def _state_sum(i, position, linear_momentum, angular_momentum, rotation):
     """One sum that is non-finite when any of the body's state is (position, momenta, R)."""
     return (position[i, 0] + position[i, 1] + position[i, 2] + linear_momentum[i, 0]
@@ -285,8 +299,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                 else:
                     for k in range(3):
                         position[i, k] += h * linear_momentum[i, k] * im
-                # one call site: drift_rotation is inlined, and it is large
-                drift_rotation(method, ortho, quat_wxyz, rotation, l_drift, bd.inv_inertia, i, h)
+                _drift(method, ortho, quat_wxyz, rotation, l_drift, bd.inv_inertia, i, h)
                 if in_contact[i] and (pv[i, 0] != 0.0 or pv[i, 1] != 0.0 or pv[i, 2] != 0.0):
                     # the pseudo shift h v' moved the body's momentum line: give the orbital
                     # change back to its spin so that sum(x x P + L) stays exact
@@ -332,7 +345,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
         if s % stride == 0 or (sample_last and s == n_steps):
             j = n_samples
             for i in range(n):
-                sync_quat(method, quat_wxyz, rotation, i)
+                _sync(method, quat_wxyz, rotation, i)
                 for a in range(3):
                     out_position[j, i, a] = position[i, a]
                     out_linear_momentum[j, i, a] = linear_momentum[i, a]
@@ -365,6 +378,6 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                     n_log += 1
     if n > 0:
         for i in range(n):
-            sync_quat(method, quat_wxyz, rotation, i)
+            _sync(method, quat_wxyz, rotation, i)
     return (n_samples, -1, -1, n_log, log_i, log_f, mi0, mf0, pf0, pid0, n_man0, keys0, idx0,
             mi1, mf1, pf1, pid1, pairs)
