@@ -17,6 +17,10 @@ narrowphase run on each sampled state (deepest overlap of any pair), sampled eve
 
     python benchmarks/bench_contact.py                       # 500 boxes, 4 s at dt = 2 ms
     python benchmarks/bench_contact.py --boxes 200 --duration 2 --no-mujoco
+    python benchmarks/bench_contact.py --no-pile             # only the stage-selection scenes
+
+Stage selection is also shown on three scenes built for it (resting cubes that fall asleep,
+spheres that can never touch, bouncing spheres), where the forced run keeps every stage on.
 """
 
 from __future__ import annotations
@@ -29,7 +33,8 @@ import numpy as np
 from rblog import rotation as rot
 from rblog.contact import ContactParams, ContactWorld
 from rblog.contact.measure import separations
-from rblog.contact.scenes import box_pile
+from rblog.contact.scenes import box_pile, make_model, make_state
+from rblog.model import SHAPE_BOX, SHAPE_SPHERE
 
 
 def run_rblog(model, state, dt, n_steps, sample_every, force_all=False, params=None):
@@ -98,6 +103,47 @@ def run_mujoco(model, state, dt, n_steps, sample_every, world):
     return n_steps / wall, np.array(pens), np.array(own), mujoco.__version__
 
 
+def stage_scenes():
+    """Scenes where choosing stages matters, as (name, model, state, dt, n_steps)."""
+    rng = np.random.default_rng(1)
+    scenes = []
+    # 400 cubes resting apart on the ground: they fall asleep after sleep_time
+    n = 400
+    g = np.arange(n)
+    pos = np.stack([(g % 20) * 0.3, (g // 20) * 0.3, np.full(n, 0.05)], 1)
+    m = make_model([SHAPE_BOX] * n, [[0.05] * 3] * n, [1.0] * n, restitution=0.0)
+    scenes.append(("400 cubes at rest on the ground (sleeping)", m, make_state(m, pos), 2e-3, 1000))
+    # 2000 spheres drifting in zero g, each in its own group: nothing can ever touch
+    n = 2000
+    m = make_model([SHAPE_SPHERE] * n, [0.05] * n, [1.0] * n, gravity=(0, 0, 0), ground=False,
+                   groups=np.arange(1, n + 1))
+    st = make_state(m, rng.uniform(-5, 5, (n, 3)), rng.normal(size=(n, 3)),
+                    omega=rng.normal(size=(n, 3)))
+    scenes.append(("2000 spheres, zero g, disjoint groups (free kernel)", m, st, 1e-3, 1000))
+    # 300 spheres bouncing on the ground: isotropic shortcut, sleeping once they settle
+    n = 300
+    g = np.arange(n)
+    pos = np.stack([(g % 15) * 0.25, (g // 15) * 0.25, rng.uniform(0.2, 1.0, n)], 1)
+    m = make_model([SHAPE_SPHERE] * n, [0.1] * n, [1.0] * n, restitution=0.5)
+    scenes.append(("300 spheres bouncing on the ground", m, make_state(m, pos), 1e-3, 3000))
+    return scenes
+
+
+def run_stage_scene(model, state, dt, n_steps, force_all):
+    world = ContactWorld(model, ContactParams(), rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE,
+                         force_all_stages=force_all)
+    s = state.copy()
+    n = model.n_bodies
+    outs = [np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros((1, n, 4)), np.zeros((1, n, 3, 3)),
+            np.zeros((1, n, 3))]
+    world.advance(dt, 1, 1, False, s.position, s.linear_momentum, s.quat_wxyz, s.rotation,
+                  s.angular_momentum_world, *outs)  # compile
+    t0 = time.perf_counter()
+    world.advance(dt, n_steps, n_steps, False, s.position, s.linear_momentum, s.quat_wxyz,
+                  s.rotation, s.angular_momentum_world, *outs)
+    return n_steps / (time.perf_counter() - t0), world
+
+
 def stats(pens):
     return (f"max {1e3 * pens.max():7.3f} mm   p99 {1e3 * np.percentile(pens, 99):7.3f} mm   "
             f"median {1e3 * np.median(pens):7.3f} mm")
@@ -112,8 +158,22 @@ def main(argv=None):
     ap.add_argument("--mujoco-duration", type=float, default=None,
                     help="simulated seconds for MuJoCo (default: --duration)")
     ap.add_argument("--no-mujoco", action="store_true")
-    ap.add_argument("--no-forced", action="store_true", help="skip the force_all_stages run")
+    ap.add_argument("--no-forced", action="store_true", help="skip the force_all_stages runs")
+    ap.add_argument("--no-pile", action="store_true", help="only the stage-selection scenes")
     args = ap.parse_args(argv)
+
+    if not args.no_forced:
+        print("stage selection: steps/s with the stages chosen for the scene vs every stage forced")
+        for name, m, st, dt, k in stage_scenes():
+            chosen, world = run_stage_scene(m, st, dt, k, False)
+            forced, _ = run_stage_scene(m, st, dt, k, True)
+            picked = ", ".join(stage for stage, _ in world.explain()
+                               if "skipped" in stage or "none possible" in stage
+                               or "isotropic" in stage or stage == "sleeping")
+            print(f"  {name:52s} {chosen:9.0f} vs {forced:9.0f}  = {chosen / forced:6.2f}x"
+                  f"   ({picked})")
+    if args.no_pile:
+        return
 
     model, state = box_pile(args.boxes)
     n_steps = int(round(args.duration / args.dt))
