@@ -257,8 +257,26 @@ class ContactWorld:
                 out_angular_momentum):
         """Advance ``n_steps`` steps; same arguments and sampling rule as kernels.advance_free.
 
-        Returns (n_samples, bad_step, bad_body, contacts): contacts of the sampled steps with
-        ``step`` the local 1-based step index within this call and ``t`` left 0."""
+        Args:
+            dt: step (s). n_steps: steps in this call. stride: sample after every stride-th
+                step; sample_last: also after the last step.
+            position (N,3), linear_momentum (N,3), quat_wxyz (N,4), rotation (N,3,3),
+                angular_momentum (N,3, world): the state, updated in place.
+            out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
+
+        Returns (n_samples, bad_step, bad_body, contacts). bad_step is the first local step
+        (1-based) at which a body's state became non-finite (the call stops there), else -1.
+        ``contacts`` holds, for each sampled step, every contact point that pushed (normal
+        impulse > 0) or touches (separation <= 0), including the resting contacts of sleeping
+        bodies: ``step`` is the local 1-based step index within this call, ``t`` is left 0,
+        ``separation`` is the gap at the end of the step (narrowphase gap advanced by the gap
+        velocity), ``point`` and ``normal`` are the narrowphase's at the start of the step,
+        ``normal_impulse`` the step's total on body_a (restitution included) and
+        ``friction_impulse`` the world friction impulse on body_a; ``kind`` is CONTACT_IMPACT
+        when the approach speed exceeded ``restitution_threshold``.
+
+        Keep one ContactWorld for a whole run: it carries the impulses (warm starting) and the
+        sleep state from one call to the next."""
         if not self.use_contacts:
             ns, bad_step, bad_body = advance_free(
                 self.method, self.ortho, float(dt), int(n_steps), int(stride), bool(sample_last),
