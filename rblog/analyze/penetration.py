@@ -186,6 +186,16 @@ class PenetrationAnalyzer(Analyzer):
         slip = cv - vn[:, None] * pnorm
         cspeed = np.sqrt(np.einsum("ij,ij->i", cv, cv))
         rest = cspeed <= tol["rest_speed_mps"]
+        # A box rocking on an edge has a resting pivot but is not at rest: for non-spheres, every
+        # point of the body (within 2 bounding radii of the contact) must be slow too. A rolling
+        # sphere's contact point is at rest, and rolling counts as resting contact.
+        wrel = tr.angular_velocity[pk, pi_].copy()
+        if dyn.any():
+            wrel[dyn] -= tr.angular_velocity[pk[dyn], pb[dyn]]
+        sphere = model.body_shape[pi_] == 0
+        reach = 2.0 * geometry.bounding_radius(model)[pi_]
+        rest &= sphere | (cspeed + np.sqrt(np.einsum("ij,ij->i", wrel, wrel)) * reach
+                          <= tol["rest_speed_mps"])
 
         # ---- resting intervals: runs of consecutive resting samples of one body (row space)
         nxt_same = np.zeros(nrow, bool)
