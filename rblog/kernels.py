@@ -20,8 +20,12 @@ from numba import njit
 
 from .rotation import (
     METHOD_RK4,
+    METHOD_SEED,
     METHOD_SPLITTING,
-    drift_rotation,
+    drift_rk4,
+    drift_seed,
+    drift_seed_quat,
+    drift_splitting,
     sync_quat,
 )
 
@@ -56,7 +60,7 @@ def _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_
         x += dt * px * im
         y += dt * py * im
         z += dt * pz * im
-        drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt)
+        drift_splitting(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt)
         px += hh * fx
         py += hh * fy
         pz += hh * fz
@@ -72,8 +76,7 @@ def _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_
         px += dt * fx
         py += dt * fy
         pz += dt * fz
-        drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt,
-                       tx, ty, tz)
+        drift_rk4(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt, tx, ty, tz)
         angular_momentum[i, 0] += dt * tx
         angular_momentum[i, 1] += dt * ty
         angular_momentum[i, 2] += dt * tz
@@ -88,7 +91,10 @@ def _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_
         angular_momentum[i, 0] += dt * tx
         angular_momentum[i, 1] += dt * ty
         angular_momentum[i, 2] += dt * tz
-        drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt)
+        if method == METHOD_SEED:
+            drift_seed(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt)
+        else:
+            drift_seed_quat(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt)
     # non-finite check: one sum covers position, momenta and part of the rotation
     chk = (x + y + z + px + py + pz + angular_momentum[i, 0] + angular_momentum[i, 1]
            + angular_momentum[i, 2] + rotation[i, 0, 0] + rotation[i, 1, 1] + rotation[i, 2, 2]
@@ -96,7 +102,7 @@ def _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_
     return math.isfinite(chk), x, y, z, px, py, pz
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                   out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                   out_angular_momentum):

@@ -237,9 +237,103 @@ def _flow_z(w, x, y, z, b0, b1, b2, s_inv_i):
 
 
 @jit
+def drift_seed(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
+    """The notes' drift: R += h [omega]x R with omega = R I^-1 R^T L, then orthonormalize."""
+    lx = angular_momentum[i, 0]
+    ly = angular_momentum[i, 1]
+    lz = angular_momentum[i, 2]
+    ii = inv_inertia[i]
+    m = load_mat(rotation, i)
+    ox, oy, oz = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz)
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m
+    # R <- R + h [omega]x R
+    n = (
+        m00 + h * (-oz * m10 + oy * m20), m01 + h * (-oz * m11 + oy * m21),
+        m02 + h * (-oz * m12 + oy * m22),
+        m10 + h * (oz * m00 - ox * m20), m11 + h * (oz * m01 - ox * m21),
+        m12 + h * (oz * m02 - ox * m22),
+        m20 + h * (-oy * m00 + ox * m10), m21 + h * (-oy * m01 + ox * m11),
+        m22 + h * (-oy * m02 + ox * m12),
+    )
+    if ortho == ORTHO_POLAR:
+        n = polar(n)
+    elif ortho == ORTHO_GRAM_SCHMIDT:
+        n = gram_schmidt(n)
+    store_mat(rotation, i, n)
+    # the quaternion is derived from R only when logged (see kernels.sync_quat)
+
+
+@jit
+def drift_seed_quat(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
+    """The notes' drift on the quaternion: q += h/2 (0, omega) (x) q, normalized unless ortho is none."""
+    lx = angular_momentum[i, 0]
+    ly = angular_momentum[i, 1]
+    lz = angular_momentum[i, 2]
+    ii = inv_inertia[i]
+    w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
+    m = load_mat(rotation, i)
+    ox, oy, oz = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz)
+    dw, dx, dy, dz = quat_mul(0.0, ox, oy, oz, w, x, y, z)
+    w, x, y, z = w + 0.5 * h * dw, x + 0.5 * h * dx, y + 0.5 * h * dy, z + 0.5 * h * dz
+    if ortho != ORTHO_NONE:
+        w, x, y, z = normalize4(w, x, y, z)
+    quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
+    store_mat(rotation, i, quat_to_mat(w, x, y, z))
+
+
+@jit
+def drift_splitting(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
+    """Strang splitting 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2) of the free rotation into exact axis rotations."""
+    lx = angular_momentum[i, 0]
+    ly = angular_momentum[i, 1]
+    lz = angular_momentum[i, 2]
+    ii = inv_inertia[i]
+    w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = load_mat(rotation, i)
+    # body-frame angular momentum Lb = R^T L
+    b0 = m00 * lx + m10 * ly + m20 * lz
+    b1 = m01 * lx + m11 * ly + m21 * lz
+    b2 = m02 * lx + m12 * ly + m22 * lz
+    hh = 0.5 * h
+    w, x, y, z, b0, b1, b2 = _flow_x(w, x, y, z, b0, b1, b2, hh * ii[0])
+    w, x, y, z, b0, b1, b2 = _flow_y(w, x, y, z, b0, b1, b2, hh * ii[1])
+    w, x, y, z, b0, b1, b2 = _flow_z(w, x, y, z, b0, b1, b2, h * ii[2])
+    w, x, y, z, b0, b1, b2 = _flow_y(w, x, y, z, b0, b1, b2, hh * ii[1])
+    w, x, y, z, b0, b1, b2 = _flow_x(w, x, y, z, b0, b1, b2, hh * ii[0])
+    w, x, y, z = normalize4(w, x, y, z)
+    quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
+    store_mat(rotation, i, quat_to_mat(w, x, y, z))
+
+
+@jit
+def drift_rk4(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx=0.0, ty=0.0, tz=0.0):
+    """Classical RK4 on q with L(t) = L + t * torque, then normalization."""
+    lx = angular_momentum[i, 0]
+    ly = angular_momentum[i, 1]
+    lz = angular_momentum[i, 2]
+    ii = inv_inertia[i]
+    w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
+    a = 0.5 * h
+    mx, my, mz = lx + a * tx, ly + a * ty, lz + a * tz
+    k1 = _qdot(w, x, y, z, ii, lx, ly, lz)
+    k2 = _qdot(w + a * k1[0], x + a * k1[1], y + a * k1[2], z + a * k1[3], ii, mx, my, mz)
+    k3 = _qdot(w + a * k2[0], x + a * k2[1], y + a * k2[2], z + a * k2[3], ii, mx, my, mz)
+    k4 = _qdot(w + h * k3[0], x + h * k3[1], y + h * k3[2], z + h * k3[3], ii,
+               lx + h * tx, ly + h * ty, lz + h * tz)
+    g = h / 6.0
+    w = w + g * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+    x = x + g * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+    y = y + g * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+    z = z + g * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
+    w, x, y, z = normalize4(w, x, y, z)
+    quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
+    store_mat(rotation, i, quat_to_mat(w, x, y, z))
+
+
+@njit(cache=True)
 def drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h,
                    tx=0.0, ty=0.0, tz=0.0):
-    """Advance body i's orientation over h with L (world) held fixed.
+    """Advance body i's orientation over h with L (world) held fixed, by the integrator ``method``.
 
     The applied torque (tx, ty, tz) (world, constant over the step) is used only by RK4, whose
     stages see L(t) = L + t * torque; the other methods take torque as kicks around this drift.
@@ -249,75 +343,17 @@ def drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_ine
         quat_wxyz: (N, 4), rotation: (N, 3, 3) updated in place for body i.
         angular_momentum: (N, 3) world frame, read only.  inv_inertia: (N, 3) diag(I_body^-1).
     """
-    lx = angular_momentum[i, 0]
-    ly = angular_momentum[i, 1]
-    lz = angular_momentum[i, 2]
-    ii = inv_inertia[i]
     if method == METHOD_SEED:
-        m = load_mat(rotation, i)
-        ox, oy, oz = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz)
-        m00, m01, m02, m10, m11, m12, m20, m21, m22 = m
-        # R <- R + h [omega]x R
-        n = (
-            m00 + h * (-oz * m10 + oy * m20), m01 + h * (-oz * m11 + oy * m21),
-            m02 + h * (-oz * m12 + oy * m22),
-            m10 + h * (oz * m00 - ox * m20), m11 + h * (oz * m01 - ox * m21),
-            m12 + h * (oz * m02 - ox * m22),
-            m20 + h * (-oy * m00 + ox * m10), m21 + h * (-oy * m01 + ox * m11),
-            m22 + h * (-oy * m02 + ox * m12),
-        )
-        if ortho == ORTHO_POLAR:
-            n = polar(n)
-        elif ortho == ORTHO_GRAM_SCHMIDT:
-            n = gram_schmidt(n)
-        store_mat(rotation, i, n)
-        # the quaternion is derived from R only when logged (see kernels.sync_quat)
+        drift_seed(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
     elif method == METHOD_SEED_QUAT:
-        w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
-        m = load_mat(rotation, i)
-        ox, oy, oz = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz)
-        dw, dx, dy, dz = quat_mul(0.0, ox, oy, oz, w, x, y, z)
-        w, x, y, z = w + 0.5 * h * dw, x + 0.5 * h * dx, y + 0.5 * h * dy, z + 0.5 * h * dz
-        if ortho != ORTHO_NONE:
-            w, x, y, z = normalize4(w, x, y, z)
-        quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
-        store_mat(rotation, i, quat_to_mat(w, x, y, z))
+        drift_seed_quat(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
     elif method == METHOD_SPLITTING:
-        w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
-        m00, m01, m02, m10, m11, m12, m20, m21, m22 = load_mat(rotation, i)
-        # body-frame angular momentum Lb = R^T L
-        b0 = m00 * lx + m10 * ly + m20 * lz
-        b1 = m01 * lx + m11 * ly + m21 * lz
-        b2 = m02 * lx + m12 * ly + m22 * lz
-        hh = 0.5 * h
-        w, x, y, z, b0, b1, b2 = _flow_x(w, x, y, z, b0, b1, b2, hh * ii[0])
-        w, x, y, z, b0, b1, b2 = _flow_y(w, x, y, z, b0, b1, b2, hh * ii[1])
-        w, x, y, z, b0, b1, b2 = _flow_z(w, x, y, z, b0, b1, b2, h * ii[2])
-        w, x, y, z, b0, b1, b2 = _flow_y(w, x, y, z, b0, b1, b2, hh * ii[1])
-        w, x, y, z, b0, b1, b2 = _flow_x(w, x, y, z, b0, b1, b2, hh * ii[0])
-        w, x, y, z = normalize4(w, x, y, z)
-        quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
-        store_mat(rotation, i, quat_to_mat(w, x, y, z))
-    else:  # METHOD_RK4
-        w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
-        a = 0.5 * h
-        mx, my, mz = lx + a * tx, ly + a * ty, lz + a * tz
-        k1 = _qdot(w, x, y, z, ii, lx, ly, lz)
-        k2 = _qdot(w + a * k1[0], x + a * k1[1], y + a * k1[2], z + a * k1[3], ii, mx, my, mz)
-        k3 = _qdot(w + a * k2[0], x + a * k2[1], y + a * k2[2], z + a * k2[3], ii, mx, my, mz)
-        k4 = _qdot(w + h * k3[0], x + h * k3[1], y + h * k3[2], z + h * k3[3], ii,
-                   lx + h * tx, ly + h * ty, lz + h * tz)
-        g = h / 6.0
-        w = w + g * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-        x = x + g * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-        y = y + g * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-        z = z + g * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
-        w, x, y, z = normalize4(w, x, y, z)
-        quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
-        store_mat(rotation, i, quat_to_mat(w, x, y, z))
+        drift_splitting(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
+    else:
+        drift_rk4(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx, ty, tz)
 
 
-@jit
+@njit(cache=True)
 def sync_quat(method, quat_wxyz, rotation, i):
     """Make q[i] describe R[i] for the integrator that advances R (seed); no-op for the others."""
     if method == METHOD_SEED:
