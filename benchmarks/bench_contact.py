@@ -195,7 +195,9 @@ def main(argv=None):
         sps_f, pens_f, _ = run_rblog(model, state, args.dt, n_steps, args.sample_every,
                                      force_all=True)
         print(f"rblog, all stages     {sps_f:8.1f} steps/s   penetration {stats(pens_f)}")
-        print(f"  stage selection speed-up: {sps / sps_f:.2f}x")
+        print(f"  stage selection speed-up: {sps / sps_f:.2f}x (the pile is chaotic: round-off "
+              "differences between the two runs change its workload by 10-20 %; the scenes "
+              "above measure stage selection)")
     if not args.no_mujoco:
         try:
             md = args.mujoco_duration or args.duration

@@ -160,6 +160,9 @@ def wake_touched(pairs, n_pairs, n_dyn, n_static, geom, size, awake, sleep_timer
         wmax = math.sqrt(lx * lx + ly * ly + lz * lz) * max(
             inv_inertia[mover, 0], max(inv_inertia[mover, 1], inv_inertia[mover, 2]))
         close = h * (math.sqrt(vx * vx + vy * vy + vz * vz) + wmax * radius[mover])
+        if close <= slop:
+            # a (nearly) resting neighbour: if it does push, wake_pushed wakes the island
+            continue
         gb, cb, rotb, sb = pair_geometry(a, b, n_dyn, n_static, geom, size, position, rotation,
                                          sb_pos, sb_rot, sb_ext)
         ga = geom[a]
