@@ -323,3 +323,20 @@ def test_sphere_isotropic_shortcut_matches_full_inertia():
         assert np.allclose(outs[0][k], outs[1][k], rtol=0, atol=1e-12)
 
 
+
+
+def test_box_rests_on_a_static_box_table():
+    """A cube dropped onto a static box (no ground) comes to rest on its top face."""
+    model = make_model([SHAPE_BOX], [[0.1, 0.1, 0.1]], [1.0], restitution=0.0, ground=False,
+                       static_box_position=np.array([[0.0, 0.0, 0.5]]),
+                       static_box_quat_wxyz=np.array([[1.0, 0.0, 0.0, 0.0]]),
+                       static_box_half_extents=np.array([[0.5, 0.5, 0.05]]),
+                       static_box_restitution=np.zeros(1), static_box_friction=np.full(1, 0.5))
+    world = ContactWorld(model, ContactParams(), *SPLIT)
+    state = make_state(model, [[0.1, -0.1, 1.0]],
+                       quat_wxyz=[rot.axis_angle_to_quat_np([0, 0, 1], 0.3)])
+    out, contacts, bad, _ = simulate(world, state, 1e-3, 2000, stride=100)
+    assert bad == -1
+    assert abs(state.position[0, 2] - 0.65) < 1e-4  # table top 0.55 + half extent 0.1
+    assert np.all(contacts.body_b[-4:] == STATIC_BODY)
+    assert world.n_awake == 0  # at rest, asleep
