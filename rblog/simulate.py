@@ -229,7 +229,7 @@ def run(
             n = min(steps_per_block, n_total - done)
             sample_last = (done + n == n_total) and (n % stride != 0)
             bufs = new_buffers()
-            ns, bad_step, bad_body, contacts = advance(dt, n, stride, sample_last, st, bufs)
+            _, bad_step, bad_body, contacts = advance(dt, n, stride, sample_last, st, bufs)
             local = np.arange(1, n // stride + 1) * stride
             if sample_last:
                 local = np.append(local, n)
