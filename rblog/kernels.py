@@ -103,9 +103,10 @@ def _step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_
 
 
 @njit(cache=True)
-def _write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-                  out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                  out_angular_momentum):
+def write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
+                 out_angular_momentum):
+    """Copy body i's state into sample row j of the out_* buffers (q synced from R first)."""
     sync_quat(method, quat_wxyz, rotation, i)
     for a in range(3):
         out_position[j, i, a] = position[i, a]
@@ -163,7 +164,7 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
                 if s % stride == 0 or (sample_last and s == n_steps):
                     position[i, 0], position[i, 1], position[i, 2] = x, y, z
                     linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
-                    _write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
+                    write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
                                   angular_momentum, out_position, out_linear_momentum,
                                   out_quat_wxyz, out_rotation, out_angular_momentum)
                     j += 1
@@ -189,7 +190,7 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
                     break
                 if s % stride == 0 or (sample_last and s == n_steps):
                     for i in range(t0, t1):
-                        _write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
+                        write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
                                       angular_momentum, out_position, out_linear_momentum,
                                       out_quat_wxyz, out_rotation, out_angular_momentum)
                     j += 1

@@ -34,6 +34,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from ..kernels import write_sample
 from ..rotation import drift_rotation, sync_quat
 from ..trajectory import CONTACT_IMPACT, CONTACT_RESTING
 from .broadphase import _grow_pairs, body_aabbs, sweep_and_prune
@@ -345,15 +346,9 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
         if s % stride == 0 or (sample_last and s == n_steps):
             j = n_samples
             for i in range(n):
-                _sync(method, quat_wxyz, rotation, i)
-                for a in range(3):
-                    out_position[j, i, a] = position[i, a]
-                    out_linear_momentum[j, i, a] = linear_momentum[i, a]
-                    out_angular_momentum[j, i, a] = angular_momentum[i, a]
-                    for b in range(3):
-                        out_rotation[j, i, a, b] = rotation[i, a, b]
-                for a in range(4):
-                    out_quat_wxyz[j, i, a] = quat_wxyz[i, a]
+                write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
+                             angular_momentum, out_position, out_linear_momentum, out_quat_wxyz,
+                             out_rotation, out_angular_momentum)
             n_samples += 1
             # contacts of this step: points that pushed or touch
             need = n_log
