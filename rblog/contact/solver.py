@@ -729,7 +729,86 @@ def restitution(mi, mf, pf, n_man, bm, bI, bv, bw, pv, pw, h, threshold, n_iter,
                     angular_momentum[ib, 0] -= cx
                     angular_momentum[ib, 1] -= cy
                     angular_momentum[ib, 2] -= cz
+    _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum)
     return n_impacts
+
+
+@njit(cache=True)
+def _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum):
+    """Keep the friction impulse of every bouncing point inside the Coulomb cone.
+
+    The bounce pass may lower a point's accumulated normal impulse (down to 0) after friction
+    was solved against the higher one; the friction impulse is then scaled back onto the cone
+    |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the
+    bounce, so that the pair's momenta stay exactly balanced."""
+    n_dyn = linear_momentum.shape[0]
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        mu = mf[m, MF_MU]
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        ma = bm[ia]
+        mb = bm[ib]
+        shared = ma > 0.0 and mb > 0.0
+        hx = 0.5 * (dx[ib, 0] - dx[ia, 0])
+        hy = 0.5 * (dx[ib, 1] - dx[ia, 1])
+        hz = 0.5 * (dx[ib, 2] - dx[ia, 2])
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            if pf[p, PF_WT] < 0.0:
+                continue
+            l1, l2 = pf[p, PF_L1], pf[p, PF_L2]
+            nl = math.sqrt(l1 * l1 + l2 * l2)
+            fmax = mu * pf[p, PF_LN]
+            if nl <= fmax:
+                continue
+            scale = fmax / nl
+            d1, d2 = l1 * scale - l1, l2 * scale - l2
+            pf[p, PF_L1] = l1 * scale
+            pf[p, PF_L2] = l2 * scale
+            px = d1 * t1x + d2 * t2x
+            py = d1 * t1y + d2 * t2y
+            pz = d1 * t1z + d2 * t2z
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            if shared:
+                rax, ray, raz = rax + hx, ray + hy, raz + hz
+                rbx, rby, rbz = rbx - hx, rby - hy, rbz - hz
+            bv[ia, 0] += ma * px
+            bv[ia, 1] += ma * py
+            bv[ia, 2] += ma * pz
+            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+            ex, ey, ez = _smul(bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5],
+                               cx, cy, cz)
+            bw[ia, 0] += ex
+            bw[ia, 1] += ey
+            bw[ia, 2] += ez
+            if ia < n_dyn:
+                linear_momentum[ia, 0] += px
+                linear_momentum[ia, 1] += py
+                linear_momentum[ia, 2] += pz
+                angular_momentum[ia, 0] += cx
+                angular_momentum[ia, 1] += cy
+                angular_momentum[ia, 2] += cz
+            bv[ib, 0] -= mb * px
+            bv[ib, 1] -= mb * py
+            bv[ib, 2] -= mb * pz
+            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+            ex, ey, ez = _smul(bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5],
+                               cx, cy, cz)
+            bw[ib, 0] -= ex
+            bw[ib, 1] -= ey
+            bw[ib, 2] -= ez
+            if ib < n_dyn:
+                linear_momentum[ib, 0] -= px
+                linear_momentum[ib, 1] -= py
+                linear_momentum[ib, 2] -= pz
+                angular_momentum[ib, 0] -= cx
+                angular_momentum[ib, 1] -= cy
+                angular_momentum[ib, 2] -= cz
 
 
 @njit(cache=True)
