@@ -21,9 +21,8 @@ REPO = Path(__file__).resolve().parent.parent
 SLOW_SAMPLES = {"pile"}
 #: known engine faults that `rblog check` rightly flags (strict: the test fails once fixed)
 KNOWN_FAULTS = {
-    "pile": "contact engine: in the 500-box pile a few logged friction impulses sit outside the "
-            "Coulomb cone (restitution lowers a normal impulse after friction was solved) and "
-            "boxes resting on boxes jitter at ~1 cm/s",
+    "pile": "contact engine: in the 500-box pile, boxes resting on boxes jitter at ~1 cm/s "
+            "(rblog check: penetration analyzer)",
 }
 SAMPLES = [pytest.param(p.stem, marks=[pytest.mark.slow] + (
     [pytest.mark.xfail(strict=True, reason=KNOWN_FAULTS[p.stem])] if p.stem in KNOWN_FAULTS else []))
