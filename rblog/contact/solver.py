@@ -618,7 +618,6 @@ def restitution(mi, mf, pf, n_man, bm, bI, bv, bw, pv, pw, h, threshold, n_iter,
     p + (dx_a + dx_b)/2, so that both anchors end at the same point: otherwise the pair's angular
     momentum would change by h (v_a - v_b) x J. The bounce impulses go straight into the momenta
     (P += J, L += r x J), since the orientations have already moved on."""
-    n_dyn = linear_momentum.shape[0]
     n_impacts = 0
     for m in range(n_man):
         if not mi[m, MI_ACTIVE]:
@@ -675,8 +674,6 @@ def restitution(mi, mf, pf, n_man, bm, bI, bv, bw, pv, pw, h, threshold, n_iter,
             ib = mi[m, MI_B]
             ma = bm[ia]
             mb = bm[ib]
-            a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
-            b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
             nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
             shared = ma > 0.0 and mb > 0.0
             hx = 0.5 * (dx[ib, 0] - dx[ia, 0])
@@ -698,39 +695,50 @@ def restitution(mi, mf, pf, n_man, bm, bI, bv, bw, pv, pw, h, threshold, n_iter,
                     new = 0.0
                 pf[p, PF_LN] = new
                 d = new - old
-                px, py, pz = d * nx, d * ny, d * nz
-                bv[ia, 0] += ma * px
-                bv[ia, 1] += ma * py
-                bv[ia, 2] += ma * pz
-                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                bw[ia, 0] += ex
-                bw[ia, 1] += ey
-                bw[ia, 2] += ez
-                if ia < n_dyn:
-                    linear_momentum[ia, 0] += px
-                    linear_momentum[ia, 1] += py
-                    linear_momentum[ia, 2] += pz
-                    angular_momentum[ia, 0] += cx
-                    angular_momentum[ia, 1] += cy
-                    angular_momentum[ia, 2] += cz
-                bv[ib, 0] -= mb * px
-                bv[ib, 1] -= mb * py
-                bv[ib, 2] -= mb * pz
-                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                bw[ib, 0] -= ex
-                bw[ib, 1] -= ey
-                bw[ib, 2] -= ez
-                if ib < n_dyn:
-                    linear_momentum[ib, 0] -= px
-                    linear_momentum[ib, 1] -= py
-                    linear_momentum[ib, 2] -= pz
-                    angular_momentum[ib, 0] -= cx
-                    angular_momentum[ib, 1] -= cy
-                    angular_momentum[ib, 2] -= cz
+                _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
+                                    rax, ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz)
     _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum)
     return n_impacts
+
+
+@njit(cache=True)
+def _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
+                        rax, ray, raz, rbx, rby, rbz, px, py, pz):
+    """Impulse (px, py, pz) on a at anchor r_a and its negative on b at r_b: into the solver
+    velocities (bv, bw) and straight into the momenta of dynamic bodies (P += J, L += r x J)."""
+    n_dyn = linear_momentum.shape[0]
+    ma = bm[ia]
+    mb = bm[ib]
+    bv[ia, 0] += ma * px
+    bv[ia, 1] += ma * py
+    bv[ia, 2] += ma * pz
+    cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+    ex, ey, ez = _smul(bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5], cx, cy, cz)
+    bw[ia, 0] += ex
+    bw[ia, 1] += ey
+    bw[ia, 2] += ez
+    if ia < n_dyn:
+        linear_momentum[ia, 0] += px
+        linear_momentum[ia, 1] += py
+        linear_momentum[ia, 2] += pz
+        angular_momentum[ia, 0] += cx
+        angular_momentum[ia, 1] += cy
+        angular_momentum[ia, 2] += cz
+    bv[ib, 0] -= mb * px
+    bv[ib, 1] -= mb * py
+    bv[ib, 2] -= mb * pz
+    cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+    ex, ey, ez = _smul(bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5], cx, cy, cz)
+    bw[ib, 0] -= ex
+    bw[ib, 1] -= ey
+    bw[ib, 2] -= ez
+    if ib < n_dyn:
+        linear_momentum[ib, 0] -= px
+        linear_momentum[ib, 1] -= py
+        linear_momentum[ib, 2] -= pz
+        angular_momentum[ib, 0] -= cx
+        angular_momentum[ib, 1] -= cy
+        angular_momentum[ib, 2] -= cz
 
 
 @njit(cache=True)
@@ -741,7 +749,6 @@ def _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, an
     was solved against the higher one; the friction impulse is then scaled back onto the cone
     |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the
     bounce, so that the pair's momenta stay exactly balanced."""
-    n_dyn = linear_momentum.shape[0]
     for m in range(n_man):
         if not mi[m, MI_ACTIVE]:
             continue
@@ -777,38 +784,8 @@ def _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, an
             if shared:
                 rax, ray, raz = rax + hx, ray + hy, raz + hz
                 rbx, rby, rbz = rbx - hx, rby - hy, rbz - hz
-            bv[ia, 0] += ma * px
-            bv[ia, 1] += ma * py
-            bv[ia, 2] += ma * pz
-            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-            ex, ey, ez = _smul(bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5],
-                               cx, cy, cz)
-            bw[ia, 0] += ex
-            bw[ia, 1] += ey
-            bw[ia, 2] += ez
-            if ia < n_dyn:
-                linear_momentum[ia, 0] += px
-                linear_momentum[ia, 1] += py
-                linear_momentum[ia, 2] += pz
-                angular_momentum[ia, 0] += cx
-                angular_momentum[ia, 1] += cy
-                angular_momentum[ia, 2] += cz
-            bv[ib, 0] -= mb * px
-            bv[ib, 1] -= mb * py
-            bv[ib, 2] -= mb * pz
-            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-            ex, ey, ez = _smul(bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5],
-                               cx, cy, cz)
-            bw[ib, 0] -= ex
-            bw[ib, 1] -= ey
-            bw[ib, 2] -= ez
-            if ib < n_dyn:
-                linear_momentum[ib, 0] -= px
-                linear_momentum[ib, 1] -= py
-                linear_momentum[ib, 2] -= pz
-                angular_momentum[ib, 0] -= cx
-                angular_momentum[ib, 1] -= cy
-                angular_momentum[ib, 2] -= cz
+            _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
+                                rax, ray, raz, rbx, rby, rbz, px, py, pz)
 
 
 @njit(cache=True)
