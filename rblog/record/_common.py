@@ -183,12 +183,17 @@ def time_ns(t: np.ndarray) -> np.ndarray:
 
 
 def block_arrays(block, n: int) -> dict[str, np.ndarray]:
-    """The block's state channels as contiguous float64 (T, k) arrays, k values per sample."""
+    """The block's state channels as contiguous float64 (T, k) arrays, k values per sample.
+
+    Raises ValueError when a channel does not hold the values ``n`` bodies need."""
     T = len(block.t)
     out = {}
     for name in STATE_CHANNELS:
-        a = np.ascontiguousarray(getattr(block, name), np.float64)
-        out[name] = a.reshape(T, -1)
+        a = np.ascontiguousarray(getattr(block, name), np.float64).reshape(T, -1)
+        if a.shape[1] != expected_width(name, n):
+            raise ValueError(f"{name}: {a.shape[1]} values per sample, expected "
+                             f"{expected_width(name, n)} for {n} bodies")
+        out[name] = a
     return out
 
 

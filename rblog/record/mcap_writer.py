@@ -226,10 +226,6 @@ class McapRecorder:
     def _write_samples(self, block: Trajectory):
         T, n = len(block.t), self._n
         a = C.block_arrays(block, n)
-        for name, arr in a.items():
-            if arr.shape[1] != C.expected_width(name, n):
-                raise ValueError(f"{name}: {arr.shape[1]} values per sample, expected "
-                                 f"{C.expected_width(name, n)} for {n} bodies")
         step = np.asarray(block.step, np.int64)
         t = np.asarray(block.t, np.float64)
         ns = C.time_ns(t)
