@@ -203,14 +203,18 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
 
 @njit(cache=True, nogil=True)
 def derive_channels(mass, inv_inertia, gravity, position, linear_momentum, quat_wxyz, rotation,
-                    angular_momentum, velocity, omega, e_trans, e_rot, e_pot, ortho, qnorm):
+                    angular_momentum, velocity, omega, e_trans, e_rot, e_pot, ortho, qnorm,
+                    total_p, total_l, total_e):
     """Derived channels of T samples x N bodies (see trajectory.derive), written into the outputs.
 
     omega = R diag(inv_inertia) R^T L with the logged R; e_pot = -m g.x; ortho = ||R^T R - I||_F;
-    qnorm = |q| - 1. Inputs (T, N, ...) float64 C-contiguous; outputs preallocated alike.
+    qnorm = |q| - 1. Totals per sample: total_p (T, 3) = sum P, total_l (T, 3) = sum x cross P + L
+    (about the world origin), total_e (T,) = sum of the three energies. Inputs (T, N, ...) float64
+    C-contiguous; outputs preallocated alike.
     """
     n_t, n_b = position.shape[0], position.shape[1]
     for t in range(n_t):
+        sp0 = sp1 = sp2 = sl0 = sl1 = sl2 = se = 0.0
         for i in range(n_b):
             m = mass[i]
             px, py, pz = linear_momentum[t, i, 0], linear_momentum[t, i, 1], linear_momentum[t, i, 2]
@@ -242,3 +246,18 @@ def derive_channels(mass, inv_inertia, gravity, position, linear_momentum, quat_
             ortho[t, i] = math.sqrt(acc)
             q = quat_wxyz[t, i]
             qnorm[t, i] = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) - 1.0
+            x0, x1, x2 = position[t, i, 0], position[t, i, 1], position[t, i, 2]
+            sp0 += px
+            sp1 += py
+            sp2 += pz
+            sl0 += x1 * pz - x2 * py + lx
+            sl1 += x2 * px - x0 * pz + ly
+            sl2 += x0 * py - x1 * px + lz
+            se += e_trans[t, i] + e_rot[t, i] + e_pot[t, i]
+        total_p[t, 0] = sp0
+        total_p[t, 1] = sp1
+        total_p[t, 2] = sp2
+        total_l[t, 0] = sl0
+        total_l[t, 1] = sl1
+        total_l[t, 2] = sl2
+        total_e[t] = se

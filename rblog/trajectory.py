@@ -242,12 +242,12 @@ def derive(
     shape_tn = position.shape[:2]
     velocity, omega = np.empty_like(position), np.empty_like(position)
     e_trans, e_rot, e_pot, ortho, qnorm = (np.empty(shape_tn) for _ in range(5))
+    n_t = shape_tn[0]
+    total_p, total_l, total_e = np.empty((n_t, 3)), np.empty((n_t, 3)), np.empty(n_t)
     derive_channels(c(model.body_mass, dtype=np.float64), c(model.body_inv_inertia_diag, dtype=np.float64),
                     c(model.gravity, dtype=np.float64), position, linear_momentum, quat_wxyz, rotation,
-                    angular_momentum, velocity, omega, e_trans, e_rot, e_pot, ortho, qnorm)
-    total_p = linear_momentum.sum(axis=1)
-    total_l = (np.cross(position, linear_momentum) + angular_momentum).sum(axis=1)
-    total_e = (e_trans + e_rot + e_pot).sum(axis=1)
+                    angular_momentum, velocity, omega, e_trans, e_rot, e_pot, ortho, qnorm,
+                    total_p, total_l, total_e)
     return Trajectory(
         model=model, info=info, step=np.asarray(step, np.int64), t=np.asarray(t, np.float64),
         position=position, quat_wxyz=quat_wxyz, rotation=rotation, velocity=velocity,

@@ -194,18 +194,25 @@ def test_rerun_file_verifies(tmp_path, traj):
     assert reader.blueprints(), "default blueprint missing"
     chunks = list(reader.stream())
     entities = {c.entity_path for c in chunks}
-    # the view transforms are the float32 positions and xyzw quaternions of each body
-    for i, name in enumerate(["spinning_box_0", "falling_ball_1", "spinning_box_2"]):
-        rows = [c.to_record_batch() for c in chunks if c.entity_path == f"/world/bodies/{name}"
-                and not c.is_static]
-        tr_ = np.concatenate([np.stack(b.column("Transform3D:translation").to_pylist())
-                              .reshape(-1, 3) for b in rows])
-        qt = np.concatenate([np.stack(b.column("Transform3D:quaternion").to_pylist())
-                             .reshape(-1, 4) for b in rows])
-        assert np.array_equal(tr_, traj.position[:, i].astype(np.float32))
-        assert np.array_equal(qt, traj.quat_xyzw[:, i].astype(np.float32))
+    # the view poses are the float32 positions and xyzw quaternions of each body, as instances
+    # of one entity per shape kind in body order: boxes 0 and 2, the sphere 1
+    for ent, arch, members in (("/world/bodies/boxes", "Boxes3D", [0, 2]),
+                               ("/world/bodies/spheres", "Ellipsoids3D", [1])):
+        rows = [c.to_record_batch() for c in chunks if c.entity_path == ent and not c.is_static]
+        centers = np.concatenate([np.stack(np.concatenate(b.column(f"{arch}:centers").to_pylist()))
+                                  .reshape(-1, len(members), 3) for b in rows])
+        quats = np.concatenate([np.stack(np.concatenate(b.column(f"{arch}:quaternions").to_pylist()))
+                                .reshape(-1, len(members), 4) for b in rows])
+        assert np.array_equal(centers, traj.position[:, members].astype(np.float32))
+        assert np.array_equal(quats, traj.quat_xyzw[:, members].astype(np.float32))
+        static = [c.to_record_batch() for c in chunks if c.entity_path == ent and c.is_static]
+        half = np.stack(np.concatenate([b.column(f"{arch}:half_sizes").to_pylist() for b in static][0]))
+        expect = traj.model.body_size[members]
+        if arch == "Ellipsoids3D":
+            expect = np.repeat(expect[:, :1], 3, axis=1)
+        assert np.allclose(half, expect)
     for ent in ("/rblog/run", "/rblog/model", "/rblog/state", "/rblog/contacts", "/rblog/status",
-                "/world/ground", "/world/bodies/spinning_box_0", "/world/bodies/falling_ball_1",
+                "/world/ground", "/world/bodies/boxes", "/world/bodies/spheres",
                 "/world/contacts", "/plots/energy/total", "/plots/momentum/linear"):
         assert ent in entities, ent
 

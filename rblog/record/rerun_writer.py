@@ -26,12 +26,18 @@ from . import _common as C
 #: own every 200 ms or 1 MiB
 FLUSH_EVERY_S = 1.0
 #: The .rrd footer (a manifest of every chunk, for random access) is held in memory until the
-#: file is closed: ~7 KB per chunk, and a block costs one chunk per body plus ~12. A run expected
+#: file is closed: ~7 KB per chunk, and a block costs at most CHUNKS_PER_BLOCK chunks. A run expected
 #: to log more chunks than this is written without footer (still a valid .rrd; the viewer and
 #: rblog.load read it; ``rerun rrd optimize`` can add one), so that memory stays bounded.
 RRD_FOOTER_MAX_CHUNKS = 8192
+#: chunks sent per block: state, two body entities, eight plots, contacts (data and view)
+CHUNKS_PER_BLOCK = 14
 #: bodies' names are drawn in the 3D view for scenes of at most this many bodies (else on hover)
 LABELS_MAX_BODIES = 12
+#: view entities of the bodies: every box is an instance of one Boxes3D, every sphere of one
+#: Ellipsoids3D, in body order, posed per sample by the instances' centers and quaternions
+BOXES_ENTITY = "world/bodies/boxes"
+SPHERES_ENTITY = "world/bodies/spheres"
 #: default gRPC address of a viewer started with ``spawn=True``
 SPAWN_PORT = 9876
 
@@ -58,8 +64,11 @@ class _Column:
 
 
 def _fixed(values: np.ndarray, width: int, dtype=np.float32) -> pa.Array:
-    flat = np.ascontiguousarray(values, dtype).reshape(-1)
-    return pa.FixedSizeListArray.from_arrays(pa.array(flat), width)
+    """(k, width) values as Arrow ``fixed_size_list<item: float not null>[width]``: the exact
+    type the SDK's own columns have (the viewer does not visualize a nullable item field)."""
+    flat = pa.array(np.ascontiguousarray(values, dtype).reshape(-1))
+    return pa.FixedSizeListArray.from_arrays(
+        flat, type=pa.list_(pa.field("item", flat.type, nullable=False), width))
 
 
 def _descriptors(columns) -> dict[str, rr.ComponentDescriptor]:
@@ -123,6 +132,7 @@ class RerunRecorder:
         except (RuntimeError, ValueError, OSError) as e:
             self._disconnect_all()
             raise LogWriteError(where, str(e).splitlines()[0] if str(e) else type(e).__name__) from None
+        self._d_pose: dict[str, tuple] = {}
         self._init_descriptors()
         self._log_static(model, info)
         self._flush(force=True)
@@ -176,7 +186,17 @@ class RerunRecorder:
 
     def _init_descriptors(self):
         z3, z4 = np.zeros((1, 3)), np.array([[0.0, 0.0, 0.0, 1.0]])
-        self._d_tf = _descriptors(rr.Transform3D.columns(translation=z3, quaternion=z4))
+        # bodies are drawn as instances of one entity per shape kind (one send per block, not
+        # one per body): entity -> (body indices, archetype)
+        shape = np.asarray(self._model.body_shape)
+        self._body_groups = {}
+        for ent, arch, sel in ((BOXES_ENTITY, rr.Boxes3D, shape != SHAPE_SPHERE),
+                               (SPHERES_ENTITY, rr.Ellipsoids3D, shape == SHAPE_SPHERE)):
+            members = np.flatnonzero(sel)
+            if len(members):
+                d = _descriptors(arch.columns(centers=z3, quaternions=z4))
+                self._body_groups[ent] = (members, arch)
+                self._d_pose[ent] = (d["centers"], d["quaternions"])
         self._d_scalar = _descriptors(rr.Scalars.columns(scalars=[0.0]))["scalars"]
         self._d_pts = _descriptors(rr.Points3D.columns(positions=z3))["positions"]
         self._d_arrows = _descriptors(rr.Arrows3D.columns(vectors=z3, origins=z3))
@@ -213,17 +233,16 @@ class RerunRecorder:
                 quaternions=[rr.Quaternion(xyzw=[*q[1:], q[0]])], colors=[[150, 150, 165, 200]],
                 fill_mode="solid"), static=True)
         show_labels = len(self._names) <= LABELS_MAX_BODIES
-        for i, name in enumerate(self._names):
-            color = _PALETTE[i % len(_PALETTE)]
-            size = np.asarray(model.body_size[i], np.float64)
-            label = str(model.body_name[i])
-            if int(model.body_shape[i]) == SHAPE_SPHERE:
-                geom = rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], colors=[color], labels=[label],
-                                       show_labels=show_labels, fill_mode="solid")
+        for ent, (members, arch) in self._body_groups.items():
+            size = np.asarray(model.body_size, np.float64)[members]
+            kw = dict(colors=_PALETTE[members % len(_PALETTE)],
+                      labels=[str(model.body_name[i]) for i in members], show_labels=show_labels,
+                      fill_mode="solid")
+            if arch is rr.Ellipsoids3D:
+                geom = rr.Ellipsoids3D(half_sizes=np.repeat(size[:, :1], 3, axis=1), **kw)
             else:
-                geom = rr.Boxes3D(half_sizes=[size], colors=[color], labels=[label],
-                                  show_labels=show_labels, fill_mode="solid")
-            rec.log(f"world/bodies/{name}", geom, static=True)
+                geom = rr.Boxes3D(half_sizes=size, **kw)
+            rec.log(ent, geom, static=True)
         for ent, names in (("plots/momentum/linear", ["P_x", "P_y", "P_z"]),
                            ("plots/momentum/angular", ["L_x", "L_y", "L_z"])):
             rec.log(ent, rr.SeriesLines(names=names), static=True)
@@ -257,18 +276,20 @@ class RerunRecorder:
             cols.append(_Column(self._any(name), pa.array(arr.reshape(-1)), rows * arr.shape[1]))
         self._send("rblog/state", idx, cols)
 
-        # per-body transforms (float32; view only)
-        pos = np.ascontiguousarray(a["position"].reshape(T, n, 3).transpose(1, 0, 2), np.float32)
+        # body poses (float32; view only): one row of instances per sample and shape kind
+        pos = a["position"].reshape(T, n, 3)
         q = a["quat_wxyz"].reshape(T, n, 4)
-        quat = np.ascontiguousarray(np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
-                                    .transpose(1, 0, 2), np.float32)
-        d_tr, d_q = self._d_tf["translation"], self._d_tf["quaternion"]
-        pos_all, quat_all = _fixed(pos, 3), _fixed(quat, 4)  # bodies * T entries, sliced per body
-        offsets = pa.array(rows.astype(np.int32))
-        for i, name in enumerate(self._names):
-            self._send(f"world/bodies/{name}", idx, [
-                _Column(d_tr, pos_all.slice(i * T, T), offsets),
-                _Column(d_q, quat_all.slice(i * T, T), offsets)])
+        for ent, (members, _) in self._body_groups.items():
+            k = len(members)
+            whole = k == n
+            p_e = pos if whole else pos[:, members]
+            q_e = q if whole else q[:, members]
+            xyzw = np.empty((T, k, 4), np.float32)
+            xyzw[..., :3] = q_e[..., 1:]
+            xyzw[..., 3] = q_e[..., 0]
+            d_c, d_q = self._d_pose[ent]
+            self._send(ent, idx, [_Column(d_c, _fixed(p_e, 3), rows * k),
+                                  _Column(d_q, _fixed(xyzw, 4), rows * k)])
 
         # plots
         def scalars(entity, values):
@@ -360,7 +381,7 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
         return math.inf
     n = max(model.n_bodies, 1)
     per_block = max(1, min(BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_STEPS // (n * max(int(info.log_every), 1))))
-    return math.ceil(samples / per_block) * (n + 12)
+    return math.ceil(samples / per_block) * CHUNKS_PER_BLOCK
 
 
 def _blueprint(model: Model, info: RunInfo) -> rrb.Blueprint:
