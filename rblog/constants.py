@@ -16,8 +16,12 @@ POLAR_MAX_ITER = 12
 
 # --- run loop ---------------------------------------------------------------------------------
 #: A run is split into blocks that each run in one compiled call; a block holds at most this many
-#: logged samples (memory per block: samples * bodies * ~300 bytes).
-BLOCK_MAX_SAMPLES = 256
+#: logged samples (fewer blocks: less per-block work in the recorders) ...
+BLOCK_MAX_SAMPLES = 4096
+#: ... and at most this many body-samples, which bounds a block's memory whatever the body count:
+#: ~420 bytes per body-sample (state and derived channels, float64) = ~14 MB per block; the run
+#: holds at most ~4 blocks at once (stepping, queued, being written).
+BLOCK_MAX_BODY_SAMPLES = 32_768
 #: ... and at most this many body-steps, so that progress and Ctrl-C are seen every ~50 ms.
 BLOCK_MAX_BODY_STEPS = 2_000_000
 #: A progress bar is shown when the run is expected to last longer than this (seconds, wall).

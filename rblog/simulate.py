@@ -1,7 +1,7 @@
 """The run loop: choose the stages a scene needs, advance in compiled blocks, hand each block of
 samples to the recorders, and keep the summary figures.
 
-Python runs once per block (at most BLOCK_MAX_SAMPLES samples / BLOCK_MAX_BODY_STEPS body-steps),
+Python runs once per block (see :func:`samples_per_block`),
 never per step. A diverging, interrupted or failing run closes every recorder with what was
 written so far, so logs stay readable up to the last good sample.
 """
@@ -18,6 +18,7 @@ import numpy as np
 
 from . import __version__
 from .constants import (
+    BLOCK_MAX_BODY_SAMPLES,
     BLOCK_MAX_BODY_STEPS,
     BLOCK_MAX_SAMPLES,
     COMPILE_NOTICE_AFTER_S,
@@ -133,6 +134,14 @@ def resolve_log_every(dt: float, log_every: int | None, log_rate: float | None) 
     return max(1, int(round(1.0 / (rate * dt))))
 
 
+def samples_per_block(n_bodies: int, stride: int) -> int:
+    """Logged samples per block: at most BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_SAMPLES / bodies
+    (memory) and BLOCK_MAX_BODY_STEPS / (bodies * stride) (responsiveness), and at least 1."""
+    n = max(1, int(n_bodies))
+    return int(max(1, min(BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_SAMPLES // n,
+                          BLOCK_MAX_BODY_STEPS // (n * max(1, int(stride))))))
+
+
 def run(
     scene: Scene,
     *,
@@ -191,13 +200,13 @@ def run(
     st = scene.state.copy()
     advance = _make_advance(plan, model, method, ortho_code)
 
-    samples_per_block = int(max(1, min(BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_STEPS // max(1, n_bodies * stride))))
-    steps_per_block = samples_per_block * stride
+    samples_in_block = samples_per_block(n_bodies, stride)
+    steps_per_block = samples_in_block * stride
 
     def new_buffers():
         """Sample buffers for one block. Fresh ones each block: the block is handed to the
         recorders as is (no copy), and a recorder may keep it."""
-        s = samples_per_block + 1
+        s = samples_in_block + 1
         return (np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 4)),
                 np.empty((s, n_bodies, 3, 3)), np.empty((s, n_bodies, 3)))
 

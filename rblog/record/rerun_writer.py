@@ -371,7 +371,7 @@ class RerunRecorder:
 
 def _expected_chunks(model: Model, info: RunInfo) -> float:
     """Chunks the run will log, from its duration and the simulator's block sizes."""
-    from ..constants import BLOCK_MAX_BODY_STEPS, BLOCK_MAX_SAMPLES
+    from ..simulate import samples_per_block
 
     try:
         samples = float(info.duration_s) / (float(info.dt) * max(int(info.log_every), 1)) + 1
@@ -379,8 +379,7 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
         return math.inf
     if not math.isfinite(samples):
         return math.inf
-    n = max(model.n_bodies, 1)
-    per_block = max(1, min(BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_STEPS // (n * max(int(info.log_every), 1))))
+    per_block = samples_per_block(model.n_bodies, int(info.log_every))
     return math.ceil(samples / per_block) * CHUNKS_PER_BLOCK
 
 
