@@ -83,6 +83,8 @@ def validate(scene):
               help="seed: polar|gram-schmidt|none; seed-quat: normalize|none.")
 @click.option("--rrd", type=click.Path(dir_okay=False, path_type=str), help="Write a Rerun log here.")
 @click.option("--mcap", type=click.Path(dir_okay=False, path_type=str), help="Write an MCAP log here.")
+@click.option("--mcap-compression", type=click.Choice(["lz4", "zstd", "none"]), default="lz4",
+              show_default=True, help="Chunk compression of the MCAP log (none: fastest, largest).")
 @click.option("--no-log", is_flag=True, help="Write no log (by default, SCENE-STEM.rrd and .mcap).")
 @click.option("--log-every", type=click.IntRange(min=1), help="Log every K-th step.")
 @click.option("--log-rate", type=click.FloatRange(min=0, min_open=True),
@@ -92,8 +94,8 @@ def validate(scene):
 @click.option("--explain", is_flag=True, help="Print the stages chosen for this scene and why.")
 @click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
-def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, no_log, log_every, log_rate,
-        spawn, connect_url, explain, all_stages, as_json):
+def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compression, no_log,
+        log_every, log_rate, spawn, connect_url, explain, all_stages, as_json):
     """Simulate SCENE (a .toml file) and record it."""
     from rblog.scene import load_scene
     from rblog.simulate import run as run_scene
@@ -112,7 +114,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, no_log, log_
                 plan.make_contact_world(METHOD_CODES[integ], ORTHO_CODES[ORTHO_ALLOWED[integ][1]])
             for stage, why in plan.stages:
                 click.echo(f"{stage:<28} {why}", err=as_json)
-        recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url)
+        recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression)
         prog = _Progress(enabled=sys.stderr.isatty())
         _sigterm_as_interrupt()
         try:
@@ -246,7 +248,7 @@ def _sigterm_as_interrupt():
         pass
 
 
-def _recorders(scene, rrd, mcap, no_log, spawn, connect_url):
+def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="lz4"):
     """The log writers asked for; by default SCENE-STEM.rrd and SCENE-STEM.mcap in the cwd."""
     if no_log and (rrd or mcap):
         raise RblogError("--no-log contradicts --rrd/--mcap")
@@ -263,7 +265,7 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url):
     if mcap:
         from rblog.record.mcap_writer import McapRecorder
 
-        recorders.append(McapRecorder(mcap))
+        recorders.append(McapRecorder(mcap, compression=mcap_compression))
         paths.append(mcap)
     return recorders, paths
 

@@ -133,6 +133,22 @@ def test_no_log_contradicts_outputs(runner, scene_file, tmp_path, warm_kernels):
     assert not (tmp_path / "x.mcap").exists()
 
 
+@pytest.mark.parametrize("choice, stored", [("none", ""), ("zstd", "zstd"), ("lz4", "lz4")])
+def test_mcap_compression_option(runner, scene_file, tmp_path, warm_kernels, choice, stored):
+    from mcap.reader import make_reader
+
+    import rblog
+
+    out = tmp_path / "x.mcap"
+    result = runner.invoke(main, ["run", scene_file(GOOD), "--mcap", str(out),
+                                  "--mcap-compression", choice])
+    assert result.exit_code == 0, result.output
+    with open(out, "rb") as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    assert chunks and {c.compression for c in chunks} == {stored}
+    assert len(rblog.load(out).t) > 1
+
+
 @pytest.mark.parametrize("args", [
     ["validate", "{missing}"],
     ["validate", "{bad}"],
