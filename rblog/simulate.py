@@ -297,17 +297,27 @@ def simulate(scene: Scene, **kwargs) -> tuple[Trajectory, RunSummary]:
 
 
 class _BlockWriter:
-    """Derives each block's channels and hands it to the recorders on a worker thread, so that
-    logging block k overlaps stepping block k+1 (the kernels release the GIL). Blocks are
-    written in order; the queue is bounded, so memory stays bounded. A recorder's error stops
-    the run at the next block."""
+    """Derives each block's channels on a worker thread and hands the block to the recorders,
+    so that logging block k overlaps stepping block k+1 (the kernels release the GIL). With more
+    than one recorder, each writes on its own thread, so that one's GIL-free work (compression,
+    file I/O, the Rerun SDK's encoding) overlaps the other's. Blocks are written in order by
+    every recorder; the queues are bounded, so memory stays bounded. A recorder's error stops the
+    run at the next block."""
 
     QUEUE_BLOCKS = 2
 
     def __init__(self, model: Model, info: RunInfo, drift: _Drift, recorders):
-        self.model, self.info, self.drift, self.recorders = model, info, drift, recorders
+        self.model, self.info, self.drift, self.recorders = model, info, drift, list(recorders)
         self.queue: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
         self.error: BaseException | None = None
+        self.lanes: list[tuple[queue.Queue, threading.Thread]] = []
+        if len(self.recorders) > 1:
+            for i, rec in enumerate(self.recorders):
+                q: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
+                t = threading.Thread(target=self._lane, args=(rec, q), name=f"rblog-recorder-{i}",
+                                     daemon=True)
+                t.start()
+                self.lanes.append((q, t))
         self.thread = threading.Thread(target=self._loop, name="rblog-writer", daemon=True)
         self.thread.start()
 
@@ -320,26 +330,47 @@ class _BlockWriter:
 
     def _loop(self):
         dt = self.info.dt
+        try:
+            while True:
+                item = self.queue.get()
+                if item is None:
+                    return
+                if self.error is not None:
+                    continue  # drain after a failure
+                steps, x, p, q, r, lw, contacts = item
+                try:
+                    if contacts is not None:
+                        contacts.t = contacts.step * dt
+                    block = derive(self.model, self.info, steps, steps * dt, x, p, q, r, lw,
+                                   contacts=contacts)
+                    self.drift.update(block)
+                    if self.lanes:
+                        for lane, _ in self.lanes:
+                            lane.put(block)
+                    else:
+                        for rec in self.recorders:
+                            rec.write(block)
+                except BaseException as e:  # re-raised in the run loop
+                    self.error = e
+        finally:
+            for lane, t in self.lanes:
+                lane.put(None)
+                t.join()
+
+    def _lane(self, rec, lane: queue.Queue):
         while True:
-            item = self.queue.get()
-            if item is None:
+            block = lane.get()
+            if block is None:
                 return
             if self.error is not None:
-                continue  # drain after a failure
-            steps, x, p, q, r, lw, contacts = item
+                continue
             try:
-                if contacts is not None:
-                    contacts.t = contacts.step * dt
-                block = derive(self.model, self.info, steps, steps * dt, x, p, q, r, lw,
-                               contacts=contacts)
-                self.drift.update(block)
-                for rec in self.recorders:
-                    rec.write(block)
-            except BaseException as e:  # re-raised in the run loop
+                rec.write(block)
+            except BaseException as e:
                 self.error = e
 
     def finish(self):
-        """Write every queued block, stop the thread, and re-raise a recorder's error."""
+        """Write every queued block, stop the threads, and re-raise a recorder's error."""
         self.queue.put(None)
         self.thread.join()
         if self.error is not None:
