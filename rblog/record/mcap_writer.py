@@ -252,8 +252,8 @@ class McapRecorder:
         nsl = ns.tolist()
         for i in range(T):
             ti = nsl[i]
-            add(ch_state, ti, state[i].tobytes(), ti)
-            add(ch_metrics, ti, metrics[i].tobytes(), ti)
+            add(ch_state, ti, memoryview(state[i]), ti)
+            add(ch_metrics, ti, memoryview(metrics[i]), ti)
             add(ch_tf, ti, tf[i], ti)
         self._last_ns = max(self._last_ns, nsl[-1])
         self.samples_written += T
@@ -394,5 +394,5 @@ class _TfEncoder:
                 pieces.append(raw)
             msgs = np.concatenate(pieces, axis=1) if len(pieces) > 1 else pieces[0]
             for j, i in enumerate(rows_i):
-                out[i] = msgs[j].tobytes()
+                out[i] = memoryview(msgs[j])
         return out
