@@ -685,3 +685,28 @@ def test_connect_streams_the_run_to_a_viewer_server(tmp_path):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert len(a.contacts) == len(b.contacts) > 0
     assert np.array_equal(a.contacts.normal_impulse, b.contacts.normal_impulse)
+
+
+def test_frame_transforms_encoder_matches_protobuf():
+    """The compiled /tf encoder writes exactly what protobuf's own serializer writes for the same
+    foxglove.FrameTransforms (zero timestamp fields, long names, large times included)."""
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+
+    from rblog.record.mcap_writer import _TfEncoder
+
+    rng = np.random.default_rng(0)
+    names = ["a", "box_12", "x" * 200, "b2"]
+    T = 40
+    ns = np.concatenate([[0, 1, 999_999_999, 1_000_000_000, 2**40, 2**62],
+                         rng.integers(0, 2**50, T - 6)])
+    pos, quat = rng.normal(size=(T, 4, 3)), rng.normal(size=(T, 4, 4))
+    msgs = _TfEncoder(names).rows(ns, pos, quat)
+    assert len(msgs) == T
+    for t in range(T):
+        ref = FrameTransforms()
+        for i, name in enumerate(names):
+            tr = ref.transforms.add(parent_frame_id="world", child_frame_id=name)
+            tr.timestamp.seconds, tr.timestamp.nanos = divmod(int(ns[t]), 10**9)
+            tr.translation.x, tr.translation.y, tr.translation.z = pos[t, i]
+            tr.rotation.w, tr.rotation.x, tr.rotation.y, tr.rotation.z = quat[t, i]
+        assert bytes(msgs[t]) == ref.SerializeToString(), t

@@ -15,13 +15,13 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from numba import njit
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.KeyValuePair_pb2 import KeyValuePair
 from foxglove_schemas_protobuf.Pose_pb2 import Pose
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
-from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
@@ -314,85 +314,103 @@ def _color(i: int, alpha: float) -> Color:
 
 
 class _TfEncoder:
-    """Encodes ``foxglove.FrameTransforms`` messages (one transform per body) for a whole block.
+    """Encodes ``foxglove.FrameTransforms`` messages (one transform per body) for a whole block,
+    in one compiled call.
 
-    Wire layout of each transform (field numbers of foxglove.FrameTransform): 1 timestamp
-    {1 seconds, 2 nanos}, 2 parent "world", 3 child name, 4 translation {1 x, 2 y, 3 z}, 5 rotation
-    {1 x, 2 y, 3 z, 4 w}. Bodies whose names have the same length share a byte layout, so each
-    such group is filled with a few strided numpy assignments.
+    Wire layout of each transform (field numbers of foxglove.FrameTransform), field 1 of the
+    message: 1 timestamp {1 seconds, 2 nanos}, 2 parent "world", 3 child name, 4 translation
+    {1 x, 2 y, 3 z}, 5 rotation {1 x, 2 y, 3 z, 4 w}. Everything after the timestamp is constant
+    per body but for the 7 doubles, so each body has a template of those bytes and the offsets of
+    its doubles; the kernel copies templates, writes the sample's timestamp and the doubles.
     """
 
     def __init__(self, names: list[str]):
-        self.groups: dict[int, list[int]] = {}
-        self.names = [n.encode("ascii") for n in names]
-        for i, nb in enumerate(self.names):
-            self.groups.setdefault(len(nb), []).append(i)
-        self.group_idx = {k: np.array(v) for k, v in self.groups.items()}
-        self._cache: dict[tuple[int, int], tuple] = {}
+        rests, offs = [], []
+        for name in names:
+            parts = [S.len_field(2, b"world"), S.len_field(3, name.encode("ascii")),
+                     S.tag(4, 2) + S.varint(27)]
+            at = []
+            for fno in (1, 2, 3):
+                parts.append(S.tag(fno, 1))
+                at.append(sum(map(len, parts)))
+                parts.append(b"\0" * 8)
+            parts.append(S.tag(5, 2) + S.varint(36))
+            for fno in (1, 2, 3, 4):
+                parts.append(S.tag(fno, 1))
+                at.append(sum(map(len, parts)))
+                parts.append(b"\0" * 8)
+            rests.append(b"".join(parts))
+            offs.append(at)
+        self.rest = np.frombuffer(b"".join(rests), np.uint8).copy()
+        self.rest_start = np.concatenate([[0], np.cumsum([len(r) for r in rests])]).astype(np.int64)
+        self.dbl_off = np.array(offs, np.int64).reshape(len(names), 7)
 
-    def _layout(self, lts: int, name_len: int):
-        """Template bytes (bodies, L) and a structured dtype addressing the variable fields."""
-        key = (lts, name_len)
-        if key not in self._cache:
-            idx = self.groups[name_len]
-            head_after_ts = S.len_field(2, b"world")
-            translation_hdr = S.tag(4, 2) + S.varint(27)
-            rotation_hdr = S.tag(5, 2) + S.varint(36)
-            sub_len = (2 + lts) + len(head_after_ts) + (len(S.tag(3, 2)) + len(S.varint(name_len))
-                                                        + name_len) + 2 + 27 + 2 + 36
-            rows, offs = [], {}
-            for i in idx:
-                parts = [S.tag(1, 2) + S.varint(sub_len), S.tag(1, 2) + S.varint(lts)]
-                offs["ts"] = sum(map(len, parts))
-                parts += [b"\0" * lts, head_after_ts, S.len_field(3, self.names[i]), translation_hdr]
-                for fno, key_ in ((1, "x"), (2, "y"), (3, "z")):
-                    parts.append(S.tag(fno, 1))
-                    offs[key_] = sum(map(len, parts))
-                    parts.append(b"\0" * 8)
-                parts.append(rotation_hdr)
-                for fno, key_ in ((1, "qx"), (2, "qy"), (3, "qz"), (4, "qw")):
-                    parts.append(S.tag(fno, 1))
-                    offs[key_] = sum(map(len, parts))
-                    parts.append(b"\0" * 8)
-                rows.append(b"".join(parts))
-            tmpl = np.frombuffer(b"".join(rows), np.uint8).reshape(len(idx), -1)
-            names = list(offs)
-            dtype = np.dtype({"names": names,
-                              "formats": [(np.uint8, (lts,))] + ["<f8"] * 7,
-                              "offsets": [offs[k] for k in names], "itemsize": tmpl.shape[1]})
-            self._cache[(lts, name_len)] = (np.array(idx), tmpl, dtype)
-        return self._cache[key]
+    def rows(self, ns: np.ndarray, position: np.ndarray, quat_wxyz: np.ndarray) -> list:
+        """One serialized FrameTransforms per sample (memoryviews into one buffer): ns (T,),
+        position (T, N, 3), quat_wxyz (T, N, 4)."""
+        T, n = position.shape[0], position.shape[1]
+        # doubles in wire order x, y, z, qx, qy, qz, qw
+        dbl = np.empty((T, n, 7))
+        dbl[..., :3] = position
+        dbl[..., 3:6] = quat_wxyz[..., 1:]
+        dbl[..., 6] = quat_wxyz[..., 0]
+        # per transform: 2 tags, 2 length varints (<= 3 bytes each), timestamp <= 22 bytes
+        cap = T * (int(self.rest_start[-1]) + n * 30)
+        out = np.empty(cap, np.uint8)
+        bounds = np.empty(T + 1, np.int64)
+        _encode_frame_transforms(np.ascontiguousarray(ns, np.int64), dbl, self.rest,
+                                 self.rest_start, self.dbl_off, out, bounds)
+        mv = memoryview(out)
+        b = bounds.tolist()
+        return [mv[b[i]:b[i + 1]] for i in range(T)]
 
-    def rows(self, ns: np.ndarray, position: np.ndarray, quat_wxyz: np.ndarray) -> list[bytes]:
-        """One serialized FrameTransforms per sample: ns (T,), position (T, N, 3),
-        quat_wxyz (T, N, 4)."""
-        T = len(ns)
-        sec, nanos = np.divmod(ns, 1_000_000_000)
-        ts = [b"\x08" + S.varint(s) + b"\x10" + S.varint(n)
-              for s, n in zip(sec.tolist(), nanos.tolist())]
-        # per name-length group: (T, bodies, 7) doubles in wire order x, y, z, qx, qy, qz, qw
-        dbl = np.concatenate([position, quat_wxyz[..., 1:], quat_wxyz[..., :1]], axis=-1)
-        per_group = {name_len: dbl[:, idx] for name_len, idx in self.group_idx.items()}
-        out: list[bytes] = [b""] * T
-        by_len: dict[int, list[int]] = {}
-        for i, b in enumerate(ts):
-            by_len.setdefault(len(b), []).append(i)
-        for lts, rows_i in by_len.items():
-            tg = len(rows_i)
-            r = slice(None) if tg == T else np.array(rows_i)
-            tsa = np.frombuffer(b"".join([ts[i] for i in rows_i]), np.uint8).reshape(tg, lts)
-            pieces = []
-            for name_len, d in per_group.items():
-                _, tmpl, dtype = self._layout(lts, name_len)
-                raw = np.empty((tg, tmpl.size), np.uint8)
-                raw.reshape(tg, *tmpl.shape)[:] = tmpl
-                sv = raw.view(dtype)  # (tg, bodies)
-                sv["ts"] = tsa[:, None, :]
-                dr = d[r]
-                for k, key in enumerate(("x", "y", "z", "qx", "qy", "qz", "qw")):
-                    sv[key] = dr[..., k]
-                pieces.append(raw)
-            msgs = np.concatenate(pieces, axis=1) if len(pieces) > 1 else pieces[0]
-            for j, i in enumerate(rows_i):
-                out[i] = memoryview(msgs[j])
-        return out
+
+@njit(cache=True, nogil=True)
+def _put_varint(out, k, value):
+    while value >= 0x80:
+        out[k] = (value & 0x7F) | 0x80
+        value >>= 7
+        k += 1
+    out[k] = value
+    return k + 1
+
+
+@njit(cache=True, nogil=True)
+def _encode_frame_transforms(ns, dbl, rest, rest_start, dbl_off, out, bounds):
+    """Kernel of _TfEncoder.rows: writes T messages back to back into ``out``; message t is
+    out[bounds[t]:bounds[t + 1]]."""
+    n = dbl.shape[1]
+    ts = np.empty(24, np.uint8)
+    d8 = np.empty(1, np.float64)
+    d8u = d8.view(np.uint8)
+    k = 0
+    for t in range(ns.shape[0]):
+        bounds[t] = k
+        sec, nanos = ns[t] // 1_000_000_000, ns[t] % 1_000_000_000
+        lts = 0  # proto3: zero fields are left out, as protobuf's own serializer does
+        if sec:
+            ts[0] = 0x08
+            lts = _put_varint(ts, 1, sec)
+        if nanos:
+            ts[lts] = 0x10
+            lts = _put_varint(ts, lts + 1, nanos)
+        for i in range(n):
+            r0, r1 = rest_start[i], rest_start[i + 1]
+            out[k] = 0x0A  # FrameTransforms.transforms (field 1, length-delimited)
+            k = _put_varint(out, k + 1, 2 + lts + (r1 - r0))
+            out[k] = 0x0A  # FrameTransform.timestamp
+            out[k + 1] = lts
+            k += 2
+            for b in range(lts):
+                out[k + b] = ts[b]
+            k += lts
+            start = k
+            for b in range(r1 - r0):
+                out[k + b] = rest[r0 + b]
+            k += r1 - r0
+            for c in range(7):
+                d8[0] = dbl[t, i, c]
+                o = start + dbl_off[i, c]
+                for b in range(8):
+                    out[o + b] = d8u[b]
+    bounds[ns.shape[0]] = k
