@@ -134,3 +134,36 @@ def test_unwritable_path_fails_before_the_run(tmp_path, flag):
     assert res.returncode == 2 and time.monotonic() - t0 < 30  # not after 600 s of simulation
     assert str(target) in res.stderr and "Traceback" not in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_failing_recorder_stops_the_run_and_the_other_keeps_a_clean_prefix(tmp_path):
+    """Each recorder writes on its own thread: when one fails, the run stops with its error, and
+    the other got every block before the failure, in order, and was closed as truncated."""
+    from rblog.errors import LogWriteError
+
+    scene = rblog.parse_scene(LONG.replace("600.0", "20.0"), "long.toml")
+
+    class Keeps:
+        def __init__(self, fail_at=None):
+            self.steps, self.closed, self.fail_at = [], None, fail_at
+
+        def open(self, model, info):
+            pass
+
+        def write(self, block):
+            if self.fail_at is not None and len(self.steps) == self.fail_at:
+                raise LogWriteError("bad.log", "No space left on device")
+            self.steps.append(np.asarray(block.step).copy())
+            time.sleep(0.002)
+
+        def close(self, truncated=False, reason=None):
+            self.closed = (truncated, reason)
+
+    good, bad = Keeps(), Keeps(fail_at=3)
+    with pytest.raises(LogWriteError, match="No space left"):
+        rblog.run(scene, log_every=1, recorders=[good, bad])
+    assert good.closed[0] is True and "No space left" in good.closed[1]
+    assert bad.closed[0] is True
+    steps = np.concatenate(good.steps)
+    assert steps[0] == 0 and np.array_equal(steps, np.arange(len(steps)))  # in order, no gap
+    assert len(good.steps) >= 3 and steps[-1] < 20_000  # the run stopped early
