@@ -58,6 +58,17 @@ class ContactParams:
         sleep_time: s. How long an island must stay below ``sleep_speed`` before it sleeps.
         warm_starting: start each step's solve from the previous step's impulses (matched by
             feature id). Turning it off is only useful to demonstrate why it exists.
+        projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
+            positions moved, the narrowphase runs again at the end-of-step poses and every
+            point deeper than ``projection_depth`` is pushed out to that depth by moving
+            positions and orientations (no velocity changes). It catches features that were not
+            in the step's manifolds (a tumbling box's corner swinging over an edge, a pair
+            struck within the step). 0 turns the stage off.
+        projection_depth: m. Penetration the project stage leaves (its target depth), and the
+            depth below which it does nothing. It must exceed the resting depth of the
+            split-impulse pass (a few ``allowed_penetration``), so that resting contacts are
+            left to the velocity and split-impulse passes and only fast, unforeseen overlaps
+            are projected.
     """
 
     velocity_iterations: int = 4
@@ -74,6 +85,8 @@ class ContactParams:
     sleep_speed: float = 0.005
     sleep_time: float = 0.5
     warm_starting: bool = True
+    projection_iterations: int = 4
+    projection_depth: float = 2e-4
 
     def __post_init__(self) -> None:
         self.validate()
@@ -93,11 +106,14 @@ class ContactParams:
             "friction_anchor_distance": self.friction_anchor_distance >= 0.0,
             "sleep_speed": self.sleep_speed >= 0.0,
             "sleep_time": self.sleep_time >= 0.0,
+            "projection_iterations": self.projection_iterations >= 0,
+            "projection_depth": self.projection_depth > 0.0,
         }
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"contact.{name} = {getattr(self, name)!r} is out of range")
-        for name in ("velocity_iterations", "max_velocity_iterations", "position_iterations"):
+        for name in ("velocity_iterations", "max_velocity_iterations", "position_iterations",
+                     "projection_iterations"):
             if int(getattr(self, name)) != getattr(self, name):
                 raise ValueError(f"contact.{name} must be an integer")
 
