@@ -303,9 +303,10 @@ def test_pile_of_500_boxes():
         out, _, bad, _ = simulate(world, state, 2e-3, 10, stride=10)
         assert bad == -1
         worst = max(worst, max_penetration(world, state.position, state.rotation))
-    # issue target 0.5 mm, not met: measured 0.9-1.5 mm over seeds 0-2 (MuJoCo on the same
-    # pile: ~40 mm). The deep moments are tumbling boxes whose corners swing in within one step.
-    assert worst <= 2e-3
+    # issue target 0.5 mm: measured 0.23-0.25 mm over seeds 0-2 (0.25-0.31 mm sampling every
+    # step; before the project stage 0.9-1.5 mm, from tumbling boxes whose corners swung in
+    # within one step; MuJoCo on the same pile: ~40 mm)
+    assert worst <= 0.5e-3
     assert state.position[:, 2].max() < 0.6  # settled into a pile
 
 

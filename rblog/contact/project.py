@@ -21,11 +21,13 @@ overlap is not pushed into the body under it. Per point k, per sweep::
     dx_a += m_a^-1 lambda n,  dth_a += I_a^-1 (r_a x lambda n)   (b gets the negatives)
 
 with K_k the point's effective inverse mass (as in the velocity solve), clamped accumulated
-``lambda >= 0`` (pushes only). Only positions and orientations move; velocities are untouched,
-so the pass injects neither momentum nor kinetic energy (the next step's contacts, at the
-corrected depth, stop the approach). The pair's impulses are equal and opposite at one point, so
-its centre of mass stays put; the world step hands the orbital change ``dx x P`` back to the
-spin, as after the split-impulse shift, so that ``sum(x x P + L)`` stays exact.
+``lambda >= 0`` (pushes only). Only positions and orientations move; the momenta P and L are
+untouched (but for the hand-back below), so the pass injects no momentum, and no kinetic energy
+into isotropic bodies (for others the turned inertia changes the spin energy by O(|dth|) of
+it, as the split-impulse pseudo spin does); the next step's contacts, at the corrected depth,
+stop the approach. The pair's impulses are equal and opposite at one point, so its centre of
+mass stays put; the world step hands the orbital change ``dx x P`` back to the spin, as after
+the split-impulse shift, so that ``sum(x x P + L)`` stays exact.
 
 Shapes and frames: ``pairs`` (K, 2) shape ids (bodies, static boxes, ground; see broadphase),
 ``position`` (N, 3) and ``rotation`` (N, 3, 3) body -> world at the end of the step;
@@ -34,8 +36,6 @@ the static dummy, which stands for static geometry and sleeping bodies and never
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from numba import njit
@@ -47,7 +47,7 @@ from .narrowphase import COLLIDE_TABLE, collide
 _PN = 0  # normal from b into a (3)
 _PRA = 3  # anchor on a (3): point - x_a
 _PRB = 6  # anchor on b (3): point - x_b (0 for static)
-_PS = 9  # separation at the end of the step (m), < -depth
+_PS = 9  # separation at the end of the step (m), before this pass
 _PK = 10  # 1 / effective inverse mass along the normal
 _PL = 11  # accumulated position impulse (kg m)
 _P_COLS = 12
