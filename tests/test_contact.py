@@ -397,31 +397,34 @@ def test_tumbling_box_landing_on_a_box_edge_stays_within_target(dt):
 
 
 def test_projection_resolves_an_overlap_without_velocity():
-    """Two cubes at rest in zero g, overlapping 3 mm face to face. The velocity solve leaves them
-    at rest (vn = 0 already meets vn >= 0); the split impulses remove beta = 0.8 of the overlap
-    beyond the slop; the project stage pushes the rest out to projection_depth, in the first
-    step. Only positions move: both momenta stay exactly zero, the pair's centre of mass stays
-    put, and the overlap after the first step is projection_depth (face-face: a translation,
-    which the linearised projection gets exactly once its Gauss-Seidel sweeps over the four
-    coupled corners have converged; they converge geometrically, 1 % after its 4 sweeps)."""
+    """Two cubes at rest in zero g, overlapping d = 3 mm face to face. The velocity solve leaves
+    them at rest (vn = 0 already meets vn >= 0). Each step the split impulses remove
+    min(beta (overlap - slop), max_correction_speed dt) and then the project stage
+    min(overlap - projection_depth, max_correction_speed dt): 3 -> 2 -> 1 mm in the first step,
+    1 mm -> 0.24 mm -> projection_depth in the second. Only positions move: both momenta stay
+    exactly zero and the pair's centre of mass stays put (face-face: a translation; the
+    Gauss-Seidel sweeps over the four coupled corners converge geometrically, to 1 % here)."""
     from rblog.contact.measure import max_penetration
 
-    e, d = 0.05, 3e-3
+    e, d, dt = 0.05, 3e-3, 1e-3
     params = ContactParams(sleep=False)
+    push = params.max_correction_speed * dt
     model = make_model([SHAPE_BOX] * 2, [[e] * 3] * 2, [1.0, 2.0], gravity=(0, 0, 0),
                        ground=False)
     world = ContactWorld(model, params, *SPLIT)
     state = make_state(model, [[0.0, 0.0, 0.0], [2 * e - d, 0.0, 0.0]])
     com0 = (model.body_mass[:, None] * state.position).sum(0) / model.body_mass.sum()
-    out, _, bad, _ = simulate(world, state, 1e-3, 1)
-    assert bad == -1
-    pen = max_penetration(world, state.position, state.rotation)
-    assert abs(pen - params.projection_depth) <= 0.01 * params.projection_depth
-    assert np.all(state.linear_momentum == 0.0) and np.all(state.angular_momentum_world == 0.0)
+    for want in (d - 2 * push, params.projection_depth):
+        _, _, bad, _ = simulate(world, state, dt, 1)
+        assert bad == -1
+        pen = max_penetration(world, state.position, state.rotation)
+        assert abs(pen - want) <= 0.01 * want, (pen, want)
+        assert np.all(state.linear_momentum == 0.0)
+        assert np.all(state.angular_momentum_world == 0.0)
     com1 = (model.body_mass[:, None] * state.position).sum(0) / model.body_mass.sum()
     assert np.abs(com1 - com0).max() <= 1e-15
-    # no creep afterwards: at projection_depth the stage leaves the pair to the split impulses
-    simulate(world, state, 1e-3, 200)
+    # from there on the split impulses take it to the slop; the project stage stays idle
+    simulate(world, state, dt, 200)
     assert max_penetration(world, state.position, state.rotation) <= params.projection_depth
     assert np.all(state.linear_momentum == 0.0)
 
@@ -434,3 +437,26 @@ def test_projection_settings_are_validated():
     with pytest.raises(ValueError):
         ContactParams(projection_iterations=1.5)
     assert ContactParams.from_dict({"projection_iterations": 0}).projection_iterations == 0
+
+
+def test_projection_pulls_a_deep_overlap_apart_over_several_steps():
+    """Two cubes at rest in zero g start 5 mm into each other, split impulses off: the project
+    stage alone separates them, by at most max_correction_speed * dt = 1 mm per step (Box2D v2's
+    maxLinearCorrection), so the overlap is 4 mm after one step, 2 mm after three, and
+    projection_depth from the fifth on (face-face: a translation; Gauss-Seidel over the four
+    corners to 1 %)."""
+    from rblog.contact.measure import max_penetration
+
+    e, d, dt = 0.05, 5e-3, 1e-3
+    params = ContactParams(sleep=False, position_iterations=0)
+    push = params.max_correction_speed * dt
+    model = make_model([SHAPE_BOX] * 2, [[e] * 3] * 2, [1.0, 1.0], gravity=(0, 0, 0),
+                       ground=False)
+    world = ContactWorld(model, params, *SPLIT)
+    state = make_state(model, [[0.0, 0.0, 0.0], [2 * e - d, 0.0, 0.0]])
+    for k in range(1, 9):
+        simulate(world, state, dt, 1)
+        want = max(d - k * push, params.projection_depth)
+        pen = max_penetration(world, state.position, state.rotation)
+        assert abs(pen - want) <= 0.01 * want, (k, pen, want)
+    assert np.all(state.linear_momentum == 0.0)

@@ -36,7 +36,8 @@ class ContactParams:
             removed per step by the split-impulse pass (Baumgarte factor, in (0, 1]). Higher values
             fix penetration faster but overshoot where many contacts interact.
         max_correction_speed: m/s. Cap on the pseudo velocity that removes penetration, so a deep
-            overlap is resolved over several steps instead of popping bodies apart.
+            overlap is resolved over several steps instead of popping bodies apart; the project
+            stage moves no contact point by more than this times dt per step either.
         speculative_distance: m. Contact points are generated while the surfaces are closer
             than this plus the distance the pair can close in one step (relative speed times dt),
             so fast bodies cannot tunnel through thin geometry. Larger values cost more contact
