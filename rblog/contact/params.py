@@ -36,8 +36,8 @@ class ContactParams:
             removed per step by the split-impulse pass (Baumgarte factor, in (0, 1]). Higher values
             fix penetration faster but overshoot where many contacts interact.
         max_correction_speed: m/s. Cap on the pseudo velocity that removes penetration, so a deep
-            overlap is resolved over several steps instead of popping bodies apart; the project
-            stage moves no contact point by more than this times dt per step either.
+            overlap is resolved over several steps instead of popping bodies apart (the project
+            stage has no such cap: see ``projection_depth``).
         speculative_distance: m. Contact points are generated while the surfaces are closer
             than this plus the distance the pair can close in one step (relative speed times dt),
             so fast bodies cannot tunnel through thin geometry. Larger values cost more contact
@@ -69,7 +69,8 @@ class ContactParams:
             depth below which it does nothing. It must exceed the resting depth of the
             split-impulse pass (a few ``allowed_penetration``), so that resting contacts are
             left to the velocity and split-impulse passes and only fast, unforeseen overlaps
-            are projected.
+            are projected. A deeper overlap is pushed out to this depth in one step, without
+            any velocity: a scene that starts overlapping is separated in its first step.
     """
 
     velocity_iterations: int = 4

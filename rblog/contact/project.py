@@ -17,13 +17,14 @@ Gauss-Seidel on position-level impulses (Box2D v2's ``SolvePositionConstraints``
 "nonlinear Gauss-Seidel", on fresh geometry). The neighbours hold: a body pushed out of one
 overlap is not pushed into the body under it. Per point k, per sweep::
 
-    lambda_k += max(-(s_k + n . (dx_a + dth_a x r_a - dx_b - dth_b x r_b) - t_k) / K_k, -lambda_k)
+    lambda_k += max(-(s_k + n . (dx_a + dth_a x r_a - dx_b - dth_b x r_b) + depth) / K_k, -lambda_k)
     dx_a += m_a^-1 lambda n,  dth_a += I_a^-1 (r_a x lambda n)   (b gets the negatives)
 
 with K_k the point's effective inverse mass (as in the velocity solve), clamped accumulated
-``lambda >= 0`` (pushes only), and target t_k = min(-depth, s_k + max_push): no point moves more
-than ``max_push = max_correction_speed * dt`` in one step (Box2D v2's maxLinearCorrection), so
-a scene that starts with deep overlaps is pulled apart over several steps. Only positions and orientations move; the momenta P and L are
+``lambda >= 0`` (pushes only). There is no cap on the push per step (unlike the split
+impulses' ``max_correction_speed``): an overlap that a step made is undone in that step, up to
+the ~2 mm that a box struck at 2 m/s can make in 1 ms; a scene that starts with overlaps has
+them pushed out to ``depth`` in its first step, without any velocity. Only positions and orientations move; the momenta P and L are
 untouched (but for the hand-back below), so the pass injects no momentum, and no kinetic energy
 into isotropic bodies (for others the turned inertia changes the spin energy by O(|dth|) of
 it, as the split-impulse pseudo spin does); the next step's contacts, at the corrected depth,
@@ -52,8 +53,7 @@ _PRB = 6  # anchor on b (3): point - x_b (0 for static)
 _PS = 9  # separation at the end of the step (m), before this pass
 _PK = 10  # 1 / effective inverse mass along the normal
 _PL = 11  # accumulated position impulse (kg m)
-_PT = 12  # target separation (m): -depth, or the start separation + max_push for deeper points
-_P_COLS = 13
+_P_COLS = 12
 #: columns of the point rows the world step allocates for this stage
 PROJ_COLS = _P_COLS
 #: rings of contacts gathered around a deep point: the contacts of its bodies (1) and of their
@@ -91,7 +91,7 @@ def _grow(rows, ids):
 
 @njit(cache=True)
 def _add_points(res, a, b, ia, ib, n_dyn, inv_mass, inv_inertia, iso, iso_shortcut, position,
-                rotation, nrm, pts, sep, rows, ids, n_pts, depth, max_push):
+                rotation, nrm, pts, sep, rows, ids, n_pts):
     """Append the collider's points (both manifolds of ``res``) as projection rows."""
     b_dyn = b < n_dyn
     for part in range(2):
@@ -119,7 +119,6 @@ def _add_points(res, a, b, ia, ib, n_dyn, inv_mass, inv_inertia, iso, iso_shortc
             rows[p, _PRA], rows[p, _PRA + 1], rows[p, _PRA + 2] = rax, ray, raz
             rows[p, _PRB], rows[p, _PRB + 1], rows[p, _PRB + 2] = rbx, rby, rbz
             rows[p, _PS] = sep[row + q]
-            rows[p, _PT] = min(-depth, sep[row + q] + max_push)
             rows[p, _PL] = 0.0
             kk = 0.0
             if ia < n_dyn:
@@ -143,12 +142,9 @@ def _add_points(res, a, b, ia, ib, n_dyn, inv_mass, inv_inertia, iso, iso_shortc
 @njit(cache=True)
 def project_positions(pairs, n_pairs, n_dyn, n_static, geom, size, inv_mass, inv_inertia, iso,
                       iso_shortcut, awake, position, rotation, sb_pos, sb_rot, sb_ext, gn, goff,
-                      depth, max_push, n_iter, rows, ids, nrm, pts, sep, fid, work, poly, dx,
-                      dth):
+                      depth, n_iter, rows, ids, nrm, pts, sep, fid, work, poly, dx, dth):
     """Find the bodies with points deeper than ``depth``, gather the contacts around them, and
-    Gauss-Seidel every gathered point to ``s >= -depth``, but move no point by more than
-    ``max_push`` (m) in one step: a deeper overlap (a scene that starts overlapping) is
-    resolved over several steps instead of popping the bodies apart.
+    Gauss-Seidel every gathered point to ``s >= -depth``.
 
     Gathering: a first pass over the candidate ``pairs`` with speculative distance ``-depth``
     marks the bodies of deep points (ring 1; nothing else is collided in full). Then, for
@@ -218,7 +214,7 @@ def project_positions(pairs, n_pairs, n_dyn, n_static, geom, size, inv_mass, inv
             ib = b if b_awake else n_dyn
             rows, ids, n_pts = _add_points(res, a, b, ia, ib, n_dyn, inv_mass, inv_inertia, iso,
                                            iso_shortcut, position, rotation, nrm, pts, sep,
-                                           rows, ids, n_pts, depth, max_push)
+                                           rows, ids, n_pts)
             if a_awake and ring[a] == 0:
                 ring[a] = r + 1
             if b_awake and ring[b] == 0:
@@ -244,7 +240,7 @@ def project_positions(pairs, n_pairs, n_dyn, n_static, geom, size, inv_mass, inv
             uz = dx[ia, 2] + dth[ia, 0] * ray - dth[ia, 1] * rax - dx[ib, 2] - dth[ib, 0] * rby + dth[ib, 1] * rbx
             s = rows[p, _PS] + ux * nx + uy * ny + uz * nz
             old = rows[p, _PL]
-            new = old - (s - rows[p, _PT]) * rows[p, _PK]
+            new = old - (s + depth) * rows[p, _PK]
             if new < 0.0:
                 new = 0.0
             rows[p, _PL] = new

@@ -19,8 +19,7 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     11 store impulses   friction as world vectors for the next step
     12 project          narrowphase again at the end-of-step poses; points deeper than
                         projection_depth are pushed out by nonlinear Gauss-Seidel on positions
-                        and orientations, at most max_correction_speed * h per step
-                        (project.py); the shift's orbital angular momentum
+                        and orientations (project.py); the shift's orbital angular momentum
                         dx x P is handed back to the spin, as in 8
     13 sleep            rest timers, islands, put resting islands to sleep (island.py)
 
@@ -376,8 +375,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                 n_deep, proj_rows, proj_ids = project_positions(
                     pairs, n_pairs, n, ns, bd.geom, bd.size, bd.inv_mass, bd.inv_inertia, bd.iso,
                     cfg.iso_shortcut, awake, position, rotation, st.pos, st.rot, st.ext, st.gn,
-                    st.goff, cfg.proj_depth, cfg.max_speed * h, cfg.n_proj, proj_rows, proj_ids,
-                    nrm, pts, sep, fid, work, poly, proj_dx, proj_dth)
+                    st.goff, cfg.proj_depth, cfg.n_proj, proj_rows, proj_ids, nrm, pts, sep, fid,
+                    work, poly, proj_dx, proj_dth)
                 stats[ST_PROJECTED] += n_deep
                 if n_deep > 0:
                     _apply_projection(n_deep, proj_ids, proj_dx, proj_dth, n, method, ortho, bd,
