@@ -24,13 +24,15 @@ with K_k the point's effective inverse mass (as in the velocity solve), clamped 
 ``lambda >= 0`` (pushes only). There is no cap on the push per step (unlike the split
 impulses' ``max_correction_speed``): an overlap that a step made is undone in that step, up to
 the ~2 mm that a box struck at 2 m/s can make in 1 ms; a scene that starts with overlaps has
-them pushed out to ``depth`` in its first step, without any velocity. Only positions and orientations move; the momenta P and L are
-untouched (but for the hand-back below), so the pass injects no momentum, and no kinetic energy
-into isotropic bodies (for others the turned inertia changes the spin energy by O(|dth|) of
-it, as the split-impulse pseudo spin does); the next step's contacts, at the corrected depth,
-stop the approach. The pair's impulses are equal and opposite at one point, so its centre of
-mass stays put; the world step hands the orbital change ``dx x P`` back to the spin, as after
-the split-impulse shift, so that ``sum(x x P + L)`` stays exact.
+them pushed out to ``depth`` in its first step, without any velocity.
+
+Only positions and orientations move; the momenta P and L are untouched (but for the hand-back
+below), so the pass injects no momentum, and no kinetic energy into isotropic bodies (for
+others the turned inertia changes the spin energy by O(|dth|) of it, as the split-impulse
+pseudo spin does); the next step's contacts, at the corrected depth, stop the approach. The
+pair's impulses are equal and opposite at one point, so its centre of mass stays put; the
+world step hands the orbital change ``dx x P`` back to the spin, as after the split-impulse
+shift, so that ``sum(x x P + L)`` stays exact.
 
 Shapes and frames: ``pairs`` (K, 2) shape ids (bodies, static boxes, ground; see broadphase),
 ``position`` (N, 3) and ``rotation`` (N, 3, 3) body -> world at the end of the step;
@@ -156,8 +158,8 @@ def project_positions(pairs, n_pairs, n_dyn, n_static, geom, size, inv_mass, inv
 
     ``rows`` (R, 12) / ``ids`` (R, 2) are scratch point rows (grown when full); ``dx``/``dth``
     (N+1, 3) receive each body's correction (zeroed here for the bodies of the gathered points;
-    read them only for those). Returns (number of gathered points, rows, ids); 0 when nothing is deeper than
-    ``depth``.
+    read them only for those). Returns (number of gathered points, rows, ids); the number is 0
+    when nothing is deeper than ``depth``.
     """
     deepest = 0.0
     ring = np.zeros(n_dyn + 1, np.int64)  # ring of each body (0: not gathered)
