@@ -303,9 +303,10 @@ def test_pile_of_500_boxes():
         out, _, bad, _ = simulate(world, state, 2e-3, 10, stride=10)
         assert bad == -1
         worst = max(worst, max_penetration(world, state.position, state.rotation))
-    # issue target 0.5 mm, not met: measured 0.9-1.5 mm over seeds 0-2 (MuJoCo on the same
-    # pile: ~40 mm). The deep moments are tumbling boxes whose corners swing in within one step.
-    assert worst <= 2e-3
+    # issue target 0.5 mm: measured 0.23-0.25 mm over seeds 0-2 (0.25-0.31 mm sampling every
+    # step; before the project stage 0.9-1.5 mm, from tumbling boxes whose corners swung in
+    # within one step; MuJoCo on the same pile: ~40 mm)
+    assert worst <= 0.5e-3
     assert state.position[:, 2].max() < 0.6  # settled into a pile
 
 
@@ -340,3 +341,97 @@ def test_box_rests_on_a_static_box_table():
     assert abs(state.position[0, 2] - 0.65) < 1e-4  # table top 0.55 + half extent 0.1
     assert np.all(contacts.body_b[-4:] == STATIC_BODY)
     assert world.n_awake == 0  # at rest, asleep
+
+
+# ---- project stage (end-of-step penetration) -------------------------------------------------
+
+def _random_unit_quat(rng):
+    q = rng.normal(size=4)
+    return q / np.linalg.norm(q)
+
+
+@pytest.mark.parametrize("dt", [1e-3, 2e-3])
+def test_tumbling_box_landing_on_a_box_edge_stays_within_target(dt):
+    """Cubes of 0.1 m spinning at 20-50 rad/s (corner speeds 1.7-4.3 m/s) and falling at 1-4 m/s
+    land, in random orientations, on and over the top rim of a cube resting on the ground: 300
+    drops. Within a step such a corner can swing over the rim, or an incident edge slide past
+    it, where none of the step's contact points is (the step's manifolds are clipped at its
+    start). The project stage re-runs the narrowphase at the end of every step and pushes any
+    point deeper than projection_depth out to it, so no overlap is ever deeper than the issue's
+    target of 0.5 mm (to first order it is at most projection_depth = 0.2 mm; the rest is the
+    linearisation of the correction)."""
+    from rblog.contact.measure import max_penetration
+
+    params = ContactParams()
+    assert params.projection_depth <= 0.5e-3
+    e = 0.05
+    n = 2
+    model = make_model([SHAPE_BOX] * n, [[e] * 3] * n, [0.1] * n, restitution=0.2, friction=0.6)
+    outs = [np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros((1, n, 4)), np.zeros((1, n, 3, 3)),
+            np.zeros((1, n, 3))]
+    worst = 0.0
+    drops = 0
+    for seed in range(300):
+        rng = np.random.default_rng(seed)
+        ang, off = rng.uniform(0.0, 2.0 * np.pi), rng.uniform(0.04, 0.1)
+        # lowest point of the tumbling cube at most 1 cm above the resting cube's top face
+        p0 = [off * np.cos(ang), off * np.sin(ang), 2 * e + np.sqrt(3) * e + rng.uniform(0, 0.01)]
+        w = rng.normal(size=3)
+        w *= rng.uniform(20.0, 50.0) / np.linalg.norm(w)
+        v = [rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), -rng.uniform(1.0, 4.0)]
+        state = make_state(model, [p0, [0.0, 0.0, e]], [v, [0.0, 0.0, 0.0]],
+                           quat_wxyz=[_random_unit_quat(rng), [1.0, 0.0, 0.0, 0.0]],
+                           omega=[w, [0.0, 0.0, 0.0]])
+        world = ContactWorld(model, ContactParams(), *SPLIT)
+        if max_penetration(world, state.position, state.rotation) > 0.0:
+            continue  # this random start overlaps already
+        drops += 1
+        for _ in range(int(round(0.15 / dt))):
+            _, bad, _, _ = world.advance(dt, 1, 1, False, state.position, state.linear_momentum,
+                                         state.quat_wxyz, state.rotation,
+                                         state.angular_momentum_world, *outs)
+            assert bad == -1
+            worst = max(worst, max_penetration(world, state.position, state.rotation))
+    assert drops >= 250
+    assert worst <= 0.5e-3, worst  # measured 0.20 mm at dt = 1 ms, 0.25 mm at 2 ms
+
+
+def test_projection_resolves_an_overlap_without_velocity():
+    """Two cubes at rest in zero g, overlapping d = 3 mm face to face. The velocity solve leaves
+    them at rest (vn = 0 already meets vn >= 0); the split impulses remove
+    min(beta (d - slop), max_correction_speed dt) = 1 mm; the project stage pushes the other
+    2 mm out to projection_depth in the same step. Only positions move: both momenta stay
+    exactly zero and the pair's centre of mass stays put (face-face: a translation, which the
+    linearised projection gets exactly once its Gauss-Seidel sweeps over the four coupled
+    corners have converged; they converge geometrically, to 1 % here)."""
+    from rblog.contact.measure import max_penetration
+
+    e, d, dt = 0.05, 3e-3, 1e-3
+    params = ContactParams(sleep=False)
+    model = make_model([SHAPE_BOX] * 2, [[e] * 3] * 2, [1.0, 2.0], gravity=(0, 0, 0),
+                       ground=False)
+    world = ContactWorld(model, params, *SPLIT)
+    state = make_state(model, [[0.0, 0.0, 0.0], [2 * e - d, 0.0, 0.0]])
+    com0 = (model.body_mass[:, None] * state.position).sum(0) / model.body_mass.sum()
+    _, _, bad, _ = simulate(world, state, dt, 1)
+    assert bad == -1
+    pen = max_penetration(world, state.position, state.rotation)
+    assert abs(pen - params.projection_depth) <= 0.01 * params.projection_depth, pen
+    assert np.all(state.linear_momentum == 0.0) and np.all(state.angular_momentum_world == 0.0)
+    com1 = (model.body_mass[:, None] * state.position).sum(0) / model.body_mass.sum()
+    assert np.abs(com1 - com0).max() <= 1e-15
+    # from there on the split impulses take it to the slop; the project stage stays idle
+    simulate(world, state, dt, 200)
+    assert max_penetration(world, state.position, state.rotation) <= params.projection_depth
+    assert np.all(state.linear_momentum == 0.0)
+
+
+def test_projection_settings_are_validated():
+    with pytest.raises(ValueError):
+        ContactParams(projection_depth=0.0)
+    with pytest.raises(ValueError):
+        ContactParams(projection_iterations=-1)
+    with pytest.raises(ValueError):
+        ContactParams(projection_iterations=1.5)
+    assert ContactParams.from_dict({"projection_iterations": 0}).projection_iterations == 0
+

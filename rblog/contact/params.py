@@ -36,7 +36,8 @@ class ContactParams:
             removed per step by the split-impulse pass (Baumgarte factor, in (0, 1]). Higher values
             fix penetration faster but overshoot where many contacts interact.
         max_correction_speed: m/s. Cap on the pseudo velocity that removes penetration, so a deep
-            overlap is resolved over several steps instead of popping bodies apart.
+            overlap is resolved over several steps instead of popping bodies apart (the project
+            stage has no such cap: see ``projection_depth``).
         speculative_distance: m. Contact points are generated while the surfaces are closer
             than this plus the distance the pair can close in one step (relative speed times dt),
             so fast bodies cannot tunnel through thin geometry. Larger values cost more contact
@@ -58,6 +59,18 @@ class ContactParams:
         sleep_time: s. How long an island must stay below ``sleep_speed`` before it sleeps.
         warm_starting: start each step's solve from the previous step's impulses (matched by
             feature id). Turning it off is only useful to demonstrate why it exists.
+        projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
+            positions moved, the narrowphase runs again at the end-of-step poses and every
+            point deeper than ``projection_depth`` is pushed out to that depth by moving
+            positions and orientations (no velocity changes). It catches features that were not
+            in the step's manifolds (a tumbling box's corner swinging over an edge, a pair
+            struck within the step). 0 turns the stage off.
+        projection_depth: m. Penetration the project stage leaves (its target depth), and the
+            depth below which it does nothing. It must exceed the resting depth of the
+            split-impulse pass (a few ``allowed_penetration``), so that resting contacts are
+            left to the velocity and split-impulse passes and only fast, unforeseen overlaps
+            are projected. A deeper overlap is pushed out to this depth in one step, without
+            any velocity: a scene that starts overlapping is separated in its first step.
     """
 
     velocity_iterations: int = 4
@@ -74,6 +87,8 @@ class ContactParams:
     sleep_speed: float = 0.005
     sleep_time: float = 0.5
     warm_starting: bool = True
+    projection_iterations: int = 4
+    projection_depth: float = 2e-4
 
     def __post_init__(self) -> None:
         self.validate()
@@ -93,11 +108,14 @@ class ContactParams:
             "friction_anchor_distance": self.friction_anchor_distance >= 0.0,
             "sleep_speed": self.sleep_speed >= 0.0,
             "sleep_time": self.sleep_time >= 0.0,
+            "projection_iterations": self.projection_iterations >= 0,
+            "projection_depth": self.projection_depth > 0.0,
         }
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"contact.{name} = {getattr(self, name)!r} is out of range")
-        for name in ("velocity_iterations", "max_velocity_iterations", "position_iterations"):
+        for name in ("velocity_iterations", "max_velocity_iterations", "position_iterations",
+                     "projection_iterations"):
             if int(getattr(self, name)) != getattr(self, name):
                 raise ValueError(f"contact.{name} must be an integer")
 

@@ -17,7 +17,11 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
                         integrator's own); momenta P, L rebuilt from the solver's velocity changes
     10 restitution      bounce impact points (energy-consistent rule, solver.py), P += J, L += r x J
     11 store impulses   friction as world vectors for the next step
-    12 sleep            rest timers, islands, put resting islands to sleep (island.py)
+    12 project          narrowphase again at the end-of-step poses; points deeper than
+                        projection_depth are pushed out by nonlinear Gauss-Seidel on positions
+                        and orientations (project.py); the shift's orbital angular momentum
+                        dx x P is handed back to the spin, as in 8
+    13 sleep            rest timers, islands, put resting islands to sleep (island.py)
 
 Translation is symplectic Euler (kick, then drift with the new velocity) for every integrator:
 contact solvers need the velocity that the drift will use. Torques are kicks too.
@@ -45,6 +49,7 @@ from .manifold import (
     MF_N, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_IMPACT, PF_LN, PF_P, PF_SEND,
 )
 from .narrowphase import MAX_CLIP_POINTS
+from .project import PROJ_COLS, project_positions
 from .solver import (
     load_bodies, prepare_contacts, relax_positions, restitution, solve_velocities,
     store_impulses, warm_start,
@@ -58,12 +63,13 @@ Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff 
 #: stage switches and solver settings (see params.ContactParams)
 Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol n_pos slop "
                                   "beta max_speed "
-                                  "margin e_threshold anchor sleep_speed sleep_time warm")
+                                  "margin e_threshold anchor sleep_speed sleep_time warm "
+                                  "n_proj proj_depth")
 
 # indices into the stats array the kernel accumulates
 (ST_STEPS, ST_PAIRS, ST_MANIFOLDS, ST_POINTS, ST_AWAKE, ST_IMPACTS, ST_WOKEN, ST_SLEPT,
- ST_SWEEPS) = range(9)
-N_STATS = 9
+ ST_SWEEPS, ST_PROJECTED) = range(10)
+N_STATS = 10
 
 
 @njit(cache=True)
@@ -147,6 +153,41 @@ def _sync(method, quat_wxyz, rotation, i):
 
 
 @njit(cache=True)
+def _apply_projection(n_deep, ids, dx, dth, n, method, ortho, bd, iso_shortcut, position,
+                      rotation, quat_wxyz, linear_momentum, angular_momentum, l_scratch):
+    """Move the bodies of the project stage's points by their corrections: x += dx, the
+    orientation by the rotation vector dth (through the run's integrator: a drift of unit
+    duration with L = I_world dth), and L -= dx x P so that sum(x x P + L) stays exact."""
+    for p in range(n_deep):
+        for c in range(2):
+            i = ids[p, c]
+            if i >= n:
+                continue
+            ux, uy, uz = dx[i, 0], dx[i, 1], dx[i, 2]
+            tx, ty, tz = dth[i, 0], dth[i, 1], dth[i, 2]
+            if ux == 0.0 and uy == 0.0 and uz == 0.0 and tx == 0.0 and ty == 0.0 and tz == 0.0:
+                continue  # no correction, or already applied (a body can have many points)
+            position[i, 0] += ux
+            position[i, 1] += uy
+            position[i, 2] += uz
+            qx, qy, qz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
+            angular_momentum[i, 0] -= uy * qz - uz * qy
+            angular_momentum[i, 1] -= uz * qx - ux * qz
+            angular_momentum[i, 2] -= ux * qy - uy * qx
+            if tx != 0.0 or ty != 0.0 or tz != 0.0:
+                if iso_shortcut and bd.iso[i]:
+                    s0 = bd.inertia[i, 0]
+                    jx, jy, jz = s0 * tx, s0 * ty, s0 * tz
+                else:
+                    jx, jy, jz = _inertia_world_times(bd, rotation, i, tx, ty, tz)
+                l_scratch[i, 0], l_scratch[i, 1], l_scratch[i, 2] = jx, jy, jz
+                _drift(method, ortho, quat_wxyz, rotation, l_scratch, bd.inv_inertia, i, 1.0)
+            for k in range(3):
+                dx[i, k] = 0.0
+                dth[i, k] = 0.0
+
+
+@njit(cache=True)
 def _state_sum(i, position, linear_momentum, angular_momentum, rotation):
     """One sum that is non-finite when any of the body's state is (position, momenta, R)."""
     return (position[i, 0] + position[i, 1] + position[i, 2] + linear_momentum[i, 0]
@@ -209,6 +250,10 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
     blk = np.zeros((4, 5))
     hot = np.zeros(n + 1, np.int64)
     dx_step = np.zeros((n + 1, 3))  # displacement this step (row n: the static dummy, 0)
+    proj_rows = np.zeros((64, PROJ_COLS))  # project stage: gathered points (project.py)
+    proj_ids = np.zeros((64, 2), np.int64)
+    proj_dx = np.zeros((n + 1, 3))
+    proj_dth = np.zeros((n + 1, 3))
     n_man = n_man0
     n_log = 0
     n_samples = 0
@@ -325,7 +370,19 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
             pf0, pf1 = pf1, pf0
             pid0, pid1 = pid1, pid0
             n_man0 = n_man
-            # 12 sleep (and wake what was pushed on)
+            # 12 project: points deeper than projection_depth at the end-of-step poses
+            if cfg.n_proj > 0:
+                n_deep, proj_rows, proj_ids = project_positions(
+                    pairs, n_pairs, n, ns, bd.geom, bd.size, bd.inv_mass, bd.inv_inertia, bd.iso,
+                    cfg.iso_shortcut, awake, position, rotation, st.pos, st.rot, st.ext, st.gn,
+                    st.goff, cfg.proj_depth, cfg.n_proj, proj_rows, proj_ids, nrm, pts, sep, fid,
+                    work, poly, proj_dx, proj_dth)
+                stats[ST_PROJECTED] += n_deep
+                if n_deep > 0:
+                    _apply_projection(n_deep, proj_ids, proj_dx, proj_dth, n, method, ortho, bd,
+                                      cfg.iso_shortcut, position, rotation, quat_wxyz,
+                                      linear_momentum, angular_momentum, l_drift)
+            # 13 sleep (and wake what was pushed on)
             if cfg.do_sleep and n_awake < n:
                 stats[ST_WOKEN] += wake_pushed(mi0, pf0, n_man0, n, awake, sleep_timer, island_of,
                                                linear_momentum, angular_momentum, bd.force,

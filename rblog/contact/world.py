@@ -128,7 +128,7 @@ class ContactWorld:
             float(p.position_correction_rate), float(p.max_correction_speed),
             float(p.speculative_distance), float(p.restitution_threshold),
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
-            bool(p.warm_starting))
+            bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth))
         # the free-body kernel's inputs, for scenes where nothing can touch
         self._inv_mass = 1.0 / mass
         self._inv_inertia = inv_inertia
@@ -149,7 +149,7 @@ class ContactWorld:
         self._log_f = np.zeros((64, LOG_F_COLS))
         #: counters accumulated over all calls: steps with awake bodies, candidate pairs,
         #: manifolds, points, awake body-steps, impact points, islands woken, bodies put to sleep,
-        #: velocity sweeps
+        #: velocity sweeps, points pushed out by the project stage
         self.stats = np.zeros(N_STATS, np.int64)
 
     # ---- set-up helpers ---------------------------------------------------------------------
@@ -238,6 +238,12 @@ class ContactWorld:
             e.append(("relax: skipped", "position_iterations = 0"))
         e.append(("restitution", f"max(e_a, e_b), impacts above {p.restitution_threshold:g} m/s, "
                                  "energy-consistent rebound"))
+        if p.projection_iterations > 0:
+            e.append(("project: nonlinear Gauss-Seidel",
+                      f"narrowphase at the end-of-step poses; points deeper than "
+                      f"{p.projection_depth:g} m pushed out to it, {p.projection_iterations} sweeps"))
+        else:
+            e.append(("project: skipped", "projection_iterations = 0"))
         if self.do_sleep:
             e.append(("sleeping", f"islands below {p.sleep_speed:g} m/s for {p.sleep_time:g} s"))
         elif self.force_all_stages:
