@@ -278,18 +278,23 @@ def head_on(e=1.0, alter_b=1.0, duration=1.2):
     return build(model, t, x, v, r, l, contacts=contacts_of(rows)), (ua2, ub2, tc)
 
 
-def resting_box(duration=2.0, sink=0.0, sink_from=1.0, slide=0.0, shake=0.0, log_contacts=True):
+def resting_box(duration=2.0, sink=0.0, sink_from=1.0, slide=0.0, shake=0.0, log_contacts=True,
+                kick=None):
     """A 0.2 m cube (1 kg) resting flat on the ground (turned 0.3 rad about z).
 
     sink: poses shifted this far below the ground from sink_from on (penetration fault).
     slide: constant horizontal speed (creep fault).  shake: vertical velocity alternating +-shake
-    between samples (jitter fault)."""
+    between samples (jitter fault).  kick: (kind, dv) a vertical velocity change of dv at t = 1 s,
+    kind "step" (kept) or "spike" (one sample): a struck box, not jitter."""
     hh = 0.1
     model = make_model([dict(shape="box", size=(hh, hh, hh), mass=1.0, mu=0.5)], ground=True)
     t = times(duration)
     z = np.where(t >= sink_from, hh - sink, hh)
     x = np.stack([0.3 + slide * t, np.full_like(t, -0.2), z], axis=1)[:, None]
     vz = shake * (-1.0) ** np.arange(len(t))
+    if kick is not None:
+        k0 = int(np.searchsorted(t, 1.0))
+        vz[k0:k0 + (1 if kick[0] == "spike" else len(t))] += kick[1]
     v = np.stack([np.full_like(t, slide), np.zeros_like(t), vz], axis=1)[:, None]
     r0 = rot([0, 0, 1], 0.3)[0]
     r = np.broadcast_to(r0, (len(t), 1, 3, 3))
@@ -726,6 +731,18 @@ def test_penetration_flags_poses_below_ground_at_rest():
     t = traj.t
     assert pen.stats["rest_depth_mean_m"] == pytest.approx(sink * (t >= 1.0).mean(), rel=1e-9)
     assert "tunneling" not in flagged(traj)
+
+
+@pytest.mark.parametrize("kind", ["step", "spike"])
+def test_penetration_single_kick_is_not_jitter(kind):
+    """A resting box whose velocity changes once (struck) is not jittering: a step makes two
+    alternating second differences, a spike three, and jitter must persist over four."""
+    pen = results(resting_box(kick=(kind, 0.04)))["penetration"]
+    assert not any("jitters" in f.message for f in pen.findings), pen.findings
+    assert pen.stats["jitter_max_mps"] == 0.0
+    # the same velocities flipping every sample are jitter, at their full amplitude
+    pen = results(resting_box(shake=0.04))["penetration"]
+    assert pen.stats["jitter_max_mps"] == pytest.approx(0.04, rel=1e-9)
 
 
 def test_penetration_flags_jitter_and_creep():

@@ -20,10 +20,7 @@ REPO = Path(__file__).resolve().parent.parent
 #: samples that take long enough to simulate (500 bodies in contact) to live behind -m slow
 SLOW_SAMPLES = {"pile"}
 #: known engine faults that `rblog check` rightly flags (strict: the test fails once fixed)
-KNOWN_FAULTS = {
-    "pile": "contact engine: in the 500-box pile, boxes resting on boxes jitter at ~1 cm/s "
-            "(rblog check: penetration analyzer)",
-}
+KNOWN_FAULTS: dict[str, str] = {}
 SAMPLES = [pytest.param(p.stem, marks=[pytest.mark.slow] + (
     [pytest.mark.xfail(strict=True, reason=KNOWN_FAULTS[p.stem])] if p.stem in KNOWN_FAULTS else []))
     if p.stem in SLOW_SAMPLES else p.stem for p in sorted((REPO / "samples").glob("*.toml"))]

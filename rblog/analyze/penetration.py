@@ -12,9 +12,11 @@ centre).
   bouncing ball does not.
 * Per resting interval: max and mean depth, duration; after SETTLE_S, the largest contact-point
   speed, jitter and creep. Jitter is the alternating part of the contact-point velocity,
-  ``|v(k+1) - 2 v(k) + v(k-1)| / 4``: exactly the amplitude of a velocity that flips between
-  samples, and zero for any motion at constant acceleration, so a body that slides off slowly,
-  decelerates to a stop or tips over is not jitter. Creep is the net tangential slip at the
+  ``|v(k+1) - 2 v(k) + v(k-1)| / 4`` on one partner, kept only where it persists over
+  JITTER_PERSIST_SAMPLES consecutive samples: exactly the amplitude of a velocity that flips
+  between samples, and zero for any motion at constant acceleration (a body that slides off
+  slowly, decelerates to a stop or tips over) and for a single kick (a resting box struck by
+  another: an impact, not jitter). Creep is the net tangential slip at the
   contact (integrated slip velocity), counting only samples slower than CREEP_SPEED_MPS, so that
   a body that starts to slide away is not creep; a sphere rolling without slip does not creep.
 * Flags: resting depth beyond min(DEPTH_M, DEPTH_FRAC x the body's inner radius), any depth (an
@@ -77,12 +79,14 @@ class PenetrationAnalyzer(Analyzer):
         "rest_min_samples": T.PENETRATION_REST_MIN_SAMPLES,
         "settle_s": T.PENETRATION_SETTLE_S,
         "jitter_mps": T.PENETRATION_JITTER_MPS,
+        "jitter_persist_samples": T.PENETRATION_JITTER_PERSIST_SAMPLES,
         "creep_m": T.PENETRATION_CREEP_M,
         "creep_speed_mps": T.PENETRATION_CREEP_SPEED_MPS,
         "contact_distance_m": T.CONTACT_DISTANCE_M,
     }
     units = {"depth_m": "m", "transient_depth_m": "m", "rest_speed_mps": "m/s",
-             "rest_min_samples": "samples", "settle_s": "s", "jitter_mps": "m/s", "creep_m": "m",
+             "rest_min_samples": "samples", "settle_s": "s", "jitter_mps": "m/s",
+             "jitter_persist_samples": "samples", "creep_m": "m",
              "creep_speed_mps": "m/s", "contact_distance_m": "m"}
 
     def supports(self, ctx: Context):
@@ -230,12 +234,25 @@ class PenetrationAnalyzer(Analyzer):
             settled = in_run & (t[pk] >= t[ks][run_of] + tol["settle_s"])
             speed_settled = red(np.maximum, np.where(settled, cspeed, 0.0))
             # jitter: the alternating part of the contact-point velocity, |v+ - 2 v + v-| / 4,
-            # at settled rows whose neighbours are settled rows of the same run
+            # at settled rows whose neighbours are settled rows of the same run on the same
+            # partner (velocities relative to different partners are not comparable) ...
             osc = np.zeros(nrow)
             if nrow > 2:
-                mid = settled[1:-1] & settled[:-2] & settled[2:] & nxt_same[:-2] & nxt_same[1:-1]
+                mid = (settled[1:-1] & settled[:-2] & settled[2:] & nxt_same[:-2] & nxt_same[1:-1]
+                       & (pb[:-2] == pb[1:-1]) & (pb[2:] == pb[1:-1]))
                 d2 = cv[2:] - 2.0 * cv[1:-1] + cv[:-2]
                 osc[1:-1] = np.where(mid, 0.25 * np.sqrt(np.einsum("ij,ij->i", d2, d2)), 0.0)
+            # ... that persists: the smallest of JITTER_PERSIST_SAMPLES consecutive values. A
+            # velocity flipping every sample keeps its full amplitude; a single kick (a box
+            # struck by another: a step change of velocity, or a one-sample spike) gives two or
+            # three alternating values and then none, so it is an impact, not jitter.
+            w = int(tol["jitter_persist_samples"])
+            if w > 1 and nrow >= w:
+                win = np.lib.stride_tricks.sliding_window_view(osc, w)
+                eroded = np.zeros(nrow)
+                h = w // 2
+                eroded[h:nrow - (w - 1 - h)] = win.min(axis=1)
+                osc = eroded
             jit = red(np.maximum, osc)
             has_settled = red(np.maximum, settled.astype(float)) > 0
             slow = settled & (np.sqrt(np.einsum("ij,ij->i", slip, slip)) <= tol["creep_speed_mps"])

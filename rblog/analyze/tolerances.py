@@ -100,6 +100,10 @@ PENETRATION_SETTLE_S = 0.1
 #: it also stays above the kink of a body put to sleep from the engine's sleep speed (5 mm/s ->
 #: 0 gives 1.25 mm/s). A good engine is at ~1e-6 m/s.
 PENETRATION_JITTER_MPS = 2e-3
+#: Jitter must persist: the alternating amplitude is the smallest of this many consecutive
+#: samples (samples). A step change of velocity (a kick) makes two alternating second
+#: differences, a one-sample spike three; an oscillation that lasts longer is jitter.
+PENETRATION_JITTER_PERSIST_SAMPLES = 4
 #: Max net slip at the contact while settled (m); only samples slower than CREEP_SPEED_MPS count,
 #: so that a body that slides off (a ramp steeper than its friction allows) is not creep.
 PENETRATION_CREEP_M = 1e-3
