@@ -401,16 +401,12 @@ def _encode_frame_transforms(ns, dbl, rest, rest_start, dbl_off, out, bounds):
             out[k] = 0x0A  # FrameTransform.timestamp
             out[k + 1] = lts
             k += 2
-            for b in range(lts):
-                out[k + b] = ts[b]
+            out[k:k + lts] = ts[:lts]
             k += lts
-            start = k
-            for b in range(r1 - r0):
-                out[k + b] = rest[r0 + b]
-            k += r1 - r0
+            out[k:k + r1 - r0] = rest[r0:r1]
             for c in range(7):
                 d8[0] = dbl[t, i, c]
-                o = start + dbl_off[i, c]
-                for b in range(8):
-                    out[o + b] = d8u[b]
+                o = k + dbl_off[i, c]
+                out[o:o + 8] = d8u
+            k += r1 - r0
     bounds[ns.shape[0]] = k
