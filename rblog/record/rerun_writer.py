@@ -108,7 +108,6 @@ class RerunRecorder:
                 raise LogWriteError(self.path, e.strerror or str(e)) from None
         self._model = model
         self._n = model.n_bodies
-        self._names = C.view_names(model.body_name)
         self._dt = float(info.dt) if info.dt else 1.0
         self.write_footer = _expected_chunks(model, info) <= RRD_FOOTER_MAX_CHUNKS
         # The file and the live viewer get separate streams (same recording id), so a viewer
@@ -132,7 +131,6 @@ class RerunRecorder:
         except (RuntimeError, ValueError, OSError) as e:
             self._disconnect_all()
             raise LogWriteError(where, str(e).splitlines()[0] if str(e) else type(e).__name__) from None
-        self._d_pose: dict[str, tuple] = {}
         self._init_descriptors()
         self._log_static(model, info)
         self._flush(force=True)
@@ -187,7 +185,7 @@ class RerunRecorder:
     def _init_descriptors(self):
         z3, z4 = np.zeros((1, 3)), np.array([[0.0, 0.0, 0.0, 1.0]])
         # bodies are drawn as instances of one entity per shape kind (one send per block, not
-        # one per body): entity -> (body indices, archetype)
+        # one per body): entity -> (body indices, archetype, centers and quaternions descriptors)
         shape = np.asarray(self._model.body_shape)
         self._body_groups = {}
         for ent, arch, sel in ((BOXES_ENTITY, rr.Boxes3D, shape != SHAPE_SPHERE),
@@ -195,8 +193,7 @@ class RerunRecorder:
             members = np.flatnonzero(sel)
             if len(members):
                 d = _descriptors(arch.columns(centers=z3, quaternions=z4))
-                self._body_groups[ent] = (members, arch)
-                self._d_pose[ent] = (d["centers"], d["quaternions"])
+                self._body_groups[ent] = (members, arch, d["centers"], d["quaternions"])
         self._d_scalar = _descriptors(rr.Scalars.columns(scalars=[0.0]))["scalars"]
         self._d_pts = _descriptors(rr.Points3D.columns(positions=z3))["positions"]
         self._d_arrows = _descriptors(rr.Arrows3D.columns(vectors=z3, origins=z3))
@@ -232,8 +229,8 @@ class RerunRecorder:
                 centers=[model.static_box_position[j]], half_sizes=[model.static_box_half_extents[j]],
                 quaternions=[rr.Quaternion(xyzw=[*q[1:], q[0]])], colors=[[150, 150, 165, 200]],
                 fill_mode="solid"), static=True)
-        show_labels = len(self._names) <= LABELS_MAX_BODIES
-        for ent, (members, arch) in self._body_groups.items():
+        show_labels = self._n <= LABELS_MAX_BODIES
+        for ent, (members, arch, _, _) in self._body_groups.items():
             size = np.asarray(model.body_size, np.float64)[members]
             kw = dict(colors=_PALETTE[members % len(_PALETTE)],
                       labels=[str(model.body_name[i]) for i in members], show_labels=show_labels,
@@ -279,7 +276,7 @@ class RerunRecorder:
         # body poses (float32; view only): one row of instances per sample and shape kind
         pos = a["position"].reshape(T, n, 3)
         q = a["quat_wxyz"].reshape(T, n, 4)
-        for ent, (members, _) in self._body_groups.items():
+        for ent, (members, _, d_c, d_q) in self._body_groups.items():
             k = len(members)
             whole = k == n
             p_e = pos if whole else pos[:, members]
@@ -287,7 +284,6 @@ class RerunRecorder:
             xyzw = np.empty((T, k, 4), np.float32)
             xyzw[..., :3] = q_e[..., 1:]
             xyzw[..., 3] = q_e[..., 0]
-            d_c, d_q = self._d_pose[ent]
             self._send(ent, idx, [_Column(d_c, _fixed(p_e, 3), rows * k),
                                   _Column(d_q, _fixed(xyzw, 4), rows * k)])
 
