@@ -212,7 +212,9 @@ def run(
 
     bufs = new_buffers()
 
-    # load (or compile, the first time) the kernels before the clock starts
+    # load (or compile, the first time) the kernels before the clock starts; the notice is
+    # printed at most once per run
+    notice = _once(notice)
     with CompileNotice(notice):
         advance(dt, 0, stride, False, st.copy(), bufs)
         derive(model, info, np.array([0]), np.array([0.0]), st.position[None], st.linear_momentum[None],
@@ -226,9 +228,11 @@ def run(
     status, message = "ok", ""
     t_start = time.perf_counter()
     try:
-        for r in recorders:
-            r.open(model, info)
-            opened.append(r)
+        with CompileNotice(notice):  # a recorder may load its compiled encoders when it opens
+            for r in recorders:
+                r.open(model, info)
+                opened.append(r)
+        t_start = time.perf_counter()  # the run's wall time: stepping and writing
         writer = _BlockWriter(model, info, drift, opened)
         writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
                       st.quat_wxyz[None].copy(), st.rotation[None].copy(),
@@ -422,6 +426,19 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int):
         return ns, bad_step, bad_body, None
 
     return advance
+
+
+def _once(fn):
+    """``fn`` that does something on its first call only (None stays None)."""
+    if fn is None:
+        return None
+    done = []
+
+    def call(*args):
+        if not done:
+            done.append(True)
+            fn(*args)
+    return call
 
 
 class CompileNotice:

@@ -110,6 +110,8 @@ class McapRecorder:
             self._w.add_metadata("rblog", {k: str(v) for k, v in C.info_to_fields(info).items()
                                            if k not in ("scene_toml", "scene_resolved_json")})
             self._tf_tmpl = _TfEncoder(self._names)
+            n = self._n  # load (or compile, the first time) the encoder now, not mid-run
+            self._tf_tmpl.rows(np.zeros(1, np.int64), np.zeros((1, n, 3)), np.zeros((1, n, 4)))
             self._flush(force=True)
         except OSError as e:
             self._abandon()
