@@ -226,7 +226,6 @@ def run(
     done = 0
     n_samples = 0
     status, message = "ok", ""
-    t_start = time.perf_counter()
     try:
         with CompileNotice(notice):  # a recorder may load its compiled encoders when it opens
             for r in recorders:
