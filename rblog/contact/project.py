@@ -45,6 +45,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..rotation import load_mat, omega_world
 from .collide import pair_geometry
 from .narrowphase import COLLIDE_TABLE, collide
 
@@ -69,13 +70,8 @@ def _inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, i, x, y, z):
     if iso_shortcut and iso[i]:
         s = inv_inertia[i, 0]
         return s * x, s * y, s * z
-    r = rotation[i]
-    b0 = (r[0, 0] * x + r[1, 0] * y + r[2, 0] * z) * inv_inertia[i, 0]
-    b1 = (r[0, 1] * x + r[1, 1] * y + r[2, 1] * z) * inv_inertia[i, 1]
-    b2 = (r[0, 2] * x + r[1, 2] * y + r[2, 2] * z) * inv_inertia[i, 2]
-    return (r[0, 0] * b0 + r[0, 1] * b1 + r[0, 2] * b2,
-            r[1, 0] * b0 + r[1, 1] * b1 + r[1, 2] * b2,
-            r[2, 0] * b0 + r[2, 1] * b1 + r[2, 2] * b2)
+    return omega_world(load_mat(rotation, i), inv_inertia[i, 0], inv_inertia[i, 1],
+                       inv_inertia[i, 2], x, y, z)
 
 
 @njit(cache=True)

@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from ..kernels import write_sample
-from ..rotation import drift_rotation, sync_quat
+from ..rotation import drift_rotation, load_mat, omega_world, sync_quat
 from ..trajectory import CONTACT_IMPACT, CONTACT_RESTING
 from .broadphase import _grow_pairs, body_aabbs, sweep_and_prune
 from .collide import collide_pairs, grow_manifolds, grow_points, sort_manifolds
@@ -129,14 +129,10 @@ def _store_momenta(i, bd, rotation, linear_momentum, angular_momentum, bv, bw, b
 
 @njit(cache=True)
 def _inertia_world_times(bd, rotation, i, x, y, z):
-    """R diag(I_body) R^T (x, y, z)."""
-    r = rotation[i]
-    b0 = (r[0, 0] * x + r[1, 0] * y + r[2, 0] * z) * bd.inertia[i, 0]
-    b1 = (r[0, 1] * x + r[1, 1] * y + r[2, 1] * z) * bd.inertia[i, 1]
-    b2 = (r[0, 2] * x + r[1, 2] * y + r[2, 2] * z) * bd.inertia[i, 2]
-    return (r[0, 0] * b0 + r[0, 1] * b1 + r[0, 2] * b2,
-            r[1, 0] * b0 + r[1, 1] * b1 + r[1, 2] * b2,
-            r[2, 0] * b0 + r[2, 1] * b1 + r[2, 2] * b2)
+    """R diag(I_body) R^T (x, y, z) (rotation.omega_world with the inertia in place of its
+    inverse)."""
+    return omega_world(load_mat(rotation, i), bd.inertia[i, 0], bd.inertia[i, 1],
+                       bd.inertia[i, 2], x, y, z)
 
 
 @njit(cache=True)
