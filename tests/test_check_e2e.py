@@ -20,7 +20,13 @@ REPO = Path(__file__).resolve().parent.parent
 #: samples that take long enough to simulate (500 bodies in contact) to live behind -m slow
 SLOW_SAMPLES = {"pile"}
 #: known engine faults that `rblog check` rightly flags (strict: the test fails once fixed)
-KNOWN_FAULTS: dict[str, str] = {}
+KNOWN_FAULTS: dict[str, str] = {
+    "pile": "while the pile is still settling (0.7-3 s), resting boxes show contact-point "
+            "velocity pulses of 2-4 mm/s over 2-4 samples (jitter tol 2 mm/s) and up to 1-3 mm "
+            "of creep (tol 1 mm); seen on seeds 1-3 with the converged solver of before "
+            "(200 sweeps, plain Gauss-Seidel) too, not yet told apart into shocks travelling "
+            "through the pile and solver noise (issue 3 notes)",
+}
 SAMPLES = [pytest.param(p.stem, marks=[pytest.mark.slow] + (
     [pytest.mark.xfail(strict=True, reason=KNOWN_FAULTS[p.stem])] if p.stem in KNOWN_FAULTS else []))
     if p.stem in SLOW_SAMPLES else p.stem for p in sorted((REPO / "samples").glob("*.toml"))]

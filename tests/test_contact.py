@@ -194,6 +194,38 @@ def test_stack_of_ten_boxes_stands():
     assert -contacts.separation.min() <= 1e-4
 
 
+def stack_loads_after_one_step(params):
+    """Relative error of the first step's normal impulses in a 10-cube stack built at rest,
+    against statics: the contact under cube k carries the weight of the cubes above it and its
+    own, (10 - k) m g h."""
+    model, state = box_stack(10)
+    world = ContactWorld(model, params, *SPLIT)
+    h = 1e-2
+    _, c, _, _ = simulate(world, state, h, 1, stride=1)
+    loads = {}
+    for a, b, j in zip(c.body_a, c.body_b, c.normal_impulse):
+        loads[(int(a), int(b))] = loads.get((int(a), int(b)), 0.0) + j
+    assert len(loads) == 10
+    return max(abs(v / ((10 - (max(a, b) if b >= 0 else 0)) * G * h) - 1.0)
+               for (a, b), v in loads.items())
+
+
+def test_over_relaxation_carries_a_stack_load_in_fewer_sweeps():
+    """Plain Gauss-Seidel moves a load through n bodies in ~n^2 sweeps, over-relaxed in ~n: with
+    80 sweeps the default factor gets the stack's loads within 1% (measured 0.2%), plain
+    Gauss-Seidel still misses by > 10%. Each body being in two manifolds, both are relaxed."""
+    over = ContactParams(sleep=False, velocity_tolerance=0.0, max_velocity_iterations=80)
+    assert over.over_relaxation > 1.0
+    assert stack_loads_after_one_step(over) <= 0.01
+    plain = ContactParams(sleep=False, velocity_tolerance=0.0, max_velocity_iterations=80,
+                          over_relaxation=1.0)
+    assert stack_loads_after_one_step(plain) > 0.1
+    with pytest.raises(ValueError):
+        ContactParams(over_relaxation=2.0)
+    with pytest.raises(ValueError):
+        ContactParams(over_relaxation=0.0)
+
+
 def test_sleeping_box_wakes_when_hit():
     """A resting cube falls asleep; a cube dropped on it wakes it; both end at rest."""
     model = make_model([SHAPE_BOX] * 2, [[0.1] * 3] * 2, [1.0, 1.0], restitution=0.0)

@@ -21,11 +21,22 @@ class ContactParams:
             velocity solve (sequential impulses with accumulated-impulse clamping).
         max_velocity_iterations: cap on the sweeps. After the minimum, sweeping goes on until
             the largest velocity change of a sweep is below ``velocity_tolerance``. A load has to
-            travel through a stack of n bodies, which takes ~n^2 sweeps the first time (a stack
-            of 10 built at rest needs ~100); warm starting then keeps it converged with a few.
-            Lower caps are faster in piles but let tall stacks sink until they converge.
+            travel through a stack of n bodies, which takes ~n^2 plain Gauss-Seidel sweeps the
+            first time and ~n over-relaxed ones (see ``over_relaxation``); warm starting then
+            keeps it converged with a few. A pile with ~3,000 contact points being struck all
+            the time needs ~90 sweeps to reach the tolerance, so the cap sets its cost: 30 sweeps
+            run the 500-box pile 3.5x faster than 200, with the same penetration (the project
+            stage bounds it) and the 10-box stack still within 0.1 mm. Lower caps are faster in
+            piles but let tall stacks sink until they converge.
         velocity_tolerance: m/s. Convergence test of the velocity solve (see above). Smaller
             values give exacter resting contact (no sinking, no creep) for more sweeps.
+        over_relaxation: successive over-relaxation factor of the normal impulses, in (0, 2)
+            (ODE's quickstep uses 1.3; projected SOR converges for any value in the range).
+            Applied to the manifolds whose bodies touch something else; a manifold on its own
+            is solved exactly by one update and is never relaxed. 1.0 is plain Gauss-Seidel.
+            Higher values move loads through stacks in fewer sweeps (10-box stack capped at 30
+            sweeps: its top sinks 0.06 mm at 1.6, 0.22 mm at 1.5, 0.38 mm at 1.3 and 5 mm,
+            sliding sideways, at 1.0).
         position_iterations: sweeps of the position correction (split impulses on pseudo
             velocities, which move bodies but are thrown away, so no momentum or energy is ever
             injected). 0 turns position correction off.
@@ -74,8 +85,9 @@ class ContactParams:
     """
 
     velocity_iterations: int = 4
-    max_velocity_iterations: int = 200
+    max_velocity_iterations: int = 30
     velocity_tolerance: float = 1e-4
+    over_relaxation: float = 1.6
     position_iterations: int = 3
     allowed_penetration: float = 5e-5
     position_correction_rate: float = 0.8
@@ -99,6 +111,7 @@ class ContactParams:
             "velocity_iterations": self.velocity_iterations >= 1,
             "max_velocity_iterations": self.max_velocity_iterations >= 1,
             "velocity_tolerance": self.velocity_tolerance >= 0.0,
+            "over_relaxation": 0.0 < self.over_relaxation < 2.0,
             "position_iterations": self.position_iterations >= 0,
             "allowed_penetration": self.allowed_penetration >= 0.0,
             "position_correction_rate": 0.0 < self.position_correction_rate <= 1.0,

@@ -61,7 +61,7 @@ Bodies = namedtuple("Bodies", "geom size radius inv_mass inertia inv_inertia iso
 #: static geometry: static boxes (their AABBs precomputed) and the ground plane
 Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff g_e g_mu")
 #: stage switches and solver settings (see params.ContactParams)
-Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol n_pos slop "
+Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol sor n_pos slop "
                                   "beta max_speed "
                                   "margin e_threshold anchor sleep_speed sleep_time warm "
                                   "n_proj proj_depth")
@@ -308,7 +308,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                 warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw)
             # 7 solve
             stats[ST_SWEEPS] += solve_velocities(mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h,
-                                                 cfg.n_vel, cfg.max_vel, cfg.vel_tol, blk, hot)
+                                                 cfg.n_vel, cfg.max_vel, cfg.vel_tol, blk, hot,
+                                                 in_contact, cfg.sor)
             # 8 relax: split-impulse position correction
             if cfg.n_pos > 0:
                 relax_positions(mi1, mf1, pf1, n_man, bm, bI, pv, pw, inv_h, cfg.n_pos, cfg.slop,

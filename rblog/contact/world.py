@@ -124,7 +124,7 @@ class ContactWorld:
         self._settings = Settings(
             self.do_kick, self.do_sleep, iso_shortcut, int(p.velocity_iterations),
             int(max(p.max_velocity_iterations, p.velocity_iterations)),
-            float(p.velocity_tolerance), int(p.position_iterations), float(p.allowed_penetration),
+            float(p.velocity_tolerance), float(p.over_relaxation), int(p.position_iterations), float(p.allowed_penetration),
             float(p.position_correction_rate), float(p.max_correction_speed),
             float(p.speculative_distance), float(p.restitution_threshold),
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
@@ -227,7 +227,9 @@ class ContactWorld:
             e.append(("inertia: R diag(1/I) R^T per body", "no body has isotropic inertia"))
         e.append(("solve: sequential impulses",
                   f"{p.velocity_iterations} to {p.max_velocity_iterations} sweeps (until the "
-                  f"largest correction < {p.velocity_tolerance:g} m/s), Coulomb friction sqrt(mu_a mu_b), "
+                  f"largest correction < {p.velocity_tolerance:g} m/s), normal impulses "
+                  f"over-relaxed x{p.over_relaxation:g} where bodies touch more than one "
+                  f"thing, Coulomb friction sqrt(mu_a mu_b), "
                   f"warm starting {'on' if p.warm_starting else 'off'}, speculative "
                   f"distance {p.speculative_distance:g} m + relative motion per step"))
         if p.position_iterations > 0:
