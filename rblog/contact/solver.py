@@ -21,6 +21,10 @@ Coulomb cone) the point slides and gets the maximum-dissipation impulse on the c
 friction opposes the slip exactly (see _friction_impulse). Equal and opposite impulses at the same point conserve the pair's linear
 momentum and its angular momentum about any point, to round-off.
 
+Normal impulses are over-relaxed (projected SOR, ``ContactParams.over_relaxation``) on manifolds
+whose bodies touch more than one thing, so that loads cross stacks and piles in fewer sweeps; see
+solve_velocities.
+
 Targets: a penetrating or touching point (s <= 0) wants vn >= 0; a speculative point (s > 0)
 wants vn >= -s/h, i.e. the pair may close the gap within the step but not cross it. This is what
 stops fast bodies tunnelling, and stops a falling body exactly on the surface.
