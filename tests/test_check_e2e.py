@@ -23,9 +23,9 @@ SLOW_SAMPLES = {"pile"}
 KNOWN_FAULTS: dict[str, str] = {
     "pile": "while the pile is still settling (0.7-3 s), resting boxes show contact-point "
             "velocity pulses of 2-4 mm/s over 2-4 samples (jitter tol 2 mm/s) and up to 1-3 mm "
-            "of creep (tol 1 mm); seen on seeds 1-3 with the converged solver of before "
-            "(200 sweeps, plain Gauss-Seidel) too, not yet told apart into shocks travelling "
-            "through the pile and solver noise (issue 3 notes)",
+            "of creep (tol 1 mm); seen on seeds 1-3, and with the converged solver of before "
+            "(200 sweeps, plain Gauss-Seidel) on seeds 2 and 3 too; not yet told apart into "
+            "shocks travelling through the pile and solver noise (benchmarks/RESULTS.md)",
 }
 SAMPLES = [pytest.param(p.stem, marks=[pytest.mark.slow] + (
     [pytest.mark.xfail(strict=True, reason=KNOWN_FAULTS[p.stem])] if p.stem in KNOWN_FAULTS else []))

@@ -124,7 +124,8 @@ class ContactWorld:
         self._settings = Settings(
             self.do_kick, self.do_sleep, iso_shortcut, int(p.velocity_iterations),
             int(max(p.max_velocity_iterations, p.velocity_iterations)),
-            float(p.velocity_tolerance), float(p.over_relaxation), int(p.position_iterations), float(p.allowed_penetration),
+            float(p.velocity_tolerance), float(p.over_relaxation), int(p.position_iterations),
+            float(p.allowed_penetration),
             float(p.position_correction_rate), float(p.max_correction_speed),
             float(p.speculative_distance), float(p.restitution_threshold),
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
