@@ -1,9 +1,12 @@
 """Recording benchmark: the cost of logging every step of 100 free bodies, side by side with the
 same run without logs, and bytes per body-step of each format.
 
-    python benchmarks/bench_logging.py [--bodies 100] [--steps 4000] [--integrator rk4]
+    python benchmarks/bench_logging.py [--bodies 100] [--steps 4000] [--integrator rk4] [--no-contacts]
 
 Target (issue 4): a run that logs every step to both formats takes at most 2x the run without.
+Two scenes: free bodies (no contacts: the cheapest step rblog has, so the worst case for the
+ratio) and the same number of boxes dropped onto the ground and onto each other (contacts, and
+the contacts' records in the logs).
 """
 
 from __future__ import annotations
@@ -40,6 +43,31 @@ mass = 1.0
 """
 
 
+CONTACT_SCENE = """
+[sim]
+dt = 1e-3
+duration = {duration}
+seed = 1
+[ground]
+restitution = 0.2
+friction = 0.6
+[[generator]]
+layout = "grid"
+grid = [{nx}, {ny}, 2]
+spacing = [0.18, 0.18, 0.4]
+origin = [-0.81, -0.81, 0.3]
+random_orientation = true
+speed = [0.0, 0.3]
+spin = [0.0, 2.0]
+[generator.body]
+shape = "box"
+half_extents = [0.05, 0.05, 0.05]
+mass = 0.1
+restitution = 0.2
+friction = 0.6
+"""
+
+
 def best_of(fn, repeats=3):
     best = float("inf")
     for _ in range(repeats):
@@ -54,6 +82,7 @@ def main():
     ap.add_argument("--bodies", type=int, default=100)
     ap.add_argument("--steps", type=int, default=4000)
     ap.add_argument("--integrator", default="rk4")
+    ap.add_argument("--no-contacts", action="store_true", help="skip the scene with contacts")
     args = ap.parse_args()
     nx = int(round(args.bodies ** 0.5))
     ny = args.bodies // nx
@@ -102,6 +131,29 @@ def main():
     print(f"  floor: write the float64 content twice (2 x {raw.nbytes / 1e6:.0f} MB, no encoding) "
           f"{content:.3f} s = {content / base:.2f}x;  write the two files' bytes "
           f"({sum(sizes) / 1e6:.0f} MB) {files:.3f} s = {files / base:.2f}x")
+
+    if args.no_contacts:
+        return
+    nx2 = max(1, int(round((n / 2) ** 0.5)))
+    ny2 = max(1, n // (2 * nx2))
+    scene = rblog.parse_scene(CONTACT_SCENE.format(duration=args.steps * 1e-3, nx=nx2, ny=ny2),
+                              "bench-contacts")
+    n2 = scene.model.n_bodies
+    rblog.run(scene, log_every=1, recorders=[RerunRecorder(rrd), McapRecorder(mcap)], **kw)  # warm
+    print(f"\n{n2} boxes of 0.1 m dropped onto the ground and each other ({nx2} x {ny2} x 2 grid, "
+          f"contacts), {args.steps} steps of 1 ms, integrator {args.integrator}; best of 2")
+    base = None
+    for name, fn in (
+        ("no log (summary at 100 Hz)", lambda: rblog.run(scene, **kw)),
+        ("rrd + mcap, every step", lambda: rblog.run(
+            scene, log_every=1, recorders=[RerunRecorder(rrd), McapRecorder(mcap)], **kw)),
+    ):
+        t = best_of(fn, repeats=2)
+        base = base or t
+        print(f"  {name:<30} {t:8.3f} s   {t / base:5.2f}x   {t / args.steps * 1e6:8.1f} us/step")
+    body_steps = n2 * (args.steps + 1)
+    print(f"  bytes per body-step (contacts included): rrd {os.path.getsize(rrd) / body_steps:.0f} B, "
+          f"mcap {os.path.getsize(mcap) / body_steps:.0f} B")
 
 
 if __name__ == "__main__":

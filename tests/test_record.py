@@ -710,3 +710,33 @@ def test_frame_transforms_encoder_matches_protobuf():
             tr.translation.x, tr.translation.y, tr.translation.z = pos[t, i]
             tr.rotation.w, tr.rotation.x, tr.rotation.y, tr.rotation.z = quat[t, i]
         assert bytes(msgs[t]) == ref.SerializeToString(), t
+
+
+def test_contacts_encoder_decodes_to_the_contacts():
+    """The compiled /rblog/contacts encoder: one message per step, each decoding (with protobuf's
+    own parser and rblog's schema) to exactly that step's contacts; steps with 1 to 300 contacts
+    (packed lengths over one varint byte), a zero step and a negative body index included."""
+    from rblog.record.mcap_writer import encode_contacts
+
+    rng = np.random.default_rng(3)
+    counts = [1, 300, 2, 17]
+    steps = np.repeat(np.array([0, 5, 6, 2**40]), counts)
+    k = len(steps)
+    c = Contacts(step=steps, t=steps * 1e-3, body_a=rng.integers(0, 50, k),
+                 body_b=rng.integers(-1, 50, k), point=rng.normal(size=(k, 3)),
+                 normal=rng.normal(size=(k, 3)), separation=rng.normal(size=k),
+                 normal_impulse=rng.random(k), friction_impulse=rng.normal(size=(k, 3)),
+                 kind=rng.integers(0, 2, k).astype(np.int8))
+    msgs, step0, t0 = encode_contacts(c)
+    assert len(msgs) == 4 and step0.tolist() == [0, 5, 6, 2**40]
+    cls = S.message_class("Contacts")
+    lo = 0
+    for m, n in zip(msgs, counts):
+        d = cls.FromString(bytes(m))
+        sl = slice(lo, lo + n)
+        assert d.step == steps[lo] and d.t == steps[lo] * 1e-3
+        assert list(d.body_a) == c.body_a[sl].tolist() and list(d.body_b) == c.body_b[sl].tolist()
+        assert list(d.kind) == c.kind[sl].tolist()
+        for name in ("point", "normal", "friction_impulse", "separation", "normal_impulse"):
+            assert list(getattr(d, name)) == getattr(c, name)[sl].reshape(-1).tolist(), name
+        lo += n

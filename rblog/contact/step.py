@@ -192,7 +192,7 @@ def _state_sum(i, position, linear_momentum, angular_momentum, rotation):
             + rotation[i, 1, 1] + rotation[i, 2, 2] + rotation[i, 0, 1])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
                   position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                   out_position, out_linear_momentum, out_quat_wxyz, out_rotation,

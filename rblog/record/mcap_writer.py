@@ -112,6 +112,7 @@ class McapRecorder:
             self._tf_tmpl = _TfEncoder(self._names)
             n = self._n  # load (or compile, the first time) the encoder now, not mid-run
             self._tf_tmpl.rows(np.zeros(1, np.int64), np.zeros((1, n, 3)), np.zeros((1, n, 4)))
+            encode_contacts(_ONE_CONTACT)
             self._flush(force=True)
         except OSError as e:
             self._abandon()
@@ -263,32 +264,92 @@ class McapRecorder:
     def _write_contacts(self, c: Contacts):
         if not len(c):
             return
-        step = np.asarray(c.step, np.int64)
-        t = np.asarray(c.t, np.float64)
-        # runs of equal (step, t): one message each
-        cut = np.flatnonzero((step[1:] != step[:-1]) | (t[1:] != t[:-1])) + 1
-        bounds = np.concatenate([[0], cut, [len(step)]])
-        ns = C.time_ns(t)
+        msgs, step0, t0 = encode_contacts(c)
+        ns = C.time_ns(t0).tolist()
         ch = self._ch[TOPIC_CONTACTS]
-        fields = (
-            (3, c.body_a, "i"), (4, c.body_b, "i"), (5, c.point, "f"), (6, c.normal, "f"),
-            (7, c.separation, "f"), (8, c.normal_impulse, "f"), (9, c.friction_impulse, "f"),
-            (10, c.kind, "i"),
-        )
-        for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-            parts = [S.sfixed64_field(1, step[lo]), S.double_field(2, t[lo])]
-            for num, arr, kind in fields:
-                v = arr[lo:hi]
-                parts.append(S.packed_sfixed32(num, v) if kind == "i" else S.packed_doubles(num, v))
-            ti = int(ns[lo])
-            self._w.add_message(ch, ti, b"".join(parts), ti)
-            self._last_ns = max(self._last_ns, ti)
+        add = self._w.add_message
+        for m, ti in zip(msgs, ns):
+            add(ch, ti, m, ti)
+        self._last_ns = max(self._last_ns, ns[-1])
 
     def _flush(self, force: bool = False):
         now = time.monotonic()
         if force or now - self._last_flush >= FLUSH_EVERY_S:
             self._w.flush()  # finalizes the chunk in progress and flushes the file object
             self._last_flush = now
+
+
+_ONE_CONTACT = Contacts(step=np.zeros(1, np.int64), t=np.zeros(1), body_a=np.zeros(1, np.int64),
+                        body_b=np.zeros(1, np.int64), point=np.zeros((1, 3)),
+                        normal=np.zeros((1, 3)), separation=np.zeros(1),
+                        normal_impulse=np.zeros(1), friction_impulse=np.zeros((1, 3)),
+                        kind=np.zeros(1, np.int64))
+
+
+def encode_contacts(c: Contacts) -> tuple[list, np.ndarray, np.ndarray]:
+    """The ``rblog.Contacts`` messages of ``c``: one per run of equal (step, t), in order.
+
+    Returns (messages as memoryviews into one buffer, step (M,), t (M,) of each message). The
+    bytes are what protobuf's serializer writes for the same message (fields in number order,
+    repeated fields packed), built in one compiled call for the whole block."""
+    step = np.ascontiguousarray(c.step, np.int64)
+    t = np.ascontiguousarray(c.t, np.float64)
+    cut = np.flatnonzero((step[1:] != step[:-1]) | (t[1:] != t[:-1])) + 1
+    bounds = np.concatenate([[0], cut, [len(step)]]).astype(np.int64)
+    i32 = [np.ascontiguousarray(a, "<i4") for a in (c.body_a, c.body_b, c.kind)]
+    f3 = [np.ascontiguousarray(a, "<f8").reshape(-1, 3) for a in (c.point, c.normal,
+                                                                   c.friction_impulse)]
+    f1 = [np.ascontiguousarray(a, "<f8").reshape(-1) for a in (c.separation, c.normal_impulse)]
+    m = len(bounds) - 1
+    # per message: step and t (9 bytes each), 8 packed fields of <= 1 + 10 bytes of header;
+    # per contact: 3 int32 and 11 doubles
+    out = np.empty(m * (18 + 8 * 11) + len(step) * (3 * 4 + 11 * 8), np.uint8)
+    ends = np.empty(m + 1, np.int64)
+    _encode_contacts(bounds, step.view(np.uint8), t.view(np.uint8),
+                     i32[0].view(np.uint8), i32[1].view(np.uint8),
+                     f3[0].reshape(-1).view(np.uint8), f3[1].reshape(-1).view(np.uint8),
+                     f1[0].view(np.uint8), f1[1].view(np.uint8),
+                     f3[2].reshape(-1).view(np.uint8), i32[2].view(np.uint8), out, ends)
+    mv = memoryview(out)
+    e = ends.tolist()
+    first = bounds[:-1]
+    return [mv[e[i]:e[i + 1]] for i in range(m)], step[first], t[first]
+
+
+@njit(cache=True, nogil=True)
+def _put_packed(out, k, number, src, lo, hi, width):
+    """Packed repeated field ``number`` holding elements lo..hi of ``src`` (little-endian bytes,
+    ``width`` bytes per element)."""
+    out[k] = (number << 3) | 2
+    n = (hi - lo) * width
+    k = _put_varint(out, k + 1, n)
+    out[k:k + n] = src[lo * width:hi * width]
+    return k + n
+
+
+@njit(cache=True, nogil=True)
+def _encode_contacts(bounds, step8, t8, a4, b4, point8, normal8, sep8, nimp8, fimp8, kind4,
+                     out, ends):
+    """Kernel of encode_contacts: message j holds contacts bounds[j]:bounds[j + 1] and is written
+    to out[ends[j]:ends[j + 1]]. Inputs are the columns' bytes (uint8 views)."""
+    k = 0
+    for j in range(bounds.shape[0] - 1):
+        lo, hi = bounds[j], bounds[j + 1]
+        ends[j] = k
+        out[k] = 0x09  # 1 step, sfixed64
+        out[k + 1:k + 9] = step8[8 * lo:8 * lo + 8]
+        out[k + 9] = 0x11  # 2 t, double
+        out[k + 10:k + 18] = t8[8 * lo:8 * lo + 8]
+        k += 18
+        k = _put_packed(out, k, 3, a4, lo, hi, 4)
+        k = _put_packed(out, k, 4, b4, lo, hi, 4)
+        k = _put_packed(out, k, 5, point8, lo, hi, 24)
+        k = _put_packed(out, k, 6, normal8, lo, hi, 24)
+        k = _put_packed(out, k, 7, sep8, lo, hi, 8)
+        k = _put_packed(out, k, 8, nimp8, lo, hi, 8)
+        k = _put_packed(out, k, 9, fimp8, lo, hi, 24)
+        k = _put_packed(out, k, 10, kind4, lo, hi, 4)
+    ends[bounds.shape[0] - 1] = k
 
 
 def _max0(a: np.ndarray) -> np.ndarray:

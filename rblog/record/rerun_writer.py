@@ -333,13 +333,17 @@ class RerunRecorder:
         if len(c):
             cstep = np.asarray(c.step, np.int64)
             keep = np.isin(cstep, bstep)
-            order = np.flatnonzero(keep)[np.argsort(cstep[keep], kind="stable")]
+            order = np.flatnonzero(keep)
+            if np.any(cstep[1:] < cstep[:-1]):  # the simulator writes them in step order
+                order = order[np.argsort(cstep[keep], kind="stable")]
             sorted_steps = cstep[order]
             lo = np.searchsorted(sorted_steps, bstep, "left")
             hi = np.searchsorted(sorted_steps, bstep, "right")
             counts = hi - lo
-            sel = np.concatenate([order[l:h] for l, h in zip(lo, hi)]) if counts.sum() else \
-                np.zeros(0, np.int64)
+            # the contacts of each sample's step, samples in order (a step logged twice gets its
+            # contacts twice): positions lo[s]..hi[s] of ``order``, concatenated
+            starts = np.repeat(lo - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+            sel = order[starts + np.arange(int(counts.sum()))]
         else:
             counts = np.zeros(T, np.int64)
             sel = np.zeros(0, np.int64)
@@ -349,9 +353,10 @@ class RerunRecorder:
         offsets = np.concatenate([[0], np.cumsum(counts)])
         idx = [rr.TimeColumn("step", sequence=bstep),
                rr.TimeColumn("sim_time", duration=C.time_ns(block.t).astype("timedelta64[ns]"))]
-        pts = c.point[sel] if len(sel) else np.zeros((0, 3))
-        imp = (c.normal_impulse[sel, None] * c.normal[sel] + c.friction_impulse[sel]) if len(sel) \
-            else np.zeros((0, 3))
+        if len(sel) == len(c) and np.array_equal(sel, np.arange(len(c))):
+            sel = slice(None)  # every contact, in order (the usual case): no gathers
+        pts = c.point[sel]
+        imp = c.normal_impulse[sel, None] * c.normal[sel] + c.friction_impulse[sel]
         vec = imp / self._dt * C.CONTACT_ARROW_M_PER_N
         self._send("world/contacts", idx, [_Column(self._d_pts, _fixed(pts, 3), offsets)])
         self._send("world/contacts/impulses", idx, [
