@@ -289,9 +289,10 @@ _ONE_CONTACT = Contacts(step=np.zeros(1, np.int64), t=np.zeros(1), body_a=np.zer
 def encode_contacts(c: Contacts) -> tuple[list, np.ndarray, np.ndarray]:
     """The ``rblog.Contacts`` messages of ``c``: one per run of equal (step, t), in order.
 
-    Returns (messages as memoryviews into one buffer, step (M,), t (M,) of each message). The
-    bytes are what protobuf's serializer writes for the same message (fields in number order,
-    repeated fields packed), built in one compiled call for the whole block."""
+    Returns (messages as memoryviews into one buffer, step (M,), t (M,) of each message). Fields
+    are in number order and repeated fields packed, as protobuf's serializer writes them, except
+    that step and t are written even when zero (parsers read both forms alike). The whole block
+    is encoded in one compiled call."""
     step = np.ascontiguousarray(c.step, np.int64)
     t = np.ascontiguousarray(c.t, np.float64)
     cut = np.flatnonzero((step[1:] != step[:-1]) | (t[1:] != t[:-1])) + 1
