@@ -26,7 +26,7 @@ from .manifold import (
     MI_REC_A, MI_REC_B, MI_START, MF_COLS, PF_COLS, PF_F, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS,
     PF_P, PF_RA, PF_RB, PF_S, PF_SEND, PF_IMPACT, PF_W0, PF_WT,
 )
-from .narrowphase import COLLIDE_TABLE, GEOM_BOX, GEOM_PLANE, collide
+from .narrowphase import COLLIDE_TABLE, GEOM_BOX, GEOM_PLANE, collide, manifold_part
 
 
 @njit(cache=True)
@@ -169,12 +169,7 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
         if res <= 0:
             continue
         for part in range(2):
-            if part == 0:
-                cnt = res % 8
-                row = 0
-            else:
-                cnt = res // 8
-                row = 4
+            cnt, row = manifold_part(res, part)
             if cnt == 0:
                 continue
             n_man, n_pts = _add_manifold(

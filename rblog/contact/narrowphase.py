@@ -572,6 +572,15 @@ def _edge_contact(ca, rota, ea, cb, rotb, eb, i, j, dx, dy, dz, spec, nrm, pts, 
     return 1
 
 
+@njit(cache=True, inline="always")
+def manifold_part(res, part):
+    """(point count, first row) of manifold ``part`` (0 or 1) in a result of :func:`collide`:
+    ``res = n1 + 8 n2``, the first manifold in rows 0..3, the second in rows 4..7."""
+    if part == 0:
+        return res % 8, 0
+    return res // 8, 4
+
+
 @njit(cache=True)
 def collide(code, swap, ca, rota, sa, cb, rotb, sb, pn, poff, spec, nrm, pts, sep, fid, work,
             poly):

@@ -47,7 +47,7 @@ from numba import njit
 
 from ..rotation import load_mat, omega_world
 from .collide import pair_geometry
-from .narrowphase import COLLIDE_TABLE, collide
+from .narrowphase import COLLIDE_TABLE, collide, manifold_part
 
 # columns of the projection's point rows
 _PN = 0  # normal from b into a (3)
@@ -93,12 +93,7 @@ def _add_points(res, a, b, ia, ib, n_dyn, inv_mass, inv_inertia, iso, iso_shortc
     """Append the collider's points (both manifolds of ``res``) as projection rows."""
     b_dyn = b < n_dyn
     for part in range(2):
-        if part == 0:
-            cnt = res % 8
-            row = 0
-        else:
-            cnt = res // 8
-            row = 4
+        cnt, row = manifold_part(res, part)
         nx, ny, nz = nrm[3 * part], nrm[3 * part + 1], nrm[3 * part + 2]
         for q in range(cnt):
             if n_pts == rows.shape[0]:
@@ -177,10 +172,10 @@ def project_positions(pairs, n_pairs, n_dyn, n_static, geom, size, inv_mass, inv
                       -depth, nrm, pts, sep, fid, work, poly)
         if res <= 0:
             continue
-        for q in range(res % 8):
-            deepest = max(deepest, -sep[q])
-        for q in range(res // 8):
-            deepest = max(deepest, -sep[4 + q])
+        for part in range(2):
+            cnt, row = manifold_part(res, part)
+            for q in range(cnt):
+                deepest = max(deepest, -sep[row + q])
         if a_awake:
             ring[a] = 1
         if b_awake:
