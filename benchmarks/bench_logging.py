@@ -12,6 +12,7 @@ the contacts' records in the logs).
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import sys
 import tempfile
@@ -77,7 +78,77 @@ def best_of(fn, repeats=3):
     return best
 
 
+class _Keep:
+    """A recorder that keeps copies of the blocks it is given (to replay them to one writer)."""
+
+    def open(self, model, info):
+        self.model, self.info, self.blocks = model, info, []
+
+    def write(self, block):
+        self.blocks.append(copy.deepcopy(block))
+
+    def close(self, truncated=False, reason=None):
+        pass
+
+
+def _cpu_per_sample(make, keep, samples, repeats=3):
+    """Best process CPU time and wall time (us per sample) of one writer replaying the blocks."""
+    best = (float("inf"), float("inf"))
+    for _ in range(repeats):
+        rec = make()
+        rec.open(keep.model, keep.info)
+        c0, w0 = time.process_time(), time.perf_counter()
+        for b in keep.blocks:
+            rec.write(b)
+        rec.close()
+        c, w = time.process_time() - c0, time.perf_counter() - w0
+        best = min(best, (c / samples * 1e6, w / samples * 1e6))
+    return best
+
+
+def writers_alone(scene, kw, tmp, steps):
+    """Where the time goes: the simulation and each writer on its own, in process CPU time per
+    step, and the least wall time any schedule of that CPU work can take on this machine's cores:
+    the total spread evenly over the cores, but no less than the simulation's thread or the MCAP
+    writer's (one Python thread each); the Rerun SDK encodes on threads of its own."""
+    keep = _Keep()
+    rblog.run(scene, log_every=1, recorders=[keep], **kw)
+    samples = sum(len(b.t) for b in keep.blocks)
+
+    def cpu_of(fn, repeats=3):
+        best = float("inf")
+        for _ in range(repeats):
+            c0 = time.process_time()
+            fn()
+            best = min(best, time.process_time() - c0)
+        return best / steps * 1e6
+
+    sim = cpu_of(lambda: rblog.run(scene, **kw))
+    derived = cpu_of(lambda: rblog.run(scene, log_every=1, **kw))
+    rrd, _ = _cpu_per_sample(lambda: RerunRecorder(os.path.join(tmp, "w.rrd")), keep, samples)
+    mcap, _ = _cpu_per_sample(lambda: McapRecorder(os.path.join(tmp, "w.mcap")), keep, samples)
+    raw, _ = _cpu_per_sample(lambda: McapRecorder(os.path.join(tmp, "w0.mcap"), compression="none"),
+                             keep, samples)
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    total = derived + rrd + mcap
+    bound = max(total / cores, derived, mcap)
+    print("\n  where the time goes (process CPU per step, each writer alone replaying this run's "
+          "blocks, best of 3):")
+    print(f"    simulation {sim:.1f} us; with every step derived {derived:.1f} us; "
+          f"Rerun writer {rrd:.1f} us; MCAP writer {mcap:.1f} us (lz4; no compression {raw:.1f} us)")
+    print(f"    least wall time of that CPU on {cores} cores: {bound:.1f} us/step = {bound / sim:.2f}x "
+          f"the simulation's CPU (target 2x)")
+    no_mcap = max((derived + rrd) / cores, derived)
+    print(f"    the same with an MCAP writer that cost nothing: {no_mcap:.1f} us/step = "
+          f"{no_mcap / sim:.2f}x")
+
+
 def main():
+    with tempfile.TemporaryDirectory() as tmp:  # ~0.5 GB of logs, removed at the end
+        bench(tmp)
+
+
+def bench(tmp):
     ap = argparse.ArgumentParser()
     ap.add_argument("--bodies", type=int, default=100)
     ap.add_argument("--steps", type=int, default=4000)
@@ -88,7 +159,6 @@ def main():
     ny = args.bodies // nx
     n = nx * ny
     scene = rblog.parse_scene(SCENE.format(duration=args.steps * 1e-3, nx=nx, ny=ny), "bench")
-    tmp = tempfile.mkdtemp()
     rrd, mcap = os.path.join(tmp, "b.rrd"), os.path.join(tmp, "b.mcap")
     kw = dict(integrator=args.integrator)
     rblog.run(scene, log_every=1, recorders=[RerunRecorder(rrd), McapRecorder(mcap)], **kw)  # warm
@@ -131,6 +201,8 @@ def main():
     print(f"  floor: write the float64 content twice (2 x {raw.nbytes / 1e6:.0f} MB, no encoding) "
           f"{content:.3f} s = {content / base:.2f}x;  write the two files' bytes "
           f"({sum(sizes) / 1e6:.0f} MB) {files:.3f} s = {files / base:.2f}x")
+
+    writers_alone(scene, kw, tmp, args.steps)
 
     if args.no_contacts:
         return
