@@ -27,7 +27,9 @@ class ContactParams:
             the time needs ~90 sweeps to reach the tolerance, so the cap sets its cost: 30 sweeps
             run the 500-box pile 3.5x faster than 200, with the same penetration (the project
             stage bounds it) and the 10-box stack still within 0.1 mm. Lower caps are faster in
-            piles but let tall stacks sink until they converge.
+            piles but let tall stacks sink until they converge. The cap also sets how far resting
+            boxes creep while a pile settles: up to 1.3 mm over ~2 s at 30 sweeps, under 0.8 mm
+            converged (300 sweeps, tolerance 1e-6 m/s, 5-6x the run time; benchmarks/RESULTS.md).
         velocity_tolerance: m/s. Convergence test of the velocity solve (see above). Smaller
             values give exacter resting contact (no sinking, no creep) for more sweeps.
         over_relaxation: successive over-relaxation factor of the normal impulses, in (0, 2)
