@@ -34,8 +34,8 @@ sys.path.insert(0, str(ROOT))
 
 from rblog.analyze import ANALYZERS, check  # noqa: E402
 from rblog.analyze.base import Context  # noqa: E402
-from rblog.model import SHAPE_BOX, SHAPE_SPHERE, Model  # noqa: E402
-from rblog.trajectory import CONTACT_IMPACT, STATIC_BODY, Contacts, RunInfo, derive  # noqa: E402
+from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE, Model  # noqa: E402
+from rblog.contract.trajectory import CONTACT_IMPACT, STATIC_BODY, Contacts, RunInfo, derive  # noqa: E402
 
 G = 9.81
 

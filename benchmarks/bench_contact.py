@@ -1,6 +1,6 @@
 """Contact benchmark: a pile of boxes in rblog and in MuJoCo, side by side, plus stage savings.
 
-Runs the same scene (``rblog.contact.scenes.box_pile``: 500 cubes of 0.1 m, 1 kg, random
+Runs the same scene (``rblog.study.scenes.box_pile``: 500 cubes of 0.1 m, 1 kg, random
 orientations, dropped from a column of layers up to 2 m onto the ground, friction 0.5) at the
 same time step in
 
@@ -66,11 +66,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rblog import rotation as rot
-from rblog.contact import ContactParams, ContactWorld
-from rblog.contact.measure import separations
-from rblog.contact.scenes import box_pile, make_model, make_state
-from rblog.model import SHAPE_BOX, SHAPE_SPHERE
+from rblog.engine import integrators as rot, rotation
+from rblog.engine.contact import ContactParams, ContactWorld
+from rblog.engine.contact.measure import separations
+from rblog.study.scenes import box_pile, make_model, make_state
+from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
 
 
 def run_rblog(model, state, dt, n_steps, sample_every, force_all=False, params=None):
@@ -172,7 +172,7 @@ def run_mujoco(model, state, dt, n_steps, sample_every, world, config=MUJOCO_CON
         wall += time.perf_counter() - t0
         done += k
         qpos = d.qpos.reshape(n, 7)
-        rot_buf[:] = rot.quat_to_matrix_np(qpos[:, 3:7] / np.linalg.norm(qpos[:, 3:7], axis=1,
+        rot_buf[:] = rotation.quat_to_matrix_np(qpos[:, 3:7] / np.linalg.norm(qpos[:, 3:7], axis=1,
                                                                         keepdims=True))
         sep = separations(world, np.ascontiguousarray(qpos[:, :3]), rot_buf)
         pens.append(max(0.0, -sep.min()) if len(sep) else 0.0)

@@ -21,10 +21,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rblog.kernels import advance_free  # noqa: E402
-from rblog.rotation import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES  # noqa: E402
-from rblog.scene import parse_scene  # noqa: E402
-from rblog.simulate import simulate  # noqa: E402
+from rblog.engine.free import advance_free  # noqa: E402
+from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES  # noqa: E402
+from rblog.engine.scene import parse_scene  # noqa: E402
+from rblog.engine.runner import simulate  # noqa: E402
 
 
 def random_bodies(n: int, seed: int = 0):
@@ -32,7 +32,7 @@ def random_bodies(n: int, seed: int = 0):
     inertia = rng.uniform(0.5, 2.0, (n, 3))
     q = rng.normal(size=(n, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
-    from rblog.rotation import quat_to_matrix_np
+    from rblog.engine.rotation import quat_to_matrix_np
 
     return dict(
         inv_mass=np.ones(n), inv_inertia=1.0 / inertia, force=np.zeros((n, 3)) + [0, 0, -9.81],

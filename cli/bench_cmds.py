@@ -1,4 +1,4 @@
-"""``rblog bench`` and ``rblog stress``: parse, call :mod:`rblog.bench` / :mod:`rblog.stress`,
+"""``rblog bench`` and ``rblog stress``: parse, call :mod:`rblog.study.bench` / :mod:`rblog.study.stress`,
 print. Registered in cli/main.py with ``main.add_command``."""
 
 from __future__ import annotations
@@ -46,8 +46,8 @@ def _command() -> str:
               help="Print each run on stderr (default: when stderr is a terminal).")
 def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, progress):
     """Work-precision study: every integrator x a range of dt on problems with exact answers."""
-    from rblog.bench import format_table, run_bench, write_outputs
-    from rblog.reference import PROBLEMS
+    from rblog.study.bench import format_table, run_bench, write_outputs
+    from rblog.study.reference import PROBLEMS
 
     for p in problems:
         if p not in PROBLEMS:
@@ -85,7 +85,7 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
 def stress(quick, out_dir, as_json, cases, integrators, progress):
     """Stability suite: fast spin, extreme inertia, long runs, dt up to instability, impacts,
     stacks, many bodies, mass ratios. A blow-up is reported, never fatal."""
-    from rblog.stress import CASE_NAMES, format_table, run_stress, write_outputs
+    from rblog.study.stress import CASE_NAMES, format_table, run_stress, write_outputs
 
     for c in cases:
         if c not in CASE_NAMES:
@@ -108,7 +108,7 @@ def stress(quick, out_dir, as_json, cases, integrators, progress):
 
 
 def _check_integrators(specs):
-    from rblog.rotation import ORTHO_ALLOWED
+    from rblog.engine.integrators import ORTHO_ALLOWED
 
     for spec in specs:
         name, _, ortho = spec.partition("/")

@@ -14,8 +14,8 @@ from pathlib import Path
 import click
 
 from rblog.errors import RblogError
-from rblog.rotation import ORTHO_CODES
-from rblog.scene import INTEGRATORS
+from rblog.engine.integrators import ORTHO_CODES
+from rblog.engine.scene import INTEGRATORS
 
 
 def _fail(err: RblogError):
@@ -32,7 +32,7 @@ class _Progress:
         self.t0 = time.perf_counter()
 
     def __call__(self, done: int, total: int):
-        from rblog.constants import PROGRESS_MIN_WALL_S
+        from rblog.engine.constants import PROGRESS_MIN_WALL_S
 
         if not self.enabled:
             return
@@ -64,7 +64,7 @@ def main():
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=str))
 def validate(scene):
     """Check a scene file without running it."""
-    from rblog.scene import load_scene
+    from rblog.engine.scene import load_scene
 
     try:
         s = load_scene(scene)
@@ -97,9 +97,9 @@ def validate(scene):
 def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compression, no_log,
         log_every, log_rate, spawn, connect_url, explain, all_stages, as_json):
     """Simulate SCENE (a .toml file) and record it."""
-    from rblog.scene import load_scene
-    from rblog.simulate import run as run_scene
-    from rblog.stages import plan_stages
+    from rblog.engine.scene import load_scene
+    from rblog.engine.runner import run as run_scene
+    from rblog.engine.plan import plan_stages
 
     if log_every is not None and log_rate is not None:
         _fail(RblogError("give --log-every or --log-rate, not both"))
@@ -108,7 +108,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         if explain:
             plan = plan_stages(s, duration or s.sim.duration, force_contacts=all_stages)
             if plan.contacts:
-                from rblog.rotation import METHOD_CODES, ORTHO_ALLOWED
+                from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED
 
                 integ = integrator or s.sim.integrator
                 plan.make_contact_world(METHOD_CODES[integ], ORTHO_CODES[ORTHO_ALLOWED[integ][1]])
@@ -158,7 +158,7 @@ def check(logs, only, skip, tols, list_only, as_json):
     cannot be read."""
     from rblog.analyze import ANALYZERS, check as run_checks
     from rblog.record.reader import load
-    from rblog.simulate import CompileNotice
+    from rblog.engine.runner import CompileNotice
 
     if list_only:
         for name, cls in ANALYZERS.items():

@@ -1,9 +1,13 @@
 """rblog: simulate rigid bodies, record what happened, and audit the recording.
 
+Rooms (docs/architecture.md): ``contract`` (the log contract in memory: Model, Trajectory),
+``engine`` (the simulator), ``record`` (Rerun and MCAP writers, the reader), ``analyze`` (the
+audit), ``study`` (benchmarks, stress, references, peers); ``errors`` is shared by all.
+
 The public API, imported lazily so that ``import rblog`` stays cheap::
 
     scene = rblog.load_scene("samples/tumbling_box.toml")
-    traj, summary = rblog.simulate(scene)          # in memory
+    traj, summary = rblog.engine.runner(scene)          # in memory
     summary = rblog.run(scene, recorders=[...])    # streamed to log writers
     traj = rblog.load("run.mcap")                  # read a log back (.rrd or .mcap)
     results = rblog.check(traj)                    # physics analyzers
@@ -12,13 +16,22 @@ The public API, imported lazily so that ``import rblog`` stays cheap::
 __version__ = "0.1.0"
 
 _API = {
-    "load_scene": ("rblog.scene", "load_scene"),
-    "parse_scene": ("rblog.scene", "parse_scene"),
-    "simulate": ("rblog.simulate", "simulate"),
-    "run": ("rblog.simulate", "run"),
+    "load_scene": ("rblog.engine.scene", "load_scene"),
+    "parse_scene": ("rblog.engine.scene", "parse_scene"),
+    "simulate": ("rblog.engine.runner", "simulate"),
+    "run": ("rblog.engine.runner", "run"),
     "load": ("rblog.record.reader", "load"),
     "check": ("rblog.analyze", "check"),
-    "Trajectory": ("rblog.trajectory", "Trajectory"),
+    "Trajectory": ("rblog.contract.trajectory", "Trajectory"),
+    "Model": ("rblog.contract.model", "Model"),
+    "RunInfo": ("rblog.contract.trajectory", "RunInfo"),
+    "Contacts": ("rblog.contract.trajectory", "Contacts"),
+    "RblogError": ("rblog.errors", "RblogError"),
+    "SceneError": ("rblog.errors", "SceneError"),
+    "LogReadError": ("rblog.errors", "LogReadError"),
+    "LogWriteError": ("rblog.errors", "LogWriteError"),
+    "SimulationDiverged": ("rblog.errors", "SimulationDiverged"),
+    "RunInterrupted": ("rblog.errors", "RunInterrupted"),
 }
 
 __all__ = ["__version__", *_API]
@@ -29,5 +42,7 @@ def __getattr__(name):
         import importlib
 
         mod, attr = _API[name]
-        return getattr(importlib.import_module(mod), attr)
+        value = getattr(importlib.import_module(mod), attr)
+        globals()[name] = value  # bind once: no submodule of rblog can shadow a public name
+        return value
     raise AttributeError(f"module 'rblog' has no attribute {name!r}")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from rblog.scene import parse_scene
+from rblog.engine.scene import parse_scene
 
 REPO = Path(__file__).resolve().parent.parent
 SAMPLES_DIR = REPO / "samples"

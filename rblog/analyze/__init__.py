@@ -1,6 +1,6 @@
 """Physics analyzers for recorded runs (`rblog check`).
 
-Each analyzer takes a :class:`rblog.trajectory.Trajectory` (what a log reader returns: logged
+Each analyzer takes a :class:`rblog.contract.trajectory.Trajectory` (what a log reader returns: logged
 channels, model, run info, contacts) and returns a :class:`Result`; it never uses simulator
 internals, so a log written by another program is checked the same way.
 
@@ -21,13 +21,13 @@ Analyzers (default tolerances and their reasons: rblog/analyze/tolerances.py):
 
 from __future__ import annotations
 
-from ..trajectory import Trajectory
-from .base import Analyzer, CheckOptionError, Context, Finding, Result
-from .drift import DriftAnalyzer
-from .energy import EnergyAnalyzer
-from .momentum import MomentumAnalyzer
-from .penetration import PenetrationAnalyzer
-from .tunneling import TunnelingAnalyzer
+from rblog.contract.trajectory import Trajectory
+from rblog.analyze.base import Analyzer, CheckOptionError, Context, Finding, Result
+from rblog.analyze.drift import DriftAnalyzer
+from rblog.analyze.energy import EnergyAnalyzer
+from rblog.analyze.momentum import MomentumAnalyzer
+from rblog.analyze.penetration import PenetrationAnalyzer
+from rblog.analyze.tunneling import TunnelingAnalyzer
 
 #: name -> analyzer class, in report order
 ANALYZERS: dict[str, type[Analyzer]] = {

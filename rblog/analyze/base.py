@@ -30,11 +30,11 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ..errors import RblogError
-from ..model import Model
-from ..trajectory import STATIC_BODY, Trajectory
-from . import geometry
-from . import tolerances as tol
+from rblog.errors import RblogError
+from rblog.contract.model import Model
+from rblog.contract.trajectory import STATIC_BODY, Trajectory
+from rblog.analyze import geometry
+from rblog.analyze import tolerances as tol
 
 
 class CheckOptionError(RblogError):

@@ -30,8 +30,8 @@ import math
 import numpy as np
 from numba import njit
 
-from . import tolerances as T
-from .base import Analyzer, Context, Finding, Result, Worst, body_label
+from rblog.analyze import tolerances as T
+from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
 
 _TINY = 1e-300
 

@@ -2,7 +2,7 @@
 
 Nothing here reads the contacts a simulator reported: the analyzers judge those against these.
 
-Conventions (those of :class:`rblog.trajectory.Contacts`):
+Conventions (those of :class:`rblog.contract.trajectory.Contacts`):
 
 * ``sep`` is the signed distance between two surfaces (m): > 0 apart, < 0 penetration depth.
 * ``normal`` is a unit world vector from body b into body a; ``point`` a world point midway
@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..model import SHAPE_BOX, SHAPE_SPHERE, Model
+from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE, Model
 
 #: |cos| below which a box axis counts as parallel to a contact plane (witness points)
 _FACE_EPS = 1e-6

@@ -34,11 +34,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import SHAPE_SPHERE
-from ..trajectory import STATIC_BODY
-from . import geometry
-from . import tolerances as T
-from .base import (Analyzer, Context, Finding, Result, Worst, body_label, combine_friction,
+from rblog.contract.model import SHAPE_SPHERE
+from rblog.contract.trajectory import STATIC_BODY
+from rblog.analyze import geometry
+from rblog.analyze import tolerances as T
+from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label, combine_friction,
                    combine_restitution, static_material)
 
 _TINY = 1e-300

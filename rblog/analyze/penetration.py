@@ -29,9 +29,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from . import geometry
-from . import tolerances as T
-from .base import Analyzer, Context, Finding, Result, Worst, body_label
+from rblog.analyze import geometry
+from rblog.analyze import tolerances as T
+from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
 
 
 @njit(cache=True, nogil=True)

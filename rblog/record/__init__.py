@@ -8,8 +8,8 @@ The layout of both formats is the contract in docs/log-format.md.
 * :func:`load` (``reader``) reads either format back into one Trajectory.
 """
 
-from .mcap_writer import McapRecorder
-from .reader import load
-from .rerun_writer import RerunRecorder
+from rblog.record.mcap_writer import McapRecorder
+from rblog.record.reader import load
+from rblog.record.rerun_writer import RerunRecorder
 
 __all__ = ["McapRecorder", "RerunRecorder", "load"]

@@ -8,8 +8,8 @@ import re
 
 import numpy as np
 
-from ..model import Model
-from ..trajectory import BODY_CHANNELS, TOTAL_CHANNELS, RunInfo
+from rblog.contract.model import Model
+from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, RunInfo
 
 #: version of the log contract (docs/log-format.md) this module writes and reads
 LOG_FORMAT_VERSION = 1

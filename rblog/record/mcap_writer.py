@@ -28,12 +28,12 @@ from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from .. import __version__
-from ..errors import LogWriteError
-from ..model import SHAPE_SPHERE, Model
-from ..trajectory import Contacts, RunInfo, Trajectory
-from . import _common as C
-from . import schema as S
+from rblog import __version__
+from rblog.errors import LogWriteError
+from rblog.contract.model import SHAPE_SPHERE, Model
+from rblog.contract.trajectory import Contacts, RunInfo, Trajectory
+from rblog.record import _common as C
+from rblog.record import schema as S
 
 #: chunk size (bytes of uncompressed messages); also the most a killed writer loses
 CHUNK_BYTES = 1 << 20

@@ -1,4 +1,4 @@
-"""Read an rblog log (.rrd or .mcap) back into one :class:`~rblog.trajectory.Trajectory`.
+"""Read an rblog log (.rrd or .mcap) back into one :class:`~rblog.contract.trajectory.Trajectory`.
 
 Only the canonical channels are read (``rblog/...`` entities, ``/rblog/...`` topics; see
 docs/log-format.md); their float64 values come back bit-identical to what was written. A file
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import LogReadError
-from ..trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Contacts, Trajectory
-from . import _common as C
+from rblog.errors import LogReadError
+from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Contacts, Trajectory
+from rblog.record import _common as C
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 RRD_MAGIC = b"RRF2"

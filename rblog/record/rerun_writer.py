@@ -17,10 +17,10 @@ import pyarrow as pa
 import rerun as rr
 import rerun.blueprint as rrb
 
-from ..errors import LogWriteError
-from ..model import SHAPE_SPHERE, Model
-from ..trajectory import Contacts, RunInfo, Trajectory
-from . import _common as C
+from rblog.errors import LogWriteError
+from rblog.contract.model import SHAPE_SPHERE, Model
+from rblog.contract.trajectory import Contacts, RunInfo, Trajectory
+from rblog.record import _common as C
 
 #: the file sink is flushed (blocking) at most this often (wall s); the SDK also flushes on its
 #: own every 200 ms or 1 MiB
@@ -372,7 +372,7 @@ class RerunRecorder:
 
 def _expected_chunks(model: Model, info: RunInfo) -> float:
     """Chunks the run will log, from its duration and the simulator's block sizes."""
-    from ..simulate import samples_per_block
+    from rblog.engine.runner import samples_per_block
 
     try:
         samples = float(info.duration_s) / (float(info.dt) * max(int(info.log_every), 1)) + 1

@@ -14,7 +14,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 with tempfile.TemporaryDirectory() as tmp:
     for scene in sorted((REPO / "samples").glob("*.toml")):
-        if scene.stem == "pile":  # slow; no golden (see tests/test_check_e2e.py SLOW_SAMPLES)
+        if scene.stem == "pile":  # slow; no golden (see tests/analyze/test_check_e2e.py SLOW_SAMPLES)
             continue
         log = Path(tmp) / f"{scene.stem}.mcap"
         subprocess.run([sys.executable, "-m", "rblog_cli.main", "run", str(scene), "--mcap", str(log)],

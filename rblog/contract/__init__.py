@@ -1,0 +1,13 @@
+"""The log contract in memory: what the engine produces, the recorders write and read back, and
+the analyzers judge (docs/log-format.md is the same contract on disk).
+
+* ``model``: :class:`Model`, the body table and the world (shapes, masses, body-frame inertia,
+  materials, ground, static boxes, gravity, applied loads).
+* ``trajectory``: :class:`Trajectory` (samples x bodies, time first), :class:`Contacts` (contact
+  rows), :class:`RunInfo` (run metadata), and :func:`derive` (state -> every derived channel).
+* ``derive``: the compiled kernel that defines the derived channels (momenta, energies, rigidity
+  errors, totals) once for every writer and reader.
+
+May import: numpy, numba, rblog.errors. Nothing else of rblog: the engine, the recorders and the
+analyzers all import this room, never the other way round.
+"""

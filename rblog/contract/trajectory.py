@@ -1,0 +1,259 @@
+"""A recorded run as flat numpy arrays: time first, bodies second.
+
+The simulator hands blocks of samples to the recorders as :class:`Trajectory` objects, the log
+readers return one, and the analyzers take one, so the three agree on names and layouts by
+construction. Derived channels (velocities, energies, errors) are computed once, here, from the
+state the integrator holds (see :func:`derive`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from rblog.contract.model import Model
+
+CONTACT_RESTING = 0
+CONTACT_IMPACT = 1
+#: body index used for static geometry in contact records (the ground, static boxes)
+STATIC_BODY = -1
+
+
+@dataclass
+class RunInfo:
+    """Run metadata logged once.
+
+    Attributes:
+        integrator: name (``seed``, ``seed-quat``, ``splitting``, ``rk4``, ...).
+        orthonormalize: method name, or "none".
+        dt: step (s).  log_every: steps between logged samples.
+        duration_s: requested simulated time.  rblog_version: writer's version.
+        scene_path: where the scene came from.  scene_toml: its text as given.
+        scene_resolved: the scene after defaults and generators (JSON-able dict).
+        seed: random seed used by generators (or None).
+        writer: program that wrote the log (``rblog x.y.z`` or another engine).
+    """
+
+    integrator: str
+    orthonormalize: str
+    dt: float
+    log_every: int
+    duration_s: float
+    rblog_version: str
+    scene_path: str = ""
+    scene_toml: str = ""
+    scene_resolved: dict = field(default_factory=dict)
+    seed: int | None = None
+    writer: str = ""
+
+
+@dataclass
+class Contacts:
+    """Contacts of the logged steps, flattened (K of them).
+
+    ``normal`` points from body_b into body_a (for the ground, body_b = STATIC_BODY and the normal
+    is the ground's outward normal); ``separation`` < 0 means penetration (m). Impulses are the
+    ones applied to body_a over the step (N s); body_b receives their negatives.
+
+    Attributes:
+        step: (K,) step of the sample the contact belongs to.  t: (K,) s.
+        body_a, body_b: (K,) int body indices (STATIC_BODY for static geometry).
+        point: (K, 3) world contact point (m).  normal: (K, 3) unit, world.
+        separation: (K,) m.  normal_impulse: (K,) N s (>= 0).
+        friction_impulse: (K, 3) world-frame tangential impulse (N s).
+        kind: (K,) CONTACT_RESTING or CONTACT_IMPACT.
+    """
+
+    step: np.ndarray
+    t: np.ndarray
+    body_a: np.ndarray
+    body_b: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    separation: np.ndarray
+    normal_impulse: np.ndarray
+    friction_impulse: np.ndarray
+    kind: np.ndarray
+
+    @staticmethod
+    def empty() -> "Contacts":
+        z = np.zeros
+        return Contacts(
+            z(0, np.int64), z(0), z(0, np.int64), z(0, np.int64), z((0, 3)), z((0, 3)), z(0), z(0),
+            z((0, 3)), z(0, np.int8),
+        )
+
+    def __len__(self) -> int:
+        return len(self.step)
+
+    def select(self, mask: np.ndarray) -> "Contacts":
+        """The contacts where ``mask`` (K,) is true."""
+        return Contacts(**{f.name: getattr(self, f.name)[mask] for f in fields(Contacts)})
+
+    @staticmethod
+    def concat(parts: list["Contacts"]) -> "Contacts":
+        if not parts:
+            return Contacts.empty()
+        return Contacts(
+            **{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(Contacts)}
+        )
+
+
+#: per-sample, per-body channels: name -> trailing shape
+BODY_CHANNELS = {
+    "position": (3,),
+    "quat_wxyz": (4,),
+    "rotation": (3, 3),
+    "velocity": (3,),
+    "linear_momentum": (3,),
+    "angular_velocity": (3,),
+    "angular_momentum": (3,),
+    "energy_translational": (),
+    "energy_rotational": (),
+    "energy_potential": (),
+    "ortho_error": (),
+    "quat_norm_error": (),
+}
+#: per-sample totals over all bodies: name -> trailing shape
+TOTAL_CHANNELS = {
+    "total_linear_momentum": (3,),
+    "total_angular_momentum": (3,),
+    "total_energy": (),
+}
+
+
+@dataclass
+class Trajectory:
+    """A run (or a block of it). T samples of N bodies, float64, world frame.
+
+    Attributes:
+        model: the fixed model (bodies' shapes, masses, inertia, materials, ground, statics).
+        info: run metadata.
+        step: (T,) int64 step index of each sample.  t: (T,) simulated time (s).
+        position: (T, N, 3) m.  quat_wxyz: (T, N, 4) body->world, scalar first.
+        rotation: (T, N, 3, 3) the body->world matrix the integrator holds.
+        velocity: (T, N, 3) m/s.  linear_momentum: (T, N, 3) kg m/s.
+        angular_velocity: (T, N, 3) rad/s, world.  angular_momentum: (T, N, 3) kg m^2/s, world,
+            about the body's centre of mass.
+        energy_translational, energy_rotational, energy_potential: (T, N) J (potential of
+            gravity, zero at the world origin).
+        ortho_error: (T, N) ||R^T R - I||_F.  quat_norm_error: (T, N) |q| - 1.
+        total_linear_momentum: (T, 3).  total_angular_momentum: (T, 3) about the world origin
+            (sum of x cross P + L).  total_energy: (T,) J.
+        contacts: contacts at the logged steps.
+        truncated: True when the log ended early (interrupted or diverged run, cut file).
+        warnings: messages from the reader.
+    """
+
+    model: Model
+    info: RunInfo
+    step: np.ndarray
+    t: np.ndarray
+    position: np.ndarray
+    quat_wxyz: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    linear_momentum: np.ndarray
+    angular_velocity: np.ndarray
+    angular_momentum: np.ndarray
+    energy_translational: np.ndarray
+    energy_rotational: np.ndarray
+    energy_potential: np.ndarray
+    ortho_error: np.ndarray
+    quat_norm_error: np.ndarray
+    total_linear_momentum: np.ndarray
+    total_angular_momentum: np.ndarray
+    total_energy: np.ndarray
+    contacts: Contacts = field(default_factory=Contacts.empty)
+    truncated: bool = False
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.t)
+
+    @property
+    def n_bodies(self) -> int:
+        return self.model.n_bodies
+
+    @property
+    def quat_xyzw(self) -> np.ndarray:
+        """(T, N, 4) the same quaternions, scalar last (Rerun, Foxglove, scipy order)."""
+        return self.quat_wxyz[..., [1, 2, 3, 0]]
+
+    @property
+    def energy(self) -> np.ndarray:
+        """(T, N) total energy per body (J)."""
+        return self.energy_translational + self.energy_rotational + self.energy_potential
+
+    def slice(self, sl: slice) -> "Trajectory":
+        """The samples ``sl`` (time axis) of this trajectory, with the contacts of those steps."""
+        kw = {name: getattr(self, name)[sl] for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS)}
+        steps = kw["step"]
+        c = self.contacts
+        if len(steps):
+            c = c.select((c.step >= steps[0]) & (c.step <= steps[-1]))
+        else:
+            c = Contacts.empty()
+        return Trajectory(self.model, self.info, contacts=c, truncated=self.truncated,
+                          warnings=list(self.warnings), **kw)
+
+    @staticmethod
+    def concat(parts: list["Trajectory"]) -> "Trajectory":
+        """Join blocks of one run along time."""
+        first = parts[0]
+        kw = {
+            name: np.concatenate([getattr(p, name) for p in parts])
+            for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS)
+        }
+        return Trajectory(
+            first.model, first.info, contacts=Contacts.concat([p.contacts for p in parts]),
+            truncated=any(p.truncated for p in parts),
+            warnings=[w for p in parts for w in p.warnings], **kw,
+        )
+
+
+def derive(
+    model: Model,
+    info: RunInfo,
+    step: np.ndarray,
+    t: np.ndarray,
+    position: np.ndarray,
+    linear_momentum: np.ndarray,
+    quat_wxyz: np.ndarray,
+    rotation: np.ndarray,
+    angular_momentum: np.ndarray,
+    contacts: Contacts | None = None,
+) -> Trajectory:
+    """Build a trajectory from the integrator's state samples, computing every derived channel.
+
+    Args: step (T,), t (T,), position (T,N,3), linear_momentum (T,N,3), quat_wxyz (T,N,4),
+    rotation (T,N,3,3), angular_momentum (T,N,3) world frame.
+
+    The angular velocity is ``R diag(1/I_body) R^T L`` with the logged R, exactly as the notes'
+    integrator computes it, so a non-orthonormal R shows up in omega and in the energy.
+    """
+    from rblog.contract.derive import derive_channels
+
+    c = np.ascontiguousarray
+    position, linear_momentum, quat_wxyz, rotation, angular_momentum = (
+        c(a, dtype=np.float64) for a in (position, linear_momentum, quat_wxyz, rotation, angular_momentum))
+    shape_tn = position.shape[:2]
+    velocity, omega = np.empty_like(position), np.empty_like(position)
+    e_trans, e_rot, e_pot, ortho, qnorm = (np.empty(shape_tn) for _ in range(5))
+    n_t = shape_tn[0]
+    total_p, total_l, total_e = np.empty((n_t, 3)), np.empty((n_t, 3)), np.empty(n_t)
+    derive_channels(c(model.body_mass, dtype=np.float64), c(model.body_inv_inertia_diag, dtype=np.float64),
+                    c(model.gravity, dtype=np.float64), position, linear_momentum, quat_wxyz, rotation,
+                    angular_momentum, velocity, omega, e_trans, e_rot, e_pot, ortho, qnorm,
+                    total_p, total_l, total_e)
+    return Trajectory(
+        model=model, info=info, step=np.asarray(step, np.int64), t=np.asarray(t, np.float64),
+        position=position, quat_wxyz=quat_wxyz, rotation=rotation, velocity=velocity,
+        linear_momentum=linear_momentum, angular_velocity=omega, angular_momentum=angular_momentum,
+        energy_translational=e_trans, energy_rotational=e_rot, energy_potential=e_pot,
+        ortho_error=ortho, quat_norm_error=qnorm, total_linear_momentum=total_p,
+        total_angular_momentum=total_l, total_energy=total_e,
+        contacts=contacts if contacts is not None else Contacts.empty(),
+    )

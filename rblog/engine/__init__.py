@@ -1,0 +1,18 @@
+"""The simulator: a scene in, states out.
+
+Data flow: ``scene`` (TOML -> validated Model + State) -> ``plan`` (the stages the scene needs,
+chosen once) -> ``runner`` (blocks of compiled steps, samples handed to recorders) -> either
+``free`` (the free-body kernel) or ``contact.world`` (the contact step), both stepping bodies
+with the integrators of ``integrators``.
+
+* ``constants``: every tolerance and setting of the engine, with its unit (incl. ContactParams).
+* ``state``: :class:`State`, the changing arrays (position, momenta, q, R).
+* ``rotation``: quaternion/matrix math shared by every kernel.
+* ``integrators``: the integrator registry and each integrator's compiled step.
+* ``free``: the compiled free-body kernel (no contacts).
+* ``contact/``: broadphase, narrowphase, solver, islands and the compiled contact step.
+* ``plan``, ``scene``, ``runner``: see above.
+
+May import: rblog.contract, rblog.errors, numpy, numba. Never rblog.record (recorders are handed
+in through the ``Recorder`` protocol), rblog.analyze or rblog.study.
+"""

@@ -1,0 +1,193 @@
+"""Every tolerance and default of the engine, with its unit and what it trades off.
+
+The engine's numerical modules import from here; nothing else in the engine hard-codes a
+threshold. (The analyzers keep their own defaults in :mod:`rblog.analyze.tolerances`: an audit
+must not inherit the choices of the engine it audits.)
+
+Two kinds live here: fixed constants (integrators, run loop, logging, scene validation) and
+:class:`ContactParams`, the contact pipeline's settings a scene may override.
+
+Contact settings
+----------------
+Every tolerance and setting of the contact pipeline, with its unit and what it trades off.
+
+A scene may override any of them in an optional ``[contact]`` TOML table whose keys are the field
+names of :class:`ContactParams` (for example ``velocity_iterations = 12``). Lengths are in metres,
+speeds in m/s, times in seconds. The defaults are tuned for bodies of 1 cm to 1 m under Earth
+gravity at dt = 1e-3 to 1e-2 s; Box2D v3's ``constants.h`` is the model (its ``B2_LINEAR_SLOP``
+is 5 mm for games; rblog audits penetration, so its slop is 50x smaller).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+# --- integrators -----------------------------------------------------------------------------
+#: Newton iterations of the polar decomposition R <- (R + R^-T)/2 stop when the largest entry of
+#: the last update is below this (dimensionless). Newton converges quadratically, so the iterate
+#: is then within ~POLAR_TOL^2 = 1e-16 (round-off) of orthonormal; a smaller value costs one more
+#: iteration (~15 ns per body-step) and buys nothing.
+POLAR_TOL = 1e-8
+#: Cap on polar Newton iterations. Converges quadratically: from ||R^T R - I|| = 1e-4 it takes 2.
+POLAR_MAX_ITER = 12
+
+# --- run loop ---------------------------------------------------------------------------------
+#: A run is split into blocks that each run in one compiled call; a block holds at most this many
+#: logged samples (fewer blocks: less per-block work in the recorders) ...
+BLOCK_MAX_SAMPLES = 4096
+#: ... and at most this many body-samples, which bounds a block's memory whatever the body count:
+#: ~420 bytes per body-sample (state and derived channels, float64) = ~14 MB per block; the run
+#: holds at most ~4 blocks at once (stepping, queued, being written).
+BLOCK_MAX_BODY_SAMPLES = 32_768
+#: ... and at most this many body-steps, so that progress and Ctrl-C are seen every ~50 ms.
+BLOCK_MAX_BODY_STEPS = 2_000_000
+#: A progress bar is shown when the run is expected to last longer than this (seconds, wall).
+PROGRESS_MIN_WALL_S = 1.0
+#: Print a "compiling kernels" notice when the first compiled call has not returned by then (s).
+COMPILE_NOTICE_AFTER_S = 0.4
+
+# --- logging ----------------------------------------------------------------------------------
+#: Default logging rate when neither --log-every nor --log-rate is given (samples per simulated
+#: second). 100 Hz plays back smoothly in the viewers and resolves bounces at dt = 1e-3.
+DEFAULT_LOG_RATE_HZ = 100.0
+
+# --- scene validation -------------------------------------------------------------------------
+#: Tolerance on |q| for a quaternion given in a scene: it is normalized, but one far from unit
+#: length is probably a typo (a zero quaternion is rejected).
+QUAT_MIN_NORM = 1e-9
+
+
+# --- contact pipeline ----------------------------------------------------------------------
+@dataclass
+class ContactParams:
+    """Settings of collision detection and the contact solver.
+
+    Attributes:
+        velocity_iterations: minimum Gauss-Seidel sweeps over all contact points per step in the
+            velocity solve (sequential impulses with accumulated-impulse clamping).
+        max_velocity_iterations: cap on the sweeps. After the minimum, sweeping goes on until
+            the largest velocity change of a sweep is below ``velocity_tolerance``. A load has to
+            travel through a stack of n bodies, which takes ~n^2 plain Gauss-Seidel sweeps the
+            first time and ~n over-relaxed ones (see ``over_relaxation``); warm starting then
+            keeps it converged with a few. A pile with ~3,000 contact points being struck all
+            the time needs ~90 sweeps to reach the tolerance, so the cap sets its cost: 30 sweeps
+            run the 500-box pile 3.5x faster than 200, with the same penetration (the project
+            stage bounds it) and the 10-box stack still within 0.1 mm. Lower caps are faster in
+            piles but let tall stacks sink until they converge. The cap also sets how far resting
+            boxes creep while a pile settles: up to 1.3 mm over ~2 s at 30 sweeps, under 0.8 mm
+            converged (300 sweeps, tolerance 1e-6 m/s, 5-6x the run time; benchmarks/RESULTS.md).
+        velocity_tolerance: m/s. Convergence test of the velocity solve (see above). Smaller
+            values give exacter resting contact (no sinking, no creep) for more sweeps.
+        over_relaxation: successive over-relaxation factor of the normal impulses, in (0, 2)
+            (ODE's quickstep uses 1.3; projected SOR converges for any value in the range).
+            Applied to the manifolds whose bodies touch something else; a manifold on its own
+            is solved exactly by one update and is never relaxed. 1.0 is plain Gauss-Seidel.
+            Higher values move loads through stacks in fewer sweeps (10-box stack capped at 30
+            sweeps: its top sinks 0.06 mm at 1.6, 0.22 mm at 1.5, 0.38 mm at 1.3 and 5 mm,
+            sliding sideways, at 1.0).
+        position_iterations: sweeps of the position correction (split impulses on pseudo
+            velocities, which move bodies but are thrown away, so no momentum or energy is ever
+            injected). 0 turns position correction off.
+        allowed_penetration: m. Penetration left uncorrected (Box2D's linear slop). Larger values
+            avoid pushing bodies apart and back again; smaller values keep bodies closer to the
+            surface. Resting bodies sit at most this deep.
+        position_correction_rate: fraction of the penetration beyond ``allowed_penetration``
+            removed per step by the split-impulse pass (Baumgarte factor, in (0, 1]). Higher values
+            fix penetration faster but overshoot where many contacts interact.
+        max_correction_speed: m/s. Cap on the pseudo velocity that removes penetration, so a deep
+            overlap is resolved over several steps instead of popping bodies apart (the project
+            stage has no such cap: see ``projection_depth``).
+        speculative_distance: m. Contact points are generated while the surfaces are closer
+            than this plus the distance the pair can close in one step (relative speed times dt),
+            so fast bodies cannot tunnel through thin geometry. Larger values cost more contact
+            points; smaller values can miss contacts of rotating boxes.
+        restitution_threshold: m/s. Impacts slower than this (normal approach speed) are treated
+            as inelastic. Low values let resting bodies chatter; high values swallow gentle
+            bounces (Box2D v3 uses 1 m/s).
+        friction_anchor_distance: m. A new contact point takes over the warm-start impulses of a
+            point of the previous step when their feature ids match or, failing that, when they
+            lie within this distance. Too small loses warm starting when manifolds shift; too
+            large mixes up neighbouring points.
+        sleep: let bodies at rest sleep: an island of touching bodies whose speeds all stay
+            below ``sleep_speed`` for ``sleep_time`` stops being integrated and solved until an
+            awake body touches it. Only islands in contact with something sleep (a body drifting
+            slowly through empty space keeps moving).
+        sleep_speed: m/s. Speed below which a body counts as resting: the larger of its
+            centre-of-mass speed and its angular speed times its bounding radius. Higher values
+            freeze slow creeping earlier (Box2D v3 uses 5 cm/s; rblog audits motion, so 5 mm/s).
+        sleep_time: s. How long an island must stay below ``sleep_speed`` before it sleeps.
+        warm_starting: start each step's solve from the previous step's impulses (matched by
+            feature id). Turning it off is only useful to demonstrate why it exists.
+        projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
+            positions moved, the narrowphase runs again at the end-of-step poses and every
+            point deeper than ``projection_depth`` is pushed out to that depth by moving
+            positions and orientations (no velocity changes). It catches features that were not
+            in the step's manifolds (a tumbling box's corner swinging over an edge, a pair
+            struck within the step). 0 turns the stage off.
+        projection_depth: m. Penetration the project stage leaves (its target depth), and the
+            depth below which it does nothing. It must exceed the resting depth of the
+            split-impulse pass (a few ``allowed_penetration``), so that resting contacts are
+            left to the velocity and split-impulse passes and only fast, unforeseen overlaps
+            are projected. A deeper overlap is pushed out to this depth in one step, without
+            any velocity: a scene that starts overlapping is separated in its first step.
+    """
+
+    velocity_iterations: int = 4
+    max_velocity_iterations: int = 30
+    velocity_tolerance: float = 1e-4
+    over_relaxation: float = 1.6
+    position_iterations: int = 3
+    allowed_penetration: float = 5e-5
+    position_correction_rate: float = 0.8
+    max_correction_speed: float = 1.0
+    speculative_distance: float = 0.01
+    restitution_threshold: float = 1.0
+    friction_anchor_distance: float = 0.005
+    sleep: bool = True
+    sleep_speed: float = 0.005
+    sleep_time: float = 0.5
+    warm_starting: bool = True
+    projection_iterations: int = 4
+    projection_depth: float = 2e-4
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise ValueError naming the field when a value is out of its range."""
+        checks = {
+            "velocity_iterations": self.velocity_iterations >= 1,
+            "max_velocity_iterations": self.max_velocity_iterations >= 1,
+            "velocity_tolerance": self.velocity_tolerance >= 0.0,
+            "over_relaxation": 0.0 < self.over_relaxation < 2.0,
+            "position_iterations": self.position_iterations >= 0,
+            "allowed_penetration": self.allowed_penetration >= 0.0,
+            "position_correction_rate": 0.0 < self.position_correction_rate <= 1.0,
+            "max_correction_speed": self.max_correction_speed > 0.0,
+            "speculative_distance": self.speculative_distance >= 0.0,
+            "restitution_threshold": self.restitution_threshold >= 0.0,
+            "friction_anchor_distance": self.friction_anchor_distance >= 0.0,
+            "sleep_speed": self.sleep_speed >= 0.0,
+            "sleep_time": self.sleep_time >= 0.0,
+            "projection_iterations": self.projection_iterations >= 0,
+            "projection_depth": self.projection_depth > 0.0,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"contact.{name} = {getattr(self, name)!r} is out of range")
+        for name in ("velocity_iterations", "max_velocity_iterations", "position_iterations",
+                     "projection_iterations"):
+            if int(getattr(self, name)) != getattr(self, name):
+                raise ValueError(f"contact.{name} must be an integer")
+
+    @classmethod
+    def from_dict(cls, table: dict) -> "ContactParams":
+        """Build from a ``[contact]`` table; unknown keys raise ValueError listing the known ones."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(table) - known)
+        if unknown:
+            raise ValueError(f"unknown contact setting(s) {unknown}; known: {sorted(known)}")
+        return cls(**table)
+
+    def to_dict(self) -> dict:
+        return asdict(self)

@@ -1,0 +1,820 @@
+"""Contact solver: sequential impulses (projected Gauss-Seidel) with accumulated-impulse clamping.
+
+Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
+``load_bodies`` -> ``prepare_contacts`` -> ``warm_start`` -> ``solve_velocities`` ->
+``relax_positions`` (split impulses) -> [integrate positions, in step.py] -> ``restitution``
+-> [project: fresh narrowphase and nonlinear position pass, in project.py].
+
+Derivations
+-----------
+Velocity of the gap at a point with anchors r_a, r_b (normal n from b into a)::
+
+    vn = n . (v_a + w_a x r_a - v_b - w_b x r_b)            (> 0: separating)
+
+An impulse P at the point changes it through the effective mass
+``K = (m_a^-1 + m_b^-1) I - [r_a]x I_a^-1 [r_a]x - [r_b]x I_b^-1 [r_b]x`` (world inverse inertia
+``I^-1 = R diag(1/I_body) R^T``). Each sweep visits every point: for the normal row it computes the
+impulse increment that makes vn reach its target, adds it to the accumulated impulse, clamps the
+accumulated impulse to >= 0, and applies the difference (Catto 2005). Friction uses the 2x2
+tangent block of K; when the sticking impulse leaves the disc of radius mu * lambda_n (isotropic
+Coulomb cone) the point slides and gets the maximum-dissipation impulse on the circle, so that
+friction opposes the slip exactly (see _friction_impulse). Equal and opposite impulses at the same point conserve the pair's linear
+momentum and its angular momentum about any point, to round-off.
+
+Normal impulses are over-relaxed (projected SOR, ``ContactParams.over_relaxation``) on manifolds
+whose bodies touch more than one thing, so that loads cross stacks and piles in fewer sweeps; see
+solve_velocities.
+
+Targets: a penetrating or touching point (s <= 0) wants vn >= 0; a speculative point (s > 0)
+wants vn >= -s/h, i.e. the pair may close the gap within the step but not cross it. This is what
+stops fast bodies tunnelling, and stops a falling body exactly on the surface.
+
+Position correction by split impulses (Catto 2006; Bullet's split impulse): a second Gauss-Seidel
+pass on *pseudo velocities* (v', w') pushes penetrating points apart with target
+``vn' = min(beta * (-(s + slop)) / h, max_speed)``; positions move by h (v + v') and the pseudo
+velocities are then discarded. Real momenta never see the correction, so it injects neither
+momentum nor kinetic energy (the pseudo impulses are also equal and opposite, so the pair's
+centre of mass does not move either).
+
+Restitution (Box2D v3): after positions are integrated, points that were hit (solve impulse > 0)
+while approaching faster than the threshold get a normal velocity set from the approach velocity
+measured *before* the solve. rblog sharpens Box2D's rule with the step's exact energy balance: the
+gap s, its rate w and the relative normal acceleration a of the external forces (gravity) evolve
+under symplectic Euler, which conserves ``E = w^2/2 - a s + a h w/2`` exactly. The approach speed
+at contact is therefore ``u = sqrt(2 E)`` (from the start-of-step s0, w0), and the rebound rate w+
+is chosen so that the post-impact state at the end-of-step gap s1 has energy e^2 E:
+``w+^2/2 - a s1 + a h w+/2 = e^2 u^2/2``. Without external acceleration this is w+ = e |w0|;
+under gravity it makes bounce apexes e^(2n) h0 to ~1e-5 at dt = 1e-3 instead of ~1%.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from rblog.engine.contact.manifold import (
+    MF_ACC, MF_E, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
+    PF_IMPACT, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS, PF_NMASS, PF_RA, PF_RB, PF_S, PF_SEND, PF_TK,
+    PF_W0, PF_WT, PF_KN,
+)
+
+
+#: Newton iterations of the sliding-friction impulse (converges from below in 3-5)
+FRICTION_NEWTON_ITERS = 8
+#: relative tolerance on |lambda| = mu lambda_n that ends them
+FRICTION_NEWTON_TOL = 1e-12
+#: relative diagonal regularisation of a manifold's normal block: four coplanar points have a
+#: rank-3 block (one self-equilibrated load pattern costs nothing); the regularised solve picks
+#: the smallest impulses, which keeps symmetric loads symmetric.
+BLOCK_REG = 1e-9
+
+
+@njit(cache=True)
+def _smul(i0, i1, i2, i3, i4, i5, x, y, z):
+    """Symmetric 3x3 (xx, yy, zz, xy, xz, yz) times a vector."""
+    return (i0 * x + i3 * y + i4 * z, i3 * x + i1 * y + i5 * z, i4 * x + i5 * y + i2 * z)
+
+
+@njit(cache=True)
+def _cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@njit(cache=True)
+def load_bodies(mi, n_man, n_dyn, iso_shortcut, iso, inv_mass, inv_inertia, rotation,
+                linear_momentum, angular_momentum, in_contact, bm, bI, bv, bw, bv0, bw0, pv, pw,
+                p0, l0):
+    """Count the active manifolds of each body (``in_contact``: (N+1,), row N the static
+    dummy) and load the solver state of the bodies that have any.
+
+    bm: (N+1,) inverse mass, bI: (N+1, 6) world inverse inertia (xx, yy, zz, xy, xz, yz), bv/bw:
+    (N+1, 3) velocity and angular velocity (world), bv0/bw0 their values before the solve, pv/pw
+    pseudo velocities, p0/l0 momenta before the solve. Row N is the static dummy (all zero)."""
+    for i in range(n_dyn + 1):
+        in_contact[i] = 0
+    for m in range(n_man):
+        if mi[m, MI_ACTIVE]:
+            in_contact[mi[m, MI_A]] += 1
+            in_contact[mi[m, MI_B]] += 1
+    for i in range(n_dyn):
+        if not in_contact[i]:
+            continue
+        im = inv_mass[i]
+        bm[i] = im
+        if iso_shortcut and iso[i]:
+            # isotropic inertia: I^-1 is a scalar in every frame, no transform needed
+            s = inv_inertia[i, 0]
+            bI[i, 0], bI[i, 1], bI[i, 2] = s, s, s
+            bI[i, 3], bI[i, 4], bI[i, 5] = 0.0, 0.0, 0.0
+        else:
+            r = rotation[i]
+            d0, d1, d2 = inv_inertia[i, 0], inv_inertia[i, 1], inv_inertia[i, 2]
+            # R diag(d) R^T
+            bI[i, 0] = d0 * r[0, 0] * r[0, 0] + d1 * r[0, 1] * r[0, 1] + d2 * r[0, 2] * r[0, 2]
+            bI[i, 1] = d0 * r[1, 0] * r[1, 0] + d1 * r[1, 1] * r[1, 1] + d2 * r[1, 2] * r[1, 2]
+            bI[i, 2] = d0 * r[2, 0] * r[2, 0] + d1 * r[2, 1] * r[2, 1] + d2 * r[2, 2] * r[2, 2]
+            bI[i, 3] = d0 * r[0, 0] * r[1, 0] + d1 * r[0, 1] * r[1, 1] + d2 * r[0, 2] * r[1, 2]
+            bI[i, 4] = d0 * r[0, 0] * r[2, 0] + d1 * r[0, 1] * r[2, 1] + d2 * r[0, 2] * r[2, 2]
+            bI[i, 5] = d0 * r[1, 0] * r[2, 0] + d1 * r[1, 1] * r[2, 1] + d2 * r[1, 2] * r[2, 2]
+        for k in range(3):
+            p0[i, k] = linear_momentum[i, k]
+            l0[i, k] = angular_momentum[i, k]
+            bv[i, k] = linear_momentum[i, k] * im
+            bv0[i, k] = bv[i, k]
+            pv[i, k] = 0.0
+            pw[i, k] = 0.0
+        wx, wy, wz = _smul(bI[i, 0], bI[i, 1], bI[i, 2], bI[i, 3], bI[i, 4], bI[i, 5],
+                           l0[i, 0], l0[i, 1], l0[i, 2])
+        bw[i, 0], bw[i, 1], bw[i, 2] = wx, wy, wz
+        bw0[i, 0], bw0[i, 1], bw0[i, 2] = wx, wy, wz
+    # the static dummy: reset every step so that a bad value can never stick to it
+    s = n_dyn
+    bm[s] = 0.0
+    for k in range(3):
+        bv[s, k] = 0.0
+        bw[s, k] = 0.0
+        bv0[s, k] = 0.0
+        bw0[s, k] = 0.0
+        pv[s, k] = 0.0
+        pw[s, k] = 0.0
+    for k in range(6):
+        bI[s, k] = 0.0
+
+
+@njit(cache=True)
+def prepare_contacts(mi, mf, pf, n_man, bm, bI, bv, bw, h):
+    """Effective masses, and the gap velocity before the step (for restitution)."""
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        ma = bm[ia]
+        mb = bm[ib]
+        a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+        b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        acc = mf[m, MF_ACC]
+        vax, vay, vaz = bv[ia, 0], bv[ia, 1], bv[ia, 2]
+        wax, way, waz = bw[ia, 0], bw[ia, 1], bw[ia, 2]
+        vbx, vby, vbz = bv[ib, 0], bv[ib, 1], bv[ib, 2]
+        wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
+        start = mi[m, MI_START]
+        cnt = mi[m, MI_COUNT]
+        # normal block K_ij = J_i M^-1 J_j^T of the manifold's points
+        for p in range(start, start + cnt):
+            cax, cay, caz = _cross(pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2], nx, ny, nz)
+            cbx, cby, cbz = _cross(pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2], nx, ny, nz)
+            ix, iy, iz = _smul(a0, a1, a2, a3, a4, a5, cax, cay, caz)
+            jx, jy, jz = _smul(b0, b1, b2, b3, b4, b5, cbx, cby, cbz)
+            for q in range(start, start + cnt):
+                dax, day, daz = _cross(pf[q, PF_RA], pf[q, PF_RA + 1], pf[q, PF_RA + 2], nx, ny, nz)
+                dbx, dby, dbz = _cross(pf[q, PF_RB], pf[q, PF_RB + 1], pf[q, PF_RB + 2], nx, ny, nz)
+                pf[p, PF_KN + q - start] = (ma + mb + dax * ix + day * iy + daz * iz
+                                            + dbx * jx + dby * jy + dbz * jz)
+        for p in range(start, start + cnt):
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            # normal row
+            cax, cay, caz = _cross(rax, ray, raz, nx, ny, nz)
+            cbx, cby, cbz = _cross(rbx, rby, rbz, nx, ny, nz)
+            ix, iy, iz = _smul(a0, a1, a2, a3, a4, a5, cax, cay, caz)
+            jx, jy, jz = _smul(b0, b1, b2, b3, b4, b5, cbx, cby, cbz)
+            k = ma + mb + cax * ix + cay * iy + caz * iz + cbx * jx + cby * jy + cbz * jz
+            pf[p, PF_NMASS] = 1.0 / k if k > 0.0 else 0.0
+            # tangent block
+            ua1x, ua1y, ua1z = _cross(rax, ray, raz, t1x, t1y, t1z)
+            ua2x, ua2y, ua2z = _cross(rax, ray, raz, t2x, t2y, t2z)
+            ub1x, ub1y, ub1z = _cross(rbx, rby, rbz, t1x, t1y, t1z)
+            ub2x, ub2y, ub2z = _cross(rbx, rby, rbz, t2x, t2y, t2z)
+            ia1x, ia1y, ia1z = _smul(a0, a1, a2, a3, a4, a5, ua1x, ua1y, ua1z)
+            ia2x, ia2y, ia2z = _smul(a0, a1, a2, a3, a4, a5, ua2x, ua2y, ua2z)
+            ib1x, ib1y, ib1z = _smul(b0, b1, b2, b3, b4, b5, ub1x, ub1y, ub1z)
+            ib2x, ib2y, ib2z = _smul(b0, b1, b2, b3, b4, b5, ub2x, ub2y, ub2z)
+            k11 = ma + mb + ua1x * ia1x + ua1y * ia1y + ua1z * ia1z + ub1x * ib1x + ub1y * ib1y + ub1z * ib1z
+            k22 = ma + mb + ua2x * ia2x + ua2y * ia2y + ua2z * ia2z + ub2x * ib2x + ub2y * ib2y + ub2z * ib2z
+            k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y + ub1z * ib2z
+            pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2] = k11, k12, k22
+            # gap velocity now (after the force kick), and before the kick
+            wxrax, wxray, wxraz = _cross(wax, way, waz, rax, ray, raz)
+            wxrbx, wxrby, wxrbz = _cross(wbx, wby, wbz, rbx, rby, rbz)
+            vn = (nx * (vax + wxrax - vbx - wxrbx) + ny * (vay + wxray - vby - wxrby)
+                  + nz * (vaz + wxraz - vbz - wxrbz))
+            pf[p, PF_W0] = vn - acc * h
+            pf[p, PF_LP] = 0.0
+            pf[p, PF_IMPACT] = 0.0
+
+
+@njit(cache=True)
+def warm_start(mi, mf, pf, n_man, bm, bI, bv, bw):
+    """Apply the impulses carried over from the previous step."""
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        ma = bm[ia]
+        mb = bm[ib]
+        a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+        b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        vax, vay, vaz = bv[ia, 0], bv[ia, 1], bv[ia, 2]
+        wax, way, waz = bw[ia, 0], bw[ia, 1], bw[ia, 2]
+        vbx, vby, vbz = bv[ib, 0], bv[ib, 1], bv[ib, 2]
+        wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            ln, l1, l2 = pf[p, PF_LN], pf[p, PF_L1], pf[p, PF_L2]
+            if ln == 0.0 and l1 == 0.0 and l2 == 0.0:
+                continue
+            px = ln * nx + l1 * t1x + l2 * t2x
+            py = ln * ny + l1 * t1y + l2 * t2y
+            pz = ln * nz + l1 * t1z + l2 * t2z
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            vax += ma * px
+            vay += ma * py
+            vaz += ma * pz
+            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+            dx, dy, dz = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+            wax += dx
+            way += dy
+            waz += dz
+            vbx -= mb * px
+            vby -= mb * py
+            vbz -= mb * pz
+            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+            dx, dy, dz = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+            wbx -= dx
+            wby -= dy
+            wbz -= dz
+        bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
+        bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
+        bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
+        bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
+
+
+@njit(cache=True)
+def _friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, fmax):
+    """Accumulated friction impulse (t1, t2) after one Gauss-Seidel update of a point.
+
+    Sticking: the impulse that zeroes the slip, lambda = o - K^-1 vt. When that leaves the
+    Coulomb disc |lambda| <= fmax, the point slides and the impulse is the *maximum-dissipation*
+    one: the minimiser of the kinetic energy 1/2 (lambda - c)^T K (lambda - c) on the circle
+    |lambda| = fmax, lambda = (K + g I)^-1 K c with g >= 0 found by Newton on
+    1/|lambda(g)| = 1/fmax (More-Sorensen's secular equation). The slip after the impulse is
+    then -g lambda: friction opposes the sliding velocity exactly, which a radial projection of
+    the unconstrained impulse does not do when K couples the two tangents (off-centre points).
+    """
+    det0 = k11 * k22 - k12 * k12
+    if det0 <= 0.0 or fmax <= 0.0:
+        return 0.0, 0.0
+    # K c = K o - vt  (c: the sticking impulse)
+    kc1 = k11 * o1 + k12 * o2 - vt1
+    kc2 = k12 * o1 + k22 * o2 - vt2
+    g = 0.0
+    l1 = (k22 * kc1 - k12 * kc2) / det0
+    l2 = (k11 * kc2 - k12 * kc1) / det0
+    nl = math.sqrt(l1 * l1 + l2 * l2)
+    if nl <= fmax:
+        return l1, l2
+    for _ in range(FRICTION_NEWTON_ITERS):
+        a = k11 + g
+        d = k22 + g
+        det = a * d - k12 * k12
+        l1 = (d * kc1 - k12 * kc2) / det
+        l2 = (a * kc2 - k12 * kc1) / det
+        nl = math.sqrt(l1 * l1 + l2 * l2)
+        if nl <= fmax * (1.0 + FRICTION_NEWTON_TOL):
+            break
+        m1 = (d * l1 - k12 * l2) / det
+        m2 = (a * l2 - k12 * l1) / det
+        # f(g) = 1/fmax - 1/|l|,  f'(g) = -(l . (K + g I)^-1 l) / |l|^3
+        f = 1.0 / fmax - 1.0 / nl
+        fp = -(l1 * m1 + l2 * m2) / (nl * nl * nl)
+        g -= f / fp
+    sc = fmax / nl
+    return l1 * sc, l2 * sc
+
+
+@njit(cache=True)
+def _solve_block(a, n):
+    """Solve the n x n system in a[:n, :n] with right-hand side a[:n, 4] in place (Gaussian
+    elimination with partial pivoting); the solution ends in a[:n, 4]. False if singular."""
+    for c in range(n):
+        piv = c
+        for r in range(c + 1, n):
+            if abs(a[r, c]) > abs(a[piv, c]):
+                piv = r
+        if abs(a[piv, c]) <= 0.0:
+            return False
+        if piv != c:
+            for k in range(n):
+                t = a[c, k]
+                a[c, k] = a[piv, k]
+                a[piv, k] = t
+            t = a[c, 4]
+            a[c, 4] = a[piv, 4]
+            a[piv, 4] = t
+        for r in range(c + 1, n):
+            f = a[r, c] / a[c, c]
+            for k in range(c, n):
+                a[r, k] -= f * a[c, k]
+            a[r, 4] -= f * a[c, 4]
+    for c in range(n - 1, -1, -1):
+        x = a[c, 4]
+        for k in range(c + 1, n):
+            x -= a[c, k] * a[k, 4]
+        a[c, 4] = x / a[c, c]
+    return True
+
+
+@njit(cache=True)
+def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_iter, tol, blk,
+                     hot, degree, sor):
+    """Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order).
+
+    Sweeps at least ``min_iter`` times, then until the largest velocity change a sweep makes at
+    any point is below ``tol`` (m/s), at most ``max_iter`` sweeps. Past ``min_iter`` a sweep
+    visits only manifolds with a body that a previous sweep changed by more than ``tol``
+    (``hot``: (N+1,) last sweep that did), so settled regions of a pile cost nothing while an
+    unsettled one converges. Returns the number of manifold visits divided by the manifolds
+    (full-sweep equivalents, at least 1).
+
+    Successive over-relaxation (ODE's quickstep; projected SOR converges for 0 < sor < 2 on the
+    normal rows, Cryer 1971): the normal impulse increment of a manifold is scaled by ``sor``
+    before the clamp when one of its dynamic bodies touches something else (``degree``: (N+1,)
+    active manifolds per body). Plain Gauss-Seidel moves a load through a chain of n bodies in
+    ~n^2 sweeps, over-relaxed in ~n. A manifold whose bodies touch nothing else is solved
+    exactly by one update, so it is not relaxed (that would only make it oscillate)."""
+    it = 0
+    visits = 0
+    for k in range(hot.shape[0]):
+        hot[k] = 0
+    active = 0
+    for m in range(n_man):
+        active += mi[m, MI_ACTIVE]
+    while it < max_iter:
+        it += 1
+        change = 0.0
+        for m in range(n_man):
+            if not mi[m, MI_ACTIVE]:
+                continue
+            ia = mi[m, MI_A]
+            ib = mi[m, MI_B]
+            if it > min_iter and hot[ia] < it - 1 and hot[ib] < it - 1:
+                continue
+            visits += 1
+            mark_a = False
+            ma = bm[ia]
+            mb = bm[ib]
+            om = 1.0
+            if (ma > 0.0 and degree[ia] > 1) or (mb > 0.0 and degree[ib] > 1):
+                om = sor
+            a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+            b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+            nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+            t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+            t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+            mu = mf[m, MF_MU]
+            vax, vay, vaz = bv[ia, 0], bv[ia, 1], bv[ia, 2]
+            wax, way, waz = bw[ia, 0], bw[ia, 1], bw[ia, 2]
+            vbx, vby, vbz = bv[ib, 0], bv[ib, 1], bv[ib, 2]
+            wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
+            start = mi[m, MI_START]
+            end = start + mi[m, MI_COUNT]
+            # non-penetration: the manifold's points together (block), else one by one
+            solved = False
+            cnt = end - start
+            if cnt > 1:
+                for i in range(cnt):
+                    p = start + i
+                    rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                    rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                    dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+                    dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+                    dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+                    vn = dvx * nx + dvy * ny + dvz * nz
+                    s = pf[p, PF_S]
+                    target = -s * inv_h if s > 0.0 else 0.0
+                    for j in range(cnt):
+                        blk[i, j] = pf[p, PF_KN + j]
+                    blk[i, i] += BLOCK_REG * pf[p, PF_KN + i]
+                    blk[i, 4] = target - vn
+                if _solve_block(blk, cnt):
+                    ok = True
+                    for i in range(cnt):
+                        if pf[start + i, PF_LN] + om * blk[i, 4] < 0.0:
+                            ok = False
+                    if ok:
+                        solved = True
+                        for i in range(cnt):
+                            p = start + i
+                            d = om * blk[i, 4]
+                            pf[p, PF_LN] += d
+                            if d != 0.0:
+                                dv = abs(d) / pf[p, PF_NMASS]
+                                if dv > change:
+                                    change = dv
+                                if dv > tol:
+                                    mark_a = True
+                            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                            px, py, pz = d * nx, d * ny, d * nz
+                            vax += ma * px
+                            vay += ma * py
+                            vaz += ma * pz
+                            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                            ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                            wax += ex
+                            way += ey
+                            waz += ez
+                            vbx -= mb * px
+                            vby -= mb * py
+                            vbz -= mb * pz
+                            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                            ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                            wbx -= ex
+                            wby -= ey
+                            wbz -= ez
+            for p in range(start, end):
+                if solved:
+                    break
+                rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                # relative normal velocity at the contact (a minus b)
+                dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+                dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+                dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+                vn = dvx * nx + dvy * ny + dvz * nz
+                s = pf[p, PF_S]
+                # speculative: the gap may close within the step, not more
+                target = -s * inv_h if s > 0.0 else 0.0
+                # clamp the accumulated impulse
+                old = pf[p, PF_LN]
+                new = old + om * pf[p, PF_NMASS] * (target - vn)
+                if new < 0.0:
+                    new = 0.0
+                pf[p, PF_LN] = new
+                d = new - old
+                if d != 0.0:
+                    dv = abs(d) / pf[p, PF_NMASS]
+                    if dv > change:
+                        change = dv
+                    if dv > tol:
+                        mark_a = True
+                px, py, pz = d * nx, d * ny, d * nz
+                vax += ma * px
+                vay += ma * py
+                vaz += ma * pz
+                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                wax += ex
+                way += ey
+                waz += ez
+                vbx -= mb * px
+                vby -= mb * py
+                vbz -= mb * pz
+                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                wbx -= ex
+                wby -= ey
+                wbz -= ez
+            # friction
+            if mu > 0.0:
+                for p in range(start, end):
+                    rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                    rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                    dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+                    dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+                    dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+                    vt1 = dvx * t1x + dvy * t1y + dvz * t1z
+                    vt2 = dvx * t2x + dvy * t2y + dvz * t2z
+                    k11, k12, k22 = pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2]
+                    o1, o2 = pf[p, PF_L1], pf[p, PF_L2]
+                    n1, n2 = _friction_impulse(k11, k12, k22, o1, o2, vt1, vt2,
+                                               mu * pf[p, PF_LN])
+                    pf[p, PF_L1] = n1
+                    pf[p, PF_L2] = n2
+                    d1 = n1 - o1
+                    d2 = n2 - o2
+                    dv = abs(d1) * k11 + abs(d2) * k22
+                    if dv > change:
+                        change = dv
+                    if dv > tol:
+                        mark_a = True
+                    px = d1 * t1x + d2 * t2x
+                    py = d1 * t1y + d2 * t2y
+                    pz = d1 * t1z + d2 * t2z
+                    vax += ma * px
+                    vay += ma * py
+                    vaz += ma * pz
+                    cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                    ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                    wax += ex
+                    way += ey
+                    waz += ez
+                    vbx -= mb * px
+                    vby -= mb * py
+                    vbz -= mb * pz
+                    cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                    ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                    wbx -= ex
+                    wby -= ey
+                    wbz -= ez
+            bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
+            bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
+            bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
+            bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
+            if mark_a:
+                # the static dummy (zero inverse mass) never turns hot
+                if ma > 0.0:
+                    hot[ia] = it
+                if mb > 0.0:
+                    hot[ib] = it
+        if it >= min_iter and change <= tol:
+            break
+    return max(1, (visits + active - 1) // max(active, 1))
+
+
+@njit(cache=True)
+def relax_positions(mi, mf, pf, n_man, bm, bI, pv, pw, inv_h, n_iter, slop, beta, max_speed):
+    """Split impulses: Gauss-Seidel on pseudo velocities that remove penetration beyond slop."""
+    for _ in range(n_iter):
+        for m in range(n_man):
+            if not mi[m, MI_ACTIVE]:
+                continue
+            ia = mi[m, MI_A]
+            ib = mi[m, MI_B]
+            start = mi[m, MI_START]
+            end = start + mi[m, MI_COUNT]
+            deep = False
+            for p in range(start, end):
+                if pf[p, PF_S] <= 0.0:
+                    deep = True
+            if not deep:
+                continue
+            ma = bm[ia]
+            mb = bm[ib]
+            a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+            b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+            nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+            vax, vay, vaz = pv[ia, 0], pv[ia, 1], pv[ia, 2]
+            wax, way, waz = pw[ia, 0], pw[ia, 1], pw[ia, 2]
+            vbx, vby, vbz = pv[ib, 0], pv[ib, 1], pv[ib, 2]
+            wbx, wby, wbz = pw[ib, 0], pw[ib, 1], pw[ib, 2]
+            for p in range(start, end):
+                s = pf[p, PF_S]
+                if s > 0.0:
+                    continue
+                rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+                dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+                dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+                vn = dvx * nx + dvy * ny + dvz * nz
+                target = -(s + slop) * beta * inv_h
+                if target < 0.0:
+                    target = 0.0
+                elif target > max_speed:
+                    target = max_speed
+                old = pf[p, PF_LP]
+                new = old + pf[p, PF_NMASS] * (target - vn)
+                if new < 0.0:
+                    new = 0.0
+                pf[p, PF_LP] = new
+                d = new - old
+                px, py, pz = d * nx, d * ny, d * nz
+                vax += ma * px
+                vay += ma * py
+                vaz += ma * pz
+                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
+                wax += ex
+                way += ey
+                waz += ez
+                vbx -= mb * px
+                vby -= mb * py
+                vbz -= mb * pz
+                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
+                wbx -= ex
+                wby -= ey
+                wbz -= ez
+            pv[ia, 0], pv[ia, 1], pv[ia, 2] = vax, vay, vaz
+            pw[ia, 0], pw[ia, 1], pw[ia, 2] = wax, way, waz
+            pv[ib, 0], pv[ib, 1], pv[ib, 2] = vbx, vby, vbz
+            pw[ib, 0], pw[ib, 1], pw[ib, 2] = wbx, wby, wbz
+
+
+@njit(cache=True)
+def _gap_rate(v, w, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz):
+    dvx = v[ia, 0] + w[ia, 1] * raz - w[ia, 2] * ray - v[ib, 0] - w[ib, 1] * rbz + w[ib, 2] * rby
+    dvy = v[ia, 1] + w[ia, 2] * rax - w[ia, 0] * raz - v[ib, 1] - w[ib, 2] * rbx + w[ib, 0] * rbz
+    dvz = v[ia, 2] + w[ia, 0] * ray - w[ia, 1] * rax - v[ib, 2] - w[ib, 0] * rby + w[ib, 1] * rbx
+    return dvx * nx + dvy * ny + dvz * nz
+
+
+@njit(cache=True)
+def restitution(mi, mf, pf, n_man, bm, bI, bv, bw, pv, pw, h, threshold, n_iter, dx,
+                linear_momentum, angular_momentum):
+    """Store the solve's impulses for warm starting, estimate end-of-step gaps, then bounce.
+
+    A point bounces when its solve impulse is positive (it was hit), the gap was closing at the
+    start of the step, and its impact speed u exceeds ``threshold``. Returns the number of
+    impact points.
+
+    Bounces come after the positions moved (dx: (N+1, 3) each body's displacement this step).
+    Between two bodies the impulse is applied at one point that moved with them, the midpoint
+    p + (dx_a + dx_b)/2, so that both anchors end at the same point: otherwise the pair's angular
+    momentum would change by h (v_a - v_b) x J. The bounce impulses go straight into the momenta
+    (P += J, L += r x J), since the orientations have already moved on."""
+    n_impacts = 0
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+        e = mf[m, MF_E]
+        acc = mf[m, MF_ACC]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            vn = _gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
+            pn = _gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
+            s0 = pf[p, PF_S]
+            s1 = s0 + h * (vn + pn)
+            pf[p, PF_SEND] = s1
+            pf[p, PF_LWS] = pf[p, PF_LN]
+            pf[p, PF_WT] = -1.0
+            w0 = pf[p, PF_W0]
+            if w0 >= 0.0 or pf[p, PF_LN] <= 0.0:
+                continue
+            # approach speed at contact from the step's conserved energy (see module docstring)
+            u2 = w0 * w0 - 2.0 * acc * s0 + acc * h * w0
+            if u2 <= threshold * threshold:
+                continue
+            pf[p, PF_IMPACT] = 1.0
+            n_impacts += 1
+            if e <= 0.0:
+                continue
+            c = e * e * u2 + 2.0 * acc * s1
+            disc = acc * acc * h * h + 4.0 * c
+            if c > 0.0 and disc > 0.0:
+                pf[p, PF_WT] = 0.5 * (-acc * h + math.sqrt(disc))
+            else:
+                pf[p, PF_WT] = e * math.sqrt(u2)
+    if n_impacts == 0:
+        return 0
+    # Gauss-Seidel on the bounce targets of the impact points only
+    for _ in range(n_iter):
+        for m in range(n_man):
+            if not mi[m, MI_ACTIVE]:
+                continue
+            start = mi[m, MI_START]
+            end = start + mi[m, MI_COUNT]
+            any_target = False
+            for p in range(start, end):
+                if pf[p, PF_WT] >= 0.0:
+                    any_target = True
+            if not any_target:
+                continue
+            ia = mi[m, MI_A]
+            ib = mi[m, MI_B]
+            ma = bm[ia]
+            mb = bm[ib]
+            nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+            shared = ma > 0.0 and mb > 0.0
+            hx = 0.5 * (dx[ib, 0] - dx[ia, 0])
+            hy = 0.5 * (dx[ib, 1] - dx[ia, 1])
+            hz = 0.5 * (dx[ib, 2] - dx[ia, 2])
+            for p in range(start, end):
+                wt = pf[p, PF_WT]
+                if wt < 0.0:
+                    continue
+                rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                if shared:
+                    rax, ray, raz = rax + hx, ray + hy, raz + hz
+                    rbx, rby, rbz = rbx - hx, rby - hy, rbz - hz
+                vn = _gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
+                old = pf[p, PF_LN]
+                new = old + pf[p, PF_NMASS] * (wt - vn)
+                if new < 0.0:
+                    new = 0.0
+                pf[p, PF_LN] = new
+                d = new - old
+                _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
+                                    rax, ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz)
+    _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum)
+    return n_impacts
+
+
+@njit(cache=True)
+def _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
+                        rax, ray, raz, rbx, rby, rbz, px, py, pz):
+    """Impulse (px, py, pz) on a at anchor r_a and its negative on b at r_b: into the solver
+    velocities (bv, bw) and straight into the momenta of dynamic bodies (P += J, L += r x J)."""
+    n_dyn = linear_momentum.shape[0]
+    ma = bm[ia]
+    mb = bm[ib]
+    bv[ia, 0] += ma * px
+    bv[ia, 1] += ma * py
+    bv[ia, 2] += ma * pz
+    cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
+    ex, ey, ez = _smul(bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5], cx, cy, cz)
+    bw[ia, 0] += ex
+    bw[ia, 1] += ey
+    bw[ia, 2] += ez
+    if ia < n_dyn:
+        linear_momentum[ia, 0] += px
+        linear_momentum[ia, 1] += py
+        linear_momentum[ia, 2] += pz
+        angular_momentum[ia, 0] += cx
+        angular_momentum[ia, 1] += cy
+        angular_momentum[ia, 2] += cz
+    bv[ib, 0] -= mb * px
+    bv[ib, 1] -= mb * py
+    bv[ib, 2] -= mb * pz
+    cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
+    ex, ey, ez = _smul(bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5], cx, cy, cz)
+    bw[ib, 0] -= ex
+    bw[ib, 1] -= ey
+    bw[ib, 2] -= ez
+    if ib < n_dyn:
+        linear_momentum[ib, 0] -= px
+        linear_momentum[ib, 1] -= py
+        linear_momentum[ib, 2] -= pz
+        angular_momentum[ib, 0] -= cx
+        angular_momentum[ib, 1] -= cy
+        angular_momentum[ib, 2] -= cz
+
+
+@njit(cache=True)
+def _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum):
+    """Keep the friction impulse of every bouncing point inside the Coulomb cone.
+
+    The bounce pass may lower a point's accumulated normal impulse (down to 0) after friction
+    was solved against the higher one; the friction impulse is then scaled back onto the cone
+    |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the
+    bounce, so that the pair's momenta stay exactly balanced."""
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        mu = mf[m, MF_MU]
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        ma = bm[ia]
+        mb = bm[ib]
+        shared = ma > 0.0 and mb > 0.0
+        hx = 0.5 * (dx[ib, 0] - dx[ia, 0])
+        hy = 0.5 * (dx[ib, 1] - dx[ia, 1])
+        hz = 0.5 * (dx[ib, 2] - dx[ia, 2])
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            if pf[p, PF_WT] < 0.0:
+                continue
+            l1, l2 = pf[p, PF_L1], pf[p, PF_L2]
+            nl = math.sqrt(l1 * l1 + l2 * l2)
+            fmax = mu * pf[p, PF_LN]
+            if nl <= fmax:
+                continue
+            scale = fmax / nl
+            d1, d2 = l1 * scale - l1, l2 * scale - l2
+            pf[p, PF_L1] = l1 * scale
+            pf[p, PF_L2] = l2 * scale
+            px = d1 * t1x + d2 * t2x
+            py = d1 * t1y + d2 * t2y
+            pz = d1 * t1z + d2 * t2z
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            if shared:
+                rax, ray, raz = rax + hx, ray + hy, raz + hz
+                rbx, rby, rbz = rbx - hx, rby - hy, rbz - hz
+            _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
+                                rax, ray, raz, rbx, rby, rbz, px, py, pz)
+
+
+@njit(cache=True)
+def store_impulses(mi, mf, pf, n_man):
+    """Friction impulses as world vectors, so the next step can project them on its tangents."""
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            l1, l2 = pf[p, PF_L1], pf[p, PF_L2]
+            pf[p, PF_F] = l1 * t1x + l2 * t2x
+            pf[p, PF_F + 1] = l1 * t1y + l2 * t2y
+            pf[p, PF_F + 2] = l1 * t1z + l2 * t2z

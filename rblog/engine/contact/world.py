@@ -1,0 +1,329 @@
+"""ContactWorld: the simulator's entry point for scenes whose bodies can touch.
+
+Usage (the simulator calls this in blocks, like ``kernels.advance_free``)::
+
+    world = ContactWorld(model, ContactParams(), rotation.METHOD_SPLITTING, rotation.ORTHO_NORMALIZE)
+    for stage, why in world.explain():
+        print(f"{stage:32s} {why}")
+    n_samples, bad_step, bad_body, contacts = world.advance(
+        dt, n_steps, stride, sample_last,
+        position, linear_momentum, quat_wxyz, rotation, angular_momentum,   # state, in place
+        out_position, out_linear_momentum, out_quat_wxyz, out_rotation, out_angular_momentum)
+
+The world keeps what must survive between calls: last step's manifolds and impulses (warm
+starting) and the sleep state. Stages a scene does not need are chosen away once, here:
+
+* no gravity, force or torque: no kick stage;
+* nothing can ever touch (no ground, no static box, and no two bodies whose groups collide): no
+  contact stages at all, the free-body kernel ``kernels.advance_free`` runs instead;
+* isotropic inertia (spheres, cubes): the solver uses the scalar 1/I, no R diag(1/I) R^T;
+* sleeping (``params.sleep``): resting islands cost nothing until touched.
+
+``force_all_stages=True`` turns every shortcut off (benchmarks measure what they save).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rblog.engine.free import advance_free
+from rblog.contract.model import Model
+from rblog.engine.rotation import quat_to_matrix_np
+from rblog.contract.trajectory import Contacts
+from rblog.engine.contact.broadphase import static_box_aabbs
+from rblog.engine.contact.manifold import (
+    LOG_A, LOG_B, LOG_F, LOG_F_COLS, LOG_I_COLS, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
+    empty_manifolds,
+)
+from rblog.engine.contact.narrowphase import (
+    GEOM_BOX, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM, UnsupportedShapePair,
+)
+from rblog.engine.constants import ContactParams
+from rblog.engine.contact.step import N_STATS, Bodies, Settings, Statics, world_advance
+
+#: relative tolerance under which principal moments count as equal (isotropic inertia)
+ISOTROPIC_RTOL = 1e-12
+
+
+class ContactWorld:
+    """Rigid bodies with contacts (see the module docstring).
+
+    Args:
+        model: the fixed scene (shapes, masses, materials, ground, static boxes, groups).
+        params: contact settings (``ContactParams()`` for the defaults).
+        method, ortho: rotation.METHOD_* / ORTHO_* codes of the run's integrator.
+        force_all_stages: run every stage even when the scene does not need it.
+    """
+
+    def __init__(self, model: Model, params: ContactParams | None = None, method: int = 2,
+                 ortho: int = 3, force_all_stages: bool = False):
+        self.model = model
+        self.params = params if params is not None else ContactParams()
+        self.params.validate()
+        self.method = int(method)
+        self.ortho = int(ortho)
+        self.force_all_stages = bool(force_all_stages)
+        n = model.n_bodies
+        self.n_bodies = n
+        p = self.params
+
+        geom = np.empty(n, np.int64)
+        for i, shape in enumerate(np.asarray(model.body_shape).tolist()):
+            if shape not in SHAPE_TO_GEOM:
+                raise UnsupportedShapePair(shape, shape, f"body {i} ({model.body_name[i]!r})")
+            geom[i] = SHAPE_TO_GEOM[shape]
+        size = np.ascontiguousarray(np.asarray(model.body_size, float).reshape(n, 3))
+        mass = np.asarray(model.body_mass, float).reshape(n)
+        inertia = np.ascontiguousarray(np.asarray(model.body_inertia_diag, float).reshape(n, 3))
+        inv_inertia = 1.0 / inertia
+        radius = np.where(geom == GEOM_BOX, np.linalg.norm(size, axis=1), size[:, 0])
+        iso = (np.abs(inertia - inertia[:, :1]) <= ISOTROPIC_RTOL * inertia[:, :1]).all(axis=1)
+        gravity = np.asarray(model.gravity, float).reshape(3)
+        f_ext = np.asarray(model.body_force_world, float).reshape(n, 3)
+        torque = np.ascontiguousarray(np.asarray(model.body_torque_world, float).reshape(n, 3))
+        force = np.ascontiguousarray(mass[:, None] * gravity[None, :] + f_ext)
+        accel = np.ascontiguousarray(force / mass[:, None])
+        group = np.asarray(model.body_group, np.int64).reshape(n)
+
+        # static geometry
+        sb_pos = np.ascontiguousarray(np.asarray(model.static_box_position, float).reshape(-1, 3))
+        n_static = len(sb_pos)
+        sb_quat = np.asarray(model.static_box_quat_wxyz, float).reshape(-1, 4)
+        sb_rot = np.ascontiguousarray(quat_to_matrix_np(sb_quat / np.linalg.norm(
+            sb_quat, axis=1, keepdims=True)) if n_static else np.zeros((0, 3, 3)))
+        sb_ext = np.ascontiguousarray(np.asarray(model.static_box_half_extents, float).reshape(-1, 3))
+        sb_lo, sb_hi = static_box_aabbs(sb_pos, sb_rot, sb_ext, p.speculative_distance)
+        gn = np.asarray(model.ground_normal, float).reshape(3)
+        gn = gn / np.linalg.norm(gn)
+
+        # which stages this scene needs, and why (explain())
+        self._explain: list[tuple[str, str]] = []
+        geoms_present = sorted(set(geom.tolist()))
+        pairs_possible = self._body_pairs_possible(group)
+        self.contacts_possible = bool(model.ground) or n_static > 0 or pairs_possible
+        self._check_pairs(geoms_present, pairs_possible, bool(model.ground), n_static)
+        forces = bool(np.any(force != 0.0) or np.any(torque != 0.0))
+        self.do_kick = forces or force_all_stages
+        self.use_contacts = self.contacts_possible or force_all_stages
+        iso_shortcut = not force_all_stages
+        self.do_sleep = bool(p.sleep) and self.use_contacts and not force_all_stages
+        self._explain_stages(n, geom, iso, gravity, f_ext, torque, forces, pairs_possible,
+                             n_static, group)
+
+        self._bodies = Bodies(geom, size, np.ascontiguousarray(radius), 1.0 / mass, inertia,
+                              inv_inertia, iso.astype(np.int64), force, torque, accel,
+                              np.asarray(model.body_restitution, float).reshape(n).copy(),
+                              np.asarray(model.body_friction, float).reshape(n).copy(), group)
+        self._statics = Statics(
+            n_static, sb_pos, sb_rot, sb_ext,
+            np.asarray(model.static_box_restitution, float).reshape(n_static).copy(),
+            np.asarray(model.static_box_friction, float).reshape(n_static).copy(),
+            np.ascontiguousarray(sb_lo), np.ascontiguousarray(sb_hi), bool(model.ground), gn,
+            float(model.ground_offset), float(model.ground_restitution),
+            float(model.ground_friction))
+        self._settings = Settings(
+            self.do_kick, self.do_sleep, iso_shortcut, int(p.velocity_iterations),
+            int(max(p.max_velocity_iterations, p.velocity_iterations)),
+            float(p.velocity_tolerance), float(p.over_relaxation), int(p.position_iterations),
+            float(p.allowed_penetration),
+            float(p.position_correction_rate), float(p.max_correction_speed),
+            float(p.speculative_distance), float(p.restitution_threshold),
+            float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
+            bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth))
+        # the free-body kernel's inputs, for scenes where nothing can touch
+        self._inv_mass = 1.0 / mass
+        self._inv_inertia = inv_inertia
+
+        # state kept between calls
+        self.awake = np.ones(n, np.int64)
+        self.sleep_timer = np.zeros(n)
+        self.island_of = np.full(n, -1, np.int64)
+        self._island_counter = np.zeros(1, np.int64)
+        cap = max(16, 4 * n)
+        self._prev = list(empty_manifolds(cap, 4 * cap))
+        self._n_prev = 0
+        self._keys = np.zeros(1, np.int64)
+        self._idx = np.zeros(1, np.int64)
+        self._spare = list(empty_manifolds(cap, 4 * cap))
+        self._pairs = np.zeros((cap, 2), np.int64)
+        self._log_i = np.zeros((64, LOG_I_COLS), np.int64)
+        self._log_f = np.zeros((64, LOG_F_COLS))
+        #: counters accumulated over all calls: steps with awake bodies, candidate pairs,
+        #: manifolds, points, awake body-steps, impact points, islands woken, bodies put to sleep,
+        #: velocity sweeps, points pushed out by the project stage
+        self.stats = np.zeros(N_STATS, np.int64)
+
+    # ---- set-up helpers ---------------------------------------------------------------------
+
+    @staticmethod
+    def _body_pairs_possible(group: np.ndarray) -> bool:
+        """Can any two bodies collide? Group 0 meets everyone; equal non-zero groups meet."""
+        if len(group) < 2:
+            return False
+        nz = group[group != 0]
+        if len(nz) < len(group):  # someone is in group 0
+            return True
+        return len(np.unique(nz)) < len(nz)
+
+    def _check_pairs(self, geoms, pairs_possible, ground, n_static):
+        needed = set()
+        if pairs_possible:
+            needed |= {(a, b) for a in geoms for b in geoms}
+        if ground:
+            needed |= {(a, GEOM_PLANE) for a in geoms}
+        if n_static:
+            needed |= {(a, GEOM_BOX) for a in geoms}
+        for a, b in sorted(needed):
+            key = (min(a, b), max(a, b))
+            if key not in NARROWPHASE_TABLE:
+                raise UnsupportedShapePair(a, b, "scene")
+
+    def _explain_stages(self, n, geom, iso, gravity, f_ext, torque, forces, pairs_possible,
+                        n_static, group):
+        e = self._explain
+        p = self.params
+        if self.do_kick:
+            why = (f"g = ({gravity[0]:g}, {gravity[1]:g}, {gravity[2]:g}) m/s^2"
+                   + (", applied forces" if np.any(f_ext) else "")
+                   + (", applied torques" if np.any(torque) else ""))
+            if not forces:
+                why = "forced on (no gravity, force or torque in the scene)"
+            e.append(("kick (external forces)", why))
+        else:
+            e.append(("kick (external forces): skipped", "no gravity, applied force or torque"))
+        if not self.use_contacts:
+            e.append(("contacts: none possible",
+                      "no ground, no static box, and no two bodies whose groups collide; "
+                      "runs the free-body kernel advance_free"))
+            return
+        statics = []
+        if self.model.ground:
+            statics.append("ground plane")
+        if n_static:
+            statics.append(f"{n_static} static box(es)")
+        groups = sorted(set(group.tolist()))
+        e.append(("broadphase: sort-and-sweep",
+                  f"{n} dynamic bodies + {n_static} static boxes, swept AABBs; "
+                  + ("body pairs possible" if pairs_possible else "no two bodies can collide")
+                  + (f", groups {groups}" if groups != [0] else "")
+                  + ("; " + " and ".join(statics) if statics else "")))
+        used = set()
+        geoms = sorted(set(geom.tolist()))
+        if pairs_possible:
+            used |= {(min(a, b), max(a, b)) for a in geoms for b in geoms}
+        if self.model.ground:
+            used |= {(a, GEOM_PLANE) for a in geoms}
+        if n_static:
+            used |= {(min(a, GEOM_BOX), max(a, GEOM_BOX)) for a in geoms}
+        names = ", ".join(NARROWPHASE_TABLE[k][1] for k in sorted(used))
+        e.append(("narrowphase: table dispatch", names or "none"))
+        if self.force_all_stages:
+            e.append(("inertia: full R diag(1/I) R^T", "forced on"))
+        elif iso.all():
+            kind = "spheres" if (geom == 0).all() else "spheres or cubes"
+            e.append(("isotropic shortcut", f"all bodies are {kind}: scalar 1/I, no transform"))
+        elif iso.any():
+            e.append(("isotropic shortcut", f"{int(iso.sum())} of {n} bodies isotropic"))
+        else:
+            e.append(("inertia: R diag(1/I) R^T per body", "no body has isotropic inertia"))
+        e.append(("solve: sequential impulses",
+                  f"{p.velocity_iterations} to {p.max_velocity_iterations} sweeps (until the "
+                  f"largest correction < {p.velocity_tolerance:g} m/s), normal impulses "
+                  f"over-relaxed x{p.over_relaxation:g} where bodies touch more than one "
+                  f"thing, Coulomb friction sqrt(mu_a mu_b), "
+                  f"warm starting {'on' if p.warm_starting else 'off'}, speculative "
+                  f"distance {p.speculative_distance:g} m + relative motion per step"))
+        if p.position_iterations > 0:
+            e.append(("relax: split impulses",
+                      f"{p.position_iterations} sweeps on pseudo velocities, slop "
+                      f"{p.allowed_penetration:g} m, rate {p.position_correction_rate:g}"))
+        else:
+            e.append(("relax: skipped", "position_iterations = 0"))
+        e.append(("restitution", f"max(e_a, e_b), impacts above {p.restitution_threshold:g} m/s, "
+                                 "energy-consistent rebound"))
+        if p.projection_iterations > 0:
+            e.append(("project: nonlinear Gauss-Seidel",
+                      f"narrowphase at the end-of-step poses; points deeper than "
+                      f"{p.projection_depth:g} m pushed out to it, {p.projection_iterations} sweeps"))
+        else:
+            e.append(("project: skipped", "projection_iterations = 0"))
+        if self.do_sleep:
+            e.append(("sleeping", f"islands below {p.sleep_speed:g} m/s for {p.sleep_time:g} s"))
+        elif self.force_all_stages:
+            e.append(("sleeping: off", "forced: every body is simulated every step"))
+        else:
+            e.append(("sleeping: off", "contact.sleep = false"))
+
+    # ---- API --------------------------------------------------------------------------------
+
+    def explain(self) -> list[tuple[str, str]]:
+        """Stages chosen for this scene, and why, in step order."""
+        return list(self._explain)
+
+    def advance(self, dt, n_steps, stride, sample_last,
+                position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+                out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
+                out_angular_momentum):
+        """Advance ``n_steps`` steps; same arguments and sampling rule as kernels.advance_free.
+
+        Args:
+            dt: step (s). n_steps: steps in this call. stride: sample after every stride-th
+                step; sample_last: also after the last step.
+            position (N,3), linear_momentum (N,3), quat_wxyz (N,4), rotation (N,3,3),
+                angular_momentum (N,3, world): the state, updated in place.
+            out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
+
+        Returns (n_samples, bad_step, bad_body, contacts). bad_step is the first local step
+        (1-based) at which a body's state became non-finite (the call stops there), else -1.
+        ``contacts`` holds, for each sampled step, every contact point that pushed (normal
+        impulse > 0) or touches (separation <= 0), including the resting contacts of sleeping
+        bodies: ``step`` is the local 1-based step index within this call, ``t`` is left 0,
+        ``separation`` is the gap at the end of the step (narrowphase gap advanced by the gap
+        velocity), ``point`` and ``normal`` are the narrowphase's at the start of the step,
+        ``normal_impulse`` the step's total on body_a (restitution included) and
+        ``friction_impulse`` the world friction impulse on body_a; ``kind`` is CONTACT_IMPACT
+        when the approach speed exceeded ``restitution_threshold``.
+
+        Keep one ContactWorld for a whole run: it carries the impulses (warm starting) and the
+        sleep state from one call to the next."""
+        if not self.use_contacts:
+            ns, bad_step, bad_body = advance_free(
+                self.method, self.ortho, float(dt), int(n_steps), int(stride), bool(sample_last),
+                self._inv_mass, self._inv_inertia, self._bodies.force, self._bodies.torque,
+                position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+                out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
+                out_angular_momentum)
+            return int(ns), int(bad_step), int(bad_body), Contacts.empty()
+        mi0, mf0, pf0, pid0 = self._prev
+        mi1, mf1, pf1, pid1 = self._spare
+        res = world_advance(
+            self._bodies, self._statics, self._settings, self.method, self.ortho, float(dt),
+            int(n_steps), int(stride), bool(sample_last),
+            position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+            out_position, out_linear_momentum, out_quat_wxyz, out_rotation, out_angular_momentum,
+            self.awake, self.sleep_timer, self.island_of, self._island_counter,
+            mi0, mf0, pf0, pid0, self._n_prev, self._keys, self._idx, mi1, mf1, pf1, pid1,
+            self._pairs, self._log_i, self._log_f, self.stats)
+        (n_samples, bad_step, bad_body, n_log, self._log_i, self._log_f, mi0, mf0, pf0, pid0,
+         self._n_prev, self._keys, self._idx, mi1, mf1, pf1, pid1, self._pairs) = res
+        self._prev = [mi0, mf0, pf0, pid0]
+        self._spare = [mi1, mf1, pf1, pid1]
+        li = self._log_i[:n_log]
+        lf = self._log_f[:n_log]
+        contacts = Contacts(
+            step=li[:, LOG_STEP].copy(), t=np.zeros(n_log), body_a=li[:, LOG_A].copy(),
+            body_b=li[:, LOG_B].copy(), point=lf[:, LOG_P:LOG_P + 3].copy(),
+            normal=lf[:, LOG_N:LOG_N + 3].copy(), separation=lf[:, LOG_S].copy(),
+            normal_impulse=lf[:, LOG_LN].copy(), friction_impulse=lf[:, LOG_F:LOG_F + 3].copy(),
+            kind=li[:, LOG_KIND].astype(np.int8))
+        return int(n_samples), int(bad_step), int(bad_body), contacts
+
+    @property
+    def n_awake(self) -> int:
+        return int(self.awake.sum())
+
+    def describe_table(self) -> list[tuple[str, str, str]]:
+        """The narrowphase table: (shape, shape, collider)."""
+        return [(GEOM_NAMES[a], GEOM_NAMES[b], name) for (a, b), (_, name) in NARROWPHASE_TABLE.items()]
+
+

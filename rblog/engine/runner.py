@@ -1,0 +1,464 @@
+"""The run loop: choose the stages a scene needs, advance in compiled blocks, hand each block of
+samples to the recorders, and keep the summary figures.
+
+Python runs once per block (see :func:`samples_per_block`),
+never per step. A diverging, interrupted or failing run closes every recorder with what was
+written so far, so logs stay readable up to the last good sample.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+from rblog import __version__
+from rblog.engine.constants import (
+    BLOCK_MAX_BODY_SAMPLES,
+    BLOCK_MAX_BODY_STEPS,
+    BLOCK_MAX_SAMPLES,
+    COMPILE_NOTICE_AFTER_S,
+    DEFAULT_LOG_RATE_HZ,
+)
+from rblog.errors import RunInterrupted, SceneError, SimulationDiverged
+from rblog.engine.free import advance_free
+from rblog.contract.model import Model
+from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES
+from rblog.engine.scene import Scene
+from rblog.engine.plan import Plan, plan_stages
+from rblog.contract.trajectory import RunInfo, Trajectory, derive
+
+
+class Recorder(Protocol):
+    """What the run loop needs of a log writer (see rblog.record)."""
+
+    def open(self, model: Model, info: RunInfo) -> None: ...
+    def write(self, block: Trajectory) -> None: ...
+    def close(self, truncated: bool = False, reason: str | None = None) -> None: ...
+
+
+class TrajectoryCollector:
+    """A recorder that keeps the whole run in memory (tests, benchmarks, small runs)."""
+
+    def __init__(self):
+        self.blocks: list[Trajectory] = []
+        self.truncated = False
+
+    def open(self, model, info):
+        self.blocks = []
+
+    def write(self, block):
+        self.blocks.append(block)
+
+    def close(self, truncated=False, reason=None):
+        self.truncated = truncated
+
+    @property
+    def trajectory(self) -> Trajectory:
+        traj = Trajectory.concat(self.blocks)
+        traj.truncated = self.truncated
+        return traj
+
+
+@dataclass
+class RunSummary:
+    """Figures of a finished (or stopped) run. Drifts are over the logged samples.
+
+    energy_drift_rel: max |E - E0| / |E0| of the total energy (kinetic + gravity potential,
+        potential zero at the world origin).
+    angular_momentum_drift_rel: max over bodies of | |L_i| - |L_i0| | / |L_i0| (spin angular
+        momentum about each body's centre of mass; 0 for bodies with no initial spin).
+    ortho_error_max: max ||R^T R - I||_F over bodies and samples.
+    """
+
+    status: str
+    steps: int
+    bodies: int
+    samples: int
+    sim_time_s: float
+    wall_time_s: float
+    steps_per_s: float
+    body_steps_per_s: float
+    energy_drift_rel: float
+    angular_momentum_drift_rel: float
+    ortho_error_max: float
+    quat_norm_error_max: float
+    integrator: str
+    orthonormalize: str
+    dt: float
+    log_every: int
+    stages: list[str] = field(default_factory=list)
+    message: str = ""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class _Drift:
+    """Running maxima of the summary figures over blocks."""
+
+    def __init__(self):
+        self.e0 = None
+        self.l0 = None
+        self.energy = 0.0
+        self.spin = 0.0
+        self.ortho = 0.0
+        self.qnorm = 0.0
+
+    def update(self, b: Trajectory):
+        if b.n_samples == 0:
+            return
+        if self.e0 is None:
+            self.e0 = float(b.total_energy[0])
+            self.l0 = np.linalg.norm(b.angular_momentum[0], axis=-1)
+        scale = abs(self.e0) if self.e0 != 0 else 1.0
+        self.energy = max(self.energy, float(np.max(np.abs(b.total_energy - self.e0))) / scale)
+        spin = np.linalg.norm(b.angular_momentum, axis=-1)
+        has = self.l0 > 0
+        if np.any(has):
+            d = np.abs(spin[:, has] - self.l0[has]) / self.l0[has]
+            self.spin = max(self.spin, float(d.max()))
+        self.ortho = max(self.ortho, float(b.ortho_error.max()))
+        self.qnorm = max(self.qnorm, float(np.abs(b.quat_norm_error).max()))
+
+
+def resolve_log_every(dt: float, log_every: int | None, log_rate: float | None) -> int:
+    """Steps between logged samples from --log-every or --log-rate (Hz of simulated time)."""
+    if log_every is not None:
+        return max(1, int(log_every))
+    rate = log_rate if log_rate is not None else DEFAULT_LOG_RATE_HZ
+    return max(1, int(round(1.0 / (rate * dt))))
+
+
+def samples_per_block(n_bodies: int, stride: int) -> int:
+    """Logged samples per block: at most BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_SAMPLES / bodies
+    (memory) and BLOCK_MAX_BODY_STEPS / (bodies * stride) (responsiveness), and at least 1."""
+    n = max(1, int(n_bodies))
+    return int(max(1, min(BLOCK_MAX_SAMPLES, BLOCK_MAX_BODY_SAMPLES // n,
+                          BLOCK_MAX_BODY_STEPS // (n * max(1, int(stride))))))
+
+
+def run(
+    scene: Scene,
+    *,
+    dt: float | None = None,
+    duration: float | None = None,
+    integrator: str | None = None,
+    orthonormalize: str | None = None,
+    log_every: int | None = None,
+    log_rate: float | None = None,
+    recorders: list[Recorder] | tuple = (),
+    progress: Callable[[int, int], None] | None = None,
+    notice: Callable[[str], None] | None = None,
+    force_contacts: bool = False,
+) -> RunSummary:
+    """Simulate ``scene`` and stream samples to ``recorders``.
+
+    Options override the scene's ``[sim]`` values. ``progress(done_steps, total_steps)`` is called
+    after every block; ``notice(msg)`` gets one-line notices (kernel compilation).
+
+    Raises:
+        SceneError: an option is out of range.
+        SimulationDiverged: the state became non-finite (logs closed up to the last good sample).
+        RunInterrupted: Ctrl-C (logs closed up to the last good sample).
+    """
+    sim = scene.sim
+    dt = sim.dt if dt is None else dt
+    duration = sim.duration if duration is None else duration
+    if not (dt > 0 and np.isfinite(dt)):
+        raise SceneError(scene.path, "--dt", f"expected a positive number, got {dt}")
+    if not (duration > 0 and np.isfinite(duration)):
+        raise SceneError(scene.path, "--duration", f"expected a positive number, got {duration}")
+    integrator = integrator or sim.integrator
+    if integrator not in ORTHO_ALLOWED:
+        raise SceneError(scene.path, "--integrator",
+                         f"expected one of {', '.join(ORTHO_ALLOWED)}, got {integrator!r}")
+    allowed, default_ortho = ORTHO_ALLOWED[integrator]
+    ortho = orthonormalize or (sim.orthonormalize if sim.integrator == integrator else None) or default_ortho
+    if ortho not in allowed:
+        raise SceneError(scene.path, "--orthonormalize",
+                         f"integrator {integrator} takes {' or '.join(allowed)}, got {ortho!r}")
+    if log_every is None and log_rate is None:
+        log_every, log_rate = sim.log_every, sim.log_rate
+    stride = resolve_log_every(dt, log_every, log_rate)
+    n_total = max(1, int(round(duration / dt)))
+    model = scene.model
+    n_bodies = model.n_bodies
+    method, ortho_code = METHOD_CODES[integrator], ORTHO_CODES[ortho]
+
+    plan = plan_stages(scene, duration, force_contacts=force_contacts)
+    info = RunInfo(
+        integrator=integrator, orthonormalize=ortho, dt=dt, log_every=stride,
+        duration_s=n_total * dt, rblog_version=__version__, scene_path=scene.path,
+        scene_toml=scene.toml_text, scene_resolved=scene.resolved, seed=sim.seed,
+        writer=f"rblog {__version__}",
+    )
+    st = scene.state.copy()
+    advance = _make_advance(plan, model, method, ortho_code)
+
+    samples_in_block = samples_per_block(n_bodies, stride)
+    steps_per_block = samples_in_block * stride
+
+    def new_buffers():
+        """Sample buffers for one block. Fresh ones each block: the block is handed to the
+        recorders as is (no copy), and a recorder may keep it."""
+        s = samples_in_block + 1
+        return (np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 4)),
+                np.empty((s, n_bodies, 3, 3)), np.empty((s, n_bodies, 3)))
+
+    bufs = new_buffers()
+
+    # load (or compile, the first time) the kernels before the clock starts; the notice is
+    # printed at most once per run
+    notice = _once(notice)
+    with CompileNotice(notice):
+        advance(dt, 0, stride, False, st.copy(), bufs)
+        derive(model, info, np.array([0]), np.array([0.0]), st.position[None], st.linear_momentum[None],
+               st.quat_wxyz[None], st.rotation[None], st.angular_momentum_world[None])
+
+    drift = _Drift()
+    opened: list[Recorder] = []
+    writer: _BlockWriter | None = None
+    done = 0
+    n_samples = 0
+    status, message = "ok", ""
+    try:
+        with CompileNotice(notice):  # a recorder may load its compiled encoders when it opens
+            for r in recorders:
+                r.open(model, info)
+                opened.append(r)
+        t_start = time.perf_counter()  # the run's wall time: stepping and writing
+        writer = _BlockWriter(model, info, drift, opened)
+        writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
+                      st.quat_wxyz[None].copy(), st.rotation[None].copy(),
+                      st.angular_momentum_world[None].copy(), None)
+        n_samples += 1
+        while done < n_total:
+            n = min(steps_per_block, n_total - done)
+            sample_last = (done + n == n_total) and (n % stride != 0)
+            bufs = new_buffers()
+            _, bad_step, bad_body, contacts = advance(dt, n, stride, sample_last, st, bufs)
+            local = np.arange(1, n // stride + 1) * stride
+            if sample_last:
+                local = np.append(local, n)
+            keep = len(local) if bad_step < 0 else int(np.searchsorted(local, bad_step))
+            local = local[:keep]
+            if keep:
+                if contacts is not None:
+                    contacts.step = contacts.step + done
+                    if bad_step >= 0:
+                        contacts = contacts.select(contacts.step < done + bad_step)
+                writer.submit(done + local, *(b[:keep] for b in bufs), contacts)
+                n_samples += keep
+            if bad_step >= 0:
+                bad_global = done + bad_step
+                done = bad_global - 1
+                raise SimulationDiverged(bad_global, bad_global * dt, int(bad_body),
+                                         model.body_name[bad_body])
+            done += n
+            if progress is not None:
+                progress(done, n_total)
+        writer.finish()
+    except KeyboardInterrupt:
+        status, message = "interrupted", f"interrupted at step {done}"
+        _finish_quietly(writer)
+        _close_all(opened, True, message)
+        raise RunInterrupted(
+            f"run interrupted at step {done} (t = {done * dt:.6g} s); logs keep every sample "
+            "written before it") from None
+    except SimulationDiverged as e:
+        _finish_quietly(writer)
+        _close_all(opened, True, str(e))
+        raise
+    except BaseException as e:
+        _finish_quietly(writer)
+        _close_all(opened, True, f"run failed: {e}")
+        raise
+    _close_all(opened, False, None)
+    wall = time.perf_counter() - t_start
+    return RunSummary(
+        status=status, steps=done, bodies=n_bodies, samples=n_samples, sim_time_s=done * dt,
+        wall_time_s=wall, steps_per_s=done / wall if wall > 0 else float("inf"),
+        body_steps_per_s=done * n_bodies / wall if wall > 0 else float("inf"),
+        energy_drift_rel=drift.energy, angular_momentum_drift_rel=drift.spin,
+        ortho_error_max=drift.ortho, quat_norm_error_max=drift.qnorm, integrator=integrator,
+        orthonormalize=ortho, dt=dt, log_every=stride, stages=[s for s, _ in plan.stages],
+        message=message,
+    )
+
+
+def simulate(scene: Scene, **kwargs) -> tuple[Trajectory, RunSummary]:
+    """Run ``scene`` keeping every logged sample in memory; returns (trajectory, summary)."""
+    col = TrajectoryCollector()
+    recorders = [col, *kwargs.pop("recorders", ())]
+    summary = run(scene, recorders=recorders, **kwargs)
+    return col.trajectory, summary
+
+
+class _BlockWriter:
+    """Derives each block's channels on a worker thread and hands the block to the recorders,
+    so that logging block k overlaps stepping block k+1 (the kernels release the GIL). With more
+    than one recorder, each writes on its own thread, so that one's GIL-free work (compression,
+    file I/O, the Rerun SDK's encoding) overlaps the other's. Blocks are written in order by
+    every recorder; the queues are bounded, so memory stays bounded. A recorder's error stops the
+    run at the next block."""
+
+    QUEUE_BLOCKS = 2
+
+    def __init__(self, model: Model, info: RunInfo, drift: _Drift, recorders):
+        self.model, self.info, self.drift, self.recorders = model, info, drift, list(recorders)
+        self.queue: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
+        self.error: BaseException | None = None
+        self.lanes: list[tuple[queue.Queue, threading.Thread]] = []
+        if len(self.recorders) > 1:
+            for i, rec in enumerate(self.recorders):
+                q: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
+                t = threading.Thread(target=self._lane, args=(rec, q), name=f"rblog-recorder-{i}",
+                                     daemon=True)
+                t.start()
+                self.lanes.append((q, t))
+        self.thread = threading.Thread(target=self._loop, name="rblog-writer", daemon=True)
+        self.thread.start()
+
+    def submit(self, steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+               contacts):
+        if self.error is not None:
+            raise self.error
+        self.queue.put((steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+                        contacts))
+
+    def _loop(self):
+        dt = self.info.dt
+        try:
+            while True:
+                item = self.queue.get()
+                if item is None:
+                    return
+                if self.error is not None:
+                    continue  # drain after a failure
+                steps, x, p, q, r, lw, contacts = item
+                try:
+                    if contacts is not None:
+                        contacts.t = contacts.step * dt
+                    block = derive(self.model, self.info, steps, steps * dt, x, p, q, r, lw,
+                                   contacts=contacts)
+                    self.drift.update(block)
+                    if self.lanes:
+                        for lane, _ in self.lanes:
+                            lane.put(block)
+                    else:
+                        for rec in self.recorders:
+                            rec.write(block)
+                except BaseException as e:  # re-raised in the run loop
+                    self.error = e
+        finally:
+            for lane, t in self.lanes:
+                lane.put(None)
+                t.join()
+
+    def _lane(self, rec, lane: queue.Queue):
+        while True:
+            block = lane.get()
+            if block is None:
+                return
+            if self.error is not None:
+                continue
+            try:
+                rec.write(block)
+            except BaseException as e:
+                self.error = e
+
+    def finish(self):
+        """Write every queued block, stop the threads, and re-raise a recorder's error."""
+        self.queue.put(None)
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+
+
+def _finish_quietly(writer: _BlockWriter | None):
+    """On the way out of a failed run: write what was queued (good samples), swallow errors."""
+    if writer is None:
+        return
+    try:
+        writer.finish()
+    except BaseException:
+        pass
+
+
+def _close_all(recorders, truncated, reason):
+    errors = []
+    for r in recorders:
+        try:
+            r.close(truncated=truncated, reason=reason)
+        except Exception as e:  # close every log even if one fails
+            errors.append(e)
+    if errors:
+        raise errors[0]
+
+
+def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int):
+    """The block-advance function for the chosen stages."""
+    if plan.contacts:
+        world = plan.make_contact_world(method, ortho_code)
+
+        def advance(dt, n, stride, sample_last, st, bufs):
+            return world.advance(dt, n, stride, sample_last, st.position, st.linear_momentum,
+                                 st.quat_wxyz, st.rotation, st.angular_momentum_world, *bufs)
+
+        return advance
+
+    inv_mass = 1.0 / model.body_mass
+    inv_inertia = np.ascontiguousarray(1.0 / model.body_inertia_diag)
+    force = np.ascontiguousarray(model.body_mass[:, None] * model.gravity[None, :] + model.body_force_world)
+    torque = np.ascontiguousarray(model.body_torque_world)
+
+    def advance(dt, n, stride, sample_last, st, bufs):
+        ns, bad_step, bad_body = advance_free(
+            method, ortho_code, dt, n, stride, sample_last, inv_mass, inv_inertia, force, torque,
+            st.position, st.linear_momentum, st.quat_wxyz, st.rotation, st.angular_momentum_world,
+            *bufs)
+        return ns, bad_step, bad_body, None
+
+    return advance
+
+
+def _once(fn):
+    """``fn`` that does something on its first call only (None stays None)."""
+    if fn is None:
+        return None
+    done = []
+
+    def call(*args):
+        if not done:
+            done.append(True)
+            fn(*args)
+    return call
+
+
+class CompileNotice:
+    """Context manager: calls ``notice(msg)`` once if the block inside takes longer than
+    COMPILE_NOTICE_AFTER_S (numba compiling kernels on a first run)."""
+
+    def __init__(self, notice):
+        self.notice = notice
+        self.timer = None
+
+    def __enter__(self):
+        if self.notice is not None:
+            self.timer = threading.Timer(
+                COMPILE_NOTICE_AFTER_S, self.notice,
+                ("compiling kernels (first run only; cached afterwards)...",))
+            self.timer.daemon = True
+            self.timer.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
+        return False

@@ -1,0 +1,549 @@
+"""Scene files: TOML in, a validated :class:`Scene` (model + initial state + run settings) out.
+
+Every value is checked up front. A mistake raises :class:`~rblog.errors.SceneError` whose message
+names the file, the key path (``body[2].mass``) and what was expected. See README.md for the
+format; SI units throughout.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rblog.errors import SceneError
+from rblog.contract.model import SHAPE_CODES, SHAPE_BOX, SHAPE_SPHERE, Model
+from rblog.engine.state import State
+from rblog.engine.rotation import axis_angle_to_quat_np, quat_to_matrix_np
+from rblog.engine.integrators import ORTHO_ALLOWED
+from rblog.engine.constants import QUAT_MIN_NORM
+
+INTEGRATORS = tuple(ORTHO_ALLOWED)
+#: the default integrator; chosen by benchmarks/bench_integrators.py (see benchmarks/RESULTS.md)
+DEFAULT_INTEGRATOR = "rk4"
+
+SIM_KEYS = {"dt", "duration", "gravity", "integrator", "orthonormalize", "seed", "log_every",
+            "log_rate"}
+GROUND_KEYS = {"height", "normal", "restitution", "friction"}
+ORIENTATION_KEYS = ("quat_wxyz", "quat_xyzw", "axis_angle", "rotvec")
+BODY_KEYS = {"name", "shape", "radius", "half_extents", "mass", "density", "inertia_diag",
+             "position", *ORIENTATION_KEYS, "velocity", "angular_velocity",
+             "angular_velocity_body", "force", "torque", "restitution", "friction", "group"}
+STATIC_BOX_KEYS = {"name", "position", *ORIENTATION_KEYS, "half_extents", "restitution",
+                   "friction"}
+GENERATOR_KEYS = {"layout", "count", "grid", "spacing", "origin", "region_min", "region_max",
+                  "speed", "spin", "random_orientation", "name_prefix", "seed", "body"}
+TOP_KEYS = {"sim", "ground", "body", "generator", "static_box", "contact"}
+
+DEFAULT_RESTITUTION = 0.5
+DEFAULT_FRICTION = 0.5
+
+
+@dataclass
+class SimParams:
+    """Run settings from ``[sim]`` (CLI options override them)."""
+
+    dt: float
+    duration: float
+    integrator: str = DEFAULT_INTEGRATOR
+    orthonormalize: str | None = None  # None: the integrator's default
+    seed: int = 0
+    log_every: int | None = None
+    log_rate: float | None = None
+
+    @property
+    def n_steps(self) -> int:
+        return max(1, int(round(self.duration / self.dt)))
+
+
+@dataclass
+class Scene:
+    """A validated scene.
+
+    Attributes:
+        path: the file.  toml_text: its text as given.
+        model: fixed model.  state: initial state (t = 0).  sim: run settings.
+        contact: the ``[contact]`` table as given (validated by the contact module).
+        resolved: the scene after defaults and generators, JSON-able (logged with the run).
+    """
+
+    path: str
+    toml_text: str
+    model: Model
+    state: State
+    sim: SimParams
+    contact: dict = field(default_factory=dict)
+    resolved: dict = field(default_factory=dict)
+
+
+class _Ctx:
+    """Carries the file name so every check can name it."""
+
+    def __init__(self, path: str):
+        self.path = path
+
+    def fail(self, key: str, expected: str):
+        raise SceneError(self.path, key, expected)
+
+    def table(self, v, key) -> dict:
+        if not isinstance(v, dict):
+            self.fail(key, f"expected a table, got {_tname(v)}")
+        return v
+
+    def keys(self, d: dict, key: str, allowed: set):
+        for k in d:
+            if k not in allowed:
+                where = f"{key}.{k}" if key else k
+                self.fail(where, f"unknown key (expected one of: {', '.join(sorted(allowed))})")
+
+    def num(self, v, key, *, positive=False, nonneg=False, lo=None, hi=None) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            self.fail(key, f"expected a number, got {_tname(v)}")
+        x = float(v)
+        if not math.isfinite(x):
+            self.fail(key, f"expected a finite number, got {v}")
+        if positive and not x > 0:
+            self.fail(key, f"expected a positive number, got {v}")
+        if nonneg and x < 0:
+            self.fail(key, f"expected a number >= 0, got {v}")
+        if lo is not None and x < lo:
+            self.fail(key, f"expected a number >= {lo}, got {v}")
+        if hi is not None and x > hi:
+            self.fail(key, f"expected a number <= {hi}, got {v}")
+        return x
+
+    def integer(self, v, key, *, lo=None) -> int:
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.fail(key, f"expected an integer, got {_tname(v)}")
+        if lo is not None and v < lo:
+            self.fail(key, f"expected an integer >= {lo}, got {v}")
+        return int(v)
+
+    def vec(self, v, key, n=3, *, positive=False, nonneg=False) -> np.ndarray:
+        if not isinstance(v, list) or len(v) != n:
+            self.fail(key, f"expected a list of {n} numbers, got {_show(v)}")
+        return np.array([self.num(x, f"{key}[{i}]", positive=positive, nonneg=nonneg)
+                         for i, x in enumerate(v)])
+
+    def string(self, v, key, choices=None) -> str:
+        if not isinstance(v, str):
+            self.fail(key, f"expected a string, got {_tname(v)}")
+        if choices is not None and v not in choices:
+            self.fail(key, f"expected one of {', '.join(choices)}, got {v!r}")
+        return v
+
+    def boolean(self, v, key) -> bool:
+        if not isinstance(v, bool):
+            self.fail(key, f"expected true or false, got {_tname(v)}")
+        return v
+
+
+def _tname(v) -> str:
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
+            list: "a list", dict: "a table"}.get(type(v), type(v).__name__)
+
+
+def _show(v) -> str:
+    s = repr(v)
+    return s if len(s) < 40 else s[:37] + "..."
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene file. Raises SceneError (one line) on any problem."""
+    path = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SceneError(path, "", "no such file") from None
+    except IsADirectoryError:
+        raise SceneError(path, "", "is a directory, expected a .toml scene file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise SceneError(path, "", f"cannot read: {e}") from None
+    return parse_scene(text, path)
+
+
+def parse_scene(text: str, path: str = "<scene>") -> Scene:
+    """Validate scene TOML text. ``path`` is used in error messages."""
+    ctx = _Ctx(path)
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(path, "", f"not valid TOML: {e}") from None
+    ctx.keys(doc, "", TOP_KEYS)
+    if "sim" not in doc:
+        ctx.fail("sim", "missing table [sim] (needs at least dt and duration)")
+    sim_t = ctx.table(doc["sim"], "sim")
+    ctx.keys(sim_t, "sim", SIM_KEYS)
+    for k in ("dt", "duration"):
+        if k not in sim_t:
+            ctx.fail(f"sim.{k}", "missing (a positive number of seconds)")
+    sim = SimParams(
+        dt=ctx.num(sim_t["dt"], "sim.dt", positive=True),
+        duration=ctx.num(sim_t["duration"], "sim.duration", positive=True),
+        integrator=ctx.string(sim_t.get("integrator", DEFAULT_INTEGRATOR), "sim.integrator",
+                              INTEGRATORS),
+        seed=ctx.integer(sim_t.get("seed", 0), "sim.seed", lo=0),
+    )
+    if "orthonormalize" in sim_t:
+        allowed, _ = ORTHO_ALLOWED[sim.integrator]
+        sim.orthonormalize = ctx.string(sim_t["orthonormalize"], "sim.orthonormalize", allowed)
+    if "log_every" in sim_t and "log_rate" in sim_t:
+        ctx.fail("sim.log_rate", "give log_every or log_rate, not both")
+    if "log_every" in sim_t:
+        sim.log_every = ctx.integer(sim_t["log_every"], "sim.log_every", lo=1)
+    if "log_rate" in sim_t:
+        sim.log_rate = ctx.num(sim_t["log_rate"], "sim.log_rate", positive=True)
+    gravity = ctx.vec(sim_t.get("gravity", [0.0, 0.0, -9.81]), "sim.gravity")
+
+    resolved: dict[str, Any] = {
+        "sim": {"dt": sim.dt, "duration": sim.duration, "gravity": gravity.tolist(),
+                "integrator": sim.integrator, "orthonormalize": sim.orthonormalize,
+                "seed": sim.seed, "log_every": sim.log_every, "log_rate": sim.log_rate},
+    }
+
+    # ground plane
+    ground = "ground" in doc
+    g_normal, g_offset, g_rest, g_fric = np.array([0.0, 0.0, 1.0]), 0.0, DEFAULT_RESTITUTION, DEFAULT_FRICTION
+    if ground:
+        gt = ctx.table(doc["ground"], "ground")
+        ctx.keys(gt, "ground", GROUND_KEYS)
+        g_normal = ctx.vec(gt.get("normal", [0.0, 0.0, 1.0]), "ground.normal")
+        nn = np.linalg.norm(g_normal)
+        if nn < 1e-12:
+            ctx.fail("ground.normal", "expected a non-zero vector")
+        g_normal = g_normal / nn
+        g_offset = ctx.num(gt.get("height", 0.0), "ground.height")
+        g_rest = ctx.num(gt.get("restitution", DEFAULT_RESTITUTION), "ground.restitution", lo=0.0, hi=1.0)
+        g_fric = ctx.num(gt.get("friction", DEFAULT_FRICTION), "ground.friction", nonneg=True)
+        resolved["ground"] = {"normal": g_normal.tolist(), "height": g_offset,
+                              "restitution": g_rest, "friction": g_fric}
+
+    # static boxes
+    statics = []
+    sb_list = doc.get("static_box", [])
+    if not isinstance(sb_list, list):
+        ctx.fail("static_box", "expected an array of tables [[static_box]]")
+    for k, sb in enumerate(sb_list):
+        key = f"static_box[{k}]"
+        sb = ctx.table(sb, key)
+        ctx.keys(sb, key, STATIC_BOX_KEYS)
+        if "half_extents" not in sb:
+            ctx.fail(f"{key}.half_extents", "missing (a list of 3 positive numbers, m)")
+        statics.append({
+            "name": ctx.string(sb.get("name", f"static{k}"), f"{key}.name"),
+            "position": ctx.vec(sb.get("position", [0, 0, 0]), f"{key}.position"),
+            "quat_wxyz": _orientation(ctx, sb, key),
+            "half_extents": ctx.vec(sb["half_extents"], f"{key}.half_extents", positive=True),
+            "restitution": ctx.num(sb.get("restitution", DEFAULT_RESTITUTION), f"{key}.restitution", lo=0.0, hi=1.0),
+            "friction": ctx.num(sb.get("friction", DEFAULT_FRICTION), f"{key}.friction", nonneg=True),
+        })
+
+    # bodies, then generated bodies
+    bodies = []
+    body_list = doc.get("body", [])
+    if not isinstance(body_list, list):
+        ctx.fail("body", "expected an array of tables [[body]]")
+    for k, b in enumerate(body_list):
+        bodies.append(_body(ctx, ctx.table(b, f"body[{k}]"), f"body[{k}]", f"body{k}"))
+    gen_list = doc.get("generator", [])
+    if not isinstance(gen_list, list):
+        ctx.fail("generator", "expected an array of tables [[generator]]")
+    for k, g in enumerate(gen_list):
+        bodies.extend(_generate(ctx, ctx.table(g, f"generator[{k}]"), f"generator[{k}]", sim.seed + k))
+    if not bodies:
+        ctx.fail("body", "the scene has no bodies (add [[body]] or [[generator]] tables)")
+    names = [b["name"] for b in bodies]
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        ctx.fail("body.name", f"names must be unique, {dup!r} is used twice")
+
+    contact = {}
+    if "contact" in doc:
+        contact = _contact_table(ctx, ctx.table(doc["contact"], "contact"))
+
+    model, state = _build(bodies, statics, gravity, ground, g_normal, g_offset, g_rest, g_fric)
+    resolved["body"] = [
+        {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in b.items()} for b in bodies
+    ]
+    resolved["static_box"] = [
+        {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in s.items()} for s in statics
+    ]
+    if contact:
+        resolved["contact"] = contact
+    return Scene(path, text, model, state, sim, contact, resolved)
+
+
+def _contact_table(ctx: _Ctx, t: dict) -> dict:
+    """Check ``[contact]`` against the contact solver's settings (rblog.engine.constants)."""
+    from dataclasses import fields
+
+    from rblog.engine.constants import ContactParams
+
+    defaults = ContactParams()
+    known = {f.name for f in fields(ContactParams)}
+    ctx.keys(t, "contact", known)
+    out = {}
+    for k, v in t.items():
+        d = getattr(defaults, k)
+        key = f"contact.{k}"
+        if isinstance(d, bool):
+            out[k] = ctx.boolean(v, key)
+        elif isinstance(d, int):
+            out[k] = ctx.integer(v, key)
+        else:
+            out[k] = ctx.num(v, key)
+    try:
+        ContactParams(**out)
+    except ValueError as e:
+        bad = next((k for k in out if f"contact.{k} " in str(e) or f"contact.{k}" in str(e)), "")
+        ctx.fail(f"contact.{bad}" if bad else "contact", str(e).split(" is ", 1)[-1]
+                 if " is " in str(e) else str(e))
+    return out
+
+
+def _orientation(ctx: _Ctx, d: dict, key: str) -> np.ndarray:
+    given = [k for k in ORIENTATION_KEYS if k in d]
+    if len(given) > 1:
+        ctx.fail(f"{key}.{given[1]}", f"give one orientation, not both {given[0]} and {given[1]}")
+    if not given:
+        return np.array([1.0, 0.0, 0.0, 0.0])
+    k = given[0]
+    if k in ("quat_wxyz", "quat_xyzw"):
+        q = ctx.vec(d[k], f"{key}.{k}", 4)
+        if k == "quat_xyzw":
+            q = q[[3, 0, 1, 2]]
+        n = np.linalg.norm(q)
+        if n < QUAT_MIN_NORM:
+            ctx.fail(f"{key}.{k}", "expected a non-zero quaternion")
+        q = q / n
+    elif k == "rotvec":
+        rv = ctx.vec(d[k], f"{key}.rotvec")
+        ang = float(np.linalg.norm(rv))
+        q = axis_angle_to_quat_np(rv, ang) if ang > 0 else np.array([1.0, 0, 0, 0])
+    else:
+        aa = ctx.table(d[k], f"{key}.axis_angle")
+        ctx.keys(aa, f"{key}.axis_angle", {"axis", "angle_deg", "angle_rad"})
+        if "axis" not in aa:
+            ctx.fail(f"{key}.axis_angle.axis", "missing (a list of 3 numbers)")
+        axis = ctx.vec(aa["axis"], f"{key}.axis_angle.axis")
+        if np.linalg.norm(axis) < 1e-12:
+            ctx.fail(f"{key}.axis_angle.axis", "expected a non-zero vector")
+        if ("angle_deg" in aa) == ("angle_rad" in aa):
+            ctx.fail(f"{key}.axis_angle", "expected exactly one of angle_deg, angle_rad")
+        ang = (math.radians(ctx.num(aa["angle_deg"], f"{key}.axis_angle.angle_deg"))
+               if "angle_deg" in aa else ctx.num(aa["angle_rad"], f"{key}.axis_angle.angle_rad"))
+        q = axis_angle_to_quat_np(axis, ang)
+    if q[0] < 0:
+        q = -q
+    return q
+
+
+def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
+    ctx.keys(b, key, BODY_KEYS)
+    if "shape" not in b:
+        ctx.fail(f"{key}.shape", "missing (\"box\" or \"sphere\")")
+    shape = ctx.string(b["shape"], f"{key}.shape", tuple(SHAPE_CODES))
+    if shape == "sphere":
+        if "half_extents" in b:
+            ctx.fail(f"{key}.half_extents", "a sphere takes radius, not half_extents")
+        if "radius" not in b:
+            ctx.fail(f"{key}.radius", "missing (a positive number, m)")
+        r = ctx.num(b["radius"], f"{key}.radius", positive=True)
+        size = np.array([r, 0.0, 0.0])
+        volume = 4.0 / 3.0 * math.pi * r**3
+    else:
+        if "radius" in b:
+            ctx.fail(f"{key}.radius", "a box takes half_extents, not radius")
+        if "half_extents" not in b:
+            ctx.fail(f"{key}.half_extents", "missing (a list of 3 positive numbers, m)")
+        size = ctx.vec(b["half_extents"], f"{key}.half_extents", positive=True)
+        volume = 8.0 * float(np.prod(size))
+    if ("mass" in b) == ("density" in b):
+        ctx.fail(f"{key}.mass", "expected exactly one of mass (kg) or density (kg/m^3)")
+    mass = (ctx.num(b["mass"], f"{key}.mass", positive=True) if "mass" in b
+            else ctx.num(b["density"], f"{key}.density", positive=True) * volume)
+    if "inertia_diag" in b:
+        inertia = ctx.vec(b["inertia_diag"], f"{key}.inertia_diag", positive=True)
+        i0, i1, i2 = sorted(inertia)
+        if i2 > i0 + i1 + 1e-12 * i2:
+            ctx.fail(f"{key}.inertia_diag", "principal moments must satisfy the triangle "
+                     f"inequality (each <= sum of the others), got {inertia.tolist()}")
+    elif shape == "sphere":
+        inertia = np.full(3, 0.4 * mass * size[0] ** 2)
+    else:
+        a, bb, c = size**2
+        inertia = mass / 3.0 * np.array([bb + c, a + c, a + bb])
+    q = _orientation(ctx, b, key)
+    if "angular_velocity" in b and "angular_velocity_body" in b:
+        ctx.fail(f"{key}.angular_velocity_body", "give angular_velocity (world) or "
+                 "angular_velocity_body, not both")
+    return {
+        "name": ctx.string(b.get("name", default_name), f"{key}.name"),
+        "shape": shape,
+        "size": size,
+        "mass": mass,
+        "inertia_diag": inertia,
+        "position": ctx.vec(b.get("position", [0, 0, 0]), f"{key}.position"),
+        "quat_wxyz": q,
+        "velocity": ctx.vec(b.get("velocity", [0, 0, 0]), f"{key}.velocity"),
+        "angular_velocity": (ctx.vec(b["angular_velocity"], f"{key}.angular_velocity")
+                             if "angular_velocity" in b else None),
+        "angular_velocity_body": (ctx.vec(b["angular_velocity_body"], f"{key}.angular_velocity_body")
+                                  if "angular_velocity_body" in b else None),
+        "force": ctx.vec(b.get("force", [0, 0, 0]), f"{key}.force"),
+        "torque": ctx.vec(b.get("torque", [0, 0, 0]), f"{key}.torque"),
+        "restitution": ctx.num(b.get("restitution", DEFAULT_RESTITUTION), f"{key}.restitution", lo=0.0, hi=1.0),
+        "friction": ctx.num(b.get("friction", DEFAULT_FRICTION), f"{key}.friction", nonneg=True),
+        "group": ctx.integer(b.get("group", 0), f"{key}.group", lo=0),
+    }
+
+
+def _random_unit(rng, n) -> np.ndarray:
+    v = rng.normal(size=(n, 3))
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> list[dict]:
+    """Expand a [[generator]] table into bodies (grid or seeded random layout)."""
+    ctx.keys(g, key, GENERATOR_KEYS)
+    layout = ctx.string(g.get("layout", "grid"), f"{key}.layout", ("grid", "random"))
+    template = dict(ctx.table(g.get("body", {}), f"{key}.body"))
+    if "name" in template:
+        ctx.fail(f"{key}.body.name", "generated bodies are named from name_prefix")
+    prefix = ctx.string(g.get("name_prefix", f"g{key[10:-1]}_"), f"{key}.name_prefix")
+    rng = np.random.default_rng(ctx.integer(g.get("seed", default_seed), f"{key}.seed", lo=0))
+    if layout == "grid":
+        if "grid" not in g:
+            ctx.fail(f"{key}.grid", "missing (a list of 3 counts [nx, ny, nz])")
+        gr = g["grid"]
+        if not isinstance(gr, list) or len(gr) != 3:
+            ctx.fail(f"{key}.grid", f"expected a list of 3 integers, got {_show(gr)}")
+        counts = [ctx.integer(c, f"{key}.grid[{i}]", lo=1) for i, c in enumerate(gr)]
+        if "count" in g:
+            ctx.fail(f"{key}.count", "a grid layout takes grid = [nx, ny, nz], not count")
+        sp = g.get("spacing", 1.0)
+        spacing = (np.full(3, ctx.num(sp, f"{key}.spacing", positive=True))
+                   if not isinstance(sp, list) else ctx.vec(sp, f"{key}.spacing", nonneg=True))
+        origin = ctx.vec(g.get("origin", [0, 0, 0]), f"{key}.origin")
+        idx = np.stack(np.meshgrid(*[np.arange(c) for c in counts], indexing="ij"), -1).reshape(-1, 3)
+        positions = origin + idx * spacing
+        for k in ("region_min", "region_max"):
+            if k in g:
+                ctx.fail(f"{key}.{k}", "only for layout = \"random\"")
+    else:
+        if "count" not in g:
+            ctx.fail(f"{key}.count", "missing (number of bodies)")
+        n = ctx.integer(g["count"], f"{key}.count", lo=1)
+        for k in ("region_min", "region_max"):
+            if k not in g:
+                ctx.fail(f"{key}.{k}", "missing (a list of 3 numbers, m)")
+        lo = ctx.vec(g["region_min"], f"{key}.region_min")
+        hi = ctx.vec(g["region_max"], f"{key}.region_max")
+        if np.any(hi < lo):
+            ctx.fail(f"{key}.region_max", "expected region_max >= region_min component-wise")
+        positions = lo + rng.random((n, 3)) * (hi - lo)
+        for k in ("grid", "spacing", "origin"):
+            if k in g:
+                ctx.fail(f"{key}.{k}", "only for layout = \"grid\"")
+    n = len(positions)
+    speed = _range(ctx, g, "speed", key)
+    spin = _range(ctx, g, "spin", key)
+    rand_orient = ctx.boolean(g.get("random_orientation", False), f"{key}.random_orientation")
+    out = []
+    vdir = _random_unit(rng, n)
+    vmag = rng.uniform(*speed, size=n) if speed else np.zeros(n)
+    wdir = _random_unit(rng, n)
+    wmag = rng.uniform(*spin, size=n) if spin else np.zeros(n)
+    quats = rng.normal(size=(n, 4))
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    for i in range(n):
+        b = dict(template)
+        b["name"] = f"{prefix}{i}"
+        b["position"] = positions[i].tolist()
+        if rand_orient:
+            for k in ORIENTATION_KEYS:
+                b.pop(k, None)
+            b["quat_wxyz"] = quats[i].tolist()
+        body = _body(ctx, b, f"{key}.body", b["name"])
+        if speed:
+            body["velocity"] = body["velocity"] + vmag[i] * vdir[i]
+        if spin:
+            if body["angular_velocity"] is not None:
+                base = body["angular_velocity"]
+            elif body["angular_velocity_body"] is not None:
+                base = quat_to_matrix_np(body["quat_wxyz"]) @ body["angular_velocity_body"]
+            else:
+                base = np.zeros(3)
+            body["angular_velocity"] = base + wmag[i] * wdir[i]
+            body["angular_velocity_body"] = None
+        out.append(body)
+    return out
+
+
+def _range(ctx, g, k, key):
+    if k not in g:
+        return None
+    v = g[k]
+    if not isinstance(v, list) or len(v) != 2:
+        ctx.fail(f"{key}.{k}", f"expected [min, max], got {_show(v)}")
+    lo = ctx.num(v[0], f"{key}.{k}[0]", nonneg=True)
+    hi = ctx.num(v[1], f"{key}.{k}[1]", nonneg=True)
+    if hi < lo:
+        ctx.fail(f"{key}.{k}", "expected [min, max] with min <= max")
+    return lo, hi
+
+
+def _build(bodies, statics, gravity, ground, g_normal, g_offset, g_rest, g_fric):
+    n = len(bodies)
+    col = lambda k: np.array([b[k] for b in bodies], dtype=float)
+    mass = col("mass")
+    inertia = col("inertia_diag")
+    quat = col("quat_wxyz")
+    rot = quat_to_matrix_np(quat)
+    omega = np.zeros((n, 3))
+    for i, b in enumerate(bodies):
+        if b["angular_velocity"] is not None:
+            omega[i] = b["angular_velocity"]
+        elif b["angular_velocity_body"] is not None:
+            omega[i] = rot[i] @ b["angular_velocity_body"]
+    # L = R I_body R^T omega  (world frame)
+    l_world = np.einsum("nij,nj->ni", rot, inertia * np.einsum("nji,nj->ni", rot, omega))
+    model = Model(
+        body_name=[b["name"] for b in bodies],
+        body_shape=np.array([SHAPE_CODES[b["shape"]] for b in bodies], dtype=np.int64),
+        body_size=col("size"),
+        body_mass=mass,
+        body_inertia_diag=inertia,
+        body_force_world=col("force"),
+        body_torque_world=col("torque"),
+        body_restitution=col("restitution"),
+        body_friction=col("friction"),
+        body_group=np.array([b["group"] for b in bodies], dtype=np.int64),
+        gravity=np.asarray(gravity, float),
+        ground=ground,
+        ground_normal=np.asarray(g_normal, float),
+        ground_offset=float(g_offset),
+        ground_restitution=float(g_rest),
+        ground_friction=float(g_fric),
+        static_box_position=np.array([s["position"] for s in statics], float).reshape(-1, 3),
+        static_box_quat_wxyz=np.array([s["quat_wxyz"] for s in statics], float).reshape(-1, 4),
+        static_box_half_extents=np.array([s["half_extents"] for s in statics], float).reshape(-1, 3),
+        static_box_restitution=np.array([s["restitution"] for s in statics], float),
+        static_box_friction=np.array([s["friction"] for s in statics], float),
+    )
+    state = State(
+        position=col("position"),
+        linear_momentum=mass[:, None] * col("velocity"),
+        quat_wxyz=quat,
+        rotation=rot,
+        angular_momentum_world=l_world,
+    )
+    return model, state
+
+
+__all__ = ["Scene", "SimParams", "load_scene", "parse_scene", "INTEGRATORS", "DEFAULT_INTEGRATOR",
+           "SHAPE_BOX", "SHAPE_SPHERE"]

@@ -1,0 +1,129 @@
+"""The real Rerun viewer opens a sample run's .rrd, headless, and shows it without errors.
+
+The native viewer from the rerun-sdk wheel runs with ``--headless`` (no window, no X server) on
+Mesa's software Vulkan driver (Debian's ``mesa-vulkan-drivers``, lavapipe); it is driven through
+its control API by ``scripts/screenshot.py``. Each test takes a few seconds.
+
+Without that driver the tests skip and say why, except under CI (``CI`` set), where .ci/run
+installs it and its absence is a failure.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+_spec = importlib.util.spec_from_file_location("rblog_screenshot", REPO / "scripts" / "screenshot.py")
+shot = importlib.util.module_from_spec(_spec)
+sys.modules[_spec.name] = shot  # dataclasses look their module up by name
+_spec.loader.exec_module(shot)
+
+
+@pytest.fixture(scope="module")
+def viewer_ready():
+    """Skip (saying why) when a system piece the headless viewer needs is missing; fail in CI."""
+    why = shot.software_vulkan_missing()
+    if why is None:
+        try:
+            shot.rerun_executable()
+        except shot.ViewerUnavailable as e:
+            why = str(e)
+    if why is None:
+        return
+    why = f"headless Rerun viewer unavailable: {why}"
+    if os.environ.get("CI"):
+        pytest.fail(f"{why} (CI must install it: see .ci/run)")
+    print(f"\nSKIP {why}", file=sys.__stderr__)
+    warnings.warn(why)
+    pytest.skip(why)
+
+
+@pytest.fixture(scope="module")
+def sample_rrd(tmp_path_factory) -> Path:
+    """A sample run, recorded by rblog's own CLI: boxes and spheres, a static ramp, the ground
+    and contacts, so that every view entity rblog writes is visualized."""
+    rrd = tmp_path_factory.mktemp("viewer") / "mixed.rrd"
+    shot.record_sample(REPO / "samples" / "mixed.toml", rrd)
+    assert rrd.stat().st_size > 10_000
+    return rrd
+
+
+def _fmt(cap) -> str:
+    return "\n".join(cap.problems) + "\n--- viewer stderr (tail) ---\n" + cap.stderr[-4000:]
+
+
+def test_viewer_shows_a_sample_run_without_errors(viewer_ready, sample_rrd, tmp_path):
+    png = tmp_path / "viewer.png"
+    cap = shot.capture(sample_rrd, png, timeout=120.0, per_view=True)
+    print(f"screenshot {png} after {cap.seconds:.1f} s")
+
+    # every view is there, visible, and reported nothing; the viewer logged no error or warning
+    classes = sorted(v.view_class for v in cap.views)
+    assert "3D" in classes and classes.count("TimeSeries") >= 3, classes
+    assert all(v.visible for v in cap.views), cap.views
+    assert not cap.view_problems, _fmt(cap)
+    assert not cap.log_errors, _fmt(cap)
+    assert not cap.stderr_errors, _fmt(cap)
+
+    # it loaded the whole run and sits at its end
+    rec = next(r for r in cap.state.recordings if r.store_id == cap.state.active_recording)
+    timelines = {t.name: t for t in rec.timelines}
+    assert timelines["sim_time"].end == pytest.approx(4e9, rel=1e-6), rec.timelines  # 4 s run
+    assert rec.current_timeline == "sim_time" and rec.current_time == timelines["sim_time"].end
+
+    # the screenshot is a real, rendered frame, not a blank or single-colour image
+    whole = shot.image_stats(png)
+    assert whole["shape"][:2] == (shot.DEFAULT_SIZE[1], shot.DEFAULT_SIZE[0]), whole
+    assert whole["std"] > 10 and whole["colours"] > 200, whole
+    assert whole["non_background_fraction"] > 0.05, whole
+    # the 3D view shows the (coloured) bodies, each plot a coloured line
+    for v in cap.views:
+        stats = shot.image_stats(cap.view_pngs[v.view_id])
+        assert stats["std"] > 5 and stats["non_background_fraction"] > 0.01, (v.name, stats)
+        if v.view_class == "3D":
+            assert stats["colourful_fraction"] > 0.005, (v.name, stats)
+        else:
+            assert stats["colourful_fraction"] > 0.002, (v.name, stats)
+
+
+def _broken_rrd(path: Path) -> Path:
+    """A small recording with what the viewer must complain about: a mesh whose triangle indexes a
+    missing vertex, an image in a 3D view with no camera, and a scalar series of strings."""
+    code = f"""
+import pyarrow as pa, rerun as rr, rerun.blueprint as rrb
+rec = rr.RecordingStream("rblog-broken")
+rec.save({str(path)!r})
+rec.send_blueprint(rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(origin="world"),
+                                                rrb.TimeSeriesView(origin="plots"))))
+rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+rec.log("world/box", rr.Boxes3D(half_sizes=[[0.3, 0.2, 0.1]], colors=[[31, 119, 180]]), static=True)
+rec.log("world/mesh", rr.Mesh3D(vertex_positions=[[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+                                triangle_indices=[[0, 1, 7]]), static=True)
+rec.log("world/image", rr.Image(bytes=bytes(10), width=4, height=4, color_model="RGB",
+                                datatype="U8"), static=True)
+bad = rr.ComponentDescriptor("Scalars:scalars", archetype="rerun.archetypes.Scalars",
+                             component_type="rerun.components.Scalar")
+for k in range(20):
+    rec.set_time("sim_time", duration=0.1 * k)
+    rec.log("plots/good", rr.Scalars([float(k)]))
+    rec.log("plots/bad", [rr.AnyBatchValue(bad, pa.array(["oops"]))])
+"""
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    return path
+
+
+def test_viewer_check_catches_a_broken_recording(viewer_ready, tmp_path):
+    """The checks above are not vacuous: on a recording the viewer cannot fully show, they fire."""
+    cap = shot.capture(_broken_rrd(tmp_path / "broken.rrd"), tmp_path / "broken.png", timeout=120.0)
+    text = _fmt(cap)
+    assert any("pinhole" in p for p in cap.view_problems), text           # a view's own report
+    assert any("out of bounds" in p for p in cap.log_errors), text        # viewer log: mesh
+    assert any("Scalars:scalars" in p for p in cap.log_errors), text      # viewer log: datatype
+    assert shot.image_stats(cap.png)["std"] > 10
