@@ -81,6 +81,27 @@ def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
+@njit(inline="always")
+def apply_impulse(ma, a6, mb, b6, ra, rb, p, va, wa, vb, wb):
+    """The one place an impulse acts on a pair: +P on body a at anchor r_a, -P on body b at r_b.
+
+    Velocity changes m^-1 P and I_world^-1 (r x P), so the pair's linear momentum and its angular
+    momentum about any point are unchanged to round-off. ``ma``/``mb`` inverse masses (0 for the
+    static dummy), ``a6``/``b6`` world inverse inertias (xx, yy, zz, xy, xz, yz), ``ra``/``rb``
+    anchors and ``p`` the impulse (world, N s), ``va, wa, vb, wb`` the bodies' velocity and angular
+    velocity (world) as 3-tuples; returns them updated. Inlined: callers keep them in registers."""
+    px, py, pz = p
+    cx, cy, cz = _cross(ra[0], ra[1], ra[2], px, py, pz)
+    ex, ey, ez = _smul(a6[0], a6[1], a6[2], a6[3], a6[4], a6[5], cx, cy, cz)
+    va = (va[0] + ma * px, va[1] + ma * py, va[2] + ma * pz)
+    wa = (wa[0] + ex, wa[1] + ey, wa[2] + ez)
+    cx, cy, cz = _cross(rb[0], rb[1], rb[2], px, py, pz)
+    ex, ey, ez = _smul(b6[0], b6[1], b6[2], b6[3], b6[4], b6[5], cx, cy, cz)
+    vb = (vb[0] - mb * px, vb[1] - mb * py, vb[2] - mb * pz)
+    wb = (wb[0] - ex, wb[1] - ey, wb[2] - ez)
+    return va, wa, vb, wb
+
+
 @njit(cache=True)
 def load_bodies(mi, n_man, n_dyn, iso_shortcut, iso, inv_mass, inv_inertia, rotation,
                 linear_momentum, angular_momentum, in_contact, bm, bI, bv, bw, bv0, bw0, pv, pw,
@@ -237,22 +258,10 @@ def warm_start(mi, mf, pf, n_man, bm, bI, bv, bw):
             pz = ln * nz + l1 * t1z + l2 * t2z
             rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
             rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
-            vax += ma * px
-            vay += ma * py
-            vaz += ma * pz
-            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-            dx, dy, dz = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-            wax += dx
-            way += dy
-            waz += dz
-            vbx -= mb * px
-            vby -= mb * py
-            vbz -= mb * pz
-            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-            dx, dy, dz = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-            wbx -= dx
-            wby -= dy
-            wbz -= dz
+            (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                (wbx, wby, wbz))
         bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
         bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
         bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
@@ -426,22 +435,10 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                             rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
                             rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
                             px, py, pz = d * nx, d * ny, d * nz
-                            vax += ma * px
-                            vay += ma * py
-                            vaz += ma * pz
-                            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                            ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                            wax += ex
-                            way += ey
-                            waz += ez
-                            vbx -= mb * px
-                            vby -= mb * py
-                            vbz -= mb * pz
-                            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                            ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                            wbx -= ex
-                            wby -= ey
-                            wbz -= ez
+                            (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                                ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                                (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                                (wbx, wby, wbz))
             for p in range(start, end):
                 if solved:
                     break
@@ -469,22 +466,10 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                     if dv > tol:
                         mark_a = True
                 px, py, pz = d * nx, d * ny, d * nz
-                vax += ma * px
-                vay += ma * py
-                vaz += ma * pz
-                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                wax += ex
-                way += ey
-                waz += ez
-                vbx -= mb * px
-                vby -= mb * py
-                vbz -= mb * pz
-                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                wbx -= ex
-                wby -= ey
-                wbz -= ez
+                (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                    ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                    (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                    (wbx, wby, wbz))
             # friction
             if mu > 0.0:
                 for p in range(start, end):
@@ -511,22 +496,10 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                     px = d1 * t1x + d2 * t2x
                     py = d1 * t1y + d2 * t2y
                     pz = d1 * t1z + d2 * t2z
-                    vax += ma * px
-                    vay += ma * py
-                    vaz += ma * pz
-                    cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                    ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                    wax += ex
-                    way += ey
-                    waz += ez
-                    vbx -= mb * px
-                    vby -= mb * py
-                    vbz -= mb * pz
-                    cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                    ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                    wbx -= ex
-                    wby -= ey
-                    wbz -= ez
+                    (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                        ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                        (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                        (wbx, wby, wbz))
             bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
             bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
             bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
@@ -590,22 +563,10 @@ def relax_positions(mi, mf, pf, n_man, bm, bI, pv, pw, inv_h, n_iter, slop, beta
                 pf[p, PF_LP] = new
                 d = new - old
                 px, py, pz = d * nx, d * ny, d * nz
-                vax += ma * px
-                vay += ma * py
-                vaz += ma * pz
-                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                wax += ex
-                way += ey
-                waz += ez
-                vbx -= mb * px
-                vby -= mb * py
-                vbz -= mb * pz
-                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                wbx -= ex
-                wby -= ey
-                wbz -= ez
+                (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                    ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                    (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                    (wbx, wby, wbz))
             pv[ia, 0], pv[ia, 1], pv[ia, 2] = vax, vay, vaz
             pw[ia, 0], pw[ia, 1], pw[ia, 2] = wax, way, waz
             pv[ib, 0], pv[ib, 1], pv[ib, 2] = vbx, vby, vbz
@@ -723,38 +684,26 @@ def _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, i
     """Impulse (px, py, pz) on a at anchor r_a and its negative on b at r_b: into the solver
     velocities (bv, bw) and straight into the momenta of dynamic bodies (P += J, L += r x J)."""
     n_dyn = linear_momentum.shape[0]
-    ma = bm[ia]
-    mb = bm[ib]
-    bv[ia, 0] += ma * px
-    bv[ia, 1] += ma * py
-    bv[ia, 2] += ma * pz
-    cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-    ex, ey, ez = _smul(bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5], cx, cy, cz)
-    bw[ia, 0] += ex
-    bw[ia, 1] += ey
-    bw[ia, 2] += ez
-    if ia < n_dyn:
-        linear_momentum[ia, 0] += px
-        linear_momentum[ia, 1] += py
-        linear_momentum[ia, 2] += pz
-        angular_momentum[ia, 0] += cx
-        angular_momentum[ia, 1] += cy
-        angular_momentum[ia, 2] += cz
-    bv[ib, 0] -= mb * px
-    bv[ib, 1] -= mb * py
-    bv[ib, 2] -= mb * pz
-    cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-    ex, ey, ez = _smul(bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5], cx, cy, cz)
-    bw[ib, 0] -= ex
-    bw[ib, 1] -= ey
-    bw[ib, 2] -= ez
-    if ib < n_dyn:
-        linear_momentum[ib, 0] -= px
-        linear_momentum[ib, 1] -= py
-        linear_momentum[ib, 2] -= pz
-        angular_momentum[ib, 0] -= cx
-        angular_momentum[ib, 1] -= cy
-        angular_momentum[ib, 2] -= cz
+    va, wa, vb, wb = apply_impulse(
+        bm[ia], (bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]),
+        bm[ib], (bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]),
+        (rax, ray, raz), (rbx, rby, rbz), (px, py, pz),
+        (bv[ia, 0], bv[ia, 1], bv[ia, 2]), (bw[ia, 0], bw[ia, 1], bw[ia, 2]),
+        (bv[ib, 0], bv[ib, 1], bv[ib, 2]), (bw[ib, 0], bw[ib, 1], bw[ib, 2]))
+    bv[ia, 0], bv[ia, 1], bv[ia, 2] = va
+    bw[ia, 0], bw[ia, 1], bw[ia, 2] = wa
+    bv[ib, 0], bv[ib, 1], bv[ib, 2] = vb
+    bw[ib, 0], bw[ib, 1], bw[ib, 2] = wb
+    # angular impulses r x J straight into L (the orientations have already moved on)
+    for body, sign, rx, ry, rz in ((ia, 1.0, rax, ray, raz), (ib, -1.0, rbx, rby, rbz)):
+        if body < n_dyn:
+            cx, cy, cz = _cross(rx, ry, rz, px, py, pz)
+            linear_momentum[body, 0] += sign * px
+            linear_momentum[body, 1] += sign * py
+            linear_momentum[body, 2] += sign * pz
+            angular_momentum[body, 0] += sign * cx
+            angular_momentum[body, 1] += sign * cy
+            angular_momentum[body, 2] += sign * cz
 
 
 @njit(cache=True)
