@@ -273,15 +273,11 @@ def _euler_numeric(j, nu0, t):
 # ---- small rotation helpers (numpy) ------------------------------------------------------------
 
 def quat_to_matrix(q_wxyz) -> np.ndarray:
-    """(..., 4) wxyz -> (..., 3, 3), normalizing first."""
+    """(..., 4) wxyz -> (..., 3, 3), normalizing first (rblog.engine.rotation.quat_to_matrix_np)."""
+    from rblog.engine.rotation import quat_to_matrix_np
+
     q = np.asarray(q_wxyz, float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return quat_to_matrix_np(q / np.linalg.norm(q, axis=-1, keepdims=True))
 
 
 def rotation_angle_between(qa_wxyz, qb_wxyz) -> np.ndarray:

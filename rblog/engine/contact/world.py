@@ -76,7 +76,7 @@ class ContactWorld:
         mass = np.asarray(model.body_mass, float).reshape(n)
         inertia = np.ascontiguousarray(np.asarray(model.body_inertia_diag, float).reshape(n, 3))
         inv_inertia = 1.0 / inertia
-        radius = np.where(geom == GEOM_BOX, np.linalg.norm(size, axis=1), size[:, 0])
+        radius = model.body_bounding_radius
         iso = (np.abs(inertia - inertia[:, :1]) <= ISOTROPIC_RTOL * inertia[:, :1]).all(axis=1)
         gravity = np.asarray(model.gravity, float).reshape(3)
         f_ext = np.asarray(model.body_force_world, float).reshape(n, 3)
