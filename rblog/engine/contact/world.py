@@ -39,7 +39,9 @@ from rblog.engine.contact.narrowphase import (
     GEOM_BOX, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM, UnsupportedShapePair,
 )
 from rblog.engine.constants import ContactParams
-from rblog.engine.contact.step import N_STATS, Bodies, Settings, Statics, world_advance
+from rblog.engine.contact.step import (
+    N_STATS, Bodies, BodyState, ContactCache, Settings, SleepState, Statics, world_advance,
+)
 
 #: relative tolerance under which principal moments count as equal (isotropic inertia)
 ISOTROPIC_RTOL = 1e-12
@@ -135,17 +137,13 @@ class ContactWorld:
         self._inv_inertia = inv_inertia
 
         # state kept between calls
-        self.awake = np.ones(n, np.int64)
-        self.sleep_timer = np.zeros(n)
-        self.island_of = np.full(n, -1, np.int64)
-        self._island_counter = np.zeros(1, np.int64)
+        self._sleep = SleepState(np.ones(n, np.int64), np.zeros(n), np.full(n, -1, np.int64),
+                                 np.zeros(1, np.int64))
+        self.awake = self._sleep.awake
         cap = max(16, 4 * n)
-        self._prev = list(empty_manifolds(cap, 4 * cap))
-        self._n_prev = 0
-        self._keys = np.zeros(1, np.int64)
-        self._idx = np.zeros(1, np.int64)
-        self._spare = list(empty_manifolds(cap, 4 * cap))
-        self._pairs = np.zeros((cap, 2), np.int64)
+        self._cache = ContactCache(*empty_manifolds(cap, 4 * cap), 0, np.zeros(1, np.int64),
+                                   np.zeros(1, np.int64), *empty_manifolds(cap, 4 * cap),
+                                   np.zeros((cap, 2), np.int64))
         self._log_i = np.zeros((64, LOG_I_COLS), np.int64)
         self._log_f = np.zeros((64, LOG_F_COLS))
         #: counters accumulated over all calls: steps with awake bodies, candidate pairs,
@@ -294,20 +292,14 @@ class ContactWorld:
                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                 out_angular_momentum)
             return int(ns), int(bad_step), int(bad_body), Contacts.empty()
-        mi0, mf0, pf0, pid0 = self._prev
-        mi1, mf1, pf1, pid1 = self._spare
         res = world_advance(
             self._bodies, self._statics, self._settings, self.method, self.ortho, float(dt),
             int(n_steps), int(stride), bool(sample_last),
-            position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-            out_position, out_linear_momentum, out_quat_wxyz, out_rotation, out_angular_momentum,
-            self.awake, self.sleep_timer, self.island_of, self._island_counter,
-            mi0, mf0, pf0, pid0, self._n_prev, self._keys, self._idx, mi1, mf1, pf1, pid1,
-            self._pairs, self._log_i, self._log_f, self.stats)
-        (n_samples, bad_step, bad_body, n_log, self._log_i, self._log_f, mi0, mf0, pf0, pid0,
-         self._n_prev, self._keys, self._idx, mi1, mf1, pf1, pid1, self._pairs) = res
-        self._prev = [mi0, mf0, pf0, pid0]
-        self._spare = [mi1, mf1, pf1, pid1]
+            BodyState(position, linear_momentum, quat_wxyz, rotation, angular_momentum),
+            BodyState(out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
+                      out_angular_momentum),
+            self._sleep, self._cache, self._log_i, self._log_f, self.stats)
+        n_samples, bad_step, bad_body, n_log, self._log_i, self._log_f, self._cache = res
         li = self._log_i[:n_log]
         lf = self._log_f[:n_log]
         contacts = Contacts(
