@@ -9,10 +9,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rblog.engine.contact.broadphase import body_aabbs, sweep_and_prune
+from rblog.engine.contact.broadphase import body_aabbs, ground_pairs, sweep_and_prune
 from rblog.engine.contact.narrowphase import COLLIDE_TABLE, MAX_CLIP_POINTS, collide
 from rblog.engine.contact.collide import pair_geometry
-from rblog.engine.contact.step import _ground_pairs
 
 
 @njit(cache=True)
@@ -33,7 +32,7 @@ def _pair_min_separations(bd, st, position, rotation, margin):
     pairs = np.zeros((max(16, 4 * n), 2), np.int64)
     pairs, n_pairs = sweep_and_prune(n + ns, n, lo, hi, bd.group, asleep, pairs)
     if st.ground:
-        pairs, n_pairs = _ground_pairs(n, ns, st, lo, hi, pairs, n_pairs)
+        pairs, n_pairs = ground_pairs(n, ns, st, lo, hi, pairs, n_pairs)
     out = np.empty(n_pairs)
     nrm = np.zeros(6)
     pts = np.zeros((MAX_CLIP_POINTS, 3))

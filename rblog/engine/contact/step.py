@@ -10,12 +10,13 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     5  prepare          effective masses, pre-solve gap velocities (solver.py)
     6  warm start       apply last step's impulses
     7  solve            sequential impulses, Coulomb friction, speculative targets
-    8  relax            split-impulse position correction on pseudo velocities (the shift's
+    8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
                         orbital angular momentum h v' x P is handed back to the spin)
-    9  integrate        x += h (v + v'), rotation by rotation.drift_rotation with the run's
+    9  integrate        x += h (v + v'), rotation by integrators.drift_rotation with the run's
                         integrator (the body's L and its current R, so gyroscopic motion is the
                         integrator's own); momenta P, L rebuilt from the solver's velocity changes
-    10 restitution      bounce impact points (energy-consistent rule, solver.py), P += J, L += r x J
+    10 restitution      bounce impact points (energy-consistent rule, restitution.py), P += J,
+                        L += r x J
     11 store impulses   friction as world vectors for the next step
     12 project          narrowphase again at the end-of-step poses; points deeper than
                         projection_depth are pushed out by nonlinear Gauss-Seidel on positions
@@ -26,7 +27,7 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
 Translation is symplectic Euler (kick, then drift with the new velocity) for every integrator:
 contact solvers need the velocity that the drift will use. Torques are kicks too.
 
-Samples follow kernels.advance_free: after every ``stride``-th step and after the last step when
+Samples follow free.advance_free: after every ``stride``-th step and after the last step when
 ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.
 """
 
@@ -42,7 +43,7 @@ from rblog.engine.free import write_sample
 from rblog.engine.rotation import load_mat, omega_world
 from rblog.engine.integrators import drift_rotation, sync_quat
 from rblog.contract.trajectory import CONTACT_IMPACT, CONTACT_RESTING
-from rblog.engine.contact.broadphase import _grow_pairs, body_aabbs, sweep_and_prune
+from rblog.engine.contact.broadphase import body_aabbs, ground_pairs, sweep_and_prune
 from rblog.engine.contact.collide import collide_pairs, grow_manifolds, grow_points, sort_manifolds
 from rblog.engine.contact.island import update_sleep, wake_pushed, wake_touched
 from rblog.engine.contact.manifold import (
@@ -50,11 +51,12 @@ from rblog.engine.contact.manifold import (
     MF_N, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_IMPACT, PF_LN, PF_P, PF_SEND,
 )
 from rblog.engine.contact.narrowphase import MAX_CLIP_POINTS
-from rblog.engine.contact.project import PROJ_COLS, project_positions
+from rblog.engine.contact.project import PROJ_COLS, apply_projection, project_positions
 from rblog.engine.contact.solver import (
-    load_bodies, prepare_contacts, relax_positions, restitution, solve_velocities,
-    store_impulses, warm_start,
+    load_bodies, prepare_contacts, solve_velocities, store_impulses, warm_start,
 )
+from rblog.engine.contact.relax import relax_positions
+from rblog.engine.contact.restitution import restitution
 
 #: per-body model arrays the kernel reads (N rows each; ``iso`` marks isotropic inertia)
 Bodies = namedtuple("Bodies", "geom size radius inv_mass inertia inv_inertia iso force torque "
@@ -108,27 +110,6 @@ def _grow_log(log_i, log_f, need):
 
 
 @njit(cache=True)
-def _ground_pairs(n_dyn, n_static, st, lo, hi, pairs, n_pairs):
-    """Append (body, ground) for every body whose padded AABB reaches the plane."""
-    gid = n_dyn + n_static
-    gx, gy, gz = st.gn[0], st.gn[1], st.gn[2]
-    for i in range(n_dyn):
-        cx = 0.5 * (lo[i, 0] + hi[i, 0])
-        cy = 0.5 * (lo[i, 1] + hi[i, 1])
-        cz = 0.5 * (lo[i, 2] + hi[i, 2])
-        ext = (abs(gx) * (hi[i, 0] - lo[i, 0]) + abs(gy) * (hi[i, 1] - lo[i, 1])
-               + abs(gz) * (hi[i, 2] - lo[i, 2])) * 0.5
-        if gx * cx + gy * cy + gz * cz - st.goff - ext > 0.0:
-            continue
-        if n_pairs == pairs.shape[0]:
-            pairs = _grow_pairs(pairs)
-        pairs[n_pairs, 0] = i
-        pairs[n_pairs, 1] = gid
-        n_pairs += 1
-    return pairs, n_pairs
-
-
-@njit(cache=True)
 def _store_momenta(i, bd, rotation, linear_momentum, angular_momentum, bv, bw, bv0, bw0, p0,
                    l0, iso_shortcut):
     """P = P0 + m (v - v0), L = L0 + I_world (w - w0): momenta change only by what the solver
@@ -157,7 +138,7 @@ def _inertia_world_times(bd, rotation, i, x, y, z):
 
 @njit(cache=True)
 def _drift(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
-    """rotation.drift_rotation behind a call boundary: it is inlined here once, and the world
+    """integrators.drift_rotation behind a call boundary: it is inlined here once, and the world
     step calls this (compiling drift_rotation's four integrators into the large world step
     itself would double its compile time)."""
     drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
@@ -166,41 +147,6 @@ def _drift(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
 @njit(cache=True)
 def _sync(method, quat_wxyz, rotation, i):
     sync_quat(method, quat_wxyz, rotation, i)
-
-
-@njit(cache=True)
-def _apply_projection(n_deep, ids, dx, dth, n, method, ortho, bd, iso_shortcut, position,
-                      rotation, quat_wxyz, linear_momentum, angular_momentum, l_scratch):
-    """Move the bodies of the project stage's points by their corrections: x += dx, the
-    orientation by the rotation vector dth (through the run's integrator: a drift of unit
-    duration with L = I_world dth), and L -= dx x P so that sum(x x P + L) stays exact."""
-    for p in range(n_deep):
-        for c in range(2):
-            i = ids[p, c]
-            if i >= n:
-                continue
-            ux, uy, uz = dx[i, 0], dx[i, 1], dx[i, 2]
-            tx, ty, tz = dth[i, 0], dth[i, 1], dth[i, 2]
-            if ux == 0.0 and uy == 0.0 and uz == 0.0 and tx == 0.0 and ty == 0.0 and tz == 0.0:
-                continue  # no correction, or already applied (a body can have many points)
-            position[i, 0] += ux
-            position[i, 1] += uy
-            position[i, 2] += uz
-            qx, qy, qz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
-            angular_momentum[i, 0] -= uy * qz - uz * qy
-            angular_momentum[i, 1] -= uz * qx - ux * qz
-            angular_momentum[i, 2] -= ux * qy - uy * qx
-            if tx != 0.0 or ty != 0.0 or tz != 0.0:
-                if iso_shortcut and bd.iso[i]:
-                    s0 = bd.inertia[i, 0]
-                    jx, jy, jz = s0 * tx, s0 * ty, s0 * tz
-                else:
-                    jx, jy, jz = _inertia_world_times(bd, rotation, i, tx, ty, tz)
-                l_scratch[i, 0], l_scratch[i, 1], l_scratch[i, 2] = jx, jy, jz
-                _drift(method, ortho, quat_wxyz, rotation, l_scratch, bd.inv_inertia, i, 1.0)
-            for k in range(3):
-                dx[i, k] = 0.0
-                dth[i, k] = 0.0
 
 
 @njit(cache=True)
@@ -257,7 +203,7 @@ def broadphase(bd, st, cfg, awake, x, h, sc, pairs):
                sc.reach)
     pairs, n_pairs = sweep_and_prune(n + st.n_static, n, sc.lo, sc.hi, bd.group, awake, pairs)
     if st.ground:
-        pairs, n_pairs = _ground_pairs(n, st.n_static, st, sc.lo, sc.hi, pairs, n_pairs)
+        pairs, n_pairs = ground_pairs(n, st.n_static, st, sc.lo, sc.hi, pairs, n_pairs)
     return pairs, n_pairs
 
 
@@ -356,7 +302,7 @@ def project(method, ortho, bd, st, cfg, awake, x, sc, pairs, n_pairs, rows, ids)
         cfg.proj_depth, cfg.n_proj, rows, ids, sc.nrm, sc.pts, sc.sep, sc.fid, sc.work, sc.poly,
         sc.proj_dx, sc.proj_dth)
     if n_deep > 0:
-        _apply_projection(n_deep, ids, sc.proj_dx, sc.proj_dth, n, method, ortho, bd,
+        apply_projection(n_deep, ids, sc.proj_dx, sc.proj_dth, n, method, ortho, bd,
                           cfg.iso_shortcut, x.position, x.rotation, x.quat_wxyz,
                           x.linear_momentum, x.angular_momentum, sc.l_drift)
     return n_deep, rows, ids

@@ -1,6 +1,6 @@
 """ContactWorld: the simulator's entry point for scenes whose bodies can touch.
 
-Usage (the simulator calls this in blocks, like ``kernels.advance_free``)::
+Usage (the simulator calls this in blocks, like ``free.advance_free``)::
 
     world = ContactWorld(model, ContactParams(), rotation.METHOD_SPLITTING, rotation.ORTHO_NORMALIZE)
     for stage, why in world.explain():
@@ -15,7 +15,7 @@ starting) and the sleep state. Stages a scene does not need are chosen away once
 
 * no gravity, force or torque: no kick stage;
 * nothing can ever touch (no ground, no static box, and no two bodies whose groups collide): no
-  contact stages at all, the free-body kernel ``kernels.advance_free`` runs instead;
+  contact stages at all, the free-body kernel ``free.advance_free`` runs instead;
 * isotropic inertia (spheres, cubes): the solver uses the scalar 1/I, no R diag(1/I) R^T;
 * sleeping (``params.sleep``): resting islands cost nothing until touched.
 
@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rblog.engine.constants import ISOTROPIC_RTOL
 from rblog.engine.free import advance_free
 from rblog.contract.model import Model
 from rblog.engine.rotation import quat_to_matrix_np
@@ -42,9 +43,6 @@ from rblog.engine.constants import ContactParams
 from rblog.engine.contact.step import (
     N_STATS, Bodies, BodyState, ContactCache, Settings, SleepState, Statics, world_advance,
 )
-
-#: relative tolerance under which principal moments count as equal (isotropic inertia)
-ISOTROPIC_RTOL = 1e-12
 
 
 class ContactWorld:
@@ -262,7 +260,7 @@ class ContactWorld:
                 position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                 out_angular_momentum):
-        """Advance ``n_steps`` steps; same arguments and sampling rule as kernels.advance_free.
+        """Advance ``n_steps`` steps; same arguments and sampling rule as free.advance_free.
 
         Args:
             dt: step (s). n_steps: steps in this call. stride: sample after every stride-th
