@@ -78,7 +78,8 @@ METHOD_RK4 = 3
 #: contact step uses for every body), and its whole free step, translation and torque included,
 #: in :func:`step_body` (the free-body kernel, rblog.engine.free). In scenes with contacts the
 #: contact step kicks P and L and translates by symplectic Euler for every integrator (see
-#: rblog.engine.contact.step): ``exact_flight`` says what the integrator does without contacts.
+#: rblog.engine.contact.step), so a free body's flight there is first order whatever the
+#: integrator (issue: exact ballistic flight in every scene).
 REGISTRY = {
     "seed": Integrator("seed", METHOD_SEED, ("polar", "gram-schmidt", "none"), "polar", 1,
                        "the notes: symplectic Euler on P and L, R += h [omega]x R, orthonormalized"),
