@@ -48,6 +48,10 @@ total momentum kept, kinetic energy lost 1/2 mu (1 - e^2) (v1 - v2)^2.
 
 Resting box: a box placed exactly on the ground at rest stays there: position, orientation and
 energy constant, velocity zero.
+
+Why this module is long: it holds every exact or high-accuracy reference the tests and benchmarks
+measure against (the torque-free body by Jacobi elliptic functions, ballistic flight, bounces,
+head-on impacts), each beside its derivation.
 """
 
 from __future__ import annotations

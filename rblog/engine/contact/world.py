@@ -309,6 +309,11 @@ class ContactWorld:
         return int(n_samples), int(bad_step), int(bad_body), contacts
 
     @property
+    def records(self):
+        """The model records the compiled step reads: (Bodies, Statics, Settings)."""
+        return self._bodies, self._statics, self._settings
+
+    @property
     def n_awake(self) -> int:
         return int(self.awake.sum())
 
