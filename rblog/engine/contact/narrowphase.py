@@ -208,6 +208,16 @@ def collide_box_plane(ca, rota, ea, pn, poff, spec, nrm, pts, sep, fid):
     return count
 
 
+@njit(cache=True)
+def collider_buffers():
+    """The work buffers every collider call takes: (nrm (6,) two manifolds' normals, pts
+    (MAX_CLIP_POINTS, 3), sep (MAX_CLIP_POINTS,), fid (MAX_CLIP_POINTS,) int64, work (32,), poly
+    (2, 2 MAX_CLIP_POINTS, 4) clipping polygons)."""
+    return (np.zeros(6), np.zeros((MAX_CLIP_POINTS, 3)), np.zeros(MAX_CLIP_POINTS),
+            np.zeros(MAX_CLIP_POINTS, np.int64), np.zeros(32),
+            np.zeros((2, 2 * MAX_CLIP_POINTS, 4)))
+
+
 @njit(cache=True, inline="always")
 def manifold_part(res, part):
     """(point count, first row) of manifold ``part`` (0 or 1) in a result of :func:`collide`:
@@ -270,12 +280,7 @@ def collide_np(geom_a, a_center, a_rot, a_size, geom_b, b_center=None, b_rot=Non
     sb = np.zeros(3)
     if b_size is not None:
         sb[: np.size(b_size)] = np.ravel(b_size)
-    nrm = np.zeros(6)
-    pts = np.zeros((MAX_CLIP_POINTS, 3))
-    sep = np.zeros(MAX_CLIP_POINTS)
-    fid = np.zeros(MAX_CLIP_POINTS, np.int64)
-    work = np.zeros(32)
-    poly = np.zeros((2, 2 * MAX_CLIP_POINTS, 4))
+    nrm, pts, sep, fid, work, poly = collider_buffers()
     n = collide(code, swap, ca, ra, sa, cb, rb, sb, f(plane_normal, 3), float(plane_offset),
                 float(spec), nrm, pts, sep, fid, work, poly)
     n1, n2 = n % 8, n // 8

@@ -50,7 +50,7 @@ from rblog.engine.contact.manifold import (
     LOG_A, LOG_B, LOG_F, LOG_F_COLS, LOG_I_COLS, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
     MF_N, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_IMPACT, PF_LN, PF_P, PF_SEND,
 )
-from rblog.engine.contact.narrowphase import MAX_CLIP_POINTS
+from rblog.engine.contact.narrowphase import collider_buffers
 from rblog.engine.contact.project import PROJ_COLS, apply_projection, project_positions
 from rblog.engine.contact.solver import (
     load_bodies, prepare_contacts, solve_velocities, store_impulses, warm_start,
@@ -172,10 +172,8 @@ def make_scratch(n, st):
         lo, hi, np.zeros(n + ns), np.zeros(n + 1, np.int64), np.zeros(n + 1), np.zeros((n + 1, 6)),
         np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
         np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n, 3)), np.zeros((n, 3)),
-        np.zeros((n, 3)), np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.int64), np.zeros(6),
-        np.zeros((MAX_CLIP_POINTS, 3)), np.zeros(MAX_CLIP_POINTS),
-        np.zeros(MAX_CLIP_POINTS, np.int64), np.zeros(32), np.zeros((2, 2 * MAX_CLIP_POINTS, 4)),
-        np.zeros((4, 5)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
+        np.zeros((n, 3)), np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.int64),
+        *collider_buffers(), np.zeros((4, 5)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
         np.zeros((n + 1, 3)))
 
 
@@ -194,12 +192,12 @@ def kick(bd, awake, x, h):
 
 
 @njit(inline="always")
-def broadphase(bd, st, cfg, awake, x, h, sc, pairs):
-    """2 broadphase: AABBs swept over the step, sort-and-sweep, and (body, ground) pairs.
-    Returns (pairs, n_pairs)."""
+def broadphase(bd, st, margin, awake, x, h, sc, pairs):
+    """2 broadphase: AABBs (of awake bodies swept over the step, padded by ``margin``),
+    sort-and-sweep, and (body, ground) pairs. Returns (pairs, n_pairs)."""
     n = x.position.shape[0]
     body_aabbs(bd.geom, bd.size, bd.radius, bd.inv_mass, bd.inv_inertia, awake, x.position,
-               x.linear_momentum, x.rotation, x.angular_momentum, h, cfg.margin, sc.lo, sc.hi,
+               x.linear_momentum, x.rotation, x.angular_momentum, h, margin, sc.lo, sc.hi,
                sc.reach)
     pairs, n_pairs = sweep_and_prune(n + st.n_static, n, sc.lo, sc.hi, bd.group, awake, pairs)
     if st.ground:
@@ -407,7 +405,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
             stats[ST_AWAKE] += n_awake
             if cfg.do_kick:
                 kick(bd, sl.awake, x, h)                                                  # 1
-            pairs, n_pairs = broadphase(bd, st, cfg, sl.awake, x, h, sc, pairs)           # 2
+            pairs, n_pairs = broadphase(bd, st, cfg.margin, sl.awake, x, h, sc, pairs)    # 2
             stats[ST_PAIRS] += n_pairs
             if n_awake < n:
                 stats[ST_WOKEN] += wake(bd, st, cfg, sl, x, h, sc, pairs, n_pairs)        # 3
