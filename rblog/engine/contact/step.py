@@ -307,14 +307,14 @@ def project(method, ortho, bd, st, cfg, awake, x, sc, pairs, n_pairs, rows, ids)
 
 
 @njit(inline="always")
-def sleep_stage(bd, cfg, sl, x, sc, mi, pf, n_man, h, n_awake):
+def sleep_stage(bd, cfg, sl, x, sc, mi, mf, pf, n_man, h, n_awake):
     """13 sleep: wake what this step pushed on (when some bodies slept at the step's start,
     ``n_awake`` < N), advance rest timers, put resting islands to sleep. Returns (islands woken,
     bodies put to sleep)."""
     n = x.position.shape[0]
     woken = 0
     if n_awake < n:
-        woken = wake_pushed(mi, pf, n_man, n, sl.awake, sl.timer, sl.island_of,
+        woken = wake_pushed(mi, mf, pf, n_man, n, sl.awake, sl.timer, sl.island_of, x.position,
                             x.linear_momentum, x.angular_momentum, bd.force, bd.torque, h)
     slept = update_sleep(n, mi, pf, n_man, sl.awake, sl.timer, sl.island_of, sl.island_counter,
                          x.linear_momentum, x.angular_momentum, bd.inv_mass, bd.inv_inertia,
@@ -443,7 +443,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
                     proj_ids)
                 stats[ST_PROJECTED] += n_deep
             if cfg.do_sleep:
-                woken, slept = sleep_stage(bd, cfg, sl, x, sc, mi0, pf0, n_man0, h, n_awake)  # 13
+                woken, slept = sleep_stage(bd, cfg, sl, x, sc, mi0, mf0, pf0, n_man0, h,      # 13
+                                           n_awake)
                 stats[ST_WOKEN] += woken
                 stats[ST_SLEPT] += slept
             bad = first_non_finite(sl.awake, x)
