@@ -94,8 +94,9 @@ def validate(scene):
 @click.option("--explain", is_flag=True, help="Print the stages chosen for this scene and why.")
 @click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
+@click.option("--profile", "profile", is_flag=True, help="Print the time spent in each stage.")
 def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compression, no_log,
-        log_every, log_rate, spawn, connect_url, explain, all_stages, as_json):
+        log_every, log_rate, spawn, connect_url, explain, all_stages, as_json, profile):
     """Simulate SCENE (a .toml file) and record it."""
     from rblog.engine.scene import load_scene
     from rblog.engine.runner import run as run_scene
@@ -116,18 +117,30 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
                 click.echo(f"{stage:<28} {why}", err=as_json)
         recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression)
         prog = _Progress(enabled=sys.stderr.isatty())
+        prof = None
+        if profile:
+            from rblog.engine.profile import Profile
+
+            prof = Profile()
         _sigterm_as_interrupt()
         try:
             summary = run_scene(
                 s, dt=dt, duration=duration, integrator=integrator, orthonormalize=orthonormalize,
                 log_every=log_every, log_rate=log_rate, recorders=recorders, progress=prog,
-                notice=lambda m: click.echo(m, err=True), force_contacts=all_stages)
+                notice=lambda m: click.echo(m, err=True), force_contacts=all_stages,
+                profile=prof)
         finally:
             prog.close()
     except RblogError as e:
         _fail(e)
     d = summary.to_dict()
     d["logs"] = paths
+    if prof is not None:
+        d["profile_s"] = {name: sec for name, sec, _ in prof.table()}
+        if not as_json:
+            click.echo("profile (s, share of wall time):")
+            for name, sec, share in prof.table():
+                click.echo(f"  {name:<36} {sec:9.4f}  {100 * share:5.1f} %")
     if as_json:
         click.echo(json.dumps(d))
         return

@@ -155,11 +155,13 @@ def run(
     progress: Callable[[int, int], None] | None = None,
     notice: Callable[[str], None] | None = None,
     force_contacts: bool = False,
+    profile=None,
 ) -> RunSummary:
     """Simulate ``scene`` and stream samples to ``recorders``.
 
     Options override the scene's ``[sim]`` values. ``progress(done_steps, total_steps)`` is called
-    after every block; ``notice(msg)`` gets one-line notices (kernel compilation).
+    after every block; ``notice(msg)`` gets one-line notices (kernel compilation). ``profile``
+    (an ``engine.profile.Profile``) accumulates seconds per stage.
 
     Raises:
         SceneError: an option is out of range.
@@ -198,7 +200,7 @@ def run(
         writer=f"rblog {__version__}",
     )
     st = scene.state.copy()
-    advance = _make_advance(plan, model, method, ortho_code)
+    advance = _make_advance(plan, model, method, ortho_code, profile)
 
     samples_in_block = samples_per_block(n_bodies, stride)
     steps_per_block = samples_in_block * stride
@@ -252,7 +254,10 @@ def run(
                     contacts.step = contacts.step + done
                     if bad_step >= 0:
                         contacts = contacts.select(contacts.step < done + bad_step)
+                t_log = time.perf_counter()
                 writer.submit(done + local, *(b[:keep] for b in bufs), contacts)
+                if profile is not None:
+                    profile.add("logging", time.perf_counter() - t_log)
                 n_samples += keep
             if bad_step >= 0:
                 bad_global = done + bad_step
@@ -262,7 +267,10 @@ def run(
             done += n
             if progress is not None:
                 progress(done, n_total)
+        t_log = time.perf_counter()
         writer.finish()
+        if profile is not None:
+            profile.add("logging", time.perf_counter() - t_log)
     except KeyboardInterrupt:
         status, message = "interrupted", f"interrupted at step {done}"
         _finish_quietly(writer)
@@ -280,6 +288,8 @@ def run(
         raise
     _close_all(opened, False, None)
     wall = time.perf_counter() - t_start
+    if profile is not None:
+        profile.wall = wall
     return RunSummary(
         status=status, steps=done, bodies=n_bodies, samples=n_samples, sim_time_s=done * dt,
         wall_time_s=wall, steps_per_s=done / wall if wall > 0 else float("inf"),
@@ -401,10 +411,12 @@ def _close_all(recorders, truncated, reason):
         raise errors[0]
 
 
-def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int):
-    """The block-advance function for the chosen stages."""
+def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profile=None):
+    """The block-advance function for the chosen stages (timed into ``profile`` if given)."""
     if plan.contacts:
         world = plan.make_contact_world(method, ortho_code)
+        if profile is not None:
+            world.profile_ticks = profile.ticks
 
         def advance(dt, n, stride, sample_last, st, bufs):
             return world.advance(dt, n, stride, sample_last, st.position, st.linear_momentum,
@@ -418,10 +430,13 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int):
     torque = np.ascontiguousarray(model.body_torque_world)
 
     def advance(dt, n, stride, sample_last, st, bufs):
+        t0 = time.perf_counter()
         ns, bad_step, bad_body = advance_free(
             method, ortho_code, dt, n, stride, sample_last, inv_mass, inv_inertia, force, torque,
             st.position, st.linear_momentum, st.quat_wxyz, st.rotation, st.angular_momentum_world,
             *bufs)
+        if profile is not None:
+            profile.add("free kernel (integrate + sample)", time.perf_counter() - t0)
         return ns, bad_step, bad_body, None
 
     return advance

@@ -57,6 +57,10 @@ from rblog.engine.contact.solver import (
 )
 from rblog.engine.contact.relax import relax_positions
 from rblog.engine.contact.restitution import restitution
+from rblog.engine.profile import (
+    P_BROADPHASE, P_COLLIDE, P_INTEGRATE, P_KICK, P_PROJECT, P_RELAX, P_RESTITUTION, P_SAMPLE,
+    P_SLEEP, P_SOLVE, P_WAKE, ticks,
+)
 
 #: per-body model arrays the kernel reads (N rows each; ``iso`` marks isotropic inertia)
 Bodies = namedtuple("Bodies", "geom size radius inv_mass inertia inv_inertia iso force torque "
@@ -360,11 +364,19 @@ def record_contacts(s, mi, mf, pf, n_man, log_i, log_f, n_log):
     return log_i, log_f, n_log
 
 
+@njit(inline="always")
+def lap(prof, k, t0):
+    """Add the ticks since ``t0`` to stage k of the profile; returns now."""
+    t = ticks()
+    prof[k] += t - t0
+    return t
+
+
 # ---- the step ---------------------------------------------------------------------------------
 
 @njit(cache=True, nogil=True)
 def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x, out, sl, c,
-                  log_i, log_f, stats):
+                  log_i, log_f, stats, prof):
     """Advance ``n_steps`` steps of ``dt`` with contacts; write samples and contact rows.
 
     Args:
@@ -375,6 +387,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
         x: BodyState, updated in place.  out: BodyState of (S, N, ...) sample buffers.
         sl: SleepState, updated in place.  c: ContactCache.
         log_i, log_f: contact rows (manifold.LOG_* columns).  stats: (N_STATS,) counters.
+        prof: (profile.N_PROF,) int64 cycle counts per stage, added to; empty: not profiled.
 
     Returns (n_samples, bad_step, bad_body, n_log, log_i, log_f, cache): bad_step is the first
     local step (1-based) at which some body's state became non-finite (-1 if none); the log and
@@ -396,6 +409,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
                                         x.rotation)):
             return (0, 1, i, 0, log_i, log_f, ContactCache(mi0, mf0, pf0, pid0, n_man0, keys0,
                                                            idx0, mi1, mf1, pf1, pid1, pairs))
+    do_prof = prof.shape[0] > 0
+    t = 0
     for s in range(1, n_steps + 1):
         n_awake = 0
         for i in range(n):
@@ -403,27 +418,43 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
         if n_awake > 0:
             stats[ST_STEPS] += 1
             stats[ST_AWAKE] += n_awake
+            if do_prof:
+                t = ticks()
             if cfg.do_kick:
                 kick(bd, sl.awake, x, h)                                                  # 1
+            if do_prof:
+                t = lap(prof, P_KICK, t)
             pairs, n_pairs = broadphase(bd, st, cfg.margin, sl.awake, x, h, sc, pairs)    # 2
             stats[ST_PAIRS] += n_pairs
+            if do_prof:
+                t = lap(prof, P_BROADPHASE, t)
             if n_awake < n:
                 stats[ST_WOKEN] += wake(bd, st, cfg, sl, x, h, sc, pairs, n_pairs)        # 3
+            if do_prof:
+                t = lap(prof, P_WAKE, t)
             mi1, mf1, pf1, pid1, n_man, n_pts = collide(                                  # 4
                 bd, st, cfg, sl.awake, x, sc, pairs, n_pairs,
                 ContactCache(mi0, mf0, pf0, pid0, n_man0, keys0, idx0, mi1, mf1, pf1, pid1, pairs))
             stats[ST_MANIFOLDS] += n_man
             stats[ST_POINTS] += n_pts
+            if do_prof:
+                t = lap(prof, P_COLLIDE, t)
             prepare(bd, cfg, x, sc, mi1, mf1, pf1, n_man, h)                              # 5
             if cfg.warm:
                 warm_start(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw)              # 6
             stats[ST_SWEEPS] += solve_velocities(                                         # 7
                 mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw, inv_h, cfg.n_vel, cfg.max_vel,
                 cfg.vel_tol, sc.blk, sc.hot, sc.in_contact, cfg.sor)
+            if do_prof:
+                t = lap(prof, P_SOLVE, t)
             if cfg.n_pos > 0:
                 relax_positions(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.pv, sc.pw, inv_h,   # 8
                                 cfg.n_pos, cfg.slop, cfg.beta, cfg.max_speed)
+            if do_prof:
+                t = lap(prof, P_RELAX, t)
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h)               # 9
+            if do_prof:
+                t = lap(prof, P_INTEGRATE, t)
             stats[ST_IMPACTS] += restitution(                                             # 10
                 mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw, sc.pv, sc.pw, h,
                 cfg.e_threshold, cfg.n_vel, sc.dx_step, x.linear_momentum, x.angular_momentum)
@@ -437,28 +468,38 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
             pf0, pf1 = pf1, pf0
             pid0, pid1 = pid1, pid0
             n_man0 = n_man
+            if do_prof:
+                t = lap(prof, P_RESTITUTION, t)
             if cfg.n_proj > 0:
                 n_deep, proj_rows, proj_ids = project(                                    # 12
                     method, ortho, bd, st, cfg, sl.awake, x, sc, pairs, n_pairs, proj_rows,
                     proj_ids)
                 stats[ST_PROJECTED] += n_deep
+            if do_prof:
+                t = lap(prof, P_PROJECT, t)
             if cfg.do_sleep:
                 woken, slept = sleep_stage(bd, cfg, sl, x, sc, mi0, mf0, pf0, n_man0, h,      # 13
                                            n_awake)
                 stats[ST_WOKEN] += woken
                 stats[ST_SLEPT] += slept
             bad = first_non_finite(sl.awake, x)
+            if do_prof:
+                t = lap(prof, P_SLEEP, t)
             if bad >= 0:
                 return (n_samples, s, bad, n_log, log_i, log_f,
                         ContactCache(mi0, mf0, pf0, pid0, n_man0, keys0, idx0, mi1, mf1, pf1,
                                      pid1, pairs))
         if s % stride == 0 or (sample_last and s == n_steps):
+            if do_prof:
+                t = ticks()
             for i in range(n):
                 write_sample(method, n_samples, i, x.position, x.linear_momentum, x.quat_wxyz,
                              x.rotation, x.angular_momentum, out.position, out.linear_momentum,
                              out.quat_wxyz, out.rotation, out.angular_momentum)
             n_samples += 1
             log_i, log_f, n_log = record_contacts(s, mi0, mf0, pf0, n_man0, log_i, log_f, n_log)
+            if do_prof:
+                t = lap(prof, P_SAMPLE, t)
     for i in range(n):
         _sync(method, x.quat_wxyz, x.rotation, i)
     return (n_samples, -1, -1, n_log, log_i, log_f,

@@ -148,6 +148,9 @@ class ContactWorld:
         #: manifolds, points, awake body-steps, impact points, islands woken, bodies put to sleep,
         #: velocity sweeps, points pushed out by the project stage
         self.stats = np.zeros(N_STATS, np.int64)
+        #: cycle counts per stage (profile.STAGES) when profiled (profile.Profile.ticks handed
+        #: in by the run loop), else empty: the step then reads no clock
+        self.profile_ticks = np.zeros(0, np.int64)
 
     # ---- set-up helpers ---------------------------------------------------------------------
 
@@ -296,7 +299,7 @@ class ContactWorld:
             BodyState(position, linear_momentum, quat_wxyz, rotation, angular_momentum),
             BodyState(out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                       out_angular_momentum),
-            self._sleep, self._cache, self._log_i, self._log_f, self.stats)
+            self._sleep, self._cache, self._log_i, self._log_f, self.stats, self.profile_ticks)
         n_samples, bad_step, bad_body, n_log, self._log_i, self._log_f, self._cache = res
         li = self._log_i[:n_log]
         lf = self._log_f[:n_log]
