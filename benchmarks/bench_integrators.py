@@ -41,7 +41,7 @@ def random_bodies(n: int, seed: int = 0):
     )
 
 
-def time_kernel(integrator: str, n: int, steps: int, repeats: int = 3) -> float:
+def time_kernel(integrator: str, n: int, steps: int, repeats: int = 3, threads=None) -> float:
     """Best-of-repeats ns per body-step of advance_free (one sample at the end)."""
     b = random_bodies(n)
     ortho = ORTHO_CODES[ORTHO_ALLOWED[integrator][1]]
@@ -52,7 +52,7 @@ def time_kernel(integrator: str, n: int, steps: int, repeats: int = 3) -> float:
         st = [b["position"].copy(), b["momentum"].copy(), b["quat"].copy(), b["rot"].copy(), b["L"].copy()]
         t0 = time.perf_counter()
         advance_free(METHOD_CODES[integrator], ortho, 1e-3, steps, steps, False, b["inv_mass"],
-                     b["inv_inertia"], b["force"], b["torque"], *st, *out)
+                     b["inv_inertia"], b["force"], b["torque"], *st, *out, n_threads=threads)
         best = min(best, time.perf_counter() - t0)
     return best / (n * steps) * 1e9
 
@@ -141,10 +141,30 @@ def accuracy_for_cost(quick: bool):
     return exact, rows
 
 
+def thread_scaling(steps: int):
+    """ns per body-step on 10,000 free bodies with 1 and 2 threads, and the speed-up."""
+    import numba
+
+    top = numba.config.NUMBA_NUM_THREADS
+    print(f"10,000 free bodies, {steps} steps, ns per body-step (best of 3); "
+          f"{top} hardware threads available to numba")
+    print(f"{'integrator':<12}{'1 thread':>10}{'2 threads':>11}{'speed-up':>10}")
+    for integ in METHOD_CODES:
+        time_kernel(integ, 1, 10)  # load
+        one = time_kernel(integ, 10_000, steps, threads=1)
+        two = time_kernel(integ, 10_000, steps, threads=2)
+        print(f"{integ:<12}{one:>10.1f}{two:>11.1f}{one / two:>9.2f}x")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--threads-only", action="store_true",
+                    help="only the 10,000-body thread scaling (1 vs 2 threads)")
     args = ap.parse_args()
+    if args.threads_only:
+        thread_scaling(100 if not args.quick else 10)
+        return
     steps = {1: 200_000, 100: 5_000, 10_000: 100}
     if args.quick:
         steps = {1: 20_000, 100: 500, 10_000: 10}

@@ -10,10 +10,20 @@ consecutive bodies. The stages of one step, per integrator:
 
 Samples are written after every ``stride``-th step (and after the last step of the block when
 ``sample_last``), so logging costs nothing between samples.
+
+Threads: :func:`advance_free` splits the bodies into contiguous ranges, one per thread
+(``numba.get_num_threads()``, set by NUMBA_NUM_THREADS or ``numba.set_num_threads``), and runs the
+compiled :func:`advance_free_range` on each from a pool of Python threads (the kernel releases
+the GIL). A body's arithmetic does not depend on which range it is in, so the result is bitwise
+the same for any thread count; one compiled specialisation serves every count.
 """
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
 from numba import njit
 
 from rblog.engine.integrators import step_body, sync_quat, METHOD_SEED
@@ -47,13 +57,65 @@ def write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation, a
         out_quat_wxyz[j, i, a] = quat_wxyz[i, a]
 
 
-@njit(cache=True, nogil=True)
+#: below this many body-steps in a call, one thread (a thread hand-off costs ~50 us)
+MIN_PARALLEL_BODY_STEPS = 200_000
+
+_POOL: list = []
+_POOL_LOCK = threading.Lock()
+
+
+def _pool(n_threads: int) -> ThreadPoolExecutor:
+    with _POOL_LOCK:
+        if not _POOL or _POOL[0][0] < n_threads:
+            if _POOL:
+                _POOL.pop()[1].shutdown(wait=False)
+            _POOL.append((n_threads, ThreadPoolExecutor(n_threads, "rblog-free")))
+        return _POOL[0][1]
+
+
+def body_ranges(n_bodies: int, n_threads: int) -> list[tuple[int, int]]:
+    """Contiguous [b0, b1) ranges, one per thread, split on BODY_TILE boundaries."""
+    tiles = -(-n_bodies // BODY_TILE)
+    k = max(1, min(n_threads, tiles))
+    cuts = [min(n_bodies, ((tiles * t) // k) * BODY_TILE) for t in range(k + 1)]
+    return [(cuts[t], cuts[t + 1]) for t in range(k) if cuts[t + 1] > cuts[t]]
+
+
 def advance_free(method, ortho, dt, n_steps, stride, sample_last,
                  inv_mass, inv_inertia, force_world, torque_world,
                  position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                  out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                 out_angular_momentum):
-    """Advance all bodies ``n_steps`` steps of ``dt``; write samples.
+                 out_angular_momentum, n_threads=None):
+    """Advance all bodies ``n_steps`` steps of ``dt`` on ``n_threads`` threads (default
+    ``numba.get_num_threads()``); arguments and result as :func:`advance_free_range` over all
+    bodies, bitwise the same for any thread count."""
+    n = position.shape[0]
+    if n_threads is None:
+        n_threads = numba.get_num_threads()
+    ranges = body_ranges(n, n_threads) if n * n_steps >= MIN_PARALLEL_BODY_STEPS else [(0, n)]
+    args = (method, ortho, dt, n_steps, stride, sample_last, inv_mass, inv_inertia, force_world,
+            torque_world, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+            out_position, out_linear_momentum, out_quat_wxyz, out_rotation, out_angular_momentum)
+    if len(ranges) == 1:
+        return advance_free_range(*args, 0, n)
+    futures = [_pool(len(ranges)).submit(advance_free_range, *args, b0, b1) for b0, b1 in ranges]
+    results = [f.result() for f in futures]
+    # the serial kernel's reduction: most samples; the earliest bad step, first body on ties
+    n_samples, bad_step, bad_body = 0, -1, -1
+    for ns, bs, bb in results:
+        n_samples = max(n_samples, ns)
+        if bs >= 0 and (bad_step < 0 or bs < bad_step):
+            bad_step, bad_body = bs, bb
+    return n_samples, bad_step, bad_body
+
+
+@njit(cache=True, nogil=True)
+def advance_free_range(method, ortho, dt, n_steps, stride, sample_last,
+                       inv_mass, inv_inertia, force_world, torque_world,
+                       position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+                       out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
+                       out_angular_momentum, b0, b1):
+    """Advance bodies b0 .. b1-1 ``n_steps`` steps of ``dt``; write their samples.
 
     Args:
         method, ortho: rotation.METHOD_* / ORTHO_* codes.
@@ -61,21 +123,21 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
         force_world: (N, 3) total constant force incl. gravity (N).  torque_world: (N, 3) (N m).
         position, linear_momentum, quat_wxyz, rotation, angular_momentum: state, updated in place.
         out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
+        b0, b1: the body range (0, N for all).
 
     Returns:
         (n_samples, bad_step, bad_body): samples written, and the first local step (1-based) at
         which some body's state became non-finite (-1 if none) and that body. The caller keeps
         only samples taken before a bad step.
     """
-    n_bodies = position.shape[0]
     n_samples = 0
     bad_step = -1
     bad_body = -1
     # Sparse samples: one body at a time, position and momentum in registers for the block.
     # Dense samples: tiles of bodies, so that a sample's writes share cache lines.
     tile = 1 if stride >= SPARSE_STRIDE else BODY_TILE
-    for t0 in range(0, n_bodies, tile):
-        t1 = min(t0 + tile, n_bodies)
+    for t0 in range(b0, b1, tile):
+        t1 = min(t0 + tile, b1)
         j = 0
         if tile == 1:
             i = t0

@@ -100,3 +100,32 @@ def box_pile(n: int = 500, half: float = 0.05, mass: float = 1.0, top: float = 2
     model = make_model([SHAPE_BOX] * n, [[half] * 3] * n, [mass] * n, restitution=restitution,
                        friction=friction, ground_restitution=restitution)
     return model, make_state(model, pos, quat_wxyz=q)
+
+
+def loose_pile(n: int = 500, half: float = 0.05, mass: float = 1.0, pitch: float = 0.2,
+               layer_gap: float = 0.3, per_row: int = 10, offset: float = 0.02,
+               max_tilt: float = 0.3, friction: float = 0.5, restitution: float = 0.2,
+               seed: int = 0):
+    """The loose pile of the performance issue: ``n`` cubes (edge 2 * half) in layers of
+    per_row x per_row at ``pitch`` (m), layers ``layer_gap`` (m) apart from z = 2 half, each box
+    shifted by up to ``offset`` (m) in x and y and tilted by up to ``max_tilt`` (rad) about a
+    random axis, dropped on the ground. 500 boxes: five layers of 10 x 10; 100: one layer; 10:
+    one row. Nothing overlaps at the start: the gap between neighbours' centres (pitch - 2 offset
+    = 0.16 m, layer_gap 0.3 m) exceeds a box diagonal (0.173 m) vertically and a tilted box's
+    horizontal reach (half (cos t + sqrt 2 sin t) = 0.069 m for t = 0.3) twice horizontally."""
+    rng = np.random.default_rng(seed)
+    per_layer = per_row * per_row
+    pos = np.zeros((n, 3))
+    for i in range(n):
+        layer, k = divmod(i, per_layer)
+        ix, iy = divmod(k, per_row)
+        pos[i] = [(ix - (per_row - 1) / 2) * pitch, (iy - (per_row - 1) / 2) * pitch,
+                  2.0 * half + layer * layer_gap]
+    pos[:, :2] += rng.uniform(-offset, offset, (n, 2))
+    axis = rng.normal(size=(n, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    angle = rng.uniform(0.0, max_tilt, n)
+    q = np.concatenate([np.cos(0.5 * angle)[:, None], np.sin(0.5 * angle)[:, None] * axis], 1)
+    model = make_model([SHAPE_BOX] * n, [[half] * 3] * n, [mass] * n, restitution=restitution,
+                       friction=friction, ground_restitution=restitution)
+    return model, make_state(model, pos, quat_wxyz=q)
