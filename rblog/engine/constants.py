@@ -31,6 +31,17 @@ POLAR_TOL = 1e-8
 #: Cap on polar Newton iterations. Converges quadratically: from ||R^T R - I|| = 1e-4 it takes 2.
 POLAR_MAX_ITER = 12
 
+# --- exact free flow (engine/exact.py) ---------------------------------------------------------
+#: Descending Landen transformations of sn, cn, dn stop once the parameter m is below this
+#: (dimensionless); the base then uses the expansion to first order in m, whose error O(m^2) is
+#: then below 1e-18 over the reduced argument (< 2K).
+LANDEN_BASE_PARAMETER = 1e-9
+#: Cap on Landen levels: from m = 1 - 1e-300 (the closest double below the separatrix) it takes 11.
+LANDEN_MAX_LEVELS = 12
+#: Carlson duplication stops when the arguments agree to this (relative); the seventh-order series
+#: then leaves ~CARLSON_SERIES_TOL^8 = 1e-17 relative (DLMF 19.36.1-2).
+CARLSON_SERIES_TOL = 0.008
+
 # --- run loop ---------------------------------------------------------------------------------
 #: A run is split into blocks that each run in one compiled call; a block holds at most this many
 #: logged samples (fewer blocks: less per-block work in the recorders) ...

@@ -24,6 +24,13 @@ McLachlan 1997).
 
 RK4 (``rk4``): classical RK4 on dq/dt = 1/2 (0, omega) (x) q with omega = R(q) I_b^-1 R(q)^T L,
 followed by normalization of q.
+
+Exact (``exact``): the closed-form torque-free flow (:mod:`rblog.engine.exact`: Jacobi elliptic
+functions for the body momentum, Carlson's integrals for the attitude), to round-off at any h.
+With forces and torques: Strang splitting kick(h/2) exact-flow(h) kick(h/2), second order; the
+world torque is constant over a step, so the only error is the splitting of the momentum kick
+from the rotation. ``exact4``: Yoshida's triple jump of that step (h w1, h w0, h w1 with
+w1 = 1 / (2 - 2^(1/3)), w0 = 1 - 2 w1), fourth order; without torque both are exact.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ from dataclasses import dataclass
 
 from numba import njit
 
+from rblog.engine.exact import free_flow_quat
 from rblog.engine.rotation import (
     gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, polar, quat_mul, quat_to_mat,
     store_mat,
@@ -72,6 +80,11 @@ METHOD_SEED = 0
 METHOD_SEED_QUAT = 1
 METHOD_SPLITTING = 2
 METHOD_RK4 = 3
+METHOD_EXACT = 4
+METHOD_EXACT4 = 5
+#: Yoshida (1990) triple-jump weights of the fourth-order composition of a symmetric step
+YOSHIDA_W1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
+YOSHIDA_W0 = 1.0 - 2.0 * YOSHIDA_W1
 
 #: The registry. To add an integrator: give it a code and an entry here, a ``drift_*`` for its
 #: torque-free rotation (dispatched by :func:`drift_rotation`), and its translation in
@@ -86,6 +99,10 @@ REGISTRY = {
                             "Strang splitting into exact axis rotations (symplectic)"),
     "rk4": Integrator("rk4", METHOD_RK4, ("normalize",), "normalize", 4,
                       "classical RK4 on q with L(t) = L + t tau; exact constant-force translation"),
+    "exact": Integrator("exact", METHOD_EXACT, ("normalize",), "normalize", 2,
+                        "exact torque-free flow (elliptic functions); Strang kicks for torque"),
+    "exact4": Integrator("exact4", METHOD_EXACT4, ("normalize",), "normalize", 4,
+                         "exact torque-free flow in Yoshida's 4th-order composition with torque kicks"),
 }
 #: views of the registry, by name
 METHOD_CODES = {k: v.code for k, v in REGISTRY.items()}
@@ -228,6 +245,17 @@ def drift_rk4(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, t
     store_mat(rotation, i, quat_to_mat(w, x, y, z))
 
 
+@jit
+def drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
+    """The exact torque-free rotation over h (L world fixed), to round-off for any h."""
+    ii = inv_inertia[i]
+    w, x, y, z = free_flow_quat(quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3],
+                                angular_momentum[i, 0], angular_momentum[i, 1],
+                                angular_momentum[i, 2], ii[0], ii[1], ii[2], h)
+    quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
+    store_mat(rotation, i, quat_to_mat(w, x, y, z))
+
+
 @njit(cache=True)
 def drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h,
                    tx=0.0, ty=0.0, tz=0.0):
@@ -247,6 +275,8 @@ def drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_ine
         drift_seed_quat(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
     elif method == METHOD_SPLITTING:
         drift_splitting(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
+    elif method == METHOD_EXACT or method == METHOD_EXACT4:
+        drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
     else:
         drift_rk4(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx, ty, tz)
 
@@ -270,6 +300,22 @@ def sync_quat(method, quat_wxyz, rotation, i):
         quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
 
 
+
+
+@jit
+def _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx, ty, tz):
+    """Kick L by tau h/2, the exact free flow over h, kick by tau h/2 (h may be negative)."""
+    hh = 0.5 * h
+    if tx != 0.0 or ty != 0.0 or tz != 0.0:
+        angular_momentum[i, 0] += hh * tx
+        angular_momentum[i, 1] += hh * ty
+        angular_momentum[i, 2] += hh * tz
+        drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
+        angular_momentum[i, 0] += hh * tx
+        angular_momentum[i, 1] += hh * ty
+        angular_momentum[i, 2] += hh * tz
+    else:
+        drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
 
 
 @njit(inline="always")
@@ -303,6 +349,26 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
         angular_momentum[i, 0] += hh * tx
         angular_momentum[i, 1] += hh * ty
         angular_momentum[i, 2] += hh * tz
+    elif method == METHOD_EXACT or method == METHOD_EXACT4:
+        # translation: exact for a constant force (kick-drift-kick is that map)
+        hh = 0.5 * dt * dt * im
+        x += dt * px * im + hh * fx
+        y += dt * py * im + hh * fy
+        z += dt * pz * im + hh * fz
+        px += dt * fx
+        py += dt * fy
+        pz += dt * fz
+        # rotation: Strang kick(h/2) exact(h) kick(h/2), or Yoshida's triple jump of it
+        if method == METHOD_EXACT:
+            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt,
+                          tx, ty, tz)
+        else:
+            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W1 * dt, tx, ty, tz)
+            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W0 * dt, tx, ty, tz)
+            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W1 * dt, tx, ty, tz)
     elif method == METHOD_RK4:
         # translation: exact for a constant force; rotation: RK4 with L(t) = L + t tau
         hh = 0.5 * dt * dt * im
