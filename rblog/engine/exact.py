@@ -246,14 +246,55 @@ def carlson_rf_rj(x, y, z, p):
 
 
 @jit
-def _g_reduced(sn, cn2, dn2, n):
-    """int_0^phi sin^2 t / ((1 + n sin^2 t) sqrt(1 - m sin^2 t)) dt = S^3 R_J(C^2, D^2, 1, 1 + n S^2) / 3
-    for |phi| <= pi/2, given S = sin phi, C^2 = cos^2 phi, D^2 = 1 - m S^2."""
-    if sn == 0.0:
-        return 0.0
-    s2 = sn * sn
-    _, rj = carlson_rf_rj(cn2, dn2, 1.0, 1.0 + n * s2)
-    return sn * s2 * rj / 3.0
+def _rj_series(a0, x, y, z, p, fac, a):
+    """The fifth-order series of R_J after the duplications (DLMF 19.36.2), times 4^-n A^-3/2."""
+    xj = (a0 - x) * fac / a
+    yj = (a0 - y) * fac / a
+    zj = (a0 - z) * fac / a
+    pj = -0.5 * (xj + yj + zj)
+    f2 = xj * yj + xj * zj + yj * zj - 3.0 * pj * pj
+    f3 = xj * yj * zj + 2.0 * f2 * pj + 4.0 * pj * pj * pj
+    f4 = (2.0 * xj * yj * zj + f2 * pj + 3.0 * pj * pj * pj) * pj
+    f5 = xj * yj * zj * pj * pj
+    ser = (1.0 - 3.0 * f2 / 14.0 + f3 / 6.0 + 9.0 * f2 * f2 / 88.0 - 3.0 * f4 / 22.0
+           - 9.0 * f2 * f3 / 52.0 + 3.0 * f5 / 26.0)
+    return fac * ser / (a * math.sqrt(a))
+
+
+@jit
+def carlson_rj_pair(x0, y0, p0, x1, y1, p1):
+    """(R_J(x0, y0, 1, p0), R_J(x1, y1, 1, p1)) by one interleaved duplication loop (the two are
+    independent, so the processor overlaps their square roots); same algorithm and stopping rule
+    as :func:`carlson_rf_rj`."""
+    a00 = (x0 + y0 + 1.0 + 2.0 * p0) / 5.0
+    a01 = (x1 + y1 + 1.0 + 2.0 * p1) / 5.0
+    q0 = max(abs(a00 - x0), abs(a00 - y0), abs(a00 - 1.0), abs(a00 - p0))
+    q1 = max(abs(a01 - x1), abs(a01 - y1), abs(a01 - 1.0), abs(a01 - p1))
+    e0 = (p0 - x0) * (p0 - y0) * (p0 - 1.0)
+    e1 = (p1 - x1) * (p1 - y1) * (p1 - 1.0)
+    xa, ya, za, pa, aa = x0, y0, 1.0, p0, a00
+    xb, yb, zb, pb, ab = x1, y1, 1.0, p1, a01
+    fac = 1.0
+    s0 = 0.0
+    s1 = 0.0
+    for _ in range(40):
+        if fac * q0 <= CARLSON_SERIES_TOL * aa and fac * q1 <= CARLSON_SERIES_TOL * ab:
+            break
+        sx, sy, sz, sp = math.sqrt(xa), math.sqrt(ya), math.sqrt(za), math.sqrt(pa)
+        tx, ty, tz, tp = math.sqrt(xb), math.sqrt(yb), math.sqrt(zb), math.sqrt(pb)
+        la = sx * sy + sy * sz + sz * sx
+        lb = tx * ty + ty * tz + tz * tx
+        da = (sp + sx) * (sp + sy) * (sp + sz)
+        db = (tp + tx) * (tp + ty) * (tp + tz)
+        s0 += fac * _rc1(e0 / (da * da)) / da
+        s1 += fac * _rc1(e1 / (db * db)) / db
+        fac *= 0.25
+        e0 *= 1.0 / 64.0
+        e1 *= 1.0 / 64.0
+        xa, ya, za, pa, aa = 0.25 * (xa + la), 0.25 * (ya + la), 0.25 * (za + la), 0.25 * (pa + la), 0.25 * (aa + la)
+        xb, yb, zb, pb, ab = 0.25 * (xb + lb), 0.25 * (yb + lb), 0.25 * (zb + lb), 0.25 * (pb + lb), 0.25 * (ab + lb)
+    return (_rj_series(a00, x0, y0, 1.0, p0, fac, aa) + 6.0 * s0,
+            _rj_series(a01, x1, y1, 1.0, p1, fac, ab) + 6.0 * s1)
 
 
 @jit
@@ -390,7 +431,13 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
     # int du / (1 + n sn^2) = tau - n int sn^2 du / (1 + n sn^2): the latter's Carlson form has no
     # 1/n, so a near-symmetric body (n -> 0, slow precession lam -> 0) loses nothing to the
     # difference of the two ends
-    dg = _g_reduced(s_red1, cn1 * cn1, dn1 * dn1, nn) - _g_reduced(s_red0, cn0 * cn0, dn0 * dn0, nn)
+    # G(phi) = S^3 R_J(C^2, D^2, 1, 1 + n S^2) / 3 at both ends (|phi| <= pi/2)
+    dg = 0.0
+    if nn != 0.0:
+        s20, s21 = s_red0 * s_red0, s_red1 * s_red1
+        rj0, rj1 = carlson_rj_pair(cn0 * cn0, dn0 * dn0, 1.0 + nn * s20,
+                                   cn1 * cn1, dn1 * dn1, 1.0 + nn * s21)
+        dg = (s_red1 * s21 * rj1 - s_red0 * s20 * rj0) / 3.0
     if big_k == math.inf:  # on the separatrix the amplitude never leaves (-pi/2, pi/2)
         e = 0
     halfs = j + e
