@@ -51,7 +51,7 @@ dphi = l k1 h - l (k1 - k3) n / lam * [G(am u1) - G(am u0)], G = S^3 R_J(...) / 
 the two ends is multiplied by n / lam, which stays bounded as a body nears symmetry (n -> 0 while
 the precession lam -> 0), where the first form would multiply round-off by 1 / lam. The
 step's rotation is then R(t+h) = R(t) M^T B0^T Rz(dphi) B1 M, with B = Rx(theta) Rz(psi) built from
-Lb' at either end (half-angle quaternions, no trigonometric calls).
+Lb' at either end (unnormalized half-angle quaternions, no trigonometric calls).
 
 Numerics. sn, cn, dn(r | m) by descending Landen transformations (A&S 16.12) until m < 1e-9, then
 the first-order expansion in m (A&S 16.13), after reducing the argument by the half period 2K (so
@@ -299,27 +299,23 @@ def carlson_rj_pair(x0, y0, p0, x1, y1, p1):
 
 @jit
 def _euler_quat(l1, l2, l3, ell):
-    """Quaternion of B = Rx(theta) Rz(psi), B Lb' = l e3, with Lb' = l (sin theta sin psi,
-    sin theta cos psi, cos theta): half angles from the components (no trigonometric calls)."""
+    """A positive multiple of the quaternion of B = Rx(theta) Rz(psi), B Lb' = l e3, with
+    Lb' = l (sin theta sin psi, sin theta cos psi, cos theta). Each factor is the unnormalized
+    half-angle form (1 + cos, sin) times a positive scale, or (sin, 1 - cos) where cos < 0 (no
+    cancellation either way): qz(psi) ~ (rho + L2, 0, 0, L1) or (L1, 0, 0, rho - L2) and
+    qx(theta) ~ (l + L3, rho, 0, 0) or (rho, l - L3, 0, 0), rho = |(L1, L2)|. The step's rotation is
+    normalized once, at the end (the sign of a quaternion is immaterial)."""
     rho = math.sqrt(l1 * l1 + l2 * l2)
-    ct = l3 / ell
-    st = rho / ell
-    if ct >= 0.0:
-        ch = math.sqrt(0.5 * (1.0 + ct))
-        sh = st / (2.0 * ch)
+    if l3 >= 0.0:
+        xw, xx = ell + l3, rho
     else:
-        sh = math.sqrt(0.5 * (1.0 - ct))
-        ch = st / (2.0 * sh)
-    sp = l1 / rho
-    cp = l2 / rho
-    if cp >= 0.0:
-        cph = math.sqrt(0.5 * (1.0 + cp))
-        sph = sp / (2.0 * cph)
+        xw, xx = rho, ell - l3
+    if l2 >= 0.0:
+        zw, zz = rho + l2, l1
     else:
-        sph = math.copysign(math.sqrt(0.5 * (1.0 - cp)), sp)
-        cph = sp / (2.0 * sph)
-    # qx(theta) (x) qz(psi)
-    return ch * cph, sh * cph, -sh * sph, ch * sph
+        zw, zz = l1, rho - l2
+    # (xw, xx, 0, 0) (x) (zw, 0, 0, zz)
+    return xw * zw, xx * zw, -xx * zz, xw * zz
 
 
 @jit
@@ -335,8 +331,8 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
     """The exact torque-free motion over h of a body with body-frame angular momentum
     Lb = (b0, b1, b2) and inverse principal moments (k0, k1, k2) (any order).
 
-    Returns (cw, cx, cy, cz, n0, n1, n2): the unit quaternion c of the body's rotation over the
-    step in its own frame (q(t + h) = q(t) (x) c) and the body momentum at t + h.
+    Returns (cw, cx, cy, cz, n0, n1, n2): the unit quaternion c (cw >= 0) of the body's rotation
+    over the step in its own frame (q(t + h) = q(t) (x) c) and the body momentum at t + h.
     """
     flip = 1.0
     if h < 0.0:  # the backward flow is the forward flow of -L (Euler's equations are quadratic)
@@ -474,9 +470,10 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
             c1, o1 = vc, vn
         else:
             c2, o2 = vc, vn
+    nc = 1.0 / math.sqrt(cw * cw + c0 * c0 + c1 * c1 + c2 * c2)
     if cw < 0.0:
-        cw, c0, c1, c2 = -cw, -c0, -c1, -c2
-    return cw, c0, c1, c2, flip * o0, flip * o1, flip * o2
+        nc = -nc
+    return cw * nc, c0 * nc, c1 * nc, c2 * nc, flip * o0, flip * o1, flip * o2
 
 
 @njit(cache=True)
