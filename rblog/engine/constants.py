@@ -38,8 +38,10 @@ POLAR_MAX_ITER = 12
 LANDEN_BASE_PARAMETER = 1e-9
 #: Cap on Landen levels: from m = 1 - 1e-300 (the closest double below the separatrix) it takes 11.
 LANDEN_MAX_LEVELS = 12
-#: Carlson duplication stops when the arguments agree to this (relative); the seventh-order series
-#: then leaves ~CARLSON_SERIES_TOL^8 = 1e-17 relative (DLMF 19.36.1-2).
+#: Carlson duplication stops when the arguments agree to this (relative); then the series (seventh
+#: order for R_F, fifth for R_J; DLMF 19.36.1-2). Measured against scipy's elliprj over 20,000
+#: random arguments of the exact flow's kind: 1.8e-15 relative at 0.008 (5.0 duplications on
+#: average), 1.2e-15 at 0.004 (5.5), 1.1e-13 at 0.015 (4.5): each duplication costs ~12 ns a pair.
 CARLSON_SERIES_TOL = 0.008
 
 # --- run loop ---------------------------------------------------------------------------------
