@@ -137,3 +137,25 @@ TUNNELING_CROSSING_M = 0.0
 #: centres closer than this fraction of the sum of their inner radii (sphere radius, smallest box
 #: half-extent) while they are apart at both samples.
 TUNNELING_PASS_FRAC = 0.5
+
+# --- consistency (contract checks on read; rblog.analyze.consistency) --------------------------
+#: ||R(q/|q|) - R||_F beyond (this + 2 ||R^T R - I||_F) means quat_wxyz and rotation disagree
+#: (dimensionless). A writer that derives one from the other agrees to ~1e-15; a transposed matrix
+#: or a quaternion in xyzw order differs by O(1) once the body has turned.
+CONSISTENCY_QUAT_MATRIX = 1e-6
+#: |p - m v| relative to |p| (+ 1e-12 kg m/s): p and v are one quantity (dimensionless).
+CONSISTENCY_MOMENTUM_REL = 1e-9
+#: |L - R I_body R^T w| relative to |L| + I_max |w| (dimensionless). rblog derives w from L
+#: exactly (~1e-16); a writer that logs body-frame w and world L differs by O(1).
+CONSISTENCY_ANGULAR_MOMENTUM_REL = 1e-6
+#: median over a body's sample intervals of |rotvec(R(k+1) R(k)^T)/dt - mean w| relative to |w|
+#: (dimensionless): the logged world angular velocity must turn the logged orientation. The
+#: midpoint rule errs by ~(|w| dt)^2 (1e-4 at 1 rad per sample); contacts make a few intervals
+#: wrong, the median ignores them; a body-frame w, a transposed matrix or a quaternion in xyzw
+#: order give O(1).
+CONSISTENCY_KINEMATIC_REL = 0.1
+#: intervals turning by less than this (rad) or moving less than this times 1 m are not used by
+#: the kinematic checks (nothing to compare against round-off).
+CONSISTENCY_MIN_ANGLE_RAD = 1e-4
+#: a body needs this many usable intervals before its kinematic median is judged (count).
+CONSISTENCY_MIN_INTERVALS_SAMPLES = 5

@@ -1,0 +1,346 @@
+"""Consistency of a log with its own contract: do the channels agree with each other?
+
+A log written by another program can follow the layout of docs/log-format.md and still mean
+something else: quaternions in xyzw order where wxyz is expected, a transposed rotation matrix,
+angular velocity in the body frame where the world frame is expected, velocity and momentum that
+are not ``p = m v``, a clock that runs backwards. Such a log loads silently and would give wrong
+verdicts, so these checks run when a log is read (``rblog.load`` adds them to ``warnings``) and as
+the first analyzer of ``rblog check``. Each finding names the channel and the likely cause.
+
+Checks (all from logged channels and the body table; tolerances in rblog.analyze.tolerances):
+
+* finite values in every state channel; ``t`` and ``step`` strictly increasing;
+* ``quat_wxyz`` vs ``rotation``: ``||R(q/|q|) - R||_F``. When they disagree, the hypotheses
+  "quaternion in xyzw order" (reorder and compare) and "matrix transposed" are tested and the
+  one that makes them agree is named;
+* ``linear_momentum = m velocity``;
+* ``angular_momentum = R diag(I_body) R^T angular_velocity`` (world frame);
+* kinematics: the logged orientation must turn at the logged world angular velocity. Over each
+  sample interval the rotation ``dR = R(k+1) R(k)^T`` has rotation vector ``theta`` (world
+  frame); ``theta / dt`` must match the mean of ``w(k)`` and ``w(k+1)`` (midpoint rule, error
+  ~(|w| dt)^2). Intervals whose w changes by more than a quarter (an impulse: a contact) are
+  left out; the median mismatch over a body's intervals is judged (contacts make a few
+  intervals disagree). When it fails, the same test under "w is body frame" (``R w``),
+  "matrix transposed" and "quaternion in xyzw order" names the cause. The same for position and
+  velocity (``dx / dt`` vs the mean velocity, with one sample's gravity change allowed).
+
+May import numpy and rblog.contract / rblog.analyze only (never rblog.engine).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rblog.analyze import tolerances as T
+from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst
+from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Trajectory
+
+
+@dataclass
+class Issue:
+    """One disagreement: which check, which channel, the likely cause, where and how big."""
+
+    check: str
+    channel: str
+    message: str
+    value: float
+    tolerance: float
+    step: int
+    t: float
+    bodies: list[int]
+
+
+def quat_wxyz_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(..., 4) quaternions (scalar first, normalized here) -> (..., 3, 3) rotation matrices."""
+    q = np.asarray(q, np.float64)
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    q = q / np.where(n > 0, n, 1.0)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty(q.shape[:-1] + (3, 3))
+    out[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    out[..., 0, 1] = 2 * (x * y - w * z)
+    out[..., 0, 2] = 2 * (x * z + w * y)
+    out[..., 1, 0] = 2 * (x * y + w * z)
+    out[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    out[..., 1, 2] = 2 * (y * z - w * x)
+    out[..., 2, 0] = 2 * (x * z - w * y)
+    out[..., 2, 1] = 2 * (y * z + w * x)
+    out[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
+def rotvec_of_matrix(r: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices -> (..., 3) rotation vectors (axis * angle, angle in
+    [0, pi]); accurate for small angles (no arccos near 1)."""
+    v = 0.5 * np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0],
+                        r[..., 1, 0] - r[..., 0, 1]], axis=-1)
+    s = np.linalg.norm(v, axis=-1)
+    c = 0.5 * (np.trace(r, axis1=-2, axis2=-1) - 1.0)
+    ang = np.arctan2(s, c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(s > 1e-300, ang / s, 1.0)
+    return v * scale[..., None]
+
+
+#: intervals where the logged rate changes by more than this fraction of itself held an impulse
+#: (a contact): the midpoint rule does not apply there and they are left out (dimensionless)
+SMOOTH_FRAC = 0.25
+
+_XYZW_AS_WXYZ = [3, 0, 1, 2]  # a quaternion stored (x, y, z, w) read as (w, x, y, z) -> fix
+
+
+def _first(mask_tn: np.ndarray) -> tuple[int, list[int]]:
+    """First sample where any body is flagged, and the flagged bodies there."""
+    k = int(np.argmax(mask_tn.any(axis=1)))
+    return k, [int(b) for b in np.flatnonzero(mask_tn[k])]
+
+
+def _names(traj: Trajectory, bodies) -> str:
+    names = [repr(traj.model.body_name[b]) for b in list(bodies)[:3]]
+    more = f" +{len(bodies) - 3} more" if len(bodies) > 3 else ""
+    return ", ".join(names) + more
+
+
+def _kinematic_median(rot, omega_world, dts, min_angle):
+    """Per body: (median relative mismatch, usable interval count) between the rotation vector of
+    R(k+1) R(k)^T over dt and the mean logged world angular velocity. rot (T, N, 3, 3),
+    omega_world (T, N, 3), dts (T-1,)."""
+    d = np.einsum("knij,knlj->knil", rot[1:], rot[:-1])  # R(k+1) R(k)^T
+    rate = rotvec_of_matrix(d) / dts[:, None, None]
+    mean_w = 0.5 * (omega_world[1:] + omega_world[:-1])
+    scale = np.maximum(np.linalg.norm(mean_w, axis=-1), np.linalg.norm(rate, axis=-1))
+    jump = np.linalg.norm(omega_world[1:] - omega_world[:-1], axis=-1)
+    use = ((scale * dts[:, None] > min_angle) & (scale * dts[:, None] < 1.5)  # below aliasing
+           & (jump <= SMOOTH_FRAC * scale))  # no impulse (contact) inside the interval
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.linalg.norm(rate - mean_w, axis=-1) / scale
+    rel = np.where(use, rel, np.nan)
+    count = use.sum(axis=0)
+    with np.errstate(all="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med = np.nanmedian(rel, axis=0) if rel.shape[0] else np.full(rel.shape[1], np.nan)
+    return med, count
+
+
+def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
+    """Every consistency issue of ``traj`` (see the module docstring); ``tol`` overrides the
+    defaults of :class:`ConsistencyAnalyzer` by name."""
+    tol = {**ConsistencyAnalyzer.defaults, **(tol or {})}
+    out: list[Issue] = []
+    n_t, n = traj.n_samples, traj.n_bodies
+    if n_t == 0 or n == 0:
+        return out
+    t, step = np.asarray(traj.t, float), np.asarray(traj.step)
+
+    # finite values
+    for name in BODY_CHANNELS:
+        a = np.asarray(getattr(traj, name), float).reshape(n_t, n, -1)
+        bad = ~np.isfinite(a).all(axis=-1)
+        if bad.any():
+            k, bodies = _first(bad)
+            out.append(Issue("finite", name, f"{name} is not finite from step {int(step[k])} "
+                             f"(t = {t[k]:.6g} s) for {_names(traj, bodies)}", float("inf"), 0.0,
+                             int(step[k]), float(t[k]), bodies))
+    for name in ("t", *TOTAL_CHANNELS):
+        a = np.asarray(getattr(traj, name), float).reshape(n_t, -1)
+        bad = ~np.isfinite(a).all(axis=-1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            out.append(Issue("finite", name, f"{name} is not finite from sample {k}", float("inf"),
+                             0.0, int(step[k]), float(t[k]) if np.isfinite(t[k]) else 0.0, []))
+    # monotonic time
+    for name, a in (("t", t), ("step", step)):
+        back = np.flatnonzero(~(np.diff(a) > 0))
+        if len(back):
+            k = int(back[0]) + 1
+            out.append(Issue("time", name, f"{name} does not increase at sample {k} "
+                             f"({a[k - 1]!r} then {a[k]!r}): samples out of order or repeated",
+                             float(a[k - 1] - a[k]), 0.0, int(step[k]), float(t[k]), []))
+    finite = np.isfinite(traj.position).all(axis=(1, 2)) & np.isfinite(traj.rotation).all(axis=(1, 2, 3)) \
+        & np.isfinite(traj.quat_wxyz).all(axis=(1, 2)) & np.isfinite(traj.angular_velocity).all(axis=(1, 2)) \
+        & np.isfinite(traj.velocity).all(axis=(1, 2)) & np.isfinite(traj.linear_momentum).all(axis=(1, 2)) \
+        & np.isfinite(traj.angular_momentum).all(axis=(1, 2))
+    keep = np.flatnonzero(finite)
+    if len(keep) == 0:
+        return out
+    sel = lambda a: np.asarray(a, float)[keep]  # noqa: E731
+    t, step = t[keep], step[keep]
+    rot, quat = sel(traj.rotation), sel(traj.quat_wxyz)
+    omega, lw = sel(traj.angular_velocity), sel(traj.angular_momentum)
+    vel, mom, pos = sel(traj.velocity), sel(traj.linear_momentum), sel(traj.position)
+    model = traj.model
+    mass = np.asarray(model.body_mass, float)
+    inertia = np.asarray(model.body_inertia_diag, float)
+
+    # quaternion vs matrix
+    r_q = quat_wxyz_to_matrix(quat)
+    gram = np.einsum("knji,knjl->knil", rot, rot) - np.eye(3)
+    ortho = np.linalg.norm(gram, axis=(-2, -1))
+    allow = tol["quat_matrix"] + 2.0 * ortho
+    err = np.linalg.norm(r_q - rot, axis=(-2, -1))
+    bad_qm = err > allow
+    if bad_qm.any():
+        bodies = [int(b) for b in np.flatnonzero(bad_qm.any(axis=0))]
+        k, _ = _first(bad_qm)
+        err_xyzw = np.linalg.norm(quat_wxyz_to_matrix(quat[..., _XYZW_AS_WXYZ]) - rot, axis=(-2, -1))
+        err_tr = np.linalg.norm(r_q - np.swapaxes(rot, -1, -2), axis=(-2, -1))
+        sub = bad_qm.any(axis=0)
+        if (err_xyzw[:, sub] <= allow[:, sub]).all():
+            channel, cause = "quat_wxyz", "quat_wxyz looks like xyzw order (scalar last)"
+        elif (err_tr[:, sub] <= allow[:, sub]).all():
+            channel, cause = "rotation", ("rotation looks transposed (world->body where body->"
+                                          "world is expected)")
+        else:
+            channel, cause = "quat_wxyz", "quat_wxyz and rotation describe different orientations"
+        out.append(Issue("quat_matrix", channel,
+                         f"{cause}: ||R(q) - R||_F up to {float(err.max()):.3g} for "
+                         f"{_names(traj, bodies)} from t = {t[k]:.6g} s", float(err.max()),
+                         tol["quat_matrix"], int(step[k]), float(t[k]), bodies))
+
+    # p = m v
+    dp = np.linalg.norm(mom - mass[None, :, None] * vel, axis=-1)
+    scale_p = tol["momentum_rel"] * np.linalg.norm(mom, axis=-1) + 1e-12
+    bad = dp > scale_p
+    if bad.any():
+        k, _ = _first(bad)
+        bodies = [int(b) for b in np.flatnonzero(bad.any(axis=0))]
+        ratio = dp / np.maximum(np.linalg.norm(mom, axis=-1), 1e-300)
+        out.append(Issue("momentum", "linear_momentum",
+                         f"linear_momentum is not mass * velocity (relative error up to "
+                         f"{float(ratio.max()):.3g}) for {_names(traj, bodies)}: velocity or "
+                         "momentum in another frame or unit, or the body table's mass differs",
+                         float(ratio.max()), tol["momentum_rel"], int(step[k]), float(t[k]), bodies))
+
+    # L = R I R^T w
+    body_w = np.einsum("knji,knj->kni", rot, omega)
+    l_pred = np.einsum("knij,knj->kni", rot, inertia[None] * body_w)
+    dl = np.linalg.norm(lw - l_pred, axis=-1)
+    scale_l = np.linalg.norm(lw, axis=-1) + inertia.max(axis=-1)[None] * np.linalg.norm(omega, axis=-1)
+    rel_l = dl / np.maximum(scale_l, 1e-300)
+    bad = (rel_l > tol["angular_momentum_rel"]) & (scale_l > 1e-12)
+    if bad.any():
+        k, _ = _first(bad)
+        bodies = [int(b) for b in np.flatnonzero(bad.any(axis=0))]
+        # would a body-frame w explain it? L = R I w_logged
+        l_body = np.einsum("knij,knj->kni", rot, inertia[None] * omega)
+        rel_b = np.linalg.norm(lw - l_body, axis=-1) / np.maximum(scale_l, 1e-300)
+        sub = bad.any(axis=0)
+        if (rel_b[:, sub][bad[:, sub]] <= tol["angular_momentum_rel"]).all():
+            cause = "angular_velocity looks like body frame (world frame is expected)"
+        else:
+            cause = ("angular_momentum is not R I_body R^T angular_velocity (frames, units or "
+                     "the body table's inertia differ)")
+        out.append(Issue("angular_momentum", "angular_velocity",
+                         f"{cause}: relative error up to {float(rel_l.max()):.3g} for "
+                         f"{_names(traj, bodies)} from t = {t[k]:.6g} s", float(rel_l.max()),
+                         tol["angular_momentum_rel"], int(step[k]), float(t[k]), bodies))
+
+    # kinematics: orientation turns at the logged world angular velocity
+    if len(t) >= 2:
+        dts = np.diff(t)
+        good = dts > 0
+        if not good.all():  # the time issue is reported; judge the increasing intervals only
+            dts = np.where(good, dts, np.nan)
+        min_angle = tol["min_angle_rad"]
+        min_count = tol["min_intervals_samples"]
+        med, count = _kinematic_median(rot, omega, dts, min_angle)
+        bad = (count >= min_count) & (med > tol["kinematic_rel"])
+        if bad.any():
+            bodies = [int(b) for b in np.flatnonzero(bad)]
+            omega_as_body = np.einsum("knij,knj->kni", rot, omega)
+            hyps = (
+                ("angular_velocity", "angular_velocity looks like body frame (world frame is "
+                 "expected)", rot, omega_as_body),
+                ("rotation", "rotation looks transposed (world->body where body->world is "
+                 "expected)", np.swapaxes(rot, -1, -2), omega),
+                ("quat_wxyz", "quat_wxyz looks like xyzw order (scalar last)",
+                 quat_wxyz_to_matrix(quat[..., _XYZW_AS_WXYZ]), omega),
+            )
+            best = None
+            for channel, cause, r_h, w_h in hyps:
+                m_h, c_h = _kinematic_median(r_h[:, bad], w_h[:, bad], dts, min_angle)
+                score = float(np.nanmax(m_h)) if np.isfinite(m_h).any() else np.inf
+                if score <= tol["kinematic_rel"] and (best is None or score < best[0]):
+                    best = (score, channel, cause)
+            channel, cause = (best[1], best[2]) if best else (
+                "angular_velocity", "angular_velocity does not turn the logged orientation "
+                "(wrong frame, sign, unit or orientation channel)")
+            worst = float(np.nanmax(med[bad]))
+            out.append(Issue("kinematics", channel,
+                             f"{cause}: the orientation's rate of change disagrees with "
+                             f"angular_velocity by a median {worst:.3g} (relative) for "
+                             f"{_names(traj, bodies)}", worst, tol["kinematic_rel"],
+                             int(step[0]), float(t[0]), bodies))
+        # position vs velocity: allow one sample's change of velocity by gravity and loads
+        g = np.linalg.norm(np.asarray(model.gravity, float))
+        acc = g + np.linalg.norm(np.asarray(model.body_force_world, float), axis=-1) / mass
+        rate = (pos[1:] - pos[:-1]) / dts[:, None, None]
+        mean_v = 0.5 * (vel[1:] + vel[:-1])
+        scale = np.maximum(np.linalg.norm(mean_v, axis=-1), np.linalg.norm(rate, axis=-1))
+        jump = np.linalg.norm(vel[1:] - vel[:-1], axis=-1)
+        use = ((scale * dts[:, None] > min_angle * 1.0)  # m: see CONSISTENCY_MIN_ANGLE_RAD
+               & (jump <= SMOOTH_FRAC * scale + acc[None] * dts[:, None]))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rel = np.linalg.norm(rate - mean_v, axis=-1) / (scale + acc[None] * dts[:, None])
+        rel = np.where(use, rel, np.nan)
+        cnt = use.sum(axis=0)
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med_v = np.nanmedian(rel, axis=0)
+        bad = (cnt >= min_count) & (med_v > tol["kinematic_rel"])
+        if bad.any():
+            bodies = [int(b) for b in np.flatnonzero(bad)]
+            worst = float(np.nanmax(med_v[bad]))
+            out.append(Issue("kinematics", "velocity",
+                             f"velocity does not move the logged position (median relative "
+                             f"mismatch {worst:.3g}) for {_names(traj, bodies)}: velocity in "
+                             "another frame or unit, or positions not of the centre of mass",
+                             worst, tol["kinematic_rel"], int(step[0]), float(t[0]), bodies))
+    return out
+
+
+def consistency_warnings(traj: Trajectory) -> list[str]:
+    """One line per consistency issue of ``traj`` (what ``rblog.load`` adds to ``warnings``)."""
+    return [f"contract: {i.channel}: {i.message}" for i in inspect(traj)]
+
+
+class ConsistencyAnalyzer(Analyzer):
+    name = "consistency"
+    description = ("channels agree with each other: quaternion vs matrix, p = m v, L = I_world w, "
+                   "orientation turning at the world angular velocity, finite values, time order")
+    defaults = {
+        "quat_matrix": T.CONSISTENCY_QUAT_MATRIX,
+        "momentum_rel": T.CONSISTENCY_MOMENTUM_REL,
+        "angular_momentum_rel": T.CONSISTENCY_ANGULAR_MOMENTUM_REL,
+        "kinematic_rel": T.CONSISTENCY_KINEMATIC_REL,
+        "min_angle_rad": T.CONSISTENCY_MIN_ANGLE_RAD,
+        "min_intervals_samples": T.CONSISTENCY_MIN_INTERVALS_SAMPLES,
+    }
+    units = {"min_angle_rad": "rad", "min_intervals_samples": "samples"}
+
+    def run(self, traj: Trajectory, ctx: Context | None = None) -> Result:
+        # on the whole log: non-finite samples are findings here, not a cut
+        if traj.n_samples == 0:
+            return self.skip("the log holds no samples")
+        return self._result(traj, inspect(traj, self.tol))
+
+    def analyze(self, ctx: Context) -> Result:
+        return self._result(ctx.full_traj, inspect(ctx.full_traj, self.tol))
+
+    def _result(self, traj: Trajectory, issues: list[Issue]) -> Result:
+        worst = Worst("1", self.tol["kinematic_rel"])
+        findings = []
+        for i in issues:
+            findings.append(Finding(self.name, i.message, i.value, i.tolerance, "1", i.step, i.t,
+                                    i.bodies))
+            ratio = i.value / i.tolerance if i.tolerance > 0 else float("inf")
+            worst.offer(ratio, i.value, i.tolerance, "1", i.step, i.t, i.bodies, i.check)
+        ok = "every channel agrees with the others (quaternion/matrix, p = m v, L = I w, kinematics)"
+        return self.result(worst, findings, {"issues": len(issues)}, ok_reason=ok)
