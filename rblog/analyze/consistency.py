@@ -18,7 +18,8 @@ Checks (all from logged channels and the body table; tolerances in rblog.analyze
 * kinematics: the logged orientation must turn at the logged world angular velocity. Over each
   sample interval the rotation ``dR = R(k+1) R(k)^T`` has rotation vector ``theta`` (world
   frame); ``theta / dt`` must match the mean of ``w(k)`` and ``w(k+1)`` (midpoint rule, error
-  ~(|w| dt)^2). Intervals whose w changes by more than a quarter (an impulse: a contact) are
+  ~(|w| dt)^2; the mean rate is compared with the segment between the end rates, which a
+  first-order integrator's rate lies on). Intervals whose w changes by more than a quarter (an impulse: a contact) are
   left out; the median mismatch over a body's intervals is judged (contacts make a few
   intervals disagree). When it fails, the same test under "w is body frame" (``R w``),
   "matrix transposed" and "quaternion in xyzw order" names the cause. The same for position and
@@ -103,6 +104,18 @@ def _names(traj: Trajectory, bodies) -> str:
     return ", ".join(names) + more
 
 
+def _segment_distance(r, a, b):
+    """|r - closest point of the segment [a, b]| over the last axis: an integrator's mean rate
+    over an interval lies between the rates at its ends (explicit, semi-implicit, midpoint alike)
+    when nothing kicks the body inside it."""
+    u = b - a
+    uu = np.einsum("...i,...i->...", u, u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(uu > 0, np.einsum("...i,...i->...", r - a, u) / uu, 0.0)
+    s = np.clip(s, 0.0, 1.0)
+    return np.linalg.norm(r - (a + s[..., None] * u), axis=-1)
+
+
 def _kinematic_median(rot, omega_world, dts, min_angle):
     """Per body: (median relative mismatch, usable interval count) between the rotation vector of
     R(k+1) R(k)^T over dt and the mean logged world angular velocity. rot (T, N, 3, 3),
@@ -115,7 +128,7 @@ def _kinematic_median(rot, omega_world, dts, min_angle):
     use = ((scale * dts[:, None] > min_angle) & (scale * dts[:, None] < 1.5)  # below aliasing
            & (jump <= SMOOTH_FRAC * scale))  # no impulse (contact) inside the interval
     with np.errstate(divide="ignore", invalid="ignore"):
-        rel = np.linalg.norm(rate - mean_w, axis=-1) / scale
+        rel = _segment_distance(rate, omega_world[:-1], omega_world[1:]) / scale
     rel = np.where(use, rel, np.nan)
     count = use.sum(axis=0)
     with np.errstate(all="ignore"):
@@ -286,7 +299,7 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
         use = ((scale * dts[:, None] > min_angle * 1.0)  # m: see CONSISTENCY_MIN_ANGLE_RAD
                & (jump <= SMOOTH_FRAC * scale + acc[None] * dts[:, None]))
         with np.errstate(divide="ignore", invalid="ignore"):
-            rel = np.linalg.norm(rate - mean_v, axis=-1) / (scale + acc[None] * dts[:, None])
+            rel = _segment_distance(rate, vel[:-1], vel[1:]) / (scale + acc[None] * dts[:, None])
         rel = np.where(use, rel, np.nan)
         cnt = use.sum(axis=0)
         import warnings

@@ -159,3 +159,12 @@ CONSISTENCY_KINEMATIC_REL = 0.1
 CONSISTENCY_MIN_ANGLE_RAD = 1e-4
 #: a body needs this many usable intervals before its kinematic median is judged (count).
 CONSISTENCY_MIN_INTERVALS_SAMPLES = 5
+
+# --- diff (two logs of one scene; rblog.analyze.diff) -------------------------------------------
+#: a body's centre-of-mass positions in the two logs may differ by this much (m): 1 cm, what a
+#: viewer shows as "the same place" for the samples' 0.1-1 m bodies.
+DIFF_POSITION_M = 1e-2
+#: and its orientations by this angle (rad, ~5.7 degrees).
+DIFF_ANGLE_RAD = 0.1
+#: divergences below this (m) are round-off and left out of the growth-rate fit.
+DIFF_FLOOR_M = 1e-9
