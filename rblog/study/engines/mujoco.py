@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from rblog.contract.model import SHAPE_SPHERE
+from rblog.record.recorder import quat_to_matrix
 from rblog.study.engines import EngineMissing, EngineUnsupported, initial_world_omega, pair_materials, \
     parse_options, z_to
 
@@ -210,9 +211,10 @@ class MujocoRun:
         n = self.scene.model.n_bodies
         qp = self.d.qpos.reshape(n, 7)
         qv = self.d.qvel.reshape(n, 6)
-        r = self.d.xmat[1:n + 1].reshape(n, 3, 3)  # body -> world, as MuJoCo holds it
-        return (qp[:, :3].copy(), qp[:, 3:].copy(), qv[:, :3].copy(),
-                np.einsum("nij,nj->ni", r, qv[:, 3:]))
+        q = qp[:, 3:].copy()
+        # body -> world from the integrated quaternion (d.xmat is from the step's start)
+        r = quat_to_matrix(q)
+        return qp[:, :3].copy(), q, qv[:, :3].copy(), np.einsum("nij,nj->ni", r, qv[:, 3:])
 
     def contacts(self, step: int):
         """The contacts of the step that ended at ``step``, in the contract's convention."""
