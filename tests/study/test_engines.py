@@ -138,14 +138,15 @@ def test_contact_impulses_account_for_momentum(engine):
 def test_bounce_restitution_translated(engine):
     """The ball's rebound speed over its impact speed is the scene's e = 0.8 (ground and ball
     both 0.8): MuJoCo through the direct solref spring-damper, Bullet through its restitution.
-    Measured 0.80 (MuJoCo Euler, omega0 dt = 0.2) and 0.80 (pybullet)."""
+    Measured 0.819 (MuJoCo Euler, omega0 dt = 0.2: the soft contact's gravity share) and 0.776
+    (pybullet: its split-impulse position correction); tolerance 0.035 (1.5x the worst)."""
     _need(engine)
     s = load_scene(str(SAMPLES_DIR / "bouncing_ball.toml"))
     _, traj = run_engine(s, engine, duration=0.8, log_every=1, keep=True)
     vz = traj.velocity[:, 0, 2]
     k_in = int(np.argmin(vz))  # fastest downwards: just before the contact
     v_out = vz[k_in:].max()
-    assert v_out / -vz[k_in] == pytest.approx(0.8, abs=0.03)
+    assert v_out / -vz[k_in] == pytest.approx(0.8, abs=0.035)
 
 
 def test_mujoco_pairs_get_rblog_materials():
