@@ -14,7 +14,8 @@ Checks (all from logged channels and the body table; tolerances in rblog.analyze
   "quaternion in xyzw order" (reorder and compare) and "matrix transposed" are tested and the
   one that makes them agree is named;
 * ``linear_momentum = m velocity``;
-* ``angular_momentum = R diag(I_body) R^T angular_velocity`` (world frame);
+* ``angular_velocity = R diag(1/I_body) R^T angular_momentum`` (world frame; the contract's
+  definition, so a drifted R is not counted here: drift judges it);
 * kinematics: the logged orientation must turn at the logged world angular velocity. Over each
   sample interval the rotation ``dR = R(k+1) R(k)^T`` has rotation vector ``theta`` (world
   frame); ``theta / dt`` must match the mean of ``w(k)`` and ``w(k+1)`` (midpoint rule, error
@@ -85,9 +86,7 @@ def rotvec_of_matrix(r: np.ndarray) -> np.ndarray:
     return v * scale[..., None]
 
 
-#: intervals where the logged rate changes by more than this fraction of itself held an impulse
-#: (a contact): the midpoint rule does not apply there and they are left out (dimensionless)
-SMOOTH_FRAC = 0.25
+SMOOTH_FRAC = T.CONSISTENCY_SMOOTH_FRAC
 
 _XYZW_AS_WXYZ = [3, 0, 1, 2]  # a quaternion stored (x, y, z, w) read as (w, x, y, z) -> fix
 
@@ -229,19 +228,18 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
                          "momentum in another frame or unit, or the body table's mass differs",
                          float(ratio.max()), tol["momentum_rel"], int(step[k]), float(t[k]), bodies))
 
-    # L = R I R^T w
-    body_w = np.einsum("knji,knj->kni", rot, omega)
-    l_pred = np.einsum("knij,knj->kni", rot, inertia[None] * body_w)
-    dl = np.linalg.norm(lw - l_pred, axis=-1)
-    scale_l = np.linalg.norm(lw, axis=-1) + inertia.max(axis=-1)[None] * np.linalg.norm(omega, axis=-1)
+    # w = R diag(1/I) R^T L (the contract's definition, also for a drifted R), i.e. L = I_world w
+    body_l = np.einsum("knji,knj->kni", rot, lw)
+    w_pred = np.einsum("knij,knj->kni", rot, body_l / inertia[None])
+    dl = np.linalg.norm(omega - w_pred, axis=-1)
+    scale_l = np.linalg.norm(omega, axis=-1) + np.linalg.norm(lw, axis=-1) / inertia.min(axis=-1)[None]
     rel_l = dl / np.maximum(scale_l, 1e-300)
     bad = (rel_l > tol["angular_momentum_rel"]) & (scale_l > 1e-12)
     if bad.any():
         k, _ = _first(bad)
         bodies = [int(b) for b in np.flatnonzero(bad.any(axis=0))]
-        # would a body-frame w explain it? L = R I w_logged
-        l_body = np.einsum("knij,knj->kni", rot, inertia[None] * omega)
-        rel_b = np.linalg.norm(lw - l_body, axis=-1) / np.maximum(scale_l, 1e-300)
+        # would a body-frame w explain it? w_logged = diag(1/I) R^T L
+        rel_b = np.linalg.norm(omega - body_l / inertia[None], axis=-1) / np.maximum(scale_l, 1e-300)
         sub = bad.any(axis=0)
         if (rel_b[:, sub][bad[:, sub]] <= tol["angular_momentum_rel"]).all():
             cause = "angular_velocity looks like body frame (world frame is expected)"
@@ -338,14 +336,10 @@ class ConsistencyAnalyzer(Analyzer):
     }
     units = {"min_angle_rad": "rad", "min_intervals_samples": "samples"}
 
-    def run(self, traj: Trajectory, ctx: Context | None = None) -> Result:
-        # on the whole log: non-finite samples are findings here, not a cut
-        if traj.n_samples == 0:
-            return self.skip("the log holds no samples")
-        return self._result(traj, inspect(traj, self.tol))
-
     def analyze(self, ctx: Context) -> Result:
-        return self._result(ctx.full_traj, inspect(ctx.full_traj, self.tol))
+        # the samples before the first non-finite one (drift reports that one; load's warnings
+        # name the channel)
+        return self._result(ctx.traj, inspect(ctx.traj, self.tol))
 
     def _result(self, traj: Trajectory, issues: list[Issue]) -> Result:
         worst = Worst("1", self.tol["kinematic_rel"])

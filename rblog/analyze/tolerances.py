@@ -145,8 +145,8 @@ TUNNELING_PASS_FRAC = 0.5
 CONSISTENCY_QUAT_MATRIX = 1e-6
 #: |p - m v| relative to |p| (+ 1e-12 kg m/s): p and v are one quantity (dimensionless).
 CONSISTENCY_MOMENTUM_REL = 1e-9
-#: |L - R I_body R^T w| relative to |L| + I_max |w| (dimensionless). rblog derives w from L
-#: exactly (~1e-16); a writer that logs body-frame w and world L differs by O(1).
+#: |w - R diag(1/I_body) R^T L| relative to |w| + |L| / I_min (dimensionless). rblog derives w
+#: from L exactly (~1e-16); a writer that logs body-frame w and world L differs by O(1).
 CONSISTENCY_ANGULAR_MOMENTUM_REL = 1e-6
 #: median over a body's sample intervals of |rotvec(R(k+1) R(k)^T)/dt - mean w| relative to |w|
 #: (dimensionless): the logged world angular velocity must turn the logged orientation. The
@@ -157,6 +157,10 @@ CONSISTENCY_KINEMATIC_REL = 0.1
 #: intervals turning by less than this (rad) or moving less than this times 1 m are not used by
 #: the kinematic checks (nothing to compare against round-off).
 CONSISTENCY_MIN_ANGLE_RAD = 1e-4
+#: intervals where the logged rate changes by more than this fraction of itself held an impulse
+#: (a contact) and are left out of the kinematic checks (dimensionless; a pile of 500 boxes
+#: otherwise shows a median mismatch of 0.27 from its collisions alone).
+CONSISTENCY_SMOOTH_FRAC = 0.25
 #: a body needs this many usable intervals before its kinematic median is judged (count).
 CONSISTENCY_MIN_INTERVALS_SAMPLES = 5
 

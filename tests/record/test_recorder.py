@@ -193,3 +193,27 @@ def test_readme_example_runs(tmp_path, monkeypatch):
     results = ns["results"]
     assert [r.analyzer for r in results][0] == "consistency"
     assert all(r.passed or r.skipped for r in results), [r.reason for r in results if not r.passed]
+
+
+@pytest.mark.parametrize("rule, flagged", [("geometric", True), ("max", False)])
+def test_combine_rule_used_by_the_analyzers(rule, flagged):
+    """A box resting on the ground (mu_box 0.2, mu_ground 0.8) with logged rows whose friction is
+    0.6 of the normal impulse: inside the cone of MuJoCo's max rule (0.8), outside rblog's
+    sqrt(0.2 * 0.8) = 0.4. The log's declared rule decides."""
+    T, dt = 21, 0.01
+    model = body_table(name=["box"], shape=["box"], size=[[0.1] * 3], mass=[1.0], friction=[0.2],
+                       ground=True, ground_friction=0.8)
+    t = np.arange(T) * dt
+    z = np.zeros((T, 1, 3))
+    pos = z + [0.0, 0.0, 0.1]
+    jn = 9.81 * dt
+    contacts = dict(step=np.arange(1, T), body_a=np.zeros(T - 1), body_b=-np.ones(T - 1),
+                    point=np.zeros((T - 1, 3)), normal=np.tile([0.0, 0, 1], (T - 1, 1)),
+                    separation=np.zeros(T - 1), normal_impulse=np.full(T - 1, jn),
+                    friction_impulse=np.tile([0.6 * jn, 0, 0], (T - 1, 1)))
+    traj = trajectory_from_arrays(model, dt=dt, combine_friction=rule, t=t, position=pos,
+                                  quat_wxyz=np.tile([1.0, 0, 0, 0], (T, 1, 1)), velocity=z,
+                                  angular_velocity=z, contacts=contacts)
+    res = check(traj, only=["momentum"])[0]
+    cone = [f for f in res.findings if "friction cone" in f.message]
+    assert bool(cone) == flagged, res.reason
