@@ -284,7 +284,11 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="l
 
         recorders.append(McapRecorder(mcap, compression=mcap_compression))
         paths.append(mcap)
-    return recorders, paths
+    # rblog's own runs record through the public writer API too (one Recorder per writer, so the
+    # run loop still writes each on its own thread; benchmarks/bench_engines.py: no cost)
+    from rblog.record.recorder import Recorder
+
+    return [Recorder(writers=[r]) for r in recorders], paths
 
 
 from rblog_cli.bench_cmds import bench, stress  # noqa: E402

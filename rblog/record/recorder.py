@@ -261,7 +261,7 @@ class Recorder:
     ``trajectory`` is the run so far when ``keep``.
     """
 
-    def __init__(self, model: Model, *, rrd=None, mcap=None, dt: float = 0.0, writer: str = "",
+    def __init__(self, model: Model | None = None, *, rrd=None, mcap=None, dt: float = 0.0, writer: str = "",
                  integrator: str = "", log_every: int = 1, duration_s: float = 0.0,
                  combine_friction: str = "geometric", combine_restitution: str = "max",
                  engine_settings: dict | None = None, scene_path: str = "", scene_toml: str = "",
@@ -299,7 +299,16 @@ class Recorder:
         self.samples_written = 0
 
     # --- lifecycle --------------------------------------------------------------------------
-    def open(self) -> "Recorder":
+    def open(self, model: Model | None = None, info: RunInfo | None = None) -> "Recorder":
+        """Open the outputs. ``model`` and ``info`` (optional) replace the constructor's: this is
+        the recorder protocol of :func:`rblog.engine.runner.run`, so rblog's own runs record
+        through a Recorder as well (``rblog run`` does)."""
+        if model is not None:
+            self.model = model
+        if info is not None:
+            self.info = info
+        if self.model is None:
+            raise RecordError("no body table: give Recorder(model, ...) or open(model, info)")
         if not self._open:
             for w in self.writers:
                 w.open(self.model, self.info)
@@ -318,7 +327,8 @@ class Recorder:
         Returns the block as logged."""
         if self._closed:
             raise RecordError("recorder is closed")
-        self.open()
+        if not self._open:
+            self.open()
         if block is None:
             block = build_block(self.model, self.info, **arrays)
         if block.n_samples and self._last_step is not None and block.step[0] <= self._last_step:
