@@ -182,9 +182,9 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
                 n_contacts += 0 if c is None else len(c["step"])
                 buf.add(done, *eng.state(), c)
                 if len(buf) >= per_block or done >= n_total:
-                    rec.write(**buf.take(dt))
+                    rec.write(**buf.take(dt, eng.OMEGA_FRAME))
             if len(buf):
-                rec.write(**buf.take(dt))
+                rec.write(**buf.take(dt, eng.OMEGA_FRAME))
         wall = time.perf_counter() - t_wall
     finally:
         eng.close()
@@ -215,10 +215,17 @@ class _Buffer:
         if contacts is not None and len(contacts["step"]):
             self.c.append(contacts)
 
-    def take(self, dt):
+    def take(self, dt, omega_frame="world"):
+        """The block as Recorder.write arguments; a body-frame angular velocity is turned into
+        the world frame with the block's quaternions (one vectorized pass per block)."""
         steps = np.array(self.steps, np.int64)
-        out = dict(t=steps * dt, step=steps, position=np.array(self.x), quat_wxyz=np.array(self.q),
-                   velocity=np.array(self.v), angular_velocity=np.array(self.w))
+        q, w = np.array(self.q), np.array(self.w)
+        if omega_frame == "body":
+            from rblog.record.recorder import quat_to_matrix
+
+            w = np.einsum("tnij,tnj->tni", quat_to_matrix(q), w)
+        out = dict(t=steps * dt, step=steps, position=np.array(self.x), quat_wxyz=q,
+                   velocity=np.array(self.v), angular_velocity=w)
         if self.c:
             out["contacts"] = {k: np.concatenate([c[k] for c in self.c]) for k in self.c[0]}
         self.__init__()

@@ -30,7 +30,6 @@ import math
 import numpy as np
 
 from rblog.contract.model import SHAPE_SPHERE
-from rblog.record.recorder import quat_to_matrix
 from rblog.study.engines import EngineMissing, EngineUnsupported, initial_world_omega, pair_materials, \
     parse_options, z_to
 
@@ -73,6 +72,9 @@ def _f(x) -> str:
 
 class MujocoRun:
     """One scene in MuJoCo: ``step(k)``, ``state()``, ``contacts(step)``, ``close()``."""
+
+    #: frame of the angular velocity ``state()`` returns
+    OMEGA_FRAME = "body"
 
     def __init__(self, scene, dt: float, options=()):
         try:
@@ -207,14 +209,13 @@ class MujocoRun:
         self.mj.mj_step(self.m, self.d, nstep=int(k))
 
     def state(self):
-        """(position (N,3), quat_wxyz (N,4), velocity (N,3), angular velocity world (N,3))."""
+        """(position (N,3), quat_wxyz (N,4), velocity (N,3) world, angular velocity (N,3) body)."""
         n = self.scene.model.n_bodies
         qp = self.d.qpos.reshape(n, 7)
         qv = self.d.qvel.reshape(n, 6)
-        q = qp[:, 3:].copy()
-        # body -> world from the integrated quaternion (d.xmat is from the step's start)
-        r = quat_to_matrix(q)
-        return qp[:, :3].copy(), q, qv[:, :3].copy(), np.einsum("nij,nj->ni", r, qv[:, 3:])
+        # angular velocity in the body frame (a free joint's qvel[3:6]); run_engine turns a block
+        # of them into the world frame with the integrated quaternion (OMEGA_FRAME)
+        return qp[:, :3].copy(), qp[:, 3:].copy(), qv[:, :3].copy(), qv[:, 3:].copy()
 
     def contacts(self, step: int):
         """The contacts of the step that ended at ``step``, in the contract's convention."""
@@ -228,23 +229,24 @@ class MujocoRun:
         adr = np.asarray(con.efc_address[:k])
         dim = np.asarray(con.dim[:k])
         mu = np.asarray(con.friction[:k])
-        ok = adr >= 0  # excluded contacts have no constraint rows
         f = np.asarray(d.efc_force)
         fn = np.zeros(k)
         ft = np.zeros((k, 2))
-        pyramidal = self.m.opt.cone == self.mj.mjtCone.mjCONE_PYRAMIDAL
-        for c in np.flatnonzero(ok).tolist():  # few contacts per step; decode in MuJoCo's layout
-            a0, dm = int(adr[c]), int(dim[c])
-            if dm == 1:
-                fn[c] = f[a0]
-            elif pyramidal:  # 2(dim-1) edges: normal = sum, tangent j = mu_j (f_2j - f_2j+1)
-                e = f[a0:a0 + 2 * (dm - 1)]
-                fn[c] = e.sum()
-                ft[c, 0] = mu[c, 0] * (e[0] - e[1])
-                ft[c, 1] = mu[c, 1] * (e[2] - e[3])
-            else:
-                fn[c] = f[a0]
-                ft[c] = f[a0 + 1:a0 + 3]
+        ok = adr >= 0  # excluded contacts have no constraint rows
+        one = ok & (dim == 1)  # frictionless: one normal row
+        fn[one] = f[adr[one]]
+        three = ok & (dim == 3)  # this module sets condim 1 or 3 only
+        if three.any():
+            a3 = adr[three]
+            if self.m.opt.cone == self.mj.mjtCone.mjCONE_PYRAMIDAL:
+                # 4 pyramid edges: normal = their sum, tangent j = mu_j (f_2j - f_2j+1)
+                e = f[a3[:, None] + np.arange(4)]
+                fn[three] = e.sum(axis=1)
+                ft[three, 0] = mu[three, 0] * (e[:, 0] - e[:, 1])
+                ft[three, 1] = mu[three, 1] * (e[:, 2] - e[:, 3])
+            else:  # elliptic: normal, tangent 1, tangent 2 in the contact frame
+                fn[three] = f[a3]
+                ft[three] = f[a3[:, None] + np.arange(1, 3)]
         # force on geom2's body along +normal (normal from geom1 to geom2)
         normal = frame[:, 0].copy()
         fric = ft[:, :1] * frame[:, 1] + ft[:, 1:2] * frame[:, 2]

@@ -83,6 +83,9 @@ def restitution_factors(model) -> np.ndarray:
 class PybulletRun:
     """One scene in pybullet: ``step(k)``, ``state()``, ``contacts(step)``, ``close()``."""
 
+    #: frame of the angular velocity ``state()`` returns (getBaseVelocity: world)
+    OMEGA_FRAME = "world"
+
     def __init__(self, scene, dt: float, options=()):
         try:
             import pybullet as pb
@@ -226,15 +229,15 @@ class PybulletRun:
             return None
         k = len(rows)
         idx = self.index
-        a = np.array([idx.get(c[1], -1) for c in rows], np.int64)
-        b = np.array([idx.get(c[2], -1) for c in rows], np.int64)
-        pa = np.array([c[5] for c in rows])
-        pb_ = np.array([c[6] for c in rows])
-        normal = np.array([c[7] for c in rows])  # on B, pointing towards A
-        dist = np.array([c[8] for c in rows])
-        fn = np.array([c[9] for c in rows])
-        fric = (np.array([c[10] for c in rows])[:, None] * np.array([c[11] for c in rows])
-                + np.array([c[12] for c in rows])[:, None] * np.array([c[13] for c in rows]))
+        cols = list(zip(*rows))  # one pass: columns of the contact tuples
+        a = np.array([idx.get(x, -1) for x in cols[1]], np.int64)
+        b = np.array([idx.get(x, -1) for x in cols[2]], np.int64)
+        pa, pb_ = np.array(cols[5]), np.array(cols[6])
+        normal = np.array(cols[7])  # on B, pointing towards A
+        dist = np.array(cols[8])
+        fn = np.array(cols[9])
+        fric = (np.array(cols[10])[:, None] * np.array(cols[11])
+                + np.array(cols[12])[:, None] * np.array(cols[13]))
         flip = a < 0
         a[flip], b[flip] = b[flip], a[flip]
         normal[flip] *= -1.0
