@@ -4,6 +4,7 @@ and what rblog's own run costs when it records through rblog.Recorder instead of
 
     python benchmarks/bench_engines.py [--engine mujoco --engine pybullet] [--scene NAME ...]
                                        [--duration S] [--runner-only | --no-runner]
+    python benchmarks/bench_engines.py --diff [--engine mujoco] [--scene NAME ...] [--png-dir D]
 
 Per scene and engine (best of --repeats, CPU time of this process):
 
@@ -12,6 +13,11 @@ Per scene and engine (best of --repeats, CPU time of this process):
   deriving, writing .rrd and .mcap;
 * ``record cost`` = recorded - step, and its ratio to step (target: <= 1, i.e. recording costs at
   most as much as the engine's own stepping).
+
+``--diff``: ``rblog diff`` of rblog's run (its defaults) against each engine's run of every sample
+(full duration, default log rate): the largest position and orientation divergence, how many
+bodies leave the default tolerances (1 cm, 0.1 rad) and when the first does, the median growth
+rate, and the final total energy of both. Not a timing: run it under the shared lock.
 
 Runner section: ``rblog.run`` of bench_logging's 100 free bodies logging every step to both formats,
 with the writers handed to the run directly vs each wrapped in an rblog.Recorder (what ``rblog run``
@@ -28,6 +34,8 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
 
 import rblog  # noqa: E402
 from rblog.record import McapRecorder, RerunRecorder  # noqa: E402
@@ -119,6 +127,34 @@ def runner_table(repeats, tmp):
     print(f"  Recorder / direct: {w / d:.3f}")
 
 
+def diff_table(engines, scenes, duration, tmp, png_dir=None):
+    from rblog.analyze.diff import diff, plot
+
+    print(f"{'scene':<16} {'vs':<9} {'bodies':>6} {'max |dx| m':>10} {'max angle':>9} "
+          f"{'leave tol':>9} {'first s':>8} {'growth 1/s':>10} {'E rblog J':>10} {'E engine J':>10}")
+    for name in scenes:
+        scene = rblog.load_scene(str(SAMPLES / f"{name}.toml"))
+        kw = {} if duration is None else {"duration": min(duration, scene.sim.duration)}
+        a_path = os.path.join(tmp, f"{name}-rblog.mcap")
+        rblog.run(scene, recorders=[McapRecorder(a_path)], **kw)
+        a = rblog.load(a_path)
+        for engine in engines:
+            b_path = os.path.join(tmp, f"{name}-{engine}.mcap")
+            run_engine(scene, engine, mcap=b_path, **kw)
+            r = diff(a, rblog.load(b_path), label_a=f"{name} rblog", label_b=f"{name} {engine}")
+            firsts = [b.first_exceed_t for b in r.bodies if b.first_exceed_t is not None]
+            rates = [b.growth_rate_per_s for b in r.bodies if b.growth_rate_per_s is not None]
+            e = r.totals["total_energy"]
+            print(f"{name:<16} {engine:<9} {len(r.bodies):>6} {r.position.max():>10.3g} "
+                  f"{r.angle.max():>9.3g} {r.n_exceed:>9} "
+                  f"{min(firsts) if firsts else float('nan'):>8.3g} "
+                  f"{float(np.median(rates)) if rates else float('nan'):>10.3g} "
+                  f"{e['a_last'][0]:>10.4g} {e['b_last'][0]:>10.4g}", flush=True)
+            if png_dir:
+                os.makedirs(png_dir, exist_ok=True)
+                plot(r, os.path.join(png_dir, f"{name}-rblog-vs-{engine}.png"))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--engine", action="append", choices=["mujoco", "pybullet"])
@@ -127,10 +163,14 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--runner-only", action="store_true")
     ap.add_argument("--no-runner", action="store_true")
+    ap.add_argument("--diff", action="store_true", help="rblog diff of rblog vs each engine instead")
+    ap.add_argument("--png-dir", help="with --diff: write each diff's plot here")
     a = ap.parse_args()
     engines = a.engine or ["mujoco", "pybullet"]
     scenes = a.scene or sorted(p.stem for p in SAMPLES.glob("*.toml"))
     with tempfile.TemporaryDirectory() as tmp:
+        if a.diff:
+            return diff_table(a.engine or ["mujoco"], scenes, a.duration, tmp, a.png_dir)
         if not a.runner_only:
             engines_table(engines, scenes, a.duration, a.repeats, tmp)
         if not a.no_runner:

@@ -5,8 +5,9 @@ common sample times (times equal to the nanosecond):
 
 * per body: the distance between the centres of mass ``|x_A - x_B|`` (m) and the angle between the
   orientations ``2 acos |q_A . q_B|`` (rad), their maxima and final values, the first time either
-  leaves its tolerance, and the growth rate: the least-squares slope of ``ln |x_A - x_B|`` over
-  time (1/s, an e-folding rate; samples below DIFF_FLOOR_M are round-off and left out);
+  leaves its tolerance, and the growth rates: the least-squares slopes of ``ln |x_A - x_B|`` and of
+  ``ln angle`` over time (1/s, e-folding rates; samples below DIFF_FLOOR_M / DIFF_FLOOR_RAD are
+  round-off and left out);
 * totals side by side: energy, linear and angular momentum of each log at the first and last
   common time, and their largest difference.
 
@@ -44,6 +45,8 @@ class BodyDiff:
     first_exceed_t: float | None
     #: slope of ln |x_A - x_B| over time (1/s), or None when there are too few samples
     growth_rate_per_s: float | None
+    #: slope of ln(angle) over time (1/s), or None
+    angle_growth_rate_per_s: float | None = None
 
 
 @dataclass
@@ -141,12 +144,9 @@ def diff(a: Trajectory, b: Trajectory, *, position_tol_m: float = T.DIFF_POSITIO
     for i, name in enumerate(a.model.body_name):
         out = (pos[:, i] > position_tol_m) | (ang[:, i] > angle_tol_rad)
         first = float(t[int(np.argmax(out))]) if out.any() else None
-        use = pos[:, i] > T.DIFF_FLOOR_M
-        rate = None
-        if use.sum() >= 3 and np.ptp(t[use]) > 0:
-            rate = float(np.polyfit(t[use], np.log(pos[use, i]), 1)[0])
+        rate, arate = _log_slope(t, pos[:, i], T.DIFF_FLOOR_M), _log_slope(t, ang[:, i], T.DIFF_FLOOR_RAD)
         bodies.append(BodyDiff(str(name), float(pos[:, i].max()), float(pos[-1, i]),
-                               float(ang[:, i].max()), float(ang[-1, i]), first, rate))
+                               float(ang[:, i].max()), float(ang[-1, i]), first, rate, arate))
     totals = {}
     for name in ("total_energy", "total_linear_momentum", "total_angular_momentum"):
         va, vb = np.asarray(getattr(a, name))[ia], np.asarray(getattr(b, name))[ib]
@@ -159,6 +159,14 @@ def diff(a: Trajectory, b: Trajectory, *, position_tol_m: float = T.DIFF_POSITIO
     return DiffReport(label_a, label_b, a.info.writer, b.info.writer, a.info.integrator,
                       b.info.integrator, float(a.info.dt), float(b.info.dt), t, pos, ang, bodies,
                       totals, position_tol_m, angle_tol_rad)
+
+
+def _log_slope(t, d, floor):
+    """Least-squares slope of ln d over t where d > floor (1/s), None with < 3 such samples."""
+    use = d > floor
+    if use.sum() < 3 or np.ptp(t[use]) <= 0:
+        return None
+    return float(np.polyfit(t[use], np.log(d[use]), 1)[0])
 
 
 def format_table(r: DiffReport, max_rows: int = 20) -> str:

@@ -172,3 +172,5 @@ DIFF_POSITION_M = 1e-2
 DIFF_ANGLE_RAD = 0.1
 #: divergences below this (m) are round-off and left out of the growth-rate fit.
 DIFF_FLOOR_M = 1e-9
+#: orientation differences below this (rad) likewise.
+DIFF_FLOOR_RAD = 1e-9

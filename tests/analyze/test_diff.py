@@ -53,6 +53,7 @@ def test_known_divergence():
     assert bb.first_exceed_t == pytest.approx(1.16, abs=0.006)  # first sample past ln(10)/2
     assert bb.first_exceed_t >= math.log(10) / 2
     assert bb.angle_max_rad == pytest.approx(0.05, rel=1e-9)
+    assert abs(bb.angle_growth_rate_per_s) < 1e-9  # a constant angle does not grow
     assert bb.position_final_m == pytest.approx(1e-3 * math.exp(6.0), rel=1e-9)
     assert not r.within and r.n_exceed == 1
     # totals side by side: B's body b moves along x like A's, so momentum is equal
