@@ -37,6 +37,7 @@ import numpy as np
 
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst
+from rblog.contract.orientation import quat_wxyz_to_matrix, rotvec_of_matrix  # noqa: F401
 from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Trajectory
 
 
@@ -52,38 +53,6 @@ class Issue:
     step: int
     t: float
     bodies: list[int]
-
-
-def quat_wxyz_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(..., 4) quaternions (scalar first, normalized here) -> (..., 3, 3) rotation matrices."""
-    q = np.asarray(q, np.float64)
-    n = np.linalg.norm(q, axis=-1, keepdims=True)
-    q = q / np.where(n > 0, n, 1.0)
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    out = np.empty(q.shape[:-1] + (3, 3))
-    out[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    out[..., 0, 1] = 2 * (x * y - w * z)
-    out[..., 0, 2] = 2 * (x * z + w * y)
-    out[..., 1, 0] = 2 * (x * y + w * z)
-    out[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    out[..., 1, 2] = 2 * (y * z - w * x)
-    out[..., 2, 0] = 2 * (x * z - w * y)
-    out[..., 2, 1] = 2 * (y * z + w * x)
-    out[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return out
-
-
-def rotvec_of_matrix(r: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotation matrices -> (..., 3) rotation vectors (axis * angle, angle in
-    [0, pi]); accurate for small angles (no arccos near 1)."""
-    v = 0.5 * np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0],
-                        r[..., 1, 0] - r[..., 0, 1]], axis=-1)
-    s = np.linalg.norm(v, axis=-1)
-    c = 0.5 * (np.trace(r, axis1=-2, axis2=-1) - 1.0)
-    ang = np.arctan2(s, c)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = np.where(s > 1e-300, ang / s, 1.0)
-    return v * scale[..., None]
 
 
 SMOOTH_FRAC = T.CONSISTENCY_SMOOTH_FRAC

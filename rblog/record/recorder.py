@@ -22,13 +22,13 @@ arrays in one call.
 
 from __future__ import annotations
 
-import math
 from dataclasses import fields
 
 import numpy as np
 
 from rblog import __version__
-from rblog.contract.model import SHAPE_BOX, SHAPE_CODES, SHAPE_SPHERE, Model
+from rblog.contract.model import SHAPE_CODES, SHAPE_SPHERE, Model
+from rblog.contract.orientation import matrix_to_quat, quat_wxyz_to_matrix
 from rblog.contract.trajectory import Contacts, RunInfo, Trajectory, derive
 from rblog.errors import RblogError
 from rblog.record import _common as C
@@ -108,39 +108,6 @@ def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, f
     )
 
 
-def quat_to_matrix(q_wxyz: np.ndarray) -> np.ndarray:
-    """(..., 4) scalar-first quaternions (normalized here) -> (..., 3, 3) body->world matrices."""
-    from rblog.analyze.consistency import quat_wxyz_to_matrix
-
-    return quat_wxyz_to_matrix(q_wxyz)
-
-
-def matrix_to_quat(r: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotation matrices -> (..., 4) unit quaternions, scalar first, w >= 0
-    (Shepperd's method: the largest of 4 w^2, 4 x^2, ... picks the stable branch)."""
-    r = np.asarray(r, np.float64)
-    tr = np.trace(r, axis1=-2, axis2=-1)
-    d = np.stack([tr, r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]], axis=-1)
-    k = np.argmax(d, axis=-1)
-    q = np.empty(r.shape[:-2] + (4,))
-    s0 = np.sqrt(np.maximum(1.0 + tr, 0.0)) * 2  # 4 w
-    s1 = np.sqrt(np.maximum(1.0 + r[..., 0, 0] - r[..., 1, 1] - r[..., 2, 2], 0.0)) * 2
-    s2 = np.sqrt(np.maximum(1.0 + r[..., 1, 1] - r[..., 0, 0] - r[..., 2, 2], 0.0)) * 2
-    s3 = np.sqrt(np.maximum(1.0 + r[..., 2, 2] - r[..., 0, 0] - r[..., 1, 1], 0.0)) * 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        c0 = np.stack([0.25 * s0, (r[..., 2, 1] - r[..., 1, 2]) / s0, (r[..., 0, 2] - r[..., 2, 0]) / s0,
-                       (r[..., 1, 0] - r[..., 0, 1]) / s0], -1)
-        c1 = np.stack([(r[..., 2, 1] - r[..., 1, 2]) / s1, 0.25 * s1, (r[..., 0, 1] + r[..., 1, 0]) / s1,
-                       (r[..., 0, 2] + r[..., 2, 0]) / s1], -1)
-        c2 = np.stack([(r[..., 0, 2] - r[..., 2, 0]) / s2, (r[..., 0, 1] + r[..., 1, 0]) / s2, 0.25 * s2,
-                       (r[..., 1, 2] + r[..., 2, 1]) / s2], -1)
-        c3 = np.stack([(r[..., 1, 0] - r[..., 0, 1]) / s3, (r[..., 0, 2] + r[..., 2, 0]) / s3,
-                       (r[..., 1, 2] + r[..., 2, 1]) / s3, 0.25 * s3], -1)
-    q = np.choose(k[..., None], [c0, c1, c2, c3])
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[..., :1] < 0, -q, q)
-
-
 _CONTACT_FIELDS = [f.name for f in fields(Contacts)]
 
 
@@ -210,7 +177,7 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
         raise RecordError("orientation: give quat_wxyz, quat_xyzw or rotation")
     if rotation is None:
         quat_wxyz = _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
-        rotation = quat_to_matrix(quat_wxyz)
+        rotation = quat_wxyz_to_matrix(quat_wxyz)
     else:
         rotation = _arr(rotation, "rotation", (T, n, 3, 3))
         quat_wxyz = matrix_to_quat(rotation) if quat_wxyz is None else _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
@@ -388,6 +355,9 @@ def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
     traj.warnings.extend(consistency_warnings(traj))
     return traj
 
+
+#: scalar-first quaternions -> body->world matrices (re-exported for writers)
+quat_to_matrix = quat_wxyz_to_matrix
 
 __all__ = ["Recorder", "RecordError", "body_table", "build_block", "make_contacts",
            "trajectory_from_arrays", "matrix_to_quat", "quat_to_matrix"]

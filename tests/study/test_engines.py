@@ -10,12 +10,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-import rblog
 from rblog.analyze import check
 from rblog.analyze.consistency import inspect
 from rblog.engine.scene import load_scene
 from rblog.record.reader import load
-from rblog.study.engines import EngineUnsupported, run_engine
+from rblog.study.engines import run_engine
 from tests.conftest import SAMPLES_DIR
 
 ENGINES = ("mujoco", "pybullet")

@@ -151,10 +151,9 @@ class MujocoRun:
             return f' contype="{bit[g]}" conaffinity="{bit[g] | 1}"'
 
         opt_attrs = " ".join(f'{k}="{v}"' for k, v in opts.items())
-        parts = [f'<mujoco model="rblog">',
+        parts = ['<mujoco model="rblog">',
                  f'<option timestep="{self.dt!r}" gravity="{_f(model.gravity)}" {opt_attrs}/>',
                  '<size memory="64M"/>', "<worldbody>"]
-        geoms = []  # (name, feature index)
         if model.ground:
             q = z_to(model.ground_normal)
             pos = np.asarray(model.ground_normal, float) / np.linalg.norm(model.ground_normal) \
