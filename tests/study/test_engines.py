@@ -4,6 +4,7 @@ translated with each engine's combine rule, and exit 2 for what an engine cannot
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -54,6 +55,14 @@ def _end_to_end(name, engine, tmp_path, duration):
         cons = results[0]
         assert cons.analyzer == "consistency" and cons.passed, cons.reason
     assert inspect(traj) == []
+    from rblog_cli.main import main
+
+    for path in (tmp_path / f"{name}-{engine}.rrd", tmp_path / f"{name}-{engine}.mcap"):
+        res = CliRunner().invoke(main, ["check", "--json", str(path)])
+        assert res.exit_code in (0, 1), res.output  # audited (verdicts on soft contacts: issue 16)
+        doc = json.loads(res.output)
+        assert doc["logs"][0]["results"][0]["analyzer"] == "consistency"
+        assert doc["logs"][0]["results"][0]["passed"] and doc["logs"][0]["warnings"] == []
 
 
 @pytest.mark.parametrize("engine", ENGINES)
