@@ -33,7 +33,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
+from numba import njit
 
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst
@@ -72,6 +75,11 @@ def _names(traj: Trajectory, bodies) -> str:
     return ", ".join(names) + more
 
 
+def _mv(m, v):
+    """(..., 3, 3) @ (..., 3) -> (..., 3) (matmul: much faster than einsum on big stacks)."""
+    return (m @ v[..., None])[..., 0]
+
+
 def _segment_distance(r, a, b):
     """|r - closest point of the segment [a, b]| over the last axis: an integrator's mean rate
     over an interval lies between the rates at its ends (explicit, semi-implicit, midpoint alike)
@@ -84,20 +92,53 @@ def _segment_distance(r, a, b):
     return np.linalg.norm(r - (a + s[..., None] * u), axis=-1)
 
 
+@njit(cache=True, nogil=True)
+def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, rel):
+    """rel[k, n] (T-1, N): distance of the rotation vector of R(k+1) R(k)^T over dt from the
+    segment [w(k), w(k+1)], relative to max(|mean w|, |rate|); NaN where the interval is not
+    usable (turns less than min_angle or more than 1.5 rad, or w jumps by more than smooth_frac
+    of it). One compiled pass (the numpy form of the same costs ~1 s on a 500-body pile log)."""
+    n_k, n_b = rel.shape
+    for k in range(n_k):
+        h = dts[k]
+        for b in range(n_b):
+            ra, rb = rot[k, b], rot[k + 1, b]
+            d = np.empty((3, 3))
+            for i in range(3):  # d = R(k+1) R(k)^T
+                for j in range(3):
+                    d[i, j] = rb[i, 0] * ra[j, 0] + rb[i, 1] * ra[j, 1] + rb[i, 2] * ra[j, 2]
+            vx = 0.5 * (d[2, 1] - d[1, 2])
+            vy = 0.5 * (d[0, 2] - d[2, 0])
+            vz = 0.5 * (d[1, 0] - d[0, 1])
+            sn = math.sqrt(vx * vx + vy * vy + vz * vz)
+            ang = math.atan2(sn, 0.5 * (d[0, 0] + d[1, 1] + d[2, 2] - 1.0))
+            f = ang / sn if sn > 1e-300 else 1.0
+            rx, ry, rz = vx * f / h, vy * f / h, vz * f / h
+            w0, w1 = omega[k, b], omega[k + 1, b]
+            ux, uy, uz = w1[0] - w0[0], w1[1] - w0[1], w1[2] - w0[2]
+            mx, my, mz = 0.5 * (w0[0] + w1[0]), 0.5 * (w0[1] + w1[1]), 0.5 * (w0[2] + w1[2])
+            scale = max(math.sqrt(mx * mx + my * my + mz * mz), math.sqrt(rx * rx + ry * ry + rz * rz))
+            jump = math.sqrt(ux * ux + uy * uy + uz * uz)
+            if not (scale * h > min_angle and scale * h < 1.5 and jump <= smooth_frac * scale):
+                rel[k, b] = np.nan
+                continue
+            uu = ux * ux + uy * uy + uz * uz
+            t = 0.0
+            if uu > 0:
+                t = ((rx - w0[0]) * ux + (ry - w0[1]) * uy + (rz - w0[2]) * uz) / uu
+                t = min(1.0, max(0.0, t))
+            ex, ey, ez = rx - (w0[0] + t * ux), ry - (w0[1] + t * uy), rz - (w0[2] + t * uz)
+            rel[k, b] = math.sqrt(ex * ex + ey * ey + ez * ez) / scale
+
+
 def _kinematic_median(rot, omega_world, dts, min_angle):
     """Per body: (median relative mismatch, usable interval count) between the rotation vector of
-    R(k+1) R(k)^T over dt and the mean logged world angular velocity. rot (T, N, 3, 3),
-    omega_world (T, N, 3), dts (T-1,)."""
-    d = np.einsum("knij,knlj->knil", rot[1:], rot[:-1])  # R(k+1) R(k)^T
-    rate = rotvec_of_matrix(d) / dts[:, None, None]
-    mean_w = 0.5 * (omega_world[1:] + omega_world[:-1])
-    scale = np.maximum(np.linalg.norm(mean_w, axis=-1), np.linalg.norm(rate, axis=-1))
-    jump = np.linalg.norm(omega_world[1:] - omega_world[:-1], axis=-1)
-    use = ((scale * dts[:, None] > min_angle) & (scale * dts[:, None] < 1.5)  # below aliasing
-           & (jump <= SMOOTH_FRAC * scale))  # no impulse (contact) inside the interval
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rel = _segment_distance(rate, omega_world[:-1], omega_world[1:]) / scale
-    rel = np.where(use, rel, np.nan)
+    R(k+1) R(k)^T over dt and the logged world angular velocity (see _kinematic_rel). rot
+    (T, N, 3, 3), omega_world (T, N, 3), dts (T-1,)."""
+    rel = np.empty((len(dts), rot.shape[1]))
+    _kinematic_rel(np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(omega_world, np.float64),
+                   np.ascontiguousarray(dts, np.float64), float(min_angle), float(SMOOTH_FRAC), rel)
+    use = ~np.isnan(rel)
     count = use.sum(axis=0)
     with np.errstate(all="ignore"):
         import warnings
@@ -149,8 +190,10 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
     keep = np.flatnonzero(finite)
     if len(keep) == 0:
         return out
-    sel = lambda a: np.asarray(a, float)[keep]  # noqa: E731
-    t, step = t[keep], step[keep]
+    whole = len(keep) == n_t
+    sel = lambda a: np.asarray(a, float) if whole else np.asarray(a, float)[keep]  # noqa: E731
+    if not whole:
+        t, step = t[keep], step[keep]
     rot, quat = sel(traj.rotation), sel(traj.quat_wxyz)
     omega, lw = sel(traj.angular_velocity), sel(traj.angular_momentum)
     vel, mom, pos = sel(traj.velocity), sel(traj.linear_momentum), sel(traj.position)
@@ -160,7 +203,7 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
 
     # quaternion vs matrix
     r_q = quat_wxyz_to_matrix(quat)
-    gram = np.einsum("knji,knjl->knil", rot, rot) - np.eye(3)
+    gram = np.swapaxes(rot, -1, -2) @ rot - np.eye(3)
     ortho = np.linalg.norm(gram, axis=(-2, -1))
     allow = tol["quat_matrix"] + 2.0 * ortho
     err = np.linalg.norm(r_q - rot, axis=(-2, -1))
@@ -198,8 +241,8 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
                          float(ratio.max()), tol["momentum_rel"], int(step[k]), float(t[k]), bodies))
 
     # w = R diag(1/I) R^T L (the contract's definition, also for a drifted R), i.e. L = I_world w
-    body_l = np.einsum("knji,knj->kni", rot, lw)
-    w_pred = np.einsum("knij,knj->kni", rot, body_l / inertia[None])
+    body_l = _mv(np.swapaxes(rot, -1, -2), lw)
+    w_pred = _mv(rot, body_l / inertia[None])
     dl = np.linalg.norm(omega - w_pred, axis=-1)
     scale_l = np.linalg.norm(omega, axis=-1) + np.linalg.norm(lw, axis=-1) / inertia.min(axis=-1)[None]
     rel_l = dl / np.maximum(scale_l, 1e-300)
@@ -232,7 +275,7 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
         bad = (count >= min_count) & (med > tol["kinematic_rel"])
         if bad.any():
             bodies = [int(b) for b in np.flatnonzero(bad)]
-            omega_as_body = np.einsum("knij,knj->kni", rot, omega)
+            omega_as_body = _mv(rot, omega)
             hyps = (
                 ("angular_velocity", "angular_velocity looks like body frame (world frame is "
                  "expected)", rot, omega_as_body),

@@ -194,8 +194,8 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
         angular_velocity = _arr(angular_velocity, "angular_velocity", (T, n, 3))
     if angular_momentum is None:
         inertia = np.asarray(model.body_inertia_diag, np.float64)
-        w_body = np.einsum("tnji,tnj->tni", rotation, angular_velocity)
-        lw = np.einsum("tnij,tnj->tni", rotation, inertia[None] * w_body)
+        w_body = (np.swapaxes(rotation, -1, -2) @ angular_velocity[..., None])[..., 0]
+        lw = (rotation @ (inertia[None] * w_body)[..., None])[..., 0]
     else:
         lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
     if isinstance(contacts, dict):
