@@ -40,7 +40,7 @@ from numba import njit
 
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst
-from rblog.contract.orientation import quat_wxyz_to_matrix, rotvec_of_matrix  # noqa: F401
+from rblog.contract.orientation import quat_wxyz_to_matrix
 from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Trajectory
 
 
@@ -93,7 +93,7 @@ def _segment_distance(r, a, b):
 
 
 @njit(cache=True, nogil=True)
-def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, rel):
+def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, corr, rel):
     """rel[k, n] (T-1, N): distance of the rotation vector of R(k+1) R(k)^T over dt from the
     segment [w(k), w(k+1)], relative to max(|mean w|, |rate|); NaN where the interval is not
     usable (turns less than min_angle or more than 1.5 rad, or w jumps by more than smooth_frac
@@ -128,7 +128,89 @@ def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, rel):
                 t = ((rx - w0[0]) * ux + (ry - w0[1]) * uy + (rz - w0[2]) * uz) / uu
                 t = min(1.0, max(0.0, t))
             ex, ey, ez = rx - (w0[0] + t * ux), ry - (w0[1] + t * uy), rz - (w0[2] + t * uz)
-            rel[k, b] = math.sqrt(ex * ex + ey * ey + ez * ez) / scale
+            rel[k, b] = math.sqrt(ex * ex + ey * ey + ez * ez) / (scale + corr / h)
+
+
+@njit(cache=True, nogil=True)
+def _linear_rel(pos, vel, dts, min_move, smooth_frac, acc, corr, rel):
+    """rel[k, n]: distance of (x(k+1) - x(k)) / dt from the segment [v(k), v(k+1)], relative to
+    max(|mean v|, |rate|) + acc dt + corr / dt; NaN where not usable (moves less than min_move,
+    or v jumps by more than smooth_frac of it plus acc dt)."""
+    n_k, n_b = rel.shape
+    for k in range(n_k):
+        h = dts[k]
+        for b in range(n_b):
+            x0, x1, v0, v1 = pos[k, b], pos[k + 1, b], vel[k, b], vel[k + 1, b]
+            rx, ry, rz = (x1[0] - x0[0]) / h, (x1[1] - x0[1]) / h, (x1[2] - x0[2]) / h
+            ux, uy, uz = v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]
+            mx, my, mz = 0.5 * (v0[0] + v1[0]), 0.5 * (v0[1] + v1[1]), 0.5 * (v0[2] + v1[2])
+            scale = max(math.sqrt(mx * mx + my * my + mz * mz), math.sqrt(rx * rx + ry * ry + rz * rz))
+            uu = ux * ux + uy * uy + uz * uz
+            if not (scale * h > min_move and math.sqrt(uu) <= smooth_frac * scale + acc[b] * h):
+                rel[k, b] = np.nan
+                continue
+            t = 0.0
+            if uu > 0:
+                t = ((rx - v0[0]) * ux + (ry - v0[1]) * uy + (rz - v0[2]) * uz) / uu
+                t = min(1.0, max(0.0, t))
+            ex, ey, ez = rx - (v0[0] + t * ux), ry - (v0[1] + t * uy), rz - (v0[2] + t * uz)
+            rel[k, b] = math.sqrt(ex * ex + ey * ey + ez * ez) / (scale + acc[b] * h + corr / h)
+
+
+@njit(cache=True, nogil=True)
+def _pointwise(quat, rot, mom, vel, omega, lw, mass, inertia, err_qm, ortho, dp, p_mag, rel_l,
+               l_scale):
+    """Per sample and body: ||R(q/|q|) - R||_F, ||R^T R - I||_F, |p - m v|, |p|,
+    |w - R diag(1/I) R^T L| / (|w| + |L| / I_min) and that scale."""
+    n_t, n_b = err_qm.shape
+    rq = np.empty((3, 3))
+    for k in range(n_t):
+        for b in range(n_b):
+            q = quat[k, b]
+            nq = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+            if nq == 0.0:
+                nq = 1.0
+            w, x, y, z = q[0] / nq, q[1] / nq, q[2] / nq, q[3] / nq
+            rq[0, 0] = 1 - 2 * (y * y + z * z)
+            rq[0, 1] = 2 * (x * y - w * z)
+            rq[0, 2] = 2 * (x * z + w * y)
+            rq[1, 0] = 2 * (x * y + w * z)
+            rq[1, 1] = 1 - 2 * (x * x + z * z)
+            rq[1, 2] = 2 * (y * z - w * x)
+            rq[2, 0] = 2 * (x * z - w * y)
+            rq[2, 1] = 2 * (y * z + w * x)
+            rq[2, 2] = 1 - 2 * (x * x + y * y)
+            r = rot[k, b]
+            e = 0.0
+            g = 0.0
+            for i in range(3):
+                for j in range(3):
+                    d = rq[i, j] - r[i, j]
+                    e += d * d
+                    gij = r[0, i] * r[0, j] + r[1, i] * r[1, j] + r[2, i] * r[2, j]
+                    if i == j:
+                        gij -= 1.0
+                    g += gij * gij
+            err_qm[k, b] = math.sqrt(e)
+            ortho[k, b] = math.sqrt(g)
+            m = mass[b]
+            p, v = mom[k, b], vel[k, b]
+            a0, a1, a2 = p[0] - m * v[0], p[1] - m * v[1], p[2] - m * v[2]
+            dp[k, b] = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+            p_mag[k, b] = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+            l_ = lw[k, b]
+            om = omega[k, b]
+            b0 = (r[0, 0] * l_[0] + r[1, 0] * l_[1] + r[2, 0] * l_[2]) / inertia[b, 0]
+            b1 = (r[0, 1] * l_[0] + r[1, 1] * l_[1] + r[2, 1] * l_[2]) / inertia[b, 1]
+            b2 = (r[0, 2] * l_[0] + r[1, 2] * l_[1] + r[2, 2] * l_[2]) / inertia[b, 2]
+            c0 = om[0] - (r[0, 0] * b0 + r[0, 1] * b1 + r[0, 2] * b2)
+            c1 = om[1] - (r[1, 0] * b0 + r[1, 1] * b1 + r[1, 2] * b2)
+            c2 = om[2] - (r[2, 0] * b0 + r[2, 1] * b1 + r[2, 2] * b2)
+            imin = min(inertia[b, 0], min(inertia[b, 1], inertia[b, 2]))
+            sc = (math.sqrt(om[0] * om[0] + om[1] * om[1] + om[2] * om[2])
+                  + math.sqrt(l_[0] * l_[0] + l_[1] * l_[1] + l_[2] * l_[2]) / imin)
+            l_scale[k, b] = sc
+            rel_l[k, b] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / max(sc, 1e-300)
 
 
 def _kinematic_median(rot, omega_world, dts, min_angle):
@@ -137,7 +219,8 @@ def _kinematic_median(rot, omega_world, dts, min_angle):
     (T, N, 3, 3), omega_world (T, N, 3), dts (T-1,)."""
     rel = np.empty((len(dts), rot.shape[1]))
     _kinematic_rel(np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(omega_world, np.float64),
-                   np.ascontiguousarray(dts, np.float64), float(min_angle), float(SMOOTH_FRAC), rel)
+                   np.ascontiguousarray(dts, np.float64), float(min_angle), float(SMOOTH_FRAC),
+                   float(T.CONSISTENCY_CORRECTION), rel)
     use = ~np.isnan(rel)
     count = use.sum(axis=0)
     with np.errstate(all="ignore"):
@@ -160,10 +243,12 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
     t, step = np.asarray(traj.t, float), np.asarray(traj.step)
 
     # finite values
+    finite = np.ones(n_t, bool)
     for name in BODY_CHANNELS:
         a = np.asarray(getattr(traj, name), float).reshape(n_t, n, -1)
         bad = ~np.isfinite(a).all(axis=-1)
         if bad.any():
+            finite &= ~bad.any(axis=1)
             k, bodies = _first(bad)
             out.append(Issue("finite", name, f"{name} is not finite from step {int(step[k])} "
                              f"(t = {t[k]:.6g} s) for {_names(traj, bodies)}", float("inf"), 0.0,
@@ -172,6 +257,8 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
         a = np.asarray(getattr(traj, name), float).reshape(n_t, -1)
         bad = ~np.isfinite(a).all(axis=-1)
         if bad.any():
+            if name == "t":
+                finite &= ~bad
             k = int(np.argmax(bad))
             out.append(Issue("finite", name, f"{name} is not finite from sample {k}", float("inf"),
                              0.0, int(step[k]), float(t[k]) if np.isfinite(t[k]) else 0.0, []))
@@ -183,10 +270,6 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
             out.append(Issue("time", name, f"{name} does not increase at sample {k} "
                              f"({a[k - 1]!r} then {a[k]!r}): samples out of order or repeated",
                              float(a[k - 1] - a[k]), 0.0, int(step[k]), float(t[k]), []))
-    finite = np.isfinite(traj.position).all(axis=(1, 2)) & np.isfinite(traj.rotation).all(axis=(1, 2, 3)) \
-        & np.isfinite(traj.quat_wxyz).all(axis=(1, 2)) & np.isfinite(traj.angular_velocity).all(axis=(1, 2)) \
-        & np.isfinite(traj.velocity).all(axis=(1, 2)) & np.isfinite(traj.linear_momentum).all(axis=(1, 2)) \
-        & np.isfinite(traj.angular_momentum).all(axis=(1, 2))
     keep = np.flatnonzero(finite)
     if len(keep) == 0:
         return out
@@ -201,16 +284,18 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
     mass = np.asarray(model.body_mass, float)
     inertia = np.asarray(model.body_inertia_diag, float)
 
-    # quaternion vs matrix
-    r_q = quat_wxyz_to_matrix(quat)
-    gram = np.swapaxes(rot, -1, -2) @ rot - np.eye(3)
-    ortho = np.linalg.norm(gram, axis=(-2, -1))
+    # quaternion vs matrix, p = m v, w = R diag(1/I) R^T L: one compiled pass
+    shape = (len(t), n)
+    err, ortho, dp, p_mag, rel_l, scale_l = (np.empty(shape) for _ in range(6))
+    c = np.ascontiguousarray
+    _pointwise(c(quat), c(rot), c(mom), c(vel), c(omega), c(lw), c(mass), c(inertia), err, ortho,
+               dp, p_mag, rel_l, scale_l)
     allow = tol["quat_matrix"] + 2.0 * ortho
-    err = np.linalg.norm(r_q - rot, axis=(-2, -1))
     bad_qm = err > allow
     if bad_qm.any():
         bodies = [int(b) for b in np.flatnonzero(bad_qm.any(axis=0))]
         k, _ = _first(bad_qm)
+        r_q = quat_wxyz_to_matrix(quat)
         err_xyzw = np.linalg.norm(quat_wxyz_to_matrix(quat[..., _XYZW_AS_WXYZ]) - rot, axis=(-2, -1))
         err_tr = np.linalg.norm(r_q - np.swapaxes(rot, -1, -2), axis=(-2, -1))
         sub = bad_qm.any(axis=0)
@@ -227,30 +312,24 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
                          tol["quat_matrix"], int(step[k]), float(t[k]), bodies))
 
     # p = m v
-    dp = np.linalg.norm(mom - mass[None, :, None] * vel, axis=-1)
-    scale_p = tol["momentum_rel"] * np.linalg.norm(mom, axis=-1) + 1e-12
+    scale_p = tol["momentum_rel"] * p_mag + 1e-12
     bad = dp > scale_p
     if bad.any():
         k, _ = _first(bad)
         bodies = [int(b) for b in np.flatnonzero(bad.any(axis=0))]
-        ratio = dp / np.maximum(np.linalg.norm(mom, axis=-1), 1e-300)
+        ratio = dp / np.maximum(p_mag, 1e-300)
         out.append(Issue("momentum", "linear_momentum",
                          f"linear_momentum is not mass * velocity (relative error up to "
                          f"{float(ratio.max()):.3g}) for {_names(traj, bodies)}: velocity or "
                          "momentum in another frame or unit, or the body table's mass differs",
                          float(ratio.max()), tol["momentum_rel"], int(step[k]), float(t[k]), bodies))
 
-    # w = R diag(1/I) R^T L (the contract's definition, also for a drifted R), i.e. L = I_world w
-    body_l = _mv(np.swapaxes(rot, -1, -2), lw)
-    w_pred = _mv(rot, body_l / inertia[None])
-    dl = np.linalg.norm(omega - w_pred, axis=-1)
-    scale_l = np.linalg.norm(omega, axis=-1) + np.linalg.norm(lw, axis=-1) / inertia.min(axis=-1)[None]
-    rel_l = dl / np.maximum(scale_l, 1e-300)
     bad = (rel_l > tol["angular_momentum_rel"]) & (scale_l > 1e-12)
     if bad.any():
         k, _ = _first(bad)
         bodies = [int(b) for b in np.flatnonzero(bad.any(axis=0))]
         # would a body-frame w explain it? w_logged = diag(1/I) R^T L
+        body_l = _mv(np.swapaxes(rot, -1, -2), lw)
         rel_b = np.linalg.norm(omega - body_l / inertia[None], axis=-1) / np.maximum(scale_l, 1e-300)
         sub = bad.any(axis=0)
         if (rel_b[:, sub][bad[:, sub]] <= tol["angular_momentum_rel"]).all():
@@ -302,15 +381,10 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
         # position vs velocity: allow one sample's change of velocity by gravity and loads
         g = np.linalg.norm(np.asarray(model.gravity, float))
         acc = g + np.linalg.norm(np.asarray(model.body_force_world, float), axis=-1) / mass
-        rate = (pos[1:] - pos[:-1]) / dts[:, None, None]
-        mean_v = 0.5 * (vel[1:] + vel[:-1])
-        scale = np.maximum(np.linalg.norm(mean_v, axis=-1), np.linalg.norm(rate, axis=-1))
-        jump = np.linalg.norm(vel[1:] - vel[:-1], axis=-1)
-        use = ((scale * dts[:, None] > min_angle * 1.0)  # m: see CONSISTENCY_MIN_ANGLE_RAD
-               & (jump <= SMOOTH_FRAC * scale + acc[None] * dts[:, None]))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rel = _segment_distance(rate, vel[:-1], vel[1:]) / (scale + acc[None] * dts[:, None])
-        rel = np.where(use, rel, np.nan)
+        rel = np.empty((len(dts), n))
+        _linear_rel(c(pos), c(vel), c(dts), float(min_angle) * 1.0, float(SMOOTH_FRAC), c(acc),
+                    float(T.CONSISTENCY_CORRECTION), rel)  # min_angle in m: see the tolerance
+        use = ~np.isnan(rel)
         cnt = use.sum(axis=0)
         import warnings
 

@@ -161,6 +161,11 @@ CONSISTENCY_MIN_ANGLE_RAD = 1e-4
 #: (a contact) and are left out of the kinematic checks (dimensionless; a pile of 500 boxes
 #: otherwise shows a median mismatch of 0.27 from its collisions alone).
 CONSISTENCY_SMOOTH_FRAC = 0.25
+#: position correction an engine may apply without a velocity (split impulse, projection of
+#: penetrating contacts), per sample interval: 1e-3 rad of turn or 1e-3 m of shift are allowed on
+#: top of the relative mismatch (a box in rblog's 500-box pile turns ~1e-3 rad per 10 ms
+#: interval by projection alone while nearly at rest; the faults above give O(|w| dt)).
+CONSISTENCY_CORRECTION = 1e-3
 #: a body needs this many usable intervals before its kinematic median is judged (count).
 CONSISTENCY_MIN_INTERVALS_SAMPLES = 5
 
