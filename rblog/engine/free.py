@@ -9,7 +9,9 @@ Samples are written after every ``stride``-th step (and after the last step of t
 ``sample_last``), so logging costs nothing between samples.
 
 Threads: :func:`advance_free` splits the bodies into contiguous ranges, one per thread
-(``numba.get_num_threads()``, set by NUMBA_NUM_THREADS or ``numba.set_num_threads``), and runs the
+(``numba.config.NUMBA_NUM_THREADS``: the environment variable NUMBA_NUM_THREADS, by default
+every core; numba's own threading layer is not started, as starting it changes how the process
+takes SIGINT), and runs the
 compiled :func:`advance_free_range` on each from a pool of Python threads (the kernel releases
 the GIL). A body's arithmetic does not depend on which range it is in, so the result is bitwise
 the same for any thread count; one compiled specialisation serves every count.
@@ -84,11 +86,11 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
                  out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                  out_angular_momentum, n_threads=None):
     """Advance all bodies ``n_steps`` steps of ``dt`` on ``n_threads`` threads (default
-    ``numba.get_num_threads()``); arguments and result as :func:`advance_free_range` over all
+    ``numba.config.NUMBA_NUM_THREADS``); arguments and result as :func:`advance_free_range` over all
     bodies, bitwise the same for any thread count."""
     n = position.shape[0]
     if n_threads is None:
-        n_threads = numba.get_num_threads()
+        n_threads = numba.config.NUMBA_NUM_THREADS
     ranges = body_ranges(n, n_threads) if n * n_steps >= MIN_PARALLEL_BODY_STEPS else [(0, n)]
     args = (method, ortho, dt, n_steps, stride, sample_last, inv_mass, inv_inertia, force_world,
             torque_world, position, linear_momentum, quat_wxyz, rotation, angular_momentum,

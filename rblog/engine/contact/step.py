@@ -29,6 +29,10 @@ contact solvers need the velocity that the drift will use. Torques are kicks too
 
 Samples follow free.advance_free: after every ``stride``-th step and after the last step when
 ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.
+
+Why this module is long: the step is one compiled function whose stages are inlined wrappers
+that must live beside it (numba inlines them into world_advance), and ``--profile`` times each
+stage inside it (profile.py), which adds a clock read after every stage.
 """
 
 from __future__ import annotations
