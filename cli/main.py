@@ -91,11 +91,13 @@ def validate(scene):
               help="Log at HZ samples per simulated second (default 100).")
 @click.option("--spawn", is_flag=True, help="Also stream to a new Rerun viewer.")
 @click.option("--connect", "connect_url", help="Also stream to a running Rerun viewer at this URL.")
-@click.option("--explain", is_flag=True, help="Print the stages chosen for this scene and why.")
+@click.option("--explain", is_flag=True,
+              help="Print the stages chosen for this scene and why, then exit (add --run to run).")
+@click.option("--run", "run_too", is_flag=True, help="With --explain: run the scene afterwards.")
 @click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
 def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compression, no_log,
-        log_every, log_rate, spawn, connect_url, explain, all_stages, as_json):
+        log_every, log_rate, spawn, connect_url, explain, run_too, all_stages, as_json):
     """Simulate SCENE (a .toml file) and record it."""
     from rblog.engine.scene import load_scene
     from rblog.engine.runner import run as run_scene
@@ -103,8 +105,15 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
 
     if log_every is not None and log_rate is not None:
         _fail(RblogError("give --log-every or --log-rate, not both"))
+    if run_too and not explain:
+        _fail(RblogError("--run goes with --explain (a plain `rblog run` runs already)"))
     try:
         s = load_scene(scene)
+        for w in s.warnings:
+            click.echo(f"rblog: warning: {w}", err=True)
+        # every output is checked before the kernels compile (which can take ~10 s)
+        recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression,
+                                      check_only=True)
         if explain:
             plan = plan_stages(s, duration or s.sim.duration, force_contacts=all_stages)
             if plan.contacts:
@@ -114,9 +123,10 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
                 plan.make_contact_world(METHOD_CODES[integ], ORTHO_CODES[ORTHO_ALLOWED[integ][1]])
             for stage, why in plan.stages:
                 click.echo(f"{stage:<28} {why}", err=as_json)
+            if not run_too:
+                return
         recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression)
         prog = _Progress(enabled=sys.stderr.isatty())
-        _sigterm_as_interrupt()
         try:
             summary = run_scene(
                 s, dt=dt, duration=duration, integrator=integrator, orthonormalize=orthonormalize,
@@ -235,26 +245,37 @@ def _print_report(path, traj, results):
             click.echo(f"       {r.reason}")
 
 
-def _sigterm_as_interrupt():
-    """Let `kill` (SIGTERM) stop a run like Ctrl-C does, so the logs are finalized."""
-    import signal
-
-    def handler(signum, frame):
-        raise KeyboardInterrupt
-
-    try:
-        signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread (e.g. embedded use)
-        pass
-
-
-def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="lz4"):
-    """The log writers asked for; by default SCENE-STEM.rrd and SCENE-STEM.mcap in the cwd."""
+def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="lz4",
+               check_only=False):
+    """The log writers asked for; by default SCENE-STEM.rrd and SCENE-STEM.mcap in the cwd.
+    With ``check_only``, only check the outputs (same path twice, a folder that is missing or
+    not writable, a viewer URL nobody listens at) and return ([], paths)."""
     if no_log and (rrd or mcap):
         raise RblogError("--no-log contradicts --rrd/--mcap")
     if not (rrd or mcap or no_log):
         stem = Path(scene).stem
         rrd, mcap = f"{stem}.rrd", f"{stem}.mcap"
+    if check_only:
+        import os
+        from rblog.errors import LogWriteError
+
+        if rrd and mcap and Path(rrd).resolve() == Path(mcap).resolve():
+            raise RblogError(f"--rrd and --mcap name the same file {rrd!r} (expected two paths)")
+        for p in (rrd, mcap):
+            if not p:
+                continue
+            parent = Path(p).resolve().parent
+            if Path(p).is_dir():
+                raise LogWriteError(p, "is a directory (expected a file path)")
+            if not parent.is_dir():
+                raise LogWriteError(p, f"folder {str(parent)!r} does not exist")
+            if not os.access(parent, os.W_OK) or (Path(p).exists() and not os.access(p, os.W_OK)):
+                raise LogWriteError(p, "permission denied")
+        if connect_url:
+            from rblog.record.rerun_writer import check_viewer_reachable
+
+            check_viewer_reachable(connect_url)
+        return [], [p for p in (rrd, mcap) if p]
     recorders, paths = [], []
     if rrd or spawn or connect_url:
         from rblog.record.rerun_writer import RerunRecorder

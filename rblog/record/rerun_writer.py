@@ -24,7 +24,7 @@ from rblog.record import _common as C
 
 #: the file sink is flushed (blocking) at most this often (wall s); the SDK also flushes on its
 #: own every 200 ms or 1 MiB
-FLUSH_EVERY_S = 1.0
+FLUSH_EVERY_S = 0.5
 #: The .rrd footer (a manifest of every chunk, for random access) is held in memory until the
 #: file is closed: ~7 KB per chunk, and a block costs at most CHUNKS_PER_BLOCK chunks. A run expected
 #: to log more chunks than this is written without footer (still a valid .rrd; the viewer and
@@ -121,9 +121,18 @@ class RerunRecorder:
                                     default_blueprint=_blueprint(model, info))
                 self._streams.append(self._rec)
             url = self.connect_url
+            if url:
+                check_viewer_reachable(url)
             if self.spawn:
                 rr.spawn(port=SPAWN_PORT, connect=False)
-                url = url or f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"
+                spawned = f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"
+                try:
+                    check_viewer_reachable(spawned, wait_s=VIEWER_SPAWN_WAIT_S)
+                except LogWriteError:
+                    raise LogWriteError("--spawn", "the Rerun viewer did not start (is a display "
+                                        f"available?); nothing listens on 127.0.0.1:{SPAWN_PORT} "
+                                        f"after {VIEWER_SPAWN_WAIT_S:g} s") from None
+                url = url or spawned
             if url:
                 self._live = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
                 self._live.set_sinks(rr.GrpcSink(url), default_blueprint=_blueprint(model, info))
@@ -408,3 +417,32 @@ def _blueprint(model: Model, info: RunInfo) -> rrb.Blueprint:
             column_shares=[3, 2],
         ),
     )
+
+
+#: how long --spawn waits for the new viewer to listen (s)
+VIEWER_SPAWN_WAIT_S = 5.0
+#: how long a --connect check waits for the viewer's TCP port (s)
+VIEWER_CONNECT_TIMEOUT_S = 1.0
+
+
+def check_viewer_reachable(url: str, wait_s: float = 0.0) -> None:
+    """Raise LogWriteError unless something accepts TCP connections at ``url``'s host:port
+    (``rerun+http://host:port/proxy``). The SDK's gRPC sink connects lazily and never reports a
+    dead address, so a typo'd port would otherwise stream into the void and exit 0."""
+    import socket
+    import time
+    from urllib.parse import urlparse
+
+    u = urlparse(url.replace("rerun+", "", 1))
+    if not u.hostname or not u.port:
+        raise LogWriteError(url, "expected a viewer URL like rerun+http://127.0.0.1:9876/proxy")
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            with socket.create_connection((u.hostname, u.port), timeout=VIEWER_CONNECT_TIMEOUT_S):
+                return
+        except OSError as e:
+            if time.monotonic() >= deadline:
+                raise LogWriteError(url, f"no Rerun viewer listens at {u.hostname}:{u.port} "
+                                    f"({e.strerror or e})") from None
+            time.sleep(0.1)
