@@ -165,7 +165,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
 def check(logs, only, skip, tols, list_only, as_json):
     """Audit saved logs (.rrd or .mcap): rigidity, collision momentum, resting-contact
     penetration, energy, tunneling. Exit 0 when clean, 1 when something is flagged, 2 when a file
-    cannot be read."""
+    cannot be read, 4 when a log holds too few samples to judge (never reported clean)."""
     from rblog.analyze import ANALYZERS, check as run_checks
     from rblog.record.reader import load
     from rblog.engine.runner import CompileNotice
@@ -191,7 +191,7 @@ def check(logs, only, skip, tols, list_only, as_json):
         if not eq or key.split(".")[0] not in names:
             _fail(RblogError(f"--tol {t}: expected ANALYZER.NAME=NUMBER with ANALYZER one of "
                              f"{', '.join(sorted(names))}"))
-    report, flagged = [], False
+    report, flagged, unjudged = [], False, False
     for path in logs:
         try:
             traj = load(path)
@@ -202,6 +202,10 @@ def check(logs, only, skip, tols, list_only, as_json):
         for w in traj.warnings:
             click.echo(f"rblog: warning: {path}: {w}", err=True)
         flagged |= any(not r.passed and not r.skipped for r in results)
+        if traj.n_samples < MIN_SAMPLES_TO_JUDGE:
+            unjudged = True
+            click.echo(f"rblog: warning: {path}: not judged: {traj.n_samples} sample(s), an audit "
+                       f"needs at least {MIN_SAMPLES_TO_JUDGE}", err=True)
         report.append({"log": path, "samples": traj.n_samples, "bodies": traj.n_bodies,
                        "truncated": traj.truncated, "warnings": list(traj.warnings),
                        "results": [r.to_dict(traj.model) for r in results]})
@@ -209,7 +213,13 @@ def check(logs, only, skip, tols, list_only, as_json):
             _print_report(path, traj, results)
     if as_json:
         click.echo(json.dumps({"logs": report, "passed": not flagged}, indent=1))
-    sys.exit(1 if flagged else 0)
+    sys.exit(1 if flagged else (EXIT_NOT_JUDGED if unjudged else 0))
+
+
+#: `rblog check` exit code for a log too short to judge (neither clean nor flagged)
+EXIT_NOT_JUDGED = 4
+#: the fewest samples an audit can judge (drifts and rates need two)
+MIN_SAMPLES_TO_JUDGE = 2
 
 
 def _names(csv, known, opt):

@@ -124,7 +124,11 @@ class RerunRecorder:
             if url:
                 check_viewer_reachable(url)
             if self.spawn:
-                rr.spawn(port=SPAWN_PORT, connect=False)
+                # spawn through a stream of ours: rr.spawn() without one is silently ignored
+                # ("Rerun is disabled") because rblog never creates the global recording
+                self._spawner = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
+                rr.spawn(port=SPAWN_PORT, connect=False, recording=self._spawner,
+                         executable_path=_viewer_executable())
                 spawned = f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"
                 try:
                     check_viewer_reachable(spawned, wait_s=VIEWER_SPAWN_WAIT_S)
@@ -446,3 +450,17 @@ def check_viewer_reachable(url: str, wait_s: float = 0.0) -> None:
                 raise LogWriteError(url, f"no Rerun viewer listens at {u.hostname}:{u.port} "
                                     f"({e.strerror or e})") from None
             time.sleep(0.1)
+
+
+def _viewer_executable() -> str | None:
+    """The ``rerun`` viewer on PATH, else the one installed beside this Python (a venv used
+    without activating it), else None (the SDK then reports it missing)."""
+    import shutil
+    import sys
+    from pathlib import Path
+
+    found = shutil.which("rerun")
+    if found:
+        return found
+    beside = Path(sys.executable).with_name("rerun")
+    return str(beside) if beside.exists() else None
