@@ -585,25 +585,55 @@ def _once(fn):
     return call
 
 
+_DONE = object()
+
+
 class CompileNotice:
-    """Context manager: calls ``notice(msg)`` once if the block inside takes longer than
-    COMPILE_NOTICE_AFTER_S (numba compiling kernels on a first run)."""
+    """Context manager: calls ``notice(msg)`` once if numba starts compiling a kernel inside the
+    block and the block has not ended COMPILE_NOTICE_AFTER_S later. A block that is merely slow
+    (a long analysis with every kernel cached) prints nothing: the timer starts on numba's own
+    ``numba:compile`` event, not on entry."""
 
     def __init__(self, notice):
         self.notice = notice
         self.timer = None
+        self._listener = None
+        self._lock = threading.Lock()
+
+    def _compiling(self):
+        with self._lock:
+            if self.timer is None and self.notice is not None:
+                self.timer = threading.Timer(
+                    COMPILE_NOTICE_AFTER_S, self.notice,
+                    ("compiling kernels (first run only; cached afterwards)...",))
+                self.timer.daemon = True
+                self.timer.start()
 
     def __enter__(self):
         if self.notice is not None:
-            self.timer = threading.Timer(
-                COMPILE_NOTICE_AFTER_S, self.notice,
-                ("compiling kernels (first run only; cached afterwards)...",))
-            self.timer.daemon = True
-            self.timer.start()
+            from numba.core import event
+
+            outer = self
+
+            class _OnCompile(event.Listener):
+                def on_start(self, ev):
+                    outer._compiling()
+
+                def on_end(self, ev):
+                    pass
+
+            self._listener = _OnCompile()
+            event.register("numba:compile", self._listener)
         return self
 
     def __exit__(self, *exc):
-        if self.timer is not None:
-            self.timer.cancel()
-            self.timer = None
+        if self._listener is not None:
+            from numba.core import event
+
+            event.unregister("numba:compile", self._listener)
+            self._listener = None
+        with self._lock:
+            if self.timer is not None and self.timer is not _DONE:
+                self.timer.cancel()
+            self.timer = _DONE  # no notice after the block
         return False
