@@ -70,6 +70,8 @@ def validate(scene):
         s = load_scene(scene)
     except RblogError as e:
         _fail(e)
+    for w in s.warnings:
+        click.echo(f"rblog: warning: {w}", err=True)
     click.echo(f"{scene}: ok ({s.model.n_bodies} bodies, {s.sim.n_steps} steps of "
                f"{s.sim.dt:g} s, integrator {s.sim.integrator})")
 
