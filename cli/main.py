@@ -123,6 +123,8 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
 
                 integ = integrator or s.sim.integrator
                 plan.make_contact_world(METHOD_CODES[integ], ORTHO_CODES[ORTHO_ALLOWED[integ][1]])
+                for w in plan.warnings:
+                    click.echo(f"rblog: warning: {w}", err=True)
             for stage, why in plan.stages:
                 click.echo(f"{stage:<28} {why}", err=as_json)
             if not run_too:
@@ -133,7 +135,8 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
             summary = run_scene(
                 s, dt=dt, duration=duration, integrator=integrator, orthonormalize=orthonormalize,
                 log_every=log_every, log_rate=log_rate, recorders=recorders, progress=prog,
-                notice=lambda m: click.echo(m, err=True), force_contacts=all_stages)
+                notice=lambda m: click.echo(m, err=True), force_contacts=all_stages,
+                warn=lambda m: click.echo(f"rblog: warning: {m}", err=True))
         finally:
             prog.close()
     except RblogError as e:

@@ -78,6 +78,13 @@ MAX_BODIES = 10_000_000
 #: Approximate bytes of memory per body while loading and running a scene (body dict while
 #: parsing ~1.5 kB, model + state + sample buffers ~0.6 kB), for the "needs N GB" message.
 BYTES_PER_BODY_ESTIMATE = 2_000
+#: Bodies that start interpenetrating deeper than this (m) are reported with a warning (the
+#: solver pushes them apart violently in the first steps). Bodies stacked exactly touching
+#: measure ~1e-16 m.
+OVERLAP_WARN_DEPTH_M = 1e-6
+#: At most this many bounding-sphere candidates are measured for the overlap warning (each is a
+#: narrowphase call on a two-body model); the rest are counted, not measured.
+OVERLAP_CHECK_MAX_PAIRS = 256
 
 
 # --- contact pipeline ----------------------------------------------------------------------

@@ -185,11 +185,13 @@ def run(
     progress: Callable[[int, int], None] | None = None,
     notice: Callable[[str], None] | None = None,
     force_contacts: bool = False,
+    warn: Callable[[str], None] | None = None,
 ) -> RunSummary:
     """Simulate ``scene`` and stream samples to ``recorders``.
 
     Options override the scene's ``[sim]`` values. ``progress(done_steps, total_steps)`` is called
-    after every block; ``notice(msg)`` gets one-line notices (kernel compilation).
+    after every block; ``notice(msg)`` gets one-line notices (kernel compilation); ``warn(msg)``
+    gets one-line warnings about the scene (bodies that start overlapping).
 
     Raises:
         SceneError: an option is out of range.
@@ -237,6 +239,9 @@ def run(
     )
     st = scene.state.copy()
     advance = _make_advance(plan, model, method, ortho_code)
+    if warn is not None:
+        for w in plan.warnings:
+            warn(w)
 
     samples_in_block = samples_per_block(n_bodies, stride)
     steps_per_block = samples_in_block * stride  # the most steps one compiled call may take

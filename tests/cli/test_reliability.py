@@ -63,6 +63,15 @@ FAULTS = [
     Fault("quat-norm", "a quaternion of norm 1.3",
           {"s.toml": _scene('quat_wxyz = [1.3, 0.0, 0.0, 0.0]\n')}, ["validate", "s.toml"], 0,
           "|q| = 1.3, not 1 (off by more than 1e-06); normalised", "runs (warning)"),
+    Fault("overlap", "bodies that start overlapping (box sunk 10 mm into the ground, a sphere "
+          "90 mm into the box)",
+          {"s.toml": "[sim]\ndt = 1e-3\nduration = 0.05\n[ground]\n[[body]]\nname = \"a\"\n"
+           "shape = \"box\"\nhalf_extents = [0.5, 0.5, 0.5]\nmass = 1.0\nposition = [0, 0, 0.49]\n"
+           "[[body]]\nname = \"b\"\nshape = \"sphere\"\nradius = 0.2\nmass = 1.0\n"
+           "position = [0, 0, 1.1]\n"},
+          ["run", "s.toml", "--no-log"], 0,
+          "2 pair(s) of shapes start overlapping: 'a' and 'b' by 90 mm, 'a' and the ground by 10 mm",
+          "runs (warning)"),
     Fault("unknown-key", "a misspelt key (`duraton`)",
           {"s.toml": FREE.replace("duration = 0.2", "duration = 0.2\nduraton = 1")},
           ["validate", "s.toml"], 2, "sim.duraton: unknown key (did you mean 'duration'?",
