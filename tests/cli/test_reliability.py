@@ -116,6 +116,9 @@ SIGNAL_ROWS = [
      "same as SIGINT"),
     ("SIGKILL during the pile", "(none: the process is killed)", -9,
      "both logs readable, samples handed to the writers more than ~1 s before the kill"),
+    ("an unwritable kernel-cache folder (`NUMBA_CACHE_DIR`)",
+     "`kernel cache '...' is not writable; using '...'` (warning)", 0,
+     "runs with a private cache (test_unwritable_kernel_cache below)"),
     (".rrd cut at 50%", "`log ends early ... read N samples` (warning)", 0,
      "every intact sample (342 of 401 on bouncing_ball)"),
 ]
@@ -213,6 +216,24 @@ def test_cut_rrd_recovers_intact_samples(tmp_path):
     # 401 samples; measured 342 (static data sits at the front)
     assert traj.n_samples >= 150
     assert any(f"read {traj.n_samples} samples" in w for w in traj.warnings), traj.warnings
+
+
+def test_unwritable_kernel_cache(tmp_path):
+    """A cache folder that cannot be created (under a regular file) falls back with a warning,
+    for `--version` and for a run (before: numba's traceback where no fallback is writable)."""
+    import subprocess
+    import sys
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(blocker / "cache")}
+    rblog_exe = str(Path(sys.executable).with_name("rblog"))
+    (tmp_path / "s.toml").write_text(FREE)
+    for argv in (["--version"], ["validate", str(tmp_path / "s.toml")]):
+        p = subprocess.run([rblog_exe, *argv], env=env, capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr
+        assert "Traceback" not in p.stderr
+        assert "kernel cache" in p.stderr and "is not writable; using" in p.stderr
 
 
 def _table() -> str:
