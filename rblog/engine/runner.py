@@ -350,7 +350,7 @@ def run(
         _finish_quietly(writer)
         _close_all_quietly(opened, True, message)
         raise RunInterrupted(
-            f"run interrupted by {name} at step {done} (t = {done * dt:.6g} s); logs keep every "
+            f"run interrupted at step {done} (t = {done * dt:.6g} s) by {name}; logs keep every "
             "sample written before it", signum=signum) from None
     except SimulationDiverged as e:
         _finish_quietly(writer)
@@ -361,8 +361,8 @@ def run(
         if isinstance(e.__cause__ or e.__context__, KeyboardInterrupt):
             _finish_quietly(writer)
             _close_all_quietly(opened, True, f"interrupted (SIGINT) at step {done}")
-            raise RunInterrupted(f"run interrupted by SIGINT at step {done} (t = {done * dt:.6g} "
-                                 "s); logs keep every sample written before it") from None
+            raise RunInterrupted(f"run interrupted at step {done} (t = {done * dt:.6g} s) by "
+                                 "SIGINT; logs keep every sample written before it") from None
         _finish_quietly(writer)
         _close_all(opened, True, f"run failed: {e}")
         raise

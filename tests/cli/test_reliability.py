@@ -110,9 +110,9 @@ FAULTS = [
 
 #: rows tried by tests/cli/test_signals.py (real processes), listed in the same table
 SIGNAL_ROWS = [
-    ("SIGINT (Ctrl-C) during a contact run", "`run interrupted by SIGINT at step N (t = ...)`",
+    ("SIGINT (Ctrl-C) during a contact run", "`run interrupted at step N (t = ...) by SIGINT`",
      130, "both logs closed, every sample to step N, status \"interrupted\"; answered within 0.5 s"),
-    ("SIGTERM during a contact run", "`run interrupted by SIGTERM at step N ...`", 143,
+    ("SIGTERM during a contact run", "`run interrupted at step N (t = ...) by SIGTERM`", 143,
      "same as SIGINT"),
     ("SIGKILL during the pile", "(none: the process is killed)", -9,
      "both logs readable, samples handed to the writers more than ~1 s before the kill"),

@@ -13,7 +13,7 @@ from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
 from rblog.engine import integrators as rot
 from rblog.engine.contact import ContactParams, ContactWorld
 from rblog.engine.contact.measure import separations
-from rblog.engine.contact.narrowphase import AXIS_ABS_TOL, EDGE_REL_TOL, FACE_REL_TOL
+from rblog.engine.constants import AXIS_ABS_TOL, EDGE_REL_TOL, FACE_REL_TOL
 from rblog.study.scenes import make_model
 
 N_POSES = 200
@@ -86,7 +86,7 @@ def test_body_pairs_agree(pair):
         assert err.max() <= AGREE_M, err.max()  # measured 0
         return
     # box-box: the engine keeps a face axis unless another axis is better by a margin
-    # (Gregorius' axis preference, narrowphase.EDGE_REL_TOL / FACE_REL_TOL), so it may report a
+    # (Gregorius' axis preference, constants.EDGE_REL_TOL / FACE_REL_TOL), so it may report a
     # slightly deeper (never shallower) penetration than the exact separating-axis minimum
     band = (1.0 - min(EDGE_REL_TOL, FACE_REL_TOL)) * np.abs(truth) + AXIS_ABS_TOL
     assert np.all(eng <= truth + AGREE_M), "the engine reports less penetration than there is"
