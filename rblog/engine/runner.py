@@ -4,6 +4,13 @@ samples to the recorders, and keep the summary figures.
 Python runs once per block (see :func:`samples_per_block`),
 never per step. A diverging, interrupted or failing run closes every recorder with what was
 written so far, so logs stay readable up to the last good sample.
+
+Why this module is long: the run loop and everything that must hold while it runs live together,
+because they share its state: the wall-time sizing of compiled calls (sampling stays on global
+multiples of the stride whatever the split), the signal flag checked between calls (SIGINT and
+SIGTERM answered within a call's budget, logs closed "interrupted"), the writer thread that
+overlaps logging with stepping, the running summary figures, and the compile notice driven by
+numba's compile events.
 """
 
 from __future__ import annotations
