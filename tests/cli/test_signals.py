@@ -22,6 +22,7 @@ import rblog
 from rblog.contract.trajectory import RunInfo
 from rblog.engine.runner import run as run_scene
 from rblog.engine.scene import load_scene
+from rblog.engine import constants as runner_constants
 from rblog.record import mcap_writer
 from rblog.record.mcap_writer import McapRecorder
 
@@ -102,6 +103,22 @@ def test_sigkill_leaves_readable_logs(tmp_path):
         assert traj.truncated, path
 
 
+def test_sigkill_during_the_first_seconds_keeps_samples(tmp_path):
+    """Killed 2 s after the logs were opened (kernels loaded): the pile's first samples are on
+    disk. Before, the first block (~0.65 s simulated, several seconds of wall time) had not been
+    written yet and the .mcap held no sample at all ("log ends before its first sample")."""
+    p, rrd, mcap = _start_pile(tmp_path)
+    t0 = time.monotonic()
+    while not (mcap.exists() and mcap.stat().st_size > 0):
+        assert p.poll() is None and time.monotonic() - t0 < 120, p.communicate()
+        time.sleep(0.05)
+    time.sleep(2.0)
+    p.send_signal(signal.SIGKILL)
+    p.communicate(timeout=30)
+    for path in (mcap, rrd):
+        assert rblog.load(path).n_samples >= 2, path
+
+
 class _WriteClock:
     """A recorder that notes the wall time of every block it is handed."""
 
@@ -144,6 +161,8 @@ def test_mcap_on_disk_within_flush_budget(tmp_path, scene_from_text):
     blocks = _split(traj, 3)
     rec.write(blocks[0])
     time.sleep(mcap_writer.FLUSH_EVERY_S + 0.05)
+    # a call's samples reach the writer within CALL_WALL_BUDGET_S, the file within FLUSH_EVERY_S
+    assert runner_constants.CALL_WALL_BUDGET_S + mcap_writer.FLUSH_EVERY_S <= KILL_LOSS_MAX_S
     rec.write(blocks[1])  # more than FLUSH_EVERY_S after the last flush: flushes
     snap = tmp_path / "snap.mcap"
     shutil.copyfile(path, snap)
