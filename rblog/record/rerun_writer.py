@@ -386,7 +386,8 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
 
 #: the drift-error plot's fixed y range (dimensionless): the analyzers' rigidity tolerance
 #: (rblog.analyze.tolerances.DRIFT_ORTHO_ERROR), so round-off (~1e-15) draws as a flat line at 0
-#: instead of autoscaled spikes, and a fault shows as a line at the top
+#: instead of autoscaled spikes (the range starts a little below 0 so that line is drawn), and a
+#: fault shows as a line at the top
 ERROR_PLOT_MAX = 1e-6
 
 
@@ -419,7 +420,7 @@ def _blueprint(model: Model, info: RunInfo, findings: bool = False) -> rrb.Bluep
                                    plot_legend=no_legend),
                 rrb.TimeSeriesView(origin="plots/error", name="max drift errors (0..1e-6)",
                                    plot_legend=no_legend,
-                                   axis_y=rrb.ScalarAxis(range=(0.0, ERROR_PLOT_MAX),
+                                   axis_y=rrb.ScalarAxis(range=(-0.1 * ERROR_PLOT_MAX, ERROR_PLOT_MAX),
                                                          zoom_lock=False)),
             ),
             column_shares=[3, 2],
