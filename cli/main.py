@@ -287,9 +287,12 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="l
 
 
 from rblog_cli.bench_cmds import bench, stress  # noqa: E402
+from rblog_cli.convert_cmds import convert, findings  # noqa: E402
 
 main.add_command(bench)
 main.add_command(stress)
+main.add_command(convert)
+main.add_command(findings)
 
 if __name__ == "__main__":
     main()

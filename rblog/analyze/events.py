@@ -128,8 +128,12 @@ def _events(ctx, cd, dt_factor) -> Events:
         first[eid_of[head]] = np.nonzero(head)[0]
         srt = np.argsort(k0, kind="stable")
         k0, k1, first = k0[srt], k1[srt], first[srt]
+        rank = np.empty(n_ev, np.int64)
+        rank[srt] = np.arange(n_ev)
+        ev_of_member = rank[eid_of[grp.mem_group]]  # (Q,) event of each group member
     else:
         k0 = k1 = first = np.zeros(0, np.int64)
+        ev_of_member = np.zeros(0, np.int64)
     e_n = len(k0)
     t = tr.t
     st = grp.starts[first] if e_n else np.zeros(0, np.int64)
@@ -224,34 +228,52 @@ def _events(ctx, cd, dt_factor) -> Events:
         e_eff = -v_plus / v_minus
     last = tr.n_samples - 1
     separated = (ka < last) & ~(v_plus < 0)
-    # peak penetration over the event's samples: the members against anything (ground, pairs)
+    # peak penetration over the event's samples: the members against the ground (at both samples
+    # of each member interval) and in every interval row of the proximity table (pairs, static
+    # boxes) of a member's interval; vectorized over the members (each body is in one group per
+    # interval, so this is O(members + rows))
     prox = ctx.proximity(cd)
+    best = np.full(e_n, np.inf)
+    cand_val, cand_ev, cand_src = [], [], []  # per candidate: separation, event, where
     if e_n and prox.ground_sep is not None:
         gs = prox.ground_sep
-        for j in range(e_n):
-            mm = grp.members(int(first[j]))
-            d = -gs[kb[j]: ka[j] + 1, mm].min()
-            if d > peak[j]:
-                peak[j] = d
-                kk, ii = np.unravel_index(np.argmin(gs[kb[j]: ka[j] + 1, mm]),
-                                          (ka[j] + 1 - kb[j], len(mm)))
-                bi = np.array([mm[ii]])
-                peak_pt[j] = geometry.plane_witness(model, bi, tr.position[kb[j] + kk, bi],
-                                                    tr.rotation[kb[j] + kk, bi])[0]
+        mk, mi = grp.mem_k, grp.mem_i
+        for end in (0, 1):
+            cand_val.append(gs[mk + end, mi])
+            cand_ev.append(ev_of_member)
+            cand_src.append(np.stack([np.zeros_like(mk), mk + end, mi], axis=1))
     if e_n and len(prox.iv_k):
-        # pairs and static boxes: interval rows inside the event's span with a member
-        for j in np.nonzero(size >= 1)[0]:
-            mm = np.asarray(grp.members(int(first[j])))
-            r = np.nonzero((prox.iv_k >= kb[j]) & (prox.iv_k <= k1[j])
-                           & np.isin(prox.iv_a, mm))[0]
-            if not len(r):
-                continue
-            s0 = np.minimum(prox.iv_sep0[r], prox.iv_sep1[r])
-            w = int(np.argmin(s0))
-            if -s0[w] > peak[j]:
-                peak[j] = -s0[w]
-                end = 0 if prox.iv_sep0[r[w]] <= prox.iv_sep1[r[w]] else 1
-                peak_pt[j] = prox.iv_geometry(r[w: w + 1], end)[2][0]
+        ev_map = np.full((max(tr.n_samples - 1, 0), n), -1, np.int64)
+        ev_map[grp.mem_k, grp.mem_i] = ev_of_member
+        for side in (prox.iv_a, prox.iv_b):
+            ok = side < n
+            rows = np.nonzero(ok)[0]
+            e_r = ev_map[prox.iv_k[rows], side[rows]]
+            has = e_r >= 0
+            rows, e_r = rows[has], e_r[has]
+            for end, sep_ in ((0, prox.iv_sep0), (1, prox.iv_sep1)):
+                cand_val.append(sep_[rows])
+                cand_ev.append(e_r)
+                cand_src.append(np.stack([np.ones_like(rows), rows, np.full_like(rows, end)],
+                                         axis=1))
+    if cand_val:
+        val = np.concatenate(cand_val)
+        evs = np.concatenate(cand_ev)
+        src = np.concatenate(cand_src)
+        np.minimum.at(best, evs, val)
+        hit = np.nonzero((val == best[evs]) & (val < 0))[0]
+        evs_hit, first_hit = np.unique(evs[hit], return_index=True)
+        h = hit[first_hit]
+        peak[evs_hit] = -val[h]
+        kind, x, y = src[h, 0], src[h, 1], src[h, 2]
+        g = kind == 0
+        if g.any():
+            peak_pt[evs_hit[g]] = geometry.plane_witness(model, y[g], tr.position[x[g], y[g]],
+                                                         tr.rotation[x[g], y[g]])
+        for end in (0, 1):
+            r = ~g & (y == end)
+            if r.any():
+                peak_pt[evs_hit[r]] = prox.iv_geometry(x[r], end)[2]
     return Events(k0=k0, k1=k1, static_id=sid, size=size, first=first, groups=grp,
                   t0=t[kb] if e_n else np.zeros(0), t1=t[ka] if e_n else np.zeros(0),
                   v_minus=v_minus, v_plus=v_plus, e_eff=e_eff, sphere=sphere,

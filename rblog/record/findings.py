@@ -142,3 +142,34 @@ def write_findings_rrd(path: str, traj: Trajectory, results, recording_id: str |
 
 def findings_count(results) -> int:
     return sum(len(r.findings) for r in results)
+
+
+#: MCAP topic of the findings (``foxglove.Log``): Foxglove lists them in its Log panel and marks
+#: them on the timeline, at the run's own time base (simulated time as log time, like the run)
+FINDINGS_TOPIC = "/rblog/findings"
+
+
+def write_findings_mcap(path: str, traj: Trajectory, results) -> int:
+    """Write the findings of ``results`` to ``path`` (.mcap) as ``foxglove.Log`` messages, one per
+    finding, stamped with the finding's simulated time (ns, as the run's messages are); returns
+    how many."""
+    from foxglove_schemas_protobuf.Log_pb2 import Log
+    from mcap_protobuf.writer import Writer
+
+    rows = []
+    for r in results:
+        for f in r.findings:
+            u = "" if f.unit in ("", "1") else f" {f.unit}"
+            rows.append((int(C.time_ns(np.array([f.t]))[0]), r.analyzer,
+                         f"{f.message} (value {f.value:.4g}{u}, limit {f.tolerance:.4g}{u})"))
+    rows.sort()
+    try:
+        fh = open(path, "wb")
+    except OSError as e:
+        raise LogWriteError(str(path), e.strerror or str(e)) from None
+    with fh, Writer(fh) as w:
+        for ns, name, text in rows:
+            msg = Log(level=Log.ERROR, message=text, name=f"rblog check {name}")
+            msg.timestamp.FromNanoseconds(ns)
+            w.write_message(FINDINGS_TOPIC, msg, log_time=ns, publish_time=ns)
+    return len(rows)
