@@ -34,7 +34,7 @@ from numba import njit
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
                                 static_material)
-from rblog.analyze.events import impact_events
+from rblog.analyze.events import configured_restitution, impact_events
 
 _TINY = 1e-300
 
@@ -112,10 +112,7 @@ class EnergyAnalyzer(Analyzer):
         ev = impact_events(ctx, cd, self.tol["dt_factor"])
         if len(ev):
             grp = ev.groups
-            e_body = np.asarray(model.body_restitution, float)
-            e_mem = grp.max(e_body[grp.mem_i])[ev.first]
-            s_rest, _ = static_material(model, ev.static_id)
-            rest = np.where(ev.static_id != -2, np.maximum(e_mem, s_rest), e_mem)
+            rest = configured_restitution(ev, model, tr.info.combine_restitution)
             torque_free = grp.sum(ctx.has_torque[grp.mem_i].astype(float))[ev.first] == 0
             check = (rest <= 1.0) & torque_free
             kscale = np.maximum(ev.ke_before, ev.ke_after)

@@ -82,6 +82,7 @@ class Events:
     ke_after: np.ndarray
     dt_allow: np.ndarray
     mass_accel: np.ndarray     # (E,) sum of m |a| of the members (N)
+    speed_before: np.ndarray   # (E,) fastest member's |v| at the sample before (m/s)
 
     def __len__(self) -> int:
         return len(self.k0)
@@ -163,6 +164,9 @@ def _events(ctx, cd, dt_factor) -> Events:
     dt_allow = per_event(0.5 * dt_factor * mass[mem] * amag[mem] * ctx.dt_step
                          * (ctx.speed[kbm, mem] + ctx.speed[kam, mem]))
     mass_accel = per_event(mass[mem] * amag[mem])
+    speed_before = np.zeros(e_n)
+    if e_n:
+        np.maximum.at(speed_before, ev_of_mem, ctx.speed[kbm, mem])
     # impulse on the first member over the event: P(after) - P(before) - (m g + F) (t1 - t0)
     pa = tr.linear_momentum
     span = t[ka] - t[kb] if e_n else np.zeros(0)
@@ -280,4 +284,29 @@ def _events(ctx, cd, dt_factor) -> Events:
                   duration_s=duration, impulse_ns=impulse, peak_penetration_m=peak,
                   peak_point=peak_pt, separated=separated, energy_change=energy_change,
                   ke_before=ke_before, ke_after=ke_after, dt_allow=dt_allow,
-                  mass_accel=mass_accel)
+                  mass_accel=mass_accel, speed_before=speed_before)
+
+
+def configured_restitution(ev: Events, model, rule: str = "max") -> np.ndarray:
+    """(E,) the restitution each event should show, by the log's combine rule
+    (RunInfo.combine_restitution): one body against one static feature, or two bodies, combine
+    their two coefficients; larger groups get the largest combination in play (an upper bound: the
+    rules all stay within [min, max] of the pair for e in [0, 1])."""
+    from rblog.analyze.base import combine_restitution, static_material
+
+    e_body = np.asarray(model.body_restitution, float)
+    grp = ev.groups
+    if not len(ev):
+        return np.zeros(0)
+    st = grp.starts[ev.first]
+    a = grp.mem_i[st]
+    b = grp.mem_i[np.minimum(st + 1, len(grp.mem_i) - 1)]
+    e_max = grp.max(e_body[grp.mem_i])[ev.first]
+    s_rest, _ = static_material(model, ev.static_id)
+    static = ev.static_id != -2
+    single = static & (ev.size == 1)
+    pair = ~static & (ev.size == 2)
+    out = np.where(static, np.maximum(e_max, s_rest), e_max)
+    out = np.where(single, combine_restitution(e_body[a], s_rest, rule), out)
+    out = np.where(pair, combine_restitution(e_body[a], e_body[b], rule), out)
+    return out

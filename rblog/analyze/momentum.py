@@ -15,14 +15,15 @@ Checks:
   the conservation of angular momentum about the origin with the gravity torque accounted exactly.
 * One body against one static feature (the ground, or one static box): the inferred impulse J
   must lie in the Coulomb cone about the contact normal, ``|J_t| <= mu J_n`` with J_n >= 0
-  (friction mu = sqrt(mu_a mu_b), restitution e = max(e_a, e_b): Box2D's mixing rules, which the
-  contact engine uses too). Logged contact impulses are checked against the cone as well.
+  (pair materials by the log's combine rules, RunInfo.combine_friction / combine_restitution;
+  rblog's, which v1 logs imply: mu = sqrt(mu_a mu_b), e = max(e_a, e_b), Box2D's mixing rules).
+  Logged contact impulses are checked against the cone as well.
 * Impact events (rblog.analyze.events: the contact groups of consecutive intervals with the
   same bodies, so that an impact a compliant engine spreads over many steps is one event): the
   effective restitution ``e = -v_n(separation) / v_n(touch)`` of the contact point's normal
   velocity, each extrapolated under the free acceleration to the moment of touch / separation,
   is reported for every event (``Result.events``: e_eff, impulse, duration, peak penetration) and
-  compared with the configured one (combine rule: max of the pair's e) for spheres (boxes'
+  compared with the configured one (the log's combine rule) for spheres (boxes'
   multi-point impacts have no single-number restitution): more than configured is flagged at any
   speed, less only above RESTITUTION_MIN_SPEED_MPS (engines drop restitution for slow impacts so
   that bodies come to rest). The tolerance is RESTITUTION_REL x e plus ``(1 + e) |a_n| max(dt, D) /
@@ -44,7 +45,7 @@ from rblog.contract.model import SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
-from rblog.analyze.events import impact_events
+from rblog.analyze.events import configured_restitution, impact_events
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label, combine_friction,
                    combine_restitution, static_material)
 
@@ -226,7 +227,7 @@ class MomentumAnalyzer(Analyzer):
             sep0[sb] = prox.iv_sep0[r]
 
         # Coulomb cone of the inferred impulse J = P(k+1) - P(k) - (m g + F) dt
-        mu = combine_friction(np.asarray(model.body_friction, float)[i], s_fric)
+        mu = combine_friction(np.asarray(model.body_friction, float)[i], s_fric, tr.info.combine_friction)
         jv = ctx.impulse(k, i)
         jn = np.einsum("ij,ij->i", jv, nrm)
         jt = np.linalg.norm(jv - jn[:, None] * nrm, axis=1)
@@ -262,12 +263,9 @@ class MomentumAnalyzer(Analyzer):
             return []
         t, step = tr.t, tr.step
         kb, ka = ev.k0, ev.k1 + 1
-        # configured restitution: max over the members and the static feature (combine rule)
-        e_body = np.asarray(model.body_restitution, float)
+        # configured restitution by the log's combine rule
         grp = ev.groups
-        e_mem = grp.max(e_body[grp.mem_i])[ev.first]
-        s_rest, _ = static_material(model, ev.static_id)
-        e_cfg = np.where(ev.static_id != -2, combine_restitution(e_mem, s_rest), e_mem)
+        e_cfg = configured_restitution(ev, model, tr.info.combine_restitution)
         approach = -ev.v_minus
         an_dt = np.linalg.norm(ctx.accel, axis=1)[grp.mem_i[grp.starts[ev.first]]] * ctx.dt_step
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -276,13 +274,19 @@ class MomentumAnalyzer(Analyzer):
             an_dt = np.maximum(an_dt, an_dt / ctx.dt_step * ev.duration_s) if ctx.dt_step > 0 \
                 else an_dt
             e_tol = self.tol["restitution_rel"] * e_cfg + (1 + e_cfg) * an_dt / np.abs(ev.v_minus)
+        # events without a single normal velocity (boxes' multi-point contacts, groups of
+        # three or more): an impact when two or more bodies meet and one arrives faster than the
+        # impact speed
         impact = np.where(np.isfinite(approach), approach > self.tol["impact_speed_mps"],
-                          ev.size >= 2)
+                          (ev.size >= 2) & (ev.speed_before > self.tol["impact_speed_mps"]))
         stats["impacts"] = float(impact.sum())
         fast = approach >= self.tol["restitution_min_speed_mps"]
         dev = np.abs(ev.e_eff - e_cfg)
         judged = ev.sphere & impact & ev.separated & np.isfinite(dev)
         judged &= fast | (ev.e_eff > e_cfg)
+        a_n = np.linalg.norm(ctx.accel, axis=1)[grp.mem_i[grp.starts[ev.first]]]
+        short = a_n * ev.duration_s < T.MOMENTUM_IMPACT_GRAVITY_FRAC * np.abs(ev.v_minus)
+        judged &= short
         ridx = np.nonzero(judged)[0]
         if len(ridx):
             stats["restitution_error_max"] = float(dev[ridx].max())
@@ -303,7 +307,11 @@ class MomentumAnalyzer(Analyzer):
                       float(dev[j]), float(e_tol[j]), "1", int(step[ka[j]]), float(t[ka[j]]),
                       ev.members(j)))
         # lost bounce: a fast impact that never separates although e v_n is large
-        lost = ev.sphere & fast & ~ev.separated & (ka < tr.n_samples - 1) \
+        # (an event that runs to the end of the log counts once it outlasts the flight the bounce
+        # would have given, 2 e |v_n| / |a_n|)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            outlasts = (ev.t1 - ev.t0) > 2 * e_cfg * approach / a_n
+        lost = ev.sphere & fast & ~ev.separated & ((ka < tr.n_samples - 1) | outlasts) \
             & (e_cfg * approach >= self.tol["lost_bounce_mps"]) & np.isfinite(approach)
         lost &= ~(ev.v_plus > 0)
         self._add(lost, e_cfg * approach, lambda j: Finding(
@@ -318,8 +326,9 @@ class MomentumAnalyzer(Analyzer):
         # energy across the event
         torque_free = grp.sum(self.has_torque_f(grp.mem_i))[ev.first] == 0
         d_e = ev.energy_change
-        ke0 = np.maximum(ev.ke_before, _TINY)
         base = ev.dt_allow + ev.mass_accel * self.tol["position_correction_m"]
+        # the kinetic energy before, floored by the allowance (a group at rest has none)
+        ke0 = np.maximum(ev.ke_before, base) + _TINY
         allow = base + self.tol["energy_rel"] * ev.ke_before
         check = impact & (e_cfg <= 1.0) & torque_free
         eidx = np.nonzero(check)[0]
@@ -395,7 +404,7 @@ class MomentumAnalyzer(Analyzer):
         _, s_mu = static_material(model, fid)
         mu_b = np.where(static, s_mu,
                         np.asarray(model.body_friction, float)[np.clip(cb, 0, n - 1)])
-        mu = combine_friction(mu_a, mu_b)
+        mu = combine_friction(mu_a, mu_b, self._tr.info.combine_friction)
         jn = cts.normal_impulse
         ft = cts.friction_impulse
         along = np.einsum("ij,ij->i", ft, cts.normal)

@@ -31,6 +31,19 @@ POLAR_TOL = 1e-8
 #: Cap on polar Newton iterations. Converges quadratically: from ||R^T R - I|| = 1e-4 it takes 2.
 POLAR_MAX_ITER = 12
 
+# --- exact free flow (engine/exact.py) ---------------------------------------------------------
+#: Descending Landen transformations of sn, cn, dn stop once the parameter m is below this
+#: (dimensionless); the base then uses the expansion to first order in m, whose error O(m^2) is
+#: then below 1e-18 over the reduced argument (< 2K).
+LANDEN_BASE_PARAMETER = 1e-9
+#: Cap on Landen levels: from m = 1 - 1e-300 (the closest double below the separatrix) it takes 11.
+LANDEN_MAX_LEVELS = 12
+#: Carlson duplication stops when the arguments agree to this (relative); then the series (seventh
+#: order for R_F, fifth for R_J; DLMF 19.36.1-2). Measured against scipy's elliprj over 20,000
+#: random arguments of the exact flow's kind: 1.8e-15 relative at 0.008 (5.0 duplications on
+#: average), 1.2e-15 at 0.004 (5.5), 1.1e-13 at 0.015 (4.5): each duplication costs ~12 ns a pair.
+CARLSON_SERIES_TOL = 0.008
+
 # --- run loop ---------------------------------------------------------------------------------
 #: A run is split into blocks that each run in one compiled call; a block holds at most this many
 #: logged samples (fewer blocks: less per-block work in the recorders) ...
@@ -55,6 +68,36 @@ DEFAULT_LOG_RATE_HZ = 100.0
 #: Tolerance on |q| for a quaternion given in a scene: it is normalized, but one far from unit
 #: length is probably a typo (a zero quaternion is rejected).
 QUAT_MIN_NORM = 1e-9
+
+
+# --- narrowphase (box-box) -------------------------------------------------------------------
+# Box-box axis preference (Gregorius): an edge axis replaces the best face axis only when its
+# separation exceeds the face's by (1 - EDGE_REL_TOL) |face separation| + AXIS_ABS_TOL; face B
+# replaces face A only when it exceeds it by (1 - FACE_REL_TOL) |sep A| + AXIS_ABS_TOL. (Gregorius
+# writes rel * sep + abs, which is right for overlaps only; |sep| keeps it right for gaps.) Prevents flip-flopping between nearly
+# equal axes, which would change the manifold (and lose warm starting) every step.
+EDGE_REL_TOL = 0.90
+FACE_REL_TOL = 0.98
+AXIS_ABS_TOL = 1e-5  # m
+#: edge axes a_i x b_j shorter than this (sin of the angle between the edges) are skipped:
+#: parallel edges are covered by the face axes.
+EDGE_PARALLEL_TOL = 1e-6
+
+
+# --- contact solver internals ----------------------------------------------------------------
+#: Newton iterations of the sliding-friction impulse (converges from below in 3-5)
+FRICTION_NEWTON_ITERS = 8
+#: relative tolerance on |lambda| = mu lambda_n that ends them
+FRICTION_NEWTON_TOL = 1e-12
+#: relative diagonal regularisation of a manifold's normal block: four coplanar points have a
+#: rank-3 block (one self-equilibrated load pattern costs nothing); the regularised solve picks
+#: the smallest impulses, which keeps symmetric loads symmetric.
+BLOCK_REG = 1e-9
+#: relative tolerance under which principal moments count as equal (isotropic inertia)
+ISOTROPIC_RTOL = 1e-12
+#: rings of contacts gathered around a deep point: the contacts of its bodies (1) and of their
+#: neighbours (2), which hold the bodies that the projection pushes on
+PROJECTION_RINGS = 2
 
 
 # --- contact pipeline ----------------------------------------------------------------------

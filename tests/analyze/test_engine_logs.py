@@ -182,3 +182,23 @@ def test_friction_cone_has_an_absolute_floor(mj_box):
                     only=["momentum"])[0]
         hits = [x for x in res.findings if "friction cone" in x.message]
         assert bool(hits) == flagged, (extra, res.reason)
+
+
+def test_planted_lost_bounce_is_flagged(mj_ball):
+    """The ball stops dead at its first impact (4.43 m/s, e = 0.8: it should leave at 3.54 m/s):
+    from the sample after touch-down it rests on the ground (centre at its radius, v = 0)."""
+    from dataclasses import replace
+
+    s = mj_ball
+    z = s.position[:, 0, 2]
+    k_touch = int(np.argmax(z <= 0.1))  # first sample in contact (radius 0.1 m)
+    pos, vel = s.position.copy(), s.velocity.copy()
+    pos[k_touch:, 0, 2] = 0.1
+    pos[k_touch:, 0, :2] = pos[k_touch, 0, :2]
+    vel[k_touch:] = 0.0
+    res = by_name(check(to_trajectory(replace(s, position=pos, velocity=vel))))["momentum"]
+    f = [x for x in res.findings if "bounce lost" in x.message]
+    assert len(f) == 1, res.reason
+    # e v_n = 0.8 x sqrt(2 g h) = 3.54 m/s expected rebound
+    assert f[0].value == pytest.approx(0.8 * np.sqrt(2 * 9.81 * 1.0), rel=0.02)
+    one_line_with_numbers(f[0], "ball")
