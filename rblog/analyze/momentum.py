@@ -297,7 +297,9 @@ class MomentumAnalyzer(Analyzer):
         def when(j):
             return f"t = {t[kb[j]]:.4g}..{t[ka[j]]:.4g} s"
 
-        self._add(judged & (dev > e_tol), dev / np.where(e_tol > 0, e_tol, _TINY),
+        with np.errstate(invalid="ignore", divide="ignore"):
+            dev_ratio = np.nan_to_num(dev / np.where(e_tol > 0, e_tol, _TINY))
+        self._add(judged & (dev > e_tol), dev_ratio,
                   lambda j: Finding(
                       self.name,
                       f"{self._who(ev.members(j))}: restitution {ev.e_eff[j]:.4g} at the impact "
