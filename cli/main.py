@@ -219,7 +219,9 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
               help="Override a tolerance, e.g. --tol penetration.depth_m=2e-3 (repeatable; see --list).")
 @click.option("--list", "list_only", is_flag=True, help="List the analyzers and their tolerances.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON document.")
-def check(logs, only, skip, tols, list_only, as_json):
+@click.option("--rrd", "findings_rrd", type=click.Path(dir_okay=False, path_type=str),
+              help="Write the findings as a Rerun recording overlaying the run (one LOG).")
+def check(logs, only, skip, tols, list_only, as_json, findings_rrd):
     """Audit saved logs (.rrd or .mcap): rigidity, collision momentum, resting-contact
     penetration, energy, tunneling. Exit 0 when clean, 1 when something is flagged, 2 when a file
     cannot be read, 4 when a log holds too few samples to judge (never reported clean)."""
@@ -258,6 +260,8 @@ def check(logs, only, skip, tols, list_only, as_json):
             _fail(e)
         for w in traj.warnings:
             click.echo(f"rblog: warning: {path}: {w}", err=True)
+        if findings_rrd:
+            _write_findings(findings_rrd, path, traj, results, len(logs))
         flagged |= any(not r.passed and not r.skipped for r in results)
         if traj.n_samples < MIN_SAMPLES_TO_JUDGE:
             unjudged = True
@@ -277,6 +281,18 @@ def check(logs, only, skip, tols, list_only, as_json):
 EXIT_NOT_JUDGED = 4
 #: the fewest samples an audit can judge (drifts and rates need two)
 MIN_SAMPLES_TO_JUDGE = 2
+
+
+def _write_findings(out, path, traj, results, n_logs):
+    from rblog.record.findings import run_recording_id, write_findings_rrd
+
+    if n_logs != 1:
+        _fail(RblogError(f"--rrd {out}: give exactly one LOG (got {n_logs})"))
+    try:
+        write_findings_rrd(out, traj, results, run_recording_id(path))
+    except RblogError as e:
+        _fail(e)
+    click.echo(f"rblog: findings written to {out} (open with: rerun {path} {out})", err=True)
 
 
 def _names(csv, known, opt):
@@ -363,11 +379,14 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="l
 
 
 from rblog_cli.bench_cmds import bench, stress  # noqa: E402
+from rblog_cli.convert_cmds import convert, findings  # noqa: E402
 from rblog_cli.diff_cmds import diff  # noqa: E402
 
 main.add_command(bench)
 main.add_command(stress)
 main.add_command(diff)
+main.add_command(convert)
+main.add_command(findings)
 
 if __name__ == "__main__":
     main()
