@@ -55,7 +55,23 @@ from rblog.engine.scene import INTEGRATORS  # noqa: E402
 
 def _fail(err: RblogError):
     click.echo(f"rblog: error: {err}", err=True)
+    from rblog.errors import RunInterrupted
+
+    if isinstance(err, RunInterrupted) and _IN_MAIN_PROCESS:
+        # The logs are closed and complete up to the last step; what is left is interpreter
+        # teardown (the Rerun SDK's exit hooks, thread joins), measured 0.5-0.65 s on a loaded
+        # machine. A signal asks the process to go now: exit without it.
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(err.exit_code)
     sys.exit(err.exit_code)
+
+
+#: True when running as the `rblog` program or `python -m rblog_cli.main` (not when embedded,
+#: e.g. in a test's CliRunner, where exiting the process is not ours to do)
+_IN_MAIN_PROCESS = Path(sys.argv[0]).name == "rblog" or __name__ == "__main__"
 
 
 class _Progress:

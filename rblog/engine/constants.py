@@ -76,7 +76,7 @@ QUAT_MIN_NORM = 1e-9
 #: between calls, so a signal is answered within ~this (plus closing the logs). Each call's
 #: samples go to the recorders at once, so a killed run loses at most ~this + the writers'
 #: FLUSH_EVERY_S.
-CALL_WALL_BUDGET_S = 0.05
+CALL_WALL_BUDGET_S = 0.03
 #: A call is at most this many times longer (in steps) than the previous one, so that one
 #: fast measurement (a call of a few steps) cannot size a call far past the budget.
 CALL_GROWTH_MAX = 4.0

@@ -31,9 +31,10 @@ from conftest import SAMPLES_DIR
 RBLOG = str(Path(sys.executable).with_name("rblog"))
 PILE = str(SAMPLES_DIR / "pile.toml")
 #: wanted by the issue: a signal is answered (process gone, logs closed) within this (s, wall).
-#: Measured 0.28-0.46 s on a 2-core machine shared with other test runs (most of it is the
-#: interpreter and the Rerun SDK shutting down, the run loop sees the flag within one
-#: CALL_WALL_BUDGET_S = 0.05 s call).
+#: Measured 0.05-0.06 s from signal to exit on a shared 2-core machine: the run loop sees the flag
+#: within one CALL_WALL_BUDGET_S = 0.03 s call, the message follows 0.02-0.05 s after the signal,
+#: and the process then exits without the interpreter's teardown (0.5-0.65 s before, mostly the
+#: Rerun SDK's exit hooks).
 REACT_MAX_S = 0.5
 #: most wall time a SIGKILL may lose (s): a call's samples reach the writers at once, and the
 #: writers flush every FLUSH_EVERY_S = 0.5 s
@@ -143,7 +144,7 @@ def test_blocks_reach_the_writers_on_a_wall_time_budget():
     run_scene(load_scene(PILE), duration=0.4, recorders=[clock])
     gaps = [b - a for a, b in zip(clock.times[1:], clock.times[2:])]
     assert len(gaps) >= 3
-    # measured: largest gap 0.05-0.12 s (CALL_WALL_BUDGET_S = 0.05 s)
+    # measured: largest gap 0.03-0.12 s (CALL_WALL_BUDGET_S = 0.03 s)
     assert max(gaps) <= KILL_LOSS_MAX_S - mcap_writer.FLUSH_EVERY_S, gaps
 
 
