@@ -321,6 +321,9 @@ from rblog_cli.bench_cmds import bench, stress  # noqa: E402
 
 main.add_command(bench)
 main.add_command(stress)
+from rblog_cli.cluster_cmds import sweep  # noqa: E402
+
+main.add_command(sweep)
 
 if __name__ == "__main__":
     main()

@@ -218,7 +218,7 @@ class Executor:
         futures = client.map(fn, items, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         done = 0
-        pending = as_completed(futures)
+        pending = as_completed(futures, loop=client.loop)
         for fut in pending:
             i = index.pop(fut.key)
             if fut.status == "finished":
