@@ -268,3 +268,31 @@ def measure_overhead(ex: Executor, n_tasks: int = 1000) -> dict:
 
 def _noop(x):
     return x
+
+
+def map_cases(executor: Executor | None, fn: Callable[[Any], Any], cases: Sequence, *,
+              say: Callable[[Any], None] | None = None,
+              failed: Callable[[Any, str], Any] | None = None) -> list:
+    """The hook of ``rblog bench`` and ``rblog stress``: ``[fn(c) for c in cases]``, in order.
+
+    With no executor (or a serial one) each case runs here, ``say(case)`` just before it (as the
+    loops did before). On a cluster the cases run as tasks and ``say(case)`` reports each one as
+    it finishes; a case whose worker died twice becomes ``failed(case, message)``.
+    """
+    cases = list(cases)
+    if executor is None or executor.serial:
+        out = []
+        for c in cases:
+            if say:
+                say(c)
+            out.append(fn(c))
+        return out
+    results = executor.map(fn, cases, on_done=None)
+    out = []
+    for c, r in zip(cases, results):
+        if isinstance(r, TaskFailure):
+            r = failed(c, r.error) if failed else r
+        if say:
+            say(c)
+        out.append(r)
+    return out
