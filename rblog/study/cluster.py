@@ -46,6 +46,8 @@ INSTALL_HINT = 'the optional extra "cluster" (pip install -e ".[cluster]", or pi
 #: local clusters: one thread per worker process (the kernels are single-threaded and hold the
 #: GIL in their Python parts, so threads would not add throughput)
 THREADS_PER_WORKER = 1
+#: tasks sent to a worker per thread ahead of need (Dask's default: 1.1, i.e. 2 for one thread)
+WORKER_SATURATION = 1.0
 #: client-side resubmissions of a task whose worker died under it
 RETRIES_AFTER_WORKER_DEATH = 1
 #: seconds to wait for a running scheduler to answer / for its workers to appear
@@ -148,8 +150,11 @@ class Executor:
                 raise ClusterUnavailable(f"--scheduler {self.scheduler}: cannot connect "
                                          f"({type(e).__name__}: {e})") from None
             return
-        # the scheduler gives up on a task at its worker's first death; map() resubmits it
-        with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        # the scheduler gives up on a task at its worker's first death and map() resubmits it;
+        # one task in flight per worker thread (saturation 1.0, not Dask's 1.1), so a dying
+        # worker takes down only the task it was running, not one queued behind it
+        with dask.config.set({"distributed.scheduler.allowed-failures": 0,
+                              "distributed.scheduler.worker-saturation": WORKER_SATURATION}):
             self._cluster = LocalCluster(
                 n_workers=self.workers, threads_per_worker=THREADS_PER_WORKER, processes=True,
                 dashboard_address=None, silence_logs=logging.CRITICAL)
