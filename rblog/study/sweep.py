@@ -441,8 +441,10 @@ def _show(a: dict) -> str:
 
 
 def comparable_rows(report: SweepReport) -> list[dict]:
-    """The rows without the timing columns (what must not depend on the executor)."""
-    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in report.rows]
+    """The rows without the timing columns and the log paths (which follow the output
+    directory): what must not depend on the executor."""
+    return [{k: v for k, v in r.items() if k not in TIMING_COLUMNS and k != "log"}
+            for r in report.rows]
 
 
 def write_outputs(report: SweepReport, out_dir: str | Path, stem: str = "sweep") -> dict:
