@@ -115,7 +115,8 @@ def test_a_task_that_kills_every_worker_is_reported_failed_after_one_retry(clust
     assert [o for i, o in enumerate(out) if i != 2] == ["aa", "bb", "cc", "dd"]
     fail = out[2]
     assert isinstance(fail, TaskFailure) and fail.kind == "worker-died" and fail.tries == 2
-    # the cluster recovered: both workers are back for the next batch
+    # the cluster recovered: the nannies restart both workers for the next batch
+    cluster.client.wait_for_workers(2, timeout=60)
     assert cluster.map(lambda x: x + 1, [1, 2, 3]) == [2, 3, 4]
 
 
@@ -145,3 +146,23 @@ def test_serial_executor_reports_a_raising_task_and_goes_on():
     out = Executor().map(task, [1, 2, 3])
     assert out[0] == 1 and out[2] == 3
     assert isinstance(out[1], TaskFailure) and out[1].kind == "error" and "boom" in out[1].error
+
+
+def test_a_running_scheduler_is_reached_by_its_address(cluster, logs):
+    address = cluster._cluster.scheduler_address  # the module's cluster, as if started elsewhere
+    cluster.client.wait_for_workers(2, timeout=60)
+    with Executor(scheduler=address) as remote:
+        assert remote.n_workers() == 2
+        out = check_many(logs[:3], remote)
+    assert out.entries == check_many(logs[:3]).entries
+
+
+def test_stress_cases_on_the_cluster_equal_the_serial_run(cluster):
+    from rblog.study.stress import run_stress
+
+    timing = ("wall_s", "body_steps_per_s")
+    rows = lambda rep: [{k: v for k, v in r.items() if k not in timing} for r in rep.rows]
+    kw = dict(quick=True, cases=["spin", "inertia"], integrators=["seed", "rk4"])
+    serial, parallel = run_stress(**kw), run_stress(executor=cluster, **kw)
+    assert rows(parallel) == rows(serial) and len(serial.rows) == 12
+    assert parallel.largest_stable_dt == serial.largest_stable_dt
