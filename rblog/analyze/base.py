@@ -19,6 +19,10 @@ Derivations used by the analyzers (all from logged channels + model, never simul
 The per-sample work (kinematics, contact groups, and in the analyzers rigidity, geometry and
 energy stretches) runs in numba kernels (``cache=True``) over all bodies and samples; Python
 only handles the findings, which are few.
+
+Why this module is long: it holds what every analyzer shares: Finding and Result, the Context that
+derives once what several analyzers need (contact groups, impulses, resting intervals), and the
+compiled helpers behind them.
 """
 
 from __future__ import annotations

@@ -31,6 +31,10 @@ grown by how far the body can stray from the straight path (a body that bounces 
 samples is never on the chord), so that the same candidates serve the contact tests at both
 samples and the tunneling test between them. The narrowphase is numpy, vectorized over the
 candidates of every interval at once.
+
+Why this module is long: it is the analyzers' own geometry (separations of sphere, box and plane
+pairs, bounding radii, the sweep), independent of the engine's narrowphase on purpose; one file
+keeps that independent geometry in one place.
 """
 
 from __future__ import annotations

@@ -84,3 +84,10 @@ class Model:
     @property
     def body_inv_inertia_diag(self) -> np.ndarray:
         return 1.0 / self.body_inertia_diag
+
+    @property
+    def body_bounding_radius(self) -> np.ndarray:
+        """(N,) radius of each body's bounding sphere about its centre of mass (m): the sphere's
+        radius, or a box's half diagonal |half extents|."""
+        return np.where(self.body_shape == SHAPE_SPHERE, self.body_size[:, 0],
+                        np.linalg.norm(self.body_size, axis=1))

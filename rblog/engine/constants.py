@@ -57,6 +57,36 @@ DEFAULT_LOG_RATE_HZ = 100.0
 QUAT_MIN_NORM = 1e-9
 
 
+# --- narrowphase (box-box) -------------------------------------------------------------------
+# Box-box axis preference (Gregorius): an edge axis replaces the best face axis only when its
+# separation exceeds the face's by (1 - EDGE_REL_TOL) |face separation| + AXIS_ABS_TOL; face B
+# replaces face A only when it exceeds it by (1 - FACE_REL_TOL) |sep A| + AXIS_ABS_TOL. (Gregorius
+# writes rel * sep + abs, which is right for overlaps only; |sep| keeps it right for gaps.) Prevents flip-flopping between nearly
+# equal axes, which would change the manifold (and lose warm starting) every step.
+EDGE_REL_TOL = 0.90
+FACE_REL_TOL = 0.98
+AXIS_ABS_TOL = 1e-5  # m
+#: edge axes a_i x b_j shorter than this (sin of the angle between the edges) are skipped:
+#: parallel edges are covered by the face axes.
+EDGE_PARALLEL_TOL = 1e-6
+
+
+# --- contact solver internals ----------------------------------------------------------------
+#: Newton iterations of the sliding-friction impulse (converges from below in 3-5)
+FRICTION_NEWTON_ITERS = 8
+#: relative tolerance on |lambda| = mu lambda_n that ends them
+FRICTION_NEWTON_TOL = 1e-12
+#: relative diagonal regularisation of a manifold's normal block: four coplanar points have a
+#: rank-3 block (one self-equilibrated load pattern costs nothing); the regularised solve picks
+#: the smallest impulses, which keeps symmetric loads symmetric.
+BLOCK_REG = 1e-9
+#: relative tolerance under which principal moments count as equal (isotropic inertia)
+ISOTROPIC_RTOL = 1e-12
+#: rings of contacts gathered around a deep point: the contacts of its bodies (1) and of their
+#: neighbours (2), which hold the bodies that the projection pushes on
+PROJECTION_RINGS = 2
+
+
 # --- contact pipeline ----------------------------------------------------------------------
 @dataclass
 class ContactParams:

@@ -14,8 +14,6 @@ Samples are written after every ``stride``-th step (and after the last step of t
 
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
 from rblog.engine.integrators import step_body, sync_quat, METHOD_SEED

@@ -74,9 +74,12 @@ METHOD_SPLITTING = 2
 METHOD_RK4 = 3
 
 #: The registry. To add an integrator: give it a code and an entry here, a ``drift_*`` for its
-#: torque-free rotation (dispatched by :func:`drift_rotation`), and its translation in
-#: :func:`step_body` and :func:`drift_position`; both kernels (free bodies and the contact step)
-#: then use it.
+#: torque-free rotation over h with L fixed (dispatched by :func:`drift_rotation`, which the
+#: contact step uses for every body), and its whole free step, translation and torque included,
+#: in :func:`step_body` (the free-body kernel, rblog.engine.free). In scenes with contacts the
+#: contact step kicks P and L and translates by symplectic Euler for every integrator (see
+#: rblog.engine.contact.step), so a free body's flight there is first order whatever the
+#: integrator (issue: exact ballistic flight in every scene).
 REGISTRY = {
     "seed": Integrator("seed", METHOD_SEED, ("polar", "gram-schmidt", "none"), "polar", 1,
                        "the notes: symplectic Euler on P and L, R += h [omega]x R, orthonormalized"),
@@ -158,7 +161,7 @@ def drift_seed(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
     elif ortho == ORTHO_GRAM_SCHMIDT:
         n = gram_schmidt(n)
     store_mat(rotation, i, n)
-    # the quaternion is derived from R only when logged (see kernels.sync_quat)
+    # the quaternion is derived from R only when logged (see integrators.sync_quat)
 
 
 @jit

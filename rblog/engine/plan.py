@@ -11,9 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
-from rblog.contract.model import SHAPE_SPHERE, Model
+from rblog.contract.model import Model
 from rblog.engine.scene import Scene
 
 
@@ -38,12 +37,6 @@ class Plan:
         return self._world
 
 
-def bounding_radius(model: Model) -> np.ndarray:
-    """(N,) radius of each body's bounding sphere about its centre of mass (m)."""
-    return np.where(model.body_shape == SHAPE_SPHERE, model.body_size[:, 0],
-                    np.linalg.norm(model.body_size, axis=1))
-
-
 def swept_bounds(model: Model, position, velocity, duration: float):
     """(N, 3) lower and upper corners of the box each bounding sphere sweeps over [0, duration]
     on its exact path x0 + v t + a t^2 / 2 (a = g + F/m: constant without contacts)."""
@@ -56,25 +49,20 @@ def swept_bounds(model: Model, position, velocity, duration: float):
     t_star = np.where(inside, t_star, 0.0)
     cands.append(np.where(inside, position + velocity * t_star + 0.5 * a * t_star**2, position))
     stack = np.stack(cands)
-    r = bounding_radius(model)[:, None]
+    r = model.body_bounding_radius[:, None]
     return stack.min(axis=0) - r, stack.max(axis=0) + r
 
 
-@njit(cache=True)
-def _any_overlap(lo, hi, group):
-    order = np.argsort(lo[:, 0])
-    n = len(order)
-    for a in range(n):
-        i = order[a]
-        for b in range(a + 1, n):
-            j = order[b]
-            if lo[j, 0] > hi[i, 0]:
-                break
-            if group[i] != 0 and group[j] != 0 and group[i] != group[j]:
-                continue
-            if lo[j, 1] <= hi[i, 1] and lo[i, 1] <= hi[j, 1] and lo[j, 2] <= hi[i, 2] and lo[i, 2] <= hi[j, 2]:
-                return True
-    return False
+def _any_overlap(lo, hi, group) -> bool:
+    """Whether any two boxes (N, 3 corners) of bodies allowed to collide overlap: the contact
+    broadphase's own sort-and-sweep over them."""
+    from rblog.engine.contact.broadphase import sweep_and_prune
+
+    n = len(lo)
+    _, count = sweep_and_prune(n, n, np.ascontiguousarray(lo), np.ascontiguousarray(hi),
+                               np.ascontiguousarray(group, dtype=np.int64), np.ones(n, np.int64),
+                               np.empty((max(n, 1), 2), np.int64))
+    return count > 0
 
 
 def plan_stages(scene: Scene, duration: float, force_contacts: bool = False) -> Plan:

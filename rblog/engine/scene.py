@@ -3,6 +3,9 @@
 Every value is checked up front. A mistake raises :class:`~rblog.errors.SceneError` whose message
 names the file, the key path (``body[2].mass``) and what was expected. See README.md for the
 format; SI units throughout.
+
+Why this module is long: every key of the scene format is validated here, each with its own one-line
+error naming the file, the key, the value and what was expected; the format has one home.
 """
 
 from __future__ import annotations

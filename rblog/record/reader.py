@@ -3,6 +3,10 @@
 Only the canonical channels are read (``rblog/...`` entities, ``/rblog/...`` topics; see
 docs/log-format.md); their float64 values come back bit-identical to what was written. A file
 cut short (a killed writer) is read up to its last complete record and marked ``truncated``.
+
+Why this module is long: it reads both formats (Rerun .rrd through the SDK's dataframe API, MCAP
+through the protobuf schemas) into one Trajectory with one channel table and one validation,
+including what can be recovered from truncated and killed logs.
 """
 
 from __future__ import annotations

@@ -29,6 +29,9 @@ JSON (``schema`` = :data:`SCHEMA`)::
      "peer_ratios": [{"problem", "dt", "peer", "vs", "speed_ratio", "error_ratio", ...}],
      "cost_at_error": {problem: {"engine/integrator": {"1e-06": wall s per simulated s}}},
      "files": {"json", "csv", "png"}, "notes": [...]}
+
+Why this module is long: it is the whole `rblog bench` study: the grid of problems, integrators and dt,
+the peers, the fits of convergence order, and its report (table, CSV, JSON, PNG).
 """
 
 from __future__ import annotations

@@ -48,6 +48,10 @@ total momentum kept, kinetic energy lost 1/2 mu (1 - e^2) (v1 - v2)^2.
 
 Resting box: a box placed exactly on the ground at rest stays there: position, orientation and
 energy constant, velocity zero.
+
+Why this module is long: it holds every exact or high-accuracy reference the tests and benchmarks
+measure against (the torque-free body by Jacobi elliptic functions, ballistic flight, bounces,
+head-on impacts), each beside its derivation.
 """
 
 from __future__ import annotations
@@ -273,15 +277,11 @@ def _euler_numeric(j, nu0, t):
 # ---- small rotation helpers (numpy) ------------------------------------------------------------
 
 def quat_to_matrix(q_wxyz) -> np.ndarray:
-    """(..., 4) wxyz -> (..., 3, 3), normalizing first."""
+    """(..., 4) wxyz -> (..., 3, 3), normalizing first (rblog.engine.rotation.quat_to_matrix_np)."""
+    from rblog.engine.rotation import quat_to_matrix_np
+
     q = np.asarray(q_wxyz, float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return quat_to_matrix_np(q / np.linalg.norm(q, axis=-1, keepdims=True))
 
 
 def rotation_angle_between(qa_wxyz, qb_wxyz) -> np.ndarray:

@@ -31,6 +31,9 @@ JSON (``schema`` = :data:`SCHEMA`)::
      "settings": {"integrators"}, "cases": [{"name", "title", "contacts", "available", "reason"}],
      "runs": [{<ROW_FIELDS>}], "largest_stable_dt": {case: {integrator: dt or null}},
      "files": {...}, "notes": [...]}
+
+Why this module is long: it is the whole stability suite: its cases (each a list of variants), the run
+of each variant, and the report.
 """
 
 from __future__ import annotations

@@ -1,10 +1,18 @@
 """Collisions and resting contact: broadphase, narrowphase table, sequential-impulse solver.
 
-Modules, one per stage (Box2D v3's file split; every tolerance is in rblog.engine.constants): ``broadphase``
-(swept AABBs, sort-and-sweep), ``narrowphase`` (colliders and the shape-pair table),
-``collide`` (manifolds and warm-start matching), ``solver`` (prepare, warm start, solve, relax,
-restitution, store), ``island`` (sleeping), ``step`` (the compiled world step), ``world``
-(:class:`ContactWorld`, what the simulator calls), ``measure`` (penetration audits).
+Modules, one per stage of the step (Box2D v3's file split; every tolerance is in
+rblog.engine.constants):
+
+* ``world``: :class:`ContactWorld`, what the run loop calls; builds the model records.
+* ``step``: the compiled world step, a flat list of named stages over those records.
+* ``broadphase``: swept AABBs, sort-and-sweep, ground pairs (stage 2).
+* ``narrowphase``: the shape-pair collider table and the simple colliders; ``box_box``: the
+  separating-axis box-box collider; ``manifold``: the packed contact arrays' layout.
+* ``collide``: manifolds and warm-start matching (stage 4).
+* ``solver``: prepare, warm start, velocity solve with friction, store (5-7, 11), and the one
+  ``apply_impulse``; ``relax``: split impulses (8); ``restitution``: the bounce (10).
+* ``project``: nonlinear position projection of deep points (12); ``island``: sleeping (3, 13).
+* ``measure``: penetration audits with the engine's own geometry (benchmarks, tests).
 """
 
 from rblog.engine.constants import ContactParams

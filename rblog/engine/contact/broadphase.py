@@ -141,3 +141,24 @@ def sweep_and_prune(n_items, n_dyn, lo, hi, group, awake, pairs):
             pairs[count, 1] = b
             count += 1
     return pairs, count
+
+
+@njit(cache=True)
+def ground_pairs(n_dyn, n_static, st, lo, hi, pairs, n_pairs):
+    """Append (body, ground) for every body whose padded AABB reaches the plane."""
+    gid = n_dyn + n_static
+    gx, gy, gz = st.gn[0], st.gn[1], st.gn[2]
+    for i in range(n_dyn):
+        cx = 0.5 * (lo[i, 0] + hi[i, 0])
+        cy = 0.5 * (lo[i, 1] + hi[i, 1])
+        cz = 0.5 * (lo[i, 2] + hi[i, 2])
+        ext = (abs(gx) * (hi[i, 0] - lo[i, 0]) + abs(gy) * (hi[i, 1] - lo[i, 1])
+               + abs(gz) * (hi[i, 2] - lo[i, 2])) * 0.5
+        if gx * cx + gy * cy + gz * cz - st.goff - ext > 0.0:
+            continue
+        if n_pairs == pairs.shape[0]:
+            pairs = _grow_pairs(pairs)
+        pairs[n_pairs, 0] = i
+        pairs[n_pairs, 1] = gid
+        n_pairs += 1
+    return pairs, n_pairs

@@ -21,7 +21,8 @@ import math
 from numba import njit
 
 from rblog.engine.contact.manifold import (
-    MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_LN, PF_LWS, PF_SEND,
+    MF_N, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_LN, PF_LWS, PF_P,
+    PF_SEND,
 )
 from rblog.engine.contact.narrowphase import collide
 from rblog.engine.contact.collide import pair_geometry
@@ -182,10 +183,18 @@ def wake_touched(pairs, n_pairs, n_dyn, n_static, geom, size, awake, sleep_timer
 
 
 @njit(cache=True)
-def wake_pushed(mi, pf, n_man, n_dyn, awake, sleep_timer, island_of, linear_momentum,
-                angular_momentum, force, torque, h):
-    """Wake the sleeping islands that an awake body pushed on in this step's solve (they stood
-    in as static bodies this step; from the next one they move). Returns the islands woken."""
+def wake_pushed(mi, mf, pf, n_man, n_dyn, awake, sleep_timer, island_of, position,
+                linear_momentum, angular_momentum, force, torque, h):
+    """Wake the sleeping islands that an awake body pushed on in this step's solve. Returns the
+    islands woken.
+
+    A sleeper stood in as static in this step's solve (solver index = the static dummy), so the
+    impulses its awake neighbours received from it were applied to them alone. Each is handed to
+    the sleeper now, equal and opposite at the same contact point: J on body a is
+    ``lambda_n n + f`` (normal impulse, world friction impulse), the sleeper gets -J if it is b
+    (+J if a) into P, and (p - x) x (-J) into L. Linear momentum and angular momentum about any
+    point are then conserved exactly, as between two awake bodies; from the next step on the
+    island moves (no kick now: it joins the next step's)."""
     n_woken = 0
     for m in range(n_man):
         if not mi[m, MI_ACTIVE]:
@@ -193,18 +202,35 @@ def wake_pushed(mi, pf, n_man, n_dyn, awake, sleep_timer, island_of, linear_mome
         a = mi[m, MI_REC_A]
         b = mi[m, MI_REC_B]
         sleeper = -1
-        if not awake[a]:
-            sleeper = a
-        elif b >= 0 and not awake[b]:
-            sleeper = b
+        sign = 0.0
+        if mi[m, MI_A] == n_dyn and a >= 0:
+            sleeper, sign = a, 1.0
+        elif b >= 0 and mi[m, MI_B] == n_dyn:
+            sleeper, sign = b, -1.0
         if sleeper < 0:
             continue
+        pushed = False
+        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
         start = mi[m, MI_START]
         for p in range(start, start + mi[m, MI_COUNT]):
-            if pf[p, PF_LN] > 0.0:
-                n_woken += 1
-                # no kick: the island joins from the next step's kick on
-                wake_island(island_of[sleeper], n_dyn, awake, sleep_timer, island_of,
-                            linear_momentum, angular_momentum, force, torque, h, False)
-                break
+            ln = pf[p, PF_LN]
+            if ln <= 0.0:
+                continue
+            pushed = True
+            jx = sign * (ln * nx + pf[p, PF_F])
+            jy = sign * (ln * ny + pf[p, PF_F + 1])
+            jz = sign * (ln * nz + pf[p, PF_F + 2])
+            rx = pf[p, PF_P] - position[sleeper, 0]
+            ry = pf[p, PF_P + 1] - position[sleeper, 1]
+            rz = pf[p, PF_P + 2] - position[sleeper, 2]
+            linear_momentum[sleeper, 0] += jx
+            linear_momentum[sleeper, 1] += jy
+            linear_momentum[sleeper, 2] += jz
+            angular_momentum[sleeper, 0] += ry * jz - rz * jy
+            angular_momentum[sleeper, 1] += rz * jx - rx * jz
+            angular_momentum[sleeper, 2] += rx * jy - ry * jx
+        if pushed and not awake[sleeper]:
+            n_woken += 1
+            wake_island(island_of[sleeper], n_dyn, awake, sleep_timer, island_of,
+                        linear_momentum, angular_momentum, force, torque, h, False)
     return n_woken

@@ -9,38 +9,22 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rblog.engine.contact.broadphase import body_aabbs, sweep_and_prune
-from rblog.engine.contact.narrowphase import COLLIDE_TABLE, MAX_CLIP_POINTS, collide
+from rblog.engine.contact.narrowphase import COLLIDE_TABLE, collide, manifold_part
+from rblog.engine.contact.step import BodyState, broadphase, make_scratch
 from rblog.engine.contact.collide import pair_geometry
-from rblog.engine.contact.step import _ground_pairs
 
 
 @njit(cache=True)
 def _pair_min_separations(bd, st, position, rotation, margin):
     n = position.shape[0]
     ns = st.n_static
-    lo = np.empty((n + ns, 3))
-    hi = np.empty((n + ns, 3))
-    for k in range(ns):
-        for c in range(3):
-            lo[n + k, c] = st.lo[k, c]
-            hi[n + k, c] = st.hi[k, c]
-    reach = np.zeros(n + ns)
-    asleep = np.zeros(n, np.int64)
+    sc = make_scratch(n, st)
     zeros = np.zeros((n, 3))
-    body_aabbs(bd.geom, bd.size, bd.radius, bd.inv_mass, bd.inv_inertia, asleep, position,
-               zeros, rotation, zeros, 0.0, margin, lo, hi, reach)
-    pairs = np.zeros((max(16, 4 * n), 2), np.int64)
-    pairs, n_pairs = sweep_and_prune(n + ns, n, lo, hi, bd.group, asleep, pairs)
-    if st.ground:
-        pairs, n_pairs = _ground_pairs(n, ns, st, lo, hi, pairs, n_pairs)
+    x = BodyState(position, zeros, np.zeros((n, 4)), rotation, zeros)  # at rest: boxes unswept
+    pairs, n_pairs = broadphase(bd, st, margin, np.zeros(n, np.int64), x, 0.0, sc,
+                                np.zeros((max(16, 4 * n), 2), np.int64))
     out = np.empty(n_pairs)
-    nrm = np.zeros(6)
-    pts = np.zeros((MAX_CLIP_POINTS, 3))
-    sep = np.zeros(MAX_CLIP_POINTS)
-    fid = np.zeros(MAX_CLIP_POINTS, np.int64)
-    work = np.zeros(32)
-    poly = np.zeros((2, 2 * MAX_CLIP_POINTS, 4))
+    nrm, pts, sep, fid, work, poly = sc.nrm, sc.pts, sc.sep, sc.fid, sc.work, sc.poly
     count = 0
     for k in range(n_pairs):
         a = pairs[k, 0]
@@ -51,7 +35,7 @@ def _pair_min_separations(bd, st, position, rotation, margin):
         code = COLLIDE_TABLE[min(ga, gb), max(ga, gb)]
         res = collide(code, ga > gb, position[a], rotation[a], bd.size[a], cb, rotb, sb, st.gn,
                       st.goff, margin, nrm, pts, sep, fid, work, poly)
-        n1 = res % 8
+        n1, _ = manifold_part(res, 0)
         if n1 == 0:
             continue
         # the first manifold holds the pair's separating-axis normal (an edge contact's

@@ -45,6 +45,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rblog.engine.constants import PROJECTION_RINGS
+from rblog.engine.integrators import drift_rotation
 from rblog.engine.rotation import load_mat, omega_world
 from rblog.engine.contact.collide import pair_geometry
 from rblog.engine.contact.narrowphase import COLLIDE_TABLE, collide, manifold_part
@@ -59,9 +61,6 @@ _PL = 11  # accumulated position impulse (kg m)
 _P_COLS = 12
 #: columns of the point rows the world step allocates for this stage
 PROJ_COLS = _P_COLS
-#: rings of contacts gathered around a deep point: the contacts of its bodies (1) and of their
-#: neighbours (2), which hold the bodies that the projection pushes on
-PROJECTION_RINGS = 2
 
 
 @njit(cache=True)
@@ -264,3 +263,40 @@ def project_positions(pairs, n_pairs, n_dyn, n_static, geom, size, inv_mass, inv
                 dth[ib, 1] -= ey
                 dth[ib, 2] -= ez
     return n_pts, rows, ids
+
+
+@njit(cache=True)
+def apply_projection(n_deep, ids, dx, dth, n, method, ortho, bd, iso_shortcut, position,
+                      rotation, quat_wxyz, linear_momentum, angular_momentum, l_scratch):
+    """Move the bodies of the project stage's points by their corrections: x += dx, the
+    orientation by the rotation vector dth (through the run's integrator: a drift of unit
+    duration with L = I_world dth), and L -= dx x P so that sum(x x P + L) stays exact."""
+    for p in range(n_deep):
+        for c in range(2):
+            i = ids[p, c]
+            if i >= n:
+                continue
+            ux, uy, uz = dx[i, 0], dx[i, 1], dx[i, 2]
+            tx, ty, tz = dth[i, 0], dth[i, 1], dth[i, 2]
+            if ux == 0.0 and uy == 0.0 and uz == 0.0 and tx == 0.0 and ty == 0.0 and tz == 0.0:
+                continue  # no correction, or already applied (a body can have many points)
+            position[i, 0] += ux
+            position[i, 1] += uy
+            position[i, 2] += uz
+            qx, qy, qz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
+            angular_momentum[i, 0] -= uy * qz - uz * qy
+            angular_momentum[i, 1] -= uz * qx - ux * qz
+            angular_momentum[i, 2] -= ux * qy - uy * qx
+            if tx != 0.0 or ty != 0.0 or tz != 0.0:
+                if iso_shortcut and bd.iso[i]:
+                    s0 = bd.inertia[i, 0]
+                    jx, jy, jz = s0 * tx, s0 * ty, s0 * tz
+                else:
+                    jx, jy, jz = omega_world(load_mat(rotation, i), bd.inertia[i, 0],
+                                             bd.inertia[i, 1], bd.inertia[i, 2], tx, ty, tz)
+                l_scratch[i, 0], l_scratch[i, 1], l_scratch[i, 2] = jx, jy, jz
+                drift_rotation(method, ortho, quat_wxyz, rotation, l_scratch, bd.inv_inertia, i,
+                               1.0)
+            for k in range(3):
+                dx[i, k] = 0.0
+                dth[i, k] = 0.0

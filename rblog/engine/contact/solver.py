@@ -29,22 +29,13 @@ Targets: a penetrating or touching point (s <= 0) wants vn >= 0; a speculative p
 wants vn >= -s/h, i.e. the pair may close the gap within the step but not cross it. This is what
 stops fast bodies tunnelling, and stops a falling body exactly on the surface.
 
-Position correction by split impulses (Catto 2006; Bullet's split impulse): a second Gauss-Seidel
-pass on *pseudo velocities* (v', w') pushes penetrating points apart with target
-``vn' = min(beta * (-(s + slop)) / h, max_speed)``; positions move by h (v + v') and the pseudo
-velocities are then discarded. Real momenta never see the correction, so it injects neither
-momentum nor kinetic energy (the pseudo impulses are also equal and opposite, so the pair's
-centre of mass does not move either).
+Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.
 
-Restitution (Box2D v3): after positions are integrated, points that were hit (solve impulse > 0)
-while approaching faster than the threshold get a normal velocity set from the approach velocity
-measured *before* the solve. rblog sharpens Box2D's rule with the step's exact energy balance: the
-gap s, its rate w and the relative normal acceleration a of the external forces (gravity) evolve
-under symplectic Euler, which conserves ``E = w^2/2 - a s + a h w/2`` exactly. The approach speed
-at contact is therefore ``u = sqrt(2 E)`` (from the start-of-step s0, w0), and the rebound rate w+
-is chosen so that the post-impact state at the end-of-step gap s1 has energy e^2 E:
-``w+^2/2 - a s1 + a h w+/2 = e^2 u^2/2``. Without external acceleration this is w+ = e |w0|;
-under gravity it makes bounce apexes e^(2n) h0 to ~1e-5 at dt = 1e-3 instead of ~1%.
+Restitution (the bounce after positions moved) is in :mod:`rblog.engine.contact.restitution`.
+
+Why this module is long: the prepare, warm-start and velocity-solve stages share the derivation above and the packed
+arrays' conventions; their inner loops are written out over scalars (a manifold's two bodies'
+velocities stay in registers across its points), which costs lines, not ideas.
 """
 
 from __future__ import annotations
@@ -53,21 +44,12 @@ import math
 
 from numba import njit
 
+from rblog.engine.constants import BLOCK_REG, FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL
 from rblog.engine.contact.manifold import (
-    MF_ACC, MF_E, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
-    PF_IMPACT, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS, PF_NMASS, PF_RA, PF_RB, PF_S, PF_SEND, PF_TK,
-    PF_W0, PF_WT, PF_KN,
+    MF_ACC, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
+    PF_IMPACT, PF_L1, PF_L2, PF_LN, PF_LP, PF_NMASS, PF_RA, PF_RB, PF_S, PF_TK,
+    PF_W0, PF_KN,
 )
-
-
-#: Newton iterations of the sliding-friction impulse (converges from below in 3-5)
-FRICTION_NEWTON_ITERS = 8
-#: relative tolerance on |lambda| = mu lambda_n that ends them
-FRICTION_NEWTON_TOL = 1e-12
-#: relative diagonal regularisation of a manifold's normal block: four coplanar points have a
-#: rank-3 block (one self-equilibrated load pattern costs nothing); the regularised solve picks
-#: the smallest impulses, which keeps symmetric loads symmetric.
-BLOCK_REG = 1e-9
 
 
 @njit(cache=True)
@@ -79,6 +61,27 @@ def _smul(i0, i1, i2, i3, i4, i5, x, y, z):
 @njit(cache=True)
 def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@njit(inline="always")
+def apply_impulse(ma, a6, mb, b6, ra, rb, p, va, wa, vb, wb):
+    """The one place an impulse acts on a pair: +P on body a at anchor r_a, -P on body b at r_b.
+
+    Velocity changes m^-1 P and I_world^-1 (r x P), so the pair's linear momentum and its angular
+    momentum about any point are unchanged to round-off. ``ma``/``mb`` inverse masses (0 for the
+    static dummy), ``a6``/``b6`` world inverse inertias (xx, yy, zz, xy, xz, yz), ``ra``/``rb``
+    anchors and ``p`` the impulse (world, N s), ``va, wa, vb, wb`` the bodies' velocity and angular
+    velocity (world) as 3-tuples; returns them updated. Inlined: callers keep them in registers."""
+    px, py, pz = p
+    cx, cy, cz = _cross(ra[0], ra[1], ra[2], px, py, pz)
+    ex, ey, ez = _smul(a6[0], a6[1], a6[2], a6[3], a6[4], a6[5], cx, cy, cz)
+    va = (va[0] + ma * px, va[1] + ma * py, va[2] + ma * pz)
+    wa = (wa[0] + ex, wa[1] + ey, wa[2] + ez)
+    cx, cy, cz = _cross(rb[0], rb[1], rb[2], px, py, pz)
+    ex, ey, ez = _smul(b6[0], b6[1], b6[2], b6[3], b6[4], b6[5], cx, cy, cz)
+    vb = (vb[0] - mb * px, vb[1] - mb * py, vb[2] - mb * pz)
+    wb = (wb[0] - ex, wb[1] - ey, wb[2] - ez)
+    return va, wa, vb, wb
 
 
 @njit(cache=True)
@@ -237,22 +240,10 @@ def warm_start(mi, mf, pf, n_man, bm, bI, bv, bw):
             pz = ln * nz + l1 * t1z + l2 * t2z
             rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
             rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
-            vax += ma * px
-            vay += ma * py
-            vaz += ma * pz
-            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-            dx, dy, dz = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-            wax += dx
-            way += dy
-            waz += dz
-            vbx -= mb * px
-            vby -= mb * py
-            vbz -= mb * pz
-            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-            dx, dy, dz = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-            wbx -= dx
-            wby -= dy
-            wbz -= dz
+            (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                (wbx, wby, wbz))
         bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
         bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
         bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
@@ -426,22 +417,10 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                             rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
                             rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
                             px, py, pz = d * nx, d * ny, d * nz
-                            vax += ma * px
-                            vay += ma * py
-                            vaz += ma * pz
-                            cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                            ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                            wax += ex
-                            way += ey
-                            waz += ez
-                            vbx -= mb * px
-                            vby -= mb * py
-                            vbz -= mb * pz
-                            cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                            ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                            wbx -= ex
-                            wby -= ey
-                            wbz -= ez
+                            (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                                ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                                (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                                (wbx, wby, wbz))
             for p in range(start, end):
                 if solved:
                     break
@@ -469,22 +448,10 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                     if dv > tol:
                         mark_a = True
                 px, py, pz = d * nx, d * ny, d * nz
-                vax += ma * px
-                vay += ma * py
-                vaz += ma * pz
-                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                wax += ex
-                way += ey
-                waz += ez
-                vbx -= mb * px
-                vby -= mb * py
-                vbz -= mb * pz
-                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                wbx -= ex
-                wby -= ey
-                wbz -= ez
+                (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                    ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                    (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                    (wbx, wby, wbz))
             # friction
             if mu > 0.0:
                 for p in range(start, end):
@@ -511,22 +478,10 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                     px = d1 * t1x + d2 * t2x
                     py = d1 * t1y + d2 * t2y
                     pz = d1 * t1z + d2 * t2z
-                    vax += ma * px
-                    vay += ma * py
-                    vaz += ma * pz
-                    cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                    ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                    wax += ex
-                    way += ey
-                    waz += ez
-                    vbx -= mb * px
-                    vby -= mb * py
-                    vbz -= mb * pz
-                    cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                    ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                    wbx -= ex
-                    wby -= ey
-                    wbz -= ez
+                    (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                        ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                        (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                        (wbx, wby, wbz))
             bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
             bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
             bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
@@ -540,268 +495,6 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
         if it >= min_iter and change <= tol:
             break
     return max(1, (visits + active - 1) // max(active, 1))
-
-
-@njit(cache=True)
-def relax_positions(mi, mf, pf, n_man, bm, bI, pv, pw, inv_h, n_iter, slop, beta, max_speed):
-    """Split impulses: Gauss-Seidel on pseudo velocities that remove penetration beyond slop."""
-    for _ in range(n_iter):
-        for m in range(n_man):
-            if not mi[m, MI_ACTIVE]:
-                continue
-            ia = mi[m, MI_A]
-            ib = mi[m, MI_B]
-            start = mi[m, MI_START]
-            end = start + mi[m, MI_COUNT]
-            deep = False
-            for p in range(start, end):
-                if pf[p, PF_S] <= 0.0:
-                    deep = True
-            if not deep:
-                continue
-            ma = bm[ia]
-            mb = bm[ib]
-            a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
-            b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
-            nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
-            vax, vay, vaz = pv[ia, 0], pv[ia, 1], pv[ia, 2]
-            wax, way, waz = pw[ia, 0], pw[ia, 1], pw[ia, 2]
-            vbx, vby, vbz = pv[ib, 0], pv[ib, 1], pv[ib, 2]
-            wbx, wby, wbz = pw[ib, 0], pw[ib, 1], pw[ib, 2]
-            for p in range(start, end):
-                s = pf[p, PF_S]
-                if s > 0.0:
-                    continue
-                rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
-                rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
-                dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
-                dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
-                dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
-                vn = dvx * nx + dvy * ny + dvz * nz
-                target = -(s + slop) * beta * inv_h
-                if target < 0.0:
-                    target = 0.0
-                elif target > max_speed:
-                    target = max_speed
-                old = pf[p, PF_LP]
-                new = old + pf[p, PF_NMASS] * (target - vn)
-                if new < 0.0:
-                    new = 0.0
-                pf[p, PF_LP] = new
-                d = new - old
-                px, py, pz = d * nx, d * ny, d * nz
-                vax += ma * px
-                vay += ma * py
-                vaz += ma * pz
-                cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-                ex, ey, ez = _smul(a0, a1, a2, a3, a4, a5, cx, cy, cz)
-                wax += ex
-                way += ey
-                waz += ez
-                vbx -= mb * px
-                vby -= mb * py
-                vbz -= mb * pz
-                cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-                ex, ey, ez = _smul(b0, b1, b2, b3, b4, b5, cx, cy, cz)
-                wbx -= ex
-                wby -= ey
-                wbz -= ez
-            pv[ia, 0], pv[ia, 1], pv[ia, 2] = vax, vay, vaz
-            pw[ia, 0], pw[ia, 1], pw[ia, 2] = wax, way, waz
-            pv[ib, 0], pv[ib, 1], pv[ib, 2] = vbx, vby, vbz
-            pw[ib, 0], pw[ib, 1], pw[ib, 2] = wbx, wby, wbz
-
-
-@njit(cache=True)
-def _gap_rate(v, w, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz):
-    dvx = v[ia, 0] + w[ia, 1] * raz - w[ia, 2] * ray - v[ib, 0] - w[ib, 1] * rbz + w[ib, 2] * rby
-    dvy = v[ia, 1] + w[ia, 2] * rax - w[ia, 0] * raz - v[ib, 1] - w[ib, 2] * rbx + w[ib, 0] * rbz
-    dvz = v[ia, 2] + w[ia, 0] * ray - w[ia, 1] * rax - v[ib, 2] - w[ib, 0] * rby + w[ib, 1] * rbx
-    return dvx * nx + dvy * ny + dvz * nz
-
-
-@njit(cache=True)
-def restitution(mi, mf, pf, n_man, bm, bI, bv, bw, pv, pw, h, threshold, n_iter, dx,
-                linear_momentum, angular_momentum):
-    """Store the solve's impulses for warm starting, estimate end-of-step gaps, then bounce.
-
-    A point bounces when its solve impulse is positive (it was hit), the gap was closing at the
-    start of the step, and its impact speed u exceeds ``threshold``. Returns the number of
-    impact points.
-
-    Bounces come after the positions moved (dx: (N+1, 3) each body's displacement this step).
-    Between two bodies the impulse is applied at one point that moved with them, the midpoint
-    p + (dx_a + dx_b)/2, so that both anchors end at the same point: otherwise the pair's angular
-    momentum would change by h (v_a - v_b) x J. The bounce impulses go straight into the momenta
-    (P += J, L += r x J), since the orientations have already moved on."""
-    n_impacts = 0
-    for m in range(n_man):
-        if not mi[m, MI_ACTIVE]:
-            continue
-        ia = mi[m, MI_A]
-        ib = mi[m, MI_B]
-        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
-        e = mf[m, MF_E]
-        acc = mf[m, MF_ACC]
-        start = mi[m, MI_START]
-        for p in range(start, start + mi[m, MI_COUNT]):
-            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
-            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
-            vn = _gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
-            pn = _gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
-            s0 = pf[p, PF_S]
-            s1 = s0 + h * (vn + pn)
-            pf[p, PF_SEND] = s1
-            pf[p, PF_LWS] = pf[p, PF_LN]
-            pf[p, PF_WT] = -1.0
-            w0 = pf[p, PF_W0]
-            if w0 >= 0.0 or pf[p, PF_LN] <= 0.0:
-                continue
-            # approach speed at contact from the step's conserved energy (see module docstring)
-            u2 = w0 * w0 - 2.0 * acc * s0 + acc * h * w0
-            if u2 <= threshold * threshold:
-                continue
-            pf[p, PF_IMPACT] = 1.0
-            n_impacts += 1
-            if e <= 0.0:
-                continue
-            c = e * e * u2 + 2.0 * acc * s1
-            disc = acc * acc * h * h + 4.0 * c
-            if c > 0.0 and disc > 0.0:
-                pf[p, PF_WT] = 0.5 * (-acc * h + math.sqrt(disc))
-            else:
-                pf[p, PF_WT] = e * math.sqrt(u2)
-    if n_impacts == 0:
-        return 0
-    # Gauss-Seidel on the bounce targets of the impact points only
-    for _ in range(n_iter):
-        for m in range(n_man):
-            if not mi[m, MI_ACTIVE]:
-                continue
-            start = mi[m, MI_START]
-            end = start + mi[m, MI_COUNT]
-            any_target = False
-            for p in range(start, end):
-                if pf[p, PF_WT] >= 0.0:
-                    any_target = True
-            if not any_target:
-                continue
-            ia = mi[m, MI_A]
-            ib = mi[m, MI_B]
-            ma = bm[ia]
-            mb = bm[ib]
-            nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
-            shared = ma > 0.0 and mb > 0.0
-            hx = 0.5 * (dx[ib, 0] - dx[ia, 0])
-            hy = 0.5 * (dx[ib, 1] - dx[ia, 1])
-            hz = 0.5 * (dx[ib, 2] - dx[ia, 2])
-            for p in range(start, end):
-                wt = pf[p, PF_WT]
-                if wt < 0.0:
-                    continue
-                rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
-                rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
-                if shared:
-                    rax, ray, raz = rax + hx, ray + hy, raz + hz
-                    rbx, rby, rbz = rbx - hx, rby - hy, rbz - hz
-                vn = _gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz)
-                old = pf[p, PF_LN]
-                new = old + pf[p, PF_NMASS] * (wt - vn)
-                if new < 0.0:
-                    new = 0.0
-                pf[p, PF_LN] = new
-                d = new - old
-                _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
-                                    rax, ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz)
-    _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum)
-    return n_impacts
-
-
-@njit(cache=True)
-def _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
-                        rax, ray, raz, rbx, rby, rbz, px, py, pz):
-    """Impulse (px, py, pz) on a at anchor r_a and its negative on b at r_b: into the solver
-    velocities (bv, bw) and straight into the momenta of dynamic bodies (P += J, L += r x J)."""
-    n_dyn = linear_momentum.shape[0]
-    ma = bm[ia]
-    mb = bm[ib]
-    bv[ia, 0] += ma * px
-    bv[ia, 1] += ma * py
-    bv[ia, 2] += ma * pz
-    cx, cy, cz = _cross(rax, ray, raz, px, py, pz)
-    ex, ey, ez = _smul(bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5], cx, cy, cz)
-    bw[ia, 0] += ex
-    bw[ia, 1] += ey
-    bw[ia, 2] += ez
-    if ia < n_dyn:
-        linear_momentum[ia, 0] += px
-        linear_momentum[ia, 1] += py
-        linear_momentum[ia, 2] += pz
-        angular_momentum[ia, 0] += cx
-        angular_momentum[ia, 1] += cy
-        angular_momentum[ia, 2] += cz
-    bv[ib, 0] -= mb * px
-    bv[ib, 1] -= mb * py
-    bv[ib, 2] -= mb * pz
-    cx, cy, cz = _cross(rbx, rby, rbz, px, py, pz)
-    ex, ey, ez = _smul(bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5], cx, cy, cz)
-    bw[ib, 0] -= ex
-    bw[ib, 1] -= ey
-    bw[ib, 2] -= ez
-    if ib < n_dyn:
-        linear_momentum[ib, 0] -= px
-        linear_momentum[ib, 1] -= py
-        linear_momentum[ib, 2] -= pz
-        angular_momentum[ib, 0] -= cx
-        angular_momentum[ib, 1] -= cy
-        angular_momentum[ib, 2] -= cz
-
-
-@njit(cache=True)
-def _reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum):
-    """Keep the friction impulse of every bouncing point inside the Coulomb cone.
-
-    The bounce pass may lower a point's accumulated normal impulse (down to 0) after friction
-    was solved against the higher one; the friction impulse is then scaled back onto the cone
-    |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the
-    bounce, so that the pair's momenta stay exactly balanced."""
-    for m in range(n_man):
-        if not mi[m, MI_ACTIVE]:
-            continue
-        mu = mf[m, MF_MU]
-        ia = mi[m, MI_A]
-        ib = mi[m, MI_B]
-        ma = bm[ia]
-        mb = bm[ib]
-        shared = ma > 0.0 and mb > 0.0
-        hx = 0.5 * (dx[ib, 0] - dx[ia, 0])
-        hy = 0.5 * (dx[ib, 1] - dx[ia, 1])
-        hz = 0.5 * (dx[ib, 2] - dx[ia, 2])
-        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
-        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
-        start = mi[m, MI_START]
-        for p in range(start, start + mi[m, MI_COUNT]):
-            if pf[p, PF_WT] < 0.0:
-                continue
-            l1, l2 = pf[p, PF_L1], pf[p, PF_L2]
-            nl = math.sqrt(l1 * l1 + l2 * l2)
-            fmax = mu * pf[p, PF_LN]
-            if nl <= fmax:
-                continue
-            scale = fmax / nl
-            d1, d2 = l1 * scale - l1, l2 * scale - l2
-            pf[p, PF_L1] = l1 * scale
-            pf[p, PF_L2] = l2 * scale
-            px = d1 * t1x + d2 * t2x
-            py = d1 * t1y + d2 * t2y
-            pz = d1 * t1z + d2 * t2z
-            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
-            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
-            if shared:
-                rax, ray, raz = rax + hx, ray + hy, raz + hz
-                rbx, rby, rbz = rbx - hx, rby - hy, rbz - hz
-            _apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib,
-                                rax, ray, raz, rbx, rby, rbz, px, py, pz)
 
 
 @njit(cache=True)

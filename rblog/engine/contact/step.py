@@ -10,12 +10,13 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     5  prepare          effective masses, pre-solve gap velocities (solver.py)
     6  warm start       apply last step's impulses
     7  solve            sequential impulses, Coulomb friction, speculative targets
-    8  relax            split-impulse position correction on pseudo velocities (the shift's
+    8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
                         orbital angular momentum h v' x P is handed back to the spin)
-    9  integrate        x += h (v + v'), rotation by rotation.drift_rotation with the run's
+    9  integrate        x += h (v + v'), rotation by integrators.drift_rotation with the run's
                         integrator (the body's L and its current R, so gyroscopic motion is the
                         integrator's own); momenta P, L rebuilt from the solver's velocity changes
-    10 restitution      bounce impact points (energy-consistent rule, solver.py), P += J, L += r x J
+    10 restitution      bounce impact points (energy-consistent rule, restitution.py), P += J,
+                        L += r x J
     11 store impulses   friction as world vectors for the next step
     12 project          narrowphase again at the end-of-step poses; points deeper than
                         projection_depth are pushed out by nonlinear Gauss-Seidel on positions
@@ -26,7 +27,7 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
 Translation is symplectic Euler (kick, then drift with the new velocity) for every integrator:
 contact solvers need the velocity that the drift will use. Torques are kicks too.
 
-Samples follow kernels.advance_free: after every ``stride``-th step and after the last step when
+Samples follow free.advance_free: after every ``stride``-th step and after the last step when
 ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.
 """
 
@@ -42,30 +43,50 @@ from rblog.engine.free import write_sample
 from rblog.engine.rotation import load_mat, omega_world
 from rblog.engine.integrators import drift_rotation, sync_quat
 from rblog.contract.trajectory import CONTACT_IMPACT, CONTACT_RESTING
-from rblog.engine.contact.broadphase import _grow_pairs, body_aabbs, sweep_and_prune
+from rblog.engine.contact.broadphase import body_aabbs, ground_pairs, sweep_and_prune
 from rblog.engine.contact.collide import collide_pairs, grow_manifolds, grow_points, sort_manifolds
 from rblog.engine.contact.island import update_sleep, wake_pushed, wake_touched
 from rblog.engine.contact.manifold import (
     LOG_A, LOG_B, LOG_F, LOG_F_COLS, LOG_I_COLS, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
     MF_N, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_IMPACT, PF_LN, PF_P, PF_SEND,
 )
-from rblog.engine.contact.narrowphase import MAX_CLIP_POINTS
-from rblog.engine.contact.project import PROJ_COLS, project_positions
+from rblog.engine.contact.narrowphase import collider_buffers
+from rblog.engine.contact.project import PROJ_COLS, apply_projection, project_positions
 from rblog.engine.contact.solver import (
-    load_bodies, prepare_contacts, relax_positions, restitution, solve_velocities,
-    store_impulses, warm_start,
+    load_bodies, prepare_contacts, solve_velocities, store_impulses, warm_start,
 )
+from rblog.engine.contact.relax import relax_positions
+from rblog.engine.contact.restitution import restitution
 
 #: per-body model arrays the kernel reads (N rows each; ``iso`` marks isotropic inertia)
 Bodies = namedtuple("Bodies", "geom size radius inv_mass inertia inv_inertia iso force torque "
                               "accel restitution friction group")
 #: static geometry: static boxes (their AABBs precomputed) and the ground plane
 Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff g_e g_mu")
-#: stage switches and solver settings (see params.ContactParams)
+#: stage switches and solver settings (see rblog.engine.constants.ContactParams)
 Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol sor n_pos slop "
                                   "beta max_speed "
                                   "margin e_threshold anchor sleep_speed sleep_time warm "
                                   "n_proj proj_depth")
+
+#: the changing state of the bodies, world frame (rblog.engine.state.State's arrays): position
+#: (N, 3) m, linear_momentum (N, 3), quat_wxyz (N, 4), rotation (N, 3, 3), angular_momentum (N, 3).
+#: The sample buffers are the same record with a leading sample axis (S, N, ...).
+BodyState = namedtuple("BodyState", "position linear_momentum quat_wxyz rotation angular_momentum")
+#: sleep state kept between calls: awake (N,) 0/1, timer (N,) s at rest, island_of (N,) island id
+#: of a sleeping body (-1 awake), island_counter (1,) next island id
+SleepState = namedtuple("SleepState", "awake timer island_of island_counter")
+#: the contact cache kept between calls: the previous step's manifolds sorted by key (mi0, mf0,
+#: pf0, pid0, n_man0, keys0, idx0), spare buffers for this step's (mi1, mf1, pf1, pid1), and the
+#: broadphase's pair buffer. Any array may be reallocated (grown) by a call, which returns the
+#: cache anew.
+ContactCache = namedtuple("ContactCache", "mi0 mf0 pf0 pid0 n_man0 keys0 idx0 mi1 mf1 pf1 pid1 "
+                                          "pairs")
+#: per-call work arrays of the stages (rows N..N+M-1 of lo/hi: static boxes; row N of the solver
+#: arrays: the static dummy with zero inverse mass). See make_scratch.
+Scratch = namedtuple("Scratch", "lo hi reach in_contact bm bI bv bw bv0 bw0 pv pw p0 l0 l_drift "
+                                "parent isl_time isl_sup nrm pts sep fid work poly blk hot dx_step "
+                                "proj_dx proj_dth")
 
 # indices into the stats array the kernel accumulates
 (ST_STEPS, ST_PAIRS, ST_MANIFOLDS, ST_POINTS, ST_AWAKE, ST_IMPACTS, ST_WOKEN, ST_SLEPT,
@@ -86,27 +107,6 @@ def _grow_log(log_i, log_f, need):
         for c in range(LOG_F_COLS):
             lf[k, c] = log_f[k, c]
     return li, lf
-
-
-@njit(cache=True)
-def _ground_pairs(n_dyn, n_static, st, lo, hi, pairs, n_pairs):
-    """Append (body, ground) for every body whose padded AABB reaches the plane."""
-    gid = n_dyn + n_static
-    gx, gy, gz = st.gn[0], st.gn[1], st.gn[2]
-    for i in range(n_dyn):
-        cx = 0.5 * (lo[i, 0] + hi[i, 0])
-        cy = 0.5 * (lo[i, 1] + hi[i, 1])
-        cz = 0.5 * (lo[i, 2] + hi[i, 2])
-        ext = (abs(gx) * (hi[i, 0] - lo[i, 0]) + abs(gy) * (hi[i, 1] - lo[i, 1])
-               + abs(gz) * (hi[i, 2] - lo[i, 2])) * 0.5
-        if gx * cx + gy * cy + gz * cz - st.goff - ext > 0.0:
-            continue
-        if n_pairs == pairs.shape[0]:
-            pairs = _grow_pairs(pairs)
-        pairs[n_pairs, 0] = i
-        pairs[n_pairs, 1] = gid
-        n_pairs += 1
-    return pairs, n_pairs
 
 
 @njit(cache=True)
@@ -138,7 +138,7 @@ def _inertia_world_times(bd, rotation, i, x, y, z):
 
 @njit(cache=True)
 def _drift(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
-    """rotation.drift_rotation behind a call boundary: it is inlined here once, and the world
+    """integrators.drift_rotation behind a call boundary: it is inlined here once, and the world
     step calls this (compiling drift_rotation's four integrators into the large world step
     itself would double its compile time)."""
     drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
@@ -150,41 +150,6 @@ def _sync(method, quat_wxyz, rotation, i):
 
 
 @njit(cache=True)
-def _apply_projection(n_deep, ids, dx, dth, n, method, ortho, bd, iso_shortcut, position,
-                      rotation, quat_wxyz, linear_momentum, angular_momentum, l_scratch):
-    """Move the bodies of the project stage's points by their corrections: x += dx, the
-    orientation by the rotation vector dth (through the run's integrator: a drift of unit
-    duration with L = I_world dth), and L -= dx x P so that sum(x x P + L) stays exact."""
-    for p in range(n_deep):
-        for c in range(2):
-            i = ids[p, c]
-            if i >= n:
-                continue
-            ux, uy, uz = dx[i, 0], dx[i, 1], dx[i, 2]
-            tx, ty, tz = dth[i, 0], dth[i, 1], dth[i, 2]
-            if ux == 0.0 and uy == 0.0 and uz == 0.0 and tx == 0.0 and ty == 0.0 and tz == 0.0:
-                continue  # no correction, or already applied (a body can have many points)
-            position[i, 0] += ux
-            position[i, 1] += uy
-            position[i, 2] += uz
-            qx, qy, qz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
-            angular_momentum[i, 0] -= uy * qz - uz * qy
-            angular_momentum[i, 1] -= uz * qx - ux * qz
-            angular_momentum[i, 2] -= ux * qy - uy * qx
-            if tx != 0.0 or ty != 0.0 or tz != 0.0:
-                if iso_shortcut and bd.iso[i]:
-                    s0 = bd.inertia[i, 0]
-                    jx, jy, jz = s0 * tx, s0 * ty, s0 * tz
-                else:
-                    jx, jy, jz = _inertia_world_times(bd, rotation, i, tx, ty, tz)
-                l_scratch[i, 0], l_scratch[i, 1], l_scratch[i, 2] = jx, jy, jz
-                _drift(method, ortho, quat_wxyz, rotation, l_scratch, bd.inv_inertia, i, 1.0)
-            for k in range(3):
-                dx[i, k] = 0.0
-                dth[i, k] = 0.0
-
-
-@njit(cache=True)
 def _state_sum(i, position, linear_momentum, angular_momentum, rotation):
     """One sum that is non-finite when any of the body's state is (position, momenta, R)."""
     return (position[i, 0] + position[i, 1] + position[i, 2] + linear_momentum[i, 0]
@@ -193,172 +158,276 @@ def _state_sum(i, position, linear_momentum, angular_momentum, rotation):
             + rotation[i, 1, 1] + rotation[i, 2, 2] + rotation[i, 0, 1])
 
 
-@njit(cache=True, nogil=True)
-def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
-                  position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-                  out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                  out_angular_momentum,
-                  awake, sleep_timer, island_of, island_counter,
-                  mi0, mf0, pf0, pid0, n_man0, keys0, idx0, mi1, mf1, pf1, pid1,
-                  pairs, log_i, log_f, stats):
-    """Advance ``n_steps`` steps of ``dt`` with contacts; write samples and contact rows.
-
-    Args mirror kernels.advance_free for the state and samples. ``awake``, ``sleep_timer``,
-    ``island_of``, ``island_counter`` are the sleep state; (mi0, mf0, pf0, pid0, n_man0, keys0,
-    idx0) the previous step's manifolds sorted by key; (mi1, ...) spare buffers; ``pairs`` the
-    broadphase buffer; ``log_i``/``log_f`` contact rows; ``stats`` (N_STATS,) counters.
-
-    Returns (n_samples, bad_step, bad_body, n_log, log_i, log_f, mi0, mf0, pf0, pid0, n_man0,
-    keys0, idx0, mi1, mf1, pf1, pid1, pairs); arrays may have been reallocated to grow.
-    """
-    n = position.shape[0]
+@njit(cache=True)
+def make_scratch(n, st):
+    """The stages' work arrays for N bodies and the scene's static boxes (allocated per call)."""
     ns = st.n_static
-    h = dt
-    inv_h = 1.0 / dt
-    # per-call scratch
     lo = np.empty((n + ns, 3))
     hi = np.empty((n + ns, 3))
     for k in range(ns):
         for c in range(3):
             lo[n + k, c] = st.lo[k, c]
             hi[n + k, c] = st.hi[k, c]
-    reach = np.zeros(n + ns)
-    in_contact = np.zeros(n + 1, np.int64)
-    bm = np.zeros(n + 1)
-    bI = np.zeros((n + 1, 6))
-    bv = np.zeros((n + 1, 3))
-    bw = np.zeros((n + 1, 3))
-    bv0 = np.zeros((n + 1, 3))
-    bw0 = np.zeros((n + 1, 3))
-    pv = np.zeros((n + 1, 3))
-    pw = np.zeros((n + 1, 3))
-    p0 = np.zeros((n, 3))
-    l0 = np.zeros((n, 3))
-    l_drift = np.zeros((n, 3))
-    parent = np.zeros(n, np.int64)
-    isl_time = np.zeros(n)
-    isl_sup = np.zeros(n, np.int64)
-    nrm = np.zeros(6)
-    pts = np.zeros((MAX_CLIP_POINTS, 3))
-    sep = np.zeros(MAX_CLIP_POINTS)
-    fid = np.zeros(MAX_CLIP_POINTS, np.int64)
-    work = np.zeros(32)
-    poly = np.zeros((2, 2 * MAX_CLIP_POINTS, 4))
-    blk = np.zeros((4, 5))
-    hot = np.zeros(n + 1, np.int64)
-    dx_step = np.zeros((n + 1, 3))  # displacement this step (row n: the static dummy, 0)
+    return Scratch(
+        lo, hi, np.zeros(n + ns), np.zeros(n + 1, np.int64), np.zeros(n + 1), np.zeros((n + 1, 6)),
+        np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
+        np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n, 3)), np.zeros((n, 3)),
+        np.zeros((n, 3)), np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.int64),
+        *collider_buffers(), np.zeros((4, 5)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
+        np.zeros((n + 1, 3)))
+
+
+# ---- the stages, in step order ----------------------------------------------------------------
+# Each is a small function of the model records (bd, st, cfg), the state record (x) and the work
+# arrays (sc); inlined into the step, callable on its own.
+
+@njit(inline="always")
+def kick(bd, awake, x, h):
+    """1 kick: P += h (m g + F), L += h tau for awake bodies (world frame)."""
+    for i in range(x.position.shape[0]):
+        if awake[i]:
+            for k in range(3):
+                x.linear_momentum[i, k] += h * bd.force[i, k]
+                x.angular_momentum[i, k] += h * bd.torque[i, k]
+
+
+@njit(inline="always")
+def broadphase(bd, st, margin, awake, x, h, sc, pairs):
+    """2 broadphase: AABBs (of awake bodies swept over the step, padded by ``margin``),
+    sort-and-sweep, and (body, ground) pairs. Returns (pairs, n_pairs)."""
+    n = x.position.shape[0]
+    body_aabbs(bd.geom, bd.size, bd.radius, bd.inv_mass, bd.inv_inertia, awake, x.position,
+               x.linear_momentum, x.rotation, x.angular_momentum, h, margin, sc.lo, sc.hi,
+               sc.reach)
+    pairs, n_pairs = sweep_and_prune(n + st.n_static, n, sc.lo, sc.hi, bd.group, awake, pairs)
+    if st.ground:
+        pairs, n_pairs = ground_pairs(n, st.n_static, st, sc.lo, sc.hi, pairs, n_pairs)
+    return pairs, n_pairs
+
+
+@njit(inline="always")
+def wake(bd, st, cfg, sl, x, h, sc, pairs, n_pairs):
+    """3 wake: sleeping islands that an awake body may touch within the step. Returns islands
+    woken."""
+    return wake_touched(
+        pairs, n_pairs, x.position.shape[0], st.n_static, bd.geom, bd.size, sl.awake, sl.timer,
+        sl.island_of, x.position, x.rotation, sc.reach, cfg.margin, cfg.slop, st.pos, st.rot,
+        st.ext, st.gn, st.goff, x.linear_momentum, x.angular_momentum, bd.force, bd.torque, h,
+        cfg.do_kick, sc.nrm, sc.pts, sc.sep, sc.fid, sc.work, sc.poly, bd.inv_mass, bd.accel,
+        bd.radius, bd.inv_inertia)
+
+
+@njit(inline="always")
+def collide(bd, st, cfg, awake, x, sc, pairs, n_pairs, c):
+    """4 collide: the narrowphase table over the candidate pairs into this step's buffers (c.mi1,
+    ...), matching last step's manifolds (c.mi0, ...) for warm starting. Returns (mi1, mf1, pf1,
+    pid1, n_man, n_pts); the buffers may have grown."""
+    mi1, mf1 = grow_manifolds(c.mi1, c.mf1, 2 * n_pairs)
+    pf1, pid1 = grow_points(c.pf1, c.pid1, 8 * n_pairs)
+    n_man, n_pts = collide_pairs(
+        pairs, n_pairs, x.position.shape[0], st.n_static, bd.geom, bd.size, awake, x.position,
+        x.rotation, sc.reach, cfg.margin, bd.restitution, bd.friction, bd.accel, st.pos, st.rot,
+        st.ext, st.e, st.mu, st.gn, st.goff, st.g_e, st.g_mu, c.mi0, c.mf0, c.pf0, c.pid0,
+        c.keys0, c.idx0, c.n_man0, mi1, mf1, pf1, pid1, cfg.warm, cfg.anchor, sc.nrm, sc.pts,
+        sc.sep, sc.fid, sc.work, sc.poly)
+    return mi1, mf1, pf1, pid1, n_man, n_pts
+
+
+@njit(inline="always")
+def prepare(bd, cfg, x, sc, mi, mf, pf, n_man, h):
+    """5 prepare: load the bodies in contact into the solver arrays; effective masses and
+    pre-solve gap velocities of every point."""
+    load_bodies(mi, n_man, x.position.shape[0], cfg.iso_shortcut, bd.iso, bd.inv_mass,
+                bd.inv_inertia, x.rotation, x.linear_momentum, x.angular_momentum, sc.in_contact,
+                sc.bm, sc.bI, sc.bv, sc.bw, sc.bv0, sc.bw0, sc.pv, sc.pw, sc.p0, sc.l0)
+    prepare_contacts(mi, mf, pf, n_man, sc.bm, sc.bI, sc.bv, sc.bw, h)
+
+
+@njit(inline="always")
+def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h):
+    """9 integrate: move every awake body over the step. A body in contact moves with the
+    solver's velocity, x += h (v + v'), its momenta rebuilt from the solver's velocity changes;
+    a free body moves by symplectic Euler x += h P/m. Rotation by the run's integrator
+    (integrators.drift_rotation) with the body's L, plus the pseudo spin of the relax stage."""
+    n = x.position.shape[0]
+    for i in range(n):
+        if not awake[i]:
+            continue
+        im = bd.inv_mass[i]
+        for k in range(3):
+            sc.l_drift[i, k] = x.angular_momentum[i, k]
+        if sc.in_contact[i]:
+            _store_momenta(i, bd, x.rotation, x.linear_momentum, x.angular_momentum, sc.bv, sc.bw,
+                           sc.bv0, sc.bw0, sc.p0, sc.l0, cfg.iso_shortcut)
+            for k in range(3):
+                sc.dx_step[i, k] = h * (x.linear_momentum[i, k] * im + sc.pv[i, k])
+                x.position[i, k] += sc.dx_step[i, k]
+                sc.l_drift[i, k] = x.angular_momentum[i, k]
+            if sc.pw[i, 0] != 0.0 or sc.pw[i, 1] != 0.0 or sc.pw[i, 2] != 0.0:
+                # rotate by L + I_world w' so the pseudo spin goes through the integrator
+                if cfg.iso_shortcut and bd.iso[i]:
+                    s0 = bd.inertia[i, 0]
+                    jx, jy, jz = s0 * sc.pw[i, 0], s0 * sc.pw[i, 1], s0 * sc.pw[i, 2]
+                else:
+                    jx, jy, jz = _inertia_world_times(bd, x.rotation, i, sc.pw[i, 0],
+                                                      sc.pw[i, 1], sc.pw[i, 2])
+                sc.l_drift[i, 0] += jx
+                sc.l_drift[i, 1] += jy
+                sc.l_drift[i, 2] += jz
+        else:
+            for k in range(3):
+                x.position[i, k] += h * x.linear_momentum[i, k] * im
+        _drift(method, ortho, x.quat_wxyz, x.rotation, sc.l_drift, bd.inv_inertia, i, h)
+        if sc.in_contact[i] and (sc.pv[i, 0] != 0.0 or sc.pv[i, 1] != 0.0 or sc.pv[i, 2] != 0.0):
+            # the pseudo shift h v' moved the body's momentum line: give the orbital change back
+            # to its spin so that sum(x x P + L) stays exact
+            sx, sy, sz = h * sc.pv[i, 0], h * sc.pv[i, 1], h * sc.pv[i, 2]
+            qx, qy, qz = x.linear_momentum[i, 0], x.linear_momentum[i, 1], x.linear_momentum[i, 2]
+            x.angular_momentum[i, 0] -= sy * qz - sz * qy
+            x.angular_momentum[i, 1] -= sz * qx - sx * qz
+            x.angular_momentum[i, 2] -= sx * qy - sy * qx
+
+
+@njit(inline="always")
+def project(method, ortho, bd, st, cfg, awake, x, sc, pairs, n_pairs, rows, ids):
+    """12 project: narrowphase again at the end-of-step poses; points deeper than
+    projection_depth are pushed out (project.py) and the bodies moved. Returns (n_deep, rows,
+    ids)."""
+    n = x.position.shape[0]
+    n_deep, rows, ids = project_positions(
+        pairs, n_pairs, n, st.n_static, bd.geom, bd.size, bd.inv_mass, bd.inv_inertia, bd.iso,
+        cfg.iso_shortcut, awake, x.position, x.rotation, st.pos, st.rot, st.ext, st.gn, st.goff,
+        cfg.proj_depth, cfg.n_proj, rows, ids, sc.nrm, sc.pts, sc.sep, sc.fid, sc.work, sc.poly,
+        sc.proj_dx, sc.proj_dth)
+    if n_deep > 0:
+        apply_projection(n_deep, ids, sc.proj_dx, sc.proj_dth, n, method, ortho, bd,
+                          cfg.iso_shortcut, x.position, x.rotation, x.quat_wxyz,
+                          x.linear_momentum, x.angular_momentum, sc.l_drift)
+    return n_deep, rows, ids
+
+
+@njit(inline="always")
+def sleep_stage(bd, cfg, sl, x, sc, mi, mf, pf, n_man, h, n_awake):
+    """13 sleep: wake what this step pushed on (when some bodies slept at the step's start,
+    ``n_awake`` < N), advance rest timers, put resting islands to sleep. Returns (islands woken,
+    bodies put to sleep)."""
+    n = x.position.shape[0]
+    woken = 0
+    if n_awake < n:
+        woken = wake_pushed(mi, mf, pf, n_man, n, sl.awake, sl.timer, sl.island_of, x.position,
+                            x.linear_momentum, x.angular_momentum, bd.force, bd.torque, h)
+    slept = update_sleep(n, mi, pf, n_man, sl.awake, sl.timer, sl.island_of, sl.island_counter,
+                         x.linear_momentum, x.angular_momentum, bd.inv_mass, bd.inv_inertia,
+                         bd.radius, h, cfg.sleep_speed, cfg.sleep_time, sc.parent, sc.isl_time,
+                         sc.isl_sup)
+    return woken, slept
+
+
+@njit(inline="always")
+def first_non_finite(awake, x):
+    """The first awake body whose state is not finite, or -1."""
+    for i in range(x.position.shape[0]):
+        if awake[i] and not math.isfinite(_state_sum(i, x.position, x.linear_momentum,
+                                                     x.angular_momentum, x.rotation)):
+            return i
+    return -1
+
+
+@njit(inline="always")
+def record_contacts(s, mi, mf, pf, n_man, log_i, log_f, n_log):
+    """The contact rows of step s: every point that pushed or touches (trajectory.Contacts).
+    Returns (log_i, log_f, n_log); the log may have grown."""
+    need = n_log
+    for m in range(n_man):
+        need += mi[m, MI_COUNT]
+    log_i, log_f = _grow_log(log_i, log_f, need)
+    for m in range(n_man):
+        start = mi[m, MI_START]
+        for p in range(start, start + mi[m, MI_COUNT]):
+            if pf[p, PF_LN] <= 0.0 and pf[p, PF_SEND] > 0.0:
+                continue
+            log_i[n_log, LOG_STEP] = s
+            log_i[n_log, LOG_A] = mi[m, MI_REC_A]
+            log_i[n_log, LOG_B] = mi[m, MI_REC_B]
+            log_i[n_log, LOG_KIND] = CONTACT_IMPACT if pf[p, PF_IMPACT] > 0.0 else CONTACT_RESTING
+            for k in range(3):
+                log_f[n_log, LOG_P + k] = pf[p, PF_P + k]
+                log_f[n_log, LOG_N + k] = mf[m, MF_N + k]
+                log_f[n_log, LOG_F + k] = pf[p, PF_F + k]
+            log_f[n_log, LOG_S] = pf[p, PF_SEND]
+            log_f[n_log, LOG_LN] = pf[p, PF_LN]
+            n_log += 1
+    return log_i, log_f, n_log
+
+
+# ---- the step ---------------------------------------------------------------------------------
+
+@njit(cache=True, nogil=True)
+def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x, out, sl, c,
+                  log_i, log_f, stats):
+    """Advance ``n_steps`` steps of ``dt`` with contacts; write samples and contact rows.
+
+    Args:
+        bd, st, cfg: the model records (Bodies, Statics, Settings).
+        method, ortho: integrators.METHOD_* / ORTHO_* codes.
+        n_steps, stride, sample_last: as free.advance_free (a sample after every stride-th step,
+            and after the last one when sample_last).
+        x: BodyState, updated in place.  out: BodyState of (S, N, ...) sample buffers.
+        sl: SleepState, updated in place.  c: ContactCache.
+        log_i, log_f: contact rows (manifold.LOG_* columns).  stats: (N_STATS,) counters.
+
+    Returns (n_samples, bad_step, bad_body, n_log, log_i, log_f, cache): bad_step is the first
+    local step (1-based) at which some body's state became non-finite (-1 if none); the log and
+    the cache may have been reallocated to grow.
+    """
+    n = x.position.shape[0]
+    h = dt
+    inv_h = 1.0 / dt
+    sc = make_scratch(n, st)
     proj_rows = np.zeros((64, PROJ_COLS))  # project stage: gathered points (project.py)
     proj_ids = np.zeros((64, 2), np.int64)
-    proj_dx = np.zeros((n + 1, 3))
-    proj_dth = np.zeros((n + 1, 3))
-    n_man = n_man0
+    mi0, mf0, pf0, pid0, n_man0, keys0, idx0 = c.mi0, c.mf0, c.pf0, c.pid0, c.n_man0, c.keys0, c.idx0
+    mi1, mf1, pf1, pid1, pairs = c.mi1, c.mf1, c.pf1, c.pid1, c.pairs
     n_log = 0
     n_samples = 0
     # garbage in: a non-finite state handed to this call is reported at its first step
     for i in range(n):
-        if not math.isfinite(_state_sum(i, position, linear_momentum, angular_momentum,
-                                        rotation)):
-            return (0, 1, i, 0, log_i, log_f, mi0, mf0, pf0, pid0, n_man0, keys0, idx0, mi1,
-                    mf1, pf1, pid1, pairs)
+        if not math.isfinite(_state_sum(i, x.position, x.linear_momentum, x.angular_momentum,
+                                        x.rotation)):
+            return (0, 1, i, 0, log_i, log_f, ContactCache(mi0, mf0, pf0, pid0, n_man0, keys0,
+                                                           idx0, mi1, mf1, pf1, pid1, pairs))
     for s in range(1, n_steps + 1):
         n_awake = 0
         for i in range(n):
-            n_awake += awake[i] != 0
+            n_awake += sl.awake[i] != 0
         if n_awake > 0:
             stats[ST_STEPS] += 1
             stats[ST_AWAKE] += n_awake
-            # 1 kick: external forces (gravity, applied force and torque)
             if cfg.do_kick:
-                for i in range(n):
-                    if awake[i]:
-                        for k in range(3):
-                            linear_momentum[i, k] += h * bd.force[i, k]
-                            angular_momentum[i, k] += h * bd.torque[i, k]
-            # 2 broadphase
-            body_aabbs(bd.geom, bd.size, bd.radius, bd.inv_mass, bd.inv_inertia, awake, position,
-                       linear_momentum, rotation, angular_momentum, h, cfg.margin, lo, hi, reach)
-            pairs, n_pairs = sweep_and_prune(n + ns, n, lo, hi, bd.group, awake, pairs)
-            if st.ground:
-                pairs, n_pairs = _ground_pairs(n, ns, st, lo, hi, pairs, n_pairs)
+                kick(bd, sl.awake, x, h)                                                  # 1
+            pairs, n_pairs = broadphase(bd, st, cfg.margin, sl.awake, x, h, sc, pairs)    # 2
             stats[ST_PAIRS] += n_pairs
-            # 3 wake sleeping islands that an awake body may touch
             if n_awake < n:
-                stats[ST_WOKEN] += wake_touched(
-                    pairs, n_pairs, n, ns, bd.geom, bd.size, awake, sleep_timer, island_of,
-                    position, rotation, reach, cfg.margin, cfg.slop, st.pos, st.rot, st.ext,
-                    st.gn, st.goff, linear_momentum, angular_momentum, bd.force, bd.torque, h,
-                    cfg.do_kick, nrm, pts, sep, fid, work, poly, bd.inv_mass, bd.accel, bd.radius,
-                    bd.inv_inertia)
-            # 4 collide: narrowphase into this step's buffers, warm starting from the last
-            mi1, mf1 = grow_manifolds(mi1, mf1, 2 * n_pairs)
-            pf1, pid1 = grow_points(pf1, pid1, 8 * n_pairs)
-            n_man, n_pts = collide_pairs(
-                pairs, n_pairs, n, ns, bd.geom, bd.size, awake, position, rotation, reach,
-                cfg.margin, bd.restitution, bd.friction, bd.accel, st.pos, st.rot, st.ext, st.e,
-                st.mu, st.gn, st.goff, st.g_e, st.g_mu, mi0, mf0, pf0, pid0, keys0, idx0, n_man0,
-                mi1, mf1, pf1, pid1, cfg.warm, cfg.anchor, nrm, pts, sep, fid, work, poly)
+                stats[ST_WOKEN] += wake(bd, st, cfg, sl, x, h, sc, pairs, n_pairs)        # 3
+            mi1, mf1, pf1, pid1, n_man, n_pts = collide(                                  # 4
+                bd, st, cfg, sl.awake, x, sc, pairs, n_pairs,
+                ContactCache(mi0, mf0, pf0, pid0, n_man0, keys0, idx0, mi1, mf1, pf1, pid1, pairs))
             stats[ST_MANIFOLDS] += n_man
             stats[ST_POINTS] += n_pts
-            # 5 prepare
-            load_bodies(mi1, n_man, n, cfg.iso_shortcut, bd.iso, bd.inv_mass, bd.inv_inertia,
-                        rotation, linear_momentum, angular_momentum, in_contact, bm, bI, bv, bw,
-                        bv0, bw0, pv, pw, p0, l0)
-            prepare_contacts(mi1, mf1, pf1, n_man, bm, bI, bv, bw, h)
-            # 6 warm start
+            prepare(bd, cfg, x, sc, mi1, mf1, pf1, n_man, h)                              # 5
             if cfg.warm:
-                warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw)
-            # 7 solve
-            stats[ST_SWEEPS] += solve_velocities(mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h,
-                                                 cfg.n_vel, cfg.max_vel, cfg.vel_tol, blk, hot,
-                                                 in_contact, cfg.sor)
-            # 8 relax: split-impulse position correction
+                warm_start(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw)              # 6
+            stats[ST_SWEEPS] += solve_velocities(                                         # 7
+                mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw, inv_h, cfg.n_vel, cfg.max_vel,
+                cfg.vel_tol, sc.blk, sc.hot, sc.in_contact, cfg.sor)
             if cfg.n_pos > 0:
-                relax_positions(mi1, mf1, pf1, n_man, bm, bI, pv, pw, inv_h, cfg.n_pos, cfg.slop,
-                                cfg.beta, cfg.max_speed)
-            # 9 integrate positions
-            for i in range(n):
-                if not awake[i]:
-                    continue
-                im = bd.inv_mass[i]
-                for k in range(3):
-                    l_drift[i, k] = angular_momentum[i, k]
-                if in_contact[i]:
-                    _store_momenta(i, bd, rotation, linear_momentum, angular_momentum, bv, bw,
-                                   bv0, bw0, p0, l0, cfg.iso_shortcut)
-                    for k in range(3):
-                        dx_step[i, k] = h * (linear_momentum[i, k] * im + pv[i, k])
-                        position[i, k] += dx_step[i, k]
-                        l_drift[i, k] = angular_momentum[i, k]
-                    if pw[i, 0] != 0.0 or pw[i, 1] != 0.0 or pw[i, 2] != 0.0:
-                        # rotate by L + I_world w' so the pseudo spin goes through the integrator
-                        if cfg.iso_shortcut and bd.iso[i]:
-                            s0 = bd.inertia[i, 0]
-                            jx, jy, jz = s0 * pw[i, 0], s0 * pw[i, 1], s0 * pw[i, 2]
-                        else:
-                            jx, jy, jz = _inertia_world_times(bd, rotation, i, pw[i, 0],
-                                                              pw[i, 1], pw[i, 2])
-                        l_drift[i, 0] += jx
-                        l_drift[i, 1] += jy
-                        l_drift[i, 2] += jz
-                else:
-                    for k in range(3):
-                        position[i, k] += h * linear_momentum[i, k] * im
-                _drift(method, ortho, quat_wxyz, rotation, l_drift, bd.inv_inertia, i, h)
-                if in_contact[i] and (pv[i, 0] != 0.0 or pv[i, 1] != 0.0 or pv[i, 2] != 0.0):
-                    # the pseudo shift h v' moved the body's momentum line: give the orbital
-                    # change back to its spin so that sum(x x P + L) stays exact
-                    sx, sy, sz = h * pv[i, 0], h * pv[i, 1], h * pv[i, 2]
-                    qx, qy, qz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
-                    angular_momentum[i, 0] -= sy * qz - sz * qy
-                    angular_momentum[i, 1] -= sz * qx - sx * qz
-                    angular_momentum[i, 2] -= sx * qy - sy * qx
-            # 10 restitution (also records the solve's impulses for warm starting)
-            n_imp = restitution(mi1, mf1, pf1, n_man, bm, bI, bv, bw, pv, pw, h,
-                                cfg.e_threshold, cfg.n_vel, dx_step, linear_momentum,
-                                angular_momentum)
-            stats[ST_IMPACTS] += n_imp
-            # 11 store impulses
-            store_impulses(mi1, mf1, pf1, n_man)
+                relax_positions(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.pv, sc.pw, inv_h,   # 8
+                                cfg.n_pos, cfg.slop, cfg.beta, cfg.max_speed)
+            integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h)               # 9
+            stats[ST_IMPACTS] += restitution(                                             # 10
+                mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw, sc.pv, sc.pw, h,
+                cfg.e_threshold, cfg.n_vel, sc.dx_step, x.linear_momentum, x.angular_momentum)
+            store_impulses(mi1, mf1, pf1, n_man)                                          # 11
             # this step's manifolds become "previous"
             keys0 = np.empty(max(n_man, 1), np.int64)
             idx0 = np.empty(max(n_man, 1), np.int64)
@@ -368,66 +437,29 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last,
             pf0, pf1 = pf1, pf0
             pid0, pid1 = pid1, pid0
             n_man0 = n_man
-            # 12 project: points deeper than projection_depth at the end-of-step poses
             if cfg.n_proj > 0:
-                n_deep, proj_rows, proj_ids = project_positions(
-                    pairs, n_pairs, n, ns, bd.geom, bd.size, bd.inv_mass, bd.inv_inertia, bd.iso,
-                    cfg.iso_shortcut, awake, position, rotation, st.pos, st.rot, st.ext, st.gn,
-                    st.goff, cfg.proj_depth, cfg.n_proj, proj_rows, proj_ids, nrm, pts, sep, fid,
-                    work, poly, proj_dx, proj_dth)
+                n_deep, proj_rows, proj_ids = project(                                    # 12
+                    method, ortho, bd, st, cfg, sl.awake, x, sc, pairs, n_pairs, proj_rows,
+                    proj_ids)
                 stats[ST_PROJECTED] += n_deep
-                if n_deep > 0:
-                    _apply_projection(n_deep, proj_ids, proj_dx, proj_dth, n, method, ortho, bd,
-                                      cfg.iso_shortcut, position, rotation, quat_wxyz,
-                                      linear_momentum, angular_momentum, l_drift)
-            # 13 sleep (and wake what was pushed on)
-            if cfg.do_sleep and n_awake < n:
-                stats[ST_WOKEN] += wake_pushed(mi0, pf0, n_man0, n, awake, sleep_timer, island_of,
-                                               linear_momentum, angular_momentum, bd.force,
-                                               bd.torque, h)
             if cfg.do_sleep:
-                stats[ST_SLEPT] += update_sleep(
-                    n, mi0, pf0, n_man0, awake, sleep_timer, island_of, island_counter,
-                    linear_momentum, angular_momentum, bd.inv_mass, bd.inv_inertia, bd.radius, h,
-                    cfg.sleep_speed, cfg.sleep_time, parent, isl_time, isl_sup)
-            # non-finite check: one sum covers position, momenta and the rotation's diagonal
-            for i in range(n):
-                if not awake[i]:
-                    continue
-                if not math.isfinite(_state_sum(i, position, linear_momentum, angular_momentum,
-                                                rotation)):
-                    return (n_samples, s, i, n_log, log_i, log_f, mi0, mf0, pf0, pid0, n_man0,
-                            keys0, idx0, mi1, mf1, pf1, pid1, pairs)
+                woken, slept = sleep_stage(bd, cfg, sl, x, sc, mi0, mf0, pf0, n_man0, h,      # 13
+                                           n_awake)
+                stats[ST_WOKEN] += woken
+                stats[ST_SLEPT] += slept
+            bad = first_non_finite(sl.awake, x)
+            if bad >= 0:
+                return (n_samples, s, bad, n_log, log_i, log_f,
+                        ContactCache(mi0, mf0, pf0, pid0, n_man0, keys0, idx0, mi1, mf1, pf1,
+                                     pid1, pairs))
         if s % stride == 0 or (sample_last and s == n_steps):
-            j = n_samples
             for i in range(n):
-                write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
-                             angular_momentum, out_position, out_linear_momentum, out_quat_wxyz,
-                             out_rotation, out_angular_momentum)
+                write_sample(method, n_samples, i, x.position, x.linear_momentum, x.quat_wxyz,
+                             x.rotation, x.angular_momentum, out.position, out.linear_momentum,
+                             out.quat_wxyz, out.rotation, out.angular_momentum)
             n_samples += 1
-            # contacts of this step: points that pushed or touch
-            need = n_log
-            for m in range(n_man0):
-                need += mi0[m, MI_COUNT]
-            log_i, log_f = _grow_log(log_i, log_f, need)
-            for m in range(n_man0):
-                start = mi0[m, MI_START]
-                for p in range(start, start + mi0[m, MI_COUNT]):
-                    if pf0[p, PF_LN] <= 0.0 and pf0[p, PF_SEND] > 0.0:
-                        continue
-                    log_i[n_log, LOG_STEP] = s
-                    log_i[n_log, LOG_A] = mi0[m, MI_REC_A]
-                    log_i[n_log, LOG_B] = mi0[m, MI_REC_B]
-                    log_i[n_log, LOG_KIND] = CONTACT_IMPACT if pf0[p, PF_IMPACT] > 0.0 else CONTACT_RESTING
-                    for k in range(3):
-                        log_f[n_log, LOG_P + k] = pf0[p, PF_P + k]
-                        log_f[n_log, LOG_N + k] = mf0[m, MF_N + k]
-                        log_f[n_log, LOG_F + k] = pf0[p, PF_F + k]
-                    log_f[n_log, LOG_S] = pf0[p, PF_SEND]
-                    log_f[n_log, LOG_LN] = pf0[p, PF_LN]
-                    n_log += 1
-    if n > 0:
-        for i in range(n):
-            _sync(method, quat_wxyz, rotation, i)
-    return (n_samples, -1, -1, n_log, log_i, log_f, mi0, mf0, pf0, pid0, n_man0, keys0, idx0,
-            mi1, mf1, pf1, pid1, pairs)
+            log_i, log_f, n_log = record_contacts(s, mi0, mf0, pf0, n_man0, log_i, log_f, n_log)
+    for i in range(n):
+        _sync(method, x.quat_wxyz, x.rotation, i)
+    return (n_samples, -1, -1, n_log, log_i, log_f,
+            ContactCache(mi0, mf0, pf0, pid0, n_man0, keys0, idx0, mi1, mf1, pf1, pid1, pairs))

@@ -1,6 +1,6 @@
 """ContactWorld: the simulator's entry point for scenes whose bodies can touch.
 
-Usage (the simulator calls this in blocks, like ``kernels.advance_free``)::
+Usage (the simulator calls this in blocks, like ``free.advance_free``)::
 
     world = ContactWorld(model, ContactParams(), rotation.METHOD_SPLITTING, rotation.ORTHO_NORMALIZE)
     for stage, why in world.explain():
@@ -15,7 +15,7 @@ starting) and the sleep state. Stages a scene does not need are chosen away once
 
 * no gravity, force or torque: no kick stage;
 * nothing can ever touch (no ground, no static box, and no two bodies whose groups collide): no
-  contact stages at all, the free-body kernel ``kernels.advance_free`` runs instead;
+  contact stages at all, the free-body kernel ``free.advance_free`` runs instead;
 * isotropic inertia (spheres, cubes): the solver uses the scalar 1/I, no R diag(1/I) R^T;
 * sleeping (``params.sleep``): resting islands cost nothing until touched.
 
@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rblog.engine.constants import ISOTROPIC_RTOL
 from rblog.engine.free import advance_free
 from rblog.contract.model import Model
 from rblog.engine.rotation import quat_to_matrix_np
@@ -39,10 +40,9 @@ from rblog.engine.contact.narrowphase import (
     GEOM_BOX, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM, UnsupportedShapePair,
 )
 from rblog.engine.constants import ContactParams
-from rblog.engine.contact.step import N_STATS, Bodies, Settings, Statics, world_advance
-
-#: relative tolerance under which principal moments count as equal (isotropic inertia)
-ISOTROPIC_RTOL = 1e-12
+from rblog.engine.contact.step import (
+    N_STATS, Bodies, BodyState, ContactCache, Settings, SleepState, Statics, world_advance,
+)
 
 
 class ContactWorld:
@@ -76,7 +76,7 @@ class ContactWorld:
         mass = np.asarray(model.body_mass, float).reshape(n)
         inertia = np.ascontiguousarray(np.asarray(model.body_inertia_diag, float).reshape(n, 3))
         inv_inertia = 1.0 / inertia
-        radius = np.where(geom == GEOM_BOX, np.linalg.norm(size, axis=1), size[:, 0])
+        radius = model.body_bounding_radius
         iso = (np.abs(inertia - inertia[:, :1]) <= ISOTROPIC_RTOL * inertia[:, :1]).all(axis=1)
         gravity = np.asarray(model.gravity, float).reshape(3)
         f_ext = np.asarray(model.body_force_world, float).reshape(n, 3)
@@ -135,17 +135,13 @@ class ContactWorld:
         self._inv_inertia = inv_inertia
 
         # state kept between calls
-        self.awake = np.ones(n, np.int64)
-        self.sleep_timer = np.zeros(n)
-        self.island_of = np.full(n, -1, np.int64)
-        self._island_counter = np.zeros(1, np.int64)
+        self._sleep = SleepState(np.ones(n, np.int64), np.zeros(n), np.full(n, -1, np.int64),
+                                 np.zeros(1, np.int64))
+        self.awake = self._sleep.awake
         cap = max(16, 4 * n)
-        self._prev = list(empty_manifolds(cap, 4 * cap))
-        self._n_prev = 0
-        self._keys = np.zeros(1, np.int64)
-        self._idx = np.zeros(1, np.int64)
-        self._spare = list(empty_manifolds(cap, 4 * cap))
-        self._pairs = np.zeros((cap, 2), np.int64)
+        self._cache = ContactCache(*empty_manifolds(cap, 4 * cap), 0, np.zeros(1, np.int64),
+                                   np.zeros(1, np.int64), *empty_manifolds(cap, 4 * cap),
+                                   np.zeros((cap, 2), np.int64))
         self._log_i = np.zeros((64, LOG_I_COLS), np.int64)
         self._log_f = np.zeros((64, LOG_F_COLS))
         #: counters accumulated over all calls: steps with awake bodies, candidate pairs,
@@ -264,7 +260,7 @@ class ContactWorld:
                 position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                 out_angular_momentum):
-        """Advance ``n_steps`` steps; same arguments and sampling rule as kernels.advance_free.
+        """Advance ``n_steps`` steps; same arguments and sampling rule as free.advance_free.
 
         Args:
             dt: step (s). n_steps: steps in this call. stride: sample after every stride-th
@@ -294,20 +290,14 @@ class ContactWorld:
                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                 out_angular_momentum)
             return int(ns), int(bad_step), int(bad_body), Contacts.empty()
-        mi0, mf0, pf0, pid0 = self._prev
-        mi1, mf1, pf1, pid1 = self._spare
         res = world_advance(
             self._bodies, self._statics, self._settings, self.method, self.ortho, float(dt),
             int(n_steps), int(stride), bool(sample_last),
-            position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-            out_position, out_linear_momentum, out_quat_wxyz, out_rotation, out_angular_momentum,
-            self.awake, self.sleep_timer, self.island_of, self._island_counter,
-            mi0, mf0, pf0, pid0, self._n_prev, self._keys, self._idx, mi1, mf1, pf1, pid1,
-            self._pairs, self._log_i, self._log_f, self.stats)
-        (n_samples, bad_step, bad_body, n_log, self._log_i, self._log_f, mi0, mf0, pf0, pid0,
-         self._n_prev, self._keys, self._idx, mi1, mf1, pf1, pid1, self._pairs) = res
-        self._prev = [mi0, mf0, pf0, pid0]
-        self._spare = [mi1, mf1, pf1, pid1]
+            BodyState(position, linear_momentum, quat_wxyz, rotation, angular_momentum),
+            BodyState(out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
+                      out_angular_momentum),
+            self._sleep, self._cache, self._log_i, self._log_f, self.stats)
+        n_samples, bad_step, bad_body, n_log, self._log_i, self._log_f, self._cache = res
         li = self._log_i[:n_log]
         lf = self._log_f[:n_log]
         contacts = Contacts(
@@ -317,6 +307,11 @@ class ContactWorld:
             normal_impulse=lf[:, LOG_LN].copy(), friction_impulse=lf[:, LOG_F:LOG_F + 3].copy(),
             kind=li[:, LOG_KIND].astype(np.int8))
         return int(n_samples), int(bad_step), int(bad_body), contacts
+
+    @property
+    def records(self):
+        """The model records the compiled step reads: (Bodies, Statics, Settings)."""
+        return self._bodies, self._statics, self._settings
 
     @property
     def n_awake(self) -> int:
