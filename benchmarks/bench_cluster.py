@@ -110,7 +110,8 @@ def main():
 
     tmp = Path(tempfile.mkdtemp(prefix="rblog-bench-cluster-"))
     try:
-        print(f"machine: {os.cpu_count()} cores; NUMBA_CACHE_DIR={'set' if os.environ.get('NUMBA_CACHE_DIR') else 'unset'}")
+        print(f"machine: {os.cpu_count()} cores; NUMBA_CACHE_DIR={'set' if os.environ.get('NUMBA_CACHE_DIR') else 'unset'}; "
+              f"load average at start {os.getloadavg()[0]:.2f} (1 min)")
         (tmp / "logs").mkdir()
         paths, t_make = timed(lambda: make_logs(tmp / "logs", args.logs))
         size = sum(os.path.getsize(p) for p in paths) / len(paths)
@@ -183,6 +184,8 @@ def main():
             proj = ", ".join(f"W={W}: {pred(W):.1f}x" for W in (4, 8, 16, 64))
             print(f"  {what}: c = {c * 1e3:.1f} ms/task, o = {o * 1e3:.2f} ms; {meas}")
             print(f"         projected (W real cores): {proj}; limit c/o = {c / o:.0f}x")
+        print(f"load average at end {os.getloadavg()[0]:.2f} (1 min; above ~2 means other "
+              "processes shared the two cores during the run)")
         print("\nJSON " + json.dumps({str(k): v for k, v in results.items()}))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
