@@ -1,7 +1,8 @@
 """Engine-core benchmark: ns per body-step of every integrator at 1, 100 and 10,000 free bodies,
-side by side with the comparators (the same `seed` step in pure numpy, vectorized over bodies),
-plus accuracy for cost on the tumbling box (what picks the default integrator), the kernels'
-first-run compile time and the warm start-up time of `rblog run`.
+side by side with the comparators (the same `seed` step in pure numpy, vectorized over bodies, and
+MuJoCo's Euler and RK4 on the same free bodies when MuJoCo is installed), the exact integrator's
+error at every step size from 1e-4 to 1 s on both torque-free problems, accuracy for cost on the
+tumbling box, the kernels' first-run compile time and the warm start-up time of `rblog run`.
 
     python benchmarks/bench_integrators.py [--quick]
 """
@@ -75,6 +76,50 @@ def numpy_seed_step_ns(n: int, steps: int) -> float:
         u, _, vt = np.linalg.svd(r)
         r = u @ vt
     return (time.perf_counter() - t0) / (n * steps) * 1e9
+
+
+def mujoco_step_ns(n: int, steps: int, integrator: str, repeats: int = 3) -> float | None:
+    """Best-of-repeats ns per body-step of MuJoCo stepping n free boxes (no contacts, gravity on)
+    with one mj_step(nstep=steps) call; None when MuJoCo is not installed. (balanceinertia: the
+    random moments of random_bodies need not satisfy the triangle inequality MuJoCo checks.)"""
+    try:
+        import mujoco
+    except ImportError:
+        return None
+    b = random_bodies(n)
+    inertia = 1.0 / b["inv_inertia"]
+    bodies = "".join(
+        f'<body pos="{i} 0 0"><freejoint/><inertial pos="0 0 0" mass="1" '
+        f'diaginertia="{float(inertia[i, 0])!r} {float(inertia[i, 1])!r} {float(inertia[i, 2])!r}"/>'
+        f'<geom type="box" size="0.1 0.1 0.1"/></body>' for i in range(n))
+    xml = (f'<mujoco><compiler balanceinertia="true"/><option timestep="0.001" integrator="{integrator}"><flag contact="disable"/>'
+           f'</option><worldbody>{bodies}</worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    best = np.inf
+    for _ in range(repeats):
+        d = mujoco.MjData(m)
+        for i in range(n):
+            d.qvel[6 * i + 3:6 * i + 6] = b["inv_inertia"][i] * b["L"][i]
+        t0 = time.perf_counter()
+        mujoco.mj_step(m, d, nstep=steps)
+        best = min(best, time.perf_counter() - t0)
+    return best / (n * steps) * 1e9
+
+
+def exact_dt_sweep(quick: bool):
+    """(problem, dt, omega error, attitude error) of the exact integrator against the closed-form
+    reference (rblog.study.reference.TorqueFree) on the two torque-free problems of rblog bench."""
+    from rblog.study.bench import run_rblog
+    from rblog.study.reference import get_problem
+
+    rows = []
+    dts = (1.0, 0.1, 1e-2, 1e-3, 1e-4) if not quick else (1.0, 1e-2)
+    for name in ("torque-free-generic", "torque-free-intermediate"):
+        p = get_problem(name)
+        for dt in dts:
+            r = run_rblog(p, "exact", dt, timing=False)
+            rows.append((name, dt, r["omega_rel"], r["angle_rad"]))
+    return rows
 
 
 TUMBLING = """
@@ -170,6 +215,21 @@ def main():
     np_steps = {1: 2000, 100: 200, 10_000: 5} if not args.quick else {1: 200, 100: 20, 10_000: 2}
     print(f"{'numpy seed':<12}" + "".join(f"{numpy_seed_step_ns(n, s):>12.1f}" for n, s in np_steps.items())
           + "   (comparator: the same step in vectorized numpy, SVD polar)")
+    # MuJoCo's default arena does not hold 10,000 free bodies: 1 and 100 only
+    mj_steps = {1: 20_000, 100: 1_000} if not args.quick else {1: 2_000, 100: 100}
+    for integ in ("Euler", "RK4"):
+        vals = [mujoco_step_ns(n, s, integ) for n, s in mj_steps.items()]
+        if vals[0] is None:
+            print(f"mujoco {integ}: not installed")
+            break
+        print(f"{'mujoco ' + integ:<12}" + "".join(f"{v:>12.1f}" for v in vals) + f"{'-':>12}"
+              + "   (comparator: MuJoCo, free joints, one mj_step(nstep) call)")
+    print()
+    print("exact integrator against the closed-form reference, every step size (omega relative "
+          "to |w0|, attitude angle in rad; max over 100 Hz samples)")
+    print(f"{'problem':<28}{'dt':>8}{'omega err':>12}{'angle err':>12}")
+    for name, dt, we, ae in exact_dt_sweep(args.quick):
+        print(f"{name:<28}{dt:>8g}{we:>12.2e}{ae:>12.2e}")
     print()
     exact, rows = accuracy_for_cost(args.quick)
     print("accuracy for cost: tumbling box (I = 1,2,3; omega0 = 0.05,2,0.05), 20 s; exact flips at "

@@ -94,9 +94,26 @@ def validate(scene):
 @click.option("--explain", is_flag=True, help="Print the stages chosen for this scene and why.")
 @click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
+@click.option("--engine", type=click.Choice(["rblog", "mujoco", "pybullet"]), default="rblog",
+              show_default=True, help="Engine to run the scene in (mujoco/pybullet: rblog[engines]).")
+@click.option("--engine-option", "engine_options", multiple=True, metavar="KEY=VALUE",
+              help="A setting of the --engine, e.g. integrator=RK4 (repeatable).")
 def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compression, no_log,
-        log_every, log_rate, spawn, connect_url, explain, all_stages, as_json):
+        log_every, log_rate, spawn, connect_url, explain, all_stages, as_json, engine,
+        engine_options):
     """Simulate SCENE (a .toml file) and record it."""
+    if engine != "rblog" or engine_options:
+        if engine == "rblog" or spawn or connect_url or explain or all_stages:
+            _fail(RblogError("--engine-option needs --engine mujoco|pybullet, which takes no "
+                             "--spawn/--connect/--explain/--all-stages"))
+        if log_every is not None and log_rate is not None:
+            _fail(RblogError("give --log-every or --log-rate, not both"))
+        from rblog_cli.engine_cmds import run_with_engine
+
+        return run_with_engine(scene, engine, engine_options, dt=dt, duration=duration,
+                               integrator=integrator, orthonormalize=orthonormalize, rrd=rrd,
+                               mcap=mcap, mcap_compression=mcap_compression, no_log=no_log,
+                               log_every=log_every, log_rate=log_rate, as_json=as_json, fail=_fail)
     from rblog.engine.scene import load_scene
     from rblog.engine.runner import run as run_scene
     from rblog.engine.plan import plan_stages
@@ -314,13 +331,19 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="l
 
         recorders.append(McapRecorder(mcap, compression=mcap_compression))
         paths.append(mcap)
-    return recorders, paths
+    # rblog's own runs record through the public writer API too (one Recorder per writer, so the
+    # run loop still writes each on its own thread; benchmarks/bench_engines.py: no cost)
+    from rblog.record.recorder import Recorder
+
+    return [Recorder(writers=[r]) for r in recorders], paths
 
 
 from rblog_cli.bench_cmds import bench, stress  # noqa: E402
+from rblog_cli.diff_cmds import diff  # noqa: E402
 
 main.add_command(bench)
 main.add_command(stress)
+main.add_command(diff)
 from rblog_cli.cluster_cmds import sweep  # noqa: E402
 
 main.add_command(sweep)

@@ -11,6 +11,8 @@ The public API, imported lazily so that ``import rblog`` stays cheap::
     summary = rblog.run(scene, recorders=[...])    # streamed to log writers
     traj = rblog.load("run.mcap")                  # read a log back (.rrd or .mcap)
     results = rblog.check(traj)                    # physics analyzers
+    with rblog.Recorder(model, mcap="x.mcap") as rec:   # record another engine's run
+        rec.write(t=t, position=x, quat_wxyz=q, velocity=v, angular_velocity=w)
 """
 
 __version__ = "0.1.0"
@@ -26,6 +28,9 @@ _API = {
     "Model": ("rblog.contract.model", "Model"),
     "RunInfo": ("rblog.contract.trajectory", "RunInfo"),
     "Contacts": ("rblog.contract.trajectory", "Contacts"),
+    "Recorder": ("rblog.record.recorder", "Recorder"),
+    "body_table": ("rblog.record.recorder", "body_table"),
+    "trajectory_from_arrays": ("rblog.record.recorder", "trajectory_from_arrays"),
     "RblogError": ("rblog.errors", "RblogError"),
     "SceneError": ("rblog.errors", "SceneError"),
     "LogReadError": ("rblog.errors", "LogReadError"),

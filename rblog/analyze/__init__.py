@@ -12,6 +12,7 @@ Example::
 
 Analyzers (default tolerances and their reasons: rblog/analyze/tolerances.py):
 
+* ``consistency``: channels agree with each other (quaternion order, matrix transpose, frames).
 * ``drift``: rigidity of the logged rotation (orthonormality, det, |q|, body-fixed distances).
 * ``momentum``: momentum conservation in collisions, friction cone, restitution, impact energy.
 * ``penetration``: depth, jitter and creep of resting contacts, recomputed from poses.
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 from rblog.contract.trajectory import Trajectory
 from rblog.analyze.base import Analyzer, CheckOptionError, Context, Finding, Result
+from rblog.analyze.consistency import ConsistencyAnalyzer
 from rblog.analyze.drift import DriftAnalyzer
 from rblog.analyze.energy import EnergyAnalyzer
 from rblog.analyze.momentum import MomentumAnalyzer
@@ -32,7 +34,7 @@ from rblog.analyze.tunneling import TunnelingAnalyzer
 #: name -> analyzer class, in report order
 ANALYZERS: dict[str, type[Analyzer]] = {
     cls.name: cls
-    for cls in (DriftAnalyzer, MomentumAnalyzer, PenetrationAnalyzer, EnergyAnalyzer,
+    for cls in (ConsistencyAnalyzer, DriftAnalyzer, MomentumAnalyzer, PenetrationAnalyzer, EnergyAnalyzer,
                 TunnelingAnalyzer)
 }
 

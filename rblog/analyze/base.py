@@ -720,11 +720,27 @@ def static_material(model: Model, static_id: np.ndarray):
     return r, f
 
 
-def combine_friction(mu_a, mu_b):
-    """Friction of a pair: sqrt(mu_a mu_b) (geometric mean, Box2D's b2MixFriction)."""
-    return np.sqrt(np.asarray(mu_a, float) * np.asarray(mu_b, float))
+def _combine(a, b, rule: str):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if rule == "max":
+        return np.maximum(a, b)
+    if rule == "min":
+        return np.minimum(a, b)
+    if rule == "product":
+        return a * b
+    if rule == "mean":
+        return 0.5 * (a + b)
+    return np.sqrt(a * b)  # "geometric"
 
 
-def combine_restitution(e_a, e_b):
-    """Restitution of a pair: max(e_a, e_b) (Box2D's b2MixRestitution)."""
-    return np.maximum(e_a, e_b)
+def combine_friction(mu_a, mu_b, rule: str = "geometric"):
+    """Friction of a pair by the log's rule (RunInfo.combine_friction): ``geometric``
+    sqrt(mu_a mu_b) (rblog, Box2D's b2MixFriction), ``max`` (MuJoCo), ``product`` (Bullet),
+    ``min``, ``mean``."""
+    return _combine(mu_a, mu_b, rule)
+
+
+def combine_restitution(e_a, e_b, rule: str = "max"):
+    """Restitution of a pair by the log's rule (RunInfo.combine_restitution): ``max`` (rblog,
+    Box2D's b2MixRestitution), ``product`` (Bullet), ``geometric``, ``min``, ``mean``."""
+    return _combine(e_a, e_b, rule)

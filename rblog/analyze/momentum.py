@@ -15,8 +15,8 @@ Checks:
   the conservation of angular momentum about the origin with the gravity torque accounted exactly.
 * One body against one static feature (the ground, or one static box): the inferred impulse J
   must lie in the Coulomb cone about the contact normal, ``|J_t| <= mu J_n`` with J_n >= 0
-  (friction mu = sqrt(mu_a mu_b), restitution e = max(e_a, e_b): Box2D's mixing rules, which the
-  contact engine uses too). Logged contact impulses are checked against the cone as well.
+  (pair materials by the log's combine rules, RunInfo.combine_friction / combine_restitution;
+  rblog's, which v1 logs imply: mu = sqrt(mu_a mu_b), e = max(e_a, e_b), Box2D's mixing rules). Logged contact impulses are checked against the cone as well.
 * Impacts (approach speed at the contact above IMPACT_SPEED_MPS): the effective restitution
   ``e = -v_n+ / v_n-`` of the contact point's normal velocity, both extrapolated under the free
   acceleration to the moment of contact (estimated from the separation and normal velocity
@@ -261,7 +261,7 @@ class MomentumAnalyzer(Analyzer):
         e_r = np.asarray(model.body_restitution, float)
         ev["approach"][g] = -vminus[imp]
         ev["e_eff"][g] = -vplus[imp] / vminus[imp]
-        ev["e_cfg"][g] = combine_restitution(e_r[a[imp]], e_r[b[imp]])
+        ev["e_cfg"][g] = combine_restitution(e_r[a[imp]], e_r[b[imp]], tr.info.combine_restitution)
         ev["e_tol"][g] = self.tol["restitution_abs"] + (1 + ev["e_cfg"][g]) * np.abs(an[imp]) \
             * ctx.dt_step / np.abs(vminus[imp])
         ev["sphere"][g] = True
@@ -298,7 +298,7 @@ class MomentumAnalyzer(Analyzer):
             sep0[sb] = prox.iv_sep0[r]
 
         # Coulomb cone of the inferred impulse J = P(k+1) - P(k) - (m g + F) dt
-        mu = combine_friction(np.asarray(model.body_friction, float)[i], s_fric)
+        mu = combine_friction(np.asarray(model.body_friction, float)[i], s_fric, tr.info.combine_friction)
         jv = ctx.impulse(k, i)
         jn = np.einsum("ij,ij->i", jv, nrm)
         jt = np.linalg.norm(jv - jn[:, None] * nrm, axis=1)
@@ -355,7 +355,7 @@ class MomentumAnalyzer(Analyzer):
         ev["approach"][g] = -vminus
         ev["e_eff"][g] = -vplus / vminus
         e_body = np.asarray(model.body_restitution, float)[i]
-        ev["e_cfg"][g] = combine_restitution(e_body, s_rest[cand][imp])
+        ev["e_cfg"][g] = combine_restitution(e_body, s_rest[cand][imp], tr.info.combine_restitution)
         ev["e_tol"][g] = self.tol["restitution_abs"] + (1 + ev["e_cfg"][g]) * np.abs(an) \
             * ctx.dt_step / np.abs(vminus)
         ev["sphere"][g] = np.asarray(model.body_shape)[i] == SHAPE_SPHERE
@@ -425,7 +425,7 @@ class MomentumAnalyzer(Analyzer):
         _, s_mu = static_material(model, fid)
         mu_b = np.where(static, s_mu,
                         np.asarray(model.body_friction, float)[np.clip(cb, 0, n - 1)])
-        mu = combine_friction(mu_a, mu_b)
+        mu = combine_friction(mu_a, mu_b, self._tr.info.combine_friction)
         jn = cts.normal_impulse
         ft = cts.friction_impulse
         along = np.einsum("ij,ij->i", ft, cts.normal)

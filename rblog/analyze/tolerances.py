@@ -137,3 +137,45 @@ TUNNELING_CROSSING_M = 0.0
 #: centres closer than this fraction of the sum of their inner radii (sphere radius, smallest box
 #: half-extent) while they are apart at both samples.
 TUNNELING_PASS_FRAC = 0.5
+
+# --- consistency (contract checks on read; rblog.analyze.consistency) --------------------------
+#: ||R(q/|q|) - R||_F beyond (this + 2 ||R^T R - I||_F) means quat_wxyz and rotation disagree
+#: (dimensionless). A writer that derives one from the other agrees to ~1e-15; a transposed matrix
+#: or a quaternion in xyzw order differs by O(1) once the body has turned.
+CONSISTENCY_QUAT_MATRIX = 1e-6
+#: |p - m v| relative to |p| (+ 1e-12 kg m/s): p and v are one quantity (dimensionless).
+CONSISTENCY_MOMENTUM_REL = 1e-9
+#: |w - R diag(1/I_body) R^T L| relative to |w| + |L| / I_min (dimensionless). rblog derives w
+#: from L exactly (~1e-16); a writer that logs body-frame w and world L differs by O(1).
+CONSISTENCY_ANGULAR_MOMENTUM_REL = 1e-6
+#: median over a body's sample intervals of |rotvec(R(k+1) R(k)^T)/dt - mean w| relative to |w|
+#: (dimensionless): the logged world angular velocity must turn the logged orientation. The
+#: midpoint rule errs by ~(|w| dt)^2 (1e-4 at 1 rad per sample); contacts make a few intervals
+#: wrong, the median ignores them; a body-frame w, a transposed matrix or a quaternion in xyzw
+#: order give O(1).
+CONSISTENCY_KINEMATIC_REL = 0.1
+#: intervals turning by less than this (rad) or moving less than this times 1 m are not used by
+#: the kinematic checks (nothing to compare against round-off).
+CONSISTENCY_MIN_ANGLE_RAD = 1e-4
+#: intervals where the logged rate changes by more than this fraction of itself held an impulse
+#: (a contact) and are left out of the kinematic checks (dimensionless; a pile of 500 boxes
+#: otherwise shows a median mismatch of 0.27 from its collisions alone).
+CONSISTENCY_SMOOTH_FRAC = 0.25
+#: position correction an engine may apply without a velocity (split impulse, projection of
+#: penetrating contacts), per sample interval: 1e-3 rad of turn or 1e-3 m of shift are allowed on
+#: top of the relative mismatch (a box in rblog's 500-box pile turns ~1e-3 rad per 10 ms
+#: interval by projection alone while nearly at rest; the faults above give O(|w| dt)).
+CONSISTENCY_CORRECTION = 1e-3
+#: a body needs this many usable intervals before its kinematic median is judged (count).
+CONSISTENCY_MIN_INTERVALS_SAMPLES = 5
+
+# --- diff (two logs of one scene; rblog.analyze.diff) -------------------------------------------
+#: a body's centre-of-mass positions in the two logs may differ by this much (m): 1 cm, what a
+#: viewer shows as "the same place" for the samples' 0.1-1 m bodies.
+DIFF_POSITION_M = 1e-2
+#: and its orientations by this angle (rad, ~5.7 degrees).
+DIFF_ANGLE_RAD = 0.1
+#: divergences below this (m) are round-off and left out of the growth-rate fit.
+DIFF_FLOOR_M = 1e-9
+#: orientation differences below this (rad) likewise.
+DIFF_FLOOR_RAD = 1e-9

@@ -5,6 +5,7 @@ the analyzers judge (docs/log-format.md is the same contract on disk).
   materials, ground, static boxes, gravity, applied loads).
 * ``trajectory``: :class:`Trajectory` (samples x bodies, time first), :class:`Contacts` (contact
   rows), :class:`RunInfo` (run metadata), and :func:`derive` (state -> every derived channel).
+* ``orientation``: quaternion <-> matrix <-> rotation vector conversions (numpy).
 * ``derive``: the compiled kernel that defines the derived channels (momenta, energies, rigidity
   errors, totals) once for every writer and reader.
 

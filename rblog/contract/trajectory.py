@@ -33,6 +33,13 @@ class RunInfo:
         scene_resolved: the scene after defaults and generators (JSON-able dict).
         seed: random seed used by generators (or None).
         writer: program that wrote the log (``rblog x.y.z`` or another engine).
+        combine_friction: how the engine combines two materials' friction into a pair's
+            (``geometric`` sqrt(mu_a mu_b): rblog; ``max``: MuJoCo; ``product``: Bullet; ``min``,
+            ``mean``). combine_restitution: likewise (``max``: rblog; ``product``; ``min``, ``mean``).
+            The body table holds each body's own material; analyzers combine with these rules.
+        engine_settings: every solver setting the writer used (JSON-able dict; engine name,
+            version, integrator, iterations, ...).
+        log_format: version of the log contract the log follows (docs/log-format.md).
     """
 
     integrator: str
@@ -46,6 +53,10 @@ class RunInfo:
     scene_resolved: dict = field(default_factory=dict)
     seed: int | None = None
     writer: str = ""
+    combine_friction: str = "geometric"
+    combine_restitution: str = "max"
+    engine_settings: dict = field(default_factory=dict)
+    log_format: int = 2
 
 
 @dataclass

@@ -22,8 +22,18 @@ is second order, symplectic and time-reversible; |L| (world) is untouched and R 
 exact rotations, so both invariants hold to round-off (McLachlan 1993; Dullweber, Leimkuhler &
 McLachlan 1997).
 
-RK4 (``rk4``): classical RK4 on dq/dt = 1/2 (0, omega) (x) q with omega = R(q) I_b^-1 R(q)^T L,
-followed by normalization of q.
+RK4 (``rk4``): classical RK4 on Euler's equations for the body momentum Lb = R^T L, the attitude by
+the fourth-order commutator-free Lie group method (CF4) driven by the stage angular velocities,
+then q turned about an axis normal to L so that R^T L points along the RK4 Lb (see
+:func:`drift_rk4`; until issue 17 it was RK4 on q alone with omega = R(q) I^-1 R(q)^T L, 7-40x
+less accurate at equal dt).
+
+Exact (``exact``): the closed-form torque-free flow (:mod:`rblog.engine.exact`: Jacobi elliptic
+functions for the body momentum, Carlson's integrals for the attitude), to round-off at any h.
+With forces and torques: Strang splitting kick(h/2) exact-flow(h) kick(h/2), second order; the
+world torque is constant over a step, so the only error is the splitting of the momentum kick
+from the rotation. ``exact4``: Yoshida's triple jump of that step (h w1, h w0, h w1 with
+w1 = 1 / (2 - 2^(1/3)), w0 = 1 - 2 w1), fourth order; without torque both are exact.
 """
 
 from __future__ import annotations
@@ -33,6 +43,7 @@ from dataclasses import dataclass
 
 from numba import njit
 
+from rblog.engine.exact import free_flow_quat
 from rblog.engine.rotation import (
     gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, polar, quat_mul, quat_to_mat,
     store_mat,
@@ -72,6 +83,11 @@ METHOD_SEED = 0
 METHOD_SEED_QUAT = 1
 METHOD_SPLITTING = 2
 METHOD_RK4 = 3
+METHOD_EXACT = 4
+METHOD_EXACT4 = 5
+#: Yoshida (1990) triple-jump weights of the fourth-order composition of a symmetric step
+YOSHIDA_W1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
+YOSHIDA_W0 = 1.0 - 2.0 * YOSHIDA_W1
 
 #: The registry. To add an integrator: give it a code and an entry here, a ``drift_*`` for its
 #: torque-free rotation over h with L fixed (dispatched by :func:`drift_rotation`, which the
@@ -88,23 +104,17 @@ REGISTRY = {
     "splitting": Integrator("splitting", METHOD_SPLITTING, ("normalize",), "normalize", 2,
                             "Strang splitting into exact axis rotations (symplectic)"),
     "rk4": Integrator("rk4", METHOD_RK4, ("normalize",), "normalize", 4,
-                      "classical RK4 on q with L(t) = L + t tau; exact constant-force translation"),
+                      "RK4 on Euler's equations, CF4 attitude aligned to L; exact constant-force translation"),
+    "exact": Integrator("exact", METHOD_EXACT, ("normalize",), "normalize", 2,
+                        "exact torque-free flow (elliptic functions); Strang kicks for torque"),
+    "exact4": Integrator("exact4", METHOD_EXACT4, ("normalize",), "normalize", 4,
+                         "exact torque-free flow in Yoshida's 4th-order composition with torque kicks"),
 }
 #: views of the registry, by name
 METHOD_CODES = {k: v.code for k, v in REGISTRY.items()}
 ORTHO_ALLOWED = {k: (v.ortho_allowed, v.ortho_default) for k, v in REGISTRY.items()}
 
 jit = njit(inline="always", cache=True)
-
-
-@jit
-def _qdot(w, x, y, z, m_inv, lx, ly, lz):
-    """dq/dt = 1/2 (0, omega) (x) q with omega from the normalized q."""
-    n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
-    m = quat_to_mat(w * n, x * n, y * n, z * n)
-    ox, oy, oz = omega_world(m, m_inv[0], m_inv[1], m_inv[2], lx, ly, lz)
-    dw, dx, dy, dz = quat_mul(0.0, ox, oy, oz, w, x, y, z)
-    return 0.5 * dw, 0.5 * dx, 0.5 * dy, 0.5 * dz
 
 
 # Exact flows of H_k = Lb_k^2 / (2 I_k) over time s, given s/I_k: rotate the body about its own
@@ -207,26 +217,136 @@ def drift_splitting(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i
 
 
 @jit
+def _mul_exp(w, x, y, z, vx, vy, vz):
+    """q (x) exp(v): q followed by the body-frame rotation by |v| about v (series below 1e-4 rad)."""
+    a2 = vx * vx + vy * vy + vz * vz
+    if a2 < 1e-8:
+        c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
+        sf = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0  # sin(a/2) / a
+    else:
+        a = math.sqrt(a2)
+        c = math.cos(0.5 * a)
+        sf = math.sin(0.5 * a) / a
+    return quat_mul(w, x, y, z, c, sf * vx, sf * vy, sf * vz)
+
+
+@jit
+def _torque_body(w, x, y, z, tx, ty, tz):
+    """R(q)^T tau for a unit q."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = quat_to_mat(w, x, y, z)
+    return (m00 * tx + m10 * ty + m20 * tz, m01 * tx + m11 * ty + m21 * tz,
+            m02 * tx + m12 * ty + m22 * tz)
+
+
+@jit
+def _euler_rhs(b0, b1, b2, k0, k1, k2, t0, t1, t2):
+    """dLb/dt = Lb x omega + tau_body, omega = I^-1 Lb (Euler's equations, body frame)."""
+    w0, w1, w2 = k0 * b0, k1 * b1, k2 * b2
+    return b1 * w2 - b2 * w1 + t0, b2 * w0 - b0 * w2 + t1, b0 * w1 - b1 * w0 + t2
+
+
+@jit
 def drift_rk4(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx=0.0, ty=0.0, tz=0.0):
-    """Classical RK4 on q with L(t) = L + t * torque, then normalization."""
+    """Classical RK4 on Euler's equations for the body momentum Lb, the attitude by the fourth-order
+    commutator-free Lie group method driven by the stage angular velocities, then q turned
+    (minimally, about an axis normal to L) so that R^T L points along the RK4 Lb.
+
+    L (world) is read at the start of the step; the world torque (tx, ty, tz) is constant over the
+    step (the caller adds h tau to L). Why not RK4 on q alone (the former scheme, with
+    omega = R(q) I^-1 R(q)^T L): there Lb = R(q)^T L is slaved to q, so q's stage errors feed every
+    stage's omega; Euler's equations are quadratic in Lb and RK4 integrates them with a smaller
+    error constant, and the final turn hands that accuracy to q (benchmarks/RESULTS.md, issue 17).
+
+    Stages (k = I^-1, tau_b(q) = R(q)^T tau):
+        Lb1 = R^T L;               w_i = k Lb_i;  d_i = Lb_i x w_i + tau_b(q_i)
+        Lb2 = Lb1 + h/2 d1, q2 = q + h/2 q'(q, w1);  Lb3 = Lb1 + h/2 d2, q3 = q + h/2 q'(q2, w2)
+        Lb4 = Lb1 + h d3,   q4 = q + h q'(q3, w3);   Lb' = Lb1 + h/6 (d1 + 2 d2 + 2 d3 + d4)
+        (q'(q, w) = 1/2 q (x) (0, w): the classical stages of the coupled (q, Lb) system)
+        q' = q exp(h B1) exp(h B2),  B1 = w1/4 + (w2 + w3)/6 - w4/12,  B2 = -w1/12 + (w2 + w3)/6 + w4/4
+    (Celledoni, Marthinsen & Owren, FGCS 19 (2003), CF4 for q' = q w(t)), then the turn taking
+    R(q')^T (L + h tau) to the direction of Lb'. The stage attitudes q_i only serve the torque.
+    """
     lx = angular_momentum[i, 0]
     ly = angular_momentum[i, 1]
     lz = angular_momentum[i, 2]
-    ii = inv_inertia[i]
+    k0, k1, k2 = inv_inertia[i, 0], inv_inertia[i, 1], inv_inertia[i, 2]
     w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
-    a = 0.5 * h
-    mx, my, mz = lx + a * tx, ly + a * ty, lz + a * tz
-    k1 = _qdot(w, x, y, z, ii, lx, ly, lz)
-    k2 = _qdot(w + a * k1[0], x + a * k1[1], y + a * k1[2], z + a * k1[3], ii, mx, my, mz)
-    k3 = _qdot(w + a * k2[0], x + a * k2[1], y + a * k2[2], z + a * k2[3], ii, mx, my, mz)
-    k4 = _qdot(w + h * k3[0], x + h * k3[1], y + h * k3[2], z + h * k3[3], ii,
-               lx + h * tx, ly + h * ty, lz + h * tz)
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = load_mat(rotation, i)
+    a0 = m00 * lx + m10 * ly + m20 * lz
+    a1 = m01 * lx + m11 * ly + m21 * lz
+    a2 = m02 * lx + m12 * ly + m22 * lz
+    torqued = tx != 0.0 or ty != 0.0 or tz != 0.0
+    hh = 0.5 * h
+    # stage 1
+    e0, e1, e2 = 0.0, 0.0, 0.0
+    if torqued:
+        e0, e1, e2 = m00 * tx + m10 * ty + m20 * tz, m01 * tx + m11 * ty + m21 * tz, m02 * tx + m12 * ty + m22 * tz
+    d10, d11, d12 = _euler_rhs(a0, a1, a2, k0, k1, k2, e0, e1, e2)
+    w10, w11, w12 = k0 * a0, k1 * a1, k2 * a2
+    # stage 2
+    b0, b1, b2 = a0 + hh * d10, a1 + hh * d11, a2 + hh * d12
+    if torqued:  # classical stage attitude q2 = q + h/2 q'(q, w1)
+        k1q = quat_mul(w, x, y, z, 0.0, 0.5 * w10, 0.5 * w11, 0.5 * w12)
+        q2 = normalize4(w + hh * k1q[0], x + hh * k1q[1], y + hh * k1q[2], z + hh * k1q[3])
+        e0, e1, e2 = _torque_body(q2[0], q2[1], q2[2], q2[3], tx, ty, tz)
+    d20, d21, d22 = _euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2)
+    w20, w21, w22 = k0 * b0, k1 * b1, k2 * b2
+    # stage 3
+    b0, b1, b2 = a0 + hh * d20, a1 + hh * d21, a2 + hh * d22
+    if torqued:  # q3 = q + h/2 q'(q2, w2)
+        k2q = quat_mul(q2[0], q2[1], q2[2], q2[3], 0.0, 0.5 * w20, 0.5 * w21, 0.5 * w22)
+        q3 = normalize4(w + hh * k2q[0], x + hh * k2q[1], y + hh * k2q[2], z + hh * k2q[3])
+        e0, e1, e2 = _torque_body(q3[0], q3[1], q3[2], q3[3], tx, ty, tz)
+    d30, d31, d32 = _euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2)
+    w30, w31, w32 = k0 * b0, k1 * b1, k2 * b2
+    # stage 4
+    b0, b1, b2 = a0 + h * d30, a1 + h * d31, a2 + h * d32
+    if torqued:  # q4 = q + h q'(q3, w3)
+        k3q = quat_mul(q3[0], q3[1], q3[2], q3[3], 0.0, 0.5 * w30, 0.5 * w31, 0.5 * w32)
+        q4 = normalize4(w + h * k3q[0], x + h * k3q[1], y + h * k3q[2], z + h * k3q[3])
+        e0, e1, e2 = _torque_body(q4[0], q4[1], q4[2], q4[3], tx, ty, tz)
+    d40, d41, d42 = _euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2)
+    w40, w41, w42 = k0 * b0, k1 * b1, k2 * b2
     g = h / 6.0
-    w = w + g * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-    x = x + g * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-    y = y + g * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-    z = z + g * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
+    n0 = a0 + g * (d10 + 2.0 * d20 + 2.0 * d30 + d40)
+    n1 = a1 + g * (d11 + 2.0 * d21 + 2.0 * d31 + d41)
+    n2 = a2 + g * (d12 + 2.0 * d22 + 2.0 * d32 + d42)
+    # attitude: CF4
+    c1, c2, c3 = 1.0 / 4.0, 1.0 / 6.0, -1.0 / 12.0
+    w, x, y, z = _mul_exp(w, x, y, z, h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
+                          h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
+                          h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42))
+    w, x, y, z = _mul_exp(w, x, y, z, h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
+                          h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
+                          h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42))
     w, x, y, z = normalize4(w, x, y, z)
+    # turn q so that R^T L_end is along Lb': the rotation c with c u = v (u, v unit), q <- q c^-1
+    ex, ey, ez = lx + h * tx, ly + h * ty, lz + h * tz
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = quat_to_mat(w, x, y, z)
+    u0 = m00 * ex + m10 * ey + m20 * ez
+    u1 = m01 * ex + m11 * ey + m21 * ez
+    u2 = m02 * ex + m12 * ey + m22 * ez
+    nu = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    nv = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if nu > 0.0 and nv > 0.0:
+        iu, iv = 1.0 / nu, 1.0 / nv
+        u0, u1, u2 = u0 * iu, u1 * iu, u2 * iu
+        v0, v1, v2 = n0 * iv, n1 * iv, n2 * iv
+        cw = 1.0 + u0 * v0 + u1 * v1 + u2 * v2
+        cx, cy, cz = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        w, x, y, z = quat_mul(w, x, y, z, cw, -cx, -cy, -cz)
+    w, x, y, z = normalize4(w, x, y, z)
+    quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
+    store_mat(rotation, i, quat_to_mat(w, x, y, z))
+
+
+@jit
+def drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
+    """The exact torque-free rotation over h (L world fixed), to round-off for any h."""
+    ii = inv_inertia[i]
+    w, x, y, z = free_flow_quat(quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3],
+                                angular_momentum[i, 0], angular_momentum[i, 1],
+                                angular_momentum[i, 2], ii[0], ii[1], ii[2], h)
     quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
     store_mat(rotation, i, quat_to_mat(w, x, y, z))
 
@@ -250,6 +370,8 @@ def drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_ine
         drift_seed_quat(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
     elif method == METHOD_SPLITTING:
         drift_splitting(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
+    elif method == METHOD_EXACT or method == METHOD_EXACT4:
+        drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
     else:
         drift_rk4(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx, ty, tz)
 
@@ -273,6 +395,22 @@ def sync_quat(method, quat_wxyz, rotation, i):
         quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
 
 
+
+
+@jit
+def _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx, ty, tz):
+    """Kick L by tau h/2, the exact free flow over h, kick by tau h/2 (h may be negative)."""
+    hh = 0.5 * h
+    if tx != 0.0 or ty != 0.0 or tz != 0.0:
+        angular_momentum[i, 0] += hh * tx
+        angular_momentum[i, 1] += hh * ty
+        angular_momentum[i, 2] += hh * tz
+        drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
+        angular_momentum[i, 0] += hh * tx
+        angular_momentum[i, 1] += hh * ty
+        angular_momentum[i, 2] += hh * tz
+    else:
+        drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
 
 
 @njit(inline="always")
@@ -306,6 +444,26 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
         angular_momentum[i, 0] += hh * tx
         angular_momentum[i, 1] += hh * ty
         angular_momentum[i, 2] += hh * tz
+    elif method == METHOD_EXACT or method == METHOD_EXACT4:
+        # translation: exact for a constant force (kick-drift-kick is that map)
+        hh = 0.5 * dt * dt * im
+        x += dt * px * im + hh * fx
+        y += dt * py * im + hh * fy
+        z += dt * pz * im + hh * fz
+        px += dt * fx
+        py += dt * fy
+        pz += dt * fz
+        # rotation: Strang kick(h/2) exact(h) kick(h/2), or Yoshida's triple jump of it
+        if method == METHOD_EXACT:
+            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt,
+                          tx, ty, tz)
+        else:
+            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W1 * dt, tx, ty, tz)
+            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W0 * dt, tx, ty, tz)
+            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W1 * dt, tx, ty, tz)
     elif method == METHOD_RK4:
         # translation: exact for a constant force; rotation: RK4 with L(t) = L + t tau
         hh = 0.5 * dt * dt * im

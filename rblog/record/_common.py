@@ -12,7 +12,11 @@ from rblog.contract.model import Model
 from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, RunInfo
 
 #: version of the log contract (docs/log-format.md) this module writes and reads
-LOG_FORMAT_VERSION = 1
+LOG_FORMAT_VERSION = 2
+#: oldest contract version the reader accepts
+LOG_FORMAT_OLDEST = 1
+#: material combine rules a log may declare (RunInfo.combine_friction / combine_restitution)
+COMBINE_RULES = ("geometric", "max", "min", "product", "mean")
 #: Rerun application id of rblog recordings
 APPLICATION_ID = "rblog"
 #: length of a contact-force arrow in the Rerun view (m per N of mean force over the step)
@@ -58,6 +62,9 @@ INFO_FIELDS: dict[str, str] = {
     "scene_resolved_json": "s",
     "seed": "i",
     "writer": "s",
+    "combine_friction": "s",
+    "combine_restitution": "s",
+    "engine_settings_json": "s",
 }
 
 STATE_CHANNELS = {**BODY_CHANNELS, **TOTAL_CHANNELS}
@@ -123,6 +130,9 @@ def info_to_fields(info: RunInfo) -> dict[str, object]:
         "scene_toml": str(info.scene_toml),
         "scene_resolved_json": json.dumps(info.scene_resolved, default=_json_default),
         "writer": str(info.writer),
+        "combine_friction": str(info.combine_friction),
+        "combine_restitution": str(info.combine_restitution),
+        "engine_settings_json": json.dumps(info.engine_settings, default=_json_default),
     }
     if info.seed is not None:
         out["seed"] = int(info.seed)
@@ -144,6 +154,11 @@ def info_from_fields(d: dict[str, object]) -> RunInfo:
     except ValueError:
         scene_resolved = {}
     seed = d.get("seed")
+    try:
+        settings = json.loads(d.get("engine_settings_json") or "{}")
+    except ValueError:
+        settings = {}
+    fmt = d.get("rblog_log_format")
     return RunInfo(
         integrator=str(d.get("integrator", "")),
         orthonormalize=str(d.get("orthonormalize", "")),
@@ -156,6 +171,11 @@ def info_from_fields(d: dict[str, object]) -> RunInfo:
         scene_resolved=scene_resolved if isinstance(scene_resolved, dict) else {},
         seed=None if seed is None else int(seed),
         writer=str(d.get("writer", "")),
+        # v1 logs predate these fields: rblog's own rules, which v1 writers used
+        combine_friction=str(d.get("combine_friction") or "geometric"),
+        combine_restitution=str(d.get("combine_restitution") or "max"),
+        engine_settings=settings if isinstance(settings, dict) else {},
+        log_format=int(fmt) if fmt not in (None, "") else LOG_FORMAT_OLDEST,
     )
 
 

@@ -131,8 +131,15 @@ class _Collector:
         if truncated and T == 0:
             raise LogReadError(where, "log ends before its first sample"
                                + (f" ({self.cut})" if self.cut else ""))
-        return Trajectory(model=model, info=info, contacts=self._contacts(), truncated=truncated,
+        if info.log_format > C.LOG_FORMAT_VERSION:
+            warns.append(f"log follows contract version {info.log_format}, newer than this reader's "
+                         f"{C.LOG_FORMAT_VERSION}; channels it does not know are ignored")
+        traj = Trajectory(model=model, info=info, contacts=self._contacts(), truncated=truncated,
                           warnings=warns, **kw)
+        from rblog.analyze.consistency import consistency_warnings  # checks on read (contract v2)
+
+        traj.warnings.extend(consistency_warnings(traj))
+        return traj
 
     def _contacts(self) -> Contacts:
         if not self.contacts:
@@ -363,13 +370,13 @@ def _contacts_of(msg) -> dict[str, np.ndarray]:
 
 
 def _run_of(msg) -> tuple[dict, dict]:
-    run: dict[str, object] = {}
+    run: dict[str, object] = {"rblog_log_format": msg.rblog_log_format}
     for name in C.INFO_FIELDS:
         if name == "seed":
             if msg.HasField("seed"):
                 run["seed"] = msg.seed
         else:
-            run[name] = getattr(msg, name)
+            run[name] = getattr(msg, name, "")  # fields newer than the log's schema: absent
     model: dict[str, object] = {}
     for name, (kind, _) in C.MODEL_FIELDS.items():
         v = getattr(msg, name)

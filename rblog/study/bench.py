@@ -56,7 +56,7 @@ from rblog.study.reference import PROBLEMS, Problem, Samples, contact_engine_sta
 
 SCHEMA = "rblog-bench/1"
 #: the integrators measured by default (``name`` or ``name/orthonormalize``)
-INTEGRATORS = ("seed", "seed-quat", "splitting", "rk4")
+INTEGRATORS = ("seed", "seed-quat", "splitting", "rk4", "exact", "exact4")
 #: time steps (s) of the full study and of --quick
 DTS = (2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4)
 DTS_QUICK = (2e-2, 1e-2, 5e-3)
@@ -75,7 +75,7 @@ ORDER_FIT_MAX = 1e-1
 #: the rblog integrator peers are compared against (the default)
 RATIO_BASELINE = "rk4"
 #: problems with smooth exact solutions, where orders of convergence mean something
-SMOOTH_PROBLEMS = ("torque-free-intermediate", "torque-free-generic", "free-fall")
+SMOOTH_PROBLEMS = ("torque-free-intermediate", "torque-free-generic", "torqued-body", "free-fall")
 #: errors at which the cost of every engine/integrator is interpolated (cost_at_error)
 COST_TARGETS = (1e-2, 1e-4, 1e-6, 1e-8)
 #: time steps whose peer ratios the terminal table shows (all are in the JSON)
@@ -435,7 +435,7 @@ def format_table(report: BenchReport) -> str:
     m = report.machine
     lines.append(f"rblog bench{' --quick' if report.quick else ''}: {m.get('cpu', '?')}, "
                  f"{m.get('cores', '?')} cores, python {m.get('python')}, numba {m.get('numba')}")
-    head = (f"{'engine/integrator':<22}{'dt':>8}{'ms/sim-s':>10}{'error':>10}{'w err':>10}"
+    head = (f"{'engine/integrator':<22}{'dt':>8}{'ms/sim-s':>10}{'us/step':>9}{'error':>10}{'w err':>10}"
             f"{'angle':>10}{'pos err':>10}{'E drift':>10}{'|L| drift':>10}{'ortho':>10}  ")
     for info in report.problems:
         lines.append("")
@@ -454,8 +454,9 @@ def format_table(report: BenchReport) -> str:
                 lines.append(f"{name:<22}{r['dt']:>8g}  {r['status']}: {r['message'][:90]}")
                 continue
             wall = r["wall_per_sim_s"] * 1e3 if r["wall_per_sim_s"] is not None else None
+            us = r["ns_per_step"] * 1e-3 if r["ns_per_step"] is not None else None
             lines.append(
-                f"{name:<22}{r['dt']:>8g}{_fmt(wall, '.3g'):>10}{_fmt(r['error']):>10}"
+                f"{name:<22}{r['dt']:>8g}{_fmt(wall, '.3g'):>10}{_fmt(us, '.3g'):>9}{_fmt(r['error']):>10}"
                 f"{_fmt(r['omega_rel']):>10}{_fmt(r['angle_rad']):>10}{_fmt(r['position_m']):>10}"
                 f"{_fmt(r['energy_drift_rel']):>10}{_fmt(r['angular_momentum_drift_rel']):>10}"
                 f"{_fmt(r['ortho_error_max']):>10}  {'*' if r['pareto'] else ''}")

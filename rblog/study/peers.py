@@ -13,6 +13,7 @@ ones. What each engine is given:
   (``solref="tc dampratio"``, the spring's omega = 1/(tc dampratio) held at 0.2/dt for stability,
   impedance near 0.99 by ``solimp``); resting contact keeps MuJoCo's defaults; frictionless
   contacts use ``condim=1``. Free-joint angular velocity (qvel[3:6]) is body frame; rblog's is turned into it.
+  A body's constant applied torque (world frame) goes into ``xfrc_applied``.
 * pybullet: ``createMultiBody`` with the same mass and ``localInertiaDiagonal``, its default
   damping (0.04) set to 0. Bullet multiplies the two restitutions (and frictions) of a contact, so
   the static ground gets restitution 1 and the body e. Its one integrator is named ``default``.
@@ -104,6 +105,9 @@ class MujocoPeer:
             d.qpos[7 * i + 3:7 * i + 7] = np.asarray(b.quat_wxyz) / np.linalg.norm(b.quat_wxyz)
             d.qvel[6 * i:6 * i + 3] = b.velocity
             d.qvel[6 * i + 3:6 * i + 6] = b.omega_body
+            # a constant world torque at the centre of mass (body i + 1: body 0 is the world);
+            # xfrc_applied persists across steps
+            d.xfrc_applied[i + 1, 3:6] = b.torque
         mj.mj_forward(m, d)
         return m, d
 
@@ -149,6 +153,8 @@ class PybulletPeer:
         self.version = str(pybullet.getAPIVersion())
 
     def supports(self, problem: Problem) -> str:
+        if any(any(b.torque) for b in problem.bodies):
+            return "applied torque not mapped (pybullet's external torque lasts one step)"
         return ""
 
     def _setup(self, problem: Problem, dt: float):

@@ -825,7 +825,8 @@ def test_energy_flags_energy_growing_over_time():
     rate = 0.2  # rad/s tilt of the top's axis away from its cone: E changes, L does not
     traj = symmetric_top(tilt_rate=rate)
     res = results(traj)
-    assert {k for k, r in res.items() if not r.passed} == {"energy"}
+    # the planted tilt turns the orientation without an angular velocity: consistency sees it too
+    assert {k for k, r in res.items() if not r.passed} == {"energy", "consistency"}
     en = res["energy"]
     # theory: E(t) = |L|^2 / (2 Ip) + L3(t)^2 (1/I3 - 1/Ip) / 2, L3(t) = L.(R(t) e3)
     h, m, inertia, ip, i3, r0, l_world = top_params()

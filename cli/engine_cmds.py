@@ -1,0 +1,46 @@
+"""``rblog run SCENE --engine mujoco|pybullet``: run a scene in another engine and record it
+(:mod:`rblog.study.engines`). Called from cli/main.py's ``run``."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from rblog.errors import RblogError
+
+
+def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, orthonormalize,
+                    rrd, mcap, mcap_compression, no_log, log_every, log_rate, as_json, fail):
+    """Load the scene, run it in ``engine``, print the summary (like ``rblog run``)."""
+    from pathlib import Path
+
+    from rblog.engine.scene import load_scene
+    from rblog.study.engines import run_engine
+
+    if integrator or orthonormalize:
+        fail(RblogError("--integrator/--orthonormalize choose rblog's integrator; with --engine "
+                        "use --engine-option integrator=NAME"))
+    if no_log and (rrd or mcap):
+        fail(RblogError("--no-log contradicts --rrd/--mcap"))
+    if not (rrd or mcap or no_log):
+        stem = f"{Path(scene_path).stem}-{engine}"
+        rrd, mcap = f"{stem}.rrd", f"{stem}.mcap"
+    try:
+        s = load_scene(scene_path)
+        summary, _ = run_engine(s, engine, options=options, dt=dt, duration=duration,
+                                log_every=log_every, log_rate=log_rate, rrd=rrd, mcap=mcap,
+                                mcap_compression=mcap_compression)
+    except RblogError as e:
+        fail(e)
+    if as_json:
+        click.echo(json.dumps(summary.to_dict()))
+        return
+    click.echo(f"{scene_path}: {engine} {summary.version}, {summary.steps} steps x {summary.bodies} "
+               f"bodies, {summary.sim_time_s:g} s simulated in {summary.wall_time_s:.3f} s wall "
+               f"(engine stepping {summary.step_wall_s:.3f} s, recording {summary.record_wall_s:.3f} s)")
+    st = summary.settings
+    click.echo(f"  integrator {st.get('integrator')}, dt {summary.dt:g} s, logged every "
+               f"{summary.log_every} steps ({summary.samples} samples, {summary.contacts} contact rows)")
+    for p in summary.logs:
+        click.echo(f"  wrote {p}")

@@ -1,0 +1,363 @@
+"""The public writer API: record any engine's run into the log contract (docs/log-format.md).
+
+:class:`Recorder` takes the body table once and then blocks of per-body state in whatever form an
+engine holds it (orientation as a quaternion or a matrix, velocities or momenta, world frame),
+derives every other channel of the contract with the same code rblog's own runs use
+(:func:`rblog.contract.trajectory.derive`), and writes ``.rrd`` and/or ``.mcap`` through the same
+writers as ``rblog run`` (:class:`~rblog.record.RerunRecorder`, :class:`~rblog.record.McapRecorder`);
+with no output it keeps the run in memory (``recorder.trajectory``), which ``rblog.check`` audits
+like a file::
+
+    model = rblog.body_table(name=["ball"], shape=["sphere"], size=[[0.1, 0, 0]], mass=[1.0],
+                             ground=True)
+    with rblog.Recorder(model, mcap="ball.mcap", dt=1e-3, writer="my engine 1.0") as rec:
+        for block in engine_blocks():
+            rec.write(t=block.t, position=block.x, quat_wxyz=block.q, velocity=block.v,
+                      angular_velocity=block.w)          # world frame, (T, N, ...) arrays
+    results = rblog.check(rblog.load("ball.mcap"))
+
+:func:`trajectory_from_arrays` builds a :class:`~rblog.contract.trajectory.Trajectory` from whole
+arrays in one call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+
+import numpy as np
+
+from rblog import __version__
+from rblog.contract.model import SHAPE_CODES, SHAPE_SPHERE, Model
+from rblog.contract.orientation import matrix_to_quat, quat_wxyz_to_matrix
+from rblog.contract.trajectory import Contacts, RunInfo, Trajectory, derive
+from rblog.errors import RblogError
+from rblog.record import _common as C
+
+
+class RecordError(RblogError):
+    """Arrays handed to the Recorder do not fit the body table or the contract (a one-line
+    message naming the argument, its shape and what was expected)."""
+
+
+def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, friction=0.5,
+               group=0, force_world=None, torque_world=None, gravity=(0.0, 0.0, -9.81),
+               ground: bool = False, ground_normal=(0.0, 0.0, 1.0), ground_offset: float = 0.0,
+               ground_restitution: float = 0.5, ground_friction: float = 0.5,
+               static_box_position=None, static_box_quat_wxyz=None, static_box_half_extents=None,
+               static_box_restitution=None, static_box_friction=None) -> Model:
+    """A :class:`Model` (body table and world) from per-body lists.
+
+    Args:
+        name: N names.  shape: N of ``"sphere"``/``"box"`` (or 0/1).
+        size: (N, 3): sphere radius in [:, 0]; box half extents (m, body frame). A sphere may
+            also be given as a scalar radius per body, (N,).
+        mass: (N,) kg.  inertia_diag: (N, 3) principal moments about the centre of mass in the
+            body frame (kg m^2); default: a solid sphere's 2/5 m r^2, a solid box's m/3 (b^2 + c^2).
+        restitution, friction: scalars or (N,).  group: collision group(s).
+        force_world, torque_world: (N, 3) constant applied loads besides gravity.
+        gravity: (3,) m/s^2.  ground...: the plane ``dot(normal, x) = offset`` if ``ground``.
+        static_box_*: (M, ...) static boxes.
+    """
+    n = len(name)
+
+    def arr(v, shape_, what, default=0.0):
+        a = np.asarray(default if v is None else v, np.float64)
+        try:
+            return np.broadcast_to(a, shape_).copy()
+        except ValueError:
+            raise RecordError(f"body_table: {what} has shape {a.shape}, expected {shape_}") from None
+
+    codes = np.array([SHAPE_CODES[s] if isinstance(s, str) else int(s) for s in shape], np.int64) \
+        if not isinstance(shape, str) else np.full(n, SHAPE_CODES[shape], np.int64)
+    if len(codes) != n:
+        raise RecordError(f"body_table: shape has {len(codes)} entries, expected {n}")
+    sz = np.asarray(size, np.float64)
+    if sz.ndim == 1 and len(sz) == n:
+        sz = np.stack([sz, np.zeros(n), np.zeros(n)], axis=1)
+    sz = arr(sz, (n, 3), "size")
+    m = arr(mass, (n,), "mass")
+    if np.any(m <= 0):
+        raise RecordError("body_table: mass must be positive")
+    if inertia_diag is None:
+        inertia = np.empty((n, 3))
+        for i in range(n):
+            if codes[i] == SHAPE_SPHERE:
+                inertia[i] = 0.4 * m[i] * sz[i, 0] ** 2
+            else:
+                a2, b2, c2 = sz[i] ** 2
+                inertia[i] = m[i] / 3.0 * np.array([b2 + c2, a2 + c2, a2 + b2])
+    else:
+        inertia = arr(inertia_diag, (n, 3), "inertia_diag")
+    mcount = 0 if static_box_position is None else len(static_box_position)
+    return Model(
+        body_name=[str(x) for x in name], body_shape=codes, body_size=sz, body_mass=m,
+        body_inertia_diag=inertia, body_force_world=arr(force_world, (n, 3), "force_world"),
+        body_torque_world=arr(torque_world, (n, 3), "torque_world"),
+        body_restitution=arr(restitution, (n,), "restitution"),
+        body_friction=arr(friction, (n,), "friction"),
+        body_group=np.broadcast_to(np.asarray(group, np.int64), (n,)).copy(),
+        gravity=arr(gravity, (3,), "gravity"), ground=bool(ground),
+        ground_normal=arr(ground_normal, (3,), "ground_normal"), ground_offset=float(ground_offset),
+        ground_restitution=float(ground_restitution), ground_friction=float(ground_friction),
+        static_box_position=arr(static_box_position, (mcount, 3), "static_box_position"),
+        static_box_quat_wxyz=arr(static_box_quat_wxyz if mcount else None, (mcount, 4),
+                                 "static_box_quat_wxyz", default=[1.0, 0, 0, 0]),
+        static_box_half_extents=arr(static_box_half_extents, (mcount, 3), "static_box_half_extents"),
+        static_box_restitution=arr(static_box_restitution, (mcount,), "static_box_restitution", 0.5),
+        static_box_friction=arr(static_box_friction, (mcount,), "static_box_friction", 0.5),
+    )
+
+
+_CONTACT_FIELDS = [f.name for f in fields(Contacts)]
+
+
+def make_contacts(n_bodies: int, *, step, body_a, body_b, point, normal, separation,
+                  normal_impulse, friction_impulse=None, t=None, kind=None, dt=None) -> Contacts:
+    """Contact rows from arrays (K rows; see docs/log-format.md "Contact rows"). ``t`` defaults to
+    ``step * dt``; ``friction_impulse`` to zero; ``kind`` to 0 (resting)."""
+    step = np.asarray(step, np.int64).reshape(-1)
+    k = len(step)
+    if t is None:
+        if dt is None:
+            raise RecordError("contacts: give t, or dt so that t = step * dt")
+        t = step * float(dt)
+    out = Contacts(
+        step=step, t=np.asarray(t, np.float64).reshape(k),
+        body_a=np.asarray(body_a, np.int64).reshape(k), body_b=np.asarray(body_b, np.int64).reshape(k),
+        point=np.asarray(point, np.float64).reshape(k, 3), normal=np.asarray(normal, np.float64).reshape(k, 3),
+        separation=np.asarray(separation, np.float64).reshape(k),
+        normal_impulse=np.asarray(normal_impulse, np.float64).reshape(k),
+        friction_impulse=(np.zeros((k, 3)) if friction_impulse is None
+                          else np.asarray(friction_impulse, np.float64).reshape(k, 3)),
+        kind=np.zeros(k, np.int8) if kind is None else np.asarray(kind, np.int8).reshape(k),
+    )
+    for name in ("body_a", "body_b"):
+        a = getattr(out, name)
+        if len(a) and (a.min() < -1 or a.max() >= n_bodies):
+            raise RecordError(f"contacts: {name} holds {int(a.min())}..{int(a.max())}, expected "
+                              f"body indices 0..{n_bodies - 1} or -1 (static geometry)")
+    return out
+
+
+def _arr(v, name, shape):
+    a = np.asarray(v, np.float64)
+    if a.shape != shape:
+        raise RecordError(f"{name}: shape {a.shape}, expected {shape} (samples, bodies, ...)")
+    return a
+
+
+def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxyz=None,
+                quat_xyzw=None, rotation=None, velocity=None, linear_momentum=None,
+                angular_velocity=None, angular_momentum=None, contacts=None) -> Trajectory:
+    """One block of the contract from the state an engine holds (T samples, N bodies, world frame).
+
+    Give the orientation as ``quat_wxyz`` (or ``quat_xyzw``) and/or ``rotation`` (T, N, 3, 3)
+    body->world; the linear state as ``velocity`` and/or ``linear_momentum``; the angular state as
+    ``angular_velocity`` (world frame, rad/s) and/or ``angular_momentum`` (world, about the centre
+    of mass). What is missing is derived: ``R`` from ``q`` or ``q`` from ``R`` (Shepperd),
+    ``p = m v``, ``L = R diag(I_body) R^T w``; then every derived channel
+    (:func:`rblog.contract.trajectory.derive`). Channels given twice are logged as given, so that
+    a disagreement shows in the consistency checks rather than being overwritten.
+    """
+    t = np.asarray(t, np.float64).reshape(-1)
+    T, n = len(t), model.n_bodies
+    if step is None:
+        if not info.dt:
+            raise RecordError("step: not given and the run's dt is unknown (give step or dt)")
+        step = np.rint(t / info.dt).astype(np.int64)
+    step = np.asarray(step, np.int64).reshape(-1)
+    if len(step) != T:
+        raise RecordError(f"step: {len(step)} values, expected {T} (one per sample)")
+    position = _arr(position, "position", (T, n, 3))
+    if quat_xyzw is not None:
+        if quat_wxyz is not None:
+            raise RecordError("give quat_wxyz or quat_xyzw, not both")
+        quat_wxyz = _arr(quat_xyzw, "quat_xyzw", (T, n, 4))[..., [3, 0, 1, 2]]
+    if quat_wxyz is None and rotation is None:
+        raise RecordError("orientation: give quat_wxyz, quat_xyzw or rotation")
+    if rotation is None:
+        quat_wxyz = _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
+        rotation = quat_wxyz_to_matrix(quat_wxyz)
+    else:
+        rotation = _arr(rotation, "rotation", (T, n, 3, 3))
+        quat_wxyz = matrix_to_quat(rotation) if quat_wxyz is None else _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
+    mass = np.asarray(model.body_mass, np.float64)
+    if velocity is None and linear_momentum is None:
+        raise RecordError("linear state: give velocity or linear_momentum")
+    if velocity is not None:
+        velocity = _arr(velocity, "velocity", (T, n, 3))
+    p = mass[None, :, None] * velocity if linear_momentum is None else \
+        _arr(linear_momentum, "linear_momentum", (T, n, 3))
+    if angular_velocity is None and angular_momentum is None:
+        raise RecordError("angular state: give angular_velocity (world frame) or angular_momentum")
+    if angular_velocity is not None:
+        angular_velocity = _arr(angular_velocity, "angular_velocity", (T, n, 3))
+    if angular_momentum is None:
+        inertia = np.asarray(model.body_inertia_diag, np.float64)
+        w_body = (np.swapaxes(rotation, -1, -2) @ angular_velocity[..., None])[..., 0]
+        lw = (rotation @ (inertia[None] * w_body)[..., None])[..., 0]
+    else:
+        lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
+    if isinstance(contacts, dict):
+        contacts = make_contacts(n, dt=info.dt, **contacts)
+    block = derive(model, info, step, t, position, p, quat_wxyz, rotation, lw, contacts=contacts)
+    if velocity is not None and linear_momentum is not None:
+        block.velocity = np.ascontiguousarray(velocity)
+    if angular_velocity is not None and angular_momentum is not None:
+        block.angular_velocity = np.ascontiguousarray(angular_velocity)
+    return block
+
+
+class Recorder:
+    """Record a run of any engine into the log contract (a context manager).
+
+    Args:
+        model: the body table (:func:`body_table`, or a :class:`Model`).
+        rrd, mcap: output paths (either, both, or neither: then the run is kept in memory).
+        dt: the engine's step (s); ``step`` defaults to ``round(t / dt)``.
+        writer: the program that wrote the log (``"mujoco 3.2.0"``).
+        integrator: the engine's integrator name.  log_every: steps between samples.
+        combine_friction, combine_restitution: the engine's material combine rules (see
+            ``RunInfo``; rblog's are ``geometric`` and ``max``).
+        engine_settings: every solver setting used (logged as JSON).
+        keep: keep the blocks in memory (default: when there is no output path).
+        info: a ready :class:`RunInfo` instead of the fields above.
+
+    ``write(...)`` takes a block (see :func:`build_block`); ``close(truncated, reason)`` (or
+    leaving the ``with`` block; an exception marks the log truncated) finishes the files.
+    ``trajectory`` is the run so far when ``keep``.
+    """
+
+    def __init__(self, model: Model | None = None, *, rrd=None, mcap=None, dt: float = 0.0, writer: str = "",
+                 integrator: str = "", log_every: int = 1, duration_s: float = 0.0,
+                 combine_friction: str = "geometric", combine_restitution: str = "max",
+                 engine_settings: dict | None = None, scene_path: str = "", scene_toml: str = "",
+                 scene_resolved: dict | None = None, seed: int | None = None,
+                 keep: bool | None = None, info: RunInfo | None = None,
+                 mcap_compression: str = "lz4", writers: list | None = None):
+        for rule, what in ((combine_friction, "combine_friction"),
+                           (combine_restitution, "combine_restitution")):
+            if rule not in C.COMBINE_RULES:
+                raise RecordError(f"{what}: {rule!r}, expected one of {', '.join(C.COMBINE_RULES)}")
+        self.model = model
+        self.info = info or RunInfo(
+            integrator=integrator, orthonormalize="none", dt=float(dt), log_every=int(log_every),
+            duration_s=float(duration_s), rblog_version=__version__, scene_path=scene_path,
+            scene_toml=scene_toml, scene_resolved=scene_resolved or {}, seed=seed,
+            writer=writer or f"rblog.Recorder {__version__}", combine_friction=combine_friction,
+            combine_restitution=combine_restitution, engine_settings=dict(engine_settings or {}),
+            log_format=C.LOG_FORMAT_VERSION)
+        self.writers = list(writers or [])
+        if rrd is not None:
+            from rblog.record.rerun_writer import RerunRecorder
+
+            self.writers.append(RerunRecorder(rrd))
+        if mcap is not None:
+            from rblog.record.mcap_writer import McapRecorder
+
+            self.writers.append(McapRecorder(mcap, compression=mcap_compression))
+        self.keep = (not self.writers) if keep is None else keep
+        self.blocks: list[Trajectory] = []
+        self._opened: list = []
+        self._open = False
+        self._closed = False
+        self._truncated = False
+        self._last_step: int | None = None
+        self.samples_written = 0
+
+    # --- lifecycle --------------------------------------------------------------------------
+    def open(self, model: Model | None = None, info: RunInfo | None = None) -> "Recorder":
+        """Open the outputs. ``model`` and ``info`` (optional) replace the constructor's: this is
+        the recorder protocol of :func:`rblog.engine.runner.run`, so rblog's own runs record
+        through a Recorder as well (``rblog run`` does)."""
+        if model is not None:
+            self.model = model
+        if info is not None:
+            self.info = info
+        if self.model is None:
+            raise RecordError("no body table: give Recorder(model, ...) or open(model, info)")
+        if not self._open:
+            for w in self.writers:
+                w.open(self.model, self.info)
+                self._opened.append(w)
+            self._open = True
+        return self
+
+    def __enter__(self) -> "Recorder":
+        return self.open()
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
+
+    def write(self, block: Trajectory | None = None, **arrays) -> Trajectory:
+        """Append a block: a ready :class:`Trajectory`, or arrays for :func:`build_block`.
+        Returns the block as logged."""
+        if self._closed:
+            raise RecordError("recorder is closed")
+        if not self._open:
+            self.open()
+        if block is None:
+            block = build_block(self.model, self.info, **arrays)
+        if block.n_samples and self._last_step is not None and block.step[0] <= self._last_step:
+            raise RecordError(f"step {int(block.step[0])} after step {self._last_step}: blocks must "
+                              "be written in time order")
+        for w in self._opened:
+            w.write(block)
+        if self.keep:
+            self.blocks.append(block)
+        if block.n_samples:
+            self._last_step = int(block.step[-1])
+        self.samples_written += block.n_samples
+        return block
+
+    def close(self, truncated: bool = False, reason: str | None = None) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self._truncated = truncated
+        err = None
+        for w in self._opened:
+            try:
+                w.close(truncated=truncated, reason=reason)
+            except RblogError as e:
+                err = err or e
+        if err is not None:
+            raise err
+
+    @property
+    def trajectory(self) -> Trajectory:
+        """The run recorded so far (needs ``keep``)."""
+        if not self.keep:
+            raise RecordError("the Recorder was not asked to keep the run (keep=True)")
+        if not self.blocks:
+            return build_block(self.model, self.info, t=np.zeros(0), step=np.zeros(0, np.int64),
+                               position=np.zeros((0, self.model.n_bodies, 3)),
+                               quat_wxyz=np.zeros((0, self.model.n_bodies, 4)),
+                               velocity=np.zeros((0, self.model.n_bodies, 3)),
+                               angular_velocity=np.zeros((0, self.model.n_bodies, 3)))
+        traj = Trajectory.concat(self.blocks)
+        traj.truncated = self._truncated
+        return traj
+
+
+def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
+                           combine_friction: str = "geometric", combine_restitution: str = "max",
+                           **arrays) -> Trajectory:
+    """A whole run from arrays in memory (no file): ``rblog.check(trajectory_from_arrays(...))``
+    audits it as ``rblog check`` audits a log. ``arrays`` as for :func:`build_block`."""
+    rec = Recorder(model, dt=dt, writer=writer, combine_friction=combine_friction,
+                   combine_restitution=combine_restitution, keep=True)
+    with rec:
+        rec.write(**arrays)
+    traj = rec.trajectory
+    from rblog.analyze.consistency import consistency_warnings
+
+    traj.warnings.extend(consistency_warnings(traj))
+    return traj
+
+
+#: scalar-first quaternions -> body->world matrices (re-exported for writers)
+quat_to_matrix = quat_wxyz_to_matrix
+
+__all__ = ["Recorder", "RecordError", "body_table", "build_block", "make_contacts",
+           "trajectory_from_arrays", "matrix_to_quat", "quat_to_matrix"]

@@ -1,0 +1,265 @@
+"""A scene in MuJoCo: MJCF from the body table, stepping, state and contacts for the Recorder.
+
+Translation (see rblog/study/engines/__init__.py for the common part):
+
+* each body: ``<body>`` with a ``<freejoint/>``, an explicit ``<inertial>`` (mass, principal
+  moments, at the body origin = centre of mass) and one sphere or box geom; the ground: a plane
+  geom turned so that its +z is the scene's ground normal; static boxes: box geoms of the world
+  body. Constant forces/torques: ``xfrc_applied`` (world frame, at the centre of mass).
+* collision groups: group 0 touches everything (contype bit 0, conaffinity all bits), group g
+  (1..30) has contype bit g and conaffinity bits 0 and g, so two different non-zero groups never
+  touch; more than 30 groups exit 2.
+* materials: MuJoCo combines two geoms' friction by the max and their ``solref`` by a
+  solmix-weighted mean. Each geom gets its own friction (``condim`` 3: sliding only; 1 when
+  frictionless) and a restitution through the direct solref form ``solref="-k -b"``: reference
+  acceleration ``-b v - k r`` of a spring-damper with ``omega0 = sqrt(k) = omega_dt / dt`` and
+  damping ratio ``zeta(e) = -ln e / sqrt(pi^2 + ln^2 e)`` (a damped oscillator released at
+  contact rebounds with ``e = exp(-pi zeta / sqrt(1 - zeta^2))``), ``b = 2 zeta omega0``, impedance
+  0.99 (``solimp="0.99 0.99 0.001"``) so the soft constraint follows the reference. Where the
+  default combination would differ from rblog's effective pair values (different materials), an
+  explicit ``<contact><pair>`` with the effective friction and solref overrides it.
+* contacts: after each logged step ``d.contact`` holds the contacts found at the start of that
+  step (separation ``dist`` before the solve) and ``efc_force`` the solved force over the step;
+  the rows log impulse = force * dt, decoded from the pyramidal (or elliptic) cone rows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rblog.contract.model import SHAPE_SPHERE
+from rblog.study.engines import EngineMissing, EngineUnsupported, initial_world_omega, pair_materials, \
+    parse_options, z_to
+
+#: omega0 dt of the contact spring (explicit stepping is unstable near 2; 0.2 resolves an impact
+#: in ~15 steps; the same value rblog.study.peers uses)
+DEFAULT_OMEGA_DT = 0.2
+#: solimp of every contact: impedance 0.99 at any depth (dmin, dmax, width m)
+SOLIMP = "0.99 0.99 0.001"
+#: most explicit <pair> elements (geom pairs with mixed materials) before giving up
+MAX_EXPLICIT_PAIRS = 20000
+#: most collision groups (contype/conaffinity have 32 bits; bit 0 is "touches everything")
+MAX_GROUPS = 30
+
+OPTIONS = {
+    "integrator": "Euler (default), RK4, implicit, implicitfast",
+    "solver": "PGS, CG, Newton (default)",
+    "cone": "pyramidal (default), elliptic",
+    "iterations": "solver iterations (default 100)",
+    "ls_iterations": "line-search iterations",
+    "tolerance": "solver tolerance",
+    "noslip_iterations": "no-slip iterations (default 0)",
+    "impratio": "frictional-to-normal impedance ratio",
+    "omega_dt": f"contact spring omega0 * dt (default {DEFAULT_OMEGA_DT})",
+}
+
+
+def zeta_of_restitution(e: float) -> float:
+    """Damping ratio of a spring-damper whose release rebounds with coefficient e."""
+    if e <= 0:
+        return 1.0
+    if e >= 1:
+        return 0.0
+    le = math.log(e)
+    return -le / math.sqrt(math.pi ** 2 + le * le)
+
+
+def _f(x) -> str:
+    return " ".join(repr(float(v)) for v in np.atleast_1d(x))
+
+
+class MujocoRun:
+    """One scene in MuJoCo: ``step(k)``, ``state()``, ``contacts(step)``, ``close()``."""
+
+    #: frame of the angular velocity ``state()`` returns
+    OMEGA_FRAME = "body"
+
+    def __init__(self, scene, dt: float, options=()):
+        try:
+            import mujoco
+        except Exception as e:  # noqa: BLE001
+            raise EngineMissing("mujoco", e) from None
+        self.mj = mujoco
+        self.version = mujoco.__version__
+        self.scene, self.dt = scene, dt
+        opts = parse_options("mujoco", options, OPTIONS)
+        self.omega_dt = float(opts.pop("omega_dt", DEFAULT_OMEGA_DT))
+        self.xml, self.n_pairs = self.mjcf(opts)
+        try:
+            self.m = mujoco.MjModel.from_xml_string(self.xml)
+        except ValueError as e:
+            raise EngineUnsupported("mujoco", f"the model ({str(e).splitlines()[0]})") from None
+        self.d = mujoco.MjData(self.m)
+        model, st = scene.model, scene.state
+        n = model.n_bodies
+        w_world = initial_world_omega(scene)
+        for i in range(n):
+            self.d.qpos[7 * i:7 * i + 3] = st.position[i]
+            self.d.qpos[7 * i + 3:7 * i + 7] = st.quat_wxyz[i] / np.linalg.norm(st.quat_wxyz[i])
+            self.d.qvel[6 * i:6 * i + 3] = st.linear_momentum[i] / model.body_mass[i]
+            self.d.qvel[6 * i + 3:6 * i + 6] = st.rotation[i].T @ w_world[i]  # body frame
+        self.d.xfrc_applied[1:n + 1, :3] = model.body_force_world
+        self.d.xfrc_applied[1:n + 1, 3:] = model.body_torque_world
+        mujoco.mj_forward(self.m, self.d)
+        self.geom_body = np.asarray(self.m.geom_bodyid, np.int64) - 1  # -1: world (static)
+        o = self.m.opt
+        self.settings = {
+            "engine": "mujoco", "version": self.version,
+            "integrator": mujoco.mjtIntegrator(o.integrator).name.removeprefix("mjINT_"),
+            "solver": mujoco.mjtSolver(o.solver).name.removeprefix("mjSOL_"),
+            "cone": mujoco.mjtCone(o.cone).name.removeprefix("mjCONE_"),
+            "iterations": int(o.iterations), "ls_iterations": int(o.ls_iterations),
+            "tolerance": float(o.tolerance), "noslip_iterations": int(o.noslip_iterations),
+            "impratio": float(o.impratio), "timestep": float(o.timestep),
+            "contact_model": "soft: direct solref -k -b, k = (omega_dt/dt)^2, b = 2 zeta(e) sqrt(k)",
+            "omega_dt": self.omega_dt, "solimp": SOLIMP, "condim": 3, "margin": 0.0,
+            "explicit_pairs": self.n_pairs,
+            "combine_native": {"friction": "max", "solref": "solmix-weighted mean"},
+            "contact_rows": {"separation": "before the step (contacts found at its start)",
+                             "impulse": "solved force over the step * dt", "speculative": False},
+            "ignored_scene_tables": ["contact"] if scene.contact else [],
+        }
+
+    # --- model ------------------------------------------------------------------------------
+    def _solref(self, e: float) -> str:
+        e = float(e)
+        omega0 = self.omega_dt / self.dt
+        k = omega0 * omega0
+        b = 2.0 * zeta_of_restitution(e) * omega0
+        return f"{-k!r} {-b!r}"
+
+    def _contact_attrs(self, e: float, mu: float) -> str:
+        e, mu = float(e), float(mu)
+        fr = f' friction="{max(mu, 0.0)!r} 0 0" condim="{3 if mu > 0 else 1}"'
+        return f' solref="{self._solref(e)}" solimp="{SOLIMP}"' + fr
+
+    def mjcf(self, opts: dict) -> tuple[str, int]:
+        model = self.scene.model
+        n = model.n_bodies
+        groups = sorted({int(g) for g in model.body_group if g != 0})
+        if len(groups) > MAX_GROUPS:
+            raise EngineUnsupported("mujoco", f"{len(groups)} collision groups (body.group): "
+                                    f"contype/conaffinity bitmasks hold at most {MAX_GROUPS}")
+        bit = {g: 1 << (k + 1) for k, g in enumerate(groups)}
+        all_bits = (1 << (len(groups) + 1)) - 1
+
+        def filt(g: int) -> str:
+            if g == 0:
+                return f' contype="1" conaffinity="{all_bits}"'
+            return f' contype="{bit[g]}" conaffinity="{bit[g] | 1}"'
+
+        opt_attrs = " ".join(f'{k}="{v}"' for k, v in opts.items())
+        parts = ['<mujoco model="rblog">',
+                 f'<option timestep="{self.dt!r}" gravity="{_f(model.gravity)}" {opt_attrs}/>',
+                 '<size memory="64M"/>', "<worldbody>"]
+        if model.ground:
+            q = z_to(model.ground_normal)
+            pos = np.asarray(model.ground_normal, float) / np.linalg.norm(model.ground_normal) \
+                * model.ground_offset
+            parts.append(f'<geom name="ground" type="plane" size="0 0 1" pos="{_f(pos)}" quat="{_f(q)}"'
+                         f'{filt(0)}{self._contact_attrs(model.ground_restitution, model.ground_friction)}/>')
+        for j in range(len(model.static_box_position)):
+            parts.append(
+                f'<geom name="static{j}" type="box" size="{_f(model.static_box_half_extents[j])}" '
+                f'pos="{_f(model.static_box_position[j])}" quat="{_f(model.static_box_quat_wxyz[j])}"'
+                f'{filt(0)}{self._contact_attrs(model.static_box_restitution[j], model.static_box_friction[j])}/>')
+        for i in range(n):
+            if int(model.body_shape[i]) == SHAPE_SPHERE:
+                geom = f'type="sphere" size="{float(model.body_size[i, 0])!r}"'
+            else:
+                geom = f'type="box" size="{_f(model.body_size[i])}"'
+            parts.append(
+                f'<body name="b{i}"><freejoint/>'
+                f'<inertial pos="0 0 0" mass="{float(model.body_mass[i])!r}" '
+                f'diaginertia="{_f(model.body_inertia_diag[i])}"/>'
+                f'<geom name="g{i}" {geom}{filt(int(model.body_group[i]))}'
+                f'{self._contact_attrs(model.body_restitution[i], model.body_friction[i])}/></body>')
+        parts.append("</worldbody>")
+        # explicit pairs where MuJoCo's own mix differs from rblog's effective pair material
+        kinds, e_eff, mu_eff, can = pair_materials(model)
+        names = [f"g{i}" for i in range(n)]
+        if model.ground:
+            names.append("ground")
+        names += [f"static{j}" for j in range(len(model.static_box_position))]
+        e_own = np.concatenate([model.body_restitution, [model.ground_restitution] if model.ground else [],
+                                model.static_box_restitution])
+        mu_own = np.concatenate([model.body_friction, [model.ground_friction] if model.ground else [],
+                                 model.static_box_friction])
+        differ = (e_own[:, None] != e_own[None, :]) | (mu_own[:, None] != mu_own[None, :])
+        ii, jj = np.nonzero(np.triu(can & differ, 1))
+        if len(ii) > MAX_EXPLICIT_PAIRS:
+            raise EngineUnsupported("mujoco", f"materials: {len(ii)} geom pairs need an explicit "
+                                    f"<pair> for rblog's combine rule (at most {MAX_EXPLICIT_PAIRS})")
+        if len(ii):
+            parts.append("<contact>")
+            for a, b in zip(ii.tolist(), jj.tolist()):
+                mu = float(mu_eff[a, b])
+                parts.append(f'<pair geom1="{names[a]}" geom2="{names[b]}" condim="{3 if mu > 0 else 1}" '
+                             f'friction="{mu!r} {mu!r} 0 0 0" solref="{self._solref(float(e_eff[a, b]))}" '
+                             f'solimp="{SOLIMP}"/>')
+            parts.append("</contact>")
+        parts.append("</mujoco>")
+        return "".join(parts), len(ii)
+
+    # --- stepping ---------------------------------------------------------------------------
+    def step(self, k: int) -> None:
+        self.mj.mj_step(self.m, self.d, nstep=int(k))
+
+    def state(self):
+        """(position (N,3), quat_wxyz (N,4), velocity (N,3) world, angular velocity (N,3) body)."""
+        n = self.scene.model.n_bodies
+        qp = self.d.qpos.reshape(n, 7)
+        qv = self.d.qvel.reshape(n, 6)
+        # angular velocity in the body frame (a free joint's qvel[3:6]); run_engine turns a block
+        # of them into the world frame with the integrated quaternion (OMEGA_FRAME)
+        return qp[:, :3].copy(), qp[:, 3:].copy(), qv[:, :3].copy(), qv[:, 3:].copy()
+
+    def contacts(self, step: int):
+        """The contacts of the step that ended at ``step``, in the contract's convention."""
+        d = self.d
+        k = int(d.ncon)
+        if k == 0:
+            return None
+        con = d.contact
+        frame = np.asarray(con.frame[:k]).reshape(k, 3, 3)
+        geom = np.asarray(con.geom[:k])
+        adr = np.asarray(con.efc_address[:k])
+        dim = np.asarray(con.dim[:k])
+        mu = np.asarray(con.friction[:k])
+        f = np.asarray(d.efc_force)
+        fn = np.zeros(k)
+        ft = np.zeros((k, 2))
+        ok = adr >= 0  # excluded contacts have no constraint rows
+        one = ok & (dim == 1)  # frictionless: one normal row
+        fn[one] = f[adr[one]]
+        three = ok & (dim == 3)  # this module sets condim 1 or 3 only
+        if three.any():
+            a3 = adr[three]
+            if self.m.opt.cone == self.mj.mjtCone.mjCONE_PYRAMIDAL:
+                # 4 pyramid edges: normal = their sum, tangent j = mu_j (f_2j - f_2j+1)
+                e = f[a3[:, None] + np.arange(4)]
+                fn[three] = e.sum(axis=1)
+                ft[three, 0] = mu[three, 0] * (e[:, 0] - e[:, 1])
+                ft[three, 1] = mu[three, 1] * (e[:, 2] - e[:, 3])
+            else:  # elliptic: normal, tangent 1, tangent 2 in the contact frame
+                fn[three] = f[a3]
+                ft[three] = f[a3[:, None] + np.arange(1, 3)]
+        # force on geom2's body along +normal (normal from geom1 to geom2)
+        normal = frame[:, 0].copy()
+        fric = ft[:, :1] * frame[:, 1] + ft[:, 1:2] * frame[:, 2]
+        body_a = self.geom_body[geom[:, 1]].copy()
+        body_b = self.geom_body[geom[:, 0]].copy()
+        flip = body_a < 0  # the static geometry is body_b in the contract
+        body_a[flip], body_b[flip] = body_b[flip], body_a[flip]
+        normal[flip] *= -1.0
+        fric[flip] *= -1.0
+        dt = self.dt
+        return dict(step=np.full(k, step, np.int64), body_a=body_a, body_b=body_b,
+                    point=np.asarray(con.pos[:k]).copy(), normal=normal,
+                    separation=np.asarray(con.dist[:k]).copy(), normal_impulse=fn * dt,
+                    friction_impulse=fric * dt)
+
+    def close(self):
+        pass

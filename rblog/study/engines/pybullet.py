@@ -1,0 +1,253 @@
+"""A scene in pybullet (Bullet): bodies, stepping, state and contacts for the Recorder.
+
+Translation (common part: rblog/study/engines/__init__.py):
+
+* each body: ``createMultiBody`` with a sphere or box collision shape, the scene's mass and
+  ``localInertiaDiagonal`` (principal moments, body frame), linear/angular damping 0 and
+  rolling/spinning friction 0; the ground: a static plane turned so its +z is the ground normal;
+  static boxes: static multibodies. Constant force/torque: ``applyExternalForce`` /
+  ``applyExternalTorque`` in the world frame before every step (Bullet clears them after each).
+* collision groups: ``setCollisionFilterGroupMask`` with the same bit layout as MuJoCo's
+  contype/conaffinity (group 0 touches all; groups 1..30 touch group 0 and themselves).
+* materials: Bullet multiplies the two restitutions and the two frictions of a contact. Friction:
+  each feature gets ``sqrt(mu)``, so a pair gets ``sqrt(mu_a mu_b)``, rblog's rule, exactly.
+  Restitution: per-feature values r with ``r_a r_b = max(e_a, e_b)`` for every pair that can touch
+  are solved in log space (least squares); if no such values exist within RESTITUTION_REL, the run
+  exits 2 naming the pair (Bullet has no per-pair restitution).
+* contacts: after each logged step ``getContactPoints()`` lists the manifold points of that step:
+  Bullet refreshes the manifolds by collision detection at the start of the step, so
+  ``contactDistance`` is the separation before the step's solve and integration; ``normalForce``
+  and the two lateral frictions are the applied impulses over the step divided by dt. Bullet also
+  keeps speculative points (separated by up to its contact breaking threshold, no force): they are
+  dropped, as rblog logs only points that pushed or touch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rblog.contract.model import SHAPE_SPHERE
+from rblog.study.engines import EngineMissing, EngineUnsupported, initial_world_omega, pair_materials, \
+    parse_options, z_to
+
+#: relative mismatch of a pair's restitution product r_a r_b from max(e_a, e_b) accepted
+RESTITUTION_REL = 1e-9
+#: restitution 0 in log space (Bullet treats any product below its threshold as no bounce)
+RESTITUTION_FLOOR = 1e-6
+MAX_GROUPS = 30
+
+OPTIONS = {
+    "integrator": "default (Bullet's semi-implicit Euler; the only one)",
+    "numSolverIterations": "solver iterations (default 50)",
+    "solverResidualThreshold": "solver residual threshold",
+    "contactERP": "contact error reduction",
+    "erp": "joint error reduction",
+    "frictionERP": "friction error reduction",
+    "useSplitImpulse": "0/1 split impulse (default 1)",
+    "splitImpulsePenetrationThreshold": "split impulse threshold (m)",
+    "restitutionVelocityThreshold": "no bounce below this approach speed (m/s)",
+    "contactBreakingThreshold": "manifold point breaking distance (m)",
+    "enableConeFriction": "0/1 cone friction",
+    "deterministicOverlappingPairs": "0/1",
+}
+_INT_OPTIONS = {"numSolverIterations", "useSplitImpulse", "enableConeFriction",
+                "deterministicOverlappingPairs"}
+
+
+def restitution_factors(model) -> np.ndarray:
+    """Per feature (bodies, ground, static boxes) r with r_a r_b = max(e_a, e_b) for every pair
+    that can touch (least squares in log space, checked). Raises EngineUnsupported if none."""
+    kinds, e_eff, _, can = pair_materials(model)
+    ii, jj = np.nonzero(np.triu(can, 1))
+    f = len(kinds)
+    if len(ii) == 0:
+        return np.ones(f)
+    target = np.log(np.maximum(e_eff[ii, jj], RESTITUTION_FLOOR))
+    a = np.zeros((len(ii), f))
+    a[np.arange(len(ii)), ii] = 1.0
+    a[np.arange(len(ii)), jj] = 1.0
+    x, *_ = np.linalg.lstsq(a, target, rcond=None)
+    got = np.exp(x[ii] + x[jj])
+    want = np.maximum(e_eff[ii, jj], RESTITUTION_FLOOR)
+    rel = np.abs(got - want) / want
+    if rel.max() > RESTITUTION_REL * 1e3 and np.abs(got - want).max() > 1e-6:
+        k = int(np.argmax(rel))
+        name = lambda i: (repr(model.body_name[i]) if kinds[i] == "body" else kinds[i])  # noqa: E731
+        raise EngineUnsupported(
+            "pybullet", f"restitution max(e_a, e_b) for every pair: Bullet multiplies the two "
+            f"restitutions and no per-body values give {float(want[k]):.3g} for {name(ii[k])} "
+            f"with {name(jj[k])} (best {float(got[k]):.3g}) together with the other pairs")
+    return np.exp(x)
+
+
+class PybulletRun:
+    """One scene in pybullet: ``step(k)``, ``state()``, ``contacts(step)``, ``close()``."""
+
+    #: frame of the angular velocity ``state()`` returns (getBaseVelocity: world)
+    OMEGA_FRAME = "world"
+
+    def __init__(self, scene, dt: float, options=()):
+        try:
+            import pybullet as pb
+        except Exception as e:  # noqa: BLE001
+            raise EngineMissing("pybullet", e) from None
+        from importlib.metadata import version
+
+        self.pb = pb
+        try:
+            self.version = version("pybullet")
+        except Exception:  # noqa: BLE001
+            self.version = str(pb.getAPIVersion())
+        self.scene, self.dt = scene, dt
+        opts = parse_options("pybullet", options, OPTIONS)
+        integ = opts.pop("integrator", "default")
+        if integ != "default":
+            raise EngineUnsupported("pybullet", f"integrator {integ!r} (Bullet has one: default)")
+        model, st = scene.model, scene.state
+        n = model.n_bodies
+        groups = sorted({int(g) for g in model.body_group if g != 0})
+        if len(groups) > MAX_GROUPS:
+            raise EngineUnsupported("pybullet", f"{len(groups)} collision groups (body.group)")
+        r_fac = restitution_factors(model)
+        mu_fac = np.sqrt(np.concatenate([model.body_friction,
+                                         [model.ground_friction] if model.ground else [],
+                                         model.static_box_friction]))
+        cid = self.cid = pb.connect(pb.DIRECT)
+        try:
+            pb.setGravity(*map(float, model.gravity), physicsClientId=cid)
+            pb.setTimeStep(dt, physicsClientId=cid)
+            params = {"numSubSteps": 0}
+            for k, v in opts.items():
+                try:
+                    params[k] = int(v) if k in _INT_OPTIONS else float(v)
+                except ValueError:
+                    raise EngineUnsupported("pybullet", f"option {k}={v!r} (expected a number)") from None
+            pb.setPhysicsEngineParameter(**params, physicsClientId=cid)
+            self.ids = []
+            w_world = initial_world_omega(scene)
+            bit = {g: 1 << (k + 1) for k, g in enumerate(groups)}
+            all_bits = (1 << (len(groups) + 1)) - 1
+            for i in range(n):
+                if int(model.body_shape[i]) == SHAPE_SPHERE:
+                    col = pb.createCollisionShape(pb.GEOM_SPHERE, radius=float(model.body_size[i, 0]),
+                                                  physicsClientId=cid)
+                else:
+                    col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[float(x) for x in model.body_size[i]],
+                                                  physicsClientId=cid)
+                q = st.quat_wxyz[i] / np.linalg.norm(st.quat_wxyz[i])
+                bid = pb.createMultiBody(baseMass=float(model.body_mass[i]), baseCollisionShapeIndex=col,
+                                         basePosition=[float(x) for x in st.position[i]],
+                                         baseOrientation=[float(q[1]), float(q[2]), float(q[3]), float(q[0])],
+                                         physicsClientId=cid)
+                pb.changeDynamics(bid, -1, localInertiaDiagonal=[float(x) for x in model.body_inertia_diag[i]],
+                                  linearDamping=0.0, angularDamping=0.0, restitution=float(r_fac[i]),
+                                  lateralFriction=float(mu_fac[i]), rollingFriction=0.0,
+                                  spinningFriction=0.0, physicsClientId=cid)
+                g = int(model.body_group[i])
+                if groups:
+                    pb.setCollisionFilterGroupMask(bid, -1, 1 if g == 0 else bit[g],
+                                                   all_bits if g == 0 else (bit[g] | 1), physicsClientId=cid)
+                v = st.linear_momentum[i] / model.body_mass[i]
+                pb.resetBaseVelocity(bid, [float(x) for x in v], [float(x) for x in w_world[i]],
+                                     physicsClientId=cid)
+                self.ids.append(bid)
+            self.static_ids = []
+            k = n
+            if model.ground:
+                plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=cid)
+                nrm = np.asarray(model.ground_normal, float) / np.linalg.norm(model.ground_normal)
+                q = z_to(nrm)
+                gid = pb.createMultiBody(0, plane, basePosition=[float(x) for x in nrm * model.ground_offset],
+                                         baseOrientation=[float(q[1]), float(q[2]), float(q[3]), float(q[0])],
+                                         physicsClientId=cid)
+                pb.changeDynamics(gid, -1, restitution=float(r_fac[k]), lateralFriction=float(mu_fac[k]),
+                                  rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
+                self.static_ids.append(gid)
+                k += 1
+            for j in range(len(model.static_box_position)):
+                col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[float(x) for x in model.static_box_half_extents[j]],
+                                              physicsClientId=cid)
+                q = model.static_box_quat_wxyz[j]
+                sid = pb.createMultiBody(0, col, basePosition=[float(x) for x in model.static_box_position[j]],
+                                         baseOrientation=[float(q[1]), float(q[2]), float(q[3]), float(q[0])],
+                                         physicsClientId=cid)
+                pb.changeDynamics(sid, -1, restitution=float(r_fac[k]), lateralFriction=float(mu_fac[k]),
+                                  rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
+                self.static_ids.append(sid)
+                k += 1
+            self.index = {bid: i for i, bid in enumerate(self.ids)}
+            self.loaded = [i for i in range(n) if np.any(model.body_force_world[i] != 0)
+                           or np.any(model.body_torque_world[i] != 0)]
+            eng = pb.getPhysicsEngineParameters(physicsClientId=cid)
+        except BaseException:
+            pb.disconnect(physicsClientId=cid)
+            raise
+        self.settings = {
+            "engine": "pybullet", "version": self.version, "api_version": int(pb.getAPIVersion()),
+            "integrator": "default", "timestep": float(dt),
+            **{k: (v if isinstance(v, (int, float, str)) else str(v)) for k, v in eng.items()},
+            "combine_native": {"friction": "product", "restitution": "product"},
+            "material_translation": {"friction": "sqrt(mu) per feature",
+                                     "restitution": "r_a r_b = max(e_a, e_b), log-space least squares"},
+            "restitution_factors": [float(x) for x in r_fac],
+            "contact_rows": {"separation": "before the step's integration (manifold refreshed at "
+                                           "its start)", "impulse": "force * dt", "speculative":
+                             "dropped (points with no force and positive distance)"},
+            "ignored_scene_tables": ["contact"] if scene.contact else [],
+        }
+
+    def step(self, k: int) -> None:
+        pb, cid = self.pb, self.cid
+        model = self.scene.model
+        for _ in range(int(k)):
+            for i in self.loaded:
+                bid = self.ids[i]
+                pos, _ = pb.getBasePositionAndOrientation(bid, physicsClientId=cid)
+                pb.applyExternalForce(bid, -1, [float(x) for x in model.body_force_world[i]], pos,
+                                      pb.WORLD_FRAME, physicsClientId=cid)
+                pb.applyExternalTorque(bid, -1, [float(x) for x in model.body_torque_world[i]],
+                                       pb.WORLD_FRAME, physicsClientId=cid)
+            pb.stepSimulation(physicsClientId=cid)
+
+    def state(self):
+        pb, cid = self.pb, self.cid
+        n = len(self.ids)
+        x, q, v, w = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3))
+        for i, bid in enumerate(self.ids):
+            p, o = pb.getBasePositionAndOrientation(bid, physicsClientId=cid)
+            lv, av = pb.getBaseVelocity(bid, physicsClientId=cid)
+            x[i] = p
+            q[i] = (o[3], o[0], o[1], o[2])
+            v[i] = lv
+            w[i] = av
+        return x, q, v, w
+
+    def contacts(self, step: int):
+        pts = self.pb.getContactPoints(physicsClientId=self.cid)
+        rows = [c for c in pts if not (c[9] <= 0.0 and c[8] > 0.0)]
+        if not rows:
+            return None
+        k = len(rows)
+        idx = self.index
+        cols = list(zip(*rows))  # one pass: columns of the contact tuples
+        a = np.array([idx.get(x, -1) for x in cols[1]], np.int64)
+        b = np.array([idx.get(x, -1) for x in cols[2]], np.int64)
+        pa, pb_ = np.array(cols[5]), np.array(cols[6])
+        normal = np.array(cols[7])  # on B, pointing towards A
+        dist = np.array(cols[8])
+        fn = np.array(cols[9])
+        fric = (np.array(cols[10])[:, None] * np.array(cols[11])
+                + np.array(cols[12])[:, None] * np.array(cols[13]))
+        flip = a < 0
+        a[flip], b[flip] = b[flip], a[flip]
+        normal[flip] *= -1.0
+        fric[flip] *= -1.0
+        dt = self.dt
+        return dict(step=np.full(k, step, np.int64), body_a=a, body_b=b, point=0.5 * (pa + pb_),
+                    normal=normal, separation=dist, normal_impulse=fn * dt, friction_impulse=fric * dt)
+
+    def close(self):
+        try:
+            self.pb.disconnect(physicsClientId=self.cid)
+        except Exception:  # noqa: BLE001 - already gone
+            pass
