@@ -184,7 +184,10 @@ BULK_DETAIL_MAX_LOGS = 20
                    "must be readable by the workers at the same paths.")
 @click.option("--table", "table_path", type=click.Path(dir_okay=False, path_type=str),
               help="Write the per-log table here (.parquet, else CSV).")
-def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_path):
+@click.option("--rrd", "findings_rrd", type=click.Path(dir_okay=False, path_type=str),
+              help="Write the findings as a Rerun recording overlaying the run (one LOG).")
+def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_path,
+          findings_rrd):
     """Audit saved logs (.rrd or .mcap): rigidity, collision momentum, resting-contact
     penetration, energy, tunneling. LOGS are files, directories (searched for logs), glob
     patterns or list files (.txt: one path per line). Every log is judged; the exit code is the
@@ -216,6 +219,8 @@ def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_
                              f"{', '.join(sorted(names))}"))
     try:
         paths = bulk_check.find_logs(logs)
+        if findings_rrd:
+            _findings_for_one_log(findings_rrd, paths, sel_only, sel_skip, tolerances)
         if workers is None and scheduler is None and len(paths) > BULK_PARALLEL_MIN_LOGS \
                 and dask_available() and default_workers() > 1:
             workers = default_workers()
@@ -260,6 +265,34 @@ def _compile_notice(ex):
     from rblog.engine.runner import CompileNotice
 
     return CompileNotice(lambda m: click.echo(m, err=True))
+
+
+def _findings_for_one_log(out, paths, only, skip, tolerances):
+    """--rrd: the findings of the one log, checked here (the report itself comes from the bulk
+    check, which may run elsewhere)."""
+    from rblog.analyze import check as run_checks
+    from rblog.record.reader import load
+
+    if len(paths) != 1:
+        _fail(RblogError(f"--rrd {out}: give exactly one LOG (got {len(paths)})"))
+    try:
+        traj = load(paths[0])
+    except RblogError:
+        return  # reported as unreadable by the check itself
+    results = run_checks(traj, only=only, skip=skip, tolerances=tolerances)
+    _write_findings(out, paths[0], traj, results, 1)
+
+
+def _write_findings(out, path, traj, results, n_logs):
+    from rblog.record.findings import run_recording_id, write_findings_rrd
+
+    if n_logs != 1:
+        _fail(RblogError(f"--rrd {out}: give exactly one LOG (got {n_logs})"))
+    try:
+        write_findings_rrd(out, traj, results, run_recording_id(path))
+    except RblogError as e:
+        _fail(e)
+    click.echo(f"rblog: findings written to {out} (open with: rerun {path} {out})", err=True)
 
 
 def _names(csv, known, opt):
@@ -339,11 +372,14 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="l
 
 
 from rblog_cli.bench_cmds import bench, stress  # noqa: E402
+from rblog_cli.convert_cmds import convert, findings  # noqa: E402
 from rblog_cli.diff_cmds import diff  # noqa: E402
 
 main.add_command(bench)
 main.add_command(stress)
 main.add_command(diff)
+main.add_command(convert)
+main.add_command(findings)
 from rblog_cli.cluster_cmds import sweep  # noqa: E402
 
 main.add_command(sweep)

@@ -2,11 +2,8 @@
 
 Bodies are independent without contacts, so the loop runs over tiles of BODY_TILE bodies, steps
 inside a tile: the tile's state stays in L1 for the whole block, and samples are written for
-consecutive bodies. The stages of one step, per integrator:
-
-* ``seed`` / ``seed-quat`` (the lecture notes): P += h F; x += h P/m; L += h tau; rotate.
-* ``splitting``: kick half (P, L), drift (x += h P/m, exact-axis-rotation splitting), kick half.
-* ``rk4``: x, P exactly for a constant force (RK4 is exact there); RK4 on (q, L) with L(t) = L + t tau.
+consecutive bodies. Each body's step is its integrator's ``step_body``
+(rblog.engine.integrators, where every integrator's stages are written out and derived).
 
 Samples are written after every ``stride``-th step (and after the last step of the block when
 ``sample_last``), so logging costs nothing between samples.

@@ -384,9 +384,18 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
     return math.ceil(samples / per_block) * CHUNKS_PER_BLOCK
 
 
-def _blueprint(model: Model, info: RunInfo) -> rrb.Blueprint:
-    """3D view of the world beside the energy, momentum and error plots. The camera frames the
-    bodies' starting positions (from the resolved scene, when the log has one)."""
+#: the drift-error plot's fixed y range (dimensionless): the analyzers' rigidity tolerance
+#: (rblog.analyze.tolerances.DRIFT_ORTHO_ERROR), so round-off (~1e-15) draws as a flat line at 0
+#: instead of autoscaled spikes (the range starts a little below 0 so that line is drawn), and a
+#: fault shows as a line at the top
+ERROR_PLOT_MAX = 1e-6
+
+
+def _blueprint(model: Model, info: RunInfo, findings: bool = False) -> rrb.Blueprint:
+    """3D view of the world beside the energy, momentum and error plots (legends hidden: the
+    series are named on hover; the error plot clamped to ERROR_PLOT_MAX). The camera frames the
+    bodies' starting positions (from the resolved scene, when the log has one). ``findings``: a
+    findings panel (the ``findings`` text log of rblog.record.findings) below the 3D view."""
     eye = None
     bodies = (info.scene_resolved or {}).get("body") or []
     if bodies and all("position" in b for b in bodies):
@@ -397,13 +406,22 @@ def _blueprint(model: Model, info: RunInfo) -> rrb.Blueprint:
         extent = max(float(np.max(hi - lo)), 1.0)
         eye = rrb.EyeControls3D(position=centre + extent * np.array([1.2, -1.8, 1.0]),
                                 look_target=centre)
+    no_legend = rrb.PlotLegend(visible=False)
+    world = rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye)
+    if findings:
+        world = rrb.Vertical(world, rrb.TextLogView(origin="findings", name="findings"),
+                             row_shares=[3, 1])
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye),
+            world,
             rrb.Vertical(
-                rrb.TimeSeriesView(origin="plots/energy", name="energy (J)"),
-                rrb.TimeSeriesView(origin="plots/momentum", name="total momentum"),
-                rrb.TimeSeriesView(origin="plots/error", name="max drift errors"),
+                rrb.TimeSeriesView(origin="plots/energy", name="energy (J)", plot_legend=no_legend),
+                rrb.TimeSeriesView(origin="plots/momentum", name="total momentum",
+                                   plot_legend=no_legend),
+                rrb.TimeSeriesView(origin="plots/error", name="max drift errors (0..1e-6)",
+                                   plot_legend=no_legend,
+                                   axis_y=rrb.ScalarAxis(range=(-0.1 * ERROR_PLOT_MAX, ERROR_PLOT_MAX),
+                                                         zoom_lock=False)),
             ),
             column_shares=[3, 2],
         ),

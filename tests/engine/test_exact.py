@@ -131,29 +131,30 @@ def test_exact_flow_near_separatrix(delta):
     """The intermediate box moved towards the separatrix: w3 = w1 / sqrt(3) (1 + delta) puts
     1 - m at 1.25e-6 (delta 1e-3) and 1.25e-8 (1e-5); the motion lingers at the saddle, where
     errors grow like exp(lam t) (x1e5 by t = 10 s). scipy's ellipj takes m, not 1 - m, so the
-    closed-form reference is off by eps / (1 - m) amplified (1.1e-9 at t = 10, delta 1e-3): omega is
-    checked against Euler's equations solved by mpmath at 32 digits instead. Measured (delta 1e-3):
-    one step from t = 0 8e-12 at t = 10 s (1.7e-13 from the identity, whose L has no rounding),
-    dt = 0.1 <= 2e-11 (storage round-off amplified)."""
-    mp = pytest.importorskip("mpmath")
-    mp.mp.dps = 32
+    closed-form reference is off by eps / (1 - m) amplified (1.1e-9 at t = 10 s, delta 1e-3): omega
+    is checked against Euler's equations by DOP853 at rtol 1e-13 instead (against mpmath at 32
+    digits that solution is within 5e-14 at t = 10 s and 8.5e-12 at 20 s). Measured (delta 1e-3):
+    one step to t = 10 s 8e-12 (the rounding of L = R0 I w0, amplified; 1.7e-13 against mpmath
+    from the identity, whose L is unrounded), dt = 0.1 <= 2e-11 (storage round-off amplified)."""
     inertia = (1.0, 2.0, 3.0)
     w0 = (0.05, 2.0, 0.05 / math.sqrt(3.0) * (1 + delta))
     tf = TorqueFree(inertia, w0, Q0)
     assert tf.case == "L2>2EI2" and 1.0 - tf.elliptic_parameter < 2e-3 * delta
-    ode = mp.odefun(lambda _, w: [(inertia[1] - inertia[2]) / inertia[0] * w[1] * w[2],
-                                  (inertia[2] - inertia[0]) / inertia[1] * w[2] * w[0],
-                                  (inertia[0] - inertia[1]) / inertia[2] * w[0] * w[1]],
-                    0, [mp.mpf(x) for x in w0])
+
+    def euler(_, w):
+        return [(inertia[1] - inertia[2]) / inertia[0] * w[1] * w[2],
+                (inertia[2] - inertia[0]) / inertia[1] * w[2] * w[0],
+                (inertia[0] - inertia[1]) / inertia[2] * w[0] * w[1]]
+
+    sol = solve_ivp(euler, (0.0, 20.0), w0, method="DOP853", rtol=1e-13, atol=1e-16,
+                    dense_output=True)
     k = 1.0 / tf.inertia
     lw = tf.angular_momentum_world
     for t_end, dt in ((10.0, 10.0), (10.0, 0.1), (20.0, 0.1)):
         n = int(round(t_end / dt))
         q = _run(tf.quat0_wxyz, lw, k, dt, n, n)[-1]
         w_num = k * (quat_to_matrix(q).T @ lw)
-        w_exact = np.array([float(x) for x in ode(t_end)])
-        err = np.linalg.norm(w_num - w_exact) / np.linalg.norm(w0)
-        # one step: the rounding of L = R0 I w0 (~eps) amplified x1e5 by the saddle (measured 8e-12)
+        err = np.linalg.norm(w_num - sol.sol(t_end)) / np.linalg.norm(w0)
         assert err < (5e-11 if dt == t_end else 2e-10), (t_end, dt, err)
         # the attitude against the closed form, within what scipy's m costs it
         assert rotation_angle_between(q, tf.quat_wxyz(t_end)[0]) < 1e-8
