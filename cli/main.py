@@ -77,8 +77,8 @@ _IN_MAIN_PROCESS = Path(sys.argv[0]).name == "rblog" or __name__ == "__main__"
 class _Progress:
     """A progress bar on stderr that appears only when the run will take more than ~1 s."""
 
-    def __init__(self, enabled: bool):
-        self.enabled = enabled
+    def __init__(self, enabled: bool, label: str = "simulating"):
+        self.enabled, self.label = enabled, label
         self.bar = None
         self.t0 = time.perf_counter()
 
@@ -94,7 +94,7 @@ class _Progress:
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
             from rich.console import Console
 
-            self.bar = Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+            self.bar = Progress(TextColumn(self.label), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                                 TimeRemainingColumn(), console=Console(stderr=True), transient=True)
             self.bar.start()
             self.task = self.bar.add_task("run", total=total)
@@ -227,23 +227,40 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         click.echo(f"  wrote {p}")
 
 
+#: `rblog check` uses local workers by default above this many logs (starting them costs ~2 s)
+BULK_PARALLEL_MIN_LOGS = 8
+#: above this many logs, the text report shows only the flagged logs, then the summary
+BULK_DETAIL_MAX_LOGS = 20
+
+
 @main.command()
-@click.argument("logs", nargs=-1, type=click.Path(dir_okay=False, path_type=str))
+@click.argument("logs", nargs=-1, type=click.Path(path_type=str))
 @click.option("--only", help="Comma-separated analyzers to run (default: all).")
 @click.option("--skip", help="Comma-separated analyzers to leave out.")
 @click.option("--tol", "tols", multiple=True, metavar="ANALYZER.NAME=VALUE",
               help="Override a tolerance, e.g. --tol penetration.depth_m=2e-3 (repeatable; see --list).")
 @click.option("--list", "list_only", is_flag=True, help="List the analyzers and their tolerances.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON document.")
+@click.option("--workers", type=click.IntRange(min=0),
+              help="Check on a local Dask cluster of N worker processes (0: in this process). "
+                   f"Default: one per core when more than {BULK_PARALLEL_MIN_LOGS} logs are given "
+                   "and Dask is installed.")
+@click.option("--scheduler", metavar="ADDRESS",
+              help="Check on a running dask.distributed scheduler (tcp://host:8786); the logs "
+                   "must be readable by the workers at the same paths.")
+@click.option("--table", "table_path", type=click.Path(dir_okay=False, path_type=str),
+              help="Write the per-log table here (.parquet, else CSV).")
 @click.option("--rrd", "findings_rrd", type=click.Path(dir_okay=False, path_type=str),
               help="Write the findings as a Rerun recording overlaying the run (one LOG).")
-def check(logs, only, skip, tols, list_only, as_json, findings_rrd):
+def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_path,
+          findings_rrd):
     """Audit saved logs (.rrd or .mcap): rigidity, collision momentum, resting-contact
-    penetration, energy, tunneling. Exit 0 when clean, 1 when something is flagged, 2 when a file
-    cannot be read, 4 when a log holds too few samples to judge (never reported clean)."""
-    from rblog.analyze import ANALYZERS, check as run_checks
-    from rblog.record.reader import load
-    from rblog.engine.runner import CompileNotice
+    penetration, energy, tunneling. LOGS are files, directories (searched for logs), glob
+    patterns or list files (.txt: one path per line). Every log is judged; the exit code is the
+    worst over them: 0 clean, 1 flagged, 2 unreadable, 4 too short to judge (never clean)."""
+    from rblog.analyze import ANALYZERS
+    from rblog.study import bulk_check
+    from rblog.study.cluster import Executor, dask_available, default_workers
 
     if list_only:
         for name, cls in ANALYZERS.items():
@@ -266,37 +283,70 @@ def check(logs, only, skip, tols, list_only, as_json, findings_rrd):
         if not eq or key.split(".")[0] not in names:
             _fail(RblogError(f"--tol {t}: expected ANALYZER.NAME=NUMBER with ANALYZER one of "
                              f"{', '.join(sorted(names))}"))
-    report, flagged, unjudged = [], False, False
-    for path in logs:
-        try:
-            traj = load(path)
-            with CompileNotice(lambda m: click.echo(m, err=True)):
-                results = run_checks(traj, only=sel_only, skip=sel_skip, tolerances=tolerances)
-        except RblogError as e:
-            _fail(e)
-        for w in traj.warnings:
-            click.echo(f"rblog: warning: {path}: {w}", err=True)
+    try:
+        paths = bulk_check.find_logs(logs)
         if findings_rrd:
-            _write_findings(findings_rrd, path, traj, results, len(logs))
-        flagged |= any(not r.passed and not r.skipped for r in results)
-        if traj.n_samples < MIN_SAMPLES_TO_JUDGE:
-            unjudged = True
-            click.echo(f"rblog: warning: {path}: not judged: {traj.n_samples} sample(s), an audit "
-                       f"needs at least {MIN_SAMPLES_TO_JUDGE}", err=True)
-        report.append({"log": path, "samples": traj.n_samples, "bodies": traj.n_bodies,
-                       "truncated": traj.truncated, "warnings": list(traj.warnings),
-                       "results": [r.to_dict(traj.model) for r in results]})
-        if not as_json:
-            _print_report(path, traj, results)
+            _findings_for_one_log(findings_rrd, paths, sel_only, sel_skip, tolerances)
+        if workers is None and scheduler is None and len(paths) > BULK_PARALLEL_MIN_LOGS \
+                and dask_available() and default_workers() > 1:
+            workers = default_workers()
+        ex = Executor(workers=workers, scheduler=scheduler)
+        prog = _Progress(enabled=sys.stderr.isatty() and len(paths) > 1, label="checking")
+        try:
+            with ex, _compile_notice(ex):
+                report = bulk_check.check_many(paths, ex, only=sel_only, skip=sel_skip,
+                                               tolerances=tolerances, on_done=prog)
+        finally:
+            prog.close()
+        if table_path:
+            bulk_check.write_table(report.entries, table_path)
+    except RblogError as e:
+        _fail(e)
+    many = len(paths) > BULK_DETAIL_MAX_LOGS
+    for e in report.entries:
+        if e["status"] in ("unreadable", "failed"):
+            click.echo(f"rblog: error: {e['error']}", err=True)
+            continue
+        for w in e["warnings"]:
+            click.echo(f"rblog: warning: {e['log']}: {w}", err=True)
+        if not as_json and (not many or e["status"] != "clean"):
+            _print_report(e)
     if as_json:
-        click.echo(json.dumps({"logs": report, "passed": not (flagged or unjudged)}, indent=1))
-    sys.exit(1 if flagged else (EXIT_NOT_JUDGED if unjudged else 0))
+        click.echo(json.dumps(report.to_dict(), indent=1))
+    elif len(paths) > 1:
+        if many:
+            click.echo(f"(clean logs not shown: more than {BULK_DETAIL_MAX_LOGS}; see --table or --json)")
+        click.echo(bulk_check.format_summary(report))
+    if table_path:
+        click.echo(f"wrote {table_path}", err=as_json)
+    sys.exit(report.exit_code)
 
 
-#: `rblog check` exit code for a log too short to judge (neither clean nor flagged)
-EXIT_NOT_JUDGED = 4
-#: the fewest samples an audit can judge (drifts and rates need two)
-MIN_SAMPLES_TO_JUDGE = 2
+def _compile_notice(ex):
+    """Kernel-compilation notices on stderr when the check runs in this process."""
+    import contextlib
+
+    if not ex.serial:
+        return contextlib.nullcontext()
+    from rblog.engine.runner import CompileNotice
+
+    return CompileNotice(lambda m: click.echo(m, err=True))
+
+
+def _findings_for_one_log(out, paths, only, skip, tolerances):
+    """--rrd: the findings of the one log, checked here (the report itself comes from the bulk
+    check, which may run elsewhere)."""
+    from rblog.analyze import check as run_checks
+    from rblog.record.reader import load
+
+    if len(paths) != 1:
+        _fail(RblogError(f"--rrd {out}: give exactly one LOG (got {len(paths)})"))
+    try:
+        traj = load(paths[0])
+    except RblogError:
+        return  # reported as unreadable by the check itself
+    results = run_checks(traj, only=only, skip=skip, tolerances=tolerances)
+    _write_findings(out, paths[0], traj, results, 1)
 
 
 def _write_findings(out, path, traj, results, n_logs):
@@ -322,26 +372,30 @@ def _names(csv, known, opt):
     return out
 
 
-def _print_report(path, traj, results):
-    names = traj.model.body_name
-    flag = " (truncated)" if traj.truncated else ""
-    click.echo(f"{path}: {traj.n_samples} samples x {traj.n_bodies} bodies, "
-               f"t = 0..{traj.t[-1] if traj.n_samples else 0:g} s{flag}")
-    for r in results:
-        verdict = "SKIP" if r.skipped else ("pass" if r.passed else "FAIL")
-        line = f"  {verdict:<4} {r.analyzer:<14}"
-        if not r.skipped:
-            unit = "" if r.unit in ("", "1") else f" {r.unit}"
-            line += f" worst {r.worst_value:.3g}{unit} (tol {r.tolerance:.3g}{unit})"
-            if r.worst_t is not None:
-                line += f" at t = {r.worst_t:.4g} s, step {r.worst_step}"
-            if r.worst_bodies:
-                shown = ", ".join(names[b] if 0 <= b < len(names) else "static" for b in r.worst_bodies[:3])
-                more = f" +{len(r.worst_bodies) - 3}" if len(r.worst_bodies) > 3 else ""
+def _print_report(entry):
+    """One log's verdicts from its entry (rblog.study.bulk_check.check_log)."""
+    flag = " (truncated)" if entry["truncated"] else ""
+    click.echo(f"{entry['log']}: {entry['samples']} samples x {entry['bodies']} bodies, "
+               f"t = 0..{entry['t_end_s']:g} s{flag}")
+    for r in entry["results"]:
+        verdict = "SKIP" if r["skipped"] else ("pass" if r["passed"] else "FAIL")
+        line = f"  {verdict:<4} {r['analyzer']:<14}"
+        if not r["skipped"]:
+            unit = "" if r["unit"] in ("", "1") else f" {r['unit']}"
+            worst = r["worst_value"]
+            line += (f" worst {worst:.3g}{unit}" if worst is not None else " worst -") \
+                + f" (tol {r['tolerance']:.3g}{unit})"
+            if r["worst_t"] is not None:
+                line += f" at t = {r['worst_t']:.4g} s, step {r['worst_step']}"
+            bodies = r["worst_bodies"]
+            if bodies:
+                names = r.get("worst_body_names") or [str(b) for b in bodies]
+                shown = ", ".join(n if b >= 0 else "static" for b, n in zip(bodies[:3], names))
+                more = f" +{len(bodies) - 3}" if len(bodies) > 3 else ""
                 line += f" [{shown}{more}]"
         click.echo(line)
-        if r.reason:
-            click.echo(f"       {r.reason}")
+        if r["reason"]:
+            click.echo(f"       {r['reason']}")
 
 
 def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="lz4",
@@ -403,6 +457,9 @@ main.add_command(stress)
 main.add_command(diff)
 main.add_command(convert)
 main.add_command(findings)
+from rblog_cli.cluster_cmds import sweep  # noqa: E402
+
+main.add_command(sweep)
 
 if __name__ == "__main__":
     main()

@@ -153,7 +153,10 @@ def test_viewer_overlays_check_findings_on_a_run(viewer_ready, tmp_path):
     out = tmp_path / "findings.rrd"
     write_findings_rrd(str(out), traj, results, run_recording_id(str(run)))
     first = min(findings, key=lambda f: f.t)
-    png = REPO / "docs" / "findings-overlay.png"
+    # the test writes its screenshots beside its logs; RBLOG_REFRESH_DOCS=1 refreshes docs/'s copy
+    import os
+
+    png = (REPO / "docs" if os.environ.get("RBLOG_REFRESH_DOCS") else tmp_path) / "findings-overlay.png"
     cap = shot.capture(run, png, timeout=120.0, per_view=True, overlays=[out],
                        at_ns=int(first.t * 1e9))
     print(f"screenshot {png} after {cap.seconds:.1f} s")
