@@ -153,7 +153,27 @@ def mujoco_model_xml(model, state, dt, config=MUJOCO_CONFIGS["default"]):
     return "".join(lines)
 
 
-def run_mujoco(model, state, dt, n_steps, sample_every, world, config=MUJOCO_CONFIGS["default"]):
+def run_mujoco(*args, **kwargs):
+    """:func:`_run_mujoco` from a scratch working directory: MuJoCo appends its warnings to
+    ``MUJOCO_LOG.TXT`` in the current directory, which must not be left in the user's."""
+    return in_scratch_dir(_run_mujoco, *args, **kwargs)
+
+
+def in_scratch_dir(fn, *args, **kwargs):
+    """Call ``fn`` with a temporary current directory (removed after), then restore the cwd."""
+    import os
+    import tempfile
+
+    old = os.getcwd()
+    with tempfile.TemporaryDirectory(prefix="rblog-mujoco-") as tmp:
+        os.chdir(tmp)
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            os.chdir(old)
+
+
+def _run_mujoco(model, state, dt, n_steps, sample_every, world, config=MUJOCO_CONFIGS["default"]):
     """Steps/s, penetration samples (rblog's narrowphase), MuJoCo's own deepest contact per
     sample, version, and per-sample (contacts, solver iterations, awake bodies)."""
     import mujoco

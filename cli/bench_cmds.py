@@ -10,6 +10,8 @@ import sys
 import click
 
 from rblog.errors import RblogError
+from rblog_cli.cluster_cmds import executor_options as _executor_options
+from rblog_cli.cluster_cmds import make_executor as _make_executor
 
 
 def _fail(err: RblogError):
@@ -44,7 +46,9 @@ def _command() -> str:
 @click.option("--no-peers", is_flag=True, help="Run rblog only.")
 @click.option("--progress/--no-progress", default=None,
               help="Print each run on stderr (default: when stderr is a terminal).")
-def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, progress):
+@_executor_options
+def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, progress, workers,
+          scheduler):
     """Work-precision study: every integrator x a range of dt on problems with exact answers."""
     from rblog.study.bench import format_table, run_bench, write_outputs
     from rblog.study.reference import PROBLEMS
@@ -56,9 +60,11 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
     _check_integrators(integrators)
     show = sys.stderr.isatty() if progress is None else progress
     try:
-        report = run_bench(quick=quick, problems=problems or None, integrators=integrators or None,
-                           dts=dts or None, peers=() if no_peers else (peers or None),
-                           progress=_progress(show), command=_command())
+        with _make_executor(workers, scheduler) as ex:
+            report = run_bench(quick=quick, problems=problems or None,
+                               integrators=integrators or None, dts=dts or None,
+                               peers=() if no_peers else (peers or None),
+                               progress=_progress(show), command=_command(), executor=ex)
         write_outputs(report, out_dir)
     except RblogError as e:
         _fail(e)
@@ -82,7 +88,8 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
               help="Run only this integrator, NAME or NAME/ORTHONORMALIZE (repeatable).")
 @click.option("--progress/--no-progress", default=None,
               help="Print each run on stderr (default: when stderr is a terminal).")
-def stress(quick, out_dir, as_json, cases, integrators, progress):
+@_executor_options
+def stress(quick, out_dir, as_json, cases, integrators, progress, workers, scheduler):
     """Stability suite: fast spin, extreme inertia, long runs, dt up to instability, impacts,
     stacks, many bodies, mass ratios. A blow-up is reported, never fatal."""
     from rblog.study.stress import CASE_NAMES, format_table, run_stress, write_outputs
@@ -93,8 +100,9 @@ def stress(quick, out_dir, as_json, cases, integrators, progress):
     _check_integrators(integrators)
     show = sys.stderr.isatty() if progress is None else progress
     try:
-        report = run_stress(quick=quick, cases=cases or None, integrators=integrators or None,
-                            progress=_progress(show), command=_command())
+        with _make_executor(workers, scheduler) as ex:
+            report = run_stress(quick=quick, cases=cases or None, integrators=integrators or None,
+                                progress=_progress(show), command=_command(), executor=ex)
         write_outputs(report, out_dir)
     except RblogError as e:
         _fail(e)

@@ -14,20 +14,71 @@ from pathlib import Path
 import click
 
 from rblog.errors import RblogError
-from rblog.engine.integrators import ORTHO_CODES
-from rblog.engine.scene import INTEGRATORS
+
+
+def _ensure_kernel_cache() -> None:
+    """Before numba is imported: if NUMBA_CACHE_DIR names a folder that cannot be created or
+    written, fall back to a private one under the temporary directory (or, failing that, to
+    numba's default locations), with a one-line warning. Otherwise numba raises a traceback at
+    import time, even for ``rblog --version``."""
+    import os
+    import tempfile
+
+    def writable(d: str) -> bool:
+        try:
+            os.makedirs(d, exist_ok=True)
+            with tempfile.TemporaryFile(dir=d):
+                pass
+            return True
+        except OSError:
+            return False
+
+    d = os.environ.get("NUMBA_CACHE_DIR")
+    if not d or writable(d):
+        return
+    private = os.path.join(tempfile.gettempdir(), f"rblog-kernel-cache-{os.getuid()}")
+    if writable(private):
+        os.environ["NUMBA_CACHE_DIR"] = private
+        click.echo(f"rblog: warning: kernel cache {d!r} is not writable; using {private!r}",
+                   err=True)
+    else:
+        del os.environ["NUMBA_CACHE_DIR"]
+        click.echo(f"rblog: warning: kernel cache {d!r} is not writable; using numba's default",
+                   err=True)
+
+
+_ensure_kernel_cache()
+
+from rblog.engine.integrators import ORTHO_CODES  # noqa: E402
+from rblog.engine.scene import INTEGRATORS  # noqa: E402
 
 
 def _fail(err: RblogError):
     click.echo(f"rblog: error: {err}", err=True)
+    from rblog.errors import RunInterrupted
+
+    if isinstance(err, RunInterrupted) and _IN_MAIN_PROCESS:
+        # The logs are closed and complete up to the last step; what is left is interpreter
+        # teardown (the Rerun SDK's exit hooks, thread joins), measured 0.5-0.65 s on a loaded
+        # machine. A signal asks the process to go now: exit without it.
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(err.exit_code)
     sys.exit(err.exit_code)
+
+
+#: True when running as the `rblog` program or `python -m rblog_cli.main` (not when embedded,
+#: e.g. in a test's CliRunner, where exiting the process is not ours to do)
+_IN_MAIN_PROCESS = Path(sys.argv[0]).name == "rblog" or __name__ == "__main__"
 
 
 class _Progress:
     """A progress bar on stderr that appears only when the run will take more than ~1 s."""
 
-    def __init__(self, enabled: bool):
-        self.enabled = enabled
+    def __init__(self, enabled: bool, label: str = "simulating"):
+        self.enabled, self.label = enabled, label
         self.bar = None
         self.t0 = time.perf_counter()
 
@@ -43,7 +94,7 @@ class _Progress:
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
             from rich.console import Console
 
-            self.bar = Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+            self.bar = Progress(TextColumn(self.label), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                                 TimeRemainingColumn(), console=Console(stderr=True), transient=True)
             self.bar.start()
             self.task = self.bar.add_task("run", total=total)
@@ -70,6 +121,8 @@ def validate(scene):
         s = load_scene(scene)
     except RblogError as e:
         _fail(e)
+    for w in s.warnings:
+        click.echo(f"rblog: warning: {w}", err=True)
     click.echo(f"{scene}: ok ({s.model.n_bodies} bodies, {s.sim.n_steps} steps of "
                f"{s.sim.dt:g} s, integrator {s.sim.integrator})")
 
@@ -91,7 +144,9 @@ def validate(scene):
               help="Log at HZ samples per simulated second (default 100).")
 @click.option("--spawn", is_flag=True, help="Also stream to a new Rerun viewer.")
 @click.option("--connect", "connect_url", help="Also stream to a running Rerun viewer at this URL.")
-@click.option("--explain", is_flag=True, help="Print the stages chosen for this scene and why.")
+@click.option("--explain", is_flag=True,
+              help="Print the stages chosen for this scene and why, then exit (add --run to run).")
+@click.option("--run", "run_too", is_flag=True, help="With --explain: run the scene afterwards.")
 @click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
 @click.option("--engine", type=click.Choice(["rblog", "mujoco", "pybullet"]), default="rblog",
@@ -100,7 +155,7 @@ def validate(scene):
               help="A setting of the --engine, e.g. integrator=RK4 (repeatable).")
 @click.option("--profile", "profile", is_flag=True, help="Print the time spent in each stage.")
 def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compression, no_log,
-        log_every, log_rate, spawn, connect_url, explain, all_stages, as_json, engine,
+        log_every, log_rate, spawn, connect_url, explain, run_too, all_stages, as_json, engine,
         engine_options, profile):
     """Simulate SCENE (a .toml file) and record it."""
     if engine != "rblog" or engine_options:
@@ -121,8 +176,15 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
 
     if log_every is not None and log_rate is not None:
         _fail(RblogError("give --log-every or --log-rate, not both"))
+    if run_too and not explain:
+        _fail(RblogError("--run goes with --explain (a plain `rblog run` runs already)"))
     try:
         s = load_scene(scene)
+        for w in s.warnings:
+            click.echo(f"rblog: warning: {w}", err=True)
+        # every output is checked before the kernels compile (which can take ~10 s)
+        recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression,
+                                      check_only=True)
         if explain:
             plan = plan_stages(s, duration or s.sim.duration, force_contacts=all_stages)
             if plan.contacts:
@@ -130,8 +192,12 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
 
                 integ = integrator or s.sim.integrator
                 plan.make_contact_world(METHOD_CODES[integ], ORTHO_CODES[ORTHO_ALLOWED[integ][1]])
+                for w in plan.warnings:
+                    click.echo(f"rblog: warning: {w}", err=True)
             for stage, why in plan.stages:
                 click.echo(f"{stage:<28} {why}", err=as_json)
+            if not run_too:
+                return
         recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression)
         prog = _Progress(enabled=sys.stderr.isatty())
         prof = None
@@ -139,13 +205,12 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
             from rblog.engine.profile import Profile
 
             prof = Profile()
-        _sigterm_as_interrupt()
         try:
             summary = run_scene(
                 s, dt=dt, duration=duration, integrator=integrator, orthonormalize=orthonormalize,
                 log_every=log_every, log_rate=log_rate, recorders=recorders, progress=prog,
                 notice=lambda m: click.echo(m, err=True), force_contacts=all_stages,
-                profile=prof)
+                warn=lambda m: click.echo(f"rblog: warning: {m}", err=True), profile=prof)
         finally:
             prog.close()
     except RblogError as e:
@@ -174,21 +239,40 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         click.echo(f"  wrote {p}")
 
 
+#: `rblog check` uses local workers by default above this many logs (starting them costs ~2 s)
+BULK_PARALLEL_MIN_LOGS = 8
+#: above this many logs, the text report shows only the flagged logs, then the summary
+BULK_DETAIL_MAX_LOGS = 20
+
+
 @main.command()
-@click.argument("logs", nargs=-1, type=click.Path(dir_okay=False, path_type=str))
+@click.argument("logs", nargs=-1, type=click.Path(path_type=str))
 @click.option("--only", help="Comma-separated analyzers to run (default: all).")
 @click.option("--skip", help="Comma-separated analyzers to leave out.")
 @click.option("--tol", "tols", multiple=True, metavar="ANALYZER.NAME=VALUE",
               help="Override a tolerance, e.g. --tol penetration.depth_m=2e-3 (repeatable; see --list).")
 @click.option("--list", "list_only", is_flag=True, help="List the analyzers and their tolerances.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON document.")
-def check(logs, only, skip, tols, list_only, as_json):
+@click.option("--workers", type=click.IntRange(min=0),
+              help="Check on a local Dask cluster of N worker processes (0: in this process). "
+                   f"Default: one per core when more than {BULK_PARALLEL_MIN_LOGS} logs are given "
+                   "and Dask is installed.")
+@click.option("--scheduler", metavar="ADDRESS",
+              help="Check on a running dask.distributed scheduler (tcp://host:8786); the logs "
+                   "must be readable by the workers at the same paths.")
+@click.option("--table", "table_path", type=click.Path(dir_okay=False, path_type=str),
+              help="Write the per-log table here (.parquet, else CSV).")
+@click.option("--rrd", "findings_rrd", type=click.Path(dir_okay=False, path_type=str),
+              help="Write the findings as a Rerun recording overlaying the run (one LOG).")
+def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_path,
+          findings_rrd):
     """Audit saved logs (.rrd or .mcap): rigidity, collision momentum, resting-contact
-    penetration, energy, tunneling. Exit 0 when clean, 1 when something is flagged, 2 when a file
-    cannot be read."""
-    from rblog.analyze import ANALYZERS, check as run_checks
-    from rblog.record.reader import load
-    from rblog.engine.runner import CompileNotice
+    penetration, energy, tunneling. LOGS are files, directories (searched for logs), glob
+    patterns or list files (.txt: one path per line). Every log is judged; the exit code is the
+    worst over them: 0 clean, 1 flagged, 2 unreadable, 4 too short to judge (never clean)."""
+    from rblog.analyze import ANALYZERS
+    from rblog.study import bulk_check
+    from rblog.study.cluster import Executor, dask_available, default_workers
 
     if list_only:
         for name, cls in ANALYZERS.items():
@@ -211,25 +295,82 @@ def check(logs, only, skip, tols, list_only, as_json):
         if not eq or key.split(".")[0] not in names:
             _fail(RblogError(f"--tol {t}: expected ANALYZER.NAME=NUMBER with ANALYZER one of "
                              f"{', '.join(sorted(names))}"))
-    report, flagged = [], False
-    for path in logs:
+    try:
+        paths = bulk_check.find_logs(logs)
+        if findings_rrd:
+            _findings_for_one_log(findings_rrd, paths, sel_only, sel_skip, tolerances)
+        if workers is None and scheduler is None and len(paths) > BULK_PARALLEL_MIN_LOGS \
+                and dask_available() and default_workers() > 1:
+            workers = default_workers()
+        ex = Executor(workers=workers, scheduler=scheduler)
+        prog = _Progress(enabled=sys.stderr.isatty() and len(paths) > 1, label="checking")
         try:
-            traj = load(path)
-            with CompileNotice(lambda m: click.echo(m, err=True)):
-                results = run_checks(traj, only=sel_only, skip=sel_skip, tolerances=tolerances)
-        except RblogError as e:
-            _fail(e)
-        for w in traj.warnings:
-            click.echo(f"rblog: warning: {path}: {w}", err=True)
-        flagged |= any(not r.passed and not r.skipped for r in results)
-        report.append({"log": path, "samples": traj.n_samples, "bodies": traj.n_bodies,
-                       "truncated": traj.truncated, "warnings": list(traj.warnings),
-                       "results": [r.to_dict(traj.model) for r in results]})
-        if not as_json:
-            _print_report(path, traj, results)
+            with ex, _compile_notice(ex):
+                report = bulk_check.check_many(paths, ex, only=sel_only, skip=sel_skip,
+                                               tolerances=tolerances, on_done=prog)
+        finally:
+            prog.close()
+        if table_path:
+            bulk_check.write_table(report.entries, table_path)
+    except RblogError as e:
+        _fail(e)
+    many = len(paths) > BULK_DETAIL_MAX_LOGS
+    for e in report.entries:
+        if e["status"] in ("unreadable", "failed"):
+            click.echo(f"rblog: error: {e['error']}", err=True)
+            continue
+        for w in e["warnings"]:
+            click.echo(f"rblog: warning: {e['log']}: {w}", err=True)
+        if not as_json and (not many or e["status"] != "clean"):
+            _print_report(e)
     if as_json:
-        click.echo(json.dumps({"logs": report, "passed": not flagged}, indent=1))
-    sys.exit(1 if flagged else 0)
+        click.echo(json.dumps(report.to_dict(), indent=1))
+    elif len(paths) > 1:
+        if many:
+            click.echo(f"(clean logs not shown: more than {BULK_DETAIL_MAX_LOGS}; see --table or --json)")
+        click.echo(bulk_check.format_summary(report))
+    if table_path:
+        click.echo(f"wrote {table_path}", err=as_json)
+    sys.exit(report.exit_code)
+
+
+def _compile_notice(ex):
+    """Kernel-compilation notices on stderr when the check runs in this process."""
+    import contextlib
+
+    if not ex.serial:
+        return contextlib.nullcontext()
+    from rblog.engine.runner import CompileNotice
+
+    return CompileNotice(lambda m: click.echo(m, err=True))
+
+
+def _findings_for_one_log(out, paths, only, skip, tolerances):
+    """--rrd: the findings of the one log, checked here (the report itself comes from the bulk
+    check, which may run elsewhere)."""
+    from rblog.analyze import check as run_checks
+    from rblog.record.reader import load
+
+    if len(paths) != 1:
+        _fail(RblogError(f"--rrd {out}: give exactly one LOG (got {len(paths)})"))
+    try:
+        traj = load(paths[0])
+    except RblogError:
+        return  # reported as unreadable by the check itself
+    results = run_checks(traj, only=only, skip=skip, tolerances=tolerances)
+    _write_findings(out, paths[0], traj, results, 1)
+
+
+def _write_findings(out, path, traj, results, n_logs):
+    from rblog.record.findings import run_recording_id, write_findings_rrd
+
+    if n_logs != 1:
+        _fail(RblogError(f"--rrd {out}: give exactly one LOG (got {n_logs})"))
+    try:
+        write_findings_rrd(out, traj, results, run_recording_id(path))
+    except RblogError as e:
+        _fail(e)
+    click.echo(f"rblog: findings written to {out} (open with: rerun {path} {out})", err=True)
 
 
 def _names(csv, known, opt):
@@ -243,48 +384,63 @@ def _names(csv, known, opt):
     return out
 
 
-def _print_report(path, traj, results):
-    names = traj.model.body_name
-    flag = " (truncated)" if traj.truncated else ""
-    click.echo(f"{path}: {traj.n_samples} samples x {traj.n_bodies} bodies, "
-               f"t = 0..{traj.t[-1] if traj.n_samples else 0:g} s{flag}")
-    for r in results:
-        verdict = "SKIP" if r.skipped else ("pass" if r.passed else "FAIL")
-        line = f"  {verdict:<4} {r.analyzer:<14}"
-        if not r.skipped:
-            unit = "" if r.unit in ("", "1") else f" {r.unit}"
-            line += f" worst {r.worst_value:.3g}{unit} (tol {r.tolerance:.3g}{unit})"
-            if r.worst_t is not None:
-                line += f" at t = {r.worst_t:.4g} s, step {r.worst_step}"
-            if r.worst_bodies:
-                shown = ", ".join(names[b] if 0 <= b < len(names) else "static" for b in r.worst_bodies[:3])
-                more = f" +{len(r.worst_bodies) - 3}" if len(r.worst_bodies) > 3 else ""
+def _print_report(entry):
+    """One log's verdicts from its entry (rblog.study.bulk_check.check_log)."""
+    flag = " (truncated)" if entry["truncated"] else ""
+    click.echo(f"{entry['log']}: {entry['samples']} samples x {entry['bodies']} bodies, "
+               f"t = 0..{entry['t_end_s']:g} s{flag}")
+    for r in entry["results"]:
+        verdict = "SKIP" if r["skipped"] else ("pass" if r["passed"] else "FAIL")
+        line = f"  {verdict:<4} {r['analyzer']:<14}"
+        if not r["skipped"]:
+            unit = "" if r["unit"] in ("", "1") else f" {r['unit']}"
+            worst = r["worst_value"]
+            line += (f" worst {worst:.3g}{unit}" if worst is not None else " worst -") \
+                + f" (tol {r['tolerance']:.3g}{unit})"
+            if r["worst_t"] is not None:
+                line += f" at t = {r['worst_t']:.4g} s, step {r['worst_step']}"
+            bodies = r["worst_bodies"]
+            if bodies:
+                names = r.get("worst_body_names") or [str(b) for b in bodies]
+                shown = ", ".join(n if b >= 0 else "static" for b, n in zip(bodies[:3], names))
+                more = f" +{len(bodies) - 3}" if len(bodies) > 3 else ""
                 line += f" [{shown}{more}]"
         click.echo(line)
-        if r.reason:
-            click.echo(f"       {r.reason}")
+        if r["reason"]:
+            click.echo(f"       {r['reason']}")
 
 
-def _sigterm_as_interrupt():
-    """Let `kill` (SIGTERM) stop a run like Ctrl-C does, so the logs are finalized."""
-    import signal
-
-    def handler(signum, frame):
-        raise KeyboardInterrupt
-
-    try:
-        signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread (e.g. embedded use)
-        pass
-
-
-def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="lz4"):
-    """The log writers asked for; by default SCENE-STEM.rrd and SCENE-STEM.mcap in the cwd."""
+def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="lz4",
+               check_only=False):
+    """The log writers asked for; by default SCENE-STEM.rrd and SCENE-STEM.mcap in the cwd.
+    With ``check_only``, only check the outputs (same path twice, a folder that is missing or
+    not writable, a viewer URL nobody listens at) and return ([], paths)."""
     if no_log and (rrd or mcap):
         raise RblogError("--no-log contradicts --rrd/--mcap")
     if not (rrd or mcap or no_log):
         stem = Path(scene).stem
         rrd, mcap = f"{stem}.rrd", f"{stem}.mcap"
+    if check_only:
+        import os
+        from rblog.errors import LogWriteError
+
+        if rrd and mcap and Path(rrd).resolve() == Path(mcap).resolve():
+            raise RblogError(f"--rrd and --mcap name the same file {rrd!r} (expected two paths)")
+        for p in (rrd, mcap):
+            if not p:
+                continue
+            parent = Path(p).resolve().parent
+            if Path(p).is_dir():
+                raise LogWriteError(p, "is a directory (expected a file path)")
+            if not parent.is_dir():
+                raise LogWriteError(p, f"folder {str(parent)!r} does not exist")
+            if not os.access(parent, os.W_OK) or (Path(p).exists() and not os.access(p, os.W_OK)):
+                raise LogWriteError(p, "permission denied")
+        if connect_url:
+            from rblog.record.rerun_writer import check_viewer_reachable
+
+            check_viewer_reachable(connect_url)
+        return [], [p for p in (rrd, mcap) if p]
     recorders, paths = [], []
     if rrd or spawn or connect_url:
         from rblog.record.rerun_writer import RerunRecorder
@@ -305,11 +461,17 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="l
 
 
 from rblog_cli.bench_cmds import bench, stress  # noqa: E402
+from rblog_cli.convert_cmds import convert, findings  # noqa: E402
 from rblog_cli.diff_cmds import diff  # noqa: E402
 
 main.add_command(bench)
 main.add_command(stress)
 main.add_command(diff)
+main.add_command(convert)
+main.add_command(findings)
+from rblog_cli.cluster_cmds import sweep  # noqa: E402
+
+main.add_command(sweep)
 
 if __name__ == "__main__":
     main()

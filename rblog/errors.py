@@ -56,6 +56,13 @@ class SimulationDiverged(RblogError):
 
 
 class RunInterrupted(RblogError):
-    """The user interrupted the run (Ctrl-C). Logs are finalized up to the last good sample."""
+    """The run was stopped by a signal: Ctrl-C (SIGINT, exit 130) or ``kill`` (SIGTERM, exit
+    143), the shell's 128 + signal number. Logs are finalized up to the last good sample, with
+    the status "interrupted"."""
 
     exit_code = 130
+
+    def __init__(self, message: str, signum: int = 2):
+        super().__init__(message)
+        self.signum = int(signum)
+        self.exit_code = 128 + self.signum

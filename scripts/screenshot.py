@@ -232,10 +232,15 @@ class HeadlessViewer:
         return getattr(self, "_stderr_cache", "")
 
     # -- driving
-    def load(self, rrd: Path, timeout: float = 60.0, timeline: str | None = "sim_time"):
-        """Open ``rrd``, wait until it has loaded, and park the time cursor at the end of
-        ``timeline`` (if the recording has it), paused. Returns the recording's ViewerState."""
+    def load(self, rrd: Path, timeout: float = 60.0, timeline: str | None = "sim_time",
+             overlays=(), at_ns: int | None = None):
+        """Open ``rrd`` (then each of ``overlays``: recordings with the same recording id, e.g.
+        `rblog check --rrd` findings, merge into it), wait until it has loaded, and park the time
+        cursor at the end of ``timeline`` (or at ``at_ns`` on it, if given; if the recording has
+        it), paused. Returns the recording's ViewerState."""
         c = self.client
+        for extra in overlays:  # first, so that their blueprint is the one the viewer keeps
+            c.open(str(Path(extra).resolve()))
         c.open(str(Path(rrd).resolve()))
         deadline = time.monotonic() + timeout
         while True:
@@ -251,13 +256,24 @@ class HeadlessViewer:
                 raise TimeoutError(f"the viewer had not loaded {rrd} after {timeout:.0f} s: "
                                    f"loading={st.loading}, views={len(st.views)}")
             time.sleep(0.1)
+        if overlays:  # the overlays' data and blueprint arrive after the run's: let them land
+            n_views = len(st.views)
+            until = min(deadline, time.monotonic() + 10.0)
+            while time.monotonic() < until:
+                st = c.get_state()
+                if st.loading or len(st.views) == n_views:
+                    time.sleep(0.2)
+                    continue
+                break
+            rec = next((r for r in st.recordings if r.store_id == st.active_recording), rec)
         names = {t.name: t for t in rec.timelines if t.end is not None}
         if timeline in names:
             t = names[timeline]
             import numpy as np
 
+            end = t.end if at_ns is None else int(at_ns)
             if t.time_type == "duration":
-                where = {"duration": np.timedelta64(t.end, "ns")}
+                where = {"duration": np.timedelta64(end, "ns")}
             elif t.time_type == "timestamp":
                 where = {"timestamp": np.datetime64(t.end, "ns")}
             else:
@@ -310,8 +326,10 @@ def stderr_problems(text: str) -> list[str]:
 
 
 def capture(rrd: Path, png: Path, size=DEFAULT_SIZE, timeout: float = 120.0,
-            timeline: str | None = "sim_time", per_view: bool = False) -> Capture:
-    """Open ``rrd`` in a headless viewer, save a settled screenshot to ``png``, and report.
+            timeline: str | None = "sim_time", per_view: bool = False, overlays=(),
+            at_ns: int | None = None) -> Capture:
+    """Open ``rrd`` (and ``overlays`` merged into it) in a headless viewer, save a settled
+    screenshot to ``png``, and report. ``at_ns``: park the cursor there on ``timeline``.
 
     With ``per_view``, also save each view alone next to it (``STEM-view-N.png``)."""
     t0 = time.monotonic()
@@ -319,7 +337,7 @@ def capture(rrd: Path, png: Path, size=DEFAULT_SIZE, timeout: float = 120.0,
     png.parent.mkdir(parents=True, exist_ok=True)
     viewer = HeadlessViewer(size=size, max_lifetime=timeout + 30.0)
     with viewer:
-        viewer.load(rrd, timeout=timeout / 2, timeline=timeline)
+        viewer.load(rrd, timeout=timeout / 2, timeline=timeline, overlays=overlays, at_ns=at_ns)
         data = viewer.settle(timeout=timeout / 2)
         png.write_bytes(data)
         seconds = time.monotonic() - t0

@@ -16,8 +16,9 @@ a reason when that is every body).
   E itself moves by up to m |g| dt (|v(t)| + |v(start)|) / 2 (reached at every pair of samples
   symmetric about an apex), taken DT_FACTOR = 2 times for margin; dt is the integrator step from
   the log (RunInfo.dt).
-* Gain across a contact: for every contact group (bodies that touched during a sample interval,
-  see Context.groups), the energy of the members must not grow by more than the same dt term,
+* Gain across a contact: for every contact event (the contact groups of consecutive intervals
+  with the same bodies, rblog.analyze.events, so that a soft contact that stores energy in one
+  step and gives it back in the next is judged once), the energy of the members must not grow by more than the same dt term,
   ``m |g| POSITION_CORRECTION_M`` (an engine lifting a body out of penetration) and
   CONTACT_GAIN_REL of their kinetic energy, unless a configured restitution exceeds 1. Static
   geometry does no work, and a collision between bodies cannot add energy with e <= 1.
@@ -31,7 +32,9 @@ import numpy as np
 from numba import njit
 
 from rblog.analyze import tolerances as T
-from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
+from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
+                                static_material)
+from rblog.analyze.events import configured_restitution, impact_events
 
 _TINY = 1e-300
 
@@ -97,48 +100,53 @@ class EnergyAnalyzer(Analyzer):
                 ratio, rel, tol_rel, scale, rate = vals[s_]
                 findings.append(Finding(
                     self.name,
-                    f"{body_label(model, b)}: energy drifts by {e[k, b] - e[k0, b]:+.3g} J "
-                    f"({rel:.3g} of its energy scale {scale:.3g} J, tol {tol_rel:.3g}) "
-                    f"between t = {t[k0]:.6g} and {t[k]:.6g} s with no contact "
-                    f"(rate {rate:+.3g}/s)",
+                    f"{body_label(model, b)}: energy {'grows' if e[k, b] > e[k0, b] else 'drops'}"
+                    f" by {abs(e[k, b] - e[k0, b]):.3g} J in free flight between t = {t[k0]:.6g} "
+                    f"and {t[k]:.6g} s: {rel:.3g} of the flight's energy scale {scale:.3g} J "
+                    f"(its largest kinetic energy or potential-energy range; independent of the "
+                    f"potential's zero), limit {tol_rel:.3g} (rate {rate:+.3g}/s)",
                     float(rel), float(tol_rel), "1", int(step[k]), float(t[k]), [b]))
 
-        # ---- gain across contacts
-        grp = ctx.groups(cd)
-        if len(grp):
-            gen = ctx.group_energy(cd, self.tol["contact_gain_rel"],
-                                   self.tol["position_correction_m"], self.tol["dt_factor"])
-            check = (gen["restitution"] <= 1.0) & gen["torque_free"]
-            scale = gen["scale"]
-            gain_rel = gen["change"] / scale
-            allow_rel = gen["allowed"] / scale
+        # ---- gain across contact events (rblog.analyze.events: consecutive intervals of one
+        # contact joined, so a soft contact that stores and gives back energy is judged once)
+        ev = impact_events(ctx, cd, self.tol["dt_factor"])
+        if len(ev):
+            grp = ev.groups
+            rest = configured_restitution(ev, model, tr.info.combine_restitution)
+            torque_free = grp.sum(ctx.has_torque[grp.mem_i].astype(float))[ev.first] == 0
+            check = (rest <= 1.0) & torque_free
+            kscale = np.maximum(ev.ke_before, ev.ke_after)
+            allowed = (ev.dt_allow + ev.mass_accel * self.tol["position_correction_m"]
+                       + self.tol["contact_gain_rel"] * kscale)
+            scale = kscale + ev.dt_allow + ev.mass_accel * self.tol["position_correction_m"] \
+                + _TINY
+            gain_rel, allow_rel = ev.energy_change / scale, allowed / scale
+            ka = ev.k1 + 1
             cidx = np.nonzero(check)[0]
-            stats["contact_intervals"] = float(len(cidx))
-            gk = grp.k
-            first = np.searchsorted(grp.mem_group, np.arange(len(grp)))
+            stats["contact_events"] = float(len(cidx))
             if len(cidx):
                 stats["contact_gain_rel_max"] = float(gain_rel[cidx].max())
-                worst.offer_array(gain_rel[cidx], allow_rel[cidx], "1", step[gk[cidx] + 1],
-                                  t[gk[cidx] + 1], grp.mem_i[first[cidx]],
-                                  "energy gain across a contact (relative to kinetic energy "
+                worst.offer_array(gain_rel[cidx], allow_rel[cidx], "1", step[ka[cidx]],
+                                  t[ka[cidx]], grp.mem_i[grp.starts[ev.first[cidx]]],
+                                  "energy gain across a contact (relative to the kinetic energy "
                                   "+ allowance)")
-            bad = np.nonzero(check & (gen["change"] > gen["allowed"]))[0]
+            bad = np.nonzero(check & (ev.energy_change > allowed))[0]
             n_found += len(bad)
             bad = bad[np.argsort(-(gain_rel[bad] / np.maximum(allow_rel[bad], _TINY)))]
             for j in bad[: T.MAX_FINDINGS]:
-                lo = np.searchsorted(grp.mem_group, j)
-                hi = np.searchsorted(grp.mem_group, j, side="right")
-                bodies = [int(x) for x in grp.mem_i[lo:hi]]
+                bodies = ev.members(j)
                 who = " and ".join(body_label(model, x) for x in bodies[:3]) + \
                     (" ..." if len(bodies) > 3 else "")
-                what = "static geometry" if grp.static[j] else "each other"
+                what = "each other" if ev.static_id[j] == -2 else "static geometry"
                 findings.append(Finding(
                     self.name,
-                    f"{who}: energy grows by {gen['change'][j]:.3g} J across a contact with {what} "
-                    f"between t = {t[gk[j]]:.6g} and {t[gk[j] + 1]:.6g} s (allowed "
-                    f"{gen['allowed'][j]:.3g} J with restitution <= 1)",
-                    float(gain_rel[j]), float(allow_rel[j]), "1", int(step[gk[j] + 1]),
-                    float(t[gk[j] + 1]), bodies))
+                    f"{who}: energy grows by {ev.energy_change[j]:.3g} J across a contact with "
+                    f"{what} between t = {t[ev.k0[j]]:.6g} and {t[ka[j]]:.6g} s (limit "
+                    f"{allowed[j]:.3g} J: {self.tol['contact_gain_rel']:.2g} of the kinetic energy "
+                    f"{kscale[j]:.3g} J + step and position-correction terms, restitution "
+                    f"{rest[j]:.3g} <= 1)",
+                    float(gain_rel[j]), float(allow_rel[j]), "1", int(step[ka[j]]),
+                    float(t[ka[j]]), bodies))
         if ctx.has_torque.any():
             stats["bodies_with_torque_skipped"] = float(ctx.has_torque.sum())
         return self.result(worst, findings, stats, n_findings=n_found)

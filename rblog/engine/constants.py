@@ -70,6 +70,36 @@ DEFAULT_LOG_RATE_HZ = 100.0
 QUAT_MIN_NORM = 1e-9
 
 
+# --- reliability: interrupts, crash-safe logs, input sanity --------------------------------------
+#: One compiled call runs at most about this much wall time (s): the run loop sizes each call
+#: from the wall time per step it measured on the previous one, and checks for Ctrl-C / SIGTERM
+#: between calls, so a signal is answered within ~this (plus closing the logs). Each call's
+#: samples go to the recorders at once, so a killed run loses at most ~this + the writers'
+#: FLUSH_EVERY_S.
+CALL_WALL_BUDGET_S = 0.03
+#: A call is at most this many times longer (in steps) than the previous one, so that one
+#: fast measurement (a call of a few steps) cannot size a call far past the budget.
+CALL_GROWTH_MAX = 4.0
+#: The most steps a run may take (dt too small for its duration, e.g. dt = 1e-300).
+MAX_RUN_STEPS = 10**12
+#: A scene quaternion whose norm is off 1 by more than this is normalised with a warning
+#: (likely a typo); within it, silently (round-off from hand-written decimals, 1e-6 covers
+#: 7-digit values).
+QUAT_NORM_WARN_TOL = 1e-6
+#: The most bodies a scene may hold (each costs ~2 kB in the body table, state and one block).
+MAX_BODIES = 10_000_000
+#: Approximate bytes of memory per body while loading and running a scene (body dict while
+#: parsing ~1.5 kB, model + state + sample buffers ~0.6 kB), for the "needs N GB" message.
+BYTES_PER_BODY_ESTIMATE = 2_000
+#: Bodies that start interpenetrating deeper than this (m) are reported with a warning (the
+#: solver pushes them apart violently in the first steps). Bodies stacked exactly touching
+#: measure ~1e-16 m.
+OVERLAP_WARN_DEPTH_M = 1e-6
+#: At most this many bounding-sphere candidates are measured for the overlap warning (each is a
+#: narrowphase call on a two-body model); the rest are counted, not measured.
+OVERLAP_CHECK_MAX_PAIRS = 256
+
+
 # --- narrowphase (box-box) -------------------------------------------------------------------
 # Box-box axis preference (Gregorius): an edge axis replaces the best face axis only when its
 # separation exceeds the face's by (1 - EDGE_REL_TOL) |face separation| + AXIS_ABS_TOL; face B

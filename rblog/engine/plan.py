@@ -25,6 +25,8 @@ class Plan:
     scene: Scene | None = None
     force_all: bool = False
     _world: object = None
+    #: one-line warnings found while planning (bodies that start overlapping)
+    warnings: list[str] = field(default_factory=list)
 
     def make_contact_world(self, method: int, ortho: int):
         from rblog.engine.constants import ContactParams
@@ -34,7 +36,78 @@ class Plan:
         self._world = ContactWorld(self.scene.model, params, method, ortho,
                                    force_all_stages=self.force_all)
         self.stages = [("integrate", self.stages[0][1]), *self._world.explain()]
+        self.warnings = initial_overlap_warnings(self.scene, method, ortho)
         return self._world
+
+
+def initial_overlap_warnings(scene: Scene, method: int, ortho: int) -> list[str]:
+    """Warnings for bodies that start interpenetrating (body-body, body-ground, body-static box)
+    deeper than OVERLAP_WARN_DEPTH_M, naming the pairs and depths (deepest first).
+
+    Candidates are the pairs whose bounding spheres overlap (at most OVERLAP_CHECK_MAX_PAIRS);
+    each is measured with the contact narrowphase on a model of just that pair."""
+    from dataclasses import replace
+
+    from rblog.engine.constants import (ContactParams, OVERLAP_CHECK_MAX_PAIRS,
+                                        OVERLAP_WARN_DEPTH_M)
+    from rblog.engine.contact.measure import separations
+    from rblog.engine.contact.world import ContactWorld
+
+    m, st = scene.model, scene.state
+    x, rot = st.position, st.rotation
+    r = m.body_bounding_radius
+    n = m.n_bodies
+    cands: list[tuple[int, str, int]] = []  # (body, kind, other)
+    if m.ground:
+        gn = np.asarray(m.ground_normal, float)
+        for i in np.nonzero(x @ gn - m.ground_offset < r)[0]:
+            cands.append((int(i), "ground", -1))
+    for k, c in enumerate(np.asarray(m.static_box_position, float).reshape(-1, 3)):
+        rk = float(np.linalg.norm(m.static_box_half_extents[k]))
+        for i in np.nonzero(np.linalg.norm(x - c, axis=1) < r + rk)[0]:
+            cands.append((int(i), "static", k))
+    if n >= 2:
+        order = np.argsort(x[:, 0] - r)
+        for a in range(n):
+            i = order[a]
+            for b in range(a + 1, n):
+                j = order[b]
+                if x[j, 0] - r[j] > x[i, 0] + r[i]:
+                    break
+                gi, gj = m.body_group[i], m.body_group[j]
+                if gi != 0 and gj != 0 and gi != gj:
+                    continue
+                if np.linalg.norm(x[i] - x[j]) < r[i] + r[j]:
+                    cands.append((int(min(i, j)), "body", int(max(i, j))))
+    found = []
+    for i, kind, o in cands[:OVERLAP_CHECK_MAX_PAIRS]:
+        idx = [i] if kind != "body" else [i, o]
+        sub = replace(
+            m, body_name=[m.body_name[b] for b in idx],
+            **{f: np.asarray(getattr(m, f))[idx] for f in (
+                "body_shape", "body_size", "body_mass", "body_inertia_diag", "body_force_world",
+                "body_torque_world", "body_restitution", "body_friction")},
+            body_group=np.zeros(len(idx), np.int64), ground=kind == "ground",
+            **({f: np.asarray(getattr(m, f))[[o] if kind == "static" else []]
+                for f in ("static_box_position", "static_box_quat_wxyz",
+                          "static_box_half_extents", "static_box_restitution",
+                          "static_box_friction")}))
+        world = ContactWorld(sub, ContactParams(), method, ortho)
+        sep = separations(world, x[idx], rot[idx])
+        depth = float(-sep.min()) if len(sep) else 0.0
+        if depth > OVERLAP_WARN_DEPTH_M:
+            other = ("the ground" if kind == "ground" else f"static_box[{o}]" if kind == "static"
+                     else repr(m.body_name[o]))
+            found.append((depth, f"{m.body_name[i]!r} and {other}"))
+    if not found:
+        return []
+    found.sort(reverse=True)
+    shown = ", ".join(f"{who} by {d * 1e3:.3g} mm" for d, who in found[:5])
+    more = f" (+{len(found) - 5} more)" if len(found) > 5 else ""
+    unchecked = len(cands) - OVERLAP_CHECK_MAX_PAIRS
+    tail = f"; {unchecked} more candidate pairs not measured" if unchecked > 0 else ""
+    return [f"{scene.path}: {len(found)} pair(s) of shapes start overlapping: {shown}{more}"
+            f"{tail} (the solver pushes them apart in the first steps)"]
 
 
 def swept_bounds(model: Model, position, velocity, duration: float):

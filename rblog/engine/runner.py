@@ -4,11 +4,19 @@ samples to the recorders, and keep the summary figures.
 Python runs once per block (see :func:`samples_per_block`),
 never per step. A diverging, interrupted or failing run closes every recorder with what was
 written so far, so logs stay readable up to the last good sample.
+
+Why this module is long: the run loop and everything that must hold while it runs live together,
+because they share its state: the wall-time sizing of compiled calls (sampling stays on global
+multiples of the stride whatever the split), the signal flag checked between calls (SIGINT and
+SIGTERM answered within a call's budget, logs closed "interrupted"), the writer thread that
+overlaps logging with stepping, the running summary figures, and the compile notice driven by
+numba's compile events.
 """
 
 from __future__ import annotations
 
 import queue
+import signal
 import threading
 import time
 from dataclasses import asdict, dataclass, field
@@ -21,8 +29,11 @@ from rblog.engine.constants import (
     BLOCK_MAX_BODY_SAMPLES,
     BLOCK_MAX_BODY_STEPS,
     BLOCK_MAX_SAMPLES,
+    CALL_GROWTH_MAX,
+    CALL_WALL_BUDGET_S,
     COMPILE_NOTICE_AFTER_S,
     DEFAULT_LOG_RATE_HZ,
+    MAX_RUN_STEPS,
 )
 from rblog.errors import RunInterrupted, SceneError, SimulationDiverged
 from rblog.engine.free import advance_free
@@ -68,8 +79,9 @@ class TrajectoryCollector:
 class RunSummary:
     """Figures of a finished (or stopped) run. Drifts are over the logged samples.
 
-    energy_drift_rel: max |E - E0| / |E0| of the total energy (kinetic + gravity potential,
-        potential zero at the world origin).
+    energy_drift_rel: max |E - E0| of the total energy (kinetic + gravity potential) over the
+        run's energy scale: the largest kinetic energy plus sum_i m_i |g| (height range of body
+        i), so that it does not depend on where the potential's zero is (see ``_Drift``).
     angular_momentum_drift_rel: max over bodies of | |L_i| - |L_i0| | / |L_i0| (spin angular
         momentum about each body's centre of mass; 0 for bodies with no initial spin).
     ortho_error_max: max ||R^T R - I||_F over bodies and samples.
@@ -99,15 +111,32 @@ class RunSummary:
 
 
 class _Drift:
-    """Running maxima of the summary figures over blocks."""
+    """Running maxima of the summary figures over blocks.
 
-    def __init__(self):
+    The energy drift is max |E - E0| over a scale that, like E - E0, does not depend on where the
+    zero of potential energy is: the largest kinetic energy seen plus sum_i m_i |g| times the
+    range of heights (along g) body i covered. A run where nothing moves has drift 0.
+    """
+
+    def __init__(self, model: Model | None = None):
         self.e0 = None
         self.l0 = None
-        self.energy = 0.0
+        self.de_max = 0.0
+        self.ke_max = 0.0
+        self.h_lo = None
+        self.h_hi = None
         self.spin = 0.0
         self.ortho = 0.0
         self.qnorm = 0.0
+        self.model = model
+
+    @property
+    def energy(self) -> float:
+        scale = self.ke_max
+        if self.model is not None and self.h_lo is not None:
+            g = float(np.linalg.norm(self.model.gravity))
+            scale += float(np.sum(self.model.body_mass * g * (self.h_hi - self.h_lo)))
+        return self.de_max / scale if scale > 0 else 0.0
 
     def update(self, b: Trajectory):
         if b.n_samples == 0:
@@ -115,8 +144,16 @@ class _Drift:
         if self.e0 is None:
             self.e0 = float(b.total_energy[0])
             self.l0 = np.linalg.norm(b.angular_momentum[0], axis=-1)
-        scale = abs(self.e0) if self.e0 != 0 else 1.0
-        self.energy = max(self.energy, float(np.max(np.abs(b.total_energy - self.e0))) / scale)
+        self.de_max = max(self.de_max, float(np.max(np.abs(b.total_energy - self.e0))))
+        self.ke_max = max(self.ke_max, float(np.max((b.energy_translational + b.energy_rotational).sum(axis=1))))
+        if self.model is not None:
+            g = np.asarray(self.model.gravity, float)
+            gn = float(np.linalg.norm(g))
+            if gn > 0:
+                h = -(b.position @ (g / gn))  # (S, N) height along -g, m
+                lo, hi = h.min(axis=0), h.max(axis=0)
+                self.h_lo = lo if self.h_lo is None else np.minimum(self.h_lo, lo)
+                self.h_hi = hi if self.h_hi is None else np.maximum(self.h_hi, hi)
         spin = np.linalg.norm(b.angular_momentum, axis=-1)
         has = self.l0 > 0
         if np.any(has):
@@ -156,12 +193,14 @@ def run(
     notice: Callable[[str], None] | None = None,
     force_contacts: bool = False,
     profile=None,
+    warn: Callable[[str], None] | None = None,
 ) -> RunSummary:
     """Simulate ``scene`` and stream samples to ``recorders``.
 
     Options override the scene's ``[sim]`` values. ``progress(done_steps, total_steps)`` is called
-    after every block; ``notice(msg)`` gets one-line notices (kernel compilation). ``profile``
-    (an ``engine.profile.Profile``) accumulates seconds per stage.
+    after every block; ``notice(msg)`` gets one-line notices (kernel compilation); ``warn(msg)``
+    gets one-line warnings about the scene (bodies that start overlapping). ``profile`` (an
+    ``engine.profile.Profile``) accumulates seconds per stage.
 
     Raises:
         SceneError: an option is out of range.
@@ -175,6 +214,14 @@ def run(
         raise SceneError(scene.path, "--dt", f"expected a positive number, got {dt}")
     if not (duration > 0 and np.isfinite(duration)):
         raise SceneError(scene.path, "--duration", f"expected a positive number, got {duration}")
+    if dt > duration:
+        raise SceneError(scene.path, "--dt" if dt != sim.dt else "sim.dt",
+                         f"dt = {dt:g} s is longer than the duration {duration:g} s (expected "
+                         "dt <= duration)")
+    if duration / dt > MAX_RUN_STEPS:
+        raise SceneError(scene.path, "--dt" if dt != sim.dt else "sim.dt",
+                         f"dt = {dt:g} s makes {duration / dt:.3g} steps for {duration:g} s "
+                         f"(expected at most {MAX_RUN_STEPS:.0e} steps)")
     integrator = integrator or sim.integrator
     if integrator not in ORTHO_ALLOWED:
         raise SceneError(scene.path, "--integrator",
@@ -201,86 +248,138 @@ def run(
     )
     st = scene.state.copy()
     advance = _make_advance(plan, model, method, ortho_code, profile)
+    if warn is not None:
+        for w in plan.warnings:
+            warn(w)
 
     samples_in_block = samples_per_block(n_bodies, stride)
-    steps_per_block = samples_in_block * stride
+    steps_per_block = samples_in_block * stride  # the most steps one compiled call may take
 
-    def new_buffers():
-        """Sample buffers for one block. Fresh ones each block: the block is handed to the
+    def new_buffers(s):
+        """Sample buffers for ``s`` samples. Fresh ones each call: the block is handed to the
         recorders as is (no copy), and a recorder may keep it."""
-        s = samples_in_block + 1
+        s = s + 1
         return (np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 4)),
                 np.empty((s, n_bodies, 3, 3)), np.empty((s, n_bodies, 3)))
 
-    bufs = new_buffers()
-
-    # load (or compile, the first time) the kernels before the clock starts; the notice is
-    # printed at most once per run
-    notice = _once(notice)
-    with CompileNotice(notice):
-        advance(dt, 0, stride, False, st.copy(), bufs)
-        derive(model, info, np.array([0]), np.array([0.0]), st.position[None], st.linear_momentum[None],
-               st.quat_wxyz[None], st.rotation[None], st.angular_momentum_world[None])
-
-    drift = _Drift()
+    stop = _StopFlag()
+    drift = _Drift(model)
     opened: list[Recorder] = []
     writer: _BlockWriter | None = None
     done = 0
     n_samples = 0
     status, message = "ok", ""
+    t_start = time.perf_counter()
     try:
-        with CompileNotice(notice):  # a recorder may load its compiled encoders when it opens
-            for r in recorders:
-                r.open(model, info)
-                opened.append(r)
-        t_start = time.perf_counter()  # the run's wall time: stepping and writing
-        writer = _BlockWriter(model, info, drift, opened)
-        writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
-                      st.quat_wxyz[None].copy(), st.rotation[None].copy(),
-                      st.angular_momentum_world[None].copy(), None)
-        n_samples += 1
-        while done < n_total:
-            n = min(steps_per_block, n_total - done)
-            sample_last = (done + n == n_total) and (n % stride != 0)
-            bufs = new_buffers()
-            _, bad_step, bad_body, contacts = advance(dt, n, stride, sample_last, st, bufs)
-            local = np.arange(1, n // stride + 1) * stride
-            if sample_last:
-                local = np.append(local, n)
-            keep = len(local) if bad_step < 0 else int(np.searchsorted(local, bad_step))
-            local = local[:keep]
-            if keep:
-                if contacts is not None:
-                    contacts.step = contacts.step + done
-                    if bad_step >= 0:
-                        contacts = contacts.select(contacts.step < done + bad_step)
-                t_log = time.perf_counter()
-                writer.submit(done + local, *(b[:keep] for b in bufs), contacts)
-                if profile is not None:
-                    profile.add("logging", time.perf_counter() - t_log)
-                n_samples += keep
-            if bad_step >= 0:
-                bad_global = done + bad_step
-                done = bad_global - 1
-                raise SimulationDiverged(bad_global, bad_global * dt, int(bad_body),
-                                         model.body_name[bad_body])
-            done += n
-            if progress is not None:
-                progress(done, n_total)
-        t_log = time.perf_counter()
-        writer.finish()
-        if profile is not None:
-            profile.add("logging", time.perf_counter() - t_log)
-    except KeyboardInterrupt:
-        status, message = "interrupted", f"interrupted at step {done}"
+        with stop:
+            # load (or compile, the first time) the kernels before the clock starts; the notice
+            # is printed at most once per run. A signal here interrupts at once (Python code).
+            notice = _once(notice)
+            stop.raise_now = True
+            with CompileNotice(notice):
+                advance(dt, 0, stride, False, st.copy(), new_buffers(samples_in_block))
+                derive(model, info, np.array([0]), np.array([0.0]), st.position[None],
+                       st.linear_momentum[None], st.quat_wxyz[None], st.rotation[None],
+                       st.angular_momentum_world[None])
+            with CompileNotice(notice):  # a recorder may load its compiled encoders when it opens
+                for r in recorders:
+                    r.open(model, info)
+                    opened.append(r)
+            stop.raise_now = False
+            stop.check()
+            t_start = time.perf_counter()  # the run's wall time: stepping and writing
+            writer = _BlockWriter(model, info, drift, opened)
+            writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
+                          st.quat_wxyz[None].copy(), st.rotation[None].copy(),
+                          st.angular_momentum_world[None].copy(), None)
+            n_samples += 1
+            # Each compiled call is sized so that it takes about CALL_WALL_BUDGET_S of wall
+            # time (measured on the previous call), which bounds how late a signal is seen and
+            # how much a killed run loses. Samples stay at global multiples of the stride (and
+            # the last step), whatever the call boundaries, and the kernels carry their whole
+            # state across calls, so the result does not depend on the split.
+            sec_per_step = None
+            last_n = 1
+            while done < n_total:
+                stop.check()
+                remaining = n_total - done
+                if sec_per_step is None:
+                    budget = min(stride, remaining)
+                else:
+                    budget = int(CALL_WALL_BUDGET_S / max(sec_per_step, 1e-12))
+                    budget = max(1, min(budget, int(CALL_GROWTH_MAX * last_n) + 1))
+                budget = min(budget, steps_per_block, remaining)
+                to_boundary = stride - done % stride
+                if done % stride == 0 and budget >= stride:
+                    # whole strides (or the run's tail): sample at the call's own stride
+                    n = remaining if budget == remaining else (budget // stride) * stride
+                    call_stride = stride
+                    sample_last = (done + n == n_total) and (n % stride != 0)
+                else:
+                    # inside one stride interval: at most one sample, at the call's end
+                    n = min(budget, to_boundary)
+                    if n == to_boundary:
+                        call_stride, sample_last = n, False
+                    else:
+                        call_stride, sample_last = n + 1, done + n == n_total
+                first = (done // stride + 1) * stride
+                glob = np.arange(first, done + n + 1, stride, dtype=np.int64)
+                if done + n == n_total and n_total % stride != 0:
+                    glob = np.append(glob, n_total)
+                local = glob - done
+                bufs = new_buffers(len(local))
+                t_call = time.perf_counter()
+                _, bad_step, bad_body, contacts = advance(dt, n, call_stride, sample_last, st, bufs)
+                wall = time.perf_counter() - t_call
+                if bad_step < 0:
+                    sec_per_step = wall / n
+                    last_n = n
+                keep = len(local) if bad_step < 0 else int(np.searchsorted(local, bad_step))
+                local = local[:keep]
+                if keep:
+                    if contacts is not None:
+                        contacts.step = contacts.step + done
+                        if bad_step >= 0:
+                            contacts = contacts.select(contacts.step < done + bad_step)
+                    t_log = time.perf_counter()
+                    writer.submit(done + local, *(b[:keep] for b in bufs), contacts)
+                    if profile is not None:
+                        profile.add("logging", time.perf_counter() - t_log)
+                    n_samples += keep
+                if bad_step >= 0:
+                    bad_global = done + bad_step
+                    done = bad_global - 1
+                    raise SimulationDiverged(bad_global, bad_global * dt, int(bad_body),
+                                             model.body_name[bad_body])
+                done += n
+                if progress is not None:
+                    progress(done, n_total)
+            t_log = time.perf_counter()
+            writer.finish()
+            if profile is not None:
+                profile.add("logging", time.perf_counter() - t_log)
+    except (KeyboardInterrupt, _Stopped) as e:
+        signum = e.signum if isinstance(e, _Stopped) else signal.SIGINT
+        name = signal.Signals(signum).name
+        status, message = "interrupted", f"interrupted ({name}) at step {done}"
         _finish_quietly(writer)
-        _close_all(opened, True, message)
+        _close_all_quietly(opened, True, message)
         raise RunInterrupted(
-            f"run interrupted at step {done} (t = {done * dt:.6g} s); logs keep every sample "
-            "written before it") from None
+            f"run interrupted at step {done} (t = {done * dt:.6g} s) by {name}; logs keep every "
+            "sample written before it", signum=signum) from None
     except SimulationDiverged as e:
         _finish_quietly(writer)
         _close_all(opened, True, str(e))
+        raise
+    except SystemError as e:
+        # a signal handler's exception surfacing out of a compiled call
+        if isinstance(e.__cause__ or e.__context__, KeyboardInterrupt):
+            _finish_quietly(writer)
+            _close_all_quietly(opened, True, f"interrupted (SIGINT) at step {done}")
+            raise RunInterrupted(f"run interrupted at step {done} (t = {done * dt:.6g} s) by "
+                                 "SIGINT; logs keep every sample written before it") from None
+        _finish_quietly(writer)
+        _close_all(opened, True, f"run failed: {e}")
         raise
     except BaseException as e:
         _finish_quietly(writer)
@@ -400,6 +499,64 @@ def _finish_quietly(writer: _BlockWriter | None):
         pass
 
 
+def _close_all_quietly(recorders, truncated, reason):
+    """Close every log on the way out of an interrupted run; a close error is not the news."""
+    try:
+        _close_all(recorders, truncated, reason)
+    except Exception:
+        pass
+
+
+class _Stopped(Exception):
+    """Raised between compiled calls when SIGINT or SIGTERM arrived."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+class _StopFlag:
+    """While active (``with``), SIGINT and SIGTERM set a flag instead of raising inside a
+    compiled call (where CPython can only report them as a SystemError, and only when the call
+    returns). The run loop calls :meth:`check` between calls. While ``raise_now`` is set
+    (compiling kernels, opening recorders: Python code), a signal raises at once. Handlers are
+    installed only from the main thread (signals are delivered there) and restored on exit."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.signum: int | None = None
+        self.raise_now = False
+        self._old: dict = {}
+
+    def _handler(self, signum, frame):
+        self.signum = signum
+        if self.raise_now:
+            raise _Stopped(signum)
+
+    def check(self):
+        if self.signum is not None:
+            raise _Stopped(self.signum)
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                try:
+                    self._old[sig] = signal.signal(sig, self._handler)
+                except (ValueError, OSError):
+                    pass
+        return self
+
+    def __exit__(self, *exc):
+        for sig, old in self._old.items():
+            try:
+                signal.signal(sig, old)
+            except (ValueError, OSError):
+                pass
+        self._old = {}
+        return False
+
+
 def _close_all(recorders, truncated, reason):
     errors = []
     for r in recorders:
@@ -455,25 +612,55 @@ def _once(fn):
     return call
 
 
+_DONE = object()
+
+
 class CompileNotice:
-    """Context manager: calls ``notice(msg)`` once if the block inside takes longer than
-    COMPILE_NOTICE_AFTER_S (numba compiling kernels on a first run)."""
+    """Context manager: calls ``notice(msg)`` once if numba starts compiling a kernel inside the
+    block and the block has not ended COMPILE_NOTICE_AFTER_S later. A block that is merely slow
+    (a long analysis with every kernel cached) prints nothing: the timer starts on numba's own
+    ``numba:compile`` event, not on entry."""
 
     def __init__(self, notice):
         self.notice = notice
         self.timer = None
+        self._listener = None
+        self._lock = threading.Lock()
+
+    def _compiling(self):
+        with self._lock:
+            if self.timer is None and self.notice is not None:
+                self.timer = threading.Timer(
+                    COMPILE_NOTICE_AFTER_S, self.notice,
+                    ("compiling kernels (first run only; cached afterwards)...",))
+                self.timer.daemon = True
+                self.timer.start()
 
     def __enter__(self):
         if self.notice is not None:
-            self.timer = threading.Timer(
-                COMPILE_NOTICE_AFTER_S, self.notice,
-                ("compiling kernels (first run only; cached afterwards)...",))
-            self.timer.daemon = True
-            self.timer.start()
+            from numba.core import event
+
+            outer = self
+
+            class _OnCompile(event.Listener):
+                def on_start(self, ev):
+                    outer._compiling()
+
+                def on_end(self, ev):
+                    pass
+
+            self._listener = _OnCompile()
+            event.register("numba:compile", self._listener)
         return self
 
     def __exit__(self, *exc):
-        if self.timer is not None:
-            self.timer.cancel()
-            self.timer = None
+        if self._listener is not None:
+            from numba.core import event
+
+            event.unregister("numba:compile", self._listener)
+            self._listener = None
+        with self._lock:
+            if self.timer is not None and self.timer is not _DONE:
+                self.timer.cancel()
+            self.timer = _DONE  # no notice after the block
         return False

@@ -10,6 +10,7 @@ error naming the file, the key, the value and what was expected; the format has 
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -23,7 +24,9 @@ from rblog.contract.model import SHAPE_CODES, SHAPE_BOX, SHAPE_SPHERE, Model
 from rblog.engine.state import State
 from rblog.engine.rotation import axis_angle_to_quat_np, quat_to_matrix_np
 from rblog.engine.integrators import ORTHO_ALLOWED
-from rblog.engine.constants import QUAT_MIN_NORM
+from rblog.engine.constants import (
+    BYTES_PER_BODY_ESTIMATE, MAX_BODIES, MAX_RUN_STEPS, QUAT_MIN_NORM, QUAT_NORM_WARN_TOL,
+)
 
 INTEGRATORS = tuple(ORTHO_ALLOWED)
 #: the default integrator; chosen by benchmarks/bench_integrators.py (see benchmarks/RESULTS.md)
@@ -81,6 +84,8 @@ class Scene:
     sim: SimParams
     contact: dict = field(default_factory=dict)
     resolved: dict = field(default_factory=dict)
+    #: one-line warnings about values that were accepted but are probably mistakes
+    warnings: list[str] = field(default_factory=list)
 
 
 class _Ctx:
@@ -88,9 +93,13 @@ class _Ctx:
 
     def __init__(self, path: str):
         self.path = path
+        self.warnings: list[str] = []
 
     def fail(self, key: str, expected: str):
         raise SceneError(self.path, key, expected)
+
+    def warn(self, key: str, what: str):
+        self.warnings.append(f"{self.path}: {key}: {what}")
 
     def table(self, v, key) -> dict:
         if not isinstance(v, dict):
@@ -101,7 +110,9 @@ class _Ctx:
         for k in d:
             if k not in allowed:
                 where = f"{key}.{k}" if key else k
-                self.fail(where, f"unknown key (expected one of: {', '.join(sorted(allowed))})")
+                close = difflib.get_close_matches(str(k), sorted(allowed), n=1, cutoff=0.6)
+                hint = f"did you mean {close[0]!r}? " if close else ""
+                self.fail(where, f"unknown key ({hint}expected one of: {', '.join(sorted(allowed))})")
 
     def num(self, v, key, *, positive=False, nonneg=False, lo=None, hi=None) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
@@ -171,6 +182,14 @@ def load_scene(path: str | Path) -> Scene:
 
 def parse_scene(text: str, path: str = "<scene>") -> Scene:
     """Validate scene TOML text. ``path`` is used in error messages."""
+    try:
+        return _parse_scene(text, path)
+    except MemoryError:
+        raise SceneError(path, "", "out of memory while building the scene (too many bodies "
+                         "for this machine; see [[generator]] count/grid)") from None
+
+
+def _parse_scene(text: str, path: str) -> Scene:
     ctx = _Ctx(path)
     try:
         doc = tomllib.loads(text)
@@ -191,6 +210,12 @@ def parse_scene(text: str, path: str = "<scene>") -> Scene:
                               INTEGRATORS),
         seed=ctx.integer(sim_t.get("seed", 0), "sim.seed", lo=0),
     )
+    if sim.dt > sim.duration:
+        ctx.fail("sim.dt", f"dt = {sim.dt:g} s is longer than the duration {sim.duration:g} s "
+                 "(expected dt <= duration)")
+    if sim.duration / sim.dt > MAX_RUN_STEPS:
+        ctx.fail("sim.dt", f"dt = {sim.dt:g} s makes {sim.duration / sim.dt:.3g} steps for "
+                 f"{sim.duration:g} s (expected at most {MAX_RUN_STEPS:.0e} steps)")
     if "orthonormalize" in sim_t:
         allowed, _ = ORTHO_ALLOWED[sim.integrator]
         sim.orthonormalize = ctx.string(sim_t["orthonormalize"], "sim.orthonormalize", allowed)
@@ -277,7 +302,7 @@ def parse_scene(text: str, path: str = "<scene>") -> Scene:
     ]
     if contact:
         resolved["contact"] = contact
-    return Scene(path, text, model, state, sim, contact, resolved)
+    return Scene(path, text, model, state, sim, contact, resolved, warnings=ctx.warnings)
 
 
 def _contact_table(ctx: _Ctx, t: dict) -> dict:
@@ -303,9 +328,32 @@ def _contact_table(ctx: _Ctx, t: dict) -> dict:
         ContactParams(**out)
     except ValueError as e:
         bad = next((k for k in out if f"contact.{k} " in str(e) or f"contact.{k}" in str(e)), "")
-        ctx.fail(f"contact.{bad}" if bad else "contact", str(e).split(" is ", 1)[-1]
-                 if " is " in str(e) else str(e))
+        if bad:
+            ctx.fail(f"contact.{bad}", f"expected {CONTACT_RANGES.get(bad, 'a value in range')}, "
+                     f"got {out[bad]!r}")
+        ctx.fail("contact", str(e))
     return out
+
+
+#: the allowed range of each [contact] value, as ContactParams.validate checks it (the test
+#: tests/engine/test_bad_input.py walks both so they cannot drift apart)
+CONTACT_RANGES = {
+    "velocity_iterations": "an integer >= 1",
+    "max_velocity_iterations": "an integer >= 1",
+    "velocity_tolerance": "a number >= 0 (m/s)",
+    "over_relaxation": "a number in (0, 2)",
+    "position_iterations": "an integer >= 0",
+    "allowed_penetration": "a number >= 0 (m)",
+    "position_correction_rate": "a number in (0, 1]",
+    "max_correction_speed": "a number > 0 (m/s)",
+    "speculative_distance": "a number >= 0 (m)",
+    "restitution_threshold": "a number >= 0 (m/s)",
+    "friction_anchor_distance": "a number >= 0 (m)",
+    "sleep_speed": "a number >= 0 (m/s)",
+    "sleep_time": "a number >= 0 (s)",
+    "projection_iterations": "an integer >= 0",
+    "projection_depth": "a number > 0 (m)",
+}
 
 
 def _orientation(ctx: _Ctx, d: dict, key: str) -> np.ndarray:
@@ -322,6 +370,9 @@ def _orientation(ctx: _Ctx, d: dict, key: str) -> np.ndarray:
         n = np.linalg.norm(q)
         if n < QUAT_MIN_NORM:
             ctx.fail(f"{key}.{k}", "expected a non-zero quaternion")
+        if abs(n - 1.0) > QUAT_NORM_WARN_TOL:
+            ctx.warn(f"{key}.{k}", f"|q| = {n:.6g}, not 1 (off by more than {QUAT_NORM_WARN_TOL:g});"
+                     " normalised to unit length")
         q = q / n
     elif k == "rotvec":
         rv = ctx.vec(d[k], f"{key}.rotvec")
@@ -405,6 +456,29 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
     }
 
 
+def _check_body_count(ctx: _Ctx, key: str, n: int):
+    """Refuse a generator that asks for more bodies than MAX_BODIES or than memory can hold,
+    saying how much memory it would need (instead of a MemoryError half-way)."""
+    need = n * BYTES_PER_BODY_ESTIMATE
+    avail = _available_memory()
+    if n > MAX_BODIES or (avail is not None and need > avail):
+        have = f", {avail / 1e9:.3g} GB available" if avail is not None else ""
+        ctx.fail(key, f"{n:,} bodies need about {need / 1e9:.3g} GB of memory{have} "
+                 f"(expected at most {MAX_BODIES:,} bodies that fit in memory)")
+
+
+def _available_memory() -> int | None:
+    """Bytes of memory available now (Linux /proc/meminfo), or None when unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
 def _random_unit(rng, n) -> np.ndarray:
     v = rng.normal(size=(n, 3))
     return v / np.linalg.norm(v, axis=1, keepdims=True)
@@ -426,6 +500,7 @@ def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> list[dict]:
         if not isinstance(gr, list) or len(gr) != 3:
             ctx.fail(f"{key}.grid", f"expected a list of 3 integers, got {_show(gr)}")
         counts = [ctx.integer(c, f"{key}.grid[{i}]", lo=1) for i, c in enumerate(gr)]
+        _check_body_count(ctx, f"{key}.grid", counts[0] * counts[1] * counts[2])
         if "count" in g:
             ctx.fail(f"{key}.count", "a grid layout takes grid = [nx, ny, nz], not count")
         sp = g.get("spacing", 1.0)
@@ -441,6 +516,7 @@ def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> list[dict]:
         if "count" not in g:
             ctx.fail(f"{key}.count", "missing (number of bodies)")
         n = ctx.integer(g["count"], f"{key}.count", lo=1)
+        _check_body_count(ctx, f"{key}.count", n)
         for k in ("region_min", "region_max"):
             if k not in g:
                 ctx.fail(f"{key}.{k}", "missing (a list of 3 numbers, m)")

@@ -38,7 +38,7 @@ from rblog.record import schema as S
 #: chunk size (bytes of uncompressed messages); also the most a killed writer loses
 CHUNK_BYTES = 1 << 20
 #: a chunk is also finalized (and the file flushed) when this much wall time passed since the last
-FLUSH_EVERY_S = 1.0
+FLUSH_EVERY_S = 0.5
 #: chunk compression. Bytes per body-sample / write CPU per sample, measured on
 #: samples/spinning_bodies.toml (300 bodies): none 361 / 337 us, lz4 236 / 342 us,
 #: zstd 163 / 414 us; on noise-like states (100 bodies) none 371, lz4 333, zstd 302 at

@@ -24,7 +24,7 @@ from rblog.record import _common as C
 
 #: the file sink is flushed (blocking) at most this often (wall s); the SDK also flushes on its
 #: own every 200 ms or 1 MiB
-FLUSH_EVERY_S = 1.0
+FLUSH_EVERY_S = 0.5
 #: The .rrd footer (a manifest of every chunk, for random access) is held in memory until the
 #: file is closed: ~7 KB per chunk, and a block costs at most CHUNKS_PER_BLOCK chunks. A run expected
 #: to log more chunks than this is written without footer (still a valid .rrd; the viewer and
@@ -121,9 +121,22 @@ class RerunRecorder:
                                     default_blueprint=_blueprint(model, info))
                 self._streams.append(self._rec)
             url = self.connect_url
+            if url:
+                check_viewer_reachable(url)
             if self.spawn:
-                rr.spawn(port=SPAWN_PORT, connect=False)
-                url = url or f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"
+                # spawn through a stream of ours: rr.spawn() without one is silently ignored
+                # ("Rerun is disabled") because rblog never creates the global recording
+                self._spawner = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
+                rr.spawn(port=SPAWN_PORT, connect=False, recording=self._spawner,
+                         executable_path=_viewer_executable())
+                spawned = f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"
+                try:
+                    check_viewer_reachable(spawned, wait_s=VIEWER_SPAWN_WAIT_S)
+                except LogWriteError:
+                    raise LogWriteError("--spawn", "the Rerun viewer did not start (is a display "
+                                        f"available?); nothing listens on 127.0.0.1:{SPAWN_PORT} "
+                                        f"after {VIEWER_SPAWN_WAIT_S:g} s") from None
+                url = url or spawned
             if url:
                 self._live = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
                 self._live.set_sinks(rr.GrpcSink(url), default_blueprint=_blueprint(model, info))
@@ -384,9 +397,18 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
     return math.ceil(samples / per_block) * CHUNKS_PER_BLOCK
 
 
-def _blueprint(model: Model, info: RunInfo) -> rrb.Blueprint:
-    """3D view of the world beside the energy, momentum and error plots. The camera frames the
-    bodies' starting positions (from the resolved scene, when the log has one)."""
+#: the drift-error plot's fixed y range (dimensionless): the analyzers' rigidity tolerance
+#: (rblog.analyze.tolerances.DRIFT_ORTHO_ERROR), so round-off (~1e-15) draws as a flat line at 0
+#: instead of autoscaled spikes (the range starts a little below 0 so that line is drawn), and a
+#: fault shows as a line at the top
+ERROR_PLOT_MAX = 1e-6
+
+
+def _blueprint(model: Model, info: RunInfo, findings: bool = False) -> rrb.Blueprint:
+    """3D view of the world beside the energy, momentum and error plots (legends hidden: the
+    series are named on hover; the error plot clamped to ERROR_PLOT_MAX). The camera frames the
+    bodies' starting positions (from the resolved scene, when the log has one). ``findings``: a
+    findings panel (the ``findings`` text log of rblog.record.findings) below the 3D view."""
     eye = None
     bodies = (info.scene_resolved or {}).get("body") or []
     if bodies and all("position" in b for b in bodies):
@@ -397,14 +419,66 @@ def _blueprint(model: Model, info: RunInfo) -> rrb.Blueprint:
         extent = max(float(np.max(hi - lo)), 1.0)
         eye = rrb.EyeControls3D(position=centre + extent * np.array([1.2, -1.8, 1.0]),
                                 look_target=centre)
+    no_legend = rrb.PlotLegend(visible=False)
+    world = rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye)
+    if findings:
+        world = rrb.Vertical(world, rrb.TextLogView(origin="findings", name="findings"),
+                             row_shares=[3, 1])
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye),
+            world,
             rrb.Vertical(
-                rrb.TimeSeriesView(origin="plots/energy", name="energy (J)"),
-                rrb.TimeSeriesView(origin="plots/momentum", name="total momentum"),
-                rrb.TimeSeriesView(origin="plots/error", name="max drift errors"),
+                rrb.TimeSeriesView(origin="plots/energy", name="energy (J)", plot_legend=no_legend),
+                rrb.TimeSeriesView(origin="plots/momentum", name="total momentum",
+                                   plot_legend=no_legend),
+                rrb.TimeSeriesView(origin="plots/error", name="max drift errors (0..1e-6)",
+                                   plot_legend=no_legend,
+                                   axis_y=rrb.ScalarAxis(range=(-0.1 * ERROR_PLOT_MAX, ERROR_PLOT_MAX),
+                                                         zoom_lock=False)),
             ),
             column_shares=[3, 2],
         ),
     )
+
+
+#: how long --spawn waits for the new viewer to listen (s)
+VIEWER_SPAWN_WAIT_S = 5.0
+#: how long a --connect check waits for the viewer's TCP port (s)
+VIEWER_CONNECT_TIMEOUT_S = 1.0
+
+
+def check_viewer_reachable(url: str, wait_s: float = 0.0) -> None:
+    """Raise LogWriteError unless something accepts TCP connections at ``url``'s host:port
+    (``rerun+http://host:port/proxy``). The SDK's gRPC sink connects lazily and never reports a
+    dead address, so a typo'd port would otherwise stream into the void and exit 0."""
+    import socket
+    import time
+    from urllib.parse import urlparse
+
+    u = urlparse(url.replace("rerun+", "", 1))
+    if not u.hostname or not u.port:
+        raise LogWriteError(url, "expected a viewer URL like rerun+http://127.0.0.1:9876/proxy")
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            with socket.create_connection((u.hostname, u.port), timeout=VIEWER_CONNECT_TIMEOUT_S):
+                return
+        except OSError as e:
+            if time.monotonic() >= deadline:
+                raise LogWriteError(url, f"no Rerun viewer listens at {u.hostname}:{u.port} "
+                                    f"({e.strerror or e})") from None
+            time.sleep(0.1)
+
+
+def _viewer_executable() -> str | None:
+    """The ``rerun`` viewer on PATH, else the one installed beside this Python (a venv used
+    without activating it), else None (the SDK then reports it missing)."""
+    import shutil
+    import sys
+    from pathlib import Path
+
+    found = shutil.which("rerun")
+    if found:
+        return found
+    beside = Path(sys.executable).with_name("rerun")
+    return str(beside) if beside.exists() else None

@@ -6,6 +6,8 @@
 * ``stress``: ``rblog stress``, numerical stability at extreme inputs.
 * ``peers``: the same problems run in MuJoCo and pybullet (optional extras).
 * ``scenes``: reference contact scenes built in code (stacks, piles) for tests and benchmarks.
+* ``cluster``: the executor every bulk job runs on (serial, local Dask cluster, running scheduler).
+* ``bulk_check``: ``rblog check`` on many logs.  ``sweep`` (+ ``variants``): ``rblog sweep``.
 
 May import anything in rblog; nothing in rblog imports this room except the CLI.
 """

@@ -37,6 +37,7 @@ the peers, the fits of convergence order, and its report (table, CSV, JSON, PNG)
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import math
 import os
@@ -254,10 +255,13 @@ def run_bench(
     peers: list[str] | tuple | None = None,
     progress: Callable[[str], None] | None = None,
     command: str = "",
+    executor=None,
 ) -> BenchReport:
     """Run the study. ``peers``: names of peer engines to include (None: every installed one;
-    () for none). Problems that need an engine that cannot run are reported as unavailable."""
+    () for none). Problems that need an engine that cannot run are reported as unavailable.
+    ``executor``: a :class:`rblog.study.cluster.Executor` for the rblog runs (default: here)."""
     from rblog.study import peers as peers_mod
+    from rblog.study.cluster import map_cases
 
     names = list(problems) if problems else list(PROBLEMS_QUICK if quick else PROBLEMS)
     for n in names:
@@ -278,18 +282,19 @@ def run_bench(
         if p.contacts and not contact_ok:
             info.update(available=False, reason=contact_why)
         plist.append(info)
-        for spec in specs:
-            for dt in dt_list:
-                if not info["available"]:
-                    r = new_row("rblog", p.name, spec, dt)
-                    r.update(status="unavailable", message=info["reason"])
-                    rows.append(r)
-                    continue
-                say(f"rblog {p.name} {spec} dt={dt:g}")
-                r = run_rblog(p, spec, dt, repeats=repeats)
-                rows.append(r)
-                if r["status"] == "unavailable" and info["available"]:
-                    info.update(available=False, reason=r["message"])
+        runs = [(spec, dt) for spec in specs for dt in dt_list]
+        done = map_cases(executor, lambda c: run_rblog(p, c[0], c[1], repeats=repeats),
+                         runs if info["available"] else [],
+                         say=lambda c: say(f"rblog {p.name} {c[0]} dt={c[1]:g}"),
+                         failed=lambda c, why: {**new_row("rblog", p.name, c[0], c[1]),
+                                                "status": "error", "message": why})
+        for (spec, dt), r in itertools.zip_longest(runs, done):
+            if not info["available"]:
+                r = new_row("rblog", p.name, spec, dt)
+                r.update(status="unavailable", message=info["reason"])
+            rows.append(r)
+            if r["status"] == "unavailable" and info["available"]:
+                info.update(available=False, reason=r["message"])
         for peer in peer_objs:
             for integ in peer.integrators:
                 for dt in dt_list:

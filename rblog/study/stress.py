@@ -38,6 +38,7 @@ of each variant, and the report.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import time
@@ -416,8 +417,12 @@ class StressReport:
 
 def run_stress(*, quick: bool = False, cases: list[str] | tuple | None = None,
                integrators: list[str] | tuple | None = None,
-               progress: Callable[[str], None] | None = None, command: str = "") -> StressReport:
-    """Run the suite (``cases``: names from :data:`CASE_NAMES`, default all)."""
+               progress: Callable[[str], None] | None = None, command: str = "",
+               executor=None) -> StressReport:
+    """Run the suite (``cases``: names from :data:`CASE_NAMES`, default all); ``executor``: a
+    :class:`rblog.study.cluster.Executor` to run the variants on (default: here)."""
+    from rblog.study.cluster import map_cases
+
     names = list(cases) if cases else list(CASE_NAMES)
     for n in names:
         if n not in CASE_NAMES:
@@ -434,18 +439,20 @@ def run_stress(*, quick: bool = False, cases: list[str] | tuple | None = None,
         if case.contacts and not contact_ok:
             info.update(available=False, reason=contact_why)
         infos.append(info)
-        for v in case.variants:
-            for spec in specs:
-                if not info["available"]:
-                    r = _new_row(case, v, spec)
-                    r.update(status="unavailable", stable=None, message=info["reason"])
-                    rows.append(r)
-                    continue
-                say(f"stress {case.name} [{v.label}] {spec}")
-                r = run_variant(case, v, spec)
-                rows.append(r)
-                if r["status"] == "unavailable":
-                    info.update(available=False, reason=r["message"])
+        runs = [(v, spec) for v in case.variants for spec in specs]
+        done = map_cases(executor, lambda c, case=case: run_variant(case, c[0], c[1]),
+                         runs if info["available"] else [],
+                         say=lambda c, case=case: say(f"stress {case.name} [{c[0].label}] {c[1]}"),
+                         failed=lambda c, why, case=case: {**_new_row(case, c[0], c[1]),
+                                                           "status": "error", "stable": None,
+                                                           "message": why})
+        for (v, spec), r in itertools.zip_longest(runs, done):
+            if not info["available"]:
+                r = _new_row(case, v, spec)
+                r.update(status="unavailable", stable=None, message=info["reason"])
+            rows.append(r)
+            if r["status"] == "unavailable":
+                info.update(available=False, reason=r["message"])
     report = StressReport(rows=rows, cases=infos, quick=quick, machine=machine_info(),
                           command=command, created=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                           settings={"integrators": specs})

@@ -66,7 +66,7 @@ def wait_for_samples(path: Path, min_bytes=200_000, timeout=60.0):
     raise AssertionError(f"{path} never grew")
 
 
-@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 130)])
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_interrupted_run_finalizes_both_logs(tmp_path, sig, code):
     proc = start(tmp_path, "--rrd", "a.rrd", "--mcap", "a.mcap")
     wait_for_samples(tmp_path / "a.mcap")

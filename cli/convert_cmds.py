@@ -1,0 +1,71 @@
+"""``rblog convert`` and ``rblog findings``: parse, call :mod:`rblog.record`, print. Registered in
+cli/main.py with ``main.add_command``."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from rblog.errors import RblogError
+
+
+def _fail(err: RblogError):
+    click.echo(f"rblog: error: {err}", err=True)
+    sys.exit(err.exit_code)
+
+
+def _kind(path: str, what: str) -> str:
+    for ext in (".rrd", ".mcap"):
+        if path.endswith(ext):
+            return ext
+    raise RblogError(f"{path}: {what} must end in .rrd or .mcap")
+
+
+@click.command()
+@click.argument("src", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("dst", type=click.Path(dir_okay=False, path_type=str))
+def convert(src, dst):
+    """Rewrite the log SRC as DST (.rrd <-> .mcap), geometry, state and contacts included, so an
+    .mcap run opens in Rerun with its shapes (and an .rrd run in Foxglove)."""
+    from rblog.record import McapRecorder, RerunRecorder, load
+
+    try:
+        _kind(src, "SRC")
+        kind = _kind(dst, "DST")
+        traj = load(src)
+        rec = RerunRecorder(dst) if kind == ".rrd" else McapRecorder(dst)
+        rec.open(traj.model, traj.info)
+        rec.write(traj)
+        rec.close(truncated=traj.truncated)
+    except RblogError as e:
+        _fail(e)
+    click.echo(f"{src} -> {dst}: {traj.n_samples} samples x {traj.n_bodies} bodies, "
+               f"{len(traj.contacts)} contacts")
+
+
+@click.command()
+@click.argument("log", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("out", type=click.Path(dir_okay=False, path_type=str))
+def findings(log, out):
+    """Check LOG with the default tolerances and write its findings to OUT: .rrd (a Rerun
+    recording overlaying the run, as `rblog check --rrd`) or .mcap (foxglove.Log messages on
+    /rblog/findings, for Foxglove's log panel and timeline). Exit 1 when something is flagged."""
+    from rblog.analyze import check
+    from rblog.record import load
+    from rblog.record.findings import (run_recording_id, write_findings_mcap,
+                                       write_findings_rrd)
+
+    try:
+        kind = _kind(out, "OUT")
+        traj = load(log)
+        results = check(traj)
+        if kind == ".rrd":
+            write_findings_rrd(out, traj, results, run_recording_id(log))
+        else:
+            write_findings_mcap(out, traj, results)
+    except RblogError as e:
+        _fail(e)
+    n = sum(len(r.findings) for r in results)
+    click.echo(f"{log}: {n} findings written to {out}")
+    sys.exit(1 if any(not r.passed and not r.skipped for r in results) else 0)

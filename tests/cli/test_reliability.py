@@ -1,0 +1,260 @@
+"""Every fault and bad input of docs/reliability.md, tried: what rblog says, its exit code, what is
+kept. The table in docs/reliability.md is rendered from FAULTS below and compared here, so it stays
+true (regenerate it with ``RBLOG_WRITE_DOCS=1 python -m pytest tests/cli/test_reliability.py``).
+
+Each row failed on the code before this change (traceback, silence, or exit 0).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+import rblog
+from rblog_cli.main import main
+
+from conftest import REPO, SAMPLES_DIR
+
+DOC = REPO / "docs" / "reliability.md"
+BEGIN, END = "<!-- faults:begin -->", "<!-- faults:end -->"
+
+FREE = """
+[sim]
+dt = 1e-3
+duration = 0.2
+[[body]]
+name = "ball"
+shape = "sphere"
+radius = 0.1
+mass = 1.0
+"""
+
+
+@dataclass
+class Fault:
+    id: str
+    what: str          # the fault or bad input, as a user would do it
+    files: dict        # name -> text, written to a fresh folder (the cwd of the run)
+    argv: list         # the rblog command line
+    code: int          # expected exit code
+    says: str          # a fragment the one-line message (or warning) must hold
+    kept: str          # what is kept (logs, files), for the table
+
+
+def _scene(extra: str = "", base: str = FREE) -> str:
+    return base + extra
+
+
+FAULTS = [
+    Fault("dt-tiny", "`dt = 1e-300`", {"s.toml": FREE.replace("dt = 1e-3", "dt = 1e-300")},
+          ["run", "s.toml", "--no-log"], 2, "sim.dt: dt = 1e-300 s makes 2e+299 steps",
+          "nothing written"),
+    Fault("dt-option-tiny", "`--dt 1e-300`", {"s.toml": FREE},
+          ["run", "s.toml", "--no-log", "--dt", "1e-300"], 2, "--dt: dt = 1e-300 s makes",
+          "nothing written"),
+    Fault("dt-gt-duration", "`dt` larger than `duration`",
+          {"s.toml": FREE.replace("dt = 1e-3", "dt = 0.5")}, ["validate", "s.toml"], 2,
+          "sim.dt: dt = 0.5 s is longer than the duration 0.2 s", "nothing written"),
+    Fault("quat-norm", "a quaternion of norm 1.3",
+          {"s.toml": _scene('quat_wxyz = [1.3, 0.0, 0.0, 0.0]\n')}, ["validate", "s.toml"], 0,
+          "|q| = 1.3, not 1 (off by more than 1e-06); normalised", "runs (warning)"),
+    Fault("overlap", "bodies that start overlapping (box sunk 10 mm into the ground, a sphere "
+          "90 mm into the box)",
+          {"s.toml": "[sim]\ndt = 1e-3\nduration = 0.05\n[ground]\n[[body]]\nname = \"a\"\n"
+           "shape = \"box\"\nhalf_extents = [0.5, 0.5, 0.5]\nmass = 1.0\nposition = [0, 0, 0.49]\n"
+           "[[body]]\nname = \"b\"\nshape = \"sphere\"\nradius = 0.2\nmass = 1.0\n"
+           "position = [0, 0, 1.1]\n"},
+          ["run", "s.toml", "--no-log"], 0,
+          "2 pair(s) of shapes start overlapping: 'a' and 'b' by 90 mm, 'a' and the ground by 10 mm",
+          "runs (warning)"),
+    Fault("unknown-key", "a misspelt key (`duraton`)",
+          {"s.toml": FREE.replace("duration = 0.2", "duration = 0.2\nduraton = 1")},
+          ["validate", "s.toml"], 2, "sim.duraton: unknown key (did you mean 'duration'?",
+          "nothing written"),
+    Fault("contact-range", "`[contact] over_relaxation = 3`",
+          {"s.toml": _scene("[contact]\nover_relaxation = 3.0\n")}, ["validate", "s.toml"], 2,
+          "contact.over_relaxation: expected a number in (0, 2), got 3.0", "nothing written"),
+    Fault("generator-huge", "a generator asking for 10^8 bodies",
+          {"s.toml": FREE.split("[[body]]")[0] + '[[generator]]\nlayout = "random"\n'
+           'count = 100000000\nregion_min = [0, 0, 0]\nregion_max = [1, 1, 1]\n'
+           'body = { shape = "sphere", radius = 0.1, mass = 1.0 }\n'},
+          ["validate", "s.toml"], 2, "generator[0].count: 100,000,000 bodies need about 200 GB",
+          "nothing written"),
+    Fault("same-path", "`--rrd X --mcap X`", {"s.toml": FREE},
+          ["run", "s.toml", "--rrd", "x.log", "--mcap", "x.log"], 2,
+          "--rrd and --mcap name the same file 'x.log'", "nothing written"),
+    Fault("unwritable-output", "an output in a folder that does not exist", {"s.toml": FREE},
+          ["run", "s.toml", "--rrd", "missing/x.rrd"], 2, "missing/x.rrd: cannot write log: folder",
+          "nothing written; "
+          "checked before the kernels compile"),
+    Fault("dead-port", "`--connect` to a port nobody listens at", {"s.toml": FREE},
+          ["run", "s.toml", "--no-log", "--connect", "rerun+http://127.0.0.1:9/proxy"], 2,
+          "no Rerun viewer listens at 127.0.0.1:9", "nothing written"),
+    Fault("explain", "`--explain`", {"s.toml": FREE}, ["run", "s.toml", "--explain"], 0,
+          "integrate", "prints the plan, runs nothing (add `--run` to run)"),
+    Fault("run-without-explain", "`--run` without `--explain`", {"s.toml": FREE},
+          ["run", "s.toml", "--run"], 2, "--run goes with --explain", "nothing written"),
+    Fault("torque-1e40", "a torque of 1e40 N m on a box resting on the ground",
+          {"s.toml": "[sim]\ndt = 1e-3\nduration = 1.5\n[ground]\n[[body]]\nshape = \"box\"\n"
+           "half_extents = [0.5, 0.5, 0.5]\nmass = 1.0\nposition = [0, 0, 0.5]\n"
+           "torque = [1e40, 0, 0]\n"},
+          ["run", "s.toml", "--no-log"], 0, "energy drift", "runs to the end, no traceback"),
+    Fault("check-one-sample", "`rblog check` on a log of one sample", {"s.toml": FREE},
+          ["check", "one.mcap"], 4, "not judged: 1 sample(s)", "exit 4: never reported clean"),
+]
+
+#: rows tried by tests/cli/test_signals.py (real processes), listed in the same table
+SIGNAL_ROWS = [
+    ("SIGINT (Ctrl-C) during a contact run", "`run interrupted at step N (t = ...) by SIGINT`",
+     130, "both logs closed, every sample to step N, status \"interrupted\"; answered within 0.5 s"),
+    ("SIGTERM during a contact run", "`run interrupted at step N (t = ...) by SIGTERM`", 143,
+     "same as SIGINT"),
+    ("SIGKILL during the pile", "(none: the process is killed)", -9,
+     "both logs readable, samples handed to the writers more than ~1 s before the kill"),
+    ("an unwritable kernel-cache folder (`NUMBA_CACHE_DIR`)",
+     "`kernel cache '...' is not writable; using '...'` (warning)", 0,
+     "runs with a private cache (test_unwritable_kernel_cache below)"),
+    (".rrd cut at 50%", "`log ends early ... read N samples` (warning)", 0,
+     "every intact sample (342 of 401 on bouncing_ball)"),
+]
+
+
+def _invoke(tmp_path, fault: Fault):
+    for name, text in fault.files.items():
+        (tmp_path / name).write_text(text)
+    if fault.id == "check-one-sample":
+        from rblog.engine.runner import simulate
+        from rblog.engine.scene import parse_scene
+        from rblog.record.mcap_writer import McapRecorder
+
+        traj, _ = simulate(parse_scene(FREE, str(tmp_path / "s.toml")))
+        rec = McapRecorder(str(tmp_path / "one.mcap"))
+        rec.open(traj.model, traj.info)
+        rec.write(traj.slice(slice(0, 1)))  # a run stopped right after its first sample
+        rec.close(truncated=True, reason="stopped")
+    old = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        return CliRunner().invoke(main, fault.argv)
+    finally:
+        os.chdir(old)
+
+
+@pytest.mark.parametrize("fault", FAULTS, ids=[f.id for f in FAULTS])
+def test_fault_answered(tmp_path, fault):
+    res = _invoke(tmp_path, fault)
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception  # a traceback: the thing this test exists to catch
+    assert res.exit_code == fault.code, (res.stdout, res.stderr)
+    assert "Traceback" not in res.stderr
+    assert fault.says in res.stdout + res.stderr, res.stderr
+    if fault.code == 2:
+        err = [ln for ln in res.stderr.splitlines() if ln.strip()]
+        assert len(err) == 1, err
+    if fault.id in ("explain",):
+        assert "steps x" not in res.stdout  # did not run
+        assert not list(tmp_path.glob("*.rrd")) and not list(tmp_path.glob("*.mcap"))
+    if fault.code == 2:
+        assert not list(tmp_path.glob("*.rrd")) and not list(tmp_path.glob("*.mcap"))
+
+
+def test_unwritable_output_is_reported_before_compiling(tmp_path, monkeypatch):
+    """The output check runs before the kernels load: the run loop is never entered."""
+    import rblog.engine.runner as runner
+
+    def boom(*a, **k):
+        raise AssertionError("the run started before the output path was checked")
+
+    monkeypatch.setattr(runner, "run", boom)
+    (tmp_path / "s.toml").write_text(FREE)
+    res = CliRunner().invoke(main, ["run", str(tmp_path / "s.toml"), "--mcap",
+                                    str(tmp_path / "nope" / "x.mcap")])
+    assert res.exit_code == 2 and "does not exist" in res.stderr
+
+
+def test_check_does_not_say_compiling_when_nothing_compiles(tmp_path):
+    """A second `rblog check` (every kernel cached) prints no "compiling kernels" notice, even
+    when the audit takes longer than the notice delay."""
+    from rblog.engine.runner import CompileNotice
+    import time
+
+    said = []
+    with CompileNotice(said.append):
+        time.sleep(0.6)  # slower than COMPILE_NOTICE_AFTER_S = 0.4 s, but compiles nothing
+    assert said == []
+    from numba import njit
+
+    @njit
+    def f(x):
+        return x + 1
+
+    with CompileNotice(said.append):
+        f(1)
+        time.sleep(0.6)
+    assert said and "compiling" in said[0]
+
+
+def test_cut_rrd_recovers_intact_samples(tmp_path):
+    """An .rrd cut at 50% reads back every intact sample and says so (before: 1 of 401)."""
+    from rblog.engine.runner import run as run_scene
+    from rblog.engine.scene import load_scene
+    from rblog.record.rerun_writer import RerunRecorder
+
+    path = tmp_path / "bb.rrd"
+    run_scene(load_scene(SAMPLES_DIR / "bouncing_ball.toml"), recorders=[RerunRecorder(str(path))])
+    data = path.read_bytes()
+    cut = tmp_path / "cut.rrd"
+    cut.write_bytes(data[: len(data) // 2])
+    traj = rblog.load(cut)
+    assert traj.truncated
+    # the file's samples are spread about evenly over its bytes: half the file holds ~200 of
+    # 401 samples; measured 342 (static data sits at the front)
+    assert traj.n_samples >= 150
+    assert any(f"read {traj.n_samples} samples" in w for w in traj.warnings), traj.warnings
+
+
+def test_unwritable_kernel_cache(tmp_path):
+    """A cache folder that cannot be created (under a regular file) falls back with a warning,
+    for `--version` and for a run (before: numba's traceback where no fallback is writable)."""
+    import subprocess
+    import sys
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(blocker / "cache")}
+    rblog_exe = str(Path(sys.executable).with_name("rblog"))
+    (tmp_path / "s.toml").write_text(FREE)
+    for argv in (["--version"], ["validate", str(tmp_path / "s.toml")]):
+        p = subprocess.run([rblog_exe, *argv], env=env, capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr
+        assert "Traceback" not in p.stderr
+        assert "kernel cache" in p.stderr and "is not writable; using" in p.stderr
+
+
+def _table() -> str:
+    rows = ["| Fault or bad input | What rblog says | Exit code | What is kept |",
+            "|---|---|---|---|"]
+    for f in FAULTS:
+        says = f.says.replace("|", "\\|")
+        rows.append(f"| {f.what} | `{says}` | {f.code} | {f.kept} |")
+    for what, says, code, kept in SIGNAL_ROWS:
+        rows.append(f"| {what} | {says} | {code if code >= 0 else 'killed'} | {kept} |")
+    return "\n".join(rows)
+
+
+def test_reliability_doc_table_is_current():
+    text = DOC.read_text()
+    table = _table()
+    if os.environ.get("RBLOG_WRITE_DOCS"):
+        head, _, rest = text.partition(BEGIN)
+        _, _, tail = rest.partition(END)
+        DOC.write_text(f"{head}{BEGIN}\n{table}\n{END}{tail}")
+        text = DOC.read_text()
+    assert f"{BEGIN}\n{table}\n{END}" in text, (
+        "docs/reliability.md is out of date: RBLOG_WRITE_DOCS=1 python -m pytest "
+        "tests/cli/test_reliability.py")
