@@ -413,7 +413,7 @@ def _blueprint(model: Model, info: RunInfo, findings: bool = False) -> rrb.Bluep
     bodies = (info.scene_resolved or {}).get("body") or []
     if bodies and all("position" in b for b in bodies):
         pos = np.asarray([b["position"] for b in bodies], np.float64)
-        radius = float(np.max(np.linalg.norm(model.body_size, axis=1)))
+        radius = float(np.max(model.body_bounding_radius))
         lo, hi = pos.min(axis=0) - radius, pos.max(axis=0) + radius
         centre = 0.5 * (lo + hi)
         extent = max(float(np.max(hi - lo)), 1.0)
