@@ -13,6 +13,32 @@ SAMPLES_DIR = REPO / "samples"
 #: the samples with free bodies only (no ground, no statics, nothing that can touch)
 FREE_SAMPLES = ("tumbling_box", "free_fall", "spinning_bodies")
 
+#: two spheres; "spinner" turns at 100 rad/s about world z under the notes' scheme without
+#: orthonormalization, at dt = 1 s: R is (1 + 100 i)^n in the xy block and diverges
+SPINNER = """
+[sim]
+dt = 1.0
+duration = 1000.0
+gravity = [0.0, 0.0, 0.0]
+integrator = "seed"
+orthonormalize = "none"
+
+[[body]]
+name = "calm"
+shape = "sphere"
+radius = 0.1
+mass = 1.0
+
+[[body]]
+name = "spinner"
+shape = "sphere"
+radius = 0.1
+mass = 1.0
+inertia_diag = [1.0, 1.0, 1.0]
+position = [5.0, 0.0, 0.0]
+angular_velocity = [0.0, 0.0, 100.0]
+"""
+
 
 @pytest.fixture
 def scene_from_text():

@@ -18,7 +18,7 @@ from rblog.engine.scene import parse_scene
 from rblog.engine.runner import simulate
 from rblog_cli.main import main
 
-from conftest import FREE_SAMPLES, SAMPLES_DIR
+from conftest import FREE_SAMPLES, SAMPLES_DIR, SPINNER
 
 RBLOG = str(Path(sys.executable).with_name("rblog"))
 
@@ -169,29 +169,6 @@ def test_bad_input_real_process(scene_file, tmp_path, warm_kernels, args):
 # ---------------------------------------------------------------------------------------------
 # divergence: exit 3 naming the step and the body
 
-SPINNER = """
-[sim]
-dt = 1.0
-duration = 1000.0
-gravity = [0.0, 0.0, 0.0]
-integrator = "seed"
-orthonormalize = "none"
-
-[[body]]
-name = "calm"
-shape = "sphere"
-radius = 0.1
-mass = 1.0
-
-[[body]]
-name = "spinner"
-shape = "sphere"
-radius = 0.1
-mass = 1.0
-inertia_diag = [1.0, 1.0, 1.0]
-position = [5.0, 0.0, 0.0]
-angular_velocity = [0.0, 0.0, 100.0]
-"""
 # the notes' R += h [w]x R without orthonormalization: R is (1 + 100 i)^n in the xy block,
 # |.| = 10001^(n/2), which leaves float64 at step 154 or 155 (see test_free_motion)
 SPINNER_STEPS = (154, 155)

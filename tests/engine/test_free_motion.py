@@ -23,6 +23,7 @@ from scipy.integrate import solve_ivp
 from scipy.special import ellipj, ellipk, ellipkinc
 from scipy.spatial.transform import Rotation
 
+from conftest import SPINNER
 from rblog.errors import SimulationDiverged
 from rblog.engine.runner import TrajectoryCollector, run, simulate
 
@@ -532,31 +533,8 @@ def test_constant_torque_rotation_order(scene_from_text, integrator, order):
 # ---------------------------------------------------------------------------------------------
 # divergence
 
-# two spheres; "spinner" turns at 100 rad/s about world z under the notes' scheme without
-# orthonormalization, at dt = 1 s
-SPINNER = """
-[sim]
-dt = 1.0
-duration = 1000.0
-gravity = [0.0, 0.0, 0.0]
-integrator = "seed"
-orthonormalize = "none"
-
-[[body]]
-name = "calm"
-shape = "sphere"
-radius = 0.1
-mass = 1.0
-
-[[body]]
-name = "spinner"
-shape = "sphere"
-radius = 0.1
-mass = 1.0
-inertia_diag = [1.0, 1.0, 1.0]
-position = [5.0, 0.0, 0.0]
-angular_velocity = [0.0, 0.0, 100.0]
-"""
+# conftest.SPINNER: two spheres; "spinner" turns at 100 rad/s about world z under the notes'
+# scheme without orthonormalization, at dt = 1 s
 
 
 def test_divergence_names_step_and_body(scene_from_text):
