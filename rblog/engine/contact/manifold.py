@@ -40,7 +40,10 @@ MF_T2 = 6  # second tangent (3) = n x t1
 MF_MU = 9  # friction coefficient sqrt(mu_a mu_b)
 MF_E = 10  # restitution max(e_a, e_b)
 MF_ACC = 11  # gap acceleration from external forces: n . (a_a - a_b) (m/s^2)
-MF_COLS = 12
+MF_LU = 12  # LU factors of the regularised normal block (4 x 4, row-major; prepare_contacts)
+MF_PIV = 28  # pivot row of each elimination column (4, as floats)
+MF_LUOK = 32  # 1.0: the block factored (non-singular), else 0.0
+MF_COLS = 33
 
 # ---- per point, float64 ----
 PF_P = 0  # contact point (3), world, midpoint of the surfaces

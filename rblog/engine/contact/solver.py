@@ -46,7 +46,7 @@ from numba import njit
 
 from rblog.engine.constants import BLOCK_REG, FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL
 from rblog.engine.contact.manifold import (
-    MF_ACC, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
+    MF_ACC, MF_LU, MF_LUOK, MF_MU, MF_N, MF_PIV, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
     PF_IMPACT, PF_L1, PF_L2, PF_LN, PF_LP, PF_NMASS, PF_RA, PF_RB, PF_S, PF_TK,
     PF_W0, PF_KN,
 )
@@ -178,6 +178,8 @@ def prepare_contacts(mi, mf, pf, n_man, bm, bI, bv, bw, h):
                 dbx, dby, dbz = _cross(pf[q, PF_RB], pf[q, PF_RB + 1], pf[q, PF_RB + 2], nx, ny, nz)
                 pf[p, PF_KN + q - start] = (ma + mb + dax * ix + day * iy + daz * iz
                                             + dbx * jx + dby * jy + dbz * jz)
+        if cnt > 1:
+            _factor_block(mf, m, pf, start, cnt)
         for p in range(start, start + cnt):
             rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
             rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
@@ -294,35 +296,61 @@ def _friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, fmax):
 
 
 @njit(cache=True)
-def _solve_block(a, n):
-    """Solve the n x n system in a[:n, :n] with right-hand side a[:n, 4] in place (Gaussian
-    elimination with partial pivoting); the solution ends in a[:n, 4]. False if singular."""
+def _factor_block(mf, m, pf, start, n):
+    """LU-factor manifold m's regularised normal block (K + BLOCK_REG diag(K), n x n, from the
+    points' PF_KN rows) into mf[m, MF_LU:] (U on and above the diagonal, the elimination
+    multipliers below it, each left where it was computed), the pivot rows into mf[m, MF_PIV:]
+    and mf[m, MF_LUOK] = 1.0 if no pivot vanished. The block depends on the geometry and masses
+    only, so it is factored once per step here instead of once per sweep; _lu_solve then makes
+    exactly the floating-point operations of Gaussian elimination with partial pivoting on
+    [K | rhs] (the same pivots, multipliers, order), so its results are bitwise those of an
+    elimination per sweep."""
+    base = MF_LU
+    for i in range(n):
+        p = start + i
+        for j in range(n):
+            mf[m, base + 4 * i + j] = pf[p, PF_KN + j]
+        mf[m, base + 5 * i] += BLOCK_REG * pf[p, PF_KN + i]
+    mf[m, MF_LUOK] = 0.0
     for c in range(n):
         piv = c
         for r in range(c + 1, n):
-            if abs(a[r, c]) > abs(a[piv, c]):
+            if abs(mf[m, base + 4 * r + c]) > abs(mf[m, base + 4 * piv + c]):
                 piv = r
-        if abs(a[piv, c]) <= 0.0:
-            return False
+        mf[m, MF_PIV + c] = piv
+        if abs(mf[m, base + 4 * piv + c]) <= 0.0:
+            return
         if piv != c:
-            for k in range(n):
-                t = a[c, k]
-                a[c, k] = a[piv, k]
-                a[piv, k] = t
-            t = a[c, 4]
-            a[c, 4] = a[piv, 4]
-            a[piv, 4] = t
-        for r in range(c + 1, n):
-            f = a[r, c] / a[c, c]
             for k in range(c, n):
-                a[r, k] -= f * a[c, k]
-            a[r, 4] -= f * a[c, 4]
+                t = mf[m, base + 4 * c + k]
+                mf[m, base + 4 * c + k] = mf[m, base + 4 * piv + k]
+                mf[m, base + 4 * piv + k] = t
+        for r in range(c + 1, n):
+            f = mf[m, base + 4 * r + c] / mf[m, base + 5 * c]
+            for k in range(c + 1, n):
+                mf[m, base + 4 * r + k] -= f * mf[m, base + 4 * c + k]
+            mf[m, base + 4 * r + c] = f
+    mf[m, MF_LUOK] = 1.0
+
+
+@njit(inline="always")
+def _lu_solve(mf, m, blk, n):
+    """Solve the factored block of manifold m (see _factor_block) for the right-hand side in
+    blk[:n, 4], in place."""
+    base = MF_LU
+    for c in range(n):
+        piv = int(mf[m, MF_PIV + c])
+        if piv != c:
+            t = blk[c, 4]
+            blk[c, 4] = blk[piv, 4]
+            blk[piv, 4] = t
+        for r in range(c + 1, n):
+            blk[r, 4] -= mf[m, base + 4 * r + c] * blk[c, 4]
     for c in range(n - 1, -1, -1):
-        x = a[c, 4]
+        x = blk[c, 4]
         for k in range(c + 1, n):
-            x -= a[c, k] * a[k, 4]
-        a[c, 4] = x / a[c, c]
-    return True
+            x -= mf[m, base + 4 * c + k] * blk[k, 4]
+        blk[c, 4] = x / mf[m, base + 5 * c]
 
 
 @njit(cache=True)
@@ -382,7 +410,7 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
             # non-penetration: the manifold's points together (block), else one by one
             solved = False
             cnt = end - start
-            if cnt > 1:
+            if cnt > 1 and mf[m, MF_LUOK] > 0.0:
                 for i in range(cnt):
                     p = start + i
                     rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
@@ -393,34 +421,31 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                     vn = dvx * nx + dvy * ny + dvz * nz
                     s = pf[p, PF_S]
                     target = -s * inv_h if s > 0.0 else 0.0
-                    for j in range(cnt):
-                        blk[i, j] = pf[p, PF_KN + j]
-                    blk[i, i] += BLOCK_REG * pf[p, PF_KN + i]
                     blk[i, 4] = target - vn
-                if _solve_block(blk, cnt):
-                    ok = True
+                _lu_solve(mf, m, blk, cnt)
+                ok = True
+                for i in range(cnt):
+                    if pf[start + i, PF_LN] + om * blk[i, 4] < 0.0:
+                        ok = False
+                if ok:
+                    solved = True
                     for i in range(cnt):
-                        if pf[start + i, PF_LN] + om * blk[i, 4] < 0.0:
-                            ok = False
-                    if ok:
-                        solved = True
-                        for i in range(cnt):
-                            p = start + i
-                            d = om * blk[i, 4]
-                            pf[p, PF_LN] += d
-                            if d != 0.0:
-                                dv = abs(d) / pf[p, PF_NMASS]
-                                if dv > change:
-                                    change = dv
-                                if dv > tol:
-                                    mark_a = True
-                            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
-                            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
-                            px, py, pz = d * nx, d * ny, d * nz
-                            (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
-                                ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
-                                (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
-                                (wbx, wby, wbz))
+                        p = start + i
+                        d = om * blk[i, 4]
+                        pf[p, PF_LN] += d
+                        if d != 0.0:
+                            dv = abs(d) / pf[p, PF_NMASS]
+                            if dv > change:
+                                change = dv
+                            if dv > tol:
+                                mark_a = True
+                        rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+                        rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+                        px, py, pz = d * nx, d * ny, d * nz
+                        (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                            ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                            (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                            (wbx, wby, wbz))
             for p in range(start, end):
                 if solved:
                     break
