@@ -41,8 +41,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 from numba import njit
 
+from rblog.engine.constants import MAX_ROTATION_PER_STEP_RAD
 from rblog.engine.exact import free_flow_quat
 from rblog.engine.rotation import (
     gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, polar, quat_mul, quat_to_mat,
@@ -413,6 +415,36 @@ def _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, 
         drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
 
 
+@jit
+def turn_within_bound(dt, i, inv_inertia, rotation, angular_momentum):
+    """False when body i turns more than MAX_ROTATION_PER_STEP_RAD in a step of dt (rad): the
+    run has diverged (a torque of 1e40 N m, say), though its state is still finite.
+
+    The turn is |omega| dt with omega = R diag(k) R^T L (k = 1/I_body). For an orthonormal R,
+    |omega| <= max(k) |L|, so that cheap bound is tested first and the exact value only above it
+    (never in a sane run). An overflowing |L| or omega compares as too large (inf or NaN)."""
+    lx, ly, lz = angular_momentum[i, 0], angular_momentum[i, 1], angular_momentum[i, 2]
+    k0, k1, k2 = inv_inertia[i, 0], inv_inertia[i, 1], inv_inertia[i, 2]
+    kmax_dt = max(k0, max(k1, k2)) * dt
+    lim2 = MAX_ROTATION_PER_STEP_RAD * MAX_ROTATION_PER_STEP_RAD
+    if (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2:
+        return True
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = load_mat(rotation, i)
+    w0 = (m00 * lx + m10 * ly + m20 * lz) * k0 * dt
+    w1 = (m01 * lx + m11 * ly + m21 * lz) * k1 * dt
+    w2 = (m02 * lx + m12 * ly + m22 * lz) * k2 * dt
+    return w0 * w0 + w1 * w1 + w2 * w2 <= lim2
+
+
+def turn_per_step_np(dt, inv_inertia_diag, rotation, angular_momentum):
+    """|omega| dt (rad) of one body, numpy (for the divergence message): omega = R diag(k) R^T L.
+    inv_inertia_diag (3,), rotation (3, 3), angular_momentum (3,) world."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        r = np.asarray(rotation, float)
+        w_body = np.asarray(inv_inertia_diag, float) * (r.T @ np.asarray(angular_momentum, float))
+        return float(np.linalg.norm(w_body) * dt)
+
+
 @njit(inline="always")
 def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
                quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz):
@@ -421,7 +453,8 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
     in registers). Translation per integrator (the same scheme as :func:`drift_position`):
     ``seed``/``seed-quat`` symplectic Euler, ``splitting`` kick-drift-kick and ``rk4`` the exact
     constant-force step, which are the same map x += h v + h^2 a / 2, v += h a.
-    Returns (ok, x, y, z, px, py, pz); ok is False if the state became non-finite."""
+    Returns (ok, x, y, z, px, py, pz); ok is False if the state became non-finite or the body
+    turned more than MAX_ROTATION_PER_STEP_RAD in the step (:func:`turn_within_bound`)."""
     im = inv_mass[i]
     fx, fy, fz = force_world[i, 0], force_world[i, 1], force_world[i, 2]
     tx, ty, tz = torque_world[i, 0], torque_world[i, 1], torque_world[i, 2]
@@ -496,4 +529,5 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
     chk = (x + y + z + px + py + pz + angular_momentum[i, 0] + angular_momentum[i, 1]
            + angular_momentum[i, 2] + rotation[i, 0, 0] + rotation[i, 1, 1] + rotation[i, 2, 2]
            + rotation[i, 0, 1])
-    return math.isfinite(chk), x, y, z, px, py, pz
+    ok = math.isfinite(chk) and turn_within_bound(dt, i, inv_inertia, rotation, angular_momentum)
+    return ok, x, y, z, px, py, pz
