@@ -14,6 +14,21 @@ Notes' scheme (``seed``): omega = R I_b^-1 R^T L, R <- R + h [omega]x R, then or
 det(I + h[omega]x) = 1 + h^2 |omega|^2, so without orthonormalization det R grows like
 exp(h * integral |omega|^2 dt): the body "stretches".
 
+Notes' scheme on the quaternion (``seed-quat``): q <- q + h/2 (0, omega) (x) q. Normalized
+(the default), R = R(q) is a rotation and omega = R I_b^-1 R^T L. With ``orthonormalize =
+"none"`` |q| grows by sqrt(1 + h^2 |omega|^2 / 4) a step, and R is the homogeneous matrix of q,
+R v = q (x) v (x) q* = |q|^2 Q v (Q the rotation of q / |q|): the body is shown turned by Q and
+enlarged |q|^2 times in every direction, the notes' "stretch"; ||R^T R - I||_F = sqrt(3)
+(|q|^4 - 1) is logged. The notes' inertia I_world = R I_b R^T with that R is then |q|^4 Q I_b Q^T,
+which is exactly the inertia of the enlarged body at unchanged mass (moments scale with length
+squared), so omega = I_world^-1 L = R^-T I_b^-1 R^-1 L = |q|^-4 Q I_b^-1 Q^T L
+(:func:`rblog.engine.rotation.omega_world_stretched`): a body that grows while L is conserved
+turns slower, as a skater opening her arms, and its energy L.omega/2 falls as |q|^-4. (The
+shortcut I_world^-1 = R I_b^-1 R^T holds only for an orthonormal R; applied to R = |q|^2 Q it
+gave omega |q|^4 times too fast, a feedback that sped the stretch up: issue 19.) The rotation
+rate of the body is still omega, since q' = 1/2 (0, omega) q turns q v q* at omega whatever |q|.
+Only the stretch is unphysical for a rigid body; given the stretch, the rest is consistent.
+
 Splitting (``splitting``): the free-body Hamiltonian H = sum_k Lb_k^2 / (2 I_k) (Lb = R^T L) is a
 sum of three exactly solvable parts. The flow of part k over time s rotates the body about its own
 axis k by theta = s Lb_k / I_k (q <- q (x) (cos theta/2, sin theta/2 e_k)) and rotates Lb by
@@ -47,8 +62,8 @@ from numba import njit
 from rblog.engine.constants import MAX_ROTATION_PER_STEP_RAD
 from rblog.engine.exact import free_flow_quat
 from rblog.engine.rotation import (
-    gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, polar, quat_mul, quat_to_mat,
-    store_mat,
+    gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, omega_world_stretched, polar,
+    quat_mul, quat_to_mat, store_mat,
 )
 
 # orthonormalization codes
@@ -178,14 +193,18 @@ def drift_seed(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
 
 @jit
 def drift_seed_quat(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
-    """The notes' drift on the quaternion: q += h/2 (0, omega) (x) q, normalized unless ortho is none."""
+    """The notes' drift on the quaternion: q += h/2 (0, omega) (x) q, normalized unless ortho is
+    none. Without normalization R = |q|^2 Q and omega = (R I_body R^T)^-1 L (module docstring)."""
     lx = angular_momentum[i, 0]
     ly = angular_momentum[i, 1]
     lz = angular_momentum[i, 2]
     ii = inv_inertia[i]
     w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
     m = load_mat(rotation, i)
-    ox, oy, oz = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz)
+    if ortho == ORTHO_NONE:
+        ox, oy, oz = omega_world_stretched(m, ii[0], ii[1], ii[2], lx, ly, lz)
+    else:
+        ox, oy, oz = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz)
     dw, dx, dy, dz = quat_mul(0.0, ox, oy, oz, w, x, y, z)
     w, x, y, z = w + 0.5 * h * dw, x + 0.5 * h * dx, y + 0.5 * h * dy, z + 0.5 * h * dz
     if ortho != ORTHO_NONE:
