@@ -131,6 +131,22 @@ SIGNAL_ROWS = [
 ]
 
 
+#: rows tried by other tests, named in the row
+OTHER_ROWS = [
+    ("`seed-quat` with `orthonormalize = \"none\"`",
+     "(no message: the stretch is the point) `max \\|\\|R^T R - I\\|\\|_F` in the summary grows as "
+     "sqrt(3) (\\|q\\|^4 - 1)", 0,
+     "R = \\|q\\|^2 Q logged (the notes' stretch); omega = (R I_body R^T)^-1 L = \\|q\\|^-4 times "
+     "the rigid value, in the engine and the log (before: \\|q\\|^4 times, a runaway that went "
+     "non-finite at step 1121 of tests/engine/test_seed_quat_stretch.py's isotropic case)"),
+    ("the same scene run with NUMBA_NUM_THREADS=1 and =2 (a 3,200-body free scene, a contact "
+     "scene), and twice in separate processes", "(none)", 0,
+     "byte-identical .mcap records and bit-identical .rrd samples "
+     "(tests/cli/test_thread_determinism.py); the .mcap file bytes may differ only where a chunk "
+     "was closed on wall time"),
+]
+
+
 def _invoke(tmp_path, fault: Fault):
     for name, text in fault.files.items():
         (tmp_path / name).write_text(text)
@@ -249,7 +265,7 @@ def _table() -> str:
     for f in FAULTS:
         says = f.says.replace("|", "\\|")
         rows.append(f"| {f.what} | `{says}` | {f.code} | {f.kept} |")
-    for what, says, code, kept in SIGNAL_ROWS:
+    for what, says, code, kept in SIGNAL_ROWS + OTHER_ROWS:
         rows.append(f"| {what} | {says} | {code if code >= 0 else 'killed'} | {kept} |")
     return "\n".join(rows)
 
