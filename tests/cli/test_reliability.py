@@ -126,6 +126,11 @@ SIGNAL_ROWS = [
     ("an unwritable kernel-cache folder (`NUMBA_CACHE_DIR`)",
      "`kernel cache '...' is not writable; using '...'` (warning)", 0,
      "runs with a private cache (test_unwritable_kernel_cache below)"),
+    ("no writable kernel-cache folder at all (`NUMBA_CACHE_DIR`, the temporary folder, numba's "
+     "in-tree and per-user folders: read-only mounts)",
+     "`no writable kernel cache (...); kernels are compiled in every run` (warning)", 0,
+     "`--version` and `run` work, kernels compiled in memory (test_no_writable_kernel_cache_"
+     "anywhere_*; before: a traceback, exit 1)"),
     (".rrd cut at 50%", "`log ends early ... read N samples` (warning)", 0,
      "every intact sample (342 of 401 on bouncing_ball)"),
 ]
@@ -257,6 +262,79 @@ def test_unwritable_kernel_cache(tmp_path):
         assert p.returncode == 0, p.stderr
         assert "Traceback" not in p.stderr
         assert "kernel cache" in p.stderr and "is not writable; using" in p.stderr
+
+
+#: runs argv with every kernel-cache location unwritable, as root: in a private mount namespace
+#: (unshare -m) /tmp, /var/tmp and rblog's package folder (numba's in-tree __pycache__) are
+#: remounted read-only, HOME points into the read-only /tmp (numba's per-user folder), the cwd
+#: is read-only (tempfile's last resort), NUMBA_CACHE_DIR lies below a regular file; only OUT
+#: (bound before /tmp went read-only) stays writable. Mounts end with the namespace.
+_NO_CACHE_ANYWHERE = """
+mount --bind "$OUT" "$OUT" || exit 90
+for d in /tmp /var/tmp; do
+    [ -d $d ] || continue
+    mount --rbind $d $d && mount -o remount,bind,ro $d || exit 91
+done
+mount --bind "$PKG" "$PKG" && mount -o remount,bind,ro "$PKG" || exit 92
+touch "$PKG/x" 2>/dev/null && exit 93
+cd "$RO_CWD" || exit 94
+exec env -u XDG_CACHE_HOME -u TMPDIR -u TEMP -u TMP HOME="$RO_CWD/home" "$@"
+"""
+
+
+def _without_any_cache(tmp_path, argv):
+    import subprocess
+    import sys
+
+    if os.geteuid() != 0 or not shutil.which("unshare"):
+        pytest.skip("needs root and unshare to make every cache folder read-only")
+    out = tmp_path / "out"
+    out.mkdir()
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    (tmp_path / "s.toml").write_text(FREE)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(blocker / "cache"), "OUT": str(out),
+           "PKG": str(Path(rblog.__file__).resolve().parent), "RO_CWD": str(tmp_path)}
+    rblog_exe = str(Path(sys.executable).with_name("rblog"))
+    p = subprocess.run(["unshare", "-m", "sh", "-c", _NO_CACHE_ANYWHERE, "sh", rblog_exe, *argv],
+                       env=env, capture_output=True, text=True, timeout=900)
+    if p.returncode in range(90, 95):
+        pytest.skip(f"cannot set up read-only mounts here (step {p.returncode}): {p.stderr}")
+    return p, out
+
+
+def _warned_once(stderr):
+    lines = [ln for ln in stderr.splitlines() if "kernel cache" in ln]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("rblog: warning: no writable kernel cache (")
+    assert "kernels are compiled in every run" in lines[0]
+    assert "Traceback" not in stderr
+
+
+def test_no_writable_kernel_cache_anywhere_version(tmp_path):
+    """NUMBA_CACHE_DIR unwritable, and so are the private fallback (no usable temp folder) and
+    numba's own in-tree and per-user folders: `--version` answers, with one warning (before: a
+    traceback, exit 1: the fallback's own tempfile.gettempdir() raised; with a temporary folder
+    but NUMBA_CACHE_DIR unset, numba's "cannot cache function ...: no locator available")."""
+    p, _ = _without_any_cache(tmp_path, ["--version"])
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.startswith("rblog, version")
+    _warned_once(p.stderr)
+
+
+@pytest.mark.slow  # every kernel compiles uncached: ~90 s on a loaded 2-core machine
+def test_no_writable_kernel_cache_anywhere_run(tmp_path):
+    """As above, `rblog run` compiles in memory, runs, and writes both logs."""
+    import rblog as rb
+
+    out = tmp_path / "out"
+    p, out = _without_any_cache(tmp_path, ["run", str(tmp_path / "s.toml"), "--mcap",
+                                           str(out / "x.mcap"), "--rrd", str(out / "x.rrd")])
+    assert p.returncode == 0, p.stderr
+    _warned_once(p.stderr)
+    for name in ("x.mcap", "x.rrd"):
+        traj = rb.load(out / name)
+        assert traj.n_samples == 21 and not traj.truncated  # 0.2 s logged at 100 Hz
 
 
 def _table() -> str:
