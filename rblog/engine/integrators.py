@@ -3,6 +3,9 @@
 Frames: ``q`` (wxyz) and ``R`` map body-frame vectors to the world frame. Angular momentum ``L``
 is world frame; ``inv_inertia`` is the diagonal of I_body^-1 (principal axes).
 
+Why this module is long: every integrator's stages are written out here, beside the registry
+and the one free step that inlines them all (:func:`step_body`), so that each is read in one place.
+
 Everything here is ``numba.njit(inline="always")`` over scalars and tuples, so that a kernel
 stepping N bodies allocates nothing per step. Drift functions update ``quat_wxyz[i]`` and
 ``rotation[i]`` of the state arrays in place and keep the two consistent (except under the notes'
@@ -56,7 +59,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
 from numba import njit
 
 from rblog.engine.constants import MAX_ROTATION_PER_STEP_RAD
@@ -453,15 +455,6 @@ def turn_within_bound(dt, i, inv_inertia, rotation, angular_momentum):
     w1 = (m01 * lx + m11 * ly + m21 * lz) * k1 * dt
     w2 = (m02 * lx + m12 * ly + m22 * lz) * k2 * dt
     return w0 * w0 + w1 * w1 + w2 * w2 <= lim2
-
-
-def turn_per_step_np(dt, inv_inertia_diag, rotation, angular_momentum):
-    """|omega| dt (rad) of one body, numpy (for the divergence message): omega = R diag(k) R^T L.
-    inv_inertia_diag (3,), rotation (3, 3), angular_momentum (3,) world."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        r = np.asarray(rotation, float)
-        w_body = np.asarray(inv_inertia_diag, float) * (r.T @ np.asarray(angular_momentum, float))
-        return float(np.linalg.norm(w_body) * dt)
 
 
 @njit(inline="always")

@@ -39,7 +39,7 @@ from rblog.engine.constants import (
 from rblog.errors import RunInterrupted, SceneError, SimulationDiverged
 from rblog.engine.free import advance_free
 from rblog.contract.model import Model
-from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES, turn_per_step_np
+from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES
 from rblog.engine.scene import Scene
 from rblog.engine.plan import Plan, plan_stages
 from rblog.contract.trajectory import RunInfo, Trajectory, derive
@@ -576,8 +576,10 @@ def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
     parts = (st.position[i], st.linear_momentum[i], st.rotation[i], st.angular_momentum_world[i])
     if not all(np.all(np.isfinite(a)) for a in parts):
         return "has a non-finite state"
-    turn = turn_per_step_np(dt, 1.0 / model.body_inertia_diag[i], st.rotation[i],
-                            st.angular_momentum_world[i])
+    # |omega| dt with omega = R diag(1/I) R^T L, as integrators.turn_within_bound
+    with np.errstate(over="ignore", invalid="ignore"):
+        w_body = (st.rotation[i].T @ st.angular_momentum_world[i]) / model.body_inertia_diag[i]
+        turn = float(np.linalg.norm(w_body) * dt)
     if not turn > MAX_ROTATION_PER_STEP_RAD:
         return "has a non-finite state"
     return (f"turns {turn:.3g} rad in one step, more than MAX_ROTATION_PER_STEP_RAD = "
