@@ -16,19 +16,8 @@ import click
 from rblog.errors import RblogError
 
 
-def _ensure_kernel_cache() -> None:
-    """Before the engine is imported: settle where numba caches kernels, falling back (with a
-    one-line warning) when NUMBA_CACHE_DIR or numba's own folders cannot be written
-    (rblog._kernel_cache); otherwise numba raises a traceback at import, even for --version."""
-    from rblog._kernel_cache import settle_kernel_cache
-
-    settle_kernel_cache(lambda msg: click.echo(f"rblog: warning: {msg}", err=True))
-
-
-_ensure_kernel_cache()
-
-from rblog.engine.integrators import ORTHO_CODES  # noqa: E402
-from rblog.engine.scene import INTEGRATORS  # noqa: E402
+from rblog.engine.integrators import ORTHO_CODES
+from rblog.engine.scene import INTEGRATORS
 
 
 def _fail(err: RblogError):

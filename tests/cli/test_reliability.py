@@ -149,6 +149,11 @@ OTHER_ROWS = [
      "byte-identical .mcap records and bit-identical .rrd samples "
      "(tests/cli/test_thread_determinism.py); the .mcap file bytes may differ only where a chunk "
      "was closed on wall time"),
+    ("rblog's source changed after its kernels were cached (an upgrade, a pull, a local edit "
+     "of a function another module's kernel inlines)", "(none)", 0,
+     "a fresh compile: kernels live in `<cache>/kernels-<SHA-256 of rblog/**.py>` "
+     "(test_kernel_cache_is_keyed_by_source; before: numba reused the stale machine code of "
+     "the caller, silently)"),
 ]
 
 
@@ -262,6 +267,48 @@ def test_unwritable_kernel_cache(tmp_path):
         assert p.returncode == 0, p.stderr
         assert "Traceback" not in p.stderr
         assert "kernel cache" in p.stderr and "is not writable; using" in p.stderr
+
+
+def _cache_dir_of(pkg_parent: Path, env: dict) -> str:
+    """NUMBA_CACHE_DIR as settled by importing the rblog package found in pkg_parent."""
+    import subprocess
+    import sys
+
+    code = "import os, rblog; print(os.environ['NUMBA_CACHE_DIR'])"
+    p = subprocess.run([sys.executable, "-c", code], env={**env, "PYTHONPATH": str(pkg_parent)},
+                       capture_output=True, text=True, cwd=pkg_parent, check=True)
+    assert "Traceback" not in p.stderr
+    return p.stdout.strip()
+
+
+def test_kernel_cache_is_keyed_by_source(tmp_path):
+    """numba's cache index is keyed on the defining file's time stamp only, so a kernel that
+    inlines a function of another module kept its stale machine code after that module changed.
+    The cache folder is keyed by the content of rblog's source: editing one engine module (not
+    the kernel's own file) moves every kernel to a new folder; the same source keeps the folder;
+    a worker inheriting the keyed NUMBA_CACHE_DIR does not nest another level."""
+    pkg = tmp_path / "src"
+    shutil.copytree(Path(rblog.__file__).resolve().parent, pkg / "rblog",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    base = tmp_path / "cache"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(base)}
+    first = _cache_dir_of(pkg, env)
+    assert Path(first).parent == base and Path(first).name.startswith("kernels-")
+    assert _cache_dir_of(pkg, env) == first  # same source, same folder
+    assert _cache_dir_of(pkg, {**env, "NUMBA_CACHE_DIR": first}) == first  # a worker's view
+    rotation = pkg / "rblog" / "engine" / "rotation.py"
+    rotation.write_text(rotation.read_text() + "\n# an edit\n")
+    second = _cache_dir_of(pkg, env)
+    assert Path(second).parent == base and second != first
+
+
+def test_default_kernel_cache_is_the_users_cache_folder(tmp_path):
+    """With NUMBA_CACHE_DIR unset, kernels go to $XDG_CACHE_HOME/rblog/kernels-<key> (not
+    numba's in-tree __pycache__, which is not keyed by source), without a warning."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
+    d = _cache_dir_of(Path(rblog.__file__).resolve().parent.parent, env)
+    assert Path(d).parent == tmp_path / "xdg" / "rblog" and Path(d).name.startswith("kernels-")
 
 
 #: runs argv with every kernel-cache location unwritable, as root: in a private mount namespace
