@@ -16,41 +16,8 @@ import click
 from rblog.errors import RblogError
 
 
-def _ensure_kernel_cache() -> None:
-    """Before numba is imported: if NUMBA_CACHE_DIR names a folder that cannot be created or
-    written, fall back to a private one under the temporary directory (or, failing that, to
-    numba's default locations), with a one-line warning. Otherwise numba raises a traceback at
-    import time, even for ``rblog --version``."""
-    import os
-    import tempfile
-
-    def writable(d: str) -> bool:
-        try:
-            os.makedirs(d, exist_ok=True)
-            with tempfile.TemporaryFile(dir=d):
-                pass
-            return True
-        except OSError:
-            return False
-
-    d = os.environ.get("NUMBA_CACHE_DIR")
-    if not d or writable(d):
-        return
-    private = os.path.join(tempfile.gettempdir(), f"rblog-kernel-cache-{os.getuid()}")
-    if writable(private):
-        os.environ["NUMBA_CACHE_DIR"] = private
-        click.echo(f"rblog: warning: kernel cache {d!r} is not writable; using {private!r}",
-                   err=True)
-    else:
-        del os.environ["NUMBA_CACHE_DIR"]
-        click.echo(f"rblog: warning: kernel cache {d!r} is not writable; using numba's default",
-                   err=True)
-
-
-_ensure_kernel_cache()
-
-from rblog.engine.integrators import ORTHO_CODES  # noqa: E402
-from rblog.engine.scene import INTEGRATORS  # noqa: E402
+from rblog.engine.integrators import ORTHO_CODES
+from rblog.engine.scene import INTEGRATORS
 
 
 def _fail(err: RblogError):

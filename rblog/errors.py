@@ -43,15 +43,19 @@ class LogWriteError(RblogError):
 
 
 class SimulationDiverged(RblogError):
-    """The state became NaN or infinite. Logs are finalized up to the last good sample."""
+    """The state became NaN or infinite, or a free body turned more than
+    ``rblog.engine.constants.MAX_ROTATION_PER_STEP_RAD`` in one step (``reason`` says which).
+    Logs are finalized up to the last good sample."""
 
     exit_code = 3
 
-    def __init__(self, step: int, time_s: float, body: int, body_name: str):
+    def __init__(self, step: int, time_s: float, body: int, body_name: str,
+                 reason: str = "has a non-finite state"):
         self.step, self.time_s, self.body, self.body_name = step, time_s, body, body_name
+        self.reason = reason
         super().__init__(
             f"simulation diverged at step {step} (t = {time_s:.6g} s): body {body} "
-            f"({body_name!r}) has a non-finite state; logs keep every sample before it"
+            f"({body_name!r}) {reason}; logs keep every sample before it"
         )
 
 

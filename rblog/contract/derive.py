@@ -15,10 +15,13 @@ from numba import njit
 @njit(cache=True, nogil=True)
 def derive_channels(mass, inv_inertia, gravity, position, linear_momentum, quat_wxyz, rotation,
                     angular_momentum, velocity, omega, e_trans, e_rot, e_pot, ortho, qnorm,
-                    total_p, total_l, total_e):
+                    total_p, total_l, total_e, stretched=False):
     """Derived channels of T samples x N bodies (see trajectory.derive), written into the outputs.
 
-    omega = R diag(inv_inertia) R^T L with the logged R; e_pot = -m g.x; ortho = ||R^T R - I||_F;
+    omega = R diag(inv_inertia) R^T L with the logged R, or, when ``stretched`` (the quaternion
+    scheme without normalization, whose R = |q|^2 Q is no rotation), omega = I_world^-1 L with
+    I_world = R I_body R^T, i.e. C diag(inv_inertia) C^T L / det(R)^2 (C the cofactors of R);
+    the two agree for an orthonormal R. e_pot = -m g.x; ortho = ||R^T R - I||_F;
     qnorm = |q| - 1. Totals per sample: total_p (T, 3) = sum P, total_l (T, 3) = sum x cross P + L
     (about the world origin), total_e (T,) = sum of the three energies. Inputs (T, N, ...) float64
     C-contiguous; outputs preallocated alike.
@@ -37,12 +40,32 @@ def derive_channels(mass, inv_inertia, gravity, position, linear_momentum, quat_
                                 + gravity[2] * position[t, i, 2])
             r = rotation[t, i]
             lx, ly, lz = angular_momentum[t, i, 0], angular_momentum[t, i, 1], angular_momentum[t, i, 2]
-            b0 = (r[0, 0] * lx + r[1, 0] * ly + r[2, 0] * lz) * inv_inertia[i, 0]
-            b1 = (r[0, 1] * lx + r[1, 1] * ly + r[2, 1] * lz) * inv_inertia[i, 1]
-            b2 = (r[0, 2] * lx + r[1, 2] * ly + r[2, 2] * lz) * inv_inertia[i, 2]
-            ox = r[0, 0] * b0 + r[0, 1] * b1 + r[0, 2] * b2
-            oy = r[1, 0] * b0 + r[1, 1] * b1 + r[1, 2] * b2
-            oz = r[2, 0] * b0 + r[2, 1] * b1 + r[2, 2] * b2
+            if stretched:
+                # cofactors of R: R^-1 = C^T / det, R^-T = C / det
+                c00 = r[1, 1] * r[2, 2] - r[1, 2] * r[2, 1]
+                c01 = r[1, 2] * r[2, 0] - r[1, 0] * r[2, 2]
+                c02 = r[1, 0] * r[2, 1] - r[1, 1] * r[2, 0]
+                c10 = r[0, 2] * r[2, 1] - r[0, 1] * r[2, 2]
+                c11 = r[0, 0] * r[2, 2] - r[0, 2] * r[2, 0]
+                c12 = r[0, 1] * r[2, 0] - r[0, 0] * r[2, 1]
+                c20 = r[0, 1] * r[1, 2] - r[0, 2] * r[1, 1]
+                c21 = r[0, 2] * r[1, 0] - r[0, 0] * r[1, 2]
+                c22 = r[0, 0] * r[1, 1] - r[0, 1] * r[1, 0]
+                det = r[0, 0] * c00 + r[0, 1] * c01 + r[0, 2] * c02
+                f = 1.0 / (det * det)
+                b0 = (c00 * lx + c10 * ly + c20 * lz) * inv_inertia[i, 0] * f
+                b1 = (c01 * lx + c11 * ly + c21 * lz) * inv_inertia[i, 1] * f
+                b2 = (c02 * lx + c12 * ly + c22 * lz) * inv_inertia[i, 2] * f
+                ox = c00 * b0 + c01 * b1 + c02 * b2
+                oy = c10 * b0 + c11 * b1 + c12 * b2
+                oz = c20 * b0 + c21 * b1 + c22 * b2
+            else:
+                b0 = (r[0, 0] * lx + r[1, 0] * ly + r[2, 0] * lz) * inv_inertia[i, 0]
+                b1 = (r[0, 1] * lx + r[1, 1] * ly + r[2, 1] * lz) * inv_inertia[i, 1]
+                b2 = (r[0, 2] * lx + r[1, 2] * ly + r[2, 2] * lz) * inv_inertia[i, 2]
+                ox = r[0, 0] * b0 + r[0, 1] * b1 + r[0, 2] * b2
+                oy = r[1, 0] * b0 + r[1, 1] * b1 + r[1, 2] * b2
+                oz = r[2, 0] * b0 + r[2, 1] * b1 + r[2, 2] * b2
             omega[t, i, 0] = ox
             omega[t, i, 1] = oy
             omega[t, i, 2] = oz

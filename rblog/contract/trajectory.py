@@ -243,7 +243,10 @@ def derive(
     rotation (T,N,3,3), angular_momentum (T,N,3) world frame.
 
     The angular velocity is ``R diag(1/I_body) R^T L`` with the logged R, exactly as the notes'
-    integrator computes it, so a non-orthonormal R shows up in omega and in the energy.
+    integrator computes it, so a non-orthonormal R shows up in omega and in the energy. For the
+    quaternion scheme without normalization (``seed-quat``, ``orthonormalize = "none"``), whose
+    R = |q|^2 Q is a scaled rotation, it is ``(R I_body R^T)^-1 L``, as that integrator computes
+    it (rblog.engine.integrators): the same for an orthonormal R.
     """
     from rblog.contract.derive import derive_channels
 
@@ -258,7 +261,8 @@ def derive(
     derive_channels(c(model.body_mass, dtype=np.float64), c(model.body_inv_inertia_diag, dtype=np.float64),
                     c(model.gravity, dtype=np.float64), position, linear_momentum, quat_wxyz, rotation,
                     angular_momentum, velocity, omega, e_trans, e_rot, e_pot, ortho, qnorm,
-                    total_p, total_l, total_e)
+                    total_p, total_l, total_e,
+                    info.integrator == "seed-quat" and info.orthonormalize == "none")
     return Trajectory(
         model=model, info=info, step=np.asarray(step, np.int64), t=np.asarray(t, np.float64),
         position=position, quat_wxyz=quat_wxyz, rotation=rotation, velocity=velocity,

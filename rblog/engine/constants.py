@@ -86,6 +86,14 @@ MAX_RUN_STEPS = 10**12
 #: (likely a typo); within it, silently (round-off from hand-written decimals, 1e-6 covers
 #: 7-digit values).
 QUAT_NORM_WARN_TOL = 1e-6
+#: A free body that turns more than this in one step (rad, |omega| dt) has diverged: the run stops
+#: as for a non-finite state (exit 3, logs kept up to the step before). Above pi per step the
+#: samples alias (a turn by theta and by theta - 2 pi look alike), but the exact and splitting
+#: flows stay accurate there, so pi is not the bound; at 1e6 rad the angle's round-off alone
+#: (theta 2^-53 ~ 1e-10 rad per step) starts to add up over a run, and no physical body turns
+#: 160,000 times in one step. A torque of 1e40 N m on a 1 kg, 0.1 m sphere at dt = 1e-3 s turns
+#: it 2.5e36 rad in the first step; the notes' spinner of tests/conftest.py turns 100 rad.
+MAX_ROTATION_PER_STEP_RAD = 1e6
 #: The most bodies a scene may hold (each costs ~2 kB in the body table, state and one block).
 MAX_BODIES = 10_000_000
 #: Approximate bytes of memory per body while loading and running a scene (body dict while

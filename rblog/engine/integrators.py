@@ -3,6 +3,9 @@
 Frames: ``q`` (wxyz) and ``R`` map body-frame vectors to the world frame. Angular momentum ``L``
 is world frame; ``inv_inertia`` is the diagonal of I_body^-1 (principal axes).
 
+Why this module is long: every integrator's stages are written out here, beside the registry
+and the one free step that inlines them all (:func:`step_body`), so that each is read in one place.
+
 Everything here is ``numba.njit(inline="always")`` over scalars and tuples, so that a kernel
 stepping N bodies allocates nothing per step. Drift functions update ``quat_wxyz[i]`` and
 ``rotation[i]`` of the state arrays in place and keep the two consistent (except under the notes'
@@ -13,6 +16,21 @@ Derivations
 Notes' scheme (``seed``): omega = R I_b^-1 R^T L, R <- R + h [omega]x R, then orthonormalize.
 det(I + h[omega]x) = 1 + h^2 |omega|^2, so without orthonormalization det R grows like
 exp(h * integral |omega|^2 dt): the body "stretches".
+
+Notes' scheme on the quaternion (``seed-quat``): q <- q + h/2 (0, omega) (x) q. Normalized
+(the default), R = R(q) is a rotation and omega = R I_b^-1 R^T L. With ``orthonormalize =
+"none"`` |q| grows by sqrt(1 + h^2 |omega|^2 / 4) a step, and R is the homogeneous matrix of q,
+R v = q (x) v (x) q* = |q|^2 Q v (Q the rotation of q / |q|): the body is shown turned by Q and
+enlarged |q|^2 times in every direction, the notes' "stretch"; ||R^T R - I||_F = sqrt(3)
+(|q|^4 - 1) is logged. The notes' inertia I_world = R I_b R^T with that R is then |q|^4 Q I_b Q^T,
+which is exactly the inertia of the enlarged body at unchanged mass (moments scale with length
+squared), so omega = I_world^-1 L = R^-T I_b^-1 R^-1 L = |q|^-4 Q I_b^-1 Q^T L
+(:func:`rblog.engine.rotation.omega_world_stretched`): a body that grows while L is conserved
+turns slower, as a skater opening her arms, and its energy L.omega/2 falls as |q|^-4. (The
+shortcut I_world^-1 = R I_b^-1 R^T holds only for an orthonormal R; applied to R = |q|^2 Q it
+gave omega |q|^4 times too fast, a feedback that sped the stretch up: issue 19.) The rotation
+rate of the body is still omega, since q' = 1/2 (0, omega) q turns q v q* at omega whatever |q|.
+Only the stretch is unphysical for a rigid body; given the stretch, the rest is consistent.
 
 Splitting (``splitting``): the free-body Hamiltonian H = sum_k Lb_k^2 / (2 I_k) (Lb = R^T L) is a
 sum of three exactly solvable parts. The flow of part k over time s rotates the body about its own
@@ -43,10 +61,11 @@ from dataclasses import dataclass
 
 from numba import njit
 
+from rblog.engine.constants import MAX_ROTATION_PER_STEP_RAD
 from rblog.engine.exact import free_flow_quat
 from rblog.engine.rotation import (
-    gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, polar, quat_mul, quat_to_mat,
-    store_mat,
+    gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, omega_world_stretched, polar,
+    quat_mul, quat_to_mat, store_mat,
 )
 
 # orthonormalization codes
@@ -176,14 +195,18 @@ def drift_seed(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
 
 @jit
 def drift_seed_quat(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h):
-    """The notes' drift on the quaternion: q += h/2 (0, omega) (x) q, normalized unless ortho is none."""
+    """The notes' drift on the quaternion: q += h/2 (0, omega) (x) q, normalized unless ortho is
+    none. Without normalization R = |q|^2 Q and omega = (R I_body R^T)^-1 L (module docstring)."""
     lx = angular_momentum[i, 0]
     ly = angular_momentum[i, 1]
     lz = angular_momentum[i, 2]
     ii = inv_inertia[i]
     w, x, y, z = quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3]
     m = load_mat(rotation, i)
-    ox, oy, oz = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz)
+    if ortho == ORTHO_NONE:
+        ox, oy, oz = omega_world_stretched(m, ii[0], ii[1], ii[2], lx, ly, lz)
+    else:
+        ox, oy, oz = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz)
     dw, dx, dy, dz = quat_mul(0.0, ox, oy, oz, w, x, y, z)
     w, x, y, z = w + 0.5 * h * dw, x + 0.5 * h * dx, y + 0.5 * h * dy, z + 0.5 * h * dz
     if ortho != ORTHO_NONE:
@@ -413,6 +436,27 @@ def _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, 
         drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
 
 
+@jit
+def turn_within_bound(dt, i, inv_inertia, rotation, angular_momentum):
+    """False when body i turns more than MAX_ROTATION_PER_STEP_RAD in a step of dt (rad): the
+    run has diverged (a torque of 1e40 N m, say), though its state is still finite.
+
+    The turn is |omega| dt with omega = R diag(k) R^T L (k = 1/I_body). For an orthonormal R,
+    |omega| <= max(k) |L|, so that cheap bound is tested first and the exact value only above it
+    (never in a sane run). An overflowing |L| or omega compares as too large (inf or NaN)."""
+    lx, ly, lz = angular_momentum[i, 0], angular_momentum[i, 1], angular_momentum[i, 2]
+    k0, k1, k2 = inv_inertia[i, 0], inv_inertia[i, 1], inv_inertia[i, 2]
+    kmax_dt = max(k0, max(k1, k2)) * dt
+    lim2 = MAX_ROTATION_PER_STEP_RAD * MAX_ROTATION_PER_STEP_RAD
+    if (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2:
+        return True
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = load_mat(rotation, i)
+    w0 = (m00 * lx + m10 * ly + m20 * lz) * k0 * dt
+    w1 = (m01 * lx + m11 * ly + m21 * lz) * k1 * dt
+    w2 = (m02 * lx + m12 * ly + m22 * lz) * k2 * dt
+    return w0 * w0 + w1 * w1 + w2 * w2 <= lim2
+
+
 @njit(inline="always")
 def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
                quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz):
@@ -421,7 +465,8 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
     in registers). Translation per integrator (the same scheme as :func:`drift_position`):
     ``seed``/``seed-quat`` symplectic Euler, ``splitting`` kick-drift-kick and ``rk4`` the exact
     constant-force step, which are the same map x += h v + h^2 a / 2, v += h a.
-    Returns (ok, x, y, z, px, py, pz); ok is False if the state became non-finite."""
+    Returns (ok, x, y, z, px, py, pz); ok is False if the state became non-finite or the body
+    turned more than MAX_ROTATION_PER_STEP_RAD in the step (:func:`turn_within_bound`)."""
     im = inv_mass[i]
     fx, fy, fz = force_world[i, 0], force_world[i, 1], force_world[i, 2]
     tx, ty, tz = torque_world[i, 0], torque_world[i, 1], torque_world[i, 2]
@@ -496,4 +541,5 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
     chk = (x + y + z + px + py + pz + angular_momentum[i, 0] + angular_momentum[i, 1]
            + angular_momentum[i, 2] + rotation[i, 0, 0] + rotation[i, 1, 1] + rotation[i, 2, 2]
            + rotation[i, 0, 1])
-    return math.isfinite(chk), x, y, z, px, py, pz
+    ok = math.isfinite(chk) and turn_within_bound(dt, i, inv_inertia, rotation, angular_momentum)
+    return ok, x, y, z, px, py, pz

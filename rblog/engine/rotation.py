@@ -105,6 +105,37 @@ def omega_world(m, inv_i0, inv_i1, inv_i2, lx, ly, lz):
 
 
 @jit
+def omega_world_stretched(m, inv_i0, inv_i1, inv_i2, lx, ly, lz):
+    """omega = I_world^-1 L with I_world = R I_body R^T, for an R that need not be orthonormal
+    (row-major 9-tuple, invertible): omega = R^-T diag(inv_i) R^-1 L.
+
+    With C the cofactor matrix of R (R^-1 = C^T / det R, R^-T = C / det R):
+    omega = C diag(inv_i) C^T L / det(R)^2. For an orthonormal R, C = R and det R = 1, and this
+    is :func:`omega_world`; for the scaled rotation R = s Q of an unnormalised quaternion
+    (s = |q|^2) it is omega_world(Q) / s^2 (see rblog.engine.integrators, seed-quat)."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = m
+    c00 = a11 * a22 - a12 * a21
+    c01 = a12 * a20 - a10 * a22
+    c02 = a10 * a21 - a11 * a20
+    c10 = a02 * a21 - a01 * a22
+    c11 = a00 * a22 - a02 * a20
+    c12 = a01 * a20 - a00 * a21
+    c20 = a01 * a12 - a02 * a11
+    c21 = a02 * a10 - a00 * a12
+    c22 = a00 * a11 - a01 * a10
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    f = 1.0 / (det * det)
+    b0 = (c00 * lx + c10 * ly + c20 * lz) * inv_i0 * f
+    b1 = (c01 * lx + c11 * ly + c21 * lz) * inv_i1 * f
+    b2 = (c02 * lx + c12 * ly + c22 * lz) * inv_i2 * f
+    return (
+        c00 * b0 + c01 * b1 + c02 * b2,
+        c10 * b0 + c11 * b1 + c12 * b2,
+        c20 * b0 + c21 * b1 + c22 * b2,
+    )
+
+
+@jit
 def polar(m):
     """Nearest rotation to m (orthogonal polar factor) by Newton's iteration R <- (R + R^-T)/2."""
     a00, a01, a02, a10, a11, a12, a20, a21, a22 = m

@@ -33,6 +33,7 @@ from rblog.engine.constants import (
     CALL_WALL_BUDGET_S,
     COMPILE_NOTICE_AFTER_S,
     DEFAULT_LOG_RATE_HZ,
+    MAX_ROTATION_PER_STEP_RAD,
     MAX_RUN_STEPS,
 )
 from rblog.errors import RunInterrupted, SceneError, SimulationDiverged
@@ -350,7 +351,8 @@ def run(
                     bad_global = done + bad_step
                     done = bad_global - 1
                     raise SimulationDiverged(bad_global, bad_global * dt, int(bad_body),
-                                             model.body_name[bad_body])
+                                             model.body_name[bad_body],
+                                             _divergence_reason(model, st, int(bad_body), dt))
                 done += n
                 if progress is not None:
                     progress(done, n_total)
@@ -566,6 +568,22 @@ def _close_all(recorders, truncated, reason):
             errors.append(e)
     if errors:
         raise errors[0]
+
+
+def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
+    """Why body i stopped the run, from its state at the bad step (the kernels leave it there):
+    a non-finite state, else a turn per step beyond MAX_ROTATION_PER_STEP_RAD."""
+    parts = (st.position[i], st.linear_momentum[i], st.rotation[i], st.angular_momentum_world[i])
+    if not all(np.all(np.isfinite(a)) for a in parts):
+        return "has a non-finite state"
+    # |omega| dt with omega = R diag(1/I) R^T L, as integrators.turn_within_bound
+    with np.errstate(over="ignore", invalid="ignore"):
+        w_body = (st.rotation[i].T @ st.angular_momentum_world[i]) / model.body_inertia_diag[i]
+        turn = float(np.linalg.norm(w_body) * dt)
+    if not turn > MAX_ROTATION_PER_STEP_RAD:
+        return "has a non-finite state"
+    return (f"turns {turn:.3g} rad in one step, more than MAX_ROTATION_PER_STEP_RAD = "
+            f"{MAX_ROTATION_PER_STEP_RAD:g} rad")
 
 
 def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profile=None):

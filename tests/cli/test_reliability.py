@@ -104,6 +104,13 @@ FAULTS = [
            "half_extents = [0.5, 0.5, 0.5]\nmass = 1.0\nposition = [0, 0, 0.5]\n"
            "torque = [1e40, 0, 0]\n"},
           ["run", "s.toml", "--no-log"], 0, "energy drift", "runs to the end, no traceback"),
+    Fault("torque-1e40-free", "a torque of 1e40 N m on a free body (0.1 m sphere, 1 kg)",
+          {"s.toml": "[sim]\ndt = 1e-3\nduration = 1.0\ngravity = [0, 0, 0]\n[[body]]\n"
+           "shape = \"sphere\"\nradius = 0.1\nmass = 1.0\ntorque = [1e40, 0, 0]\n"},
+          ["run", "s.toml", "--mcap", "x.mcap"], 3,
+          "diverged at step 1 (t = 0.001 s): body 0 ('body0') turns 2.5e+36 rad in one step",
+          "the .mcap up to the step before, its status \"simulation diverged at step N\"; the "
+          "bound is MAX_ROTATION_PER_STEP_RAD = 1e6 rad (before: ran on silently, exit 0)"),
     Fault("check-one-sample", "`rblog check` on a log of one sample", {"s.toml": FREE},
           ["check", "one.mcap"], 4, "not judged: 1 sample(s)", "exit 4: never reported clean"),
 ]
@@ -119,8 +126,34 @@ SIGNAL_ROWS = [
     ("an unwritable kernel-cache folder (`NUMBA_CACHE_DIR`)",
      "`kernel cache '...' is not writable; using '...'` (warning)", 0,
      "runs with a private cache (test_unwritable_kernel_cache below)"),
+    ("no writable kernel-cache folder at all (`NUMBA_CACHE_DIR`, the temporary folder, numba's "
+     "in-tree and per-user folders: read-only mounts)",
+     "`no writable kernel cache (...); kernels are compiled in every run` (warning)", 0,
+     "`--version` and `run` work, kernels compiled in memory (test_no_writable_kernel_cache_"
+     "anywhere_*; before: a traceback, exit 1)"),
     (".rrd cut at 50%", "`log ends early ... read N samples` (warning)", 0,
      "every intact sample (342 of 401 on bouncing_ball)"),
+]
+
+
+#: rows tried by other tests, named in the row
+OTHER_ROWS = [
+    ("`seed-quat` with `orthonormalize = \"none\"`",
+     "(no message: the stretch is the point) `max \\|\\|R^T R - I\\|\\|_F` in the summary grows as "
+     "sqrt(3) (\\|q\\|^4 - 1)", 0,
+     "R = \\|q\\|^2 Q logged (the notes' stretch); omega = (R I_body R^T)^-1 L = \\|q\\|^-4 times "
+     "the rigid value, in the engine and the log (before: \\|q\\|^4 times, a runaway that went "
+     "non-finite at step 1121 of tests/engine/test_seed_quat_stretch.py's isotropic case)"),
+    ("the same scene run with NUMBA_NUM_THREADS=1 and =2 (a 3,200-body free scene, a contact "
+     "scene), and twice in separate processes", "(none)", 0,
+     "byte-identical .mcap records and bit-identical .rrd samples "
+     "(tests/cli/test_thread_determinism.py); the .mcap file bytes may differ only where a chunk "
+     "was closed on wall time"),
+    ("rblog's source changed after its kernels were cached (an upgrade, a pull, a local edit "
+     "of a function another module's kernel inlines)", "(none)", 0,
+     "a fresh compile: kernels live in `<cache>/kernels-<SHA-256 of rblog/**.py>` "
+     "(test_kernel_cache_is_keyed_by_source; before: numba reused the stale machine code of "
+     "the caller, silently)"),
 ]
 
 
@@ -236,13 +269,128 @@ def test_unwritable_kernel_cache(tmp_path):
         assert "kernel cache" in p.stderr and "is not writable; using" in p.stderr
 
 
+def _cache_dir_of(pkg_parent: Path, env: dict) -> str:
+    """NUMBA_CACHE_DIR as settled by importing the rblog package found in pkg_parent."""
+    import subprocess
+    import sys
+
+    code = "import os, rblog; print(os.environ['NUMBA_CACHE_DIR'])"
+    p = subprocess.run([sys.executable, "-c", code], env={**env, "PYTHONPATH": str(pkg_parent)},
+                       capture_output=True, text=True, cwd=pkg_parent, check=True)
+    assert "Traceback" not in p.stderr
+    return p.stdout.strip()
+
+
+def test_kernel_cache_is_keyed_by_source(tmp_path):
+    """numba's cache index is keyed on the defining file's time stamp only, so a kernel that
+    inlines a function of another module kept its stale machine code after that module changed.
+    The cache folder is keyed by the content of rblog's source: editing one engine module (not
+    the kernel's own file) moves every kernel to a new folder; the same source keeps the folder;
+    a worker inheriting the keyed NUMBA_CACHE_DIR does not nest another level."""
+    pkg = tmp_path / "src"
+    shutil.copytree(Path(rblog.__file__).resolve().parent, pkg / "rblog",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    base = tmp_path / "cache"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(base)}
+    first = _cache_dir_of(pkg, env)
+    assert Path(first).parent == base and Path(first).name.startswith("kernels-")
+    assert _cache_dir_of(pkg, env) == first  # same source, same folder
+    assert _cache_dir_of(pkg, {**env, "NUMBA_CACHE_DIR": first}) == first  # a worker's view
+    rotation = pkg / "rblog" / "engine" / "rotation.py"
+    rotation.write_text(rotation.read_text() + "\n# an edit\n")
+    second = _cache_dir_of(pkg, env)
+    assert Path(second).parent == base and second != first
+
+
+def test_default_kernel_cache_is_the_users_cache_folder(tmp_path):
+    """With NUMBA_CACHE_DIR unset, kernels go to $XDG_CACHE_HOME/rblog/kernels-<key> (not
+    numba's in-tree __pycache__, which is not keyed by source), without a warning."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
+    d = _cache_dir_of(Path(rblog.__file__).resolve().parent.parent, env)
+    assert Path(d).parent == tmp_path / "xdg" / "rblog" and Path(d).name.startswith("kernels-")
+
+
+#: runs argv with every kernel-cache location unwritable, as root: in a private mount namespace
+#: (unshare -m) /tmp, /var/tmp and rblog's package folder (numba's in-tree __pycache__) are
+#: remounted read-only, HOME points into the read-only /tmp (numba's per-user folder), the cwd
+#: is read-only (tempfile's last resort), NUMBA_CACHE_DIR lies below a regular file; only OUT
+#: (bound before /tmp went read-only) stays writable. Mounts end with the namespace.
+_NO_CACHE_ANYWHERE = """
+mount --bind "$OUT" "$OUT" || exit 90
+for d in /tmp /var/tmp; do
+    [ -d $d ] || continue
+    mount --rbind $d $d && mount -o remount,bind,ro $d || exit 91
+done
+mount --bind "$PKG" "$PKG" && mount -o remount,bind,ro "$PKG" || exit 92
+touch "$PKG/x" 2>/dev/null && exit 93
+cd "$RO_CWD" || exit 94
+exec env -u XDG_CACHE_HOME -u TMPDIR -u TEMP -u TMP HOME="$RO_CWD/home" "$@"
+"""
+
+
+def _without_any_cache(tmp_path, argv):
+    import subprocess
+    import sys
+
+    if os.geteuid() != 0 or not shutil.which("unshare"):
+        pytest.skip("needs root and unshare to make every cache folder read-only")
+    out = tmp_path / "out"
+    out.mkdir()
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    (tmp_path / "s.toml").write_text(FREE)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(blocker / "cache"), "OUT": str(out),
+           "PKG": str(Path(rblog.__file__).resolve().parent), "RO_CWD": str(tmp_path)}
+    rblog_exe = str(Path(sys.executable).with_name("rblog"))
+    p = subprocess.run(["unshare", "-m", "sh", "-c", _NO_CACHE_ANYWHERE, "sh", rblog_exe, *argv],
+                       env=env, capture_output=True, text=True, timeout=900)
+    if p.returncode in range(90, 95):
+        pytest.skip(f"cannot set up read-only mounts here (step {p.returncode}): {p.stderr}")
+    return p, out
+
+
+def _warned_once(stderr):
+    lines = [ln for ln in stderr.splitlines() if "kernel cache" in ln]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("rblog: warning: no writable kernel cache (")
+    assert "kernels are compiled in every run" in lines[0]
+    assert "Traceback" not in stderr
+
+
+def test_no_writable_kernel_cache_anywhere_version(tmp_path):
+    """NUMBA_CACHE_DIR unwritable, and so are the private fallback (no usable temp folder) and
+    numba's own in-tree and per-user folders: `--version` answers, with one warning (before: a
+    traceback, exit 1: the fallback's own tempfile.gettempdir() raised; with a temporary folder
+    but NUMBA_CACHE_DIR unset, numba's "cannot cache function ...: no locator available")."""
+    p, _ = _without_any_cache(tmp_path, ["--version"])
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.startswith("rblog, version")
+    _warned_once(p.stderr)
+
+
+@pytest.mark.slow  # every kernel compiles uncached: ~90 s on a loaded 2-core machine
+def test_no_writable_kernel_cache_anywhere_run(tmp_path):
+    """As above, `rblog run` compiles in memory, runs, and writes both logs."""
+    import rblog as rb
+
+    out = tmp_path / "out"
+    p, out = _without_any_cache(tmp_path, ["run", str(tmp_path / "s.toml"), "--mcap",
+                                           str(out / "x.mcap"), "--rrd", str(out / "x.rrd")])
+    assert p.returncode == 0, p.stderr
+    _warned_once(p.stderr)
+    for name in ("x.mcap", "x.rrd"):
+        traj = rb.load(out / name)
+        assert traj.n_samples == 21 and not traj.truncated  # 0.2 s logged at 100 Hz
+
+
 def _table() -> str:
     rows = ["| Fault or bad input | What rblog says | Exit code | What is kept |",
             "|---|---|---|---|"]
     for f in FAULTS:
         says = f.says.replace("|", "\\|")
         rows.append(f"| {f.what} | `{says}` | {f.code} | {f.kept} |")
-    for what, says, code, kept in SIGNAL_ROWS:
+    for what, says, code, kept in SIGNAL_ROWS + OTHER_ROWS:
         rows.append(f"| {what} | {says} | {code if code >= 0 else 'killed'} | {kept} |")
     return "\n".join(rows)
 

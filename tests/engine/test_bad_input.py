@@ -1,9 +1,11 @@
 """Engine-side reliability: bad input answered with the value and the allowed range, call
 splitting that cannot change a result, a drift figure independent of the potential's zero, and
-determinism across processes (log bytes)."""
+a free body turning without bound stopped as diverged. (Determinism across processes and thread
+counts, as log bytes: tests/cli/test_thread_determinism.py.)"""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from dataclasses import fields
@@ -117,16 +119,63 @@ def test_energy_drift_does_not_depend_on_the_origin():
     assert sb.energy_drift_rel == pytest.approx(sa.energy_drift_rel, rel=1e-6)
 
 
-def test_determinism_across_processes(tmp_path):
-    """Two processes, same scene: the .mcap files are byte-identical, the .rrd files (which
-    carry a random recording id) hold identical samples."""
-    logs = []
-    for i in range(2):
-        rrd, mcap = tmp_path / f"{i}.rrd", tmp_path / f"{i}.mcap"
-        subprocess.run([RBLOG, "run", str(SAMPLES_DIR / "mixed.toml"), "--duration", "1",
-                        "--rrd", str(rrd), "--mcap", str(mcap)], check=True, capture_output=True)
-        logs.append((rrd, mcap))
-    assert logs[0][1].read_bytes() == logs[1][1].read_bytes()
-    a, b = rblog.load(logs[0][0]), rblog.load(logs[1][0])
-    for k in ("step", "position", "quat_wxyz", "linear_momentum", "angular_momentum"):
-        assert getattr(a, k).tobytes() == getattr(b, k).tobytes(), k
+# ---------------------------------------------------------------------------------------------
+# a free body that turns without bound: the run stops as diverged (issue 19)
+
+TWISTED = """
+[sim]
+dt = 1e-3
+duration = 0.1
+gravity = [0.0, 0.0, 0.0]
+integrator = "{integrator}"
+[[body]]
+name = "twisted"
+shape = "sphere"
+radius = 0.1
+mass = 1.0
+torque = [{torque!r}, 0.0, 0.0]
+"""
+
+
+@pytest.mark.parametrize("integrator", ["seed", "seed-quat", "splitting", "rk4", "exact", "exact4"])
+def test_free_body_turning_beyond_bound_stops_as_diverged(tmp_path, integrator):
+    """A constant torque tau about x on a sphere (I = 2/5 m r^2 = 0.004 kg m^2, k = 1/I = 250):
+    every integrator kicks L by tau dt a step, so after step n L = n dt tau and the sphere turns
+    |omega| dt = k n dt^2 tau per step. With tau = 7e7 N m that is 17,500 n rad: beyond
+    MAX_ROTATION_PER_STEP_RAD = 1e6 rad first at n = ceil(1e6 / 17,500 + eps) = 58 (57.14 is
+    far from an integer). The state stays finite (|L| <= 7e3), so before this check the run went
+    on to the end silently; now it stops at step 58, exit 3, the .mcap keeps steps 0..57."""
+    from rblog.engine.constants import MAX_ROTATION_PER_STEP_RAD
+    from rblog.errors import SimulationDiverged
+    from rblog.record.mcap_writer import McapRecorder
+
+    tau, k, dt = 7e7, 1.0 / (0.4 * 1.0 * 0.1**2), 1e-3
+    n_first = int(np.floor(MAX_ROTATION_PER_STEP_RAD / (k * dt * dt * tau))) + 1
+    assert n_first == 58
+    path = tmp_path / "t.mcap"
+    with pytest.raises(SimulationDiverged) as info:
+        runner.run(parse_scene(TWISTED.format(integrator=integrator, torque=tau), "t.toml"),
+                   log_every=1, recorders=[McapRecorder(str(path))])
+    e = info.value
+    assert (e.step, e.body, e.body_name, e.exit_code) == (n_first, 0, "twisted", 3)
+    turn = float(re.search(r"turns (\S+) rad in one step", str(e)).group(1))
+    assert turn == pytest.approx(k * n_first * dt * dt * tau, rel=5e-3)  # printed to 3 digits
+    assert "\n" not in str(e)
+    traj = rblog.load(path)
+    assert traj.truncated
+    np.testing.assert_array_equal(traj.step, np.arange(n_first))
+    assert any("diverged at step 58" in w for w in traj.warnings), traj.warnings
+    # up to there, L is the torque's impulse
+    np.testing.assert_allclose(traj.angular_momentum[:, 0, 0], traj.step * dt * tau, rtol=1e-12)
+
+
+def test_torque_1e40_on_free_body_exits_3(tmp_path):
+    """The issue's case through the CLI: 1e40 N m turns the sphere k dt^2 tau = 2.5e36 rad in the
+    first step; one line, exit 3 (before: exit 0, ran on silently)."""
+    (tmp_path / "s.toml").write_text(TWISTED.format(integrator="rk4", torque=1e40))
+    p = subprocess.run([RBLOG, "run", str(tmp_path / "s.toml"), "--mcap", str(tmp_path / "x.mcap")],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert p.returncode == 3, p.stderr
+    err = [ln for ln in p.stderr.splitlines() if ln.startswith("rblog: error")]
+    assert len(err) == 1 and "Traceback" not in p.stderr
+    assert "diverged at step 1 " in err[0] and "turns 2.5e+36 rad in one step" in err[0]
