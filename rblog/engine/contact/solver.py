@@ -355,7 +355,7 @@ def _lu_solve(mf, m, blk, n):
 
 @njit(cache=True)
 def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_iter, tol, blk,
-                     hot, degree, sor, dv_sum):
+                     hot, degree, sor):
     """Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order).
 
     Sweeps at least ``min_iter`` times, then until the largest velocity change a sweep makes at
@@ -381,8 +381,6 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
     while it < max_iter:
         it += 1
         change = 0.0
-        for k in range(dv_sum.shape[0]):
-            dv_sum[k] = 0.0
         for m in range(n_man):
             if not mi[m, MI_ACTIVE]:
                 continue
@@ -392,7 +390,6 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                 continue
             visits += 1
             mark_a = False
-            msum = 0.0
             ma = bm[ia]
             mb = bm[ib]
             om = 1.0
@@ -440,7 +437,6 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                             dv = abs(d) / pf[p, PF_NMASS]
                             if dv > change:
                                 change = dv
-                            msum += dv
                             if dv > tol:
                                 mark_a = True
                         rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
@@ -474,7 +470,6 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                     dv = abs(d) / pf[p, PF_NMASS]
                     if dv > change:
                         change = dv
-                    msum += dv
                     if dv > tol:
                         mark_a = True
                 px, py, pz = d * nx, d * ny, d * nz
@@ -503,7 +498,6 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                     dv = abs(d1) * k11 + abs(d2) * k22
                     if dv > change:
                         change = dv
-                    msum += dv
                     if dv > tol:
                         mark_a = True
                     px = d1 * t1x + d2 * t2x
@@ -517,20 +511,11 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
             bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
             bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
             bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
-            # a body turns hot when one update changed it by more than tol, or when the
-            # updates of all its manifolds in this sweep did together: many small changes on a
-            # body with many contacts add up to a residual its other manifolds must see
-            dv_sum[ia] += msum
-            dv_sum[ib] += msum
-            if ma > 0.0 and dv_sum[ia] > change:
-                change = dv_sum[ia]
-            if mb > 0.0 and dv_sum[ib] > change:
-                change = dv_sum[ib]
-            if mark_a or dv_sum[ia] > tol or dv_sum[ib] > tol:
+            if mark_a:
                 # the static dummy (zero inverse mass) never turns hot
-                if ma > 0.0 and (mark_a or dv_sum[ia] > tol):
+                if ma > 0.0:
                     hot[ia] = it
-                if mb > 0.0 and (mark_a or dv_sum[ib] > tol):
+                if mb > 0.0:
                     hot[ib] = it
         if it >= min_iter and change <= tol:
             break

@@ -94,7 +94,7 @@ ContactCache = namedtuple("ContactCache", "mi0 mf0 pf0 pid0 n_man0 keys0 idx0 mi
 #: arrays: the static dummy with zero inverse mass). See make_scratch.
 Scratch = namedtuple("Scratch", "lo hi reach in_contact bm bI bv bw bv0 bw0 pv pw p0 l0 l_drift "
                                 "parent isl_time isl_sup nrm pts sep fid work poly blk hot dx_step "
-                                "proj_dx proj_dth dv_sum")
+                                "proj_dx proj_dth")
 
 # indices into the stats array the kernel accumulates
 (ST_STEPS, ST_PAIRS, ST_MANIFOLDS, ST_POINTS, ST_AWAKE, ST_IMPACTS, ST_WOKEN, ST_SLEPT,
@@ -182,7 +182,7 @@ def make_scratch(n, st):
         np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n, 3)), np.zeros((n, 3)),
         np.zeros((n, 3)), np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.int64),
         *collider_buffers(), np.zeros((4, 5)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
-        np.zeros((n + 1, 3)), np.zeros(n + 1))
+        np.zeros((n + 1, 3)))
 
 
 # ---- the stages, in step order ----------------------------------------------------------------
@@ -448,7 +448,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
                 warm_start(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw)              # 6
             stats[ST_SWEEPS] += solve_velocities(                                         # 7
                 mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw, inv_h, cfg.n_vel, cfg.max_vel,
-                cfg.vel_tol, sc.blk, sc.hot, sc.in_contact, cfg.sor, sc.dv_sum)
+                cfg.vel_tol, sc.blk, sc.hot, sc.in_contact, cfg.sor)
             if do_prof:
                 t = lap(prof, P_SOLVE, t)
             if cfg.n_pos > 0:
