@@ -103,7 +103,11 @@ FAULTS = [
           {"s.toml": "[sim]\ndt = 1e-3\nduration = 1.5\n[ground]\n[[body]]\nshape = \"box\"\n"
            "half_extents = [0.5, 0.5, 0.5]\nmass = 1.0\nposition = [0, 0, 0.5]\n"
            "torque = [1e40, 0, 0]\n"},
-          ["run", "s.toml", "--no-log"], 0, "energy drift", "runs to the end, no traceback"),
+          ["run", "s.toml", "--mcap", "x.mcap"], 3,
+          "diverged at step 1 (t = 0.001 s): body 0 ('body0') turns",
+          "the .mcap up to the step before, its status \"simulation diverged at step N\"; the "
+          "contact step applies the same bound (before: ran to the end with an energy drift, "
+          "exit 0)"),
     Fault("torque-1e40-free", "a torque of 1e40 N m on a free body (0.1 m sphere, 1 kg)",
           {"s.toml": "[sim]\ndt = 1e-3\nduration = 1.0\ngravity = [0, 0, 0]\n[[body]]\n"
            "shape = \"sphere\"\nradius = 0.1\nmass = 1.0\ntorque = [1e40, 0, 0]\n"},

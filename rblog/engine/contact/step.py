@@ -45,7 +45,7 @@ from numba import njit
 
 from rblog.engine.free import write_sample
 from rblog.engine.rotation import load_mat, omega_world
-from rblog.engine.integrators import drift_rotation, sync_quat
+from rblog.engine.integrators import drift_rotation, sync_quat, turn_within_bound
 from rblog.contract.trajectory import CONTACT_IMPACT, CONTACT_RESTING
 from rblog.engine.contact.broadphase import body_aabbs, ground_pairs, sweep_and_prune
 from rblog.engine.contact.collide import collide_pairs, grow_manifolds, grow_points, sort_manifolds
@@ -332,11 +332,15 @@ def sleep_stage(bd, cfg, sl, x, sc, mi, mf, pf, n_man, h, n_awake):
 
 
 @njit(inline="always")
-def first_non_finite(awake, x):
-    """The first awake body whose state is not finite, or -1."""
+def first_diverged(awake, x, inv_inertia, h):
+    """The first awake body whose state is not finite or that turns more than
+    MAX_ROTATION_PER_STEP_RAD in a step of h (integrators.turn_within_bound), or -1: the run has
+    diverged there (a torque of 1e40 N m on a resting box, say), though its state may be finite."""
     for i in range(x.position.shape[0]):
-        if awake[i] and not math.isfinite(_state_sum(i, x.position, x.linear_momentum,
-                                                     x.angular_momentum, x.rotation)):
+        if awake[i] and (not math.isfinite(_state_sum(i, x.position, x.linear_momentum,
+                                                      x.angular_momentum, x.rotation))
+                         or not turn_within_bound(h, i, inv_inertia, x.rotation,
+                                                  x.angular_momentum)):
             return i
     return -1
 
@@ -486,7 +490,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
                                            n_awake)
                 stats[ST_WOKEN] += woken
                 stats[ST_SLEPT] += slept
-            bad = first_non_finite(sl.awake, x)
+            bad = first_diverged(sl.awake, x, bd.inv_inertia, h)
             if do_prof:
                 t = lap(prof, P_SLEEP, t)
             if bad >= 0:

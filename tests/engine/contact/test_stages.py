@@ -52,13 +52,29 @@ def test_broadphase_pairs_exactly_the_overlapping_boxes_and_the_ground():
     assert got == {(0, 1), (0, ground), (1, ground)}
 
 
-def test_first_non_finite_names_the_bad_body():
+def test_first_diverged_names_the_bad_body():
     model, world = _world([SHAPE_SPHERE] * 3, [0.1] * 3, [1.0] * 3)
+    bd = world.records[0]
+    h = 1e-3
     state = make_state(model, [[0, 0, 1], [1, 0, 1], [2, 0, 1]])
-    assert S.first_non_finite(np.ones(3, np.int64), _x(state)) == -1
+    assert S.first_diverged(np.ones(3, np.int64), _x(state), bd.inv_inertia, h) == -1
     state.linear_momentum[2, 1] = np.nan
-    assert S.first_non_finite(np.ones(3, np.int64), _x(state)) == 2
-    assert S.first_non_finite(np.array([1, 1, 0]), _x(state)) == -1  # asleep: not stepped
+    assert S.first_diverged(np.ones(3, np.int64), _x(state), bd.inv_inertia, h) == 2
+    assert S.first_diverged(np.array([1, 1, 0]), _x(state), bd.inv_inertia, h) == -1  # asleep
+
+
+def test_first_diverged_names_a_body_that_turns_too_far_in_a_step():
+    # a 0.1 m sphere of 1 kg: I = 2/5 m r^2 = 4e-3 kg m^2. A finite L = 4e6 N m s gives
+    # |omega| h = L / I * h = 1e9 rad/s * 1e-3 s = 1e6 rad, the bound: not yet diverged;
+    # twice that is over MAX_ROTATION_PER_STEP_RAD (1e6 rad) though every number is finite
+    model, world = _world([SHAPE_SPHERE] * 2, [0.1] * 2, [1.0] * 2)
+    bd = world.records[0]
+    h = 1e-3
+    state = make_state(model, [[0, 0, 1], [1, 0, 1]])
+    state.angular_momentum_world[1] = [0.0, 0.999999 * 4e6, 0.0]
+    assert S.first_diverged(np.ones(2, np.int64), _x(state), bd.inv_inertia, h) == -1
+    state.angular_momentum_world[1] = [0.0, 8e6, 0.0]
+    assert S.first_diverged(np.ones(2, np.int64), _x(state), bd.inv_inertia, h) == 1
 
 
 def test_integrate_moves_a_body_without_contact_by_its_momentum():
