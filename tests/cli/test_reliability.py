@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -142,6 +143,10 @@ SIGNAL_ROWS = [
 
 #: rows tried by other tests, named in the row
 OTHER_ROWS = [
+    ("`rblog run SCENE --spawn`", "(none)", 0,
+     "a viewer is started (the `rerun` on PATH or beside the Python) on port 9876 and the run "
+     "streams to it; if none starts within 5 s: `--spawn: the Rerun viewer did not start`, exit "
+     "2 (test_spawn_starts_the_viewer_and_streams_to_it; before: nothing opened, exit 0)"),
     ("`seed-quat` with `orthonormalize = \"none\"`",
      "(no message: the stretch is the point) `max \\|\\|R^T R - I\\|\\|_F` in the summary grows as "
      "sqrt(3) (\\|q\\|^4 - 1)", 0,
@@ -212,6 +217,65 @@ def test_unwritable_output_is_reported_before_compiling(tmp_path, monkeypatch):
     res = CliRunner().invoke(main, ["run", str(tmp_path / "s.toml"), "--mcap",
                                     str(tmp_path / "nope" / "x.mcap")])
     assert res.exit_code == 2 and "does not exist" in res.stderr
+
+
+FAKE_VIEWER = """#!{python}
+# stands in for the `rerun` viewer executable: records its argv and the first bytes sent to
+# the port it was asked to listen on (a gRPC client opens with the HTTP/2 preface)
+import socket, sys, time
+a = sys.argv
+port = int(next(x.split("=", 1)[1] if "=" in x else a[k + 1]
+                for k, x in enumerate(a) if x.startswith("--port")))
+srv = socket.socket()
+srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+srv.bind(("127.0.0.1", port))
+srv.listen(8)
+srv.settimeout(1.0)
+got = b""
+deadline = time.monotonic() + 30
+while b"PRI * HTTP/2.0" not in got and time.monotonic() < deadline:
+    try:
+        conn, _ = srv.accept()
+    except OSError:
+        continue
+    conn.settimeout(5.0)
+    try:
+        got += conn.recv(64)
+    except OSError:
+        pass
+with open({out!r}, "w") as f:
+    f.write(" ".join(sys.argv[1:]) + "\\n" + repr(got[:24]))
+"""
+
+
+def test_spawn_starts_the_viewer_and_streams_to_it(tmp_path, monkeypatch):
+    """`--spawn` launches the viewer executable found on PATH with the spawn port and streams the
+    run to it (before: rr.spawn() without a global recording was silently ignored and no viewer
+    ever started). A stand-in viewer records what it was started with and what it received."""
+    import socket
+    import time
+
+    import rblog.record.rerun_writer as rw
+
+    with socket.socket() as s:  # a free port, so a real viewer on 9876 cannot answer for it
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    monkeypatch.setattr(rw, "SPAWN_PORT", port)
+    bin_dir, out = tmp_path / "bin", tmp_path / "viewer.txt"
+    bin_dir.mkdir()
+    fake = bin_dir / "rerun"
+    fake.write_text(FAKE_VIEWER.format(python=sys.executable, out=str(out)))
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_dir}{os.pathsep}{os.environ['PATH']}")
+    (tmp_path / "s.toml").write_text(FREE)
+    res = CliRunner().invoke(main, ["run", str(tmp_path / "s.toml"), "--no-log", "--spawn"])
+    assert res.exit_code == 0, res.stderr
+    deadline = time.monotonic() + 40
+    while not out.exists() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    argv, received = out.read_text().splitlines()
+    assert f"--port {port}" in argv or f"--port={port}" in argv, argv
+    assert "PRI * HTTP/2.0" in received  # the run's gRPC stream reached the spawned viewer
 
 
 def test_check_does_not_say_compiling_when_nothing_compiles(tmp_path):
