@@ -138,6 +138,37 @@ ISOTROPIC_RTOL = 1e-12
 PROJECTION_RINGS = 2
 
 
+# --- restitution threshold ------------------------------------------------------------------
+# Which impacts bounce. At the start of every step the kick adds the velocity a h (a = g + F/m,
+# m/s^2; h = dt, s) to every body, and for a body at rest on a contact the velocity solve takes
+# exactly that back: the contact's approach speed before the solve is |a_n| h, and after the
+# solve what the solver leaves unconverged, at most ``velocity_tolerance`` (m/s). Resting contact
+# must never count as an impact (each "bounce" off a kick would make the body chatter), so the
+# threshold must exceed |a| h + velocity_tolerance; the restitution stage measures the approach
+# speed from the step's flight energy, u^2 = w0^2 - 2 a_n s0 (restitution.py), which for a
+# resting point (s0 <= 0, w0 the leftover) is at most the leftover, and for a point hovering a
+# distance d above its contact is the real free-fall speed sqrt(2 |a| d). The margin of a second
+# kick: an impact at u = 2 |a| h with e <= 1 flies for 2 e u / |a| <= 4 h, a bounce of a few steps
+# that the speculative contact (which holds a body within a step of its contact) cannot resolve
+# anyway, so it is taken as resting; every slower impact is one. Hence
+#     restitution_threshold = RESTITUTION_THRESHOLD_KICKS |a|max h + velocity_tolerance   (m/s)
+# with |a|max the largest external acceleration over the bodies: 0.0197 m/s under Earth gravity
+# at dt = 1e-3 s, 0.196 m/s at dt = 1e-2 s (a ball dropped from 2 cm lands at 0.63 m/s and
+# bounces at both). Box2D's fixed 1 m/s swallows every bounce off a drop below 5 cm.
+
+#: Kicks of one step (|a|max h) in the derived restitution threshold (dimensionless; see above).
+#: 1 would sit exactly on a resting body's pre-solve approach speed; higher values end bounce
+#: sequences earlier (the last bounce flies at most 2 e u / |a| <= 2 KICKS h).
+RESTITUTION_THRESHOLD_KICKS = 2.0
+
+
+def restitution_threshold(dt: float, accel_max: float, velocity_tolerance: float) -> float:
+    """The derived restitution threshold (m/s): RESTITUTION_THRESHOLD_KICKS |a|max dt plus the
+    velocity solve's tolerance (see the block above). dt: s; accel_max: m/s^2, the largest
+    |g + F/m| over the bodies; velocity_tolerance: m/s (ContactParams.velocity_tolerance)."""
+    return RESTITUTION_THRESHOLD_KICKS * float(accel_max) * float(dt) + float(velocity_tolerance)
+
+
 # --- contact pipeline ----------------------------------------------------------------------
 @dataclass
 class ContactParams:
@@ -182,9 +213,13 @@ class ContactParams:
             than this plus the distance the pair can close in one step (relative speed times dt),
             so fast bodies cannot tunnel through thin geometry. Larger values cost more contact
             points; smaller values can miss contacts of rotating boxes.
-        restitution_threshold: m/s. Impacts slower than this (normal approach speed) are treated
-            as inelastic. Low values let resting bodies chatter; high values swallow gentle
-            bounces (Box2D v3 uses 1 m/s).
+        restitution_threshold: m/s, or None (the default) for the value derived from the
+            step: ``RESTITUTION_THRESHOLD_KICKS |a|max dt + velocity_tolerance`` (see
+            :func:`restitution_threshold`; 0.0197 m/s under Earth gravity at dt = 1e-3 s, 0.196
+            m/s at 1e-2 s). Impacts slower than this (normal approach speed) are treated as
+            inelastic. A value given in the scene is used as is: lower values let resting
+            bodies chatter; higher values swallow gentle bounces (Box2D v3 uses a fixed 1 m/s,
+            which keeps a ball dropped from 5 cm from bouncing at all).
         friction_anchor_distance: m. A new contact point takes over the warm-start impulses of a
             point of the previous step when their feature ids match or, failing that, when they
             lie within this distance. Too small loses warm starting when manifolds shift; too
@@ -222,7 +257,7 @@ class ContactParams:
     position_correction_rate: float = 0.8
     max_correction_speed: float = 1.0
     speculative_distance: float = 0.01
-    restitution_threshold: float = 1.0
+    restitution_threshold: float | None = None
     friction_anchor_distance: float = 0.005
     sleep: bool = True
     sleep_speed: float = 0.005
@@ -246,7 +281,8 @@ class ContactParams:
             "position_correction_rate": 0.0 < self.position_correction_rate <= 1.0,
             "max_correction_speed": self.max_correction_speed > 0.0,
             "speculative_distance": self.speculative_distance >= 0.0,
-            "restitution_threshold": self.restitution_threshold >= 0.0,
+            "restitution_threshold": (self.restitution_threshold is None
+                                      or self.restitution_threshold >= 0.0),
             "friction_anchor_distance": self.friction_anchor_distance >= 0.0,
             "sleep_speed": self.sleep_speed >= 0.0,
             "sleep_time": self.sleep_time >= 0.0,
@@ -260,6 +296,14 @@ class ContactParams:
                      "projection_iterations"):
             if int(getattr(self, name)) != getattr(self, name):
                 raise ValueError(f"contact.{name} must be an integer")
+
+    def restitution_threshold_at(self, dt: float, accel_max: float) -> float:
+        """The restitution threshold (m/s) of a run at step ``dt`` (s) whose largest external
+        acceleration |g + F/m| over the bodies is ``accel_max`` (m/s^2): the scene's value
+        when it gave one, else :func:`restitution_threshold`."""
+        if self.restitution_threshold is not None:
+            return float(self.restitution_threshold)
+        return restitution_threshold(dt, accel_max, self.velocity_tolerance)
 
     @classmethod
     def from_dict(cls, table: dict) -> "ContactParams":

@@ -12,9 +12,11 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     7  solve            sequential impulses, Coulomb friction, speculative targets
     8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
                         orbital angular momentum h v' x P is handed back to the spin)
-    9  integrate        x += h (v + v'), rotation by integrators.drift_rotation with the run's
-                        integrator (the body's L and its current R, so gyroscopic motion is the
-                        integrator's own); momenta P, L rebuilt from the solver's velocity changes
+    9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
+                        from the solver's velocity changes; every other body flies exactly under
+                        its constant force, x += h v - h^2 a / 2 (v after the kick). Rotation by
+                        integrators.drift_rotation with the run's integrator (the body's L and its
+                        current R, so gyroscopic motion is the integrator's own)
     10 restitution      bounce impact points (energy-consistent rule, restitution.py), P += J,
                         L += r x J
     11 store impulses   friction as world vectors for the next step
@@ -24,8 +26,29 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
                         dx x P is handed back to the spin, as in 8
     13 sleep            rest timers, islands, put resting islands to sleep (island.py)
 
-Translation is symplectic Euler (kick, then drift with the new velocity) for every integrator:
-contact solvers need the velocity that the drift will use. Torques are kicks too.
+Translation (stage 9; mark_pushed sorts the bodies after the solve). A body that no contact
+pushes in a step (no manifold, or only manifolds whose accumulated impulses all ended at zero: a
+speculative contact that was not reached, a pair moving apart) moves exactly under its constant
+acceleration a = g + F/m: with v the velocity after the kick, x += h v - h^2 a / 2 =
+h v_start + h^2 a / 2, so free flight lies on the parabola to round-off in every scene, as in
+the free-body kernel. A body that contacts push moves with its solved velocity, x += h (v + v')
+(v' the relax stage's pseudo velocity), since the velocity solve predicts every gap at the end
+of the step as s + h w (w the solved gap rate):
+
+* in an island of pushing contacts that touches static geometry (the ground, a static box, a
+  sleeping body), by symplectic Euler, exactly that: a body resting on a contact must move by h
+  times its velocity so that v = 0 means still (the exact flight's term would lift it by
+  |g| h^2 / 2 each step, and the solver would answer with a downward velocity |g| h / 2 at rest);
+* in an island away from static geometry (bodies colliding in the air), by that plus the exact
+  flight's - h^2 a / 2, the same term a free body gets: under uniform gravity it moves the whole
+  island alike, so the gaps the solver predicted inside it hold, and every body of a group that
+  only pushes itself flies by one scheme. Mixing symplectic and exact bodies in such a group
+  would change its angular momentum about its centre of mass by O(h^2 |g| |P|) a step (5.6e-6
+  relative on samples/mixed.toml; both schemes alone keep it exactly).
+
+The restitution stage measures and sets bounce speeds with the exact flight's energy
+(restitution.py), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
+kicks, as before.
 
 Samples follow free.advance_free: after every ``stride``-th step and after the last step when
 ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.
@@ -52,7 +75,8 @@ from rblog.engine.contact.collide import collide_pairs, grow_manifolds, grow_poi
 from rblog.engine.contact.island import update_sleep, wake_pushed, wake_touched
 from rblog.engine.contact.manifold import (
     LOG_A, LOG_B, LOG_F, LOG_F_COLS, LOG_I_COLS, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
-    MF_N, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_IMPACT, PF_LN, PF_P, PF_SEND,
+    MF_N, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_IMPACT, PF_L1,
+    PF_L2, PF_LN, PF_LP, PF_P, PF_SEND,
 )
 from rblog.engine.contact.narrowphase import collider_buffers
 from rblog.engine.contact.project import PROJ_COLS, apply_projection, project_positions
@@ -94,7 +118,7 @@ ContactCache = namedtuple("ContactCache", "mi0 mf0 pf0 pid0 n_man0 keys0 idx0 mi
 #: arrays: the static dummy with zero inverse mass). See make_scratch.
 Scratch = namedtuple("Scratch", "lo hi reach in_contact bm bI bv bw bv0 bw0 pv pw p0 l0 l_drift "
                                 "parent isl_time isl_sup nrm pts sep fid work poly blk hot dx_step "
-                                "proj_dx proj_dth")
+                                "proj_dx proj_dth pushed push_root")
 
 # indices into the stats array the kernel accumulates
 (ST_STEPS, ST_PAIRS, ST_MANIFOLDS, ST_POINTS, ST_AWAKE, ST_IMPACTS, ST_WOKEN, ST_SLEPT,
@@ -182,7 +206,7 @@ def make_scratch(n, st):
         np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n, 3)), np.zeros((n, 3)),
         np.zeros((n, 3)), np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.int64),
         *collider_buffers(), np.zeros((4, 5)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
-        np.zeros((n + 1, 3)))
+        np.zeros((n + 1, 3)), np.zeros(n + 1, np.int64), np.zeros(n + 1, np.int64))
 
 
 # ---- the stages, in step order ----------------------------------------------------------------
@@ -251,12 +275,69 @@ def prepare(bd, cfg, x, sc, mi, mf, pf, n_man, h):
     prepare_contacts(mi, mf, pf, n_man, sc.bm, sc.bI, sc.bv, sc.bw, h)
 
 
+@njit(cache=True)
+def _root(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit(inline="always")
+def mark_pushed(mi, pf, n_man, n, sc):
+    """Sort the awake bodies by how they move this step (``sc.pushed``, read by stage 9):
+
+    * 0: no contact pushed it (no manifold, or manifolds whose accumulated normal, friction and
+      pseudo impulses all ended at zero): it flies exactly;
+    * 1: pushed, within a group of bodies that pushing contacts connect (an island of this
+      step) that touches no static geometry: it moves by the solver's velocity plus the same
+      exact-flight term as a free body, so that every body away from static geometry flies
+      alike (one scheme inside any group of bodies that only push each other);
+    * 2: pushed, in an island that some static contact pushes: symplectic Euler (resting
+      contact).
+    """
+    pushed, root = sc.pushed, sc.push_root
+    for i in range(n + 1):
+        pushed[i] = 0
+        root[i] = i
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        start = mi[m, MI_START]
+        push = False
+        for p in range(start, start + mi[m, MI_COUNT]):
+            if (pf[p, PF_LN] != 0.0 or pf[p, PF_L1] != 0.0 or pf[p, PF_L2] != 0.0
+                    or pf[p, PF_LP] != 0.0):
+                push = True
+                break
+        if not push:
+            continue
+        a, b = mi[m, MI_A], mi[m, MI_B]
+        pushed[a] = 1
+        pushed[b] = 1
+        ra, rb = _root(root, a), _root(root, b)
+        if ra != rb:  # the static dummy (row n) joins the island it pushes: no self-root
+            if ra == n:
+                root[rb] = ra
+            else:
+                root[ra] = rb
+    # an island that holds the static dummy touches static geometry
+    for i in range(n):
+        if pushed[i] and _root(root, i) == _root(root, n):
+            pushed[i] = 2
+
+
 @njit(inline="always")
 def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h):
-    """9 integrate: move every awake body over the step. A body in contact moves with the
-    solver's velocity, x += h (v + v'), its momenta rebuilt from the solver's velocity changes;
-    a free body moves by symplectic Euler x += h P/m. Rotation by the run's integrator
-    (integrators.drift_rotation) with the body's L, plus the pseudo spin of the relax stage."""
+    """9 integrate: move every awake body over the step (how: ``sc.pushed``, see mark_pushed).
+    A body that a contact pushed (solve or relax) moves with the solver's velocity,
+    x += h (v + v'), its momenta rebuilt from the solver's velocity changes, and when its island
+    touches no static geometry, by - h^2 a / 2 more (the exact flight's term); every other body
+    flies exactly under its constant acceleration a, x += h v - h^2 a / 2 with v after the kick
+    (a body whose manifolds all ended without impulse gets its start-of-solve momenta back
+    bitwise: warm starting applies and withdraws impulses, which leaves round-off). Rotation by
+    the run's integrator (integrators.drift_rotation) with the body's L, plus the pseudo spin of
+    the relax stage."""
     n = x.position.shape[0]
     for i in range(n):
         if not awake[i]:
@@ -264,11 +345,15 @@ def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h):
         im = bd.inv_mass[i]
         for k in range(3):
             sc.l_drift[i, k] = x.angular_momentum[i, k]
-        if sc.in_contact[i]:
+        pushed = sc.in_contact[i] and sc.pushed[i] != 0
+        if pushed:
             _store_momenta(i, bd, x.rotation, x.linear_momentum, x.angular_momentum, sc.bv, sc.bw,
                            sc.bv0, sc.bw0, sc.p0, sc.l0, cfg.iso_shortcut)
+            # the exact-flight term, for islands away from static geometry
+            fly = 0.5 * h if sc.pushed[i] == 1 else 0.0
             for k in range(3):
-                sc.dx_step[i, k] = h * (x.linear_momentum[i, k] * im + sc.pv[i, k])
+                sc.dx_step[i, k] = h * (x.linear_momentum[i, k] * im + sc.pv[i, k]
+                                        - fly * bd.accel[i, k])
                 x.position[i, k] += sc.dx_step[i, k]
                 sc.l_drift[i, k] = x.angular_momentum[i, k]
             if sc.pw[i, 0] != 0.0 or sc.pw[i, 1] != 0.0 or sc.pw[i, 2] != 0.0:
@@ -283,10 +368,21 @@ def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h):
                 sc.l_drift[i, 1] += jy
                 sc.l_drift[i, 2] += jz
         else:
+            if sc.in_contact[i]:
+                # untouched by the solve: the momenta and solver velocities it started with
+                for k in range(3):
+                    x.linear_momentum[i, k] = sc.p0[i, k]
+                    x.angular_momentum[i, k] = sc.l0[i, k]
+                    sc.l_drift[i, k] = sc.l0[i, k]
+                    sc.bv[i, k] = sc.bv0[i, k]
+                    sc.bw[i, k] = sc.bw0[i, k]
+            # exact flight under constant force: x += h v_start + h^2 a / 2
             for k in range(3):
-                x.position[i, k] += h * x.linear_momentum[i, k] * im
+                d = h * (x.linear_momentum[i, k] * im - 0.5 * h * bd.accel[i, k])
+                x.position[i, k] += d
+                sc.dx_step[i, k] = d
         _drift(method, ortho, x.quat_wxyz, x.rotation, sc.l_drift, bd.inv_inertia, i, h)
-        if sc.in_contact[i] and (sc.pv[i, 0] != 0.0 or sc.pv[i, 1] != 0.0 or sc.pv[i, 2] != 0.0):
+        if pushed and (sc.pv[i, 0] != 0.0 or sc.pv[i, 1] != 0.0 or sc.pv[i, 2] != 0.0):
             # the pseudo shift h v' moved the body's momentum line: give the orbital change back
             # to its spin so that sum(x x P + L) stays exact
             sx, sy, sz = h * sc.pv[i, 0], h * sc.pv[i, 1], h * sc.pv[i, 2]
@@ -458,6 +554,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
             if cfg.n_pos > 0:
                 relax_positions(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.pv, sc.pw, inv_h,   # 8
                                 cfg.n_pos, cfg.slop, cfg.beta, cfg.max_speed)
+            mark_pushed(mi1, pf1, n_man, n, sc)
             if do_prof:
                 t = lap(prof, P_RELAX, t)
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h)               # 9

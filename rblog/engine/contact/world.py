@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rblog.engine.constants import ISOTROPIC_RTOL
+from rblog.engine.constants import ISOTROPIC_RTOL, RESTITUTION_THRESHOLD_KICKS
 from rblog.engine.free import advance_free
 from rblog.contract.model import Model
 from rblog.engine.rotation import quat_to_matrix_np
@@ -96,6 +96,9 @@ class ContactWorld:
         gn = np.asarray(model.ground_normal, float).reshape(3)
         gn = gn / np.linalg.norm(gn)
 
+        #: largest external acceleration |g + F/m| over the bodies (m/s^2): the velocity a step's
+        #: kick adds is at most accel_max dt (the derived restitution threshold)
+        self.accel_max = float(np.linalg.norm(accel, axis=1).max()) if n else 0.0
         # which stages this scene needs, and why (explain())
         self._explain: list[tuple[str, str]] = []
         geoms_present = sorted(set(geom.tolist()))
@@ -127,7 +130,7 @@ class ContactWorld:
             float(p.velocity_tolerance), float(p.over_relaxation), int(p.position_iterations),
             float(p.allowed_penetration),
             float(p.position_correction_rate), float(p.max_correction_speed),
-            float(p.speculative_distance), float(p.restitution_threshold),
+            float(p.speculative_distance), -1.0,  # e_threshold: set per dt by advance()
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
             bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth))
         # the free-body kernel's inputs, for scenes where nothing can touch
@@ -238,8 +241,13 @@ class ContactWorld:
                       f"{p.allowed_penetration:g} m, rate {p.position_correction_rate:g}"))
         else:
             e.append(("relax: skipped", "position_iterations = 0"))
-        e.append(("restitution", f"max(e_a, e_b), impacts above {p.restitution_threshold:g} m/s, "
-                                 "energy-consistent rebound"))
+        if p.restitution_threshold is None:
+            above = (f"{RESTITUTION_THRESHOLD_KICKS:g} |a| dt + {p.velocity_tolerance:g} m/s "
+                     f"(|a| = {self.accel_max:g} m/s^2)")
+        else:
+            above = f"{p.restitution_threshold:g} m/s (the scene's)"
+        e.append(("restitution", f"max(e_a, e_b), impacts above {above}, rebound from the "
+                                 "flight energy"))
         if p.projection_iterations > 0:
             e.append(("project: nonlinear Gauss-Seidel",
                       f"narrowphase at the end-of-step poses; points deeper than "
@@ -281,7 +289,7 @@ class ContactWorld:
         velocity), ``point`` and ``normal`` are the narrowphase's at the start of the step,
         ``normal_impulse`` the step's total on body_a (restitution included) and
         ``friction_impulse`` the world friction impulse on body_a; ``kind`` is CONTACT_IMPACT
-        when the approach speed exceeded ``restitution_threshold``.
+        when the approach speed exceeded the restitution threshold (restitution_threshold(dt)).
 
         Keep one ContactWorld for a whole run: it carries the impulses (warm starting) and the
         sleep state from one call to the next."""
@@ -294,7 +302,7 @@ class ContactWorld:
                 out_angular_momentum)
             return int(ns), int(bad_step), int(bad_body), Contacts.empty()
         res = world_advance(
-            self._bodies, self._statics, self._settings, self.method, self.ortho, float(dt),
+            self._bodies, self._statics, self.settings_at(dt), self.method, self.ortho, float(dt),
             int(n_steps), int(stride), bool(sample_last),
             BodyState(position, linear_momentum, quat_wxyz, rotation, angular_momentum),
             BodyState(out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
@@ -311,9 +319,23 @@ class ContactWorld:
             kind=li[:, LOG_KIND].astype(np.int8))
         return int(n_samples), int(bad_step), int(bad_body), contacts
 
+    def restitution_threshold(self, dt: float) -> float:
+        """The approach speed (m/s) above which an impact bounces in a step of ``dt`` (s): the
+        scene's ``[contact] restitution_threshold`` if given, else derived from the step
+        (constants.restitution_threshold)."""
+        return self.params.restitution_threshold_at(float(dt), self.accel_max)
+
+    def settings_at(self, dt: float):
+        """The Settings record for steps of ``dt`` (s): the restitution threshold depends on it."""
+        threshold = self.restitution_threshold(dt)
+        if self._settings.e_threshold != threshold:
+            self._settings = self._settings._replace(e_threshold=threshold)
+        return self._settings
+
     @property
     def records(self):
-        """The model records the compiled step reads: (Bodies, Statics, Settings)."""
+        """The model records the compiled step reads: (Bodies, Statics, Settings); the
+        Settings' restitution threshold is the last step's (see settings_at)."""
         return self._bodies, self._statics, self._settings
 
     @property
