@@ -139,6 +139,19 @@ PENETRATION_JITTER_PERSIST_SAMPLES = 4
 #: resting box to ~1e-9 m, pybullet's resting cube slips 0.08 mm in 2 s.
 PENETRATION_CREEP_M = 1e-4
 PENETRATION_CREEP_SPEED_MPS = 1e-2
+#: Sliding is not resting: a contact whose net friction impulse is at the Coulomb limit,
+#: ``|sum f| >= (1 - SLIDE_CONE_FRAC) mu sum J_n`` over the logged rows of the pair at the sample's
+#: step, or whose tangential load (the body's other contact impulses plus (m g + F) dt) reaches
+#: that limit, is sliding (dimensionless fraction of the limit mu J_n). Static friction holds
+#: strictly inside the cone; on its boundary the contact slips, which the notes' resting-contact
+#: model does not cover, so its slip is not creep. Normal impulses below SLIDE_FLOOR_NS
+#: (= MOMENTUM_CONE_FLOOR_NS, the impulse resolution of a log) carry no friction to judge.
+#: Without logged contact rows only a body touching nothing but its support can be judged (from
+#: its inferred impulse). 1%: rblog's solver clamps each point at mu J_n exactly (the pile's
+#: at-limit supports are at 1 - ratio <= 1e-12); Bullet clamps two friction directions apart
+#: (a sliding point is between mu J_n and sqrt(2) mu J_n), MuJoCo's soft elliptic cone
+#: keeps a sliding contact within ~1e-3 of it (measured: see RESULTS.md, issue 16).
+PENETRATION_SLIDE_CONE_FRAC = 1e-2
 
 # --- energy -----------------------------------------------------------------------------------
 #: Drift of a free body's energy over a contact-free stretch, relative to the stretch's energy
