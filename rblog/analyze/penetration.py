@@ -19,9 +19,10 @@ centre).
   another: an impact, not jitter). Creep is the net tangential slip at the
   contact (integrated slip velocity), counting only samples slower than CREEP_SPEED_MPS, so that
   a body that starts to slide away is not creep; a sphere rolling without slip does not creep.
-* Sliding is not resting: at a sample where the support contact's net friction impulse is at
-  the Coulomb limit, ``|sum f| >= (1 - SLIDE_CONE_FRAC) mu sum J_n`` over the logged rows of the
-  pair at the sample's step, or where the tangential load the support must hold (the body's other
+* Sliding is not resting: at a sample where the support contact's logged rows (the pair's points
+  at the sample's step) are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all
+  but at most one (a rigid contact that slips, translating or twisting about its normal, slips
+  at every point but the one it may pivot about, and a slipping point's friction is at the limit), or where the tangential load the support must hold (the body's other
   contact impulses plus (m g + F) dt) reaches that limit, the contact slides: the notes'
   resting-contact model (static friction holds the body, strictly inside the cone) does not
   cover it, so its slip is not creep and its velocity change is not jitter. Such samples stay in
@@ -161,8 +162,8 @@ class PenetrationAnalyzer(Analyzer):
         docstring), and counts of why.
 
         With logged contact rows (the step that ends at the sample, rows of the support pair):
-        the pair's net friction impulse is at the Coulomb limit, ``|sum f| >= (1 - SLIDE_CONE_FRAC)
-        mu sum J_n``, or the tangential load the support must hold (the body's other contacts'
+        the pair's points are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``,
+        all but at most one (the point a slipping contact may pivot about), or the tangential load the support must hold (the body's other contacts'
         impulses plus (m g + F) dt) is at or beyond it. Without contact rows in the log, a body
         touching nothing but its support is judged by its inferred impulse over the interval
         that ends at the sample (rblog.analyze.base.Context.impulse); a body with several
@@ -214,6 +215,25 @@ class PenetrationAnalyzer(Analyzer):
 
             jn_k = np.bincount(inv, jn_row[rows], len(uk))
             f_k, n_k = per_key(c.friction_impulse), per_key(nv)
+            # points at their Coulomb limit: a rigid contact that slips (translating or twisting
+            # about its normal) slips at every point but the one it may pivot about, and a
+            # slipping point's friction is at mu J_n; so the pair slides when at least one
+            # load-carrying point is at its limit and at most one is inside the cone (a box
+            # twisting on its support has every point at the limit, each in its own direction,
+            # with their vector sum well inside; an edge pivoting about one end has one of two)
+            bf = np.asarray(model.body_friction, float)
+            mu_row = np.empty(len(c))
+            _, smu = static_material(model, np.where(part >= n, part - n, -1))
+            mu_row[:] = np.where(cb == STATIC_BODY, smu, 0.0)
+            mu_row[dyn] = combine_friction(bf[ca[dyn]], bf[cb[dyn]], tr.info.combine_friction)
+            if st.any():
+                mu_row[st] = combine_friction(bf[ca[st]], smu[st], tr.info.combine_friction)
+            f_row = c.friction_impulse - np.einsum("ij,ij->i", c.friction_impulse,
+                                                   c.normal)[:, None] * c.normal
+            carry = jn_row > floor
+            lim_row = carry & (np.linalg.norm(f_row, axis=1) >= (1.0 - frac) * mu_row * jn_row)
+            n_at = np.bincount(inv, lim_row[rows], len(uk))
+            n_in = np.bincount(inv, (carry & ~lim_row)[rows], len(uk))
             # every row's impulse on the body, per (sample, body)
             ki = key // e_n
             ub, inv_b = np.unique(ki, return_inverse=True)
@@ -231,7 +251,7 @@ class PenetrationAnalyzer(Analyzer):
             nrm = np.where((nl > 0)[:, None], nvec / np.where(nl > 0, nl, 1.0)[:, None], pnorm)
             limit = mu * jn_s
             held = found & (jn_s > floor)
-            at_limit = held & (np.linalg.norm(f_s, axis=1) >= (1.0 - frac) * limit)
+            at_limit = held & (np.where(found, n_at[pos], 0) >= 1) & (np.where(found, n_in[pos], 0) <= 1)
             other = np.where(found[:, None], tot_b[pos_b] - f_s - nvec, 0.0)
             load = other + (ctx.mass[pi_] * ctx.dt_step)[:, None] * ctx.accel[pi_]
             load_t = load - np.einsum("ij,ij->i", load, nrm)[:, None] * nrm

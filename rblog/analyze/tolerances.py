@@ -139,9 +139,12 @@ PENETRATION_JITTER_PERSIST_SAMPLES = 4
 #: resting box to ~1e-9 m, pybullet's resting cube slips 0.08 mm in 2 s.
 PENETRATION_CREEP_M = 1e-4
 PENETRATION_CREEP_SPEED_MPS = 1e-2
-#: Sliding is not resting: a contact whose net friction impulse is at the Coulomb limit,
-#: ``|sum f| >= (1 - SLIDE_CONE_FRAC) mu sum J_n`` over the logged rows of the pair at the sample's
-#: step, or whose tangential load (the body's other contact impulses plus (m g + F) dt) reaches
+#: Sliding is not resting: a contact whose logged points are at their Coulomb limit,
+#: ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all but at most one (a rigid contact that slips slips
+#: at every point but the one it may pivot about), over the logged rows of the pair at the sample's
+#: step (sliding, or twisting about the normal: a box in the 500-box pile turning at 0.05 rad/s
+#: on its support has all 4 points at the limit, each in its own direction, their vector sum at
+#: 0.83 of mu sum J_n; a box pivoting on an edge has 1 of 2), or whose tangential load (the body's other contact impulses plus (m g + F) dt) reaches
 #: that limit, is sliding (dimensionless fraction of the limit mu J_n). Static friction holds
 #: strictly inside the cone; on its boundary the contact slips, which the notes' resting-contact
 #: model does not cover, so its slip is not creep. Normal impulses below SLIDE_FLOOR_NS

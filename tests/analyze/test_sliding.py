@@ -151,3 +151,64 @@ def test_creep_between_sliding_samples_is_still_creep():
     # counts half of each non-sliding end's slip: (1/3 both ends + 2/3 one end x 1/2) = 2/3
     assert f.value == pytest.approx(1e-3 * (DURATION - T.PENETRATION_SETTLE_S) * 2 / 3, rel=0.02)
     assert len(p.events) == 1  # one resting interval, not one per stick phase
+
+
+def pivoting_box(friction):
+    """The box turning at 0.05 rad/s about a vertical axis through its corner 0 (a pivot): the
+    centre slips at 0.05 x 0.0707 = 3.5 mm/s. Corner 0 sticks (no friction); the other three
+    corners' rows carry ``friction`` x mu J_n against their own slip direction."""
+    w = 0.05
+    model = rblog.body_table(name=["box"], shape=["box"], size=[[HH, HH, HH]], mass=[M],
+                             friction=MU, restitution=0.0, ground=True, ground_friction=MU,
+                             ground_restitution=0.0)
+    n_s = int(round(DURATION / (DT * EVERY))) + 1
+    step = np.arange(n_s, dtype=np.int64) * EVERY
+    t = step * DT
+    local = np.array([[sx * HH, sy * HH, -HH] for sx in (-1, 1) for sy in (-1, 1)])
+    pivot = np.array([0.3, -0.2, HH]) + local[0] * [1, 1, 0]
+    a = w * t
+    rz = np.zeros((n_s, 3, 3))
+    rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = (
+        np.cos(a), -np.sin(a), np.sin(a), np.cos(a), 1.0)
+    x0 = np.array([0.3, -0.2, HH])
+    x = pivot + np.einsum("kij,j->ki", rz, x0 - pivot)
+    wv = np.array([0.0, 0.0, w])
+    v = np.cross(wv, x - pivot)
+    q = np.stack([np.cos(a / 2), 0 * a, 0 * a, np.sin(a / 2)], 1)
+    c = dict(step=[], body_a=[], body_b=[], point=[], normal=[], separation=[],
+             normal_impulse=[], friction_impulse=[])
+    for k in range(1, n_s):
+        for j, loc in enumerate(local):
+            p = x[k] + rz[k] @ loc
+            slip = np.cross(wv, p - pivot)
+            sn = np.linalg.norm(slip)
+            f = np.zeros(3) if j == 0 else -friction * MU * M * G * DT / 4 * slip / sn
+            for key, val in (("step", step[k]), ("body_a", 0), ("body_b", -1), ("point", p),
+                             ("normal", (0, 0, 1)), ("separation", 0.0),
+                             ("normal_impulse", M * G * DT / 4), ("friction_impulse", f)):
+                c[key].append(val)
+    rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True)
+    with rec:
+        rec.write(t=t, step=step, position=x[:, None], quat_wxyz=q[:, None], velocity=v[:, None],
+                  angular_velocity=np.broadcast_to(wv, (n_s, 1, 3)), contacts=c)
+    return rec.trajectory
+
+
+def test_a_box_pivoting_on_a_corner_slides_and_is_not_creep():
+    """Three of four points at the limit, each in its own direction (their vector sum is well
+    inside the cone), the pivot inside: a slipping rigid contact, not a resting one."""
+    p = pen(pivoting_box(friction=1.0))
+    assert not creep_findings(p), [f.message for f in p.findings]
+    assert p.stats["sliding_friction_at_limit"] == N_LOGGED
+
+
+def test_a_box_pivoting_with_friction_inside_the_cone_is_creep():
+    """The same motion with every point at half its limit: static friction should hold it; the
+    centre slips 3.5 mm/s x 1.9 s ~ 6.7 mm along its arc."""
+    p = pen(pivoting_box(friction=0.5))
+    (f,) = creep_findings(p)
+    arc = 0.05 * np.hypot(HH, HH) * (DURATION - T.PENETRATION_SETTLE_S)
+    assert f.value == pytest.approx(arc, rel=1e-3)  # chord of a 0.095 rad arc: 4e-4 shorter
+
+
+N_LOGGED = int(round(DURATION / (DT * EVERY)))  # samples with contact rows (all but the first)
