@@ -63,6 +63,13 @@ MOMENTUM_LINEAR_REL = 1e-6
 #: of mass, in continuous and in discrete (symplectic Euler) time, so this is exact; it is the
 #: angular momentum about the origin with the gravity torque c x M g removed.
 MOMENTUM_ANGULAR_REL = 1e-6
+#: Floors of those scales, per body: its mass times this speed (m/s), its largest principal
+#: moment times this spin (rad/s) (the jump detector's floor, rblog.analyze.base). Bodies at rest
+#: in zero gravity have no momentum to compare a residue with: MuJoCo's 1e-32 kg m/s round-off
+#: over a 1e-33 scale once read as a relative change of 1.86. Lone bodies (nothing in reach) are
+#: judged by the same LINEAR_REL / ANGULAR_REL over each free flight, once per flight.
+MOMENTUM_SPEED_FLOOR_MPS = 1e-9
+MOMENTUM_SPIN_FLOOR_RADPS = 1e-9
 #: Coulomb cone: |J_t| <= mu J_n + cone_rel |J| (impulse J over a sample interval, inferred from
 #: the momentum change, or as logged). Sums of in-cone impulses on one normal stay in the cone.
 MOMENTUM_CONE_REL = 1e-3
