@@ -33,13 +33,24 @@ Checks:
   of the bodies must not grow across an event when e <= 1, and must stay within
   ELASTIC_ENERGY_REL of the kinetic energy before it when e = 1 (same allowances as the energy
   analyzer's contact check).
+* A contact on a static box's edge or corner (the witness point within the contact distance of
+  two or three of its faces) has a fan of normals, any between those faces' normals: the cone is
+  judged about the most favourable normal of the fan, not the one the geometry happens to pick.
+* Lone bodies (nothing in reach) are judged per free flight: ``P(k) - P(k0) - (m g + F)(t - t0)``
+  and ``L(k) - L(k0) - tau (t - t0)`` over the flight, relative to m max|v| and max|L|, once per
+  flight (an engine's explicit-Euler gyroscopic drift is one finding per flight). Collisions of
+  two or more bodies: one finding per event (consecutive intervals with the same members), the
+  worst interval's.
 * Friction cone findings need an excess above an absolute floor (CONE_FLOOR_NS plus the round-off
   of a momentum difference): sub-micro-newton-second residues are not findings.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from rblog.contract.model import SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
@@ -71,6 +82,44 @@ def static_feature_of_points(model, point, normal):
         best = np.where(better, dist, best)
         fid = np.where(better, m, fid)
     return fid
+
+
+def mu_static(model, i, sid, rule):
+    """Friction of bodies i against static features sid (-1 ground, m static box m)."""
+    _, s_fric = static_material(model, sid)
+    return combine_friction(np.asarray(model.body_friction, float)[i], s_fric, rule)
+
+
+#: points per arc between two face normals when searching a fan of normals
+_FAN_SAMPLES = 33
+
+
+def _fan_normal(model, sid, point, normal, jv, mu, cd):
+    """For contacts with static boxes sid at ``point`` (world): where the point lies on an edge
+    or corner of the box (within ``cd`` (P,) of two or three faces), the normal of the fan between
+    those faces' outward normals for which the impulse jv is deepest inside (least outside) the
+    Coulomb cone ``|J_t| <= mu J_n``; elsewhere ``normal`` unchanged. (P, 3)."""
+    out = normal.copy()
+    sx, sr, sh = geometry.static_boxes(model)
+    for j in range(len(sid)):
+        m = int(sid[j])
+        if m < 0:
+            continue
+        q = sr[m].T @ (point[j] - sx[m])
+        faces = [np.sign(q[a]) * sr[m][:, a] for a in range(3) if abs(q[a]) >= sh[m][a] - cd[j]]
+        if len(faces) < 2:
+            continue
+        cands = [normal[j]]
+        for a in range(len(faces)):
+            for b in range(a + 1, len(faces)):
+                w = np.linspace(0.0, 1.0, _FAN_SAMPLES)[:, None]
+                arc = (1 - w) * faces[a] + w * faces[b]
+                cands.extend(arc / np.linalg.norm(arc, axis=1)[:, None])
+        cn = np.asarray(cands)
+        jn = cn @ jv[j]
+        jt = np.linalg.norm(jv[j][None] - jn[:, None] * cn, axis=1)
+        out[j] = cn[int(np.argmin(np.maximum(jt - mu[j] * jn, -jn)))]
+    return out
 
 
 class MomentumAnalyzer(Analyzer):
@@ -108,6 +157,7 @@ class MomentumAnalyzer(Analyzer):
         self._n_found = 0
         stats: dict[str, float] = {"groups": float(len(grp))}
         self._closed(stats)
+        self._flights(stats)
         self._single_static(stats)
         events = self._events(stats)
         self._logged_cone(stats)
@@ -133,7 +183,8 @@ class MomentumAnalyzer(Analyzer):
         """Linear and angular momentum of closed groups (no static geometry in reach)."""
         ctx, tr, model, grp = self._ctx, self._tr, self._model, self._grp
         t, step = tr.t, tr.step
-        sub = grp.subset(~grp.static)
+        # a lone body (a group of one, nothing in reach) is judged per free flight (_flights)
+        sub = grp.subset(~grp.static & (grp.size >= 2))
         stats["closed_groups"] = float(len(sub))
         if not len(sub):
             return
@@ -146,7 +197,9 @@ class MomentumAnalyzer(Analyzer):
         amag = np.linalg.norm(ctx.accel, axis=1)[mi]
         sp = np.maximum(ctx.speed[mk, mi], ctx.speed[mk + 1, mi])
         lin_res = np.linalg.norm(sub.sum(ctx.impulse(mk, mi)), axis=1)
-        lin_scale = sub.sum(m * (sp + amag * dtm)) + _TINY
+        # floored: bodies at rest in zero gravity have no momentum to compare with (MuJoCo's
+        # 1e-32 round-off over a 1e-33 scale once read as a relative change of 1.86)
+        lin_scale = sub.sum(m * (sp + amag * dtm + T.MOMENTUM_SPEED_FLOOR_MPS))
         # angular momentum about the group's centre of mass (no gravity torque there)
         mtot = sub.sum(m)
         c0 = sub.sum(m[:, None] * x0) / mtot[:, None]
@@ -157,12 +210,36 @@ class MomentumAnalyzer(Analyzer):
         ext = dtm[:, None] * (tau + 0.5 * (np.cross(r0, force) + np.cross(r1, force)))
         ang = sub.sum(np.cross(r1, p1) + l1 - np.cross(r0, p0) - l0 - ext)
         ang_res = np.linalg.norm(ang, axis=1)
+        i_max = np.asarray(model.body_inertia_diag, float).max(axis=1)[mi]
         ang_scale = sub.sum(np.maximum(
             np.linalg.norm(l0, axis=1) + np.linalg.norm(r0, axis=1) * np.linalg.norm(p0, axis=1),
             np.linalg.norm(l1, axis=1) + np.linalg.norm(r1, axis=1) * np.linalg.norm(p1, axis=1),
-        )) + _TINY
+        ) + i_max * T.MOMENTUM_SPIN_FLOOR_RADPS)
+        # about the world origin too (for the message): L_O = sum x x P + L, less the torque of
+        # gravity and the applied forces about the origin (midpoint rule: exact about the centre
+        # of mass only, so this one is reported, not judged)
+        fo = m[:, None] * ctx.accel[mi]
+        ext_o = dtm[:, None] * (tau + 0.5 * (np.cross(x0, fo) + np.cross(x1, fo)))
+        ang_o = np.linalg.norm(sub.sum(np.cross(x1, p1) + l1 - np.cross(x0, p0) - l0 - ext_o),
+                               axis=1)
         rels = {"linear": lin_res / lin_scale, "angular": ang_res / ang_scale}
+        res = {"linear": lin_res, "angular": ang_res}
+        scales = {"linear": lin_scale, "angular": ang_scale}
         gk = sub.k
+        # events: runs of consecutive intervals with the same members (a contact that lasts
+        # is one collision); one finding per event, its worst interval
+        mix = sub.mem_i.astype(np.int64) * 1_000_003 + 7
+        h = np.add.reduceat(mix * mix % 2_147_483_647, sub.starts)
+        order = np.lexsort((gk, sub.size, h))
+        new = np.ones(len(sub), bool)
+        new[1:] = ~((h[order][1:] == h[order][:-1]) & (sub.size[order][1:] == sub.size[order][:-1])
+                    & (gk[order][1:] == gk[order][:-1] + 1))
+        ev_id = np.empty(len(sub), np.int64)
+        ev_id[order] = np.cumsum(new) - 1
+        span0 = np.full(int(ev_id.max()) + 1, np.iinfo(np.int64).max)
+        span1 = np.full(len(span0), -1)
+        np.minimum.at(span0, ev_id, gk)
+        np.maximum.at(span1, ev_id, gk)
         for what, rel in rels.items():
             tl = self.tol[f"{what}_rel"]
             stats[f"{what}_rel_max"] = float(rel.max())
@@ -173,13 +250,98 @@ class MomentumAnalyzer(Analyzer):
 
             def make(j, what=what, rel=rel, tl=tl):
                 b = sub.members(j)
-                kind = "collision of" if len(b) > 1 else "unexplained momentum change of"
+                if what == "linear":
+                    detail = (f"the members' impulses sum to {res[what][j]:.3g} N s, "
+                              f"{rel[j]:.3g} of the scale sum m (|v| + |a| dt) = "
+                              f"{scales[what][j]:.3g} kg m/s")
+                else:
+                    detail = (f"about the group's centre of mass it changes by "
+                              f"{res[what][j]:.3g} kg m^2/s, {rel[j]:.3g} of the scale "
+                              f"sum (|L_i| + |r_i| |P_i|) = {scales[what][j]:.3g} kg m^2/s "
+                              f"(about the world origin, less the gravity torque: "
+                              f"{ang_o[j]:.3g} kg m^2/s)")
+                e = ev_id[j]
+                n_iv = int(span1[e] - span0[e] + 1)
+                during = (f" (worst of the contact's {n_iv} intervals, t = {t[span0[e]]:.6g} to "
+                          f"{t[span1[e] + 1]:.6g} s)" if n_iv > 1 else "")
                 return Finding(
                     self.name,
-                    f"{what} momentum not conserved in {kind} {self._who(b)} between t = "
-                    f"{t[gk[j]]:.6g} and {t[gk[j] + 1]:.6g} s: relative change {rel[j]:.3g} "
+                    f"{what} momentum not conserved in the collision of {self._who(b)} between "
+                    f"t = {t[gk[j]]:.6g} and {t[gk[j] + 1]:.6g} s{during}: {detail} "
                     f"(tol {tl:.3g})",
                     float(rel[j]), tl, "1", int(step[gk[j] + 1]), float(t[gk[j] + 1]), b)
+
+            # the worst flagged interval of each event
+            bad = np.nonzero(rel > tl)[0]
+            keep = np.zeros(len(rel), bool)
+            if len(bad):
+                o = bad[np.lexsort((-rel[bad], ev_id[bad]))]
+                first = np.ones(len(o), bool)
+                first[1:] = ev_id[o][1:] != ev_id[o][:-1]
+                keep[o[first]] = True
+            self._add(keep, rel / max(tl, _TINY), make)
+
+    def _flights(self, stats):
+        """Lone bodies: linear and angular momentum over each free flight (a maximal run of
+        intervals in which the body can touch nothing). Constant forces and torques change P and
+        L exactly (P(k) = P(k0) + (m g + F)(t - t0), L(k) = L(k0) + tau (t - t0)), so the
+        largest deviation over the flight, relative to the flight's scale m (max |v| + |a| dt)
+        or max |L|, is judged once per flight: an engine whose explicit Euler step drifts L a
+        little every step gets one finding per flight, not one per sample."""
+        ctx, tr, model = self._ctx, self._tr, self._model
+        t, step = tr.t, tr.step
+        cd = self.tol["contact_distance_m"]
+        free = np.ascontiguousarray(~ctx.touches(cd)["any"])
+        if not free.any():
+            stats["free_flights"] = 0.0
+            return
+        force = ctx.mass[:, None] * ctx.accel
+        tau = np.asarray(model.body_torque_world, float)
+        i_max = np.asarray(model.body_inertia_diag, float).max(axis=1)
+        p_floor = ctx.mass * (np.linalg.norm(ctx.accel, axis=1) * ctx.dt_step
+                              + T.MOMENTUM_SPEED_FLOOR_MPS)
+        cap = 1024
+        while True:
+            segs = np.empty((cap, 5), np.int64)  # body, k0, k1, worst k linear, worst k angular
+            vals = np.empty((cap, 6))  # linear rel, scale, drift; angular rel, scale, drift
+            c = np.ascontiguousarray
+            cnt = _flight_drift(free, c(tr.t, dtype=np.float64),
+                                c(tr.linear_momentum, dtype=np.float64),
+                                c(tr.angular_momentum, dtype=np.float64), ctx.speed, ctx.mass,
+                                force, tau, p_floor, i_max * T.MOMENTUM_SPIN_FLOOR_RADPS,
+                                segs, vals)
+            if cnt <= cap:
+                break
+            cap = cnt
+        segs, vals = segs[:cnt], vals[:cnt]
+        stats["free_flights"] = float(cnt)
+        for what, col, kcol, unit_l in (("linear", 0, 3, "kg m/s"), ("angular", 3, 4, "kg m^2/s")):
+            tl = self.tol[f"{what}_rel"]
+            rel = vals[:, col]
+            stats[f"flight_{what}_rel_max"] = float(rel.max())
+            j = int(np.argmax(rel))
+            self._worst.offer(rel[j] / tl if tl > 0 else np.inf, rel[j], tl, "1",
+                              step[segs[j, kcol]], t[segs[j, kcol]], [int(segs[j, 0])],
+                              f"relative {what} momentum drift in free flight")
+
+            def make(j, what=what, col=col, kcol=kcol, unit_l=unit_l, tl=tl, rel=rel):
+                b, k0, k1, kw = (int(segs[j, 0]), int(segs[j, 1]), int(segs[j, 2]),
+                                 int(segs[j, kcol]))
+                scale, drift = vals[j, col + 1], vals[j, col + 2]
+                if what == "linear":
+                    about = (f"its momentum departs from P(t0) + (m g + F)(t - t0) by "
+                             f"{drift:.3g} {unit_l}, {rel[j]:.3g} of the flight's scale "
+                             f"m (max |v| + |a| dt) = {scale:.3g} {unit_l}")
+                else:
+                    about = (f"its angular momentum about its centre of mass departs from "
+                             f"L(t0) + tau (t - t0) by {drift:.3g} {unit_l}, {rel[j]:.3g} of "
+                             f"the flight's largest |L| = {scale:.3g} {unit_l}")
+                return Finding(
+                    self.name,
+                    f"{body_label(model, b)}: {what} momentum not conserved in free flight "
+                    f"between t = {t[k0]:.6g} and {t[k1]:.6g} s (touching nothing): {about}, "
+                    f"worst at t = {t[kw]:.6g} s (tol {tl:.3g})",
+                    float(rel[j]), tl, "1", int(step[kw]), float(t[kw]), [b])
 
             self._add(rel > tl, rel / max(tl, _TINY), make)
 
@@ -221,14 +383,23 @@ class MomentumAnalyzer(Analyzer):
             rows[sb], _ = self._interval_rows(k[sb], i[sb], n + sid[sb])
             r = rows[sb]
             use1 = prox.iv_sep1[r] < prox.iv_sep0[r]
-            _, nn0, _ = prox.iv_geometry(r, 0)
-            _, nn1, _ = prox.iv_geometry(r, 1)
+            ss0, nn0, pp0 = prox.iv_geometry(r, 0)
+            ss1, nn1, pp1 = prox.iv_geometry(r, 1)
             nrm[sb] = np.where(use1[:, None], nn1, nn0)
+            pts = np.where(use1[:, None], pp1, pp0)
+            # how far the witness point may lie from the faces: the contact distance, plus the
+            # penetration (the point is inside the box by that much)
+            near_tol = self.tol["contact_distance_m"] + np.maximum(-np.where(use1, ss1, ss0), 0)
             sep0[sb] = prox.iv_sep0[r]
 
         # Coulomb cone of the inferred impulse J = P(k+1) - P(k) - (m g + F) dt
         mu = combine_friction(np.asarray(model.body_friction, float)[i], s_fric, tr.info.combine_friction)
         jv = ctx.impulse(k, i)
+        if len(sb):
+            # a contact on a static box's edge or corner has a fan of normals (any between the
+            # adjacent faces' normals): judge the cone about the most favourable one
+            nrm[sb] = _fan_normal(model, sid[sb], pts, nrm[sb], jv[sb], mu_static(
+                model, i[sb], sid[sb], tr.info.combine_friction), near_tol)
         jn = np.einsum("ij,ij->i", jv, nrm)
         jt = np.linalg.norm(jv - jn[:, None] * nrm, axis=1)
         jm = np.linalg.norm(jv, axis=1) + _TINY
@@ -331,7 +502,7 @@ class MomentumAnalyzer(Analyzer):
         base = ev.dt_allow + ev.mass_accel * self.tol["position_correction_m"]
         # the kinetic energy before, floored by the allowance (a group at rest has none)
         ke0 = np.maximum(ev.ke_before, base) + _TINY
-        allow = base + self.tol["energy_rel"] * ev.ke_before
+        allow = base + self.tol["energy_rel"] * ev.ke_before + ev.stored_before
         check = impact & (e_cfg <= 1.0) & torque_free
         eidx = np.nonzero(check)[0]
         if len(eidx):
@@ -350,7 +521,7 @@ class MomentumAnalyzer(Analyzer):
             float(d_e[j] / ke0[j]), float(allow[j] / ke0[j]), "1", int(step[ka[j]]),
             float(t[ka[j]]), ev.members(j)))
         elastic = check & (e_cfg >= 1.0) & (ev.static_id == -2)
-        elastic_allow = ev.dt_allow + self.tol["elastic_energy_rel"] * ev.ke_before
+        elastic_allow = ev.dt_allow + self.tol["elastic_energy_rel"] * ev.ke_before + ev.stored_after
         loss = -d_e
         self._add(elastic & (loss > elastic_allow), loss / np.maximum(elastic_allow, _TINY),
                   lambda j: Finding(
@@ -426,3 +597,69 @@ class MomentumAnalyzer(Analyzer):
             f"at t = {cts.t[j]:.6g} s: impulse outside the friction cone (normal {jn[j]:.3g} N s, "
             f"friction {ftt[j]:.3g} N s, along the normal {along[j]:.3g} N s, mu = {mu[j]:.3g})",
             float(excess[j]), tcone, "1", int(cts.step[j]), float(cts.t[j]), [int(ca[j])]))
+
+
+@njit(cache=True, nogil=True)
+def _flight_drift(free, t, p, l, speed, mass, force, tau, p_floor, l_floor, segs, vals):
+    """Momentum drift over each free flight (maximal run of free intervals of one body).
+
+    For flight [k0, k1] of body b, at every sample k: ``|P(k) - P(k0) - force (t_k - t_k0)|``
+    against the scale m max|v| + p_floor, and ``|L(k) - L(k0) - tau (t_k - t_k0)|`` against max|L|
+    + l_floor. Writes per flight (while it fits): segs = (b, k0, k1, worst k linear, worst k
+    angular), vals = (linear rel, its scale, its drift, angular rel, scale, drift). Returns the
+    number of flights."""
+    kn, n = free.shape
+    cap = segs.shape[0]
+    cnt = 0
+    for b in range(n):
+        k = 0
+        while k < kn:
+            if not free[k, b]:
+                k += 1
+                continue
+            k0 = k
+            while k < kn and free[k, b]:
+                k += 1
+            k1 = k
+            vmax = 0.0
+            lmax = 0.0
+            for j in range(k0, k1 + 1):
+                vmax = max(vmax, speed[j, b])
+                lmax = max(lmax, math.sqrt(l[j, b, 0] ** 2 + l[j, b, 1] ** 2 + l[j, b, 2] ** 2))
+            ps = mass[b] * vmax + p_floor[b]
+            ls = lmax + l_floor[b]
+            dp_max = 0.0
+            dl_max = 0.0
+            kp = k0
+            kl = k0
+            for j in range(k0 + 1, k1 + 1):
+                dt = t[j] - t[k0]
+                dp = 0.0
+                dl = 0.0
+                for d in range(3):
+                    x = p[j, b, d] - p[k0, b, d] - force[b, d] * dt
+                    y = l[j, b, d] - l[k0, b, d] - tau[b, d] * dt
+                    dp += x * x
+                    dl += y * y
+                dp = math.sqrt(dp)
+                dl = math.sqrt(dl)
+                if dp > dp_max:
+                    dp_max = dp
+                    kp = j
+                if dl > dl_max:
+                    dl_max = dl
+                    kl = j
+            if cnt < cap:
+                segs[cnt, 0] = b
+                segs[cnt, 1] = k0
+                segs[cnt, 2] = k1
+                segs[cnt, 3] = kp
+                segs[cnt, 4] = kl
+                vals[cnt, 0] = dp_max / ps
+                vals[cnt, 1] = ps
+                vals[cnt, 2] = dp_max
+                vals[cnt, 3] = dl_max / ls
+                vals[cnt, 4] = ls
+                vals[cnt, 5] = dl_max
+            cnt += 1
+    return cnt

@@ -19,6 +19,19 @@ centre).
   another: an impact, not jitter). Creep is the net tangential slip at the
   contact (integrated slip velocity), counting only samples slower than CREEP_SPEED_MPS, so that
   a body that starts to slide away is not creep; a sphere rolling without slip does not creep.
+* Sliding is not resting: at a sample where the support contact's logged rows (the pair's points
+  at the sample's step) are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all
+  but at most one (a rigid contact that slips, translating or twisting about its normal, slips
+  at every point but the one it may pivot about, and a slipping point's friction is at the limit), or where the tangential load the support must hold (the body's other
+  contact impulses plus (m g + F) dt) reaches that limit, the contact slides: the notes'
+  resting-contact model (static friction holds the body, strictly inside the cone) does not
+  cover it, so its slip is not creep and its velocity change is not jitter. Such samples stay in
+  the resting interval (a box that sticks, is dragged by a neighbour and sticks again is one
+  stay), so slip between them with the friction inside the cone is still creep: that is what
+  static friction forbids, and an unconverged velocity solve produces. Without logged contact
+  rows, a body touching nothing but its support is judged by its inferred impulse over the
+  interval ending at the sample; a body with several contacts cannot be split, and counts as
+  resting.
 * Flags: resting depth beyond min(DEPTH_M, DEPTH_FRAC x the body's inner radius), any depth (an
   impact too) beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x inner radius), jitter beyond
   JITTER_MPS, creep beyond CREEP_M.
@@ -31,7 +44,10 @@ from numba import njit
 
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
-from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
+from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
+                                combine_friction, static_material)
+from rblog.analyze.momentum import static_feature_of_points
+from rblog.contract.trajectory import STATIC_BODY
 
 
 @njit(cache=True, nogil=True)
@@ -82,12 +98,14 @@ class PenetrationAnalyzer(Analyzer):
         "jitter_persist_samples": T.PENETRATION_JITTER_PERSIST_SAMPLES,
         "creep_m": T.PENETRATION_CREEP_M,
         "creep_speed_mps": T.PENETRATION_CREEP_SPEED_MPS,
+        "slide_cone_frac": T.PENETRATION_SLIDE_CONE_FRAC,
+        "slide_floor_ns": T.MOMENTUM_CONE_FLOOR_NS,
         "contact_distance_m": T.CONTACT_DISTANCE_M,
     }
     units = {"depth_m": "m", "transient_depth_m": "m", "rest_speed_mps": "m/s",
              "rest_min_samples": "samples", "settle_s": "s", "jitter_mps": "m/s",
              "jitter_persist_samples": "samples", "creep_m": "m",
-             "creep_speed_mps": "m/s", "contact_distance_m": "m"}
+             "creep_speed_mps": "m/s", "slide_floor_ns": "N s", "contact_distance_m": "m"}
 
     def supports(self, ctx: Context):
         """The primary support of each body at each sample where it touches something (within
@@ -130,7 +148,126 @@ class PenetrationAnalyzer(Analyzer):
                 sep_out[m], nn, pp = prox.iv_geometry(near["row"][rr], near["end"][rr])
                 normal[m] = sign * nn
                 point[m] = pp
-        return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point)
+        # how many things each body touches at each sample (the ground, static boxes, bodies)
+        cnt = np.zeros((n, t_n), np.int64)
+        if prox.ground_sep is not None and len(ground):
+            cnt += (ground <= cd).T
+        np.add.at(cnt, (pa, pk), 1)
+        dynb = pb < n
+        np.add.at(cnt, (pb[dynb], pk[dynb]), 1)
+        return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point, n_contacts=cnt[i, k])
+
+    def sliding(self, ctx: Context, sup: dict) -> tuple[np.ndarray, dict]:
+        """(R,) True where the support contact is sliding, not resting (see the module
+        docstring), and counts of why.
+
+        With logged contact rows (the step that ends at the sample, rows of the support pair):
+        the pair's points are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``,
+        all but at most one (the point a slipping contact may pivot about), or the tangential load the support must hold (the body's other contacts'
+        impulses plus (m g + F) dt) is at or beyond it. Without contact rows in the log, a body
+        touching nothing but its support is judged by its inferred impulse over the interval
+        that ends at the sample (rblog.analyze.base.Context.impulse); a body with several
+        contacts cannot be, and counts as resting.
+        """
+        tr = ctx.traj
+        model = tr.model
+        n = tr.n_bodies
+        pk, pi_, pb, pnorm = sup["k"], sup["i"], sup["b"], sup["normal"]
+        r_n = len(pk)
+        frac = self.tol["slide_cone_frac"]
+        floor = self.tol["slide_floor_ns"]
+        out = np.zeros(r_n, bool)
+        why = {"sliding_friction_at_limit": 0, "sliding_pushed": 0, "sliding_inferred": 0}
+        if not r_n:
+            return out, why
+        # friction coefficient of each support pair, by the log's combine rule
+        mu_i = np.asarray(model.body_friction, float)[pi_]
+        sid = np.where(pb == -1, -1, np.where(pb >= n, pb - n, -2))
+        _, s_mu = static_material(model, sid)
+        dynp = (pb >= 0) & (pb < n)
+        mu_b = np.where(dynp, np.asarray(model.body_friction, float)[np.clip(pb, 0, n - 1)], s_mu)
+        mu = combine_friction(mu_i, mu_b, tr.info.combine_friction)
+        c = tr.contacts
+        if len(c):
+            # rows of logged steps that end at a sample, entered for body_a and (negated) body_b
+            kr = np.searchsorted(tr.step, c.step)
+            ok = (kr < tr.n_samples)
+            ok[ok] = tr.step[kr[ok]] == c.step[ok]
+            ca, cb = c.body_a.astype(np.int64), c.body_b.astype(np.int64)
+            ok &= (ca >= 0) & (ca < n)
+            part = cb.copy()
+            st = ok & (cb == STATIC_BODY)
+            if st.any():
+                fid = static_feature_of_points(model, c.point[st], c.normal[st])
+                part[st] = np.where(fid >= 0, n + fid, -1)
+            dyn = ok & (cb >= 0) & (cb < n)
+            jn_row = c.normal_impulse
+            nv = jn_row[:, None] * c.normal
+            e_n = n + len(model.static_box_position) + 1
+            key = np.concatenate([(kr[ok] * n + ca[ok]) * e_n + part[ok] + 1,
+                                  (kr[dyn] * n + cb[dyn]) * e_n + ca[dyn] + 1])
+            sgn = np.concatenate([np.ones(int(ok.sum())), -np.ones(int(dyn.sum()))])
+            rows = np.concatenate([np.nonzero(ok)[0], np.nonzero(dyn)[0]])
+            uk, inv = np.unique(key, return_inverse=True)
+
+            def per_key(v):
+                return np.stack([np.bincount(inv, sgn * v[rows, d], len(uk)) for d in range(3)], 1)
+
+            jn_k = np.bincount(inv, jn_row[rows], len(uk))
+            f_k, n_k = per_key(c.friction_impulse), per_key(nv)
+            # points at their Coulomb limit: a rigid contact that slips (translating or twisting
+            # about its normal) slips at every point but the one it may pivot about, and a
+            # slipping point's friction is at mu J_n; so the pair slides when at least one
+            # load-carrying point is at its limit and at most one is inside the cone (a box
+            # twisting on its support has every point at the limit, each in its own direction,
+            # with their vector sum well inside; an edge pivoting about one end has one of two)
+            bf = np.asarray(model.body_friction, float)
+            mu_row = np.empty(len(c))
+            _, smu = static_material(model, np.where(part >= n, part - n, -1))
+            mu_row[:] = np.where(cb == STATIC_BODY, smu, 0.0)
+            mu_row[dyn] = combine_friction(bf[ca[dyn]], bf[cb[dyn]], tr.info.combine_friction)
+            if st.any():
+                mu_row[st] = combine_friction(bf[ca[st]], smu[st], tr.info.combine_friction)
+            f_row = c.friction_impulse - np.einsum("ij,ij->i", c.friction_impulse,
+                                                   c.normal)[:, None] * c.normal
+            carry = jn_row > floor
+            lim_row = carry & (np.linalg.norm(f_row, axis=1) >= (1.0 - frac) * mu_row * jn_row)
+            n_at = np.bincount(inv, lim_row[rows], len(uk))
+            n_in = np.bincount(inv, (carry & ~lim_row)[rows], len(uk))
+            # every row's impulse on the body, per (sample, body)
+            ki = key // e_n
+            ub, inv_b = np.unique(ki, return_inverse=True)
+            imp = c.friction_impulse + nv
+            tot_b = np.stack([np.bincount(inv_b, sgn * imp[rows, d], len(ub)) for d in range(3)], 1)
+            skey = (pk * n + pi_) * e_n + pb + 1
+            pos = np.clip(np.searchsorted(uk, skey), 0, len(uk) - 1)
+            found = uk[pos] == skey
+            pos_b = np.clip(np.searchsorted(ub, pk * n + pi_), 0, len(ub) - 1)
+            jn_s = np.where(found, jn_k[pos], 0.0)
+            f_s = np.where(found[:, None], f_k[pos], 0.0)
+            nvec = np.where(found[:, None], n_k[pos], 0.0)
+            # the support's mean normal (rows of an edge or a corner differ a little)
+            nl = np.linalg.norm(nvec, axis=1)
+            nrm = np.where((nl > 0)[:, None], nvec / np.where(nl > 0, nl, 1.0)[:, None], pnorm)
+            limit = mu * jn_s
+            held = found & (jn_s > floor)
+            at_limit = held & (np.where(found, n_at[pos], 0) >= 1) & (np.where(found, n_in[pos], 0) <= 1)
+            other = np.where(found[:, None], tot_b[pos_b] - f_s - nvec, 0.0)
+            load = other + (ctx.mass[pi_] * ctx.dt_step)[:, None] * ctx.accel[pi_]
+            load_t = load - np.einsum("ij,ij->i", load, nrm)[:, None] * nrm
+            pushed = held & ~at_limit & (np.linalg.norm(load_t, axis=1) >= (1.0 - frac) * limit)
+            why["sliding_friction_at_limit"] = int(at_limit.sum())
+            why["sliding_pushed"] = int(pushed.sum())
+            out = at_limit | pushed
+        elif tr.n_samples > 1:
+            lone = sup["n_contacts"] == 1
+            kk = np.maximum(pk, 1) - 1  # the interval that ends at the sample (the first: starts)
+            jv = ctx.impulse(kk, pi_)
+            jn = np.einsum("ij,ij->i", jv, pnorm)
+            jt = np.linalg.norm(jv - jn[:, None] * pnorm, axis=1)
+            out = lone & (jn > floor) & (jt >= (1.0 - frac) * mu * jn)
+            why["sliding_inferred"] = int(out.sum())
+        return out, why
 
     def analyze(self, ctx: Context) -> Result:
         tr = ctx.traj
@@ -200,6 +337,14 @@ class PenetrationAnalyzer(Analyzer):
         reach = 2.0 * geometry.bounding_radius(model)[pi_]
         rest &= sphere | (cspeed + np.sqrt(np.einsum("ij,ij->i", wrel, wrel)) * reach
                           <= tol["rest_speed_mps"])
+        # a contact whose friction is at the Coulomb limit (or whose load reaches it) slides,
+        # whatever its speed (a box dragged by a neighbour at a few mm/s): its slip is not creep
+        # and its velocity change not jitter. It does not end the resting interval (a box that
+        # sticks, is dragged, and sticks again stays on its partner), so sliding samples between
+        # creeping ones cannot hide the creep: slip with friction inside the cone is what
+        # static friction forbids.
+        slides, why = self.sliding(ctx, sup)
+        stats.update({k: float(v) for k, v in why.items()})
 
         # ---- resting intervals: runs of consecutive resting samples of one body (row space)
         nxt_same = np.zeros(nrow, bool)
@@ -238,7 +383,8 @@ class PenetrationAnalyzer(Analyzer):
             # partner (velocities relative to different partners are not comparable) ...
             osc = np.zeros(nrow)
             if nrow > 2:
-                mid = (settled[1:-1] & settled[:-2] & settled[2:] & nxt_same[:-2] & nxt_same[1:-1]
+                still = settled & ~slides
+                mid = (still[1:-1] & still[:-2] & still[2:] & nxt_same[:-2] & nxt_same[1:-1]
                        & (pb[:-2] == pb[1:-1]) & (pb[2:] == pb[1:-1]))
                 d2 = cv[2:] - 2.0 * cv[1:-1] + cv[:-2]
                 osc[1:-1] = np.where(mid, 0.25 * np.sqrt(np.einsum("ij,ij->i", d2, d2)), 0.0)
@@ -255,7 +401,8 @@ class PenetrationAnalyzer(Analyzer):
                 osc = eroded
             jit = red(np.maximum, osc)
             has_settled = red(np.maximum, settled.astype(float)) > 0
-            slow = settled & (np.sqrt(np.einsum("ij,ij->i", slip, slip)) <= tol["creep_speed_mps"])
+            slow = settled & ~slides & (np.sqrt(np.einsum("ij,ij->i", slip, slip))
+                                        <= tol["creep_speed_mps"])
             s_f = np.where(slow[:, None], slip, 0.0)
             # trapezoid over consecutive settled rows of the same run
             both = settled[:-1] & settled[1:] & nxt_same[:-1]

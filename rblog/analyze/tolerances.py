@@ -63,6 +63,13 @@ MOMENTUM_LINEAR_REL = 1e-6
 #: of mass, in continuous and in discrete (symplectic Euler) time, so this is exact; it is the
 #: angular momentum about the origin with the gravity torque c x M g removed.
 MOMENTUM_ANGULAR_REL = 1e-6
+#: Floors of those scales, per body: its mass times this speed (m/s), its largest principal
+#: moment times this spin (rad/s) (the jump detector's floor, rblog.analyze.base). Bodies at rest
+#: in zero gravity have no momentum to compare a residue with: MuJoCo's 1e-32 kg m/s round-off
+#: over a 1e-33 scale once read as a relative change of 1.86. Lone bodies (nothing in reach) are
+#: judged by the same LINEAR_REL / ANGULAR_REL over each free flight, once per flight.
+MOMENTUM_SPEED_FLOOR_MPS = 1e-9
+MOMENTUM_SPIN_FLOOR_RADPS = 1e-9
 #: Coulomb cone: |J_t| <= mu J_n + cone_rel |J| (impulse J over a sample interval, inferred from
 #: the momentum change, or as logged). Sums of in-cone impulses on one normal stay in the cone.
 MOMENTUM_CONE_REL = 1e-3
@@ -139,6 +146,22 @@ PENETRATION_JITTER_PERSIST_SAMPLES = 4
 #: resting box to ~1e-9 m, pybullet's resting cube slips 0.08 mm in 2 s.
 PENETRATION_CREEP_M = 1e-4
 PENETRATION_CREEP_SPEED_MPS = 1e-2
+#: Sliding is not resting: a contact whose logged points are at their Coulomb limit,
+#: ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all but at most one (a rigid contact that slips slips
+#: at every point but the one it may pivot about), over the logged rows of the pair at the sample's
+#: step (sliding, or twisting about the normal: a box in the 500-box pile turning at 0.05 rad/s
+#: on its support has all 4 points at the limit, each in its own direction, their vector sum at
+#: 0.83 of mu sum J_n; a box pivoting on an edge has 1 of 2), or whose tangential load (the body's other contact impulses plus (m g + F) dt) reaches
+#: that limit, is sliding (dimensionless fraction of the limit mu J_n). Static friction holds
+#: strictly inside the cone; on its boundary the contact slips, which the notes' resting-contact
+#: model does not cover, so its slip is not creep. Normal impulses below SLIDE_FLOOR_NS
+#: (= MOMENTUM_CONE_FLOOR_NS, the impulse resolution of a log) carry no friction to judge.
+#: Without logged contact rows only a body touching nothing but its support can be judged (from
+#: its inferred impulse). 1%: rblog's solver clamps each point at mu J_n exactly (the pile's
+#: at-limit supports are at 1 - ratio <= 1e-12); Bullet clamps two friction directions apart
+#: (a sliding point is between mu J_n and sqrt(2) mu J_n), MuJoCo's soft elliptic cone
+#: keeps a sliding contact within ~1e-3 of it (measured: see RESULTS.md, issue 16).
+PENETRATION_SLIDE_CONE_FRAC = 1e-2
 
 # --- energy -----------------------------------------------------------------------------------
 #: Drift of a free body's energy over a contact-free stretch, relative to the stretch's energy

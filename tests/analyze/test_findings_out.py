@@ -104,3 +104,27 @@ def test_convert_rejects_an_unknown_extension(logs):
     traj, paths, d = logs
     res = _cli("convert", paths[".mcap"], d / "out.txt")
     assert res.exit_code == 2 and "must end in .rrd or .mcap" in res.output
+
+
+def test_convert_mcap_to_rrd_carries_boxes_and_static_boxes(tmp_path):
+    """A box and a sphere over a static box, written to .mcap by the writer API: the converted
+    .rrd has every shape kind's view entity, so Rerun shows the shapes."""
+    import rblog
+
+    model = rblog.body_table(name=["box", "ball"], shape=["box", "sphere"],
+                             size=[[0.1, 0.05, 0.02], [0.1, 0, 0]], mass=[1.0, 1.0], ground=True,
+                             static_box_position=[[0, 0, 0.5]], static_box_quat_wxyz=[[1, 0, 0, 0]],
+                             static_box_half_extents=[[0.5, 0.5, 0.1]])
+    k = 5
+    src = tmp_path / "two.mcap"
+    with rblog.Recorder(model, mcap=str(src), dt=0.01) as rec:
+        rec.write(t=np.arange(k) * 0.01, position=np.tile([[0, 0, 1.0], [0.3, 0, 1.0]], (k, 1, 1)),
+                  quat_wxyz=np.tile([1.0, 0, 0, 0], (k, 2, 1)), velocity=np.zeros((k, 2, 3)),
+                  angular_velocity=np.zeros((k, 2, 3)))
+    out = tmp_path / "two.rrd"
+    res = _cli("convert", src, out)
+    assert res.exit_code == 0, res.output
+    _, chunks = _chunks(out)
+    ents = {c.entity_path for c in chunks}
+    assert {"/world/bodies/boxes", "/world/bodies/spheres", "/world/ground",
+            "/world/statics/0"} <= ents, ents

@@ -1,0 +1,161 @@
+"""Zero false alarms on every sample under MuJoCo and pybullet (issue 16's Done-when), behind
+``-m slow``: every samples/*.toml is run through ``rblog run --engine mujoco`` and ``--engine
+pybullet`` and ``rblog check`` must flag exactly the engine's real faults enumerated below, each
+with its measured worst value (so the list is itself a check: a fault that goes away, a new kind
+of finding, or a value that moves by more than a factor 2 fails the test).
+
+Why each is real (not a false alarm of the check), from the traces in benchmarks/RESULTS.md
+(issue 16):
+
+* ``flight angular``: both engines step a free body's rotation with explicit Euler (the same
+  numbers to 6e-14 in both: the gyroscopic term integrated explicitly), so L = R I w drifts in free
+  flight (tumbling_box 0.26% of |L| in 20 s; rblog's integrators keep it to round-off).
+* ``flight energy``: the same step gains energy (tumbling_box +0.48%, spinning_bodies +7.9% in 5 s).
+* ``collision angular``: the same explicit rotation step while bodies touch: their L about the
+  common centre of mass is not conserved (MuJoCo 4.4e-4, pybullet 3.6e-4 of the scale in mixed;
+  one finding per contact event).
+* ``sink`` (any time) and ``resting sink``: MuJoCo's soft contacts (omega dt = 0.2 here) let a
+  ball sink 19 mm at a 4.4 m/s bounce, a 10-box stack at dt = 10 ms 24 mm (7.6 mm at rest), the
+  pile 18 mm; pybullet's stack at dt = 10 ms sinks 6 mm, its pile 5.7 mm (tol 5 mm).
+* ``creep``: with the friction inside the Coulomb cone (sliding contacts are not counted):
+  MuJoCo's soft pyramidal cone lets balls and boxes slip on the ramp (tests/analyze/
+  test_engine_creep.py isolates it: 3.95 mm in 2 s) and in the pile (2.8 mm); pybullet's resting
+  cube slips 0.22 mm in 5 s, its stack at dt = 10 ms 8 mm, boxes in its pile 0.62 mm.
+* ``jitter``: MuJoCo's soft resting contacts oscillate at 2.0-8.5 mm/s (tol 2 mm/s).
+* ``restitution``, ``bounce lost``, ``elastic loss``: Bullet rebounds the bouncing ball at e = 0.21
+  instead of 0.8 on its later bounces, three balls at 0.45 instead of 0.5, stops a ball dead on the
+  ramp (arrives at 2.43 m/s normal, e = 0.5) and loses 0.64% of the head-on pair's kinetic energy
+  at e = 1; MuJoCo's elastic pair gains 0.93% (an explicitly stepped stiff spring).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from rblog_cli.main import main
+
+REPO = Path(__file__).resolve().parents[2]
+ENGINES = ("mujoco", "pybullet")
+
+
+def kind(analyzer: str, message: str) -> str:
+    """A finding's kind, from its analyzer and message."""
+    m = message
+    if analyzer == "momentum":
+        if "in free flight" in m:
+            return "flight " + ("angular" if m.split(":")[1].strip().startswith("angular") else "linear")
+        if "in the collision of" in m:
+            return "collision " + ("angular" if m.startswith("angular") else "linear")
+        for key, name in (("friction cone", "cone"), ("bounce lost", "bounce lost"),
+                          ("elastic impact", "elastic loss"), ("energy grows", "impact energy"),
+                          ("restitution", "restitution")):
+            if key in m:
+                return name
+    if analyzer == "penetration":
+        for key, name in (("creeps", "creep"), ("jitters", "jitter"), ("resting on", "resting sink"),
+                          ("sinks", "sink")):
+            if key in m:
+                return name
+    if analyzer == "energy":
+        return "flight energy" if "in free flight" in m else "contact energy"
+    return analyzer
+
+
+#: (sample, engine) -> {kind: worst measured value (the finding's value, in its unit)}.
+#: Measured 2026-11-26 (MuJoCo 4.0.0, pybullet 3.2.7), samples at their own durations (the
+#: whole set: ~4 min on a loaded 2-core machine, the pile 115 s (MuJoCo) and 50 s (pybullet)).
+KNOWN: dict[tuple[str, str], dict[str, float]] = {
+    ("bouncing_ball", "mujoco"): {"penetration: sink": 0.0191},
+    ("bouncing_ball", "pybullet"): {"momentum: restitution": 0.59},
+    ("box_stack", "mujoco"): {"penetration: resting sink": 0.00762, "penetration: sink": 0.0239},
+    ("box_stack", "pybullet"): {
+        "penetration: creep": 0.00815,
+        "penetration: resting sink": 0.0056,
+        "penetration: sink": 0.00621,
+    },
+    ("free_fall", "mujoco"): {"momentum: flight angular": 0.00148},
+    ("free_fall", "pybullet"): {"momentum: flight angular": 0.00148},
+    ("mixed", "mujoco"): {
+        "momentum: collision angular": 0.000442,
+        "momentum: flight angular": 0.00486,
+        "penetration: creep": 0.000975,
+        "penetration: jitter": 0.00382,
+        "penetration: sink": 0.0236,
+    },
+    ("mixed", "pybullet"): {
+        "momentum: bounce lost": 1.22,
+        "momentum: collision angular": 0.000359,
+        "momentum: flight angular": 0.0065,
+        "momentum: restitution": 0.0483,
+        "penetration: creep": 0.000128,
+    },
+    ("newton_pair", "mujoco"): {
+        "energy: contact energy": 0.00922,
+        "momentum: impact energy": 0.0093,
+        "penetration: sink": 0.0136,
+    },
+    ("newton_pair", "pybullet"): {"momentum: elastic loss": 0.00642},
+    ("pile", "mujoco"): {
+        "penetration: creep": 0.00281,
+        "penetration: jitter": 0.00847,
+        "penetration: sink": 0.0178,
+    },
+    ("pile", "pybullet"): {
+        "momentum: collision angular": 0.000109,
+        "penetration: creep": 0.000621,
+        "penetration: sink": 0.00565,
+    },
+    ("resting_box", "mujoco"): {"penetration: jitter": 0.00203},
+    ("resting_box", "pybullet"): {"penetration: creep": 0.000218},
+    ("spinning_bodies", "mujoco"): {
+        "energy: flight energy": 0.0789,
+        "momentum: flight angular": 0.0534,
+    },
+    ("spinning_bodies", "pybullet"): {
+        "energy: flight energy": 0.0789,
+        "momentum: flight angular": 0.0534,
+    },
+    ("tumbling_box", "mujoco"): {
+        "energy: flight energy": 0.00481,
+        "momentum: flight angular": 0.0026,
+    },
+    ("tumbling_box", "pybullet"): {
+        "energy: flight energy": 0.00481,
+        "momentum: flight angular": 0.0026,
+    },
+}
+
+
+def findings_of(tmp_path, sample: str, engine: str) -> dict[str, float]:
+    log = tmp_path / f"{sample}-{engine}.mcap"
+    res = CliRunner().invoke(main, ["run", str(REPO / "samples" / f"{sample}.toml"), "--engine",
+                                    engine, "--mcap", str(log)])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(main, ["check", "--json", str(log)])
+    assert res.exit_code in (0, 1), res.output
+    (doc,) = json.loads(res.stdout)["logs"]
+    worst: dict[str, float] = {}
+    for r in doc["results"]:
+        for f in r["findings"]:
+            k = f"{r['analyzer']}: {kind(r['analyzer'], f['message'])}"
+            worst[k] = max(worst.get(k, 0.0), f["value"])
+    return worst
+
+
+CASES = [(p.stem, e) for p in sorted((REPO / "samples").glob("*.toml")) for e in ENGINES]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sample,engine", CASES, ids=[f"{s}-{e}" for s, e in CASES])
+def test_check_flags_only_the_engines_real_faults(tmp_path, sample, engine):
+    pytest.importorskip(engine)
+    got = findings_of(tmp_path, sample, engine)
+    want = KNOWN.get((sample, engine), {})
+    assert set(got) == set(want), {"unexpected": sorted(set(got) - set(want)),
+                                   "gone": sorted(set(want) - set(got)), "got": got}
+    for k, v in want.items():
+        assert v / 2 <= got[k] <= 2 * v, (k, got[k], v)
