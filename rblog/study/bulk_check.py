@@ -150,7 +150,7 @@ def check_many(paths: Sequence[str], executor=None, *, only=None, skip=None,
     fn = partial(check_log, only=only, skip=skip, tolerances=tolerances)
     t0 = time.perf_counter()
     with _started(ex):
-        out = ex.map(fn, list(paths), on_done=on_done)
+        out = ex.map(fn, list(paths), on_done=on_done, chunked=True)
     entries = []
     for path, r in zip(paths, out):
         if isinstance(r, TaskFailure):

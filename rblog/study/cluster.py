@@ -12,6 +12,16 @@ scene's TOML text: bytes to kilobytes) and the results (summary dicts). Logs are
 worker reads and writes them by path, so on a real cluster they must live on storage every worker
 sees (docs/cluster.md).
 
+Chunks. Tasks of tens of milliseconds (a sweep's variants) would spend a good part of their time
+in scheduling (~3 ms a task on this machine) and in a worker's hand-offs, so :meth:`Executor.map`
+with ``chunked=True`` sends **guided chunks**: one Dask task runs ``fn`` over a run of items, the
+first chunks large (about ``remaining / (GUIDED_CHUNKS_PER_WORKER x workers)`` items), the last
+ones single items, so the workers still finish together (:func:`guided_chunks`). Results are
+returned per item exactly as without chunks. An item that raises inside a chunk is reported alone
+(the chunk's other items keep their results); a worker that dies under a chunk loses the chunk's
+results, and every item of it is sent again **one by one** (one death counts as one try of each),
+so a poison item is still isolated and reported after its retry, and nothing else is lost.
+
 Failures. A task that raises is reported as a :class:`TaskFailure` (``kind="error"``), never
 retried (rblog's task functions catch the errors a user can cause and return them as results, so
 what reaches here is a bug). A task whose worker process dies under it (killed, out of memory,
@@ -25,7 +35,10 @@ resubmits once.
 Kernels. A worker process is long-lived: numba kernels load (or compile) at its first task and
 are reused for every later one. Worker processes inherit the environment, so ``NUMBA_CACHE_DIR``
 points them at the same on-disk cache as the client: on one machine (or on workers sharing a file
-system) kernels compile once in all.
+system) kernels compile once in all. Local workers get ``NUMBA_NUM_THREADS`` = cores // workers
+(at least 1) unless it is set: the free kernel splits large scenes over that many threads, and
+two workers of two threads each would oversubscribe two cores (results are bitwise the same for
+any thread count).
 
 Dask is the optional extra ``cluster`` (``pip install -e ".[cluster]"``); without it, only the
 serial executor exists and asking for workers raises :class:`ClusterUnavailable` naming the extra.
@@ -48,6 +61,9 @@ INSTALL_HINT = 'the optional extra "cluster" (pip install -e ".[cluster]", or pi
 THREADS_PER_WORKER = 1
 #: tasks sent to a worker per thread ahead of need (Dask's default: 1.1, i.e. 2 for one thread)
 WORKER_SATURATION = 1.0
+#: guided chunks: a chunk takes about remaining / (this x workers) of the items not yet chunked;
+#: 4 gives ~25 tasks for 100 items on 2 workers, the last 8 of one item each
+GUIDED_CHUNKS_PER_WORKER = 4
 #: client-side resubmissions of a task whose worker died under it
 RETRIES_AFTER_WORKER_DEATH = 1
 #: seconds to wait for a running scheduler to answer / for its workers to appear
@@ -156,12 +172,16 @@ class Executor:
         # Dask starts workers with MALLOC_TRIM_THRESHOLD_=65536 (memory handed back to the OS
         # eagerly); reading a 20 MB log then runs 1.3-1.7x slower than in a plain process
         # (docs/cluster.md), so local workers keep glibc's default
+        # each worker's kernels get its share of the cores (an explicit NUMBA_NUM_THREADS wins)
+        env = {}
+        if "NUMBA_NUM_THREADS" not in os.environ:
+            env["NUMBA_NUM_THREADS"] = str(max(1, default_workers() // self.workers))
         with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                               "distributed.scheduler.worker-saturation": WORKER_SATURATION,
                               "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
             self._cluster = LocalCluster(
                 n_workers=self.workers, threads_per_worker=THREADS_PER_WORKER, processes=True,
-                dashboard_address=None, silence_logs=logging.CRITICAL)
+                dashboard_address=None, silence_logs=logging.CRITICAL, env=env)
             self.client = Client(self._cluster, set_as_default=False)
 
     def close(self):
@@ -200,9 +220,11 @@ class Executor:
 
     # -- work ----------------------------------------------------------------------------------
     def map(self, fn: Callable[[Any], Any], items: Sequence, *,
-            on_done: Callable[[int, int], None] | None = None) -> list:
+            on_done: Callable[[int, int], None] | None = None, chunked: bool = False) -> list:
         """``[fn(item) for item in items]``, each entry the task's return value or a
-        :class:`TaskFailure`; ``on_done(done, total)`` after each task finishes."""
+        :class:`TaskFailure`; ``on_done(done, total)`` as items finish. ``chunked``: on a
+        cluster, send guided chunks of items as tasks (see the module docstring); the results
+        are the same."""
         items = list(items)
         total = len(items)
         if self.serial:
@@ -215,39 +237,83 @@ class Executor:
                 if on_done:
                     on_done(i + 1, total)
             return out
-        return self._map_dask(fn, items, on_done)
+        spans = (guided_chunks(total, self.n_workers()) if chunked
+                 else [(i, i + 1) for i in range(total)])
+        return self._map_dask(fn, items, spans, on_done)
 
-    def _map_dask(self, fn, items, on_done):
+    def _map_dask(self, fn, items, spans, on_done):
         from distributed import as_completed
 
         client = self.client
         total = len(items)
         results: list = [None] * total
         tries = [1] * total
-        futures = client.map(fn, items, pure=False)
-        index = {f.key: i for i, f in enumerate(futures)}
+        # a chunk of several items runs as _run_chunk(fn, items); a single item as fn(item), so
+        # an error or a death is the item's own. Earlier spans (the large chunks) are scheduled
+        # first: Dask's own order of independent tasks is by key, i.e. random here.
+        whole = [b - a > 1 for a, b in spans]
+        futures = [client.submit(_run_chunk, fn, items[a:b], a, pure=False,
+                                 priority=len(spans) - j) if whole[j]
+                   else client.submit(fn, items[a], pure=False, priority=len(spans) - j)
+                   for j, (a, b) in enumerate(spans)]
+        # key -> (first item, last item + 1, whether the task is a chunk)
+        span_of = {f.key: (a, b, w) for f, (a, b), w in zip(futures, spans, whole)}
         done = 0
         pending = as_completed(futures, loop=client.loop)
         for fut in pending:
-            i = index.pop(fut.key)
+            a, b, is_chunk = span_of.pop(fut.key)
             if fut.status == "finished":
-                results[i] = fut.result()
+                got = fut.result() if is_chunk else [fut.result()]
+                for i, r in zip(range(a, b), got):
+                    results[i] = r
+                finished = b - a
             else:
                 exc = fut.exception()
-                if _worker_died(exc) and tries[i] <= self.retries:
-                    tries[i] += 1
-                    again = client.submit(fn, items[i], pure=False)
-                    index[again.key] = i
-                    pending.add(again)
-                    fut.release()
-                    continue
-                kind = "worker-died" if _worker_died(exc) else "error"
-                results[i] = TaskFailure(i, kind, _one_line(exc), tries[i])
+                died = _worker_died(exc)
+                finished = 0
+                for i in range(a, b):
+                    if died and tries[i] <= self.retries:
+                        # each item again, alone: a poison item kills only its own task
+                        tries[i] += 1
+                        again = client.submit(fn, items[i], pure=False, priority=len(spans) + 1)
+                        span_of[again.key] = (i, i + 1, False)
+                        pending.add(again)
+                        continue
+                    kind = "worker-died" if died else "error"
+                    results[i] = TaskFailure(i, kind, _one_line(exc), tries[i])
+                    finished += 1
             fut.release()
-            done += 1
-            if on_done:
+            done += finished
+            if on_done and finished:
                 on_done(done, total)
         return results
+
+
+def guided_chunks(n_items: int, workers: int,
+                  per_worker: int = GUIDED_CHUNKS_PER_WORKER) -> list[tuple[int, int]]:
+    """Consecutive ``(start, stop)`` spans covering ``range(n_items)``: each takes
+    ceil(remaining / (per_worker x workers)) items, so chunks shrink to single items at the end
+    (OpenMP's "guided" schedule), and workers that pull them in order finish within about one
+    item of each other."""
+    spans, i = [], 0
+    share = max(1, per_worker * max(1, workers))
+    while i < n_items:
+        k = -(-(n_items - i) // share)
+        spans.append((i, i + k))
+        i += k
+    return spans
+
+
+def _run_chunk(fn, items, first: int) -> list:
+    """A chunk's task, on a worker: ``fn`` over ``items``; an item that raises becomes a
+    :class:`TaskFailure` (its index counted from the batch's start), the others keep going."""
+    out = []
+    for k, item in enumerate(items):
+        try:
+            out.append(fn(item))
+        except Exception as e:
+            out.append(TaskFailure(first + k, "error", _one_line(e)))
+    return out
 
 
 def _worker_died(exc) -> bool:

@@ -317,7 +317,9 @@ class TorqueFree:
         rz = np.zeros((len(t), 3, 3))
         rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = c, -sn_, sn_, c, 1.0
         left = r0 @ m_mat.T @ b_0.T
-        return np.einsum("ij,tjk,tkl,lm->tim", left, rz, b_t, m_mat)
+        # R(t) = left Rz(dphi) B(t) M as batched 3 x 3 products (numpy's unoptimized
+        # four-operand einsum walks all 3^5 index sets per sample: 5 ms per 2,000 samples)
+        return (left @ rz) @ b_t @ m_mat
 
     def omega_world(self, t) -> np.ndarray:
         """(T, 3) world-frame angular velocity."""
@@ -364,28 +366,12 @@ def _axis_angle_matrix(w, t):
 
 
 def _matrix_to_quat(r) -> np.ndarray:
-    """(T, 3, 3) rotations -> (T, 4) unit quaternions wxyz (Shepperd), w >= 0."""
-    r = np.asarray(r, float)
-    out = np.empty(r.shape[:-2] + (4,))
-    for n, m in enumerate(r.reshape(-1, 3, 3)):
-        tr = np.trace(m)
-        i = int(np.argmax([tr, m[0, 0], m[1, 1], m[2, 2]]))
-        if i == 0:
-            s = 2.0 * math.sqrt(1.0 + tr)
-            q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-        elif i == 1:
-            s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-            q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-        elif i == 2:
-            s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-            q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-        else:
-            s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-            q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-        q = np.array(q)
-        q /= np.linalg.norm(q)
-        out.reshape(-1, 4)[n] = q if q[0] >= 0 else -q
-    return out
+    """(T, 3, 3) rotations -> (T, 4) unit quaternions wxyz (Shepperd), w >= 0: the log contract's
+    vectorized conversion (a loop over samples here cost ~30 ms per 2,000 samples, half of a
+    sweep variant's time)."""
+    from rblog.contract.orientation import matrix_to_quat
+
+    return matrix_to_quat(np.asarray(r, float))
 
 
 def _symmetric_omega(j, nu0, t):

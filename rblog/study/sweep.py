@@ -235,7 +235,7 @@ def run_sweep(scene_path: str, sets: Sequence[str], *, samples: int | None = Non
     if own:
         ex.start()
     try:
-        out = ex.map(run_variant, tasks, on_done=on_done)
+        out = ex.map(run_variant, tasks, on_done=on_done, chunked=True)
     finally:
         if own:
             ex.close()

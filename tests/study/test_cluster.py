@@ -1,7 +1,8 @@
 """The Dask executor (rblog.study.cluster): a local cluster of two worker processes gives the
 same results as the serial run, for a bulk check and for a sweep; a worker killed mid-run loses
 nothing (its task is retried once on another worker; a task that kills every worker it runs on
-is reported as failed, and the rest of the batch is complete)."""
+is reported as failed, and the rest of the batch is complete), with one task per item and with
+guided chunks of items (a chunk whose worker dies is rerun item by item)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ pytest.importorskip("distributed")
 import rblog  # noqa: E402
 from rblog.record import McapRecorder, RerunRecorder  # noqa: E402
 from rblog.study.bulk_check import check_log, check_many  # noqa: E402
-from rblog.study.cluster import Executor, TaskFailure  # noqa: E402
+from rblog.study.cluster import Executor, TaskFailure, guided_chunks  # noqa: E402
 from rblog.study.sweep import comparable_rows, run_sweep  # noqa: E402
 
 from conftest import SAMPLES_DIR  # noqa: E402
@@ -67,11 +68,12 @@ def test_sweep_on_the_cluster_equals_the_serial_sweep(cluster, tmp_path):
     sets = ["integrator=rk4,seed", "dt=2e-3,5e-3", "duration=2.0",
             "body[0].angular_velocity_body[0]=0.02:0.2"]
     scene = str(SAMPLES_DIR / "tumbling_box.toml")
-    kw = dict(samples=6, seed=7, write_logs=True)
+    # 10 variants on 2 workers: guided chunks of 2, 1, 1, ... (the first task runs two variants)
+    kw = dict(samples=10, seed=7, write_logs=True)
     serial = run_sweep(scene, sets, out_dir=tmp_path / "a", **kw)
     parallel = run_sweep(scene, sets, out_dir=tmp_path / "b", executor=cluster, **kw)
     a, b = comparable_rows(serial), comparable_rows(parallel)
-    assert a == b and len(a) == 6
+    assert a == b and len(a) == 10
     assert all(r["status"] == "ok" for r in serial.rows)
     # the workers wrote the logs, and each reads back with the check's verdict of the run
     for r in parallel.rows:
@@ -97,34 +99,69 @@ def _dies_on_first_try(marker_dir):
     return task
 
 
-def test_a_worker_killed_mid_task_loses_nothing(cluster, tmp_path):
-    items = [f"item{k}" for k in range(6)] + ["die-a"] + [f"item{k}" for k in range(6, 10)]
-    out = cluster.map(_dies_on_first_try(str(tmp_path)), items)
+def test_guided_chunks_cover_every_item_once_and_end_in_single_items():
+    for n, w in [(100, 2), (10, 2), (7, 3), (1, 2), (0, 2), (1000, 16)]:
+        spans = guided_chunks(n, w, per_worker=4)
+        assert [i for a, b in spans for i in range(a, b)] == list(range(n))
+        sizes = [b - a for a, b in spans]
+        # each chunk is ceil(remaining / (4 w)) of the items left when it is cut
+        left = n
+        for k in sizes:
+            assert k == -(-left // (4 * w))
+            left -= k
+        assert sizes == sorted(sizes, reverse=True)
+        assert n < 4 * w or sizes[-(4 * w - 1):] == [1] * (4 * w - 1)
+    # 100 items on 2 workers: 13 in the first task, 24 tasks instead of 100
+    assert guided_chunks(100, 2, per_worker=4)[0] == (0, 13) and len(guided_chunks(100, 2, 4)) == 24
+
+
+@pytest.mark.parametrize("chunked", [False, True])
+def test_a_worker_killed_mid_task_loses_nothing(cluster, tmp_path, chunked):
+    # with chunks, "die-a" is the second item of the second chunk (spans 2, 2, 1, ... of 11)
+    items = [f"item{k}" for k in range(3)] + ["die-a"] + [f"item{k}" for k in range(3, 10)]
+    if chunked:
+        assert (2, 4) in guided_chunks(len(items), 2)
+    out = cluster.map(_dies_on_first_try(str(tmp_path)), items, chunked=chunked)
     assert out == [f"done {x}" for x in items]  # the killed task was retried; nothing lost
     assert (tmp_path / "die-a").exists()  # and it really killed a worker once
 
 
-def test_a_task_that_kills_every_worker_is_reported_failed_after_one_retry(cluster):
+@pytest.mark.parametrize("chunked", [False, True])
+def test_a_task_that_kills_every_worker_is_reported_failed_after_one_retry(cluster, chunked):
     def task(item):
         if item == "poison":
             os._exit(1)
         return item * 2
 
-    items = ["a", "b", "poison", "c", "d"]
-    out = cluster.map(task, items)
-    assert [o for i, o in enumerate(out) if i != 2] == ["aa", "bb", "cc", "dd"]
+    items = ["a", "b", "poison", "c", "d", "e", "f", "g", "h", "i", "j", "k"]
+    cluster.client.wait_for_workers(2, timeout=60)
+    out = cluster.map(task, items, chunked=chunked)
+    assert [o for i, o in enumerate(out) if i != 2] == [x * 2 for x in items if x != "poison"]
     fail = out[2]
+    # the poison's chunk (items 2-3 with chunks) died once, then the poison alone died again
     assert isinstance(fail, TaskFailure) and fail.kind == "worker-died" and fail.tries == 2
     # the cluster recovered: the nannies restart both workers for the next batch
     cluster.client.wait_for_workers(2, timeout=60)
     assert cluster.map(lambda x: x + 1, [1, 2, 3]) == [2, 3, 4]
 
 
+def test_an_item_that_raises_inside_a_chunk_is_reported_alone(cluster):
+    def task(x):
+        if x == 1:
+            raise ValueError("boom")
+        return x * 10
+
+    out = cluster.map(task, list(range(12)), chunked=True)  # items 0-1 form the first chunk
+    assert isinstance(out[1], TaskFailure) and out[1].kind == "error" and "boom" in out[1].error
+    assert out[1].index == 1
+    assert [o for i, o in enumerate(out) if i != 1] == [x * 10 for x in range(12) if x != 1]
+
+
 def test_bulk_check_with_a_worker_killed_mid_log(cluster, logs, tmp_path):
     # the worker checking one log dies under it; the log is checked again elsewhere
     serial = check_many(logs)
     marker = tmp_path / "killed"
-    victim = logs[4]
+    victim = logs[1]  # in the first chunk (logs 0-1) of guided_chunks(9, 2)
 
     def dying_check(path):
         if path == victim and not marker.exists():
@@ -132,7 +169,7 @@ def test_bulk_check_with_a_worker_killed_mid_log(cluster, logs, tmp_path):
             os._exit(1)
         return check_log(path)
 
-    out = cluster.map(dying_check, logs)
+    out = cluster.map(dying_check, logs, chunked=True)  # as check_many sends them
     assert marker.exists()
     assert out == serial.entries
 
