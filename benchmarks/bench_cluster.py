@@ -9,9 +9,11 @@ Measures (issue targets in brackets):
    logs written: serial, 1 and 2 workers [2 workers >= 1.7x serial; identical tables, timing
    columns aside].
 3. Scheduling overhead: 1,000 empty tasks through the executor [<= 5 ms per task].
-4. A cost model, T(W) = N (c / W + o): c = serial seconds per task, o = the empty-task overhead
-   per task; its prediction for 1 and 2 workers is printed beside the measurement, then its
-   projection for more workers.
+4. A cost model, T(W) = N c / W + K o: N items of c serial seconds each, sent as K tasks
+   (K = len(guided_chunks(N, W)): 24 tasks for 100 items on 2 workers, one per item without
+   chunks), o = the empty-task overhead per task on W workers. Its prediction for 1 and 2
+   workers is printed beside the measurement, with the per-item cost on the workers that the
+   measurement implies ((T - K o) W / N, against c), then its projection for more workers.
 
 Every timing excludes starting the cluster (printed apart: a running cluster is the comparator
 the target names, and ``--scheduler`` reuses one) and loading kernels: the serial side checks
@@ -114,7 +116,7 @@ def main():
     args = ap.parse_args()
 
     from rblog.study.bulk_check import check_log, check_many
-    from rblog.study.cluster import Executor, measure_overhead
+    from rblog.study.cluster import Executor, guided_chunks, measure_overhead
     from rblog.study.sweep import comparable_rows, run_sweep, write_outputs
 
     tmp = Path(tempfile.mkdtemp(prefix="rblog-bench-cluster-"))
@@ -195,17 +197,23 @@ def main():
         print(f"{'cluster start (s)':<22}{'-':>10}" + "".join(f"{results[w]['start_s']:>14.2f}" for w in args.workers))
 
         # ---- model ----
-        print("\nmodel T(W) = N (c/W + o), c = serial s/task, o = empty-task overhead per task "
-              f"(measured on {max(args.workers)} workers)")
-        o = results[max(args.workers)]["overhead_ms"] * 1e-3
+        print("\nmodel T(W) = N c / W + K o: c = serial s/item, K = tasks (guided chunks), "
+              "o = empty-task overhead per task on W workers")
+        o_at = lambda W: results[W if W in results else max(args.workers)]["overhead_ms"] * 1e-3
         for what, key, n in (("check", "check_s", n_c), ("sweep", "sweep_s", n_s)):
             c = results["serial"][key] / n
-            pred = lambda W: results["serial"][key] / (n * (c / W + o))
-            meas = "  ".join(f"W={w}: predicted {pred(w):.2f}x, measured "
-                             f"{results['serial'][key] / results[w][key]:.2f}x" for w in args.workers)
+            k_of = lambda W: len(guided_chunks(n, W))
+            pred = lambda W: n * c / (n * c / W + k_of(W) * o_at(W))
+            print(f"  {what}: c = {c * 1e3:.1f} ms/item")
+            for w in args.workers:
+                t = results[w][key]
+                per_item = (t - k_of(w) * o_at(w)) * w / n
+                print(f"    W={w}: K = {k_of(w)}, o = {o_at(w) * 1e3:.2f} ms; predicted "
+                      f"{pred(w):.2f}x, measured {results['serial'][key] / t:.2f}x; per item on "
+                      f"the workers {per_item * 1e3:.1f} ms ({per_item / c:.2f} c)")
             proj = ", ".join(f"W={W}: {pred(W):.1f}x" for W in (4, 8, 16, 64))
-            print(f"  {what}: c = {c * 1e3:.1f} ms/task, o = {o * 1e3:.2f} ms; {meas}")
-            print(f"         projected (W real cores): {proj}; limit c/o = {c / o:.0f}x")
+            print(f"    projected ({n} items, W real cores, o as on {max(args.workers)} workers): "
+                  f"{proj}; bound c/o = {c / o_at(max(args.workers)):.0f}x per item-task")
         print(f"load average at end {os.getloadavg()[0]:.2f} (1 min; above ~2 means other "
               "processes shared the two cores during the run)")
         print("\nJSON " + json.dumps({str(k): v for k, v in results.items()}))

@@ -64,6 +64,12 @@ WORKER_SATURATION = 1.0
 #: guided chunks: a chunk takes about remaining / (this x workers) of the items not yet chunked;
 #: 4 gives ~25 tasks for 100 items on 2 workers, the last 8 of one item each
 GUIDED_CHUNKS_PER_WORKER = 4
+#: local clusters have no dashboard, so the worker diagnostics that feed it are off: the
+#: statistical profiler (a thread that takes the GIL every 10 ms to walk the task's stack) and
+#: the event loop's 20 ms health tick (checked every 0.5 s instead); each wake-up takes the GIL
+#: from the task and from the run's writer threads
+LOCAL_DIAGNOSTICS_OFF = {"distributed.worker.profile.enabled": False,
+                         "distributed.admin.tick.interval": "500ms"}
 #: client-side resubmissions of a task whose worker died under it
 RETRIES_AFTER_WORKER_DEATH = 1
 #: seconds to wait for a running scheduler to answer / for its workers to appear
@@ -178,7 +184,8 @@ class Executor:
             env["NUMBA_NUM_THREADS"] = str(max(1, default_workers() // self.workers))
         with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                               "distributed.scheduler.worker-saturation": WORKER_SATURATION,
-                              "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+                              "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+                              **LOCAL_DIAGNOSTICS_OFF}):
             self._cluster = LocalCluster(
                 n_workers=self.workers, threads_per_worker=THREADS_PER_WORKER, processes=True,
                 dashboard_address=None, silence_logs=logging.CRITICAL, env=env)
