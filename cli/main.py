@@ -420,6 +420,8 @@ def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="l
 
         recorders.append(McapRecorder(mcap, compression=mcap_compression))
         paths.append(mcap)
+    if not recorders:  # --no-log: import no writer (the Rerun SDK alone takes ~0.3 s)
+        return [], paths
     # rblog's own runs record through the public writer API too (one Recorder per writer, so the
     # run loop still writes each on its own thread; benchmarks/bench_engines.py: no cost)
     from rblog.record.recorder import Recorder

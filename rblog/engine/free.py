@@ -15,6 +15,11 @@ takes SIGINT), and runs the
 compiled :func:`advance_free_range` on each from a pool of Python threads (the kernel releases
 the GIL). A body's arithmetic does not depend on which range it is in, so the result is bitwise
 the same for any thread count; one compiled specialisation serves every count.
+
+Compilation: each integrator has its own kernel (:func:`range_kernel`, the integrator a constant
+of the kernel), so a run compiles only the integrator it uses; the drifts are functions of their
+own (rblog.engine.integrators), not inlined into the kernel by numba: a cold first run of a
+free-body scene compiles in ~4 s instead of ~35 s (benchmarks/bench_firstrun.py).
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 from numba import njit
 
-from rblog.engine.integrators import step_body, sync_quat, METHOD_SEED
+from rblog.engine.integrators import METHOD_NAMES, METHOD_SEED, step_body, sync_quat
 
 
 #: bodies advanced together, steps inner: their state (~180 B each) stays in L1, and a sample's
@@ -108,84 +113,120 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
     return n_samples, bad_step, bad_body
 
 
-@njit(cache=True, nogil=True)
 def advance_free_range(method, ortho, dt, n_steps, stride, sample_last,
                        inv_mass, inv_inertia, force_world, torque_world,
                        position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                        out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                        out_angular_momentum, b0, b1):
-    """Advance bodies b0 .. b1-1 ``n_steps`` steps of ``dt``; write their samples.
+    """Advance bodies b0 .. b1-1 by integrator ``method`` (the compiled kernel of
+    :func:`range_kernel`; arguments and result documented there)."""
+    return range_kernel(method)(ortho, dt, n_steps, stride, sample_last, inv_mass, inv_inertia,
+                                force_world, torque_world, position, linear_momentum, quat_wxyz,
+                                rotation, angular_momentum, out_position, out_linear_momentum,
+                                out_quat_wxyz, out_rotation, out_angular_momentum, b0, b1)
 
-    Args:
-        method, ortho: rotation.METHOD_* / ORTHO_* codes.
-        inv_mass: (N,).  inv_inertia: (N, 3) diag(I_body^-1).
-        force_world: (N, 3) total constant force incl. gravity (N).  torque_world: (N, 3) (N m).
-        position, linear_momentum, quat_wxyz, rotation, angular_momentum: state, updated in place.
-        out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
-        b0, b1: the body range (0, N for all).
 
-    Returns:
-        (n_samples, bad_step, bad_body): samples written, and the first local step (1-based) at
-        which some body's state became non-finite (-1 if none) and that body. The caller keeps
-        only samples taken before a bad step.
-    """
-    n_samples = 0
-    bad_step = -1
-    bad_body = -1
-    # Sparse samples: one body at a time, position and momentum in registers for the block.
-    # Dense samples: tiles of bodies, so that a sample's writes share cache lines.
-    tile = 1 if stride >= SPARSE_STRIDE else BODY_TILE
-    for t0 in range(b0, b1, tile):
-        t1 = min(t0 + tile, b1)
-        j = 0
-        if tile == 1:
-            i = t0
-            x, y, z = position[i, 0], position[i, 1], position[i, 2]
-            px, py, pz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
-            for s in range(1, n_steps + 1):
-                ok, x, y, z, px, py, pz = step_body(
-                    method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
-                    quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz)
-                if not ok:
-                    if bad_step < 0 or s < bad_step:
-                        bad_step = s
-                        bad_body = i
-                    break
-                if s % stride == 0 or (sample_last and s == n_steps):
-                    position[i, 0], position[i, 1], position[i, 2] = x, y, z
-                    linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
-                    write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
-                                  angular_momentum, out_position, out_linear_momentum,
-                                  out_quat_wxyz, out_rotation, out_angular_momentum)
-                    j += 1
-            position[i, 0], position[i, 1], position[i, 2] = x, y, z
-            linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
-        else:
-            for s in range(1, n_steps + 1):
-                ok = True
-                for i in range(t0, t1):
+_KERNELS: dict = {}
+
+
+def range_kernel(method: int):
+    """The free-body kernel of one integrator, made (not yet compiled) on first use.
+
+    ``method`` is a constant of the kernel's closure, so numba prunes every other integrator's
+    branch of :func:`~rblog.engine.integrators.step_body` before typing: a run compiles only its
+    own integrator (the six together took ~31 s to compile, benchmarks/RESULTS.md). numba caches
+    each closure under its own key (the closure's value is part of the cache index key)."""
+    method = int(method)
+    if method not in METHOD_NAMES:
+        raise ValueError(f"unknown integrator code {method}")
+    k = _KERNELS.get(method)
+    if k is None:
+        k = _KERNELS[method] = _make_range_kernel(method)
+    return k
+
+
+def _make_range_kernel(method: int):
+    @njit(cache=True, nogil=True)
+    def advance_free_range(ortho, dt, n_steps, stride, sample_last,
+                           inv_mass, inv_inertia, force_world, torque_world,
+                           position, linear_momentum, quat_wxyz, rotation, angular_momentum,
+                           out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
+                           out_angular_momentum, b0, b1):
+        """Advance bodies b0 .. b1-1 ``n_steps`` steps of ``dt``; write their samples.
+
+        Args:
+            ortho: an ORTHO_* code (the integrator, ``method``, is the closure's constant).
+            inv_mass: (N,).  inv_inertia: (N, 3) diag(I_body^-1).
+            force_world: (N, 3) total constant force incl. gravity (N).  torque_world: (N, 3) (N m).
+            position, linear_momentum, quat_wxyz, rotation, angular_momentum: state, updated in place.
+            out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
+            b0, b1: the body range (0, N for all).
+
+        Returns:
+            (n_samples, bad_step, bad_body): samples written, and the first local step (1-based) at
+            which some body's state became non-finite (-1 if none) and that body. The caller keeps
+            only samples taken before a bad step.
+        """
+        n_samples = 0
+        bad_step = -1
+        bad_body = -1
+        # Sparse samples: one body at a time, position and momentum in registers for the block.
+        # Dense samples: tiles of bodies, so that a sample's writes share cache lines.
+        tile = 1 if stride >= SPARSE_STRIDE else BODY_TILE
+        for t0 in range(b0, b1, tile):
+            t1 = min(t0 + tile, b1)
+            j = 0
+            if tile == 1:
+                i = t0
+                x, y, z = position[i, 0], position[i, 1], position[i, 2]
+                px, py, pz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
+                for s in range(1, n_steps + 1):
                     ok, x, y, z, px, py, pz = step_body(
                         method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
-                        quat_wxyz, rotation, angular_momentum, position[i, 0], position[i, 1],
-                        position[i, 2], linear_momentum[i, 0], linear_momentum[i, 1],
-                        linear_momentum[i, 2])
-                    position[i, 0], position[i, 1], position[i, 2] = x, y, z
-                    linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
+                        quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz)
                     if not ok:
                         if bad_step < 0 or s < bad_step:
                             bad_step = s
                             bad_body = i
                         break
-                if not ok:
-                    break
-                if s % stride == 0 or (sample_last and s == n_steps):
-                    for i in range(t0, t1):
+                    if s % stride == 0 or (sample_last and s == n_steps):
+                        position[i, 0], position[i, 1], position[i, 2] = x, y, z
+                        linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
                         write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
                                       angular_momentum, out_position, out_linear_momentum,
                                       out_quat_wxyz, out_rotation, out_angular_momentum)
-                    j += 1
-        for i in range(t0, t1):
-            sync_quat(method, quat_wxyz, rotation, i)
-        if j > n_samples:
-            n_samples = j
-    return n_samples, bad_step, bad_body
+                        j += 1
+                position[i, 0], position[i, 1], position[i, 2] = x, y, z
+                linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
+            else:
+                for s in range(1, n_steps + 1):
+                    ok = True
+                    for i in range(t0, t1):
+                        ok, x, y, z, px, py, pz = step_body(
+                            method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
+                            quat_wxyz, rotation, angular_momentum, position[i, 0], position[i, 1],
+                            position[i, 2], linear_momentum[i, 0], linear_momentum[i, 1],
+                            linear_momentum[i, 2])
+                        position[i, 0], position[i, 1], position[i, 2] = x, y, z
+                        linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
+                        if not ok:
+                            if bad_step < 0 or s < bad_step:
+                                bad_step = s
+                                bad_body = i
+                            break
+                    if not ok:
+                        break
+                    if s % stride == 0 or (sample_last and s == n_steps):
+                        for i in range(t0, t1):
+                            write_sample(method, j, i, position, linear_momentum, quat_wxyz, rotation,
+                                          angular_momentum, out_position, out_linear_momentum,
+                                          out_quat_wxyz, out_rotation, out_angular_momentum)
+                        j += 1
+            if method == METHOD_SEED:  # the only integrator whose q is not current
+                for i in range(t0, t1):
+                    sync_quat(method, quat_wxyz, rotation, i)
+            if j > n_samples:
+                n_samples = j
+        return n_samples, bad_step, bad_body
+
+    return advance_free_range

@@ -277,12 +277,12 @@ def run(
             # is printed at most once per run. A signal here interrupts at once (Python code).
             notice = _once(notice)
             stop.raise_now = True
-            with CompileNotice(notice):
+            with CompileNotice(notice, _kernels_of(plan, integrator, bool(recorders))):
                 advance(dt, 0, stride, False, st.copy(), new_buffers(samples_in_block))
                 derive(model, info, np.array([0]), np.array([0.0]), st.position[None],
                        st.linear_momentum[None], st.quat_wxyz[None], st.rotation[None],
                        st.angular_momentum_world[None])
-            with CompileNotice(notice):  # a recorder may load its compiled encoders when it opens
+            with CompileNotice(notice, "the log encoders"):  # loaded when a recorder opens
                 for r in recorders:
                     r.open(model, info)
                     opened.append(r)
@@ -586,6 +586,14 @@ def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
             f"{MAX_ROTATION_PER_STEP_RAD:g} rad")
 
 
+def _kernels_of(plan: Plan, integrator: str, logging: bool) -> str:
+    """What the first compiled call of a run compiles (the compile notice names it): the contact
+    step or the free-body kernel of the run's integrator, and the derived channels."""
+    step = ("the contact step (broadphase, narrowphase, solver; " + integrator + " rotation)"
+            if plan.contacts else f"the free-body kernel ({integrator})")
+    return step + ", the derived channels" + (" of the logs" if logging else "")
+
+
 def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profile=None):
     """The block-advance function for the chosen stages (timed into ``profile`` if given)."""
     if plan.contacts:
@@ -639,8 +647,9 @@ class CompileNotice:
     (a long analysis with every kernel cached) prints nothing: the timer starts on numba's own
     ``numba:compile`` event, not on entry."""
 
-    def __init__(self, notice):
+    def __init__(self, notice, what: str = ""):
         self.notice = notice
+        self.what = what
         self.timer = None
         self._listener = None
         self._lock = threading.Lock()
@@ -650,7 +659,8 @@ class CompileNotice:
             if self.timer is None and self.notice is not None:
                 self.timer = threading.Timer(
                     COMPILE_NOTICE_AFTER_S, self.notice,
-                    ("compiling kernels (first run only; cached afterwards)...",))
+                    (f"compiling kernels{': ' + self.what if self.what else ''} (first run "
+                     "only; cached afterwards)...",))
                 self.timer.daemon = True
                 self.timer.start()
 

@@ -10,10 +10,26 @@ The layout of both formats is the contract in docs/log-format.md.
 * :func:`load` (``reader``) reads either format back into one Trajectory.
 """
 
-from rblog.record.mcap_writer import McapRecorder
-from rblog.record.recorder import Recorder, body_table, trajectory_from_arrays
-from rblog.record.reader import load
-from rblog.record.rerun_writer import RerunRecorder
+#: public name -> module, imported on first use: a writer's module pulls in its SDK (Rerun,
+#: pyarrow: ~0.3 s; mcap, protobuf), which a run that writes only the other format, or no log,
+#: and the submodules' own ``from rblog.record import _common`` should not pay for
+_API = {
+    "McapRecorder": "rblog.record.mcap_writer",
+    "Recorder": "rblog.record.recorder",
+    "RerunRecorder": "rblog.record.rerun_writer",
+    "body_table": "rblog.record.recorder",
+    "load": "rblog.record.reader",
+    "trajectory_from_arrays": "rblog.record.recorder",
+}
 
-__all__ = ["McapRecorder", "Recorder", "RerunRecorder", "body_table", "load",
-           "trajectory_from_arrays"]
+__all__ = sorted(_API)
+
+
+def __getattr__(name):
+    if name in _API:
+        import importlib
+
+        value = getattr(importlib.import_module(_API[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'rblog.record' has no attribute {name!r}")
