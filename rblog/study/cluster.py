@@ -256,18 +256,26 @@ class Executor:
         results: list = [None] * total
         tries = [1] * total
         # a chunk of several items runs as _run_chunk(fn, items); a single item as fn(item), so
-        # an error or a death is the item's own. Earlier spans (the large chunks) are scheduled
-        # first: Dask's own order of independent tasks is by key, i.e. random here.
+        # an error or a death is the item's own. Chunks carry priorities so that the large ones
+        # go first, whatever order Dask would give independent tasks of random keys.
         whole = [b - a > 1 for a, b in spans]
-        futures = [client.submit(_run_chunk, fn, items[a:b], a, pure=False,
-                                 priority=len(spans) - j) if whole[j]
-                   else client.submit(fn, items[a], pure=False, priority=len(spans) - j)
-                   for j, (a, b) in enumerate(spans)]
+        if any(whole):
+            futures = [client.submit(_run_chunk, fn, items[a:b], a, pure=False,
+                                     priority=len(spans) - j) if whole[j]
+                       else client.submit(fn, items[a], pure=False, priority=len(spans) - j)
+                       for j, (a, b) in enumerate(spans)]
+        else:  # one task per item: one submission
+            futures = client.map(fn, [items[a] for a, _ in spans], pure=False)
         # key -> (first item, last item + 1, whether the task is a chunk)
         span_of = {f.key: (a, b, w) for f, (a, b), w in zip(futures, spans, whole)}
         done = 0
         pending = as_completed(futures, loop=client.loop)
         for fut in pending:
+            if fut.status not in ("finished", "error", "cancelled"):
+                # it finished, but its result was lost with a worker that died before the result
+                # was fetched (another task killed it); the scheduler computes it again: wait
+                pending.add(fut)
+                continue
             a, b, is_chunk = span_of.pop(fut.key)
             if fut.status == "finished":
                 got = fut.result() if is_chunk else [fut.result()]

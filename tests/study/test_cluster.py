@@ -145,6 +145,49 @@ def test_a_task_that_kills_every_worker_is_reported_failed_after_one_retry(clust
     assert cluster.map(lambda x: x + 1, [1, 2, 3]) == [2, 3, 4]
 
 
+def _slow_after_a_death(marker_dir):
+    """Items run at once until "die" has killed its worker once; after that every item (the
+    recomputation of results lost with that worker included) takes 3 s."""
+
+    def task(item):
+        import time
+
+        marker = os.path.join(marker_dir, "died")
+        if item == "die" and not os.path.exists(marker):
+            open(marker, "w").close()
+            os._exit(1)
+        if os.path.exists(marker):
+            time.sleep(3.0)
+        return f"done {item}"
+
+    return task
+
+
+@pytest.mark.parametrize("chunked", [False, True])
+def test_results_lost_with_a_dying_worker_before_they_were_fetched_are_recomputed(cluster,
+                                                                                  tmp_path,
+                                                                                  chunked):
+    # The client stalls 1.5 s in its first progress call while the workers go on: the finished
+    # tasks' results wait on the workers until fetched, and "die" kills one of them, losing
+    # those results. Dask computes them again (3 s each from then on), so when the client
+    # wakes they are neither finished nor failed. They must come back as results (before the
+    # fix such a future was taken for a failed task: "error: NoneType: None").
+    import time
+
+    stalled = []
+
+    def on_done(done, total):
+        if not stalled:
+            stalled.append(True)
+            time.sleep(1.5)
+
+    items = [f"item{k}" for k in range(8)] + ["die"] + [f"item{k}" for k in range(8, 10)]
+    cluster.client.wait_for_workers(2, timeout=60)
+    out = cluster.map(_slow_after_a_death(str(tmp_path)), items, on_done=on_done, chunked=chunked)
+    assert out == [f"done {x}" for x in items]
+    assert (tmp_path / "died").exists()
+
+
 def test_an_item_that_raises_inside_a_chunk_is_reported_alone(cluster):
     def task(x):
         if x == 1:
