@@ -58,7 +58,7 @@ def _time(rec: rr.RecordingStream, step: int, t: float):
 
 def write_findings_rrd(path: str, traj: Trajectory, results, recording_id: str | None = None):
     """Write ``results`` (a list of rblog.analyze Result) on ``traj`` to ``path`` (.rrd)."""
-    from rblog.record.rerun_writer import _blueprint
+    from rblog.record.rerun_writer import _blueprint, position_bounds
 
     try:
         with open(path, "wb"):
@@ -69,8 +69,9 @@ def write_findings_rrd(path: str, traj: Trajectory, results, recording_id: str |
     rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
     rec.save(str(Path(path)))
     # sent as the active blueprint: opened after the run, it replaces the run's layout
-    rec.send_blueprint(_blueprint(traj.model, traj.info, findings=True), make_active=True,
-                       make_default=True)
+    rec.send_blueprint(_blueprint(traj.model, traj.info, findings=True,
+                                  bounds=position_bounds(traj.position)),
+                       make_active=True, make_default=True)
     model = traj.model
     t, step = np.asarray(traj.t, float), np.asarray(traj.step, np.int64)
     radius = np.linalg.norm(np.asarray(model.body_size, float), axis=1)  # box: half diagonal

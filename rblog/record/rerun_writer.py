@@ -107,6 +107,8 @@ class RerunRecorder:
             except OSError as e:
                 raise LogWriteError(self.path, e.strerror or str(e)) from None
         self._model = model
+        self._info = info
+        self._bounds = None  # (lo, hi) of every position written, for the closing blueprint
         self._n = model.n_bodies
         self._dt = float(info.dt) if info.dt else 1.0
         self.write_footer = _expected_chunks(model, info) <= RRD_FOOTER_MAX_CHUNKS
@@ -167,6 +169,10 @@ class RerunRecorder:
         if not self._streams:
             return
         try:
+            if self._bounds is not None:  # frame every body over the whole run
+                bp = _blueprint(self._model, self._info, bounds=self._bounds)
+                for rec in self._streams:
+                    rec.send_blueprint(bp, make_active=True, make_default=True)
             status = rr.AnyValues(complete=np.array([not truncated]),
                                   truncated=np.array([bool(truncated)]), reason=reason or "")
             for rec in self._streams:
@@ -288,6 +294,10 @@ class RerunRecorder:
 
         # body poses (float32; view only): one row of instances per sample and shape kind
         pos = a["position"].reshape(T, n, 3)
+        b = position_bounds(pos)
+        if b is not None:
+            self._bounds = b if self._bounds is None else (np.minimum(self._bounds[0], b[0]),
+                                                           np.maximum(self._bounds[1], b[1]))
         q = a["quat_wxyz"].reshape(T, n, 4)
         for ent, (members, _, d_c, d_q) in self._body_groups.items():
             k = len(members)
@@ -404,20 +414,34 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
 ERROR_PLOT_MAX = 1e-6
 
 
-def _blueprint(model: Model, info: RunInfo, findings: bool = False) -> rrb.Blueprint:
+def position_bounds(position) -> tuple[np.ndarray, np.ndarray] | None:
+    """(lo, hi) corners (m, world) of the finite positions in ``position`` (..., 3), or None."""
+    p = np.asarray(position, np.float64).reshape(-1, 3)
+    p = p[np.all(np.isfinite(p), axis=1)]
+    if not len(p):
+        return None
+    return p.min(axis=0), p.max(axis=0)
+
+
+def _blueprint(model: Model, info: RunInfo, findings: bool = False,
+               bounds: tuple[np.ndarray, np.ndarray] | None = None) -> rrb.Blueprint:
     """3D view of the world beside the energy, momentum and error plots (legends hidden: the
-    series are named on hover; the error plot clamped to ERROR_PLOT_MAX). The camera frames the
-    bodies' starting positions (from the resolved scene, when the log has one). ``findings``: a
-    findings panel (the ``findings`` text log of rblog.record.findings) below the 3D view."""
+    series are named on hover; the error plot clamped to ERROR_PLOT_MAX). The camera frames
+    ``bounds`` (the (lo, hi) corners of every position the bodies took over the run: a recorder
+    sends that blueprint when it closes, so a body that flies off stays in view), else the bodies'
+    starting positions (from the resolved scene, when the log has one). ``findings``: a findings
+    panel (the ``findings`` text log of rblog.record.findings) below the 3D view."""
     eye = None
     bodies = (info.scene_resolved or {}).get("body") or []
-    if bodies and all("position" in b for b in bodies):
-        pos = np.asarray([b["position"] for b in bodies], np.float64)
+    if bounds is None and bodies and all("position" in b for b in bodies):
+        bounds = position_bounds([b["position"] for b in bodies])
+    if bounds is not None:
         radius = float(np.max(model.body_bounding_radius))
-        lo, hi = pos.min(axis=0) - radius, pos.max(axis=0) + radius
+        lo, hi = bounds[0] - radius, bounds[1] + radius
         centre = 0.5 * (lo + hi)
         extent = max(float(np.max(hi - lo)), 1.0)
-        eye = rrb.EyeControls3D(position=centre + extent * np.array([1.2, -1.8, 1.0]),
+        # from above one corner, 1.4 extents away: the whole box in a 60-degree view
+        eye = rrb.EyeControls3D(position=centre + 0.6 * extent * np.array([1.2, -1.8, 1.0]),
                                 look_target=centre)
     no_legend = rrb.PlotLegend(visible=False)
     world = rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye)

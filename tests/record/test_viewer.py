@@ -88,7 +88,10 @@ def test_viewer_shows_a_sample_run_without_errors(viewer_ready, sample_rrd, tmp_
         stats = shot.image_stats(cap.view_pngs[v.view_id])
         assert stats["std"] > 5 and stats["non_background_fraction"] > 0.01, (v.name, stats)
         if v.view_class == "3D":
-            assert stats["colourful_fraction"] > 0.005, (v.name, stats)
+            # the camera frames every body over the run: mixed.toml's balls end spread over
+            # 9.7 m, so its 17 bodies of 0.1-0.2 m are small; measured 0.0015 of the view's
+            # pixels coloured (2026-11-26), a grey or empty view has none
+            assert stats["colourful_fraction"] > 0.0005, (v.name, stats)
         else:
             assert stats["colourful_fraction"] > 0.002, (v.name, stats)
 
