@@ -300,7 +300,8 @@ class MomentumAnalyzer(Analyzer):
         i_max = np.asarray(model.body_inertia_diag, float).max(axis=1)
         p_floor = ctx.mass * (np.linalg.norm(ctx.accel, axis=1) * ctx.dt_step
                               + T.MOMENTUM_SPEED_FLOOR_MPS)
-        cap = 1024
+        # one call: as many flights as runs of free intervals
+        cap = int(free[0].sum() + (free[1:] & ~free[:-1]).sum())
         while True:
             segs = np.empty((cap, 5), np.int64)  # body, k0, k1, worst k linear, worst k angular
             vals = np.empty((cap, 6))  # linear rel, scale, drift; angular rel, scale, drift
