@@ -622,34 +622,36 @@ def _flight_drift(free, t, p, l, speed, mass, force, tau, p_floor, l_floor, segs
             while k < kn and free[k, b]:
                 k += 1
             k1 = k
-            vmax = 0.0
-            lmax = 0.0
-            for j in range(k0, k1 + 1):
-                vmax = max(vmax, speed[j, b])
-                lmax = max(lmax, math.sqrt(l[j, b, 0] ** 2 + l[j, b, 1] ** 2 + l[j, b, 2] ** 2))
-            ps = mass[b] * vmax + p_floor[b]
-            ls = lmax + l_floor[b]
-            dp_max = 0.0
-            dl_max = 0.0
+            # one pass: the largest drifts and the largest |v|, |L| (squared until the end)
+            v2 = speed[k0, b] * speed[k0, b]
+            l2 = l[k0, b, 0] ** 2 + l[k0, b, 1] ** 2 + l[k0, b, 2] ** 2
+            dp2 = 0.0
+            dl2 = 0.0
             kp = k0
             kl = k0
             for j in range(k0 + 1, k1 + 1):
                 dt = t[j] - t[k0]
                 dp = 0.0
                 dl = 0.0
+                lj = 0.0
                 for d in range(3):
                     x = p[j, b, d] - p[k0, b, d] - force[b, d] * dt
                     y = l[j, b, d] - l[k0, b, d] - tau[b, d] * dt
                     dp += x * x
                     dl += y * y
-                dp = math.sqrt(dp)
-                dl = math.sqrt(dl)
-                if dp > dp_max:
-                    dp_max = dp
+                    lj += l[j, b, d] * l[j, b, d]
+                v2 = max(v2, speed[j, b] * speed[j, b])
+                l2 = max(l2, lj)
+                if dp > dp2:
+                    dp2 = dp
                     kp = j
-                if dl > dl_max:
-                    dl_max = dl
+                if dl > dl2:
+                    dl2 = dl
                     kl = j
+            ps = mass[b] * math.sqrt(v2) + p_floor[b]
+            ls = math.sqrt(l2) + l_floor[b]
+            dp_max = math.sqrt(dp2)
+            dl_max = math.sqrt(dl2)
             if cnt < cap:
                 segs[cnt, 0] = b
                 segs[cnt, 1] = k0
