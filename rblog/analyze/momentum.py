@@ -43,6 +43,11 @@ Checks:
   worst interval's.
 * Friction cone findings need an excess above an absolute floor (CONE_FLOOR_NS plus the round-off
   of a momentum difference): sub-micro-newton-second residues are not findings.
+
+Why this module is long: momentum is judged four ways that share the contact groups and events of
+the Context (closed collisions, lone bodies' free flights, the Coulomb cone at static contacts
+inferred and logged, and impact events), and each turns its measurements into findings with their
+scale in words; splitting them would pass the same half-dozen arrays between modules.
 """
 
 from __future__ import annotations
