@@ -148,50 +148,41 @@ class PenetrationAnalyzer(Analyzer):
                 sep_out[m], nn, pp = prox.iv_geometry(near["row"][rr], near["end"][rr])
                 normal[m] = sign * nn
                 point[m] = pp
-        # how many things each body touches at each sample (the ground, static boxes, bodies)
-        cnt = np.zeros((n, t_n), np.int64)
-        if prox.ground_sep is not None and len(ground):
-            cnt += (ground <= cd).T
-        np.add.at(cnt, (pa, pk), 1)
-        dynb = pb < n
-        np.add.at(cnt, (pb[dynb], pk[dynb]), 1)
-        return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point, n_contacts=cnt[i, k])
+        return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point)
 
-    def sliding(self, ctx: Context, sup: dict) -> tuple[np.ndarray, dict]:
+    def sliding(self, ctx: Context, sup: dict, cand: np.ndarray) -> tuple[np.ndarray, dict]:
         """(R,) True where the support contact is sliding, not resting (see the module
-        docstring), and counts of why.
+        docstring), judged at the rows ``cand`` (R,) only (the slow ones: only they can rest),
+        and counts of why.
 
         With logged contact rows (the step that ends at the sample, rows of the support pair):
         the pair's points are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``,
-        all but at most one (the point a slipping contact may pivot about), or the tangential load the support must hold (the body's other contacts'
-        impulses plus (m g + F) dt) is at or beyond it. Without contact rows in the log, a body
-        touching nothing but its support is judged by its inferred impulse over the interval
-        that ends at the sample (rblog.analyze.base.Context.impulse); a body with several
-        contacts cannot be, and counts as resting.
+        all but at most one (the point a slipping contact may pivot about), or the tangential
+        load the support must hold (the body's other contacts' impulses plus (m g + F) dt) is at
+        or beyond ``mu sum J_n``. Without contact rows in the log, a body touching nothing but its
+        support is judged by its inferred impulse over the interval that ends at the sample
+        (rblog.analyze.base.Context.impulse); a body with several contacts cannot be, and
+        counts as resting.
         """
         tr = ctx.traj
         model = tr.model
         n = tr.n_bodies
-        pk, pi_, pb, pnorm = sup["k"], sup["i"], sup["b"], sup["normal"]
-        r_n = len(pk)
+        r_n = len(sup["k"])
         frac = self.tol["slide_cone_frac"]
         floor = self.tol["slide_floor_ns"]
         out = np.zeros(r_n, bool)
         why = {"sliding_friction_at_limit": 0, "sliding_pushed": 0, "sliding_inferred": 0}
-        if not r_n:
+        rows_c = np.nonzero(cand)[0]
+        if not len(rows_c):
             return out, why
-        # friction coefficient of each support pair, by the log's combine rule
-        mu_i = np.asarray(model.body_friction, float)[pi_]
-        sid = np.where(pb == -1, -1, np.where(pb >= n, pb - n, -2))
-        _, s_mu = static_material(model, sid)
-        dynp = (pb >= 0) & (pb < n)
-        mu_b = np.where(dynp, np.asarray(model.body_friction, float)[np.clip(pb, 0, n - 1)], s_mu)
-        mu = combine_friction(mu_i, mu_b, tr.info.combine_friction)
+        pk, pi_, pb = sup["k"][rows_c], sup["i"][rows_c], sup["b"][rows_c]
+        pnorm = sup["normal"][rows_c]
         c = tr.contacts
+        e_n = n + len(model.static_box_position) + 1
         if len(c):
             # rows of logged steps that end at a sample, entered for body_a and (negated) body_b
             kr = np.searchsorted(tr.step, c.step)
-            ok = (kr < tr.n_samples)
+            ok = kr < tr.n_samples
             ok[ok] = tr.step[kr[ok]] == c.step[ok]
             ca, cb = c.body_a.astype(np.int64), c.body_b.astype(np.int64)
             ok &= (ca >= 0) & (ca < n)
@@ -201,14 +192,20 @@ class PenetrationAnalyzer(Analyzer):
                 fid = static_feature_of_points(model, c.point[st], c.normal[st])
                 part[st] = np.where(fid >= 0, n + fid, -1)
             dyn = ok & (cb >= 0) & (cb < n)
-            jn_row = c.normal_impulse
-            nv = jn_row[:, None] * c.normal
-            e_n = n + len(model.static_box_position) + 1
             key = np.concatenate([(kr[ok] * n + ca[ok]) * e_n + part[ok] + 1,
                                   (kr[dyn] * n + cb[dyn]) * e_n + ca[dyn] + 1])
+            uk, inv = np.unique(key, return_inverse=True)
+            skey = (pk * n + pi_) * e_n + pb + 1
+            pos = np.clip(np.searchsorted(uk, skey), 0, len(uk) - 1)
+            found = uk[pos] == skey
+            if not found.any():
+                return out, why
+            sel = np.nonzero(found)[0]
+            pos, pk, pi_, pb, rows_c = pos[sel], pk[sel], pi_[sel], pb[sel], rows_c[sel]
             sgn = np.concatenate([np.ones(int(ok.sum())), -np.ones(int(dyn.sum()))])
             rows = np.concatenate([np.nonzero(ok)[0], np.nonzero(dyn)[0]])
-            uk, inv = np.unique(key, return_inverse=True)
+            jn_row = c.normal_impulse
+            nv = jn_row[:, None] * c.normal
 
             def per_key(v):
                 return np.stack([np.bincount(inv, sgn * v[rows, d], len(uk)) for d in range(3)], 1)
@@ -222,9 +219,8 @@ class PenetrationAnalyzer(Analyzer):
             # twisting on its support has every point at the limit, each in its own direction,
             # with their vector sum well inside; an edge pivoting about one end has one of two)
             bf = np.asarray(model.body_friction, float)
-            mu_row = np.empty(len(c))
             _, smu = static_material(model, np.where(part >= n, part - n, -1))
-            mu_row[:] = np.where(cb == STATIC_BODY, smu, 0.0)
+            mu_row = np.where(cb == STATIC_BODY, smu, 0.0)
             mu_row[dyn] = combine_friction(bf[ca[dyn]], bf[cb[dyn]], tr.info.combine_friction)
             if st.any():
                 mu_row[st] = combine_friction(bf[ca[st]], smu[st], tr.info.combine_friction)
@@ -235,38 +231,60 @@ class PenetrationAnalyzer(Analyzer):
             n_at = np.bincount(inv, lim_row[rows], len(uk))
             n_in = np.bincount(inv, (carry & ~lim_row)[rows], len(uk))
             # every row's impulse on the body, per (sample, body)
-            ki = key // e_n
-            ub, inv_b = np.unique(ki, return_inverse=True)
+            ub, inv_b = np.unique(key // e_n, return_inverse=True)
             imp = c.friction_impulse + nv
-            tot_b = np.stack([np.bincount(inv_b, sgn * imp[rows, d], len(ub)) for d in range(3)], 1)
-            skey = (pk * n + pi_) * e_n + pb + 1
-            pos = np.clip(np.searchsorted(uk, skey), 0, len(uk) - 1)
-            found = uk[pos] == skey
+            tot_b = np.stack([np.bincount(inv_b, sgn * imp[rows, d], len(ub)) for d in range(3)],
+                             1)
             pos_b = np.clip(np.searchsorted(ub, pk * n + pi_), 0, len(ub) - 1)
-            jn_s = np.where(found, jn_k[pos], 0.0)
-            f_s = np.where(found[:, None], f_k[pos], 0.0)
-            nvec = np.where(found[:, None], n_k[pos], 0.0)
+            jn_s = jn_k[pos]
+            nvec = n_k[pos]
             # the support's mean normal (rows of an edge or a corner differ a little)
             nl = np.linalg.norm(nvec, axis=1)
-            nrm = np.where((nl > 0)[:, None], nvec / np.where(nl > 0, nl, 1.0)[:, None], pnorm)
+            nrm = np.where((nl > 0)[:, None], nvec / np.where(nl > 0, nl, 1.0)[:, None],
+                           pnorm[sel])
+            # friction coefficient of each support pair, by the log's combine rule
+            sid = np.where(pb == -1, -1, np.where(pb >= n, pb - n, -2))
+            _, s_mu = static_material(model, sid)
+            dynp = (pb >= 0) & (pb < n)
+            mu = combine_friction(bf[pi_], np.where(dynp, bf[np.clip(pb, 0, n - 1)], s_mu),
+                                  tr.info.combine_friction)
             limit = mu * jn_s
-            held = found & (jn_s > floor)
-            at_limit = held & (np.where(found, n_at[pos], 0) >= 1) & (np.where(found, n_in[pos], 0) <= 1)
-            other = np.where(found[:, None], tot_b[pos_b] - f_s - nvec, 0.0)
+            held = jn_s > floor
+            at_limit = held & (n_at[pos] >= 1) & (n_in[pos] <= 1)
+            other = tot_b[pos_b] - f_k[pos] - nvec
             load = other + (ctx.mass[pi_] * ctx.dt_step)[:, None] * ctx.accel[pi_]
             load_t = load - np.einsum("ij,ij->i", load, nrm)[:, None] * nrm
             pushed = held & ~at_limit & (np.linalg.norm(load_t, axis=1) >= (1.0 - frac) * limit)
             why["sliding_friction_at_limit"] = int(at_limit.sum())
             why["sliding_pushed"] = int(pushed.sum())
-            out = at_limit | pushed
+            out[rows_c] = at_limit | pushed
         elif tr.n_samples > 1:
-            lone = sup["n_contacts"] == 1
+            # how many things the body touches at the sample: the ground, static boxes, bodies
+            cd = self.tol["contact_distance_m"]
+            prox = ctx.proximity(cd)
+            near = prox.near_pairs(cd)
+            keys = np.concatenate([near["k"] * n + near["a"],
+                                   (near["k"] * n + near["b"])[near["b"] < n]])
+            uk, cnt = np.unique(keys, return_counts=True)
+            want = pk * n + pi_
+            pos = np.clip(np.searchsorted(uk, want), 0, max(len(uk) - 1, 0))
+            n_cont = np.where(uk[pos] == want, cnt[pos], 0) if len(uk) else np.zeros(len(pk), int)
+            if prox.ground_sep is not None:
+                n_cont = n_cont + (prox.ground_sep[pk, pi_] <= cd)
+            lone = n_cont == 1
             kk = np.maximum(pk, 1) - 1  # the interval that ends at the sample (the first: starts)
             jv = ctx.impulse(kk, pi_)
             jn = np.einsum("ij,ij->i", jv, pnorm)
             jt = np.linalg.norm(jv - jn[:, None] * pnorm, axis=1)
-            out = lone & (jn > floor) & (jt >= (1.0 - frac) * mu * jn)
-            why["sliding_inferred"] = int(out.sum())
+            sid = np.where(pb == -1, -1, np.where(pb >= n, pb - n, -2))
+            _, s_mu = static_material(model, sid)
+            bf = np.asarray(model.body_friction, float)
+            dynp = (pb >= 0) & (pb < n)
+            mu = combine_friction(bf[pi_], np.where(dynp, bf[np.clip(pb, 0, n - 1)], s_mu),
+                                  tr.info.combine_friction)
+            sl = lone & (jn > floor) & (jt >= (1.0 - frac) * mu * jn)
+            out[rows_c] = sl
+            why["sliding_inferred"] = int(sl.sum())
         return out, why
 
     def analyze(self, ctx: Context) -> Result:
@@ -343,7 +361,7 @@ class PenetrationAnalyzer(Analyzer):
         # sticks, is dragged, and sticks again stays on its partner), so sliding samples between
         # creeping ones cannot hide the creep: slip with friction inside the cone is what
         # static friction forbids.
-        slides, why = self.sliding(ctx, sup)
+        slides, why = self.sliding(ctx, sup, rest)
         stats.update({k: float(v) for k, v in why.items()})
 
         # ---- resting intervals: runs of consecutive resting samples of one body (row space)
