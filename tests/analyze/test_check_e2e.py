@@ -22,13 +22,13 @@ SLOW_SAMPLES = {"pile"}
 #: known engine faults that `rblog check` rightly flags (strict: the test fails once fixed)
 KNOWN_FAULTS: dict[str, str] = {
     "pile": "creep (tol 0.1 mm) while the pile settles, seed 1, at the engine's default "
-            "velocity solve (tol 1e-4 m/s, cap 30 sweeps): 5 creep findings (box357 and box358 "
-            "on each other 1.25 and 1.18 mm, box355 0.17 mm, box377 and box459 0.11 mm), no jitter, "
-            "once sliding contacts (friction at the Coulomb limit at all points of the contact but "
-            "one, or pushed that hard) no longer count as resting (before: 73 creep, 1.91 mm, 4 "
-            "jitter). What remains slips with the friction inside the cone: the velocity solve's "
-            "residual; the same scene at tol 1e-5 / cap 100 is clean (creep 0.065 mm), at 1e-6 / "
-            "cap 300 has 2 (0.21 mm) (benchmarks/RESULTS.md, issue 16)",
+            "velocity solve (tol 1e-4 m/s, cap 30 sweeps), with exact flight and the derived "
+            "restitution threshold: 16 creep findings, 0.10-0.495 mm (box40 on box93 worst), no "
+            "jitter, sliding contacts (friction at the Coulomb limit at all points but one) not "
+            "counted. Traced for box40/box93 with every step logged: box93 twists at 0.015-0.019 "
+            "rad/s under box40 (0.031 rad in 0.48 s) across a two-point contact whose friction "
+            "stays at 0.76-0.89 of mu J_n: slip with the friction inside the cone, the velocity "
+            "solve's unconverged friction, a real engine fault (benchmarks/RESULTS.md, issue 16)",
 }
 SAMPLES = [pytest.param(p.stem, marks=[pytest.mark.slow] + (
     [pytest.mark.xfail(strict=True, reason=KNOWN_FAULTS[p.stem])] if p.stem in KNOWN_FAULTS else []))
