@@ -136,10 +136,12 @@ ORTHO_ALLOWED = {k: (v.ortho_allowed, v.ortho_default) for k, v in REGISTRY.item
 
 #: small helpers (scalars in, tuples out): inlined by numba into the drift that calls them
 jit = njit(inline="always", cache=True)
-#: an integrator's drift: compiled once as a function of its own and called from the kernels.
-#: Inlining the drifts too (numba's IR inliner, recursively, at every call site) made compiling
-#: the free kernel cost ~31 s for the six integrators; as functions they cost ~1 s each.
-drift_jit = njit(cache=True)
+#: an integrator's drift: compiled once as a function of its own, which LLVM then inlines into
+#: each kernel (``forceinline``: the LLVM ``alwaysinline`` attribute). numba's own IR inliner,
+#: which ran recursively at every call site, made compiling the free kernel cost ~31 s for the
+#: six integrators (~19 s for rk4 alone); this way ~1 s each, and the kernels run as fast
+#: (benchmarks/RESULTS.md, issue 18 first run).
+drift_jit = njit(cache=True, forceinline=True)
 
 
 # Exact flows of H_k = Lb_k^2 / (2 I_k) over time s, given s/I_k: rotate the body about its own

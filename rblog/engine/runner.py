@@ -589,7 +589,7 @@ def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
 def _kernels_of(plan: Plan, integrator: str, logging: bool) -> str:
     """What the first compiled call of a run compiles (the compile notice names it): the contact
     step or the free-body kernel of the run's integrator, and the derived channels."""
-    step = ("the contact step (broadphase, narrowphase, solver; " + integrator + " rotation)"
+    step = ("the contact step (broadphase, narrowphase, solver, every integrator's rotation)"
             if plan.contacts else f"the free-body kernel ({integrator})")
     return step + ", the derived channels" + (" of the logs" if logging else "")
 

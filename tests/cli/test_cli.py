@@ -72,14 +72,14 @@ def one_line_error(stderr: str) -> str:
 @pytest.fixture(scope="module")
 def warm_kernels():
     """Compile (or load) the kernels once before CLI runs, so that no one-time "compiling"
-    notice lands on stderr in the middle of a test. Each integrator has its own free-body
-    kernel (compiled only when a scene uses it), so every one is loaded here."""
-    from rblog.engine.scene import INTEGRATORS
+    notice lands on stderr in the middle of a test. Every integrator: each has its own free
+    kernel (rblog.engine.free.range_kernel)."""
+    from rblog.engine.integrators import REGISTRY
 
-    for integrator in INTEGRATORS:
-        simulate(parse_scene(GOOD + "\n[[body]]\nname = \"b\"\nshape = \"sphere\"\n"
-                             "radius = 0.1\nmass = 1.0\nposition = [5.0, 0.0, 0.0]\n"),
-                 duration=0.01, integrator=integrator)
+    scene = parse_scene(GOOD + "\n[[body]]\nname = \"b\"\nshape = \"sphere\"\nradius = 0.1\n"
+                        "mass = 1.0\nposition = [5.0, 0.0, 0.0]\n")
+    for integrator in REGISTRY:
+        simulate(scene, duration=0.01, integrator=integrator)
 
 
 @pytest.fixture
