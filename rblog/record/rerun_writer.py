@@ -4,6 +4,11 @@ Everything goes through a dedicated ``rr.RecordingStream`` (never the global one
 ``send_columns`` call per entity per block: the float64 canonical channels under ``rblog/...`` and
 the float32 view entities under ``world/...`` and ``plots/...``. Arrow arrays are built straight
 from the block's numpy buffers (no per-sample Python).
+
+Why this module is long: it is the one place that knows Rerun's side of the contract: the
+streams and sinks (file, live viewer, spawned viewer) and their failure modes, the column
+encoding of every entity, and the default viewer layout (the blueprint, which the findings
+overlay of rblog.record.findings reuses so that the two open as one).
 """
 
 from __future__ import annotations
