@@ -140,14 +140,9 @@ class _Tee:
             r.write(block)
 
     def close(self, truncated=False, reason=None):
-        errors = []
-        for r in self.recorders:
-            try:
-                r.close(truncated=truncated, reason=reason)
-            except Exception as e:  # close every log even if one fails
-                errors.append(e)
-        if errors:
-            raise errors[0]
+        from rblog.engine.runner import _close_all
+
+        _close_all(self.recorders, truncated, reason)  # every log closed even if one fails
 
 
 def reference_problem(scene):

@@ -30,7 +30,7 @@ from rblog.engine.contact.narrowphase import COLLIDE_TABLE
 
 
 @njit(cache=True)
-def _find(parent, i):
+def find_root(parent, i):
     while parent[i] != i:
         parent[i] = parent[parent[i]]
         i = parent[i]
@@ -86,14 +86,14 @@ def update_sleep(n_dyn, mi, pf, n_man, awake, sleep_timer, island_of, island_cou
         if b < n_dyn:
             island_supported[b] = 1
         if a < n_dyn and b < n_dyn:
-            ra = _find(parent, a)
-            rb = _find(parent, b)
+            ra = find_root(parent, a)
+            rb = find_root(parent, b)
             if ra != rb:
                 parent[max(ra, rb)] = min(ra, rb)
     for i in range(n_dyn):
         if not awake[i]:
             continue
-        r = _find(parent, i)
+        r = find_root(parent, i)
         island_min_time[r] = min(island_min_time[r], sleep_timer[i])
         if island_supported[i]:
             island_supported[r] = 1
@@ -102,7 +102,7 @@ def update_sleep(n_dyn, mi, pf, n_man, awake, sleep_timer, island_of, island_cou
     for i in range(n_dyn):
         if not awake[i]:
             continue
-        r = _find(parent, i)
+        r = find_root(parent, i)
         if island_min_time[r] >= sleep_time and island_supported[r]:
             awake[i] = 0
             island_of[i] = base + r

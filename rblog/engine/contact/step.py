@@ -72,7 +72,7 @@ from rblog.engine.integrators import drift_rotation, sync_quat, turn_within_boun
 from rblog.contract.trajectory import CONTACT_IMPACT, CONTACT_RESTING
 from rblog.engine.contact.broadphase import body_aabbs, ground_pairs, sweep_and_prune
 from rblog.engine.contact.collide import collide_pairs, grow_manifolds, grow_points, sort_manifolds
-from rblog.engine.contact.island import update_sleep, wake_pushed, wake_touched
+from rblog.engine.contact.island import find_root, update_sleep, wake_pushed, wake_touched
 from rblog.engine.contact.manifold import (
     LOG_A, LOG_B, LOG_F, LOG_F_COLS, LOG_I_COLS, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
     MF_N, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_IMPACT, PF_L1,
@@ -275,14 +275,6 @@ def prepare(bd, cfg, x, sc, mi, mf, pf, n_man, h):
     prepare_contacts(mi, mf, pf, n_man, sc.bm, sc.bI, sc.bv, sc.bw, h)
 
 
-@njit(cache=True)
-def _root(parent, i):
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
 @njit(inline="always")
 def mark_pushed(mi, pf, n_man, n, sc):
     """Sort the awake bodies by how they move this step (``sc.pushed``, read by stage 9):
@@ -315,7 +307,7 @@ def mark_pushed(mi, pf, n_man, n, sc):
         a, b = mi[m, MI_A], mi[m, MI_B]
         pushed[a] = 1
         pushed[b] = 1
-        ra, rb = _root(root, a), _root(root, b)
+        ra, rb = find_root(root, a), find_root(root, b)
         if ra != rb:  # the static dummy (row n) joins the island it pushes: no self-root
             if ra == n:
                 root[rb] = ra
@@ -323,7 +315,7 @@ def mark_pushed(mi, pf, n_man, n, sc):
                 root[ra] = rb
     # an island that holds the static dummy touches static geometry
     for i in range(n):
-        if pushed[i] and _root(root, i) == _root(root, n):
+        if pushed[i] and find_root(root, i) == find_root(root, n):
             pushed[i] = 2
 
 
