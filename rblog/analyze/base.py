@@ -28,6 +28,7 @@ compiled helpers behind them.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -449,9 +450,41 @@ _STATE_CHANNELS = ("position", "rotation", "quat_wxyz", "velocity", "linear_mome
                    "angular_momentum", "angular_velocity")
 
 
+#: float64 exponent bits: all set in an inf or a NaN, never in a finite number
+_EXP_BITS = np.uint64(0x7FF0000000000000)
+
+
+@njit(cache=True, nogil=True)
+def _bits_finite(u, exp_bits):
+    """True when no float64 (given as its uint64 bits, flat) is an inf or a NaN: an integer
+    count per block of 4,096 (vectorised; stops at the first block with one)."""
+    n = u.shape[0]
+    i = 0
+    while i < n:
+        j = min(n, i + 4096)
+        c = 0
+        for m in range(i, j):
+            c += (u[m] & exp_bits) == exp_bits
+        if c:
+            return False
+        i = j
+    return True
+
+
+def all_finite(arr) -> bool:
+    """``np.isfinite(arr).all()``, in one pass over the memory without temporaries for a
+    contiguous float64 array (the common case: every channel of a log)."""
+    a = np.asarray(arr)
+    if a.dtype == np.float64 and a.flags.c_contiguous:
+        return bool(_bits_finite(a.reshape(-1).view(np.uint64), _EXP_BITS))
+    return bool(np.isfinite(a).all())
+
+
 def _first_nonfinite(traj: Trajectory):
     """(first sample index with a NaN or inf in a state channel, bodies), or (None, [])."""
     t_n, n = traj.n_samples, traj.n_bodies
+    if all_finite(traj.t) and all(all_finite(getattr(traj, name)) for name in _STATE_CHANNELS):
+        return None, []
     bad = np.zeros((t_n, n), bool)
     for name in _STATE_CHANNELS:
         arr = np.asarray(getattr(traj, name))
@@ -474,6 +507,10 @@ class Context:
     def __init__(self, traj: Trajectory):
         self.model = traj.model
         self._cache: dict[Any, Any] = {}
+        # analyzers may run in threads (rblog.analyze.check): one lock per key, so that a value
+        # is computed once, by the first thread that asks, while the others wait for it
+        self._locks: dict[Any, threading.Lock] = {}
+        self._locks_lock = threading.Lock()
         #: (sample index, bodies) of the first sample with a non-finite state, or None. The
         #: analyzers then see the samples before it only (drift reports it as a finding).
         self.nonfinite: tuple[int, list[int]] | None = None
@@ -485,8 +522,17 @@ class Context:
             self.traj = traj.slice(slice(0, k0))
 
     def cached(self, key, fn):
-        if key not in self._cache:
-            self._cache[key] = fn()
+        """``fn()``, computed once per key (thread-safe: the values are pure functions of the
+        trajectory, so which thread computes one does not change it)."""
+        try:
+            return self._cache[key]
+        except KeyError:
+            pass
+        with self._locks_lock:
+            lock = self._locks.setdefault(key, threading.Lock())
+        with lock:
+            if key not in self._cache:
+                self._cache[key] = fn()
         return self._cache[key]
 
     # --- basic kinematics ---------------------------------------------------------------------

@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from rblog.analyze import tolerances as T
-from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst
+from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, all_finite
 from rblog.contract.orientation import quat_wxyz_to_matrix
 from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Trajectory
 
@@ -245,6 +245,8 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
     # finite values
     finite = np.ones(n_t, bool)
     for name in BODY_CHANNELS:
+        if all_finite(getattr(traj, name)):
+            continue
         a = np.asarray(getattr(traj, name), float).reshape(n_t, n, -1)
         bad = ~np.isfinite(a).all(axis=-1)
         if bad.any():
