@@ -282,8 +282,8 @@ def _events(ctx, cd, dt_factor) -> Events:
         kind, x, y = src[h, 0], src[h, 1], src[h, 2]
         g = kind == 0
         if g.any():
-            peak_pt[evs_hit[g]] = geometry.plane_witness(model, y[g], tr.position[x[g], y[g]],
-                                                         tr.rotation[x[g], y[g]])
+            peak_pt[evs_hit[g]] = geometry.plane_witness_at(model, x[g], y[g], y[g],
+                                                            tr.position, tr.rotation)
         for end in (0, 1):
             r = ~g & (y == end)
             if r.any():
