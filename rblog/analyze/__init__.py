@@ -67,9 +67,10 @@ def default_tolerances() -> dict[str, float]:
     return {f"{n}.{k}": v for n, cls in ANALYZERS.items() for k, v in cls.defaults.items()}
 
 
-#: the analyzers' relative cost on a typical log (bench_check.py, one thread): the costliest start
-#: first when they run in threads, so that the last to finish is a short one
-_COST_ORDER = ("momentum", "penetration", "consistency", "energy", "drift", "tunneling")
+#: the order analyzers start in when they run in threads: the costliest first, so that the last to
+#: finish is a short one (bench_check.py), but consistency (which needs nothing shared) before
+#: penetration, which would wait for the proximity table momentum is computing
+_COST_ORDER = ("momentum", "consistency", "penetration", "energy", "drift", "tunneling")
 
 _POOLS: dict[int, ThreadPoolExecutor] = {}
 _POOLS_LOCK = threading.Lock()

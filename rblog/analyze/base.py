@@ -446,6 +446,15 @@ def _kinematics(t, position, velocity, momentum, ang_momentum, omega, mass, forc
                            + 0.5 * amag * dt * dt)
 
 
+@njit(cache=True, nogil=True)
+def _impulse_kernel(p, dts, mass, accel, k, i, out):
+    """out[r] = P(k+1) - P(k) - dt (m a) for body i[r] over interval k[r] (Context.impulse)."""
+    for r in range(k.shape[0]):
+        kr, b = k[r], i[r]
+        for d in range(3):
+            out[r, d] = (p[kr + 1, b, d] - p[kr, b, d]) - dts[kr] * (mass[b] * accel[b, d])
+
+
 _STATE_CHANNELS = ("position", "rotation", "quat_wxyz", "velocity", "linear_momentum",
                    "angular_momentum", "angular_velocity")
 
@@ -517,6 +526,8 @@ class Context:
         self.full_traj = traj
         self.traj = traj
         k0, bodies = _first_nonfinite(traj)
+        #: state channels known to hold no NaN or inf (the consistency analyzer skips them)
+        self.finite_channels = _STATE_CHANNELS if k0 is None else ()
         if k0 is not None:
             self.nonfinite = (k0, bodies)
             self.traj = traj.slice(slice(0, k0))
@@ -605,9 +616,11 @@ class Context:
         """(P, 3) contact impulse of bodies i over intervals k (N s):
         ``J = P(k+1) - P(k) - (m g + F) dt``. Constant forces change momentum exactly in every
         integrator, so a free body has J = 0 to round-off."""
-        p = self.traj.linear_momentum
-        force = self.mass[i, None] * self.accel[i]
-        return p[k + 1, i] - p[k, i] - self.dts[k, None] * force
+        out = np.empty((len(k), 3))
+        _impulse_kernel(np.ascontiguousarray(self.traj.linear_momentum, dtype=np.float64),
+                        self.dts, self.mass, self.accel, np.asarray(k, np.int64),
+                        np.asarray(i, np.int64), out)
+        return out
 
     def jumps(self) -> np.ndarray:
         """(T-1, N) True where the momentum (or angular momentum) changed beyond what gravity and
