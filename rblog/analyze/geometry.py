@@ -572,6 +572,31 @@ def _sweep_kernel(position, grow, s_lo, s_hi, group, axis, out_k, out_a, out_b):
     return cnt
 
 
+@njit(cache=True, nogil=True)
+def _spread(x):
+    """(3,) max - min of the rows of x (P, 3) (np.ptp(x, axis=0) in one pass; NaN in a column
+    makes its spread NaN, as there)."""
+    lo = x[0].copy()
+    hi = x[0].copy()
+    for p in range(1, x.shape[0]):
+        for d in range(3):
+            v = x[p, d]
+            if v < lo[d]:
+                lo[d] = v
+            if v > hi[d]:
+                hi[d] = v
+            if v != v:
+                lo[d] = v
+                hi[d] = v
+    out = hi - lo
+    for d in range(3):
+        for p in range(x.shape[0]):
+            if x[p, d] != x[p, d]:
+                out[d] = np.nan
+                break
+    return out
+
+
 def sweep_pairs(model: Model, position: np.ndarray, grow: np.ndarray, pad: float = 0.0):
     """Candidate pairs (k, a, b) per interval (see _sweep_kernel); b >= N is static box b - N.
 
@@ -580,7 +605,8 @@ def sweep_pairs(model: Model, position: np.ndarray, grow: np.ndarray, pad: float
     sx, sr, sh = static_boxes(model)
     ext = (np.abs(sr) * sh[:, None, :]).sum(-1) if len(sx) else np.zeros((0, 3))
     s_lo, s_hi = sx - ext - pad, sx + ext + pad
-    spread = np.ptp(position.reshape(-1, 3), axis=0) if position.size else np.zeros(3)
+    spread = _spread(np.ascontiguousarray(position, dtype=np.float64).reshape(-1, 3)) \
+        if position.size else np.zeros(3)
     axis = int(np.argmax(spread))
     cap = max(1024, 4 * n * max(t_n - 1, 1))
     while True:

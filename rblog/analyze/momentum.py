@@ -156,6 +156,9 @@ class MomentumAnalyzer(Analyzer):
             return self.skip("needs at least two samples")
         cd = self.tol["contact_distance_m"]
         grp = ctx.groups(cd)
+        # the impact events first: the energy analyzer shares them, and when the analyzers run
+        # in threads it would otherwise wait for them until the end of this analysis
+        impact_events(ctx, cd, self.tol["dt_factor"])
         self._ctx, self._grp, self._tr, self._model = ctx, grp, tr, tr.model
         self._worst = Worst("1", self.tol["linear_rel"])
         self._findings: list[Finding] = []
