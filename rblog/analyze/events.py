@@ -39,6 +39,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from rblog.contract.model import SHAPE_SPHERE
 from rblog.analyze import geometry
@@ -96,6 +97,32 @@ class Events:
         return self.groups.members(int(self.first[j]))
 
 
+@njit(cache=True, nogil=True)
+def _link_groups(gk, h, size, sid, mem0, n, eid, head_of, k1):
+    """Chain contact groups (ordered by interval) into events: a group continues the event of
+    the group of the previous interval with the same key (member-set hash h, size, static
+    feature sid, smallest member mem0), else starts one. A body is the smallest member of at
+    most one group per interval, so that group is the last one seen with its mem0. Writes
+    eid (C,) the event of each group, head_of (E,) its first group and k1 (E,) its last
+    interval, events numbered as they start; returns E."""
+    last = np.full(n, -1, np.int64)
+    n_ev = 0
+    for g in range(gk.shape[0]):
+        m = mem0[g]
+        p = last[m]
+        if (p >= 0 and gk[p] == gk[g] - 1 and h[p] == h[g] and size[p] == size[g]
+                and sid[p] == sid[g]):
+            e = eid[p]
+        else:
+            e = n_ev
+            head_of[e] = g
+            n_ev += 1
+        eid[g] = e
+        k1[e] = gk[g]
+        last[m] = g
+    return n_ev
+
+
 def impact_events(ctx, cd: float, dt_factor: float) -> Events:
     """The events of ``ctx`` (see the module docstring); cached per (cd, dt_factor)."""
     return ctx.cached(("events", cd, dt_factor), lambda: _events(ctx, cd, dt_factor))
@@ -114,30 +141,22 @@ def _events(ctx, cd, dt_factor) -> Events:
     # a key per group: its member set and static feature
     if c:
         sizes = grp.size
-        h = np.zeros(c, np.int64)
         mix = grp.mem_i.astype(np.int64) * 1_000_003 + 7
         h = np.add.reduceat(mix * mix % 2_147_483_647, grp.starts)
-        key = np.stack([h, sizes, grp.static_id, grp.mem_i[grp.starts]], axis=1)
-        same = np.zeros(c, bool)
-        # groups are ordered by interval, then by smallest member: link each to a group of the
-        # previous interval with the same key
-        order = np.lexsort((grp.k, key[:, 3], key[:, 2], key[:, 1], key[:, 0]))
-        ks = grp.k[order]
-        eq = (key[order][1:] == key[order][:-1]).all(axis=1) & (ks[1:] == ks[:-1] + 1)
-        same[order[1:]] = eq
-        head = ~same
-        # event id of each group: chains along `order`
-        chain = np.cumsum(np.concatenate([[True], ~eq]))  # along order
+        sid_g = np.asarray(grp.static_id, np.int64)
+        mem0 = np.asarray(grp.mem_i[grp.starts], np.int64)
+        # groups are ordered by interval, then by smallest member: link each to the group of
+        # the previous interval with the same key (one compiled pass)
         eid_of = np.empty(c, np.int64)
-        eid_of[order] = chain - 1
-        n_ev = int(chain[-1])
-        k0 = np.full(n_ev, np.iinfo(np.int64).max)
-        k1 = np.full(n_ev, -1)
-        np.minimum.at(k0, eid_of, grp.k)
-        np.maximum.at(k1, eid_of, grp.k)
-        first = np.full(n_ev, -1)
-        first[eid_of[head]] = np.nonzero(head)[0]
-        srt = np.argsort(k0, kind="stable")
+        head_of = np.empty(c, np.int64)
+        k1 = np.empty(c, np.int64)
+        n_ev = _link_groups(np.asarray(grp.k, np.int64), h, np.asarray(sizes, np.int64), sid_g,
+                            mem0, n, eid_of, head_of, k1)
+        first, k1 = head_of[:n_ev], k1[:n_ev]
+        k0 = grp.k[first]
+        # events in the order of their first interval, then of their key (hash, size, static
+        # feature, smallest member: unique within an interval)
+        srt = np.lexsort((mem0[first], sid_g[first], sizes[first], h[first], k0))
         k0, k1, first = k0[srt], k1[srt], first[srt]
         rank = np.empty(n_ev, np.int64)
         rank[srt] = np.arange(n_ev)
