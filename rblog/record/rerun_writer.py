@@ -428,6 +428,20 @@ def position_bounds(position) -> tuple[np.ndarray, np.ndarray] | None:
     return p.min(axis=0), p.max(axis=0)
 
 
+def _start_bounds(resolved: dict) -> tuple[np.ndarray, np.ndarray] | None:
+    """(lo, hi) corners of the starting positions in a resolved scene: its [[body]] tables'
+    positions and its generators' ``position_bounds``; None if a body has no position."""
+    bodies = resolved.get("body") or []
+    gens = resolved.get("generator") or []
+    if not all(isinstance(b, dict) and "position" in b for b in bodies) or \
+            not all(isinstance(g, dict) and "position_bounds" in g for g in gens):
+        return None
+    points = [b["position"] for b in bodies]
+    for g in gens:
+        points.extend(g["position_bounds"])
+    return position_bounds(points) if points else None
+
+
 def _blueprint(model: Model, info: RunInfo, findings: bool = False,
                bounds: tuple[np.ndarray, np.ndarray] | None = None) -> rrb.Blueprint:
     """3D view of the world beside the energy, momentum and error plots (legends hidden: the
@@ -437,9 +451,8 @@ def _blueprint(model: Model, info: RunInfo, findings: bool = False,
     starting positions (from the resolved scene, when the log has one). ``findings``: a findings
     panel (the ``findings`` text log of rblog.record.findings) below the 3D view."""
     eye = None
-    bodies = (info.scene_resolved or {}).get("body") or []
-    if bounds is None and bodies and all("position" in b for b in bodies):
-        bounds = position_bounds([b["position"] for b in bodies])
+    if bounds is None:
+        bounds = _start_bounds(info.scene_resolved or {})
     if bounds is not None:
         radius = float(np.max(model.body_bounding_radius))
         lo, hi = bounds[0] - radius, bounds[1] + radius
