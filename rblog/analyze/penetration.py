@@ -35,6 +35,10 @@ centre).
 * Flags: resting depth beyond min(DEPTH_M, DEPTH_FRAC x the body's inner radius), any depth (an
   impact too) beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x inner radius), jitter beyond
   JITTER_MPS, creep beyond CREEP_M.
+
+Why this module is long: depth, jitter, creep and the sliding test are judged over the same
+resting intervals, from the same per-sample supports, witness points and contact velocities;
+splitting them would pass those arrays and the interval bookkeeping between modules.
 """
 
 from __future__ import annotations
