@@ -4,10 +4,19 @@ Topics: ``/rblog/run`` (static model and metadata), ``/rblog/state`` (full float
 message per sample), ``/rblog/contacts``, ``/rblog/metrics`` (plot-friendly totals), ``/tf``
 (``foxglove.FrameTransforms``), ``/scene`` (``foxglove.SceneUpdate``) and ``/rblog/status``.
 
-The per-sample messages are encoded from numpy buffers a whole block at a time (see
-``schema.encode_rows`` and ``_tf_rows``); Python only loops over samples to hand the bytes to the
-MCAP writer. Chunks are finalized every ``CHUNK_BYTES`` of messages or ``FLUSH_EVERY_S`` of wall
-time, whichever comes first, so memory stays bounded and a killed process loses at most that much.
+The per-sample messages (State, Metrics, /tf) are encoded a whole block at a time, as complete
+MCAP Message records, by one compiled call (:class:`_SampleRecords`), and added to the mcap
+package's ``Writer`` a chunk at a time through :class:`_BlockChunkBuilder`; the Writer writes
+everything else (header, schemas, channels, compressed chunks with their CRC, message indexes,
+summary, footer). Chunks are finalized every ``CHUNK_BYTES`` of messages or ``FLUSH_EVERY_S`` of
+wall time, whichever comes first, so memory stays bounded and a killed process loses at most
+that much.
+
+Why this module is long: it is the one place that knows MCAP's side of the contract: the
+static records (run, scene), the wire format of every per-sample and contact message written
+straight from numpy buffers by compiled kernels (protobuf layout and MCAP record framing), and
+the chunk builder that feeds those records to the mcap Writer exactly as it would chunk them
+one by one.
 """
 
 from __future__ import annotations
