@@ -416,7 +416,8 @@ class _BlockWriter:
     than one recorder, each writes on its own thread, so that one's GIL-free work (compression,
     file I/O, the Rerun SDK's encoding) overlaps the other's. Blocks are written in order by
     every recorder; the queues are bounded, so memory stays bounded. A recorder's error stops the
-    run at the next block."""
+    run at the next block; the other recorders still get every block submitted before it (good
+    samples: nothing the run produced is lost because another log failed)."""
 
     QUEUE_BLOCKS = 2
 
@@ -444,13 +445,14 @@ class _BlockWriter:
 
     def _loop(self):
         dt = self.info.dt
+        broken = False  # deriving failed: nothing more can be written
         try:
             while True:
                 item = self.queue.get()
                 if item is None:
                     return
-                if self.error is not None:
-                    continue  # drain after a failure
+                if broken or (self.error is not None and not self.lanes):
+                    continue  # drain: no recorder can take this block
                 steps, x, p, q, r, lw, contacts = item
                 try:
                     if contacts is not None:
@@ -465,23 +467,28 @@ class _BlockWriter:
                         for rec in self.recorders:
                             rec.write(block)
                 except BaseException as e:  # re-raised in the run loop
-                    self.error = e
+                    broken = True
+                    if self.error is None:
+                        self.error = e
         finally:
             for lane, t in self.lanes:
                 lane.put(None)
                 t.join()
 
     def _lane(self, rec, lane: queue.Queue):
+        failed = False
         while True:
             block = lane.get()
             if block is None:
                 return
-            if self.error is not None:
-                continue
+            if failed:
+                continue  # this recorder failed: drain; the others keep writing
             try:
                 rec.write(block)
             except BaseException as e:
-                self.error = e
+                failed = True
+                if self.error is None:
+                    self.error = e
 
     def finish(self):
         """Write every queued block, stop the threads, and re-raise a recorder's error."""

@@ -138,7 +138,9 @@ def test_unwritable_path_fails_before_the_run(tmp_path, flag):
 
 def test_failing_recorder_stops_the_run_and_the_other_keeps_a_clean_prefix(tmp_path):
     """Each recorder writes on its own thread: when one fails, the run stops with its error, and
-    the other got every block before the failure, in order, and was closed as truncated."""
+    the other got every block submitted before the failure, in order, and was closed as truncated.
+    The good recorder is the slower one, so blocks are still queued for it when the other fails
+    (they used to be dropped)."""
     from rblog.errors import LogWriteError
 
     scene = rblog.parse_scene(LONG.replace("600.0", "20.0"), "long.toml")
@@ -154,7 +156,7 @@ def test_failing_recorder_stops_the_run_and_the_other_keeps_a_clean_prefix(tmp_p
             if self.fail_at is not None and len(self.steps) == self.fail_at:
                 raise LogWriteError("bad.log", "No space left on device")
             self.steps.append(np.asarray(block.step).copy())
-            time.sleep(0.002)
+            time.sleep(0.1 if self.fail_at is None else 0.0)
 
         def close(self, truncated=False, reason=None):
             self.closed = (truncated, reason)
@@ -166,4 +168,5 @@ def test_failing_recorder_stops_the_run_and_the_other_keeps_a_clean_prefix(tmp_p
     assert bad.closed[0] is True
     steps = np.concatenate(good.steps)
     assert steps[0] == 0 and np.array_equal(steps, np.arange(len(steps)))  # in order, no gap
-    assert len(good.steps) >= 3 and steps[-1] < 20_000  # the run stopped early
+    # the failing recorder raised on the 4th block, so at least 4 were submitted: all reach good
+    assert len(good.steps) >= 4 and steps[-1] < 20_000  # the run stopped early
