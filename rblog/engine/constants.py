@@ -96,8 +96,9 @@ QUAT_NORM_WARN_TOL = 1e-6
 MAX_ROTATION_PER_STEP_RAD = 1e6
 #: The most bodies a scene may hold (each costs ~2 kB in the body table, state and one block).
 MAX_BODIES = 10_000_000
-#: Approximate bytes of memory per body while loading and running a scene (body dict while
-#: parsing ~1.5 kB, model + state + sample buffers ~0.6 kB), for the "needs N GB" message.
+#: Approximate bytes of memory per body while loading and running a scene, for the "needs N GB"
+#: message: peak resident memory of a free-body run measured 1.9 kB per body at 100,000 bodies
+#: and 2.8 kB at 10,000 (benchmarks/bench_memory.py; generators expand straight into arrays).
 BYTES_PER_BODY_ESTIMATE = 2_000
 #: Bodies that start interpenetrating deeper than this (m) are reported with a warning (the
 #: solver pushes them apart violently in the first steps). Bodies stacked exactly touching
@@ -131,6 +132,32 @@ FRICTION_NEWTON_TOL = 1e-12
 #: rank-3 block (one self-equilibrated load pattern costs nothing); the regularised solve picks
 #: the smallest impulses, which keeps symmetric loads symmetric.
 BLOCK_REG = 1e-9
+# Static-friction anchor (solver.py, "Friction anchor"). A point whose friction stays strictly
+# inside the Coulomb cone sticks, and static friction then forbids any net slip; a velocity solve
+# stopped after a finite number of sweeps leaves a residual slip e (m/s) that, steady, adds up
+# step after step (a twisting support at 7.5e-4 m/s creeps 0.36 mm in 0.48 s). The anchor keeps
+# the slip D accumulated since the point stuck and the friction rows target the rate
+# -FRICTION_ANCHOR_RATE D / h instead of 0, so the drift obeys D' = (1 - rate) D + h e: it
+# settles at h e / rate (sub-micrometre) and the slip velocity at 0, whatever the solve leaves.
+#: fraction of the anchor's drift the friction rows take back per step (dimensionless, (0, 1]).
+#: Higher is tighter; above 1 the drift would overshoot each step.
+FRICTION_ANCHOR_RATE = 0.8
+#: m. An anchor that has drifted this far is dropped (re-anchored where the point is): the point
+#: slides (friction at the cone) or the solve let a slip through while the pair was struck, and
+#: pulling it back further would act as a spring (at most FRICTION_ANCHOR_RATE x this / h =
+#: 4 cm/s of bias at dt = 1e-3 s). Equal to the default allowed_penetration, the contact's
+#: resolution; steady drifts are ~1e-6 m.
+FRICTION_ANCHOR_MAX_DRIFT_M = 5e-5
+#: m. Torsional friction of a one-point manifold (a box's corner or edge on a face, crossed edges,
+#: a sphere): a rigid point contact cannot resist a twist about its normal, but a real one
+#: touches over a patch, and a patch of radius r holds a twisting moment up to about
+#: mu lambda_n r. The solver gives such a manifold a twist row clamped to that (with the friction
+#: anchor's bias on the twist angle), so that a box balanced on a corner or crossed edge does not
+#: spin in place under the solve's residual. 5 mm: MuJoCo's default torsional friction
+#: (geom friction "1 0.005 0.0001", condim >= 4), the same model; 1 mm still let a corner of the
+#: 500-box pile twist 0.02 rad in 1.4 s at the limit (the twist row saturated). Larger values
+#: resist more; the moment never exceeds what a patch of this radius could hold.
+TORSIONAL_PATCH_RADIUS_M = 5e-3
 #: relative tolerance under which principal moments count as equal (isotropic inertia)
 ISOTROPIC_RTOL = 1e-12
 #: rings of contacts gathered around a deep point: the contacts of its bodies (1) and of their

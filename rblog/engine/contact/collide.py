@@ -22,8 +22,8 @@ from numba import njit
 
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.engine.contact.manifold import (
-    MF_ACC, MF_E, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COLS, MI_COUNT, MI_KEY,
-    MI_REC_A, MI_REC_B, MI_START, MF_COLS, PF_COLS, PF_F, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS,
+    MF_ACC, MF_E, MF_LT, MF_MU, MF_N, MF_TH, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COLS, MI_COUNT, MI_KEY,
+    MI_REC_A, MI_REC_B, MI_START, MF_COLS, PF_COLS, PF_D, PF_F, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS,
     PF_P, PF_RA, PF_RB, PF_S, PF_SEND, PF_IMPACT, PF_W0, PF_WT,
 )
 from rblog.engine.contact.narrowphase import COLLIDE_TABLE, GEOM_BOX, GEOM_PLANE, collide, manifold_part
@@ -175,7 +175,7 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
             n_man, n_pts = _add_manifold(
                 2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
                 position, restitution, friction, accel, sb_e, sb_mu, g_e, g_mu,
-                prev_mi, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
+                prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                 mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid)
     return n_man, n_pts
 
@@ -183,7 +183,7 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
 @njit(cache=True)
 def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
                   position, restitution, friction, accel, sb_e, sb_mu, g_e, g_mu,
-                  prev_mi, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
+                  prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                   mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid):
     """Append one manifold (points rows row.. of the collider's output) with warm starting."""
     m = n_man
@@ -225,6 +225,12 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
     j = -1
     if warm:
         j = find_manifold(prev_keys, prev_idx, prev_n, key)
+    # a one-point manifold's torsional friction and twist anchor (solver.py)
+    mf[m, MF_LT] = 0.0
+    mf[m, MF_TH] = 0.0
+    if j >= 0 and cnt == 1 and prev_mi[j, MI_COUNT] == 1:
+        mf[m, MF_LT] = prev_mf[j, MF_LT]
+        mf[m, MF_TH] = prev_mf[j, MF_TH]
     pa = position[a]
     for q in range(cnt):
         p = n_pts + q
@@ -242,6 +248,7 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
         ln = 0.0
         l1 = 0.0
         l2 = 0.0
+        dx, dy, dz = 0.0, 0.0, 0.0
         if j >= 0:
             ps = prev_mi[j, MI_START]
             pc = prev_mi[j, MI_COUNT]
@@ -265,6 +272,9 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
                 fx, fy, fz = prev_pf[match, PF_F], prev_pf[match, PF_F + 1], prev_pf[match, PF_F + 2]
                 l1 = fx * t1x + fy * t1y + fz * t1z
                 l2 = fx * t2x + fy * t2y + fz * t2z
+                # the friction anchor goes with the point (projected on the tangents in prepare)
+                dx, dy, dz = prev_pf[match, PF_D], prev_pf[match, PF_D + 1], prev_pf[match, PF_D + 2]
+        pf[p, PF_D], pf[p, PF_D + 1], pf[p, PF_D + 2] = dx, dy, dz
         pf[p, PF_LN] = ln
         pf[p, PF_L1] = l1
         pf[p, PF_L2] = l2

@@ -43,7 +43,11 @@ MF_ACC = 11  # gap acceleration from external forces: n . (a_a - a_b) (m/s^2)
 MF_LU = 12  # LU factors of the regularised normal block (4 x 4, row-major; prepare_contacts)
 MF_PIV = 28  # pivot row of each elimination column (4, as floats)
 MF_LUOK = 32  # 1.0: the block factored (non-singular), else 0.0
-MF_COLS = 33
+MF_LT = 33  # accumulated torsional friction impulse of a one-point manifold, about n (N m s)
+MF_TH = 34  # its anchor: relative twist angle about n since it started sticking (rad)
+MF_TB = 35  # the anchor's bias, FRICTION_ANCHOR_RATE MF_TH / h (rad/s; prepare)
+MF_TMASS = 36  # 1 / (n . (I_a^-1 + I_b^-1) n), the twist row's effective inertia (kg m^2)
+MF_COLS = 37
 
 # ---- per point, float64 ----
 PF_P = 0  # contact point (3), world, midpoint of the surfaces
@@ -63,7 +67,9 @@ PF_SEND = 23  # separation estimated at the end of the step (m)
 PF_IMPACT = 24  # 1.0 if the point was an impact (approach speed above the threshold)
 PF_WT = 25  # restitution's target gap velocity (m/s), < 0 when the point does not bounce
 PF_KN = 26  # row of the manifold's normal block K_ij (4: one entry per point of the manifold)
-PF_COLS = 30
+PF_D = 30  # friction anchor: tangential slip of the point since it started sticking (3), world, m
+PF_DB = 33  # the anchor's bias, FRICTION_ANCHOR_RATE (D . t1, D . t2) / h (2), m/s (prepare)
+PF_COLS = 35
 
 #: contact log columns (the kernels append rows at sampled steps)
 LOG_STEP, LOG_A, LOG_B, LOG_KIND = 0, 1, 2, 3
