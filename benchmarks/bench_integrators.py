@@ -187,7 +187,11 @@ def accuracy_for_cost(quick: bool):
 
 
 def thread_scaling(steps: int):
-    """ns per body-step on 10,000 free bodies with 1 and 2 threads, and the speed-up."""
+    """ns per body-step on 10,000 free bodies with 1 and 2 threads, and the speed-up; MuJoCo's
+    Euler and RK4 on one thread beside them (at 100 bodies: its default arena does not hold
+    10,000 free bodies). The exact integrators carry their flow anchors within each timed call
+    (one call of ``steps`` steps: every body-step after the first evaluates the flow from the
+    anchor with its cached constants)."""
     import numba
 
     top = numba.config.NUMBA_NUM_THREADS
@@ -199,6 +203,13 @@ def thread_scaling(steps: int):
         one = time_kernel(integ, 10_000, steps, threads=1)
         two = time_kernel(integ, 10_000, steps, threads=2)
         print(f"{integ:<12}{one:>10.1f}{two:>11.1f}{one / two:>9.2f}x")
+    for integ in ("Euler", "RK4"):
+        v = mujoco_step_ns(100, 10 * steps, integ)
+        if v is None:
+            print(f"mujoco {integ}: not installed")
+            break
+        print(f"{'mujoco ' + integ:<12}{v:>10.1f}{'-':>11}{'-':>10}   (100 bodies, one thread: the "
+              "comparator)")
 
 
 def main():

@@ -100,15 +100,11 @@ def _landen_up(sn, cn, dn, mu):
 
 
 @jit
-def sncndn(u, m, m1):
-    """Jacobi sn, cn, dn of u >= 0 at parameter m = 1 - m1, with the argument reduced by the half
-    period: returns (sn r, cn r, dn r, j, K) where u = 2 K j + r, 0 <= r < 2K (so
-    sn u = (-1)^j sn r, cn u = (-1)^j cn r, dn u = dn r). K = inf (j = 0) when m1 = 0."""
-    if m1 <= 0.0:  # m = 1: sn = tanh, cn = dn = sech, no period
-        t = math.tanh(u)
-        c = 1.0 / math.cosh(u) if u < 700.0 else 0.0
-        return t, c, c, 0, math.inf
-    # descending Landen: parameters mu_1..mu_L (at most LANDEN_MAX_LEVELS), scale prod(1 + mu)
+def landen_descent(m, m1):
+    """The descending Landen transformations of parameter m = 1 - m1 > 0 (m1 > 0) down to a
+    parameter below LANDEN_BASE_PARAMETER: (lev, scale, m_base, mu_0 .. mu_11), lev levels
+    (at most LANDEN_MAX_LEVELS; mu_k = 0 beyond), scale = prod(1 + mu_k). A function of m only:
+    the exact flow computes it once per anchor (flow_constants)."""
     b = math.sqrt(m1)
     mu0 = mu1 = mu2 = mu3 = mu4 = mu5 = mu6 = mu7 = mu8 = mu9 = mu10 = mu11 = 0.0
     scale = 1.0
@@ -142,6 +138,12 @@ def sncndn(u, m, m1):
             mu11 = mu
         m = mu * mu
         lev += 1
+    return lev, scale, m, mu0, mu1, mu2, mu3, mu4, mu5, mu6, mu7, mu8, mu9, mu10, mu11
+
+
+@jit
+def sncndn_landen(u, lev, scale, m, mu0, mu1, mu2, mu3, mu4, mu5, mu6, mu7, mu8, mu9, mu10, mu11):
+    """:func:`sncndn` from the descent of :func:`landen_descent` (m its base parameter)."""
     # base: parameter m < 1e-9, A&S 16.13 to first order in m (error O(m^2))
     kb = HALF_PI * (1.0 + 0.25 * m)  # K(m) to first order
     big_k = scale * kb
@@ -182,6 +184,21 @@ def sncndn(u, m, m1):
     if lev > 0:
         sn, cn, dn = _landen_up(sn, cn, dn, mu0)
     return sn, cn, dn, j, big_k
+
+
+@jit
+def sncndn(u, m, m1):
+    """Jacobi sn, cn, dn of u >= 0 at parameter m = 1 - m1, with the argument reduced by the half
+    period: returns (sn r, cn r, dn r, j, K) where u = 2 K j + r, 0 <= r < 2K (so
+    sn u = (-1)^j sn r, cn u = (-1)^j cn r, dn u = dn r). K = inf (j = 0) when m1 = 0."""
+    if m1 <= 0.0:  # m = 1: sn = tanh, cn = dn = sech, no period
+        t = math.tanh(u)
+        c = 1.0 / math.cosh(u) if u < 700.0 else 0.0
+        return t, c, c, 0, math.inf
+    # descending Landen: parameters mu_1..mu_L (at most LANDEN_MAX_LEVELS), scale prod(1 + mu)
+    lev, scale, mb, mu0, mu1, mu2, mu3, mu4, mu5, mu6, mu7, mu8, mu9, mu10, mu11 = landen_descent(m, m1)
+    return sncndn_landen(u, lev, scale, mb, mu0, mu1, mu2, mu3, mu4, mu5, mu6, mu7, mu8, mu9, mu10,
+                         mu11)
 
 
 @jit
@@ -318,7 +335,9 @@ FC_SN0, FC_CN0, FC_DN0 = 17, 18, 19  # sn, cn, dn at the anchor's phase u0
 FC_G0 = 20  # G(am u0) = S^3 R_J(C^2, D^2, 1, 1 + n S^2) / 3 at the anchor (reduced amplitude)
 FC_AW, FC_AX, FC_AY, FC_AZ = 21, 22, 23, 24  # B0 (the anchor's Euler rotation), unnormalized
 FC_RJC = 25  # R_J(0, 1 - m, 1, 1 + n) (the half period's share), -1 until first needed
-N_FLOW = 26
+FC_LEV, FC_SCALE, FC_MB = 26, 27, 28  # the Landen descent of m (landen_descent; m1 > 0 only)
+FC_MU0 = 29  # its mu_0 .. mu_11 in FC_MU0 .. FC_MU0 + 11
+N_FLOW = 41
 
 
 @njit(cache=True)
@@ -425,6 +444,14 @@ def flow_constants(fc, r, b0, b1, b2, k0, k1, k2):
     fc[r, FC_G0] = g0
     fc[r, FC_AW], fc[r, FC_AX], fc[r, FC_AY], fc[r, FC_AZ] = aw, ax, ay, az
     fc[r, FC_RJC] = -1.0
+    if m1 > 0.0:
+        (lev, scale, mb, mu0, mu1, mu2, mu3, mu4, mu5, mu6, mu7, mu8, mu9, mu10,
+         mu11) = landen_descent(m, m1)
+        fc[r, FC_LEV], fc[r, FC_SCALE], fc[r, FC_MB] = float(lev), scale, mb
+        mu = FC_MU0
+        fc[r, mu], fc[r, mu + 1], fc[r, mu + 2], fc[r, mu + 3] = mu0, mu1, mu2, mu3
+        fc[r, mu + 4], fc[r, mu + 5], fc[r, mu + 6], fc[r, mu + 7] = mu4, mu5, mu6, mu7
+        fc[r, mu + 8], fc[r, mu + 9], fc[r, mu + 10], fc[r, mu + 11] = mu8, mu9, mu10, mu11
 
 
 @njit(cache=True)
@@ -436,6 +463,17 @@ def flow_rotation(fc, r, t):
     since the anchor in its own frame (q(t) = q_anchor (x) c) and the body momentum at t. May
     fill the row's FC_RJC (computed the first time a half period is crossed).
     """
+    cw, c0, c1, c2, o0, o1, o2 = flow_rotation_scaled(fc, r, t)
+    nc = 1.0 / math.sqrt(cw * cw + c0 * c0 + c1 * c1 + c2 * c2)
+    if cw < 0.0:
+        nc = -nc
+    return cw * nc, c0 * nc, c1 * nc, c2 * nc, o0, o1, o2
+
+
+@njit(cache=True)
+def flow_rotation_scaled(fc, r, t):
+    """:func:`flow_rotation` with c a positive multiple of the rotation's quaternion (not
+    normalized: a caller that normalizes q_anchor (x) c anyway saves a square root)."""
     if fc[r, FC_STEADY] != 0.0:
         w0, w1, w2, wn = fc[r, FC_W0], fc[r, FC_W1], fc[r, FC_W2], fc[r, FC_WN]
         b0, b1, b2 = fc[r, FC_B0], fc[r, FC_B1], fc[r, FC_B2]  # constant
@@ -451,7 +489,14 @@ def flow_rotation(fc, r, t):
     sn0, cn0, dn0 = fc[r, FC_SN0], fc[r, FC_CN0], fc[r, FC_DN0]
     # advance the phase by tau = lam t: functions of r, tau = 2 K j + r
     tau = lam * t
-    snr, cnr, dnr, j, big_k = sncndn(tau, m, m1)
+    if m1 <= 0.0:  # on the separatrix
+        snr, cnr, dnr, j, big_k = sncndn(tau, m, m1)
+    else:  # sncndn with the row's Landen descent
+        mu = FC_MU0
+        snr, cnr, dnr, j, big_k = sncndn_landen(
+            tau, int(fc[r, FC_LEV]), fc[r, FC_SCALE], fc[r, FC_MB], fc[r, mu], fc[r, mu + 1],
+            fc[r, mu + 2], fc[r, mu + 3], fc[r, mu + 4], fc[r, mu + 5], fc[r, mu + 6],
+            fc[r, mu + 7], fc[r, mu + 8], fc[r, mu + 9], fc[r, mu + 10], fc[r, mu + 11])
     # addition theorem (A&S 16.17) written for the increments, so that a small step's rounding is
     # relative to the step (1 - cn r and 1 - dn r from sn r, no cancellation)
     gc = snr * snr / (1.0 + cnr) if cnr > 0.0 else 1.0 - cnr  # 1 - cn r
@@ -525,10 +570,7 @@ def flow_rotation(fc, r, t):
             c1, o1 = vc, vn
         else:
             c2, o2 = vc, vn
-    nc = 1.0 / math.sqrt(cw * cw + c0 * c0 + c1 * c1 + c2 * c2)
-    if cw < 0.0:
-        nc = -nc
-    return cw * nc, c0 * nc, c1 * nc, c2 * nc, o0, o1, o2
+    return cw, c0, c1, c2, o0, o1, o2
 
 
 @njit(cache=True)

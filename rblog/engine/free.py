@@ -187,6 +187,7 @@ def _make_range_kernel(method: int):
         # first step in this call (a pure function of the anchor: the same in every split)
         fc = np.empty((tile, N_FLOW))
         fc_ok = np.zeros(tile, np.bool_)
+        a_q, a_l, a_n, a_dt = an  # the FlowAnchors arrays, out of the tuple once
         for t0 in range(b0, b1, tile):
             t1 = min(t0 + tile, b1)
             fc_ok[:] = False
@@ -198,8 +199,8 @@ def _make_range_kernel(method: int):
                 for s in range(1, n_steps + 1):
                     ok, x, y, z, px, py, pz = step_body(
                         method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
-                        quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz, an, fc, 0,
-                        fc_ok)
+                        quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz, a_q, a_l, a_n,
+                        a_dt, fc, 0, fc_ok)
                     if not ok:
                         if bad_step < 0 or s < bad_step:
                             bad_step = s
@@ -222,7 +223,8 @@ def _make_range_kernel(method: int):
                             method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
                             quat_wxyz, rotation, angular_momentum, position[i, 0], position[i, 1],
                             position[i, 2], linear_momentum[i, 0], linear_momentum[i, 1],
-                            linear_momentum[i, 2], an, fc, i - t0, fc_ok)
+                            linear_momentum[i, 2], a_q, a_l, a_n, a_dt, fc, i - t0,
+                            fc_ok)
                         position[i, 0], position[i, 1], position[i, 2] = x, y, z
                         linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
                         if not ok:

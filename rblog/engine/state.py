@@ -17,7 +17,7 @@ import numpy as np
 #: ``anchor_dt_s`` (checked by the kernels: a torque kick, a contact impulse or a new dt sets a
 #: new anchor); whatever changes a body's attitude other than the flow must set its
 #: anchor_steps to -1 (State.reset_anchors, the contact step's project stage).
-#: 64 bytes per body: anchor_quat_wxyz (N, 4), anchor_L_world (N, 3) kg m^2/s, anchor_steps (N,)
+#: 72 bytes per body: anchor_quat_wxyz (N, 4), anchor_L_world (N, 3) kg m^2/s, anchor_steps (N,)
 #: int64, anchor_dt_s (N,) s.
 FlowAnchors = namedtuple("FlowAnchors", "anchor_quat_wxyz anchor_L_world anchor_steps anchor_dt_s")
 

@@ -183,8 +183,9 @@ def _drift(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
 def _drift_exact(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, an, flow_c, flow_ok):
     """integrators.drift_exact_anchored behind a call boundary (as :func:`_drift`): body i's
     exact flow from its anchor, its flow constants cached in row i for the call."""
-    drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, an, flow_c, i,
-                         flow_ok)
+    drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h,
+                         an.anchor_quat_wxyz, an.anchor_L_world, an.anchor_steps, an.anchor_dt_s,
+                         flow_c, i, flow_ok)
 
 
 @njit(cache=True)
