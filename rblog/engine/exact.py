@@ -65,6 +65,12 @@ every evaluation sees an argument in [0, 2K)); R_F, R_J by Carlson's duplication
 DLMF 19.36.1-2) and the series of DLMF 19.36.1-2. Degenerate states are exact rotations: steady
 rotation about a principal axis (Lb x omega = 0 exactly: also every symmetric body with Lb in its
 isotropic plane, and the sphere), and negative h (the flow backward is the forward flow of -L).
+
+Why this module is long: the flow is one derivation (the elliptic functions with their Landen
+descent, Carlson's R_F and R_J, the attitude reconstruction, the per-anchor constants and their
+evaluation at any elapsed time); its parts share the case analysis (branches A and B, the
+separatrix, steady rotation) and the row layout of the cached constants, which would otherwise
+be passed between modules.
 """
 
 from __future__ import annotations
