@@ -22,6 +22,11 @@ Analyzers (default tolerances and their reasons: rblog/analyze/tolerances.py):
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+
 from rblog.contract.trajectory import Trajectory
 from rblog.analyze.base import Analyzer, CheckOptionError, Context, Finding, Result
 from rblog.analyze.consistency import ConsistencyAnalyzer
@@ -62,13 +67,36 @@ def default_tolerances() -> dict[str, float]:
     return {f"{n}.{k}": v for n, cls in ANALYZERS.items() for k, v in cls.defaults.items()}
 
 
-def check(traj: Trajectory, only=None, skip=None, tolerances: dict | None = None) -> list[Result]:
+#: the order analyzers start in when they run in threads: the costliest first, so that the last to
+#: finish is a short one (bench_check.py), but consistency (which needs nothing shared) before
+#: penetration, which would wait for the proximity table momentum is computing
+_COST_ORDER = ("momentum", "consistency", "penetration", "energy", "drift", "tunneling")
+
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS_LOCK = threading.Lock()
+
+
+def _pool(n_threads: int) -> ThreadPoolExecutor:
+    """A pool of exactly ``n_threads`` worker threads (made once, reused by later checks)."""
+    with _POOLS_LOCK:
+        if n_threads not in _POOLS:
+            _POOLS[n_threads] = ThreadPoolExecutor(n_threads, f"rblog-check{n_threads}")
+        return _POOLS[n_threads]
+
+
+def check(traj: Trajectory, only=None, skip=None, tolerances: dict | None = None,
+          threads: int | None = None) -> list[Result]:
     """Run the analyzers on ``traj`` and return their results, in ANALYZERS order.
 
     Args:
         only: names of the analyzers to run (default: all).
         skip: names of analyzers not to run.
         tolerances: overrides keyed ``"<analyzer>.<tolerance>"``.
+        threads: how many analyzers run at once (default ``numba.config.NUMBA_NUM_THREADS``:
+            the environment variable NUMBA_NUM_THREADS, by default every core, as the engine's
+            free kernel). Each analyzer is a sequential computation and the values they share
+            (rblog.analyze.base.Context) are computed once, so the results are the same for
+            any thread count; the compiled kernels release the GIL.
     """
     for names in (only or ()), (skip or ()):
         for name in names:
@@ -79,7 +107,16 @@ def check(traj: Trajectory, only=None, skip=None, tolerances: dict | None = None
     selected = [n for n in ANALYZERS if (not only or n in only) and n not in (skip or ())]
     analyzers = [ANALYZERS[n](**per[n]) for n in selected]
     ctx = Context(traj)
-    return [a.run(traj, ctx) for a in analyzers]
+    if threads is None:
+        threads = numba.config.NUMBA_NUM_THREADS
+    threads = max(1, min(int(threads), len(analyzers)))
+    if threads == 1 or ctx.traj.n_samples == 0:
+        return [a.run(traj, ctx) for a in analyzers]
+    order = sorted(range(len(analyzers)), key=lambda j: _COST_ORDER.index(selected[j])
+                   if selected[j] in _COST_ORDER else len(_COST_ORDER))
+    pool = _pool(threads)
+    futures = {j: pool.submit(analyzers[j].run, traj, ctx) for j in order}
+    return [futures[j].result() for j in range(len(analyzers))]
 
 
 __all__ = [

@@ -28,6 +28,7 @@ compiled helpers behind them.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -445,13 +446,54 @@ def _kinematics(t, position, velocity, momentum, ang_momentum, omega, mass, forc
                            + 0.5 * amag * dt * dt)
 
 
+@njit(cache=True, nogil=True)
+def _impulse_kernel(p, dts, mass, accel, k, i, out):
+    """out[r] = P(k+1) - P(k) - dt (m a) for body i[r] over interval k[r] (Context.impulse)."""
+    for r in range(k.shape[0]):
+        kr, b = k[r], i[r]
+        for d in range(3):
+            out[r, d] = (p[kr + 1, b, d] - p[kr, b, d]) - dts[kr] * (mass[b] * accel[b, d])
+
+
 _STATE_CHANNELS = ("position", "rotation", "quat_wxyz", "velocity", "linear_momentum",
                    "angular_momentum", "angular_velocity")
+
+
+#: float64 exponent bits: all set in an inf or a NaN, never in a finite number
+_EXP_BITS = np.uint64(0x7FF0000000000000)
+
+
+@njit(cache=True, nogil=True)
+def _bits_finite(u, exp_bits):
+    """True when no float64 (given as its uint64 bits, flat) is an inf or a NaN: an integer
+    count per block of 4,096 (vectorised; stops at the first block with one)."""
+    n = u.shape[0]
+    i = 0
+    while i < n:
+        j = min(n, i + 4096)
+        c = 0
+        for m in range(i, j):
+            c += (u[m] & exp_bits) == exp_bits
+        if c:
+            return False
+        i = j
+    return True
+
+
+def all_finite(arr) -> bool:
+    """``np.isfinite(arr).all()``, in one pass over the memory without temporaries for a
+    contiguous float64 array (the common case: every channel of a log)."""
+    a = np.asarray(arr)
+    if a.dtype == np.float64 and a.flags.c_contiguous:
+        return bool(_bits_finite(a.reshape(-1).view(np.uint64), _EXP_BITS))
+    return bool(np.isfinite(a).all())
 
 
 def _first_nonfinite(traj: Trajectory):
     """(first sample index with a NaN or inf in a state channel, bodies), or (None, [])."""
     t_n, n = traj.n_samples, traj.n_bodies
+    if all_finite(traj.t) and all(all_finite(getattr(traj, name)) for name in _STATE_CHANNELS):
+        return None, []
     bad = np.zeros((t_n, n), bool)
     for name in _STATE_CHANNELS:
         arr = np.asarray(getattr(traj, name))
@@ -474,19 +516,34 @@ class Context:
     def __init__(self, traj: Trajectory):
         self.model = traj.model
         self._cache: dict[Any, Any] = {}
+        # analyzers may run in threads (rblog.analyze.check): one lock per key, so that a value
+        # is computed once, by the first thread that asks, while the others wait for it
+        self._locks: dict[Any, threading.Lock] = {}
+        self._locks_lock = threading.Lock()
         #: (sample index, bodies) of the first sample with a non-finite state, or None. The
         #: analyzers then see the samples before it only (drift reports it as a finding).
         self.nonfinite: tuple[int, list[int]] | None = None
         self.full_traj = traj
         self.traj = traj
         k0, bodies = _first_nonfinite(traj)
+        #: state channels known to hold no NaN or inf (the consistency analyzer skips them)
+        self.finite_channels = _STATE_CHANNELS if k0 is None else ()
         if k0 is not None:
             self.nonfinite = (k0, bodies)
             self.traj = traj.slice(slice(0, k0))
 
     def cached(self, key, fn):
-        if key not in self._cache:
-            self._cache[key] = fn()
+        """``fn()``, computed once per key (thread-safe: the values are pure functions of the
+        trajectory, so which thread computes one does not change it)."""
+        try:
+            return self._cache[key]
+        except KeyError:
+            pass
+        with self._locks_lock:
+            lock = self._locks.setdefault(key, threading.Lock())
+        with lock:
+            if key not in self._cache:
+                self._cache[key] = fn()
         return self._cache[key]
 
     # --- basic kinematics ---------------------------------------------------------------------
@@ -559,9 +616,11 @@ class Context:
         """(P, 3) contact impulse of bodies i over intervals k (N s):
         ``J = P(k+1) - P(k) - (m g + F) dt``. Constant forces change momentum exactly in every
         integrator, so a free body has J = 0 to round-off."""
-        p = self.traj.linear_momentum
-        force = self.mass[i, None] * self.accel[i]
-        return p[k + 1, i] - p[k, i] - self.dts[k, None] * force
+        out = np.empty((len(k), 3))
+        _impulse_kernel(np.ascontiguousarray(self.traj.linear_momentum, dtype=np.float64),
+                        self.dts, self.mass, self.accel, np.asarray(k, np.int64),
+                        np.asarray(i, np.int64), out)
+        return out
 
     def jumps(self) -> np.ndarray:
         """(T-1, N) True where the momentum (or angular momentum) changed beyond what gravity and

@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from rblog.analyze import tolerances as T
-from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst
+from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, all_finite
 from rblog.contract.orientation import quat_wxyz_to_matrix
 from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Trajectory
 
@@ -92,6 +92,13 @@ def _segment_distance(r, a, b):
     return np.linalg.norm(r - (a + s[..., None] * u), axis=-1)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _row_dot(rot, k1, k0, b, i, j):
+    """(R(k1) R(k0)^T)_ij of body b: row i of R(k1) dot row j of R(k0)."""
+    return (rot[k1, b, i, 0] * rot[k0, b, j, 0] + rot[k1, b, i, 1] * rot[k0, b, j, 1]
+            + rot[k1, b, i, 2] * rot[k0, b, j, 2])
+
+
 @njit(cache=True, nogil=True)
 def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, corr, rel):
     """rel[k, n] (T-1, N): distance of the rotation vector of R(k+1) R(k)^T over dt from the
@@ -102,16 +109,16 @@ def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, corr, rel):
     for k in range(n_k):
         h = dts[k]
         for b in range(n_b):
-            ra, rb = rot[k, b], rot[k + 1, b]
-            d = np.empty((3, 3))
-            for i in range(3):  # d = R(k+1) R(k)^T
-                for j in range(3):
-                    d[i, j] = rb[i, 0] * ra[j, 0] + rb[i, 1] * ra[j, 1] + rb[i, 2] * ra[j, 2]
-            vx = 0.5 * (d[2, 1] - d[1, 2])
-            vy = 0.5 * (d[0, 2] - d[2, 0])
-            vz = 0.5 * (d[1, 0] - d[0, 1])
+            # the entries of d = R(k+1) R(k)^T that the rotation vector needs, as scalars (an
+            # array here was a heap allocation per body-sample)
+            d00 = _row_dot(rot, k + 1, k, b, 0, 0)
+            d11 = _row_dot(rot, k + 1, k, b, 1, 1)
+            d22 = _row_dot(rot, k + 1, k, b, 2, 2)
+            vx = 0.5 * (_row_dot(rot, k + 1, k, b, 2, 1) - _row_dot(rot, k + 1, k, b, 1, 2))
+            vy = 0.5 * (_row_dot(rot, k + 1, k, b, 0, 2) - _row_dot(rot, k + 1, k, b, 2, 0))
+            vz = 0.5 * (_row_dot(rot, k + 1, k, b, 1, 0) - _row_dot(rot, k + 1, k, b, 0, 1))
             sn = math.sqrt(vx * vx + vy * vy + vz * vz)
-            ang = math.atan2(sn, 0.5 * (d[0, 0] + d[1, 1] + d[2, 2] - 1.0))
+            ang = math.atan2(sn, 0.5 * (d00 + d11 + d22 - 1.0))
             f = ang / sn if sn > 1e-300 else 1.0
             rx, ry, rz = vx * f / h, vy * f / h, vz * f / h
             w0, w1 = omega[k, b], omega[k + 1, b]
@@ -232,9 +239,10 @@ def _kinematic_median(rot, omega_world, dts, min_angle):
     return med, count
 
 
-def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
+def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]:
     """Every consistency issue of ``traj`` (see the module docstring); ``tol`` overrides the
-    defaults of :class:`ConsistencyAnalyzer` by name."""
+    defaults of :class:`ConsistencyAnalyzer` by name; ``finite`` names channels already known
+    to hold no NaN or inf (not scanned again)."""
     tol = {**ConsistencyAnalyzer.defaults, **(tol or {})}
     out: list[Issue] = []
     n_t, n = traj.n_samples, traj.n_bodies
@@ -245,6 +253,8 @@ def inspect(traj: Trajectory, tol: dict | None = None) -> list[Issue]:
     # finite values
     finite = np.ones(n_t, bool)
     for name in BODY_CHANNELS:
+        if name in finite or all_finite(getattr(traj, name)):
+            continue
         a = np.asarray(getattr(traj, name), float).reshape(n_t, n, -1)
         bad = ~np.isfinite(a).all(axis=-1)
         if bad.any():
@@ -425,7 +435,7 @@ class ConsistencyAnalyzer(Analyzer):
     def analyze(self, ctx: Context) -> Result:
         # the samples before the first non-finite one (drift reports that one; load's warnings
         # name the channel)
-        return self._result(ctx.traj, inspect(ctx.traj, self.tol))
+        return self._result(ctx.traj, inspect(ctx.traj, self.tol, ctx.finite_channels))
 
     def _result(self, traj: Trajectory, issues: list[Issue]) -> Result:
         worst = Worst("1", self.tol["kinematic_rel"])

@@ -161,8 +161,13 @@ def _events(ctx, cd, dt_factor) -> Events:
     mass = ctx.mass
     amag = np.linalg.norm(ctx.accel, axis=1)
     ev_of_mem = np.repeat(np.arange(e_n), size)
-    mem = np.concatenate([grp.members(int(f)) for f in first]).astype(np.int64) if e_n else \
-        np.zeros(0, np.int64)
+    if e_n:  # the members of each event's first group, event after event (Groups.members)
+        lo = grp.starts[first]
+        cnt = np.append(grp.starts, len(grp.mem_i))[first + 1] - lo
+        off = np.cumsum(cnt) - cnt
+        mem = grp.mem_i[np.repeat(lo - off, cnt) + np.arange(int(cnt.sum()))].astype(np.int64)
+    else:
+        mem = np.zeros(0, np.int64)
     kbm, kam = kb[ev_of_mem], ka[ev_of_mem]
 
     def per_event(x):
@@ -282,8 +287,8 @@ def _events(ctx, cd, dt_factor) -> Events:
         kind, x, y = src[h, 0], src[h, 1], src[h, 2]
         g = kind == 0
         if g.any():
-            peak_pt[evs_hit[g]] = geometry.plane_witness(model, y[g], tr.position[x[g], y[g]],
-                                                         tr.rotation[x[g], y[g]])
+            peak_pt[evs_hit[g]] = geometry.plane_witness_at(model, x[g], y[g], y[g],
+                                                            tr.position, tr.rotation)
         for end in (0, 1):
             r = ~g & (y == end)
             if r.any():

@@ -124,14 +124,60 @@ def plane_separation(model: Model, position: np.ndarray, rotation: np.ndarray):
     return sep, height
 
 
+@njit(cache=True, nogil=True)
+def _witness_kernel(position, rotation, k, j, body, is_sphere, size, n, eps, out):
+    """out[r] = the ground contact point of body[r] at the pose position[k[r], j[r]],
+    rotation[k[r], j[r]]: a sphere's lowest point, or a box's witness along -n (_box_witness,
+    its arithmetic in the same order: numpy's einsum sums a contiguous row of three products as
+    (p0 + p2) + p1, numpy 2.x's SIMD pairs, and a strided column in order)."""
+    for r in range(k.shape[0]):
+        kr, jr, b = k[r], j[r], body[r]
+        x = position[kr, jr]
+        if is_sphere[b]:
+            for i in range(3):
+                out[r, i] = x[i] - size[b, 0] * n[i]
+            continue
+        rot = rotation[kr, jr]
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for c in range(3):  # d . A_c with d = -n, then the sign of each axis times h_c
+            proj = rot[0, c] * -n[0] + rot[1, c] * -n[1] + rot[2, c] * -n[2]
+            sc = 0.0
+            if abs(proj) > eps:
+                sc = (1.0 if proj > 0 else -1.0) * size[b, c]
+            else:
+                sc = 0.0 * size[b, c]
+            if c == 0:
+                s0 = sc
+            elif c == 1:
+                s1 = sc
+            else:
+                s2 = sc
+        for i in range(3):
+            out[r, i] = x[i] + ((rot[i, 0] * s0 + rot[i, 2] * s2) + rot[i, 1] * s1)
+
+
 def plane_witness(model: Model, body: np.ndarray, position: np.ndarray, rotation: np.ndarray):
     """Contact points with the ground of bodies ``body`` (P,) at poses (P, 3), (P, 3, 3)."""
-    n = np.asarray(model.ground_normal, float)
-    size = np.asarray(model.body_size, float)[body]
-    sphere = (model.body_shape[body] == SHAPE_SPHERE)[:, None]
-    p_sphere = position - size[:, :1] * n
-    p_box = _box_witness(position, rotation, size, -np.broadcast_to(n, position.shape))
-    return np.where(sphere, p_sphere, p_box)
+    p = len(body)
+    return plane_witness_at(model, np.zeros(p, np.int64), np.arange(p), np.asarray(body),
+                            np.asarray(position, float)[None], np.asarray(rotation, float)[None])
+
+
+def plane_witness_at(model: Model, k: np.ndarray, j: np.ndarray, body: np.ndarray,
+                     position: np.ndarray, rotation: np.ndarray):
+    """(P, 3) contact points with the ground of bodies ``body`` (P,) at the poses
+    ``position[k, j]`` (..., 3), ``rotation[k, j]`` (..., 3, 3) (indexed in the compiled pass,
+    without gathering the poses first)."""
+    out = np.empty((len(k), 3))
+    c = np.ascontiguousarray
+    _witness_kernel(c(position, dtype=np.float64), c(rotation, dtype=np.float64),
+                    c(k, dtype=np.int64), c(j, dtype=np.int64), c(body, dtype=np.int64),
+                    np.asarray(model.body_shape) == SHAPE_SPHERE,
+                    c(model.body_size, dtype=np.float64),
+                    c(model.ground_normal, dtype=np.float64), _FACE_EPS, out)
+    return out
 
 
 # --- narrowphase: compiled, one pair at a time --------------------------------------------------
@@ -526,6 +572,31 @@ def _sweep_kernel(position, grow, s_lo, s_hi, group, axis, out_k, out_a, out_b):
     return cnt
 
 
+@njit(cache=True, nogil=True)
+def _spread(x):
+    """(3,) max - min of the rows of x (P, 3) (np.ptp(x, axis=0) in one pass; NaN in a column
+    makes its spread NaN, as there)."""
+    lo = x[0].copy()
+    hi = x[0].copy()
+    for p in range(1, x.shape[0]):
+        for d in range(3):
+            v = x[p, d]
+            if v < lo[d]:
+                lo[d] = v
+            if v > hi[d]:
+                hi[d] = v
+            if v != v:
+                lo[d] = v
+                hi[d] = v
+    out = hi - lo
+    for d in range(3):
+        for p in range(x.shape[0]):
+            if x[p, d] != x[p, d]:
+                out[d] = np.nan
+                break
+    return out
+
+
 def sweep_pairs(model: Model, position: np.ndarray, grow: np.ndarray, pad: float = 0.0):
     """Candidate pairs (k, a, b) per interval (see _sweep_kernel); b >= N is static box b - N.
 
@@ -534,7 +605,8 @@ def sweep_pairs(model: Model, position: np.ndarray, grow: np.ndarray, pad: float
     sx, sr, sh = static_boxes(model)
     ext = (np.abs(sr) * sh[:, None, :]).sum(-1) if len(sx) else np.zeros((0, 3))
     s_lo, s_hi = sx - ext - pad, sx + ext + pad
-    spread = np.ptp(position.reshape(-1, 3), axis=0) if position.size else np.zeros(3)
+    spread = _spread(np.ascontiguousarray(position, dtype=np.float64).reshape(-1, 3)) \
+        if position.size else np.zeros(3)
     axis = int(np.argmax(spread))
     cap = max(1024, 4 * n * max(t_n - 1, 1))
     while True:

@@ -156,6 +156,9 @@ class MomentumAnalyzer(Analyzer):
             return self.skip("needs at least two samples")
         cd = self.tol["contact_distance_m"]
         grp = ctx.groups(cd)
+        # the impact events first: the energy analyzer shares them, and when the analyzers run
+        # in threads it would otherwise wait for them until the end of this analysis
+        impact_events(ctx, cd, self.tol["dt_factor"])
         self._ctx, self._grp, self._tr, self._model = ctx, grp, tr, tr.model
         self._worst = Worst("1", self.tol["linear_rel"])
         self._findings: list[Finding] = []
@@ -406,16 +409,11 @@ class MomentumAnalyzer(Analyzer):
             # adjacent faces' normals): judge the cone about the most favourable one
             nrm[sb] = _fan_normal(model, sid[sb], pts, nrm[sb], jv[sb], mu_static(
                 model, i[sb], sid[sb], tr.info.combine_friction), near_tol)
-        jn = np.einsum("ij,ij->i", jv, nrm)
-        jt = np.linalg.norm(jv - jn[:, None] * nrm, axis=1)
-        jm = np.linalg.norm(jv, axis=1) + _TINY
-        excess_ns = np.maximum(jt - mu * jn, -jn)
-        excess = excess_ns / jm
-        m_i = ctx.mass[i]
-        floor = self.tol["cone_floor_ns"] + T.MOMENTUM_CONE_RESOLUTION_ULPS * np.finfo(float).eps \
-            * m_i * (np.maximum(ctx.speed[k, i], ctx.speed[k + 1, i])
-                     + np.linalg.norm(ctx.accel[i], axis=1) * ctx.dts[k])
-        excess = np.where(excess_ns > floor, excess, 0.0)
+        jn, jt, excess = (np.empty(len(k)) for _ in range(3))
+        _cone_kernel(jv, np.ascontiguousarray(nrm), np.asarray(mu, float), ctx.mass, ctx.speed,
+                     np.linalg.norm(ctx.accel, axis=1), ctx.dts, np.asarray(k, np.int64),
+                     np.asarray(i, np.int64), float(self.tol["cone_floor_ns"]),
+                     T.MOMENTUM_CONE_RESOLUTION_ULPS * np.finfo(float).eps, jn, jt, excess)
         tcone = self.tol["cone_rel"]
         stats["cone_excess_rel_max"] = float(excess.max())
         self._worst.offer_array(excess, tcone, "1", step[k + 1], t[k + 1], i,
@@ -603,6 +601,32 @@ class MomentumAnalyzer(Analyzer):
             f"at t = {cts.t[j]:.6g} s: impulse outside the friction cone (normal {jn[j]:.3g} N s, "
             f"friction {ftt[j]:.3g} N s, along the normal {along[j]:.3g} N s, mu = {mu[j]:.3g})",
             float(excess[j]), tcone, "1", int(cts.step[j]), float(cts.t[j]), [int(ca[j])]))
+
+
+@njit(cache=True, nogil=True)
+def _cone_kernel(jv, nrm, mu, mass, speed, accel_norm, dts, k, i, floor_ns, res_eps, jn, jt,
+                 excess):
+    """Per row r (body i[r] over interval k[r], inferred impulse jv[r], normal nrm[r]): the
+    normal and tangential impulse jn, jt (N s) and the cone excess max(jt - mu jn, -jn) / |J|,
+    zeroed where it is not above the floor ``floor_ns + res_eps m (max |v| + |a| dt)`` (the
+    log's impulse resolution). The arithmetic in the order of the numpy it replaced (einsum's
+    (p0 + p2) + p1, norm's sequential sum), so reports stay bit-identical."""
+    for r in range(k.shape[0]):
+        kr, b = k[r], i[r]
+        j0, j1, j2 = jv[r, 0], jv[r, 1], jv[r, 2]
+        n0, n1, n2 = nrm[r, 0], nrm[r, 1], nrm[r, 2]
+        jnr = (j0 * n0 + j2 * n2) + j1 * n1  # normal impulse
+        t0, t1, t2 = j0 - jnr * n0, j1 - jnr * n1, j2 - jnr * n2
+        jtr = math.sqrt((t0 * t0 + t1 * t1) + t2 * t2)  # tangential
+        jm = math.sqrt((j0 * j0 + j1 * j1) + j2 * j2) + _TINY
+        a, c = jtr - mu[r] * jnr, -jnr
+        ex_ns = np.nan if (a != a or c != c) else (a if a >= c else c)
+        s0, s1 = speed[kr, b], speed[kr + 1, b]
+        sp = np.nan if (s0 != s0 or s1 != s1) else (s0 if s0 >= s1 else s1)
+        floor = floor_ns + res_eps * mass[b] * (sp + accel_norm[b] * dts[kr])
+        jn[r] = jnr
+        jt[r] = jtr
+        excess[r] = ex_ns / jm if ex_ns > floor else 0.0
 
 
 @njit(cache=True, nogil=True)

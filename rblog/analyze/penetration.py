@@ -35,9 +35,15 @@ centre).
 * Flags: resting depth beyond min(DEPTH_M, DEPTH_FRAC x the body's inner radius), any depth (an
   impact too) beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x inner radius), jitter beyond
   JITTER_MPS, creep beyond CREEP_M.
+
+Why this module is long: depth, jitter, creep and the sliding test are judged over the same
+resting intervals, from the same per-sample supports, witness points and contact velocities;
+splitting them would pass those arrays and the interval bookkeeping between modules.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -71,6 +77,41 @@ def _deepest(ground, cd, pk, pa, pb, ps, n, kind, ref):
             best[b, k] = sv
             kind[b, k] = 2
             ref[b, k] = r
+
+
+@njit(cache=True, nogil=True)
+def _contact_velocity(pk, pi_, pb, point, normal, position, velocity, omega, n, cv, slip, cspeed,
+                      wspeed):
+    """Per support row r (body pi_[r] at sample pk[r] on partner pb[r], contact point point[r],
+    normal normal[r]): the contact point's velocity relative to the partner (a body partner's
+    point velocity subtracted; static partners are still) ``cv = v + w x (p - x)``, its
+    tangential part ``slip = cv - (cv.n) n``, ``cspeed = |cv|`` and ``wspeed = |w - w_partner|``
+    (m/s, rad/s)."""
+    for r in range(pk.shape[0]):
+        k, i, b = pk[r], pi_[r], pb[r]
+        w0, w1, w2 = omega[k, i, 0], omega[k, i, 1], omega[k, i, 2]
+        r0 = point[r, 0] - position[k, i, 0]
+        r1 = point[r, 1] - position[k, i, 1]
+        r2 = point[r, 2] - position[k, i, 2]
+        c0 = velocity[k, i, 0] + (w1 * r2 - w2 * r1)
+        c1 = velocity[k, i, 1] + (w2 * r0 - w0 * r2)
+        c2 = velocity[k, i, 2] + (w0 * r1 - w1 * r0)
+        if b >= 0 and b < n:  # the partner body's point velocity at the same point
+            u0, u1, u2 = omega[k, b, 0], omega[k, b, 1], omega[k, b, 2]
+            q0 = point[r, 0] - position[k, b, 0]
+            q1 = point[r, 1] - position[k, b, 1]
+            q2 = point[r, 2] - position[k, b, 2]
+            c0 -= velocity[k, b, 0] + (u1 * q2 - u2 * q1)
+            c1 -= velocity[k, b, 1] + (u2 * q0 - u0 * q2)
+            c2 -= velocity[k, b, 2] + (u0 * q1 - u1 * q0)
+            w0, w1, w2 = w0 - u0, w1 - u1, w2 - u2
+        n0, n1, n2 = normal[r, 0], normal[r, 1], normal[r, 2]
+        # dot products summed as numpy's einsum sums a row of three: (p0 + p2) + p1
+        vn = (c0 * n0 + c2 * n2) + c1 * n1  # normal component
+        cv[r, 0], cv[r, 1], cv[r, 2] = c0, c1, c2
+        slip[r, 0], slip[r, 1], slip[r, 2] = c0 - vn * n0, c1 - vn * n1, c2 - vn * n2
+        cspeed[r] = math.sqrt((c0 * c0 + c2 * c2) + c1 * c1)
+        wspeed[r] = math.sqrt((w0 * w0 + w2 * w2) + w1 * w1)
 
 
 def _partner_label(model, b: int) -> str:
@@ -138,8 +179,8 @@ class PenetrationAnalyzer(Analyzer):
         if g.any():
             sep_out[g] = prox.ground_sep[k[g], i[g]]
             normal[g] = np.asarray(model.ground_normal, float)
-            point[g] = geometry.plane_witness(model, i[g], tr.position[k[g], i[g]],
-                                              tr.rotation[k[g], i[g]])
+            point[g] = geometry.plane_witness_at(model, k[g], i[g], i[g], tr.position,
+                                                 tr.rotation)
         for which, sign in ((1, 1.0), (2, -1.0)):
             m = src == which
             if m.any():
@@ -334,27 +375,19 @@ class PenetrationAnalyzer(Analyzer):
                     [bj]))
 
         # ---- contact-point velocity relative to the partner, at the primary support
-        x = tr.position[pk, pi_]
-        cv = tr.velocity[pk, pi_] + np.cross(tr.angular_velocity[pk, pi_], ppt - x)
-        dyn = (pb >= 0) & (pb < n)
-        if dyn.any():
-            bk, bb = pk[dyn], pb[dyn]
-            cv[dyn] -= tr.velocity[bk, bb] + np.cross(tr.angular_velocity[bk, bb],
-                                                      ppt[dyn] - tr.position[bk, bb])
-        vn = np.einsum("ij,ij->i", cv, pnorm)
-        slip = cv - vn[:, None] * pnorm
-        cspeed = np.sqrt(np.einsum("ij,ij->i", cv, cv))
+        cv, slip = np.empty((nrow, 3)), np.empty((nrow, 3))
+        cspeed, wspeed = np.empty(nrow), np.empty(nrow)
+        c = np.ascontiguousarray
+        _contact_velocity(pk, pi_, pb, c(ppt), c(pnorm), c(tr.position, dtype=np.float64),
+                          c(tr.velocity, dtype=np.float64),
+                          c(tr.angular_velocity, dtype=np.float64), n, cv, slip, cspeed, wspeed)
         rest = cspeed <= tol["rest_speed_mps"]
         # A box rocking on an edge has a resting pivot but is not at rest: for non-spheres, every
         # point of the body (within 2 bounding radii of the contact) must be slow too. A rolling
         # sphere's contact point is at rest, and rolling counts as resting contact.
-        wrel = tr.angular_velocity[pk, pi_].copy()
-        if dyn.any():
-            wrel[dyn] -= tr.angular_velocity[pk[dyn], pb[dyn]]
         sphere = model.body_shape[pi_] == 0
         reach = 2.0 * geometry.bounding_radius(model)[pi_]
-        rest &= sphere | (cspeed + np.sqrt(np.einsum("ij,ij->i", wrel, wrel)) * reach
-                          <= tol["rest_speed_mps"])
+        rest &= sphere | (cspeed + wspeed * reach <= tol["rest_speed_mps"])
         # a contact whose friction is at the Coulomb limit (or whose load reaches it) slides,
         # whatever its speed (a box dragged by a neighbour at a few mm/s): its slip is not creep
         # and its velocity change not jitter. It does not end the resting interval (a box that

@@ -4,8 +4,14 @@ angular momentum, Carlson's elliptic integrals for the attitude.
 After Celledoni, Fasso, Safstrom & Zanna, "The exact computation of the free rigid body motion and
 its use in splitting methods", SIAM J. Sci. Comput. 30(4) (2008): the body momentum by Jacobi's
 solution, the attitude by the reconstruction through the angle about the (fixed) world L, written
-with Carlson's R_F and R_J. Every quantity below is computed from the current state, so one call
-is a one-step map (q, L_world) -> q(t + h); nothing is cached between steps.
+with Carlson's R_F and R_J. The flow is evaluated from an anchor state (q_a, L_world) at the
+elapsed time t: :func:`flow_constants` computes once what depends on the anchor only (the axes'
+order and case, m, lam, the amplitudes, the anchor's phase and G, B0), :func:`flow_rotation` the
+rotation since the anchor at any t, q(t) = q_a (x) c(t). Stepping by evaluating from a fixed anchor
+at t = n h (rblog.engine.integrators.drift_exact_anchored) carries no state but the anchor, so
+the rounding of one step is not fed into the next (near the separatrix a carried q's rounding,
+~1e-16 a step, was amplified ~1e4 by the saddle); :func:`free_flow_body` is the one-step map, the
+state itself as the anchor.
 
 Frames and symbols
 ------------------
@@ -65,6 +71,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from rblog.engine.constants import (
@@ -262,42 +269,6 @@ def _rj_series(a0, x, y, z, p, fac, a):
 
 
 @jit
-def carlson_rj_pair(x0, y0, p0, x1, y1, p1):
-    """(R_J(x0, y0, 1, p0), R_J(x1, y1, 1, p1)) by one interleaved duplication loop (the two are
-    independent, so the processor overlaps their square roots); same algorithm and stopping rule
-    as :func:`carlson_rf_rj`."""
-    a00 = (x0 + y0 + 1.0 + 2.0 * p0) / 5.0
-    a01 = (x1 + y1 + 1.0 + 2.0 * p1) / 5.0
-    q0 = max(abs(a00 - x0), abs(a00 - y0), abs(a00 - 1.0), abs(a00 - p0))
-    q1 = max(abs(a01 - x1), abs(a01 - y1), abs(a01 - 1.0), abs(a01 - p1))
-    e0 = (p0 - x0) * (p0 - y0) * (p0 - 1.0)
-    e1 = (p1 - x1) * (p1 - y1) * (p1 - 1.0)
-    xa, ya, za, pa, aa = x0, y0, 1.0, p0, a00
-    xb, yb, zb, pb, ab = x1, y1, 1.0, p1, a01
-    fac = 1.0
-    s0 = 0.0
-    s1 = 0.0
-    for _ in range(40):
-        if fac * q0 <= CARLSON_SERIES_TOL * aa and fac * q1 <= CARLSON_SERIES_TOL * ab:
-            break
-        sx, sy, sz, sp = math.sqrt(xa), math.sqrt(ya), math.sqrt(za), math.sqrt(pa)
-        tx, ty, tz, tp = math.sqrt(xb), math.sqrt(yb), math.sqrt(zb), math.sqrt(pb)
-        la = sx * sy + sy * sz + sz * sx
-        lb = tx * ty + ty * tz + tz * tx
-        da = (sp + sx) * (sp + sy) * (sp + sz)
-        db = (tp + tx) * (tp + ty) * (tp + tz)
-        s0 += fac * _rc1(e0 / (da * da)) / da
-        s1 += fac * _rc1(e1 / (db * db)) / db
-        fac *= 0.25
-        e0 *= 1.0 / 64.0
-        e1 *= 1.0 / 64.0
-        xa, ya, za, pa, aa = 0.25 * (xa + la), 0.25 * (ya + la), 0.25 * (za + la), 0.25 * (pa + la), 0.25 * (aa + la)
-        xb, yb, zb, pb, ab = 0.25 * (xb + lb), 0.25 * (yb + lb), 0.25 * (zb + lb), 0.25 * (pb + lb), 0.25 * (ab + lb)
-    return (_rj_series(a00, x0, y0, 1.0, p0, fac, aa) + 6.0 * s0,
-            _rj_series(a01, x1, y1, 1.0, p1, fac, ab) + 6.0 * s1)
-
-
-@jit
 def _euler_quat(l1, l2, l3, ell):
     """A positive multiple of the quaternion of B = Rx(theta) Rz(psi), B Lb' = l e3, with
     Lb' = l (sin theta sin psi, sin theta cos psi, cos theta). Each factor is the unnormalized
@@ -326,27 +297,67 @@ def _qmul(aw, ax, ay, az, bw, bx, by, bz):
             aw * bz + ax * by - ay * bx + az * bw)
 
 
-@njit(cache=True)
-def free_flow_body(b0, b1, b2, k0, k1, k2, h):
-    """The exact torque-free motion over h of a body with body-frame angular momentum
-    Lb = (b0, b1, b2) and inverse principal moments (k0, k1, k2) (any order).
+#: Columns of a row of flow constants (:func:`flow_constants`): everything the flow from an anchor
+#: state needs that does not depend on the elapsed time. A steady rotation (FC_STEADY = 1) keeps
+#: the body-frame omega in FC_W0..FC_W2, |omega| in FC_WN and Lb in FC_B0..FC_B2 (columns 1-7
+#: reused).
+FC_STEADY = 0
+FC_I1, FC_I2, FC_I3 = 1, 2, 3  # the body axes of working axes 1', 2', 3' (as floats)
+FC_W0, FC_W1, FC_W2, FC_WN = 1, 2, 3, 4
+FC_B0, FC_B1, FC_B2 = 5, 6, 7
+FC_SGN3 = 4  # sign of axis 3' against its body axis (general case)
+FC_K1 = 5  # k1 (inverse moment of axis 1')
+FC_ELL = 6  # l = |L|
+FC_D13 = 7  # k1 - k3
+FC_M, FC_M1 = 8, 9  # parameter m and 1 - m
+FC_LAM = 10  # phase rate lam (1/s)
+FC_AMP1, FC_AMP2, FC_AMP3 = 11, 12, 13  # amplitudes a1, a2, a3 of L1, L2, L3 (kg m^2/s)
+FC_N = 14  # n = (k1 - k2) / (k2 - k3)
+FC_SIGMA, FC_S = 15, 16  # sign of L2's sn, sign of L3
+FC_SN0, FC_CN0, FC_DN0 = 17, 18, 19  # sn, cn, dn at the anchor's phase u0
+FC_G0 = 20  # G(am u0) = S^3 R_J(C^2, D^2, 1, 1 + n S^2) / 3 at the anchor (reduced amplitude)
+FC_AW, FC_AX, FC_AY, FC_AZ = 21, 22, 23, 24  # B0 (the anchor's Euler rotation), unnormalized
+FC_RJC = 25  # R_J(0, 1 - m, 1, 1 + n) (the half period's share), -1 until first needed
+N_FLOW = 26
 
-    Returns (cw, cx, cy, cz, n0, n1, n2): the unit quaternion c (cw >= 0) of the body's rotation
-    over the step in its own frame (q(t + h) = q(t) (x) c) and the body momentum at t + h.
-    """
-    flip = 1.0
-    if h < 0.0:  # the backward flow is the forward flow of -L (Euler's equations are quadratic)
-        flip = -1.0
-        b0, b1, b2, h = -b0, -b1, -b2, -h
-    # steady rotation (Lb parallel to omega): the rotation is exp(h omega)
+
+@njit(cache=True)
+def carlson_rj1(x, y, p):
+    """R_J(x, y, 1, p) alone (x, y >= 0, at most one zero; p > 0): the R_J half of
+    :func:`carlson_rf_rj`, same duplication and stopping rule."""
+    a0 = (x + y + 1.0 + 2.0 * p) / 5.0
+    q = max(abs(a0 - x), abs(a0 - y), abs(a0 - 1.0), abs(a0 - p))
+    e = (p - x) * (p - y) * (p - 1.0)
+    xa, ya, za, pa, aa = x, y, 1.0, p, a0
+    fac = 1.0
+    s = 0.0
+    for _ in range(40):
+        if fac * q <= CARLSON_SERIES_TOL * aa:
+            break
+        sx, sy, sz, sp = math.sqrt(xa), math.sqrt(ya), math.sqrt(za), math.sqrt(pa)
+        la = sx * sy + sy * sz + sz * sx
+        da = (sp + sx) * (sp + sy) * (sp + sz)
+        s += fac * _rc1(e / (da * da)) / da
+        fac *= 0.25
+        e *= 1.0 / 64.0
+        xa, ya, za, pa, aa = 0.25 * (xa + la), 0.25 * (ya + la), 0.25 * (za + la), 0.25 * (pa + la), 0.25 * (aa + la)
+    return _rj_series(a0, x, y, 1.0, p, fac, aa) + 6.0 * s
+
+
+@njit(cache=True)
+def flow_constants(fc, r, b0, b1, b2, k0, k1, k2):
+    """Row r of ``fc`` ((rows, N_FLOW) float64): the constants of the torque-free flow forward in
+    time of a body whose body-frame momentum at the anchor is Lb = (b0, b1, b2), with inverse
+    principal moments (k0, k1, k2) (any order). :func:`flow_rotation` then evaluates the flow
+    from the anchor at any elapsed time. (The flow backward is the forward flow of -Lb.)"""
+    # steady rotation (Lb parallel to omega): the rotation is exp(t omega)
     if b1 * b2 * (k2 - k1) == 0.0 and b2 * b0 * (k0 - k2) == 0.0 and b0 * b1 * (k1 - k0) == 0.0:
         w0, w1, w2 = b0 * k0, b1 * k1, b2 * k2
-        wn = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-        if wn == 0.0:
-            return 1.0, 0.0, 0.0, 0.0, flip * b0, flip * b1, flip * b2
-        half = 0.5 * h * wn
-        sf = math.sin(half) / wn
-        return math.cos(half), sf * w0, sf * w1, sf * w2, flip * b0, flip * b1, flip * b2
+        fc[r, FC_STEADY] = 1.0
+        fc[r, FC_W0], fc[r, FC_W1], fc[r, FC_W2] = w0, w1, w2
+        fc[r, FC_WN] = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        fc[r, FC_B0], fc[r, FC_B1], fc[r, FC_B2] = b0, b1, b2
+        return
     # sort the axes by inertia: ia (smallest I, largest k), ib, ic
     ia, ib, ic = 0, 1, 2
     ka, kb, kc = k0, k1, k2
@@ -359,21 +370,19 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
         ia, ib, ka, kb, la, lb = ib, ia, kb, ka, lb, la
     # parity of (ia, ib, ic) as a permutation of (0, 1, 2)
     par = 1.0 if (ib - ia) * (ic - ia) * (ic - ib) > 0 else -1.0
-    d_sep = la * la * (kb - ka) + lc * lc * (kb - kc)  # k_b (l^2 - 2E I_b)
-    if d_sep >= 0.0:  # case A: axis 3' = c
+    d_t = la * la * (kb - ka) + lc * lc * (kb - kc)  # k_b (l^2 - 2E I_b)
+    if d_t >= 0.0:  # case A: axis 3' = c
         i1, i2, i3 = ia, ib, ic
         kk1, kk2, kk3 = ka, kb, kc
         l1, l2, l3 = la, lb, lc * par
         sgn3 = par
         case_sign = 1.0
-        d_t = d_sep
     else:  # case B: axis 3' = a
         i1, i2, i3 = ic, ib, ia
         kk1, kk2, kk3 = kc, kb, ka
         l1, l2, l3 = lc, lb, -la * par
         sgn3 = -par
         case_sign = -1.0
-        d_t = d_sep
     ell = math.sqrt(l1 * l1 + l2 * l2 + l3 * l3)
     d13 = kk1 - kk3
     d23 = kk2 - kk3
@@ -386,7 +395,6 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
         m1 = 0.0
     if m > 1.0:
         m = 1.0
-    lam = math.sqrt(d23 * q_t)
     amp1 = math.sqrt(p_t / d13)
     amp2 = math.sqrt(p_t / d23)
     amp3 = math.sqrt(q_t / d13)
@@ -396,12 +404,56 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
     sn0 = sigma * l2 / amp2
     dn0 = abs(l3) / amp3
     nn = d12 / d23
-    # advance the phase by tau = lam h: functions of r, tau = 2 K j + r
-    tau = lam * h
+    g0 = 0.0
+    if nn != 0.0:
+        s_red0 = sn0 if cn0 >= 0.0 else -sn0
+        s20 = s_red0 * s_red0
+        g0 = s_red0 * s20 * carlson_rj1(cn0 * cn0, dn0 * dn0, 1.0 + nn * s20) / 3.0
+    aw, ax, ay, az = _euler_quat(l1, l2, l3, ell)
+    fc[r, FC_STEADY] = 0.0
+    fc[r, FC_I1], fc[r, FC_I2], fc[r, FC_I3] = float(i1), float(i2), float(i3)
+    fc[r, FC_SGN3] = sgn3
+    fc[r, FC_K1] = kk1
+    fc[r, FC_ELL] = ell
+    fc[r, FC_D13] = d13
+    fc[r, FC_M], fc[r, FC_M1] = m, m1
+    fc[r, FC_LAM] = math.sqrt(d23 * q_t)
+    fc[r, FC_AMP1], fc[r, FC_AMP2], fc[r, FC_AMP3] = amp1, amp2, amp3
+    fc[r, FC_N] = nn
+    fc[r, FC_SIGMA], fc[r, FC_S] = sigma, s
+    fc[r, FC_SN0], fc[r, FC_CN0], fc[r, FC_DN0] = sn0, cn0, dn0
+    fc[r, FC_G0] = g0
+    fc[r, FC_AW], fc[r, FC_AX], fc[r, FC_AY], fc[r, FC_AZ] = aw, ax, ay, az
+    fc[r, FC_RJC] = -1.0
+
+
+@njit(cache=True)
+def flow_rotation(fc, r, t):
+    """The torque-free flow over the elapsed time t >= 0 from the anchor of row r of ``fc``
+    (:func:`flow_constants`).
+
+    Returns (cw, cx, cy, cz, n0, n1, n2): the unit quaternion c (cw >= 0) of the body's rotation
+    since the anchor in its own frame (q(t) = q_anchor (x) c) and the body momentum at t. May
+    fill the row's FC_RJC (computed the first time a half period is crossed).
+    """
+    if fc[r, FC_STEADY] != 0.0:
+        w0, w1, w2, wn = fc[r, FC_W0], fc[r, FC_W1], fc[r, FC_W2], fc[r, FC_WN]
+        b0, b1, b2 = fc[r, FC_B0], fc[r, FC_B1], fc[r, FC_B2]  # constant
+        if wn == 0.0:
+            return 1.0, 0.0, 0.0, 0.0, b0, b1, b2
+        half = 0.5 * t * wn
+        sf = math.sin(half) / wn
+        return math.cos(half), sf * w0, sf * w1, sf * w2, b0, b1, b2
+    kk1, ell, d13 = fc[r, FC_K1], fc[r, FC_ELL], fc[r, FC_D13]
+    m, m1, lam, nn = fc[r, FC_M], fc[r, FC_M1], fc[r, FC_LAM], fc[r, FC_N]
+    amp1, amp2, amp3 = fc[r, FC_AMP1], fc[r, FC_AMP2], fc[r, FC_AMP3]
+    sigma, s = fc[r, FC_SIGMA], fc[r, FC_S]
+    sn0, cn0, dn0 = fc[r, FC_SN0], fc[r, FC_CN0], fc[r, FC_DN0]
+    # advance the phase by tau = lam t: functions of r, tau = 2 K j + r
+    tau = lam * t
     snr, cnr, dnr, j, big_k = sncndn(tau, m, m1)
     # addition theorem (A&S 16.17) written for the increments, so that a small step's rounding is
-    # relative to the step (1 - cn r and 1 - dn r from sn r, no cancellation): the same tau every
-    # step must not add the same absolute rounding of cn r ~ 1 every step.
+    # relative to the step (1 - cn r and 1 - dn r from sn r, no cancellation)
     gc = snr * snr / (1.0 + cnr) if cnr > 0.0 else 1.0 - cnr  # 1 - cn r
     gd = m * snr * snr / (1.0 + dnr)  # 1 - dn r
     mu_ = m * sn0 * sn0 * snr * snr
@@ -426,35 +478,38 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
             e = -1
     # int du / (1 + n sn^2) = tau - n int sn^2 du / (1 + n sn^2): the latter's Carlson form has no
     # 1/n, so a near-symmetric body (n -> 0, slow precession lam -> 0) loses nothing to the
-    # difference of the two ends
-    # G(phi) = S^3 R_J(C^2, D^2, 1, 1 + n S^2) / 3 at both ends (|phi| <= pi/2)
+    # difference of the two ends; G(phi) = S^3 R_J(C^2, D^2, 1, 1 + n S^2) / 3 (|phi| <= pi/2),
+    # the anchor's end G0 a constant of the row
     dg = 0.0
     if nn != 0.0:
-        s20, s21 = s_red0 * s_red0, s_red1 * s_red1
-        rj0, rj1 = carlson_rj_pair(cn0 * cn0, dn0 * dn0, 1.0 + nn * s20,
-                                   cn1 * cn1, dn1 * dn1, 1.0 + nn * s21)
-        dg = (s_red1 * s21 * rj1 - s_red0 * s20 * rj0) / 3.0
+        s21 = s_red1 * s_red1
+        dg = s_red1 * s21 * carlson_rj1(cn1 * cn1, dn1 * dn1, 1.0 + nn * s21) / 3.0 - fc[r, FC_G0]
     if big_k == math.inf:  # on the separatrix the amplitude never leaves (-pi/2, pi/2)
         e = 0
     halfs = j + e
     if halfs != 0 and nn != 0.0:
-        _, rj_c = carlson_rf_rj(0.0, m1, 1.0, 1.0 + nn)
+        rj_c = fc[r, FC_RJC]
+        if rj_c < 0.0:
+            rj_c = carlson_rj1(0.0, m1, 1.0 + nn)
+            fc[r, FC_RJC] = rj_c
         dg += 2.0 * halfs * rj_c / 3.0
-    # dphi = l k3 h + l (k1 - k3) / lam * (tau - n dg)
-    dphi = ell * kk1 * h - ell * d13 * nn / lam * dg
+    # dphi = l k3 t + l (k1 - k3) / lam * (tau - n dg)
+    dphi = ell * kk1 * t - ell * d13 * nn / lam * dg
     # the momentum at u0 + tau
     sj = -1.0 if (j & 1) else 1.0
     n1_ = amp1 * cn1 * sj
     n2_ = sigma * amp2 * sn1 * sj
     n3_ = s * amp3 * dn1
-    # rotation over the step in the working frame: B0^T Rz(dphi) B1
-    aw, ax, ay, az = _euler_quat(l1, l2, l3, ell)
+    # rotation since the anchor in the working frame: B0^T Rz(dphi) B1
     bw, bx, by, bz = _euler_quat(n1_, n2_, n3_, ell)
     ch, sh = math.cos(0.5 * dphi), math.sin(0.5 * dphi)
-    # conj(a) (x) rz
-    tw, tx, ty, tz = _qmul(aw, -ax, -ay, -az, ch, 0.0, 0.0, sh)
+    # conj(B0) (x) rz
+    tw, tx, ty, tz = _qmul(fc[r, FC_AW], -fc[r, FC_AX], -fc[r, FC_AY], -fc[r, FC_AZ],
+                           ch, 0.0, 0.0, sh)
     cw, cx, cy, cz = _qmul(tw, tx, ty, tz, bw, bx, by, bz)
     # back to the body frame: v_body[i_k] = s_k v'_k, s = (1, 1, sgn3)
+    sgn3 = fc[r, FC_SGN3]
+    i1, i2 = int(fc[r, FC_I1]), int(fc[r, FC_I2])
     c0 = c1 = c2 = 0.0
     o0 = o1 = o2 = 0.0
     for k in range(3):
@@ -463,7 +518,7 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
         elif k == 1:
             idx, vc, vn = i2, cy, n2_
         else:
-            idx, vc, vn = i3, cz * sgn3, n3_ * sgn3
+            idx, vc, vn = 3 - i1 - i2, cz * sgn3, n3_ * sgn3
         if idx == 0:
             c0, o0 = vc, vn
         elif idx == 1:
@@ -473,7 +528,26 @@ def free_flow_body(b0, b1, b2, k0, k1, k2, h):
     nc = 1.0 / math.sqrt(cw * cw + c0 * c0 + c1 * c1 + c2 * c2)
     if cw < 0.0:
         nc = -nc
-    return cw * nc, c0 * nc, c1 * nc, c2 * nc, flip * o0, flip * o1, flip * o2
+    return cw * nc, c0 * nc, c1 * nc, c2 * nc, o0, o1, o2
+
+
+@njit(cache=True)
+def free_flow_body(b0, b1, b2, k0, k1, k2, h):
+    """The exact torque-free motion over h of a body with body-frame angular momentum
+    Lb = (b0, b1, b2) and inverse principal moments (k0, k1, k2) (any order): the body itself as
+    the anchor, the flow evaluated at h (:func:`flow_constants`, :func:`flow_rotation`).
+
+    Returns (cw, cx, cy, cz, n0, n1, n2): the unit quaternion c (cw >= 0) of the body's rotation
+    over the step in its own frame (q(t + h) = q(t) (x) c) and the body momentum at t + h.
+    """
+    flip = 1.0
+    if h < 0.0:  # the backward flow is the forward flow of -L (Euler's equations are quadratic)
+        flip = -1.0
+        b0, b1, b2, h = -b0, -b1, -b2, -h
+    fc = np.empty((1, N_FLOW))
+    flow_constants(fc, 0, b0, b1, b2, k0, k1, k2)
+    cw, cx, cy, cz, o0, o1, o2 = flow_rotation(fc, 0, h)
+    return cw, cx, cy, cz, flip * o0, flip * o1, flip * o2
 
 
 @njit(cache=True)

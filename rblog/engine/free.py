@@ -30,7 +30,11 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 from numba import njit
 
+import numpy as np
+
+from rblog.engine.exact import N_FLOW
 from rblog.engine.integrators import METHOD_NAMES, METHOD_SEED, step_body, sync_quat
+from rblog.engine.state import new_anchors
 
 
 #: bodies advanced together, steps inner: their state (~180 B each) stays in L1, and a sample's
@@ -89,17 +93,22 @@ def advance_free(method, ortho, dt, n_steps, stride, sample_last,
                  inv_mass, inv_inertia, force_world, torque_world,
                  position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                  out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                 out_angular_momentum, n_threads=None):
+                 out_angular_momentum, n_threads=None, anchors=None):
     """Advance all bodies ``n_steps`` steps of ``dt`` on ``n_threads`` threads (default
     ``numba.config.NUMBA_NUM_THREADS``); arguments and result as :func:`advance_free_range` over all
-    bodies, bitwise the same for any thread count."""
+    bodies, bitwise the same for any thread count. ``anchors`` (rblog.engine.state.FlowAnchors,
+    updated in place) carries the exact integrators' flow anchors from call to call, so a run
+    gives the same result however it is split into calls; None: anchors for this call only."""
     n = position.shape[0]
+    if anchors is None:
+        anchors = new_anchors(n)
     if n_threads is None:
         n_threads = numba.config.NUMBA_NUM_THREADS
     ranges = body_ranges(n, n_threads) if n * n_steps >= MIN_PARALLEL_BODY_STEPS else [(0, n)]
     args = (method, ortho, dt, n_steps, stride, sample_last, inv_mass, inv_inertia, force_world,
             torque_world, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-            out_position, out_linear_momentum, out_quat_wxyz, out_rotation, out_angular_momentum)
+            out_position, out_linear_momentum, out_quat_wxyz, out_rotation, out_angular_momentum,
+            anchors)
     if len(ranges) == 1:
         return advance_free_range(*args, 0, n)
     futures = [_pool(len(ranges)).submit(advance_free_range, *args, b0, b1) for b0, b1 in ranges]
@@ -117,13 +126,13 @@ def advance_free_range(method, ortho, dt, n_steps, stride, sample_last,
                        inv_mass, inv_inertia, force_world, torque_world,
                        position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                        out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                       out_angular_momentum, b0, b1):
+                       out_angular_momentum, anchors, b0, b1):
     """Advance bodies b0 .. b1-1 by integrator ``method`` (the compiled kernel of
     :func:`range_kernel`; arguments and result documented there)."""
     return range_kernel(method)(ortho, dt, n_steps, stride, sample_last, inv_mass, inv_inertia,
                                 force_world, torque_world, position, linear_momentum, quat_wxyz,
                                 rotation, angular_momentum, out_position, out_linear_momentum,
-                                out_quat_wxyz, out_rotation, out_angular_momentum, b0, b1)
+                                out_quat_wxyz, out_rotation, out_angular_momentum, anchors, b0, b1)
 
 
 _KERNELS: dict = {}
@@ -151,7 +160,7 @@ def _make_range_kernel(method: int):
                            inv_mass, inv_inertia, force_world, torque_world,
                            position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                            out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                           out_angular_momentum, b0, b1):
+                           out_angular_momentum, an, b0, b1):
         """Advance bodies b0 .. b1-1 ``n_steps`` steps of ``dt``; write their samples.
 
         Args:
@@ -160,6 +169,7 @@ def _make_range_kernel(method: int):
             force_world: (N, 3) total constant force incl. gravity (N).  torque_world: (N, 3) (N m).
             position, linear_momentum, quat_wxyz, rotation, angular_momentum: state, updated in place.
             out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
+            an: rblog.engine.state.FlowAnchors, updated in place (exact integrators only).
             b0, b1: the body range (0, N for all).
 
         Returns:
@@ -173,8 +183,13 @@ def _make_range_kernel(method: int):
         # Sparse samples: one body at a time, position and momentum in registers for the block.
         # Dense samples: tiles of bodies, so that a sample's writes share cache lines.
         tile = 1 if stride >= SPARSE_STRIDE else BODY_TILE
+        # the exact flow's constants of each body of a tile, computed from its anchor on its
+        # first step in this call (a pure function of the anchor: the same in every split)
+        fc = np.empty((tile, N_FLOW))
+        fc_ok = np.zeros(tile, np.bool_)
         for t0 in range(b0, b1, tile):
             t1 = min(t0 + tile, b1)
+            fc_ok[:] = False
             j = 0
             if tile == 1:
                 i = t0
@@ -183,7 +198,8 @@ def _make_range_kernel(method: int):
                 for s in range(1, n_steps + 1):
                     ok, x, y, z, px, py, pz = step_body(
                         method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
-                        quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz)
+                        quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz, an, fc, 0,
+                        fc_ok)
                     if not ok:
                         if bad_step < 0 or s < bad_step:
                             bad_step = s
@@ -206,7 +222,7 @@ def _make_range_kernel(method: int):
                             method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
                             quat_wxyz, rotation, angular_momentum, position[i, 0], position[i, 1],
                             position[i, 2], linear_momentum[i, 0], linear_momentum[i, 1],
-                            linear_momentum[i, 2])
+                            linear_momentum[i, 2], an, fc, i - t0, fc_ok)
                         position[i, 0], position[i, 1], position[i, 2] = x, y, z
                         linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
                         if not ok:

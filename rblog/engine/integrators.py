@@ -51,7 +51,12 @@ functions for the body momentum, Carlson's integrals for the attitude), to round
 With forces and torques: Strang splitting kick(h/2) exact-flow(h) kick(h/2), second order; the
 world torque is constant over a step, so the only error is the splitting of the momentum kick
 from the rotation. ``exact4``: Yoshida's triple jump of that step (h w1, h w0, h w1 with
-w1 = 1 / (2 - 2^(1/3)), w0 = 1 - 2 w1), fourth order; without torque both are exact.
+w1 = 1 / (2 - 2^(1/3)), w0 = 1 - 2 w1), fourth order; without torque both are exact, and both
+take the flow over h in one evaluation. The flow is evaluated from a per-body anchor (q_a, L_a)
+at the elapsed time n h (:func:`drift_exact_anchored`, rblog.engine.state.FlowAnchors), not as a
+one-step map of the carried q, so the run's error is one evaluation's rounding at any step count
+(a carried q's ~1e-16 a step, amplified ~1e4 by the saddle, cost the intermediate-axis box 1e-10
+at dt 1e-2); a torque kick or contact impulse changes L and so starts a new anchor.
 """
 
 from __future__ import annotations
@@ -62,7 +67,7 @@ from dataclasses import dataclass
 from numba import njit
 
 from rblog.engine.constants import MAX_ROTATION_PER_STEP_RAD
-from rblog.engine.exact import free_flow_quat
+from rblog.engine.exact import flow_constants, flow_rotation, free_flow_quat
 from rblog.engine.rotation import (
     gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, omega_world_stretched, polar,
     quat_mul, quat_to_mat, store_mat,
@@ -382,6 +387,46 @@ def drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
     store_mat(rotation, i, quat_to_mat(w, x, y, z))
 
 
+@drift_jit
+def drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, an, fc, r,
+                         fc_ok):
+    """The exact torque-free rotation over h (L world fixed), evaluated from body i's anchor
+    (rblog.engine.state.FlowAnchors) at the elapsed time (anchor_steps + 1) h: no rounding is
+    carried from step to step (see rblog.engine.exact).
+
+    The anchor is valid while anchor_steps >= 0, L equals anchor_L_world bitwise and h equals
+    anchor_dt_s; otherwise the current (q, L) becomes the anchor (so a torque kick or a contact
+    impulse, which change L, start a new one). Row r of ``fc`` ((rows, exact.N_FLOW)) caches the
+    anchor's flow constants within a call: ``fc_ok[r]`` says they are the current anchor's (the
+    caller clears it when the row is given to another body); a new anchor recomputes them."""
+    lx, ly, lz = angular_momentum[i, 0], angular_momentum[i, 1], angular_momentum[i, 2]
+    if not (an.anchor_steps[i] >= 0 and an.anchor_dt_s[i] == h and an.anchor_L_world[i, 0] == lx
+            and an.anchor_L_world[i, 1] == ly and an.anchor_L_world[i, 2] == lz):
+        for k in range(4):
+            an.anchor_quat_wxyz[i, k] = quat_wxyz[i, k]
+        an.anchor_L_world[i, 0], an.anchor_L_world[i, 1], an.anchor_L_world[i, 2] = lx, ly, lz
+        an.anchor_steps[i] = 0
+        an.anchor_dt_s[i] = h
+        fc_ok[r] = False
+    aw, ax, ay, az = (an.anchor_quat_wxyz[i, 0], an.anchor_quat_wxyz[i, 1],
+                      an.anchor_quat_wxyz[i, 2], an.anchor_quat_wxyz[i, 3])
+    if not fc_ok[r]:
+        # Lb = R(q_a)^T L at the anchor; backward in time, the forward flow of -Lb
+        m00, m01, m02, m10, m11, m12, m20, m21, m22 = quat_to_mat(aw, ax, ay, az)
+        sg = 1.0 if h >= 0.0 else -1.0
+        flow_constants(fc, r, sg * (m00 * lx + m10 * ly + m20 * lz),
+                       sg * (m01 * lx + m11 * ly + m21 * lz), sg * (m02 * lx + m12 * ly + m22 * lz),
+                       inv_inertia[i, 0], inv_inertia[i, 1], inv_inertia[i, 2])
+        fc_ok[r] = True
+    n = an.anchor_steps[i] + 1
+    cw, cx, cy, cz, _, _, _ = flow_rotation(fc, r, n * abs(h))
+    w, x, y, z = quat_mul(aw, ax, ay, az, cw, cx, cy, cz)
+    w, x, y, z = normalize4(w, x, y, z)
+    an.anchor_steps[i] = n
+    quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
+    store_mat(rotation, i, quat_to_mat(w, x, y, z))
+
+
 @njit(cache=True)
 def drift_rotation(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h,
                    tx=0.0, ty=0.0, tz=0.0):
@@ -429,19 +474,23 @@ def sync_quat(method, quat_wxyz, rotation, i):
 
 
 @jit
-def _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx, ty, tz):
-    """Kick L by tau h/2, the exact free flow over h, kick by tau h/2 (h may be negative)."""
+def _strang_exact(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx, ty, tz, an, fc, r,
+                  fc_ok):
+    """Kick L by tau h/2, the exact free flow over h (from the anchor), kick by tau h/2 (h may be
+    negative). A kick changes L, so with torque every flow starts from a new anchor."""
     hh = 0.5 * h
     if tx != 0.0 or ty != 0.0 or tz != 0.0:
         angular_momentum[i, 0] += hh * tx
         angular_momentum[i, 1] += hh * ty
         angular_momentum[i, 2] += hh * tz
-        drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
+        drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, an, fc, r,
+                             fc_ok)
         angular_momentum[i, 0] += hh * tx
         angular_momentum[i, 1] += hh * ty
         angular_momentum[i, 2] += hh * tz
     else:
-        drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
+        drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, an, fc, r,
+                             fc_ok)
 
 
 @jit
@@ -467,12 +516,15 @@ def turn_within_bound(dt, i, inv_inertia, rotation, angular_momentum):
 
 @njit(inline="always")
 def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_world,
-               quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz):
+               quat_wxyz, rotation, angular_momentum, x, y, z, px, py, pz, an, fc, r, fc_ok):
     """One step of free body i by integrator ``method``: orientation and L in place, position
     (x, y, z) and momentum (px, py, pz) passed and returned as scalars (so a caller may keep them
     in registers). Translation per integrator (the same scheme as :func:`drift_position`):
     ``seed``/``seed-quat`` symplectic Euler, ``splitting`` kick-drift-kick and ``rk4`` the exact
     constant-force step, which are the same map x += h v + h^2 a / 2, v += h a.
+    ``exact``/``exact4`` evaluate the flow from body i's anchor (``an``, a
+    rblog.engine.state.FlowAnchors; flow constants cached in row r of ``fc``, see
+    :func:`drift_exact_anchored`); the other integrators ignore an, fc, r, fc_ok.
     Returns (ok, x, y, z, px, py, pz); ok is False if the state became non-finite or the body
     turned more than MAX_ROTATION_PER_STEP_RAD in the step (:func:`turn_within_bound`)."""
     im = inv_mass[i]
@@ -506,17 +558,18 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
         px += dt * fx
         py += dt * fy
         pz += dt * fz
-        # rotation: Strang kick(h/2) exact(h) kick(h/2), or Yoshida's triple jump of it
-        if method == METHOD_EXACT:
-            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt,
-                          tx, ty, tz)
+        # rotation: Strang kick(h/2) exact(h) kick(h/2), or Yoshida's triple jump of it (without
+        # torque both are the exact flow over h)
+        if method == METHOD_EXACT or (tx == 0.0 and ty == 0.0 and tz == 0.0):
+            _strang_exact(quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt, tx, ty, tz,
+                          an, fc, r, fc_ok)
         else:
-            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
-                          YOSHIDA_W1 * dt, tx, ty, tz)
-            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
-                          YOSHIDA_W0 * dt, tx, ty, tz)
-            _strang_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
-                          YOSHIDA_W1 * dt, tx, ty, tz)
+            _strang_exact(quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W1 * dt, tx, ty, tz, an, fc, r, fc_ok)
+            _strang_exact(quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W0 * dt, tx, ty, tz, an, fc, r, fc_ok)
+            _strang_exact(quat_wxyz, rotation, angular_momentum, inv_inertia, i,
+                          YOSHIDA_W1 * dt, tx, ty, tz, an, fc, r, fc_ok)
     elif method == METHOD_RK4:
         # translation: exact for a constant force; rotation: RK4 with L(t) = L + t tau
         hh = 0.5 * dt * dt * im

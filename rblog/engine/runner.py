@@ -603,7 +603,8 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profil
 
         def advance(dt, n, stride, sample_last, st, bufs):
             return world.advance(dt, n, stride, sample_last, st.position, st.linear_momentum,
-                                 st.quat_wxyz, st.rotation, st.angular_momentum_world, *bufs)
+                                 st.quat_wxyz, st.rotation, st.angular_momentum_world, *bufs,
+                                 anchors=st.anchors)
 
         return advance
 
@@ -617,7 +618,7 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profil
         ns, bad_step, bad_body = advance_free(
             method, ortho_code, dt, n, stride, sample_last, inv_mass, inv_inertia, force, torque,
             st.position, st.linear_momentum, st.quat_wxyz, st.rotation, st.angular_momentum_world,
-            *bufs)
+            *bufs, anchors=st.anchors)
         if profile is not None:
             profile.add("free kernel (integrate + sample)", time.perf_counter() - t0)
         return ns, bad_step, bad_body, None

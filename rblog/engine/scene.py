@@ -11,6 +11,7 @@ error naming the file, the key, the value and what was expected; the format has 
 from __future__ import annotations
 
 import difflib
+from collections import Counter
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -270,36 +271,44 @@ def _parse_scene(text: str, path: str) -> Scene:
             "friction": ctx.num(sb.get("friction", DEFAULT_FRICTION), f"{key}.friction", nonneg=True),
         })
 
-    # bodies, then generated bodies
-    bodies = []
+    # bodies, then generated bodies: each a _Bodies block of arrays (generators are expanded
+    # straight into arrays, never into per-body dicts)
+    blocks: list[_Bodies] = []
+    explicit = []
     body_list = doc.get("body", [])
     if not isinstance(body_list, list):
         ctx.fail("body", "expected an array of tables [[body]]")
     for k, b in enumerate(body_list):
-        bodies.append(_body(ctx, ctx.table(b, f"body[{k}]"), f"body[{k}]", f"body{k}"))
+        explicit.append(_body(ctx, ctx.table(b, f"body[{k}]"), f"body[{k}]", f"body{k}"))
+    if explicit:
+        blocks.append(_Bodies.from_dicts(explicit))
     gen_list = doc.get("generator", [])
     if not isinstance(gen_list, list):
         ctx.fail("generator", "expected an array of tables [[generator]]")
+    generators = []
     for k, g in enumerate(gen_list):
-        bodies.extend(_generate(ctx, ctx.table(g, f"generator[{k}]"), f"generator[{k}]", sim.seed + k))
-    if not bodies:
+        block, gen_resolved = _generate(ctx, ctx.table(g, f"generator[{k}]"), f"generator[{k}]",
+                                        sim.seed + k)
+        blocks.append(block)
+        generators.append(gen_resolved)
+    if not blocks:
         ctx.fail("body", "the scene has no bodies (add [[body]] or [[generator]] tables)")
-    names = [b["name"] for b in bodies]
+    names = [name for b in blocks for name in b.name]
     if len(set(names)) != len(names):
-        dup = next(n for n in names if names.count(n) > 1)
+        counts = Counter(names)
+        dup = next(n for n in names if counts[n] > 1)
         ctx.fail("body.name", f"names must be unique, {dup!r} is used twice")
+    del names
 
     contact = {}
     if "contact" in doc:
         contact = _contact_table(ctx, ctx.table(doc["contact"], "contact"))
 
-    model, state = _build(bodies, statics, gravity, ground, g_normal, g_offset, g_rest, g_fric)
-    resolved["body"] = [
-        {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in b.items()} for b in bodies
-    ]
-    resolved["static_box"] = [
-        {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in s.items()} for s in statics
-    ]
+    model, state = _build(blocks, statics, gravity, ground, g_normal, g_offset, g_rest, g_fric)
+    resolved["body"] = [_jsonable(b) for b in explicit]
+    if generators:
+        resolved["generator"] = generators
+    resolved["static_box"] = [_jsonable(s) for s in statics]
     if contact:
         resolved["contact"] = contact
     return Scene(path, text, model, state, sim, contact, resolved, warnings=ctx.warnings)
@@ -484,15 +493,21 @@ def _random_unit(rng, n) -> np.ndarray:
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> list[dict]:
-    """Expand a [[generator]] table into bodies (grid or seeded random layout)."""
+def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> tuple["_Bodies", dict]:
+    """Expand a [[generator]] table into a block of bodies (grid or seeded random layout), as
+    arrays: the template body is validated once, and the per-body values (position, velocity,
+    spin, orientation) are drawn for all bodies at once. Returns (bodies, the generator as
+    resolved: its layout, seed and template body after defaults, and its bodies' position bounds),
+    which is what the log's resolved scene keeps of it (the bodies themselves follow from it)."""
     ctx.keys(g, key, GENERATOR_KEYS)
     layout = ctx.string(g.get("layout", "grid"), f"{key}.layout", ("grid", "random"))
     template = dict(ctx.table(g.get("body", {}), f"{key}.body"))
     if "name" in template:
         ctx.fail(f"{key}.body.name", "generated bodies are named from name_prefix")
     prefix = ctx.string(g.get("name_prefix", f"g{key[10:-1]}_"), f"{key}.name_prefix")
-    rng = np.random.default_rng(ctx.integer(g.get("seed", default_seed), f"{key}.seed", lo=0))
+    seed = ctx.integer(g.get("seed", default_seed), f"{key}.seed", lo=0)
+    rng = np.random.default_rng(seed)
+    out_g: dict[str, Any] = {"layout": layout}
     if layout == "grid":
         if "grid" not in g:
             ctx.fail(f"{key}.grid", "missing (a list of 3 counts [nx, ny, nz])")
@@ -509,9 +524,11 @@ def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> list[dict]:
         origin = ctx.vec(g.get("origin", [0, 0, 0]), f"{key}.origin")
         idx = np.stack(np.meshgrid(*[np.arange(c) for c in counts], indexing="ij"), -1).reshape(-1, 3)
         positions = origin + idx * spacing
+        del idx
         for k in ("region_min", "region_max"):
             if k in g:
                 ctx.fail(f"{key}.{k}", "only for layout = \"random\"")
+        out_g.update(grid=counts, spacing=spacing.tolist(), origin=origin.tolist())
     else:
         if "count" not in g:
             ctx.fail(f"{key}.count", "missing (number of bodies)")
@@ -528,39 +545,124 @@ def _generate(ctx: _Ctx, g: dict, key: str, default_seed: int) -> list[dict]:
         for k in ("grid", "spacing", "origin"):
             if k in g:
                 ctx.fail(f"{key}.{k}", "only for layout = \"grid\"")
+        out_g.update(count=n, region_min=lo.tolist(), region_max=hi.tolist())
     n = len(positions)
     speed = _range(ctx, g, "speed", key)
     spin = _range(ctx, g, "spin", key)
     rand_orient = ctx.boolean(g.get("random_orientation", False), f"{key}.random_orientation")
-    out = []
     vdir = _random_unit(rng, n)
     vmag = rng.uniform(*speed, size=n) if speed else np.zeros(n)
     wdir = _random_unit(rng, n)
     wmag = rng.uniform(*spin, size=n) if spin else np.zeros(n)
     quats = rng.normal(size=(n, 4))
     quats /= np.linalg.norm(quats, axis=1, keepdims=True)
-    for i in range(n):
-        b = dict(template)
-        b["name"] = f"{prefix}{i}"
-        b["position"] = positions[i].tolist()
-        if rand_orient:
-            for k in ORIENTATION_KEYS:
-                b.pop(k, None)
-            b["quat_wxyz"] = quats[i].tolist()
-        body = _body(ctx, b, f"{key}.body", b["name"])
-        if speed:
-            body["velocity"] = body["velocity"] + vmag[i] * vdir[i]
-        if spin:
-            if body["angular_velocity"] is not None:
-                base = body["angular_velocity"]
-            elif body["angular_velocity_body"] is not None:
-                base = quat_to_matrix_np(body["quat_wxyz"]) @ body["angular_velocity_body"]
-            else:
-                base = np.zeros(3)
-            body["angular_velocity"] = base + wmag[i] * wdir[i]
-            body["angular_velocity_body"] = None
-        out.append(body)
-    return out
+
+    # the template, validated once, as each generated body's table is (a name and a position
+    # from the generator; with random_orientation, no orientation of its own)
+    b = dict(template)
+    b["name"] = f"{prefix}0"
+    b["position"] = [0.0, 0.0, 0.0]
+    if rand_orient:
+        for k in ORIENTATION_KEYS:
+            b.pop(k, None)
+    tb = _body(ctx, b, f"{key}.body", b["name"])
+    bad = np.argwhere(~np.isfinite(positions))
+    if len(bad):  # a grid or region so far out that it overflows
+        i, j = bad[0]
+        ctx.num(float(positions[i, j]), f"{key}.body.position[{j}]")
+    body = _Bodies.from_dicts([tb], repeat=n)
+    body.name = [f"{prefix}{i}" for i in range(n)]
+    body.position = positions
+    if rand_orient:
+        # as _orientation treats a given quaternion: divided by its norm, w >= 0 (the norm as
+        # np.linalg.norm takes it, a dot product, for the same bits as one body at a time)
+        norm = np.sqrt(np.matmul(quats[:, None, :], quats[:, :, None])[:, 0, 0])
+        if np.any(norm < QUAT_MIN_NORM):  # pragma: no cover - normal draws are never all ~0
+            ctx.fail(f"{key}.body.quat_wxyz", "expected a non-zero quaternion")
+        q = quats / norm[:, None]
+        q[q[:, 0] < 0] *= -1.0
+        body.quat = q
+    del quats
+    if speed:
+        body.velocity = body.velocity + vmag[:, None] * vdir
+    if spin:
+        base = body.omega.copy()
+        in_body = body.omega_frame == _OMEGA_BODY
+        if np.any(in_body):
+            base[in_body] = _rotate(quat_to_matrix_np(body.quat[in_body]), body.omega[in_body])
+        body.omega = base + wmag[:, None] * wdir
+        body.omega_frame = np.full(n, _OMEGA_WORLD, np.int8)
+    lo_p, hi_p = positions.min(axis=0), positions.max(axis=0)
+    tb_json = _jsonable(tb)
+    for k in ("name", "position"):
+        tb_json.pop(k)
+    if rand_orient:
+        tb_json.pop("quat_wxyz")
+    out_g.update(seed=seed, name_prefix=prefix, speed=list(speed) if speed else None,
+                 spin=list(spin) if spin else None, random_orientation=rand_orient,
+                 body=tb_json, n_bodies=n, position_bounds=[lo_p.tolist(), hi_p.tolist()])
+    return body, out_g
+
+
+def _rotate(rot: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) @ (n, 3) -> (n, 3), each product as ``rot[i] @ v[i]`` computes it."""
+    return np.matmul(rot, v[:, :, None])[:, :, 0]
+
+
+def _jsonable(d: dict) -> dict:
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()}
+
+
+#: frame of a body's given angular velocity (_Bodies.omega_frame): none given, world, body
+_OMEGA_NONE, _OMEGA_WORLD, _OMEGA_BODY = 0, 1, 2
+
+
+@dataclass
+class _Bodies:
+    """A block of validated bodies as arrays (N first): the [[body]] tables, or one generator's
+    bodies. ``omega`` is the given angular velocity (rad/s) in the frame ``omega_frame`` names
+    (_OMEGA_*; zero when none was given); the rest as in :class:`Model` and :class:`State`."""
+
+    name: list
+    shape: np.ndarray        # (n,) int64 shape codes
+    size: np.ndarray         # (n, 3)
+    mass: np.ndarray         # (n,)
+    inertia: np.ndarray      # (n, 3)
+    position: np.ndarray     # (n, 3)
+    quat: np.ndarray         # (n, 4) wxyz
+    velocity: np.ndarray     # (n, 3)
+    omega: np.ndarray        # (n, 3)
+    omega_frame: np.ndarray  # (n,) int8
+    force: np.ndarray        # (n, 3)
+    torque: np.ndarray       # (n, 3)
+    restitution: np.ndarray  # (n,)
+    friction: np.ndarray     # (n,)
+    group: np.ndarray        # (n,) int64
+
+    @classmethod
+    def from_dicts(cls, bodies: list[dict], repeat: int = 1) -> "_Bodies":
+        """From _body's dicts (each ``repeat`` times: a generator's template)."""
+        def col(k, dtype=float):
+            a = np.array([b[k] for b in bodies], dtype=dtype)
+            return np.repeat(a, repeat, axis=0) if repeat != 1 else a
+
+        omega = np.zeros((len(bodies), 3))
+        frame = np.zeros(len(bodies), np.int8)
+        for i, b in enumerate(bodies):
+            if b["angular_velocity"] is not None:
+                omega[i], frame[i] = b["angular_velocity"], _OMEGA_WORLD
+            elif b["angular_velocity_body"] is not None:
+                omega[i], frame[i] = b["angular_velocity_body"], _OMEGA_BODY
+        if repeat != 1:
+            omega, frame = np.repeat(omega, repeat, axis=0), np.repeat(frame, repeat)
+        return cls(
+            name=[b["name"] for b in bodies] * repeat,
+            shape=np.repeat(np.array([SHAPE_CODES[b["shape"]] for b in bodies], np.int64), repeat),
+            size=col("size"), mass=col("mass"), inertia=col("inertia_diag"),
+            position=col("position"), quat=col("quat_wxyz"), velocity=col("velocity"),
+            omega=omega, omega_frame=frame, force=col("force"), torque=col("torque"),
+            restitution=col("restitution"), friction=col("friction"),
+            group=col("group", np.int64))
 
 
 def _range(ctx, g, k, key):
@@ -576,24 +678,26 @@ def _range(ctx, g, k, key):
     return lo, hi
 
 
-def _build(bodies, statics, gravity, ground, g_normal, g_offset, g_rest, g_fric):
-    n = len(bodies)
-    col = lambda k: np.array([b[k] for b in bodies], dtype=float)
+def _build(blocks: list[_Bodies], statics, gravity, ground, g_normal, g_offset, g_rest, g_fric):
+    def col(k):
+        return np.concatenate([getattr(b, k) for b in blocks], axis=0)
+
     mass = col("mass")
-    inertia = col("inertia_diag")
-    quat = col("quat_wxyz")
+    inertia = col("inertia")
+    quat = col("quat")
     rot = quat_to_matrix_np(quat)
-    omega = np.zeros((n, 3))
-    for i, b in enumerate(bodies):
-        if b["angular_velocity"] is not None:
-            omega[i] = b["angular_velocity"]
-        elif b["angular_velocity_body"] is not None:
-            omega[i] = rot[i] @ b["angular_velocity_body"]
+    omega = col("omega")
+    frame = col("omega_frame")
+    omega[frame == _OMEGA_NONE] = 0.0
+    in_body = np.flatnonzero(frame == _OMEGA_BODY)
+    if len(in_body):
+        omega[in_body] = _rotate(rot[in_body], omega[in_body])
     # L = R I_body R^T omega  (world frame)
     l_world = np.einsum("nij,nj->ni", rot, inertia * np.einsum("nji,nj->ni", rot, omega))
+    del omega
     model = Model(
-        body_name=[b["name"] for b in bodies],
-        body_shape=np.array([SHAPE_CODES[b["shape"]] for b in bodies], dtype=np.int64),
+        body_name=[name for b in blocks for name in b.name],
+        body_shape=col("shape"),
         body_size=col("size"),
         body_mass=mass,
         body_inertia_diag=inertia,
@@ -601,7 +705,7 @@ def _build(bodies, statics, gravity, ground, g_normal, g_offset, g_rest, g_fric)
         body_torque_world=col("torque"),
         body_restitution=col("restitution"),
         body_friction=col("friction"),
-        body_group=np.array([b["group"] for b in bodies], dtype=np.int64),
+        body_group=col("group"),
         gravity=np.asarray(gravity, float),
         ground=ground,
         ground_normal=np.asarray(g_normal, float),

@@ -15,7 +15,10 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
@@ -25,6 +28,8 @@ from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
@@ -103,15 +108,17 @@ class McapRecorder:
             self._names = C.view_names(model.body_name)
             self._w = Writer(self._fh, chunk_size=CHUNK_BYTES,
                              compression=_compression(self.compression))
+            self._chunks = _BlockChunkBuilder.install(self._w)
             self._w.start(profile="", library=f"rblog {__version__}")
             self._register_channels()
             self._write_run(model, info)
             self._write_scene(model)
             self._w.add_metadata("rblog", {k: str(v) for k, v in C.info_to_fields(info).items()
                                            if k not in ("scene_toml", "scene_resolved_json")})
-            self._tf_tmpl = _TfEncoder(self._names)
-            n = self._n  # load (or compile, the first time) the encoder now, not mid-run
-            self._tf_tmpl.rows(np.zeros(1, np.int64), np.zeros((1, n, 3)), np.zeros((1, n, 4)))
+            self._records = _SampleRecords(self._names, [self._ch[TOPIC_STATE],
+                                                         self._ch[TOPIC_METRICS], self._ch[TOPIC_TF]])
+            # load (or compile, the first time) the encoder now, not mid-run
+            self._records.warm_up()
             encode_contacts(_ONE_CONTACT)
             self._flush(force=True)
         except OSError as e:
@@ -229,36 +236,26 @@ class McapRecorder:
     def _write_samples(self, block: Trajectory):
         T, n = len(block.t), self._n
         a = C.block_arrays(block, n)
-        step = np.asarray(block.step, np.int64)
-        t = np.asarray(block.t, np.float64)
+        step = np.ascontiguousarray(block.step, np.int64)
+        t = np.ascontiguousarray(block.t, np.float64)
         ns = C.time_ns(t)
-        state_parts = [("sfixed64", 1, step), ("double", 2, t)]
-        for num, name, _, _ in S.MESSAGES["State"][2:-1]:
-            state_parts.append(("packed_double", num, a[name]))
-        state_parts.append(("double", 17, a["total_energy"]))
-        state = S.encode_rows(T, state_parts)
-        metrics = S.encode_rows(T, [
-            ("sfixed64", 1, step), ("double", 2, t),
-            ("double", 3, a["total_energy"]),
-            ("double", 4, a["energy_translational"].sum(axis=1)),
-            ("double", 5, a["energy_rotational"].sum(axis=1)),
-            ("double", 6, a["energy_potential"].sum(axis=1)),
-            ("packed_double", 7, a["total_linear_momentum"]),
-            ("packed_double", 8, a["total_angular_momentum"]),
-            ("double", 9, _max0(a["ortho_error"])),
-            ("double", 10, _max0(np.abs(a["quat_norm_error"]))),
-        ])
-        tf = self._tf_tmpl.rows(ns, a["position"].reshape(T, n, 3),
-                                a["quat_wxyz"].reshape(T, n, 4))
-        add = self._w.add_message
-        ch_state, ch_metrics, ch_tf = self._ch[TOPIC_STATE], self._ch[TOPIC_METRICS], self._ch[TOPIC_TF]
-        nsl = ns.tolist()
-        for i in range(T):
-            ti = nsl[i]
-            add(ch_state, ti, memoryview(state[i]), ti)
-            add(ch_metrics, ti, memoryview(metrics[i]), ti)
-            add(ch_tf, ti, tf[i], ti)
-        self._last_ns = max(self._last_ns, nsl[-1])
+        state = [step, t, *(a[name] for _, name, _, _ in S.MESSAGES["State"][2:-1]),
+                 a["total_energy"]]
+        metrics = [step, t, a["total_energy"], a["energy_translational"].sum(axis=1),
+                   a["energy_rotational"].sum(axis=1), a["energy_potential"].sum(axis=1),
+                   a["total_linear_momentum"], a["total_angular_momentum"],
+                   _max0(a["ortho_error"]), _max0(np.abs(a["quat_norm_error"]))]
+        buf, ends = self._records.encode(ns, state, metrics, a["position"].reshape(T, n, 3),
+                                         a["quat_wxyz"].reshape(T, n, 4))
+        times = np.repeat(ns, 3)
+        if self._chunks is not None:
+            self._chunks.add_records(buf, ends, np.tile(self._records.channels, T), times)
+        else:  # an mcap Writer without the chunk builder we know: one message at a time
+            mv, e = memoryview(buf), [0, *ends.tolist()]
+            add, ch, tl = self._w.add_message, np.tile(self._records.channels, T).tolist(), times.tolist()
+            for j in range(3 * T):
+                add(ch[j], tl[j], mv[e[j] + _MESSAGE_HEAD:e[j + 1]], tl[j])
+        self._last_ns = max(self._last_ns, int(ns[-1]))
         self.samples_written += T
 
     def _write_contacts(self, c: Contacts):
@@ -377,6 +374,231 @@ def _color(i: int, alpha: float) -> Color:
     return Color(r=float(r), g=float(g), b=float(b), a=alpha)
 
 
+#: bytes of an MCAP Message record before its data: opcode (1), record length (8), channel id (2),
+#: sequence (4), log time (8), publish time (8)
+_MESSAGE_HEAD = 31
+
+
+class _SampleRecords:
+    """Encodes a block's per-sample messages (``rblog.State``, ``rblog.Metrics``, ``/tf``) as
+    complete MCAP Message records, back to back in sample order (state, metrics, tf of sample 0,
+    then of sample 1, ...), in one compiled call that writes every byte once, straight from the
+    channel arrays. The payloads are the protobuf wire format protobuf's serializer writes
+    (fields in number order, repeated fields packed), except that the singular scalars of State
+    and Metrics are written even when zero, as docs/log-format.md allows.
+
+    ``channels``: the three channel ids in record order."""
+
+    def __init__(self, names: list[str], channels: list[int]):
+        self.n = len(names)
+        self.channels = np.asarray(channels, np.int64)
+        self.tf = _TfEncoder(names)
+        n = self.n
+        self.state_hdr, self.state_off = _headers(
+            [S.tag(1, 1), S.tag(2, 1)]
+            + [S.tag(num, 2) + S.varint(8 * C.expected_width(name, n))
+               for num, name, _, _ in S.MESSAGES["State"][2:-1]]
+            + [S.tag(17, 1)])
+        self.state_len = int(self.state_off[-1]) + 8 * sum(
+            1 if i in (0, 1, 16) else C.expected_width(name, n)
+            for i, (_, name, _, _) in enumerate(S.MESSAGES["State"]))
+        self.metrics_hdr, self.metrics_off = _headers(
+            [S.tag(k, 1) for k in range(1, 7)]
+            + [S.tag(7, 2) + S.varint(24), S.tag(8, 2) + S.varint(24)]
+            + [S.tag(9, 1), S.tag(10, 1)])
+        self.metrics_len = int(self.metrics_off[-1]) + 8 * (8 + 6)
+
+    def encode(self, ns, state: list, metrics: list, position, quat_wxyz):
+        """Records of T samples: ns (T,) log times; ``state``, ``metrics``: the messages'
+        fields in number order, each (T,) or (T, k) float64/int64; position (T, N, 3),
+        quat_wxyz (T, N, 4). Returns (buffer, ends (3T,)): record j is
+        buffer[ends[j - 1]:ends[j]] (from 0 for j = 0)."""
+        T = len(ns)
+        dbl = _tf_doubles(position, quat_wxyz)
+        cap = T * (3 * _MESSAGE_HEAD + self.state_len + self.metrics_len
+                   + self.tf.cap_per_sample())
+        out = np.empty(cap, np.uint8)
+        ends = np.empty(3 * T, np.int64)
+        _encode_sample_records(np.ascontiguousarray(ns, np.int64), self.channels,
+                               self.state_hdr, self.state_off, _byte_rows(state, T),
+                               self.metrics_hdr, self.metrics_off, _byte_rows(metrics, T),
+                               dbl.reshape(-1).view(np.uint8), self.tf.rest, self.tf.rest_start,
+                               self.tf.dbl_off, out, ends)
+        return out[:ends[-1]] if T else out[:0], ends
+
+    def warm_up(self):
+        n = self.n
+        z = [np.zeros(1, np.int64), np.zeros(1)]
+        self.encode(np.zeros(1, np.int64),
+                    z + [np.zeros((1, C.expected_width(name, n)))
+                         for _, name, _, _ in S.MESSAGES["State"][2:-1]] + [np.zeros(1)],
+                    z + [np.zeros(1)] * 4 + [np.zeros((1, 3))] * 2 + [np.zeros(1)] * 2,
+                    np.zeros((1, n, 3)), np.zeros((1, n, 4)))
+
+
+def _headers(parts: list[bytes]) -> tuple[np.ndarray, np.ndarray]:
+    """Field headers (tag, and length for packed fields) in one array, and their offsets."""
+    off = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
+    return np.frombuffer(b"".join(parts), np.uint8).copy(), off
+
+
+def _byte_rows(cols: list, T: int) -> tuple:
+    """Each (T,) or (T, k) little-endian 8-byte column as its (T, 8k) bytes (views, no copy)."""
+    out = []
+    for c in cols:
+        c = np.ascontiguousarray(c)
+        if c.dtype.kind == "f":
+            c = c.astype("<f8", copy=False)
+        else:
+            c = c.astype("<i8", copy=False)
+        out.append(c.reshape(T, -1).view(np.uint8))
+    return tuple(out)
+
+
+def _tf_doubles(position, quat_wxyz) -> np.ndarray:
+    """(T, N, 7) doubles in /tf wire order: x, y, z, qx, qy, qz, qw."""
+    T, n = position.shape[0], position.shape[1]
+    dbl = np.empty((T, n, 7))
+    dbl[..., :3] = position
+    dbl[..., 3:6] = quat_wxyz[..., 1:]
+    dbl[..., 6] = quat_wxyz[..., 0]
+    return dbl
+
+
+class _MessageIndexArrays:
+    """A chunk's MessageIndex record of one channel (mcap.records.MessageIndex), kept as arrays
+    of (log time, offset) and written in one piece (mcap's writes one struct per message)."""
+
+    def __init__(self, channel_id: int):
+        self.channel_id = channel_id
+        self._parts: list[np.ndarray] = []
+
+    def add(self, times: np.ndarray, offsets: np.ndarray):
+        pairs = np.empty((len(times), 2), "<u8")
+        pairs[:, 0], pairs[:, 1] = times, offsets
+        self._parts.append(pairs)
+
+    def write(self, stream: RecordBuilder):
+        pairs = np.concatenate(self._parts) if self._parts else np.empty((0, 2), "<u8")
+        stream.start_record(Opcode.MESSAGE_INDEX)
+        stream.write2(self.channel_id)
+        stream.write4(pairs.nbytes)
+        stream.write(pairs.tobytes())
+        stream.finish_record()
+
+
+class _BlockChunkBuilder:
+    """The chunk builder of an ``mcap.writer.Writer`` (it stands in for mcap's ChunkBuilder,
+    whose interface the Writer uses: add_channel/add_schema/add_message, count, end, reset and the
+    chunk's times and message indices), to which whole runs of encoded Message records are added
+    with one copy each (:meth:`add_records`). The Writer still writes everything else: the
+    header, schemas and channels, chunk records (compressed, with their CRC), message indexes,
+    the summary and the footer. Chunks close where the Writer would close them adding the same
+    messages one by one: after the message that takes the chunk past the Writer's chunk size."""
+
+    def __init__(self, writer: Writer, stats, chunk_size: int):
+        self._w, self._stats, self._chunk_size = writer, stats, chunk_size
+        self._buf = np.empty(2 * chunk_size, np.uint8)
+        self._count = 0
+        self._rb = RecordBuilder()
+        self.message_indices: dict[int, _MessageIndexArrays] = {}
+        self.message_start_time = 0
+        self.message_end_time = 0
+        self.num_messages = 0
+
+    @classmethod
+    def install(cls, writer: Writer) -> "_BlockChunkBuilder | None":
+        """Put a builder into ``writer`` (before ``start``); None (the Writer keeps its own) if
+        this version of mcap's Writer does not keep its chunk builder and statistics where 1.x
+        does."""
+        if not hasattr(writer, "_Writer__chunk_builder") or \
+                not hasattr(writer, "_Writer__statistics") or writer._Writer__chunk_builder is None:
+            return None
+        b = cls(writer, writer._Writer__statistics, writer._Writer__chunk_size)
+        writer._Writer__chunk_builder = b
+        return b
+
+    # --- the interface mcap's Writer uses ---------------------------------------------------
+    @property
+    def count(self) -> int:
+        return self._count
+
+    def end(self):
+        return memoryview(self._buf)[:self._count]
+
+    def reset(self):
+        self._count = 0
+        self.message_indices = {}
+        self.message_start_time = self.message_end_time = 0
+        self.num_messages = 0
+
+    def add_channel(self, channel):
+        channel.write(self._rb)
+        self._append(memoryview(self._rb.end()))
+
+    def add_schema(self, schema):
+        schema.write(self._rb)
+        self._append(memoryview(self._rb.end()))
+
+    def add_message(self, message):
+        t = np.array([message.log_time], np.uint64)
+        self._index(np.array([message.channel_id]), t, np.array([self._count], np.uint64))
+        message.write(self._rb)
+        self._append(memoryview(self._rb.end()))
+
+    # --- whole runs of records --------------------------------------------------------------
+    def add_records(self, buf: np.ndarray, ends: np.ndarray, channels: np.ndarray,
+                    times: np.ndarray):
+        """Add Message records ``buf[ends[j-1]:ends[j]]`` of ``channels[j]`` logged at
+        ``times[j]`` (ns), closing chunks as the Writer would; updates the Writer's statistics."""
+        m = len(ends)
+        if not m:
+            return
+        st = self._stats
+        t_lo, t_hi = int(times.min()), int(times.max())
+        st.message_start_time = t_lo if st.message_count == 0 else min(st.message_start_time, t_lo)
+        st.message_end_time = max(st.message_end_time, t_hi)
+        st.message_count += m
+        for ch, k in zip(*np.unique(channels, return_counts=True)):
+            st.channel_message_counts[int(ch)] += int(k)
+        starts = np.concatenate([[0], ends[:-1]])
+        j = 0
+        while j < m:
+            # the first record after which the chunk is larger than the chunk size
+            room = self._chunk_size - self._count
+            last = min(int(np.searchsorted(ends, starts[j] + room, side="right")), m - 1)
+            offsets = (self._count + starts[j:last + 1] - starts[j]).astype(np.uint64)
+            self._index(channels[j:last + 1], times[j:last + 1], offsets)
+            self._append(buf[starts[j]:ends[last]])
+            j = last + 1
+            if self._count > self._chunk_size:
+                self._w.flush()  # closes the chunk (compressed, CRC, message indexes)
+
+    def _index(self, channels, times, offsets):
+        n = len(times)
+        lo, hi = int(times.min()), int(times.max())
+        self.message_start_time = lo if self.num_messages == 0 else min(self.message_start_time, lo)
+        self.message_end_time = max(self.message_end_time, hi)
+        self.num_messages += n
+        chans, first = np.unique(channels, return_index=True)
+        for ch in chans[np.argsort(first)]:  # in order of first message, as mcap's builder
+            sel = channels == ch
+            idx = self.message_indices.get(int(ch))
+            if idx is None:
+                idx = self.message_indices[int(ch)] = _MessageIndexArrays(int(ch))
+            idx.add(times[sel], offsets[sel])
+
+    def _append(self, data):
+        data = np.frombuffer(data, np.uint8)
+        k, n = self._count, len(data)
+        if k + n > len(self._buf):
+            grown = np.empty(max(2 * len(self._buf), k + n), np.uint8)
+            grown[:k] = self._buf[:k]
+            self._buf = grown
+        self._buf[k:k + n] = data
+        self._count = k + n
+
+
 class _TfEncoder:
     """Encodes ``foxglove.FrameTransforms`` messages (one transform per body) for a whole block,
     in one compiled call.
@@ -409,21 +631,20 @@ class _TfEncoder:
         self.rest_start = np.concatenate([[0], np.cumsum([len(r) for r in rests])]).astype(np.int64)
         self.dbl_off = np.array(offs, np.int64).reshape(len(names), 7)
 
+    def cap_per_sample(self) -> int:
+        """Most bytes one message takes: per transform 2 tags, 2 length varints (<= 3 bytes
+        each), a timestamp of <= 22 bytes."""
+        return int(self.rest_start[-1]) + len(self.dbl_off) * 30
+
     def rows(self, ns: np.ndarray, position: np.ndarray, quat_wxyz: np.ndarray) -> list:
         """One serialized FrameTransforms per sample (memoryviews into one buffer): ns (T,),
         position (T, N, 3), quat_wxyz (T, N, 4)."""
-        T, n = position.shape[0], position.shape[1]
-        # doubles in wire order x, y, z, qx, qy, qz, qw
-        dbl = np.empty((T, n, 7))
-        dbl[..., :3] = position
-        dbl[..., 3:6] = quat_wxyz[..., 1:]
-        dbl[..., 6] = quat_wxyz[..., 0]
-        # per transform: 2 tags, 2 length varints (<= 3 bytes each), timestamp <= 22 bytes
-        cap = T * (int(self.rest_start[-1]) + n * 30)
-        out = np.empty(cap, np.uint8)
+        T = position.shape[0]
+        out = np.empty(T * self.cap_per_sample(), np.uint8)
         bounds = np.empty(T + 1, np.int64)
-        _encode_frame_transforms(np.ascontiguousarray(ns, np.int64), dbl, self.rest,
-                                 self.rest_start, self.dbl_off, out, bounds)
+        _encode_frame_transforms(np.ascontiguousarray(ns, np.int64),
+                                 _tf_doubles(position, quat_wxyz).reshape(-1).view(np.uint8),
+                                 self.rest, self.rest_start, self.dbl_off, out, bounds)
         mv = memoryview(out)
         b = bounds.tolist()
         return [mv[b[i]:b[i + 1]] for i in range(T)]
@@ -439,38 +660,119 @@ def _put_varint(out, k, value):
     return k + 1
 
 
+@intrinsic
+def _memcpy(typingctx, dst, dst_offset, src, src_offset, nbytes):
+    """Copy ``nbytes`` bytes from byte ``src_offset`` of C-contiguous array ``src`` to byte
+    ``dst_offset`` of C-contiguous array ``dst`` (LLVM's memcpy; no bounds check: callers size
+    ``dst`` for the most their messages take). A slice assignment copies a byte at a time."""
+    sig = types.void(dst, types.intp, src, types.intp, types.intp)
+
+    def codegen(context, builder, signature, args):
+        d = context.make_array(signature.args[0])(context, builder, args[0])
+        s = context.make_array(signature.args[2])(context, builder, args[2])
+        i8 = ir.IntType(8).as_pointer()
+        dp = builder.gep(builder.bitcast(d.data, i8), [args[1]])
+        sp = builder.gep(builder.bitcast(s.data, i8), [args[3]])
+        cgutils.raw_memcpy(builder, dp, sp, args[4], 1)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
 @njit(cache=True, nogil=True)
-def _encode_frame_transforms(ns, dbl, rest, rest_start, dbl_off, out, bounds):
+def _put_frame_transforms(out, k, ns, dbl8, d0, rest, rest_start, dbl_off, ts):
+    """One FrameTransforms message at out[k:] (returns its end): log time ``ns``; the bodies'
+    doubles in wire order (x, y, z, qx, qy, qz, qw) are the bytes of ``dbl8`` from byte ``d0``,
+    56 per body."""
+    n = dbl_off.shape[0]
+    sec, nanos = ns // 1_000_000_000, ns % 1_000_000_000
+    lts = 0  # proto3: zero fields are left out, as protobuf's own serializer does
+    if sec:
+        ts[0] = 0x08
+        lts = _put_varint(ts, 1, sec)
+    if nanos:
+        ts[lts] = 0x10
+        lts = _put_varint(ts, lts + 1, nanos)
+    for i in range(n):
+        r0, r1 = rest_start[i], rest_start[i + 1]
+        out[k] = 0x0A  # FrameTransforms.transforms (field 1, length-delimited)
+        k = _put_varint(out, k + 1, 2 + lts + (r1 - r0))
+        out[k] = 0x0A  # FrameTransform.timestamp
+        out[k + 1] = lts
+        k += 2
+        for j in range(lts):
+            out[k + j] = ts[j]
+        k += lts
+        _memcpy(out, k, rest, r0, r1 - r0)
+        for c in range(7):
+            _memcpy(out, k + dbl_off[i, c], dbl8, d0 + 56 * i + 8 * c, 8)
+        k += r1 - r0
+    return k
+
+
+@njit(cache=True, nogil=True)
+def _encode_frame_transforms(ns, dbl8, rest, rest_start, dbl_off, out, bounds):
     """Kernel of _TfEncoder.rows: writes T messages back to back into ``out``; message t is
-    out[bounds[t]:bounds[t + 1]]."""
-    n = dbl.shape[1]
+    out[bounds[t]:bounds[t + 1]]. ``dbl8``: the (T, N, 7) doubles' bytes."""
     ts = np.empty(24, np.uint8)
-    d8 = np.empty(1, np.float64)
-    d8u = d8.view(np.uint8)
+    per_sample = 56 * dbl_off.shape[0]
     k = 0
     for t in range(ns.shape[0]):
         bounds[t] = k
-        sec, nanos = ns[t] // 1_000_000_000, ns[t] % 1_000_000_000
-        lts = 0  # proto3: zero fields are left out, as protobuf's own serializer does
-        if sec:
-            ts[0] = 0x08
-            lts = _put_varint(ts, 1, sec)
-        if nanos:
-            ts[lts] = 0x10
-            lts = _put_varint(ts, lts + 1, nanos)
-        for i in range(n):
-            r0, r1 = rest_start[i], rest_start[i + 1]
-            out[k] = 0x0A  # FrameTransforms.transforms (field 1, length-delimited)
-            k = _put_varint(out, k + 1, 2 + lts + (r1 - r0))
-            out[k] = 0x0A  # FrameTransform.timestamp
-            out[k + 1] = lts
-            k += 2
-            out[k:k + lts] = ts[:lts]
-            k += lts
-            out[k:k + r1 - r0] = rest[r0:r1]
-            for c in range(7):
-                d8[0] = dbl[t, i, c]
-                o = k + dbl_off[i, c]
-                out[o:o + 8] = d8u
-            k += r1 - r0
+        k = _put_frame_transforms(out, k, ns[t], dbl8, t * per_sample, rest, rest_start,
+                                  dbl_off, ts)
     bounds[ns.shape[0]] = k
+
+
+@njit(cache=True, nogil=True)
+def _put_u64(out, k, value):
+    for i in range(8):
+        out[k + i] = (value >> (8 * i)) & 0xFF
+    return k + 8
+
+
+@njit(cache=True, nogil=True)
+def _put_fields(out, k, t, hdr, hdr_off, cols):
+    """Message of sample ``t`` whose every field is a header (tag, and length if packed) and
+    that sample's row of bytes of one column (cols: (T, bytes) arrays)."""
+    for f in range(len(cols)):
+        h0, h1 = hdr_off[f], hdr_off[f + 1]
+        _memcpy(out, k, hdr, h0, h1 - h0)
+        k += h1 - h0
+        c = cols[f]
+        nb = c.shape[1]
+        _memcpy(out, k, c, t * nb, nb)
+        k += nb
+    return k
+
+
+@njit(cache=True, nogil=True)
+def _encode_sample_records(ns, channels, st_hdr, st_off, st_cols, mt_hdr, mt_off, mt_cols,
+                           dbl8, rest, rest_start, dbl_off, out, ends):
+    """Kernel of _SampleRecords.encode: per sample, the State, Metrics and FrameTransforms
+    Message records (opcode 0x05, length, channel, sequence 0, log time = publish time)."""
+    ts = np.empty(24, np.uint8)
+    per_sample = 56 * dbl_off.shape[0]
+    k = 0
+    r = 0
+    for t in range(ns.shape[0]):
+        for m in range(3):
+            start = k
+            out[k] = 0x05
+            k = _put_u64(out, k + 1, 0)  # the record's length, written below
+            ch = channels[m]
+            out[k] = ch & 0xFF
+            out[k + 1] = (ch >> 8) & 0xFF
+            out[k + 2:k + 6] = 0
+            k = _put_u64(out, k + 6, ns[t])
+            k = _put_u64(out, k, ns[t])
+            if m == 0:
+                k = _put_fields(out, k, t, st_hdr, st_off, st_cols)
+            elif m == 1:
+                k = _put_fields(out, k, t, mt_hdr, mt_off, mt_cols)
+            else:
+                k = _put_frame_transforms(out, k, ns[t], dbl8, t * per_sample, rest,
+                                          rest_start, dbl_off, ts)
+            _put_u64(out, start + 1, k - start - 9)
+            ends[r] = k
+            r += 1

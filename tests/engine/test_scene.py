@@ -7,6 +7,7 @@ sphere 2/5 m r^2, box volume 8abc, sphere 4/3 pi r^3; rotations from scipy.spati
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -274,6 +275,33 @@ mass = 1.0
     assert got == expected
     assert len(set(s.model.body_name)) == 24
     assert all(n.startswith("cube") for n in s.model.body_name)
+
+
+def test_resolved_scene_keeps_generators_unexpanded():
+    # the resolved scene (logged as JSON with every run) lists the [[body]] tables and each
+    # generator once, whatever its count: its text does not grow with the number of bodies
+    def resolved(nx):
+        text = SIM + BOX + f"""
+[[generator]]
+layout = "grid"
+grid = [{nx}, 2, 1]
+spacing = [0.5, 1.0, 2.0]
+origin = [-1.0, 2.0, 3.0]
+[generator.body]
+shape = "box"
+half_extents = [0.1, 0.1, 0.1]
+mass = 1.0
+"""
+        return parse_scene(text).resolved
+
+    small, big = resolved(2), resolved(500)
+    assert len(small["body"]) == len(big["body"]) == 1  # the one [[body]]
+    (g,) = big["generator"]
+    assert g["n_bodies"] == 1000 and g["grid"] == [500, 2, 1] and g["body"]["mass"] == 1.0
+    # corners of the grid by hand: origin and origin + (counts - 1) * spacing
+    np.testing.assert_allclose(g["position_bounds"], [[-1.0, 2.0, 3.0], [-1.0 + 499 * 0.5, 3.0, 3.0]])
+    # only the digits of the counts and bounds differ
+    assert len(json.dumps(big)) - len(json.dumps(small)) < 20
 
 
 def test_generators_and_bodies_add_up():

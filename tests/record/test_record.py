@@ -274,6 +274,23 @@ def test_every_mcap_message_decodes_with_its_schema(tmp_path, traj):
     assert n == 3
 
 
+@pytest.mark.parametrize("chunk_bytes", [2048, 1 << 20])
+def test_mcap_block_records_match_mcaps_own_writer(tmp_path, traj, monkeypatch, chunk_bytes):
+    """Whole blocks of Message records added to the chunk at once give the file mcap's own
+    Writer gives adding the same messages one by one (its ChunkBuilder, its add_message): byte
+    for byte, chunk boundaries, message indexes, statistics and summary included; with chunks
+    of 2 KB a chunk closes inside blocks and inside samples."""
+    monkeypatch.setattr(mcap_writer, "CHUNK_BYTES", chunk_bytes)
+    monkeypatch.setattr(mcap_writer, "FLUSH_EVERY_S", 1e9)  # no flush on the wall clock
+    blocks = tmp_path / "blocks.mcap"
+    write(McapRecorder(str(blocks), compression="none"), traj, block=7)
+    monkeypatch.setattr(mcap_writer._BlockChunkBuilder, "install", classmethod(lambda c, w: None))
+    one_by_one = tmp_path / "one_by_one.mcap"
+    write(McapRecorder(str(one_by_one), compression="none"), traj, block=7)
+    assert blocks.read_bytes() == one_by_one.read_bytes()
+    assert_same(traj, load(blocks))
+
+
 def test_mcap_compressions(tmp_path, traj):
     for comp in ("none", "lz4", "zstd"):
         path = tmp_path / f"{comp}.mcap"

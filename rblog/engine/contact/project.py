@@ -267,10 +267,12 @@ def project_positions(pairs, n_pairs, n_dyn, n_static, geom, size, inv_mass, inv
 
 @njit(cache=True)
 def apply_projection(n_deep, ids, dx, dth, n, method, ortho, bd, iso_shortcut, position,
-                      rotation, quat_wxyz, linear_momentum, angular_momentum, l_scratch):
+                      rotation, quat_wxyz, linear_momentum, angular_momentum, l_scratch,
+                      anchor_steps):
     """Move the bodies of the project stage's points by their corrections: x += dx, the
     orientation by the rotation vector dth (through the run's integrator: a drift of unit
-    duration with L = I_world dth), and L -= dx x P so that sum(x x P + L) stays exact."""
+    duration with L = I_world dth), and L -= dx x P so that sum(x x P + L) stays exact. A moved
+    body's exact-flow anchor is dropped (anchor_steps -1, see rblog.engine.state.FlowAnchors)."""
     for p in range(n_deep):
         for c in range(2):
             i = ids[p, c]
@@ -283,6 +285,7 @@ def apply_projection(n_deep, ids, dx, dth, n, method, ortho, bd, iso_shortcut, p
             position[i, 0] += ux
             position[i, 1] += uy
             position[i, 2] += uz
+            anchor_steps[i] = -1
             qx, qy, qz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
             angular_momentum[i, 0] -= uy * qz - uz * qy
             angular_momentum[i, 1] -= uz * qx - ux * qz

@@ -69,7 +69,10 @@ from numba import njit
 
 from rblog.engine.free import write_sample
 from rblog.engine.rotation import load_mat, omega_world
-from rblog.engine.integrators import drift_rotation, sync_quat, turn_within_bound
+from rblog.engine.exact import N_FLOW
+from rblog.engine.integrators import (
+    METHOD_EXACT, METHOD_EXACT4, drift_exact_anchored, drift_rotation, sync_quat, turn_within_bound,
+)
 from rblog.contract.trajectory import CONTACT_IMPACT, CONTACT_RESTING
 from rblog.engine.contact.broadphase import body_aabbs, ground_pairs, sweep_and_prune
 from rblog.engine.contact.collide import collide_pairs, grow_manifolds, grow_points, sort_manifolds
@@ -119,7 +122,7 @@ ContactCache = namedtuple("ContactCache", "mi0 mf0 pf0 pid0 n_man0 keys0 idx0 mi
 #: arrays: the static dummy with zero inverse mass). See make_scratch.
 Scratch = namedtuple("Scratch", "lo hi reach in_contact bm bI bv bw bv0 bw0 pv pw p0 l0 l_drift "
                                 "parent isl_time isl_sup nrm pts sep fid work poly blk hot dx_step "
-                                "proj_dx proj_dth pushed push_root")
+                                "proj_dx proj_dth pushed push_root flow_c flow_ok")
 
 # indices into the stats array the kernel accumulates
 (ST_STEPS, ST_PAIRS, ST_MANIFOLDS, ST_POINTS, ST_AWAKE, ST_IMPACTS, ST_WOKEN, ST_SLEPT,
@@ -178,6 +181,14 @@ def _drift(method, ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i,
 
 
 @njit(cache=True)
+def _drift_exact(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, an, flow_c, flow_ok):
+    """integrators.drift_exact_anchored behind a call boundary (as :func:`_drift`): body i's
+    exact flow from its anchor, its flow constants cached in row i for the call."""
+    drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, an, flow_c, i,
+                         flow_ok)
+
+
+@njit(cache=True)
 def _sync(method, quat_wxyz, rotation, i):
     sync_quat(method, quat_wxyz, rotation, i)
 
@@ -207,7 +218,8 @@ def make_scratch(n, st):
         np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((n, 3)), np.zeros((n, 3)),
         np.zeros((n, 3)), np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.int64),
         *collider_buffers(), np.zeros((4, 5)), np.zeros(n + 1, np.int64), np.zeros((n + 1, 3)), np.zeros((n + 1, 3)),
-        np.zeros((n + 1, 3)), np.zeros(n + 1, np.int64), np.zeros(n + 1, np.int64))
+        np.zeros((n + 1, 3)), np.zeros(n + 1, np.int64), np.zeros(n + 1, np.int64),
+        np.empty((n, N_FLOW)), np.zeros(n, np.bool_))
 
 
 # ---- the stages, in step order ----------------------------------------------------------------
@@ -321,7 +333,7 @@ def mark_pushed(mi, pf, n_man, n, sc):
 
 
 @njit(inline="always")
-def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h):
+def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h, an):
     """9 integrate: move every awake body over the step (how: ``sc.pushed``, see mark_pushed).
     A body that a contact pushed (solve or relax) moves with the solver's velocity,
     x += h (v + v'), its momenta rebuilt from the solver's velocity changes, and when its island
@@ -330,7 +342,8 @@ def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h):
     (a body whose manifolds all ended without impulse gets its start-of-solve momenta back
     bitwise: warm starting applies and withdraws impulses, which leaves round-off). Rotation by
     the run's integrator (integrators.drift_rotation) with the body's L, plus the pseudo spin of
-    the relax stage."""
+    the relax stage. The exact integrators rotate from the body's flow anchor (``an``, a
+    rblog.engine.state.FlowAnchors; a new one whenever the L it drifts with changed)."""
     n = x.position.shape[0]
     for i in range(n):
         if not awake[i]:
@@ -374,7 +387,11 @@ def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h):
                 d = h * (x.linear_momentum[i, k] * im - 0.5 * h * bd.accel[i, k])
                 x.position[i, k] += d
                 sc.dx_step[i, k] = d
-        _drift(method, ortho, x.quat_wxyz, x.rotation, sc.l_drift, bd.inv_inertia, i, h)
+        if method == METHOD_EXACT or method == METHOD_EXACT4:
+            _drift_exact(x.quat_wxyz, x.rotation, sc.l_drift, bd.inv_inertia, i, h, an,
+                         sc.flow_c, sc.flow_ok)
+        else:
+            _drift(method, ortho, x.quat_wxyz, x.rotation, sc.l_drift, bd.inv_inertia, i, h)
         if pushed and (sc.pv[i, 0] != 0.0 or sc.pv[i, 1] != 0.0 or sc.pv[i, 2] != 0.0):
             # the pseudo shift h v' moved the body's momentum line: give the orbital change back
             # to its spin so that sum(x x P + L) stays exact
@@ -386,9 +403,10 @@ def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h):
 
 
 @njit(inline="always")
-def project(method, ortho, bd, st, cfg, awake, x, sc, pairs, n_pairs, rows, ids):
+def project(method, ortho, bd, st, cfg, awake, x, sc, pairs, n_pairs, rows, ids, an):
     """12 project: narrowphase again at the end-of-step poses; points deeper than
-    projection_depth are pushed out (project.py) and the bodies moved. Returns (n_deep, rows,
+    projection_depth are pushed out (project.py) and the bodies moved (a moved body's flow
+    anchor is dropped: its attitude changed other than by the flow). Returns (n_deep, rows,
     ids)."""
     n = x.position.shape[0]
     n_deep, rows, ids = project_positions(
@@ -399,7 +417,7 @@ def project(method, ortho, bd, st, cfg, awake, x, sc, pairs, n_pairs, rows, ids)
     if n_deep > 0:
         apply_projection(n_deep, ids, sc.proj_dx, sc.proj_dth, n, method, ortho, bd,
                           cfg.iso_shortcut, x.position, x.rotation, x.quat_wxyz,
-                          x.linear_momentum, x.angular_momentum, sc.l_drift)
+                          x.linear_momentum, x.angular_momentum, sc.l_drift, an.anchor_steps)
     return n_deep, rows, ids
 
 
@@ -473,7 +491,7 @@ def lap(prof, k, t0):
 
 @njit(cache=True, nogil=True)
 def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x, out, sl, c,
-                  log_i, log_f, stats, prof):
+                  log_i, log_f, stats, prof, an):
     """Advance ``n_steps`` steps of ``dt`` with contacts; write samples and contact rows.
 
     Args:
@@ -485,6 +503,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
         sl: SleepState, updated in place.  c: ContactCache.
         log_i, log_f: contact rows (manifold.LOG_* columns).  stats: (N_STATS,) counters.
         prof: (profile.N_PROF,) int64 cycle counts per stage, added to; empty: not profiled.
+        an: rblog.engine.state.FlowAnchors, updated in place (the exact integrators' anchors).
 
     Returns (n_samples, bad_step, bad_body, n_log, log_i, log_f, cache): bad_step is the first
     local step (1-based) at which some body's state became non-finite (-1 if none); the log and
@@ -551,7 +570,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
             mark_pushed(mi1, pf1, n_man, n, sc)
             if do_prof:
                 t = lap(prof, P_RELAX, t)
-            integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h)               # 9
+            integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an)           # 9
             if do_prof:
                 t = lap(prof, P_INTEGRATE, t)
             stats[ST_IMPACTS] += restitution(                                             # 10
@@ -572,7 +591,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
             if cfg.n_proj > 0:
                 n_deep, proj_rows, proj_ids = project(                                    # 12
                     method, ortho, bd, st, cfg, sl.awake, x, sc, pairs, n_pairs, proj_rows,
-                    proj_ids)
+                    proj_ids, an)
                 stats[ST_PROJECTED] += n_deep
             if do_prof:
                 t = lap(prof, P_PROJECT, t)

@@ -28,6 +28,7 @@ import numpy as np
 
 from rblog.engine.constants import ISOTROPIC_RTOL, RESTITUTION_THRESHOLD_KICKS
 from rblog.engine.free import advance_free
+from rblog.engine.state import new_anchors
 from rblog.contract.model import Model
 from rblog.engine.rotation import quat_to_matrix_np
 from rblog.contract.trajectory import Contacts
@@ -270,7 +271,7 @@ class ContactWorld:
     def advance(self, dt, n_steps, stride, sample_last,
                 position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                out_angular_momentum):
+                out_angular_momentum, anchors=None):
         """Advance ``n_steps`` steps; same arguments and sampling rule as free.advance_free.
 
         Args:
@@ -279,6 +280,8 @@ class ContactWorld:
             position (N,3), linear_momentum (N,3), quat_wxyz (N,4), rotation (N,3,3),
                 angular_momentum (N,3, world): the state, updated in place.
             out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
+            anchors: the exact integrators' flow anchors (rblog.engine.state.FlowAnchors,
+                updated in place; the run's State.anchors), None: for this call only.
 
         Returns (n_samples, bad_step, bad_body, contacts). bad_step is the first local step
         (1-based) at which a body's state became non-finite (the call stops there), else -1.
@@ -293,13 +296,15 @@ class ContactWorld:
 
         Keep one ContactWorld for a whole run: it carries the impulses (warm starting) and the
         sleep state from one call to the next."""
+        if anchors is None:
+            anchors = new_anchors(position.shape[0])
         if not self.use_contacts:
             ns, bad_step, bad_body = advance_free(
                 self.method, self.ortho, float(dt), int(n_steps), int(stride), bool(sample_last),
                 self._inv_mass, self._inv_inertia, self._bodies.force, self._bodies.torque,
                 position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                out_angular_momentum)
+                out_angular_momentum, anchors=anchors)
             return int(ns), int(bad_step), int(bad_body), Contacts.empty()
         res = world_advance(
             self._bodies, self._statics, self.settings_at(dt), self.method, self.ortho, float(dt),
@@ -307,7 +312,8 @@ class ContactWorld:
             BodyState(position, linear_momentum, quat_wxyz, rotation, angular_momentum),
             BodyState(out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                       out_angular_momentum),
-            self._sleep, self._cache, self._log_i, self._log_f, self.stats, self.profile_ticks)
+            self._sleep, self._cache, self._log_i, self._log_f, self.stats, self.profile_ticks,
+            anchors)
         n_samples, bad_step, bad_body, n_log, self._log_i, self._log_f, self._cache = res
         li = self._log_i[:n_log]
         lf = self._log_f[:n_log]

@@ -87,7 +87,7 @@ def test_integrate_moves_a_body_without_contact_on_its_parabola():
     x0 = state.position.copy()
     h = 1e-2
     S.integrate_positions(METHOD_RK4, ORTHO_NORMALIZE, bd, cfg, np.ones(1, np.int64), _x(state),
-                          sc, h)
+                          sc, h, state.anchors)
     v = np.array([1.0, -2.0, 0.5])
     np.testing.assert_allclose(state.position[0],
                                x0[0] + h * v - 0.5 * h * h * np.array([0, 0, -9.81]),
