@@ -22,7 +22,7 @@ from numba import njit
 
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.engine.contact.manifold import (
-    MF_ACC, MF_E, MF_LT, MF_MU, MF_N, MF_TH, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COLS, MI_COUNT, MI_KEY,
+    MF_ACC, MF_E, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COLS, MI_COUNT, MI_KEY,
     MI_REC_A, MI_REC_B, MI_START, MF_COLS, PF_COLS, PF_D, PF_F, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS,
     PF_P, PF_RA, PF_RB, PF_S, PF_SEND, PF_IMPACT, PF_W0, PF_WT,
 )
@@ -175,7 +175,7 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
             n_man, n_pts = _add_manifold(
                 2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
                 position, restitution, friction, accel, sb_e, sb_mu, g_e, g_mu,
-                prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
+                prev_mi, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                 mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid)
     return n_man, n_pts
 
@@ -183,7 +183,7 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
 @njit(cache=True)
 def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
                   position, restitution, friction, accel, sb_e, sb_mu, g_e, g_mu,
-                  prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
+                  prev_mi, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                   mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid):
     """Append one manifold (points rows row.. of the collider's output) with warm starting."""
     m = n_man
@@ -225,12 +225,6 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
     j = -1
     if warm:
         j = find_manifold(prev_keys, prev_idx, prev_n, key)
-    # a one-point manifold's torsional friction and twist anchor (solver.py)
-    mf[m, MF_LT] = 0.0
-    mf[m, MF_TH] = 0.0
-    if j >= 0 and cnt == 1 and prev_mi[j, MI_COUNT] == 1:
-        mf[m, MF_LT] = prev_mf[j, MF_LT]
-        mf[m, MF_TH] = prev_mf[j, MF_TH]
     pa = position[a]
     for q in range(cnt):
         p = n_pts + q

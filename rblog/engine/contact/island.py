@@ -21,7 +21,7 @@ import math
 from numba import njit
 
 from rblog.engine.contact.manifold import (
-    MF_LT, MF_N, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_LN, PF_LWS, PF_P,
+    MF_N, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_REC_A, MI_REC_B, MI_START, PF_F, PF_LN, PF_LWS, PF_P,
     PF_SEND,
 )
 from rblog.engine.contact.narrowphase import collide
@@ -191,8 +191,7 @@ def wake_pushed(mi, mf, pf, n_man, n_dyn, awake, sleep_timer, island_of, positio
     A sleeper stood in as static in this step's solve (solver index = the static dummy), so the
     impulses its awake neighbours received from it were applied to them alone. Each is handed to
     the sleeper now, equal and opposite at the same contact point: J on body a is
-    ``lambda_n n + f`` (normal impulse, world friction impulse), plus a one-point manifold's
-    torsional couple ``lambda_t n``; the sleeper gets -J if it is b
+    ``lambda_n n + f`` (normal impulse, world friction impulse), the sleeper gets -J if it is b
     (+J if a) into P, and (p - x) x (-J) into L. Linear momentum and angular momentum about any
     point are then conserved exactly, as between two awake bodies; from the next step on the
     island moves (no kick now: it joins the next step's)."""
@@ -230,12 +229,6 @@ def wake_pushed(mi, mf, pf, n_man, n_dyn, awake, sleep_timer, island_of, positio
             angular_momentum[sleeper, 0] += ry * jz - rz * jy
             angular_momentum[sleeper, 1] += rz * jx - rx * jz
             angular_momentum[sleeper, 2] += rx * jy - ry * jx
-        # a one-point manifold's torsional couple (solver.py), equal and opposite too
-        lt = sign * mf[m, MF_LT]
-        if pushed and lt != 0.0:
-            angular_momentum[sleeper, 0] += lt * nx
-            angular_momentum[sleeper, 1] += lt * ny
-            angular_momentum[sleeper, 2] += lt * nz
         if pushed and not awake[sleeper]:
             n_woken += 1
             wake_island(island_of[sleeper], n_dyn, awake, sleep_timer, island_of,

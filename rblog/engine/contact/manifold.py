@@ -43,11 +43,7 @@ MF_ACC = 11  # gap acceleration from external forces: n . (a_a - a_b) (m/s^2)
 MF_LU = 12  # LU factors of the regularised normal block (4 x 4, row-major; prepare_contacts)
 MF_PIV = 28  # pivot row of each elimination column (4, as floats)
 MF_LUOK = 32  # 1.0: the block factored (non-singular), else 0.0
-MF_LT = 33  # accumulated torsional friction impulse of a one-point manifold, about n (N m s)
-MF_TH = 34  # its anchor: relative twist angle about n since it started sticking (rad)
-MF_TB = 35  # the anchor's bias, FRICTION_ANCHOR_RATE MF_TH / h (rad/s; prepare)
-MF_TMASS = 36  # 1 / (n . (I_a^-1 + I_b^-1) n), the twist row's effective inertia (kg m^2)
-MF_COLS = 37
+MF_COLS = 33
 
 # ---- per point, float64 ----
 PF_P = 0  # contact point (3), world, midpoint of the surfaces

@@ -2,7 +2,7 @@
 
 Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
 ``load_bodies`` -> ``prepare_contacts`` -> ``warm_start`` -> ``solve_velocities`` ->
-``relax_positions`` (split impulses) -> [integrate positions, in step.py] -> ``restitution``
+``anchor_friction`` -> ``relax_positions`` (split impulses) -> [integrate positions, in step.py] -> ``restitution``
 -> [project: fresh narrowphase and nonlinear position pass, in project.py].
 
 Derivations
@@ -29,26 +29,19 @@ Targets: a penetrating or touching point (s <= 0) wants vn >= 0; a speculative p
 wants vn >= -s/h, i.e. the pair may close the gap within the step but not cross it. This is what
 stops fast bodies tunnelling, and stops a falling body exactly on the surface.
 
-Friction anchor (static friction at the position level, as PhysX's friction anchors): a loaded
-point keeps ``D``, the tangential slip of its gap since it was anchored,
+Friction anchor (static friction at the position level, as PhysX's friction anchors, which it
+breaks when the friction limit is exceeded): a point whose friction stays strictly inside the
+cone (it sticks) keeps ``D``, the tangential slip of its gap since it started sticking,
 ``D += h (dv - (dv . n) n)`` at the end of every step (dv the gap velocity after the solve, so
 that D is the integral of the contact point's slip velocity: zero for rolling without slip). The
-friction rows then target the slip rate ``vt = -FRICTION_ANCHOR_RATE D / h`` instead of 0, so a
+friction rows of the anchor pass (``anchor_friction``: one sweep after the solve, outside its
+convergence loop) then target the slip rate ``vt = -FRICTION_ANCHOR_RATE D / h``, so a
 solve that stops before it converges (residual slip e) cannot add up a drift: D settles at
 h e / rate and the slip velocity at zero. The bias lives in the friction rows only, which stay
-clamped to the Coulomb disc, so it never asks for more than static friction can give: a point
-whose load cannot hold it slides at the cone as before (the bias only adds to the demand in the
-direction it already slides), and once its drift passes FRICTION_ANCHOR_MAX_DRIFT_M the anchor
-is dropped (D = 0: re-anchored where the point is). A slip of a step or two at the cone, when
-the solve's normal impulse dips (a lightly loaded side contact), is taken back once the load
-returns, as static friction would have held it. An impact point, or one without load, drops its
-anchor. Friction impulses are equal and opposite, so the anchor changes no momentum.
-
-Torsional friction: a one-point manifold cannot resist a twist about its normal with forces at
-its point, so it gets a twist row: a couple lambda_t n on a (-lambda_t n on b), effective
-inertia 1 / (n . (I_a^-1 + I_b^-1) n), clamped to |lambda_t| <= mu lambda_n
-TORSIONAL_PATCH_RADIUS_M (a patch of that radius), with the same anchor on the relative twist
-angle. A couple changes neither the linear momentum nor the pair's angular momentum.
+clamped to the Coulomb disc: a point whose friction reaches the cone slides and drops its anchor
+(D = 0; no spring-back after a slide), as does an impact point, one without load, or one that
+has drifted beyond FRICTION_ANCHOR_MAX_DRIFT_M. Friction impulses are equal and opposite, so the
+anchor changes no momentum.
 
 Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.
 
@@ -66,11 +59,12 @@ import math
 from numba import njit
 
 from rblog.engine.constants import (
-    BLOCK_REG, TORSIONAL_PATCH_RADIUS_M, FRICTION_ANCHOR_MAX_DRIFT_M, FRICTION_ANCHOR_RATE,
+    BLOCK_REG, FRICTION_ANCHOR_MAX_DRIFT_M, FRICTION_ANCHOR_RATE,
+    FRICTION_ANCHOR_SLIDE_FRAC,
     FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL,
 )
 from rblog.engine.contact.manifold import (
-    MF_ACC, MF_LT, MF_TH, MF_TB, MF_TMASS, MF_LU, MF_LUOK, MF_MU, MF_N, MF_PIV, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
+    MF_ACC, MF_LU, MF_LUOK, MF_MU, MF_N, MF_PIV, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
     PF_IMPACT, PF_L1, PF_L2, PF_LN, PF_LP, PF_NMASS, PF_RA, PF_RB, PF_S, PF_TK,
     PF_W0, PF_KN, PF_D, PF_DB,
 )
@@ -204,12 +198,6 @@ def prepare_contacts(mi, mf, pf, n_man, bm, bI, bv, bw, h):
                                             + dbx * jx + dby * jy + dbz * jz)
         if cnt > 1:
             _factor_block(mf, m, pf, start, cnt)
-        # twist row of a one-point manifold: n . (I_a^-1 + I_b^-1) n
-        ix, iy, iz = _smul(a0, a1, a2, a3, a4, a5, nx, ny, nz)
-        jx, jy, jz = _smul(b0, b1, b2, b3, b4, b5, nx, ny, nz)
-        kt = nx * (ix + jx) + ny * (iy + jy) + nz * (iz + jz)
-        mf[m, MF_TMASS] = 1.0 / kt if kt > 0.0 else 0.0
-        mf[m, MF_TB] = FRICTION_ANCHOR_RATE * mf[m, MF_TH] / h
         for p in range(start, start + cnt):
             rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
             rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
@@ -280,26 +268,10 @@ def warm_start(mi, mf, pf, n_man, bm, bI, bv, bw):
                 ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
                 (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
                 (wbx, wby, wbz))
-        lt = mf[m, MF_LT]
-        if lt != 0.0:
-            wax, way, waz, wbx, wby, wbz = _apply_couple(
-                a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, nx, ny, nz, lt,
-                wax, way, waz, wbx, wby, wbz)
         bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
         bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
         bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
         bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
-
-
-@njit(inline="always")
-def _apply_couple(a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, nx, ny, nz, lt,
-                  wax, way, waz, wbx, wby, wbz):
-    """A couple (angular impulse) lt n on a and -lt n on b: w_a += I_a^-1 n lt,
-    w_b -= I_b^-1 n lt."""
-    ix, iy, iz = _smul(a0, a1, a2, a3, a4, a5, nx, ny, nz)
-    jx, jy, jz = _smul(b0, b1, b2, b3, b4, b5, nx, ny, nz)
-    return (wax + lt * ix, way + lt * iy, waz + lt * iz,
-            wbx - lt * jx, wby - lt * jy, wbz - lt * jz)
 
 
 @njit(cache=True)
@@ -535,9 +507,8 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                     dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
                     dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
                     dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
-                    # slip relative to the anchor's target rate -D rate / h
-                    vt1 = dvx * t1x + dvy * t1y + dvz * t1z + pf[p, PF_DB]
-                    vt2 = dvx * t2x + dvy * t2y + dvz * t2z + pf[p, PF_DB + 1]
+                    vt1 = dvx * t1x + dvy * t1y + dvz * t1z
+                    vt2 = dvx * t2x + dvy * t2y + dvz * t2z
                     k11, k12, k22 = pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2]
                     o1, o2 = pf[p, PF_L1], pf[p, PF_L2]
                     n1, n2 = _friction_impulse(k11, k12, k22, o1, o2, vt1, vt2,
@@ -558,28 +529,6 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
                         ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
                         (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
                         (wbx, wby, wbz))
-                if cnt == 1:
-                    # torsional friction: relative twist rate about n, against the anchor's target
-                    wn = nx * (wax - wbx) + ny * (way - wby) + nz * (waz - wbz) + mf[m, MF_TB]
-                    tmax = mu * TORSIONAL_PATCH_RADIUS_M * pf[start, PF_LN]
-                    old = mf[m, MF_LT]
-                    new = old - mf[m, MF_TMASS] * wn
-                    if new > tmax:
-                        new = tmax
-                    elif new < -tmax:
-                        new = -tmax
-                    mf[m, MF_LT] = new
-                    d = new - old
-                    if d != 0.0:
-                        # the rim speed of the patch the couple changes (m/s)
-                        dv = abs(d) / mf[m, MF_TMASS] * TORSIONAL_PATCH_RADIUS_M
-                        if dv > change:
-                            change = dv
-                        if dv > tol:
-                            mark_a = True
-                        wax, way, waz, wbx, wby, wbz = _apply_couple(
-                            a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, nx, ny, nz, d,
-                            wax, way, waz, wbx, wby, wbz)
             bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
             bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
             bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
@@ -593,6 +542,71 @@ def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_ite
         if it >= min_iter and change <= tol:
             break
     return max(1, (visits + active - 1) // max(active, 1))
+
+
+@njit(cache=True)
+def anchor_friction(mi, mf, pf, n_man, bm, bI, bv, bw):
+    """The anchor pass (after the velocity solve, before relax): one Gauss-Seidel sweep of the
+    friction rows of loaded points with the anchors' targets (slip rate -FRICTION_ANCHOR_RATE D
+    / h, clamped to the Coulomb disc; see "Friction anchor" above). It runs once per step, outside the solve's
+    convergence loop, so the bias never keeps the solve's sweeps going; the anchor closes the
+    loop over steps (what one sweep leaves of the target is still in D next step)."""
+    for m in range(n_man):
+        if not mi[m, MI_ACTIVE]:
+            continue
+        mu = mf[m, MF_MU]
+        if mu <= 0.0:
+            continue
+        start = mi[m, MI_START]
+        end = start + mi[m, MI_COUNT]
+        loaded = False
+        for p in range(start, end):
+            if pf[p, PF_LN] > 0.0:
+                loaded = True
+        if not loaded:
+            continue
+        ia = mi[m, MI_A]
+        ib = mi[m, MI_B]
+        ma = bm[ia]
+        mb = bm[ib]
+        a0, a1, a2, a3, a4, a5 = bI[ia, 0], bI[ia, 1], bI[ia, 2], bI[ia, 3], bI[ia, 4], bI[ia, 5]
+        b0, b1, b2, b3, b4, b5 = bI[ib, 0], bI[ib, 1], bI[ib, 2], bI[ib, 3], bI[ib, 4], bI[ib, 5]
+        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
+        t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
+        t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
+        vax, vay, vaz = bv[ia, 0], bv[ia, 1], bv[ia, 2]
+        wax, way, waz = bw[ia, 0], bw[ia, 1], bw[ia, 2]
+        vbx, vby, vbz = bv[ib, 0], bv[ib, 1], bv[ib, 2]
+        wbx, wby, wbz = bw[ib, 0], bw[ib, 1], bw[ib, 2]
+        for p in range(start, end):
+            if pf[p, PF_LN] <= 0.0:
+                continue
+            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
+            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
+            dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby
+            dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz
+            dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx
+            # slip relative to the anchor's target rate -D rate / h
+            vt1 = dvx * t1x + dvy * t1y + dvz * t1z + pf[p, PF_DB]
+            vt2 = dvx * t2x + dvy * t2y + dvz * t2z + pf[p, PF_DB + 1]
+            k11, k12, k22 = pf[p, PF_TK], pf[p, PF_TK + 1], pf[p, PF_TK + 2]
+            o1, o2 = pf[p, PF_L1], pf[p, PF_L2]
+            n1, n2 = _friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, mu * pf[p, PF_LN])
+            pf[p, PF_L1] = n1
+            pf[p, PF_L2] = n2
+            d1 = n1 - o1
+            d2 = n2 - o2
+            px = d1 * t1x + d2 * t2x
+            py = d1 * t1y + d2 * t2y
+            pz = d1 * t1z + d2 * t2z
+            (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz), (wbx, wby, wbz) = apply_impulse(
+                ma, (a0, a1, a2, a3, a4, a5), mb, (b0, b1, b2, b3, b4, b5), (rax, ray, raz),
+                (rbx, rby, rbz), (px, py, pz), (vax, vay, vaz), (wax, way, waz), (vbx, vby, vbz),
+                (wbx, wby, wbz))
+        bv[ia, 0], bv[ia, 1], bv[ia, 2] = vax, vay, vaz
+        bw[ia, 0], bw[ia, 1], bw[ia, 2] = wax, way, waz
+        bv[ib, 0], bv[ib, 1], bv[ib, 2] = vbx, vby, vbz
+        bw[ib, 0], bw[ib, 1], bw[ib, 2] = wbx, wby, wbz
 
 
 @njit(cache=True)
@@ -610,24 +624,16 @@ def store_impulses(mi, mf, pf, n_man, bv, bw, h):
         mu = mf[m, MF_MU]
         start = mi[m, MI_START]
         cnt = mi[m, MI_COUNT]
-        # the twist anchor of a one-point manifold
-        th = 0.0
-        tmax = mu * TORSIONAL_PATCH_RADIUS_M * pf[start, PF_LN]
-        if cnt == 1 and tmax > 0.0 and pf[start, PF_IMPACT] == 0.0:
-            th = mf[m, MF_TH] + h * (nx * (bw[ia, 0] - bw[ib, 0]) + ny * (bw[ia, 1] - bw[ib, 1])
-                                     + nz * (bw[ia, 2] - bw[ib, 2]))
-            if abs(th) * TORSIONAL_PATCH_RADIUS_M > FRICTION_ANCHOR_MAX_DRIFT_M:
-                th = 0.0
-        mf[m, MF_TH] = th
-        if cnt != 1:
-            mf[m, MF_LT] = 0.0
         for p in range(start, start + cnt):
             l1, l2 = pf[p, PF_L1], pf[p, PF_L2]
             pf[p, PF_F] = l1 * t1x + l2 * t2x
             pf[p, PF_F + 1] = l1 * t1y + l2 * t2y
             pf[p, PF_F + 2] = l1 * t1z + l2 * t2z
-            # friction anchor: a loaded point adds the step's slip (a slide too, see above)
-            if mu * pf[p, PF_LN] <= 0.0 or pf[p, PF_IMPACT] != 0.0:
+            # friction anchor: a loaded point strictly inside the cone sticks and adds the slip;
+            # one that slides (or was struck) drops its anchor
+            fmax = mu * pf[p, PF_LN]
+            if (fmax <= 0.0 or pf[p, PF_IMPACT] != 0.0
+                    or l1 * l1 + l2 * l2 >= ((1.0 - FRICTION_ANCHOR_SLIDE_FRAC) * fmax) ** 2):
                 pf[p, PF_D], pf[p, PF_D + 1], pf[p, PF_D + 2] = 0.0, 0.0, 0.0
                 continue
             rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]

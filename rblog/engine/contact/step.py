@@ -9,7 +9,8 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     4  collide          narrowphase table -> manifolds, warm-start matching, sleeping carried
     5  prepare          effective masses, pre-solve gap velocities (solver.py)
     6  warm start       apply last step's impulses
-    7  solve            sequential impulses, Coulomb friction, speculative targets
+    7  solve            sequential impulses, Coulomb friction, speculative targets; then one
+                        sweep of the friction rows toward their anchors (solver.anchor_friction)
     8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
                         orbital angular momentum h v' x P is handed back to the spin)
     9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
@@ -84,7 +85,7 @@ from rblog.engine.contact.manifold import (
 from rblog.engine.contact.narrowphase import collider_buffers
 from rblog.engine.contact.project import PROJ_COLS, apply_projection, project_positions
 from rblog.engine.contact.solver import (
-    load_bodies, prepare_contacts, solve_velocities, store_impulses, warm_start,
+    anchor_friction, load_bodies, prepare_contacts, solve_velocities, store_impulses, warm_start,
 )
 from rblog.engine.contact.relax import relax_positions
 from rblog.engine.contact.restitution import restitution
@@ -561,6 +562,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
             stats[ST_SWEEPS] += solve_velocities(                                         # 7
                 mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw, inv_h, cfg.n_vel, cfg.max_vel,
                 cfg.vel_tol, sc.blk, sc.hot, sc.in_contact, cfg.sor)
+            anchor_friction(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw)              # 7b
             if do_prof:
                 t = lap(prof, P_SOLVE, t)
             if cfg.n_pos > 0:
