@@ -22,15 +22,12 @@ SLOW_SAMPLES = {"pile"}
 #: known engine faults that `rblog check` rightly flags (strict: the test fails once fixed)
 KNOWN_FAULTS: dict[str, str] = {
     "pile": "creep (tol 0.1 mm) while the pile settles, seed 1, at the engine's default "
-            "velocity solve (tol 1e-4 m/s, cap 30 sweeps) with friction anchors (one anchor "
-            "sweep a step at rate 0.5, solver.anchor_friction): 2 creep findings, 0.107 and "
-            "0.116 mm (16, 0.10-0.495 mm, without anchors), no jitter; with every step logged "
-            "the penetration analyzer passes (creep 0.050 mm). What the anchors leave, traced "
-            "with every step logged at rate 0.8: turns of a box about a one-point or two-point "
-            "(edge) contact, which point friction does not resist, read as slip at the "
-            "analyzer's witness (the midpoint of the boxes' facing feature centres, mm off the "
-            "contact), e.g. box318/box374: the contact point slips 0.115 mm while the pair turns "
-            "0.018 rad about it (benchmarks/RESULTS.md, issue 16)",
+            "velocity solve (tol 1e-4 m/s, cap 30 sweeps) without static-friction anchors "
+            "(ContactParams.static_friction_anchors, off by default: on, they cut the pile's "
+            "creep to 2 findings of 0.107 and 0.116 mm but let the 500-box pile of "
+            "test_contact.py reach 0.72 mm of penetration at dt 2e-3): box93 twisting under "
+            "box40 and boxes turning about point and edge contacts (benchmarks/RESULTS.md, "
+            "issue 16)",
 }
 SAMPLES = [pytest.param(p.stem, marks=[pytest.mark.slow] + (
     [pytest.mark.xfail(strict=True, reason=KNOWN_FAULTS[p.stem])] if p.stem in KNOWN_FAULTS else []))

@@ -10,7 +10,8 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     5  prepare          effective masses, pre-solve gap velocities (solver.py)
     6  warm start       apply last step's impulses
     7  solve            sequential impulses, Coulomb friction, speculative targets; then one
-                        sweep of the friction rows toward their anchors (solver.anchor_friction)
+                        sweep of the friction rows toward their anchors (solver.anchor_friction, when
+                        ContactParams.static_friction_anchors is on)
     8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
                         orbital angular momentum h v' x P is handed back to the spin)
     9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
@@ -103,7 +104,7 @@ Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff 
 Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol sor n_pos slop "
                                   "beta max_speed "
                                   "margin e_threshold anchor sleep_speed sleep_time warm "
-                                  "n_proj proj_depth")
+                                  "n_proj proj_depth anchors_on")
 
 #: the changing state of the bodies, world frame (rblog.engine.state.State's arrays): position
 #: (N, 3) m, linear_momentum (N, 3), quat_wxyz (N, 4), rotation (N, 3, 3), angular_momentum (N, 3).
@@ -562,7 +563,8 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
             stats[ST_SWEEPS] += solve_velocities(                                         # 7
                 mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw, inv_h, cfg.n_vel, cfg.max_vel,
                 cfg.vel_tol, sc.blk, sc.hot, sc.in_contact, cfg.sor)
-            anchor_friction(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw)              # 7b
+            if cfg.anchors_on:
+                anchor_friction(mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw)          # 7b
             if do_prof:
                 t = lap(prof, P_SOLVE, t)
             if cfg.n_pos > 0:

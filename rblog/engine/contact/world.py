@@ -133,7 +133,8 @@ class ContactWorld:
             float(p.position_correction_rate), float(p.max_correction_speed),
             float(p.speculative_distance), -1.0,  # e_threshold: set per dt by advance()
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
-            bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth))
+            bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth),
+            bool(p.static_friction_anchors))
         # the free-body kernel's inputs, for scenes where nothing can touch
         self._inv_mass = 1.0 / mass
         self._inv_inertia = inv_inertia

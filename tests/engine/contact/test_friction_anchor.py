@@ -16,8 +16,9 @@ from tests.engine.contact.test_contact import SPLIT, simulate
 G = 9.81
 
 
+@pytest.mark.parametrize("anchors", [False, True])
 @pytest.mark.parametrize("sweeps", [1, 30])
-def test_box_on_a_ramp_below_the_friction_angle_stays_put(sweeps):
+def test_box_on_a_ramp_below_the_friction_angle_stays_put(sweeps, anchors):
     """A cube on a 20 deg ramp (tan 20 = 0.36 < mu 0.6; the ramp is the ground under tilted
     gravity) sticks: static friction allows no slip, at the default solve and at one sweep a
     step. (A lone box holds without anchors too, warm starting converges it over steps; the
@@ -26,7 +27,7 @@ def test_box_on_a_ramp_below_the_friction_angle_stays_put(sweeps):
     model = make_model([SHAPE_BOX], [[0.05, 0.05, 0.05]], [0.1], restitution=0.0, friction=0.6,
                        gravity=(G * math.sin(th), 0.0, -G * math.cos(th)))
     params = ContactParams(sleep=False, velocity_iterations=sweeps,
-                           max_velocity_iterations=sweeps)
+                           max_velocity_iterations=sweeps, static_friction_anchors=anchors)
     world = ContactWorld(model, params, *SPLIT)
     state = make_state(model, [[0.0, 0.0, 0.05]])
     out, _, bad, _ = simulate(world, state, 1e-3, 3000, stride=100)
