@@ -7,7 +7,11 @@ For each candidate pair (lower shape id a, higher id b):
 * otherwise the collider from the narrowphase table runs with a speculative distance of
   ``margin + reach_a + reach_b``; each new point takes over the impulses of the previous step's
   point with the same feature id (or, failing that, the nearest one within
-  ``anchor_distance``), normal impulse as is and friction projected on the new tangents.
+  ``anchor_distance``), normal impulse as is and friction projected on the new tangents;
+* the manifold keeps its friction anchor, the pose of a in b's frame when the pair started
+  sticking (solver.py, "Friction anchor"), whatever its points do (a one-point contact that
+  becomes a face keeps it), and every point gets its drift from it: where a's material point at
+  the contact is now, minus where the anchor pose puts it.
 
 Materials combine as restitution max(e_a, e_b) and friction sqrt(mu_a mu_b) (the analyzers use
 the same rule).
@@ -21,8 +25,9 @@ import numpy as np
 from numba import njit
 
 from rblog.contract.trajectory import STATIC_BODY
+from rblog.engine.constants import FRICTION_ANCHOR_MAX_DRIFT_M
 from rblog.engine.contact.manifold import (
-    MF_ACC, MF_E, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COLS, MI_COUNT, MI_KEY,
+    MF_ACC, MF_AOK, MF_AR, MF_AT, MF_E, MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COLS, MI_COUNT, MI_KEY,
     MI_REC_A, MI_REC_B, MI_START, MF_COLS, PF_COLS, PF_D, PF_F, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS,
     PF_P, PF_RA, PF_RB, PF_S, PF_SEND, PF_IMPACT, PF_W0, PF_WT,
 )
@@ -174,16 +179,16 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
                 continue
             n_man, n_pts = _add_manifold(
                 2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
-                position, restitution, friction, accel, sb_e, sb_mu, g_e, g_mu,
-                prev_mi, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
+                position, rotation, sb_pos, sb_rot, restitution, friction, accel, sb_e, sb_mu,
+                g_e, g_mu, prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                 mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid)
     return n_man, n_pts
 
 
 @njit(cache=True)
 def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
-                  position, restitution, friction, accel, sb_e, sb_mu, g_e, g_mu,
-                  prev_mi, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
+                  position, rotation, sb_pos, sb_rot, restitution, friction, accel, sb_e, sb_mu,
+                  g_e, g_mu, prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                   mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid):
     """Append one manifold (points rows row.. of the collider's output) with warm starting."""
     m = n_man
@@ -226,6 +231,25 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
     if warm:
         j = find_manifold(prev_keys, prev_idx, prev_n, key)
     pa = position[a]
+    # the friction anchor: b's frame (the world for the ground), a's pose in it now, and the
+    # pose it had when the pair started sticking (carried over while store_impulses keeps it)
+    if b_dyn:
+        xb, rb = position[b], rotation[b]
+    elif b < n_dyn + n_static:
+        xb, rb = sb_pos[b - n_dyn], sb_rot[b - n_dyn]
+    else:
+        xb, rb = np.zeros(3), np.eye(3)
+    ra = rotation[a]
+    anchored = j >= 0 and prev_mf[j, MF_AOK] > 0.0
+    for r in range(3):
+        for c in range(3):
+            # R_b^T R_a
+            v = rb[0, r] * ra[0, c] + rb[1, r] * ra[1, c] + rb[2, r] * ra[2, c]
+            mf[m, MF_AR + 3 * r + c] = prev_mf[j, MF_AR + 3 * r + c] if anchored else v
+        v = rb[0, r] * (pa[0] - xb[0]) + rb[1, r] * (pa[1] - xb[1]) + rb[2, r] * (pa[2] - xb[2])
+        mf[m, MF_AT + r] = prev_mf[j, MF_AT + r] if anchored else v
+    mf[m, MF_AOK] = 1.0
+    drift_max = 0.0
     for q in range(cnt):
         p = n_pts + q
         px, py, pz = pts[row + q, 0], pts[row + q, 1], pts[row + q, 2]
@@ -242,7 +266,6 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
         ln = 0.0
         l1 = 0.0
         l2 = 0.0
-        dx, dy, dz = 0.0, 0.0, 0.0
         if j >= 0:
             ps = prev_mi[j, MI_START]
             pc = prev_mi[j, MI_COUNT]
@@ -266,9 +289,26 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
                 fx, fy, fz = prev_pf[match, PF_F], prev_pf[match, PF_F + 1], prev_pf[match, PF_F + 2]
                 l1 = fx * t1x + fy * t1y + fz * t1z
                 l2 = fx * t2x + fy * t2y + fz * t2z
-                # the friction anchor goes with the point (projected on the tangents in prepare)
-                dx, dy, dz = prev_pf[match, PF_D], prev_pf[match, PF_D + 1], prev_pf[match, PF_D + 2]
+        # drift of a's material point at the contact: y = R_a^T (p - x_a) in a's frame, put by
+        # the anchor pose at x_b + R_b (A_R y + A_t); D = p minus that (world)
+        y0, y1, y2 = 0.0, 0.0, 0.0
+        for r in range(3):
+            e = (ra[0, r] * (px - pa[0]) + ra[1, r] * (py - pa[1]) + ra[2, r] * (pz - pa[2]))
+            if r == 0:
+                y0 = e
+            elif r == 1:
+                y1 = e
+            else:
+                y2 = e
+        q0 = mf[m, MF_AR] * y0 + mf[m, MF_AR + 1] * y1 + mf[m, MF_AR + 2] * y2 + mf[m, MF_AT]
+        q1 = mf[m, MF_AR + 3] * y0 + mf[m, MF_AR + 4] * y1 + mf[m, MF_AR + 5] * y2 + mf[m, MF_AT + 1]
+        q2 = mf[m, MF_AR + 6] * y0 + mf[m, MF_AR + 7] * y1 + mf[m, MF_AR + 8] * y2 + mf[m, MF_AT + 2]
+        dx = px - (xb[0] + rb[0, 0] * q0 + rb[0, 1] * q1 + rb[0, 2] * q2)
+        dy = py - (xb[1] + rb[1, 0] * q0 + rb[1, 1] * q1 + rb[1, 2] * q2)
+        dz = pz - (xb[2] + rb[2, 0] * q0 + rb[2, 1] * q1 + rb[2, 2] * q2)
         pf[p, PF_D], pf[p, PF_D + 1], pf[p, PF_D + 2] = dx, dy, dz
+        dn = dx * nx + dy * ny + dz * nz
+        drift_max = max(drift_max, dx * dx + dy * dy + dz * dz - dn * dn)
         pf[p, PF_LN] = ln
         pf[p, PF_L1] = l1
         pf[p, PF_L2] = l2
@@ -278,5 +318,15 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
         pf[p, PF_WT] = -1.0
         pf[p, PF_IMPACT] = 0.0
         pf[p, PF_F], pf[p, PF_F + 1], pf[p, PF_F + 2] = 0.0, 0.0, 0.0
+    if drift_max > FRICTION_ANCHOR_MAX_DRIFT_M * FRICTION_ANCHOR_MAX_DRIFT_M:
+        # drifted too far to be pulled back (the pair was struck): anchored anew where it is
+        for r in range(3):
+            for c in range(3):
+                mf[m, MF_AR + 3 * r + c] = (rb[0, r] * ra[0, c] + rb[1, r] * ra[1, c]
+                                            + rb[2, r] * ra[2, c])
+            mf[m, MF_AT + r] = (rb[0, r] * (pa[0] - xb[0]) + rb[1, r] * (pa[1] - xb[1])
+                                + rb[2, r] * (pa[2] - xb[2]))
+        for p in range(n_pts, n_pts + cnt):
+            pf[p, PF_D], pf[p, PF_D + 1], pf[p, PF_D + 2] = 0.0, 0.0, 0.0
     n_pts += cnt
     return n_man, n_pts

@@ -43,7 +43,11 @@ MF_ACC = 11  # gap acceleration from external forces: n . (a_a - a_b) (m/s^2)
 MF_LU = 12  # LU factors of the regularised normal block (4 x 4, row-major; prepare_contacts)
 MF_PIV = 28  # pivot row of each elimination column (4, as floats)
 MF_LUOK = 32  # 1.0: the block factored (non-singular), else 0.0
-MF_COLS = 33
+MF_AR = 33  # friction anchor: pose of a in b's frame when the pair started sticking: R_b^T R_a (9,
+#            row-major) ...
+MF_AT = 42  # ... and R_b^T (x_a - x_b) (3), m (b's frame: the world for the ground)
+MF_AOK = 45  # 1.0: the anchor pose holds (collide sets it, store_impulses drops it), else 0.0
+MF_COLS = 46
 
 # ---- per point, float64 ----
 PF_P = 0  # contact point (3), world, midpoint of the surfaces
@@ -63,7 +67,8 @@ PF_SEND = 23  # separation estimated at the end of the step (m)
 PF_IMPACT = 24  # 1.0 if the point was an impact (approach speed above the threshold)
 PF_WT = 25  # restitution's target gap velocity (m/s), < 0 when the point does not bounce
 PF_KN = 26  # row of the manifold's normal block K_ij (4: one entry per point of the manifold)
-PF_D = 30  # friction anchor: tangential slip of the point since it started sticking (3), world, m
+PF_D = 30  # friction anchor: slip of a's material point at the contact since the pair started
+#            sticking (3), world, m: where it is minus where the anchor pose puts it (collide)
 PF_DB = 33  # the anchor's bias, FRICTION_ANCHOR_RATE (D . t1, D . t2) / h (2), m/s (prepare)
 PF_COLS = 35
 

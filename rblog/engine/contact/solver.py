@@ -30,18 +30,25 @@ wants vn >= -s/h, i.e. the pair may close the gap within the step but not cross 
 stops fast bodies tunnelling, and stops a falling body exactly on the surface.
 
 Friction anchor (static friction at the position level, as PhysX's friction anchors, which it
-breaks when the friction limit is exceeded): a point whose friction stays strictly inside the
-cone (it sticks) keeps ``D``, the tangential slip of its gap since it started sticking,
-``D += h (dv - (dv . n) n)`` at the end of every step (dv the gap velocity after the solve, so
-that D is the integral of the contact point's slip velocity: zero for rolling without slip). The
-friction rows of the anchor pass (``anchor_friction``: one sweep after the solve, outside its
-convergence loop) then target the slip rate ``vt = -FRICTION_ANCHOR_RATE D / h``, so a
-solve that stops before it converges (residual slip e) cannot add up a drift: D settles at
-h e / rate and the slip velocity at zero. The bias lives in the friction rows only, which stay
-clamped to the Coulomb disc: a point whose friction reaches the cone slides and drops its anchor
-(D = 0; no spring-back after a slide), as does an impact point, one without load, or one that
-has drifted beyond FRICTION_ANCHOR_MAX_DRIFT_M. Friction impulses are equal and opposite, so the
-anchor changes no momentum.
+breaks when the friction limit is exceeded; ContactParams.static_friction_anchors): a manifold
+whose pair sticks keeps its anchor, the pose of body a in body b's frame when the pair started
+sticking (``MF_AR``, ``MF_AT``; b's frame is the world for the ground). The collide stage
+carries it over with the manifold (matched by pair key, so points that come and go, a one-point
+contact that becomes a face, keep it) and gives every point its drift ``D``: where a's material
+point at the contact is now, minus where the anchor pose puts it (collide.py). So D holds the
+pair's slip and its twist since it stuck, whatever the points did, and counts every move of the
+bodies (the solve's, the split-impulse and projection shifts). The friction rows of the anchor
+pass (``anchor_friction``: one sweep after the solve, outside its convergence loop) then target
+the slip rate ``vt = -FRICTION_ANCHOR_RATE D / h``, so a solve that stops before it converges
+(residual slip e) cannot add up a drift: D settles at h e / rate and the slip velocity at zero.
+The bias lives in the friction rows only, which stay clamped to the Coulomb disc. A manifold
+drops its anchor (store_impulses: re-anchored where the pair then is) when a point was struck
+or none of its loaded points sticks (friction strictly inside the cone), and collide re-anchors
+a pair that drifted beyond FRICTION_ANCHOR_MAX_DRIFT_M. Friction impulses are equal and
+opposite, so the anchor changes no momentum. What the pass does not do: it is not followed by
+the normal rows (a pointwise normal sweep after it was measured to make the pile creep more,
+benchmarks/RESULTS.md), and a box resting on two single-point contacts can still turn about
+the line through them (no friction row sees that motion).
 
 Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.
 
@@ -59,14 +66,13 @@ import math
 from numba import njit
 
 from rblog.engine.constants import (
-    BLOCK_REG, FRICTION_ANCHOR_MAX_DRIFT_M, FRICTION_ANCHOR_RATE,
-    FRICTION_ANCHOR_SLIDE_FRAC,
+    BLOCK_REG, FRICTION_ANCHOR_RATE, FRICTION_ANCHOR_SLIDE_FRAC,
     FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL,
 )
 from rblog.engine.contact.manifold import (
     MF_ACC, MF_LU, MF_LUOK, MF_MU, MF_N, MF_PIV, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_F,
     PF_IMPACT, PF_L1, PF_L2, PF_LN, PF_LP, PF_NMASS, PF_RA, PF_RB, PF_S, PF_TK,
-    PF_W0, PF_KN, PF_D, PF_DB,
+    PF_W0, PF_KN, PF_D, PF_DB, MF_AOK,
 )
 
 
@@ -610,47 +616,32 @@ def anchor_friction(mi, mf, pf, n_man, bm, bI, bv, bw):
 
 
 @njit(cache=True)
-def store_impulses(mi, mf, pf, n_man, bv, bw, h):
+def store_impulses(mi, mf, pf, n_man):
     """Friction impulses as world vectors, so the next step can project them on its tangents;
-    the friction anchors' drift D advanced by the step's slip (see "Friction anchor" above)."""
+    a manifold keeps its friction anchor while some loaded point sticks (friction strictly inside
+    its cone; see "Friction anchor" above): an impact, or a manifold none of whose points
+    sticks, drops it, and the next step's collide anchors the pair anew where it then is. (A
+    point at its cone while others stick just gives what the cone allows; a pair that slides
+    drifts beyond FRICTION_ANCHOR_MAX_DRIFT_M and collide re-anchors it.)"""
     for m in range(n_man):
         if not mi[m, MI_ACTIVE]:
             continue
-        ia = mi[m, MI_A]
-        ib = mi[m, MI_B]
-        nx, ny, nz = mf[m, MF_N], mf[m, MF_N + 1], mf[m, MF_N + 2]
         t1x, t1y, t1z = mf[m, MF_T1], mf[m, MF_T1 + 1], mf[m, MF_T1 + 2]
         t2x, t2y, t2z = mf[m, MF_T2], mf[m, MF_T2 + 1], mf[m, MF_T2 + 2]
         mu = mf[m, MF_MU]
         start = mi[m, MI_START]
         cnt = mi[m, MI_COUNT]
+        stick = False
+        struck = False
         for p in range(start, start + cnt):
             l1, l2 = pf[p, PF_L1], pf[p, PF_L2]
             pf[p, PF_F] = l1 * t1x + l2 * t2x
             pf[p, PF_F + 1] = l1 * t1y + l2 * t2y
             pf[p, PF_F + 2] = l1 * t1z + l2 * t2z
-            # friction anchor: a loaded point strictly inside the cone sticks and adds the slip;
-            # one that slides (or was struck) drops its anchor
             fmax = mu * pf[p, PF_LN]
-            if (fmax <= 0.0 or pf[p, PF_IMPACT] != 0.0
-                    or l1 * l1 + l2 * l2 >= ((1.0 - FRICTION_ANCHOR_SLIDE_FRAC) * fmax) ** 2):
-                pf[p, PF_D], pf[p, PF_D + 1], pf[p, PF_D + 2] = 0.0, 0.0, 0.0
-                continue
-            rax, ray, raz = pf[p, PF_RA], pf[p, PF_RA + 1], pf[p, PF_RA + 2]
-            rbx, rby, rbz = pf[p, PF_RB], pf[p, PF_RB + 1], pf[p, PF_RB + 2]
-            # relative velocity at the contact (a minus b), after the solve and the bounces
-            dvx = (bv[ia, 0] + bw[ia, 1] * raz - bw[ia, 2] * ray
-                   - bv[ib, 0] - bw[ib, 1] * rbz + bw[ib, 2] * rby)
-            dvy = (bv[ia, 1] + bw[ia, 2] * rax - bw[ia, 0] * raz
-                   - bv[ib, 1] - bw[ib, 2] * rbx + bw[ib, 0] * rbz)
-            dvz = (bv[ia, 2] + bw[ia, 0] * ray - bw[ia, 1] * rax
-                   - bv[ib, 2] - bw[ib, 0] * rby + bw[ib, 1] * rbx)
-            d1 = (pf[p, PF_D] * t1x + pf[p, PF_D + 1] * t1y + pf[p, PF_D + 2] * t1z
-                  + h * (dvx * t1x + dvy * t1y + dvz * t1z))
-            d2 = (pf[p, PF_D] * t2x + pf[p, PF_D + 1] * t2y + pf[p, PF_D + 2] * t2z
-                  + h * (dvx * t2x + dvy * t2y + dvz * t2z))
-            if d1 * d1 + d2 * d2 > FRICTION_ANCHOR_MAX_DRIFT_M * FRICTION_ANCHOR_MAX_DRIFT_M:
-                d1, d2 = 0.0, 0.0
-            pf[p, PF_D] = d1 * t1x + d2 * t2x
-            pf[p, PF_D + 1] = d1 * t1y + d2 * t2y
-            pf[p, PF_D + 2] = d1 * t1z + d2 * t2z
+            if pf[p, PF_IMPACT] != 0.0:
+                struck = True
+            elif fmax > 0.0 and l1 * l1 + l2 * l2 < ((1.0 - FRICTION_ANCHOR_SLIDE_FRAC) * fmax) ** 2:
+                stick = True
+        if struck or not stick:
+            mf[m, MF_AOK] = 0.0

@@ -579,7 +579,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
             stats[ST_IMPACTS] += restitution(                                             # 10
                 mi1, mf1, pf1, n_man, sc.bm, sc.bI, sc.bv, sc.bw, sc.pv, sc.pw, h,
                 cfg.e_threshold, cfg.n_vel, sc.dx_step, x.linear_momentum, x.angular_momentum)
-            store_impulses(mi1, mf1, pf1, n_man, sc.bv, sc.bw, h)                         # 11
+            store_impulses(mi1, mf1, pf1, n_man)                                          # 11
             # this step's manifolds become "previous"
             keys0 = np.empty(max(n_man, 1), np.int64)
             idx0 = np.empty(max(n_man, 1), np.int64)
