@@ -44,9 +44,11 @@ from rblog.engine.rotation import quat_to_matrix_np  # noqa: E402
 from rblog.study.scenes import loose_pile  # noqa: E402
 
 
-def run_rblog(model, state, dt, n_steps, sample_every, profile=None):
-    """(steps/s, penetration samples, world, end state)."""
-    world = ContactWorld(model, ContactParams(), rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
+def run_rblog(model, state, dt, n_steps, sample_every, profile=None, anchors=False):
+    """(steps/s, penetration samples, world, end state); ``anchors``: ContactParams'
+    static_friction_anchors."""
+    world = ContactWorld(model, ContactParams(static_friction_anchors=anchors),
+                         rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
     if profile is not None:
         world.profile_ticks = profile.ticks
     s = state.copy()
@@ -127,22 +129,25 @@ def main(argv=None):
     ap.add_argument("--mujoco-config", default="default", help=f"one of {sorted(MUJOCO_CONFIGS)}")
     ap.add_argument("--no-peers", action="store_true", help="rblog only")
     ap.add_argument("--profile", action="store_true", help="print rblog's per-stage profile")
+    ap.add_argument("--anchors", action="store_true",
+                    help="rblog with [contact] static_friction_anchors = true")
     args = ap.parse_args(argv)
     n_steps = int(round(args.duration / args.dt))
     threads = os.environ.get("NUMBA_NUM_THREADS", "default")
     print(f"loose pile: dt {args.dt:g} s, {n_steps} steps ({args.duration:g} s); "
           f"rblog NUMBA_NUM_THREADS={threads}")
     wm, ws = loose_pile(10)
-    run_rblog(wm, ws, args.dt, 20, 10)  # compile / load the kernels
+    run_rblog(wm, ws, args.dt, 20, 10, anchors=args.anchors)  # compile / load the kernels
     have_mj = importlib.util.find_spec("mujoco") is not None
     have_pb = importlib.util.find_spec("pybullet") is not None
     for n in (int(b) for b in args.boxes.split(",")):
         model, state = loose_pile(n)
         prof = Profile() if args.profile else None
-        sps, pens, world, _ = run_rblog(model, state, args.dt, n_steps, args.sample_every, prof)
+        sps, pens, world, _ = run_rblog(model, state, args.dt, n_steps, args.sample_every, prof,
+                                        anchors=args.anchors)
         st = world.stats
         print(f"\n{n} boxes")
-        print(f"  rblog            {sps:8.1f} steps/s   penetration {stats(pens)}")
+        print(f"  rblog{' anchors' if args.anchors else '        '}    {sps:8.1f} steps/s   penetration {stats(pens)}")
         print(f"    per step: {st[3] / max(st[0], 1):.0f} contact points, "
               f"{st[8] / max(st[0], 1):.1f} sweeps, {st[4] / max(st[0], 1):.0f} awake; "
               f"{world.n_awake} awake at the end")

@@ -132,26 +132,28 @@ FRICTION_NEWTON_TOL = 1e-12
 #: rank-3 block (one self-equilibrated load pattern costs nothing); the regularised solve picks
 #: the smallest impulses, which keeps symmetric loads symmetric.
 BLOCK_REG = 1e-9
-# Static-friction anchor (solver.py, "Friction anchor"). A point whose friction stays strictly
-# inside the Coulomb cone sticks, and static friction then forbids any net slip; a velocity solve
-# stopped after a finite number of sweeps leaves a residual slip e (m/s) that, steady, adds up
-# step after step (a twisting support at 7.5e-4 m/s creeps 0.36 mm in 0.48 s). The anchor keeps
-# the slip D accumulated since the point stuck and the friction rows target the rate
-# -FRICTION_ANCHOR_RATE D / h instead of 0, so the drift obeys D' = (1 - rate) D + h e: it
-# settles at h e / rate (sub-micrometre) and the slip velocity at 0, whatever the solve leaves.
+# Static-friction anchor (solver.py, "Friction anchor"; ContactParams.static_friction_anchors).
+# A pair whose friction stays strictly inside the Coulomb cone sticks, and static friction then
+# forbids any net slip; a velocity solve stopped after a finite number of sweeps leaves a
+# residual slip e (m/s) that, steady, adds up step after step (a twisting support at 7.5e-4 m/s
+# creeps 0.36 mm in 0.48 s). The anchor is the pose of body a in body b's frame when the pair
+# started sticking; every contact point's drift D is where a's material point there is now minus
+# where that pose puts it (collide.py), and the friction rows target the slip rate
+# -FRICTION_ANCHOR_RATE D / h instead of 0, so the drift obeys D' = (1 - rate) D + h e: it settles
+# at h e / rate (sub-micrometre) and the slip velocity at 0, whatever the solve leaves.
 #: fraction of the anchor's drift the friction rows take back per step (dimensionless, (0, 1]).
 #: Higher is tighter; above 1 the drift would overshoot each step. Measured on samples/pile.toml
 #: with every step logged: 0.8 leaves 0.118 mm of creep but makes resting contacts oscillate at
 #: up to 2.7 mm/s (jitter; 1.07 mm/s without anchors), 0.5 leaves 0.050 mm and 1.85 mm/s.
 FRICTION_ANCHOR_RATE = 0.5
-#: m. An anchor that has drifted this far is dropped (re-anchored where the point is): such a
-#: slip is one the solve let through while the pair was struck, and pulling it back would act as
-#: a spring (at most FRICTION_ANCHOR_RATE x this / h = 2.5 cm/s of bias at dt = 1e-3 s). Equal to
-#: the default allowed_penetration, the contact's resolution; steady drifts are ~1e-6 m.
+#: m. A pair one of whose points has drifted this far (tangentially) is re-anchored where it is:
+#: such a slip is one the solve let through while the pair was struck, and pulling it back would
+#: act as a spring (at most FRICTION_ANCHOR_RATE x this / h = 2.5 cm/s of bias at dt = 1e-3 s).
+#: Equal to the default allowed_penetration, the contact's resolution; steady drifts are ~1e-6 m.
 FRICTION_ANCHOR_MAX_DRIFT_M = 5e-5
-#: a point whose friction impulse reaches (1 - this) mu lambda_n slides: its anchor is dropped
-#: (the sliding impulse lands on the cone to round-off, see solver._friction_impulse); likewise
-#: a twist row at (1 - this) of its limit.
+#: a point whose friction impulse reaches (1 - this) mu lambda_n slides (the sliding impulse
+#: lands on the cone to round-off, see solver._friction_impulse); a manifold none of whose loaded
+#: points sticks drops its anchor.
 FRICTION_ANCHOR_SLIDE_FRAC = 1e-6
 #: relative tolerance under which principal moments count as equal (isotropic inertia)
 ISOTROPIC_RTOL = 1e-12
@@ -257,11 +259,14 @@ class ContactParams:
         warm_starting: start each step's solve from the previous step's impulses (matched by
             feature id). Turning it off is only useful to demonstrate why it exists.
         static_friction_anchors: run the anchor pass after the velocity solve (solver.py,
-            "Friction anchor"): sticking points take back half their accumulated slip per step.
-            Off by default: on samples/pile.toml it cuts the creep findings from 16 (0.495 mm)
-            to 2 (0.116 mm), but the pass's friction impulses are not followed by a normal solve,
-            and the 500-box pile of tests/engine/contact/test_contact.py at dt 2e-3 then
-            reaches 0.72 mm of penetration (0.5 mm allowed; within it with the pass off).
+            "Friction anchor"): a sticking pair keeps the pose it stuck at, and its points' friction
+            rows take back half their drift from it per step. Off by default, because the pile
+            still creeps: on samples/pile.toml (seeds 1, 2, 3) it leaves 5, 2 and 10 creep
+            findings of 0.10-0.30 mm (16 of up to 0.495 mm at seed 1 with it off): boxes resting
+            on two single-point contacts turn about the line through them, and steep contacts
+            slide at the friction cone. On, the 500-box pile of tests/engine/contact/test_contact.py
+            at dt 2e-3 stays within 0.22-0.26 mm of penetration (seeds 0-2; 0.5 mm allowed) and
+            the step costs the same (benchmarks/RESULTS.md).
         projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
             positions moved, the narrowphase runs again at the end-of-step poses and every
             point deeper than ``projection_depth`` is pushed out to that depth by moving

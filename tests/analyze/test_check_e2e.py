@@ -24,10 +24,9 @@ KNOWN_FAULTS: dict[str, str] = {
     "pile": "creep (tol 0.1 mm) while the pile settles, seed 1, at the engine's default "
             "velocity solve (tol 1e-4 m/s, cap 30 sweeps) without static-friction anchors "
             "(ContactParams.static_friction_anchors, off by default: on, they cut the pile's "
-            "creep to 2 findings of 0.107 and 0.116 mm but let the 500-box pile of "
-            "test_contact.py reach 0.72 mm of penetration at dt 2e-3): box93 twisting under "
-            "box40 and boxes turning about point and edge contacts (benchmarks/RESULTS.md, "
-            "issue 16)",
+            "creep to 5 findings of up to 0.295 mm at seed 1: boxes resting on two point "
+            "contacts turning about the line through them, boxes on steep contacts sliding at "
+            "the friction cone; benchmarks/RESULTS.md, issue 16)",
 }
 SAMPLES = [pytest.param(p.stem, marks=[pytest.mark.slow] + (
     [pytest.mark.xfail(strict=True, reason=KNOWN_FAULTS[p.stem])] if p.stem in KNOWN_FAULTS else []))
