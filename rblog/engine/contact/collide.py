@@ -11,7 +11,8 @@ For each candidate pair (lower shape id a, higher id b):
 * the manifold keeps its friction anchor, the pose of a in b's frame when the pair started
   sticking (solver.py, "Friction anchor"), whatever its points do (a one-point contact that
   becomes a face keeps it), and every point gets its drift from it: where a's material point at
-  the contact is now, minus where the anchor pose puts it.
+  the contact is now, minus where the anchor pose puts it (a sphere's pair, which rolls, has
+  none).
 
 Materials combine as restitution max(e_a, e_b) and friction sqrt(mu_a mu_b) (the analyzers use
 the same rule).
@@ -31,7 +32,9 @@ from rblog.engine.contact.manifold import (
     MI_REC_A, MI_REC_B, MI_START, MF_COLS, PF_COLS, PF_D, PF_F, PF_L1, PF_L2, PF_LN, PF_LP, PF_LWS,
     PF_P, PF_RA, PF_RB, PF_S, PF_SEND, PF_IMPACT, PF_W0, PF_WT,
 )
-from rblog.engine.contact.narrowphase import COLLIDE_TABLE, GEOM_BOX, GEOM_PLANE, collide, manifold_part
+from rblog.engine.contact.narrowphase import (
+    COLLIDE_TABLE, GEOM_BOX, GEOM_PLANE, GEOM_SPHERE, collide, manifold_part,
+)
 
 
 @njit(cache=True)
@@ -173,12 +176,14 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
                       spec, nrm, pts, sep, fid, work, poly)
         if res <= 0:
             continue
+        rolls = ga == GEOM_SPHERE or gb == GEOM_SPHERE
         for part in range(2):
             cnt, row = manifold_part(res, part)
             if cnt == 0:
                 continue
             n_man, n_pts = _add_manifold(
                 2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
+                rolls,
                 position, rotation, sb_pos, sb_rot, restitution, friction, accel, sb_e, sb_mu,
                 g_e, g_mu, prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                 mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid)
@@ -186,11 +191,14 @@ def collide_pairs(pairs, n_pairs, n_dyn, n_static, geom, size, awake, position, 
 
 
 @njit(cache=True)
-def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part,
+def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row, part, rolls,
                   position, rotation, sb_pos, sb_rot, restitution, friction, accel, sb_e, sb_mu,
                   g_e, g_mu, prev_mi, prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n,
                   mi, mf, pf, pid, n_man, n_pts, warm, ad2, nrm, pts, sep, fid):
-    """Append one manifold (points rows row.. of the collider's output) with warm starting."""
+    """Append one manifold (points rows row.. of the collider's output) with warm starting.
+    ``rolls``: a sphere's pair, which gets no friction anchor (a rolling sphere brings a new
+    material point to the contact every step, so a pose anchor would resist rolling; its friction
+    rows target zero slip, as without anchors)."""
     m = n_man
     n_man += 1
     mi[m, MI_KEY] = key
@@ -240,7 +248,7 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
     else:
         xb, rb = np.zeros(3), np.eye(3)
     ra = rotation[a]
-    anchored = j >= 0 and prev_mf[j, MF_AOK] > 0.0
+    anchored = j >= 0 and prev_mf[j, MF_AOK] > 0.0 and not rolls
     for r in range(3):
         for c in range(3):
             # R_b^T R_a
@@ -248,7 +256,7 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
             mf[m, MF_AR + 3 * r + c] = prev_mf[j, MF_AR + 3 * r + c] if anchored else v
         v = rb[0, r] * (pa[0] - xb[0]) + rb[1, r] * (pa[1] - xb[1]) + rb[2, r] * (pa[2] - xb[2])
         mf[m, MF_AT + r] = prev_mf[j, MF_AT + r] if anchored else v
-    mf[m, MF_AOK] = 1.0
+    mf[m, MF_AOK] = 0.0 if rolls else 1.0
     drift_max = 0.0
     for q in range(cnt):
         p = n_pts + q
@@ -306,6 +314,8 @@ def _add_manifold(key, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, cnt, row,
         dx = px - (xb[0] + rb[0, 0] * q0 + rb[0, 1] * q1 + rb[0, 2] * q2)
         dy = py - (xb[1] + rb[1, 0] * q0 + rb[1, 1] * q1 + rb[1, 2] * q2)
         dz = pz - (xb[2] + rb[2, 0] * q0 + rb[2, 1] * q1 + rb[2, 2] * q2)
+        if rolls:
+            dx, dy, dz = 0.0, 0.0, 0.0
         pf[p, PF_D], pf[p, PF_D + 1], pf[p, PF_D + 2] = dx, dy, dz
         dn = dx * nx + dy * ny + dz * nz
         drift_max = max(drift_max, dx * dx + dy * dy + dz * dz - dn * dn)

@@ -37,7 +37,9 @@ carries it over with the manifold (matched by pair key, so points that come and 
 contact that becomes a face, keep it) and gives every point its drift ``D``: where a's material
 point at the contact is now, minus where the anchor pose puts it (collide.py). So D holds the
 pair's slip and its twist since it stuck, whatever the points did, and counts every move of the
-bodies (the solve's, the split-impulse and projection shifts). The friction rows of the anchor
+bodies (the solve's, the split-impulse and projection shifts). A sphere's pair has no anchor: a
+rolling sphere brings a new material point to the contact every step, and a pose anchor would
+pull the contact back against the roll (samples/mixed.toml's balls crept 5 mm). The friction rows of the anchor
 pass (``anchor_friction``: one sweep after the solve, outside its convergence loop) then target
 the slip rate ``vt = -FRICTION_ANCHOR_RATE D / h``, so a solve that stops before it converges
 (residual slip e) cannot add up a drift: D settles at h e / rate and the slip velocity at zero.
