@@ -67,7 +67,7 @@ from dataclasses import dataclass
 from numba import njit
 
 from rblog.engine.constants import MAX_ROTATION_PER_STEP_RAD
-from rblog.engine.exact import flow_constants, flow_rotation_scaled, free_flow_quat
+from rblog.engine.exact import FC_RJC, flow_constants, flow_eval, flow_row, free_flow_quat
 from rblog.engine.rotation import (
     gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, omega_world_stretched, polar,
     quat_mul, quat_to_mat, store_mat,
@@ -388,7 +388,7 @@ def drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
 
 
 @njit(cache=True)
-def _anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h):
+def anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h):
     """Row r of ``fc``: the flow constants of the anchor (q_a, L), for steps of h."""
     # Lb = R(q_a)^T L at the anchor; backward in time, the forward flow of -Lb
     m00, m01, m02, m10, m11, m12, m20, m21, m22 = quat_to_mat(aw, ax, ay, az)
@@ -398,16 +398,19 @@ def _anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h):
                    k0, k1, k2)
 
 
-@njit(cache=True)
-def _anchored_quat(fc, r, aw, ax, ay, az, t, pw, px, py, pz):
-    """q(t) = q_a (x) c(t), unit: the flow of row r's anchor at the elapsed time t >= 0, with the
-    sign that keeps it nearest the previous q (pw, px, py, pz): the logged q stays continuous."""
-    cw, cx, cy, cz, _, _, _ = flow_rotation_scaled(fc, r, t)
+@jit
+def anchored_quat(c, aw, ax, ay, az, t, pw, px, py, pz):
+    """q(t) = q_a (x) c(t), unit: the flow at the elapsed time t >= 0 from the anchor q_a whose
+    flow constants are the tuple c (exact.flow_row), with the sign that keeps it nearest the
+    previous q (pw, px, py, pz): the logged q stays continuous. Returns (w, x, y, z, rj_c), rj_c
+    the row's FC_RJC as exact.flow_eval returns it (the caller stores it). Scalars only (see
+    exact.flow_eval: no reference counting)."""
+    cw, cx, cy, cz, _, _, _, rj_c = flow_eval(c, t)
     w, x, y, z = quat_mul(aw, ax, ay, az, cw, cx, cy, cz)
     s = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
     if w * pw + x * px + y * py + z * pz < 0.0:
         s = -s
-    return w * s, x * s, y * s, z * s
+    return w * s, x * s, y * s, z * s, rj_c
 
 
 @jit
@@ -423,8 +426,12 @@ def drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, 
     impulse, which change L, start a new one). Row r of ``fc`` ((rows, exact.N_FLOW)) caches the
     anchor's flow constants within a call: ``fc_ok[r]`` says they are the current anchor's (the
     caller clears it when the row is given to another body); a new anchor recomputes them.
-    Inlined into the kernels (numba's inliner; the work is in two compiled calls that take one
-    array each: every array crossing a call boundary costs reference counting)."""
+    Inlined into the contact step (numba's inliner). The free-body kernel of the exact
+    integrators does the same arithmetic written out in its own body (rblog.engine.free.
+    _make_exact_kernel; bitwise equal, tests/engine/test_exact_anchored.py): an inlined
+    function's array arguments become copies whose reference counts (atomic operations) numba
+    does not always prune, and here they cost ~26 a step. The flow itself takes scalars only
+    (:func:`anchored_quat`, exact.flow_eval)."""
     lx, ly, lz = angular_momentum[i, 0], angular_momentum[i, 1], angular_momentum[i, 2]
     if not (anchor_steps[i] >= 0 and anchor_dt_s[i] == h and anchor_L_world[i, 0] == lx
             and anchor_L_world[i, 1] == ly and anchor_L_world[i, 2] == lz):
@@ -437,12 +444,14 @@ def drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, 
     aw, ax, ay, az = (anchor_quat_wxyz[i, 0], anchor_quat_wxyz[i, 1],
                       anchor_quat_wxyz[i, 2], anchor_quat_wxyz[i, 3])
     if not fc_ok[r]:
-        _anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, inv_inertia[i, 0], inv_inertia[i, 1],
+        anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, inv_inertia[i, 0], inv_inertia[i, 1],
                           inv_inertia[i, 2], h)
         fc_ok[r] = True
     n = anchor_steps[i] + 1
-    w, x, y, z = _anchored_quat(fc, r, aw, ax, ay, az, n * abs(h), quat_wxyz[i, 0],
-                                quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3])
+    w, x, y, z, rj_c = anchored_quat(flow_row(fc, r), aw, ax, ay, az, n * abs(h), quat_wxyz[i, 0],
+                                     quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3])
+    if rj_c >= 0.0 and fc[r, FC_RJC] < 0.0:
+        fc[r, FC_RJC] = rj_c
     anchor_steps[i] = n
     quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
     store_mat(rotation, i, quat_to_mat(w, x, y, z))
@@ -529,6 +538,22 @@ def turn_within_bound(dt, i, inv_inertia, rotation, angular_momentum):
     if (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2:
         return True
     m00, m01, m02, m10, m11, m12, m20, m21, m22 = load_mat(rotation, i)
+    w0 = (m00 * lx + m10 * ly + m20 * lz) * k0 * dt
+    w1 = (m01 * lx + m11 * ly + m21 * lz) * k1 * dt
+    w2 = (m02 * lx + m12 * ly + m22 * lz) * k2 * dt
+    return w0 * w0 + w1 * w1 + w2 * w2 <= lim2
+
+
+@jit
+def turn_within_bound_q(dt, k0, k1, k2, lx, ly, lz, w, x, y, z):
+    """:func:`turn_within_bound` from scalars: inverse moments k, world L and the unit q (R is
+    R(q), as the exact integrators store it). Scalars only, for the exact kernel (see
+    exact.flow_eval: no reference counting)."""
+    kmax_dt = max(k0, max(k1, k2)) * dt
+    lim2 = MAX_ROTATION_PER_STEP_RAD * MAX_ROTATION_PER_STEP_RAD
+    if (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2:
+        return True
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = quat_to_mat(w, x, y, z)
     w0 = (m00 * lx + m10 * ly + m20 * lz) * k0 * dt
     w1 = (m01 * lx + m11 * ly + m21 * lz) * k1 * dt
     w2 = (m02 * lx + m12 * ly + m22 * lz) * k2 * dt
