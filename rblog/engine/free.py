@@ -40,7 +40,8 @@ import numpy as np
 from rblog.engine.exact import FC_RJC, N_FLOW, flow_row
 from rblog.engine.integrators import (
     METHOD_EXACT, METHOD_EXACT4, METHOD_NAMES, METHOD_SEED, YOSHIDA_W0, YOSHIDA_W1,
-    anchor_constants, anchored_quat, step_body, sync_quat, turn_within_bound_q,
+    anchor_constants, anchor_holds, anchored_quat, flight_exact, step_body, sync_quat,
+    turn_within_bound_m,
 )
 from rblog.engine.rotation import quat_to_mat
 from rblog.engine.state import new_anchors
@@ -268,8 +269,8 @@ def _make_exact_kernel(method: int):
     copies whose reference counts (two atomic operations each) its pruning pass could not
     remove from the exact step's branchy body: 26 atomic operations a body-step, a third of the
     exact kernel's time (~120 ns of ~390; benchmarks/RESULTS.md). Here the step touches only the
-    kernel's own arrays and calls scalar functions (integrators.anchored_quat, exact.flow_eval,
-    integrators.turn_within_bound_q); arrays cross a call only where a new anchor's constants
+    kernel's own arrays and calls scalar functions (integrators.flight_exact, anchor_holds,
+    anchored_quat, turn_within_bound_m, exact.flow_eval); arrays cross a call only where a new anchor's constants
     are computed (integrators.anchor_constants) and at samples. The arithmetic is the step's of
     integrators.step_body and drift_exact_anchored, operation for operation (the same bits:
     tests/engine/test_exact_anchored.py compares this kernel with the contact step's drift)."""
@@ -301,14 +302,9 @@ def _make_exact_kernel(method: int):
                     im = inv_mass[i]
                     fx, fy, fz = force_world[i, 0], force_world[i, 1], force_world[i, 2]
                     tx, ty, tz = torque_world[i, 0], torque_world[i, 1], torque_world[i, 2]
-                    px, py, pz = linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2]
-                    hh = 0.5 * dt * dt * im
-                    x = position[i, 0] + (dt * px * im + hh * fx)
-                    y = position[i, 1] + (dt * py * im + hh * fy)
-                    z = position[i, 2] + (dt * pz * im + hh * fz)
-                    px += dt * fx
-                    py += dt * fy
-                    pz += dt * fz
+                    x, y, z, px, py, pz = flight_exact(
+                        dt, im, position[i, 0], position[i, 1], position[i, 2], linear_momentum[i, 0],
+                        linear_momentum[i, 1], linear_momentum[i, 2], fx, fy, fz)
                     position[i, 0], position[i, 1], position[i, 2] = x, y, z
                     linear_momentum[i, 0], linear_momentum[i, 1], linear_momentum[i, 2] = px, py, pz
                     # rotation: Strang kick(h/2) flow(h) kick(h/2), with torque under exact4
@@ -329,8 +325,8 @@ def _make_exact_kernel(method: int):
                             lz += hk * tz
                         # the anchor (integrators.drift_exact_anchored): kept while L is bitwise
                         # the anchor's and the step is the same
-                        if not (a_n[i] >= 0 and a_dt[i] == h and a_l[i, 0] == lx
-                                and a_l[i, 1] == ly and a_l[i, 2] == lz):
+                        if not anchor_holds(a_n[i], a_dt[i], a_l[i, 0], a_l[i, 1], a_l[i, 2], h,
+                                            lx, ly, lz):
                             a_q[i, 0], a_q[i, 1], a_q[i, 2], a_q[i, 3] = qw, qx, qy, qz
                             a_l[i, 0], a_l[i, 1], a_l[i, 2] = lx, ly, lz
                             a_n[i] = 0
@@ -352,14 +348,13 @@ def _make_exact_kernel(method: int):
                             lz += hk * tz
                     angular_momentum[i, 0], angular_momentum[i, 1], angular_momentum[i, 2] = lx, ly, lz
                     quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = qw, qx, qy, qz
-                    m00, m01, m02, m10, m11, m12, m20, m21, m22 = quat_to_mat(qw, qx, qy, qz)
-                    rotation[i, 0, 0], rotation[i, 0, 1], rotation[i, 0, 2] = m00, m01, m02
-                    rotation[i, 1, 0], rotation[i, 1, 1], rotation[i, 1, 2] = m10, m11, m12
-                    rotation[i, 2, 0], rotation[i, 2, 1], rotation[i, 2, 2] = m20, m21, m22
+                    m = quat_to_mat(qw, qx, qy, qz)
+                    rotation[i, 0, 0], rotation[i, 0, 1], rotation[i, 0, 2] = m[0], m[1], m[2]
+                    rotation[i, 1, 0], rotation[i, 1, 1], rotation[i, 1, 2] = m[3], m[4], m[5]
+                    rotation[i, 2, 0], rotation[i, 2, 1], rotation[i, 2, 2] = m[6], m[7], m[8]
                     # non-finite check and turn bound (integrators.step_body)
-                    chk = x + y + z + px + py + pz + lx + ly + lz + m00 + m11 + m22 + m01
-                    ok = math.isfinite(chk) and turn_within_bound_q(dt, k0, k1, k2, lx, ly, lz,
-                                                                    qw, qx, qy, qz)
+                    chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1]
+                    ok = math.isfinite(chk) and turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m)
                     if not ok:
                         if bad_step < 0 or s < bad_step:
                             bad_step = s
