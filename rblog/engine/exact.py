@@ -344,6 +344,7 @@ FC_RJC = 25  # R_J(0, 1 - m, 1, 1 + n) (the half period's share), -1 until first
 FC_LEV, FC_SCALE, FC_MB = 26, 27, 28  # the Landen descent of m (landen_descent; m1 > 0 only)
 FC_MU0 = 29  # its mu_0 .. mu_11 in FC_MU0 .. FC_MU0 + 11
 N_FLOW = 41
+assert FC_MU0 + 12 == N_FLOW  # flow_row lists the columns one by one
 
 
 @njit(cache=True)
@@ -476,33 +477,59 @@ def flow_rotation(fc, r, t):
     return cw * nc, c0 * nc, c1 * nc, c2 * nc, o0, o1, o2
 
 
+@jit
+def flow_row(fc, r):
+    """Row r of ``fc`` ((rows, N_FLOW)) as a tuple of N_FLOW floats, for :func:`flow_eval`."""
+    return (fc[r, 0], fc[r, 1], fc[r, 2], fc[r, 3], fc[r, 4], fc[r, 5], fc[r, 6], fc[r, 7],
+            fc[r, 8], fc[r, 9], fc[r, 10], fc[r, 11], fc[r, 12], fc[r, 13], fc[r, 14], fc[r, 15],
+            fc[r, 16], fc[r, 17], fc[r, 18], fc[r, 19], fc[r, 20], fc[r, 21], fc[r, 22], fc[r, 23],
+            fc[r, 24], fc[r, 25], fc[r, 26], fc[r, 27], fc[r, 28], fc[r, 29], fc[r, 30], fc[r, 31],
+            fc[r, 32], fc[r, 33], fc[r, 34], fc[r, 35], fc[r, 36], fc[r, 37], fc[r, 38], fc[r, 39],
+            fc[r, 40])
+
+
 @njit(cache=True)
 def flow_rotation_scaled(fc, r, t):
     """:func:`flow_rotation` with c a positive multiple of the rotation's quaternion (not
-    normalized: a caller that normalizes q_anchor (x) c anyway saves a square root)."""
-    if fc[r, FC_STEADY] != 0.0:
-        w0, w1, w2, wn = fc[r, FC_W0], fc[r, FC_W1], fc[r, FC_W2], fc[r, FC_WN]
-        b0, b1, b2 = fc[r, FC_B0], fc[r, FC_B1], fc[r, FC_B2]  # constant
+    normalized: a caller that normalizes q_anchor (x) c anyway saves a square root). May fill
+    the row's FC_RJC (:func:`flow_eval`)."""
+    cw, c0, c1, c2, o0, o1, o2, rj_c = flow_eval(flow_row(fc, r), t)
+    if rj_c >= 0.0 and fc[r, FC_RJC] < 0.0:
+        fc[r, FC_RJC] = rj_c
+    return cw, c0, c1, c2, o0, o1, o2
+
+
+@njit(cache=True)
+def flow_eval(c, t):
+    """The flow of :func:`flow_rotation_scaled` from a row of constants passed as a tuple
+    (:func:`flow_row`): a function of scalars only, so that calling it per step costs no
+    reference counting (an array argument costs two atomic operations per call, ~12 ns, and
+    numba's pruning of them fails in large inlined bodies: they were a third of the exact
+    kernel's time, benchmarks/RESULTS.md).
+
+    Returns (cw, c0, c1, c2, o0, o1, o2, rj_c): as :func:`flow_rotation_scaled`, and the row's
+    FC_RJC (computed here the first time a half period is crossed; the caller stores it)."""
+    if c[FC_STEADY] != 0.0:
+        w0, w1, w2, wn = c[FC_W0], c[FC_W1], c[FC_W2], c[FC_WN]
+        b0, b1, b2 = c[FC_B0], c[FC_B1], c[FC_B2]  # constant
         if wn == 0.0:
-            return 1.0, 0.0, 0.0, 0.0, b0, b1, b2
+            return 1.0, 0.0, 0.0, 0.0, b0, b1, b2, -1.0
         half = 0.5 * t * wn
         sf = math.sin(half) / wn
-        return math.cos(half), sf * w0, sf * w1, sf * w2, b0, b1, b2
-    kk1, ell, d13 = fc[r, FC_K1], fc[r, FC_ELL], fc[r, FC_D13]
-    m, m1, lam, nn = fc[r, FC_M], fc[r, FC_M1], fc[r, FC_LAM], fc[r, FC_N]
-    amp1, amp2, amp3 = fc[r, FC_AMP1], fc[r, FC_AMP2], fc[r, FC_AMP3]
-    sigma, s = fc[r, FC_SIGMA], fc[r, FC_S]
-    sn0, cn0, dn0 = fc[r, FC_SN0], fc[r, FC_CN0], fc[r, FC_DN0]
+        return math.cos(half), sf * w0, sf * w1, sf * w2, b0, b1, b2, -1.0
+    kk1, ell, d13 = c[FC_K1], c[FC_ELL], c[FC_D13]
+    m, m1, lam, nn = c[FC_M], c[FC_M1], c[FC_LAM], c[FC_N]
+    amp1, amp2, amp3 = c[FC_AMP1], c[FC_AMP2], c[FC_AMP3]
+    sigma, s = c[FC_SIGMA], c[FC_S]
+    sn0, cn0, dn0 = c[FC_SN0], c[FC_CN0], c[FC_DN0]
     # advance the phase by tau = lam t: functions of r, tau = 2 K j + r
     tau = lam * t
     if m1 <= 0.0:  # on the separatrix
         snr, cnr, dnr, j, big_k = sncndn(tau, m, m1)
     else:  # sncndn with the row's Landen descent
-        mu = FC_MU0
         snr, cnr, dnr, j, big_k = sncndn_landen(
-            tau, int(fc[r, FC_LEV]), fc[r, FC_SCALE], fc[r, FC_MB], fc[r, mu], fc[r, mu + 1],
-            fc[r, mu + 2], fc[r, mu + 3], fc[r, mu + 4], fc[r, mu + 5], fc[r, mu + 6],
-            fc[r, mu + 7], fc[r, mu + 8], fc[r, mu + 9], fc[r, mu + 10], fc[r, mu + 11])
+            tau, int(c[FC_LEV]), c[FC_SCALE], c[FC_MB], c[29], c[30], c[31], c[32], c[33], c[34],
+            c[35], c[36], c[37], c[38], c[39], c[40])  # mu_0 .. mu_11: FC_MU0 .. FC_MU0 + 11
     # addition theorem (A&S 16.17) written for the increments, so that a small step's rounding is
     # relative to the step (1 - cn r and 1 - dn r from sn r, no cancellation)
     gc = snr * snr / (1.0 + cnr) if cnr > 0.0 else 1.0 - cnr  # 1 - cn r
@@ -531,18 +558,17 @@ def flow_rotation_scaled(fc, r, t):
     # 1/n, so a near-symmetric body (n -> 0, slow precession lam -> 0) loses nothing to the
     # difference of the two ends; G(phi) = S^3 R_J(C^2, D^2, 1, 1 + n S^2) / 3 (|phi| <= pi/2),
     # the anchor's end G0 a constant of the row
+    rj_c = c[FC_RJC]
     dg = 0.0
     if nn != 0.0:
         s21 = s_red1 * s_red1
-        dg = s_red1 * s21 * carlson_rj1(cn1 * cn1, dn1 * dn1, 1.0 + nn * s21) / 3.0 - fc[r, FC_G0]
+        dg = s_red1 * s21 * carlson_rj1(cn1 * cn1, dn1 * dn1, 1.0 + nn * s21) / 3.0 - c[FC_G0]
     if big_k == math.inf:  # on the separatrix the amplitude never leaves (-pi/2, pi/2)
         e = 0
     halfs = j + e
     if halfs != 0 and nn != 0.0:
-        rj_c = fc[r, FC_RJC]
         if rj_c < 0.0:
             rj_c = carlson_rj1(0.0, m1, 1.0 + nn)
-            fc[r, FC_RJC] = rj_c
         dg += 2.0 * halfs * rj_c / 3.0
     # dphi = l k3 t + l (k1 - k3) / lam * (tau - n dg)
     dphi = ell * kk1 * t - ell * d13 * nn / lam * dg
@@ -555,12 +581,12 @@ def flow_rotation_scaled(fc, r, t):
     bw, bx, by, bz = _euler_quat(n1_, n2_, n3_, ell)
     ch, sh = math.cos(0.5 * dphi), math.sin(0.5 * dphi)
     # conj(B0) (x) rz
-    tw, tx, ty, tz = _qmul(fc[r, FC_AW], -fc[r, FC_AX], -fc[r, FC_AY], -fc[r, FC_AZ],
+    tw, tx, ty, tz = _qmul(c[FC_AW], -c[FC_AX], -c[FC_AY], -c[FC_AZ],
                            ch, 0.0, 0.0, sh)
     cw, cx, cy, cz = _qmul(tw, tx, ty, tz, bw, bx, by, bz)
     # back to the body frame: v_body[i_k] = s_k v'_k, s = (1, 1, sgn3)
-    sgn3 = fc[r, FC_SGN3]
-    i1, i2 = int(fc[r, FC_I1]), int(fc[r, FC_I2])
+    sgn3 = c[FC_SGN3]
+    i1, i2 = int(c[FC_I1]), int(c[FC_I2])
     c0 = c1 = c2 = 0.0
     o0 = o1 = o2 = 0.0
     for k in range(3):
@@ -576,7 +602,7 @@ def flow_rotation_scaled(fc, r, t):
             c1, o1 = vc, vn
         else:
             c2, o2 = vc, vn
-    return cw, c0, c1, c2, o0, o1, o2
+    return cw, c0, c1, c2, o0, o1, o2, rj_c
 
 
 @njit(cache=True)

@@ -67,7 +67,7 @@ from dataclasses import dataclass
 from numba import njit
 
 from rblog.engine.constants import MAX_ROTATION_PER_STEP_RAD
-from rblog.engine.exact import flow_constants, flow_rotation_scaled, free_flow_quat
+from rblog.engine.exact import FC_RJC, flow_constants, flow_eval, flow_row, free_flow_quat
 from rblog.engine.rotation import (
     gram_schmidt, load_mat, mat_to_quat, normalize4, omega_world, omega_world_stretched, polar,
     quat_mul, quat_to_mat, store_mat,
@@ -388,7 +388,7 @@ def drift_exact(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, h)
 
 
 @njit(cache=True)
-def _anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h):
+def anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h):
     """Row r of ``fc``: the flow constants of the anchor (q_a, L), for steps of h."""
     # Lb = R(q_a)^T L at the anchor; backward in time, the forward flow of -Lb
     m00, m01, m02, m10, m11, m12, m20, m21, m22 = quat_to_mat(aw, ax, ay, az)
@@ -398,16 +398,26 @@ def _anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h):
                    k0, k1, k2)
 
 
-@njit(cache=True)
-def _anchored_quat(fc, r, aw, ax, ay, az, t, pw, px, py, pz):
-    """q(t) = q_a (x) c(t), unit: the flow of row r's anchor at the elapsed time t >= 0, with the
-    sign that keeps it nearest the previous q (pw, px, py, pz): the logged q stays continuous."""
-    cw, cx, cy, cz, _, _, _ = flow_rotation_scaled(fc, r, t)
+@jit
+def anchored_quat(c, aw, ax, ay, az, t, pw, px, py, pz):
+    """q(t) = q_a (x) c(t), unit: the flow at the elapsed time t >= 0 from the anchor q_a whose
+    flow constants are the tuple c (exact.flow_row), with the sign that keeps it nearest the
+    previous q (pw, px, py, pz): the logged q stays continuous. Returns (w, x, y, z, rj_c), rj_c
+    the row's FC_RJC as exact.flow_eval returns it (the caller stores it). Scalars only (see
+    exact.flow_eval: no reference counting)."""
+    cw, cx, cy, cz, _, _, _, rj_c = flow_eval(c, t)
     w, x, y, z = quat_mul(aw, ax, ay, az, cw, cx, cy, cz)
     s = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
     if w * pw + x * px + y * py + z * pz < 0.0:
         s = -s
-    return w * s, x * s, y * s, z * s
+    return w * s, x * s, y * s, z * s, rj_c
+
+
+@jit
+def anchor_holds(steps, anchor_dt, a0, a1, a2, h, lx, ly, lz):
+    """Whether a body's flow anchor (its anchor_steps, anchor_dt_s and anchor_L_world a) still
+    serves a step of h with world momentum L: set, the same step, L bitwise the anchor's."""
+    return steps >= 0 and anchor_dt == h and a0 == lx and a1 == ly and a2 == lz
 
 
 @jit
@@ -423,11 +433,15 @@ def drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, 
     impulse, which change L, start a new one). Row r of ``fc`` ((rows, exact.N_FLOW)) caches the
     anchor's flow constants within a call: ``fc_ok[r]`` says they are the current anchor's (the
     caller clears it when the row is given to another body); a new anchor recomputes them.
-    Inlined into the kernels (numba's inliner; the work is in two compiled calls that take one
-    array each: every array crossing a call boundary costs reference counting)."""
+    Inlined into the contact step (numba's inliner). The free-body kernel of the exact
+    integrators does the same arithmetic written out in its own body (rblog.engine.free.
+    _make_exact_kernel; bitwise equal, tests/engine/test_exact_anchored.py): an inlined
+    function's array arguments become copies whose reference counts (atomic operations) numba
+    does not always prune, and here they cost ~26 a step. The flow itself takes scalars only
+    (:func:`anchored_quat`, exact.flow_eval)."""
     lx, ly, lz = angular_momentum[i, 0], angular_momentum[i, 1], angular_momentum[i, 2]
-    if not (anchor_steps[i] >= 0 and anchor_dt_s[i] == h and anchor_L_world[i, 0] == lx
-            and anchor_L_world[i, 1] == ly and anchor_L_world[i, 2] == lz):
+    if not anchor_holds(anchor_steps[i], anchor_dt_s[i], anchor_L_world[i, 0], anchor_L_world[i, 1],
+                        anchor_L_world[i, 2], h, lx, ly, lz):
         for k in range(4):
             anchor_quat_wxyz[i, k] = quat_wxyz[i, k]
         anchor_L_world[i, 0], anchor_L_world[i, 1], anchor_L_world[i, 2] = lx, ly, lz
@@ -437,12 +451,14 @@ def drift_exact_anchored(quat_wxyz, rotation, angular_momentum, inv_inertia, i, 
     aw, ax, ay, az = (anchor_quat_wxyz[i, 0], anchor_quat_wxyz[i, 1],
                       anchor_quat_wxyz[i, 2], anchor_quat_wxyz[i, 3])
     if not fc_ok[r]:
-        _anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, inv_inertia[i, 0], inv_inertia[i, 1],
+        anchor_constants(fc, r, aw, ax, ay, az, lx, ly, lz, inv_inertia[i, 0], inv_inertia[i, 1],
                           inv_inertia[i, 2], h)
         fc_ok[r] = True
     n = anchor_steps[i] + 1
-    w, x, y, z = _anchored_quat(fc, r, aw, ax, ay, az, n * abs(h), quat_wxyz[i, 0],
-                                quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3])
+    w, x, y, z, rj_c = anchored_quat(flow_row(fc, r), aw, ax, ay, az, n * abs(h), quat_wxyz[i, 0],
+                                     quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3])
+    if rj_c >= 0.0 and fc[r, FC_RJC] < 0.0:
+        fc[r, FC_RJC] = rj_c
     anchor_steps[i] = n
     quat_wxyz[i, 0], quat_wxyz[i, 1], quat_wxyz[i, 2], quat_wxyz[i, 3] = w, x, y, z
     store_mat(rotation, i, quat_to_mat(w, x, y, z))
@@ -517,22 +533,39 @@ def _strang_exact(quat_wxyz, rotation, angular_momentum, inv_inertia, i, h, tx, 
 @jit
 def turn_within_bound(dt, i, inv_inertia, rotation, angular_momentum):
     """False when body i turns more than MAX_ROTATION_PER_STEP_RAD in a step of dt (rad): the
-    run has diverged (a torque of 1e40 N m, say), though its state is still finite.
+    run has diverged (a torque of 1e40 N m, say), though its state is still finite
+    (:func:`turn_within_bound_m` of the body's k, L and R)."""
+    return turn_within_bound_m(dt, inv_inertia[i, 0], inv_inertia[i, 1], inv_inertia[i, 2],
+                               angular_momentum[i, 0], angular_momentum[i, 1],
+                               angular_momentum[i, 2], load_mat(rotation, i))
 
-    The turn is |omega| dt with omega = R diag(k) R^T L (k = 1/I_body). For an orthonormal R,
-    |omega| <= max(k) |L|, so that cheap bound is tested first and the exact value only above it
-    (never in a sane run). An overflowing |L| or omega compares as too large (inf or NaN)."""
-    lx, ly, lz = angular_momentum[i, 0], angular_momentum[i, 1], angular_momentum[i, 2]
-    k0, k1, k2 = inv_inertia[i, 0], inv_inertia[i, 1], inv_inertia[i, 2]
+
+@jit
+def turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m):
+    """:func:`turn_within_bound` from scalars: inverse moments k, world L and R (row-major
+    9-tuple). The turn is |omega| dt with omega = R diag(k) R^T L (k = 1/I_body). For an
+    orthonormal R, |omega| <= max(k) |L|, so that cheap bound is tested first and the exact value
+    only above it (never in a sane run). An overflowing |L| or omega compares as too large (inf
+    or NaN)."""
     kmax_dt = max(k0, max(k1, k2)) * dt
     lim2 = MAX_ROTATION_PER_STEP_RAD * MAX_ROTATION_PER_STEP_RAD
     if (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2:
         return True
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = load_mat(rotation, i)
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m
     w0 = (m00 * lx + m10 * ly + m20 * lz) * k0 * dt
     w1 = (m01 * lx + m11 * ly + m21 * lz) * k1 * dt
     w2 = (m02 * lx + m12 * ly + m22 * lz) * k2 * dt
     return w0 * w0 + w1 * w1 + w2 * w2 <= lim2
+
+
+@jit
+def flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz):
+    """Position and momentum after dt under the constant force f (inverse mass im): the exact
+    map x += h v + h^2 a / 2, v += h a (kick-drift-kick is the same map). Returns
+    (x, y, z, px, py, pz)."""
+    hh = 0.5 * dt * dt * im
+    return (x + (dt * px * im + hh * fx), y + (dt * py * im + hh * fy),
+            z + (dt * pz * im + hh * fz), px + dt * fx, py + dt * fy, pz + dt * fz)
 
 
 @njit(inline="always")
@@ -573,13 +606,7 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
         angular_momentum[i, 2] += hh * tz
     elif method == METHOD_EXACT or method == METHOD_EXACT4:
         # translation: exact for a constant force (kick-drift-kick is that map)
-        hh = 0.5 * dt * dt * im
-        x += dt * px * im + hh * fx
-        y += dt * py * im + hh * fy
-        z += dt * pz * im + hh * fz
-        px += dt * fx
-        py += dt * fy
-        pz += dt * fz
+        x, y, z, px, py, pz = flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz)
         # rotation: Strang kick(h/2) exact(h) kick(h/2), or Yoshida's triple jump of it (without
         # torque both are the exact flow over h)
         if method == METHOD_EXACT or (tx == 0.0 and ty == 0.0 and tz == 0.0):
@@ -594,13 +621,7 @@ def step_body(method, ortho, dt, i, inv_mass, inv_inertia, force_world, torque_w
                           YOSHIDA_W1 * dt, tx, ty, tz, a_q, a_l, a_n, a_dt, fc, r, fc_ok)
     elif method == METHOD_RK4:
         # translation: exact for a constant force; rotation: RK4 with L(t) = L + t tau
-        hh = 0.5 * dt * dt * im
-        x += dt * px * im + hh * fx
-        y += dt * py * im + hh * fy
-        z += dt * pz * im + hh * fz
-        px += dt * fx
-        py += dt * fy
-        pz += dt * fz
+        x, y, z, px, py, pz = flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz)
         drift_rk4(ortho, quat_wxyz, rotation, angular_momentum, inv_inertia, i, dt, tx, ty, tz)
         angular_momentum[i, 0] += dt * tx
         angular_momentum[i, 1] += dt * ty
