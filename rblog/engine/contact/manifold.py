@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rblog.engine.constants import MANIFOLD_TOUCH_BAND_M
+
 # ---- per manifold, int64 ----
 MI_KEY = 0  # 2 (lo * n_shapes + hi) + part; shape ids: bodies, static boxes, ground; part 1 is
 #            a box pair's second manifold (face manifold beside an edge contact)
@@ -94,6 +96,8 @@ def empty_manifolds(cap_manifolds: int, cap_points: int):
 #: while clipping) and a box pair's second manifold (rows 4.., up to 8 while clipping)
 MAX_CLIP_POINTS = 12
 MAX_MANIFOLD_POINTS = 4
+#: m^2: triangle areas (about the normal) below this add nothing to a manifold (collinear points)
+_AREA_EPS = 1e-12
 
 
 @njit(cache=True)
@@ -115,7 +119,9 @@ def swap_point(pts, sep, fid, i, j):
 @njit(cache=True)
 def reduce_manifold(nrm, pts, sep, fid, count):
     """Keep four of ``count`` coplanar-ish points: deepest, farthest from it, the one making the
-    largest triangle, the one adding the most area outside that triangle. Returns 4."""
+    largest triangle, the one adding the most area outside that triangle (Gregorius), each chosen
+    among the touching points first (within MANIFOLD_TOUCH_BAND_M of the deepest) and among all
+    of them only when no touching point is left that adds length or area. Returns 4."""
     if count <= MAX_MANIFOLD_POINTS:
         return count
     nx, ny, nz = nrm[0], nrm[1], nrm[2]
@@ -125,46 +131,62 @@ def reduce_manifold(nrm, pts, sep, fid, count):
         if sep[j] < sep[best]:
             best = j
     swap_point(pts, sep, fid, 0, best)
-    # 2: farthest from point 0
-    best = 1
-    bd = -1.0
-    for j in range(1, count):
-        dx, dy, dz = pts[j, 0] - pts[0, 0], pts[j, 1] - pts[0, 1], pts[j, 2] - pts[0, 2]
-        d = dx * dx + dy * dy + dz * dz
-        if d > bd:
-            bd = d
-            best = j
-    swap_point(pts, sep, fid, 1, best)
-    # 3: largest |triangle area| with 0, 1 (measured about the normal)
+    touch = sep[0] + MANIFOLD_TOUCH_BAND_M
+    # 2: farthest from point 0 (touching first)
+    best = -1
+    bd = 0.0
+    for only_touching in (True, False):
+        for j in range(1, count):
+            if only_touching and sep[j] > touch:
+                continue
+            dx, dy, dz = pts[j, 0] - pts[0, 0], pts[j, 1] - pts[0, 1], pts[j, 2] - pts[0, 2]
+            d = dx * dx + dy * dy + dz * dz
+            if d > bd:
+                bd = d
+                best = j
+        if best >= 0:
+            break
+    swap_point(pts, sep, fid, 1, max(best, 1))
+    # 3: largest |triangle area| with 0, 1 (measured about the normal; touching first)
     ax, ay, az = pts[1, 0] - pts[0, 0], pts[1, 1] - pts[0, 1], pts[1, 2] - pts[0, 2]
-    best = 2
-    ba = -1.0
+    best = -1
+    ba = _AREA_EPS
     sgn = 1.0
-    for j in range(2, count):
-        bx, by, bz = pts[j, 0] - pts[0, 0], pts[j, 1] - pts[0, 1], pts[j, 2] - pts[0, 2]
-        area = nx * (ay * bz - az * by) + ny * (az * bx - ax * bz) + nz * (ax * by - ay * bx)
-        if abs(area) > ba:
-            ba = abs(area)
-            best = j
-            sgn = 1.0 if area >= 0.0 else -1.0
-    swap_point(pts, sep, fid, 2, best)
-    # 4: the point farthest outside the triangle (most negative signed area over its edges)
-    best = 3
-    ba = 1.0
-    for j in range(3, count):
-        worst = 0.0
-        for e in range(3):
-            i0 = e
-            i1 = (e + 1) % 3
-            ex, ey, ez = pts[i1, 0] - pts[i0, 0], pts[i1, 1] - pts[i0, 1], pts[i1, 2] - pts[i0, 2]
-            qx, qy, qz = pts[j, 0] - pts[i0, 0], pts[j, 1] - pts[i0, 1], pts[j, 2] - pts[i0, 2]
-            area = sgn * (nx * (ey * qz - ez * qy) + ny * (ez * qx - ex * qz) + nz * (ex * qy - ey * qx))
-            if area < worst:
-                worst = area
-        if worst < ba:
-            ba = worst
-            best = j
-    swap_point(pts, sep, fid, 3, best)
+    for only_touching in (True, False):
+        for j in range(2, count):
+            if only_touching and sep[j] > touch:
+                continue
+            bx, by, bz = pts[j, 0] - pts[0, 0], pts[j, 1] - pts[0, 1], pts[j, 2] - pts[0, 2]
+            area = nx * (ay * bz - az * by) + ny * (az * bx - ax * bz) + nz * (ax * by - ay * bx)
+            if abs(area) > ba:
+                ba = abs(area)
+                best = j
+                sgn = 1.0 if area >= 0.0 else -1.0
+        if best >= 0:
+            break
+    swap_point(pts, sep, fid, 2, max(best, 2))
+    # 4: the point farthest outside the triangle (most negative signed area over its edges;
+    # touching first)
+    best = -1
+    ba = -_AREA_EPS
+    for only_touching in (True, False):
+        for j in range(3, count):
+            if only_touching and sep[j] > touch:
+                continue
+            worst = 0.0
+            for e in range(3):
+                i0 = e
+                i1 = (e + 1) % 3
+                ex, ey, ez = pts[i1, 0] - pts[i0, 0], pts[i1, 1] - pts[i0, 1], pts[i1, 2] - pts[i0, 2]
+                qx, qy, qz = pts[j, 0] - pts[i0, 0], pts[j, 1] - pts[i0, 1], pts[j, 2] - pts[i0, 2]
+                area = sgn * (nx * (ey * qz - ez * qy) + ny * (ez * qx - ex * qz)
+                              + nz * (ex * qy - ey * qx))
+                if area < worst:
+                    worst = area
+            if worst < ba:
+                ba = worst
+                best = j
+        if best >= 0:
+            break
+    swap_point(pts, sep, fid, 3, max(best, 3))
     return MAX_MANIFOLD_POINTS
-
-

@@ -158,3 +158,28 @@ def test_box_box_swap_negates_normal():
     n2, p2, s2, _ = collide_np(GEOM_BOX, *b, GEOM_BOX, *a)
     assert len(s1) > 0 and np.allclose(n1, -n2, atol=1e-12)
     assert np.isclose(s1.min(), s2.min(), atol=1e-12)
+
+
+@pytest.mark.parametrize("theta", [0.027, 0.2])
+def test_box_box_reduction_keeps_every_touching_end_of_a_level_edge(theta):
+    """B turned 45 deg about z (its face over A's top clips to an octagon) and tilted by theta
+    about its own x axis: its lowest edge is level, d deep, and crosses A's top face between
+    the points (1, 1 - sqrt2 c) and (sqrt2 c - 1, -1), c = cos(theta) - sin(theta) (the edge
+    x -> Rz(45) (x, -c) clipped to |x|, |y| <= 1). The rest of the octagon is up to
+    2 sin(theta) higher (5.4 cm at theta = 0.027), within the speculative distance. Both ends of
+    the touching edge must be in the manifold: reduced by area alone, the far speculative
+    vertices took three of the four slots and the box turned about one point (the 500-box pile:
+    a box whose edge lay 50 um deep along 78 mm of another's face kept one contact point)."""
+    d = 5e-5
+    c = math.cos(theta) - math.sin(theta)
+    zb = 1.0 - d + math.sin(theta) + math.cos(theta)  # lowest edge at z = 1 - d
+    rb = rot([0, 0, 1], math.pi / 4) @ rot([1, 0, 0], theta)
+    n, p, s, _ = collide_np(GEOM_BOX, [0, 0, 0], None, [1, 1, 1], GEOM_BOX, [0, 0, zb], rb,
+                            [1, 1, 1], spec=0.5)
+    assert np.allclose(n, [0, 0, -1]) and len(s) == 4
+    touching = np.isclose(s, -d, rtol=0, atol=1e-12)
+    assert touching.sum() == 2, s
+    want = np.array([[1.0, 1.0 - S2 * c, 1.0 - d / 2], [S2 * c - 1.0, -1.0, 1.0 - d / 2]])
+    got = p[touching][np.argsort(-p[touching][:, 0])]
+    assert np.allclose(got, want, rtol=0, atol=1e-12), got
+    assert np.all(s[~touching] > 1e-3)  # the other two are the speculative far side
