@@ -149,6 +149,28 @@ def test_an_edge_across_a_face_partly_overhanging_is_the_middle_of_its_inside_pa
     np.testing.assert_allclose(p, [0.165, -0.03, 0.05], rtol=0, atol=1e-15)
 
 
+def test_parallel_edges_touch_at_the_middle_of_their_overlap():
+    """In the contact plane: edge a along u from -0.05 to 0.05, edge b along u from -0.02 to 0.08
+    and 2 mm aside: the overlap is -0.02..0.05, its middle 0.015, halfway across (1 mm). Tilted
+    so that an end moves by less than the band, still parallel; by 10 bands, their crossing (or
+    their closest points when they do not cross)."""
+    p = geometry._edge_edge(0.0, 0.0, 0.05, 0.0, 0.03, 0.002, 0.05, 0.0)
+    np.testing.assert_allclose(p, [0.015, 0.001], rtol=0, atol=1e-17)
+    a = 0.5 * T.WITNESS_BAND_M / 0.1  # b turned so its ends move by half the band
+    p = geometry._edge_edge(0.0, 0.0, 0.05, 0.0, 0.03, 0.002, 0.05 * np.cos(a), 0.05 * np.sin(a))
+    assert p[0] == pytest.approx(0.015, abs=1e-4) and p[1] == pytest.approx(0.001, abs=1e-4)
+    a = 10 * T.WITNESS_BAND_M / 0.1  # 0.01 rad, b 0.2 mm aside: the lines cross at x = 0.01
+    p = geometry._edge_edge(0.0, 0.0, 0.05, 0.0, 0.03, 0.0002, 0.05 * np.cos(a), 0.05 * np.sin(a))
+    cross = 0.03 - 0.0002 / np.tan(a)  # where b's line meets y = 0
+    # measured 1.1e-13: round-off of the solve, amplified by 1 / sin(0.01)
+    np.testing.assert_allclose(p, [cross, 0.0], rtol=0, atol=1e-12)
+    # 2 mm aside they do not meet (b's line reaches y = 0 at x = -0.17, beyond its end): the
+    # midpoint of b's near end e and the point of a below it
+    p = geometry._edge_edge(0.0, 0.0, 0.05, 0.0, 0.03, 0.002, 0.05 * np.cos(a), 0.05 * np.sin(a))
+    e = [0.03 - 0.05 * np.cos(a), 0.002 - 0.05 * np.sin(a)]
+    np.testing.assert_allclose(p, [e[0], e[1] / 2], rtol=0, atol=1e-15)
+
+
 def test_the_witness_lies_midway_between_penetrating_faces():
     """Two cubes face on face, a 0.2 mm into b: the witness is 0.1 mm below a's bottom face."""
     sep, n, p = pair([0.02, 0.0, 2 * H - 2e-4], np.eye(3), [H, H, H], [0, 0, 0], np.eye(3),
