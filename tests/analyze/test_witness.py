@@ -139,6 +139,18 @@ def test_a_diamond_overhanging_an_edge_gives_the_centroid_of_its_inside_part():
     np.testing.assert_allclose(p, [x, 0.01, 0.05], rtol=0, atol=1e-14)
 
 
+def test_a_cube_tilted_by_half_a_milliradian_on_a_slab_touches_with_its_face():
+    """Tilted by 5e-4 rad about x, the cube's bottom corners differ in height by 0.05 mm (inside
+    the 0.1 mm band): the patch is its whole bottom face (inside the slab's top), centred at
+    R (0, 0, -h) from its centre, on the slab's top where its lowest edge touches."""
+    a = 5e-4
+    xa = np.array([0.02, 0.01, 0.05 + H * (np.sin(a) + np.cos(a))])  # lowest edge at z = 0.05
+    sep, n, p = pair(xa, rx(a), [H, H, H], [0, 0, 0], np.eye(3), [0.2, 0.15, 0.05])
+    assert sep == pytest.approx(0.0, abs=1e-15)
+    np.testing.assert_allclose(n, [0, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(p, [0.02, 0.01 + H * np.sin(a), 0.05], rtol=0, atol=1e-15)
+
+
 def test_an_edge_across_a_face_partly_overhanging_is_the_middle_of_its_inside_part():
     """A cube turned 45 deg about x lies on its edge (along x, x 0.13..0.23) across the slab's
     top, which ends at x = 0.2: the inside part is x 0.13..0.2, its middle x = 0.165."""
