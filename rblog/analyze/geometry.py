@@ -6,8 +6,29 @@ Conventions (those of :class:`rblog.contract.trajectory.Contacts`):
 
 * ``sep`` is the signed distance between two surfaces (m): > 0 apart, < 0 penetration depth.
 * ``normal`` is a unit world vector from body b into body a; ``point`` a world point midway
-  between the two surfaces (the witness of the contact: centre of the touching face, edge or
-  corner when a box lies flat, on an edge or on a corner).
+  between the two surfaces along the normal: the witness of the contact, at the centre of the
+  patch where the bodies touch (see "Witness points" below).
+
+Witness points (the contact point whose slip the penetration analyzer integrates as creep, the
+lever arm of a contact's velocity in the events analyzer):
+
+* A box's touching feature along a direction d is the set of its points within WITNESS_BAND_M
+  (rblog.analyze.tolerances) of its extreme along d: axis j is free (spanned by the feature)
+  when ``2 h_j |d.A_j| <= band``, else fixed at ``sign(d.A_j) h_j``. Zero free axes is a
+  corner, one an edge, two a face. (A box thinner than the band along every axis keeps its axis
+  most along d fixed.)
+* box-plane: the centre of the box's feature along -n, moved along n to the level of the box's
+  lowest point (by at most the band), so that ``n.point - offset`` is the separation.
+* box-box: the two features (a's along -n, b's along +n) projected onto the contact plane; the
+  centre of their intersection there, placed midway between the two surfaces along n. Corner vs
+  anything: the corner (two corners: their midpoint). Edge vs edge: the closest points of the two
+  segments (their crossing; parallel edges, ``|sin| x length <= band``: the middle of their
+  overlap). Edge vs face: the middle of the part of the edge inside the face (nothing inside,
+  the two just apart: the midpoint of their closest points). Face vs face: the area centroid of
+  the overlap of the two face polygons (Sutherland-Hodgman; a zero-area overlap: its vertices'
+  mean; none: the midpoint of the faces' centres).
+* spheres: the point midway between the surfaces on the line of centres (sphere-sphere), the
+  point of the box's surface nearest the sphere (sphere-box).
 * Poses use the logged ``rotation`` (body->world, columns are the body axes in the world frame),
   as the integrator held it; a drifted matrix maps the shape as drifted.
 
@@ -45,10 +66,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from rblog.analyze.tolerances import WITNESS_BAND_M
 from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE, Model
 
-#: |cos| below which a box axis counts as parallel to a contact plane (witness points)
-_FACE_EPS = 1e-6
+#: thickness of a box's touching feature (m; see WITNESS_BAND_M)
+_BAND = WITNESS_BAND_M
 #: edge cross products shorter than this are parallel edges (their axis is skipped)
 _AXIS_EPS = 1e-6
 
@@ -80,14 +102,6 @@ def inner_radius(model: Model) -> np.ndarray:
     """(N,) radius of the largest sphere about the centre inside the body (m)."""
     size = np.asarray(model.body_size, float)
     return np.where(model.body_shape == SHAPE_SPHERE, size[:, 0], size.min(axis=1))
-
-
-def _box_witness(x: np.ndarray, rot: np.ndarray, h: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """The point of boxes (x, rot, h) furthest along d (..., 3): the centre of the face, edge or
-    corner that faces d (axes within _FACE_EPS of perpendicular to d contribute their middle)."""
-    proj = np.einsum("...ij,...i->...j", rot, d)  # d . A_j
-    s = np.where(np.abs(proj) > _FACE_EPS, np.sign(proj), 0.0) * h
-    return x + np.einsum("...ij,...j->...i", rot, s)
 
 
 @njit(cache=True, nogil=True)
@@ -125,11 +139,38 @@ def plane_separation(model: Model, position: np.ndarray, rotation: np.ndarray):
 
 
 @njit(cache=True, nogil=True)
-def _witness_kernel(position, rotation, k, j, body, is_sphere, size, n, eps, out):
+def _feature_signs(p0, p1, p2, h0, h1, h2, band):
+    """A box's touching feature along d, from p_j = d.A_j and the half extents h_j:
+    (s0, s1, s2, free0, free1, free2, drop). Axis j is free (the feature spans it) when
+    2 h_j |p_j| <= band, s_j = 0; else s_j = sign(p_j) h_j. The feature's centre is
+    x + sum_j s_j A_j; the box reaches further along d than that centre by
+    drop = sum over free axes of h_j |p_j| (<= 1.5 band). A box thinner than the band along
+    every axis keeps its axis most along d fixed (a face, not the whole box)."""
+    f0 = 2.0 * h0 * abs(p0) <= band
+    f1 = 2.0 * h1 * abs(p1) <= band
+    f2 = 2.0 * h2 * abs(p2) <= band
+    if f0 and f1 and f2:
+        a0, a1, a2 = abs(p0), abs(p1), abs(p2)
+        if a0 >= a1 and a0 >= a2:
+            f0 = False
+        elif a1 >= a2:
+            f1 = False
+        else:
+            f2 = False
+    s0 = 0.0 if f0 else (h0 if p0 > 0 else -h0)
+    s1 = 0.0 if f1 else (h1 if p1 > 0 else -h1)
+    s2 = 0.0 if f2 else (h2 if p2 > 0 else -h2)
+    drop = ((h0 * abs(p0) if f0 else 0.0) + (h1 * abs(p1) if f1 else 0.0)
+            + (h2 * abs(p2) if f2 else 0.0))
+    return s0, s1, s2, f0, f1, f2, drop
+
+
+@njit(cache=True, nogil=True)
+def _witness_kernel(position, rotation, k, j, body, is_sphere, size, n, band, out):
     """out[r] = the ground contact point of body[r] at the pose position[k[r], j[r]],
-    rotation[k[r], j[r]]: a sphere's lowest point, or a box's witness along -n (_box_witness,
-    its arithmetic in the same order: numpy's einsum sums a contiguous row of three products as
-    (p0 + p2) + p1, numpy 2.x's SIMD pairs, and a strided column in order)."""
+    rotation[k[r], j[r]]: a sphere's lowest point; a box's touching feature along -n (axes with
+    2 h_c |n.A_c| <= band free, the others at their extreme), its centre moved along -n to the
+    level of the box's lowest point (by sum over free axes of h_c |n.A_c|)."""
     for r in range(k.shape[0]):
         kr, jr, b = k[r], j[r], body[r]
         x = position[kr, jr]
@@ -138,24 +179,13 @@ def _witness_kernel(position, rotation, k, j, body, is_sphere, size, n, eps, out
                 out[r, i] = x[i] - size[b, 0] * n[i]
             continue
         rot = rotation[kr, jr]
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for c in range(3):  # d . A_c with d = -n, then the sign of each axis times h_c
-            proj = rot[0, c] * -n[0] + rot[1, c] * -n[1] + rot[2, c] * -n[2]
-            sc = 0.0
-            if abs(proj) > eps:
-                sc = (1.0 if proj > 0 else -1.0) * size[b, c]
-            else:
-                sc = 0.0 * size[b, c]
-            if c == 0:
-                s0 = sc
-            elif c == 1:
-                s1 = sc
-            else:
-                s2 = sc
+        p0 = rot[0, 0] * -n[0] + rot[1, 0] * -n[1] + rot[2, 0] * -n[2]  # -n . A_c
+        p1 = rot[0, 1] * -n[0] + rot[1, 1] * -n[1] + rot[2, 1] * -n[2]
+        p2 = rot[0, 2] * -n[0] + rot[1, 2] * -n[1] + rot[2, 2] * -n[2]
+        s0, s1, s2, _, _, _, drop = _feature_signs(p0, p1, p2, size[b, 0], size[b, 1], size[b, 2],
+                                                   band)
         for i in range(3):
-            out[r, i] = x[i] + ((rot[i, 0] * s0 + rot[i, 2] * s2) + rot[i, 1] * s1)
+            out[r, i] = x[i] + (rot[i, 0] * s0 + rot[i, 1] * s1 + rot[i, 2] * s2) - drop * n[i]
 
 
 def plane_witness(model: Model, body: np.ndarray, position: np.ndarray, rotation: np.ndarray):
@@ -176,32 +206,13 @@ def plane_witness_at(model: Model, k: np.ndarray, j: np.ndarray, body: np.ndarra
                     c(k, dtype=np.int64), c(j, dtype=np.int64), c(body, dtype=np.int64),
                     np.asarray(model.body_shape) == SHAPE_SPHERE,
                     c(model.body_size, dtype=np.float64),
-                    c(model.ground_normal, dtype=np.float64), _FACE_EPS, out)
+                    c(model.ground_normal, dtype=np.float64), _BAND, out)
     return out
 
 
 # --- narrowphase: compiled, one pair at a time --------------------------------------------------
 # Poses travel as tuples (no array views, so no reference counting in the inner loops): x is
 # (x0, x1, x2), r the row-major 9-tuple of the matrix (r[3 i + j] = R_ij), h the half extents.
-@njit(cache=True, nogil=True)
-def _box_point(x, r, h, d0, d1, d2):
-    """The point of box (x, r, h) furthest along (d0, d1, d2): the centre of the face, edge or
-    corner facing that way (axes within _FACE_EPS of perpendicular contribute their middle)."""
-    p0, p1, p2 = x[0], x[1], x[2]
-    for j in range(3):
-        proj = r[j] * d0 + r[3 + j] * d1 + r[6 + j] * d2
-        if proj > _FACE_EPS:
-            s = h[j]
-        elif proj < -_FACE_EPS:
-            s = -h[j]
-        else:
-            continue
-        p0 += s * r[j]
-        p1 += s * r[3 + j]
-        p2 += s * r[6 + j]
-    return p0, p1, p2
-
-
 @njit(cache=True, nogil=True)
 def _sphere_sphere(xa, ra, xb, rb):
     """(sep, n0, n1, n2, p0, p1, p2) with n from b into a."""
@@ -259,7 +270,7 @@ def _sphere_box(xs, r, xb, rb, hb):
 
 @njit(cache=True, nogil=True)
 def _box_box(xa, ra, ha, xb, rb, hb):
-    """Separating-axis test over the 15 axes: (sep, n from b into a, witness point)."""
+    """Separating-axis test over the 15 axes: (sep, n from b into a)."""
     d0, d1, d2 = xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]
     best_cmp = -math.inf
     best = -math.inf
@@ -291,14 +302,237 @@ def _box_box(xa, ra, ha, xb, rb, hb):
             best = sv
             sg = 1.0 if dc >= 0 else -1.0
             n0, n1, n2 = sg * l0, sg * l1, sg * l2
-    a0, a1, a2 = _box_point(xa, ra, ha, -n0, -n1, -n2)
-    b0, b1, b2 = _box_point(xb, rb, hb, n0, n1, n2)
-    return best, n0, n1, n2, 0.5 * (a0 + b0), 0.5 * (a1 + b1), 0.5 * (a2 + b2)
+    return best, n0, n1, n2
+
+
+# --- box-box witness: the centre of the touching patch, in the contact plane --------------------
+# Features are projected onto the plane normal to n, in coordinates (u, v) about the midpoint o of
+# the two centres: a feature is (cx, cy, free axes, e1, e2, support), its centre c and the
+# projections e of h_j A_j of its free axes (none: a corner; one: an edge c +- e1; two: a face,
+# the parallelogram c +- e1 +- e2).
+@njit(cache=True, nogil=True)
+def _plane_basis(n0, n1, n2):
+    """Unit u, v with (u, v, n) orthonormal."""
+    if abs(n0) > 0.57735:
+        u0, u1, u2 = n1, -n0, 0.0
+    else:
+        u0, u1, u2 = 0.0, n2, -n1
+    un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    u0, u1, u2 = u0 / un, u1 / un, u2 / un
+    return (u0, u1, u2), (n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0)
 
 
 @njit(cache=True, nogil=True)
-def _pair(sa, xa, ra, ha, sb, xb, rb, hb):
-    """Dispatch on the shape pair: (sep, n from b into a, point)."""
+def _feature_2d(x, r, h, d0, d1, d2, o, u, v):
+    """The touching feature of box (x, r, h) along d in plane coordinates about o:
+    (cx, cy, n_free, e1x, e1y, e2x, e2y, support of the box along d from its centre)."""
+    p0 = r[0] * d0 + r[3] * d1 + r[6] * d2
+    p1 = r[1] * d0 + r[4] * d1 + r[7] * d2
+    p2 = r[2] * d0 + r[5] * d1 + r[8] * d2
+    s0, s1, s2, f0, f1, f2, _ = _feature_signs(p0, p1, p2, h[0], h[1], h[2], _BAND)
+    c0 = x[0] - o[0] + (r[0] * s0 + r[1] * s1 + r[2] * s2)
+    c1 = x[1] - o[1] + (r[3] * s0 + r[4] * s1 + r[5] * s2)
+    c2 = x[2] - o[2] + (r[6] * s0 + r[7] * s1 + r[8] * s2)
+    nf = 0
+    e1x = e1y = e2x = e2y = 0.0
+    for j in range(3):
+        if (f0 if j == 0 else (f1 if j == 1 else f2)):
+            a0, a1, a2 = h[j] * r[j], h[j] * r[3 + j], h[j] * r[6 + j]
+            ex = a0 * u[0] + a1 * u[1] + a2 * u[2]
+            ey = a0 * v[0] + a1 * v[1] + a2 * v[2]
+            if nf == 0:
+                e1x, e1y = ex, ey
+            else:
+                e2x, e2y = ex, ey
+            nf += 1
+    return (c0 * u[0] + c1 * u[1] + c2 * u[2], c0 * v[0] + c1 * v[1] + c2 * v[2], nf,
+            e1x, e1y, e2x, e2y, h[0] * abs(p0) + h[1] * abs(p1) + h[2] * abs(p2))
+
+
+@njit(cache=True, nogil=True)
+def _seg_closest(p1x, p1y, d1x, d1y, p2x, p2y, d2x, d2y):
+    """Closest points of segments p1 + s d1 and p2 + t d2 (s, t in [0, 1]; Ericson, Real-Time
+    Collision Detection 5.1.9): (their midpoint x, y, squared distance)."""
+    rx, ry = p1x - p2x, p1y - p2y
+    a = d1x * d1x + d1y * d1y
+    e = d2x * d2x + d2y * d2y
+    f = d2x * rx + d2y * ry
+    tiny = 1e-300
+    if a <= tiny and e <= tiny:
+        s = t = 0.0
+    elif a <= tiny:
+        s = 0.0
+        t = min(max(f / e, 0.0), 1.0)
+    else:
+        c = d1x * rx + d1y * ry
+        if e <= tiny:
+            t = 0.0
+            s = min(max(-c / a, 0.0), 1.0)
+        else:
+            b = d1x * d2x + d1y * d2y
+            den = a * e - b * b
+            s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 0 else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t = 0.0
+                s = min(max(-c / a, 0.0), 1.0)
+            elif t > 1.0:
+                t = 1.0
+                s = min(max((b - c) / a, 0.0), 1.0)
+    q1x, q1y = p1x + s * d1x, p1y + s * d1y
+    q2x, q2y = p2x + t * d2x, p2y + t * d2y
+    return 0.5 * (q1x + q2x), 0.5 * (q1y + q2y), (q1x - q2x) ** 2 + (q1y - q2y) ** 2
+
+
+@njit(cache=True, nogil=True)
+def _edge_edge(ax, ay, eax, eay, bx, by, ebx, eby):
+    """Edges a +- ea, b +- eb: parallel (the tilt between them moves an end by at most the band)
+    -> the middle of their overlap along a, halfway to b's line; else the closest points."""
+    la = math.sqrt(eax * eax + eay * eay)
+    lb = math.sqrt(ebx * ebx + eby * eby)
+    cr = eax * eby - eay * ebx
+    if la > 0 and lb > 0 and abs(cr) / (la * lb) * 2.0 * max(la, lb) <= _BAND:
+        dx, dy = eax / la, eay / la
+        wx, wy = bx - ax, by - ay
+        tc = wx * dx + wy * dy
+        hl = abs(ebx * dx + eby * dy)
+        tm = 0.5 * (max(-la, tc - hl) + min(la, tc + hl))  # in the gap when they do not overlap
+        return ax + tm * dx + 0.5 * (wx - tc * dx), ay + tm * dy + 0.5 * (wy - tc * dy)
+    mx, my, _ = _seg_closest(ax - eax, ay - eay, 2 * eax, 2 * eay, bx - ebx, by - eby, 2 * ebx,
+                             2 * eby)
+    return mx, my
+
+
+@njit(cache=True, nogil=True)
+def _slab(a0, ad, lo, hi):
+    """Clip the parameter range [lo, hi] of t to |a0 + t ad| <= 1."""
+    if ad == 0.0:
+        return (lo, hi) if abs(a0) <= 1.0 else (1.0, -1.0)
+    t1, t2 = (-1.0 - a0) / ad, (1.0 - a0) / ad
+    return max(lo, min(t1, t2)), min(hi, max(t1, t2))
+
+
+@njit(cache=True, nogil=True)
+def _edge_face(cx, cy, ex, ey, fx, fy, g1x, g1y, g2x, g2y):
+    """Edge c +- e against the face parallelogram f +- g1 +- g2: the middle of the part of the
+    edge inside the face; none inside, the midpoint of the closest points of the edge and the
+    face's boundary."""
+    det = g1x * g2y - g1y * g2x
+    if abs(det) > 0.0:
+        # face coordinates (alpha, beta) of c + t e: the face is |alpha|, |beta| <= 1
+        qx, qy = cx - fx, cy - fy
+        lo, hi = _slab((qx * g2y - qy * g2x) / det, (ex * g2y - ey * g2x) / det, -1.0, 1.0)
+        lo, hi = _slab((g1x * qy - g1y * qx) / det, (g1x * ey - g1y * ex) / det, lo, hi)
+        if lo <= hi:
+            tm = 0.5 * (lo + hi)
+            return cx + tm * ex, cy + tm * ey
+    best = math.inf
+    bx = by = 0.0
+    for k in range(4):  # the face's four sides
+        px, py = _face_corner(fx, fy, g1x, g1y, g2x, g2y, k)
+        qx, qy = _face_corner(fx, fy, g1x, g1y, g2x, g2y, (k + 1) % 4)
+        mx, my, d2 = _seg_closest(cx - ex, cy - ey, 2 * ex, 2 * ey, px, py, qx - px, qy - py)
+        if d2 < best:
+            best, bx, by = d2, mx, my
+    return bx, by
+
+
+@njit(cache=True, nogil=True)
+def _face_corner(fx, fy, g1x, g1y, g2x, g2y, k):
+    """Corner k (0..3, cyclic: + +, - +, - -, + -) of the parallelogram f +- g1 +- g2."""
+    s1 = 1.0 if (k == 0 or k == 3) else -1.0
+    s2 = 1.0 if k < 2 else -1.0
+    return fx + s1 * g1x + s2 * g2x, fy + s1 * g1y + s2 * g2y
+
+
+@njit(cache=True, nogil=True)
+def _face_face(fa, fb, buf):
+    """Area centroid of the overlap of face parallelograms fa, fb (features of _feature_2d):
+    a's polygon clipped by each edge of b's (Sutherland-Hodgman; buf (4, W) holds the polygons).
+    A zero-area overlap: its vertices' mean; no overlap: the midpoint of the two centres."""
+    w = buf.shape[1]
+    for k in range(4):
+        buf[0, k], buf[1, k] = _face_corner(fa[0], fa[1], fa[3], fa[4], fa[5], fa[6], k)
+    m = 4
+    src = 0
+    det_b = fb[3] * fb[6] - fb[4] * fb[5]
+    orient = 1.0 if det_b >= 0 else -1.0  # b's corners run counter-clockwise when det_b > 0
+    for e in range(4):
+        px, py = _face_corner(fb[0], fb[1], fb[3], fb[4], fb[5], fb[6], e)
+        qx, qy = _face_corner(fb[0], fb[1], fb[3], fb[4], fb[5], fb[6], (e + 1) % 4)
+        ex, ey = qx - px, qy - py
+        dst = 2 - src
+        cnt = 0
+        for i in range(m):
+            ax, ay = buf[src, i], buf[src + 1, i]
+            j = i + 1 if i + 1 < m else 0
+            bx, by = buf[src, j], buf[src + 1, j]
+            da = orient * (ex * (ay - py) - ey * (ax - px))  # >= 0: inside b's edge e
+            db = orient * (ex * (by - py) - ey * (bx - px))
+            if da >= 0 and cnt < w:
+                buf[dst, cnt], buf[dst + 1, cnt] = ax, ay
+                cnt += 1
+            if ((da >= 0) != (db >= 0)) and cnt < w:
+                t = da / (da - db)
+                buf[dst, cnt], buf[dst + 1, cnt] = ax + t * (bx - ax), ay + t * (by - ay)
+                cnt += 1
+        m = cnt
+        src = dst
+        if m == 0:
+            return 0.5 * (fa[0] + fb[0]), 0.5 * (fa[1] + fb[1])
+    # area centroid by a fan of triangles from vertex 0
+    x0, y0 = buf[src, 0], buf[src + 1, 0]
+    a2 = sx = sy = 0.0
+    mx, my = x0, y0
+    for i in range(1, m):
+        xi, yi = buf[src, i], buf[src + 1, i]
+        mx += xi
+        my += yi
+        if i + 1 < m:
+            xj, yj = buf[src, i + 1], buf[src + 1, i + 1]
+            cr = (xi - x0) * (yj - y0) - (xj - x0) * (yi - y0)
+            a2 += cr
+            sx += cr * (xi + xj - 2 * x0)
+            sy += cr * (yi + yj - 2 * y0)
+    det_a = fa[3] * fa[6] - fa[4] * fa[5]
+    if abs(a2) > 1e-9 * min(abs(det_a), abs(det_b)):
+        return x0 + sx / (3 * a2), y0 + sy / (3 * a2)
+    return mx / m, my / m
+
+
+@njit(cache=True, nogil=True)
+def _box_box_point(xa, ra, ha, xb, rb, hb, n0, n1, n2, buf):
+    """Witness of boxes a, b touching along n (from b into a): the centre of the intersection of
+    a's feature along -n and b's along +n in the contact plane, midway between the surfaces."""
+    o = (0.5 * (xa[0] + xb[0]), 0.5 * (xa[1] + xb[1]), 0.5 * (xa[2] + xb[2]))
+    u, v = _plane_basis(n0, n1, n2)
+    fa = _feature_2d(xa, ra, ha, -n0, -n1, -n2, o, u, v)
+    fb = _feature_2d(xb, rb, hb, n0, n1, n2, o, u, v)
+    na, nb = fa[2], fb[2]
+    if na == 0 and nb == 0:  # corner on corner
+        px, py = 0.5 * (fa[0] + fb[0]), 0.5 * (fa[1] + fb[1])
+    elif na == 0:  # a's corner
+        px, py = fa[0], fa[1]
+    elif nb == 0:
+        px, py = fb[0], fb[1]
+    elif na == 1 and nb == 1:
+        px, py = _edge_edge(fa[0], fa[1], fa[3], fa[4], fb[0], fb[1], fb[3], fb[4])
+    elif na == 1:
+        px, py = _edge_face(fa[0], fa[1], fa[3], fa[4], fb[0], fb[1], fb[3], fb[4], fb[5], fb[6])
+    elif nb == 1:
+        px, py = _edge_face(fb[0], fb[1], fb[3], fb[4], fa[0], fa[1], fa[3], fa[4], fa[5], fa[6])
+    else:
+        px, py = _face_face(fa, fb, buf)
+    # along n: midway between a's extreme along -n and b's along +n
+    z = 0.5 * (fb[7] - fa[7])
+    return (o[0] + px * u[0] + py * v[0] + z * n0, o[1] + px * u[1] + py * v[1] + z * n1,
+            o[2] + px * u[2] + py * v[2] + z * n2)
+
+
+@njit(cache=True, nogil=True)
+def _pair(sa, xa, ra, ha, sb, xb, rb, hb, with_point, buf):
+    """Dispatch on the shape pair: (sep, n from b into a, point); the box-box point only when
+    ``with_point`` (else 0)."""
     if sa == SHAPE_SPHERE and sb == SHAPE_SPHERE:
         return _sphere_sphere(xa, ha[0], xb, hb[0])
     if sa == SHAPE_SPHERE:
@@ -306,7 +540,11 @@ def _pair(sa, xa, ra, ha, sb, xb, rb, hb):
     if sb == SHAPE_SPHERE:  # box a, sphere b: the sphere-box normal points into b; flip it
         s_, n0, n1, n2, p0, p1, p2 = _sphere_box(xb, hb[0], xa, ra, ha)
         return s_, -n0, -n1, -n2, p0, p1, p2
-    return _box_box(xa, ra, ha, xb, rb, hb)
+    sep, n0, n1, n2 = _box_box(xa, ra, ha, xb, rb, hb)
+    p0 = p1 = p2 = 0.0
+    if with_point:
+        p0, p1, p2 = _box_box_point(xa, ra, ha, xb, rb, hb, n0, n1, n2, buf)
+    return sep, n0, n1, n2, p0, p1, p2
 
 
 @njit(cache=True, nogil=True)
@@ -328,6 +566,7 @@ def _pairs_kernel(ks, a, b, position, rotation, shape, size, s_pos, s_rot, s_hal
     position (T, E, 3), rotation (T, E, 3, 3) and size (E, 3) cover bodies only; s_* the static
     boxes as (1, M, 3), (1, M, 3, 3), (M, 3)."""
     nb = position.shape[1]
+    buf = np.empty((4, 32))  # polygons of the face-face witness
     for r in range(ks.shape[0]):
         k, ia, ib = ks[r], a[r], b[r]
         xa, ra, ha = _vec(position, k, ia), _mat(rotation, k, ia), (size[ia, 0], size[ia, 1],
@@ -341,7 +580,7 @@ def _pairs_kernel(ks, a, b, position, rotation, shape, size, s_pos, s_rot, s_hal
             xb, rb, hb = _vec(s_pos, 0, m), _mat(s_rot, 0, m), (s_half[m, 0], s_half[m, 1],
                                                                  s_half[m, 2])
             sb = SHAPE_BOX
-        out = _pair(shape[ia], xa, ra, ha, sb, xb, rb, hb)
+        out = _pair(shape[ia], xa, ra, ha, sb, xb, rb, hb, with_points, buf)
         sep[r] = out[0]
         if with_points:
             nrm[r, 0], nrm[r, 1], nrm[r, 2] = out[1], out[2], out[3]

@@ -3,8 +3,10 @@
 Separations are recomputed from the logged poses and the model's shapes (rblog.analyze.geometry),
 never taken from the contacts the simulator reported. Per sample, a body is in contact when a
 separation to the ground, a static box or another body is within CONTACT_DISTANCE_M; its primary
-support is the deepest of those, with a witness point on the contact (face, edge or corner
-centre).
+support is the deepest of those, with a witness point at the centre of the patch where the two
+touch (rblog.analyze.geometry: a corner, the crossing of two edges, the middle of an edge's part
+on a face, the centroid of two faces' overlap), so that a body turning about its contact (a box
+pivoting on a corner of another) has no slip there.
 
 * Resting: in contact, and the contact point's velocity relative to the partner (``v + ω x r``,
   minus the partner's) below REST_SPEED_MPS for at least REST_MIN_SAMPLES consecutive samples. A

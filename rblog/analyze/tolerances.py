@@ -35,6 +35,18 @@ from __future__ import annotations
 #: covers the separating-axis lower bound used for separated boxes.
 CONTACT_DISTANCE_M = 1e-3
 
+#: Thickness of a box's touching feature (m): the points of a box within this distance of its
+#: extreme along a contact normal make the face, edge or corner that touches (a box axis is
+#: "free", spanned by the feature, when 2 h_j |n.A_j| <= this). The witness point of a contact
+#: (rblog.analyze.geometry) is the centre of the patch where the two touching features overlap,
+#: so a box resting on its face has its witness at the face's centre even when tilted by round-off
+#: or by the engine's settling. 0.1 mm: engines hold resting contacts within ~0.05 mm of touching
+#: (rblog's allowed penetration is 5e-5 m; the 500-box pile's resting separations are about
+#: -50 um), so a face whose corners differ in height by less than this rests on all of them; a
+#: 0.1 m box face tilted by up to 1 mrad still counts as a face, one tilted by 0.05 rad (5 mm
+#: across) rests on its lowest edge. Only where the witness lies depends on it, not a separation.
+WITNESS_BAND_M = 1e-4
+
 #: Most findings kept per analyzer (the worst first); the count of all is in stats.
 MAX_FINDINGS = 200
 #: Most events (impacts, resting intervals) listed per analyzer; all are counted in stats.
