@@ -18,9 +18,18 @@ pivoting on a corner of another) has no slip there.
   JITTER_PERSIST_SAMPLES consecutive samples: exactly the amplitude of a velocity that flips
   between samples, and zero for any motion at constant acceleration (a body that slides off
   slowly, decelerates to a stop or tips over) and for a single kick (a resting box struck by
-  another: an impact, not jitter). Creep is the net tangential slip at the
-  contact (integrated slip velocity), counting only samples slower than CREEP_SPEED_MPS, so that
-  a body that starts to slide away is not creep; a sphere rolling without slip does not creep.
+  another: an impact, not jitter). Creep is the net tangential slide at the contact over the
+  settled part of the interval, taken from the poses (not the logged velocities): over each
+  sample interval, each body's rigid displacement field ``d(y) = dx + theta x (y - x)`` (dx its
+  centre's displacement, theta the rotation vector of R(k+1) R(k)^T) at the contact point, body
+  minus partner, tangential part, summed; an interval counts in full when both its samples are
+  slower than CREEP_SPEED_MPS and not sliding, half when one is, so that a body that starts to
+  slide away is not creep; an interval over which a body's velocity (or angular velocity times
+  twice its bounding radius) changes by more than CREEP_SPEED_MPS held an impact and does not
+  count. A sphere rolling without slip and a box pivoting on its contact slide
+  0. From the poses, motion the velocities do not show is creep too (an engine's position
+  correction pushing a resting body along, steps between samples at which a contact slipped),
+  and velocities that never move the body (spikes between steps) are not.
 * Sliding is not resting: at a sample where the support contact's logged rows (the pair's points
   at the sample's step) are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all
   but at most one (a rigid contact that slips, translating or twisting about its normal, slips
@@ -39,7 +48,8 @@ pivoting on a corner of another) has no slip there.
   JITTER_MPS, creep beyond CREEP_M.
 
 Why this module is long: depth, jitter, creep and the sliding test are judged over the same
-resting intervals, from the same per-sample supports, witness points and contact velocities;
+resting intervals, from the same per-sample supports, witness points, contact velocities and
+poses;
 splitting them would pass those arrays and the interval bookkeeping between modules.
 """
 
@@ -114,6 +124,65 @@ def _contact_velocity(pk, pi_, pb, point, normal, position, velocity, omega, n, 
         slip[r, 0], slip[r, 1], slip[r, 2] = c0 - vn * n0, c1 - vn * n1, c2 - vn * n2
         cspeed[r] = math.sqrt((c0 * c0 + c2 * c2) + c1 * c1)
         wspeed[r] = math.sqrt((w0 * w0 + w2 * w2) + w1 * w1)
+
+
+@njit(cache=True, nogil=True)
+def _contact_slide(pk, pi_, pb, point, normal, position, rotation, n, nxt, disp):
+    """Per support row r whose next row r + 1 is the same body on the same partner at the next
+    sample (``nxt[r]``): the tangential slide (m, world) at the contact point over that sample
+    interval, from the poses alone. Each body's displacement over the interval is the rigid field
+    ``d(p) = (x(k+1) - x(k)) + theta x (p - x)`` at the contact point, with p and x the midpoints
+    of the contact point (``point[r]``, ``point[r + 1]``) and of the centre, theta the
+    rotation vector of R(k+1) R(k)^T; the slide is d_body(p) - d_partner(p) (static partners are
+    still) minus its part along ``normal[r]``. The field is the pose-derived velocity times the
+    interval, so a body rolling on the contact point slides 0 (as a material point it would trace
+    a cycloid, whose cubic term adds up over a roll), one pivoting on it slides by the third-order
+    remainder (theta^3 |x - p| / 12 per interval), and a contact that slips slides by the slip.
+    Rows without such a successor get 0."""
+    for r in range(pk.shape[0]):
+        disp[r, 0] = 0.0
+        disp[r, 1] = 0.0
+        disp[r, 2] = 0.0
+        if not nxt[r] or pb[r + 1] != pb[r]:
+            continue
+        k, i, b = pk[r], pi_[r], pb[r]
+        d0 = 0.0
+        d1 = 0.0
+        d2 = 0.0
+        for side in range(2):
+            j = i if side == 0 else b
+            if side == 1 and (j < 0 or j >= n):
+                continue
+            sg = 1.0 if side == 0 else -1.0
+            # dR = R(k+1) R(k)^T and its rotation vector
+            m = np.empty((3, 3))
+            for a in range(3):
+                for c in range(3):
+                    acc = 0.0
+                    for e in range(3):
+                        acc += rotation[k + 1, j, a, e] * rotation[k, j, c, e]
+                    m[a, c] = acc
+            v0 = 0.5 * (m[2, 1] - m[1, 2])
+            v1 = 0.5 * (m[0, 2] - m[2, 0])
+            v2 = 0.5 * (m[1, 0] - m[0, 1])
+            sn = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+            cs = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)
+            ang = math.atan2(sn, cs)
+            f = ang / sn if sn > 1e-300 else 1.0
+            t0, t1, t2 = f * v0, f * v1, f * v2
+            # lever arm from the centre to the contact point, both at the interval's midpoint
+            # (the midpoint rule: exact for a body rolling at constant rates, third order for
+            # one pivoting on the point)
+            y0 = 0.5 * (point[r, 0] + point[r + 1, 0] - position[k, j, 0] - position[k + 1, j, 0])
+            y1 = 0.5 * (point[r, 1] + point[r + 1, 1] - position[k, j, 1] - position[k + 1, j, 1])
+            y2 = 0.5 * (point[r, 2] + point[r + 1, 2] - position[k, j, 2] - position[k + 1, j, 2])
+            d0 += sg * (position[k + 1, j, 0] - position[k, j, 0] + t1 * y2 - t2 * y1)
+            d1 += sg * (position[k + 1, j, 1] - position[k, j, 1] + t2 * y0 - t0 * y2)
+            d2 += sg * (position[k + 1, j, 2] - position[k, j, 2] + t0 * y1 - t1 * y0)
+        dn = d0 * normal[r, 0] + d1 * normal[r, 1] + d2 * normal[r, 2]
+        disp[r, 0] = d0 - dn * normal[r, 0]
+        disp[r, 1] = d1 - dn * normal[r, 1]
+        disp[r, 2] = d2 - dn * normal[r, 2]
 
 
 def _partner_label(model, b: int) -> str:
@@ -456,12 +525,33 @@ class PenetrationAnalyzer(Analyzer):
             has_settled = red(np.maximum, settled.astype(float)) > 0
             slow = settled & ~slides & (np.sqrt(np.einsum("ij,ij->i", slip, slip))
                                         <= tol["creep_speed_mps"])
-            s_f = np.where(slow[:, None], slip, 0.0)
-            # trapezoid over consecutive settled rows of the same run
-            both = settled[:-1] & settled[1:] & nxt_same[:-1]
+            # the contact's slide over each interval between consecutive settled rows of the
+            # same run on the same partner, from the poses; an interval counts in full when both
+            # ends are slow and not sliding, half when one is (a trapezoid of the slip)
+            both = np.zeros(nrow, bool)
+            both[:-1] = settled[:-1] & settled[1:] & nxt_same[:-1] & (pb[1:] == pb[:-1])
+            # ... and no impulse between the samples: an interval over which the body (or a body
+            # partner) changes its velocity, or its angular velocity times its reach, by more
+            # than the creep speed was struck (an impact between samples, in which a contact may
+            # slide at its cone unseen), not resting under sustained loads
+            if nrow > 1:
+                k0, k1 = pk[:-1], np.minimum(pk[:-1] + 1, t_n - 1)
+                vel, om = tr.velocity, tr.angular_velocity
+                reach_b = 2.0 * geometry.bounding_radius(model)
+                jump = np.zeros(nrow - 1)
+                for who in (pi_[:-1], pb[:-1]):
+                    dyn = (who >= 0) & (who < n)
+                    w_ = np.where(dyn, who, 0)
+                    jump += np.where(dyn, np.linalg.norm(vel[k1, w_] - vel[k0, w_], axis=1)
+                                     + reach_b[w_] * np.linalg.norm(om[k1, w_] - om[k0, w_], axis=1),
+                                     0.0)
+                both[:-1] &= jump <= tol["creep_speed_mps"]
             contrib = np.zeros((nrow, 3))
-            contrib[:-1] = np.where(both[:, None], 0.5 * (s_f[:-1] + s_f[1:])
-                                    * (t[pk[1:]] - t[pk[:-1]])[:, None], 0.0)
+            _contact_slide(pk, pi_, pb, c(ppt), c(pnorm), c(tr.position, dtype=np.float64),
+                           c(tr.rotation, dtype=np.float64), n, both, contrib)
+            weight = np.zeros(nrow)
+            weight[:-1] = 0.5 * (slow[:-1].astype(float) + slow[1:])
+            contrib *= weight[:, None]
             creep = np.linalg.norm(red(np.add, contrib), axis=1)
             jit = np.where(has_settled, jit, np.nan)
             creep = np.where(has_settled, creep, np.nan)
