@@ -268,11 +268,11 @@ class ContactParams:
             feature id). Turning it off is only useful to demonstrate why it exists.
         static_friction_anchors: run the anchor pass after the velocity solve (solver.py,
             "Friction anchor"): a sticking pair keeps the pose it stuck at, and its points' friction
-            rows take back half their drift from it per step. Off by default, because the pile
-            still creeps: on samples/pile.toml (seeds 1, 2, 3) it leaves 5, 2 and 10 creep
-            findings of 0.10-0.30 mm (16 of up to 0.495 mm at seed 1 with it off): boxes resting
-            on two single-point contacts turn about the line through them, and steep contacts
-            slide at the friction cone. On, the 500-box pile of tests/engine/contact/test_contact.py
+            rows take back half their drift from it per step. Off by default: on
+            samples/pile.toml (seeds 1, 2, 3) it left 5, 2 and 10 creep findings of 0.10-0.30 mm
+            (16 of up to 0.495 mm at seed 1 with it off), measured before the face manifold
+            kept its touching points (MANIFOLD_TOUCH_BAND_M) and before creep was measured from
+            the poses; with both, the default (off) passes seed 1 (benchmarks/RESULTS.md). On, the 500-box pile of tests/engine/contact/test_contact.py
             at dt 2e-3 stays within 0.22-0.26 mm of penetration (seeds 0-2; 0.5 mm allowed) and
             the step costs the same (benchmarks/RESULTS.md).
         projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the

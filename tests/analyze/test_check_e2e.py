@@ -19,15 +19,12 @@ from rblog_cli.main import main
 REPO = Path(__file__).resolve().parents[2]
 #: samples that take long enough to simulate (500 bodies in contact) to live behind -m slow
 SLOW_SAMPLES = {"pile"}
-#: known engine faults that `rblog check` rightly flags (strict: the test fails once fixed)
-KNOWN_FAULTS: dict[str, str] = {
-    "pile": "creep (tol 0.1 mm) while the pile settles, seed 1, at the engine's default "
-            "velocity solve (tol 1e-4 m/s, cap 30 sweeps) without static-friction anchors "
-            "(ContactParams.static_friction_anchors, off by default: on, they cut the pile's "
-            "creep to 5 findings of up to 0.295 mm at seed 1: boxes resting on two point "
-            "contacts turning about the line through them, boxes on steep contacts sliding at "
-            "the friction cone; benchmarks/RESULTS.md, issue 16)",
-}
+#: known engine faults that `rblog check` rightly flags (strict: the test fails once fixed). The
+#: pile's creep (issue 16) is gone from seed 1, the sample's: worst slide 0.099 mm (tol 0.1 mm)
+#: since the face manifold keeps its touching points (6c8fa98) and creep is measured from the
+#: poses (7a2eb36); seeds 2-6 of the same scene: 2/0/2/4/0 findings of 0.115-0.122 mm
+#: (benchmarks/RESULTS.md).
+KNOWN_FAULTS: dict[str, str] = {}
 SAMPLES = [pytest.param(p.stem, marks=[pytest.mark.slow] + (
     [pytest.mark.xfail(strict=True, reason=KNOWN_FAULTS[p.stem])] if p.stem in KNOWN_FAULTS else []))
     if p.stem in SLOW_SAMPLES else p.stem for p in sorted((REPO / "samples").glob("*.toml"))]
