@@ -99,6 +99,22 @@ def _row_dot(rot, k1, k0, b, i, j):
             + rot[k1, b, i, 2] * rot[k0, b, j, 2])
 
 
+@njit(cache=True, nogil=True, inline="always")
+def interval_rotvec(rot, k1, k0, b):
+    """Rotation vector (angle times axis, world frame, rad) of R(k1) R(k0)^T of body b, from the
+    entries it needs as scalars (an array here was a heap allocation per body-sample)."""
+    d00 = _row_dot(rot, k1, k0, b, 0, 0)
+    d11 = _row_dot(rot, k1, k0, b, 1, 1)
+    d22 = _row_dot(rot, k1, k0, b, 2, 2)
+    vx = 0.5 * (_row_dot(rot, k1, k0, b, 2, 1) - _row_dot(rot, k1, k0, b, 1, 2))
+    vy = 0.5 * (_row_dot(rot, k1, k0, b, 0, 2) - _row_dot(rot, k1, k0, b, 2, 0))
+    vz = 0.5 * (_row_dot(rot, k1, k0, b, 1, 0) - _row_dot(rot, k1, k0, b, 0, 1))
+    sn = math.sqrt(vx * vx + vy * vy + vz * vz)
+    ang = math.atan2(sn, 0.5 * (d00 + d11 + d22 - 1.0))
+    f = ang / sn if sn > 1e-300 else 1.0
+    return vx * f, vy * f, vz * f
+
+
 @njit(cache=True, nogil=True)
 def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, corr, rel):
     """rel[k, n] (T-1, N): distance of the rotation vector of R(k+1) R(k)^T over dt from the
@@ -109,18 +125,8 @@ def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, corr, rel):
     for k in range(n_k):
         h = dts[k]
         for b in range(n_b):
-            # the entries of d = R(k+1) R(k)^T that the rotation vector needs, as scalars (an
-            # array here was a heap allocation per body-sample)
-            d00 = _row_dot(rot, k + 1, k, b, 0, 0)
-            d11 = _row_dot(rot, k + 1, k, b, 1, 1)
-            d22 = _row_dot(rot, k + 1, k, b, 2, 2)
-            vx = 0.5 * (_row_dot(rot, k + 1, k, b, 2, 1) - _row_dot(rot, k + 1, k, b, 1, 2))
-            vy = 0.5 * (_row_dot(rot, k + 1, k, b, 0, 2) - _row_dot(rot, k + 1, k, b, 2, 0))
-            vz = 0.5 * (_row_dot(rot, k + 1, k, b, 1, 0) - _row_dot(rot, k + 1, k, b, 0, 1))
-            sn = math.sqrt(vx * vx + vy * vy + vz * vz)
-            ang = math.atan2(sn, 0.5 * (d00 + d11 + d22 - 1.0))
-            f = ang / sn if sn > 1e-300 else 1.0
-            rx, ry, rz = vx * f / h, vy * f / h, vz * f / h
+            tx, ty, tz = interval_rotvec(rot, k + 1, k, b)
+            rx, ry, rz = tx / h, ty / h, tz / h
             w0, w1 = omega[k, b], omega[k + 1, b]
             ux, uy, uz = w1[0] - w0[0], w1[1] - w0[1], w1[2] - w0[2]
             mx, my, mz = 0.5 * (w0[0] + w1[0]), 0.5 * (w0[1] + w1[1]), 0.5 * (w0[2] + w1[2])

@@ -64,6 +64,7 @@ from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
                                 combine_friction, static_material)
+from rblog.analyze.consistency import interval_rotvec
 from rblog.analyze.momentum import static_feature_of_points
 from rblog.contract.trajectory import STATIC_BODY
 
@@ -129,7 +130,7 @@ def _contact_velocity(pk, pi_, pb, point, normal, position, velocity, omega, n, 
 @njit(cache=True, nogil=True)
 def _contact_slide(pk, pi_, pb, point, normal, position, rotation, n, nxt, disp):
     """Per support row r whose next row r + 1 is the same body on the same partner at the next
-    sample (``nxt[r]``): the tangential slide (m, world) at the contact point over that sample
+    sample (``nxt[r]``, which the caller sets only then): the tangential slide (m, world) at the contact point over that sample
     interval, from the poses alone. Each body's displacement over the interval is the rigid field
     ``d(p) = (x(k+1) - x(k)) + theta x (p - x)`` at the contact point, with p and x the midpoints
     of the contact point (``point[r]``, ``point[r + 1]``) and of the centre, theta the
@@ -143,7 +144,7 @@ def _contact_slide(pk, pi_, pb, point, normal, position, rotation, n, nxt, disp)
         disp[r, 0] = 0.0
         disp[r, 1] = 0.0
         disp[r, 2] = 0.0
-        if not nxt[r] or pb[r + 1] != pb[r]:
+        if not nxt[r]:
             continue
         k, i, b = pk[r], pi_[r], pb[r]
         d0 = 0.0
@@ -154,22 +155,7 @@ def _contact_slide(pk, pi_, pb, point, normal, position, rotation, n, nxt, disp)
             if side == 1 and (j < 0 or j >= n):
                 continue
             sg = 1.0 if side == 0 else -1.0
-            # dR = R(k+1) R(k)^T and its rotation vector
-            m = np.empty((3, 3))
-            for a in range(3):
-                for c in range(3):
-                    acc = 0.0
-                    for e in range(3):
-                        acc += rotation[k + 1, j, a, e] * rotation[k, j, c, e]
-                    m[a, c] = acc
-            v0 = 0.5 * (m[2, 1] - m[1, 2])
-            v1 = 0.5 * (m[0, 2] - m[2, 0])
-            v2 = 0.5 * (m[1, 0] - m[0, 1])
-            sn = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-            cs = 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0)
-            ang = math.atan2(sn, cs)
-            f = ang / sn if sn > 1e-300 else 1.0
-            t0, t1, t2 = f * v0, f * v1, f * v2
+            t0, t1, t2 = interval_rotvec(rotation, k + 1, k, j)
             # lever arm from the centre to the contact point, both at the interval's midpoint
             # (the midpoint rule: exact for a body rolling at constant rates, third order for
             # one pivoting on the point)
