@@ -33,8 +33,10 @@ pivoting on a corner of another) has no slip there.
 * Sliding is not resting: at a sample where the support contact's logged rows (the pair's points
   at the sample's step) are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all
   but at most one (a rigid contact that slips, translating or twisting about its normal, slips
-  at every point but the one it may pivot about, and a slipping point's friction is at the limit), or where the tangential load the support must hold (the body's other
-  contact impulses plus (m g + F) dt) reaches that limit, the contact slides: the notes'
+  at every point but the one it may pivot about, and a slipping point's friction is at the
+  limit), or where the tangential load the support must hold (the body's other contact impulses
+  plus (m g + F) dt) reaches that limit, or where none of the pair's rows carries load (its limit
+  is mu x 0: a box chattering on another, loaded only between samples), the contact slides: the notes'
   resting-contact model (static friction holds the body, strictly inside the cone) does not
   cover it, so its slip is not creep and its velocity change is not jitter. Such samples stay in
   the resting interval (a box that sticks, is dragged by a neighbour and sticks again is one
@@ -291,7 +293,8 @@ class PenetrationAnalyzer(Analyzer):
         frac = self.tol["slide_cone_frac"]
         floor = self.tol["slide_floor_ns"]
         out = np.zeros(r_n, bool)
-        why = {"sliding_friction_at_limit": 0, "sliding_pushed": 0, "sliding_inferred": 0}
+        why = {"sliding_friction_at_limit": 0, "sliding_pushed": 0, "sliding_unloaded": 0,
+               "sliding_inferred": 0}
         rows_c = np.nonzero(cand)[0]
         if not len(rows_c):
             return out, why
@@ -375,9 +378,13 @@ class PenetrationAnalyzer(Analyzer):
             load = other + (ctx.mass[pi_] * ctx.dt_step)[:, None] * ctx.accel[pi_]
             load_t = load - np.einsum("ij,ij->i", load, nrm)[:, None] * nrm
             pushed = held & ~at_limit & (np.linalg.norm(load_t, axis=1) >= (1.0 - frac) * limit)
+            # a support whose logged rows all carry no load (a box chattering on its partner,
+            # loaded every other step) holds no friction at that step: mu x 0 is its limit
+            unloaded = ~held
             why["sliding_friction_at_limit"] = int(at_limit.sum())
             why["sliding_pushed"] = int(pushed.sum())
-            out[rows_c] = at_limit | pushed
+            why["sliding_unloaded"] = int(unloaded.sum())
+            out[rows_c] = at_limit | pushed | unloaded
         elif tr.n_samples > 1:
             # how many things the body touches at the sample: the ground, static boxes, bodies
             cd = self.tol["contact_distance_m"]

@@ -212,3 +212,59 @@ def test_a_box_pivoting_with_friction_inside_the_cone_is_creep():
 
 
 N_LOGGED = int(round(DURATION / (DT * EVERY)))  # samples with contact rows (all but the first)
+
+
+def stacked_boxes(load):
+    """Box 1 on box 0 (box 0 on the ground, still), box 1 sliding along x at 1 mm/s (under the
+    creep speed, 1 cm/s). Box 1's four rows on box 0 carry ``load`` x m g dt / 4 each and no
+    friction; box 0's ground rows carry both boxes' weight. Box 0 sits 10 um into the ground so
+    that the ground, not box 1, is its deepest contact."""
+    speed = 1e-3
+    model = rblog.body_table(name=["under", "over"], shape=["box", "box"],
+                             size=[[HH, HH, HH]] * 2, mass=[M, M], friction=MU, restitution=0.0,
+                             ground=True, ground_friction=MU, ground_restitution=0.0)
+    n_s = int(round(DURATION / (DT * EVERY))) + 1
+    step = np.arange(n_s, dtype=np.int64) * EVERY
+    t = step * DT
+    x = np.zeros((n_s, 2, 3))
+    x[:, 0] = [0.3, -0.2, HH - 1e-5]
+    x[:, 1] = [0.3, -0.2, 3 * HH - 1e-5]
+    x[:, 1, 0] += speed * t
+    v = np.zeros((n_s, 2, 3))
+    v[:, 1, 0] = speed
+    c = dict(step=[], body_a=[], body_b=[], point=[], normal=[], separation=[],
+             normal_impulse=[], friction_impulse=[])
+    for k in range(1, n_s):
+        for body, partner, z, jn in ((0, -1, 0.0, 2 * M * G * DT / 4),
+                                     (1, 0, 2 * HH - 1e-5, load * M * G * DT / 4)):
+            for p in _corners(x[k, body]):
+                for key, val in (("step", step[k]), ("body_a", body), ("body_b", partner),
+                                 ("point", (p[0], p[1], z)), ("normal", (0, 0, 1)),
+                                 ("separation", 0.0), ("normal_impulse", jn),
+                                 ("friction_impulse", (0.0, 0.0, 0.0))):
+                    c[key].append(val)
+    rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True)
+    with rec:
+        rec.write(t=t, step=step, position=x, quat_wxyz=np.broadcast_to([1.0, 0, 0, 0], (n_s, 2, 4)),
+                  velocity=v, angular_velocity=np.zeros((n_s, 2, 3)), contacts=c)
+    return rec.trajectory
+
+
+def test_a_box_on_an_unloaded_support_slides_and_is_not_creep():
+    """Box 1's rows on box 0 carry no load at every logged step (a box chattering on another,
+    loaded only between the samples, as in rblog's pile at seed 2, box 177 on box 130): mu x 0
+    is their friction limit, so the contact slides; before this rule, 1 mm/s x 1.9 s = 1.9 mm
+    read as creep."""
+    p = pen(stacked_boxes(load=0.0))
+    assert not creep_findings(p), [f.message for f in p.findings]
+    assert p.stats["sliding_unloaded"] == N_LOGGED  # box 1 at every sample with rows
+
+
+def test_the_same_slide_on_a_loaded_support_is_creep():
+    """The same motion with box 1's weight on its rows and no friction logged (inside the
+    cone): static friction should hold it; 1 mm/s x (2 s - SETTLE_S) = 1.9 mm is creep."""
+    p = pen(stacked_boxes(load=1.0))
+    (f,) = creep_findings(p)
+    assert f.bodies == [1]
+    assert f.value == pytest.approx(1e-3 * (DURATION - T.PENETRATION_SETTLE_S), rel=1e-9)
+    assert p.stats["sliding_unloaded"] == 0
