@@ -166,11 +166,12 @@ def _feature_signs(p0, p1, p2, h0, h1, h2, band):
 
 
 @njit(cache=True, nogil=True)
-def _witness_kernel(position, rotation, k, j, body, is_sphere, size, n, band, out):
+def _witness_kernel(position, rotation, k, j, body, is_sphere, size, n, band, out, spn):
     """out[r] = the ground contact point of body[r] at the pose position[k[r], j[r]],
     rotation[k[r], j[r]]: a sphere's lowest point; a box's touching feature along -n (axes with
     2 h_c |n.A_c| <= band free, the others at their extreme), its centre moved along -n to the
-    level of the box's lowest point (by sum over free axes of h_c |n.A_c|)."""
+    level of the box's lowest point (by sum over free axes of h_c |n.A_c|). spn[r] (when spn
+    has rows): an edge's half-span h_c A_c (the patch is out[r] +- spn[r]), else 0."""
     for r in range(k.shape[0]):
         kr, jr, b = k[r], j[r], body[r]
         x = position[kr, jr]
@@ -182,10 +183,14 @@ def _witness_kernel(position, rotation, k, j, body, is_sphere, size, n, band, ou
         p0 = rot[0, 0] * -n[0] + rot[1, 0] * -n[1] + rot[2, 0] * -n[2]  # -n . A_c
         p1 = rot[0, 1] * -n[0] + rot[1, 1] * -n[1] + rot[2, 1] * -n[2]
         p2 = rot[0, 2] * -n[0] + rot[1, 2] * -n[1] + rot[2, 2] * -n[2]
-        s0, s1, s2, _, _, _, drop = _feature_signs(p0, p1, p2, size[b, 0], size[b, 1], size[b, 2],
-                                                   band)
+        s0, s1, s2, f0, f1, f2, drop = _feature_signs(p0, p1, p2, size[b, 0], size[b, 1],
+                                                      size[b, 2], band)
         for i in range(3):
             out[r, i] = x[i] + (rot[i, 0] * s0 + rot[i, 1] * s1 + rot[i, 2] * s2) - drop * n[i]
+        if spn.shape[0] and int(f0) + int(f1) + int(f2) == 1:
+            c = 0 if f0 else (1 if f1 else 2)
+            for i in range(3):
+                spn[r, i] = size[b, c] * rot[i, c]
 
 
 def plane_witness(model: Model, body: np.ndarray, position: np.ndarray, rotation: np.ndarray):
@@ -196,18 +201,20 @@ def plane_witness(model: Model, body: np.ndarray, position: np.ndarray, rotation
 
 
 def plane_witness_at(model: Model, k: np.ndarray, j: np.ndarray, body: np.ndarray,
-                     position: np.ndarray, rotation: np.ndarray):
+                     position: np.ndarray, rotation: np.ndarray, with_span: bool = False):
     """(P, 3) contact points with the ground of bodies ``body`` (P,) at the poses
     ``position[k, j]`` (..., 3), ``rotation[k, j]`` (..., 3, 3) (indexed in the compiled pass,
-    without gathering the poses first)."""
+    without gathering the poses first); with ``with_span`` also (P, 3) half-spans (an edge on
+    the ground: the patch is point +- span; else 0)."""
     out = np.empty((len(k), 3))
+    spn = np.zeros((len(k), 3)) if with_span else np.empty((0, 3))
     c = np.ascontiguousarray
     _witness_kernel(c(position, dtype=np.float64), c(rotation, dtype=np.float64),
                     c(k, dtype=np.int64), c(j, dtype=np.int64), c(body, dtype=np.int64),
                     np.asarray(model.body_shape) == SHAPE_SPHERE,
                     c(model.body_size, dtype=np.float64),
-                    c(model.ground_normal, dtype=np.float64), _BAND, out)
-    return out
+                    c(model.ground_normal, dtype=np.float64), _BAND, out, spn)
+    return (out, spn) if with_span else out
 
 
 # --- narrowphase: compiled, one pair at a time --------------------------------------------------
@@ -414,9 +421,9 @@ def _slab(a0, ad, lo, hi):
 
 @njit(cache=True, nogil=True)
 def _edge_face(cx, cy, ex, ey, fx, fy, g1x, g1y, g2x, g2y):
-    """Edge c +- e against the face parallelogram f +- g1 +- g2: the middle of the part of the
-    edge inside the face; none inside, the midpoint of the closest points of the edge and the
-    face's boundary."""
+    """Edge c +- e against the face parallelogram f +- g1 +- g2: (x, y, sx, sy), the middle of the
+    part of the edge inside the face and half that part (the part is (x, y) +- (sx, sy)); none
+    inside, the midpoint of the closest points of the edge and the face's boundary, and no span."""
     det = g1x * g2y - g1y * g2x
     if abs(det) > 0.0:
         # face coordinates (alpha, beta) of c + t e: the face is |alpha|, |beta| <= 1
@@ -425,7 +432,8 @@ def _edge_face(cx, cy, ex, ey, fx, fy, g1x, g1y, g2x, g2y):
         lo, hi = _slab((g1x * qy - g1y * qx) / det, (g1x * ey - g1y * ex) / det, lo, hi)
         if lo <= hi:
             tm = 0.5 * (lo + hi)
-            return cx + tm * ex, cy + tm * ey
+            th = 0.5 * (hi - lo)
+            return cx + tm * ex, cy + tm * ey, th * ex, th * ey
     best = math.inf
     bx = by = 0.0
     for k in range(4):  # the face's four sides
@@ -434,7 +442,7 @@ def _edge_face(cx, cy, ex, ey, fx, fy, g1x, g1y, g2x, g2y):
         mx, my, d2 = _seg_closest(cx - ex, cy - ey, 2 * ex, 2 * ey, px, py, qx - px, qy - py)
         if d2 < best:
             best, bx, by = d2, mx, my
-    return bx, by
+    return bx, by, 0.0, 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -503,12 +511,15 @@ def _face_face(fa, fb, buf):
 @njit(cache=True, nogil=True)
 def _box_box_point(xa, ra, ha, xb, rb, hb, n0, n1, n2, buf):
     """Witness of boxes a, b touching along n (from b into a): the centre of the intersection of
-    a's feature along -n and b's along +n in the contact plane, midway between the surfaces."""
+    a's feature along -n and b's along +n in the contact plane, midway between the surfaces, and
+    the patch's half-span (3,): half the part of an edge that lies on a face (the patch is the
+    segment point +- span), else 0 (a point, or a face overlap judged at its centroid)."""
     o = (0.5 * (xa[0] + xb[0]), 0.5 * (xa[1] + xb[1]), 0.5 * (xa[2] + xb[2]))
     u, v = _plane_basis(n0, n1, n2)
     fa = _feature_2d(xa, ra, ha, -n0, -n1, -n2, o, u, v)
     fb = _feature_2d(xb, rb, hb, n0, n1, n2, o, u, v)
     na, nb = fa[2], fb[2]
+    sx = sy = 0.0
     if na == 0 and nb == 0:  # corner on corner
         px, py = 0.5 * (fa[0] + fb[0]), 0.5 * (fa[1] + fb[1])
     elif na == 0:  # a's corner
@@ -518,33 +529,37 @@ def _box_box_point(xa, ra, ha, xb, rb, hb, n0, n1, n2, buf):
     elif na == 1 and nb == 1:
         px, py = _edge_edge(fa[0], fa[1], fa[3], fa[4], fb[0], fb[1], fb[3], fb[4])
     elif na == 1:
-        px, py = _edge_face(fa[0], fa[1], fa[3], fa[4], fb[0], fb[1], fb[3], fb[4], fb[5], fb[6])
+        px, py, sx, sy = _edge_face(fa[0], fa[1], fa[3], fa[4], fb[0], fb[1], fb[3], fb[4], fb[5],
+                                    fb[6])
     elif nb == 1:
-        px, py = _edge_face(fb[0], fb[1], fb[3], fb[4], fa[0], fa[1], fa[3], fa[4], fa[5], fa[6])
+        px, py, sx, sy = _edge_face(fb[0], fb[1], fb[3], fb[4], fa[0], fa[1], fa[3], fa[4], fa[5],
+                                    fa[6])
     else:
         px, py = _face_face(fa, fb, buf)
     # along n: midway between a's extreme along -n and b's along +n
     z = 0.5 * (fb[7] - fa[7])
     return (o[0] + px * u[0] + py * v[0] + z * n0, o[1] + px * u[1] + py * v[1] + z * n1,
-            o[2] + px * u[2] + py * v[2] + z * n2)
+            o[2] + px * u[2] + py * v[2] + z * n2,
+            sx * u[0] + sy * v[0], sx * u[1] + sy * v[1], sx * u[2] + sy * v[2])
 
 
 @njit(cache=True, nogil=True)
 def _pair(sa, xa, ra, ha, sb, xb, rb, hb, with_point, buf):
-    """Dispatch on the shape pair: (sep, n from b into a, point); the box-box point only when
+    """Dispatch on the shape pair: (sep, n from b into a, point, span), span the half-span of an
+    edge patch (see _box_box_point; 0 for spheres); the box-box point and span only when
     ``with_point`` (else 0)."""
     if sa == SHAPE_SPHERE and sb == SHAPE_SPHERE:
-        return _sphere_sphere(xa, ha[0], xb, hb[0])
+        return _sphere_sphere(xa, ha[0], xb, hb[0]) + (0.0, 0.0, 0.0)
     if sa == SHAPE_SPHERE:
-        return _sphere_box(xa, ha[0], xb, rb, hb)
+        return _sphere_box(xa, ha[0], xb, rb, hb) + (0.0, 0.0, 0.0)
     if sb == SHAPE_SPHERE:  # box a, sphere b: the sphere-box normal points into b; flip it
         s_, n0, n1, n2, p0, p1, p2 = _sphere_box(xb, hb[0], xa, ra, ha)
-        return s_, -n0, -n1, -n2, p0, p1, p2
+        return s_, -n0, -n1, -n2, p0, p1, p2, 0.0, 0.0, 0.0
     sep, n0, n1, n2 = _box_box(xa, ra, ha, xb, rb, hb)
-    p0 = p1 = p2 = 0.0
+    p0 = p1 = p2 = e0 = e1 = e2 = 0.0
     if with_point:
-        p0, p1, p2 = _box_box_point(xa, ra, ha, xb, rb, hb, n0, n1, n2, buf)
-    return sep, n0, n1, n2, p0, p1, p2
+        p0, p1, p2, e0, e1, e2 = _box_box_point(xa, ra, ha, xb, rb, hb, n0, n1, n2, buf)
+    return sep, n0, n1, n2, p0, p1, p2, e0, e1, e2
 
 
 @njit(cache=True, nogil=True)
@@ -560,7 +575,7 @@ def _mat(a, i, j):
 
 @njit(cache=True, nogil=True)
 def _pairs_kernel(ks, a, b, position, rotation, shape, size, s_pos, s_rot, s_half, sep, nrm, pt,
-                  with_points):
+                  spn, with_points):
     """Geometry of rows (ks, a, b): b < N a body at sample ks, else static box b - N.
 
     position (T, E, 3), rotation (T, E, 3, 3) and size (E, 3) cover bodies only; s_* the static
@@ -585,21 +600,28 @@ def _pairs_kernel(ks, a, b, position, rotation, shape, size, s_pos, s_rot, s_hal
         if with_points:
             nrm[r, 0], nrm[r, 1], nrm[r, 2] = out[1], out[2], out[3]
             pt[r, 0], pt[r, 1], pt[r, 2] = out[4], out[5], out[6]
+            if spn.shape[0]:
+                spn[r, 0], spn[r, 1], spn[r, 2] = out[7], out[8], out[9]
 
 
-def pair_geometry(model: Model, position, rotation, ks, a, b, with_points: bool = True):
+def pair_geometry(model: Model, position, rotation, ks, a, b, with_points: bool = True,
+                  with_span: bool = False):
     """Separation (R,), and unless ``with_points`` is False the normal b->a (R, 3) and witness
-    point (R, 3), of rows (ks, a, b)."""
+    point (R, 3), of rows (ks, a, b); with ``with_span`` also the patch's half-span (R, 3) (an
+    edge on a face: the patch is point +- span; else 0)."""
     sx, sr, sh = static_boxes(model)
     r = len(ks)
     sep = np.empty(r)
     # (normals and points are only needed near contacts: skip the memory when not asked)
     nrm, pt = (np.empty((r, 3)), np.empty((r, 3))) if with_points else (np.empty((0, 3)),) * 2
+    spn = np.zeros((r, 3)) if with_points and with_span else np.empty((0, 3))
     c = np.ascontiguousarray
     _pairs_kernel(c(ks, dtype=np.int64), c(a, dtype=np.int64), c(b, dtype=np.int64),
                   c(position, dtype=np.float64), c(rotation, dtype=np.float64),
                   c(model.body_shape, dtype=np.int64), c(model.body_size, dtype=np.float64),
-                  c(sx[None]), c(sr[None]), c(sh), sep, nrm, pt, with_points)
+                  c(sx[None]), c(sr[None]), c(sh), sep, nrm, pt, spn, with_points)
+    if with_span:
+        return sep, nrm, pt, spn
     return (sep, nrm, pt) if with_points else sep
 
 
@@ -675,12 +697,13 @@ class Proximity:
     iv_sep0: np.ndarray
     iv_sep1: np.ndarray
 
-    def iv_geometry(self, rows: np.ndarray, end):
+    def iv_geometry(self, rows: np.ndarray, end, with_span: bool = False):
         """(sep, normal b->a, point) of interval rows ``rows`` at their sample k + end (end: 0,
-        1, or an array of them)."""
+        1, or an array of them); with ``with_span`` also the patch half-span (see
+        pair_geometry)."""
         k = self.iv_k[rows] + (end if len(self.position) > 1 else 0)
         return pair_geometry(self.model, self.position, self.rotation, k, self.iv_a[rows],
-                             self.iv_b[rows])
+                             self.iv_b[rows], with_span=with_span)
 
     def near_pairs(self, dist: float) -> dict:
         """Sample table of the pairs closer than ``dist`` (m): dict of k (sample), a, b, sep, and

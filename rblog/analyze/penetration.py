@@ -130,7 +130,7 @@ def _contact_velocity(pk, pi_, pb, point, normal, position, velocity, omega, n, 
 
 
 @njit(cache=True, nogil=True)
-def _contact_slide(pk, pi_, pb, point, normal, position, rotation, n, nxt, disp):
+def _contact_slide(pk, pi_, pb, point, span, normal, position, rotation, n, nxt, disp):
     """Per support row r whose next row r + 1 is the same body on the same partner at the next
     sample (``nxt[r]``, which the caller sets only then): the tangential slide (m, world) at the contact point over that sample
     interval, from the poses alone. Each body's displacement over the interval is the rigid field
@@ -141,6 +141,11 @@ def _contact_slide(pk, pi_, pb, point, normal, position, rotation, n, nxt, disp)
     interval, so a body rolling on the contact point slides 0 (as a material point it would trace
     a cycloid, whose cubic term adds up over a roll), one pivoting on it slides by the third-order
     remainder (theta^3 |x - p| / 12 per interval), and a contact that slips slides by the slip.
+    An edge patch (``span[r]`` nonzero: the patch is point +- span) slides by the least slide of
+    its points: the field is affine along the segment, so that is the tangential part of
+    d(p) + s (theta_body - theta_partner) x span at the s in [-1, 1] that minimises it. A box
+    swinging about one end of its edge (pivoting there, its other end scraping) slides 0, like
+    one pivoting on a corner; a box sliding along does not.
     Rows without such a successor get 0."""
     for r in range(pk.shape[0]):
         disp[r, 0] = 0.0
@@ -152,6 +157,9 @@ def _contact_slide(pk, pi_, pb, point, normal, position, rotation, n, nxt, disp)
         d0 = 0.0
         d1 = 0.0
         d2 = 0.0
+        q0 = 0.0  # theta_body - theta_partner
+        q1 = 0.0
+        q2 = 0.0
         for side in range(2):
             j = i if side == 0 else b
             if side == 1 and (j < 0 or j >= n):
@@ -167,10 +175,35 @@ def _contact_slide(pk, pi_, pb, point, normal, position, rotation, n, nxt, disp)
             d0 += sg * (position[k + 1, j, 0] - position[k, j, 0] + t1 * y2 - t2 * y1)
             d1 += sg * (position[k + 1, j, 1] - position[k, j, 1] + t2 * y0 - t0 * y2)
             d2 += sg * (position[k + 1, j, 2] - position[k, j, 2] + t0 * y1 - t1 * y0)
-        dn = d0 * normal[r, 0] + d1 * normal[r, 1] + d2 * normal[r, 2]
-        disp[r, 0] = d0 - dn * normal[r, 0]
-        disp[r, 1] = d1 - dn * normal[r, 1]
-        disp[r, 2] = d2 - dn * normal[r, 2]
+            q0 += sg * t0
+            q1 += sg * t1
+            q2 += sg * t2
+        m0, m1, m2 = normal[r, 0], normal[r, 1], normal[r, 2]
+        dn = d0 * m0 + d1 * m1 + d2 * m2
+        d0, d1, d2 = d0 - dn * m0, d1 - dn * m1, d2 - dn * m2
+        # the edge patch's half-span at the interval's midpoint (ends aligned: the feature's
+        # direction may flip sign between samples)
+        e0, e1, e2 = span[r + 1, 0], span[r + 1, 1], span[r + 1, 2]
+        if e0 * span[r, 0] + e1 * span[r, 1] + e2 * span[r, 2] < 0.0:
+            e0, e1, e2 = -e0, -e1, -e2
+        e0 = 0.5 * (span[r, 0] + e0)
+        e1 = 0.5 * (span[r, 1] + e1)
+        e2 = 0.5 * (span[r, 2] + e2)
+        if e0 != 0.0 or e1 != 0.0 or e2 != 0.0:
+            # slide per unit s along the patch: (theta_body - theta_partner) x span, tangential
+            g0 = q1 * e2 - q2 * e1
+            g1 = q2 * e0 - q0 * e2
+            g2 = q0 * e1 - q1 * e0
+            gn = g0 * m0 + g1 * m1 + g2 * m2
+            g0, g1, g2 = g0 - gn * m0, g1 - gn * m1, g2 - gn * m2
+            gg = g0 * g0 + g1 * g1 + g2 * g2
+            if gg > 0.0:
+                sm = -(d0 * g0 + d1 * g1 + d2 * g2) / gg
+                sm = min(max(sm, -1.0), 1.0)
+                d0, d1, d2 = d0 + sm * g0, d1 + sm * g1, d2 + sm * g2
+        disp[r, 0] = d0
+        disp[r, 1] = d1
+        disp[r, 2] = d2
 
 
 def _impact_jump(velocity, omega, reach):
@@ -235,7 +268,8 @@ class PenetrationAnalyzer(Analyzer):
         other bodies (pairs count for both bodies).
 
         Returns dict of (R,) arrays in body-major order (body, then sample): k, i (body), b
-        (partner: -1 ground, N+m static box m, or a body), sep, normal (partner -> body), point.
+        (partner: -1 ground, N+m static box m, or a body), sep, normal (partner -> body), point,
+        span (R, 3): an edge patch's half-span (the patch is point +- span), else 0.
         """
         tr = ctx.traj
         model = tr.model
@@ -256,21 +290,24 @@ class PenetrationAnalyzer(Analyzer):
         sep_out = np.empty(r)
         normal = np.empty((r, 3))
         point = np.empty((r, 3))
+        span = np.zeros((r, 3))
         g = src == 0
         if g.any():
             sep_out[g] = prox.ground_sep[k[g], i[g]]
             normal[g] = np.asarray(model.ground_normal, float)
-            point[g] = geometry.plane_witness_at(model, k[g], i[g], i[g], tr.position,
-                                                 tr.rotation)
+            point[g], span[g] = geometry.plane_witness_at(model, k[g], i[g], i[g], tr.position,
+                                                          tr.rotation, with_span=True)
         for which, sign in ((1, 1.0), (2, -1.0)):
             m = src == which
             if m.any():
                 rr = ref[m]
                 b[m] = pb[rr] if which == 1 else pa[rr]
-                sep_out[m], nn, pp = prox.iv_geometry(near["row"][rr], near["end"][rr])
+                sep_out[m], nn, pp, ss = prox.iv_geometry(near["row"][rr], near["end"][rr],
+                                                          with_span=True)
                 normal[m] = sign * nn
                 point[m] = pp
-        return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point)
+                span[m] = ss
+        return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point, span=span)
 
     def sliding(self, ctx: Context, sup: dict, cand: np.ndarray) -> tuple[np.ndarray, dict]:
         """(R,) True where the support contact is sliding, not resting (see the module
@@ -560,7 +597,8 @@ class PenetrationAnalyzer(Analyzer):
                     bad |= dyn & (jump[k0, np.where(dyn, who, 0)] > tol["creep_speed_mps"])
                 both[:-1] &= ~bad
             contrib = np.zeros((nrow, 3))
-            _contact_slide(pk, pi_, pb, c(ppt), c(pnorm), c(tr.position, dtype=np.float64),
+            _contact_slide(pk, pi_, pb, c(ppt), c(sup["span"]), c(pnorm),
+                           c(tr.position, dtype=np.float64),
                            c(tr.rotation, dtype=np.float64), n, both, contrib)
             weight = np.zeros(nrow)
             weight[:-1] = 0.5 * (slow[:-1].astype(float) + slow[1:])
