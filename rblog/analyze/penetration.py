@@ -26,9 +26,14 @@ pivoting on a corner of another) has no slip there.
   slower than CREEP_SPEED_MPS and not sliding, half when one is, so that a body that starts to
   slide away is not creep; an interval over which a body's velocity (or angular velocity times
   twice its bounding radius) changes by more than CREEP_SPEED_MPS beyond the mean change of its
-  neighbouring intervals held an impact and does not count (steady accelerations do). A sphere rolling without slip and a box pivoting on its contact slide
-  0. From the poses, motion the velocities do not show is creep too (an engine's position
-  correction pushing a resting body along, steps between samples at which a contact slipped),
+  neighbouring intervals held an impact and does not count (steady accelerations do); nor does
+  an interval over which the contact slid faster than CREEP_SPEED_MPS on average (from the poses):
+  a kick between two slow samples (a resting box struck and stopped by friction within the
+  interval) is a slide, and the samples cannot tell it from a slip. A sphere rolling without
+  slip and a box pivoting on its contact slide 0 (an edge patch slides by its least-slipping
+  point: a box swinging about one end of its edge slides 0). From the poses, motion the
+  velocities do not show is creep too (an engine's position correction pushing a resting body
+  along at a few mm/s, steps between samples at which a contact slipped slowly),
   and velocities that never move the body (spikes between steps) are not.
 * Sliding is not resting: at a sample where the support contact's logged rows (the pair's points
   at the sample's step) are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all
@@ -602,6 +607,16 @@ class PenetrationAnalyzer(Analyzer):
                            c(tr.rotation, dtype=np.float64), n, both, contrib)
             weight = np.zeros(nrow)
             weight[:-1] = 0.5 * (slow[:-1].astype(float) + slow[1:])
+            # ... and an interval over which the contact slid faster than the creep speed on
+            # average (from the poses) held a slide, not creep, though both its samples are slow:
+            # the samples cannot tell a kick between them (a resting box struck and stopped by
+            # friction within the interval) from a slip, and the speed rule is the samples' own
+            if nrow > 1 and t_n > 1:
+                span_t = t[np.minimum(pk[:-1] + 1, t_n - 1)] - t[pk[:-1]]
+                fast = (np.linalg.norm(contrib[:-1], axis=1)
+                        > tol["creep_speed_mps"] * np.where(span_t > 0, span_t, np.inf))
+                weight[:-1] = np.where(fast, 0.0, weight[:-1])
+                stats["creep_fast_intervals"] = float(fast.sum())
             contrib *= weight[:, None]
             creep = np.linalg.norm(red(np.add, contrib), axis=1)
             jit = np.where(has_settled, jit, np.nan)

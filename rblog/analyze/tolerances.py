@@ -153,7 +153,9 @@ PENETRATION_JITTER_MPS = 2e-3
 PENETRATION_JITTER_PERSIST_SAMPLES = 4
 #: Max net slide at the contact while settled (m), over the whole resting interval, from the poses
 #: (rblog.analyze.penetration); only samples slower than CREEP_SPEED_MPS count, so that a body
-#: that slides off (a ramp steeper than its friction allows) is not creep. 0.1 mm: a box that creeps a fraction of a millimetre over
+#: that slides off (a ramp steeper than its friction allows) is not creep, and only sample
+#: intervals over which the contact slid slower than it on average (a kick between two slow
+#: samples is a slide). 0.1 mm: a box that creeps a fraction of a millimetre over
 #: seconds is wrong (static friction holds it exactly); rblog's own impulse solver keeps a
 #: resting box to ~1e-9 m, pybullet's resting cube slips 0.08 mm in 2 s.
 PENETRATION_CREEP_M = 1e-4

@@ -268,3 +268,52 @@ def test_the_same_slide_on_a_loaded_support_is_creep():
     assert f.bodies == [1]
     assert f.value == pytest.approx(1e-3 * (DURATION - T.PENETRATION_SETTLE_S), rel=1e-9)
     assert p.stats["sliding_unloaded"] == 0
+
+
+def shifted_box(intervals):
+    """A box resting on the ground (its rows carry its weight, no friction: inside the cone),
+    logged at rest at every sample, whose pose moves 0.2 mm along x from t = 1 s, evenly over
+    ``intervals`` sample intervals: one interval is a kick between the samples (a resting box
+    struck and stopped by friction within 10 ms, as in rblog's pile at seed 4: box 400 at 29.5
+    mm/s for 7 steps between t = 1.50 and 1.51 s), ten are a slip at 2 mm/s that the logged
+    velocities do not show."""
+    model = rblog.body_table(name=["box"], shape=["box"], size=[[HH, HH, HH]], mass=[M],
+                             friction=MU, restitution=0.0, ground=True, ground_friction=MU,
+                             ground_restitution=0.0)
+    n_s = int(round(DURATION / (DT * EVERY))) + 1
+    step = np.arange(n_s, dtype=np.int64) * EVERY
+    t = step * DT
+    t0, t1 = 1.0, 1.0 + intervals * DT * EVERY
+    x = np.zeros((n_s, 1, 3))
+    x[:, 0] = [0.3, -0.2, HH]
+    x[:, 0, 0] += 2e-4 * np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+    c = dict(step=[], body_a=[], body_b=[], point=[], normal=[], separation=[],
+             normal_impulse=[], friction_impulse=[])
+    for k in range(1, n_s):
+        for p in _corners(x[k, 0]):
+            for key, val in (("step", step[k]), ("body_a", 0), ("body_b", -1), ("point", p),
+                             ("normal", (0, 0, 1)), ("separation", 0.0),
+                             ("normal_impulse", M * G * DT / 4),
+                             ("friction_impulse", (0.0, 0.0, 0.0))):
+                c[key].append(val)
+    rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True)
+    with rec:
+        rec.write(t=t, step=step, position=x, quat_wxyz=np.broadcast_to([1.0, 0, 0, 0], (n_s, 1, 4)),
+                  velocity=np.zeros((n_s, 1, 3)), angular_velocity=np.zeros((n_s, 1, 3)),
+                  contacts=c)
+    return rec.trajectory
+
+
+def test_a_kick_between_two_samples_is_a_slide_not_creep():
+    """0.2 mm within one 10 ms interval: 20 mm/s on average, over the creep speed (10 mm/s)."""
+    p = pen(shifted_box(intervals=1))
+    assert not creep_findings(p), [f.message for f in p.findings]
+    assert p.stats["creep_fast_intervals"] == 1
+
+
+def test_the_same_shift_over_ten_intervals_is_creep():
+    """0.2 mm over ten intervals, 2 mm/s: slow, with the friction inside the cone: creep 0.2 mm."""
+    p = pen(shifted_box(intervals=10))
+    (f,) = creep_findings(p)
+    assert f.value == pytest.approx(2e-4, rel=1e-9)
+    assert p.stats["creep_fast_intervals"] == 0
