@@ -199,6 +199,29 @@ W = 0.05  # rad/s: box433 turned at ~0.047 rad/s on box432 in the 500-box pile
 CORNER = np.array([0.03, -0.02, 2 * H])  # on the bottom cube's top face, 36 mm off its centre
 
 
+def stacked_rows(step, top_point, bottom_half, g=9.81):
+    """Contact rows of a 1 kg "top" on a 1 kg "bottom" on the ground, logged at every step but
+    the first: one row at ``top_point[k]`` carrying the top's weight, and the bottom's four
+    ground corners (half extents ``bottom_half`` in x, y, centred on the origin) carrying both;
+    no friction (inside the cone)."""
+    c = {k: [] for k in ("step", "body_a", "body_b", "point", "normal", "separation",
+                         "normal_impulse", "friction_impulse")}
+
+    def row(s, a, b, p, jn):
+        for key, val in (("step", s), ("body_a", a), ("body_b", b), ("point", p),
+                         ("normal", (0.0, 0.0, 1.0)), ("separation", 0.0),
+                         ("normal_impulse", jn), ("friction_impulse", (0.0, 0.0, 0.0))):
+            c[key].append(val)
+
+    for k in range(1, len(step)):
+        row(step[k], 1, 0, top_point[k], g * DT)
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                row(step[k], 0, -1, (sx * bottom_half[0], sy * bottom_half[1], 0.0),
+                    2 * g * DT / 4)
+    return c
+
+
 def turning_on_a_corner(drift, rows):
     """Cube "top" stands on its corner on cube "bottom" (resting on the ground) and turns about
     the vertical through the corner at W; with ``drift`` (m) the corner also slides along x,
@@ -226,24 +249,7 @@ def turning_on_a_corner(drift, rows):
     model = rblog.body_table(name=["bottom", "top"], shape=["box", "box"], size=[[H, H, H]] * 2,
                              mass=[1.0, 1.0], friction=0.5, restitution=0.0, ground=True,
                              ground_friction=0.5, ground_restitution=0.0)
-    contacts = None
-    if rows:
-        g = 9.81
-        c = {k: [] for k in ("step", "body_a", "body_b", "point", "normal", "separation",
-                             "normal_impulse", "friction_impulse")}
-
-        def row(s, a, b, p, jn):
-            for key, val in (("step", s), ("body_a", a), ("body_b", b), ("point", p),
-                             ("normal", (0.0, 0.0, 1.0)), ("separation", 0.0),
-                             ("normal_impulse", jn), ("friction_impulse", (0.0, 0.0, 0.0))):
-                c[key].append(val)
-
-        for k in range(1, n_s):
-            row(step[k], 1, 0, corner[k], g * DT)
-            for sx in (-1, 1):
-                for sy in (-1, 1):
-                    row(step[k], 0, -1, (sx * H, sy * H, 0.0), 2 * g * DT / 4)
-        contacts = c
+    contacts = stacked_rows(step, corner, (H, H)) if rows else None
     rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True, writer="test_witness")
     with rec:
         rec.write(t=t, step=step, position=pos, quat_wxyz=q, velocity=vel, angular_velocity=om,
@@ -313,21 +319,7 @@ def swinging_on_an_edge(drift):
                              size=[list(slab), [H, H, H]], mass=[1.0, 1.0], friction=0.5,
                              restitution=0.0, ground=True, ground_friction=0.5,
                              ground_restitution=0.0)
-    g = 9.81
-    c = {k: [] for k in ("step", "body_a", "body_b", "point", "normal", "separation",
-                         "normal_impulse", "friction_impulse")}
-
-    def row(s, a, b, p, jn):
-        for key, val in (("step", s), ("body_a", a), ("body_b", b), ("point", p),
-                         ("normal", (0.0, 0.0, 1.0)), ("separation", 0.0),
-                         ("normal_impulse", jn), ("friction_impulse", (0.0, 0.0, 0.0))):
-            c[key].append(val)
-
-    for k in range(1, n_s):
-        row(step[k], 1, 0, pivot[k], g * DT)
-        for sx in (-1, 1):
-            for sy in (-1, 1):
-                row(step[k], 0, -1, (sx * slab[0], sy * slab[1], 0.0), 2 * g * DT / 4)
+    c = stacked_rows(step, pivot, slab[:2])
     rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True, writer="test_witness")
     with rec:
         rec.write(t=t, step=step, position=pos, quat_wxyz=q, velocity=vel, angular_velocity=om,
