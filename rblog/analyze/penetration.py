@@ -41,10 +41,10 @@ pivoting on a corner of another) has no slip there.
   at every point but the one it may pivot about, and a slipping point's friction is at the
   limit), or where the tangential load the support must hold (the body's other contact impulses
   plus (m g + F) dt) reaches that limit, or where none of the pair's rows carries load (its limit
-  is mu x 0: a box chattering on another, loaded only between samples), the contact slides: the notes'
-  resting-contact model (static friction holds the body, strictly inside the cone) does not
-  cover it, so its slip is not creep and its velocity change is not jitter. Such samples stay in
-  the resting interval (a box that sticks, is dragged by a neighbour and sticks again is one
+  is mu x 0: a box chattering on another, loaded only between samples), the contact slides: the
+  notes' resting-contact model (static friction holds the body, strictly inside the cone) does
+  not cover it, so its slip is not creep and its velocity change is not jitter. Such samples stay
+  in the resting interval (a box that sticks, is dragged by a neighbour and sticks again is one
   stay), so slip between them with the friction inside the cone is still creep: that is what
   static friction forbids, and an unconverged velocity solve produces. Without logged contact
   rows, a body touching nothing but its support is judged by its inferred impulse over the

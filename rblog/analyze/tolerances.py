@@ -171,8 +171,9 @@ PENETRATION_CREEP_SPEED_MPS = 1e-2
 #: notes' resting-contact model does not cover, so its slip is not creep. Normal impulses below
 #: SLIDE_FLOOR_NS (= MOMENTUM_CONE_FLOOR_NS, the impulse resolution of a log) carry no friction to
 #: judge; a support none of whose rows at the step carries more is unloaded (limit mu x 0) and
-#: slides too (rblog's pile at seed 2: box 177 chattering on box 130, loaded between samples). Without logged contact rows only a body touching nothing but its support can be judged
-#: (from its inferred impulse). 1%: every engine's points at the limit are there to round-off
+#: slides too (rblog's pile at seed 2: box 177 chattering on box 130, loaded between samples).
+#: Without logged contact rows only a body touching nothing but its support can be judged (from
+#: its inferred impulse). 1%: every engine's points at the limit are there to round-off
 #: (logged |f| / (mu J_n) within 1e-9 of 1: 62,016 of rblog's 438,425 pile rows, 8,769 of MuJoCo's
 #: 42,112, 25,824 of pybullet's 60,737 in 1 s of the pile), and few lie just inside (0.99 .. 1 -
 #: 1e-9: rblog 4.4%, MuJoCo 0.46%, pybullet 0.65% of rows), so the choice within 1e-9 .. 0.1 moves

@@ -245,7 +245,8 @@ def stacked_boxes(load):
                     c[key].append(val)
     rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True)
     with rec:
-        rec.write(t=t, step=step, position=x, quat_wxyz=np.broadcast_to([1.0, 0, 0, 0], (n_s, 2, 4)),
+        q = np.broadcast_to([1.0, 0, 0, 0], (n_s, 2, 4))
+        rec.write(t=t, step=step, position=x, quat_wxyz=q,
                   velocity=v, angular_velocity=np.zeros((n_s, 2, 3)), contacts=c)
     return rec.trajectory
 
@@ -298,7 +299,8 @@ def shifted_box(intervals):
                 c[key].append(val)
     rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True)
     with rec:
-        rec.write(t=t, step=step, position=x, quat_wxyz=np.broadcast_to([1.0, 0, 0, 0], (n_s, 1, 4)),
+        q = np.broadcast_to([1.0, 0, 0, 0], (n_s, 1, 4))
+        rec.write(t=t, step=step, position=x, quat_wxyz=q,
                   velocity=np.zeros((n_s, 1, 3)), angular_velocity=np.zeros((n_s, 1, 3)),
                   contacts=c)
     return rec.trajectory
