@@ -30,8 +30,12 @@ pivoting on a corner of another) has no slip there.
   an interval over which the contact slid faster than CREEP_SPEED_MPS on average (from the poses):
   a kick between two slow samples (a resting box struck and stopped by friction within the
   interval) is a slide, and the samples cannot tell it from a slip. A sphere rolling without
-  slip and a box pivoting on its contact slide 0 (an edge patch slides by its least-slipping
-  point: a box swinging about one end of its edge slides 0). From the poses, motion the
+  slip and a box pivoting on its contact slide 0. Where the pair's logged rows carry load at one
+  point at most, a patch may turn about any of its points: an edge patch slides by its
+  least-slipping point (a box swinging about one end of its edge slides 0), a face patch 0 when
+  the pair turns about a point on both faces (a box pivoting on one corner of its face contact);
+  where more points carry load, static friction holds them all, and the witness is judged (see
+  _contact_slide). From the poses, motion the
   velocities do not show is creep too (an engine's position correction pushing a resting body
   along at a few mm/s, steps between samples at which a contact slipped slowly),
   and velocities that never move the body (spikes between steps) are not.
@@ -135,7 +139,28 @@ def _contact_velocity(pk, pi_, pb, point, normal, position, velocity, omega, n, 
 
 
 @njit(cache=True, nogil=True)
-def _contact_slide(pk, pi_, pb, point, span, normal, position, rotation, n, nxt, disp):
+def _on_face(x, rot, h, d0, d1, d2, c0, c1, c2, band):
+    """True when box (centre x, rotation rot body -> world, half extents h) touches along
+    (d0, d1, d2) with a face (two free axes, geometry._feature_signs) and the point c lies on that
+    face within ``band`` (its body coordinates along the free axes within h + band)."""
+    p0 = rot[0, 0] * d0 + rot[1, 0] * d1 + rot[2, 0] * d2
+    p1 = rot[0, 1] * d0 + rot[1, 1] * d1 + rot[2, 1] * d2
+    p2 = rot[0, 2] * d0 + rot[1, 2] * d1 + rot[2, 2] * d2
+    _, _, _, f0, f1, f2, _ = geometry._feature_signs(p0, p1, p2, h[0], h[1], h[2], band)
+    if int(f0) + int(f1) + int(f2) != 2:
+        return False
+    for j in range(3):
+        if not (f0 if j == 0 else (f1 if j == 1 else f2)):
+            continue
+        loc = (rot[0, j] * (c0 - x[0]) + rot[1, j] * (c1 - x[1]) + rot[2, j] * (c2 - x[2]))
+        if abs(loc) > h[j] + band:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _contact_slide(pk, pi_, pb, point, span, normal, position, rotation, n, nxt, disp,
+                   is_box, size, s_pos, s_rot, s_half, band, nload):
     """Per support row r whose next row r + 1 is the same body on the same partner at the next
     sample (``nxt[r]``, which the caller sets only then): the tangential slide (m, world) at the contact point over that sample
     interval, from the poses alone. Each body's displacement over the interval is the rigid field
@@ -150,7 +175,16 @@ def _contact_slide(pk, pi_, pb, point, span, normal, position, rotation, n, nxt,
     its points: the field is affine along the segment, so that is the tangential part of
     d(p) + s (theta_body - theta_partner) x span at the s in [-1, 1] that minimises it. A box
     swinging about one end of its edge (pivoting there, its other end scraping) slides 0, like
-    one pivoting on a corner; a box sliding along does not.
+    one pivoting on a corner; a box sliding along does not. A face patch (two boxes face to face,
+    or a box face down on the ground) is judged at its witness, the overlap's centroid, unless the
+    pair turns over the interval about a point that lies on both faces (within ``band``): the
+    slide field in the contact plane is then a turn about c = p + (n x d) / theta_n (d the slide
+    at the witness p, theta_n the relative turn about the normal), zero at c, so the interval
+    slides 0 (a box pivoting on one corner of its face contact, the rest of the face scraping).
+    Both patch rules hold only where the pair's logged rows carry load at one point at most
+    (``nload`` (R,) <= 1 at both samples; -1, no rows, counts as one): a patch whose other
+    points are loaded too holds them by static friction, so turning about one of them is creep.
+    ``is_box``/``size``: the bodies' shapes; ``s_*`` the static boxes (partner b = n + m).
     Rows without such a successor get 0."""
     for r in range(pk.shape[0]):
         disp[r, 0] = 0.0
@@ -194,6 +228,26 @@ def _contact_slide(pk, pi_, pb, point, span, normal, position, rotation, n, nxt,
         e0 = 0.5 * (span[r, 0] + e0)
         e1 = 0.5 * (span[r, 1] + e1)
         e2 = 0.5 * (span[r, 2] + e2)
+        if nload[r] > 1 or nload[r + 1] > 1:  # loaded over the patch: judged at its witness
+            e0 = e1 = e2 = 0.0
+        qn = q0 * m0 + q1 * m1 + q2 * m2
+        # (slides under a nanometre keep the witness's value: nothing to gain from the test)
+        if (e0 == 0.0 and e1 == 0.0 and e2 == 0.0 and is_box[i] and abs(qn) > 0.0
+                and nload[r] <= 1 and nload[r + 1] <= 1 and d0 * d0 + d1 * d1 + d2 * d2 > 1e-18):
+            # a face patch turning about c = p + (n x d) / theta_n: on both faces, no slide
+            px = 0.5 * (point[r, 0] + point[r + 1, 0]) + (m1 * d2 - m2 * d1) / qn
+            py = 0.5 * (point[r, 1] + point[r + 1, 1]) + (m2 * d0 - m0 * d2) / qn
+            pz = 0.5 * (point[r, 2] + point[r + 1, 2]) + (m0 * d1 - m1 * d0) / qn
+            on = _on_face(position[k, i], rotation[k, i], size[i], -m0, -m1, -m2, px, py, pz,
+                          band)
+            if on and b >= n:
+                mm = b - n
+                on = _on_face(s_pos[mm], s_rot[mm], s_half[mm], m0, m1, m2, px, py, pz, band)
+            elif on and b >= 0:
+                on = is_box[b] and _on_face(position[k, b], rotation[k, b], size[b], m0, m1, m2,
+                                            px, py, pz, band)
+            if on:
+                d0 = d1 = d2 = 0.0
         if e0 != 0.0 or e1 != 0.0 or e2 != 0.0:
             # slide per unit s along the patch: (theta_body - theta_partner) x span, tangential
             g0 = q1 * e2 - q2 * e1
@@ -211,25 +265,35 @@ def _contact_slide(pk, pi_, pb, point, span, normal, position, rotation, n, nxt,
         disp[r, 2] = d2
 
 
+@njit(cache=True, nogil=True)
 def _impact_jump(velocity, omega, reach):
     """(T-1, N) how much each sample interval changes a body's velocity, plus its angular velocity
     times ``reach`` (N,), beyond the mean change of the neighbouring intervals (m/s): 0 under any
-    steady acceleration, the size of the kick where the body was struck between samples."""
-    dv = np.diff(velocity, axis=0)
-    dw = np.diff(omega, axis=0)
-    out = np.zeros(dv.shape[:2])
-    if dv.shape[0] == 0:
-        return out
-    for d, scale in ((dv, None), (dw, reach)):
-        ref = np.empty_like(d)
-        if d.shape[0] == 1:
-            ref[:] = 0.0
-        else:
-            ref[1:-1] = 0.5 * (d[:-2] + d[2:])
-            ref[0] = d[1]
-            ref[-1] = d[-2]
-        e = np.linalg.norm(d - ref, axis=2)
-        out += e if scale is None else e * scale[None, :]
+    steady acceleration, the size of the kick where the body was struck between samples. (The
+    first and last intervals compare with their one neighbour; a single interval with 0.)"""
+    m = velocity.shape[0] - 1
+    n = velocity.shape[1]
+    out = np.zeros((max(m, 0), n))
+    for k in range(m):
+        for i in range(n):
+            tot = 0.0
+            for which in range(2):
+                a = velocity if which == 0 else omega
+                e2 = 0.0
+                for c in range(3):
+                    d = a[k + 1, i, c] - a[k, i, c]
+                    if m == 1:
+                        ref = 0.0
+                    elif k == 0:
+                        ref = a[2, i, c] - a[1, i, c]
+                    elif k == m - 1:
+                        ref = a[k, i, c] - a[k - 1, i, c]
+                    else:
+                        ref = 0.5 * ((a[k, i, c] - a[k - 1, i, c])
+                                     + (a[k + 2, i, c] - a[k + 1, i, c]))
+                    e2 += (d - ref) * (d - ref)
+                tot += math.sqrt(e2) * (1.0 if which == 0 else reach[i])
+            out[k, i] = tot
     return out
 
 
@@ -314,10 +378,12 @@ class PenetrationAnalyzer(Analyzer):
                 span[m] = ss
         return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point, span=span)
 
-    def sliding(self, ctx: Context, sup: dict, cand: np.ndarray) -> tuple[np.ndarray, dict]:
+    def sliding(self, ctx: Context, sup: dict,
+                cand: np.ndarray) -> tuple[np.ndarray, dict, np.ndarray]:
         """(R,) True where the support contact is sliding, not resting (see the module
         docstring), judged at the rows ``cand`` (R,) only (the slow ones: only they can rest),
-        and counts of why.
+        counts of why, and (R,) how many of the pair's logged rows at the step carry load
+        (above the impulse floor; -1 where the log has none for the pair).
 
         With logged contact rows (the step that ends at the sample, rows of the support pair):
         the pair's points are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``,
@@ -335,11 +401,12 @@ class PenetrationAnalyzer(Analyzer):
         frac = self.tol["slide_cone_frac"]
         floor = self.tol["slide_floor_ns"]
         out = np.zeros(r_n, bool)
+        nload = np.full(r_n, -1, np.int64)
         why = {"sliding_friction_at_limit": 0, "sliding_pushed": 0, "sliding_unloaded": 0,
                "sliding_inferred": 0}
         rows_c = np.nonzero(cand)[0]
         if not len(rows_c):
-            return out, why
+            return out, why, nload
         pk, pi_, pb = sup["k"][rows_c], sup["i"][rows_c], sup["b"][rows_c]
         pnorm = sup["normal"][rows_c]
         c = tr.contacts
@@ -364,7 +431,7 @@ class PenetrationAnalyzer(Analyzer):
             pos = np.clip(np.searchsorted(uk, skey), 0, len(uk) - 1)
             found = uk[pos] == skey
             if not found.any():
-                return out, why
+                return out, why, nload
             sel = np.nonzero(found)[0]
             pos, pk, pi_, pb, rows_c = pos[sel], pk[sel], pi_[sel], pb[sel], rows_c[sel]
             sgn = np.concatenate([np.ones(int(ok.sum())), -np.ones(int(dyn.sum()))])
@@ -427,6 +494,7 @@ class PenetrationAnalyzer(Analyzer):
             why["sliding_pushed"] = int(pushed.sum())
             why["sliding_unloaded"] = int(unloaded.sum())
             out[rows_c] = at_limit | pushed | unloaded
+            nload[rows_c] = (n_at + n_in)[pos]
         elif tr.n_samples > 1:
             # how many things the body touches at the sample: the ground, static boxes, bodies
             cd = self.tol["contact_distance_m"]
@@ -454,7 +522,7 @@ class PenetrationAnalyzer(Analyzer):
             sl = lone & (jn > floor) & (jt >= (1.0 - frac) * mu * jn)
             out[rows_c] = sl
             why["sliding_inferred"] = int(sl.sum())
-        return out, why
+        return out, why, nload
 
     def analyze(self, ctx: Context) -> Result:
         tr = ctx.traj
@@ -522,7 +590,7 @@ class PenetrationAnalyzer(Analyzer):
         # sticks, is dragged, and sticks again stays on its partner), so sliding samples between
         # creeping ones cannot hide the creep: slip with friction inside the cone is what
         # static friction forbids.
-        slides, why = self.sliding(ctx, sup, rest)
+        slides, why, nload = self.sliding(ctx, sup, rest)
         stats.update({k: float(v) for k, v in why.items()})
 
         # ---- resting intervals: runs of consecutive resting samples of one body (row space)
@@ -593,8 +661,9 @@ class PenetrationAnalyzer(Analyzer):
             # acceleration, a ball rolling down a ramp, changes every interval alike) was struck,
             # and a contact may slide at its cone unseen between the samples: not resting
             if nrow > 1 and t_n > 1:
-                jump = _impact_jump(tr.velocity, tr.angular_velocity,
-                                    2.0 * geometry.bounding_radius(model))
+                jump = _impact_jump(c(tr.velocity, dtype=np.float64),
+                                    c(tr.angular_velocity, dtype=np.float64),
+                                    c(2.0 * geometry.bounding_radius(model), dtype=np.float64))
                 k0 = np.minimum(pk[:-1], t_n - 2)
                 bad = np.zeros(nrow - 1, bool)
                 for who in (pi_[:-1], pb[:-1]):
@@ -602,9 +671,13 @@ class PenetrationAnalyzer(Analyzer):
                     bad |= dyn & (jump[k0, np.where(dyn, who, 0)] > tol["creep_speed_mps"])
                 both[:-1] &= ~bad
             contrib = np.zeros((nrow, 3))
+            s_pos, s_rot, s_half = geometry.static_boxes(model)
             _contact_slide(pk, pi_, pb, c(ppt), c(sup["span"]), c(pnorm),
                            c(tr.position, dtype=np.float64),
-                           c(tr.rotation, dtype=np.float64), n, both, contrib)
+                           c(tr.rotation, dtype=np.float64), n, both, contrib,
+                           np.asarray(model.body_shape) != 0,
+                           c(model.body_size, dtype=np.float64), c(s_pos), c(s_rot),
+                           c(s_half), T.WITNESS_BAND_M, nload)
             weight = np.zeros(nrow)
             weight[:-1] = 0.5 * (slow[:-1].astype(float) + slow[1:])
             # ... and an interval over which the contact slid faster than the creep speed on

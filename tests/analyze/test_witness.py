@@ -199,11 +199,12 @@ W = 0.05  # rad/s: box433 turned at ~0.047 rad/s on box432 in the 500-box pile
 CORNER = np.array([0.03, -0.02, 2 * H])  # on the bottom cube's top face, 36 mm off its centre
 
 
-def stacked_rows(step, top_point, bottom_half, g=9.81):
+def stacked_rows(step, top_point, bottom_half, also=None, g=9.81):
     """Contact rows of a 1 kg "top" on a 1 kg "bottom" on the ground, logged at every step but
-    the first: one row at ``top_point[k]`` carrying the top's weight, and the bottom's four
-    ground corners (half extents ``bottom_half`` in x, y, centred on the origin) carrying both;
-    no friction (inside the cone)."""
+    the first: one row at ``top_point[k]`` carrying the top's weight (with ``also``, a second
+    row at ``also[k]`` and half the weight on each), and the bottom's four ground corners (half
+    extents ``bottom_half`` in x, y, centred on the origin) carrying both; no friction (inside
+    the cone)."""
     c = {k: [] for k in ("step", "body_a", "body_b", "point", "normal", "separation",
                          "normal_impulse", "friction_impulse")}
 
@@ -214,7 +215,11 @@ def stacked_rows(step, top_point, bottom_half, g=9.81):
             c[key].append(val)
 
     for k in range(1, len(step)):
-        row(step[k], 1, 0, top_point[k], g * DT)
+        if also is None:
+            row(step[k], 1, 0, top_point[k], g * DT)
+        else:
+            row(step[k], 1, 0, top_point[k], g * DT / 2)
+            row(step[k], 1, 0, also[k], g * DT / 2)
         for sx in (-1, 1):
             for sy in (-1, 1):
                 row(step[k], 0, -1, (sx * bottom_half[0], sy * bottom_half[1], 0.0),
@@ -290,14 +295,15 @@ def test_the_same_box_dragging_its_corner_03_mm_creeps(rows):
     assert f.value == pytest.approx(3e-4, rel=1e-6)
 
 
-def swinging_on_an_edge(drift):
+def swinging_on_an_edge(drift, far_end_loaded=False):
     """Cube "top" lies on its edge (turned 45 deg about x: the edge along x, 0.1 m long) on the
     top face of slab "bottom" (0.4 x 0.3 x 0.1 m, on the ground), and swings about the vertical
     through the edge's end at the origin's (0, 0, 0.1) at W: that end stays, the other end
     scrapes sideways (the swing of rblog's pile at seed 5, box 444 on box 441). With ``drift`` (m)
     the whole box also slides along the edge (x), uniformly over the settled part of the rest.
     One contact row per logged step at the pivot end carries the top's weight (friction zero:
-    inside the cone), and the slab's four ground rows its own and the top's."""
+    inside the cone), and the slab's four ground rows its own and the top's; with
+    ``far_end_loaded`` the edge's other end has a row too, and each carries half the weight."""
     n_s = int(round(DURATION / (DT * EVERY))) + 1
     step = np.arange(n_s, dtype=np.int64) * EVERY
     t = step * DT
@@ -319,7 +325,8 @@ def swinging_on_an_edge(drift):
                              size=[list(slab), [H, H, H]], mass=[1.0, 1.0], friction=0.5,
                              restitution=0.0, ground=True, ground_friction=0.5,
                              ground_restitution=0.0)
-    c = stacked_rows(step, pivot, slab[:2])
+    far = x_top + np.einsum("kij,j->ki", rot, local * [-1.0, 1.0, 1.0])
+    c = stacked_rows(step, pivot, slab[:2], also=far if far_end_loaded else None)
     rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True, writer="test_witness")
     with rec:
         rec.write(t=t, step=step, position=pos, quat_wxyz=q, velocity=vel, angular_velocity=om,
@@ -360,3 +367,13 @@ def test_the_same_box_sliding_03_mm_along_its_edge_creeps():
     across = vs * (np.sin(W * t1) ** 2 - np.sin(W * t0) ** 2) / (2 * W)
     # measured 2.99361451e-4 against 2.99361445e-4: the midpoint field's remainder
     assert f.value == pytest.approx(np.hypot(along, across), rel=1e-6)
+
+
+def test_the_same_swing_with_both_ends_of_the_edge_loaded_creeps():
+    """Both ends of the edge carry load with their friction inside the cone: static friction
+    holds the far end too, so the swing is creep, read at the edge's middle (H from the pivot):
+    the chord of its arc over the settled part, 2 H sin(W (2 s - SETTLE_S) / 2) = 4.748 mm."""
+    pen, creep = creep_of_top(swinging_on_an_edge(drift=0.0, far_end_loaded=True))
+    (f,) = [f for f in creep if f.bodies == [1]]
+    chord = 2 * H * np.sin(W * (DURATION - T.PENETRATION_SETTLE_S) / 2)
+    assert f.value == pytest.approx(chord, rel=1e-6)  # measured 4.748214003578e-3
