@@ -219,6 +219,30 @@ def test_a_box_pivoting_with_friction_inside_the_cone_is_creep():
 N_LOGGED = int(round(DURATION / (DT * EVERY)))  # samples with contact rows (all but the first)
 
 
+def still_boxes_log(model, step, x, v, rows):
+    """Trajectory of unrotated, non-spinning boxes at positions ``x`` (T, N, 3) and velocities
+    ``v`` (T, N, 3), sampled at ``step``. ``rows`` (body, partner, z or None, J_n) lists the
+    frictionless rows logged at every sample but the first, one per bottom corner of ``body``
+    (at height z, or at the corner's own)."""
+    c = dict(step=[], body_a=[], body_b=[], point=[], normal=[], separation=[],
+             normal_impulse=[], friction_impulse=[])
+    for k in range(1, len(step)):
+        for body, partner, z, jn in rows:
+            for p in _corners(x[k, body]):
+                for key, val in (("step", step[k]), ("body_a", body), ("body_b", partner),
+                                 ("point", (p[0], p[1], p[2] if z is None else z)),
+                                 ("normal", (0, 0, 1)), ("separation", 0.0),
+                                 ("normal_impulse", jn), ("friction_impulse", (0.0, 0.0, 0.0))):
+                    c[key].append(val)
+    n_s, n_b = x.shape[:2]
+    rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True)
+    with rec:
+        rec.write(t=step * DT, step=step, position=x,
+                  quat_wxyz=np.broadcast_to([1.0, 0, 0, 0], (n_s, n_b, 4)), velocity=v,
+                  angular_velocity=np.zeros((n_s, n_b, 3)), contacts=c)
+    return rec.trajectory
+
+
 def stacked_boxes(load):
     """Box 1 on box 0 (box 0 on the ground, still), box 1 sliding along x at 1 mm/s (under the
     creep speed, 1 cm/s). Box 1's four rows on box 0 carry ``load`` x m g dt / 4 each and no
@@ -237,23 +261,8 @@ def stacked_boxes(load):
     x[:, 1, 0] += speed * t
     v = np.zeros((n_s, 2, 3))
     v[:, 1, 0] = speed
-    c = dict(step=[], body_a=[], body_b=[], point=[], normal=[], separation=[],
-             normal_impulse=[], friction_impulse=[])
-    for k in range(1, n_s):
-        for body, partner, z, jn in ((0, -1, 0.0, 2 * M * G * DT / 4),
-                                     (1, 0, 2 * HH - 1e-5, load * M * G * DT / 4)):
-            for p in _corners(x[k, body]):
-                for key, val in (("step", step[k]), ("body_a", body), ("body_b", partner),
-                                 ("point", (p[0], p[1], z)), ("normal", (0, 0, 1)),
-                                 ("separation", 0.0), ("normal_impulse", jn),
-                                 ("friction_impulse", (0.0, 0.0, 0.0))):
-                    c[key].append(val)
-    rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True)
-    with rec:
-        q = np.broadcast_to([1.0, 0, 0, 0], (n_s, 2, 4))
-        rec.write(t=t, step=step, position=x, quat_wxyz=q,
-                  velocity=v, angular_velocity=np.zeros((n_s, 2, 3)), contacts=c)
-    return rec.trajectory
+    return still_boxes_log(model, step, x, v, ((0, -1, 0.0, 2 * M * G * DT / 4),
+                                               (1, 0, 2 * HH - 1e-5, load * M * G * DT / 4)))
 
 
 def test_a_box_on_an_unloaded_support_slides_and_is_not_creep():
@@ -293,22 +302,8 @@ def shifted_box(intervals):
     x = np.zeros((n_s, 1, 3))
     x[:, 0] = [0.3, -0.2, HH]
     x[:, 0, 0] += 2e-4 * np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
-    c = dict(step=[], body_a=[], body_b=[], point=[], normal=[], separation=[],
-             normal_impulse=[], friction_impulse=[])
-    for k in range(1, n_s):
-        for p in _corners(x[k, 0]):
-            for key, val in (("step", step[k]), ("body_a", 0), ("body_b", -1), ("point", p),
-                             ("normal", (0, 0, 1)), ("separation", 0.0),
-                             ("normal_impulse", M * G * DT / 4),
-                             ("friction_impulse", (0.0, 0.0, 0.0))):
-                c[key].append(val)
-    rec = rblog.Recorder(model, dt=DT, log_every=EVERY, keep=True)
-    with rec:
-        q = np.broadcast_to([1.0, 0, 0, 0], (n_s, 1, 4))
-        rec.write(t=t, step=step, position=x, quat_wxyz=q,
-                  velocity=np.zeros((n_s, 1, 3)), angular_velocity=np.zeros((n_s, 1, 3)),
-                  contacts=c)
-    return rec.trajectory
+    return still_boxes_log(model, step, x, np.zeros((n_s, 1, 3)),
+                           ((0, -1, None, M * G * DT / 4),))
 
 
 def test_a_kick_between_two_samples_is_a_slide_not_creep():
