@@ -55,7 +55,7 @@ def export(ref: str, into: Path) -> str:
     path = into / "path"
     path.mkdir()
     (path / "rblog").symlink_to(src / "rblog")
-    (path / "rblog_cli").symlink_to(src / "cli")
+    (path / "rblog_cli").symlink_to(src / "cli" / "rblog_cli")
     return str(path)
 
 
