@@ -9,6 +9,7 @@
 namespace rb {
 void bind_threads(nanobind::module_& m);
 void bind_free(nanobind::module_& m);
+void bind_collision(nanobind::module_& m);
 void bind_contact(nanobind::module_& m);
 // The process's task pool (rblog run --threads N / RBLOG_THREADS), threads.cpp.
 TaskPool& pool();

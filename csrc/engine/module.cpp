@@ -7,5 +7,6 @@ NB_MODULE(_core, m) {
     rb::register_errors();
     rb::bind_threads(m);
     rb::bind_free(m);
+    rb::bind_collision(m);
     rb::bind_contact(m);
 }
