@@ -18,19 +18,6 @@ The public API, imported lazily so that ``import rblog`` stays cheap::
 __version__ = "0.1.0"
 
 
-def _settle_kernel_cache() -> None:
-    """Before any kernel is defined: cache compiled kernels in a folder keyed by rblog's source
-    (a changed callee can never leave a stale kernel), falling back with one warning line on
-    stderr when no folder is writable (rblog._kernel_cache)."""
-    import sys
-
-    from rblog._kernel_cache import settle_kernel_cache
-
-    settle_kernel_cache(lambda msg: print(f"rblog: warning: {msg}", file=sys.stderr))
-
-
-_settle_kernel_cache()
-
 _API = {
     "load_scene": ("rblog.engine.scene", "load_scene"),
     "parse_scene": ("rblog.engine.scene", "parse_scene"),

@@ -106,11 +106,9 @@ def machine_info() -> dict:
                     break
     except OSError:
         pass
-    import numba
-
     info = {"cpu": cpu, "cores": os.cpu_count(), "platform": platform.platform(),
             "python": platform.python_version(), "numpy": np.__version__,
-            "numba": numba.__version__, "rblog": __version__}
+            "rblog": __version__}
     try:
         import scipy
 
@@ -434,7 +432,7 @@ def format_table(report: BenchReport) -> str:
     lines = []
     m = report.machine
     lines.append(f"rblog bench{' --quick' if report.quick else ''}: {m.get('cpu', '?')}, "
-                 f"{m.get('cores', '?')} cores, python {m.get('python')}, numba {m.get('numba')}")
+                 f"{m.get('cores', '?')} cores, python {m.get('python')}")
     head = (f"{'engine/integrator':<22}{'dt':>8}{'ms/sim-s':>10}{'us/step':>9}{'error':>10}{'w err':>10}"
             f"{'angle':>10}{'pos err':>10}{'E drift':>10}{'|L| drift':>10}{'ortho':>10}  ")
     for info in report.problems:

@@ -32,13 +32,10 @@ client's: on a local cluster the scheduler gives up at the first death
 scheduler first applies its own ``allowed-failures`` (Dask's default: 3), then the client
 resubmits once.
 
-Kernels. A worker process is long-lived: numba kernels load (or compile) at its first task and
-are reused for every later one. Worker processes inherit the environment, so ``NUMBA_CACHE_DIR``
-points them at the same on-disk cache as the client: on one machine (or on workers sharing a file
-system) kernels compile once in all. Local workers get ``NUMBA_NUM_THREADS`` = cores // workers
-(at least 1) unless it is set: the free kernel splits large scenes over that many threads, and
-two workers of two threads each would oversubscribe two cores (results are bitwise the same for
-any thread count).
+Threads. A worker process is long-lived and loads rblog's compiled core once. Local workers get
+``RBLOG_THREADS`` = cores // workers (at least 1) unless it is set: the core splits large scenes
+over that many threads, and two workers of two threads each would oversubscribe two cores
+(results are bitwise the same for any thread count).
 
 Dask is the optional extra ``cluster`` (``pip install -e ".[cluster]"``); without it, only the
 serial executor exists and asking for workers raises :class:`ClusterUnavailable` naming the extra.
@@ -178,10 +175,10 @@ class Executor:
         # Dask starts workers with MALLOC_TRIM_THRESHOLD_=65536 (memory handed back to the OS
         # eagerly); reading a 20 MB log then runs 1.3-1.7x slower than in a plain process
         # (docs/cluster.md), so local workers keep glibc's default
-        # each worker's kernels get its share of the cores (an explicit NUMBA_NUM_THREADS wins)
+        # each worker's core gets its share of the cores (an explicit RBLOG_THREADS wins)
         env = {}
-        if "NUMBA_NUM_THREADS" not in os.environ:
-            env["NUMBA_NUM_THREADS"] = str(max(1, default_workers() // self.workers))
+        if "RBLOG_THREADS" not in os.environ:
+            env["RBLOG_THREADS"] = str(max(1, default_workers() // self.workers))
         with dask.config.set({"distributed.scheduler.allowed-failures": 0,
                               "distributed.scheduler.worker-saturation": WORKER_SATURATION,
                               "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,

@@ -23,7 +23,7 @@ from conftest import SAMPLES_DIR  # noqa: E402
 
 
 #: s. How long a test waits for the nannies to bring back a killed worker (a new Python process
-#: importing numpy, numba and distributed). A few seconds on an idle machine; a run of this file
+#: importing numpy and distributed). A few seconds on an idle machine; a run of this file
 #: on the 2-core machine loaded by three other compiling jobs once needed more than 60 s.
 WORKER_RESTART_TIMEOUT_S = 300
 
