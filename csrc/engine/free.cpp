@@ -1,0 +1,287 @@
+// Kernels that advance free bodies (no contacts) many steps per call (rblog/engine/free.py keeps
+// the Python entry points, BODY_TILE, SPARSE_STRIDE, MIN_PARALLEL_BODY_STEPS and body_ranges).
+//
+// Bodies are independent without contacts, so the loop runs over tiles of BODY_TILE bodies, steps
+// inside a tile: the tile's state stays in L1 for the whole block, and samples are written for
+// consecutive bodies. When samples are SPARSE_STRIDE or more steps apart the tile is one body
+// (its position and momentum in registers for the whole block). Each body's step is its
+// integrator's step_body below (the stages in integrators.hpp), except under exact / exact4,
+// whose kernel writes the same step out in its own body (advance_exact_range; the arithmetic of
+// step_body + drift_exact_anchored, operation for operation: tests/engine/test_exact_anchored.py
+// compares the two bit for bit).
+//
+// Samples are written after every stride-th step (and after the last step of the block when
+// sample_last), so logging costs nothing between samples.
+//
+// Each integrator has its own instantiation of the kernel (a template on the METHOD_* code), so
+// the step is compiled into the loop with no dispatch inside it.
+//
+// Threads: advance_free runs contiguous BODY_TILE-aligned body ranges (free.body_ranges) as tasks
+// of the engine's pool (rb::pool()). A body's arithmetic does not depend on which range it is in,
+// so the result is bitwise the same for any thread count.
+#include "engine/free.hpp"
+
+#include <cmath>
+#include <memory>
+
+#include "engine/bind.hpp"
+#include "engine/integrators.hpp"
+
+namespace rb {
+
+namespace {
+
+// One step of free body i by integrator METHOD (not the exact ones): orientation and L in place,
+// position (x, y, z) and momentum (px, py, pz) in registers. Translation: seed / seed-quat
+// symplectic Euler, splitting kick-drift-kick and rk4 the exact constant-force step (the same map
+// x += h v + h^2 a / 2, v += h a). Returns false if the state became non-finite or the body
+// turned more than MAX_ROTATION_PER_STEP_RAD in the step (integrators.step_body).
+template <int METHOD>
+inline bool step_body(const FreeArgs& a, i64 i, double& x, double& y, double& z, double& px,
+                      double& py, double& pz) {
+    const double dt = a.dt;
+    const int ortho = a.ortho;
+    V2<double> L = a.angular_momentum;
+    const double im = a.inv_mass[i];
+    const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
+    const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
+    if (METHOD == METHOD_SPLITTING) {
+        // kick half, drift, kick half
+        const double hh = 0.5 * dt;
+        px += hh * fx; py += hh * fy; pz += hh * fz;
+        L(i, 0) += hh * tx; L(i, 1) += hh * ty; L(i, 2) += hh * tz;
+        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+        drift_splitting(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
+        px += hh * fx; py += hh * fy; pz += hh * fz;
+        L(i, 0) += hh * tx; L(i, 1) += hh * ty; L(i, 2) += hh * tz;
+    } else if (METHOD == METHOD_RK4) {
+        // translation: exact for a constant force; rotation: RK4 with L(t) = L + t tau
+        flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
+        drift_rk4(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt, tx, ty, tz);
+        L(i, 0) += dt * tx; L(i, 1) += dt * ty; L(i, 2) += dt * tz;
+    } else {
+        // the notes: forward Euler on P and L, then x and R from the new values
+        px += dt * fx; py += dt * fy; pz += dt * fz;
+        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+        L(i, 0) += dt * tx; L(i, 1) += dt * ty; L(i, 2) += dt * tz;
+        if (METHOD == METHOD_SEED)
+            drift_seed(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
+        else
+            drift_seed_quat(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
+    }
+    // non-finite check: one sum covers position, momenta and part of the rotation
+    const double* r = a.rotation.row(i);
+    const double chk = x + y + z + px + py + pz + L(i, 0) + L(i, 1) + L(i, 2) + r[0] + r[4] + r[8]
+                       + r[1];
+    return std::isfinite(chk) && turn_within_bound(dt, i, a.inv_inertia, a.rotation, L);
+}
+
+template <int METHOD>
+inline void sample(const FreeArgs& a, i64 j, i64 i) {
+    write_sample_t<METHOD>(j, i, a.position, a.linear_momentum, a.quat_wxyz, a.rotation,
+                           a.angular_momentum, a.out_position, a.out_linear_momentum,
+                           a.out_quat_wxyz, a.out_rotation, a.out_angular_momentum);
+}
+
+inline bool sample_due(const FreeArgs& a, i64 s) {
+    return s % a.stride == 0 || (a.sample_last && s == a.n_steps);
+}
+
+// Bodies b0 .. b1-1, n_steps steps of dt, samples written (advance_free_range's contract).
+template <int METHOD>
+FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
+    FreeResult res;
+    const i64 tile = a.tile;
+    V2<double> pos = a.position, mom = a.linear_momentum;
+    for (i64 t0 = b0; t0 < b1; t0 += tile) {
+        const i64 t1 = t0 + tile < b1 ? t0 + tile : b1;
+        i64 j = 0;
+        if (tile == 1) {
+            const i64 i = t0;
+            double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
+            double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
+            for (i64 s = 1; s <= a.n_steps; ++s) {
+                if (!step_body<METHOD>(a, i, x, y, z, px, py, pz)) {
+                    if (res.bad_step < 0 || s < res.bad_step) {
+                        res.bad_step = s;
+                        res.bad_body = i;
+                    }
+                    break;
+                }
+                if (sample_due(a, s)) {
+                    pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+                    mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+                    sample<METHOD>(a, j, i);
+                    j += 1;
+                }
+            }
+            pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+            mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+        } else {
+            for (i64 s = 1; s <= a.n_steps; ++s) {
+                bool ok = true;
+                for (i64 i = t0; i < t1; ++i) {
+                    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
+                    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
+                    ok = step_body<METHOD>(a, i, x, y, z, px, py, pz);
+                    pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+                    mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+                    if (!ok) {
+                        if (res.bad_step < 0 || s < res.bad_step) {
+                            res.bad_step = s;
+                            res.bad_body = i;
+                        }
+                        break;
+                    }
+                }
+                if (!ok) break;
+                if (sample_due(a, s)) {
+                    for (i64 i = t0; i < t1; ++i) sample<METHOD>(a, j, i);
+                    j += 1;
+                }
+            }
+        }
+        if (METHOD == METHOD_SEED)  // the only integrator whose q is not current
+            for (i64 i = t0; i < t1; ++i) sync_quat_seed(a.quat_wxyz, a.rotation, i);
+        if (j > res.n_samples) res.n_samples = j;
+    }
+    return res;
+}
+
+// The kernel of exact / exact4: advance_range's loops with the exact step written out
+// (integrators.step_body, _strang_exact and drift_exact_anchored, operation for operation).
+// The flow constants of each body of a tile are computed from its anchor on its first step in
+// this call (a pure function of the anchor: the same in every split).
+template <int METHOD>
+FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
+    FreeResult res;
+    const i64 tile = a.tile;
+    const double dt = a.dt;
+    const double w1 = yoshida_w1(), w0 = yoshida_w0();
+    std::vector<double> fc(static_cast<size_t>(tile * N_FLOW));
+    std::unique_ptr<bool[]> fc_ok(new bool[static_cast<size_t>(tile)]());
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    V3<double> R = a.rotation;
+    V2<double> a_q = a.a_q, a_l = a.a_l;
+    V1<i64> a_n = a.a_n;
+    V1<double> a_dt = a.a_dt;
+    for (i64 t0 = b0; t0 < b1; t0 += tile) {
+        const i64 t1 = t0 + tile < b1 ? t0 + tile : b1;
+        for (i64 r = 0; r < tile; ++r) fc_ok[r] = false;
+        i64 j = 0;
+        for (i64 s = 1; s <= a.n_steps; ++s) {
+            bool ok = true;
+            for (i64 i = t0; i < t1; ++i) {
+                const i64 r = i - t0;
+                double* row = fc.data() + r * N_FLOW;
+                // translation: exact for a constant force (integrators.step_body)
+                const double im = a.inv_mass[i];
+                const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
+                const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
+                double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
+                double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
+                flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
+                pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+                mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+                // rotation: Strang kick(h/2) flow(h) kick(h/2), with torque under exact4
+                // Yoshida's three of them
+                const double k0 = a.inv_inertia(i, 0), k1 = a.inv_inertia(i, 1), k2 = a.inv_inertia(i, 2);
+                double lx = L(i, 0), ly = L(i, 1), lz = L(i, 2);
+                double qw = Q(i, 0), qx = Q(i, 1), qy = Q(i, 2), qz = Q(i, 3);
+                const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
+                const int n_sub = (METHOD == METHOD_EXACT4 && torqued) ? 3 : 1;
+                for (int sub = 0; sub < n_sub; ++sub) {
+                    double h = dt;
+                    if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
+                    const double hk = 0.5 * h;
+                    if (torqued) {
+                        lx += hk * tx; ly += hk * ty; lz += hk * tz;
+                    }
+                    // the anchor (drift_exact_anchored): kept while L is bitwise the anchor's and
+                    // the step is the same
+                    if (!anchor_holds(a_n[i], a_dt[i], a_l(i, 0), a_l(i, 1), a_l(i, 2), h, lx, ly, lz)) {
+                        a_q(i, 0) = qw; a_q(i, 1) = qx; a_q(i, 2) = qy; a_q(i, 3) = qz;
+                        a_l(i, 0) = lx; a_l(i, 1) = ly; a_l(i, 2) = lz;
+                        a_n[i] = 0;
+                        a_dt[i] = h;
+                        fc_ok[r] = false;
+                    }
+                    const double aw = a_q(i, 0), ax = a_q(i, 1), ay = a_q(i, 2), az = a_q(i, 3);
+                    if (!fc_ok[r]) {
+                        anchor_constants(row, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h);
+                        fc_ok[r] = true;
+                    }
+                    const i64 n = a_n[i] + 1;
+                    double rj_c;
+                    const Quat q = anchored_quat(row, aw, ax, ay, az,
+                                                 static_cast<double>(n) * std::fabs(h), qw, qx, qy,
+                                                 qz, rj_c);
+                    qw = q[0]; qx = q[1]; qy = q[2]; qz = q[3];
+                    if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
+                    a_n[i] = n;
+                    if (torqued) {
+                        lx += hk * tx; ly += hk * ty; lz += hk * tz;
+                    }
+                }
+                L(i, 0) = lx; L(i, 1) = ly; L(i, 2) = lz;
+                Q(i, 0) = qw; Q(i, 1) = qx; Q(i, 2) = qy; Q(i, 3) = qz;
+                const Mat3 m = quat_to_mat(qw, qx, qy, qz);
+                store_mat(R, i, m);
+                // non-finite check and turn bound (integrators.step_body)
+                const double chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+                ok = std::isfinite(chk) && turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m);
+                if (!ok) {
+                    if (res.bad_step < 0 || s < res.bad_step) {
+                        res.bad_step = s;
+                        res.bad_body = i;
+                    }
+                    break;
+                }
+            }
+            if (!ok) break;
+            if (sample_due(a, s)) {
+                for (i64 i = t0; i < t1; ++i) sample<METHOD>(a, j, i);
+                j += 1;
+            }
+        }
+        if (j > res.n_samples) res.n_samples = j;
+    }
+    return res;
+}
+
+}  // namespace
+
+FreeResult advance_free_range(int method, const FreeArgs& a, i64 b0, i64 b1) {
+    switch (method) {
+        case METHOD_SEED: return advance_range<METHOD_SEED>(a, b0, b1);
+        case METHOD_SEED_QUAT: return advance_range<METHOD_SEED_QUAT>(a, b0, b1);
+        case METHOD_SPLITTING: return advance_range<METHOD_SPLITTING>(a, b0, b1);
+        case METHOD_RK4: return advance_range<METHOD_RK4>(a, b0, b1);
+        case METHOD_EXACT: return advance_exact_range<METHOD_EXACT>(a, b0, b1);
+        case METHOD_EXACT4: return advance_exact_range<METHOD_EXACT4>(a, b0, b1);
+        default: throw std::invalid_argument("unknown integrator code " + std::to_string(method));
+    }
+}
+
+FreeResult advance_free(int method, const FreeArgs& a,
+                        const std::vector<std::pair<i64, i64>>& ranges) {
+    if (ranges.size() == 1) return advance_free_range(method, a, ranges[0].first, ranges[0].second);
+    std::vector<FreeResult> results(ranges.size());
+    pool().parallel_for(static_cast<i64>(ranges.size()), [&](i64 t) {
+        results[static_cast<size_t>(t)] =
+            advance_free_range(method, a, ranges[static_cast<size_t>(t)].first,
+                               ranges[static_cast<size_t>(t)].second);
+    });
+    // the serial kernel's reduction: most samples; the earliest bad step, first body on ties
+    FreeResult out;
+    for (const FreeResult& r : results) {
+        if (r.n_samples > out.n_samples) out.n_samples = r.n_samples;
+        if (r.bad_step >= 0 && (out.bad_step < 0 || r.bad_step < out.bad_step)) {
+            out.bad_step = r.bad_step;
+            out.bad_body = r.bad_body;
+        }
+    }
+    return out;
+}
+
+}  // namespace rb
