@@ -20,7 +20,6 @@
 // pairs with anything.
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <vector>
 
 #include "engine/collision.hpp"
@@ -103,28 +102,47 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
     }
     const int ax1 = (best_axis + 1) % 3;
     const int ax2 = (best_axis + 2) % 3;
-    // stable argsort of the boxes' low ends on the sweep axis (NaN last, as numpy)
-    static thread_local std::vector<double> keys;
-    static thread_local std::vector<i64> order;
-    keys.resize(n_items);
+    // stable argsort of the boxes' low ends on the sweep axis (NaN last, as numpy): a sort by
+    // (key, index), which orders ties by index as a stable sort does
+    struct Item {
+        double key;
+        i64 id;
+    };
+    static thread_local std::vector<Item> order;
     order.resize(n_items);
-    for (i64 i = 0; i < n_items; ++i) keys[i] = lo(i, best_axis);
-    std::iota(order.begin(), order.end(), i64(0));
-    std::stable_sort(order.begin(), order.end(), [](i64 a, i64 b) {
-        double ka = keys[a], kb = keys[b];
-        return ka < kb || (std::isnan(kb) && !std::isnan(ka));
+    for (i64 i = 0; i < n_items; ++i) order[i] = Item{lo(i, best_axis), i};
+    std::sort(order.begin(), order.end(), [](const Item& a, const Item& b) {
+        const bool an = std::isnan(a.key), bn = std::isnan(b.key);
+        if (an || bn) return an != bn ? bn : a.id < b.id;
+        if (a.key != b.key) return a.key < b.key;
+        return a.id < b.id;
     });
+    // the boxes in sweep order, contiguous (the same values; only the memory layout differs)
+    static thread_local std::vector<double> box;
+    box.resize(6 * n_items);
+    for (i64 ii = 0; ii < n_items; ++ii) {
+        const i64 i = order[ii].id;
+        double* bx = box.data() + 6 * ii;
+        bx[0] = lo(i, best_axis);
+        bx[1] = hi(i, best_axis);
+        bx[2] = lo(i, ax1);
+        bx[3] = hi(i, ax1);
+        bx[4] = lo(i, ax2);
+        bx[5] = hi(i, ax2);
+    }
     i64 count = 0;
     for (i64 ii = 0; ii < n_items; ++ii) {
-        const i64 i = order[ii];
-        const double hi_i = hi(i, best_axis);
+        const i64 i = order[ii].id;
+        const double* bi = box.data() + 6 * ii;
+        const double hi_i = bi[1];
         for (i64 jj = ii + 1; jj < n_items; ++jj) {
-            const i64 j = order[jj];
+            const i64 j = order[jj].id;
+            const double* bj = box.data() + 6 * jj;
             // written as "not overlapping" so that a NaN box never pairs with anything
-            if (!(lo(j, best_axis) <= hi_i)) break;
+            if (!(bj[0] <= hi_i)) break;
             if (i >= n_dyn && j >= n_dyn) continue;
-            if (!(lo(j, ax1) <= hi(i, ax1) && lo(i, ax1) <= hi(j, ax1))) continue;
-            if (!(lo(j, ax2) <= hi(i, ax2) && lo(i, ax2) <= hi(j, ax2))) continue;
+            if (!(bj[2] <= bi[3] && bi[2] <= bj[3])) continue;
+            if (!(bj[4] <= bi[5] && bi[4] <= bj[5])) continue;
             const i64 a = std::min(i, j);
             const i64 b = std::max(i, j);
             if (b < n_dyn) {
