@@ -26,6 +26,7 @@
 
 #include "engine/bind.hpp"
 #include "engine/integrators.hpp"
+#include "engine/lanes.hpp"
 
 namespace rb {
 
@@ -87,36 +88,212 @@ inline bool sample_due(const FreeArgs& a, i64 s) {
     return s % a.stride == 0 || (a.sample_last && s == a.n_steps);
 }
 
+// Body i alone from step s_begin on (its position and momentum in registers), samples from row
+// j on: the sparse path of advance_range. Returns the samples written; fail_step the step at
+// which the body's state went bad (-1 if none).
+template <int METHOD>
+i64 single_body(const FreeArgs& a, i64 i, i64 s_begin, i64 j, i64& fail_step) {
+    V2<double> pos = a.position, mom = a.linear_momentum;
+    fail_step = -1;
+    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
+    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
+    for (i64 s = s_begin; s <= a.n_steps; ++s) {
+        if (!step_body<METHOD>(a, i, x, y, z, px, py, pz)) {
+            fail_step = s;
+            break;
+        }
+        if (sample_due(a, s)) {
+            pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+            mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+            sample<METHOD>(a, j, i);
+            j += 1;
+        }
+    }
+    pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+    mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+    return j;
+}
+
+// Bodies i and i + 1 of seed (ortho polar or none) in the two lanes of d2 (lanes.hpp), state in
+// registers: step_body<METHOD_SEED> and drift_seed / polar / turn_within_bound_m lane by lane,
+// operation for operation. When a lane's state goes bad at step s, both lanes have taken step s
+// (as the scalar loop would); the other lane then goes on alone (single_body) from s + 1.
+// Returns the samples of each body in j_out, their bad steps in fail_out.
+inline void seed_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
+    const double dt = a.dt;
+    const int ortho = a.ortho;
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum;
+    V3<double> R = a.rotation;
+    const i64 k = i + 1;
+    auto ld2 = [](V2<double> v, i64 i0, i64 i1, int c) { return d2{v(i0, c), v(i1, c)}; };
+    const d2 im = d2{a.inv_mass[i], a.inv_mass[k]};
+    const d2 fx = ld2(a.force_world, i, k, 0), fy = ld2(a.force_world, i, k, 1),
+             fz = ld2(a.force_world, i, k, 2);
+    const d2 tx = ld2(a.torque_world, i, k, 0), ty = ld2(a.torque_world, i, k, 1),
+             tz = ld2(a.torque_world, i, k, 2);
+    const d2 k0 = ld2(a.inv_inertia, i, k, 0), k1 = ld2(a.inv_inertia, i, k, 1),
+             k2 = ld2(a.inv_inertia, i, k, 2);
+    // turn_within_bound_m's cheap bound, a constant of the body
+    const d2 kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    const int max_iter = free_constants.polar_max_iter;
+    const double tol = free_constants.polar_tol;
+    d2 x = ld2(pos, i, k, 0), y = ld2(pos, i, k, 1), z = ld2(pos, i, k, 2);
+    d2 px = ld2(mom, i, k, 0), py = ld2(mom, i, k, 1), pz = ld2(mom, i, k, 2);
+    d2 lx = ld2(L, i, k, 0), ly = ld2(L, i, k, 1), lz = ld2(L, i, k, 2);
+    d2 m[9];
+    for (int c = 0; c < 9; ++c) m[c] = d2{R.row(i)[c], R.row(k)[c]};
+    auto store = [&]() {
+        for (int l = 0; l < 2; ++l) {
+            const i64 b = l == 0 ? i : k;
+            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
+            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
+            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
+            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
+        }
+    };
+    i64 j = 0;
+    bool ok[2] = {true, true};
+    i64 s = 1;
+    for (; s <= a.n_steps; ++s) {
+        // the notes: forward Euler on P and L, then x and R from the new values
+        px += dt * fx; py += dt * fy; pz += dt * fz;
+        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+        lx += dt * tx; ly += dt * ty; lz += dt * tz;
+        // drift_seed: omega = R I^-1 R^T L (omega_world), R <- R + h [omega]x R
+        const d2 m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5],
+                 m20 = m[6], m21 = m[7], m22 = m[8];
+        const d2 b0 = (m00 * lx + m10 * ly + m20 * lz) * k0;
+        const d2 b1 = (m01 * lx + m11 * ly + m21 * lz) * k1;
+        const d2 b2 = (m02 * lx + m12 * ly + m22 * lz) * k2;
+        const d2 ox = m00 * b0 + m01 * b1 + m02 * b2;
+        const d2 oy = m10 * b0 + m11 * b1 + m12 * b2;
+        const d2 oz = m20 * b0 + m21 * b1 + m22 * b2;
+        const double h = dt;
+        d2 a00 = m00 + h * (-oz * m10 + oy * m20), a01 = m01 + h * (-oz * m11 + oy * m21),
+           a02 = m02 + h * (-oz * m12 + oy * m22),
+           a10 = m10 + h * (oz * m00 - ox * m20), a11 = m11 + h * (oz * m01 - ox * m21),
+           a12 = m12 + h * (oz * m02 - ox * m22),
+           a20 = m20 + h * (-oy * m00 + ox * m10), a21 = m21 + h * (-oy * m01 + ox * m11),
+           a22 = m22 + h * (-oy * m02 + ox * m12);
+        if (ortho == ORTHO_POLAR) {
+            // rotation.hpp polar, a lane stops (keeps its iterate) once its update is <= tol
+            m2 active = m2{-1, -1};
+            for (int it = 0; it < max_iter; ++it) {
+                const d2 c00 = a11 * a22 - a12 * a21;
+                const d2 c01 = a12 * a20 - a10 * a22;
+                const d2 c02 = a10 * a21 - a11 * a20;
+                const d2 c10 = a02 * a21 - a01 * a22;
+                const d2 c11 = a00 * a22 - a02 * a20;
+                const d2 c12 = a01 * a20 - a00 * a21;
+                const d2 c20 = a01 * a12 - a02 * a11;
+                const d2 c21 = a02 * a10 - a00 * a12;
+                const d2 c22 = a00 * a11 - a01 * a10;
+                const d2 det = a00 * c00 + a01 * c01 + a02 * c02;
+                const d2 f = 0.5 / det;
+                const d2 n00 = 0.5 * a00 + f * c00;
+                const d2 n01 = 0.5 * a01 + f * c01;
+                const d2 n02 = 0.5 * a02 + f * c02;
+                const d2 n10 = 0.5 * a10 + f * c10;
+                const d2 n11 = 0.5 * a11 + f * c11;
+                const d2 n12 = 0.5 * a12 + f * c12;
+                const d2 n20 = 0.5 * a20 + f * c20;
+                const d2 n21 = 0.5 * a21 + f * c21;
+                const d2 n22 = 0.5 * a22 + f * c22;
+                d2 d = vabs(n00 - a00);
+                d = vpymax(d, vabs(n01 - a01));
+                d = vpymax(d, vabs(n02 - a02));
+                d = vpymax(d, vabs(n10 - a10));
+                d = vpymax(d, vabs(n11 - a11));
+                d = vpymax(d, vabs(n12 - a12));
+                d = vpymax(d, vabs(n20 - a20));
+                d = vpymax(d, vabs(n21 - a21));
+                d = vpymax(d, vabs(n22 - a22));
+                a00 = active ? n00 : a00; a01 = active ? n01 : a01; a02 = active ? n02 : a02;
+                a10 = active ? n10 : a10; a11 = active ? n11 : a11; a12 = active ? n12 : a12;
+                a20 = active ? n20 : a20; a21 = active ? n21 : a21; a22 = active ? n22 : a22;
+                active = active & ~(d <= tol);
+                if (!any(active)) break;
+            }
+        }
+        m[0] = a00; m[1] = a01; m[2] = a02; m[3] = a10; m[4] = a11; m[5] = a12;
+        m[6] = a20; m[7] = a21; m[8] = a22;
+        // non-finite check and turn bound (step_body, turn_within_bound_m)
+        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
+        for (int l = 0; l < 2; ++l) {
+            ok[l] = std::isfinite(chk[l]);
+            if (ok[l] && !cheap[l]) {
+                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
+                                 m[7][l], m[8][l]};
+                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
+            }
+        }
+        if (!ok[0] || !ok[1]) break;
+        if (sample_due(a, s)) {
+            store();
+            sample<METHOD_SEED>(a, j, i);
+            sample<METHOD_SEED>(a, j, k);
+            j += 1;
+        }
+    }
+    store();
+    for (int l = 0; l < 2; ++l) {
+        const i64 b = l == 0 ? i : k;
+        if (s > a.n_steps) {  // both lanes ran to the end
+            j_out[l] = j;
+            fail_out[l] = -1;
+        } else if (!ok[l]) {
+            j_out[l] = j;
+            fail_out[l] = s;
+        } else {  // the other lane failed at s: this one goes on alone
+            j_out[l] = single_body<METHOD_SEED>(a, b, s + 1, j, fail_out[l]);
+        }
+    }
+}
+
 // Bodies b0 .. b1-1, n_steps steps of dt, samples written (advance_free_range's contract).
 template <int METHOD>
 FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
     FreeResult res;
     const i64 tile = a.tile;
     V2<double> pos = a.position, mom = a.linear_momentum;
+    auto fail = [&](i64 s, i64 i) {
+        if (s >= 0 && (res.bad_step < 0 || s < res.bad_step)) {
+            res.bad_step = s;
+            res.bad_body = i;
+        }
+    };
+    if (tile == 1 && METHOD == METHOD_SEED && (a.ortho == ORTHO_POLAR || a.ortho == ORTHO_NONE)) {
+        // sparse samples: bodies two at a time in the lanes of a vector, then the odd one
+        i64 i = b0;
+        for (; i + 1 < b1; i += 2) {
+            i64 js[2], fs[2];
+            seed_pair(a, i, js, fs);
+            fail(fs[0], i);
+            fail(fs[1], i + 1);
+            for (int l = 0; l < 2; ++l) {
+                sync_quat_seed(a.quat_wxyz, a.rotation, i + l);
+                if (js[l] > res.n_samples) res.n_samples = js[l];
+            }
+        }
+        for (; i < b1; ++i) {
+            i64 fs;
+            const i64 j = single_body<METHOD>(a, i, 1, 0, fs);
+            fail(fs, i);
+            sync_quat_seed(a.quat_wxyz, a.rotation, i);
+            if (j > res.n_samples) res.n_samples = j;
+        }
+        return res;
+    }
     for (i64 t0 = b0; t0 < b1; t0 += tile) {
         const i64 t1 = t0 + tile < b1 ? t0 + tile : b1;
         i64 j = 0;
         if (tile == 1) {
-            const i64 i = t0;
-            double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
-            double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
-            for (i64 s = 1; s <= a.n_steps; ++s) {
-                if (!step_body<METHOD>(a, i, x, y, z, px, py, pz)) {
-                    if (res.bad_step < 0 || s < res.bad_step) {
-                        res.bad_step = s;
-                        res.bad_body = i;
-                    }
-                    break;
-                }
-                if (sample_due(a, s)) {
-                    pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-                    mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
-                    sample<METHOD>(a, j, i);
-                    j += 1;
-                }
-            }
-            pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-            mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+            i64 fs;
+            j = single_body<METHOD>(a, t0, 1, 0, fs);
+            fail(fs, t0);
         } else {
             for (i64 s = 1; s <= a.n_steps; ++s) {
                 bool ok = true;
@@ -127,10 +304,7 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
                     pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
                     mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
                     if (!ok) {
-                        if (res.bad_step < 0 || s < res.bad_step) {
-                            res.bad_step = s;
-                            res.bad_body = i;
-                        }
+                        fail(s, i);
                         break;
                     }
                 }
