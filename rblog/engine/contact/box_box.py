@@ -10,13 +10,3 @@ derivation, the clipping and the feature ids); ``narrowphase.collide_np`` runs i
 """
 
 from __future__ import annotations
-
-_LEGACY = ("collide_box_box",)
-
-
-def __getattr__(name):
-    # the numba kernel, for the numba world step until it runs on C++ (issue 28)
-    if name in _LEGACY:
-        from rblog.engine.contact import _numba_legacy_collision
-        return getattr(_numba_legacy_collision, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -52,12 +52,3 @@ def ground_pairs(n_dyn, n_static, st, lo, hi, pairs, n_pairs):
     world's Statics, its ground normal ``gn`` and offset ``goff``). Returns (pairs, n_pairs)."""
     return _core.ground_pairs(int(n_dyn), int(n_static), st.gn, float(st.goff), lo, hi, pairs,
                               int(n_pairs))
-
-
-# ---- until the numba world step (step.py) runs on C++ -------------------------------------------
-# step.py compiles against these three names, which must then be numba kernels; the C++ versions
-# above stay reachable as *_cpp. Remove this block with _numba_legacy_collision.py.
-body_aabbs_cpp, sweep_and_prune_cpp, ground_pairs_cpp = body_aabbs, sweep_and_prune, ground_pairs
-from rblog.engine.contact._numba_legacy_collision import (  # noqa: E402,F811
-    body_aabbs, ground_pairs, sweep_and_prune,
-)

@@ -30,15 +30,3 @@ def tangent_basis(nx, ny, nz):
     """Unit t1, t2 with (t1, t2, n) right-handed, a deterministic function of n (so the basis,
     and warm starting, stay put while the normal does): (t1x, t1y, t1z, t2x, t2y, t2z)."""
     return _core.tangent_basis(float(nx), float(ny), float(nz))
-
-
-_LEGACY = ("find_manifold", "sort_manifolds", "grow_manifolds", "grow_points", "pair_geometry",
-           "collide_pairs")
-
-
-def __getattr__(name):
-    # the numba kernels, for the numba world step until it runs on C++ (issue 28)
-    if name in _LEGACY:
-        from rblog.engine.contact import _numba_legacy_collision
-        return getattr(_numba_legacy_collision, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,20 +10,10 @@ static box, a sleeping body, or another body): its momenta are zeroed and the st
 An awake body wakes a sleeping island when its motion (before this step's force kick) can close
 the gap to a member within the step; the island's bodies then get this step's kick and rejoin the
 solve. A sleeping body that an awake one pushes on anyway (it stood in as a static body in this
-step's solve) wakes after the step. Sleeping bodies keep their manifolds (carried over), so their resting contacts still
-appear in the contact log.
+step's solve) wakes after the step. Sleeping bodies keep their manifolds (carried over), so their
+resting contacts still appear in the contact log.
 
 The kernels are C++ (csrc/engine/island.cpp: update_sleep, wake_touched, wake_pushed).
 """
 
 from __future__ import annotations
-
-_LEGACY = ("find_root", "update_sleep", "wake_island", "wake_touched", "wake_pushed")
-
-
-def __getattr__(name):
-    # the numba kernels, for the numba world step until it runs on C++ (issue 28)
-    if name in _LEGACY:
-        from rblog.engine.contact import _numba_legacy_collision
-        return getattr(_numba_legacy_collision, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -100,14 +100,3 @@ MAX_CLIP_POINTS = 12
 MAX_MANIFOLD_POINTS = 4
 #: m^2: triangle areas (about the normal) below this add nothing to a manifold (collinear points)
 _AREA_EPS = 1e-12
-
-
-_LEGACY = ("swap_point", "reduce_manifold")
-
-
-def __getattr__(name):
-    # the numba kernels, for the numba world step until it runs on C++ (issue 28)
-    if name in _LEGACY:
-        from rblog.engine.contact import _numba_legacy_collision
-        return getattr(_numba_legacy_collision, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -59,8 +59,7 @@ NARROWPHASE_TABLE = {
     (GEOM_SPHERE, GEOM_PLANE): (COLLIDE_SPHERE_PLANE, "collide_sphere_plane"),
     (GEOM_BOX, GEOM_PLANE): (COLLIDE_BOX_PLANE, "collide_box_plane"),
 }
-#: the same table as an array, COLLIDE_TABLE[lo, hi] -> collider code or -1 (the numba kernels'
-#: lookup, until the numba step is gone)
+#: the same table as an array: COLLIDE_TABLE[lo, hi] -> collider code or -1
 COLLIDE_TABLE = np.full((3, 3), COLLIDE_NONE, np.int64)
 for (_lo, _hi), (_code, _name) in NARROWPHASE_TABLE.items():
     COLLIDE_TABLE[_lo, _hi] = _code
@@ -113,15 +112,3 @@ def collide_np(geom_a, a_center, a_rot, a_size, geom_b, b_center=None, b_rot=Non
     if not second:
         return nrm[:3].copy(), pts[:n1].copy(), sep[:n1].copy(), fid[:n1].copy()
     return nrm[3:].copy(), pts[4:4 + n2].copy(), sep[4:4 + n2].copy(), fid[4:4 + n2].copy()
-
-
-_LEGACY = ("collide_sphere_sphere", "collide_sphere_box", "collide_sphere_plane",
-           "collide_box_plane", "collider_buffers", "manifold_part", "collide")
-
-
-def __getattr__(name):
-    # the numba kernels, for the numba world step until it runs on C++ (issue 28)
-    if name in _LEGACY:
-        from rblog.engine.contact import _numba_legacy_collision
-        return getattr(_numba_legacy_collision, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
