@@ -35,7 +35,10 @@ public:
         stop();
         n_threads_ = n_threads;
         quit_ = false;
-        for (int w = 1; w < n_threads_; ++w) workers_.emplace_back([this, w] { loop(w); });
+        // a new worker has seen every generation so far: it must not run the last call's tasks
+        // again (its fn_ is gone), only the next call's
+        const std::uint64_t seen = generation_;
+        for (int w = 1; w < n_threads_; ++w) workers_.emplace_back([this, w, seen] { loop(w, seen); });
     }
 
     // fn(task) for task in [0, n_tasks), task t on worker t % threads(); returns when all are
@@ -76,8 +79,7 @@ private:
         }
     }
 
-    void loop(int w) {
-        std::uint64_t seen = 0;
+    void loop(int w, std::uint64_t seen) {
         for (;;) {
             {
                 std::unique_lock<std::mutex> lk(m_);
