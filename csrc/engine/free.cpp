@@ -253,6 +253,228 @@ inline void seed_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
     }
 }
 
+// ---- rk4, two bodies in the lanes of d2 (integrators.hpp drift_rk4, lane by lane) -----------
+
+struct Q2 {
+    d2 w, x, y, z;
+};
+
+inline Q2 qmul2(d2 aw, d2 ax, d2 ay, d2 az, d2 bw, d2 bx, d2 by, d2 bz) {
+    return {aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw};
+}
+
+inline Q2 normalize2(d2 w, d2 x, d2 y, d2 z) {
+    const d2 n = 1.0 / vsqrt(w * w + x * x + y * y + z * z);
+    return {w * n, x * n, y * n, z * n};
+}
+
+inline void mat2(const Q2& q, d2 m[9]) {
+    const d2 w = q.w, x = q.x, y = q.y, z = q.z;
+    m[0] = w * w + x * x - y * y - z * z; m[1] = 2.0 * (x * y - w * z); m[2] = 2.0 * (x * z + w * y);
+    m[3] = 2.0 * (x * y + w * z); m[4] = w * w - x * x + y * y - z * z; m[5] = 2.0 * (y * z - w * x);
+    m[6] = 2.0 * (x * z - w * y); m[7] = 2.0 * (y * z + w * x); m[8] = w * w - x * x - y * y + z * z;
+}
+
+// mul_exp lane-wise (the series or the sine and cosine per lane, as the scalar branch)
+inline Q2 mul_exp2(const Q2& q, d2 vx, d2 vy, d2 vz) {
+    const d2 a2 = vx * vx + vy * vy + vz * vz;
+    d2 c, sf;
+    for (int l = 0; l < 2; ++l) {
+        const double s2 = a2[l];
+        if (s2 < 1e-8) {
+            c[l] = 1.0 - s2 / 8.0 + s2 * s2 / 384.0;
+            sf[l] = 0.5 - s2 / 48.0 + s2 * s2 / 3840.0;
+        } else {
+            const double an = std::sqrt(s2);
+            c[l] = std::cos(0.5 * an);
+            sf[l] = std::sin(0.5 * an) / an;
+        }
+    }
+    return qmul2(q.w, q.x, q.y, q.z, c, sf * vx, sf * vy, sf * vz);
+}
+
+// R(q)^T tau lane-wise (torque_body)
+inline void torque_body2(const Q2& q, d2 tx, d2 ty, d2 tz, d2& e0, d2& e1, d2& e2) {
+    d2 m[9];
+    mat2(q, m);
+    e0 = m[0] * tx + m[3] * ty + m[6] * tz;
+    e1 = m[1] * tx + m[4] * ty + m[7] * tz;
+    e2 = m[2] * tx + m[5] * ty + m[8] * tz;
+}
+
+// Bodies i and i + 1 of rk4 in the lanes of d2, state (position, momentum, L, q, R) in
+// registers: step_body<METHOD_RK4> (flight_exact, drift_rk4, the torque kick, the checks) lane by
+// lane, operation for operation; lane-dependent branches (torque, the small-angle series, the
+// final turn) by per-lane selection of the scalar branch's values. As seed_pair otherwise.
+inline void rk4_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
+    const double dt = a.dt;
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    V3<double> R = a.rotation;
+    const i64 k = i + 1;
+    auto ld2 = [](V2<double> v, i64 i0, i64 i1, int c) { return d2{v(i0, c), v(i1, c)}; };
+    const d2 im = d2{a.inv_mass[i], a.inv_mass[k]};
+    const d2 fx = ld2(a.force_world, i, k, 0), fy = ld2(a.force_world, i, k, 1),
+             fz = ld2(a.force_world, i, k, 2);
+    const d2 tx = ld2(a.torque_world, i, k, 0), ty = ld2(a.torque_world, i, k, 1),
+             tz = ld2(a.torque_world, i, k, 2);
+    const d2 k0 = ld2(a.inv_inertia, i, k, 0), k1 = ld2(a.inv_inertia, i, k, 1),
+             k2 = ld2(a.inv_inertia, i, k, 2);
+    const m2 torqued = (tx != 0.0) | (ty != 0.0) | (tz != 0.0);
+    const bool any_torqued = any(torqued);
+    const d2 kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    const d2 zero = splat(0.0);
+    d2 x = ld2(pos, i, k, 0), y = ld2(pos, i, k, 1), z = ld2(pos, i, k, 2);
+    d2 px = ld2(mom, i, k, 0), py = ld2(mom, i, k, 1), pz = ld2(mom, i, k, 2);
+    d2 lx = ld2(L, i, k, 0), ly = ld2(L, i, k, 1), lz = ld2(L, i, k, 2);
+    Q2 q = {ld2(Q, i, k, 0), ld2(Q, i, k, 1), ld2(Q, i, k, 2), ld2(Q, i, k, 3)};
+    d2 m[9];
+    for (int c = 0; c < 9; ++c) m[c] = d2{R.row(i)[c], R.row(k)[c]};
+    auto store = [&]() {
+        for (int l = 0; l < 2; ++l) {
+            const i64 b = l == 0 ? i : k;
+            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
+            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
+            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
+            Q(b, 0) = q.w[l]; Q(b, 1) = q.x[l]; Q(b, 2) = q.y[l]; Q(b, 3) = q.z[l];
+            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
+        }
+    };
+    const double h = dt, hh = 0.5 * h;
+    const double hh_flight = 0.5 * dt * dt;
+    const double g = h / 6.0;
+    const double c1 = 1.0 / 4.0, c2 = 1.0 / 6.0, c3 = -1.0 / 12.0;
+    i64 j = 0;
+    bool ok[2] = {true, true};
+    i64 s = 1;
+    for (; s <= a.n_steps; ++s) {
+        // translation: exact for a constant force (flight_exact)
+        const d2 hf = hh_flight * im;
+        x = x + (dt * px * im + hf * fx);
+        y = y + (dt * py * im + hf * fy);
+        z = z + (dt * pz * im + hf * fz);
+        px = px + dt * fx; py = py + dt * fy; pz = pz + dt * fz;
+        // drift_rk4
+        const d2 a0 = m[0] * lx + m[3] * ly + m[6] * lz;
+        const d2 a1 = m[1] * lx + m[4] * ly + m[7] * lz;
+        const d2 a2 = m[2] * lx + m[5] * ly + m[8] * lz;
+        d2 e0 = zero, e1 = zero, e2 = zero;
+        if (any_torqued) {
+            e0 = torqued ? m[0] * tx + m[3] * ty + m[6] * tz : zero;
+            e1 = torqued ? m[1] * tx + m[4] * ty + m[7] * tz : zero;
+            e2 = torqued ? m[2] * tx + m[5] * ty + m[8] * tz : zero;
+        }
+        // stage 1 (euler_rhs)
+        d2 w0 = k0 * a0, w1 = k1 * a1, w2 = k2 * a2;
+        const d2 d10 = a1 * w2 - a2 * w1 + e0, d11 = a2 * w0 - a0 * w2 + e1, d12 = a0 * w1 - a1 * w0 + e2;
+        const d2 w10 = k0 * a0, w11 = k1 * a1, w12 = k2 * a2;
+        // stage 2
+        d2 b0 = a0 + hh * d10, b1 = a1 + hh * d11, b2 = a2 + hh * d12;
+        Q2 q2 = q, q3 = q;
+        if (any_torqued) {
+            const Q2 k1q = qmul2(q.w, q.x, q.y, q.z, zero, 0.5 * w10, 0.5 * w11, 0.5 * w12);
+            q2 = normalize2(q.w + hh * k1q.w, q.x + hh * k1q.x, q.y + hh * k1q.y, q.z + hh * k1q.z);
+            d2 f0, f1, f2;
+            torque_body2(q2, tx, ty, tz, f0, f1, f2);
+            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
+        }
+        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
+        const d2 d20 = b1 * w2 - b2 * w1 + e0, d21 = b2 * w0 - b0 * w2 + e1, d22 = b0 * w1 - b1 * w0 + e2;
+        const d2 w20 = k0 * b0, w21 = k1 * b1, w22 = k2 * b2;
+        // stage 3
+        b0 = a0 + hh * d20; b1 = a1 + hh * d21; b2 = a2 + hh * d22;
+        if (any_torqued) {
+            const Q2 k2q = qmul2(q2.w, q2.x, q2.y, q2.z, zero, 0.5 * w20, 0.5 * w21, 0.5 * w22);
+            q3 = normalize2(q.w + hh * k2q.w, q.x + hh * k2q.x, q.y + hh * k2q.y, q.z + hh * k2q.z);
+            d2 f0, f1, f2;
+            torque_body2(q3, tx, ty, tz, f0, f1, f2);
+            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
+        }
+        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
+        const d2 d30 = b1 * w2 - b2 * w1 + e0, d31 = b2 * w0 - b0 * w2 + e1, d32 = b0 * w1 - b1 * w0 + e2;
+        const d2 w30 = k0 * b0, w31 = k1 * b1, w32 = k2 * b2;
+        // stage 4
+        b0 = a0 + h * d30; b1 = a1 + h * d31; b2 = a2 + h * d32;
+        if (any_torqued) {
+            const Q2 k3q = qmul2(q3.w, q3.x, q3.y, q3.z, zero, 0.5 * w30, 0.5 * w31, 0.5 * w32);
+            const Q2 q4 = normalize2(q.w + h * k3q.w, q.x + h * k3q.x, q.y + h * k3q.y, q.z + h * k3q.z);
+            d2 f0, f1, f2;
+            torque_body2(q4, tx, ty, tz, f0, f1, f2);
+            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
+        }
+        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
+        const d2 d40 = b1 * w2 - b2 * w1 + e0, d41 = b2 * w0 - b0 * w2 + e1, d42 = b0 * w1 - b1 * w0 + e2;
+        const d2 w40 = k0 * b0, w41 = k1 * b1, w42 = k2 * b2;
+        const d2 n0 = a0 + g * (d10 + 2.0 * d20 + 2.0 * d30 + d40);
+        const d2 n1 = a1 + g * (d11 + 2.0 * d21 + 2.0 * d31 + d41);
+        const d2 n2 = a2 + g * (d12 + 2.0 * d22 + 2.0 * d32 + d42);
+        // attitude: CF4
+        Q2 r = mul_exp2(q, h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
+                        h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
+                        h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42));
+        r = mul_exp2(r, h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
+                     h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
+                     h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42));
+        r = normalize2(r.w, r.x, r.y, r.z);
+        // turn q so that R^T L_end is along Lb'
+        const d2 ex = lx + h * tx, ey = ly + h * ty, ez = lz + h * tz;
+        mat2(r, m);
+        d2 u0 = m[0] * ex + m[3] * ey + m[6] * ez;
+        d2 u1 = m[1] * ex + m[4] * ey + m[7] * ez;
+        d2 u2 = m[2] * ex + m[5] * ey + m[8] * ez;
+        const d2 nu = vsqrt(u0 * u0 + u1 * u1 + u2 * u2);
+        const d2 nv = vsqrt(n0 * n0 + n1 * n1 + n2 * n2);
+        const m2 turn = (nu > 0.0) & (nv > 0.0);
+        if (any(turn)) {
+            const d2 iu = 1.0 / nu, iv = 1.0 / nv;
+            u0 = u0 * iu; u1 = u1 * iu; u2 = u2 * iu;
+            const d2 v0 = n0 * iv, v1 = n1 * iv, v2 = n2 * iv;
+            const d2 cw = 1.0 + u0 * v0 + u1 * v1 + u2 * v2;
+            const d2 cx = u1 * v2 - u2 * v1, cy = u2 * v0 - u0 * v2, cz = u0 * v1 - u1 * v0;
+            const Q2 t = qmul2(r.w, r.x, r.y, r.z, cw, -cx, -cy, -cz);
+            r.w = turn ? t.w : r.w; r.x = turn ? t.x : r.x;
+            r.y = turn ? t.y : r.y; r.z = turn ? t.z : r.z;
+        }
+        q = normalize2(r.w, r.x, r.y, r.z);
+        mat2(q, m);
+        // the torque kick
+        lx += dt * tx; ly += dt * ty; lz += dt * tz;
+        // non-finite check and turn bound
+        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
+        for (int l = 0; l < 2; ++l) {
+            ok[l] = std::isfinite(chk[l]);
+            if (ok[l] && !cheap[l]) {
+                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
+                                 m[7][l], m[8][l]};
+                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
+            }
+        }
+        if (!ok[0] || !ok[1]) break;
+        if (sample_due(a, s)) {
+            store();
+            sample<METHOD_RK4>(a, j, i);
+            sample<METHOD_RK4>(a, j, k);
+            j += 1;
+        }
+    }
+    store();
+    for (int l = 0; l < 2; ++l) {
+        const i64 b = l == 0 ? i : k;
+        if (s > a.n_steps) {
+            j_out[l] = j;
+            fail_out[l] = -1;
+        } else if (!ok[l]) {
+            j_out[l] = j;
+            fail_out[l] = s;
+        } else {
+            j_out[l] = single_body<METHOD_RK4>(a, b, s + 1, j, fail_out[l]);
+        }
+    }
+}
+
 // Bodies b0 .. b1-1, n_steps steps of dt, samples written (advance_free_range's contract).
 template <int METHOD>
 FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
@@ -265,16 +487,20 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
             res.bad_body = i;
         }
     };
-    if (tile == 1 && METHOD == METHOD_SEED && (a.ortho == ORTHO_POLAR || a.ortho == ORTHO_NONE)) {
+    if (tile == 1 && ((METHOD == METHOD_SEED && (a.ortho == ORTHO_POLAR || a.ortho == ORTHO_NONE))
+                      || METHOD == METHOD_RK4)) {
         // sparse samples: bodies two at a time in the lanes of a vector, then the odd one
         i64 i = b0;
         for (; i + 1 < b1; i += 2) {
             i64 js[2], fs[2];
-            seed_pair(a, i, js, fs);
+            if (METHOD == METHOD_SEED)
+                seed_pair(a, i, js, fs);
+            else
+                rk4_pair(a, i, js, fs);
             fail(fs[0], i);
             fail(fs[1], i + 1);
             for (int l = 0; l < 2; ++l) {
-                sync_quat_seed(a.quat_wxyz, a.rotation, i + l);
+                if (METHOD == METHOD_SEED) sync_quat_seed(a.quat_wxyz, a.rotation, i + l);
                 if (js[l] > res.n_samples) res.n_samples = js[l];
             }
         }
@@ -282,7 +508,7 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
             i64 fs;
             const i64 j = single_body<METHOD>(a, i, 1, 0, fs);
             fail(fs, i);
-            sync_quat_seed(a.quat_wxyz, a.rotation, i);
+            if (METHOD == METHOD_SEED) sync_quat_seed(a.quat_wxyz, a.rotation, i);
             if (j > res.n_samples) res.n_samples = j;
         }
         return res;
