@@ -108,8 +108,7 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
         double key;
         i64 id;
     };
-    static thread_local std::vector<Item> order;
-    order.resize(n_items);
+    std::vector<Item> order(n_items);
     for (i64 i = 0; i < n_items; ++i) order[i] = Item{lo(i, best_axis), i};
     std::sort(order.begin(), order.end(), [](const Item& a, const Item& b) {
         const bool an = std::isnan(a.key), bn = std::isnan(b.key);
@@ -118,8 +117,7 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
         return a.id < b.id;
     });
     // the boxes in sweep order, contiguous (the same values; only the memory layout differs)
-    static thread_local std::vector<double> box;
-    box.resize(6 * n_items);
+    std::vector<double> box(6 * n_items);
     for (i64 ii = 0; ii < n_items; ++ii) {
         const i64 i = order[ii].id;
         double* bx = box.data() + 6 * ii;

@@ -72,8 +72,7 @@ i64 find_manifold(V1<i64> sorted_keys, V1<i64> sorted_idx, i64 n, i64 key) {
 }
 
 void sort_manifolds(V2<i64> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_idx) {
-    static thread_local std::vector<i64> order;
-    order.resize(n_man);
+    std::vector<i64> order(n_man);
     std::iota(order.begin(), order.end(), i64(0));
     const i64* mp = mi.p;
     const i64 cols = mi.n1;
