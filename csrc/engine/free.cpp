@@ -475,6 +475,145 @@ inline void rk4_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
     }
 }
 
+// ---- seed-quat (normalized) and splitting, two bodies in the lanes of d2 --------------------
+
+// One lane-wise sub-flow of the splitting (integrators.hpp flow_x / flow_y / flow_z): axis `ax`,
+// s_inv_i = s / I_k per lane; the half-angle sine and cosine per lane (scalar calls).
+template <int AX>
+inline void flow2(Q2& q, d2& b0, d2& b1, d2& b2, d2 s_inv_i) {
+    const d2 th = s_inv_i * (AX == 0 ? b0 : AX == 1 ? b1 : b2);
+    d2 ch, sh;
+    for (int l = 0; l < 2; ++l) {
+        ch[l] = std::cos(0.5 * th[l]);
+        sh[l] = std::sin(0.5 * th[l]);
+    }
+    const d2 c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
+    const d2 w = q.w, x = q.x, y = q.y, z = q.z;
+    if (AX == 0) {
+        q = {ch * w - sh * x, ch * x + sh * w, ch * y + sh * z, ch * z - sh * y};
+        const d2 n1 = c * b1 + sn * b2, n2 = c * b2 - sn * b1;
+        b1 = n1; b2 = n2;
+    } else if (AX == 1) {
+        q = {ch * w - sh * y, ch * x - sh * z, ch * y + sh * w, ch * z + sh * x};
+        const d2 n0 = c * b0 - sn * b2, n2 = c * b2 + sn * b0;
+        b0 = n0; b2 = n2;
+    } else {
+        q = {ch * w - sh * z, ch * x + sh * y, ch * y - sh * x, ch * z + sh * w};
+        const d2 n0 = c * b0 + sn * b1, n1 = c * b1 - sn * b0;
+        b0 = n0; b1 = n1;
+    }
+}
+
+// Bodies i and i + 1 of seed-quat (ortho normalize) or splitting in the lanes of d2, state in
+// registers: step_body<METHOD> with drift_seed_quat / drift_splitting lane by lane, operation for
+// operation. As seed_pair otherwise.
+template <int METHOD>
+inline void quat_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
+    const double dt = a.dt;
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    V3<double> R = a.rotation;
+    const i64 k = i + 1;
+    auto ld2 = [](V2<double> v, i64 i0, i64 i1, int c) { return d2{v(i0, c), v(i1, c)}; };
+    const d2 im = d2{a.inv_mass[i], a.inv_mass[k]};
+    const d2 fx = ld2(a.force_world, i, k, 0), fy = ld2(a.force_world, i, k, 1),
+             fz = ld2(a.force_world, i, k, 2);
+    const d2 tx = ld2(a.torque_world, i, k, 0), ty = ld2(a.torque_world, i, k, 1),
+             tz = ld2(a.torque_world, i, k, 2);
+    const d2 k0 = ld2(a.inv_inertia, i, k, 0), k1 = ld2(a.inv_inertia, i, k, 1),
+             k2 = ld2(a.inv_inertia, i, k, 2);
+    const d2 kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    d2 x = ld2(pos, i, k, 0), y = ld2(pos, i, k, 1), z = ld2(pos, i, k, 2);
+    d2 px = ld2(mom, i, k, 0), py = ld2(mom, i, k, 1), pz = ld2(mom, i, k, 2);
+    d2 lx = ld2(L, i, k, 0), ly = ld2(L, i, k, 1), lz = ld2(L, i, k, 2);
+    Q2 q = {ld2(Q, i, k, 0), ld2(Q, i, k, 1), ld2(Q, i, k, 2), ld2(Q, i, k, 3)};
+    d2 m[9];
+    for (int c = 0; c < 9; ++c) m[c] = d2{R.row(i)[c], R.row(k)[c]};
+    auto store = [&]() {
+        for (int l = 0; l < 2; ++l) {
+            const i64 b = l == 0 ? i : k;
+            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
+            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
+            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
+            Q(b, 0) = q.w[l]; Q(b, 1) = q.x[l]; Q(b, 2) = q.y[l]; Q(b, 3) = q.z[l];
+            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
+        }
+    };
+    const double h = dt, hh = 0.5 * dt;
+    const d2 zero = splat(0.0);
+    i64 j = 0;
+    bool ok[2] = {true, true};
+    i64 s = 1;
+    for (; s <= a.n_steps; ++s) {
+        if (METHOD == METHOD_SPLITTING) {
+            // kick half, drift, kick half
+            px += hh * fx; py += hh * fy; pz += hh * fz;
+            lx += hh * tx; ly += hh * ty; lz += hh * tz;
+            x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+            // drift_splitting: Lb = R^T L, 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2), normalized
+            d2 b0 = m[0] * lx + m[3] * ly + m[6] * lz;
+            d2 b1 = m[1] * lx + m[4] * ly + m[7] * lz;
+            d2 b2 = m[2] * lx + m[5] * ly + m[8] * lz;
+            flow2<0>(q, b0, b1, b2, hh * k0);
+            flow2<1>(q, b0, b1, b2, hh * k1);
+            flow2<2>(q, b0, b1, b2, h * k2);
+            flow2<1>(q, b0, b1, b2, hh * k1);
+            flow2<0>(q, b0, b1, b2, hh * k0);
+            q = normalize2(q.w, q.x, q.y, q.z);
+            mat2(q, m);
+            px += hh * fx; py += hh * fy; pz += hh * fz;
+            lx += hh * tx; ly += hh * ty; lz += hh * tz;
+        } else {
+            // the notes: forward Euler on P and L, then x and q from the new values
+            px += dt * fx; py += dt * fy; pz += dt * fz;
+            x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+            lx += dt * tx; ly += dt * ty; lz += dt * tz;
+            // drift_seed_quat (normalized): omega_world, q += h/2 (0, omega) (x) q
+            const d2 b0 = (m[0] * lx + m[3] * ly + m[6] * lz) * k0;
+            const d2 b1 = (m[1] * lx + m[4] * ly + m[7] * lz) * k1;
+            const d2 b2 = (m[2] * lx + m[5] * ly + m[8] * lz) * k2;
+            const d2 ox = m[0] * b0 + m[1] * b1 + m[2] * b2;
+            const d2 oy = m[3] * b0 + m[4] * b1 + m[5] * b2;
+            const d2 oz = m[6] * b0 + m[7] * b1 + m[8] * b2;
+            const Q2 d = qmul2(zero, ox, oy, oz, q.w, q.x, q.y, q.z);
+            q = normalize2(q.w + 0.5 * h * d.w, q.x + 0.5 * h * d.x, q.y + 0.5 * h * d.y,
+                           q.z + 0.5 * h * d.z);
+            mat2(q, m);
+        }
+        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
+        for (int l = 0; l < 2; ++l) {
+            ok[l] = std::isfinite(chk[l]);
+            if (ok[l] && !cheap[l]) {
+                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
+                                 m[7][l], m[8][l]};
+                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
+            }
+        }
+        if (!ok[0] || !ok[1]) break;
+        if (sample_due(a, s)) {
+            store();
+            sample<METHOD>(a, j, i);
+            sample<METHOD>(a, j, k);
+            j += 1;
+        }
+    }
+    store();
+    for (int l = 0; l < 2; ++l) {
+        const i64 b = l == 0 ? i : k;
+        if (s > a.n_steps) {
+            j_out[l] = j;
+            fail_out[l] = -1;
+        } else if (!ok[l]) {
+            j_out[l] = j;
+            fail_out[l] = s;
+        } else {
+            j_out[l] = single_body<METHOD>(a, b, s + 1, j, fail_out[l]);
+        }
+    }
+}
+
 // Bodies b0 .. b1-1, n_steps steps of dt, samples written (advance_free_range's contract).
 template <int METHOD>
 FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
@@ -488,15 +627,18 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
         }
     };
     if (tile == 1 && ((METHOD == METHOD_SEED && (a.ortho == ORTHO_POLAR || a.ortho == ORTHO_NONE))
-                      || METHOD == METHOD_RK4)) {
+                      || (METHOD == METHOD_SEED_QUAT && a.ortho != ORTHO_NONE)
+                      || METHOD == METHOD_SPLITTING || METHOD == METHOD_RK4)) {
         // sparse samples: bodies two at a time in the lanes of a vector, then the odd one
         i64 i = b0;
         for (; i + 1 < b1; i += 2) {
             i64 js[2], fs[2];
             if (METHOD == METHOD_SEED)
                 seed_pair(a, i, js, fs);
-            else
+            else if (METHOD == METHOD_RK4)
                 rk4_pair(a, i, js, fs);
+            else
+                quat_pair<METHOD>(a, i, js, fs);
             fail(fs[0], i);
             fail(fs[1], i + 1);
             for (int l = 0; l < 2; ++l) {
