@@ -199,7 +199,8 @@ void bind_collision(nb::module_& m) {
            nb::handle sb_rot, nb::handle sb_ext, nb::handle sb_lo, nb::handle sb_hi, bool ground,
            nb::handle gn, double goff, nb::handle position, nb::handle rotation, double margin) {
             V1<i64> vgeom = v1<i64>(geom, "geom"), vgroup = v1<i64>(group, "group");
-            V2<double> vsize = v2<double>(size, "size"), vinvi = v2<double>(inv_inertia, "inv_inertia");
+            V2<double> vsize = v2<double>(size, "size");
+            V2<double> vinvi = v2<double>(inv_inertia, "inv_inertia");
             V1<double> vrad = v1<double>(radius, "radius"), vim = v1<double>(inv_mass, "inv_mass");
             V2<double> vsp = v2<double>(sb_pos, "sb_pos"), vse = v2<double>(sb_ext, "sb_ext");
             V3<double> vsr = v3<double>(sb_rot, "sb_rot");

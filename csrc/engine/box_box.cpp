@@ -284,7 +284,8 @@ i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* c
     int ax_b = 0;
     for (int j = 0; j < 3; ++j) {
         double dbj = rotb(0, j) * dx + rotb(1, j) * dy + rotb(2, j) * dz;
-        double s = std::fabs(dbj) - eb[j] - (c[9 + j] * ea[0] + c[12 + j] * ea[1] + c[15 + j] * ea[2]);
+        double s = std::fabs(dbj) - eb[j] -
+                   (c[9 + j] * ea[0] + c[12 + j] * ea[1] + c[15 + j] * ea[2]);
         if (s > spec) return 0;
         if (s > sep_b) {
             sep_b = s;
@@ -329,8 +330,8 @@ i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* c
     }
     double face_sep = std::max(sep_a, sep_b);
     // relative margins taken on |separation| so that they favour faces for gaps and overlaps alike
-    bool edge_best = ei_best >= 0 &&
-                     sep_e > face_sep + (1.0 - cc.edge_rel_tol) * std::fabs(face_sep) + cc.axis_abs_tol;
+    const double edge_margin = (1.0 - cc.edge_rel_tol) * std::fabs(face_sep);
+    bool edge_best = ei_best >= 0 && sep_e > face_sep + edge_margin + cc.axis_abs_tol;
     if (edge_best) {
         i64 cnt = edge_contact(ca, rota, ea, cb, rotb, eb, ei_best, ej_best, dx, dy, dz, spec, nrm,
                                pts, sep, fid);

@@ -165,7 +165,8 @@ i64 ground_pairs(i64 n_dyn, i64 n_static, V1<double> gn, double goff, V2<double>
         double cx = 0.5 * (lo(i, 0) + hi(i, 0));
         double cy = 0.5 * (lo(i, 1) + hi(i, 1));
         double cz = 0.5 * (lo(i, 2) + hi(i, 2));
-        double ext = (std::fabs(gx) * (hi(i, 0) - lo(i, 0)) + std::fabs(gy) * (hi(i, 1) - lo(i, 1)) +
+        double ext = (std::fabs(gx) * (hi(i, 0) - lo(i, 0)) +
+                      std::fabs(gy) * (hi(i, 1) - lo(i, 1)) +
                       std::fabs(gz) * (hi(i, 2) - lo(i, 2))) *
                      0.5;
         if (gx * cx + gy * cy + gz * cz - goff - ext > 0.0) continue;

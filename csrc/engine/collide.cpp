@@ -256,8 +256,10 @@ static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_
         double y1 = ra(0, 1) * (px - pa[0]) + ra(1, 1) * (py - pa[1]) + ra(2, 1) * (pz - pa[2]);
         double y2 = ra(0, 2) * (px - pa[0]) + ra(1, 2) * (py - pa[1]) + ra(2, 2) * (pz - pa[2]);
         double q0 = mfm[MF_AR] * y0 + mfm[MF_AR + 1] * y1 + mfm[MF_AR + 2] * y2 + mfm[MF_AT];
-        double q1 = mfm[MF_AR + 3] * y0 + mfm[MF_AR + 4] * y1 + mfm[MF_AR + 5] * y2 + mfm[MF_AT + 1];
-        double q2 = mfm[MF_AR + 6] * y0 + mfm[MF_AR + 7] * y1 + mfm[MF_AR + 8] * y2 + mfm[MF_AT + 2];
+        double q1 =
+            mfm[MF_AR + 3] * y0 + mfm[MF_AR + 4] * y1 + mfm[MF_AR + 5] * y2 + mfm[MF_AT + 1];
+        double q2 =
+            mfm[MF_AR + 6] * y0 + mfm[MF_AR + 7] * y1 + mfm[MF_AR + 8] * y2 + mfm[MF_AT + 2];
         double dx = px - (xb[0] + rb_(0, 0) * q0 + rb_(0, 1) * q1 + rb_(0, 2) * q2);
         double dy = py - (xb[1] + rb_(1, 0) * q0 + rb_(1, 1) * q1 + rb_(1, 2) * q2);
         double dz = pz - (xb[2] + rb_(2, 0) * q0 + rb_(2, 1) * q1 + rb_(2, 2) * q2);

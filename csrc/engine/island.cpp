@@ -40,7 +40,8 @@ i64 update_sleep(i64 n_dyn, V2<i64> mi, V2<double> pf, i64 n_man, V1<i64> awake,
         double im = inv_mass[i];
         double px = linear_momentum(i, 0), py = linear_momentum(i, 1), pz = linear_momentum(i, 2);
         double v = std::sqrt(px * px + py * py + pz * pz) * im;
-        double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
+        double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1),
+               lz = angular_momentum(i, 2);
         double w = std::sqrt(lx * lx + ly * ly + lz * lz) *
                    std::max(inv_inertia(i, 0), std::max(inv_inertia(i, 1), inv_inertia(i, 2)));
         double speed = std::max(v, w * radius[i]);
