@@ -626,6 +626,7 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
             res.bad_body = i;
         }
     };
+#ifndef RB_FREE_NO_LANES  // (defined: the scalar path only, to compare the lanes against it)
     if (tile == 1 && ((METHOD == METHOD_SEED && (a.ortho == ORTHO_POLAR || a.ortho == ORTHO_NONE))
                       || (METHOD == METHOD_SEED_QUAT && a.ortho != ORTHO_NONE)
                       || METHOD == METHOD_SPLITTING || METHOD == METHOD_RK4)) {
@@ -655,6 +656,7 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
         }
         return res;
     }
+#endif
     for (i64 t0 = b0; t0 < b1; t0 += tile) {
         const i64 t1 = t0 + tile < b1 ? t0 + tile : b1;
         i64 j = 0;

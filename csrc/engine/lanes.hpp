@@ -2,8 +2,12 @@
 // NEON on aarch64). Every lane does exactly the scalar code's operations in the scalar code's
 // order (IEEE add, sub, mul, div and sqrt are lane-wise the same roundings; no fused multiply-add,
 // -ffp-contract=off), so a body's result is bitwise the one of the scalar kernel; only the
-// latency of the two bodies' dependency chains overlaps. Used by the free kernel's sparse path
-// (free.cpp) for the integrators without transcendental calls.
+// latency of the two bodies' dependency chains overlaps. (One exception, of no consequence: the
+// NaNs of a body whose state has gone bad may differ in their sign bit, which IEEE leaves open and
+// the compiler may change by rewriting (-a) * b as -(a * b); the run stops at that body's bad
+// step and keeps only the samples before it.) Used by the free kernel's sparse path (free.cpp):
+// seed, seed-quat, splitting and rk4 (sin and cos called per lane). free.cpp built with
+// -DRB_FREE_NO_LANES runs the scalar path only, to compare the two.
 #pragma once
 
 #include <cmath>
