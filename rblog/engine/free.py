@@ -16,7 +16,7 @@ on which range it is in, so the result is bitwise the same for any thread count.
 
 from __future__ import annotations
 
-from rblog.engine import _core, _numba_legacy
+from rblog.engine import _core
 from rblog.engine.integrators import METHOD_NAMES
 from rblog.engine.state import new_anchors
 
@@ -115,16 +115,3 @@ def advance_free_range(method, ortho, dt, n_steps, stride, sample_last,
 #: i's state into sample row j of the out_* buffers (q synced from R first for seed)
 write_sample = _core.write_sample
 
-
-# _LEGACY: contact/step.py (numba until its C++ port) compiles write_sample into its kernel:
-# while rblog.engine._numba_legacy is ACTIVE it is the numba function.
-if _numba_legacy.ACTIVE:
-    _LEGACY = {"write_sample"}
-    for _n in _LEGACY:
-        del globals()[_n]
-
-    def __getattr__(name):
-        if name in _LEGACY:
-            from rblog.engine._numba_legacy import free as _legacy
-            return getattr(_legacy, name)
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -6,8 +6,8 @@ is world frame; ``inv_inertia`` is the diagonal of I_body^-1 (principal axes).
 The registry and the METHOD_* / ORTHO_* codes live here; every integrator's stages are C++
 (csrc/engine/integrators.hpp, inline, so that the free-body kernel, templated on the integrator,
 and the contact step compile them into their loops; the derivations below are also written
-there). The functions below call them through rblog.engine._core with the arguments of the
-numba functions they replace. Drift functions update ``quat_wxyz[i]`` and ``rotation[i]`` of the
+there). The functions below call them through rblog.engine._core with the arguments the Python
+(numba) versions had. Drift functions update ``quat_wxyz[i]`` and ``rotation[i]`` of the
 state arrays in place and keep the two consistent (except under the notes' own schemes with
 orthonormalization off, where the integrator's R is the point of interest).
 
@@ -63,7 +63,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rblog.engine import _core, _numba_legacy
+from rblog.engine import _core
 
 # orthonormalization codes
 ORTHO_NONE = 0
@@ -153,16 +153,3 @@ sync_quat = _core.sync_quat
 #: turns more than MAX_ROTATION_PER_STEP_RAD in a step of dt (the run has diverged)
 turn_within_bound = _core.turn_within_bound
 
-
-# _LEGACY: contact/step.py and project.py (numba until their C++ port) compile these into their
-# kernels: while rblog.engine._numba_legacy is ACTIVE they are its numba functions.
-if _numba_legacy.ACTIVE:
-    _LEGACY = {"drift_rotation", "drift_exact_anchored", "sync_quat", "turn_within_bound"}
-    for _n in _LEGACY:
-        del globals()[_n]
-
-    def __getattr__(name):
-        if name in _LEGACY:
-            from rblog.engine._numba_legacy import integrators as _legacy
-            return getattr(_legacy, name)
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

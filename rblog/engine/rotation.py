@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from rblog.engine import _core, _numba_legacy
+from rblog.engine import _core
 
 #: Hamilton product a (x) b: quat_mul(aw, ax, ay, az, bw, bx, by, bz) -> (w, x, y, z)
 quat_mul = _core.quat_mul
@@ -46,20 +46,6 @@ def load_mat(rotation: np.ndarray, i: int) -> tuple:
 def store_mat(rotation: np.ndarray, i: int, m) -> None:
     """R[i] of a (N, 3, 3) array set from a row-major 9-tuple."""
     rotation[i] = np.asarray(m, float).reshape(3, 3)
-
-
-# _LEGACY: contact/step.py and project.py (numba until their C++ port) compile these two into
-# their kernels: while rblog.engine._numba_legacy is ACTIVE they are its numba functions.
-if _numba_legacy.ACTIVE:
-    _LEGACY = {"load_mat", "omega_world"}
-    for _n in _LEGACY:
-        del globals()[_n]
-
-    def __getattr__(name):
-        if name in _LEGACY:
-            from rblog.engine._numba_legacy import rotation as _legacy
-            return getattr(_legacy, name)
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ---- numpy helpers (scene set-up, tests) -----------------------------------------------------
