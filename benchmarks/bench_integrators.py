@@ -2,7 +2,8 @@
 side by side with the comparators (the same `seed` step in pure numpy, vectorized over bodies, and
 MuJoCo's Euler and RK4 on the same free bodies when MuJoCo is installed), the exact integrator's
 error at every step size from 1e-4 to 1 s on both torque-free problems, accuracy for cost on the
-tumbling box, the kernels' first-run compile time and the warm start-up time of `rblog run`.
+tumbling box, and the start-up time of `rblog run` (first and second run; the kernels are C++,
+rblog.engine._core, so nothing compiles at run time any more).
 
     python benchmarks/bench_integrators.py [--quick]
 """
@@ -192,11 +193,11 @@ def thread_scaling(steps: int):
     10,000 free bodies). The exact integrators carry their flow anchors within each timed call
     (one call of ``steps`` steps: every body-step after the first evaluates the flow from the
     anchor with its cached constants)."""
-    import numba
+    from rblog.engine import _core
 
-    top = numba.config.NUMBA_NUM_THREADS
+    top = _core.hardware_threads()
     print(f"10,000 free bodies, {steps} steps, ns per body-step (best of 3); "
-          f"{top} hardware threads available to numba")
+          f"{top} hardware threads")
     print(f"{'integrator':<12}{'1 thread':>10}{'2 threads':>11}{'speed-up':>10}")
     for integ in METHOD_CODES:
         time_kernel(integ, 1, 10)  # load
@@ -225,7 +226,8 @@ def main():
     if args.quick:
         steps = {1: 20_000, 100: 500, 10_000: 10}
 
-    # compile time: fresh numba cache dir in a subprocess
+    # start-up: a first and a second run in subprocesses (a fresh numba cache dir for what numba
+    # still compiles outside the engine's free path)
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
         t0 = time.perf_counter()
@@ -236,7 +238,7 @@ def main():
         subprocess.run([sys.executable, "-m", "rblog_cli.main", "run", str(ROOT / "samples/free_fall.toml"),
                         "--no-log", "--duration", "0.001"], env=env, check=True, capture_output=True)
         warm = time.perf_counter() - t0
-    print(f"rblog run start-up: first run (compiling kernels) {cold:.1f} s, warm (cached) {warm:.2f} s")
+    print(f"rblog run start-up: first run {cold:.1f} s, second run {warm:.2f} s")
     print()
     print("ns per body-step (lower is better), free bodies with gravity, one sample per call")
     print(f"{'integrator':<12}" + "".join(f"{n:>12,d}" for n in steps) + "   bodies")

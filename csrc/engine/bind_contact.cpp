@@ -1,6 +1,348 @@
-// Bindings of the contact step and its stages (world_step.cpp and the stage files).
+// Bindings of the contact step (world_step.cpp) and its stages, and of the solver functions the
+// tests call directly (rblog/engine/contact/{step,solver,relax,restitution,project}.py wrap them
+// under their Python names). The records arrive as the Python namedtuples and are read into
+// views (records.hpp, from_py); the ContactCache and the stages' Scratch are C++ objects whose
+// fields read as numpy views of the live buffers.
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/tuple.h>
+
+#include <string>
+#include <tuple>
+
+#include "common/py.hpp"
 #include "engine/bind.hpp"
+#include "engine/contact_solver.hpp"
+#include "engine/profile.hpp"
+#include "engine/project.hpp"
+#include "engine/records.hpp"
+#include "engine/world_step.hpp"
 
 namespace rb {
-void bind_contact(nanobind::module_& m) { (void)m; }
+namespace nb = nanobind;
+
+namespace {
+
+template <class T>
+using NpArr = nb::ndarray<nb::numpy, T>;
+
+// A numpy view of a C++-owned buffer, kept alive by `owner` (the Python object holding it).
+template <class T>
+NpArr<T> view2(Buf2<T>& b, nb::handle owner) {
+    size_t shape[2] = {(size_t)b.rows, (size_t)b.cols};
+    return NpArr<T>(b.data.data(), 2, shape, owner);
+}
+template <class T>
+NpArr<T> view1(Buf2<T>& b, nb::handle owner) {
+    size_t shape[1] = {(size_t)(b.rows * b.cols)};
+    return NpArr<T>(b.data.data(), 1, shape, owner);
+}
+
+// A numpy (K, C) array copied into a C++ buffer (the stages that grow a buffer take a Buf2&).
+template <class T>
+Buf2<T> buf_from(nb::handle h, const char* name) {
+    V2<T> v = v2<T>(h, name);
+    Buf2<T> b(v.n0, v.n1);
+    for (i64 k = 0; k < v.n0 * v.n1; ++k) b.data[(size_t)k] = v.p[k];
+    return b;
+}
+
+template <class T>
+NpArr<T> copy_out(const Buf2<T>& b) {
+    return rows_to_numpy<T>(b, b.rows);
+}
+
+void check(bool ok, const std::string& what) {
+    if (!ok) throw nb::value_error(what.c_str());
+}
+
+// The checks world_advance needs before it writes through raw views.
+void check_advance(const Bodies& bd, const BodyState& x, const SampleState& out,
+                   const SleepState& sl, const FlowAnchors& an, V1<i64> stats, V1<i64> prof,
+                   i64 n_steps, i64 stride, bool sample_last) {
+    i64 n = x.position.n0;
+    check(stride >= 1, "stride must be >= 1");
+    check(n_steps >= 0, "n_steps must be >= 0");
+    check(x.position.n1 == 3 && x.linear_momentum.n0 == n && x.quat_wxyz.n0 == n &&
+              x.rotation.n0 == n && x.angular_momentum.n0 == n,
+          "state arrays: N rows each");
+    check(bd.inv_mass.n0 == n && bd.geom.n0 == n, "Bodies: N rows");
+    check(sl.awake.n0 == n && sl.timer.n0 == n && sl.island_of.n0 == n &&
+              sl.island_counter.n0 >= 1,
+          "SleepState: N rows");
+    check(an.anchor_steps.n0 == n && an.anchor_quat_wxyz.n0 == n, "FlowAnchors: N rows");
+    i64 need = n_steps / stride + (sample_last ? 1 : 0);
+    check(out.position.n0 >= need && out.linear_momentum.n0 >= need && out.quat_wxyz.n0 >= need &&
+              out.rotation.n0 >= need && out.angular_momentum.n0 >= need,
+          "sample buffers: fewer rows than samples");
+    check(need == 0 || (out.position.n1 == n && out.rotation.n1 == n), "sample buffers: N bodies");
+    check(stats.n0 >= N_STATS, "stats: N_STATS counters");
+    check(prof.n0 == 0 || prof.n0 >= N_PROF, "prof: empty or N_PROF counters");
+}
+
+}  // namespace
+
+void bind_contact(nb::module_& m) {
+    m.attr("N_PROF") = (int)N_PROF;
+    m.attr("N_STATS") = (int)N_STATS;
+    m.attr("CONTACT_RESTING") = CONTACT_RESTING;
+    m.attr("CONTACT_IMPACT") = CONTACT_IMPACT;
+    m.attr("PROJ_COLS") = PROJ_COLS;
+    m.def("ticks", &ticks, "The profile's cycle counter (profile.hpp).");
+
+    // ---- the records kept between calls ----------------------------------------------------
+    nb::class_<Scratch>(m, "Scratch", "The contact stages' work arrays (step.make_scratch).")
+#define RB_FIELD2(name) .def_prop_ro(#name, [](nb::handle self) { \
+        return view2(nb::cast<Scratch&>(self).name, self); })
+#define RB_FIELD1(name) .def_prop_ro(#name, [](nb::handle self) { \
+        return view1(nb::cast<Scratch&>(self).name, self); })
+        RB_FIELD2(lo) RB_FIELD2(hi) RB_FIELD1(reach) RB_FIELD1(in_contact) RB_FIELD1(bm)
+        RB_FIELD2(bI) RB_FIELD2(bv) RB_FIELD2(bw) RB_FIELD2(bv0) RB_FIELD2(bw0) RB_FIELD2(pv)
+        RB_FIELD2(pw) RB_FIELD2(p0) RB_FIELD2(l0) RB_FIELD2(l_drift) RB_FIELD1(parent)
+        RB_FIELD1(isl_time) RB_FIELD1(isl_sup) RB_FIELD2(blk) RB_FIELD1(hot)
+        RB_FIELD2(dx_step) RB_FIELD2(proj_dx) RB_FIELD2(proj_dth) RB_FIELD1(pushed)
+        RB_FIELD1(push_root) RB_FIELD2(flow_c);
+#undef RB_FIELD1
+#undef RB_FIELD2
+
+    nb::class_<ContactCache>(
+        m, "ContactCache",
+        "What the contact step keeps between calls (step.ContactCache): the previous step's "
+        "manifolds sorted by key (mi0, mf0, pf0, pid0, n_man0, keys0, idx0), spare buffers for "
+        "this step's (mi1, mf1, pf1, pid1), the broadphase's pairs. Fields read as numpy views "
+        "of the live buffers (a call may grow them: read them again after it).")
+        .def(nb::init<i64, i64>(), nb::arg("cap_manifolds"), nb::arg("cap_points"))
+#define RB_FIELD2(name) .def_prop_ro(#name, [](nb::handle self) { \
+        return view2(nb::cast<ContactCache&>(self).name, self); })
+#define RB_FIELD1(name) .def_prop_ro(#name, [](nb::handle self) { \
+        return view1(nb::cast<ContactCache&>(self).name, self); })
+        RB_FIELD2(mi0) RB_FIELD2(mf0) RB_FIELD2(pf0) RB_FIELD1(pid0) RB_FIELD1(keys0)
+        RB_FIELD1(idx0) RB_FIELD2(mi1) RB_FIELD2(mf1) RB_FIELD2(pf1) RB_FIELD1(pid1)
+        RB_FIELD2(pairs)
+#undef RB_FIELD1
+#undef RB_FIELD2
+        .def_rw("n_man0", &ContactCache::n_man0)
+        .def_prop_ro("scratch", [](nb::handle self) -> Scratch& {
+            return nb::cast<ContactCache&>(self).sc;
+        }, nb::rv_policy::reference_internal);
+
+    // ---- the step ----------------------------------------------------------------------------
+    m.def(
+        "world_advance",
+        [](nb::handle bd_, nb::handle st_, nb::handle cfg_, int method, int ortho, double dt,
+           i64 n_steps, i64 stride, bool sample_last, nb::handle x_, nb::handle out_,
+           nb::handle sl_, ContactCache& c, nb::handle stats_, nb::handle prof_, nb::handle an_) {
+            Bodies bd = Bodies::from_py(bd_);
+            Statics st = Statics::from_py(st_);
+            Settings cfg = Settings::from_py(cfg_);
+            BodyState x = BodyState::from_py(x_);
+            SampleState out = SampleState::from_py(out_);
+            SleepState sl = SleepState::from_py(sl_);
+            FlowAnchors an = FlowAnchors::from_py(an_);
+            V1<i64> stats = v1<i64>(stats_, "stats");
+            V1<i64> prof = v1<i64>(prof_, "prof");
+            check_advance(bd, x, out, sl, an, stats, prof, n_steps, stride, sample_last);
+            AdvanceResult r;
+            {
+                nb::gil_scoped_release release;
+                r = world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x,
+                                  out, sl, c, stats, prof, an);
+            }
+            std::vector<i64> li(c.log_i.data.begin(), c.log_i.data.begin() + r.n_log * LOG_I_COLS);
+            std::vector<double> lf(c.log_f.data.begin(),
+                                   c.log_f.data.begin() + r.n_log * LOG_F_COLS);
+            return std::make_tuple(r.n_samples, r.bad_step, r.bad_body,
+                                   to_numpy<i64>(std::move(li), {(size_t)r.n_log, (size_t)LOG_I_COLS}),
+                                   to_numpy<double>(std::move(lf), {(size_t)r.n_log, (size_t)LOG_F_COLS}));
+        },
+        "world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x, out, sl, "
+        "cache, stats, prof, an) -> (n_samples, bad_step, bad_body, log_i, log_f) (step.py).");
+
+    // ---- the stages on their own (step.py wraps them under their names) ----------------------
+    m.def("make_scratch", [](i64 n, nb::handle st_) {
+        Scratch sc;
+        sc.make(n, Statics::from_py(st_));
+        return sc;
+    });
+    m.def("stage_kick", [](nb::handle bd, nb::handle awake, nb::handle x, double h) {
+        step::kick(Bodies::from_py(bd), v1<i64>(awake, "awake"), BodyState::from_py(x), h);
+    });
+    m.def("stage_broadphase", [](nb::handle bd, nb::handle st, double margin, nb::handle awake,
+                                 nb::handle x, double h, Scratch& sc, nb::handle pairs_) {
+        Buf2<i64> pairs = buf_from<i64>(pairs_, "pairs");
+        i64 n_pairs = step::broadphase(Bodies::from_py(bd), Statics::from_py(st), margin,
+                                       v1<i64>(awake, "awake"), BodyState::from_py(x), h, sc,
+                                       pairs);
+        return std::make_pair(copy_out(pairs), n_pairs);
+    });
+    m.def("stage_wake", [](nb::handle bd, nb::handle st, nb::handle cfg, nb::handle sl,
+                           nb::handle x, double h, Scratch& sc, nb::handle pairs, i64 n_pairs) {
+        return step::wake(Bodies::from_py(bd), Statics::from_py(st), Settings::from_py(cfg),
+                          SleepState::from_py(sl), BodyState::from_py(x), h, sc,
+                          v2<i64>(pairs, "pairs"), n_pairs);
+    });
+    m.def("stage_collide", [](nb::handle bd, nb::handle st, nb::handle cfg, nb::handle awake,
+                              nb::handle x, Scratch& sc, nb::handle pairs, i64 n_pairs,
+                              ContactCache& c) {
+        CollideCount r = step::collide(Bodies::from_py(bd), Statics::from_py(st),
+                                       Settings::from_py(cfg), v1<i64>(awake, "awake"),
+                                       BodyState::from_py(x), sc, v2<i64>(pairs, "pairs"),
+                                       n_pairs, c);
+        return std::make_pair(r.n_man, r.n_pts);
+    });
+    m.def("stage_prepare", [](nb::handle bd, nb::handle cfg, nb::handle x, Scratch& sc,
+                              nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man, double h) {
+        step::prepare(Bodies::from_py(bd), Settings::from_py(cfg), BodyState::from_py(x), sc,
+                      v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man, h);
+    });
+    m.def("stage_mark_pushed", [](nb::handle mi, nb::handle pf, i64 n_man, i64 n, Scratch& sc) {
+        step::mark_pushed(v2<i64>(mi, "mi"), v2<double>(pf, "pf"), n_man, n, sc);
+    });
+    m.def("stage_integrate_positions",
+          [](int method, int ortho, nb::handle bd, nb::handle cfg, nb::handle awake, nb::handle x,
+             Scratch& sc, double h, nb::handle an) {
+              step::integrate_positions(method, ortho, Bodies::from_py(bd), Settings::from_py(cfg),
+                                        v1<i64>(awake, "awake"), BodyState::from_py(x), sc, h,
+                                        FlowAnchors::from_py(an));
+          });
+    m.def("stage_project", [](int method, int ortho, nb::handle bd, nb::handle st, nb::handle cfg,
+                              nb::handle awake, nb::handle x, Scratch& sc, nb::handle pairs,
+                              i64 n_pairs, nb::handle an) {
+        return step::project(method, ortho, Bodies::from_py(bd), Statics::from_py(st),
+                             Settings::from_py(cfg), v1<i64>(awake, "awake"),
+                             BodyState::from_py(x), sc, v2<i64>(pairs, "pairs"), n_pairs,
+                             FlowAnchors::from_py(an));
+    });
+    m.def("stage_sleep", [](nb::handle bd, nb::handle cfg, nb::handle sl, nb::handle x,
+                            Scratch& sc, nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                            double h, i64 n_awake) {
+        return step::sleep_stage(Bodies::from_py(bd), Settings::from_py(cfg),
+                                 SleepState::from_py(sl), BodyState::from_py(x), sc,
+                                 v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"),
+                                 n_man, h, n_awake);
+    });
+    m.def("stage_first_diverged", [](nb::handle awake, nb::handle x, nb::handle inv_inertia,
+                                     double h) {
+        return step::first_diverged(v1<i64>(awake, "awake"), BodyState::from_py(x),
+                                    v2<double>(inv_inertia, "inv_inertia"), h);
+    });
+    m.def("stage_record_contacts", [](i64 s, nb::handle mi, nb::handle mf, nb::handle pf,
+                                      i64 n_man, nb::handle log_i_, nb::handle log_f_,
+                                      i64 n_log) {
+        Buf2<i64> log_i = buf_from<i64>(log_i_, "log_i");
+        Buf2<double> log_f = buf_from<double>(log_f_, "log_f");
+        n_log = step::record_contacts(s, v2<i64>(mi, "mi"), v2<double>(mf, "mf"),
+                                      v2<double>(pf, "pf"), n_man, log_i, log_f, n_log);
+        return std::make_tuple(copy_out(log_i), copy_out(log_f), n_log);
+    });
+
+    // ---- solver.py, relax.py, restitution.py, project.py -------------------------------------
+    m.def("load_bodies", [](nb::handle mi, i64 n_man, i64 n_dyn, bool iso_shortcut, nb::handle iso,
+                            nb::handle inv_mass, nb::handle inv_inertia, nb::handle rotation,
+                            nb::handle lm, nb::handle am, nb::handle in_contact, nb::handle bm,
+                            nb::handle bI, nb::handle bv, nb::handle bw, nb::handle bv0,
+                            nb::handle bw0, nb::handle pv, nb::handle pw, nb::handle p0,
+                            nb::handle l0) {
+        load_bodies(v2<i64>(mi, "mi"), n_man, n_dyn, iso_shortcut, v1<i64>(iso, "iso"),
+                    v1<double>(inv_mass, "inv_mass"), v2<double>(inv_inertia, "inv_inertia"),
+                    v3<double>(rotation, "rotation"), v2<double>(lm, "linear_momentum"),
+                    v2<double>(am, "angular_momentum"), v1<i64>(in_contact, "in_contact"),
+                    v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
+                    v2<double>(bw, "bw"), v2<double>(bv0, "bv0"), v2<double>(bw0, "bw0"),
+                    v2<double>(pv, "pv"), v2<double>(pw, "pw"), v2<double>(p0, "p0"),
+                    v2<double>(l0, "l0"));
+    });
+    m.def("prepare_contacts", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                 nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
+                                 double h, double anchor_rate, double block_reg) {
+        prepare_contacts(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
+                         v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
+                         v2<double>(bw, "bw"), h, anchor_rate, block_reg);
+    });
+    m.def("warm_start", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man, nb::handle bm,
+                           nb::handle bI, nb::handle bv, nb::handle bw) {
+        warm_start(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
+                   v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
+                   v2<double>(bw, "bw"));
+    });
+    m.def("solve_velocities", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                 nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
+                                 double inv_h, i64 min_iter, i64 max_iter, double tol,
+                                 nb::handle blk, nb::handle hot, nb::handle degree, double sor,
+                                 i64 newton_iters, double newton_tol) {
+        return solve_velocities(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"),
+                                n_man, v1<double>(bm, "bm"), v2<double>(bI, "bI"),
+                                v2<double>(bv, "bv"), v2<double>(bw, "bw"), inv_h, min_iter,
+                                max_iter, tol, v2<double>(blk, "blk"), v1<i64>(hot, "hot"),
+                                v1<i64>(degree, "degree"), sor, newton_iters, newton_tol);
+    });
+    m.def("anchor_friction", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
+                                i64 newton_iters, double newton_tol) {
+        anchor_friction(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
+                        v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
+                        v2<double>(bw, "bw"), newton_iters, newton_tol);
+    });
+    m.def("store_impulses", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                               double slide_frac) {
+        store_impulses(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
+                       slide_frac);
+    });
+    m.def("relax_positions", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                nb::handle bm, nb::handle bI, nb::handle pv, nb::handle pw,
+                                double inv_h, i64 n_iter, double slop, double beta,
+                                double max_speed) {
+        relax_positions(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
+                        v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(pv, "pv"),
+                        v2<double>(pw, "pw"), inv_h, n_iter, slop, beta, max_speed);
+    });
+    m.def("restitution", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man, nb::handle bm,
+                            nb::handle bI, nb::handle bv, nb::handle bw, nb::handle pv,
+                            nb::handle pw, double h, double threshold, i64 n_iter, nb::handle dx,
+                            nb::handle lm, nb::handle am) {
+        return restitution(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
+                           v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
+                           v2<double>(bw, "bw"), v2<double>(pv, "pv"), v2<double>(pw, "pw"), h,
+                           threshold, n_iter, v2<double>(dx, "dx"),
+                           v2<double>(lm, "linear_momentum"), v2<double>(am, "angular_momentum"));
+    });
+    m.def("project_positions",
+          [](nb::handle pairs, i64 n_pairs, i64 n_dyn, i64 n_static, nb::handle geom,
+             nb::handle size, nb::handle inv_mass, nb::handle inv_inertia, nb::handle iso,
+             bool iso_shortcut, nb::handle awake, nb::handle position, nb::handle rotation,
+             nb::handle sb_pos, nb::handle sb_rot, nb::handle sb_ext, nb::handle gn, double goff,
+             double depth, i64 n_iter, nb::handle rows_, nb::handle ids_, nb::handle dx,
+             nb::handle dth, i64 rings) {
+              Buf2<double> rows = buf_from<double>(rows_, "rows");
+              Buf2<i64> ids = buf_from<i64>(ids_, "ids");
+              check(rows.cols == PROJ_COLS && ids.cols == 2 && rows.rows == ids.rows,
+                    "rows (R, PROJ_COLS), ids (R, 2)");
+              ColliderBuffers cb = collider_buffers();
+              Buf2<i64> ring(n_dyn + 1, 1);
+              std::vector<char> done;
+              i64 n = project_positions(
+                  v2<i64>(pairs, "pairs"), n_pairs, n_dyn, n_static, v1<i64>(geom, "geom"),
+                  v2<double>(size, "size"), v1<double>(inv_mass, "inv_mass"),
+                  v2<double>(inv_inertia, "inv_inertia"), v1<i64>(iso, "iso"), iso_shortcut,
+                  v1<i64>(awake, "awake"), v2<double>(position, "position"),
+                  v3<double>(rotation, "rotation"), v2<double>(sb_pos, "sb_pos"),
+                  v3<double>(sb_rot, "sb_rot"), v2<double>(sb_ext, "sb_ext"),
+                  v1<double>(gn, "gn"), goff, depth, n_iter, rows, ids, cb,
+                  v2<double>(dx, "dx"), v2<double>(dth, "dth"), rings, ring, done);
+              return std::make_tuple(n, copy_out(rows), copy_out(ids));
+          });
+    m.def("apply_projection",
+          [](i64 n_deep, nb::handle ids, nb::handle dx, nb::handle dth, i64 n, int method,
+             int ortho, nb::handle bd, bool iso_shortcut, nb::handle position,
+             nb::handle rotation, nb::handle quat_wxyz, nb::handle lm, nb::handle am,
+             nb::handle l_scratch, nb::handle anchor_steps) {
+              apply_projection(n_deep, v2<i64>(ids, "ids"), v2<double>(dx, "dx"),
+                               v2<double>(dth, "dth"), n, method, ortho, Bodies::from_py(bd),
+                               iso_shortcut, v2<double>(position, "position"),
+                               v3<double>(rotation, "rotation"), v2<double>(quat_wxyz, "quat_wxyz"),
+                               v2<double>(lm, "linear_momentum"), v2<double>(am, "angular_momentum"),
+                               v2<double>(l_scratch, "l_scratch"),
+                               v1<i64>(anchor_steps, "anchor_steps"));
+          });
+}
+
 }  // namespace rb

@@ -1,10 +1,69 @@
-// The integrator registry's compiled side (rblog/engine/integrators.py keeps the registry, the
-// METHOD_* / ORTHO_* codes and the docs; the same codes here). Owner: the free-body port.
-// The contact step uses drift_rotation, drift_exact_anchored, sync_quat and turn_within_bound;
-// their arguments mirror the Python functions', in the same order.
+// The integrators' compiled side (rblog/engine/integrators.py keeps the registry, the METHOD_* /
+// ORTHO_* codes and the docs; the same codes here). Owner: the free-body port.
+//
+// Frames: q (wxyz) and R map body-frame vectors to the world frame. Angular momentum L is world
+// frame; inv_inertia is the diagonal of I_body^-1 (principal axes). Drift functions update
+// quat_wxyz[i] and rotation[i] of the state arrays in place and keep the two consistent (except
+// under the notes' own schemes with orthonormalization off, where the integrator's R is the point
+// of interest). Every integrator's stages are written out here, inline, so that the free-body
+// kernel (free.cpp, templated on the integrator) and the contact step compile them into their
+// loops; the non-inline entry points the contact step calls (drift_rotation,
+// drift_exact_anchored, sync_quat, turn_within_bound, write_sample) are in integrators.cpp.
+//
+// Derivations
+// -----------
+// Notes' scheme (``seed``): omega = R I_b^-1 R^T L, R <- R + h [omega]x R, then orthonormalize.
+// det(I + h[omega]x) = 1 + h^2 |omega|^2, so without orthonormalization det R grows like
+// exp(h * integral |omega|^2 dt): the body "stretches".
+//
+// Notes' scheme on the quaternion (``seed-quat``): q <- q + h/2 (0, omega) (x) q. Normalized
+// (the default), R = R(q) is a rotation and omega = R I_b^-1 R^T L. With ``orthonormalize =
+// "none"`` |q| grows by sqrt(1 + h^2 |omega|^2 / 4) a step, and R is the homogeneous matrix of q,
+// R v = q (x) v (x) q* = |q|^2 Q v (Q the rotation of q / |q|): the body is shown turned by Q and
+// enlarged |q|^2 times in every direction, the notes' "stretch"; ||R^T R - I||_F = sqrt(3)
+// (|q|^4 - 1) is logged. The notes' inertia I_world = R I_b R^T with that R is then |q|^4 Q I_b Q^T,
+// which is exactly the inertia of the enlarged body at unchanged mass (moments scale with length
+// squared), so omega = I_world^-1 L = R^-T I_b^-1 R^-1 L = |q|^-4 Q I_b^-1 Q^T L
+// (:func:`rblog.engine.rotation.omega_world_stretched`): a body that grows while L is conserved
+// turns slower, as a skater opening her arms, and its energy L.omega/2 falls as |q|^-4. (The
+// shortcut I_world^-1 = R I_b^-1 R^T holds only for an orthonormal R; applied to R = |q|^2 Q it
+// gave omega |q|^4 times too fast, a feedback that sped the stretch up: issue 19.) The rotation
+// rate of the body is still omega, since q' = 1/2 (0, omega) q turns q v q* at omega whatever |q|.
+// Only the stretch is unphysical for a rigid body; given the stretch, the rest is consistent.
+//
+// Splitting (``splitting``): the free-body Hamiltonian H = sum_k Lb_k^2 / (2 I_k) (Lb = R^T L) is a
+// sum of three exactly solvable parts. The flow of part k over time s rotates the body about its own
+// axis k by theta = s Lb_k / I_k (q <- q (x) (cos theta/2, sin theta/2 e_k)) and rotates Lb by
+// -theta about e_k, leaving L = R Lb unchanged. Strang composition 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2)
+// is second order, symplectic and time-reversible; |L| (world) is untouched and R stays a product of
+// exact rotations, so both invariants hold to round-off (McLachlan 1993; Dullweber, Leimkuhler &
+// McLachlan 1997).
+//
+// RK4 (``rk4``): classical RK4 on Euler's equations for the body momentum Lb = R^T L, the attitude by
+// the fourth-order commutator-free Lie group method (CF4) driven by the stage angular velocities,
+// then q turned about an axis normal to L so that R^T L points along the RK4 Lb (see
+// :func:`drift_rk4`; until issue 17 it was RK4 on q alone with omega = R(q) I^-1 R(q)^T L, 7-40x
+// less accurate at equal dt).
+//
+// Exact (``exact``): the closed-form torque-free flow (:mod:`rblog.engine.exact`: Jacobi elliptic
+// functions for the body momentum, Carlson's integrals for the attitude), to round-off at any h.
+// With forces and torques: Strang splitting kick(h/2) exact-flow(h) kick(h/2), second order; the
+// world torque is constant over a step, so the only error is the splitting of the momentum kick
+// from the rotation. ``exact4``: Yoshida's triple jump of that step (h w1, h w0, h w1 with
+// w1 = 1 / (2 - 2^(1/3)), w0 = 1 - 2 w1), fourth order; without torque both are exact, and both
+// take the flow over h in one evaluation. The flow is evaluated from a per-body anchor (q_a, L_a)
+// at the elapsed time n h (:func:`drift_exact_anchored`, rblog.engine.state.FlowAnchors), not as a
+// one-step map of the carried q, so the run's error is one evaluation's rounding at any step count
+// (a carried q's ~1e-16 a step, amplified ~1e4 by the saddle, cost the intermediate-axis box 1e-10
+// at dt 1e-2); a torque kick or contact impulse changes L and so starts a new anchor.
+//
 #pragma once
 
+#include <cmath>
+
 #include "common/array.hpp"
+#include "engine/exact.hpp"
+#include "engine/free_constants.hpp"
 #include "engine/rotation.hpp"
 
 namespace rb {
@@ -15,8 +74,15 @@ enum Method : int {
     METHOD_EXACT = 4, METHOD_EXACT4 = 5
 };
 
-// Body i's orientation over h with L (world) fixed, by `method` (not the exact ones: those go
-// through drift_exact_anchored). tx, ty, tz: torque (rk4 only).
+// Yoshida (1990) triple-jump weights (integrators.YOSHIDA_W1 / W0; the Python module checks at
+// import that these are its values bit for bit).
+inline double yoshida_w1() { return 1.0 / (2.0 - std::pow(2.0, 1.0 / 3.0)); }
+inline double yoshida_w0() { return 1.0 - 2.0 * yoshida_w1(); }
+
+// ---- the declared entry points (integrators.cpp) --------------------------------------------
+
+// Body i's orientation over h with L (world) fixed, by `method` (the exact ones by the one-step
+// exact map). tx, ty, tz: torque (rk4 only).
 void drift_rotation(int method, int ortho, V2<double> quat_wxyz, V3<double> rotation,
                     V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h,
                     double tx = 0.0, double ty = 0.0, double tz = 0.0);
@@ -42,7 +108,348 @@ void write_sample(int method, i64 j, i64 i, V2<double> position, V2<double> line
                   V3<double> out_quat_wxyz, V4<double> out_rotation,
                   V3<double> out_angular_momentum);
 
-// exact.N_FLOW: columns of a flow-constants row.
-constexpr i64 N_FLOW = 41;
+// ---- inline stages ---------------------------------------------------------------------------
+
+inline void store_quat(V2<double> quat_wxyz, i64 i, double w, double x, double y, double z) {
+    double* q = quat_wxyz.row(i);
+    q[0] = w; q[1] = x; q[2] = y; q[3] = z;
+}
+
+// Exact flows of H_k = Lb_k^2 / (2 I_k) over time s, given s/I_k: rotate the body about its own
+// axis k by theta = s Lb_k / I_k and Lb by -theta. Half-angle sine/cosine for the quaternion, the
+// full angle's from the double-angle formulas: one sin/cos pair per sub-step.
+inline void flow_x(double& w, double& x, double& y, double& z, double& b0, double& b1, double& b2,
+                   double s_inv_i) {
+    const double th = s_inv_i * b0;
+    const double ch = std::cos(0.5 * th), sh = std::sin(0.5 * th);
+    const double c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
+    const double nw = ch * w - sh * x, nx = ch * x + sh * w, ny = ch * y + sh * z, nz = ch * z - sh * y;
+    const double n1 = c * b1 + sn * b2, n2 = c * b2 - sn * b1;
+    w = nw; x = nx; y = ny; z = nz; b1 = n1; b2 = n2;
+}
+
+inline void flow_y(double& w, double& x, double& y, double& z, double& b0, double& b1, double& b2,
+                   double s_inv_i) {
+    const double th = s_inv_i * b1;
+    const double ch = std::cos(0.5 * th), sh = std::sin(0.5 * th);
+    const double c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
+    const double nw = ch * w - sh * y, nx = ch * x - sh * z, ny = ch * y + sh * w, nz = ch * z + sh * x;
+    const double n0 = c * b0 - sn * b2, n2 = c * b2 + sn * b0;
+    w = nw; x = nx; y = ny; z = nz; b0 = n0; b2 = n2;
+}
+
+inline void flow_z(double& w, double& x, double& y, double& z, double& b0, double& b1, double& b2,
+                   double s_inv_i) {
+    const double th = s_inv_i * b2;
+    const double ch = std::cos(0.5 * th), sh = std::sin(0.5 * th);
+    const double c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
+    const double nw = ch * w - sh * z, nx = ch * x + sh * y, ny = ch * y - sh * x, nz = ch * z + sh * w;
+    const double n0 = c * b0 + sn * b1, n1 = c * b1 - sn * b0;
+    w = nw; x = nx; y = ny; z = nz; b0 = n0; b1 = n1;
+}
+
+// The notes' drift: R += h [omega]x R with omega = R I^-1 R^T L, then orthonormalize.
+// (The quaternion is derived from R only when logged: sync_quat.)
+inline void drift_seed(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                       V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+    (void)quat_wxyz;
+    const double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
+    const double* ii = inv_inertia.row(i);
+    const Mat3 m = load_mat(rotation, i);
+    const Vec3 o = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz);
+    const double ox = o[0], oy = o[1], oz = o[2];
+    const double m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5],
+                 m20 = m[6], m21 = m[7], m22 = m[8];
+    // R <- R + h [omega]x R
+    Mat3 n = {m00 + h * (-oz * m10 + oy * m20), m01 + h * (-oz * m11 + oy * m21),
+              m02 + h * (-oz * m12 + oy * m22),
+              m10 + h * (oz * m00 - ox * m20), m11 + h * (oz * m01 - ox * m21),
+              m12 + h * (oz * m02 - ox * m22),
+              m20 + h * (-oy * m00 + ox * m10), m21 + h * (-oy * m01 + ox * m11),
+              m22 + h * (-oy * m02 + ox * m12)};
+    if (ortho == ORTHO_POLAR)
+        n = polar(n);
+    else if (ortho == ORTHO_GRAM_SCHMIDT)
+        n = gram_schmidt(n);
+    store_mat(rotation, i, n);
+}
+
+// The notes' drift on the quaternion: q += h/2 (0, omega) (x) q, normalized unless ortho is none.
+// Without normalization R = |q|^2 Q and omega = (R I_body R^T)^-1 L (header comment).
+inline void drift_seed_quat(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                            V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+    const double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
+    const double* ii = inv_inertia.row(i);
+    double w = quat_wxyz(i, 0), x = quat_wxyz(i, 1), y = quat_wxyz(i, 2), z = quat_wxyz(i, 3);
+    const Mat3 m = load_mat(rotation, i);
+    const Vec3 o = ortho == ORTHO_NONE ? omega_world_stretched(m, ii[0], ii[1], ii[2], lx, ly, lz)
+                                       : omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz);
+    const Quat d = quat_mul(0.0, o[0], o[1], o[2], w, x, y, z);
+    w = w + 0.5 * h * d[0]; x = x + 0.5 * h * d[1]; y = y + 0.5 * h * d[2]; z = z + 0.5 * h * d[3];
+    if (ortho != ORTHO_NONE) {
+        const Quat q = normalize4(w, x, y, z);
+        w = q[0]; x = q[1]; y = q[2]; z = q[3];
+    }
+    store_quat(quat_wxyz, i, w, x, y, z);
+    store_mat(rotation, i, quat_to_mat(w, x, y, z));
+}
+
+// Strang splitting 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2) of the free rotation into exact axis rotations.
+inline void drift_splitting(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                            V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+    (void)ortho;
+    const double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
+    const double* ii = inv_inertia.row(i);
+    double w = quat_wxyz(i, 0), x = quat_wxyz(i, 1), y = quat_wxyz(i, 2), z = quat_wxyz(i, 3);
+    const Mat3 m = load_mat(rotation, i);
+    // body-frame angular momentum Lb = R^T L
+    double b0 = m[0] * lx + m[3] * ly + m[6] * lz;
+    double b1 = m[1] * lx + m[4] * ly + m[7] * lz;
+    double b2 = m[2] * lx + m[5] * ly + m[8] * lz;
+    const double hh = 0.5 * h;
+    flow_x(w, x, y, z, b0, b1, b2, hh * ii[0]);
+    flow_y(w, x, y, z, b0, b1, b2, hh * ii[1]);
+    flow_z(w, x, y, z, b0, b1, b2, h * ii[2]);
+    flow_y(w, x, y, z, b0, b1, b2, hh * ii[1]);
+    flow_x(w, x, y, z, b0, b1, b2, hh * ii[0]);
+    const Quat q = normalize4(w, x, y, z);
+    store_quat(quat_wxyz, i, q[0], q[1], q[2], q[3]);
+    store_mat(rotation, i, quat_to_mat(q[0], q[1], q[2], q[3]));
+}
+
+// q (x) exp(v): q followed by the body-frame rotation by |v| about v (series below 1e-4 rad).
+inline Quat mul_exp(double w, double x, double y, double z, double vx, double vy, double vz) {
+    const double a2 = vx * vx + vy * vy + vz * vz;
+    double c, sf;
+    if (a2 < 1e-8) {
+        c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0;
+        sf = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0;  // sin(a/2) / a
+    } else {
+        const double a = std::sqrt(a2);
+        c = std::cos(0.5 * a);
+        sf = std::sin(0.5 * a) / a;
+    }
+    return quat_mul(w, x, y, z, c, sf * vx, sf * vy, sf * vz);
+}
+
+// R(q)^T tau for a unit q.
+inline Vec3 torque_body(double w, double x, double y, double z, double tx, double ty, double tz) {
+    const Mat3 m = quat_to_mat(w, x, y, z);
+    return {m[0] * tx + m[3] * ty + m[6] * tz, m[1] * tx + m[4] * ty + m[7] * tz,
+            m[2] * tx + m[5] * ty + m[8] * tz};
+}
+
+// dLb/dt = Lb x omega + tau_body, omega = I^-1 Lb (Euler's equations, body frame).
+inline Vec3 euler_rhs(double b0, double b1, double b2, double k0, double k1, double k2, double t0,
+                      double t1, double t2) {
+    const double w0 = k0 * b0, w1 = k1 * b1, w2 = k2 * b2;
+    return {b1 * w2 - b2 * w1 + t0, b2 * w0 - b0 * w2 + t1, b0 * w1 - b1 * w0 + t2};
+}
+
+// Classical RK4 on Euler's equations for the body momentum Lb, the attitude by the fourth-order
+// commutator-free Lie group method driven by the stage angular velocities, then q turned
+// (minimally, about an axis normal to L) so that R^T L points along the RK4 Lb.
+//
+// L (world) is read at the start of the step; the world torque (tx, ty, tz) is constant over the
+// step (the caller adds h tau to L). Stages (k = I^-1, tau_b(q) = R(q)^T tau):
+//     Lb1 = R^T L;               w_i = k Lb_i;  d_i = Lb_i x w_i + tau_b(q_i)
+//     Lb2 = Lb1 + h/2 d1, q2 = q + h/2 q'(q, w1);  Lb3 = Lb1 + h/2 d2, q3 = q + h/2 q'(q2, w2)
+//     Lb4 = Lb1 + h d3,   q4 = q + h q'(q3, w3);   Lb' = Lb1 + h/6 (d1 + 2 d2 + 2 d3 + d4)
+//     (q'(q, w) = 1/2 q (x) (0, w): the classical stages of the coupled (q, Lb) system)
+//     q' = q exp(h B1) exp(h B2),  B1 = w1/4 + (w2 + w3)/6 - w4/12,  B2 = -w1/12 + (w2 + w3)/6 + w4/4
+// (Celledoni, Marthinsen & Owren, FGCS 19 (2003), CF4 for q' = q w(t)), then the turn taking
+// R(q')^T (L + h tau) to the direction of Lb'. The stage attitudes q_i only serve the torque.
+inline void drift_rk4(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                      V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h,
+                      double tx = 0.0, double ty = 0.0, double tz = 0.0) {
+    (void)ortho;
+    const double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
+    const double k0 = inv_inertia(i, 0), k1 = inv_inertia(i, 1), k2 = inv_inertia(i, 2);
+    double w = quat_wxyz(i, 0), x = quat_wxyz(i, 1), y = quat_wxyz(i, 2), z = quat_wxyz(i, 3);
+    Mat3 m = load_mat(rotation, i);
+    const double a0 = m[0] * lx + m[3] * ly + m[6] * lz;
+    const double a1 = m[1] * lx + m[4] * ly + m[7] * lz;
+    const double a2 = m[2] * lx + m[5] * ly + m[8] * lz;
+    const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
+    const double hh = 0.5 * h;
+    // stage 1
+    double e0 = 0.0, e1 = 0.0, e2 = 0.0;
+    if (torqued) {
+        e0 = m[0] * tx + m[3] * ty + m[6] * tz;
+        e1 = m[1] * tx + m[4] * ty + m[7] * tz;
+        e2 = m[2] * tx + m[5] * ty + m[8] * tz;
+    }
+    const Vec3 d1 = euler_rhs(a0, a1, a2, k0, k1, k2, e0, e1, e2);
+    const double w10 = k0 * a0, w11 = k1 * a1, w12 = k2 * a2;
+    // stage 2
+    double b0 = a0 + hh * d1[0], b1 = a1 + hh * d1[1], b2 = a2 + hh * d1[2];
+    Quat q2{}, q3{};
+    if (torqued) {  // classical stage attitude q2 = q + h/2 q'(q, w1)
+        const Quat k1q = quat_mul(w, x, y, z, 0.0, 0.5 * w10, 0.5 * w11, 0.5 * w12);
+        q2 = normalize4(w + hh * k1q[0], x + hh * k1q[1], y + hh * k1q[2], z + hh * k1q[3]);
+        const Vec3 e = torque_body(q2[0], q2[1], q2[2], q2[3], tx, ty, tz);
+        e0 = e[0]; e1 = e[1]; e2 = e[2];
+    }
+    const Vec3 d2 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
+    const double w20 = k0 * b0, w21 = k1 * b1, w22 = k2 * b2;
+    // stage 3
+    b0 = a0 + hh * d2[0]; b1 = a1 + hh * d2[1]; b2 = a2 + hh * d2[2];
+    if (torqued) {  // q3 = q + h/2 q'(q2, w2)
+        const Quat k2q = quat_mul(q2[0], q2[1], q2[2], q2[3], 0.0, 0.5 * w20, 0.5 * w21, 0.5 * w22);
+        q3 = normalize4(w + hh * k2q[0], x + hh * k2q[1], y + hh * k2q[2], z + hh * k2q[3]);
+        const Vec3 e = torque_body(q3[0], q3[1], q3[2], q3[3], tx, ty, tz);
+        e0 = e[0]; e1 = e[1]; e2 = e[2];
+    }
+    const Vec3 d3 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
+    const double w30 = k0 * b0, w31 = k1 * b1, w32 = k2 * b2;
+    // stage 4
+    b0 = a0 + h * d3[0]; b1 = a1 + h * d3[1]; b2 = a2 + h * d3[2];
+    if (torqued) {  // q4 = q + h q'(q3, w3)
+        const Quat k3q = quat_mul(q3[0], q3[1], q3[2], q3[3], 0.0, 0.5 * w30, 0.5 * w31, 0.5 * w32);
+        const Quat q4 = normalize4(w + h * k3q[0], x + h * k3q[1], y + h * k3q[2], z + h * k3q[3]);
+        const Vec3 e = torque_body(q4[0], q4[1], q4[2], q4[3], tx, ty, tz);
+        e0 = e[0]; e1 = e[1]; e2 = e[2];
+    }
+    const Vec3 d4 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
+    const double w40 = k0 * b0, w41 = k1 * b1, w42 = k2 * b2;
+    const double g = h / 6.0;
+    const double n0 = a0 + g * (d1[0] + 2.0 * d2[0] + 2.0 * d3[0] + d4[0]);
+    const double n1 = a1 + g * (d1[1] + 2.0 * d2[1] + 2.0 * d3[1] + d4[1]);
+    const double n2 = a2 + g * (d1[2] + 2.0 * d2[2] + 2.0 * d3[2] + d4[2]);
+    // attitude: CF4
+    const double c1 = 1.0 / 4.0, c2 = 1.0 / 6.0, c3 = -1.0 / 12.0;
+    Quat q = mul_exp(w, x, y, z, h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
+                     h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
+                     h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42));
+    q = mul_exp(q[0], q[1], q[2], q[3], h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
+                h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
+                h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42));
+    q = normalize4(q[0], q[1], q[2], q[3]);
+    // turn q so that R^T L_end is along Lb': the rotation c with c u = v (u, v unit), q <- q c^-1
+    const double ex = lx + h * tx, ey = ly + h * ty, ez = lz + h * tz;
+    m = quat_to_mat(q[0], q[1], q[2], q[3]);
+    double u0 = m[0] * ex + m[3] * ey + m[6] * ez;
+    double u1 = m[1] * ex + m[4] * ey + m[7] * ez;
+    double u2 = m[2] * ex + m[5] * ey + m[8] * ez;
+    const double nu = std::sqrt(u0 * u0 + u1 * u1 + u2 * u2);
+    const double nv = std::sqrt(n0 * n0 + n1 * n1 + n2 * n2);
+    if (nu > 0.0 && nv > 0.0) {
+        const double iu = 1.0 / nu, iv = 1.0 / nv;
+        u0 = u0 * iu; u1 = u1 * iu; u2 = u2 * iu;
+        const double v0 = n0 * iv, v1 = n1 * iv, v2 = n2 * iv;
+        const double cw = 1.0 + u0 * v0 + u1 * v1 + u2 * v2;
+        const double cx = u1 * v2 - u2 * v1, cy = u2 * v0 - u0 * v2, cz = u0 * v1 - u1 * v0;
+        q = quat_mul(q[0], q[1], q[2], q[3], cw, -cx, -cy, -cz);
+    }
+    q = normalize4(q[0], q[1], q[2], q[3]);
+    store_quat(quat_wxyz, i, q[0], q[1], q[2], q[3]);
+    store_mat(rotation, i, quat_to_mat(q[0], q[1], q[2], q[3]));
+}
+
+// The exact torque-free rotation over h (L world fixed), to round-off for any h (one-step map).
+inline void drift_exact(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                        V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+    (void)ortho;
+    const double* ii = inv_inertia.row(i);
+    double q[4];
+    free_flow_quat(quat_wxyz(i, 0), quat_wxyz(i, 1), quat_wxyz(i, 2), quat_wxyz(i, 3),
+                   angular_momentum(i, 0), angular_momentum(i, 1), angular_momentum(i, 2), ii[0],
+                   ii[1], ii[2], h, q);
+    store_quat(quat_wxyz, i, q[0], q[1], q[2], q[3]);
+    store_mat(rotation, i, quat_to_mat(q[0], q[1], q[2], q[3]));
+}
+
+// Row r of fc: the flow constants of the anchor (q_a, L), for steps of h.
+inline void anchor_constants(double* row, double aw, double ax, double ay, double az, double lx,
+                             double ly, double lz, double k0, double k1, double k2, double h) {
+    // Lb = R(q_a)^T L at the anchor; backward in time, the forward flow of -Lb
+    const Mat3 m = quat_to_mat(aw, ax, ay, az);
+    const double sg = h >= 0.0 ? 1.0 : -1.0;
+    flow_constants(row, sg * (m[0] * lx + m[3] * ly + m[6] * lz),
+                   sg * (m[1] * lx + m[4] * ly + m[7] * lz), sg * (m[2] * lx + m[5] * ly + m[8] * lz),
+                   k0, k1, k2);
+}
+
+// q(t) = q_a (x) c(t), unit: the flow at the elapsed time t >= 0 from the anchor q_a whose flow
+// constants are the row c, with the sign that keeps it nearest the previous q (pw, px, py, pz):
+// the logged q stays continuous. rj_c: the row's FC_RJC as flow_eval returns it (the caller
+// stores it).
+inline Quat anchored_quat(const double* c, double aw, double ax, double ay, double az, double t,
+                          double pw, double px, double py, double pz, double& rj_c) {
+    const FlowOut f = flow_eval(c, t);
+    rj_c = f.rj_c;
+    const Quat q = quat_mul(aw, ax, ay, az, f.cw, f.c0, f.c1, f.c2);
+    const double w = q[0], x = q[1], y = q[2], z = q[3];
+    double s = 1.0 / std::sqrt(w * w + x * x + y * y + z * z);
+    if (w * pw + x * px + y * py + z * pz < 0.0) s = -s;
+    return {w * s, x * s, y * s, z * s};
+}
+
+// Whether a body's flow anchor still serves a step of h with world momentum L: set, the same
+// step, L bitwise the anchor's.
+inline bool anchor_holds(i64 steps, double anchor_dt, double a0, double a1, double a2, double h,
+                         double lx, double ly, double lz) {
+    return steps >= 0 && anchor_dt == h && a0 == lx && a1 == ly && a2 == lz;
+}
+
+// turn_within_bound from scalars: inverse moments k, world L and R (row-major). The turn is
+// |omega| dt with omega = R diag(k) R^T L (k = 1/I_body). For an orthonormal R,
+// |omega| <= max(k) |L|, so that cheap bound is tested first and the exact value only above it
+// (never in a sane run). An overflowing |L| or omega compares as too large (inf or NaN).
+inline bool turn_within_bound_m(double dt, double k0, double k1, double k2, double lx, double ly,
+                                double lz, const Mat3& m) {
+    const double kmax_dt = py_max(k0, py_max(k1, k2)) * dt;
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    if ((lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2) return true;
+    const double w0 = (m[0] * lx + m[3] * ly + m[6] * lz) * k0 * dt;
+    const double w1 = (m[1] * lx + m[4] * ly + m[7] * lz) * k1 * dt;
+    const double w2 = (m[2] * lx + m[5] * ly + m[8] * lz) * k2 * dt;
+    return w0 * w0 + w1 * w1 + w2 * w2 <= lim2;
+}
+
+// Position and momentum after dt under the constant force f (inverse mass im): the exact map
+// x += h v + h^2 a / 2, v += h a (kick-drift-kick is the same map).
+inline void flight_exact(double dt, double im, double& x, double& y, double& z, double& px,
+                         double& py, double& pz, double fx, double fy, double fz) {
+    const double hh = 0.5 * dt * dt * im;
+    x = x + (dt * px * im + hh * fx);
+    y = y + (dt * py * im + hh * fy);
+    z = z + (dt * pz * im + hh * fz);
+    px = px + dt * fx;
+    py = py + dt * fy;
+    pz = pz + dt * fz;
+}
+
+// Inline body of sync_quat for seed: q[i] from the polar factor of R[i] (the largest entry
+// divided out first so that a huge but finite R does not overflow in the cofactors).
+inline void sync_quat_seed(V2<double> quat_wxyz, V3<double> rotation, i64 i) {
+    Mat3 m = load_mat(rotation, i);
+    double big = 0.0;
+    for (int k = 0; k < 9; ++k) big = py_max(big, std::fabs(m[k]));
+    if (big > 0.0 && std::isfinite(big)) {
+        const double inv = 1.0 / big;
+        for (int k = 0; k < 9; ++k) m[k] = m[k] * inv;
+    }
+    const Quat q = mat_to_quat(polar(m));
+    store_quat(quat_wxyz, i, q[0], q[1], q[2], q[3]);
+}
+
+// Inline body of write_sample.
+template <int METHOD>
+inline void write_sample_t(i64 j, i64 i, V2<double> position, V2<double> linear_momentum,
+                           V2<double> quat_wxyz, V3<double> rotation, V2<double> angular_momentum,
+                           V3<double> out_position, V3<double> out_linear_momentum,
+                           V3<double> out_quat_wxyz, V4<double> out_rotation,
+                           V3<double> out_angular_momentum) {
+    if (METHOD == METHOD_SEED) sync_quat_seed(quat_wxyz, rotation, i);  // q not current
+    for (int a = 0; a < 3; ++a) {
+        out_position(j, i, a) = position(i, a);
+        out_linear_momentum(j, i, a) = linear_momentum(i, a);
+        out_angular_momentum(j, i, a) = angular_momentum(i, a);
+        for (int b = 0; b < 3; ++b) out_rotation(j, i, a, b) = rotation(i, a, b);
+    }
+    for (int a = 0; a < 4; ++a) out_quat_wxyz(j, i, a) = quat_wxyz(i, a);
+}
 
 }  // namespace rb

@@ -1,12 +1,19 @@
 // Rotation math on scalars (rblog/engine/rotation.py, the same formulas in the same order).
 // A matrix is a row-major 9-array (Mat3), a quaternion (w, x, y, z) a Quat, a vector a Vec3.
-// Implemented inline here (owner: the free-body port); until then, declarations only.
+//
+// Frames: q (wxyz, scalar first) and R map body-frame vectors to the world frame
+// (v_world = R v_body). Angular momentum L is world frame; inv_inertia is the diagonal of
+// I_body^-1 (principal axes), so omega = R diag(1/I) R^T L, as in the lecture notes.
+// Everything is inline over scalars and small arrays, so a kernel stepping N bodies allocates
+// nothing per step. (The analyzers keep their own geometry on purpose: an audit must not share
+// the code it audits.)
 #pragma once
 
 #include <array>
 #include <cmath>
 
 #include "common/array.hpp"
+#include "engine/free_constants.hpp"
 
 namespace rb {
 
@@ -14,15 +21,162 @@ using Mat3 = std::array<double, 9>;  // row-major: m00 m01 m02 m10 ... m22
 using Quat = std::array<double, 4>;  // w x y z
 using Vec3 = std::array<double, 3>;
 
-inline Quat quat_mul(double aw, double ax, double ay, double az, double bw, double bx, double by, double bz);
-inline Mat3 quat_to_mat(double w, double x, double y, double z);
-inline void store_mat(V3<double> rotation, i64 i, const Mat3& m);
-inline Mat3 load_mat(V3<double> rotation, i64 i);
-inline Quat mat_to_quat(const Mat3& m);
-inline Vec3 omega_world(const Mat3& m, double inv_i0, double inv_i1, double inv_i2, double lx, double ly, double lz);
-inline Vec3 omega_world_stretched(const Mat3& m, double inv_i0, double inv_i1, double inv_i2, double lx, double ly, double lz);
-inline Mat3 polar(const Mat3& m);
-inline Mat3 gram_schmidt(const Mat3& m);
-inline Quat normalize4(double w, double x, double y, double z);
+// Hamilton product a (x) b.
+inline Quat quat_mul(double aw, double ax, double ay, double az, double bw, double bx, double by,
+                     double bz) {
+    return {aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw};
+}
+
+// Rotation matrix (row-major) of q. For |q| != 1 it returns |q|^2 times a rotation (the
+// homogeneous form), so an unnormalized quaternion shows up as a scaled R.
+inline Mat3 quat_to_mat(double w, double x, double y, double z) {
+    return {w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z),         2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z),         w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y),         2.0 * (y * z + w * x),         w * w - x * x - y * y + z * z};
+}
+
+inline void store_mat(V3<double> rotation, i64 i, const Mat3& m) {
+    double* r = rotation.row(i);
+    for (int k = 0; k < 9; ++k) r[k] = m[k];
+}
+
+inline Mat3 load_mat(V3<double> rotation, i64 i) {
+    const double* r = rotation.row(i);
+    return {r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]};
+}
+
+// Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method, w >= 0). For a matrix
+// that is not exactly orthonormal it returns the normalized quaternion of the
+// nearest-by-construction rotation, which is what a logger can show.
+inline Quat mat_to_quat(const Mat3& m) {
+    const double m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5],
+                 m20 = m[6], m21 = m[7], m22 = m[8];
+    const double tr = m00 + m11 + m22;
+    double s, w, x, y, z;
+    if (tr > 0.0) {
+        s = std::sqrt(tr + 1.0) * 2.0;
+        w = 0.25 * s; x = (m21 - m12) / s; y = (m02 - m20) / s; z = (m10 - m01) / s;
+    } else if (m00 > m11 && m00 > m22) {
+        s = std::sqrt(1.0 + m00 - m11 - m22) * 2.0;
+        w = (m21 - m12) / s; x = 0.25 * s; y = (m01 + m10) / s; z = (m02 + m20) / s;
+    } else if (m11 > m22) {
+        s = std::sqrt(1.0 + m11 - m00 - m22) * 2.0;
+        w = (m02 - m20) / s; x = (m01 + m10) / s; y = 0.25 * s; z = (m12 + m21) / s;
+    } else {
+        s = std::sqrt(1.0 + m22 - m00 - m11) * 2.0;
+        w = (m10 - m01) / s; x = (m02 + m20) / s; y = (m12 + m21) / s; z = 0.25 * s;
+    }
+    double n = std::sqrt(w * w + x * x + y * y + z * z);
+    if (w < 0.0) n = -n;
+    return {w / n, x / n, y / n, z / n};
+}
+
+// omega = R diag(inv_i) R^T L for R given row-major.
+inline Vec3 omega_world(const Mat3& m, double inv_i0, double inv_i1, double inv_i2, double lx,
+                        double ly, double lz) {
+    const double m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5],
+                 m20 = m[6], m21 = m[7], m22 = m[8];
+    const double b0 = (m00 * lx + m10 * ly + m20 * lz) * inv_i0;
+    const double b1 = (m01 * lx + m11 * ly + m21 * lz) * inv_i1;
+    const double b2 = (m02 * lx + m12 * ly + m22 * lz) * inv_i2;
+    return {m00 * b0 + m01 * b1 + m02 * b2, m10 * b0 + m11 * b1 + m12 * b2,
+            m20 * b0 + m21 * b1 + m22 * b2};
+}
+
+// omega = I_world^-1 L with I_world = R I_body R^T, for an R that need not be orthonormal
+// (row-major, invertible): omega = R^-T diag(inv_i) R^-1 L.
+// With C the cofactor matrix of R (R^-1 = C^T / det R, R^-T = C / det R):
+// omega = C diag(inv_i) C^T L / det(R)^2. For an orthonormal R, C = R and det R = 1, and this is
+// omega_world; for the scaled rotation R = s Q of an unnormalised quaternion (s = |q|^2) it is
+// omega_world(Q) / s^2 (see integrators.hpp, seed-quat).
+inline Vec3 omega_world_stretched(const Mat3& m, double inv_i0, double inv_i1, double inv_i2,
+                                  double lx, double ly, double lz) {
+    const double a00 = m[0], a01 = m[1], a02 = m[2], a10 = m[3], a11 = m[4], a12 = m[5],
+                 a20 = m[6], a21 = m[7], a22 = m[8];
+    const double c00 = a11 * a22 - a12 * a21;
+    const double c01 = a12 * a20 - a10 * a22;
+    const double c02 = a10 * a21 - a11 * a20;
+    const double c10 = a02 * a21 - a01 * a22;
+    const double c11 = a00 * a22 - a02 * a20;
+    const double c12 = a01 * a20 - a00 * a21;
+    const double c20 = a01 * a12 - a02 * a11;
+    const double c21 = a02 * a10 - a00 * a12;
+    const double c22 = a00 * a11 - a01 * a10;
+    const double det = a00 * c00 + a01 * c01 + a02 * c02;
+    const double f = 1.0 / (det * det);
+    const double b0 = (c00 * lx + c10 * ly + c20 * lz) * inv_i0 * f;
+    const double b1 = (c01 * lx + c11 * ly + c21 * lz) * inv_i1 * f;
+    const double b2 = (c02 * lx + c12 * ly + c22 * lz) * inv_i2 * f;
+    return {c00 * b0 + c01 * b1 + c02 * b2, c10 * b0 + c11 * b1 + c12 * b2,
+            c20 * b0 + c21 * b1 + c22 * b2};
+}
+
+// Python's max(a, b) for floats: a unless b > a (so a NaN b is skipped, a NaN a kept).
+inline double py_max(double a, double b) { return b > a ? b : a; }
+
+// Nearest rotation to m (orthogonal polar factor) by Newton's iteration R <- (R + R^-T)/2, at
+// most POLAR_MAX_ITER iterations, stopping when the largest entry of the update is <= POLAR_TOL
+// (quadratic convergence: the new iterate is then within ~d^2 of the limit).
+inline Mat3 polar(const Mat3& m) {
+    double a00 = m[0], a01 = m[1], a02 = m[2], a10 = m[3], a11 = m[4], a12 = m[5], a20 = m[6],
+           a21 = m[7], a22 = m[8];
+    const int max_iter = free_constants.polar_max_iter;
+    const double tol = free_constants.polar_tol;
+    for (int it = 0; it < max_iter; ++it) {
+        // cofactors: R^-T = cof(R) / det(R)
+        const double c00 = a11 * a22 - a12 * a21;
+        const double c01 = a12 * a20 - a10 * a22;
+        const double c02 = a10 * a21 - a11 * a20;
+        const double c10 = a02 * a21 - a01 * a22;
+        const double c11 = a00 * a22 - a02 * a20;
+        const double c12 = a01 * a20 - a00 * a21;
+        const double c20 = a01 * a12 - a02 * a11;
+        const double c21 = a02 * a10 - a00 * a12;
+        const double c22 = a00 * a11 - a01 * a10;
+        const double det = a00 * c00 + a01 * c01 + a02 * c02;
+        const double f = 0.5 / det;
+        const double n00 = 0.5 * a00 + f * c00;
+        const double n01 = 0.5 * a01 + f * c01;
+        const double n02 = 0.5 * a02 + f * c02;
+        const double n10 = 0.5 * a10 + f * c10;
+        const double n11 = 0.5 * a11 + f * c11;
+        const double n12 = 0.5 * a12 + f * c12;
+        const double n20 = 0.5 * a20 + f * c20;
+        const double n21 = 0.5 * a21 + f * c21;
+        const double n22 = 0.5 * a22 + f * c22;
+        double d = std::fabs(n00 - a00);
+        d = py_max(d, std::fabs(n01 - a01));
+        d = py_max(d, std::fabs(n02 - a02));
+        d = py_max(d, std::fabs(n10 - a10));
+        d = py_max(d, std::fabs(n11 - a11));
+        d = py_max(d, std::fabs(n12 - a12));
+        d = py_max(d, std::fabs(n20 - a20));
+        d = py_max(d, std::fabs(n21 - a21));
+        d = py_max(d, std::fabs(n22 - a22));
+        a00 = n00; a01 = n01; a02 = n02; a10 = n10; a11 = n11; a12 = n12; a20 = n20; a21 = n21;
+        a22 = n22;
+        if (d <= tol) break;
+    }
+    return {a00, a01, a02, a10, a11, a12, a20, a21, a22};
+}
+
+// Orthonormalize the columns of m in order (x axis kept, y made orthogonal, z = x cross y).
+inline Mat3 gram_schmidt(const Mat3& m) {
+    const double m00 = m[0], m01 = m[1], m10 = m[3], m11 = m[4], m20 = m[6], m21 = m[7];
+    double n = std::sqrt(m00 * m00 + m10 * m10 + m20 * m20);
+    const double x0 = m00 / n, x1 = m10 / n, x2 = m20 / n;
+    const double d = x0 * m01 + x1 * m11 + x2 * m21;
+    double y0 = m01 - d * x0, y1 = m11 - d * x1, y2 = m21 - d * x2;
+    n = std::sqrt(y0 * y0 + y1 * y1 + y2 * y2);
+    y0 = y0 / n; y1 = y1 / n; y2 = y2 / n;
+    const double z0 = x1 * y2 - x2 * y1, z1 = x2 * y0 - x0 * y2, z2 = x0 * y1 - x1 * y0;
+    return {x0, y0, z0, x1, y1, z1, x2, y2, z2};
+}
+
+inline Quat normalize4(double w, double x, double y, double z) {
+    const double n = 1.0 / std::sqrt(w * w + x * x + y * y + z * z);
+    return {w * n, x * n, y * n, z * n};
+}
 
 }  // namespace rb

@@ -1,9 +1,9 @@
 """Per-stage timing of a run (``rblog run --profile``), as Box2D's ``b2Profile``.
 
-Inside the compiled step a stage is timed with the CPU's cycle counter (LLVM's
-``llvm.readcyclecounter``, one instruction, ~20 ns; no call back into Python, and the kernel
-stays cacheable). The counter's rate is measured once against ``time.perf_counter``
-(:func:`ticks_per_second`). The step reads the counter only when its profile array is not empty,
+Inside the compiled step (csrc/engine/world_step.cpp) a stage is timed with the CPU's cycle
+counter (rdtsc on x86-64, one instruction, ~20 ns, no call back into Python; a steady clock in
+nanoseconds elsewhere; csrc/engine/profile.hpp). The counter's rate is measured once against
+``time.perf_counter`` (:func:`ticks_per_second`). The step reads the counter only when its profile array is not empty,
 so an unprofiled run pays one branch per stage.
 
 Stages (``STAGES``, indices ``P_*``) follow contact/step.py; ``integrate`` also holds a free-body
@@ -18,10 +18,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from llvmlite import ir
-from numba import types
-from numba.core import cgutils
-from numba.extending import intrinsic
+
+from rblog.engine import _core
 
 (P_KICK, P_BROADPHASE, P_WAKE, P_COLLIDE, P_SOLVE, P_RELAX, P_INTEGRATE, P_RESTITUTION,
  P_PROJECT, P_SLEEP, P_SAMPLE) = range(11)
@@ -31,17 +29,15 @@ STAGES = ("kick", "broadphase", "wake", "collide", "solve", "relax", "integrate"
           "project", "sleep", "sample")
 
 
-@intrinsic
-def ticks(typingctx):
-    """The CPU cycle counter (int64 ticks) from compiled code."""
-    sig = types.int64()
+# the C++ step indexes the profile by the same P_* (profile.hpp); they must agree
+if _core.N_PROF != N_PROF:
+    raise ImportError("rblog.engine._core is out of step with profile.py (N_PROF): rebuild it "
+                      "(pip install -e .)")
 
-    def codegen(context, builder, signature, args):
-        fnty = ir.FunctionType(ir.IntType(64), [])
-        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.readcyclecounter")
-        return builder.call(fn, [])
 
-    return sig, codegen
+def ticks() -> int:
+    """The cycle counter the compiled step reads (int64 ticks)."""
+    return _core.ticks()
 
 
 _RATE: list[float] = []
@@ -50,17 +46,10 @@ _RATE: list[float] = []
 def ticks_per_second() -> float:
     """The cycle counter's rate (ticks per second), measured once over ~20 ms of wall time."""
     if not _RATE:
-        from numba import njit
-
-        @njit
-        def read():
-            return ticks()
-
-        read()
-        t0, c0 = time.perf_counter(), read()
+        t0, c0 = time.perf_counter(), ticks()
         while time.perf_counter() - t0 < 0.02:
             pass
-        t1, c1 = time.perf_counter(), read()
+        t1, c1 = time.perf_counter(), ticks()
         _RATE.append(max(c1 - c0, 1) / (t1 - t0))
     return _RATE[0]
 

@@ -8,7 +8,6 @@ import math
 
 import numpy as np
 import pytest
-from numba import njit
 
 scipy_special = pytest.importorskip("scipy.special")
 from scipy.integrate import solve_ivp  # noqa: E402
@@ -18,7 +17,6 @@ from rblog.engine.integrators import METHOD_CODES, REGISTRY, drift_rotation  # n
 from rblog.study.reference import TorqueFree, quat_to_matrix, rotation_angle_between  # noqa: E402
 
 
-@njit(cache=True)
 def _run(q0, l_world, k, h, n_steps, stride):
     """Step the exact flow n_steps times, recording q every stride steps (first row: q0)."""
     out = np.empty((n_steps // stride + 1, 4))

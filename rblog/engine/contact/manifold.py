@@ -14,14 +14,16 @@ offsets of the contact point from the centres of mass at the narrowphase; a posi
 impulse pushes a along +normal and b along -normal; the friction impulse ``f`` is the world
 vector applied to a (b gets -f). Solver body index ``n_bodies`` is a static dummy (zero inverse
 mass, zero velocity) standing for the ground, static boxes and sleeping bodies.
+
+This module is the documented home of the column constants; csrc/engine/manifold.hpp mirrors them
+for the C++ core (tests/engine/contact/test_collision_core.py checks that they agree). The
+manifold reduction (deepest, farthest, largest triangle, largest quad; touching points first) is
+``reduce_manifold`` in csrc/engine/manifold.cpp.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
-
-from rblog.engine.constants import MANIFOLD_TOUCH_BAND_M
 
 # ---- per manifold, int64 ----
 MI_KEY = 0  # 2 (lo * n_shapes + hi) + part; shape ids: bodies, static boxes, ground; part 1 is
@@ -98,95 +100,3 @@ MAX_CLIP_POINTS = 12
 MAX_MANIFOLD_POINTS = 4
 #: m^2: triangle areas (about the normal) below this add nothing to a manifold (collinear points)
 _AREA_EPS = 1e-12
-
-
-@njit(cache=True)
-def swap_point(pts, sep, fid, i, j):
-    if i == j:
-        return
-    for k in range(3):
-        t = pts[i, k]
-        pts[i, k] = pts[j, k]
-        pts[j, k] = t
-    t = sep[i]
-    sep[i] = sep[j]
-    sep[j] = t
-    f = fid[i]
-    fid[i] = fid[j]
-    fid[j] = f
-
-
-@njit(cache=True)
-def reduce_manifold(nrm, pts, sep, fid, count):
-    """Keep four of ``count`` coplanar-ish points: deepest, farthest from it, the one making the
-    largest triangle, the one adding the most area outside that triangle (Gregorius), each chosen
-    among the touching points first (within MANIFOLD_TOUCH_BAND_M of the deepest) and among all
-    of them only when no touching point is left that adds length or area. Returns 4."""
-    if count <= MAX_MANIFOLD_POINTS:
-        return count
-    nx, ny, nz = nrm[0], nrm[1], nrm[2]
-    # 1: deepest
-    best = 0
-    for j in range(1, count):
-        if sep[j] < sep[best]:
-            best = j
-    swap_point(pts, sep, fid, 0, best)
-    touch = sep[0] + MANIFOLD_TOUCH_BAND_M
-    # 2: farthest from point 0 (touching first)
-    best = -1
-    bd = 0.0
-    for only_touching in (True, False):
-        for j in range(1, count):
-            if only_touching and sep[j] > touch:
-                continue
-            dx, dy, dz = pts[j, 0] - pts[0, 0], pts[j, 1] - pts[0, 1], pts[j, 2] - pts[0, 2]
-            d = dx * dx + dy * dy + dz * dz
-            if d > bd:
-                bd = d
-                best = j
-        if best >= 0:
-            break
-    swap_point(pts, sep, fid, 1, max(best, 1))
-    # 3: largest |triangle area| with 0, 1 (measured about the normal; touching first)
-    ax, ay, az = pts[1, 0] - pts[0, 0], pts[1, 1] - pts[0, 1], pts[1, 2] - pts[0, 2]
-    best = -1
-    ba = _AREA_EPS
-    sgn = 1.0
-    for only_touching in (True, False):
-        for j in range(2, count):
-            if only_touching and sep[j] > touch:
-                continue
-            bx, by, bz = pts[j, 0] - pts[0, 0], pts[j, 1] - pts[0, 1], pts[j, 2] - pts[0, 2]
-            area = nx * (ay * bz - az * by) + ny * (az * bx - ax * bz) + nz * (ax * by - ay * bx)
-            if abs(area) > ba:
-                ba = abs(area)
-                best = j
-                sgn = 1.0 if area >= 0.0 else -1.0
-        if best >= 0:
-            break
-    swap_point(pts, sep, fid, 2, max(best, 2))
-    # 4: the point farthest outside the triangle (most negative signed area over its edges;
-    # touching first)
-    best = -1
-    ba = -_AREA_EPS
-    for only_touching in (True, False):
-        for j in range(3, count):
-            if only_touching and sep[j] > touch:
-                continue
-            worst = 0.0
-            for e in range(3):
-                i0 = e
-                i1 = (e + 1) % 3
-                ex, ey, ez = pts[i1, 0] - pts[i0, 0], pts[i1, 1] - pts[i0, 1], pts[i1, 2] - pts[i0, 2]
-                qx, qy, qz = pts[j, 0] - pts[i0, 0], pts[j, 1] - pts[i0, 1], pts[j, 2] - pts[i0, 2]
-                area = sgn * (nx * (ey * qz - ez * qy) + ny * (ez * qx - ex * qz)
-                              + nz * (ex * qy - ey * qx))
-                if area < worst:
-                    worst = area
-            if worst < ba:
-                ba = worst
-                best = j
-        if best >= 0:
-            break
-    swap_point(pts, sep, fid, 3, max(best, 3))
-    return MAX_MANIFOLD_POINTS

@@ -34,15 +34,15 @@ from rblog.engine.rotation import quat_to_matrix_np
 from rblog.contract.trajectory import Contacts
 from rblog.engine.contact.broadphase import static_box_aabbs
 from rblog.engine.contact.manifold import (
-    LOG_A, LOG_B, LOG_F, LOG_F_COLS, LOG_I_COLS, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
-    empty_manifolds,
+    LOG_A, LOG_B, LOG_F, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
 )
 from rblog.engine.contact.narrowphase import (
     GEOM_BOX, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM, UnsupportedShapePair,
 )
 from rblog.engine.constants import ContactParams
 from rblog.engine.contact.step import (
-    N_STATS, Bodies, BodyState, ContactCache, Settings, SleepState, Statics, world_advance,
+    N_STATS, Bodies, BodyState, ContactCache, Settings, SleepState, Statics, solver_constants,
+    world_advance,
 )
 
 
@@ -134,7 +134,7 @@ class ContactWorld:
             float(p.speculative_distance), -1.0,  # e_threshold: set per dt by advance()
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
             bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth),
-            bool(p.static_friction_anchors))
+            bool(p.static_friction_anchors), **solver_constants())
         # the free-body kernel's inputs, for scenes where nothing can touch
         self._inv_mass = 1.0 / mass
         self._inv_inertia = inv_inertia
@@ -144,11 +144,8 @@ class ContactWorld:
                                  np.zeros(1, np.int64))
         self.awake = self._sleep.awake
         cap = max(16, 4 * n)
-        self._cache = ContactCache(*empty_manifolds(cap, 4 * cap), 0, np.zeros(1, np.int64),
-                                   np.zeros(1, np.int64), *empty_manifolds(cap, 4 * cap),
-                                   np.zeros((cap, 2), np.int64))
-        self._log_i = np.zeros((64, LOG_I_COLS), np.int64)
-        self._log_f = np.zeros((64, LOG_F_COLS))
+        #: the C++ step's cache (step.ContactCache): last step's manifolds and the work arrays
+        self._cache = ContactCache(cap, 4 * cap)
         #: counters accumulated over all calls: steps with awake bodies, candidate pairs,
         #: manifolds, points, awake body-steps, impact points, islands woken, bodies put to sleep,
         #: velocity sweeps, points pushed out by the project stage
@@ -313,11 +310,9 @@ class ContactWorld:
             BodyState(position, linear_momentum, quat_wxyz, rotation, angular_momentum),
             BodyState(out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                       out_angular_momentum),
-            self._sleep, self._cache, self._log_i, self._log_f, self.stats, self.profile_ticks,
-            anchors)
-        n_samples, bad_step, bad_body, n_log, self._log_i, self._log_f, self._cache = res
-        li = self._log_i[:n_log]
-        lf = self._log_f[:n_log]
+            self._sleep, self._cache, self.stats, self.profile_ticks, anchors)
+        n_samples, bad_step, bad_body, li, lf = res
+        n_log = li.shape[0]
         contacts = Contacts(
             step=li[:, LOG_STEP].copy(), t=np.zeros(n_log), body_a=li[:, LOG_A].copy(),
             body_b=li[:, LOG_B].copy(), point=lf[:, LOG_P:LOG_P + 3].copy(),

@@ -1,0 +1,181 @@
+// Broad phase: swept AABBs and sort-and-sweep, N log N (rblog/engine/contact/broadphase.py, the
+// same formulas in the same order).
+//
+// Shape ids: dynamic bodies 0..N-1, static boxes N..N+M-1, the ground N+M. A pair is always
+// (lower id, higher id), so a dynamic body is a and static geometry is b.
+//
+// Each awake body's box is its world AABB grown by half the speculative distance (margin) and
+// swept along its displacement over the step (h v, and h |omega| rho for rotation, capped at the
+// bounding sphere): two bodies whose boxes do not overlap cannot come within the speculative
+// distance during the step. reach is how far any point of the body can move in the step; the
+// narrowphase keeps points closer than margin + reach_a + reach_b. |omega| is bounded cheaply by
+// |L| max(1/I) (a rotating box stays in its bounding sphere).
+//
+// Collision groups: bodies in different non-zero groups never collide; group 0 collides with
+// everything, and static geometry (ground, static boxes) collides with every body.
+//
+// The sweep runs along the axis where the AABB centres spread most; the sort is stable (numpy's
+// argsort kind="mergesort"; NaN keys last, as numpy sorts them), so the pairs are a deterministic
+// function of the state. Overlap tests are written as "not overlapping" so that a NaN box never
+// pairs with anything.
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "engine/collision.hpp"
+
+namespace rb {
+
+void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv_mass,
+                V2<double> inv_inertia, V1<i64> awake, V2<double> position,
+                V2<double> linear_momentum, V3<double> rotation, V2<double> angular_momentum,
+                double h, double margin, V2<double> lo, V2<double> hi, V1<double> reach) {
+    const i64 n = position.n0;
+    const double pad = 0.5 * margin;
+    for (i64 i = 0; i < n; ++i) {
+        double ex, ey, ez;
+        if (geom[i] == GEOM_SPHERE) {
+            ex = ey = ez = size(i, 0);
+        } else {
+            M3 r = rotation.row(i);
+            double e0 = size(i, 0), e1 = size(i, 1), e2 = size(i, 2);
+            ex = std::fabs(r(0, 0)) * e0 + std::fabs(r(0, 1)) * e1 + std::fabs(r(0, 2)) * e2;
+            ey = std::fabs(r(1, 0)) * e0 + std::fabs(r(1, 1)) * e1 + std::fabs(r(1, 2)) * e2;
+            ez = std::fabs(r(2, 0)) * e0 + std::fabs(r(2, 1)) * e1 + std::fabs(r(2, 2)) * e2;
+        }
+        double dx = 0.0, dy = 0.0, dz = 0.0;
+        double rho = 0.0;
+        if (awake[i]) {
+            double im = inv_mass[i];
+            dx = h * linear_momentum(i, 0) * im;
+            dy = h * linear_momentum(i, 1) * im;
+            dz = h * linear_momentum(i, 2) * im;
+            if (geom[i] != GEOM_SPHERE) {
+                // |omega| <= |L| max(1/I): a cheap bound; a rotating box stays in its sphere
+                double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1),
+                       lz = angular_momentum(i, 2);
+                double wmax = std::sqrt(lx * lx + ly * ly + lz * lz) *
+                              std::max(inv_inertia(i, 0),
+                                       std::max(inv_inertia(i, 1), inv_inertia(i, 2)));
+                rho = std::min(h * wmax * radius[i], radius[i]);
+                ex = std::min(ex + rho, radius[i]);
+                ey = std::min(ey + rho, radius[i]);
+                ez = std::min(ez + rho, radius[i]);
+            }
+            reach[i] = std::sqrt(dx * dx + dy * dy + dz * dz) + rho;
+        } else {
+            reach[i] = 0.0;
+        }
+        double x = position(i, 0), y = position(i, 1), z = position(i, 2);
+        lo(i, 0) = x - ex - pad + std::min(dx, 0.0);
+        lo(i, 1) = y - ey - pad + std::min(dy, 0.0);
+        lo(i, 2) = z - ez - pad + std::min(dz, 0.0);
+        hi(i, 0) = x + ex + pad + std::max(dx, 0.0);
+        hi(i, 1) = y + ey + pad + std::max(dy, 0.0);
+        hi(i, 2) = z + ez + pad + std::max(dz, 0.0);
+    }
+}
+
+// broadphase.py's _grow_pairs: room for 2 rows + 16 more pairs, contents kept.
+static void grow_pairs(Buf2<i64>& pairs) { pairs.grow(2 * pairs.rows + 16); }
+
+i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64> group,
+                    V1<i64> awake, Buf2<i64>& pairs) {
+    (void)awake;  // pairs of sleeping bodies are emitted too (collide carries them over)
+    if (n_items < 2) return 0;
+    // sweep axis: largest spread of the centres
+    int best_axis = 0;
+    double best_var = -1.0;
+    for (int ax = 0; ax < 3; ++ax) {
+        double s = 0.0;
+        double s2 = 0.0;
+        for (i64 i = 0; i < n_items; ++i) {
+            double c = 0.5 * (lo(i, ax) + hi(i, ax));
+            s += c;
+            s2 += c * c;
+        }
+        double var = s2 - s * s / n_items;
+        if (var > best_var) {
+            best_var = var;
+            best_axis = ax;
+        }
+    }
+    const int ax1 = (best_axis + 1) % 3;
+    const int ax2 = (best_axis + 2) % 3;
+    // stable argsort of the boxes' low ends on the sweep axis (NaN last, as numpy): a sort by
+    // (key, index), which orders ties by index as a stable sort does
+    struct Item {
+        double key;
+        i64 id;
+    };
+    std::vector<Item> order(n_items);
+    for (i64 i = 0; i < n_items; ++i) order[i] = Item{lo(i, best_axis), i};
+    std::sort(order.begin(), order.end(), [](const Item& a, const Item& b) {
+        const bool an = std::isnan(a.key), bn = std::isnan(b.key);
+        if (an || bn) return an != bn ? bn : a.id < b.id;
+        if (a.key != b.key) return a.key < b.key;
+        return a.id < b.id;
+    });
+    // the boxes in sweep order, contiguous (the same values; only the memory layout differs)
+    std::vector<double> box(6 * n_items);
+    for (i64 ii = 0; ii < n_items; ++ii) {
+        const i64 i = order[ii].id;
+        double* bx = box.data() + 6 * ii;
+        bx[0] = lo(i, best_axis);
+        bx[1] = hi(i, best_axis);
+        bx[2] = lo(i, ax1);
+        bx[3] = hi(i, ax1);
+        bx[4] = lo(i, ax2);
+        bx[5] = hi(i, ax2);
+    }
+    i64 count = 0;
+    for (i64 ii = 0; ii < n_items; ++ii) {
+        const i64 i = order[ii].id;
+        const double* bi = box.data() + 6 * ii;
+        const double hi_i = bi[1];
+        for (i64 jj = ii + 1; jj < n_items; ++jj) {
+            const i64 j = order[jj].id;
+            const double* bj = box.data() + 6 * jj;
+            // written as "not overlapping" so that a NaN box never pairs with anything
+            if (!(bj[0] <= hi_i)) break;
+            if (i >= n_dyn && j >= n_dyn) continue;
+            if (!(bj[2] <= bi[3] && bi[2] <= bj[3])) continue;
+            if (!(bj[4] <= bi[5] && bi[4] <= bj[5])) continue;
+            const i64 a = std::min(i, j);
+            const i64 b = std::max(i, j);
+            if (b < n_dyn) {
+                i64 ga = group[a];
+                i64 gb = group[b];
+                if (ga != 0 && gb != 0 && ga != gb) continue;
+            }
+            if (count == pairs.rows) grow_pairs(pairs);
+            pairs(count, 0) = a;
+            pairs(count, 1) = b;
+            count += 1;
+        }
+    }
+    return count;
+}
+
+i64 ground_pairs(i64 n_dyn, i64 n_static, V1<double> gn, double goff, V2<double> lo,
+                 V2<double> hi, Buf2<i64>& pairs, i64 n_pairs) {
+    const i64 gid = n_dyn + n_static;
+    const double gx = gn[0], gy = gn[1], gz = gn[2];
+    for (i64 i = 0; i < n_dyn; ++i) {
+        double cx = 0.5 * (lo(i, 0) + hi(i, 0));
+        double cy = 0.5 * (lo(i, 1) + hi(i, 1));
+        double cz = 0.5 * (lo(i, 2) + hi(i, 2));
+        double ext = (std::fabs(gx) * (hi(i, 0) - lo(i, 0)) +
+                      std::fabs(gy) * (hi(i, 1) - lo(i, 1)) +
+                      std::fabs(gz) * (hi(i, 2) - lo(i, 2))) *
+                     0.5;
+        if (gx * cx + gy * cy + gz * cz - goff - ext > 0.0) continue;
+        if (n_pairs == pairs.rows) grow_pairs(pairs);
+        pairs(n_pairs, 0) = i;
+        pairs(n_pairs, 1) = gid;
+        n_pairs += 1;
+    }
+    return n_pairs;
+}
+
+}  // namespace rb

@@ -1,0 +1,372 @@
+// Collide stage: narrowphase over the candidate pairs into packed manifolds, with warm starting
+// (rblog/engine/contact/collide.py, the same formulas in the same order).
+//
+// For each candidate pair (lower shape id a, higher id b):
+//
+// * neither side awake (sleeping or static): the previous step's manifolds of the pair are
+//   carried over unchanged (inactive: not solved, still logged);
+// * otherwise the collider from the narrowphase table runs with a speculative distance of
+//   margin + reach_a + reach_b; each new point takes over the impulses of the previous step's
+//   point with the same feature id (or, failing that, the nearest one within anchor_distance),
+//   normal impulse as is (the velocity solve's, PF_LWS) and friction projected on the new
+//   tangents;
+// * the manifold keeps its friction anchor, the pose of a in b's frame when the pair started
+//   sticking (solver.py, "Friction anchor": A_R = R_b^T R_a, A_t = R_b^T (x_a - x_b), b's frame
+//   the world for the ground), whatever its points do (a one-point contact that becomes a face
+//   keeps it), and every point gets its drift from it: with y = R_a^T (p - x_a) a's material
+//   point at the contact, the anchor pose puts it at x_b + R_b (A_R y + A_t), and
+//   D = p - that (world). When the largest tangential drift |D - (D.n) n| exceeds
+//   FRICTION_ANCHOR_MAX_DRIFT_M (the pair was struck) the anchor is set anew where the pair is and
+//   D = 0. A sphere's pair, which rolls, has no anchor (a rolling sphere brings a new material
+//   point to the contact every step; its friction rows target zero slip).
+//
+// Manifold keys are 2 (a n_shapes + b) + part (part 1: a box pair's second manifold); the
+// previous step's manifolds are found by binary search in their sorted keys (sort_manifolds).
+// Materials combine as restitution max(e_a, e_b) and friction sqrt(mu_a mu_b) (the analyzers use
+// the same rule).
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <vector>
+
+#include "engine/collision.hpp"
+
+namespace rb {
+
+std::array<double, 6> tangent_basis(double nx, double ny, double nz) {
+    double ax = std::fabs(nx), ay = std::fabs(ny), az = std::fabs(nz);
+    double tx, ty, tz;
+    // cross n with the world axis least aligned with it
+    if (ax <= ay && ax <= az) {
+        tx = 0.0;  // n x e_x
+        ty = nz;
+        tz = -ny;
+    } else if (ay <= az) {
+        tx = -nz;  // n x e_y
+        ty = 0.0;
+        tz = nx;
+    } else {
+        tx = ny;  // n x e_z
+        ty = -nx;
+        tz = 0.0;
+    }
+    double ln = 1.0 / std::sqrt(tx * tx + ty * ty + tz * tz);
+    tx = tx * ln;
+    ty = ty * ln;
+    tz = tz * ln;
+    return {tx, ty, tz, ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx};
+}
+
+i64 find_manifold(V1<i64> sorted_keys, V1<i64> sorted_idx, i64 n, i64 key) {
+    i64 lo = 0;
+    i64 hi = n;
+    while (lo < hi) {
+        i64 mid = (lo + hi) >> 1;
+        if (sorted_keys[mid] < key)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    if (lo < n && sorted_keys[lo] == key) return sorted_idx[lo];
+    return -1;
+}
+
+void sort_manifolds(V2<i64> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_idx) {
+    std::vector<i64> order(n_man);
+    std::iota(order.begin(), order.end(), i64(0));
+    const i64* mp = mi.p;
+    const i64 cols = mi.n1;
+    std::stable_sort(order.begin(), order.end(), [mp, cols](i64 a, i64 b) {
+        return mp[a * cols + MI_KEY] < mp[b * cols + MI_KEY];
+    });
+    for (i64 k = 0; k < n_man; ++k) {
+        sorted_idx[k] = order[k];
+        sorted_keys[k] = mi(order[k], MI_KEY);
+    }
+}
+
+void grow_manifolds(Buf2<i64>& mi, Buf2<double>& mf, i64 cap) {
+    if (mi.rows >= cap) return;
+    mi.grow(cap);  // max(cap, 2 rows), as collide.py
+    mf.grow(mi.rows);
+}
+
+void grow_points(Buf2<double>& pf, Buf2<i64>& pid, i64 cap) {
+    if (pf.rows >= cap) return;
+    pf.grow(cap);
+    pid.grow(pf.rows);
+}
+
+// Append one manifold (points rows row.. of the collider's output) with warm starting. `rolls`:
+// a sphere's pair, which gets no friction anchor.
+static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_awake,
+                         bool b_awake, bool b_dyn, i64 cnt, i64 row, i64 part, bool rolls,
+                         V2<double> position, V3<double> rotation, V2<double> sb_pos,
+                         V3<double> sb_rot, V1<double> restitution, V1<double> friction,
+                         V2<double> accel, V1<double> sb_e, V1<double> sb_mu, double g_e,
+                         double g_mu, V2<i64> prev_mi, V2<double> prev_mf, V2<double> prev_pf,
+                         V1<i64> prev_pid, V1<i64> prev_keys, V1<i64> prev_idx, i64 prev_n,
+                         V2<i64> mi, V2<double> mf, V2<double> pf, V1<i64> pid, i64& n_man,
+                         i64& n_pts, bool warm, double ad2, const ColliderBuffers& buf) {
+    static const double IDENTITY[9] = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
+    static const double ZERO3[3] = {0.0, 0.0, 0.0};
+    const CollisionConstants& cc = collision_constants();
+    const double* nrm = buf.nrm;
+    const i64 m = n_man;
+    n_man += 1;
+    i64* mim = mi.row(m);
+    double* mfm = mf.row(m);
+    mim[MI_KEY] = key;
+    mim[MI_A] = a_awake ? a : n_dyn;
+    mim[MI_B] = b_awake ? b : n_dyn;
+    mim[MI_REC_A] = a;
+    mim[MI_REC_B] = b_dyn ? b : cc.static_body;
+    mim[MI_START] = n_pts;
+    mim[MI_COUNT] = cnt;
+    mim[MI_ACTIVE] = 1;
+    const double nx = nrm[3 * part], ny = nrm[3 * part + 1], nz = nrm[3 * part + 2];
+    const std::array<double, 6> tb = tangent_basis(nx, ny, nz);
+    const double t1x = tb[0], t1y = tb[1], t1z = tb[2], t2x = tb[3], t2y = tb[4], t2z = tb[5];
+    mfm[MF_N] = nx;
+    mfm[MF_N + 1] = ny;
+    mfm[MF_N + 2] = nz;
+    mfm[MF_T1] = t1x;
+    mfm[MF_T1 + 1] = t1y;
+    mfm[MF_T1 + 2] = t1z;
+    mfm[MF_T2] = t2x;
+    mfm[MF_T2 + 1] = t2y;
+    mfm[MF_T2 + 2] = t2z;
+    // materials and the gap acceleration n . (a_a - a_b) from external forces
+    double ax = 0.0, ay = 0.0, az = 0.0;
+    if (a_awake) {
+        ax = accel(a, 0);
+        ay = accel(a, 1);
+        az = accel(a, 2);
+    }
+    double mu, e;
+    if (b_dyn) {
+        mu = std::sqrt(friction[a] * friction[b]);
+        e = std::max(restitution[a], restitution[b]);
+        if (b_awake) {
+            ax -= accel(b, 0);
+            ay -= accel(b, 1);
+            az -= accel(b, 2);
+        }
+    } else if (b < n_dyn + n_static) {
+        mu = std::sqrt(friction[a] * sb_mu[b - n_dyn]);
+        e = std::max(restitution[a], sb_e[b - n_dyn]);
+    } else {
+        mu = std::sqrt(friction[a] * g_mu);
+        e = std::max(restitution[a], g_e);
+    }
+    mfm[MF_MU] = mu;
+    mfm[MF_E] = e;
+    mfm[MF_ACC] = nx * ax + ny * ay + nz * az;
+    // warm starting from the previous step's manifold of this pair
+    i64 j = -1;
+    if (warm) j = find_manifold(prev_keys, prev_idx, prev_n, key);
+    const double* pa = position.row(a);
+    // the friction anchor: b's frame (the world for the ground), a's pose in it now, and the
+    // pose it had when the pair started sticking (carried over while store_impulses keeps it)
+    const double* xb;
+    M3 rb_ = IDENTITY;
+    if (b_dyn) {
+        xb = position.row(b);
+        rb_ = rotation.row(b);
+    } else if (b < n_dyn + n_static) {
+        xb = sb_pos.row(b - n_dyn);
+        rb_ = sb_rot.row(b - n_dyn);
+    } else {
+        xb = ZERO3;
+    }
+    const M3 ra = rotation.row(a);
+    const bool anchored = j >= 0 && prev_mf(j, MF_AOK) > 0.0 && !rolls;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            // R_b^T R_a
+            double v = rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) + rb_(2, r) * ra(2, c);
+            mfm[MF_AR + 3 * r + c] = anchored ? prev_mf(j, MF_AR + 3 * r + c) : v;
+        }
+        double v = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
+                   rb_(2, r) * (pa[2] - xb[2]);
+        mfm[MF_AT + r] = anchored ? prev_mf(j, MF_AT + r) : v;
+    }
+    mfm[MF_AOK] = rolls ? 0.0 : 1.0;
+    double drift_max = 0.0;
+    for (i64 q = 0; q < cnt; ++q) {
+        const i64 p = n_pts + q;
+        double* pfp = pf.row(p);
+        const double px = buf.pts[row + q][0], py = buf.pts[row + q][1], pz = buf.pts[row + q][2];
+        pfp[PF_P] = px;
+        pfp[PF_P + 1] = py;
+        pfp[PF_P + 2] = pz;
+        pfp[PF_RA] = px - pa[0];
+        pfp[PF_RA + 1] = py - pa[1];
+        pfp[PF_RA + 2] = pz - pa[2];
+        if (b_dyn) {
+            const double* pb = position.row(b);
+            pfp[PF_RB] = px - pb[0];
+            pfp[PF_RB + 1] = py - pb[1];
+            pfp[PF_RB + 2] = pz - pb[2];
+        } else {
+            pfp[PF_RB] = 0.0;
+            pfp[PF_RB + 1] = 0.0;
+            pfp[PF_RB + 2] = 0.0;
+        }
+        pfp[PF_S] = buf.sep[row + q];
+        pfp[PF_SEND] = buf.sep[row + q];
+        pid[p] = buf.fid[row + q];
+        double ln = 0.0;
+        double l1 = 0.0;
+        double l2 = 0.0;
+        if (j >= 0) {
+            const i64 ps = prev_mi(j, MI_START);
+            const i64 pc = prev_mi(j, MI_COUNT);
+            i64 match = -1;
+            for (i64 r = ps; r < ps + pc; ++r) {
+                if (prev_pid[r] == buf.fid[row + q]) {
+                    match = r;
+                    break;
+                }
+            }
+            if (match < 0) {
+                double best = ad2;
+                for (i64 r = ps; r < ps + pc; ++r) {
+                    double dx = prev_pf(r, PF_P) - px;
+                    double dy = prev_pf(r, PF_P + 1) - py;
+                    double dz = prev_pf(r, PF_P + 2) - pz;
+                    double d2 = dx * dx + dy * dy + dz * dz;
+                    if (d2 <= best) {
+                        best = d2;
+                        match = r;
+                    }
+                }
+            }
+            if (match >= 0) {
+                ln = prev_pf(match, PF_LWS);
+                double fx = prev_pf(match, PF_F), fy = prev_pf(match, PF_F + 1),
+                       fz = prev_pf(match, PF_F + 2);
+                l1 = fx * t1x + fy * t1y + fz * t1z;
+                l2 = fx * t2x + fy * t2y + fz * t2z;
+            }
+        }
+        // drift of a's material point at the contact: y = R_a^T (p - x_a) in a's frame, put by
+        // the anchor pose at x_b + R_b (A_R y + A_t); D = p minus that (world)
+        double y0 = ra(0, 0) * (px - pa[0]) + ra(1, 0) * (py - pa[1]) + ra(2, 0) * (pz - pa[2]);
+        double y1 = ra(0, 1) * (px - pa[0]) + ra(1, 1) * (py - pa[1]) + ra(2, 1) * (pz - pa[2]);
+        double y2 = ra(0, 2) * (px - pa[0]) + ra(1, 2) * (py - pa[1]) + ra(2, 2) * (pz - pa[2]);
+        double q0 = mfm[MF_AR] * y0 + mfm[MF_AR + 1] * y1 + mfm[MF_AR + 2] * y2 + mfm[MF_AT];
+        double q1 =
+            mfm[MF_AR + 3] * y0 + mfm[MF_AR + 4] * y1 + mfm[MF_AR + 5] * y2 + mfm[MF_AT + 1];
+        double q2 =
+            mfm[MF_AR + 6] * y0 + mfm[MF_AR + 7] * y1 + mfm[MF_AR + 8] * y2 + mfm[MF_AT + 2];
+        double dx = px - (xb[0] + rb_(0, 0) * q0 + rb_(0, 1) * q1 + rb_(0, 2) * q2);
+        double dy = py - (xb[1] + rb_(1, 0) * q0 + rb_(1, 1) * q1 + rb_(1, 2) * q2);
+        double dz = pz - (xb[2] + rb_(2, 0) * q0 + rb_(2, 1) * q1 + rb_(2, 2) * q2);
+        if (rolls) {
+            dx = 0.0;
+            dy = 0.0;
+            dz = 0.0;
+        }
+        pfp[PF_D] = dx;
+        pfp[PF_D + 1] = dy;
+        pfp[PF_D + 2] = dz;
+        double dn = dx * nx + dy * ny + dz * nz;
+        drift_max = std::max(drift_max, dx * dx + dy * dy + dz * dz - dn * dn);
+        pfp[PF_LN] = ln;
+        pfp[PF_L1] = l1;
+        pfp[PF_L2] = l2;
+        pfp[PF_LWS] = ln;
+        pfp[PF_LP] = 0.0;
+        pfp[PF_W0] = 0.0;
+        pfp[PF_WT] = -1.0;
+        pfp[PF_IMPACT] = 0.0;
+        pfp[PF_F] = 0.0;
+        pfp[PF_F + 1] = 0.0;
+        pfp[PF_F + 2] = 0.0;
+    }
+    const double dmax = cc.friction_anchor_max_drift_m;
+    if (drift_max > dmax * dmax) {
+        // drifted too far to be pulled back (the pair was struck): anchored anew where it is
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c)
+                mfm[MF_AR + 3 * r + c] = rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) +
+                                         rb_(2, r) * ra(2, c);
+            mfm[MF_AT + r] = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
+                             rb_(2, r) * (pa[2] - xb[2]);
+        }
+        for (i64 p = n_pts; p < n_pts + cnt; ++p) {
+            pf(p, PF_D) = 0.0;
+            pf(p, PF_D + 1) = 0.0;
+            pf(p, PF_D + 2) = 0.0;
+        }
+    }
+    n_pts += cnt;
+}
+
+CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
+                           V2<double> size, V1<i64> awake, V2<double> position,
+                           V3<double> rotation, V1<double> reach, double margin,
+                           V1<double> restitution, V1<double> friction, V2<double> accel,
+                           V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext,
+                           V1<double> sb_e, V1<double> sb_mu, V1<double> gn, double goff,
+                           double g_e, double g_mu, V2<i64> prev_mi, V2<double> prev_mf,
+                           V2<double> prev_pf, V1<i64> prev_pid, V1<i64> prev_keys,
+                           V1<i64> prev_idx, i64 prev_n, V2<i64> mi, V2<double> mf,
+                           V2<double> pf, V1<i64> pid, bool warm, double anchor_distance,
+                           ColliderBuffers& buf) {
+    require_collision_constants();
+    const i64 n_shapes = n_dyn + n_static + 1;
+    i64 n_man = 0;
+    i64 n_pts = 0;
+    const double ad2 = anchor_distance * anchor_distance;
+    for (i64 k = 0; k < n_pairs; ++k) {
+        const i64 a = pairs(k, 0);
+        const i64 b = pairs(k, 1);
+        const i64 key = a * n_shapes + b;  // manifold keys are 2 key + part
+        const bool b_dyn = b < n_dyn;
+        const bool a_awake = awake[a] != 0;
+        const bool b_awake = b_dyn && awake[b] != 0;
+        if (!a_awake && !b_awake) {
+            // both sides still: carry the manifolds over as they were
+            for (i64 part = 0; part < 2; ++part) {
+                i64 j = find_manifold(prev_keys, prev_idx, prev_n, 2 * key + part);
+                if (j < 0) continue;
+                const i64 cnt = prev_mi(j, MI_COUNT);
+                for (i64 c = 0; c < MI_COLS; ++c) mi(n_man, c) = prev_mi(j, c);
+                for (i64 c = 0; c < MF_COLS; ++c) mf(n_man, c) = prev_mf(j, c);
+                const i64 ps = prev_mi(j, MI_START);
+                for (i64 q = 0; q < cnt; ++q) {
+                    for (i64 c = 0; c < PF_COLS; ++c) pf(n_pts + q, c) = prev_pf(ps + q, c);
+                    pid[n_pts + q] = prev_pid[ps + q];
+                }
+                mi(n_man, MI_START) = n_pts;
+                mi(n_man, MI_ACTIVE) = 0;
+                n_man += 1;
+                n_pts += cnt;
+            }
+            continue;
+        }
+        const i64 ga = geom[a];
+        const PairGeometry g = pair_geometry(a, b, n_dyn, n_static, geom, size, position, rotation,
+                                             sb_pos, sb_rot, sb_ext);
+        double spec = margin + reach[a];
+        if (b_dyn) spec += reach[b];
+        const i64 res = collide(ga, g.geom, position.row(a), rotation.row(a), size.row(a),
+                                g.centre, g.rotation, g.size, gn.p, goff, spec, buf);
+        if (res <= 0) continue;
+        const bool rolls = ga == GEOM_SPHERE || g.geom == GEOM_SPHERE;
+        for (i64 part = 0; part < 2; ++part) {
+            const ManifoldPart mp = manifold_part(res, part);
+            if (mp.count == 0) continue;
+            add_manifold(2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, mp.count,
+                         mp.row, part, rolls, position, rotation, sb_pos, sb_rot, restitution,
+                         friction, accel, sb_e, sb_mu, g_e, g_mu, prev_mi, prev_mf, prev_pf,
+                         prev_pid, prev_keys, prev_idx, prev_n, mi, mf, pf, pid, n_man, n_pts,
+                         warm, ad2, buf);
+        }
+    }
+    return {n_man, n_pts};
+}
+
+}  // namespace rb

@@ -1,0 +1,635 @@
+// rblog/engine/contact/solver.py's stages in C++ (the same formulas in the same order).
+//
+// Contact solver: sequential impulses (projected Gauss-Seidel) with accumulated-impulse clamping.
+//
+// Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
+// ``load_bodies`` -> ``prepare_contacts`` -> ``warm_start`` -> ``solve_velocities`` ->
+// ``anchor_friction`` (with ContactParams.static_friction_anchors) -> ``relax_positions`` (split impulses) -> [integrate positions, in step.py] -> ``restitution``
+// -> [project: fresh narrowphase and nonlinear position pass, in project.py].
+//
+// Derivations
+// -----------
+// Velocity of the gap at a point with anchors r_a, r_b (normal n from b into a)::
+//
+//     vn = n . (v_a + w_a x r_a - v_b - w_b x r_b)            (> 0: separating)
+//
+// An impulse P at the point changes it through the effective mass
+// ``K = (m_a^-1 + m_b^-1) I - [r_a]x I_a^-1 [r_a]x - [r_b]x I_b^-1 [r_b]x`` (world inverse inertia
+// ``I^-1 = R diag(1/I_body) R^T``). Each sweep visits every point: for the normal row it computes the
+// impulse increment that makes vn reach its target, adds it to the accumulated impulse, clamps the
+// accumulated impulse to >= 0, and applies the difference (Catto 2005). Friction uses the 2x2
+// tangent block of K; when the sticking impulse leaves the disc of radius mu * lambda_n (isotropic
+// Coulomb cone) the point slides and gets the maximum-dissipation impulse on the circle, so that
+// friction opposes the slip exactly (see _friction_impulse). Equal and opposite impulses at the same point conserve the pair's linear
+// momentum and its angular momentum about any point, to round-off.
+//
+// Normal impulses are over-relaxed (projected SOR, ``ContactParams.over_relaxation``) on manifolds
+// whose bodies touch more than one thing, so that loads cross stacks and piles in fewer sweeps; see
+// solve_velocities.
+//
+// Targets: a penetrating or touching point (s <= 0) wants vn >= 0; a speculative point (s > 0)
+// wants vn >= -s/h, i.e. the pair may close the gap within the step but not cross it. This is what
+// stops fast bodies tunnelling, and stops a falling body exactly on the surface.
+//
+// Friction anchor (static friction at the position level, as PhysX's friction anchors, which it
+// breaks when the friction limit is exceeded; ContactParams.static_friction_anchors): a manifold
+// whose pair sticks keeps its anchor, the pose of body a in body b's frame when the pair started
+// sticking (``MF_AR``, ``MF_AT``; b's frame is the world for the ground). The collide stage
+// carries it over with the manifold (matched by pair key, so points that come and go, a one-point
+// contact that becomes a face, keep it) and gives every point its drift ``D``: where a's material
+// point at the contact is now, minus where the anchor pose puts it (collide.py). So D holds the
+// pair's slip and its twist since it stuck, whatever the points did, and counts every move of the
+// bodies (the solve's, the split-impulse and projection shifts). A sphere's pair has no anchor: a
+// rolling sphere brings a new material point to the contact every step, and a pose anchor would
+// pull the contact back against the roll (samples/mixed.toml's balls crept 5 mm). The friction rows of the anchor
+// pass (``anchor_friction``: one sweep after the solve, outside its convergence loop) then target
+// the slip rate ``vt = -FRICTION_ANCHOR_RATE D / h``, so a solve that stops before it converges
+// (residual slip e) cannot add up a drift: D settles at h e / rate and the slip velocity at zero.
+// The bias lives in the friction rows only, which stay clamped to the Coulomb disc. A manifold
+// drops its anchor (store_impulses: re-anchored where the pair then is) when a point was struck
+// or none of its loaded points sticks (friction strictly inside the cone), and collide re-anchors
+// a pair that drifted beyond FRICTION_ANCHOR_MAX_DRIFT_M. Friction impulses are equal and
+// opposite, so the anchor changes no momentum. What the pass does not do: it is not followed by
+// the normal rows (a pointwise normal sweep after it was measured to make the pile creep more,
+// benchmarks/RESULTS.md), and a box resting on two single-point contacts can still turn about
+// the line through them (no friction row sees that motion).
+//
+// Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.
+//
+// Restitution (the bounce after positions moved) is in :mod:`rblog.engine.contact.restitution`.
+#include <cmath>
+#include <cstdlib>
+
+#include "engine/contact_solver.hpp"
+#include "engine/manifold.hpp"
+
+namespace rb {
+
+namespace {
+
+inline void smul(double i0, double i1, double i2, double i3, double i4, double i5, double x,
+                 double y, double z, double& ox, double& oy, double& oz) {
+    // symmetric 3x3 (xx, yy, zz, xy, xz, yz) times a vector
+    ox = i0 * x + i3 * y + i4 * z;
+    oy = i3 * x + i1 * y + i5 * z;
+    oz = i4 * x + i5 * y + i2 * z;
+}
+
+inline void cross(double ax, double ay, double az, double bx, double by, double bz, double& ox,
+                  double& oy, double& oz) {
+    ox = ay * bz - az * by;
+    oy = az * bx - ax * bz;
+    oz = ax * by - ay * bx;
+}
+
+// Accumulated friction impulse (t1, t2) after one Gauss-Seidel update of a point.
+//
+// Sticking: the impulse that zeroes the slip, lambda = o - K^-1 vt. When that leaves the Coulomb
+// disc |lambda| <= fmax, the point slides and the impulse is the *maximum-dissipation* one: the
+// minimiser of the kinetic energy 1/2 (lambda - c)^T K (lambda - c) on the circle |lambda| = fmax,
+// lambda = (K + g I)^-1 K c with g >= 0 found by Newton on 1/|lambda(g)| = 1/fmax
+// (More-Sorensen's secular equation). The slip after the impulse is then -g lambda: friction
+// opposes the sliding velocity exactly, which a radial projection of the unconstrained impulse
+// does not do when K couples the two tangents (off-centre points).
+inline void friction_impulse(double k11, double k12, double k22, double o1, double o2, double vt1,
+                             double vt2, double fmax, i64 newton_iters, double newton_tol,
+                             double& out1, double& out2) {
+    double det0 = k11 * k22 - k12 * k12;
+    if (det0 <= 0.0 || fmax <= 0.0) {
+        out1 = 0.0;
+        out2 = 0.0;
+        return;
+    }
+    // K c = K o - vt  (c: the sticking impulse)
+    double kc1 = k11 * o1 + k12 * o2 - vt1;
+    double kc2 = k12 * o1 + k22 * o2 - vt2;
+    double g = 0.0;
+    double l1 = (k22 * kc1 - k12 * kc2) / det0;
+    double l2 = (k11 * kc2 - k12 * kc1) / det0;
+    double nl = std::sqrt(l1 * l1 + l2 * l2);
+    if (nl <= fmax) {
+        out1 = l1;
+        out2 = l2;
+        return;
+    }
+    for (i64 it = 0; it < newton_iters; ++it) {
+        double a = k11 + g;
+        double d = k22 + g;
+        double det = a * d - k12 * k12;
+        l1 = (d * kc1 - k12 * kc2) / det;
+        l2 = (a * kc2 - k12 * kc1) / det;
+        nl = std::sqrt(l1 * l1 + l2 * l2);
+        if (nl <= fmax * (1.0 + newton_tol)) break;
+        double m1 = (d * l1 - k12 * l2) / det;
+        double m2 = (a * l2 - k12 * l1) / det;
+        // f(g) = 1/fmax - 1/|l|,  f'(g) = -(l . (K + g I)^-1 l) / |l|^3
+        double f = 1.0 / fmax - 1.0 / nl;
+        double fp = -(l1 * m1 + l2 * m2) / (nl * nl * nl);
+        g -= f / fp;
+    }
+    double sc = fmax / nl;
+    out1 = l1 * sc;
+    out2 = l2 * sc;
+}
+
+// LU-factor manifold m's regularised normal block (K + BLOCK_REG diag(K), n x n, from the points'
+// PF_KN rows) into mf[m, MF_LU:] (U on and above the diagonal, the elimination multipliers below
+// it, each left where it was computed), the pivot rows into mf[m, MF_PIV:] and mf[m, MF_LUOK] =
+// 1.0 if no pivot vanished. The block depends on the geometry and masses only, so it is factored
+// once per step here instead of once per sweep; lu_solve then makes exactly the floating-point
+// operations of Gaussian elimination with partial pivoting on [K | rhs] (the same pivots,
+// multipliers, order), so its results are bitwise those of an elimination per sweep.
+void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double block_reg) {
+    double* f = mf.row(m);
+    const i64 base = MF_LU;
+    for (i64 i = 0; i < n; ++i) {
+        i64 p = start + i;
+        for (i64 j = 0; j < n; ++j) f[base + 4 * i + j] = pf(p, PF_KN + j);
+        f[base + 5 * i] += block_reg * pf(p, PF_KN + i);
+    }
+    f[MF_LUOK] = 0.0;
+    for (i64 c = 0; c < n; ++c) {
+        i64 piv = c;
+        for (i64 r = c + 1; r < n; ++r)
+            if (std::fabs(f[base + 4 * r + c]) > std::fabs(f[base + 4 * piv + c])) piv = r;
+        f[MF_PIV + c] = (double)piv;
+        if (std::fabs(f[base + 4 * piv + c]) <= 0.0) return;
+        if (piv != c) {
+            for (i64 k = c; k < n; ++k) {
+                double t = f[base + 4 * c + k];
+                f[base + 4 * c + k] = f[base + 4 * piv + k];
+                f[base + 4 * piv + k] = t;
+            }
+        }
+        for (i64 r = c + 1; r < n; ++r) {
+            double fr = f[base + 4 * r + c] / f[base + 5 * c];
+            for (i64 k = c + 1; k < n; ++k) f[base + 4 * r + k] -= fr * f[base + 4 * c + k];
+            f[base + 4 * r + c] = fr;
+        }
+    }
+    f[MF_LUOK] = 1.0;
+}
+
+// Solve the factored block of manifold m (see factor_block) for the right-hand side in
+// blk[:n, 4], in place.
+inline void lu_solve(V2<double> mf, i64 m, V2<double> blk, i64 n) {
+    const double* f = mf.row(m);
+    const i64 base = MF_LU;
+    for (i64 c = 0; c < n; ++c) {
+        i64 piv = (i64)f[MF_PIV + c];
+        if (piv != c) {
+            double t = blk(c, 4);
+            blk(c, 4) = blk(piv, 4);
+            blk(piv, 4) = t;
+        }
+        for (i64 r = c + 1; r < n; ++r) blk(r, 4) -= f[base + 4 * r + c] * blk(c, 4);
+    }
+    for (i64 c = n - 1; c >= 0; --c) {
+        double x = blk(c, 4);
+        for (i64 k = c + 1; k < n; ++k) x -= f[base + 4 * c + k] * blk(k, 4);
+        blk(c, 4) = x / f[base + 5 * c];
+    }
+}
+
+}  // namespace
+
+// Count the active manifolds of each body (in_contact: (N+1,), row N the static dummy) and load
+// the solver state of the bodies that have any.
+//
+// bm: (N+1,) inverse mass, bI: (N+1, 6) world inverse inertia (xx, yy, zz, xy, xz, yz), bv/bw:
+// (N+1, 3) velocity and angular velocity (world), bv0/bw0 their values before the solve, pv/pw
+// pseudo velocities, p0/l0 momenta before the solve. Row N is the static dummy (all zero).
+void load_bodies(V2<i64> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V1<i64> iso,
+                 V1<double> inv_mass, V2<double> inv_inertia, V3<double> rotation,
+                 V2<double> linear_momentum, V2<double> angular_momentum, V1<i64> in_contact,
+                 V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> bv0,
+                 V2<double> bw0, V2<double> pv, V2<double> pw, V2<double> p0, V2<double> l0) {
+    for (i64 i = 0; i < n_dyn + 1; ++i) in_contact[i] = 0;
+    for (i64 m = 0; m < n_man; ++m) {
+        if (mi(m, MI_ACTIVE)) {
+            in_contact[mi(m, MI_A)] += 1;
+            in_contact[mi(m, MI_B)] += 1;
+        }
+    }
+    for (i64 i = 0; i < n_dyn; ++i) {
+        if (!in_contact[i]) continue;
+        double im = inv_mass[i];
+        bm[i] = im;
+        double* b = bI.row(i);
+        if (iso_shortcut && iso[i]) {
+            // isotropic inertia: I^-1 is a scalar in every frame, no transform needed
+            double s = inv_inertia(i, 0);
+            b[0] = s; b[1] = s; b[2] = s;
+            b[3] = 0.0; b[4] = 0.0; b[5] = 0.0;
+        } else {
+            const double* r = rotation.row(i);  // r[3 a + b] = R[a, b]
+            double d0 = inv_inertia(i, 0), d1 = inv_inertia(i, 1), d2 = inv_inertia(i, 2);
+            // R diag(d) R^T
+            b[0] = d0 * r[0] * r[0] + d1 * r[1] * r[1] + d2 * r[2] * r[2];
+            b[1] = d0 * r[3] * r[3] + d1 * r[4] * r[4] + d2 * r[5] * r[5];
+            b[2] = d0 * r[6] * r[6] + d1 * r[7] * r[7] + d2 * r[8] * r[8];
+            b[3] = d0 * r[0] * r[3] + d1 * r[1] * r[4] + d2 * r[2] * r[5];
+            b[4] = d0 * r[0] * r[6] + d1 * r[1] * r[7] + d2 * r[2] * r[8];
+            b[5] = d0 * r[3] * r[6] + d1 * r[4] * r[7] + d2 * r[5] * r[8];
+        }
+        for (int k = 0; k < 3; ++k) {
+            p0(i, k) = linear_momentum(i, k);
+            l0(i, k) = angular_momentum(i, k);
+            bv(i, k) = linear_momentum(i, k) * im;
+            bv0(i, k) = bv(i, k);
+            pv(i, k) = 0.0;
+            pw(i, k) = 0.0;
+        }
+        double wx, wy, wz;
+        smul(b[0], b[1], b[2], b[3], b[4], b[5], l0(i, 0), l0(i, 1), l0(i, 2), wx, wy, wz);
+        bw(i, 0) = wx; bw(i, 1) = wy; bw(i, 2) = wz;
+        bw0(i, 0) = wx; bw0(i, 1) = wy; bw0(i, 2) = wz;
+    }
+    // the static dummy: reset every step so that a bad value can never stick to it
+    i64 s = n_dyn;
+    bm[s] = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        bv(s, k) = 0.0;
+        bw(s, k) = 0.0;
+        bv0(s, k) = 0.0;
+        bw0(s, k) = 0.0;
+        pv(s, k) = 0.0;
+        pw(s, k) = 0.0;
+    }
+    for (int k = 0; k < 6; ++k) bI(s, k) = 0.0;
+}
+
+// Effective masses, and the gap velocity before the step (for restitution).
+void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                      V2<double> bI, V2<double> bv, V2<double> bw, double h, double anchor_rate,
+                      double block_reg) {
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+        double ma = bm[ia], mb = bm[ib];
+        double a0 = bI(ia, 0), a1 = bI(ia, 1), a2 = bI(ia, 2), a3 = bI(ia, 3), a4 = bI(ia, 4), a5 = bI(ia, 5);
+        double b0 = bI(ib, 0), b1 = bI(ib, 1), b2 = bI(ib, 2), b3 = bI(ib, 3), b4 = bI(ib, 4), b5 = bI(ib, 5);
+        double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
+        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
+        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
+        double acc = mf(m, MF_ACC);
+        double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
+        double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
+        double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
+        double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
+        i64 start = mi(m, MI_START);
+        i64 cnt = mi(m, MI_COUNT);
+        // normal block K_ij = J_i M^-1 J_j^T of the manifold's points
+        for (i64 p = start; p < start + cnt; ++p) {
+            double cax, cay, caz, cbx, cby, cbz, ix, iy, iz, jx, jy, jz;
+            cross(pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2), nx, ny, nz, cax, cay, caz);
+            cross(pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2), nx, ny, nz, cbx, cby, cbz);
+            smul(a0, a1, a2, a3, a4, a5, cax, cay, caz, ix, iy, iz);
+            smul(b0, b1, b2, b3, b4, b5, cbx, cby, cbz, jx, jy, jz);
+            for (i64 q = start; q < start + cnt; ++q) {
+                double dax, day, daz, dbx, dby, dbz;
+                cross(pf(q, PF_RA), pf(q, PF_RA + 1), pf(q, PF_RA + 2), nx, ny, nz, dax, day, daz);
+                cross(pf(q, PF_RB), pf(q, PF_RB + 1), pf(q, PF_RB + 2), nx, ny, nz, dbx, dby, dbz);
+                pf(p, PF_KN + q - start) = (ma + mb + dax * ix + day * iy + daz * iz + dbx * jx +
+                                            dby * jy + dbz * jz);
+            }
+        }
+        if (cnt > 1) factor_block(mf, m, pf, start, cnt, block_reg);
+        for (i64 p = start; p < start + cnt; ++p) {
+            double rax = pf(p, PF_RA), ray = pf(p, PF_RA + 1), raz = pf(p, PF_RA + 2);
+            double rbx = pf(p, PF_RB), rby = pf(p, PF_RB + 1), rbz = pf(p, PF_RB + 2);
+            // normal row
+            double cax, cay, caz, cbx, cby, cbz, ix, iy, iz, jx, jy, jz;
+            cross(rax, ray, raz, nx, ny, nz, cax, cay, caz);
+            cross(rbx, rby, rbz, nx, ny, nz, cbx, cby, cbz);
+            smul(a0, a1, a2, a3, a4, a5, cax, cay, caz, ix, iy, iz);
+            smul(b0, b1, b2, b3, b4, b5, cbx, cby, cbz, jx, jy, jz);
+            double k = ma + mb + cax * ix + cay * iy + caz * iz + cbx * jx + cby * jy + cbz * jz;
+            pf(p, PF_NMASS) = k > 0.0 ? 1.0 / k : 0.0;
+            // tangent block
+            double ua1x, ua1y, ua1z, ua2x, ua2y, ua2z, ub1x, ub1y, ub1z, ub2x, ub2y, ub2z;
+            cross(rax, ray, raz, t1x, t1y, t1z, ua1x, ua1y, ua1z);
+            cross(rax, ray, raz, t2x, t2y, t2z, ua2x, ua2y, ua2z);
+            cross(rbx, rby, rbz, t1x, t1y, t1z, ub1x, ub1y, ub1z);
+            cross(rbx, rby, rbz, t2x, t2y, t2z, ub2x, ub2y, ub2z);
+            double ia1x, ia1y, ia1z, ia2x, ia2y, ia2z, ib1x, ib1y, ib1z, ib2x, ib2y, ib2z;
+            smul(a0, a1, a2, a3, a4, a5, ua1x, ua1y, ua1z, ia1x, ia1y, ia1z);
+            smul(a0, a1, a2, a3, a4, a5, ua2x, ua2y, ua2z, ia2x, ia2y, ia2z);
+            smul(b0, b1, b2, b3, b4, b5, ub1x, ub1y, ub1z, ib1x, ib1y, ib1z);
+            smul(b0, b1, b2, b3, b4, b5, ub2x, ub2y, ub2z, ib2x, ib2y, ib2z);
+            double k11 = ma + mb + ua1x * ia1x + ua1y * ia1y + ua1z * ia1z + ub1x * ib1x + ub1y * ib1y + ub1z * ib1z;
+            double k22 = ma + mb + ua2x * ia2x + ua2y * ia2y + ua2z * ia2z + ub2x * ib2x + ub2y * ib2y + ub2z * ib2z;
+            double k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y + ub1z * ib2z;
+            pf(p, PF_TK) = k11;
+            pf(p, PF_TK + 1) = k12;
+            pf(p, PF_TK + 2) = k22;
+            // friction anchor: the slip rate that takes back FRICTION_ANCHOR_RATE of the drift
+            double dx = pf(p, PF_D), dy = pf(p, PF_D + 1), dz = pf(p, PF_D + 2);
+            pf(p, PF_DB) = anchor_rate * (dx * t1x + dy * t1y + dz * t1z) / h;
+            pf(p, PF_DB + 1) = anchor_rate * (dx * t2x + dy * t2y + dz * t2z) / h;
+            // gap velocity now (after the force kick), and before the kick
+            double wxrax, wxray, wxraz, wxrbx, wxrby, wxrbz;
+            cross(wax, way, waz, rax, ray, raz, wxrax, wxray, wxraz);
+            cross(wbx, wby, wbz, rbx, rby, rbz, wxrbx, wxrby, wxrbz);
+            double vn = (nx * (vax + wxrax - vbx - wxrbx) + ny * (vay + wxray - vby - wxrby) +
+                         nz * (vaz + wxraz - vbz - wxrbz));
+            pf(p, PF_W0) = vn - acc * h;
+            pf(p, PF_LP) = 0.0;
+            pf(p, PF_IMPACT) = 0.0;
+        }
+    }
+}
+
+// Apply the impulses carried over from the previous step.
+void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                V2<double> bI, V2<double> bv, V2<double> bw) {
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+        double ma = bm[ia], mb = bm[ib];
+        const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
+        const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
+        double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
+        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
+        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
+        double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
+        double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
+        double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
+        double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
+        i64 start = mi(m, MI_START);
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+            double ln = pf(p, PF_LN), l1 = pf(p, PF_L1), l2 = pf(p, PF_L2);
+            if (ln == 0.0 && l1 == 0.0 && l2 == 0.0) continue;
+            double px = ln * nx + l1 * t1x + l2 * t2x;
+            double py = ln * ny + l1 * t1y + l2 * t2y;
+            double pz = ln * nz + l1 * t1z + l2 * t2z;
+            apply_impulse(ma, a6, mb, b6, pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2),
+                          pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2), px, py, pz, vax, vay,
+                          vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+        }
+        bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
+        bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
+        bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
+        bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+    }
+}
+
+// Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order).
+//
+// Sweeps at least min_iter times, then until the largest velocity change a sweep makes at any
+// point is below tol (m/s), at most max_iter sweeps. Past min_iter a sweep visits only manifolds
+// with a body that a previous sweep changed by more than tol (hot: (N+1,) last sweep that did),
+// so settled regions of a pile cost nothing while an unsettled one converges. Returns the number
+// of manifold visits divided by the manifolds (full-sweep equivalents, at least 1).
+//
+// Successive over-relaxation (ODE's quickstep; projected SOR converges for 0 < sor < 2 on the
+// normal rows, Cryer 1971): the normal impulse increment of a manifold is scaled by sor before
+// the clamp when one of its dynamic bodies touches something else (degree: (N+1,) active
+// manifolds per body). Plain Gauss-Seidel moves a load through a chain of n bodies in ~n^2
+// sweeps, over-relaxed in ~n. A manifold whose bodies touch nothing else is solved exactly by one
+// update, so it is not relaxed (that would only make it oscillate).
+i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                     V2<double> bI, V2<double> bv, V2<double> bw, double inv_h, i64 min_iter,
+                     i64 max_iter, double tol, V2<double> blk, V1<i64> hot, V1<i64> degree,
+                     double sor, i64 newton_iters, double newton_tol) {
+    i64 it = 0;
+    i64 visits = 0;
+    for (i64 k = 0; k < hot.n0; ++k) hot[k] = 0;
+    i64 active = 0;
+    for (i64 m = 0; m < n_man; ++m) active += mi(m, MI_ACTIVE);
+    while (it < max_iter) {
+        it += 1;
+        double change = 0.0;
+        for (i64 m = 0; m < n_man; ++m) {
+            const i64* im_ = mi.row(m);
+            if (!im_[MI_ACTIVE]) continue;
+            i64 ia = im_[MI_A], ib = im_[MI_B];
+            if (it > min_iter && hot[ia] < it - 1 && hot[ib] < it - 1) continue;
+            visits += 1;
+            bool mark_a = false;
+            double ma = bm[ia], mb = bm[ib];
+            double om = 1.0;
+            if ((ma > 0.0 && degree[ia] > 1) || (mb > 0.0 && degree[ib] > 1)) om = sor;
+            const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
+            const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
+            const double* fm = mf.row(m);
+            double nx = fm[MF_N], ny = fm[MF_N + 1], nz = fm[MF_N + 2];
+            double t1x = fm[MF_T1], t1y = fm[MF_T1 + 1], t1z = fm[MF_T1 + 2];
+            double t2x = fm[MF_T2], t2y = fm[MF_T2 + 1], t2z = fm[MF_T2 + 2];
+            double mu = fm[MF_MU];
+            double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
+            double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
+            double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
+            double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
+            i64 start = im_[MI_START];
+            i64 end = start + im_[MI_COUNT];
+            // non-penetration: the manifold's points together (block), else one by one
+            bool solved = false;
+            i64 cnt = end - start;
+            if (cnt > 1 && fm[MF_LUOK] > 0.0) {
+                for (i64 i = 0; i < cnt; ++i) {
+                    const double* q = pf.row(start + i);
+                    double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+                    double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                    double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
+                    double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
+                    double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                    double vn = dvx * nx + dvy * ny + dvz * nz;
+                    double s = q[PF_S];
+                    double target = s > 0.0 ? -s * inv_h : 0.0;
+                    blk(i, 4) = target - vn;
+                }
+                lu_solve(mf, m, blk, cnt);
+                bool ok = true;
+                for (i64 i = 0; i < cnt; ++i)
+                    if (pf(start + i, PF_LN) + om * blk(i, 4) < 0.0) ok = false;
+                if (ok) {
+                    solved = true;
+                    for (i64 i = 0; i < cnt; ++i) {
+                        double* q = pf.row(start + i);
+                        double d = om * blk(i, 4);
+                        q[PF_LN] += d;
+                        if (d != 0.0) {
+                            double dv = std::fabs(d) / q[PF_NMASS];
+                            if (dv > change) change = dv;
+                            if (dv > tol) mark_a = true;
+                        }
+                        apply_impulse(ma, a6, mb, b6, q[PF_RA], q[PF_RA + 1], q[PF_RA + 2],
+                                      q[PF_RB], q[PF_RB + 1], q[PF_RB + 2], d * nx, d * ny,
+                                      d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx,
+                                      wby, wbz);
+                    }
+                }
+            }
+            if (!solved) {
+                for (i64 p = start; p < end; ++p) {
+                    double* q = pf.row(p);
+                    double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+                    double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                    // relative normal velocity at the contact (a minus b)
+                    double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
+                    double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
+                    double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                    double vn = dvx * nx + dvy * ny + dvz * nz;
+                    double s = q[PF_S];
+                    // speculative: the gap may close within the step, not more
+                    double target = s > 0.0 ? -s * inv_h : 0.0;
+                    // clamp the accumulated impulse
+                    double old = q[PF_LN];
+                    double nw = old + om * q[PF_NMASS] * (target - vn);
+                    if (nw < 0.0) nw = 0.0;
+                    q[PF_LN] = nw;
+                    double d = nw - old;
+                    if (d != 0.0) {
+                        double dv = std::fabs(d) / q[PF_NMASS];
+                        if (dv > change) change = dv;
+                        if (dv > tol) mark_a = true;
+                    }
+                    apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny,
+                                  d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby,
+                                  wbz);
+                }
+            }
+            // friction
+            if (mu > 0.0) {
+                for (i64 p = start; p < end; ++p) {
+                    double* q = pf.row(p);
+                    double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+                    double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                    double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
+                    double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
+                    double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                    double vt1 = dvx * t1x + dvy * t1y + dvz * t1z;
+                    double vt2 = dvx * t2x + dvy * t2y + dvz * t2z;
+                    double k11 = q[PF_TK], k12 = q[PF_TK + 1], k22 = q[PF_TK + 2];
+                    double o1 = q[PF_L1], o2 = q[PF_L2];
+                    double n1, n2;
+                    friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, mu * q[PF_LN],
+                                     newton_iters, newton_tol, n1, n2);
+                    q[PF_L1] = n1;
+                    q[PF_L2] = n2;
+                    double d1 = n1 - o1;
+                    double d2 = n2 - o2;
+                    double dv = std::fabs(d1) * k11 + std::fabs(d2) * k22;
+                    if (dv > change) change = dv;
+                    if (dv > tol) mark_a = true;
+                    double px = d1 * t1x + d2 * t2x;
+                    double py = d1 * t1y + d2 * t2y;
+                    double pz = d1 * t1z + d2 * t2z;
+                    apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, px, py, pz, vax,
+                                  vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+                }
+            }
+            bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
+            bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
+            bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
+            bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+            if (mark_a) {
+                // the static dummy (zero inverse mass) never turns hot
+                if (ma > 0.0) hot[ia] = it;
+                if (mb > 0.0) hot[ib] = it;
+            }
+        }
+        if (it >= min_iter && change <= tol) break;
+    }
+    i64 den = active > 1 ? active : 1;
+    i64 r = (visits + active - 1) / den;
+    return r > 1 ? r : 1;
+}
+
+// The anchor pass (after the velocity solve, before relax): one Gauss-Seidel sweep of the
+// friction rows of loaded points with the anchors' targets (slip rate -FRICTION_ANCHOR_RATE D /
+// h, clamped to the Coulomb disc; see "Friction anchor" above). It runs once per step, outside
+// the solve's convergence loop, so the bias never keeps the solve's sweeps going; the anchor
+// closes the loop over steps (what one sweep leaves of the target is still in D next step).
+void anchor_friction(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                     V2<double> bI, V2<double> bv, V2<double> bw, i64 newton_iters,
+                     double newton_tol) {
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        double mu = mf(m, MF_MU);
+        if (mu <= 0.0) continue;
+        i64 start = mi(m, MI_START);
+        i64 end = start + mi(m, MI_COUNT);
+        bool loaded = false;
+        for (i64 p = start; p < end; ++p)
+            if (pf(p, PF_LN) > 0.0) loaded = true;
+        if (!loaded) continue;
+        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+        double ma = bm[ia], mb = bm[ib];
+        const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
+        const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
+        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
+        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
+        double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
+        double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
+        double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
+        double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
+        for (i64 p = start; p < end; ++p) {
+            double* q = pf.row(p);
+            if (q[PF_LN] <= 0.0) continue;
+            double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+            double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+            double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
+            double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
+            double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+            // slip relative to the anchor's target rate -D rate / h
+            double vt1 = dvx * t1x + dvy * t1y + dvz * t1z + q[PF_DB];
+            double vt2 = dvx * t2x + dvy * t2y + dvz * t2z + q[PF_DB + 1];
+            double k11 = q[PF_TK], k12 = q[PF_TK + 1], k22 = q[PF_TK + 2];
+            double o1 = q[PF_L1], o2 = q[PF_L2];
+            double n1, n2;
+            friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, mu * q[PF_LN], newton_iters,
+                             newton_tol, n1, n2);
+            q[PF_L1] = n1;
+            q[PF_L2] = n2;
+            double d1 = n1 - o1;
+            double d2 = n2 - o2;
+            double px = d1 * t1x + d2 * t2x;
+            double py = d1 * t1y + d2 * t2y;
+            double pz = d1 * t1z + d2 * t2z;
+            apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, px, py, pz, vax, vay,
+                          vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+        }
+        bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
+        bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
+        bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
+        bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+    }
+}
+
+// Friction impulses as world vectors, so the next step can project them on its tangents; a
+// manifold keeps its friction anchor while some loaded point sticks (friction strictly inside its
+// cone; see "Friction anchor" above): an impact, or a manifold none of whose points sticks, drops
+// it, and the next step's collide anchors the pair anew where it then is. (A point at its cone
+// while others stick just gives what the cone allows; a pair that slides drifts beyond
+// FRICTION_ANCHOR_MAX_DRIFT_M and collide re-anchors it.)
+void store_impulses(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, double slide_frac) {
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
+        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
+        double mu = mf(m, MF_MU);
+        i64 start = mi(m, MI_START);
+        i64 cnt = mi(m, MI_COUNT);
+        bool stick = false;
+        bool struck = false;
+        for (i64 p = start; p < start + cnt; ++p) {
+            double* q = pf.row(p);
+            double l1 = q[PF_L1], l2 = q[PF_L2];
+            q[PF_F] = l1 * t1x + l2 * t2x;
+            q[PF_F + 1] = l1 * t1y + l2 * t2y;
+            q[PF_F + 2] = l1 * t1z + l2 * t2z;
+            double fmax = mu * q[PF_LN];
+            double lim = (1.0 - slide_frac) * fmax;
+            if (q[PF_IMPACT] != 0.0) {
+                struck = true;
+            } else if (fmax > 0.0 && l1 * l1 + l2 * l2 < lim * lim) {
+                stick = true;
+            }
+        }
+        if (struck || !stick) mf(m, MF_AOK) = 0.0;
+    }
+}
+
+}  // namespace rb

@@ -1,0 +1,831 @@
+// Kernels that advance free bodies (no contacts) many steps per call (rblog/engine/free.py keeps
+// the Python entry points, BODY_TILE, SPARSE_STRIDE, MIN_PARALLEL_BODY_STEPS and body_ranges).
+//
+// Bodies are independent without contacts, so the loop runs over tiles of BODY_TILE bodies, steps
+// inside a tile: the tile's state stays in L1 for the whole block, and samples are written for
+// consecutive bodies. When samples are SPARSE_STRIDE or more steps apart the tile is one body
+// (its position and momentum in registers for the whole block). Each body's step is its
+// integrator's step_body below (the stages in integrators.hpp), except under exact / exact4,
+// whose kernel writes the same step out in its own body (advance_exact_range; the arithmetic of
+// step_body + drift_exact_anchored, operation for operation: tests/engine/test_exact_anchored.py
+// compares the two bit for bit).
+//
+// Samples are written after every stride-th step (and after the last step of the block when
+// sample_last), so logging costs nothing between samples.
+//
+// Each integrator has its own instantiation of the kernel (a template on the METHOD_* code), so
+// the step is compiled into the loop with no dispatch inside it.
+//
+// Threads: advance_free runs contiguous BODY_TILE-aligned body ranges (free.body_ranges) as tasks
+// of the engine's pool (rb::pool()). A body's arithmetic does not depend on which range it is in,
+// so the result is bitwise the same for any thread count.
+#include "engine/free.hpp"
+
+#include <cmath>
+#include <memory>
+
+#include "engine/bind.hpp"
+#include "engine/integrators.hpp"
+#include "engine/lanes.hpp"
+
+namespace rb {
+
+namespace {
+
+// One step of free body i by integrator METHOD (not the exact ones): orientation and L in place,
+// position (x, y, z) and momentum (px, py, pz) in registers. Translation: seed / seed-quat
+// symplectic Euler, splitting kick-drift-kick and rk4 the exact constant-force step (the same map
+// x += h v + h^2 a / 2, v += h a). Returns false if the state became non-finite or the body
+// turned more than MAX_ROTATION_PER_STEP_RAD in the step (integrators.step_body).
+template <int METHOD>
+inline bool step_body(const FreeArgs& a, i64 i, double& x, double& y, double& z, double& px,
+                      double& py, double& pz) {
+    const double dt = a.dt;
+    const int ortho = a.ortho;
+    V2<double> L = a.angular_momentum;
+    const double im = a.inv_mass[i];
+    const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
+    const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
+    if (METHOD == METHOD_SPLITTING) {
+        // kick half, drift, kick half
+        const double hh = 0.5 * dt;
+        px += hh * fx; py += hh * fy; pz += hh * fz;
+        L(i, 0) += hh * tx; L(i, 1) += hh * ty; L(i, 2) += hh * tz;
+        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+        drift_splitting(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
+        px += hh * fx; py += hh * fy; pz += hh * fz;
+        L(i, 0) += hh * tx; L(i, 1) += hh * ty; L(i, 2) += hh * tz;
+    } else if (METHOD == METHOD_RK4) {
+        // translation: exact for a constant force; rotation: RK4 with L(t) = L + t tau
+        flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
+        drift_rk4(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt, tx, ty, tz);
+        L(i, 0) += dt * tx; L(i, 1) += dt * ty; L(i, 2) += dt * tz;
+    } else {
+        // the notes: forward Euler on P and L, then x and R from the new values
+        px += dt * fx; py += dt * fy; pz += dt * fz;
+        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+        L(i, 0) += dt * tx; L(i, 1) += dt * ty; L(i, 2) += dt * tz;
+        if (METHOD == METHOD_SEED)
+            drift_seed(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
+        else
+            drift_seed_quat(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
+    }
+    // non-finite check: one sum covers position, momenta and part of the rotation
+    const double* r = a.rotation.row(i);
+    const double chk = x + y + z + px + py + pz + L(i, 0) + L(i, 1) + L(i, 2) + r[0] + r[4] + r[8]
+                       + r[1];
+    return std::isfinite(chk) && turn_within_bound(dt, i, a.inv_inertia, a.rotation, L);
+}
+
+template <int METHOD>
+inline void sample(const FreeArgs& a, i64 j, i64 i) {
+    write_sample_t<METHOD>(j, i, a.position, a.linear_momentum, a.quat_wxyz, a.rotation,
+                           a.angular_momentum, a.out_position, a.out_linear_momentum,
+                           a.out_quat_wxyz, a.out_rotation, a.out_angular_momentum);
+}
+
+inline bool sample_due(const FreeArgs& a, i64 s) {
+    return s % a.stride == 0 || (a.sample_last && s == a.n_steps);
+}
+
+// Body i alone from step s_begin on (its position and momentum in registers), samples from row
+// j on: the sparse path of advance_range. Returns the samples written; fail_step the step at
+// which the body's state went bad (-1 if none).
+template <int METHOD>
+i64 single_body(const FreeArgs& a, i64 i, i64 s_begin, i64 j, i64& fail_step) {
+    V2<double> pos = a.position, mom = a.linear_momentum;
+    fail_step = -1;
+    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
+    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
+    for (i64 s = s_begin; s <= a.n_steps; ++s) {
+        if (!step_body<METHOD>(a, i, x, y, z, px, py, pz)) {
+            fail_step = s;
+            break;
+        }
+        if (sample_due(a, s)) {
+            pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+            mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+            sample<METHOD>(a, j, i);
+            j += 1;
+        }
+    }
+    pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+    mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+    return j;
+}
+
+// Bodies i and i + 1 of seed (ortho polar or none) in the two lanes of d2 (lanes.hpp), state in
+// registers: step_body<METHOD_SEED> and drift_seed / polar / turn_within_bound_m lane by lane,
+// operation for operation. When a lane's state goes bad at step s, both lanes have taken step s
+// (as the scalar loop would); the other lane then goes on alone (single_body) from s + 1.
+// Returns the samples of each body in j_out, their bad steps in fail_out.
+inline void seed_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
+    const double dt = a.dt;
+    const int ortho = a.ortho;
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum;
+    V3<double> R = a.rotation;
+    const i64 k = i + 1;
+    auto ld2 = [](V2<double> v, i64 i0, i64 i1, int c) { return d2{v(i0, c), v(i1, c)}; };
+    const d2 im = d2{a.inv_mass[i], a.inv_mass[k]};
+    const d2 fx = ld2(a.force_world, i, k, 0), fy = ld2(a.force_world, i, k, 1),
+             fz = ld2(a.force_world, i, k, 2);
+    const d2 tx = ld2(a.torque_world, i, k, 0), ty = ld2(a.torque_world, i, k, 1),
+             tz = ld2(a.torque_world, i, k, 2);
+    const d2 k0 = ld2(a.inv_inertia, i, k, 0), k1 = ld2(a.inv_inertia, i, k, 1),
+             k2 = ld2(a.inv_inertia, i, k, 2);
+    // turn_within_bound_m's cheap bound, a constant of the body
+    const d2 kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    const int max_iter = free_constants.polar_max_iter;
+    const double tol = free_constants.polar_tol;
+    d2 x = ld2(pos, i, k, 0), y = ld2(pos, i, k, 1), z = ld2(pos, i, k, 2);
+    d2 px = ld2(mom, i, k, 0), py = ld2(mom, i, k, 1), pz = ld2(mom, i, k, 2);
+    d2 lx = ld2(L, i, k, 0), ly = ld2(L, i, k, 1), lz = ld2(L, i, k, 2);
+    d2 m[9];
+    for (int c = 0; c < 9; ++c) m[c] = d2{R.row(i)[c], R.row(k)[c]};
+    auto store = [&]() {
+        for (int l = 0; l < 2; ++l) {
+            const i64 b = l == 0 ? i : k;
+            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
+            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
+            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
+            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
+        }
+    };
+    i64 j = 0;
+    bool ok[2] = {true, true};
+    i64 s = 1;
+    for (; s <= a.n_steps; ++s) {
+        // the notes: forward Euler on P and L, then x and R from the new values
+        px += dt * fx; py += dt * fy; pz += dt * fz;
+        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+        lx += dt * tx; ly += dt * ty; lz += dt * tz;
+        // drift_seed: omega = R I^-1 R^T L (omega_world), R <- R + h [omega]x R
+        const d2 m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5],
+                 m20 = m[6], m21 = m[7], m22 = m[8];
+        const d2 b0 = (m00 * lx + m10 * ly + m20 * lz) * k0;
+        const d2 b1 = (m01 * lx + m11 * ly + m21 * lz) * k1;
+        const d2 b2 = (m02 * lx + m12 * ly + m22 * lz) * k2;
+        const d2 ox = m00 * b0 + m01 * b1 + m02 * b2;
+        const d2 oy = m10 * b0 + m11 * b1 + m12 * b2;
+        const d2 oz = m20 * b0 + m21 * b1 + m22 * b2;
+        const double h = dt;
+        d2 a00 = m00 + h * (-oz * m10 + oy * m20), a01 = m01 + h * (-oz * m11 + oy * m21),
+           a02 = m02 + h * (-oz * m12 + oy * m22),
+           a10 = m10 + h * (oz * m00 - ox * m20), a11 = m11 + h * (oz * m01 - ox * m21),
+           a12 = m12 + h * (oz * m02 - ox * m22),
+           a20 = m20 + h * (-oy * m00 + ox * m10), a21 = m21 + h * (-oy * m01 + ox * m11),
+           a22 = m22 + h * (-oy * m02 + ox * m12);
+        if (ortho == ORTHO_POLAR) {
+            // rotation.hpp polar, a lane stops (keeps its iterate) once its update is <= tol
+            m2 active = m2{-1, -1};
+            for (int it = 0; it < max_iter; ++it) {
+                const d2 c00 = a11 * a22 - a12 * a21;
+                const d2 c01 = a12 * a20 - a10 * a22;
+                const d2 c02 = a10 * a21 - a11 * a20;
+                const d2 c10 = a02 * a21 - a01 * a22;
+                const d2 c11 = a00 * a22 - a02 * a20;
+                const d2 c12 = a01 * a20 - a00 * a21;
+                const d2 c20 = a01 * a12 - a02 * a11;
+                const d2 c21 = a02 * a10 - a00 * a12;
+                const d2 c22 = a00 * a11 - a01 * a10;
+                const d2 det = a00 * c00 + a01 * c01 + a02 * c02;
+                const d2 f = 0.5 / det;
+                const d2 n00 = 0.5 * a00 + f * c00;
+                const d2 n01 = 0.5 * a01 + f * c01;
+                const d2 n02 = 0.5 * a02 + f * c02;
+                const d2 n10 = 0.5 * a10 + f * c10;
+                const d2 n11 = 0.5 * a11 + f * c11;
+                const d2 n12 = 0.5 * a12 + f * c12;
+                const d2 n20 = 0.5 * a20 + f * c20;
+                const d2 n21 = 0.5 * a21 + f * c21;
+                const d2 n22 = 0.5 * a22 + f * c22;
+                d2 d = vabs(n00 - a00);
+                d = vpymax(d, vabs(n01 - a01));
+                d = vpymax(d, vabs(n02 - a02));
+                d = vpymax(d, vabs(n10 - a10));
+                d = vpymax(d, vabs(n11 - a11));
+                d = vpymax(d, vabs(n12 - a12));
+                d = vpymax(d, vabs(n20 - a20));
+                d = vpymax(d, vabs(n21 - a21));
+                d = vpymax(d, vabs(n22 - a22));
+                a00 = active ? n00 : a00; a01 = active ? n01 : a01; a02 = active ? n02 : a02;
+                a10 = active ? n10 : a10; a11 = active ? n11 : a11; a12 = active ? n12 : a12;
+                a20 = active ? n20 : a20; a21 = active ? n21 : a21; a22 = active ? n22 : a22;
+                active = active & ~(d <= tol);
+                if (!any(active)) break;
+            }
+        }
+        m[0] = a00; m[1] = a01; m[2] = a02; m[3] = a10; m[4] = a11; m[5] = a12;
+        m[6] = a20; m[7] = a21; m[8] = a22;
+        // non-finite check and turn bound (step_body, turn_within_bound_m)
+        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
+        for (int l = 0; l < 2; ++l) {
+            ok[l] = std::isfinite(chk[l]);
+            if (ok[l] && !cheap[l]) {
+                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
+                                 m[7][l], m[8][l]};
+                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
+            }
+        }
+        if (!ok[0] || !ok[1]) break;
+        if (sample_due(a, s)) {
+            store();
+            sample<METHOD_SEED>(a, j, i);
+            sample<METHOD_SEED>(a, j, k);
+            j += 1;
+        }
+    }
+    store();
+    for (int l = 0; l < 2; ++l) {
+        const i64 b = l == 0 ? i : k;
+        if (s > a.n_steps) {  // both lanes ran to the end
+            j_out[l] = j;
+            fail_out[l] = -1;
+        } else if (!ok[l]) {
+            j_out[l] = j;
+            fail_out[l] = s;
+        } else {  // the other lane failed at s: this one goes on alone
+            j_out[l] = single_body<METHOD_SEED>(a, b, s + 1, j, fail_out[l]);
+        }
+    }
+}
+
+// ---- rk4, two bodies in the lanes of d2 (integrators.hpp drift_rk4, lane by lane) -----------
+
+struct Q2 {
+    d2 w, x, y, z;
+};
+
+inline Q2 qmul2(d2 aw, d2 ax, d2 ay, d2 az, d2 bw, d2 bx, d2 by, d2 bz) {
+    return {aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw};
+}
+
+inline Q2 normalize2(d2 w, d2 x, d2 y, d2 z) {
+    const d2 n = 1.0 / vsqrt(w * w + x * x + y * y + z * z);
+    return {w * n, x * n, y * n, z * n};
+}
+
+inline void mat2(const Q2& q, d2 m[9]) {
+    const d2 w = q.w, x = q.x, y = q.y, z = q.z;
+    m[0] = w * w + x * x - y * y - z * z; m[1] = 2.0 * (x * y - w * z); m[2] = 2.0 * (x * z + w * y);
+    m[3] = 2.0 * (x * y + w * z); m[4] = w * w - x * x + y * y - z * z; m[5] = 2.0 * (y * z - w * x);
+    m[6] = 2.0 * (x * z - w * y); m[7] = 2.0 * (y * z + w * x); m[8] = w * w - x * x - y * y + z * z;
+}
+
+// mul_exp lane-wise (the series or the sine and cosine per lane, as the scalar branch)
+inline Q2 mul_exp2(const Q2& q, d2 vx, d2 vy, d2 vz) {
+    const d2 a2 = vx * vx + vy * vy + vz * vz;
+    d2 c, sf;
+    for (int l = 0; l < 2; ++l) {
+        const double s2 = a2[l];
+        if (s2 < 1e-8) {
+            c[l] = 1.0 - s2 / 8.0 + s2 * s2 / 384.0;
+            sf[l] = 0.5 - s2 / 48.0 + s2 * s2 / 3840.0;
+        } else {
+            const double an = std::sqrt(s2);
+            c[l] = std::cos(0.5 * an);
+            sf[l] = std::sin(0.5 * an) / an;
+        }
+    }
+    return qmul2(q.w, q.x, q.y, q.z, c, sf * vx, sf * vy, sf * vz);
+}
+
+// R(q)^T tau lane-wise (torque_body)
+inline void torque_body2(const Q2& q, d2 tx, d2 ty, d2 tz, d2& e0, d2& e1, d2& e2) {
+    d2 m[9];
+    mat2(q, m);
+    e0 = m[0] * tx + m[3] * ty + m[6] * tz;
+    e1 = m[1] * tx + m[4] * ty + m[7] * tz;
+    e2 = m[2] * tx + m[5] * ty + m[8] * tz;
+}
+
+// Bodies i and i + 1 of rk4 in the lanes of d2, state (position, momentum, L, q, R) in
+// registers: step_body<METHOD_RK4> (flight_exact, drift_rk4, the torque kick, the checks) lane by
+// lane, operation for operation; lane-dependent branches (torque, the small-angle series, the
+// final turn) by per-lane selection of the scalar branch's values. As seed_pair otherwise.
+inline void rk4_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
+    const double dt = a.dt;
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    V3<double> R = a.rotation;
+    const i64 k = i + 1;
+    auto ld2 = [](V2<double> v, i64 i0, i64 i1, int c) { return d2{v(i0, c), v(i1, c)}; };
+    const d2 im = d2{a.inv_mass[i], a.inv_mass[k]};
+    const d2 fx = ld2(a.force_world, i, k, 0), fy = ld2(a.force_world, i, k, 1),
+             fz = ld2(a.force_world, i, k, 2);
+    const d2 tx = ld2(a.torque_world, i, k, 0), ty = ld2(a.torque_world, i, k, 1),
+             tz = ld2(a.torque_world, i, k, 2);
+    const d2 k0 = ld2(a.inv_inertia, i, k, 0), k1 = ld2(a.inv_inertia, i, k, 1),
+             k2 = ld2(a.inv_inertia, i, k, 2);
+    const m2 torqued = (tx != 0.0) | (ty != 0.0) | (tz != 0.0);
+    const bool any_torqued = any(torqued);
+    const d2 kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    const d2 zero = splat(0.0);
+    d2 x = ld2(pos, i, k, 0), y = ld2(pos, i, k, 1), z = ld2(pos, i, k, 2);
+    d2 px = ld2(mom, i, k, 0), py = ld2(mom, i, k, 1), pz = ld2(mom, i, k, 2);
+    d2 lx = ld2(L, i, k, 0), ly = ld2(L, i, k, 1), lz = ld2(L, i, k, 2);
+    Q2 q = {ld2(Q, i, k, 0), ld2(Q, i, k, 1), ld2(Q, i, k, 2), ld2(Q, i, k, 3)};
+    d2 m[9];
+    for (int c = 0; c < 9; ++c) m[c] = d2{R.row(i)[c], R.row(k)[c]};
+    auto store = [&]() {
+        for (int l = 0; l < 2; ++l) {
+            const i64 b = l == 0 ? i : k;
+            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
+            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
+            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
+            Q(b, 0) = q.w[l]; Q(b, 1) = q.x[l]; Q(b, 2) = q.y[l]; Q(b, 3) = q.z[l];
+            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
+        }
+    };
+    const double h = dt, hh = 0.5 * h;
+    const double hh_flight = 0.5 * dt * dt;
+    const double g = h / 6.0;
+    const double c1 = 1.0 / 4.0, c2 = 1.0 / 6.0, c3 = -1.0 / 12.0;
+    i64 j = 0;
+    bool ok[2] = {true, true};
+    i64 s = 1;
+    for (; s <= a.n_steps; ++s) {
+        // translation: exact for a constant force (flight_exact)
+        const d2 hf = hh_flight * im;
+        x = x + (dt * px * im + hf * fx);
+        y = y + (dt * py * im + hf * fy);
+        z = z + (dt * pz * im + hf * fz);
+        px = px + dt * fx; py = py + dt * fy; pz = pz + dt * fz;
+        // drift_rk4
+        const d2 a0 = m[0] * lx + m[3] * ly + m[6] * lz;
+        const d2 a1 = m[1] * lx + m[4] * ly + m[7] * lz;
+        const d2 a2 = m[2] * lx + m[5] * ly + m[8] * lz;
+        d2 e0 = zero, e1 = zero, e2 = zero;
+        if (any_torqued) {
+            e0 = torqued ? m[0] * tx + m[3] * ty + m[6] * tz : zero;
+            e1 = torqued ? m[1] * tx + m[4] * ty + m[7] * tz : zero;
+            e2 = torqued ? m[2] * tx + m[5] * ty + m[8] * tz : zero;
+        }
+        // stage 1 (euler_rhs)
+        d2 w0 = k0 * a0, w1 = k1 * a1, w2 = k2 * a2;
+        const d2 d10 = a1 * w2 - a2 * w1 + e0, d11 = a2 * w0 - a0 * w2 + e1, d12 = a0 * w1 - a1 * w0 + e2;
+        const d2 w10 = k0 * a0, w11 = k1 * a1, w12 = k2 * a2;
+        // stage 2
+        d2 b0 = a0 + hh * d10, b1 = a1 + hh * d11, b2 = a2 + hh * d12;
+        Q2 q2 = q, q3 = q;
+        if (any_torqued) {
+            const Q2 k1q = qmul2(q.w, q.x, q.y, q.z, zero, 0.5 * w10, 0.5 * w11, 0.5 * w12);
+            q2 = normalize2(q.w + hh * k1q.w, q.x + hh * k1q.x, q.y + hh * k1q.y, q.z + hh * k1q.z);
+            d2 f0, f1, f2;
+            torque_body2(q2, tx, ty, tz, f0, f1, f2);
+            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
+        }
+        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
+        const d2 d20 = b1 * w2 - b2 * w1 + e0, d21 = b2 * w0 - b0 * w2 + e1, d22 = b0 * w1 - b1 * w0 + e2;
+        const d2 w20 = k0 * b0, w21 = k1 * b1, w22 = k2 * b2;
+        // stage 3
+        b0 = a0 + hh * d20; b1 = a1 + hh * d21; b2 = a2 + hh * d22;
+        if (any_torqued) {
+            const Q2 k2q = qmul2(q2.w, q2.x, q2.y, q2.z, zero, 0.5 * w20, 0.5 * w21, 0.5 * w22);
+            q3 = normalize2(q.w + hh * k2q.w, q.x + hh * k2q.x, q.y + hh * k2q.y, q.z + hh * k2q.z);
+            d2 f0, f1, f2;
+            torque_body2(q3, tx, ty, tz, f0, f1, f2);
+            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
+        }
+        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
+        const d2 d30 = b1 * w2 - b2 * w1 + e0, d31 = b2 * w0 - b0 * w2 + e1, d32 = b0 * w1 - b1 * w0 + e2;
+        const d2 w30 = k0 * b0, w31 = k1 * b1, w32 = k2 * b2;
+        // stage 4
+        b0 = a0 + h * d30; b1 = a1 + h * d31; b2 = a2 + h * d32;
+        if (any_torqued) {
+            const Q2 k3q = qmul2(q3.w, q3.x, q3.y, q3.z, zero, 0.5 * w30, 0.5 * w31, 0.5 * w32);
+            const Q2 q4 = normalize2(q.w + h * k3q.w, q.x + h * k3q.x, q.y + h * k3q.y, q.z + h * k3q.z);
+            d2 f0, f1, f2;
+            torque_body2(q4, tx, ty, tz, f0, f1, f2);
+            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
+        }
+        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
+        const d2 d40 = b1 * w2 - b2 * w1 + e0, d41 = b2 * w0 - b0 * w2 + e1, d42 = b0 * w1 - b1 * w0 + e2;
+        const d2 w40 = k0 * b0, w41 = k1 * b1, w42 = k2 * b2;
+        const d2 n0 = a0 + g * (d10 + 2.0 * d20 + 2.0 * d30 + d40);
+        const d2 n1 = a1 + g * (d11 + 2.0 * d21 + 2.0 * d31 + d41);
+        const d2 n2 = a2 + g * (d12 + 2.0 * d22 + 2.0 * d32 + d42);
+        // attitude: CF4
+        Q2 r = mul_exp2(q, h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
+                        h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
+                        h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42));
+        r = mul_exp2(r, h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
+                     h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
+                     h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42));
+        r = normalize2(r.w, r.x, r.y, r.z);
+        // turn q so that R^T L_end is along Lb'
+        const d2 ex = lx + h * tx, ey = ly + h * ty, ez = lz + h * tz;
+        mat2(r, m);
+        d2 u0 = m[0] * ex + m[3] * ey + m[6] * ez;
+        d2 u1 = m[1] * ex + m[4] * ey + m[7] * ez;
+        d2 u2 = m[2] * ex + m[5] * ey + m[8] * ez;
+        const d2 nu = vsqrt(u0 * u0 + u1 * u1 + u2 * u2);
+        const d2 nv = vsqrt(n0 * n0 + n1 * n1 + n2 * n2);
+        const m2 turn = (nu > 0.0) & (nv > 0.0);
+        if (any(turn)) {
+            const d2 iu = 1.0 / nu, iv = 1.0 / nv;
+            u0 = u0 * iu; u1 = u1 * iu; u2 = u2 * iu;
+            const d2 v0 = n0 * iv, v1 = n1 * iv, v2 = n2 * iv;
+            const d2 cw = 1.0 + u0 * v0 + u1 * v1 + u2 * v2;
+            const d2 cx = u1 * v2 - u2 * v1, cy = u2 * v0 - u0 * v2, cz = u0 * v1 - u1 * v0;
+            const Q2 t = qmul2(r.w, r.x, r.y, r.z, cw, -cx, -cy, -cz);
+            r.w = turn ? t.w : r.w; r.x = turn ? t.x : r.x;
+            r.y = turn ? t.y : r.y; r.z = turn ? t.z : r.z;
+        }
+        q = normalize2(r.w, r.x, r.y, r.z);
+        mat2(q, m);
+        // the torque kick
+        lx += dt * tx; ly += dt * ty; lz += dt * tz;
+        // non-finite check and turn bound
+        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
+        for (int l = 0; l < 2; ++l) {
+            ok[l] = std::isfinite(chk[l]);
+            if (ok[l] && !cheap[l]) {
+                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
+                                 m[7][l], m[8][l]};
+                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
+            }
+        }
+        if (!ok[0] || !ok[1]) break;
+        if (sample_due(a, s)) {
+            store();
+            sample<METHOD_RK4>(a, j, i);
+            sample<METHOD_RK4>(a, j, k);
+            j += 1;
+        }
+    }
+    store();
+    for (int l = 0; l < 2; ++l) {
+        const i64 b = l == 0 ? i : k;
+        if (s > a.n_steps) {
+            j_out[l] = j;
+            fail_out[l] = -1;
+        } else if (!ok[l]) {
+            j_out[l] = j;
+            fail_out[l] = s;
+        } else {
+            j_out[l] = single_body<METHOD_RK4>(a, b, s + 1, j, fail_out[l]);
+        }
+    }
+}
+
+// ---- seed-quat (normalized) and splitting, two bodies in the lanes of d2 --------------------
+
+// One lane-wise sub-flow of the splitting (integrators.hpp flow_x / flow_y / flow_z): axis `ax`,
+// s_inv_i = s / I_k per lane; the half-angle sine and cosine per lane (scalar calls).
+template <int AX>
+inline void flow2(Q2& q, d2& b0, d2& b1, d2& b2, d2 s_inv_i) {
+    const d2 th = s_inv_i * (AX == 0 ? b0 : AX == 1 ? b1 : b2);
+    d2 ch, sh;
+    for (int l = 0; l < 2; ++l) {
+        ch[l] = std::cos(0.5 * th[l]);
+        sh[l] = std::sin(0.5 * th[l]);
+    }
+    const d2 c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
+    const d2 w = q.w, x = q.x, y = q.y, z = q.z;
+    if (AX == 0) {
+        q = {ch * w - sh * x, ch * x + sh * w, ch * y + sh * z, ch * z - sh * y};
+        const d2 n1 = c * b1 + sn * b2, n2 = c * b2 - sn * b1;
+        b1 = n1; b2 = n2;
+    } else if (AX == 1) {
+        q = {ch * w - sh * y, ch * x - sh * z, ch * y + sh * w, ch * z + sh * x};
+        const d2 n0 = c * b0 - sn * b2, n2 = c * b2 + sn * b0;
+        b0 = n0; b2 = n2;
+    } else {
+        q = {ch * w - sh * z, ch * x + sh * y, ch * y - sh * x, ch * z + sh * w};
+        const d2 n0 = c * b0 + sn * b1, n1 = c * b1 - sn * b0;
+        b0 = n0; b1 = n1;
+    }
+}
+
+// Bodies i and i + 1 of seed-quat (ortho normalize) or splitting in the lanes of d2, state in
+// registers: step_body<METHOD> with drift_seed_quat / drift_splitting lane by lane, operation for
+// operation. As seed_pair otherwise.
+template <int METHOD>
+inline void quat_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
+    const double dt = a.dt;
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    V3<double> R = a.rotation;
+    const i64 k = i + 1;
+    auto ld2 = [](V2<double> v, i64 i0, i64 i1, int c) { return d2{v(i0, c), v(i1, c)}; };
+    const d2 im = d2{a.inv_mass[i], a.inv_mass[k]};
+    const d2 fx = ld2(a.force_world, i, k, 0), fy = ld2(a.force_world, i, k, 1),
+             fz = ld2(a.force_world, i, k, 2);
+    const d2 tx = ld2(a.torque_world, i, k, 0), ty = ld2(a.torque_world, i, k, 1),
+             tz = ld2(a.torque_world, i, k, 2);
+    const d2 k0 = ld2(a.inv_inertia, i, k, 0), k1 = ld2(a.inv_inertia, i, k, 1),
+             k2 = ld2(a.inv_inertia, i, k, 2);
+    const d2 kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    d2 x = ld2(pos, i, k, 0), y = ld2(pos, i, k, 1), z = ld2(pos, i, k, 2);
+    d2 px = ld2(mom, i, k, 0), py = ld2(mom, i, k, 1), pz = ld2(mom, i, k, 2);
+    d2 lx = ld2(L, i, k, 0), ly = ld2(L, i, k, 1), lz = ld2(L, i, k, 2);
+    Q2 q = {ld2(Q, i, k, 0), ld2(Q, i, k, 1), ld2(Q, i, k, 2), ld2(Q, i, k, 3)};
+    d2 m[9];
+    for (int c = 0; c < 9; ++c) m[c] = d2{R.row(i)[c], R.row(k)[c]};
+    auto store = [&]() {
+        for (int l = 0; l < 2; ++l) {
+            const i64 b = l == 0 ? i : k;
+            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
+            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
+            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
+            Q(b, 0) = q.w[l]; Q(b, 1) = q.x[l]; Q(b, 2) = q.y[l]; Q(b, 3) = q.z[l];
+            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
+        }
+    };
+    const double h = dt, hh = 0.5 * dt;
+    const d2 zero = splat(0.0);
+    i64 j = 0;
+    bool ok[2] = {true, true};
+    i64 s = 1;
+    for (; s <= a.n_steps; ++s) {
+        if (METHOD == METHOD_SPLITTING) {
+            // kick half, drift, kick half
+            px += hh * fx; py += hh * fy; pz += hh * fz;
+            lx += hh * tx; ly += hh * ty; lz += hh * tz;
+            x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+            // drift_splitting: Lb = R^T L, 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2), normalized
+            d2 b0 = m[0] * lx + m[3] * ly + m[6] * lz;
+            d2 b1 = m[1] * lx + m[4] * ly + m[7] * lz;
+            d2 b2 = m[2] * lx + m[5] * ly + m[8] * lz;
+            flow2<0>(q, b0, b1, b2, hh * k0);
+            flow2<1>(q, b0, b1, b2, hh * k1);
+            flow2<2>(q, b0, b1, b2, h * k2);
+            flow2<1>(q, b0, b1, b2, hh * k1);
+            flow2<0>(q, b0, b1, b2, hh * k0);
+            q = normalize2(q.w, q.x, q.y, q.z);
+            mat2(q, m);
+            px += hh * fx; py += hh * fy; pz += hh * fz;
+            lx += hh * tx; ly += hh * ty; lz += hh * tz;
+        } else {
+            // the notes: forward Euler on P and L, then x and q from the new values
+            px += dt * fx; py += dt * fy; pz += dt * fz;
+            x += dt * px * im; y += dt * py * im; z += dt * pz * im;
+            lx += dt * tx; ly += dt * ty; lz += dt * tz;
+            // drift_seed_quat (normalized): omega_world, q += h/2 (0, omega) (x) q
+            const d2 b0 = (m[0] * lx + m[3] * ly + m[6] * lz) * k0;
+            const d2 b1 = (m[1] * lx + m[4] * ly + m[7] * lz) * k1;
+            const d2 b2 = (m[2] * lx + m[5] * ly + m[8] * lz) * k2;
+            const d2 ox = m[0] * b0 + m[1] * b1 + m[2] * b2;
+            const d2 oy = m[3] * b0 + m[4] * b1 + m[5] * b2;
+            const d2 oz = m[6] * b0 + m[7] * b1 + m[8] * b2;
+            const Q2 d = qmul2(zero, ox, oy, oz, q.w, q.x, q.y, q.z);
+            q = normalize2(q.w + 0.5 * h * d.w, q.x + 0.5 * h * d.x, q.y + 0.5 * h * d.y,
+                           q.z + 0.5 * h * d.z);
+            mat2(q, m);
+        }
+        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
+        for (int l = 0; l < 2; ++l) {
+            ok[l] = std::isfinite(chk[l]);
+            if (ok[l] && !cheap[l]) {
+                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
+                                 m[7][l], m[8][l]};
+                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
+            }
+        }
+        if (!ok[0] || !ok[1]) break;
+        if (sample_due(a, s)) {
+            store();
+            sample<METHOD>(a, j, i);
+            sample<METHOD>(a, j, k);
+            j += 1;
+        }
+    }
+    store();
+    for (int l = 0; l < 2; ++l) {
+        const i64 b = l == 0 ? i : k;
+        if (s > a.n_steps) {
+            j_out[l] = j;
+            fail_out[l] = -1;
+        } else if (!ok[l]) {
+            j_out[l] = j;
+            fail_out[l] = s;
+        } else {
+            j_out[l] = single_body<METHOD>(a, b, s + 1, j, fail_out[l]);
+        }
+    }
+}
+
+// Bodies b0 .. b1-1, n_steps steps of dt, samples written (advance_free_range's contract).
+template <int METHOD>
+FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
+    FreeResult res;
+    const i64 tile = a.tile;
+    V2<double> pos = a.position, mom = a.linear_momentum;
+    auto fail = [&](i64 s, i64 i) {
+        if (s >= 0 && (res.bad_step < 0 || s < res.bad_step)) {
+            res.bad_step = s;
+            res.bad_body = i;
+        }
+    };
+#ifndef RB_FREE_NO_LANES  // (defined: the scalar path only, to compare the lanes against it)
+    if (tile == 1 && ((METHOD == METHOD_SEED && (a.ortho == ORTHO_POLAR || a.ortho == ORTHO_NONE))
+                      || (METHOD == METHOD_SEED_QUAT && a.ortho != ORTHO_NONE)
+                      || METHOD == METHOD_SPLITTING || METHOD == METHOD_RK4)) {
+        // sparse samples: bodies two at a time in the lanes of a vector, then the odd one
+        i64 i = b0;
+        for (; i + 1 < b1; i += 2) {
+            i64 js[2], fs[2];
+            if (METHOD == METHOD_SEED)
+                seed_pair(a, i, js, fs);
+            else if (METHOD == METHOD_RK4)
+                rk4_pair(a, i, js, fs);
+            else
+                quat_pair<METHOD>(a, i, js, fs);
+            fail(fs[0], i);
+            fail(fs[1], i + 1);
+            for (int l = 0; l < 2; ++l) {
+                if (METHOD == METHOD_SEED) sync_quat_seed(a.quat_wxyz, a.rotation, i + l);
+                if (js[l] > res.n_samples) res.n_samples = js[l];
+            }
+        }
+        for (; i < b1; ++i) {
+            i64 fs;
+            const i64 j = single_body<METHOD>(a, i, 1, 0, fs);
+            fail(fs, i);
+            if (METHOD == METHOD_SEED) sync_quat_seed(a.quat_wxyz, a.rotation, i);
+            if (j > res.n_samples) res.n_samples = j;
+        }
+        return res;
+    }
+#endif
+    for (i64 t0 = b0; t0 < b1; t0 += tile) {
+        const i64 t1 = t0 + tile < b1 ? t0 + tile : b1;
+        i64 j = 0;
+        if (tile == 1) {
+            i64 fs;
+            j = single_body<METHOD>(a, t0, 1, 0, fs);
+            fail(fs, t0);
+        } else {
+            for (i64 s = 1; s <= a.n_steps; ++s) {
+                bool ok = true;
+                for (i64 i = t0; i < t1; ++i) {
+                    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
+                    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
+                    ok = step_body<METHOD>(a, i, x, y, z, px, py, pz);
+                    pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+                    mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+                    if (!ok) {
+                        fail(s, i);
+                        break;
+                    }
+                }
+                if (!ok) break;
+                if (sample_due(a, s)) {
+                    for (i64 i = t0; i < t1; ++i) sample<METHOD>(a, j, i);
+                    j += 1;
+                }
+            }
+        }
+        if (METHOD == METHOD_SEED)  // the only integrator whose q is not current
+            for (i64 i = t0; i < t1; ++i) sync_quat_seed(a.quat_wxyz, a.rotation, i);
+        if (j > res.n_samples) res.n_samples = j;
+    }
+    return res;
+}
+
+// The kernel of exact / exact4: advance_range's loops with the exact step written out
+// (integrators.step_body, _strang_exact and drift_exact_anchored, operation for operation).
+// The flow constants of each body of a tile are computed from its anchor on its first step in
+// this call (a pure function of the anchor: the same in every split).
+template <int METHOD>
+FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
+    FreeResult res;
+    const i64 tile = a.tile;
+    const double dt = a.dt;
+    const double w1 = yoshida_w1(), w0 = yoshida_w0();
+    std::vector<double> fc(static_cast<size_t>(tile * N_FLOW));
+    std::unique_ptr<bool[]> fc_ok(new bool[static_cast<size_t>(tile)]());
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    V3<double> R = a.rotation;
+    V2<double> a_q = a.a_q, a_l = a.a_l;
+    V1<i64> a_n = a.a_n;
+    V1<double> a_dt = a.a_dt;
+    for (i64 t0 = b0; t0 < b1; t0 += tile) {
+        const i64 t1 = t0 + tile < b1 ? t0 + tile : b1;
+        for (i64 r = 0; r < tile; ++r) fc_ok[r] = false;
+        i64 j = 0;
+        for (i64 s = 1; s <= a.n_steps; ++s) {
+            bool ok = true;
+            for (i64 i = t0; i < t1; ++i) {
+                const i64 r = i - t0;
+                double* row = fc.data() + r * N_FLOW;
+                // translation: exact for a constant force (integrators.step_body)
+                const double im = a.inv_mass[i];
+                const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
+                const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
+                double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
+                double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
+                flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
+                pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+                mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+                // rotation: Strang kick(h/2) flow(h) kick(h/2), with torque under exact4
+                // Yoshida's three of them
+                const double k0 = a.inv_inertia(i, 0), k1 = a.inv_inertia(i, 1), k2 = a.inv_inertia(i, 2);
+                double lx = L(i, 0), ly = L(i, 1), lz = L(i, 2);
+                double qw = Q(i, 0), qx = Q(i, 1), qy = Q(i, 2), qz = Q(i, 3);
+                const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
+                const int n_sub = (METHOD == METHOD_EXACT4 && torqued) ? 3 : 1;
+                for (int sub = 0; sub < n_sub; ++sub) {
+                    double h = dt;
+                    if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
+                    const double hk = 0.5 * h;
+                    if (torqued) {
+                        lx += hk * tx; ly += hk * ty; lz += hk * tz;
+                    }
+                    // the anchor (drift_exact_anchored): kept while L is bitwise the anchor's and
+                    // the step is the same
+                    if (!anchor_holds(a_n[i], a_dt[i], a_l(i, 0), a_l(i, 1), a_l(i, 2), h, lx, ly, lz)) {
+                        a_q(i, 0) = qw; a_q(i, 1) = qx; a_q(i, 2) = qy; a_q(i, 3) = qz;
+                        a_l(i, 0) = lx; a_l(i, 1) = ly; a_l(i, 2) = lz;
+                        a_n[i] = 0;
+                        a_dt[i] = h;
+                        fc_ok[r] = false;
+                    }
+                    const double aw = a_q(i, 0), ax = a_q(i, 1), ay = a_q(i, 2), az = a_q(i, 3);
+                    if (!fc_ok[r]) {
+                        anchor_constants(row, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h);
+                        fc_ok[r] = true;
+                    }
+                    const i64 n = a_n[i] + 1;
+                    double rj_c;
+                    const Quat q = anchored_quat(row, aw, ax, ay, az,
+                                                 static_cast<double>(n) * std::fabs(h), qw, qx, qy,
+                                                 qz, rj_c);
+                    qw = q[0]; qx = q[1]; qy = q[2]; qz = q[3];
+                    if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
+                    a_n[i] = n;
+                    if (torqued) {
+                        lx += hk * tx; ly += hk * ty; lz += hk * tz;
+                    }
+                }
+                L(i, 0) = lx; L(i, 1) = ly; L(i, 2) = lz;
+                Q(i, 0) = qw; Q(i, 1) = qx; Q(i, 2) = qy; Q(i, 3) = qz;
+                const Mat3 m = quat_to_mat(qw, qx, qy, qz);
+                store_mat(R, i, m);
+                // non-finite check and turn bound (integrators.step_body)
+                const double chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+                ok = std::isfinite(chk) && turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m);
+                if (!ok) {
+                    if (res.bad_step < 0 || s < res.bad_step) {
+                        res.bad_step = s;
+                        res.bad_body = i;
+                    }
+                    break;
+                }
+            }
+            if (!ok) break;
+            if (sample_due(a, s)) {
+                for (i64 i = t0; i < t1; ++i) sample<METHOD>(a, j, i);
+                j += 1;
+            }
+        }
+        if (j > res.n_samples) res.n_samples = j;
+    }
+    return res;
+}
+
+}  // namespace
+
+FreeResult advance_free_range(int method, const FreeArgs& a, i64 b0, i64 b1) {
+    switch (method) {
+        case METHOD_SEED: return advance_range<METHOD_SEED>(a, b0, b1);
+        case METHOD_SEED_QUAT: return advance_range<METHOD_SEED_QUAT>(a, b0, b1);
+        case METHOD_SPLITTING: return advance_range<METHOD_SPLITTING>(a, b0, b1);
+        case METHOD_RK4: return advance_range<METHOD_RK4>(a, b0, b1);
+        case METHOD_EXACT: return advance_exact_range<METHOD_EXACT>(a, b0, b1);
+        case METHOD_EXACT4: return advance_exact_range<METHOD_EXACT4>(a, b0, b1);
+        default: throw std::invalid_argument("unknown integrator code " + std::to_string(method));
+    }
+}
+
+FreeResult advance_free(int method, const FreeArgs& a,
+                        const std::vector<std::pair<i64, i64>>& ranges) {
+    if (ranges.size() == 1) return advance_free_range(method, a, ranges[0].first, ranges[0].second);
+    std::vector<FreeResult> results(ranges.size());
+    pool().parallel_for(static_cast<i64>(ranges.size()), [&](i64 t) {
+        results[static_cast<size_t>(t)] =
+            advance_free_range(method, a, ranges[static_cast<size_t>(t)].first,
+                               ranges[static_cast<size_t>(t)].second);
+    });
+    // the serial kernel's reduction: most samples; the earliest bad step, first body on ties
+    FreeResult out;
+    for (const FreeResult& r : results) {
+        if (r.n_samples > out.n_samples) out.n_samples = r.n_samples;
+        if (r.bad_step >= 0 && (out.bad_step < 0 || r.bad_step < out.bad_step)) {
+            out.bad_step = r.bad_step;
+            out.bad_body = r.bad_body;
+        }
+    }
+    return out;
+}
+
+}  // namespace rb

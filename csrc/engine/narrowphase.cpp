@@ -1,0 +1,254 @@
+// Narrowphase: contact manifolds of a pair of shapes, through a table keyed by the shape pair
+// (rblog/engine/contact/narrowphase.py keeps the registry, the names and the docs; the colliders
+// are here, the same formulas in the same order).
+//
+// Conventions (rblog.contract.trajectory.Contacts uses the same ones):
+//
+// * A collider collide_X_Y(shape X = "a", shape Y = "b", ...) returns a manifold of up to four
+//   points sharing one normal, a unit world vector pointing FROM b INTO a (the direction in which
+//   a must move to separate).
+// * sep is the signed gap along the normal (m): > 0 apart, < 0 penetration. Points are kept while
+//   the gap is below spec (speculative contacts), so a point can have separation > 0.
+// * a point is the midpoint between the two surfaces (Box2D's convention), world frame.
+// * fid is a feature id (which vertex, edge or clip produced the point) used to carry the
+//   solver's impulses from one step to the next (warm starting).
+//
+// Dispatch: geometry codes GEOM_SPHERE, GEOM_BOX (dynamic or static boxes), GEOM_PLANE (the
+// ground). NARROWPHASE_TABLE[lower code][higher code] is the collider; the pair is swapped (and
+// the normal negated) when the lower code is on body b. A pair with no entry is refused when the
+// world is built (UnsupportedShapePair, Python), never silently skipped; collide() returns -1.
+//
+// Box-box lives in box_box.cpp (separating axes, clipping, reduction).
+#include <algorithm>
+#include <cmath>
+
+#include "common/errors.hpp"
+#include "engine/collision.hpp"
+
+namespace rb {
+
+CollisionConstants& collision_constants() {
+    static CollisionConstants c;
+    return c;
+}
+
+void require_collision_constants() {
+    if (!collision_constants().set)
+        throw Error("RblogError",
+                    "the collision constants were never set: import "
+                    "rblog.engine.contact.narrowphase before calling the contact core");
+}
+
+// ---- colliders ------------------------------------------------------------------------------
+
+// Sphere a (centre ca, radius ra) vs sphere b. One point on the line of centres.
+i64 collide_sphere_sphere(const double* ca, double ra, const double* cb, double r_b, double spec,
+                          double* nrm, Pts pts, double* sep, i64* fid) {
+    double dx = ca[0] - cb[0], dy = ca[1] - cb[1], dz = ca[2] - cb[2];
+    double d2 = dx * dx + dy * dy + dz * dz;
+    double rr = ra + r_b;
+    if (d2 > (rr + spec) * (rr + spec)) return 0;
+    double d = std::sqrt(d2);
+    double nx, ny, nz;
+    if (d > 1e-12 * rr) {
+        nx = dx / d;
+        ny = dy / d;
+        nz = dz / d;
+    } else {  // concentric: any direction will do
+        nx = 0.0;
+        ny = 0.0;
+        nz = 1.0;
+    }
+    double s = d - rr;
+    nrm[0] = nx;
+    nrm[1] = ny;
+    nrm[2] = nz;
+    // midpoint between the surfaces: b's surface point plus half the gap
+    double k = r_b + 0.5 * s;
+    pts[0][0] = cb[0] + k * nx;
+    pts[0][1] = cb[1] + k * ny;
+    pts[0][2] = cb[2] + k * nz;
+    sep[0] = s;
+    fid[0] = 0;
+    return 1;
+}
+
+// Sphere a vs box b (centre cb, rotation rotb body -> world, half extents eb).
+i64 collide_sphere_box(const double* ca, double ra, const double* cb, M3 rotb, const double* eb,
+                       double spec, double* nrm, Pts pts, double* sep, i64* fid) {
+    double dx = ca[0] - cb[0], dy = ca[1] - cb[1], dz = ca[2] - cb[2];
+    // sphere centre in the box frame
+    double lx = rotb(0, 0) * dx + rotb(1, 0) * dy + rotb(2, 0) * dz;
+    double ly = rotb(0, 1) * dx + rotb(1, 1) * dy + rotb(2, 1) * dz;
+    double lz = rotb(0, 2) * dx + rotb(1, 2) * dy + rotb(2, 2) * dz;
+    double qx = std::min(std::max(lx, -eb[0]), eb[0]);
+    double qy = std::min(std::max(ly, -eb[1]), eb[1]);
+    double qz = std::min(std::max(lz, -eb[2]), eb[2]);
+    double ox = lx - qx, oy = ly - qy, oz = lz - qz;
+    double o2 = ox * ox + oy * oy + oz * oz;
+    double s, nlx, nly, nlz;
+    if (o2 > 0.0) {
+        // centre outside the box: closest point q on the surface
+        double d = std::sqrt(o2);
+        s = d - ra;
+        if (s > spec) return 0;
+        nlx = ox / d;
+        nly = oy / d;
+        nlz = oz / d;
+    } else {
+        // centre inside: leave through the nearest face
+        double gx = eb[0] - std::fabs(lx), gy = eb[1] - std::fabs(ly), gz = eb[2] - std::fabs(lz);
+        nlx = 0.0;
+        nly = 0.0;
+        nlz = 0.0;
+        if (gx <= gy && gx <= gz) {
+            nlx = lx >= 0.0 ? 1.0 : -1.0;
+            qx = nlx * eb[0];
+            s = -gx - ra;
+        } else if (gy <= gz) {
+            nly = ly >= 0.0 ? 1.0 : -1.0;
+            qy = nly * eb[1];
+            s = -gy - ra;
+        } else {
+            nlz = lz >= 0.0 ? 1.0 : -1.0;
+            qz = nlz * eb[2];
+            s = -gz - ra;
+        }
+    }
+    double nx = rotb(0, 0) * nlx + rotb(0, 1) * nly + rotb(0, 2) * nlz;
+    double ny = rotb(1, 0) * nlx + rotb(1, 1) * nly + rotb(1, 2) * nlz;
+    double nz = rotb(2, 0) * nlx + rotb(2, 1) * nly + rotb(2, 2) * nlz;
+    double px = cb[0] + rotb(0, 0) * qx + rotb(0, 1) * qy + rotb(0, 2) * qz;
+    double py = cb[1] + rotb(1, 0) * qx + rotb(1, 1) * qy + rotb(1, 2) * qz;
+    double pz = cb[2] + rotb(2, 0) * qx + rotb(2, 1) * qy + rotb(2, 2) * qz;
+    nrm[0] = nx;
+    nrm[1] = ny;
+    nrm[2] = nz;
+    pts[0][0] = px + 0.5 * s * nx;
+    pts[0][1] = py + 0.5 * s * ny;
+    pts[0][2] = pz + 0.5 * s * nz;
+    sep[0] = s;
+    fid[0] = 0;
+    return 1;
+}
+
+// Sphere a vs the plane dot(pn, x) = poff (b); the normal is the plane's.
+i64 collide_sphere_plane(const double* ca, double ra, const double* pn, double poff, double spec,
+                         double* nrm, Pts pts, double* sep, i64* fid) {
+    double s = pn[0] * ca[0] + pn[1] * ca[1] + pn[2] * ca[2] - poff - ra;
+    if (s > spec) return 0;
+    nrm[0] = pn[0];
+    nrm[1] = pn[1];
+    nrm[2] = pn[2];
+    double k = ra + 0.5 * s;
+    pts[0][0] = ca[0] - k * pn[0];
+    pts[0][1] = ca[1] - k * pn[1];
+    pts[0][2] = ca[2] - k * pn[2];
+    sep[0] = s;
+    fid[0] = 0;
+    return 1;
+}
+
+// Box a vs the plane dot(pn, x) = poff: the (up to four deepest) vertices within spec.
+i64 collide_box_plane(const double* ca, M3 rota, const double* ea, const double* pn, double poff,
+                      double spec, double* nrm, Pts pts, double* sep, i64* fid) {
+    // plane normal in the box frame, and the centre's height
+    double nlx = rota(0, 0) * pn[0] + rota(1, 0) * pn[1] + rota(2, 0) * pn[2];
+    double nly = rota(0, 1) * pn[0] + rota(1, 1) * pn[1] + rota(2, 1) * pn[2];
+    double nlz = rota(0, 2) * pn[0] + rota(1, 2) * pn[1] + rota(2, 2) * pn[2];
+    double hc = pn[0] * ca[0] + pn[1] * ca[1] + pn[2] * ca[2] - poff;
+    // quick reject on the support distance
+    if (hc - (std::fabs(nlx) * ea[0] + std::fabs(nly) * ea[1] + std::fabs(nlz) * ea[2]) > spec)
+        return 0;
+    i64 count = 0;
+    for (i64 k = 0; k < 8; ++k) {
+        double sx = (k & 1) ? ea[0] : -ea[0];
+        double sy = (k & 2) ? ea[1] : -ea[1];
+        double sz = (k & 4) ? ea[2] : -ea[2];
+        double s = hc + nlx * sx + nly * sy + nlz * sz;
+        if (s > spec) continue;
+        double vx = ca[0] + rota(0, 0) * sx + rota(0, 1) * sy + rota(0, 2) * sz;
+        double vy = ca[1] + rota(1, 0) * sx + rota(1, 1) * sy + rota(1, 2) * sz;
+        double vz = ca[2] + rota(2, 0) * sx + rota(2, 1) * sy + rota(2, 2) * sz;
+        pts[count][0] = vx - 0.5 * s * pn[0];
+        pts[count][1] = vy - 0.5 * s * pn[1];
+        pts[count][2] = vz - 0.5 * s * pn[2];
+        sep[count] = s;
+        fid[count] = k;
+        count += 1;
+    }
+    nrm[0] = pn[0];
+    nrm[1] = pn[1];
+    nrm[2] = pn[2];
+    if (count > MAX_MANIFOLD_POINTS) {
+        // keep the four deepest (a box within spec of a plane on more than four vertices is
+        // thinner than spec; its lower face is what matters)
+        for (i64 i = 0; i < MAX_MANIFOLD_POINTS; ++i) {
+            i64 best = i;
+            for (i64 j = i + 1; j < count; ++j)
+                if (sep[j] < sep[best]) best = j;
+            swap_point(pts, sep, fid, i, best);
+        }
+        count = MAX_MANIFOLD_POINTS;
+    }
+    return count;
+}
+
+// ---- the table ------------------------------------------------------------------------------
+// One signature for every entry: (a, b) shape data, the plane's (pn, poff), spec, buffers.
+
+static i64 entry_sphere_sphere(const double* ca, M3, const double* sa, const double* cb, M3,
+                               const double* sb, const double*, double, double spec,
+                               ColliderBuffers& b) {
+    return collide_sphere_sphere(ca, sa[0], cb, sb[0], spec, b.nrm, b.pts, b.sep, b.fid);
+}
+static i64 entry_sphere_box(const double* ca, M3, const double* sa, const double* cb, M3 rotb,
+                            const double* sb, const double*, double, double spec,
+                            ColliderBuffers& b) {
+    return collide_sphere_box(ca, sa[0], cb, rotb, sb, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+static i64 entry_box_box(const double* ca, M3 rota, const double* sa, const double* cb, M3 rotb,
+                         const double* sb, const double*, double, double spec,
+                         ColliderBuffers& b) {
+    return collide_box_box(ca, rota, sa, cb, rotb, sb, spec, b.nrm, b.pts, b.sep, b.fid, b.work,
+                           b.poly);
+}
+static i64 entry_sphere_plane(const double* ca, M3, const double* sa, const double*, M3,
+                              const double*, const double* pn, double poff, double spec,
+                              ColliderBuffers& b) {
+    return collide_sphere_plane(ca, sa[0], pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+static i64 entry_box_plane(const double* ca, M3 rota, const double* sa, const double*, M3,
+                           const double*, const double* pn, double poff, double spec,
+                           ColliderBuffers& b) {
+    return collide_box_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+
+// NARROWPHASE_TABLE: [lower geometry code][higher code] (narrowphase.py's NARROWPHASE_TABLE has
+// the same keys; tests/engine/contact/test_collision_core.py checks it)
+static const ColliderFn NARROWPHASE_TABLE[N_GEOM][N_GEOM] = {
+    /* sphere */ {entry_sphere_sphere, entry_sphere_box, entry_sphere_plane},
+    /* box    */ {nullptr, entry_box_box, entry_box_plane},
+    /* plane  */ {nullptr, nullptr, nullptr},
+};
+
+ColliderFn narrowphase_fn(i64 geom_lo, i64 geom_hi) {
+    if (geom_lo < 0 || geom_hi < geom_lo || geom_hi >= N_GEOM) return nullptr;
+    return NARROWPHASE_TABLE[geom_lo][geom_hi];
+}
+
+i64 collide(i64 ga, i64 gb, const double* ca, M3 rota, const double* sa, const double* cb,
+            M3 rotb, const double* sb, const double* pn, double poff, double spec,
+            ColliderBuffers& buf) {
+    const bool swap = ga > gb;
+    ColliderFn fn = swap ? narrowphase_fn(gb, ga) : narrowphase_fn(ga, gb);
+    if (fn == nullptr) return -1;  // no collider: the world checks the table up front: a bug
+    // a plane is always b (the highest code, the highest shape id): never swapped
+    i64 n = swap ? fn(cb, rotb, sb, ca, rota, sa, pn, poff, spec, buf)
+                 : fn(ca, rota, sa, cb, rotb, sb, pn, poff, spec, buf);
+    if (swap && n > 0)
+        for (int k = 0; k < 6; ++k) buf.nrm[k] = -buf.nrm[k];
+    return n;
+}
+
+}  // namespace rb

@@ -1,0 +1,307 @@
+// rblog/engine/contact/project.py in C++ (the same formulas in the same order).
+//
+// Project stage: a nonlinear (NGS) position pass on fresh contact geometry after the drift.
+//
+// The velocity solve works on the manifolds of the start of the step and their first-order gap
+// rates. A box that tumbles or is struck hard within the step can bring a feature into contact
+// that none of those manifolds holds: a corner swinging over the edge of the box below, an
+// incident edge sliding past the rim of a reference face (the deepest point then lies on a clip
+// point that did not exist at the start), or a pair whose clipped face was empty at the start.
+// Such a feature is unconstrained for the step and ends it up to ~|v| h deep (1 mm at 1 m/s and
+// dt = 1 ms in the 500-box pile).
+//
+// This stage runs the narrowphase again at the end-of-step configuration, first with a *negative*
+// speculative distance ``-depth``, so only points deeper than ``depth`` come back (the separating
+// axis test rejects every other pair on its first axis, which keeps the pass cheap). Around the
+// bodies of those points it gathers every contact of the bodies and of their neighbours (two
+// rings, see project_positions), and pushes all gathered points to ``s >= -depth`` by
+// Gauss-Seidel on position-level impulses (Box2D v2's ``SolvePositionConstraints``, Catto's
+// "nonlinear Gauss-Seidel", on fresh geometry). The neighbours hold: a body pushed out of one
+// overlap is not pushed into the body under it. Per point k, per sweep::
+//
+//     lambda_k += max(-(s_k + n . (dx_a + dth_a x r_a - dx_b - dth_b x r_b) + depth) / K_k, -lambda_k)
+//     dx_a += m_a^-1 lambda n,  dth_a += I_a^-1 (r_a x lambda n)   (b gets the negatives)
+//
+// with K_k the point's effective inverse mass (as in the velocity solve), clamped accumulated
+// ``lambda >= 0`` (pushes only). There is no cap on the push per step (unlike the split
+// impulses' ``max_correction_speed``): an overlap that a step made is undone in that step, up to
+// the ~2 mm that a box struck at 2 m/s can make in 1 ms; a scene that starts with overlaps has
+// them pushed out to ``depth`` in its first step, without any velocity.
+//
+// Only positions and orientations move; the momenta P and L are untouched (but for the hand-back
+// below), so the pass injects no momentum, and no kinetic energy into isotropic bodies (for
+// others the turned inertia changes the spin energy by O(|dth|) of it, as the split-impulse
+// pseudo spin does); the next step's contacts, at the corrected depth, stop the approach. The
+// pair's impulses are equal and opposite at one point, so its centre of mass stays put; the
+// world step hands the orbital change ``dx x P`` back to the spin, as after the split-impulse
+// shift, so that ``sum(x x P + L)`` stays exact.
+//
+// Shapes and frames: ``pairs`` (K, 2) shape ids (bodies, static boxes, ground; see broadphase),
+// ``position`` (N, 3) and ``rotation`` (N, 3, 3) body -> world at the end of the step;
+// corrections ``dx`` and ``dth`` are (N+1, 3) world displacements and rotation vectors (row N:
+// the static dummy, which stands for static geometry and sleeping bodies and never moves).
+
+#include <algorithm>
+
+#include "engine/integrators.hpp"
+#include "engine/project.hpp"
+#include "engine/rotation.hpp"
+
+namespace rb {
+
+namespace {
+
+// World inverse inertia of body i times (x, y, z): R diag(1/I) R^T v.
+inline Vec3 inv_inertia_times(bool iso_shortcut, V1<i64> iso, V2<double> inv_inertia,
+                              V3<double> rotation, i64 i, double x, double y, double z) {
+    if (iso_shortcut && iso[i]) {
+        double s = inv_inertia(i, 0);
+        return Vec3{s * x, s * y, s * z};
+    }
+    return omega_world(load_mat(rotation, i), inv_inertia(i, 0), inv_inertia(i, 1),
+                       inv_inertia(i, 2), x, y, z);
+}
+
+// Rows of rows/ids for one more point (grown as project.py's _grow: 2 R + 16).
+inline void ensure_row(Buf2<double>& rows, Buf2<i64>& ids, i64 n_pts) {
+    if (n_pts == rows.rows) {
+        i64 cap = 2 * rows.rows + 16;
+        rows.grow(cap);
+        ids.grow(cap);
+    }
+}
+
+// Append the collider's points (both manifolds of res) as projection rows.
+i64 add_points(i64 res, i64 a, i64 b, i64 ia, i64 ib, i64 n_dyn, V1<double> inv_mass,
+               V2<double> inv_inertia, V1<i64> iso, bool iso_shortcut, V2<double> position,
+               V3<double> rotation, const ColliderBuffers& buf, Buf2<double>& rows,
+               Buf2<i64>& ids, i64 n_pts) {
+    bool b_dyn = b < n_dyn;
+    for (i64 part = 0; part < 2; ++part) {
+        ManifoldPart mp = manifold_part(res, part);
+        double nx = buf.nrm[3 * part], ny = buf.nrm[3 * part + 1], nz = buf.nrm[3 * part + 2];
+        for (i64 q = 0; q < mp.count; ++q) {
+            ensure_row(rows, ids, n_pts);
+            i64 p = n_pts;
+            n_pts += 1;
+            ids(p, 0) = ia;
+            ids(p, 1) = ib;
+            double px = buf.pts[mp.row + q][0], py = buf.pts[mp.row + q][1],
+                   pz = buf.pts[mp.row + q][2];
+            double* rw = &rows(p, 0);
+            rw[PJ_N] = nx; rw[PJ_N + 1] = ny; rw[PJ_N + 2] = nz;
+            double rax = px - position(a, 0), ray = py - position(a, 1), raz = pz - position(a, 2);
+            double rbx, rby, rbz;
+            if (b_dyn) {
+                rbx = px - position(b, 0); rby = py - position(b, 1); rbz = pz - position(b, 2);
+            } else {
+                rbx = 0.0; rby = 0.0; rbz = 0.0;
+            }
+            rw[PJ_RA] = rax; rw[PJ_RA + 1] = ray; rw[PJ_RA + 2] = raz;
+            rw[PJ_RB] = rbx; rw[PJ_RB + 1] = rby; rw[PJ_RB + 2] = rbz;
+            rw[PJ_S] = buf.sep[mp.row + q];
+            rw[PJ_L] = 0.0;
+            double kk = 0.0;
+            if (ia < n_dyn) {
+                double cx = ray * nz - raz * ny;
+                double cy = raz * nx - rax * nz;
+                double cz = rax * ny - ray * nx;
+                Vec3 v = inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, ia, cx, cy, cz);
+                kk += inv_mass[ia] + cx * v[0] + cy * v[1] + cz * v[2];
+            }
+            if (ib < n_dyn) {
+                double cx = rby * nz - rbz * ny;
+                double cy = rbz * nx - rbx * nz;
+                double cz = rbx * ny - rby * nx;
+                Vec3 v = inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, ib, cx, cy, cz);
+                kk += inv_mass[ib] + cx * v[0] + cy * v[1] + cz * v[2];
+            }
+            rw[PJ_K] = kk > 0.0 ? 1.0 / kk : 0.0;
+        }
+    }
+    return n_pts;
+}
+
+}  // namespace
+
+// Find the bodies with points deeper than depth, gather the contacts around them, and
+// Gauss-Seidel every gathered point to s >= -depth.
+//
+// Gathering: a first pass over the candidate pairs with speculative distance -depth marks the
+// bodies of deep points (ring 1; nothing else is collided in full). Then, for PROJECTION_RINGS
+// (rings) rings, every pair with a body of the current ring is collided with speculative
+// distance equal to the deepest penetration found (no correction can move a point farther than
+// that) and all its points are gathered; its partner joins the next ring. So a body pushed out
+// of one overlap is held by its other contacts instead of being pushed into them.
+//
+// rows (R, PROJ_COLS) / ids (R, 2) are scratch point rows (grown when full); dx/dth (N+1, 3)
+// receive each body's correction (zeroed here for the bodies of the gathered points; read them
+// only for those). ring (N+1,) and done (pairs) are work arrays. Returns the number of gathered
+// points, 0 when nothing is deeper than depth.
+i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
+                      V2<double> size, V1<double> inv_mass, V2<double> inv_inertia, V1<i64> iso,
+                      bool iso_shortcut, V1<i64> awake, V2<double> position, V3<double> rotation,
+                      V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext, V1<double> gn,
+                      double goff, double depth, i64 n_iter, Buf2<double>& rows, Buf2<i64>& ids,
+                      ColliderBuffers& buf, V2<double> dx, V2<double> dth, i64 rings,
+                      Buf2<i64>& ring_buf, std::vector<char>& done) {
+    double deepest = 0.0;
+    ring_buf.grow(n_dyn + 1);
+    i64* ring = ring_buf.data.data();  // ring of each body (0: not gathered)
+    for (i64 i = 0; i < n_dyn + 1; ++i) ring[i] = 0;
+    done.assign(static_cast<size_t>(std::max<i64>(n_pairs, 1)), 0);  // pair already gathered
+    for (i64 k = 0; k < n_pairs; ++k) {
+        i64 a = pairs(k, 0), b = pairs(k, 1);
+        bool b_dyn = b < n_dyn;
+        bool a_awake = awake[a] != 0;
+        bool b_awake = b_dyn && awake[b] != 0;
+        if (!a_awake && !b_awake) {
+            done[k] = 1;
+            continue;
+        }
+        i64 ga = geom[a];
+        PairGeometry pg = pair_geometry(a, b, n_dyn, n_static, geom, size, position, rotation,
+                                        sb_pos, sb_rot, sb_ext);
+        i64 res = collide(ga, pg.geom, position.row(a), M3(rotation.row(a)), size.row(a),
+                          pg.centre, M3(pg.rotation), pg.size, gn.p, goff, -depth, buf);
+        if (res <= 0) continue;
+        for (i64 part = 0; part < 2; ++part) {
+            ManifoldPart mp = manifold_part(res, part);
+            for (i64 q = 0; q < mp.count; ++q) deepest = std::max(deepest, -buf.sep[mp.row + q]);
+        }
+        if (a_awake) ring[a] = 1;
+        if (b_awake) ring[b] = 1;
+    }
+    if (deepest <= 0.0) return 0;
+    i64 n_pts = 0;
+    for (i64 r = 1; r < rings + 1; ++r) {
+        for (i64 k = 0; k < n_pairs; ++k) {
+            if (done[k]) continue;
+            i64 a = pairs(k, 0), b = pairs(k, 1);
+            bool b_dyn = b < n_dyn;
+            if (ring[a] != r && !(b_dyn && ring[b] == r)) continue;
+            done[k] = 1;
+            bool a_awake = awake[a] != 0;
+            bool b_awake = b_dyn && awake[b] != 0;
+            i64 ga = geom[a];
+            PairGeometry pg = pair_geometry(a, b, n_dyn, n_static, geom, size, position,
+                                            rotation, sb_pos, sb_rot, sb_ext);
+            i64 res = collide(ga, pg.geom, position.row(a), M3(rotation.row(a)), size.row(a),
+                              pg.centre, M3(pg.rotation), pg.size, gn.p, goff, deepest, buf);
+            if (res <= 0) continue;
+            i64 ia = a_awake ? a : n_dyn;
+            i64 ib = b_awake ? b : n_dyn;
+            n_pts = add_points(res, a, b, ia, ib, n_dyn, inv_mass, inv_inertia, iso,
+                               iso_shortcut, position, rotation, buf, rows, ids, n_pts);
+            if (a_awake && ring[a] == 0) ring[a] = r + 1;
+            if (b_awake && ring[b] == 0) ring[b] = r + 1;
+        }
+    }
+    if (n_pts == 0) return 0;
+    for (i64 p = 0; p < n_pts; ++p) {
+        for (int c = 0; c < 2; ++c) {
+            i64 i = ids(p, c);
+            for (int k = 0; k < 3; ++k) {
+                dx(i, k) = 0.0;
+                dth(i, k) = 0.0;
+            }
+        }
+    }
+    for (i64 it = 0; it < n_iter; ++it) {
+        for (i64 p = 0; p < n_pts; ++p) {
+            i64 ia = ids(p, 0), ib = ids(p, 1);
+            double* rw = &rows(p, 0);
+            double nx = rw[PJ_N], ny = rw[PJ_N + 1], nz = rw[PJ_N + 2];
+            double rax = rw[PJ_RA], ray = rw[PJ_RA + 1], raz = rw[PJ_RA + 2];
+            double rbx = rw[PJ_RB], rby = rw[PJ_RB + 1], rbz = rw[PJ_RB + 2];
+            // separation now, to first order in this pass's corrections
+            double ux = dx(ia, 0) + dth(ia, 1) * raz - dth(ia, 2) * ray - dx(ib, 0) - dth(ib, 1) * rbz + dth(ib, 2) * rby;
+            double uy = dx(ia, 1) + dth(ia, 2) * rax - dth(ia, 0) * raz - dx(ib, 1) - dth(ib, 2) * rbx + dth(ib, 0) * rbz;
+            double uz = dx(ia, 2) + dth(ia, 0) * ray - dth(ia, 1) * rax - dx(ib, 2) - dth(ib, 0) * rby + dth(ib, 1) * rbx;
+            double s = rw[PJ_S] + ux * nx + uy * ny + uz * nz;
+            double old = rw[PJ_L];
+            double nw = old - (s + depth) * rw[PJ_K];
+            if (nw < 0.0) nw = 0.0;
+            rw[PJ_L] = nw;
+            double d = nw - old;
+            if (d == 0.0) continue;
+            double px = d * nx, py = d * ny, pz = d * nz;
+            if (ia < n_dyn) {
+                double ma = inv_mass[ia];
+                dx(ia, 0) += ma * px;
+                dx(ia, 1) += ma * py;
+                dx(ia, 2) += ma * pz;
+                Vec3 e = inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, ia,
+                                           ray * pz - raz * py, raz * px - rax * pz,
+                                           rax * py - ray * px);
+                dth(ia, 0) += e[0];
+                dth(ia, 1) += e[1];
+                dth(ia, 2) += e[2];
+            }
+            if (ib < n_dyn) {
+                double mb = inv_mass[ib];
+                dx(ib, 0) -= mb * px;
+                dx(ib, 1) -= mb * py;
+                dx(ib, 2) -= mb * pz;
+                Vec3 e = inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, ib,
+                                           rby * pz - rbz * py, rbz * px - rbx * pz,
+                                           rbx * py - rby * px);
+                dth(ib, 0) -= e[0];
+                dth(ib, 1) -= e[1];
+                dth(ib, 2) -= e[2];
+            }
+        }
+    }
+    return n_pts;
+}
+
+// Move the bodies of the project stage's points by their corrections: x += dx, the orientation
+// by the rotation vector dth (through the run's integrator: a drift of unit duration with
+// L = I_world dth), and L -= dx x P so that sum(x x P + L) stays exact. A moved body's exact-flow
+// anchor is dropped (anchor_steps -1, see rblog.engine.state.FlowAnchors).
+void apply_projection(i64 n_deep, V2<i64> ids, V2<double> dx, V2<double> dth, i64 n, int method,
+                      int ortho, const Bodies& bd, bool iso_shortcut, V2<double> position,
+                      V3<double> rotation, V2<double> quat_wxyz, V2<double> linear_momentum,
+                      V2<double> angular_momentum, V2<double> l_scratch,
+                      V1<i64> anchor_steps) {
+    for (i64 p = 0; p < n_deep; ++p) {
+        for (int c = 0; c < 2; ++c) {
+            i64 i = ids(p, c);
+            if (i >= n) continue;
+            double ux = dx(i, 0), uy = dx(i, 1), uz = dx(i, 2);
+            double tx = dth(i, 0), ty = dth(i, 1), tz = dth(i, 2);
+            if (ux == 0.0 && uy == 0.0 && uz == 0.0 && tx == 0.0 && ty == 0.0 && tz == 0.0)
+                continue;  // no correction, or already applied (a body can have many points)
+            position(i, 0) += ux;
+            position(i, 1) += uy;
+            position(i, 2) += uz;
+            anchor_steps[i] = -1;
+            double qx = linear_momentum(i, 0), qy = linear_momentum(i, 1), qz = linear_momentum(i, 2);
+            angular_momentum(i, 0) -= uy * qz - uz * qy;
+            angular_momentum(i, 1) -= uz * qx - ux * qz;
+            angular_momentum(i, 2) -= ux * qy - uy * qx;
+            if (tx != 0.0 || ty != 0.0 || tz != 0.0) {
+                double jx, jy, jz;
+                if (iso_shortcut && bd.iso[i]) {
+                    double s0 = bd.inertia(i, 0);
+                    jx = s0 * tx; jy = s0 * ty; jz = s0 * tz;
+                } else {
+                    Vec3 j = omega_world(load_mat(rotation, i), bd.inertia(i, 0),
+                                         bd.inertia(i, 1), bd.inertia(i, 2), tx, ty, tz);
+                    jx = j[0]; jy = j[1]; jz = j[2];
+                }
+                l_scratch(i, 0) = jx;
+                l_scratch(i, 1) = jy;
+                l_scratch(i, 2) = jz;
+                drift_rotation(method, ortho, quat_wxyz, rotation, l_scratch, bd.inv_inertia, i,
+                               1.0);
+            }
+            for (int k = 0; k < 3; ++k) {
+                dx(i, k) = 0.0;
+                dth(i, k) = 0.0;
+            }
+        }
+    }
+}
+
+}  // namespace rb

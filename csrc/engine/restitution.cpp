@@ -1,0 +1,219 @@
+// rblog/engine/contact/restitution.py in C++ (the same formulas in the same order).
+//
+// Stage 10 of the contact step: restitution, the bounce of impact points after positions moved.
+//
+// Restitution (Box2D v3): after positions are integrated, points that were hit (solve impulse > 0)
+// while approaching faster than the threshold get a normal velocity set from the approach velocity
+// measured *before* the solve. rblog sharpens Box2D's rule with the flight's energy: a body that no
+// contact pushes flies exactly under its constant acceleration (step.py, stage 9), so between
+// contacts the gap s, its rate w and the relative normal acceleration a of the external forces
+// (gravity) keep ``E = w^2/2 - a s`` exactly (at every step boundary). The approach speed at
+// contact is therefore ``u = sqrt(2 E) = sqrt(w0^2 - 2 a s0)`` from the start-of-step gap s0 and
+// rate w0 (before the kick), and the rebound rate w+ is chosen so that the post-impact state at the
+// end-of-step gap s1 has energy e^2 E: ``w+^2/2 - a s1 = e^2 u^2/2``, i.e.
+// ``w+ = sqrt(e^2 u^2 + 2 a s1)``. The exact flight after the bounce keeps that energy, so the
+// apex is e^2 times the drop height: bounce apexes e^(2n) h0 to round-off plus the sampling of the
+// apex (a rule that ignored the gravity over the step would be ~1% off at dt = 1e-3). Without
+// external acceleration this is w+ = e |w0|.
+
+#include <cmath>
+
+#include "engine/contact_solver.hpp"
+#include "engine/manifold.hpp"
+
+namespace rb {
+
+namespace {
+
+inline double gap_rate(V2<double> v, V2<double> w, i64 ia, i64 ib, double nx, double ny,
+                       double nz, double rax, double ray, double raz, double rbx, double rby,
+                       double rbz) {
+    double dvx = v(ia, 0) + w(ia, 1) * raz - w(ia, 2) * ray - v(ib, 0) - w(ib, 1) * rbz + w(ib, 2) * rby;
+    double dvy = v(ia, 1) + w(ia, 2) * rax - w(ia, 0) * raz - v(ib, 1) - w(ib, 2) * rbx + w(ib, 0) * rbz;
+    double dvz = v(ia, 2) + w(ia, 0) * ray - w(ia, 1) * rax - v(ib, 2) - w(ib, 0) * rby + w(ib, 1) * rbx;
+    return dvx * nx + dvy * ny + dvz * nz;
+}
+
+// Impulse (px, py, pz) on a at anchor r_a and its negative on b at r_b: into the solver
+// velocities (bv, bw) and straight into the momenta of dynamic bodies (P += J, L += r x J).
+void apply_pair_impulse(V2<double> bv, V2<double> bw, V2<double> linear_momentum,
+                        V2<double> angular_momentum, V1<double> bm, V2<double> bI, i64 ia, i64 ib,
+                        double rax, double ray, double raz, double rbx, double rby, double rbz,
+                        double px, double py, double pz) {
+    i64 n_dyn = linear_momentum.n0;
+    const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
+    const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
+    double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
+    double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
+    double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
+    double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
+    apply_impulse(bm[ia], a6, bm[ib], b6, rax, ray, raz, rbx, rby, rbz, px, py, pz, vax, vay, vaz,
+                  wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+    bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
+    bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
+    bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
+    bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+    // angular impulses r x J straight into L (the orientations have already moved on)
+    const i64 body[2] = {ia, ib};
+    const double sign[2] = {1.0, -1.0};
+    const double r[2][3] = {{rax, ray, raz}, {rbx, rby, rbz}};
+    for (int k = 0; k < 2; ++k) {
+        i64 i = body[k];
+        if (i < n_dyn) {
+            double rx = r[k][0], ry = r[k][1], rz = r[k][2];
+            double cx = ry * pz - rz * py, cy = rz * px - rx * pz, cz = rx * py - ry * px;
+            double sg = sign[k];
+            linear_momentum(i, 0) += sg * px;
+            linear_momentum(i, 1) += sg * py;
+            linear_momentum(i, 2) += sg * pz;
+            angular_momentum(i, 0) += sg * cx;
+            angular_momentum(i, 1) += sg * cy;
+            angular_momentum(i, 2) += sg * cz;
+        }
+    }
+}
+
+// Keep the friction impulse of every bouncing point inside the Coulomb cone.
+//
+// The bounce pass may lower a point's accumulated normal impulse (down to 0) after friction was
+// solved against the higher one; the friction impulse is then scaled back onto the cone
+// |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the bounce,
+// so that the pair's momenta stay exactly balanced.
+void reclamp_friction(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                      V2<double> bI, V2<double> bv, V2<double> bw, V2<double> dx,
+                      V2<double> linear_momentum, V2<double> angular_momentum) {
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        double mu = mf(m, MF_MU);
+        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+        double ma = bm[ia], mb = bm[ib];
+        bool shared = ma > 0.0 && mb > 0.0;
+        double hx = 0.5 * (dx(ib, 0) - dx(ia, 0));
+        double hy = 0.5 * (dx(ib, 1) - dx(ia, 1));
+        double hz = 0.5 * (dx(ib, 2) - dx(ia, 2));
+        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
+        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
+        i64 start = mi(m, MI_START);
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+            double* q = pf.row(p);
+            if (q[PF_WT] < 0.0) continue;
+            double l1 = q[PF_L1], l2 = q[PF_L2];
+            double nl = std::sqrt(l1 * l1 + l2 * l2);
+            double fmax = mu * q[PF_LN];
+            if (nl <= fmax) continue;
+            double scale = fmax / nl;
+            double d1 = l1 * scale - l1, d2 = l2 * scale - l2;
+            q[PF_L1] = l1 * scale;
+            q[PF_L2] = l2 * scale;
+            double px = d1 * t1x + d2 * t2x;
+            double py = d1 * t1y + d2 * t2y;
+            double pz = d1 * t1z + d2 * t2z;
+            double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+            double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+            if (shared) {
+                rax = rax + hx; ray = ray + hy; raz = raz + hz;
+                rbx = rbx - hx; rby = rby - hy; rbz = rbz - hz;
+            }
+            apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib, rax,
+                               ray, raz, rbx, rby, rbz, px, py, pz);
+        }
+    }
+}
+
+}  // namespace
+
+// Store the solve's impulses for warm starting, estimate end-of-step gaps, then bounce.
+//
+// A point bounces when its solve impulse is positive (it was hit), the gap was closing at the
+// start of the step, and its impact speed u exceeds threshold. Returns the number of impact
+// points.
+//
+// Bounces come after the positions moved (dx: (N+1, 3) each body's displacement this step).
+// Between two bodies the impulse is applied at one point that moved with them, the midpoint
+// p + (dx_a + dx_b)/2, so that both anchors end at the same point: otherwise the pair's angular
+// momentum would change by h (v_a - v_b) x J. The bounce impulses go straight into the momenta
+// (P += J, L += r x J), since the orientations have already moved on.
+i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                V2<double> bI, V2<double> bv, V2<double> bw, V2<double> pv, V2<double> pw,
+                double h, double threshold, i64 n_iter, V2<double> dx,
+                V2<double> linear_momentum, V2<double> angular_momentum) {
+    i64 n_impacts = 0;
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+        double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
+        double e = mf(m, MF_E);
+        double acc = mf(m, MF_ACC);
+        i64 start = mi(m, MI_START);
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+            double* q = pf.row(p);
+            double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+            double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+            double vn = gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
+            double pn = gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
+            double s0 = q[PF_S];
+            double s1 = s0 + h * (vn + pn);
+            q[PF_SEND] = s1;
+            q[PF_LWS] = q[PF_LN];
+            q[PF_WT] = -1.0;
+            double w0 = q[PF_W0];
+            if (w0 >= 0.0 || q[PF_LN] <= 0.0) continue;
+            // approach speed at contact from the flight's energy (see the header comment)
+            double u2 = w0 * w0 - 2.0 * acc * s0;
+            if (u2 <= threshold * threshold) continue;
+            q[PF_IMPACT] = 1.0;
+            n_impacts += 1;
+            if (e <= 0.0) continue;
+            // rebound rate whose flight energy at the end-of-step gap s1 is e^2 times the impact's
+            double c = e * e * u2 + 2.0 * acc * s1;
+            if (c > 0.0) {
+                q[PF_WT] = std::sqrt(c);
+            } else {
+                q[PF_WT] = e * std::sqrt(u2);
+            }
+        }
+    }
+    if (n_impacts == 0) return 0;
+    // Gauss-Seidel on the bounce targets of the impact points only
+    for (i64 it = 0; it < n_iter; ++it) {
+        for (i64 m = 0; m < n_man; ++m) {
+            if (!mi(m, MI_ACTIVE)) continue;
+            i64 start = mi(m, MI_START);
+            i64 end = start + mi(m, MI_COUNT);
+            bool any_target = false;
+            for (i64 p = start; p < end; ++p)
+                if (pf(p, PF_WT) >= 0.0) any_target = true;
+            if (!any_target) continue;
+            i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+            double ma = bm[ia], mb = bm[ib];
+            double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
+            bool shared = ma > 0.0 && mb > 0.0;
+            double hx = 0.5 * (dx(ib, 0) - dx(ia, 0));
+            double hy = 0.5 * (dx(ib, 1) - dx(ia, 1));
+            double hz = 0.5 * (dx(ib, 2) - dx(ia, 2));
+            for (i64 p = start; p < end; ++p) {
+                double* q = pf.row(p);
+                double wt = q[PF_WT];
+                if (wt < 0.0) continue;
+                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                if (shared) {
+                    rax = rax + hx; ray = ray + hy; raz = raz + hz;
+                    rbx = rbx - hx; rby = rby - hy; rbz = rbz - hz;
+                }
+                double vn = gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
+                double old = q[PF_LN];
+                double nw = old + q[PF_NMASS] * (wt - vn);
+                if (nw < 0.0) nw = 0.0;
+                q[PF_LN] = nw;
+                double d = nw - old;
+                apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib, rax,
+                                   ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz);
+            }
+        }
+    }
+    reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum);
+    return n_impacts;
+}
+
+}  // namespace rb

@@ -1,0 +1,580 @@
+// rblog/engine/contact/step.py in C++: the world step with contacts, many steps per call.
+//
+// The compiled world step with contacts: many steps per call, no Python between steps.
+//
+// One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_Step`` and
+// ``b2SolverStage``; Brax's ``pipeline.step``)::
+//
+//     1  kick             P += h (m g + F), L += h tau              (awake bodies; skipped w/o forces)
+//     2  broadphase       swept AABBs, sort-and-sweep, ground pairs  (broadphase.py)
+//     3  wake             sleeping islands an awake body may touch   (island.py)
+//     4  collide          narrowphase table -> manifolds, warm-start matching, sleeping carried
+//     5  prepare          effective masses, pre-solve gap velocities (solver.py)
+//     6  warm start       apply last step's impulses
+//     7  solve            sequential impulses, Coulomb friction, speculative targets; then one
+//                         sweep of the friction rows toward their anchors (solver.anchor_friction, when
+//                         ContactParams.static_friction_anchors is on)
+//     8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
+//                         orbital angular momentum h v' x P is handed back to the spin)
+//     9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
+//                         from the solver's velocity changes; every other body flies exactly under
+//                         its constant force, x += h v - h^2 a / 2 (v after the kick). Rotation by
+//                         integrators.drift_rotation with the run's integrator (the body's L and its
+//                         current R, so gyroscopic motion is the integrator's own)
+//     10 restitution      bounce impact points (energy-consistent rule, restitution.py), P += J,
+//                         L += r x J
+//     11 store impulses   friction as world vectors for the next step
+//     12 project          narrowphase again at the end-of-step poses; points deeper than
+//                         projection_depth are pushed out by nonlinear Gauss-Seidel on positions
+//                         and orientations (project.py); the shift's orbital angular momentum
+//                         dx x P is handed back to the spin, as in 8
+//     13 sleep            rest timers, islands, put resting islands to sleep (island.py)
+//
+// Translation (stage 9; mark_pushed sorts the bodies after the solve). A body that no contact
+// pushes in a step (no manifold, or only manifolds whose accumulated impulses all ended at zero: a
+// speculative contact that was not reached, a pair moving apart) moves exactly under its constant
+// acceleration a = g + F/m: with v the velocity after the kick, x += h v - h^2 a / 2 =
+// h v_start + h^2 a / 2, so free flight lies on the parabola to round-off in every scene, as in
+// the free-body kernel. A body that contacts push moves with its solved velocity, x += h (v + v')
+// (v' the relax stage's pseudo velocity), since the velocity solve predicts every gap at the end
+// of the step as s + h w (w the solved gap rate):
+//
+// * in an island of pushing contacts that touches static geometry (the ground, a static box, a
+//   sleeping body), by symplectic Euler, exactly that: a body resting on a contact must move by h
+//   times its velocity so that v = 0 means still (the exact flight's term would lift it by
+//   |g| h^2 / 2 each step, and the solver would answer with a downward velocity |g| h / 2 at rest);
+// * in an island away from static geometry (bodies colliding in the air), by that plus the exact
+//   flight's - h^2 a / 2, the same term a free body gets: under uniform gravity it moves the whole
+//   island alike, so the gaps the solver predicted inside it hold, and every body of a group that
+//   only pushes itself flies by one scheme. Mixing symplectic and exact bodies in such a group
+//   would change its angular momentum about its centre of mass by O(h^2 |g| |P|) a step (5.6e-6
+//   relative on samples/mixed.toml; both schemes alone keep it exactly).
+//
+// The restitution stage measures and sets bounce speeds with the exact flight's energy
+// (restitution.py), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
+// kicks, as before.
+//
+// Samples follow free.advance_free: after every ``stride``-th step and after the last step when
+// ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.
+//
+// Here each stage is a function (namespace rb::step) and world_advance calls them in the order
+// above, reading the profile clock after each when profiled (profile.hpp). What the step keeps
+// between calls (the previous step's manifolds, the pair buffer, the log, the work arrays) lives
+// in the ContactCache (records.hpp): nothing is allocated in a step once the buffers have grown
+// to the scene's size.
+
+#include <algorithm>
+#include <cmath>
+
+#include "engine/contact_solver.hpp"
+#include "engine/integrators.hpp"
+#include "engine/profile.hpp"
+#include "engine/project.hpp"
+#include "engine/rotation.hpp"
+#include "engine/world_step.hpp"
+
+namespace rb {
+
+namespace {
+
+template <class T>
+void zeroed(Buf2<T>& b, i64 rows, i64 cols) {
+    if (b.rows != rows || b.cols != cols) {
+        b = Buf2<T>(rows, cols);
+    } else {
+        std::fill(b.data.begin(), b.data.end(), T(0));
+    }
+}
+
+// P = P0 + m (v - v0), L = L0 + I_world (w - w0): momenta change only by what the solver applied
+// (exactly not at all without impulses).
+inline void store_momenta(i64 i, const Bodies& bd, V3<double> rotation,
+                          V2<double> linear_momentum, V2<double> angular_momentum, V2<double> bv,
+                          V2<double> bw, V2<double> bv0, V2<double> bw0, V2<double> p0,
+                          V2<double> l0, bool iso_shortcut) {
+    double m = 1.0 / bd.inv_mass[i];
+    for (int k = 0; k < 3; ++k) linear_momentum(i, k) = p0(i, k) + m * (bv(i, k) - bv0(i, k));
+    double dx = bw(i, 0) - bw0(i, 0), dy = bw(i, 1) - bw0(i, 1), dz = bw(i, 2) - bw0(i, 2);
+    double lx, ly, lz;
+    if (iso_shortcut && bd.iso[i]) {
+        double s = bd.inertia(i, 0);
+        lx = s * dx; ly = s * dy; lz = s * dz;
+    } else {
+        // R diag(I_body) R^T (x, y, z) (rotation.omega_world with the inertia for its inverse)
+        Vec3 l = omega_world(load_mat(rotation, i), bd.inertia(i, 0), bd.inertia(i, 1),
+                             bd.inertia(i, 2), dx, dy, dz);
+        lx = l[0]; ly = l[1]; lz = l[2];
+    }
+    angular_momentum(i, 0) = l0(i, 0) + lx;
+    angular_momentum(i, 1) = l0(i, 1) + ly;
+    angular_momentum(i, 2) = l0(i, 2) + lz;
+}
+
+// One sum that is non-finite when any of the body's state is (position, momenta, R).
+inline double state_sum(i64 i, V2<double> position, V2<double> linear_momentum,
+                        V2<double> angular_momentum, V3<double> rotation) {
+    return (position(i, 0) + position(i, 1) + position(i, 2) + linear_momentum(i, 0) +
+            linear_momentum(i, 1) + linear_momentum(i, 2) + angular_momentum(i, 0) +
+            angular_momentum(i, 1) + angular_momentum(i, 2) + rotation(i, 0, 0) +
+            rotation(i, 1, 1) + rotation(i, 2, 2) + rotation(i, 0, 1));
+}
+
+}  // namespace
+
+// ---- the records kept between calls -----------------------------------------------------------
+
+void Scratch::make(i64 n_bodies, const Statics& st) {
+    i64 n1 = n_bodies + 1, nn = n_bodies + st.n_static;
+    n = n_bodies;
+    ns = st.n_static;
+    zeroed(lo, nn, 3);
+    zeroed(hi, nn, 3);
+    for (i64 k = 0; k < ns; ++k)
+        for (int c = 0; c < 3; ++c) {
+            lo(n + k, c) = st.lo(k, c);
+            hi(n + k, c) = st.hi(k, c);
+        }
+    zeroed(reach, nn, 1);
+    zeroed(in_contact, n1, 1);
+    zeroed(bm, n1, 1);
+    zeroed(bI, n1, 6);
+    zeroed(bv, n1, 3);
+    zeroed(bw, n1, 3);
+    zeroed(bv0, n1, 3);
+    zeroed(bw0, n1, 3);
+    zeroed(pv, n1, 3);
+    zeroed(pw, n1, 3);
+    zeroed(p0, n, 3);
+    zeroed(l0, n, 3);
+    zeroed(l_drift, n, 3);
+    zeroed(parent, n, 1);
+    zeroed(isl_time, n, 1);
+    zeroed(isl_sup, n, 1);
+    cb = collider_buffers();
+    zeroed(blk, 4, 5);
+    zeroed(hot, n1, 1);
+    zeroed(dx_step, n1, 3);
+    zeroed(proj_dx, n1, 3);
+    zeroed(proj_dth, n1, 3);
+    zeroed(pushed, n1, 1);
+    zeroed(push_root, n1, 1);
+    if (flow_c.rows != n || flow_c.cols != N_FLOW) flow_c = Buf2<double>(n, N_FLOW);
+    flow_ok.resize(n);
+    zeroed(ring, n1, 1);
+    if (proj_rows.cols != PROJ_COLS) {
+        proj_rows = Buf2<double>(64, PROJ_COLS);
+        proj_ids = Buf2<i64>(64, 2);
+    }
+}
+
+ContactCache::ContactCache(i64 cap_manifolds, i64 cap_points)
+    : mi0(cap_manifolds, MI_COLS), mf0(cap_manifolds, MF_COLS), pf0(cap_points, PF_COLS),
+      pid0(cap_points, 1), keys0(1, 1), idx0(1, 1), mi1(cap_manifolds, MI_COLS),
+      mf1(cap_manifolds, MF_COLS), pf1(cap_points, PF_COLS), pid1(cap_points, 1),
+      pairs(cap_manifolds, 2), log_i(64, LOG_I_COLS), log_f(64, LOG_F_COLS) {}
+
+// ---- the stages, in step order ------------------------------------------------------------------
+
+namespace step {
+
+// 1 kick: P += h (m g + F), L += h tau for awake bodies (world frame).
+void kick(const Bodies& bd, V1<i64> awake, const BodyState& x, double h) {
+    for (i64 i = 0; i < x.position.n0; ++i) {
+        if (awake[i]) {
+            for (int k = 0; k < 3; ++k) {
+                x.linear_momentum(i, k) += h * bd.force(i, k);
+                x.angular_momentum(i, k) += h * bd.torque(i, k);
+            }
+        }
+    }
+}
+
+// 2 broadphase: AABBs (of awake bodies swept over the step, padded by margin), sort-and-sweep,
+// and (body, ground) pairs into `pairs` (grown in place). Returns n_pairs.
+i64 broadphase(const Bodies& bd, const Statics& st, double margin, V1<i64> awake,
+               const BodyState& x, double h, Scratch& sc, Buf2<i64>& pairs) {
+    i64 n = x.position.n0;
+    body_aabbs(bd.geom, bd.size, bd.radius, bd.inv_mass, bd.inv_inertia, awake, x.position,
+               x.linear_momentum, x.rotation, x.angular_momentum, h, margin, sc.lo.view(),
+               sc.hi.view(), col(sc.reach));
+    i64 n_pairs = sweep_and_prune(n + st.n_static, n, sc.lo.view(), sc.hi.view(), bd.group,
+                                  awake, pairs);
+    if (st.ground)
+        n_pairs = ground_pairs(n, st.n_static, st.gn, st.goff, sc.lo.view(), sc.hi.view(), pairs,
+                               n_pairs);
+    return n_pairs;
+}
+
+// 3 wake: sleeping islands that an awake body may touch within the step. Returns islands woken.
+i64 wake(const Bodies& bd, const Statics& st, const Settings& cfg, const SleepState& sl,
+         const BodyState& x, double h, Scratch& sc, V2<i64> pairs, i64 n_pairs) {
+    return wake_touched(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, sl.awake,
+                        sl.timer, sl.island_of, x.position, x.rotation, col(sc.reach), cfg.margin,
+                        cfg.slop, st.pos, st.rot, st.ext, st.gn, st.goff, x.linear_momentum,
+                        x.angular_momentum, bd.force, bd.torque, h, cfg.do_kick, sc.cb,
+                        bd.inv_mass, bd.accel, bd.radius, bd.inv_inertia);
+}
+
+// 4 collide: the narrowphase table over the candidate pairs into this step's buffers (c.mi1,
+// ...), matching last step's manifolds (c.mi0, ...) for warm starting. Returns (n_man, n_pts);
+// the buffers may have grown.
+CollideCount collide(const Bodies& bd, const Statics& st, const Settings& cfg, V1<i64> awake,
+                     const BodyState& x, Scratch& sc, V2<i64> pairs, i64 n_pairs,
+                     ContactCache& c) {
+    grow_manifolds(c.mi1, c.mf1, 2 * n_pairs);
+    grow_points(c.pf1, c.pid1, 8 * n_pairs);
+    return collide_pairs(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, awake,
+                         x.position, x.rotation, col(sc.reach), cfg.margin, bd.restitution,
+                         bd.friction, bd.accel, st.pos, st.rot, st.ext, st.e, st.mu, st.gn,
+                         st.goff, st.g_e, st.g_mu, c.mi0.view(), c.mf0.view(), c.pf0.view(),
+                         col(c.pid0), col(c.keys0), col(c.idx0), c.n_man0, c.mi1.view(),
+                         c.mf1.view(), c.pf1.view(), col(c.pid1), cfg.warm, cfg.anchor, sc.cb);
+}
+
+// 5 prepare: load the bodies in contact into the solver arrays; effective masses and pre-solve
+// gap velocities of every point.
+void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc, V2<i64> mi,
+             V2<double> mf, V2<double> pf, i64 n_man, double h) {
+    load_bodies(mi, n_man, x.position.n0, cfg.iso_shortcut, bd.iso, bd.inv_mass, bd.inv_inertia,
+                x.rotation, x.linear_momentum, x.angular_momentum, col(sc.in_contact),
+                col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view(), sc.bv0.view(),
+                sc.bw0.view(), sc.pv.view(), sc.pw.view(), sc.p0.view(), sc.l0.view());
+    prepare_contacts(mi, mf, pf, n_man, col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view(), h,
+                     cfg.anchor_rate, cfg.block_reg);
+}
+
+// Sort the awake bodies by how they move this step (sc.pushed, read by stage 9):
+//
+// * 0: no contact pushed it (no manifold, or manifolds whose accumulated normal, friction and
+//   pseudo impulses all ended at zero): it flies exactly;
+// * 1: pushed, within a group of bodies that pushing contacts connect (an island of this step)
+//   that touches no static geometry: it moves by the solver's velocity plus the same
+//   exact-flight term as a free body, so that every body away from static geometry flies alike
+//   (one scheme inside any group of bodies that only push each other);
+// * 2: pushed, in an island that some static contact pushes: symplectic Euler (resting contact).
+void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
+    V1<i64> pushed = col(sc.pushed), root = col(sc.push_root);
+    for (i64 i = 0; i < n + 1; ++i) {
+        pushed[i] = 0;
+        root[i] = i;
+    }
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        i64 start = mi(m, MI_START);
+        bool push = false;
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+            if (pf(p, PF_LN) != 0.0 || pf(p, PF_L1) != 0.0 || pf(p, PF_L2) != 0.0 ||
+                pf(p, PF_LP) != 0.0) {
+                push = true;
+                break;
+            }
+        }
+        if (!push) continue;
+        i64 a = mi(m, MI_A), b = mi(m, MI_B);
+        pushed[a] = 1;
+        pushed[b] = 1;
+        i64 ra = find_root(root, a), rb_ = find_root(root, b);
+        if (ra != rb_) {  // the static dummy (row n) joins the island it pushes: no self-root
+            if (ra == n) {
+                root[rb_] = ra;
+            } else {
+                root[ra] = rb_;
+            }
+        }
+    }
+    // an island that holds the static dummy touches static geometry
+    for (i64 i = 0; i < n; ++i)
+        if (pushed[i] && find_root(root, i) == find_root(root, n)) pushed[i] = 2;
+}
+
+// 9 integrate: move every awake body over the step (how: sc.pushed, see mark_pushed). A body
+// that a contact pushed (solve or relax) moves with the solver's velocity, x += h (v + v'), its
+// momenta rebuilt from the solver's velocity changes, and when its island touches no static
+// geometry, by - h^2 a / 2 more (the exact flight's term); every other body flies exactly under
+// its constant acceleration a, x += h v - h^2 a / 2 with v after the kick (a body whose
+// manifolds all ended without impulse gets its start-of-solve momenta back bitwise: warm
+// starting applies and withdraws impulses, which leaves round-off). Rotation by the run's
+// integrator (drift_rotation) with the body's L, plus the pseudo spin of the relax stage. The
+// exact integrators rotate from the body's flow anchor (an; a new one whenever the L it drifts
+// with changed).
+void integrate_positions(int method, int ortho, const Bodies& bd, const Settings& cfg,
+                         V1<i64> awake, const BodyState& x, Scratch& sc, double h,
+                         const FlowAnchors& an) {
+    i64 n = x.position.n0;
+    V2<double> l_drift = sc.l_drift.view(), dx_step = sc.dx_step.view();
+    V2<double> pv = sc.pv.view(), pw = sc.pw.view();
+    V2<double> bv = sc.bv.view(), bw = sc.bw.view(), bv0 = sc.bv0.view(), bw0 = sc.bw0.view();
+    V2<double> p0 = sc.p0.view(), l0 = sc.l0.view();
+    V1<i64> in_contact = col(sc.in_contact), pushed_of = col(sc.pushed);
+    V2<double> lm = x.linear_momentum, am = x.angular_momentum, pos = x.position;
+    for (i64 i = 0; i < n; ++i) {
+        if (!awake[i]) continue;
+        double im = bd.inv_mass[i];
+        for (int k = 0; k < 3; ++k) l_drift(i, k) = am(i, k);
+        bool pushed = in_contact[i] && pushed_of[i] != 0;
+        if (pushed) {
+            store_momenta(i, bd, x.rotation, lm, am, bv, bw, bv0, bw0, p0, l0, cfg.iso_shortcut);
+            // the exact-flight term, for islands away from static geometry
+            double fly = pushed_of[i] == 1 ? 0.5 * h : 0.0;
+            for (int k = 0; k < 3; ++k) {
+                dx_step(i, k) = h * (lm(i, k) * im + pv(i, k) - fly * bd.accel(i, k));
+                pos(i, k) += dx_step(i, k);
+                l_drift(i, k) = am(i, k);
+            }
+            if (pw(i, 0) != 0.0 || pw(i, 1) != 0.0 || pw(i, 2) != 0.0) {
+                // rotate by L + I_world w' so the pseudo spin goes through the integrator
+                double jx, jy, jz;
+                if (cfg.iso_shortcut && bd.iso[i]) {
+                    double s0 = bd.inertia(i, 0);
+                    jx = s0 * pw(i, 0); jy = s0 * pw(i, 1); jz = s0 * pw(i, 2);
+                } else {
+                    Vec3 j = omega_world(load_mat(x.rotation, i), bd.inertia(i, 0),
+                                         bd.inertia(i, 1), bd.inertia(i, 2), pw(i, 0), pw(i, 1),
+                                         pw(i, 2));
+                    jx = j[0]; jy = j[1]; jz = j[2];
+                }
+                l_drift(i, 0) += jx;
+                l_drift(i, 1) += jy;
+                l_drift(i, 2) += jz;
+            }
+        } else {
+            if (in_contact[i]) {
+                // untouched by the solve: the momenta and solver velocities it started with
+                for (int k = 0; k < 3; ++k) {
+                    lm(i, k) = p0(i, k);
+                    am(i, k) = l0(i, k);
+                    l_drift(i, k) = l0(i, k);
+                    bv(i, k) = bv0(i, k);
+                    bw(i, k) = bw0(i, k);
+                }
+            }
+            // exact flight under constant force: x += h v_start + h^2 a / 2
+            for (int k = 0; k < 3; ++k) {
+                double d = h * (lm(i, k) * im - 0.5 * h * bd.accel(i, k));
+                pos(i, k) += d;
+                dx_step(i, k) = d;
+            }
+        }
+        if (method == METHOD_EXACT || method == METHOD_EXACT4) {
+            drift_exact_anchored(x.quat_wxyz, x.rotation, l_drift, bd.inv_inertia, i, h,
+                                 an.anchor_quat_wxyz, an.anchor_L_world, an.anchor_steps,
+                                 an.anchor_dt_s, sc.flow_c.view(), i, sc.flow_ok.view());
+        } else {
+            drift_rotation(method, ortho, x.quat_wxyz, x.rotation, l_drift, bd.inv_inertia, i, h);
+        }
+        if (pushed && (pv(i, 0) != 0.0 || pv(i, 1) != 0.0 || pv(i, 2) != 0.0)) {
+            // the pseudo shift h v' moved the body's momentum line: give the orbital change back
+            // to its spin so that sum(x x P + L) stays exact
+            double sx = h * pv(i, 0), sy = h * pv(i, 1), sz = h * pv(i, 2);
+            double qx = lm(i, 0), qy = lm(i, 1), qz = lm(i, 2);
+            am(i, 0) -= sy * qz - sz * qy;
+            am(i, 1) -= sz * qx - sx * qz;
+            am(i, 2) -= sx * qy - sy * qx;
+        }
+    }
+}
+
+// 12 project: narrowphase again at the end-of-step poses; points deeper than projection_depth
+// are pushed out (project.cpp) and the bodies moved (a moved body's flow anchor is dropped: its
+// attitude changed other than by the flow). Returns n_deep.
+i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Settings& cfg,
+            V1<i64> awake, const BodyState& x, Scratch& sc, V2<i64> pairs, i64 n_pairs,
+            const FlowAnchors& an) {
+    i64 n = x.position.n0;
+    i64 n_deep = project_positions(
+        pairs, n_pairs, n, st.n_static, bd.geom, bd.size, bd.inv_mass, bd.inv_inertia, bd.iso,
+        cfg.iso_shortcut, awake, x.position, x.rotation, st.pos, st.rot, st.ext, st.gn, st.goff,
+        cfg.proj_depth, cfg.n_proj, sc.proj_rows, sc.proj_ids, sc.cb, sc.proj_dx.view(),
+        sc.proj_dth.view(), cfg.proj_rings, sc.ring, sc.done);
+    if (n_deep > 0)
+        apply_projection(n_deep, sc.proj_ids.view(), sc.proj_dx.view(), sc.proj_dth.view(), n,
+                         method, ortho, bd, cfg.iso_shortcut, x.position, x.rotation, x.quat_wxyz,
+                         x.linear_momentum, x.angular_momentum, sc.l_drift.view(),
+                         an.anchor_steps);
+    return n_deep;
+}
+
+// 13 sleep: wake what this step pushed on (when some bodies slept at the step's start, n_awake <
+// N), advance rest timers, put resting islands to sleep. Returns (islands woken, bodies put to
+// sleep).
+std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const SleepState& sl,
+                                const BodyState& x, Scratch& sc, V2<i64> mi, V2<double> mf,
+                                V2<double> pf, i64 n_man, double h, i64 n_awake) {
+    i64 n = x.position.n0;
+    i64 woken = 0;
+    if (n_awake < n)
+        woken = wake_pushed(mi, mf, pf, n_man, n, sl.awake, sl.timer, sl.island_of, x.position,
+                            x.linear_momentum, x.angular_momentum, bd.force, bd.torque, h);
+    i64 slept = update_sleep(n, mi, pf, n_man, sl.awake, sl.timer, sl.island_of,
+                             sl.island_counter, x.linear_momentum, x.angular_momentum,
+                             bd.inv_mass, bd.inv_inertia, bd.radius, h, cfg.sleep_speed,
+                             cfg.sleep_time, col(sc.parent), col(sc.isl_time), col(sc.isl_sup));
+    return {woken, slept};
+}
+
+// The first awake body whose state is not finite or that turns more than
+// MAX_ROTATION_PER_STEP_RAD in a step of h (turn_within_bound), or -1: the run has diverged
+// there (a torque of 1e40 N m on a resting box, say), though its state may be finite.
+i64 first_diverged(V1<i64> awake, const BodyState& x, V2<double> inv_inertia, double h) {
+    for (i64 i = 0; i < x.position.n0; ++i) {
+        if (awake[i] && (!std::isfinite(state_sum(i, x.position, x.linear_momentum,
+                                                  x.angular_momentum, x.rotation)) ||
+                         !turn_within_bound(h, i, inv_inertia, x.rotation, x.angular_momentum)))
+            return i;
+    }
+    return -1;
+}
+
+// The contact rows of step s: every point that pushed or touches (trajectory.Contacts).
+// Returns n_log; the log may have grown.
+i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
+                    Buf2<i64>& log_i, Buf2<double>& log_f, i64 n_log) {
+    i64 need = n_log;
+    for (i64 m = 0; m < n_man; ++m) need += mi(m, MI_COUNT);
+    log_i.grow(need);
+    log_f.grow(need);
+    for (i64 m = 0; m < n_man; ++m) {
+        i64 start = mi(m, MI_START);
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+            if (pf(p, PF_LN) <= 0.0 && pf(p, PF_SEND) > 0.0) continue;
+            log_i(n_log, LOG_STEP) = s;
+            log_i(n_log, LOG_A) = mi(m, MI_REC_A);
+            log_i(n_log, LOG_B) = mi(m, MI_REC_B);
+            log_i(n_log, LOG_KIND) = pf(p, PF_IMPACT) > 0.0 ? CONTACT_IMPACT : CONTACT_RESTING;
+            for (int k = 0; k < 3; ++k) {
+                log_f(n_log, LOG_P + k) = pf(p, PF_P + k);
+                log_f(n_log, LOG_N + k) = mf(m, MF_N + k);
+                log_f(n_log, LOG_F + k) = pf(p, PF_F + k);
+            }
+            log_f(n_log, LOG_S) = pf(p, PF_SEND);
+            log_f(n_log, LOG_LN) = pf(p, PF_LN);
+            n_log += 1;
+        }
+    }
+    return n_log;
+}
+
+}  // namespace step
+
+// ---- the step ---------------------------------------------------------------------------------
+
+// Advance n_steps steps of dt with contacts; write samples and contact rows.
+//
+// bd, st, cfg: the model records. method, ortho: integrators' METHOD_* / ORTHO_* codes. n_steps,
+// stride, sample_last: as free.advance_free (a sample after every stride-th step, and after the
+// last one when sample_last). x: BodyState, updated in place; out: the (S, N, ...) sample
+// buffers. sl: SleepState, updated in place. c: the ContactCache (its log receives the contact
+// rows, manifold.hpp's LOG_* columns). stats: (N_STATS,) counters. prof: (N_PROF,) int64 cycle
+// counts per stage, added to; empty: not profiled. an: the exact integrators' flow anchors,
+// updated in place.
+//
+// Returns (n_samples, bad_step, bad_body, n_log): bad_step is the first local step (1-based) at
+// which some body's state became non-finite or turned beyond the bound (-1 if none).
+AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings& cfg, int method,
+                            int ortho, double dt, i64 n_steps, i64 stride, bool sample_last,
+                            const BodyState& x, const SampleState& out, const SleepState& sl,
+                            ContactCache& c, V1<i64> stats, V1<i64> prof, const FlowAnchors& an) {
+    using namespace step;
+    i64 n = x.position.n0;
+    double h = dt;
+    double inv_h = 1.0 / dt;
+    Scratch& sc = c.sc;
+    sc.make(n, st);
+    i64 n_log = 0;
+    i64 n_samples = 0;
+    // garbage in: a non-finite state handed to this call is reported at its first step
+    for (i64 i = 0; i < n; ++i) {
+        if (!std::isfinite(state_sum(i, x.position, x.linear_momentum, x.angular_momentum,
+                                     x.rotation)))
+            return AdvanceResult{0, 1, i, 0};
+    }
+    bool do_prof = prof.n0 > 0;
+    i64 t = 0;
+    for (i64 s = 1; s < n_steps + 1; ++s) {
+        i64 n_awake = 0;
+        for (i64 i = 0; i < n; ++i) n_awake += sl.awake[i] != 0;
+        if (n_awake > 0) {
+            stats[ST_STEPS] += 1;
+            stats[ST_AWAKE] += n_awake;
+            if (do_prof) t = ticks();
+            if (cfg.do_kick) kick(bd, sl.awake, x, h);                                     // 1
+            if (do_prof) t = lap(prof, P_KICK, t);
+            i64 n_pairs = broadphase(bd, st, cfg.margin, sl.awake, x, h, sc, c.pairs);     // 2
+            V2<i64> pairs = c.pairs.view();
+            stats[ST_PAIRS] += n_pairs;
+            if (do_prof) t = lap(prof, P_BROADPHASE, t);
+            if (n_awake < n) stats[ST_WOKEN] += wake(bd, st, cfg, sl, x, h, sc, pairs, n_pairs);  // 3
+            if (do_prof) t = lap(prof, P_WAKE, t);
+            CollideCount cc = step::collide(bd, st, cfg, sl.awake, x, sc, pairs, n_pairs, c);  // 4
+            i64 n_man = cc.n_man;
+            stats[ST_MANIFOLDS] += n_man;
+            stats[ST_POINTS] += cc.n_pts;
+            if (do_prof) t = lap(prof, P_COLLIDE, t);
+            V2<i64> mi1 = c.mi1.view();
+            V2<double> mf1 = c.mf1.view(), pf1 = c.pf1.view();
+            V1<double> bm = col(sc.bm);
+            V2<double> bI = sc.bI.view(), bv = sc.bv.view(), bw = sc.bw.view();
+            prepare(bd, cfg, x, sc, mi1, mf1, pf1, n_man, h);                               // 5
+            if (cfg.warm) warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw);                // 6
+            stats[ST_SWEEPS] += solve_velocities(                                           // 7
+                mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h, cfg.n_vel, cfg.max_vel, cfg.vel_tol,
+                sc.blk.view(), col(sc.hot), col(sc.in_contact), cfg.sor, cfg.newton_iters,
+                cfg.newton_tol);
+            if (cfg.anchors_on)                                                             // 7b
+                anchor_friction(mi1, mf1, pf1, n_man, bm, bI, bv, bw, cfg.newton_iters,
+                                cfg.newton_tol);
+            if (do_prof) t = lap(prof, P_SOLVE, t);
+            if (cfg.n_pos > 0)                                                              // 8
+                relax_positions(mi1, mf1, pf1, n_man, bm, bI, sc.pv.view(), sc.pw.view(), inv_h,
+                                cfg.n_pos, cfg.slop, cfg.beta, cfg.max_speed);
+            mark_pushed(mi1, pf1, n_man, n, sc);
+            if (do_prof) t = lap(prof, P_RELAX, t);
+            integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
+            if (do_prof) t = lap(prof, P_INTEGRATE, t);
+            stats[ST_IMPACTS] += restitution(                                               // 10
+                mi1, mf1, pf1, n_man, bm, bI, bv, bw, sc.pv.view(), sc.pw.view(), h,
+                cfg.e_threshold, cfg.n_vel, sc.dx_step.view(), x.linear_momentum,
+                x.angular_momentum);
+            store_impulses(mi1, mf1, pf1, n_man, cfg.slide_frac);                           // 11
+            // this step's manifolds become "previous"
+            c.keys0.grow(std::max<i64>(n_man, 1));
+            c.idx0.grow(std::max<i64>(n_man, 1));
+            sort_manifolds(mi1, n_man, col(c.keys0), col(c.idx0));
+            std::swap(c.mi0, c.mi1);
+            std::swap(c.mf0, c.mf1);
+            std::swap(c.pf0, c.pf1);
+            std::swap(c.pid0, c.pid1);
+            c.n_man0 = n_man;
+            if (do_prof) t = lap(prof, P_RESTITUTION, t);
+            if (cfg.n_proj > 0)                                                             // 12
+                stats[ST_PROJECTED] += project(method, ortho, bd, st, cfg, sl.awake, x, sc, pairs,
+                                               n_pairs, an);
+            if (do_prof) t = lap(prof, P_PROJECT, t);
+            if (cfg.do_sleep) {                                                             // 13
+                std::pair<i64, i64> ws = sleep_stage(bd, cfg, sl, x, sc, c.mi0.view(),
+                                                     c.mf0.view(), c.pf0.view(), c.n_man0, h,
+                                                     n_awake);
+                stats[ST_WOKEN] += ws.first;
+                stats[ST_SLEPT] += ws.second;
+            }
+            i64 bad = first_diverged(sl.awake, x, bd.inv_inertia, h);
+            if (do_prof) t = lap(prof, P_SLEEP, t);
+            if (bad >= 0) return AdvanceResult{n_samples, s, bad, n_log};
+        }
+        if (s % stride == 0 || (sample_last && s == n_steps)) {
+            if (do_prof) t = ticks();
+            for (i64 i = 0; i < n; ++i)
+                write_sample(method, n_samples, i, x.position, x.linear_momentum, x.quat_wxyz,
+                             x.rotation, x.angular_momentum, out.position, out.linear_momentum,
+                             out.quat_wxyz, out.rotation, out.angular_momentum);
+            n_samples += 1;
+            n_log = record_contacts(s, c.mi0.view(), c.mf0.view(), c.pf0.view(), c.n_man0,
+                                    c.log_i, c.log_f, n_log);
+            if (do_prof) t = lap(prof, P_SAMPLE, t);
+        }
+    }
+    for (i64 i = 0; i < n; ++i) sync_quat(method, x.quat_wxyz, x.rotation, i);
+    return AdvanceResult{n_samples, -1, -1, n_log};
+}
+
+}  // namespace rb
