@@ -18,6 +18,8 @@ What is timed: ``rblog.analyze.check`` on the trajectory in memory (the shared C
 analyzer, up to the Result objects); not reading a log, not formatting the report. Each analyzer
 alone is timed with a fresh Context of its own (what ``rblog check --only NAME`` costs); all
 analyzers together on one thread and on ``--threads`` threads side by side, best of ``--repeat``.
+The analyzers' kernels are C++ (rblog.analyze._audit, built at install): nothing compiles at run
+time, so there is no first-run compile figure any more (the numba version printed one).
 
 Targets: >= 1e6 body-samples per second for all analyzers together on one thread (issue 16),
 >= 3e6 on two cores (issue 18).
@@ -26,10 +28,7 @@ Targets: >= 1e6 body-samples per second for all analyzers together on one thread
 from __future__ import annotations
 
 import argparse
-import os
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -119,23 +118,6 @@ def synthetic(n_samples: int = 10_001, n_bodies: int = 100, dt: float = 1e-3, lo
     return derive(model, info, step, t, pos, vel * mass[None, :, None], quat, rot, lmom, contacts)
 
 
-def compile_times():
-    """The analyzers' numba kernels: compile time with an empty cache, load time from the cache."""
-    code = ("import time; t0 = time.perf_counter(); import sys; sys.path.insert(0, %r); "
-            "from bench_check import synthetic; from rblog.analyze import check; "
-            "tr = synthetic(20, 4); t1 = time.perf_counter(); check(tr); "
-            "print(time.perf_counter() - t1)") % str(Path(__file__).parent)
-    with tempfile.TemporaryDirectory() as d:
-        env = dict(os.environ, NUMBA_CACHE_DIR=d)
-        out = []
-        for _ in range(2):
-            r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                               text=True, check=True)
-            out.append(float(r.stdout.strip().splitlines()[-1]))
-    print(f"first check in a process: {out[0]:.2f} s compiling the kernels (empty numba cache), "
-          f"{out[1]:.2f} s with the cache")
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=10_001)
@@ -143,13 +125,12 @@ def main():
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--threads", type=int, default=2, help="the parallel column's thread count")
     args = ap.parse_args()
-    compile_times()
     traj = synthetic(args.samples, args.bodies)
     work = traj.n_samples * traj.n_bodies
     print(f"synthetic log: {traj.n_samples} samples x {traj.n_bodies} bodies = {work:,} "
           f"body-samples, {len(traj.contacts)} contacts")
     counts = (1, args.threads)
-    check(traj.slice(slice(0, 50)), threads=args.threads)  # load the compiled kernels
+    check(traj.slice(slice(0, 50)), threads=args.threads)  # warm up (imports, thread pool)
     first = []
     for th in counts:
         t0 = time.perf_counter()

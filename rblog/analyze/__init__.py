@@ -25,8 +25,7 @@ from __future__ import annotations
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
-
+from rblog._threads import default_threads
 from rblog.contract.trajectory import Trajectory
 from rblog.analyze.base import Analyzer, CheckOptionError, Context, Finding, Result
 from rblog.analyze.consistency import ConsistencyAnalyzer
@@ -92,9 +91,9 @@ def check(traj: Trajectory, only=None, skip=None, tolerances: dict | None = None
         only: names of the analyzers to run (default: all).
         skip: names of analyzers not to run.
         tolerances: overrides keyed ``"<analyzer>.<tolerance>"``.
-        threads: how many analyzers run at once (default ``numba.config.NUMBA_NUM_THREADS``:
-            the environment variable NUMBA_NUM_THREADS, by default every core, as the engine's
-            free kernel). Each analyzer is a sequential computation and the values they share
+        threads: how many analyzers run at once (default ``rblog._threads.default_threads()``:
+            the environment variable RBLOG_THREADS, by default every core, as the engine). Each
+            analyzer is a sequential computation and the values they share
             (rblog.analyze.base.Context) are computed once, so the results are the same for
             any thread count; the compiled kernels release the GIL.
     """
@@ -108,7 +107,7 @@ def check(traj: Trajectory, only=None, skip=None, tolerances: dict | None = None
     analyzers = [ANALYZERS[n](**per[n]) for n in selected]
     ctx = Context(traj)
     if threads is None:
-        threads = numba.config.NUMBA_NUM_THREADS
+        threads = default_threads()
     threads = max(1, min(int(threads), len(analyzers)))
     if threads == 1 or ctx.traj.n_samples == 0:
         return [a.run(traj, ctx) for a in analyzers]

@@ -17,12 +17,12 @@ Derivations used by the analyzers (all from logged channels + model, never simul
   must be conserved. Computed in one compiled pass over the intervals (union-find).
 
 The per-sample work (kinematics, contact groups, and in the analyzers rigidity, geometry and
-energy stretches) runs in numba kernels (``cache=True``) over all bodies and samples; Python
-only handles the findings, which are few.
+energy stretches) runs in the audit's compiled kernels (``rblog.analyze._audit``, csrc/audit/)
+over all bodies and samples; Python only handles the findings, which are few.
 
 Why this module is long: it holds what every analyzer shares: Finding and Result, the Context that
 derives once what several analyzers need (contact groups, impulses, resting intervals), and the
-compiled helpers behind them.
+calls of the compiled helpers behind them (csrc/audit/context.cpp).
 """
 
 from __future__ import annotations
@@ -33,12 +33,11 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from rblog.errors import RblogError
 from rblog.contract.model import Model
 from rblog.contract.trajectory import STATIC_BODY, Trajectory
-from rblog.analyze import geometry
+from rblog.analyze import _audit, geometry
 from rblog.analyze import tolerances as tol
 
 
@@ -308,176 +307,8 @@ class Groups:
         return [int(b) for b in self.mem_i[lo:hi]]
 
 
-@njit(cache=True, nogil=True)
-def _find(parent, a):
-    while parent[a] != a:
-        parent[a] = parent[parent[a]]
-        a = parent[a]
-    return a
-
-
-@njit(cache=True, nogil=True)
-def _groups_kernel(jump, n_static, static_id, ek, ea, eb, g_k, g_size, g_nstat, g_sid, m_k, m_i,
-                   m_g):
-    """Contact groups, interval by interval (edges sorted by interval): union-find over the
-    bodies joined by possible contacts, keeping the components with a jumped member. Writes
-    groups (interval, size, static features in reach, static id) and their members contiguous
-    per group, groups and members in body order; returns (groups, members)."""
-    kn, n = jump.shape
-    parent = np.arange(n)
-    touched = np.zeros(n, np.bool_)
-    has = np.zeros(n, np.bool_)
-    gid = np.full(n, -1)
-    fill = np.zeros(n, np.int64)
-    c = 0
-    q = 0
-    e = 0
-    ne = ek.shape[0]
-    for k in range(kn):
-        any_node = False
-        while e < ne and ek[e] == k:
-            a, b = ea[e], eb[e]
-            touched[a] = True
-            touched[b] = True
-            any_node = True
-            ra, rb = _find(parent, a), _find(parent, b)
-            if ra < rb:
-                parent[rb] = ra
-            elif rb < ra:
-                parent[ra] = rb
-            e += 1
-        for v in range(n):
-            if jump[k, v]:
-                touched[v] = True
-                any_node = True
-        if not any_node:
-            continue
-        for v in range(n):
-            if touched[v] and jump[k, v]:
-                has[_find(parent, v)] = True
-        c0 = c
-        for v in range(n):  # groups in the order of their smallest body
-            if not touched[v]:
-                continue
-            r = _find(parent, v)
-            if has[r]:
-                if gid[r] < 0:
-                    gid[r] = c
-                    g_k[c] = k
-                    g_size[c] = 0
-                    g_nstat[c] = 0
-                    g_sid[c] = -2
-                    c += 1
-                g = gid[r]
-                g_size[g] += 1
-                g_nstat[g] += n_static[k, v]
-                if n_static[k, v] > 0:
-                    g_sid[g] = static_id[k, v]
-        # members, contiguous per group
-        start = q
-        for g in range(c0, c):
-            fill[g - c0] = start
-            start += g_size[g]
-        for v in range(n):
-            if not touched[v]:
-                continue
-            r = _find(parent, v)
-            if has[r]:
-                g = gid[r]
-                pos = fill[g - c0]
-                m_k[pos] = k
-                m_i[pos] = v
-                m_g[pos] = g
-                fill[g - c0] += 1
-        q = start
-        for v in range(n):  # reset what this interval touched
-            if touched[v]:
-                r = _find(parent, v)
-                has[r] = False
-                gid[r] = -1
-        for v in range(n):
-            if touched[v]:
-                parent[v] = v
-                touched[v] = False
-    return c, q
-
-
-@njit(cache=True, nogil=True)
-def _kinematics(t, position, velocity, momentum, ang_momentum, omega, mass, force, torque, rho,
-                inertia_max, jump_rel, speed, spin, ke, u, jump, sweep):
-    """One pass over the samples: |v|, |w|, kinetic energy P.P/2m + L.w/2, potential -(m g + F).x
-    (T, N); and per interval (T-1, N): jump (momentum change beyond (m g + F) dt or torque dt)
-    and sweep (how far any point of the body can move)."""
-    t_n, n = position.shape[0], position.shape[1]
-    for k in range(t_n):
-        for b in range(n):
-            v = velocity[k, b]
-            w = omega[k, b]
-            p = momentum[k, b]
-            l_ = ang_momentum[k, b]
-            x = position[k, b]
-            speed[k, b] = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-            spin[k, b] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-            ke[k, b] = (0.5 * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) / mass[b]
-                        + 0.5 * (l_[0] * w[0] + l_[1] * w[1] + l_[2] * w[2]))
-            u[k, b] = -(force[b, 0] * x[0] + force[b, 1] * x[1] + force[b, 2] * x[2])
-    for k in range(t_n - 1):
-        dt = t[k + 1] - t[k]
-        for b in range(n):
-            a2 = (force[b, 0] ** 2 + force[b, 1] ** 2 + force[b, 2] ** 2) / mass[b] ** 2
-            amag = math.sqrt(a2)
-            jj = 0.0
-            hh = 0.0
-            l0 = 0.0
-            l1 = 0.0
-            for d in range(3):
-                jd = momentum[k + 1, b, d] - momentum[k, b, d] - force[b, d] * dt
-                hd = ang_momentum[k + 1, b, d] - ang_momentum[k, b, d] - torque[b, d] * dt
-                jj += jd * jd
-                hh += hd * hd
-                l0 += ang_momentum[k, b, d] ** 2
-                l1 += ang_momentum[k + 1, b, d] ** 2
-            sp = max(speed[k, b], speed[k + 1, b])
-            p_scale = mass[b] * (sp + amag * dt + 1e-9)
-            l_scale = math.sqrt(max(l0, l1)) + inertia_max[b] * 1e-9
-            jump[k, b] = (math.sqrt(jj) > jump_rel * p_scale
-                          or math.sqrt(hh) > jump_rel * l_scale)
-            sweep[k, b] = (dt * (sp + rho[b] * max(spin[k, b], spin[k + 1, b]))
-                           + 0.5 * amag * dt * dt)
-
-
-@njit(cache=True, nogil=True)
-def _impulse_kernel(p, dts, mass, accel, k, i, out):
-    """out[r] = P(k+1) - P(k) - dt (m a) for body i[r] over interval k[r] (Context.impulse)."""
-    for r in range(k.shape[0]):
-        kr, b = k[r], i[r]
-        for d in range(3):
-            out[r, d] = (p[kr + 1, b, d] - p[kr, b, d]) - dts[kr] * (mass[b] * accel[b, d])
-
-
 _STATE_CHANNELS = ("position", "rotation", "quat_wxyz", "velocity", "linear_momentum",
                    "angular_momentum", "angular_velocity")
-
-
-#: float64 exponent bits: all set in an inf or a NaN, never in a finite number
-_EXP_BITS = np.uint64(0x7FF0000000000000)
-
-
-@njit(cache=True, nogil=True)
-def _bits_finite(u, exp_bits):
-    """True when no float64 (given as its uint64 bits, flat) is an inf or a NaN: an integer
-    count per block of 4,096 (vectorised; stops at the first block with one)."""
-    n = u.shape[0]
-    i = 0
-    while i < n:
-        j = min(n, i + 4096)
-        c = 0
-        for m in range(i, j):
-            c += (u[m] & exp_bits) == exp_bits
-        if c:
-            return False
-        i = j
-    return True
 
 
 def all_finite(arr) -> bool:
@@ -485,7 +316,7 @@ def all_finite(arr) -> bool:
     contiguous float64 array (the common case: every channel of a log)."""
     a = np.asarray(arr)
     if a.dtype == np.float64 and a.flags.c_contiguous:
-        return bool(_bits_finite(a.reshape(-1).view(np.uint64), _EXP_BITS))
+        return bool(_audit.all_finite(a))
     return bool(np.isfinite(a).all())
 
 
@@ -587,14 +418,16 @@ class Context:
             jump = np.empty((kn, n), np.bool_)
             sweep = np.empty((kn, n))
             c = np.ascontiguousarray
-            _kinematics(c(tr.t, dtype=np.float64), c(tr.position, dtype=np.float64),
-                        c(tr.velocity, dtype=np.float64), c(tr.linear_momentum, dtype=np.float64),
-                        c(tr.angular_momentum, dtype=np.float64),
-                        c(tr.angular_velocity, dtype=np.float64), self.mass,
-                        c(self.mass[:, None] * self.accel),
-                        c(np.asarray(self.model.body_torque_world, float)), self.rho,
-                        np.asarray(self.model.body_inertia_diag, float).max(axis=1),
-                        tol.MOMENTUM_JUMP_REL, *out, jump, sweep)
+            _audit.kinematics(c(tr.t, dtype=np.float64), c(tr.position, dtype=np.float64),
+                              c(tr.velocity, dtype=np.float64),
+                              c(tr.linear_momentum, dtype=np.float64),
+                              c(tr.angular_momentum, dtype=np.float64),
+                              c(tr.angular_velocity, dtype=np.float64), c(self.mass),
+                              c(self.mass[:, None] * self.accel, dtype=np.float64),
+                              c(self.model.body_torque_world, dtype=np.float64),
+                              c(self.rho, dtype=np.float64),
+                              c(np.asarray(self.model.body_inertia_diag, float).max(axis=1)),
+                              float(tol.MOMENTUM_JUMP_REL), *out, jump, sweep)
             return dict(speed=out[0], spin=out[1], ke=out[2], u=out[3], jump=jump, sweep=sweep)
         return self.cached("kin", f)
 
@@ -617,9 +450,11 @@ class Context:
         ``J = P(k+1) - P(k) - (m g + F) dt``. Constant forces change momentum exactly in every
         integrator, so a free body has J = 0 to round-off."""
         out = np.empty((len(k), 3))
-        _impulse_kernel(np.ascontiguousarray(self.traj.linear_momentum, dtype=np.float64),
-                        self.dts, self.mass, self.accel, np.asarray(k, np.int64),
-                        np.asarray(i, np.int64), out)
+        c = np.ascontiguousarray
+        _audit.impulse_kernel(c(self.traj.linear_momentum, dtype=np.float64),
+                              c(self.dts, dtype=np.float64), c(self.mass, dtype=np.float64),
+                              c(self.accel, dtype=np.float64), c(k, dtype=np.int64),
+                              c(i, dtype=np.int64), out)
         return out
 
     def jumps(self) -> np.ndarray:
@@ -711,8 +546,13 @@ class Context:
             cap = int(jump.sum()) + 2 * len(ek)
             g_k, g_size, g_nstat, g_sid = (np.empty(cap, np.int64) for _ in range(4))
             m_k, m_i, m_g = (np.empty(cap, np.int64) for _ in range(3))
-            c, q = _groups_kernel(np.ascontiguousarray(jump), tch["n_static"], tch["static_id"],
-                                  ek, ea, eb, g_k, g_size, g_nstat, g_sid, m_k, m_i, m_g)
+            a = np.ascontiguousarray
+            c, q = _audit.groups_kernel(a(jump, dtype=np.bool_),
+                                        a(tch["n_static"], dtype=np.int64),
+                                        a(tch["static_id"], dtype=np.int64),
+                                        a(ek, dtype=np.int64), a(ea, dtype=np.int64),
+                                        a(eb, dtype=np.int64), g_k, g_size, g_nstat, g_sid, m_k,
+                                        m_i, m_g)
             nst = g_nstat[:c]
             return Groups(k=g_k[:c], size=g_size[:c], static=nst > 0, static_features=nst,
                           static_id=g_sid[:c], mem_group=m_g[:q], mem_k=m_k[:q], mem_i=m_i[:q])

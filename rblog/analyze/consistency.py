@@ -33,11 +33,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import math
-
 import numpy as np
-from numba import njit
 
+from rblog.analyze import _audit
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, all_finite
 from rblog.contract.orientation import quat_wxyz_to_matrix
@@ -92,148 +90,22 @@ def _segment_distance(r, a, b):
     return np.linalg.norm(r - (a + s[..., None] * u), axis=-1)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _row_dot(rot, k1, k0, b, i, j):
-    """(R(k1) R(k0)^T)_ij of body b: row i of R(k1) dot row j of R(k0)."""
-    return (rot[k1, b, i, 0] * rot[k0, b, j, 0] + rot[k1, b, i, 1] * rot[k0, b, j, 1]
-            + rot[k1, b, i, 2] * rot[k0, b, j, 2])
-
-
-@njit(cache=True, nogil=True, inline="always")
 def interval_rotvec(rot, k1, k0, b):
-    """Rotation vector (angle times axis, world frame, rad) of R(k1) R(k0)^T of body b, from the
-    entries it needs as scalars (an array here was a heap allocation per body-sample)."""
-    d00 = _row_dot(rot, k1, k0, b, 0, 0)
-    d11 = _row_dot(rot, k1, k0, b, 1, 1)
-    d22 = _row_dot(rot, k1, k0, b, 2, 2)
-    vx = 0.5 * (_row_dot(rot, k1, k0, b, 2, 1) - _row_dot(rot, k1, k0, b, 1, 2))
-    vy = 0.5 * (_row_dot(rot, k1, k0, b, 0, 2) - _row_dot(rot, k1, k0, b, 2, 0))
-    vz = 0.5 * (_row_dot(rot, k1, k0, b, 1, 0) - _row_dot(rot, k1, k0, b, 0, 1))
-    sn = math.sqrt(vx * vx + vy * vy + vz * vz)
-    ang = math.atan2(sn, 0.5 * (d00 + d11 + d22 - 1.0))
-    f = ang / sn if sn > 1e-300 else 1.0
-    return vx * f, vy * f, vz * f
-
-
-@njit(cache=True, nogil=True)
-def _kinematic_rel(rot, omega, dts, min_angle, smooth_frac, corr, rel):
-    """rel[k, n] (T-1, N): distance of the rotation vector of R(k+1) R(k)^T over dt from the
-    segment [w(k), w(k+1)], relative to max(|mean w|, |rate|); NaN where the interval is not
-    usable (turns less than min_angle or more than 1.5 rad, or w jumps by more than smooth_frac
-    of it). One compiled pass (the numpy form of the same costs ~1 s on a 500-body pile log)."""
-    n_k, n_b = rel.shape
-    for k in range(n_k):
-        h = dts[k]
-        for b in range(n_b):
-            tx, ty, tz = interval_rotvec(rot, k + 1, k, b)
-            rx, ry, rz = tx / h, ty / h, tz / h
-            w0, w1 = omega[k, b], omega[k + 1, b]
-            ux, uy, uz = w1[0] - w0[0], w1[1] - w0[1], w1[2] - w0[2]
-            mx, my, mz = 0.5 * (w0[0] + w1[0]), 0.5 * (w0[1] + w1[1]), 0.5 * (w0[2] + w1[2])
-            scale = max(math.sqrt(mx * mx + my * my + mz * mz), math.sqrt(rx * rx + ry * ry + rz * rz))
-            jump = math.sqrt(ux * ux + uy * uy + uz * uz)
-            if not (scale * h > min_angle and scale * h < 1.5 and jump <= smooth_frac * scale):
-                rel[k, b] = np.nan
-                continue
-            uu = ux * ux + uy * uy + uz * uz
-            t = 0.0
-            if uu > 0:
-                t = ((rx - w0[0]) * ux + (ry - w0[1]) * uy + (rz - w0[2]) * uz) / uu
-                t = min(1.0, max(0.0, t))
-            ex, ey, ez = rx - (w0[0] + t * ux), ry - (w0[1] + t * uy), rz - (w0[2] + t * uz)
-            rel[k, b] = math.sqrt(ex * ex + ey * ey + ez * ez) / (scale + corr / h)
-
-
-@njit(cache=True, nogil=True)
-def _linear_rel(pos, vel, dts, min_move, smooth_frac, acc, corr, rel):
-    """rel[k, n]: distance of (x(k+1) - x(k)) / dt from the segment [v(k), v(k+1)], relative to
-    max(|mean v|, |rate|) + acc dt + corr / dt; NaN where not usable (moves less than min_move,
-    or v jumps by more than smooth_frac of it plus acc dt)."""
-    n_k, n_b = rel.shape
-    for k in range(n_k):
-        h = dts[k]
-        for b in range(n_b):
-            x0, x1, v0, v1 = pos[k, b], pos[k + 1, b], vel[k, b], vel[k + 1, b]
-            rx, ry, rz = (x1[0] - x0[0]) / h, (x1[1] - x0[1]) / h, (x1[2] - x0[2]) / h
-            ux, uy, uz = v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]
-            mx, my, mz = 0.5 * (v0[0] + v1[0]), 0.5 * (v0[1] + v1[1]), 0.5 * (v0[2] + v1[2])
-            scale = max(math.sqrt(mx * mx + my * my + mz * mz), math.sqrt(rx * rx + ry * ry + rz * rz))
-            uu = ux * ux + uy * uy + uz * uz
-            if not (scale * h > min_move and math.sqrt(uu) <= smooth_frac * scale + acc[b] * h):
-                rel[k, b] = np.nan
-                continue
-            t = 0.0
-            if uu > 0:
-                t = ((rx - v0[0]) * ux + (ry - v0[1]) * uy + (rz - v0[2]) * uz) / uu
-                t = min(1.0, max(0.0, t))
-            ex, ey, ez = rx - (v0[0] + t * ux), ry - (v0[1] + t * uy), rz - (v0[2] + t * uz)
-            rel[k, b] = math.sqrt(ex * ex + ey * ey + ez * ez) / (scale + acc[b] * h + corr / h)
-
-
-@njit(cache=True, nogil=True)
-def _pointwise(quat, rot, mom, vel, omega, lw, mass, inertia, err_qm, ortho, dp, p_mag, rel_l,
-               l_scale):
-    """Per sample and body: ||R(q/|q|) - R||_F, ||R^T R - I||_F, |p - m v|, |p|,
-    |w - R diag(1/I) R^T L| / (|w| + |L| / I_min) and that scale."""
-    n_t, n_b = err_qm.shape
-    rq = np.empty((3, 3))
-    for k in range(n_t):
-        for b in range(n_b):
-            q = quat[k, b]
-            nq = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-            if nq == 0.0:
-                nq = 1.0
-            w, x, y, z = q[0] / nq, q[1] / nq, q[2] / nq, q[3] / nq
-            rq[0, 0] = 1 - 2 * (y * y + z * z)
-            rq[0, 1] = 2 * (x * y - w * z)
-            rq[0, 2] = 2 * (x * z + w * y)
-            rq[1, 0] = 2 * (x * y + w * z)
-            rq[1, 1] = 1 - 2 * (x * x + z * z)
-            rq[1, 2] = 2 * (y * z - w * x)
-            rq[2, 0] = 2 * (x * z - w * y)
-            rq[2, 1] = 2 * (y * z + w * x)
-            rq[2, 2] = 1 - 2 * (x * x + y * y)
-            r = rot[k, b]
-            e = 0.0
-            g = 0.0
-            for i in range(3):
-                for j in range(3):
-                    d = rq[i, j] - r[i, j]
-                    e += d * d
-                    gij = r[0, i] * r[0, j] + r[1, i] * r[1, j] + r[2, i] * r[2, j]
-                    if i == j:
-                        gij -= 1.0
-                    g += gij * gij
-            err_qm[k, b] = math.sqrt(e)
-            ortho[k, b] = math.sqrt(g)
-            m = mass[b]
-            p, v = mom[k, b], vel[k, b]
-            a0, a1, a2 = p[0] - m * v[0], p[1] - m * v[1], p[2] - m * v[2]
-            dp[k, b] = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-            p_mag[k, b] = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
-            l_ = lw[k, b]
-            om = omega[k, b]
-            b0 = (r[0, 0] * l_[0] + r[1, 0] * l_[1] + r[2, 0] * l_[2]) / inertia[b, 0]
-            b1 = (r[0, 1] * l_[0] + r[1, 1] * l_[1] + r[2, 1] * l_[2]) / inertia[b, 1]
-            b2 = (r[0, 2] * l_[0] + r[1, 2] * l_[1] + r[2, 2] * l_[2]) / inertia[b, 2]
-            c0 = om[0] - (r[0, 0] * b0 + r[0, 1] * b1 + r[0, 2] * b2)
-            c1 = om[1] - (r[1, 0] * b0 + r[1, 1] * b1 + r[1, 2] * b2)
-            c2 = om[2] - (r[2, 0] * b0 + r[2, 1] * b1 + r[2, 2] * b2)
-            imin = min(inertia[b, 0], min(inertia[b, 1], inertia[b, 2]))
-            sc = (math.sqrt(om[0] * om[0] + om[1] * om[1] + om[2] * om[2])
-                  + math.sqrt(l_[0] * l_[0] + l_[1] * l_[1] + l_[2] * l_[2]) / imin)
-            l_scale[k, b] = sc
-            rel_l[k, b] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / max(sc, 1e-300)
+    """Rotation vector (angle times axis, world frame, rad) of R(k1) R(k0)^T of body b, rot
+    (T, N, 3, 3): a tuple (x, y, z) (the compiled passes' own function, csrc/audit/audit.hpp)."""
+    return _audit.interval_rotvec(np.ascontiguousarray(rot, dtype=np.float64), int(k1), int(k0),
+                                  int(b))
 
 
 def _kinematic_median(rot, omega_world, dts, min_angle):
     """Per body: (median relative mismatch, usable interval count) between the rotation vector of
-    R(k+1) R(k)^T over dt and the logged world angular velocity (see _kinematic_rel). rot
-    (T, N, 3, 3), omega_world (T, N, 3), dts (T-1,)."""
+    R(k+1) R(k)^T over dt and the logged world angular velocity (kinematic_rel,
+    csrc/audit/consistency.cpp). rot (T, N, 3, 3), omega_world (T, N, 3), dts (T-1,)."""
     rel = np.empty((len(dts), rot.shape[1]))
-    _kinematic_rel(np.ascontiguousarray(rot, np.float64), np.ascontiguousarray(omega_world, np.float64),
-                   np.ascontiguousarray(dts, np.float64), float(min_angle), float(SMOOTH_FRAC),
-                   float(T.CONSISTENCY_CORRECTION), rel)
+    _audit.kinematic_rel(np.ascontiguousarray(rot, np.float64),
+                         np.ascontiguousarray(omega_world, np.float64),
+                         np.ascontiguousarray(dts, np.float64), float(min_angle),
+                         float(SMOOTH_FRAC), float(T.CONSISTENCY_CORRECTION), rel)
     use = ~np.isnan(rel)
     count = use.sum(axis=0)
     with np.errstate(all="ignore"):
@@ -303,9 +175,10 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]
     # quaternion vs matrix, p = m v, w = R diag(1/I) R^T L: one compiled pass
     shape = (len(t), n)
     err, ortho, dp, p_mag, rel_l, scale_l = (np.empty(shape) for _ in range(6))
-    c = np.ascontiguousarray
-    _pointwise(c(quat), c(rot), c(mom), c(vel), c(omega), c(lw), c(mass), c(inertia), err, ortho,
-               dp, p_mag, rel_l, scale_l)
+    def c(a):
+        return np.ascontiguousarray(a, dtype=np.float64)
+    _audit.pointwise(c(quat), c(rot), c(mom), c(vel), c(omega), c(lw), c(mass), c(inertia), err,
+                     ortho, dp, p_mag, rel_l, scale_l)
     allow = tol["quat_matrix"] + 2.0 * ortho
     bad_qm = err > allow
     if bad_qm.any():
@@ -398,8 +271,9 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]
         g = np.linalg.norm(np.asarray(model.gravity, float))
         acc = g + np.linalg.norm(np.asarray(model.body_force_world, float), axis=-1) / mass
         rel = np.empty((len(dts), n))
-        _linear_rel(c(pos), c(vel), c(dts), float(min_angle) * 1.0, float(SMOOTH_FRAC), c(acc),
-                    float(T.CONSISTENCY_CORRECTION), rel)  # min_angle in m: see the tolerance
+        # (min_angle in m: see the tolerance)
+        _audit.linear_rel(c(pos), c(vel), c(dts), float(min_angle) * 1.0, float(SMOOTH_FRAC),
+                          c(acc), float(T.CONSISTENCY_CORRECTION), rel)
         use = ~np.isnan(rel)
         cnt = use.sum(axis=0)
         import warnings

@@ -20,11 +20,9 @@ e-folding rate, 1/s; the notes' unnormalized scheme grows det R like exp(h âˆ«|Ï
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
 
+from rblog.analyze import _audit
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
@@ -36,52 +34,6 @@ _METRICS = (
     ("quat_norm_error", "quat_norm_error", "||q| - 1|"),
     ("distance_rel", "distance_rel", "relative body-fixed distance change"),
 )
-
-
-@njit(cache=True, nogil=True)
-def _rigidity(rot, quat, out):
-    """Per sample and body: out[0] ||R^T R - I||_F, out[1] |det R - 1|, out[2] ||q| - 1|, out[3]
-    the largest relative change of a body-fixed distance, max(sigma_max - 1, 1 - sigma_min) with
-    sigma the singular values of R (sigma^2 = eigenvalues of G = R^T R, closed form for a
-    symmetric 3x3 matrix)."""
-    t_n, n = rot.shape[0], rot.shape[1]
-    for t in range(t_n):
-        for b in range(n):
-            r = rot[t, b]
-            e00 = r[0, 0] * r[0, 0] + r[1, 0] * r[1, 0] + r[2, 0] * r[2, 0] - 1.0
-            e11 = r[0, 1] * r[0, 1] + r[1, 1] * r[1, 1] + r[2, 1] * r[2, 1] - 1.0
-            e22 = r[0, 2] * r[0, 2] + r[1, 2] * r[1, 2] + r[2, 2] * r[2, 2] - 1.0
-            e01 = r[0, 0] * r[0, 1] + r[1, 0] * r[1, 1] + r[2, 0] * r[2, 1]
-            e02 = r[0, 0] * r[0, 2] + r[1, 0] * r[1, 2] + r[2, 0] * r[2, 2]
-            e12 = r[0, 1] * r[0, 2] + r[1, 1] * r[1, 2] + r[2, 1] * r[2, 2]
-            off = e01 * e01 + e02 * e02 + e12 * e12
-            out[0, t, b] = math.sqrt(e00 * e00 + e11 * e11 + e22 * e22 + 2.0 * off)
-            det = (r[0, 0] * (r[1, 1] * r[2, 2] - r[1, 2] * r[2, 1])
-                   - r[0, 1] * (r[1, 0] * r[2, 2] - r[1, 2] * r[2, 0])
-                   + r[0, 2] * (r[1, 0] * r[2, 1] - r[1, 1] * r[2, 0]))
-            out[1, t, b] = abs(det - 1.0)
-            q = quat[t, b]
-            out[2, t, b] = abs(math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-                               - 1.0)
-            # eigenvalues of E = G - I (Smith's trigonometric method)
-            qm = (e00 + e11 + e22) / 3.0
-            a00, a11, a22 = e00 - qm, e11 - qm, e22 - qm
-            p = math.sqrt((a00 * a00 + a11 * a11 + a22 * a22 + 2.0 * off) / 6.0)
-            if p > 0.0:
-                detb = (a00 * (a11 * a22 - e12 * e12) - e01 * (e01 * a22 - e12 * e02)
-                        + e02 * (e01 * e12 - a11 * e02))
-                c = detb / (2.0 * p * p * p)
-                c = min(1.0, max(-1.0, c))
-                phi = math.acos(c) / 3.0
-                lmax = qm + 2.0 * p * math.cos(phi)
-                lmin = qm + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
-            else:
-                lmax = qm
-                lmin = qm
-            # sqrt(1 + l) - 1 without cancellation
-            up = lmax / (1.0 + math.sqrt(1.0 + lmax)) if lmax > -1.0 else -1.0
-            dn = lmin / (1.0 + math.sqrt(1.0 + lmin)) if lmin > -1.0 else -1.0
-            out[3, t, b] = max(abs(up), abs(dn))
 
 
 def _fit(t: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -112,8 +64,8 @@ class DriftAnalyzer(Analyzer):
         """Each metric (T, N), recomputed from the logged rotation and quaternion."""
         tr = ctx.traj
         out = np.empty((4,) + tr.rotation.shape[:2])
-        _rigidity(np.ascontiguousarray(tr.rotation, dtype=np.float64),
-                  np.ascontiguousarray(tr.quat_wxyz, dtype=np.float64), out)
+        _audit.rigidity(np.ascontiguousarray(tr.rotation, dtype=np.float64),
+                        np.ascontiguousarray(tr.quat_wxyz, dtype=np.float64), out)
         return {"ortho_error": out[0], "det_error": out[1], "quat_norm_error": out[2],
                 "distance_rel": out[3]}
 

@@ -28,11 +28,9 @@ a reason when that is every body).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
 
+from rblog.analyze import _audit
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
                                 static_material)
@@ -82,9 +80,14 @@ class EnergyAnalyzer(Analyzer):
         while True:
             segs = np.empty((cap, 4), np.int64)  # body, first sample, last sample, worst sample
             vals = np.empty((cap, 5))  # worst ratio, rel, tol rel, scale, rate (rel/s)
-            cnt = _free_drift(free, t, e, ke, u, sp, m, amag,
-                              ctx.dt_step * self.tol["dt_factor"], self.tol["drift_rel"],
-                              self.tol["floor_j_per_kg"], segs, vals)
+            asc = np.ascontiguousarray
+            cnt = _audit.free_drift(asc(free, dtype=np.bool_), asc(t, dtype=np.float64),
+                                    asc(e, dtype=np.float64), asc(ke, dtype=np.float64),
+                                    asc(u, dtype=np.float64), asc(sp, dtype=np.float64),
+                                    asc(m, dtype=np.float64), asc(amag, dtype=np.float64),
+                                    float(ctx.dt_step * self.tol["dt_factor"]),
+                                    float(self.tol["drift_rel"]),
+                                    float(self.tol["floor_j_per_kg"]), segs, vals)
             if cnt <= cap:
                 break
             cap = cnt
@@ -154,72 +157,3 @@ class EnergyAnalyzer(Analyzer):
         if ctx.has_torque.any():
             stats["bodies_with_torque_skipped"] = float(ctx.has_torque.sum())
         return self.result(worst, findings, stats, n_findings=n_found)
-
-
-@njit(cache=True, nogil=True)
-def _free_drift(free, t, e, ke, u, speed, mass, amag, dt, drift_rel, floor, segs, vals):
-    """Energy drift over each contact-free stretch (maximal run of free intervals of one body).
-
-    For each stretch [k0, k1] of body b: scale = max(max KE, max U - min U, floor m); at every
-    sample k, drift |E(k) - E(k0)| against drift_rel scale + m |a| dt (|v(k)| + |v(k0)|) / 2.
-    Writes per stretch (while it fits): segs = (b, k0, k1, worst k), vals = (worst ratio of drift
-    to allowed, its drift / scale, its allowed / scale, scale, least-squares slope of
-    (E - E(k0)) / scale against t). Returns the number of stretches."""
-    kn, n = free.shape
-    cap = segs.shape[0]
-    cnt = 0
-    for b in range(n):
-        k = 0
-        while k < kn:
-            if not free[k, b]:
-                k += 1
-                continue
-            k0 = k
-            while k < kn and free[k, b]:
-                k += 1
-            k1 = k  # last sample of the stretch (intervals k0 .. k1 - 1)
-            kmax = 0.0
-            umin = u[k0, b]
-            umax = u[k0, b]
-            for j in range(k0, k1 + 1):
-                kmax = max(kmax, ke[j, b])
-                umin = min(umin, u[j, b])
-                umax = max(umax, u[j, b])
-            scale = max(kmax, umax - umin, floor * mass[b])
-            best = -1.0
-            kb = k0
-            st = 0.0
-            sy = 0.0
-            stt = 0.0
-            sty = 0.0
-            for j in range(k0, k1 + 1):
-                d = e[j, b] - e[k0, b]
-                allow = drift_rel * scale + 0.5 * mass[b] * amag[b] * dt * (speed[j, b]
-                                                                           + speed[k0, b])
-                r = abs(d) / allow if allow > 0 else (math.inf if d != 0 else 0.0)
-                if r > best:
-                    best = r
-                    kb = j
-                tj = t[j] - t[k0]
-                y = d / scale
-                st += tj
-                sy += y
-                stt += tj * tj
-                sty += tj * y
-            npts = k1 - k0 + 1
-            den = npts * stt - st * st
-            if cnt < cap:
-                d = e[kb, b] - e[k0, b]
-                allow = drift_rel * scale + 0.5 * mass[b] * amag[b] * dt * (speed[kb, b]
-                                                                           + speed[k0, b])
-                segs[cnt, 0] = b
-                segs[cnt, 1] = k0
-                segs[cnt, 2] = k1
-                segs[cnt, 3] = kb
-                vals[cnt, 0] = best
-                vals[cnt, 1] = abs(d) / scale
-                vals[cnt, 2] = allow / scale
-                vals[cnt, 3] = scale
-                vals[cnt, 4] = (npts * sty - st * sy) / den if den > 0 else 0.0
-            cnt += 1
-    return cnt

@@ -39,8 +39,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from rblog.analyze import _audit
 from rblog.contract.model import SHAPE_SPHERE
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
@@ -97,32 +97,6 @@ class Events:
         return self.groups.members(int(self.first[j]))
 
 
-@njit(cache=True, nogil=True)
-def _link_groups(gk, h, size, sid, mem0, n, eid, head_of, k1):
-    """Chain contact groups (ordered by interval) into events: a group continues the event of
-    the group of the previous interval with the same key (member-set hash h, size, static
-    feature sid, smallest member mem0), else starts one. A body is the smallest member of at
-    most one group per interval, so that group is the last one seen with its mem0. Writes
-    eid (C,) the event of each group, head_of (E,) its first group and k1 (E,) its last
-    interval, events numbered as they start; returns E."""
-    last = np.full(n, -1, np.int64)
-    n_ev = 0
-    for g in range(gk.shape[0]):
-        m = mem0[g]
-        p = last[m]
-        if (p >= 0 and gk[p] == gk[g] - 1 and h[p] == h[g] and size[p] == size[g]
-                and sid[p] == sid[g]):
-            e = eid[p]
-        else:
-            e = n_ev
-            head_of[e] = g
-            n_ev += 1
-        eid[g] = e
-        k1[e] = gk[g]
-        last[m] = g
-    return n_ev
-
-
 def impact_events(ctx, cd: float, dt_factor: float) -> Events:
     """The events of ``ctx`` (see the module docstring); cached per (cd, dt_factor)."""
     return ctx.cached(("events", cd, dt_factor), lambda: _events(ctx, cd, dt_factor))
@@ -150,8 +124,10 @@ def _events(ctx, cd, dt_factor) -> Events:
         eid_of = np.empty(c, np.int64)
         head_of = np.empty(c, np.int64)
         k1 = np.empty(c, np.int64)
-        n_ev = _link_groups(np.asarray(grp.k, np.int64), h, np.asarray(sizes, np.int64), sid_g,
-                            mem0, n, eid_of, head_of, k1)
+        asc = np.ascontiguousarray
+        n_ev = _audit.link_groups(asc(grp.k, dtype=np.int64), asc(h, dtype=np.int64),
+                                  asc(sizes, dtype=np.int64), asc(sid_g, dtype=np.int64),
+                                  asc(mem0, dtype=np.int64), n, eid_of, head_of, k1)
         first, k1 = head_of[:n_ev], k1[:n_ev]
         k0 = grp.k[first]
         # events in the order of their first interval, then of their key (hash, size, static

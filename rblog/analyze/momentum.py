@@ -52,11 +52,9 @@ scale in words; splitting them would pass the same half-dozen arrays between mod
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
 
+from rblog.analyze import _audit
 from rblog.contract.model import SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.analyze import geometry
@@ -314,11 +312,14 @@ class MomentumAnalyzer(Analyzer):
             segs = np.empty((cap, 5), np.int64)  # body, k0, k1, worst k linear, worst k angular
             vals = np.empty((cap, 6))  # linear rel, scale, drift; angular rel, scale, drift
             c = np.ascontiguousarray
-            cnt = _flight_drift(free, c(tr.t, dtype=np.float64),
-                                c(tr.linear_momentum, dtype=np.float64),
-                                c(tr.angular_momentum, dtype=np.float64), ctx.speed, ctx.mass,
-                                force, tau, p_floor, i_max * T.MOMENTUM_SPIN_FLOOR_RADPS,
-                                segs, vals)
+            cnt = _audit.flight_drift(c(free, dtype=np.bool_), c(tr.t, dtype=np.float64),
+                                      c(tr.linear_momentum, dtype=np.float64),
+                                      c(tr.angular_momentum, dtype=np.float64),
+                                      c(ctx.speed, dtype=np.float64),
+                                      c(ctx.mass, dtype=np.float64), c(force, dtype=np.float64),
+                                      c(tau, dtype=np.float64), c(p_floor, dtype=np.float64),
+                                      c(i_max * T.MOMENTUM_SPIN_FLOOR_RADPS, dtype=np.float64),
+                                      segs, vals)
             if cnt <= cap:
                 break
             cap = cnt
@@ -410,10 +411,15 @@ class MomentumAnalyzer(Analyzer):
             nrm[sb] = _fan_normal(model, sid[sb], pts, nrm[sb], jv[sb], mu_static(
                 model, i[sb], sid[sb], tr.info.combine_friction), near_tol)
         jn, jt, excess = (np.empty(len(k)) for _ in range(3))
-        _cone_kernel(jv, np.ascontiguousarray(nrm), np.asarray(mu, float), ctx.mass, ctx.speed,
-                     np.linalg.norm(ctx.accel, axis=1), ctx.dts, np.asarray(k, np.int64),
-                     np.asarray(i, np.int64), float(self.tol["cone_floor_ns"]),
-                     T.MOMENTUM_CONE_RESOLUTION_ULPS * np.finfo(float).eps, jn, jt, excess)
+        asc = np.ascontiguousarray
+        _audit.cone_kernel(asc(jv, dtype=np.float64), asc(nrm, dtype=np.float64),
+                           asc(mu, dtype=np.float64), asc(ctx.mass, dtype=np.float64),
+                           asc(ctx.speed, dtype=np.float64),
+                           asc(np.linalg.norm(ctx.accel, axis=1), dtype=np.float64),
+                           asc(ctx.dts, dtype=np.float64), asc(k, dtype=np.int64),
+                           asc(i, dtype=np.int64), float(self.tol["cone_floor_ns"]),
+                           float(T.MOMENTUM_CONE_RESOLUTION_ULPS * np.finfo(float).eps), _TINY,
+                           jn, jt, excess)
         tcone = self.tol["cone_rel"]
         stats["cone_excess_rel_max"] = float(excess.max())
         self._worst.offer_array(excess, tcone, "1", step[k + 1], t[k + 1], i,
@@ -601,97 +607,3 @@ class MomentumAnalyzer(Analyzer):
             f"at t = {cts.t[j]:.6g} s: impulse outside the friction cone (normal {jn[j]:.3g} N s, "
             f"friction {ftt[j]:.3g} N s, along the normal {along[j]:.3g} N s, mu = {mu[j]:.3g})",
             float(excess[j]), tcone, "1", int(cts.step[j]), float(cts.t[j]), [int(ca[j])]))
-
-
-@njit(cache=True, nogil=True)
-def _cone_kernel(jv, nrm, mu, mass, speed, accel_norm, dts, k, i, floor_ns, res_eps, jn, jt,
-                 excess):
-    """Per row r (body i[r] over interval k[r], inferred impulse jv[r], normal nrm[r]): the
-    normal and tangential impulse jn, jt (N s) and the cone excess max(jt - mu jn, -jn) / |J|,
-    zeroed where it is not above the floor ``floor_ns + res_eps m (max |v| + |a| dt)`` (the
-    log's impulse resolution). The arithmetic in the order of the numpy it replaced (einsum's
-    (p0 + p2) + p1, norm's sequential sum), so reports stay bit-identical."""
-    for r in range(k.shape[0]):
-        kr, b = k[r], i[r]
-        j0, j1, j2 = jv[r, 0], jv[r, 1], jv[r, 2]
-        n0, n1, n2 = nrm[r, 0], nrm[r, 1], nrm[r, 2]
-        jnr = (j0 * n0 + j2 * n2) + j1 * n1  # normal impulse
-        t0, t1, t2 = j0 - jnr * n0, j1 - jnr * n1, j2 - jnr * n2
-        jtr = math.sqrt((t0 * t0 + t1 * t1) + t2 * t2)  # tangential
-        jm = math.sqrt((j0 * j0 + j1 * j1) + j2 * j2) + _TINY
-        a, c = jtr - mu[r] * jnr, -jnr
-        ex_ns = np.nan if (a != a or c != c) else (a if a >= c else c)
-        s0, s1 = speed[kr, b], speed[kr + 1, b]
-        sp = np.nan if (s0 != s0 or s1 != s1) else (s0 if s0 >= s1 else s1)
-        floor = floor_ns + res_eps * mass[b] * (sp + accel_norm[b] * dts[kr])
-        jn[r] = jnr
-        jt[r] = jtr
-        excess[r] = ex_ns / jm if ex_ns > floor else 0.0
-
-
-@njit(cache=True, nogil=True)
-def _flight_drift(free, t, p, l, speed, mass, force, tau, p_floor, l_floor, segs, vals):
-    """Momentum drift over each free flight (maximal run of free intervals of one body).
-
-    For flight [k0, k1] of body b, at every sample k: ``|P(k) - P(k0) - force (t_k - t_k0)|``
-    against the scale m max|v| + p_floor, and ``|L(k) - L(k0) - tau (t_k - t_k0)|`` against max|L|
-    + l_floor. Writes per flight (while it fits): segs = (b, k0, k1, worst k linear, worst k
-    angular), vals = (linear rel, its scale, its drift, angular rel, scale, drift). Returns the
-    number of flights."""
-    kn, n = free.shape
-    cap = segs.shape[0]
-    cnt = 0
-    for b in range(n):
-        k = 0
-        while k < kn:
-            if not free[k, b]:
-                k += 1
-                continue
-            k0 = k
-            while k < kn and free[k, b]:
-                k += 1
-            k1 = k
-            # one pass: the largest drifts and the largest |v|, |L| (squared until the end)
-            v2 = speed[k0, b] * speed[k0, b]
-            l2 = l[k0, b, 0] ** 2 + l[k0, b, 1] ** 2 + l[k0, b, 2] ** 2
-            dp2 = 0.0
-            dl2 = 0.0
-            kp = k0
-            kl = k0
-            for j in range(k0 + 1, k1 + 1):
-                dt = t[j] - t[k0]
-                dp = 0.0
-                dl = 0.0
-                lj = 0.0
-                for d in range(3):
-                    x = p[j, b, d] - p[k0, b, d] - force[b, d] * dt
-                    y = l[j, b, d] - l[k0, b, d] - tau[b, d] * dt
-                    dp += x * x
-                    dl += y * y
-                    lj += l[j, b, d] * l[j, b, d]
-                v2 = max(v2, speed[j, b] * speed[j, b])
-                l2 = max(l2, lj)
-                if dp > dp2:
-                    dp2 = dp
-                    kp = j
-                if dl > dl2:
-                    dl2 = dl
-                    kl = j
-            ps = mass[b] * math.sqrt(v2) + p_floor[b]
-            ls = math.sqrt(l2) + l_floor[b]
-            dp_max = math.sqrt(dp2)
-            dl_max = math.sqrt(dl2)
-            if cnt < cap:
-                segs[cnt, 0] = b
-                segs[cnt, 1] = k0
-                segs[cnt, 2] = k1
-                segs[cnt, 3] = kp
-                segs[cnt, 4] = kl
-                vals[cnt, 0] = dp_max / ps
-                vals[cnt, 1] = ps
-                vals[cnt, 2] = dp_max
-                vals[cnt, 3] = dl_max / ls
-                vals[cnt, 4] = ls
-                vals[cnt, 5] = dl_max
-            cnt += 1
-    return cnt

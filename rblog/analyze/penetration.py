@@ -35,7 +35,7 @@ pivoting on a corner of another) has no slip there.
   least-slipping point (a box swinging about one end of its edge slides 0), a face patch 0 when
   the pair turns about a point on both faces (a box pivoting on one corner of its face contact);
   where more points carry load, static friction holds them all, and the witness is judged (see
-  _contact_slide). From the poses, motion the
+  contact_slide in csrc/audit/penetration.cpp). From the poses, motion the
   velocities do not show is creep too (an engine's position correction pushing a resting body
   along at a few mm/s, steps between samples at which a contact slipped slowly),
   and velocities that never move the body (spikes between steps) are not.
@@ -66,235 +66,14 @@ splitting them would pass those arrays and the interval bookkeeping between modu
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
 
-from rblog.analyze import geometry
+from rblog.analyze import _audit, geometry
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
                                 combine_friction, static_material)
-from rblog.analyze.consistency import interval_rotvec
 from rblog.analyze.momentum import static_feature_of_points
 from rblog.contract.trajectory import STATIC_BODY
-
-
-@njit(cache=True, nogil=True)
-def _deepest(ground, cd, pk, pa, pb, ps, n, kind, ref):
-    """The deepest contact of each body at each sample: kind[i, k] (0 ground, 1 pair row as a,
-    2 pair row as b) and ref[i, k] (its pair row), among the ground (T, N) separations within cd
-    and the pair rows (pairs count for both bodies)."""
-    best = np.full(kind.shape, np.inf)
-    for k in range(ground.shape[0]):
-        for i in range(ground.shape[1]):
-            if ground[k, i] <= cd:
-                best[i, k] = ground[k, i]
-                kind[i, k] = 0
-    for r in range(pk.shape[0]):
-        k, a, b, sv = pk[r], pa[r], pb[r], ps[r]
-        if sv < best[a, k]:
-            best[a, k] = sv
-            kind[a, k] = 1
-            ref[a, k] = r
-        if b < n and sv < best[b, k]:
-            best[b, k] = sv
-            kind[b, k] = 2
-            ref[b, k] = r
-
-
-@njit(cache=True, nogil=True)
-def _contact_velocity(pk, pi_, pb, point, normal, position, velocity, omega, n, cv, slip, cspeed,
-                      wspeed):
-    """Per support row r (body pi_[r] at sample pk[r] on partner pb[r], contact point point[r],
-    normal normal[r]): the contact point's velocity relative to the partner (a body partner's
-    point velocity subtracted; static partners are still) ``cv = v + w x (p - x)``, its
-    tangential part ``slip = cv - (cv.n) n``, ``cspeed = |cv|`` and ``wspeed = |w - w_partner|``
-    (m/s, rad/s)."""
-    for r in range(pk.shape[0]):
-        k, i, b = pk[r], pi_[r], pb[r]
-        w0, w1, w2 = omega[k, i, 0], omega[k, i, 1], omega[k, i, 2]
-        r0 = point[r, 0] - position[k, i, 0]
-        r1 = point[r, 1] - position[k, i, 1]
-        r2 = point[r, 2] - position[k, i, 2]
-        c0 = velocity[k, i, 0] + (w1 * r2 - w2 * r1)
-        c1 = velocity[k, i, 1] + (w2 * r0 - w0 * r2)
-        c2 = velocity[k, i, 2] + (w0 * r1 - w1 * r0)
-        if b >= 0 and b < n:  # the partner body's point velocity at the same point
-            u0, u1, u2 = omega[k, b, 0], omega[k, b, 1], omega[k, b, 2]
-            q0 = point[r, 0] - position[k, b, 0]
-            q1 = point[r, 1] - position[k, b, 1]
-            q2 = point[r, 2] - position[k, b, 2]
-            c0 -= velocity[k, b, 0] + (u1 * q2 - u2 * q1)
-            c1 -= velocity[k, b, 1] + (u2 * q0 - u0 * q2)
-            c2 -= velocity[k, b, 2] + (u0 * q1 - u1 * q0)
-            w0, w1, w2 = w0 - u0, w1 - u1, w2 - u2
-        n0, n1, n2 = normal[r, 0], normal[r, 1], normal[r, 2]
-        # dot products summed as numpy's einsum sums a row of three: (p0 + p2) + p1
-        vn = (c0 * n0 + c2 * n2) + c1 * n1  # normal component
-        cv[r, 0], cv[r, 1], cv[r, 2] = c0, c1, c2
-        slip[r, 0], slip[r, 1], slip[r, 2] = c0 - vn * n0, c1 - vn * n1, c2 - vn * n2
-        cspeed[r] = math.sqrt((c0 * c0 + c2 * c2) + c1 * c1)
-        wspeed[r] = math.sqrt((w0 * w0 + w2 * w2) + w1 * w1)
-
-
-@njit(cache=True, nogil=True)
-def _on_face(x, rot, h, d0, d1, d2, c0, c1, c2, band):
-    """True when box (centre x, rotation rot body -> world, half extents h) touches along
-    (d0, d1, d2) with a face (two free axes, geometry._feature_signs) and the point c lies on that
-    face within ``band`` (its body coordinates along the free axes within h + band)."""
-    p0 = rot[0, 0] * d0 + rot[1, 0] * d1 + rot[2, 0] * d2
-    p1 = rot[0, 1] * d0 + rot[1, 1] * d1 + rot[2, 1] * d2
-    p2 = rot[0, 2] * d0 + rot[1, 2] * d1 + rot[2, 2] * d2
-    _, _, _, f0, f1, f2, _ = geometry._feature_signs(p0, p1, p2, h[0], h[1], h[2], band)
-    if int(f0) + int(f1) + int(f2) != 2:
-        return False
-    for j in range(3):
-        if not (f0 if j == 0 else (f1 if j == 1 else f2)):
-            continue
-        loc = (rot[0, j] * (c0 - x[0]) + rot[1, j] * (c1 - x[1]) + rot[2, j] * (c2 - x[2]))
-        if abs(loc) > h[j] + band:
-            return False
-    return True
-
-
-@njit(cache=True, nogil=True)
-def _contact_slide(pk, pi_, pb, point, span, normal, position, rotation, n, nxt, disp,
-                   is_box, size, s_pos, s_rot, s_half, band, nload):
-    """Per support row r whose next row r + 1 is the same body on the same partner at the next
-    sample (``nxt[r]``, which the caller sets only then): the tangential slide (m, world) at the contact point over that sample
-    interval, from the poses alone. Each body's displacement over the interval is the rigid field
-    ``d(p) = (x(k+1) - x(k)) + theta x (p - x)`` at the contact point, with p and x the midpoints
-    of the contact point (``point[r]``, ``point[r + 1]``) and of the centre, theta the
-    rotation vector of R(k+1) R(k)^T; the slide is d_body(p) - d_partner(p) (static partners are
-    still) minus its part along ``normal[r]``. The field is the pose-derived velocity times the
-    interval, so a body rolling on the contact point slides 0 (as a material point it would trace
-    a cycloid, whose cubic term adds up over a roll), one pivoting on it slides by the third-order
-    remainder (theta^3 |x - p| / 12 per interval), and a contact that slips slides by the slip.
-    An edge patch (``span[r]`` nonzero: the patch is point +- span) slides by the least slide of
-    its points: the field is affine along the segment, so that is the tangential part of
-    d(p) + s (theta_body - theta_partner) x span at the s in [-1, 1] that minimises it. A box
-    swinging about one end of its edge (pivoting there, its other end scraping) slides 0, like
-    one pivoting on a corner; a box sliding along does not. A face patch (two boxes face to face,
-    or a box face down on the ground) is judged at its witness, the overlap's centroid, unless the
-    pair turns over the interval about a point that lies on both faces (within ``band``): the
-    slide field in the contact plane is then a turn about c = p + (n x d) / theta_n (d the slide
-    at the witness p, theta_n the relative turn about the normal), zero at c, so the interval
-    slides 0 (a box pivoting on one corner of its face contact, the rest of the face scraping).
-    Both patch rules hold only where the pair's logged rows carry load at one point at most
-    (``nload`` (R,) <= 1 at both samples; -1, no rows, counts as one): a patch whose other
-    points are loaded too holds them by static friction, so turning about one of them is creep.
-    ``is_box``/``size``: the bodies' shapes; ``s_*`` the static boxes (partner b = n + m).
-    Rows without such a successor get 0."""
-    for r in range(pk.shape[0]):
-        disp[r, 0] = 0.0
-        disp[r, 1] = 0.0
-        disp[r, 2] = 0.0
-        if not nxt[r]:
-            continue
-        k, i, b = pk[r], pi_[r], pb[r]
-        d0 = 0.0
-        d1 = 0.0
-        d2 = 0.0
-        q0 = 0.0  # theta_body - theta_partner
-        q1 = 0.0
-        q2 = 0.0
-        for side in range(2):
-            j = i if side == 0 else b
-            if side == 1 and (j < 0 or j >= n):
-                continue
-            sg = 1.0 if side == 0 else -1.0
-            t0, t1, t2 = interval_rotvec(rotation, k + 1, k, j)
-            # lever arm from the centre to the contact point, both at the interval's midpoint
-            # (the midpoint rule: exact for a body rolling at constant rates, third order for
-            # one pivoting on the point)
-            y0 = 0.5 * (point[r, 0] + point[r + 1, 0] - position[k, j, 0] - position[k + 1, j, 0])
-            y1 = 0.5 * (point[r, 1] + point[r + 1, 1] - position[k, j, 1] - position[k + 1, j, 1])
-            y2 = 0.5 * (point[r, 2] + point[r + 1, 2] - position[k, j, 2] - position[k + 1, j, 2])
-            d0 += sg * (position[k + 1, j, 0] - position[k, j, 0] + t1 * y2 - t2 * y1)
-            d1 += sg * (position[k + 1, j, 1] - position[k, j, 1] + t2 * y0 - t0 * y2)
-            d2 += sg * (position[k + 1, j, 2] - position[k, j, 2] + t0 * y1 - t1 * y0)
-            q0 += sg * t0
-            q1 += sg * t1
-            q2 += sg * t2
-        m0, m1, m2 = normal[r, 0], normal[r, 1], normal[r, 2]
-        dn = d0 * m0 + d1 * m1 + d2 * m2
-        d0, d1, d2 = d0 - dn * m0, d1 - dn * m1, d2 - dn * m2
-        # the edge patch's half-span at the interval's midpoint (ends aligned: the feature's
-        # direction may flip sign between samples)
-        e0, e1, e2 = span[r + 1, 0], span[r + 1, 1], span[r + 1, 2]
-        if e0 * span[r, 0] + e1 * span[r, 1] + e2 * span[r, 2] < 0.0:
-            e0, e1, e2 = -e0, -e1, -e2
-        e0 = 0.5 * (span[r, 0] + e0)
-        e1 = 0.5 * (span[r, 1] + e1)
-        e2 = 0.5 * (span[r, 2] + e2)
-        if nload[r] > 1 or nload[r + 1] > 1:  # loaded over the patch: judged at its witness
-            e0 = e1 = e2 = 0.0
-        qn = q0 * m0 + q1 * m1 + q2 * m2
-        # (slides under a nanometre keep the witness's value: nothing to gain from the test)
-        if (e0 == 0.0 and e1 == 0.0 and e2 == 0.0 and is_box[i] and abs(qn) > 0.0
-                and nload[r] <= 1 and nload[r + 1] <= 1 and d0 * d0 + d1 * d1 + d2 * d2 > 1e-18):
-            # a face patch turning about c = p + (n x d) / theta_n: on both faces, no slide
-            px = 0.5 * (point[r, 0] + point[r + 1, 0]) + (m1 * d2 - m2 * d1) / qn
-            py = 0.5 * (point[r, 1] + point[r + 1, 1]) + (m2 * d0 - m0 * d2) / qn
-            pz = 0.5 * (point[r, 2] + point[r + 1, 2]) + (m0 * d1 - m1 * d0) / qn
-            on = _on_face(position[k, i], rotation[k, i], size[i], -m0, -m1, -m2, px, py, pz,
-                          band)
-            if on and b >= n:
-                mm = b - n
-                on = _on_face(s_pos[mm], s_rot[mm], s_half[mm], m0, m1, m2, px, py, pz, band)
-            elif on and b >= 0:
-                on = is_box[b] and _on_face(position[k, b], rotation[k, b], size[b], m0, m1, m2,
-                                            px, py, pz, band)
-            if on:
-                d0 = d1 = d2 = 0.0
-        if e0 != 0.0 or e1 != 0.0 or e2 != 0.0:
-            # slide per unit s along the patch: (theta_body - theta_partner) x span, tangential
-            g0 = q1 * e2 - q2 * e1
-            g1 = q2 * e0 - q0 * e2
-            g2 = q0 * e1 - q1 * e0
-            gn = g0 * m0 + g1 * m1 + g2 * m2
-            g0, g1, g2 = g0 - gn * m0, g1 - gn * m1, g2 - gn * m2
-            gg = g0 * g0 + g1 * g1 + g2 * g2
-            if gg > 0.0:
-                sm = -(d0 * g0 + d1 * g1 + d2 * g2) / gg
-                sm = min(max(sm, -1.0), 1.0)
-                d0, d1, d2 = d0 + sm * g0, d1 + sm * g1, d2 + sm * g2
-        disp[r, 0] = d0
-        disp[r, 1] = d1
-        disp[r, 2] = d2
-
-
-@njit(cache=True, nogil=True)
-def _impact_jump(velocity, omega, reach):
-    """(T-1, N) how much each sample interval changes a body's velocity, plus its angular velocity
-    times ``reach`` (N,), beyond the mean change of the neighbouring intervals (m/s): 0 under any
-    steady acceleration, the size of the kick where the body was struck between samples. (The
-    first and last intervals compare with their one neighbour; a single interval with 0.)"""
-    m = velocity.shape[0] - 1
-    n = velocity.shape[1]
-    out = np.zeros((max(m, 0), n))
-    for k in range(m):
-        for i in range(n):
-            tot = 0.0
-            for which in range(2):
-                a = velocity if which == 0 else omega
-                e2 = 0.0
-                for c in range(3):
-                    d = a[k + 1, i, c] - a[k, i, c]
-                    if m == 1:
-                        ref = 0.0
-                    elif k == 0:
-                        ref = a[2, i, c] - a[1, i, c]
-                    elif k == m - 1:
-                        ref = a[k, i, c] - a[k - 1, i, c]
-                    else:
-                        ref = 0.5 * ((a[k, i, c] - a[k - 1, i, c])
-                                     + (a[k + 2, i, c] - a[k + 1, i, c]))
-                    e2 += (d - ref) * (d - ref)
-                tot += math.sqrt(e2) * (1.0 if which == 0 else reach[i])
-            out[k, i] = tot
-    return out
 
 
 def _partner_label(model, b: int) -> str:
@@ -350,7 +129,10 @@ class PenetrationAnalyzer(Analyzer):
         ground = prox.ground_sep if prox.ground_sep is not None else np.zeros((0, 0))
         kind = np.full((n, t_n), -1, np.int8)  # -1 none, 0 ground, 1 pair as a, 2 pair as b
         ref = np.zeros((n, t_n), np.int64)
-        _deepest(ground, cd, pk, pa, pb, ps, n, kind, ref)
+        c = np.ascontiguousarray
+        _audit.deepest(c(ground, dtype=np.float64), float(cd), c(pk, dtype=np.int64),
+                       c(pa, dtype=np.int64), c(pb, dtype=np.int64), c(ps, dtype=np.float64), n,
+                       kind, ref)
         i, k = np.nonzero(kind >= 0)  # body-major
         src = kind[i, k]
         ref = ref[i, k]
@@ -574,9 +356,12 @@ class PenetrationAnalyzer(Analyzer):
         cv, slip = np.empty((nrow, 3)), np.empty((nrow, 3))
         cspeed, wspeed = np.empty(nrow), np.empty(nrow)
         c = np.ascontiguousarray
-        _contact_velocity(pk, pi_, pb, c(ppt), c(pnorm), c(tr.position, dtype=np.float64),
-                          c(tr.velocity, dtype=np.float64),
-                          c(tr.angular_velocity, dtype=np.float64), n, cv, slip, cspeed, wspeed)
+        _audit.contact_velocity(c(pk, dtype=np.int64), c(pi_, dtype=np.int64),
+                                c(pb, dtype=np.int64), c(ppt, dtype=np.float64),
+                                c(pnorm, dtype=np.float64), c(tr.position, dtype=np.float64),
+                                c(tr.velocity, dtype=np.float64),
+                                c(tr.angular_velocity, dtype=np.float64), n, cv, slip, cspeed,
+                                wspeed)
         rest = cspeed <= tol["rest_speed_mps"]
         # A box rocking on an edge has a resting pivot but is not at rest: for non-spheres, every
         # point of the body (within 2 bounding radii of the contact) must be slow too. A rolling
@@ -661,7 +446,7 @@ class PenetrationAnalyzer(Analyzer):
             # acceleration, a ball rolling down a ramp, changes every interval alike) was struck,
             # and a contact may slide at its cone unseen between the samples: not resting
             if nrow > 1 and t_n > 1:
-                jump = _impact_jump(c(tr.velocity, dtype=np.float64),
+                jump = _audit.impact_jump(c(tr.velocity, dtype=np.float64),
                                     c(tr.angular_velocity, dtype=np.float64),
                                     c(2.0 * geometry.bounding_radius(model), dtype=np.float64))
                 k0 = np.minimum(pk[:-1], t_n - 2)
@@ -672,12 +457,16 @@ class PenetrationAnalyzer(Analyzer):
                 both[:-1] &= ~bad
             contrib = np.zeros((nrow, 3))
             s_pos, s_rot, s_half = geometry.static_boxes(model)
-            _contact_slide(pk, pi_, pb, c(ppt), c(sup["span"]), c(pnorm),
-                           c(tr.position, dtype=np.float64),
-                           c(tr.rotation, dtype=np.float64), n, both, contrib,
-                           np.asarray(model.body_shape) != 0,
-                           c(model.body_size, dtype=np.float64), c(s_pos), c(s_rot),
-                           c(s_half), T.WITNESS_BAND_M, nload)
+            _audit.contact_slide(c(pk, dtype=np.int64), c(pi_, dtype=np.int64),
+                                 c(pb, dtype=np.int64), c(ppt, dtype=np.float64),
+                                 c(sup["span"], dtype=np.float64), c(pnorm, dtype=np.float64),
+                                 c(tr.position, dtype=np.float64),
+                                 c(tr.rotation, dtype=np.float64), n, c(both), contrib,
+                                 c(np.asarray(model.body_shape) != 0),
+                                 c(model.body_size, dtype=np.float64),
+                                 c(s_pos, dtype=np.float64), c(s_rot, dtype=np.float64),
+                                 c(s_half, dtype=np.float64), T.WITNESS_BAND_M,
+                                 c(nload, dtype=np.int64))
             weight = np.zeros(nrow)
             weight[:-1] = 0.5 * (slow[:-1].astype(float) + slow[1:])
             # ... and an interval over which the contact slid faster than the creep speed on

@@ -20,11 +20,9 @@ are far apart at both samples but meet in between are still examined.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from numba import njit
 
+from rblog.analyze import _audit
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
@@ -107,8 +105,10 @@ class TunnelingAnalyzer(Analyzer):
             k, a, b = prox.iv_k[iv_dyn], prox.iv_a[iv_dyn], prox.iv_b[iv_dyn]
             ri = geometry.inner_radius(model)
             depth = np.empty(len(k))
-            _chord_overlap(np.ascontiguousarray(tr.position, dtype=np.float64), k, a, b,
-                           self.tol["pass_frac"] * ri, depth)
+            asc = np.ascontiguousarray
+            _audit.chord_overlap(asc(tr.position, dtype=np.float64), asc(k, dtype=np.int64),
+                                 asc(a, dtype=np.int64), asc(b, dtype=np.int64),
+                                 asc(self.tol["pass_frac"] * ri, dtype=np.float64), depth)
             apart = np.isfinite(depth)
             if len(depth):
                 j = int(np.argmax(depth))
@@ -142,33 +142,6 @@ class TunnelingAnalyzer(Analyzer):
                     float(val[j]), cross, "m", int(step[k + 1]), float(t[k + 1]), bodies))
         ok = "no body passes through the ground, a static box or another body between samples"
         return self.result(worst, findings, stats, n_findings=n_found, ok_reason=ok)
-
-
-@njit(cache=True, nogil=True)
-def _chord_overlap(position, k, a, b, thr_part, out):
-    """For pairs (k, a, b): thr - (closest approach of the centres on the straight relative path
-    from sample k to k+1), thr = thr_part[a] + thr_part[b]; -inf when they are closer than thr at
-    either sample (already overlapping: penetration's business, not tunneling)."""
-    for r in range(k.shape[0]):
-        kk, ia, ib = k[r], a[r], b[r]
-        thr = thr_part[ia] + thr_part[ib]
-        d00 = position[kk, ia, 0] - position[kk, ib, 0]
-        d01 = position[kk, ia, 1] - position[kk, ib, 1]
-        d02 = position[kk, ia, 2] - position[kk, ib, 2]
-        e0 = position[kk + 1, ia, 0] - position[kk + 1, ib, 0] - d00
-        e1 = position[kk + 1, ia, 1] - position[kk + 1, ib, 1] - d01
-        e2 = position[kk + 1, ia, 2] - position[kk + 1, ib, 2] - d02
-        n0 = d00 * d00 + d01 * d01 + d02 * d02
-        n1 = (d00 + e0) ** 2 + (d01 + e1) ** 2 + (d02 + e2) ** 2
-        if n0 < thr * thr or n1 < thr * thr:
-            out[r] = -math.inf
-            continue
-        den = e0 * e0 + e1 * e1 + e2 * e2
-        s = 0.0
-        if den > 0:
-            s = min(1.0, max(0.0, -(d00 * e0 + d01 * e1 + d02 * e2) / den))
-        c0, c1, c2 = d00 + s * e0, d01 + s * e1, d02 + s * e2
-        out[r] = thr - math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
 
 
 def _ratio(value, tolerance):
