@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/py.hpp"
@@ -88,6 +89,41 @@ i64 put_frame_transforms(u8* out, i64 k, i64 ns, const u8* dbl8, i64 d0, V1<u8> 
         std::memcpy(out + k, rest.p + r0, static_cast<size_t>(r1 - r0));
         for (int c = 0; c < 7; ++c)
             std::memcpy(out + k + dbl_off(i, c), dbl8 + d0 + 56 * i + 8 * c, 8);
+        k += r1 - r0;
+    }
+    return k;
+}
+
+// As put_frame_transforms, the doubles read straight from the sample's position (N, 3) and
+// quat_wxyz (N, 4) rows (wire order x, y, z, qx, qy, qz, qw: the same bytes _tf_doubles lays out).
+i64 put_frame_transforms_pq(u8* out, i64 k, i64 ns, const double* pos, const double* quat,
+                            V1<u8> rest, V1<i64> rest_start, V2<i64> dbl_off, u8* ts) {
+    const i64 n = dbl_off.n0;
+    i64 sec, nanos;
+    floor_divmod(ns, 1000000000, sec, nanos);
+    i64 lts = 0;
+    if (sec) {
+        ts[0] = 0x08;
+        lts = put_varint(ts, 1, sec);
+    }
+    if (nanos) {
+        ts[lts] = 0x10;
+        lts = put_varint(ts, lts + 1, nanos);
+    }
+    for (i64 i = 0; i < n; ++i) {
+        const i64 r0 = rest_start[i], r1 = rest_start[i + 1];
+        out[k] = 0x0A;
+        k = put_varint(out, k + 1, 2 + lts + (r1 - r0));
+        out[k] = 0x0A;
+        out[k + 1] = static_cast<u8>(lts);
+        k += 2;
+        for (i64 j = 0; j < lts; ++j) out[k + j] = ts[j];
+        k += lts;
+        std::memcpy(out + k, rest.p + r0, static_cast<size_t>(r1 - r0));
+        const double* p = pos + 3 * i;
+        const double* q = quat + 4 * i;
+        const double* src[7] = {p, p + 1, p + 2, q + 1, q + 2, q + 3, q};
+        for (int c = 0; c < 7; ++c) std::memcpy(out + k + dbl_off(i, c), src[c], 8);
         k += r1 - r0;
     }
     return k;
@@ -170,6 +206,49 @@ void encode_sample_records(V1<i64> ns, V1<i64> channels, V1<u8> st_hdr, V1<i64> 
             r += 1;
         }
     }
+}
+
+// The same records, written straight into an MCAP chunk buffer (_BlockChunkBuilder): from
+// record r0 (record r is message r % 3 of sample r / 3) at chunk[count:], record after record,
+// until the chunk holds more than chunk_size bytes (the record that takes it past stays in it,
+// as mcap's Writer closes chunks) or every record is written, or fewer than rec_max bytes are
+// left in the buffer. offsets[r - r0] gets each record's offset in the chunk. Returns (the
+// first record not written, the chunk's new byte count).
+std::pair<i64, i64> encode_sample_records_into(
+    i64 r0, V1<u8> chunk, i64 count, i64 chunk_size, i64 rec_max, V1<i64> ns, V1<i64> channels,
+    V1<u8> st_hdr, V1<i64> st_off, const std::vector<V2<u8>>& st_cols, V1<u8> mt_hdr,
+    V1<i64> mt_off, const std::vector<V2<u8>>& mt_cols, V3<double> position,
+    V3<double> quat_wxyz, V1<u8> rest, V1<i64> rest_start, V2<i64> dbl_off, V1<i64> offsets) {
+    u8 ts[24];
+    u8* o = chunk.p;
+    i64 k = count;
+    i64 r = r0;
+    const i64 n_rec = 3 * ns.n0;
+    while (r < n_rec && k + rec_max <= chunk.n0) {
+        const i64 t = r / 3;
+        const int m = static_cast<int>(r % 3);
+        const i64 start = k;
+        offsets[r - r0] = k;
+        o[k] = 0x05;
+        k = put_u64(o, k + 1, 0);  // the record's length, written below
+        const i64 ch = channels[m];
+        o[k] = static_cast<u8>(ch & 0xFF);
+        o[k + 1] = static_cast<u8>((ch >> 8) & 0xFF);
+        o[k + 2] = o[k + 3] = o[k + 4] = o[k + 5] = 0;
+        k = put_u64(o, k + 6, ns[t]);
+        k = put_u64(o, k, ns[t]);
+        if (m == 0)
+            k = put_fields(o, k, t, st_hdr, st_off, st_cols);
+        else if (m == 1)
+            k = put_fields(o, k, t, mt_hdr, mt_off, mt_cols);
+        else
+            k = put_frame_transforms_pq(o, k, ns[t], &position(t, 0, 0), &quat_wxyz(t, 0, 0),
+                                        rest, rest_start, dbl_off, ts);
+        put_u64(o, start + 1, k - start - 9);
+        r += 1;
+        if (k > chunk_size) break;
+    }
+    return {r, k};
 }
 
 // Kernel of encode_contacts: message j holds contacts bounds[j]:bounds[j + 1] and is written to
@@ -305,6 +384,55 @@ void bind_mcap_encode(nb::module_& m) {
                                   dbl8, rest, rest_start, dbl_off, out, ends);
         },
         "Kernel of _SampleRecords.encode (rblog.record.mcap_writer). Releases the GIL.");
+
+    m.def(
+        "encode_sample_records_into",
+        [](i64 r0, nb::handle chunk_, i64 count, i64 chunk_size, nb::handle ns_,
+           nb::handle channels_, nb::handle st_hdr_, nb::handle st_off_, nb::handle st_cols_,
+           nb::handle mt_hdr_, nb::handle mt_off_, nb::handle mt_cols_, nb::handle position_,
+           nb::handle quat_, nb::handle rest_, nb::handle rest_start_, nb::handle dbl_off_,
+           nb::handle offsets_) {
+            auto chunk = v1<u8>(chunk_, "chunk");
+            auto ns = v1<i64>(ns_, "ns");
+            auto channels = v1<i64>(channels_, "channels");
+            auto st_hdr = v1<u8>(st_hdr_, "st_hdr");
+            auto st_off = v1<i64>(st_off_, "st_off");
+            auto mt_hdr = v1<u8>(mt_hdr_, "mt_hdr");
+            auto mt_off = v1<i64>(mt_off_, "mt_off");
+            auto position = v3<double>(position_, "position");
+            auto quat = v3<double>(quat_, "quat_wxyz");
+            auto rest = v1<u8>(rest_, "rest");
+            auto rest_start = v1<i64>(rest_start_, "rest_start");
+            auto dbl_off = v2<i64>(dbl_off_, "dbl_off");
+            auto offsets = v1<i64>(offsets_, "offsets");
+            const i64 T = ns.n0, n = dbl_off.n0;
+            i64 st_row = 0, mt_row = 0;
+            auto st_cols = byte_cols(st_cols_, T, "st_cols", st_row);
+            auto mt_cols = byte_cols(mt_cols_, T, "mt_cols", mt_row);
+            need(channels.n0 == 3, "encode_sample_records_into: three channel ids expected");
+            const i64 st_len = check_hdr(st_hdr, st_off, st_cols.size(), "st_hdr") + st_row;
+            const i64 mt_len = check_hdr(mt_hdr, mt_off, mt_cols.size(), "mt_hdr") + mt_row;
+            const i64 tf_len = check_tf(rest, rest_start, dbl_off, "encode_sample_records_into");
+            need(position.n0 == T && position.n1 == n && position.n2 == 3 && quat.n0 == T &&
+                     quat.n1 == n && quat.n2 == 4,
+                 "encode_sample_records_into: position (T, N, 3) and quat_wxyz (T, N, 4) expected");
+            need(r0 >= 0 && r0 <= 3 * T, "encode_sample_records_into: r0 out of range");
+            need(count >= 0 && count <= chunk.n0, "encode_sample_records_into: count out of range");
+            need(offsets.n0 >= 3 * T - r0, "encode_sample_records_into: offsets too small");
+            i64 rec_max = st_len > mt_len ? st_len : mt_len;
+            rec_max = 31 + (rec_max > tf_len ? rec_max : tf_len);
+            std::pair<i64, i64> res;
+            {
+                nb::gil_scoped_release release;
+                res = encode_sample_records_into(r0, chunk, count, chunk_size, rec_max, ns,
+                                                 channels, st_hdr, st_off, st_cols, mt_hdr,
+                                                 mt_off, mt_cols, position, quat, rest,
+                                                 rest_start, dbl_off, offsets);
+            }
+            return nb::make_tuple(res.first, res.second);
+        },
+        "The per-sample records straight into a chunk buffer (_BlockChunkBuilder."
+        "add_sample_records): returns (next record, new byte count). Releases the GIL.");
 
     m.def(
         "encode_contacts",

@@ -252,12 +252,12 @@ class McapRecorder:
                    a["energy_rotational"].sum(axis=1), a["energy_potential"].sum(axis=1),
                    a["total_linear_momentum"], a["total_angular_momentum"],
                    _max0(a["ortho_error"]), _max0(np.abs(a["quat_norm_error"]))]
-        buf, ends = self._records.encode(ns, state, metrics, a["position"].reshape(T, n, 3),
-                                         a["quat_wxyz"].reshape(T, n, 4))
-        times = np.repeat(ns, 3)
+        position, quat_wxyz = a["position"].reshape(T, n, 3), a["quat_wxyz"].reshape(T, n, 4)
         if self._chunks is not None:
-            self._chunks.add_records(buf, ends, np.tile(self._records.channels, T), times)
+            self._chunks.add_sample_records(self._records, ns, state, metrics, position, quat_wxyz)
         else:  # an mcap Writer without the chunk builder we know: one message at a time
+            buf, ends = self._records.encode(ns, state, metrics, position, quat_wxyz)
+            times = np.repeat(ns, 3)
             mv, e = memoryview(buf), [0, *ends.tolist()]
             add, ch, tl = self._w.add_message, np.tile(self._records.channels, T).tolist(), times.tolist()
             for j in range(3 * T):
@@ -397,6 +397,10 @@ class _SampleRecords:
                                self.tf.dbl_off, out, ends)
         return out[:ends[-1]] if T else out[:0], ends
 
+    def record_max(self) -> int:
+        """Most bytes one of the block's Message records takes (head and message)."""
+        return _MESSAGE_HEAD + max(self.state_len, self.metrics_len, self.tf.cap_per_sample())
+
     def warm_up(self):
         n = self.n
         z = [np.zeros(1, np.int64), np.zeros(1)]
@@ -462,7 +466,7 @@ class _BlockChunkBuilder:
     """The chunk builder of an ``mcap.writer.Writer`` (it stands in for mcap's ChunkBuilder,
     whose interface the Writer uses: add_channel/add_schema/add_message, count, end, reset and the
     chunk's times and message indices), to which whole runs of encoded Message records are added
-    with one copy each (:meth:`add_records`). The Writer still writes everything else: the
+    encoded straight into it (:meth:`add_sample_records`). The Writer still writes everything else: the
     header, schemas and channels, chunk records (compressed, with their CRC), message indexes,
     the summary and the footer. Chunks close where the Writer would close them adding the same
     messages one by one: after the message that takes the chunk past the Writer's chunk size."""
@@ -518,30 +522,44 @@ class _BlockChunkBuilder:
         self._append(memoryview(self._rb.end()))
 
     # --- whole runs of records --------------------------------------------------------------
-    def add_records(self, buf: np.ndarray, ends: np.ndarray, channels: np.ndarray,
-                    times: np.ndarray):
-        """Add Message records ``buf[ends[j-1]:ends[j]]`` of ``channels[j]`` logged at
-        ``times[j]`` (ns), closing chunks as the Writer would; updates the Writer's statistics."""
-        m = len(ends)
-        if not m:
+    def add_sample_records(self, records: "_SampleRecords", ns: np.ndarray, state: list,
+                           metrics: list, position: np.ndarray, quat_wxyz: np.ndarray):
+        """Encode a block's per-sample records (see :meth:`_SampleRecords.encode`, same
+        arguments) straight into the chunk, closing chunks as the Writer would (after the record
+        that takes the chunk past its size); updates the Writer's statistics. The same bytes as
+        adding ``records.encode(...)``'s records one after the other, without the block's
+        buffer and its copy."""
+        T = len(ns)
+        if not T:
             return
+        ns = np.ascontiguousarray(ns, np.int64)
+        m = 3 * T
+        channels = np.tile(records.channels, T)
+        times = np.repeat(ns, 3)
         st = self._stats
-        t_lo, t_hi = int(times.min()), int(times.max())
+        t_lo, t_hi = int(ns.min()), int(ns.max())
         st.message_start_time = t_lo if st.message_count == 0 else min(st.message_start_time, t_lo)
         st.message_end_time = max(st.message_end_time, t_hi)
         st.message_count += m
-        for ch, k in zip(*np.unique(channels, return_counts=True)):
-            st.channel_message_counts[int(ch)] += int(k)
-        starts = np.concatenate([[0], ends[:-1]])
-        j = 0
-        while j < m:
-            # the first record after which the chunk is larger than the chunk size
-            room = self._chunk_size - self._count
-            last = min(int(np.searchsorted(ends, starts[j] + room, side="right")), m - 1)
-            offsets = (self._count + starts[j:last + 1] - starts[j]).astype(np.uint64)
-            self._index(channels[j:last + 1], times[j:last + 1], offsets)
-            self._append(buf[starts[j]:ends[last]])
-            j = last + 1
+        for ch in sorted(records.channels.tolist()):  # in np.unique's order (as before)
+            st.channel_message_counts[int(ch)] += T
+        st_cols, mt_cols = _byte_rows(state, T), _byte_rows(metrics, T)
+        position = np.ascontiguousarray(position, np.float64)
+        quat_wxyz = np.ascontiguousarray(quat_wxyz, np.float64)
+        offsets = np.empty(m, np.int64)
+        rec_max = records.record_max()
+        r = 0
+        while r < m:
+            if self._count + rec_max > len(self._buf):
+                self._grow(self._count + rec_max)
+            r1, self._count = _encode.encode_sample_records_into(
+                r, self._buf, self._count, self._chunk_size, ns, records.channels,
+                records.state_hdr, records.state_off, st_cols, records.metrics_hdr,
+                records.metrics_off, mt_cols, position, quat_wxyz, records.tf.rest,
+                records.tf.rest_start, records.tf.dbl_off, offsets)
+            if r1 > r:
+                self._index(channels[r:r1], times[r:r1], offsets[:r1 - r].astype(np.uint64))
+            r = r1
             if self._count > self._chunk_size:
                 self._w.flush()  # closes the chunk (compressed, CRC, message indexes)
 
@@ -559,13 +577,17 @@ class _BlockChunkBuilder:
                 idx = self.message_indices[int(ch)] = _MessageIndexArrays(int(ch))
             idx.add(times[sel], offsets[sel])
 
+    def _grow(self, need: int):
+        k = self._count
+        grown = np.empty(max(2 * len(self._buf), need), np.uint8)
+        grown[:k] = self._buf[:k]
+        self._buf = grown
+
     def _append(self, data):
         data = np.frombuffer(data, np.uint8)
         k, n = self._count, len(data)
         if k + n > len(self._buf):
-            grown = np.empty(max(2 * len(self._buf), k + n), np.uint8)
-            grown[:k] = self._buf[:k]
-            self._buf = grown
+            self._grow(k + n)
         self._buf[k:k + n] = data
         self._count = k + n
 
