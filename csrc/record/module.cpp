@@ -1,4 +1,5 @@
-// rblog.record._encode: the derived channels of the log contract and the MCAP message encoder.
+// rblog.record._encode: the MCAP message encoder (the derived channels are the contract's:
+// rblog.contract._derive, csrc/contract/).
 #include <nanobind/nanobind.h>
 
 #include "common/errors.hpp"
@@ -8,7 +9,7 @@ void bind_encode(nanobind::module_& m);
 }
 
 NB_MODULE(_encode, m) {
-    m.doc() = "rblog's log encoders and derived channels (C++, nanobind)";
+    m.doc() = "rblog's MCAP message encoder (C++, nanobind)";
     rb::register_errors();
     rb::bind_encode(m);
 }

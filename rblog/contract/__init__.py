@@ -7,8 +7,9 @@ the analyzers judge (docs/log-format.md is the same contract on disk).
   rows), :class:`RunInfo` (run metadata), and :func:`derive` (state -> every derived channel).
 * ``orientation``: quaternion <-> matrix <-> rotation vector conversions (numpy).
 * ``derive``: the compiled kernel that defines the derived channels (momenta, energies, rigidity
-  errors, totals) once for every writer and reader.
+  errors, totals) once for every writer and reader (C++: its own module ``rblog.contract._derive``,
+  csrc/contract/).
 
-May import: numpy, numba, rblog.errors. Nothing else of rblog: the engine, the recorders and the
+May import: numpy, rblog.errors, its own compiled module ``_derive``. Nothing else of rblog: the engine, the recorders and the
 analyzers all import this room, never the other way round.
 """

@@ -357,7 +357,7 @@ def run(
                 if progress is not None:
                     progress(done, n_total)
             t_log = time.perf_counter()
-            writer.finish()
+            writer.finish(close=True)  # the lanes close their logs, side by side
             if profile is not None:
                 profile.add("logging", time.perf_counter() - t_log)
     except (KeyboardInterrupt, _Stopped) as e:
@@ -387,7 +387,7 @@ def run(
         _finish_quietly(writer)
         _close_all(opened, True, f"run failed: {e}")
         raise
-    _close_all(opened, False, None)
+    _close_all([r for r in opened if not writer.has_closed(r)], False, None)
     wall = time.perf_counter() - t_start
     if profile is not None:
         profile.wall = wall
@@ -417,7 +417,10 @@ class _BlockWriter:
     file I/O, the Rerun SDK's encoding) overlaps the other's. Blocks are written in order by
     every recorder; the queues are bounded, so memory stays bounded. A recorder's error stops the
     run at the next block; the other recorders still get every block submitted before it (good
-    samples: nothing the run produced is lost because another log failed)."""
+    samples: nothing the run produced is lost because another log failed). At the end of a run
+    that went well (:meth:`finish` with ``close=True``) the lanes close their recorders at once,
+    each on its own thread (the Rerun SDK's final flush beside the MCAP summary), once every lane
+    wrote its last block and none failed (a failure still closes every log as truncated)."""
 
     QUEUE_BLOCKS = 2
 
@@ -426,6 +429,8 @@ class _BlockWriter:
         self.queue: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
         self.error: BaseException | None = None
         self.lanes: list[tuple[queue.Queue, threading.Thread]] = []
+        self._closed: set[int] = set()  # id() of the recorders a lane closed
+        self._barrier = threading.Barrier(max(1, len(self.recorders)))
         if len(self.recorders) > 1:
             for i, rec in enumerate(self.recorders):
                 q: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
@@ -472,14 +477,25 @@ class _BlockWriter:
                         self.error = e
         finally:
             for lane, t in self.lanes:
-                lane.put(None)
+                # close only if every block reached the recorders (deriving did not fail)
+                lane.put(_CLOSE if self._close and not broken else None)
                 t.join()
 
     def _lane(self, rec, lane: queue.Queue):
         failed = False
         while True:
             block = lane.get()
-            if block is None:
+            if block is None or block is _CLOSE:
+                if block is _CLOSE:
+                    self._barrier.wait()  # every lane wrote its last block (or failed)
+                if block is _CLOSE and not failed and self.error is None:
+                    try:
+                        rec.close(truncated=False, reason=None)
+                        self._closed.add(id(rec))
+                    except BaseException as e:
+                        self._closed.add(id(rec))  # closed as far as it could be
+                        if self.error is None:
+                            self.error = e
                 return
             if failed:
                 continue  # this recorder failed: drain; the others keep writing
@@ -490,12 +506,24 @@ class _BlockWriter:
                 if self.error is None:
                     self.error = e
 
-    def finish(self):
-        """Write every queued block, stop the threads, and re-raise a recorder's error."""
+    _close = False
+
+    def finish(self, close: bool = False):
+        """Write every queued block, stop the threads, and re-raise a recorder's error. With
+        ``close`` (the run went well), each lane also closes its recorder (complete) once it
+        wrote its last block, unless some recorder failed; :meth:`has_closed` tells which."""
+        self._close = close
         self.queue.put(None)
         self.thread.join()
         if self.error is not None:
             raise self.error
+
+    def has_closed(self, rec) -> bool:
+        return id(rec) in self._closed
+
+
+#: the lanes' end-of-run item that also closes the recorder
+_CLOSE = object()
 
 
 def _finish_quietly(writer: _BlockWriter | None):

@@ -14,7 +14,8 @@ that much.
 
 Why this module is long: it is the one place that knows MCAP's side of the contract: the
 static records (run, scene), the wire format of every per-sample and contact message written
-straight from numpy buffers by compiled kernels (protobuf layout and MCAP record framing), and
+straight from numpy buffers by compiled kernels (protobuf layout and MCAP record framing: C++,
+csrc/record/mcap_encode.cpp, module ``rblog.record._encode``, which releases the GIL), and
 the chunk builder that feeds those records to the mcap Writer exactly as it would chunk them
 one by one.
 """
@@ -24,10 +25,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
@@ -47,6 +44,7 @@ from rblog.errors import LogWriteError
 from rblog.contract.model import SHAPE_SPHERE, Model
 from rblog.contract.trajectory import Contacts, RunInfo, Trajectory
 from rblog.record import _common as C
+from rblog.record import _encode
 from rblog.record import schema as S
 
 #: chunk size (bytes of uncompressed messages); also the most a killed writer loses
@@ -126,7 +124,7 @@ class McapRecorder:
                                            if k not in ("scene_toml", "scene_resolved_json")})
             self._records = _SampleRecords(self._names, [self._ch[TOPIC_STATE],
                                                          self._ch[TOPIC_METRICS], self._ch[TOPIC_TF]])
-            # load (or compile, the first time) the encoder now, not mid-run
+            # exercise the encoder once now (argument checks), not mid-run
             self._records.warm_up()
             encode_contacts(_ONE_CONTACT)
             self._flush(force=True)
@@ -254,12 +252,12 @@ class McapRecorder:
                    a["energy_rotational"].sum(axis=1), a["energy_potential"].sum(axis=1),
                    a["total_linear_momentum"], a["total_angular_momentum"],
                    _max0(a["ortho_error"]), _max0(np.abs(a["quat_norm_error"]))]
-        buf, ends = self._records.encode(ns, state, metrics, a["position"].reshape(T, n, 3),
-                                         a["quat_wxyz"].reshape(T, n, 4))
-        times = np.repeat(ns, 3)
+        position, quat_wxyz = a["position"].reshape(T, n, 3), a["quat_wxyz"].reshape(T, n, 4)
         if self._chunks is not None:
-            self._chunks.add_records(buf, ends, np.tile(self._records.channels, T), times)
+            self._chunks.add_sample_records(self._records, ns, state, metrics, position, quat_wxyz)
         else:  # an mcap Writer without the chunk builder we know: one message at a time
+            buf, ends = self._records.encode(ns, state, metrics, position, quat_wxyz)
+            times = np.repeat(ns, 3)
             mv, e = memoryview(buf), [0, *ends.tolist()]
             add, ch, tl = self._w.add_message, np.tile(self._records.channels, T).tolist(), times.tolist()
             for j in range(3 * T):
@@ -312,7 +310,7 @@ def encode_contacts(c: Contacts) -> tuple[list, np.ndarray, np.ndarray]:
     # per contact: 3 int32 and 11 doubles
     out = np.empty(m * (18 + 8 * 11) + len(step) * (3 * 4 + 11 * 8), np.uint8)
     ends = np.empty(m + 1, np.int64)
-    _encode_contacts(bounds, step.view(np.uint8), t.view(np.uint8),
+    _encode.encode_contacts(bounds, step.view(np.uint8), t.view(np.uint8),
                      i32[0].view(np.uint8), i32[1].view(np.uint8),
                      f3[0].reshape(-1).view(np.uint8), f3[1].reshape(-1).view(np.uint8),
                      f1[0].view(np.uint8), f1[1].view(np.uint8),
@@ -321,42 +319,6 @@ def encode_contacts(c: Contacts) -> tuple[list, np.ndarray, np.ndarray]:
     e = ends.tolist()
     first = bounds[:-1]
     return [mv[e[i]:e[i + 1]] for i in range(m)], step[first], t[first]
-
-
-@njit(cache=True, nogil=True)
-def _put_packed(out, k, number, src, lo, hi, width):
-    """Packed repeated field ``number`` holding elements lo..hi of ``src`` (little-endian bytes,
-    ``width`` bytes per element)."""
-    out[k] = (number << 3) | 2
-    n = (hi - lo) * width
-    k = _put_varint(out, k + 1, n)
-    out[k:k + n] = src[lo * width:hi * width]
-    return k + n
-
-
-@njit(cache=True, nogil=True)
-def _encode_contacts(bounds, step8, t8, a4, b4, point8, normal8, sep8, nimp8, fimp8, kind4,
-                     out, ends):
-    """Kernel of encode_contacts: message j holds contacts bounds[j]:bounds[j + 1] and is written
-    to out[ends[j]:ends[j + 1]]. Inputs are the columns' bytes (uint8 views)."""
-    k = 0
-    for j in range(bounds.shape[0] - 1):
-        lo, hi = bounds[j], bounds[j + 1]
-        ends[j] = k
-        out[k] = 0x09  # 1 step, sfixed64
-        out[k + 1:k + 9] = step8[8 * lo:8 * lo + 8]
-        out[k + 9] = 0x11  # 2 t, double
-        out[k + 10:k + 18] = t8[8 * lo:8 * lo + 8]
-        k += 18
-        k = _put_packed(out, k, 3, a4, lo, hi, 4)
-        k = _put_packed(out, k, 4, b4, lo, hi, 4)
-        k = _put_packed(out, k, 5, point8, lo, hi, 24)
-        k = _put_packed(out, k, 6, normal8, lo, hi, 24)
-        k = _put_packed(out, k, 7, sep8, lo, hi, 8)
-        k = _put_packed(out, k, 8, nimp8, lo, hi, 8)
-        k = _put_packed(out, k, 9, fimp8, lo, hi, 24)
-        k = _put_packed(out, k, 10, kind4, lo, hi, 4)
-    ends[bounds.shape[0] - 1] = k
 
 
 def _max0(a: np.ndarray) -> np.ndarray:
@@ -428,12 +390,16 @@ class _SampleRecords:
                    + self.tf.cap_per_sample())
         out = np.empty(cap, np.uint8)
         ends = np.empty(3 * T, np.int64)
-        _encode_sample_records(np.ascontiguousarray(ns, np.int64), self.channels,
+        _encode.encode_sample_records(np.ascontiguousarray(ns, np.int64), self.channels,
                                self.state_hdr, self.state_off, _byte_rows(state, T),
                                self.metrics_hdr, self.metrics_off, _byte_rows(metrics, T),
                                dbl.reshape(-1).view(np.uint8), self.tf.rest, self.tf.rest_start,
                                self.tf.dbl_off, out, ends)
         return out[:ends[-1]] if T else out[:0], ends
+
+    def record_max(self) -> int:
+        """Most bytes one of the block's Message records takes (head and message)."""
+        return _MESSAGE_HEAD + max(self.state_len, self.metrics_len, self.tf.cap_per_sample())
 
     def warm_up(self):
         n = self.n
@@ -500,7 +466,7 @@ class _BlockChunkBuilder:
     """The chunk builder of an ``mcap.writer.Writer`` (it stands in for mcap's ChunkBuilder,
     whose interface the Writer uses: add_channel/add_schema/add_message, count, end, reset and the
     chunk's times and message indices), to which whole runs of encoded Message records are added
-    with one copy each (:meth:`add_records`). The Writer still writes everything else: the
+    encoded straight into it (:meth:`add_sample_records`). The Writer still writes everything else: the
     header, schemas and channels, chunk records (compressed, with their CRC), message indexes,
     the summary and the footer. Chunks close where the Writer would close them adding the same
     messages one by one: after the message that takes the chunk past the Writer's chunk size."""
@@ -556,30 +522,44 @@ class _BlockChunkBuilder:
         self._append(memoryview(self._rb.end()))
 
     # --- whole runs of records --------------------------------------------------------------
-    def add_records(self, buf: np.ndarray, ends: np.ndarray, channels: np.ndarray,
-                    times: np.ndarray):
-        """Add Message records ``buf[ends[j-1]:ends[j]]`` of ``channels[j]`` logged at
-        ``times[j]`` (ns), closing chunks as the Writer would; updates the Writer's statistics."""
-        m = len(ends)
-        if not m:
+    def add_sample_records(self, records: "_SampleRecords", ns: np.ndarray, state: list,
+                           metrics: list, position: np.ndarray, quat_wxyz: np.ndarray):
+        """Encode a block's per-sample records (see :meth:`_SampleRecords.encode`, same
+        arguments) straight into the chunk, closing chunks as the Writer would (after the record
+        that takes the chunk past its size); updates the Writer's statistics. The same bytes as
+        adding ``records.encode(...)``'s records one after the other, without the block's
+        buffer and its copy."""
+        T = len(ns)
+        if not T:
             return
+        ns = np.ascontiguousarray(ns, np.int64)
+        m = 3 * T
+        channels = np.tile(records.channels, T)
+        times = np.repeat(ns, 3)
         st = self._stats
-        t_lo, t_hi = int(times.min()), int(times.max())
+        t_lo, t_hi = int(ns.min()), int(ns.max())
         st.message_start_time = t_lo if st.message_count == 0 else min(st.message_start_time, t_lo)
         st.message_end_time = max(st.message_end_time, t_hi)
         st.message_count += m
-        for ch, k in zip(*np.unique(channels, return_counts=True)):
-            st.channel_message_counts[int(ch)] += int(k)
-        starts = np.concatenate([[0], ends[:-1]])
-        j = 0
-        while j < m:
-            # the first record after which the chunk is larger than the chunk size
-            room = self._chunk_size - self._count
-            last = min(int(np.searchsorted(ends, starts[j] + room, side="right")), m - 1)
-            offsets = (self._count + starts[j:last + 1] - starts[j]).astype(np.uint64)
-            self._index(channels[j:last + 1], times[j:last + 1], offsets)
-            self._append(buf[starts[j]:ends[last]])
-            j = last + 1
+        for ch in sorted(records.channels.tolist()):  # in np.unique's order (as before)
+            st.channel_message_counts[int(ch)] += T
+        st_cols, mt_cols = _byte_rows(state, T), _byte_rows(metrics, T)
+        position = np.ascontiguousarray(position, np.float64)
+        quat_wxyz = np.ascontiguousarray(quat_wxyz, np.float64)
+        offsets = np.empty(m, np.int64)
+        rec_max = records.record_max()
+        r = 0
+        while r < m:
+            if self._count + rec_max > len(self._buf):
+                self._grow(self._count + rec_max)
+            r1, self._count = _encode.encode_sample_records_into(
+                r, self._buf, self._count, self._chunk_size, ns, records.channels,
+                records.state_hdr, records.state_off, st_cols, records.metrics_hdr,
+                records.metrics_off, mt_cols, position, quat_wxyz, records.tf.rest,
+                records.tf.rest_start, records.tf.dbl_off, offsets)
+            if r1 > r:
+                self._index(channels[r:r1], times[r:r1], offsets[:r1 - r].astype(np.uint64))
+            r = r1
             if self._count > self._chunk_size:
                 self._w.flush()  # closes the chunk (compressed, CRC, message indexes)
 
@@ -597,13 +577,17 @@ class _BlockChunkBuilder:
                 idx = self.message_indices[int(ch)] = _MessageIndexArrays(int(ch))
             idx.add(times[sel], offsets[sel])
 
+    def _grow(self, need: int):
+        k = self._count
+        grown = np.empty(max(2 * len(self._buf), need), np.uint8)
+        grown[:k] = self._buf[:k]
+        self._buf = grown
+
     def _append(self, data):
         data = np.frombuffer(data, np.uint8)
         k, n = self._count, len(data)
         if k + n > len(self._buf):
-            grown = np.empty(max(2 * len(self._buf), k + n), np.uint8)
-            grown[:k] = self._buf[:k]
-            self._buf = grown
+            self._grow(k + n)
         self._buf[k:k + n] = data
         self._count = k + n
 
@@ -651,137 +635,9 @@ class _TfEncoder:
         T = position.shape[0]
         out = np.empty(T * self.cap_per_sample(), np.uint8)
         bounds = np.empty(T + 1, np.int64)
-        _encode_frame_transforms(np.ascontiguousarray(ns, np.int64),
+        _encode.encode_frame_transforms(np.ascontiguousarray(ns, np.int64),
                                  _tf_doubles(position, quat_wxyz).reshape(-1).view(np.uint8),
                                  self.rest, self.rest_start, self.dbl_off, out, bounds)
         mv = memoryview(out)
         b = bounds.tolist()
         return [mv[b[i]:b[i + 1]] for i in range(T)]
-
-
-@njit(cache=True, nogil=True)
-def _put_varint(out, k, value):
-    while value >= 0x80:
-        out[k] = (value & 0x7F) | 0x80
-        value >>= 7
-        k += 1
-    out[k] = value
-    return k + 1
-
-
-@intrinsic
-def _memcpy(typingctx, dst, dst_offset, src, src_offset, nbytes):
-    """Copy ``nbytes`` bytes from byte ``src_offset`` of C-contiguous array ``src`` to byte
-    ``dst_offset`` of C-contiguous array ``dst`` (LLVM's memcpy; no bounds check: callers size
-    ``dst`` for the most their messages take). A slice assignment copies a byte at a time."""
-    sig = types.void(dst, types.intp, src, types.intp, types.intp)
-
-    def codegen(context, builder, signature, args):
-        d = context.make_array(signature.args[0])(context, builder, args[0])
-        s = context.make_array(signature.args[2])(context, builder, args[2])
-        i8 = ir.IntType(8).as_pointer()
-        dp = builder.gep(builder.bitcast(d.data, i8), [args[1]])
-        sp = builder.gep(builder.bitcast(s.data, i8), [args[3]])
-        cgutils.raw_memcpy(builder, dp, sp, args[4], 1)
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
-@njit(cache=True, nogil=True)
-def _put_frame_transforms(out, k, ns, dbl8, d0, rest, rest_start, dbl_off, ts):
-    """One FrameTransforms message at out[k:] (returns its end): log time ``ns``; the bodies'
-    doubles in wire order (x, y, z, qx, qy, qz, qw) are the bytes of ``dbl8`` from byte ``d0``,
-    56 per body."""
-    n = dbl_off.shape[0]
-    sec, nanos = ns // 1_000_000_000, ns % 1_000_000_000
-    lts = 0  # proto3: zero fields are left out, as protobuf's own serializer does
-    if sec:
-        ts[0] = 0x08
-        lts = _put_varint(ts, 1, sec)
-    if nanos:
-        ts[lts] = 0x10
-        lts = _put_varint(ts, lts + 1, nanos)
-    for i in range(n):
-        r0, r1 = rest_start[i], rest_start[i + 1]
-        out[k] = 0x0A  # FrameTransforms.transforms (field 1, length-delimited)
-        k = _put_varint(out, k + 1, 2 + lts + (r1 - r0))
-        out[k] = 0x0A  # FrameTransform.timestamp
-        out[k + 1] = lts
-        k += 2
-        for j in range(lts):
-            out[k + j] = ts[j]
-        k += lts
-        _memcpy(out, k, rest, r0, r1 - r0)
-        for c in range(7):
-            _memcpy(out, k + dbl_off[i, c], dbl8, d0 + 56 * i + 8 * c, 8)
-        k += r1 - r0
-    return k
-
-
-@njit(cache=True, nogil=True)
-def _encode_frame_transforms(ns, dbl8, rest, rest_start, dbl_off, out, bounds):
-    """Kernel of _TfEncoder.rows: writes T messages back to back into ``out``; message t is
-    out[bounds[t]:bounds[t + 1]]. ``dbl8``: the (T, N, 7) doubles' bytes."""
-    ts = np.empty(24, np.uint8)
-    per_sample = 56 * dbl_off.shape[0]
-    k = 0
-    for t in range(ns.shape[0]):
-        bounds[t] = k
-        k = _put_frame_transforms(out, k, ns[t], dbl8, t * per_sample, rest, rest_start,
-                                  dbl_off, ts)
-    bounds[ns.shape[0]] = k
-
-
-@njit(cache=True, nogil=True)
-def _put_u64(out, k, value):
-    for i in range(8):
-        out[k + i] = (value >> (8 * i)) & 0xFF
-    return k + 8
-
-
-@njit(cache=True, nogil=True)
-def _put_fields(out, k, t, hdr, hdr_off, cols):
-    """Message of sample ``t`` whose every field is a header (tag, and length if packed) and
-    that sample's row of bytes of one column (cols: (T, bytes) arrays)."""
-    for f in range(len(cols)):
-        h0, h1 = hdr_off[f], hdr_off[f + 1]
-        _memcpy(out, k, hdr, h0, h1 - h0)
-        k += h1 - h0
-        c = cols[f]
-        nb = c.shape[1]
-        _memcpy(out, k, c, t * nb, nb)
-        k += nb
-    return k
-
-
-@njit(cache=True, nogil=True)
-def _encode_sample_records(ns, channels, st_hdr, st_off, st_cols, mt_hdr, mt_off, mt_cols,
-                           dbl8, rest, rest_start, dbl_off, out, ends):
-    """Kernel of _SampleRecords.encode: per sample, the State, Metrics and FrameTransforms
-    Message records (opcode 0x05, length, channel, sequence 0, log time = publish time)."""
-    ts = np.empty(24, np.uint8)
-    per_sample = 56 * dbl_off.shape[0]
-    k = 0
-    r = 0
-    for t in range(ns.shape[0]):
-        for m in range(3):
-            start = k
-            out[k] = 0x05
-            k = _put_u64(out, k + 1, 0)  # the record's length, written below
-            ch = channels[m]
-            out[k] = ch & 0xFF
-            out[k + 1] = (ch >> 8) & 0xFF
-            out[k + 2:k + 6] = 0
-            k = _put_u64(out, k + 6, ns[t])
-            k = _put_u64(out, k, ns[t])
-            if m == 0:
-                k = _put_fields(out, k, t, st_hdr, st_off, st_cols)
-            elif m == 1:
-                k = _put_fields(out, k, t, mt_hdr, mt_off, mt_cols)
-            else:
-                k = _put_frame_transforms(out, k, ns[t], dbl8, t * per_sample, rest,
-                                          rest_start, dbl_off, ts)
-            _put_u64(out, start + 1, k - start - 9)
-            ends[r] = k
-            r += 1

@@ -1,0 +1,13 @@
+// rblog.contract._derive: the log contract's derived channels (derive.cpp). A module of its own
+// because the contract imports nothing else of rblog (docs/architecture.md): not the engine's
+// core, not the recorders' encoder.
+#include <nanobind/nanobind.h>
+
+namespace rb {
+void bind_derive(nanobind::module_& m);
+}
+
+NB_MODULE(_derive, m) {
+    m.doc() = "rblog's log contract: the derived channels (C++, nanobind)";
+    rb::bind_derive(m);
+}
