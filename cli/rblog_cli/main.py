@@ -7,6 +7,7 @@ input); anything else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -16,8 +17,10 @@ import click
 from rblog.errors import RblogError
 
 
-from rblog.engine.integrators import ORTHO_CODES
-from rblog.engine.scene import INTEGRATORS
+# the registry alone (pure Python): `rblog --help` loads neither numpy nor the core
+from rblog.engine.registry import ORTHO_ALLOWED, ORTHO_CODES
+
+INTEGRATORS = tuple(ORTHO_ALLOWED)
 
 
 def _fail(err: RblogError):
@@ -121,9 +124,12 @@ def validate(scene):
 @click.option("--engine-option", "engine_options", multiple=True, metavar="KEY=VALUE",
               help="A setting of the --engine, e.g. integrator=RK4 (repeatable).")
 @click.option("--profile", "profile", is_flag=True, help="Print the time spent in each stage.")
+@click.option("--threads", type=click.IntRange(min=1), metavar="N",
+              help="Threads to step on (default: RBLOG_THREADS, else every core); the result is "
+                   "bitwise the same for any N.")
 def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compression, no_log,
         log_every, log_rate, spawn, connect_url, explain, run_too, all_stages, as_json, engine,
-        engine_options, profile):
+        engine_options, profile, threads):
     """Simulate SCENE (a .toml file) and record it."""
     if engine != "rblog" or engine_options:
         if engine == "rblog" or spawn or connect_url or explain or all_stages or profile:
@@ -149,7 +155,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         s = load_scene(scene)
         for w in s.warnings:
             click.echo(f"rblog: warning: {w}", err=True)
-        # every output is checked before the kernels compile (which can take ~10 s)
+        # every output is checked before the run starts
         recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression,
                                       check_only=True)
         if explain:
@@ -176,7 +182,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
             summary = run_scene(
                 s, dt=dt, duration=duration, integrator=integrator, orthonormalize=orthonormalize,
                 log_every=log_every, log_rate=log_rate, recorders=recorders, progress=prog,
-                notice=lambda m: click.echo(m, err=True), force_contacts=all_stages,
+                force_contacts=all_stages, threads=threads,
                 warn=lambda m: click.echo(f"rblog: warning: {m}", err=True), profile=prof)
         finally:
             prog.close()
@@ -231,8 +237,11 @@ BULK_DETAIL_MAX_LOGS = 20
               help="Write the per-log table here (.parquet, else CSV).")
 @click.option("--rrd", "findings_rrd", type=click.Path(dir_okay=False, path_type=str),
               help="Write the findings as a Rerun recording overlaying the run (one LOG).")
+@click.option("--threads", type=click.IntRange(min=1), metavar="N",
+              help="Analyzers run at once, per process (default: RBLOG_THREADS, else every "
+                   "core); the verdicts are the same for any N.")
 def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_path,
-          findings_rrd):
+          findings_rrd, threads):
     """Audit saved logs (.rrd or .mcap): rigidity, collision momentum, resting-contact
     penetration, energy, tunneling. LOGS are files, directories (searched for logs), glob
     patterns or list files (.txt: one path per line). Every log is judged; the exit code is the
@@ -249,6 +258,9 @@ def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_
         return
     if not logs:
         raise click.UsageError("give at least one LOG (.rrd or .mcap), or --list")
+    if threads is not None:
+        # read by rblog.check in this process and inherited by local workers
+        os.environ["RBLOG_THREADS"] = str(threads)
     names = set(ANALYZERS)
     sel_only = _names(only, names, "--only")
     sel_skip = _names(skip, names, "--skip")
@@ -272,7 +284,7 @@ def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_
         ex = Executor(workers=workers, scheduler=scheduler)
         prog = _Progress(enabled=sys.stderr.isatty() and len(paths) > 1, label="checking")
         try:
-            with ex, _compile_notice(ex):
+            with ex:
                 report = bulk_check.check_many(paths, ex, only=sel_only, skip=sel_skip,
                                                tolerances=tolerances, on_done=prog)
         finally:
@@ -299,17 +311,6 @@ def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_
     if table_path:
         click.echo(f"wrote {table_path}", err=as_json)
     sys.exit(report.exit_code)
-
-
-def _compile_notice(ex):
-    """Kernel-compilation notices on stderr when the check runs in this process."""
-    import contextlib
-
-    if not ex.serial:
-        return contextlib.nullcontext()
-    from rblog.engine.runner import CompileNotice
-
-    return CompileNotice(lambda m: click.echo(m, err=True))
 
 
 def _findings_for_one_log(out, paths, only, skip, tolerances):

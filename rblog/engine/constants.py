@@ -56,8 +56,6 @@ BLOCK_MAX_BODY_SAMPLES = 32_768
 BLOCK_MAX_BODY_STEPS = 2_000_000
 #: A progress bar is shown when the run is expected to last longer than this (seconds, wall).
 PROGRESS_MIN_WALL_S = 1.0
-#: Print a "compiling kernels" notice when the first compiled call has not returned by then (s).
-COMPILE_NOTICE_AFTER_S = 0.4
 
 # --- logging ----------------------------------------------------------------------------------
 #: Default logging rate when neither --log-every nor --log-rate is given (samples per simulated

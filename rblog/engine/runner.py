@@ -9,8 +9,7 @@ Why this module is long: the run loop and everything that must hold while it run
 because they share its state: the wall-time sizing of compiled calls (sampling stays on global
 multiples of the stride whatever the split), the signal flag checked between calls (SIGINT and
 SIGTERM answered within a call's budget, logs closed "interrupted"), the writer thread that
-overlaps logging with stepping, the running summary figures, and the compile notice driven by
-numba's compile events.
+overlaps logging with stepping, and the running summary figures.
 """
 
 from __future__ import annotations
@@ -31,11 +30,12 @@ from rblog.engine.constants import (
     BLOCK_MAX_SAMPLES,
     CALL_GROWTH_MAX,
     CALL_WALL_BUDGET_S,
-    COMPILE_NOTICE_AFTER_S,
     DEFAULT_LOG_RATE_HZ,
     MAX_ROTATION_PER_STEP_RAD,
     MAX_RUN_STEPS,
 )
+from rblog._threads import default_threads
+from rblog.engine import _core
 from rblog.errors import RunInterrupted, SceneError, SimulationDiverged
 from rblog.engine.free import advance_free
 from rblog.contract.model import Model
@@ -191,17 +191,19 @@ def run(
     log_rate: float | None = None,
     recorders: list[Recorder] | tuple = (),
     progress: Callable[[int, int], None] | None = None,
-    notice: Callable[[str], None] | None = None,
     force_contacts: bool = False,
     profile=None,
     warn: Callable[[str], None] | None = None,
+    threads: int | None = None,
 ) -> RunSummary:
     """Simulate ``scene`` and stream samples to ``recorders``.
 
     Options override the scene's ``[sim]`` values. ``progress(done_steps, total_steps)`` is called
-    after every block; ``notice(msg)`` gets one-line notices (kernel compilation); ``warn(msg)``
-    gets one-line warnings about the scene (bodies that start overlapping). ``profile`` (an
-    ``engine.profile.Profile``) accumulates seconds per stage.
+    after every block; ``warn(msg)`` gets one-line
+    warnings about the scene (bodies that start overlapping). ``profile`` (an
+    ``engine.profile.Profile``) accumulates seconds per stage. ``threads``: how many threads the
+    core steps on (default ``rblog._threads.default_threads()``: ``RBLOG_THREADS``, else the
+    machine's cores); the result is bitwise the same for any count.
 
     Raises:
         SceneError: an option is out of range.
@@ -223,6 +225,9 @@ def run(
         raise SceneError(scene.path, "--dt" if dt != sim.dt else "sim.dt",
                          f"dt = {dt:g} s makes {duration / dt:.3g} steps for {duration:g} s "
                          f"(expected at most {MAX_RUN_STEPS:.0e} steps)")
+    if threads is not None and (isinstance(threads, bool) or int(threads) != threads or threads < 1):
+        raise SceneError(scene.path, "--threads", f"expected a positive integer, got {threads!r}")
+    _core.set_threads(int(threads) if threads is not None else default_threads())
     integrator = integrator or sim.integrator
     if integrator not in ORTHO_ALLOWED:
         raise SceneError(scene.path, "--integrator",
@@ -273,19 +278,17 @@ def run(
     t_start = time.perf_counter()
     try:
         with stop:
-            # load (or compile, the first time) the kernels before the clock starts; the notice
-            # is printed at most once per run. A signal here interrupts at once (Python code).
-            notice = _once(notice)
+            # a first call of zero steps and the first derived channels before the clock starts
+            # (nothing compiles: the core was built at install). A signal here interrupts at
+            # once (Python code).
             stop.raise_now = True
-            with CompileNotice(notice, _kernels_of(plan, integrator, bool(recorders))):
-                advance(dt, 0, stride, False, st.copy(), new_buffers(samples_in_block))
-                derive(model, info, np.array([0]), np.array([0.0]), st.position[None],
-                       st.linear_momentum[None], st.quat_wxyz[None], st.rotation[None],
-                       st.angular_momentum_world[None])
-            with CompileNotice(notice, "the log encoders"):  # loaded when a recorder opens
-                for r in recorders:
-                    r.open(model, info)
-                    opened.append(r)
+            advance(dt, 0, stride, False, st.copy(), new_buffers(samples_in_block))
+            derive(model, info, np.array([0]), np.array([0.0]), st.position[None],
+                   st.linear_momentum[None], st.quat_wxyz[None], st.rotation[None],
+                   st.angular_momentum_world[None])
+            for r in recorders:
+                r.open(model, info)
+                opened.append(r)
             stop.raise_now = False
             stop.check()
             t_start = time.perf_counter()  # the run's wall time: stepping and writing
@@ -621,14 +624,6 @@ def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
             f"{MAX_ROTATION_PER_STEP_RAD:g} rad")
 
 
-def _kernels_of(plan: Plan, integrator: str, logging: bool) -> str:
-    """What the first compiled call of a run compiles (the compile notice names it): the contact
-    step or the free-body kernel of the run's integrator, and the derived channels."""
-    step = ("the contact step (broadphase, narrowphase, solver, every integrator's rotation)"
-            if plan.contacts else f"the free-body kernel ({integrator})")
-    return step + ", the derived channels" + (" of the logs" if logging else "")
-
-
 def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profile=None):
     """The block-advance function for the chosen stages (timed into ``profile`` if given)."""
     if plan.contacts:
@@ -659,72 +654,3 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profil
         return ns, bad_step, bad_body, None
 
     return advance
-
-
-def _once(fn):
-    """``fn`` that does something on its first call only (None stays None)."""
-    if fn is None:
-        return None
-    done = []
-
-    def call(*args):
-        if not done:
-            done.append(True)
-            fn(*args)
-    return call
-
-
-_DONE = object()
-
-
-class CompileNotice:
-    """Context manager: calls ``notice(msg)`` once if numba starts compiling a kernel inside the
-    block and the block has not ended COMPILE_NOTICE_AFTER_S later. A block that is merely slow
-    (a long analysis with every kernel cached) prints nothing: the timer starts on numba's own
-    ``numba:compile`` event, not on entry."""
-
-    def __init__(self, notice, what: str = ""):
-        self.notice = notice
-        self.what = what
-        self.timer = None
-        self._listener = None
-        self._lock = threading.Lock()
-
-    def _compiling(self):
-        with self._lock:
-            if self.timer is None and self.notice is not None:
-                self.timer = threading.Timer(
-                    COMPILE_NOTICE_AFTER_S, self.notice,
-                    (f"compiling kernels{': ' + self.what if self.what else ''} (first run "
-                     "only; cached afterwards)...",))
-                self.timer.daemon = True
-                self.timer.start()
-
-    def __enter__(self):
-        if self.notice is not None:
-            from numba.core import event
-
-            outer = self
-
-            class _OnCompile(event.Listener):
-                def on_start(self, ev):
-                    outer._compiling()
-
-                def on_end(self, ev):
-                    pass
-
-            self._listener = _OnCompile()
-            event.register("numba:compile", self._listener)
-        return self
-
-    def __exit__(self, *exc):
-        if self._listener is not None:
-            from numba.core import event
-
-            event.unregister("numba:compile", self._listener)
-            self._listener = None
-        with self._lock:
-            if self.timer is not None and self.timer is not _DONE:
-                self.timer.cancel()
-            self.timer = _DONE  # no notice after the block
-        return False

@@ -149,8 +149,9 @@ OTHER_ROWS = [
      "R = \\|q\\|^2 Q logged (the notes' stretch); omega = (R I_body R^T)^-1 L = \\|q\\|^-4 times "
      "the rigid value, in the engine and the log (before: \\|q\\|^4 times, a runaway that went "
      "non-finite at step 1121 of tests/engine/test_seed_quat_stretch.py's isotropic case)"),
-    ("the same scene run with NUMBA_NUM_THREADS=1 and =2 (a 3,200-body free scene, a contact "
-     "scene), and twice in separate processes", "(none)", 0,
+    ("the same scene run with RBLOG_THREADS=1 and =2 (a 3,200-body free scene, a contact "
+     "scene), every sample with `--threads 1`, `2` and `4`, and twice in separate processes",
+     "(none)", 0,
      "byte-identical .mcap records and bit-identical .rrd samples "
      "(tests/cli/test_thread_determinism.py); the .mcap file bytes may differ only where a chunk "
      "was closed on wall time"),

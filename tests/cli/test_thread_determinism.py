@@ -1,11 +1,10 @@
 """Determinism across processes and thread counts, as log bytes (issue 19).
 
-A free scene (the free kernel splits its bodies over NUMBA_NUM_THREADS threads) and a contact
-scene (serial today; this test guards any later parallel stage) are each run in separate
-processes with NUMBA_NUM_THREADS=1 and =2; every record of the .mcap files must be
-byte-identical (the file bytes may differ only in where chunks end: see _mcap_records) and the
-.rrd files (which carry a random recording id) must hold bit-identical samples. rblog has no thread
-setting of its own: the free kernel takes its count from numba's (rblog.engine.free).
+A free scene (the core's free kernel splits its bodies over the task pool's threads) and a
+contact scene (serial today; this test guards any later parallel stage) are each run in separate
+processes with RBLOG_THREADS=1 and =2 (and `--threads 4`); every record of the .mcap files must
+be byte-identical (the file bytes may differ only in where chunks end: see _mcap_records) and the
+.rrd files (which carry a random recording id) must hold bit-identical samples.
 """
 
 from __future__ import annotations
@@ -15,6 +14,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 
 import rblog
 from conftest import SAMPLES_DIR
@@ -57,7 +57,7 @@ BY_BLOCKS = ("import sys; from rblog_cli.main import main; import rblog.engine.r
 
 def _run(tmp_path, scene, tag, threads, extra=(), by_blocks=False):
     rrd, mcap = tmp_path / f"{tag}-{threads}.rrd", tmp_path / f"{tag}-{threads}.mcap"
-    env = {**os.environ, "NUMBA_NUM_THREADS": str(threads)}
+    env = {**os.environ, "RBLOG_THREADS": str(threads)}
     exe = [sys.executable, "-c", BY_BLOCKS] if by_blocks else [RBLOG]
     p = subprocess.run([*exe, "run", str(scene), "--rrd", str(rrd), "--mcap", str(mcap), *extra],
                        env=env, capture_output=True, text=True)
@@ -97,27 +97,24 @@ def _same_logs(a, b):
 
 def test_free_scene_uses_two_threads(tmp_path, monkeypatch):
     """The free scene below does split its bodies over two threads when given two (so the byte
-    comparison is not between two serial runs)."""
-    import numba
-
+    comparison is not between two serial runs): the ranges handed to the core's kernel."""
     import rblog.engine.free as free
     import rblog.engine.runner as runner
     from rblog.engine.runner import simulate
     from rblog.engine.scene import parse_scene
 
-    ranges = []
-    real = free.advance_free_range
+    calls = []
+    real = free._core.advance_free
 
     def spy(*args):
-        ranges.append(args[-2:])
+        calls.append([tuple(r) for r in args[-2]])  # (..., anchors, ranges, tile)
         return real(*args)
 
-    monkeypatch.setattr(free, "advance_free_range", spy)
-    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 2)
+    monkeypatch.setattr(free._core, "advance_free", spy)
     monkeypatch.setattr(runner, "CALL_WALL_BUDGET_S", 1.0)  # calls sized by the blocks, not load
-    simulate(parse_scene(FREE_MANY, "many.toml"), log_every=LOG_EVERY)
-    assert (0, 3200) in ranges  # the short first calls run serially ...
-    assert (0, 1600) in ranges and (1600, 3200) in ranges  # ... the rest on two threads
+    simulate(parse_scene(FREE_MANY, "many.toml"), log_every=LOG_EVERY, threads=2)
+    assert [(0, 3200)] in calls  # the short first calls run serially ...
+    assert [(0, 1600), (1600, 3200)] in calls  # ... the rest on two threads
 
 
 def test_free_scene_logs_same_bytes_for_1_and_2_threads(tmp_path):
@@ -149,3 +146,24 @@ def test_determinism_across_processes(tmp_path):
                         "--mcap", str(mcap)], check=True, capture_output=True)
         logs.append((rrd, mcap))
     _same_logs(*logs)
+
+
+def _run_threads_flag(tmp_path, scene, threads, duration):
+    """`rblog run --threads N` (the flag, not the environment) in a fresh process."""
+    rrd, mcap = tmp_path / f"{scene.stem}-t{threads}.rrd", tmp_path / f"{scene.stem}-t{threads}.mcap"
+    env = {k: v for k, v in os.environ.items() if k != "RBLOG_THREADS"}
+    p = subprocess.run([RBLOG, "run", str(scene), "--duration", str(duration), "--threads",
+                        str(threads), "--rrd", str(rrd), "--mcap", str(mcap)], env=env,
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    return rrd, mcap
+
+
+@pytest.mark.slow  # every sample three times: ~1 min on a shared 2-core machine
+@pytest.mark.parametrize("sample", sorted(p.stem for p in SAMPLES_DIR.glob("*.toml")))
+def test_every_sample_logs_same_bytes_for_1_2_and_4_threads(tmp_path, sample):
+    scene = SAMPLES_DIR / f"{sample}.toml"
+    duration = 0.3 if sample == "pile" else 1.0
+    one = _run_threads_flag(tmp_path, scene, 1, duration)
+    for n in (2, 4):
+        _same_logs(one, _run_threads_flag(tmp_path, scene, n, duration))
