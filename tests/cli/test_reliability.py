@@ -92,7 +92,7 @@ FAULTS = [
     Fault("unwritable-output", "an output in a folder that does not exist", {"s.toml": FREE},
           ["run", "s.toml", "--rrd", "missing/x.rrd"], 2, "missing/x.rrd: cannot write log: folder",
           "nothing written; "
-          "checked before the kernels compile"),
+          "checked before the run starts"),
     Fault("dead-port", "`--connect` to a port nobody listens at", {"s.toml": FREE},
           ["run", "s.toml", "--no-log", "--connect", "rerun+http://127.0.0.1:9/proxy"], 2,
           "no Rerun viewer listens at 127.0.0.1:9", "nothing written"),
