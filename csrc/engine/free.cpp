@@ -210,9 +210,14 @@ inline void seed_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
                 d = vpymax(d, vabs(n20 - a20));
                 d = vpymax(d, vabs(n21 - a21));
                 d = vpymax(d, vabs(n22 - a22));
-                a00 = active ? n00 : a00; a01 = active ? n01 : a01; a02 = active ? n02 : a02;
-                a10 = active ? n10 : a10; a11 = active ? n11 : a11; a12 = active ? n12 : a12;
-                a20 = active ? n20 : a20; a21 = active ? n21 : a21; a22 = active ? n22 : a22;
+                if (all_set(active)) {  // the common case: no lane has stopped yet
+                    a00 = n00; a01 = n01; a02 = n02; a10 = n10; a11 = n11; a12 = n12;
+                    a20 = n20; a21 = n21; a22 = n22;
+                } else {
+                    a00 = active ? n00 : a00; a01 = active ? n01 : a01; a02 = active ? n02 : a02;
+                    a10 = active ? n10 : a10; a11 = active ? n11 : a11; a12 = active ? n12 : a12;
+                    a20 = active ? n20 : a20; a21 = active ? n21 : a21; a22 = active ? n22 : a22;
+                }
                 active = active & ~(d <= tol);
                 if (!any(active)) break;
             }
