@@ -210,9 +210,14 @@ inline void seed_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
                 d = vpymax(d, vabs(n20 - a20));
                 d = vpymax(d, vabs(n21 - a21));
                 d = vpymax(d, vabs(n22 - a22));
-                a00 = active ? n00 : a00; a01 = active ? n01 : a01; a02 = active ? n02 : a02;
-                a10 = active ? n10 : a10; a11 = active ? n11 : a11; a12 = active ? n12 : a12;
-                a20 = active ? n20 : a20; a21 = active ? n21 : a21; a22 = active ? n22 : a22;
+                if (all_set(active)) {  // the common case: no lane has stopped yet
+                    a00 = n00; a01 = n01; a02 = n02; a10 = n10; a11 = n11; a12 = n12;
+                    a20 = n20; a21 = n21; a22 = n22;
+                } else {
+                    a00 = active ? n00 : a00; a01 = active ? n01 : a01; a02 = active ? n02 : a02;
+                    a10 = active ? n10 : a10; a11 = active ? n11 : a11; a12 = active ? n12 : a12;
+                    a20 = active ? n20 : a20; a21 = active ? n21 : a21; a22 = active ? n22 : a22;
+                }
                 active = active & ~(d <= tol);
                 if (!any(active)) break;
             }
@@ -276,22 +281,28 @@ inline void mat2(const Q2& q, d2 m[9]) {
     m[6] = 2.0 * (x * z - w * y); m[7] = 2.0 * (y * z + w * x); m[8] = w * w - x * x - y * y + z * z;
 }
 
-// mul_exp lane-wise (the series or the sine and cosine per lane, as the scalar branch)
-inline Q2 mul_exp2(const Q2& q, d2 vx, d2 vy, d2 vz) {
-    const d2 a2 = vx * vx + vy * vy + vz * vz;
-    d2 c, sf;
-    for (int l = 0; l < 2; ++l) {
-        const double s2 = a2[l];
+// mul_exp's coefficients (cos |v|/2, sin(|v|/2) / |v|, or the small-angle series) of two
+// vectors u and v lane-wise, the scalar branch per lane; the four sine-cosine calls back to back,
+// so that the state live across them is spilled and reloaded once per step, not per call.
+inline void exp_coefs2(d2 ux, d2 uy, d2 uz, d2 vx, d2 vy, d2 vz, d2& cu, d2& su, d2& cv,
+                       d2& sv) {
+    const d2 a2u = ux * ux + uy * uy + uz * uz;
+    const d2 a2v = vx * vx + vy * vy + vz * vz;
+    double cc[4], ss[4];
+    const double s2s[4] = {a2u[0], a2u[1], a2v[0], a2v[1]};
+    for (int l = 0; l < 4; ++l) {
+        const double s2 = s2s[l];
         if (s2 < 1e-8) {
-            c[l] = 1.0 - s2 / 8.0 + s2 * s2 / 384.0;
-            sf[l] = 0.5 - s2 / 48.0 + s2 * s2 / 3840.0;
+            cc[l] = 1.0 - s2 / 8.0 + s2 * s2 / 384.0;
+            ss[l] = 0.5 - s2 / 48.0 + s2 * s2 / 3840.0;
         } else {
             const double an = std::sqrt(s2);
-            c[l] = std::cos(0.5 * an);
-            sf[l] = std::sin(0.5 * an) / an;
+            cc[l] = std::cos(0.5 * an);
+            ss[l] = std::sin(0.5 * an) / an;
         }
     }
-    return qmul2(q.w, q.x, q.y, q.z, c, sf * vx, sf * vy, sf * vz);
+    cu = d2{cc[0], cc[1]}; su = d2{ss[0], ss[1]};
+    cv = d2{cc[2], cc[3]}; sv = d2{ss[2], ss[3]};
 }
 
 // R(q)^T tau lane-wise (torque_body)
@@ -411,12 +422,18 @@ inline void rk4_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
         const d2 n1 = a1 + g * (d11 + 2.0 * d21 + 2.0 * d31 + d41);
         const d2 n2 = a2 + g * (d12 + 2.0 * d22 + 2.0 * d32 + d42);
         // attitude: CF4
-        Q2 r = mul_exp2(q, h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
-                        h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
-                        h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42));
-        r = mul_exp2(r, h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
-                     h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
-                     h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42));
+        // r = mul_exp(mul_exp(q, u), v): both exponents depend on the stages only, so their
+        // coefficients come first (exp_coefs2), then the two products
+        const d2 ux = h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
+                 uy = h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
+                 uz = h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42);
+        const d2 vx = h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
+                 vy = h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
+                 vz = h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42);
+        d2 cu, su, cv, sv;
+        exp_coefs2(ux, uy, uz, vx, vy, vz, cu, su, cv, sv);
+        Q2 r = qmul2(q.w, q.x, q.y, q.z, cu, su * ux, su * uy, su * uz);
+        r = qmul2(r.w, r.x, r.y, r.z, cv, sv * vx, sv * vy, sv * vz);
         r = normalize2(r.w, r.x, r.y, r.z);
         // turn q so that R^T L_end is along Lb'
         const d2 ex = lx + h * tx, ey = ly + h * ty, ez = lz + h * tz;

@@ -23,5 +23,6 @@ inline d2 vabs(d2 a) { return d2{std::fabs(a[0]), std::fabs(a[1])}; }
 // Python's max(a, b) lane-wise: a unless b > a (rotation.hpp py_max)
 inline d2 vpymax(d2 a, d2 b) { return b > a ? b : a; }
 inline bool any(m2 m) { return (m[0] | m[1]) != 0; }
+inline bool all_set(m2 m) { return (m[0] & m[1]) != 0; }  // both lanes set
 
 }  // namespace rb
