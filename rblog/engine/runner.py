@@ -479,9 +479,12 @@ class _BlockWriter:
                     if self.error is None:
                         self.error = e
         finally:
-            for lane, t in self.lanes:
-                # close only if every block reached the recorders (deriving did not fail)
-                lane.put(_CLOSE if self._close and not broken else None)
+            # close only if every block reached the recorders (deriving did not fail); every
+            # lane gets its end before any is joined (the lanes meet at a barrier to close)
+            end = _CLOSE if self._close and not broken else None
+            for lane, _ in self.lanes:
+                lane.put(end)
+            for _, t in self.lanes:
                 t.join()
 
     def _lane(self, rec, lane: queue.Queue):
