@@ -150,6 +150,48 @@ def settings(client: int = 0) -> dict:
             "contact_rows": dict(CONTACT_ROWS)}
 
 
+def read_state(client: int, ids, q_frame=None):
+    """(position, quat_wxyz, velocity, angular_velocity) of bodies ``ids`` now, world frame, in
+    the contract's frames (``q_frame`` (N, 4): each contract frame in the base frame; identity
+    when None)."""
+    pb = _pb()
+    ids = [int(b) for b in ids]
+    n = len(ids)
+    x, q, v, w = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3))
+    for i, bid in enumerate(ids):
+        p, o = pb.getBasePositionAndOrientation(bid, physicsClientId=client)
+        lv, av = pb.getBaseVelocity(bid, physicsClientId=client)
+        x[i], q[i], v[i], w[i] = p, (o[3], o[0], o[1], o[2]), lv, av
+    return x, (q if q_frame is None else quat_mul(q, q_frame)), v, w
+
+
+def read_contacts(client: int, index: dict, dt: float, step: int):
+    """The contact rows of the step just taken, in the contract's convention (dict for
+    Recorder.write, or None): ``index`` maps pybullet body ids to rows (others: static)."""
+    pts = _pb().getContactPoints(physicsClientId=client)
+    rows = [c for c in pts if not (c[9] <= 0.0 and c[8] > 0.0)]
+    if not rows:
+        return None
+    cols = list(zip(*rows))
+    a = np.array([index.get(x, -1) for x in cols[1]], np.int64)
+    b = np.array([index.get(x, -1) for x in cols[2]], np.int64)
+    normal = np.array(cols[7], float)  # on B, pointing towards A
+    fn = np.array(cols[9], float)
+    fric = (np.array(cols[10])[:, None] * np.array(cols[11]) + np.array(cols[12])[:, None] * np.array(cols[13]))
+    point = 0.5 * (np.array(cols[5], float) + np.array(cols[6], float))
+    flip = a < 0
+    a[flip], b[flip] = b[flip], a[flip]
+    normal[flip] *= -1.0
+    fric[flip] *= -1.0
+    keep = a >= 0
+    if not keep.any():
+        return None
+    k = int(keep.sum())
+    return dict(step=np.full(k, int(step), np.int64), body_a=a[keep], body_b=b[keep],
+                point=point[keep], normal=normal[keep], separation=np.array(cols[8], float)[keep],
+                normal_impulse=fn[keep] * dt, friction_impulse=fric[keep] * dt)
+
+
 class PybulletRecorder:
     """Record the bodies of a pybullet client: ``rec = PybulletRecorder(client, mcap=...)``, then
     ``rec()`` after each ``stepSimulation`` (``rec(steps=k)`` after k of them), ``rec.close()``.
@@ -181,39 +223,11 @@ class PybulletRecorder:
 
     def state(self):
         """(position, quat_wxyz, velocity, angular_velocity) of the recorded bodies now."""
-        pb, cid = self.pb, self.client
-        n = len(self.ids)
-        x, q, v, w = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3))
-        for i, bid in enumerate(self.ids.tolist()):
-            p, o = pb.getBasePositionAndOrientation(bid, physicsClientId=cid)
-            lv, av = pb.getBaseVelocity(bid, physicsClientId=cid)
-            x[i], q[i], v[i], w[i] = p, _wxyz(o), lv, av
-        return x, quat_mul(q, self.q_frame), v, w
+        return read_state(self.client, self.ids, self.q_frame)
 
     def contacts(self, step: int):
         """The contact rows of the step just taken (dict for Recorder.write, or None)."""
-        pts = self.pb.getContactPoints(physicsClientId=self.client)
-        rows = [c for c in pts if not (c[9] <= 0.0 and c[8] > 0.0)]
-        if not rows:
-            return None
-        cols = list(zip(*rows))
-        a = np.array([self.index.get(x, -1) for x in cols[1]], np.int64)
-        b = np.array([self.index.get(x, -1) for x in cols[2]], np.int64)
-        normal = np.array(cols[7], float)  # on B, pointing towards A
-        fn = np.array(cols[9], float)
-        fric = (np.array(cols[10])[:, None] * np.array(cols[11]) + np.array(cols[12])[:, None] * np.array(cols[13]))
-        point = 0.5 * (np.array(cols[5], float) + np.array(cols[6], float))
-        flip = a < 0
-        a[flip], b[flip] = b[flip], a[flip]
-        normal[flip] *= -1.0
-        fric[flip] *= -1.0
-        keep = a >= 0
-        if not keep.any():
-            return None
-        k = int(keep.sum())
-        return dict(step=np.full(k, int(step), np.int64), body_a=a[keep], body_b=b[keep],
-                    point=point[keep], normal=normal[keep], separation=np.array(cols[8], float)[keep],
-                    normal_impulse=fn[keep] * self.dt, friction_impulse=fric[keep] * self.dt)
+        return read_contacts(self.client, self.index, self.dt, step)
 
     def __call__(self, steps: int = 1) -> None:
         """Log the state after ``steps`` more ``stepSimulation`` calls and the last one's contacts."""
@@ -241,4 +255,4 @@ class PybulletRecorder:
         return self.recorder.trajectory
 
 
-__all__ = ["CONTACT_ROWS", "PybulletRecorder", "inspect", "settings"]
+__all__ = ["CONTACT_ROWS", "PybulletRecorder", "inspect", "read_contacts", "read_state", "settings"]
