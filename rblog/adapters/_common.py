@@ -64,11 +64,6 @@ def body_frame(inertia_principal, q_inertial, geom=None):
     return SHAPE_NONE, np.zeros(3), moments.copy(), qi
 
 
-def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(..., 3) vectors v turned by the (..., 4) unit quaternions q (body -> world)."""
-    return np.einsum("...ij,...j->...i", quat_wxyz_to_matrix(q), v)
-
-
 class SampleStream:
     """Samples (step, t, position, quat_wxyz, velocity, world angular velocity, contact rows)
     gathered and written to an :class:`rblog.record.Recorder` a block at a time."""
@@ -108,4 +103,4 @@ class SampleStream:
         rec.write(**arrays)
 
 
-__all__ = ["BLOCK_SAMPLES", "SampleStream", "body_frame", "quat_mul", "rotate"]
+__all__ = ["BLOCK_SAMPLES", "SampleStream", "body_frame", "quat_mul"]
