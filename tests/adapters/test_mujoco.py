@@ -279,3 +279,28 @@ def test_writes_both_logs(tmp_path):
     np.testing.assert_array_equal(a.position, b.position)
     assert a.info.engine_settings["engine"] == "mujoco" and a.info.combine_friction == "max"
     assert a.info.engine_settings["contact_rows"]["separation"].startswith("before the step")
+
+
+def test_welded_bodies_are_one_rigid_body():
+    """A free body with a welded child (a hammer: handle and head) is one rigid body of the table:
+    its centre of mass, momentum and angular momentum about the centre of mass equal MuJoCo's own
+    subtree_com, subtree_linvel x mass and subtree_angmom (mj_subtreeVel)."""
+    xml = ('<body name="hammer" pos="0 0 1" euler="10 0 30"><freejoint/>'
+           '<geom type="cylinder" size="0.02 0.2" mass="0.5"/>'
+           '<body name="head" pos="0 0 0.2" euler="0 90 0"><geom type="box" size="0.03 0.03 0.08" mass="1.5"/>'
+           '</body></body>')
+    m = model(xml, ground=False, option='gravity="0 0 0"')
+    d = mujoco.MjData(m)
+    d.qvel[:] = [0.1, 0, 0, 1, 2, 3]
+    rec = MujocoRecorder(m, d)
+    for _ in range(100):
+        mujoco.mj_step(m, d)
+        rec(d)
+    mujoco.mj_forward(m, d)
+    mujoco.mj_subtreeVel(m, d)
+    traj = rec.trajectory
+    assert traj.model.body_name == ["hammer"] and traj.model.body_shape.tolist() == [SHAPE_NONE]
+    assert traj.model.body_mass[0] == 2.0
+    np.testing.assert_allclose(traj.position[-1, 0], d.subtree_com[1], atol=1e-12)
+    np.testing.assert_allclose(traj.linear_momentum[-1, 0], 2.0 * d.subtree_linvel[1], atol=1e-12)
+    np.testing.assert_allclose(traj.angular_momentum[-1, 0], d.subtree_angmom[1], atol=1e-12)
