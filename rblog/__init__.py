@@ -36,6 +36,7 @@ _API = {
     "SceneError": ("rblog.errors", "SceneError"),
     "LogReadError": ("rblog.errors", "LogReadError"),
     "LogWriteError": ("rblog.errors", "LogWriteError"),
+    "RecordError": ("rblog.record.recorder", "RecordError"),
     "SimulationDiverged": ("rblog.errors", "SimulationDiverged"),
     "RunInterrupted": ("rblog.errors", "RunInterrupted"),
 }

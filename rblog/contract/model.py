@@ -24,8 +24,16 @@ import numpy as np
 
 SHAPE_SPHERE = 0
 SHAPE_BOX = 1
+#: a body whose geometry the contract cannot describe (a capsule, cylinder or mesh of another
+#: engine, several geoms): its mass, inertia and motion are logged, its ``body_size`` is zero, and
+#: what needs a shape (separations, tunneling) must skip it. Only recorders write it: a scene has
+#: no such body (the engine simulates spheres and boxes only).
+SHAPE_NONE = -1
+#: the shapes of scenes and of rblog's engine
 SHAPE_NAMES = {SHAPE_SPHERE: "sphere", SHAPE_BOX: "box"}
 SHAPE_CODES = {v: k for k, v in SHAPE_NAMES.items()}
+#: every body_shape value a log may hold, by name (SHAPE_CODES plus "none")
+LOG_SHAPE_CODES = {**SHAPE_CODES, "none": SHAPE_NONE}
 
 
 @dataclass
@@ -34,14 +42,17 @@ class Model:
 
     Attributes:
         body_name: N names.
-        body_shape: (N,) int, SHAPE_SPHERE or SHAPE_BOX.
-        body_size: (N, 3) sphere radius in [:, 0] (others 0), or box half-extents (m, body frame).
+        body_shape: (N,) int, SHAPE_SPHERE or SHAPE_BOX (SHAPE_NONE, -1, in logs of other
+            engines: no shape the contract describes).
+        body_size: (N, 3) sphere radius in [:, 0] (others 0), or box half-extents (m, body frame);
+            zeros for SHAPE_NONE.
         body_mass: (N,) kg.  body_inv_mass: (N,) 1/kg.
         body_inertia_diag: (N, 3) principal moments about the centre of mass, body frame (kg m^2).
         body_inv_inertia_diag: (N, 3) their inverses.
         body_force_world: (N, 3) constant applied force besides gravity (N, world frame).
         body_torque_world: (N, 3) constant applied torque (N m, world frame).
-        body_restitution, body_friction: (N,) material coefficients.
+        body_restitution, body_friction: (N,) material coefficients; NaN = not stated by the
+            engine that wrote the log (unknown, so not to be judged).
         body_group: (N,) int collision group; bodies in different non-zero groups never touch.
         gravity: (3,) m/s^2, world frame.
         ground: True when the scene has the infinite plane ``dot(ground_normal, x) = ground_offset``.
@@ -88,6 +99,6 @@ class Model:
     @property
     def body_bounding_radius(self) -> np.ndarray:
         """(N,) radius of each body's bounding sphere about its centre of mass (m): the sphere's
-        radius, or a box's half diagonal |half extents|."""
+        radius, or a box's half diagonal |half extents|; 0 for a body without a shape."""
         return np.where(self.body_shape == SHAPE_SPHERE, self.body_size[:, 0],
                         np.linalg.norm(self.body_size, axis=1))

@@ -16,6 +16,7 @@ The layout of both formats is the contract in docs/log-format.md.
 _API = {
     "McapRecorder": "rblog.record.mcap_writer",
     "Recorder": "rblog.record.recorder",
+    "RecordError": "rblog.record.recorder",
     "RerunRecorder": "rblog.record.rerun_writer",
     "body_table": "rblog.record.recorder",
     "load": "rblog.record.reader",

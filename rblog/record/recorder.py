@@ -27,7 +27,7 @@ from dataclasses import fields
 import numpy as np
 
 from rblog import __version__
-from rblog.contract.model import SHAPE_CODES, SHAPE_SPHERE, Model
+from rblog.contract.model import LOG_SHAPE_CODES, SHAPE_NONE, SHAPE_SPHERE, Model
 from rblog.contract.orientation import matrix_to_quat, quat_wxyz_to_matrix
 from rblog.contract.trajectory import Contacts, RunInfo, Trajectory, derive
 from rblog.errors import RblogError
@@ -48,12 +48,15 @@ def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, f
     """A :class:`Model` (body table and world) from per-body lists.
 
     Args:
-        name: N names.  shape: N of ``"sphere"``/``"box"`` (or 0/1).
+        name: N names.  shape: N of ``"sphere"``, ``"box"`` or ``"none"`` (or 0, 1, -1; one value
+            for all bodies); ``"none"``: a geometry the contract does not describe (another
+            engine's capsule, cylinder, mesh), logged with zero size and the given inertia.
         size: (N, 3): sphere radius in [:, 0]; box half extents (m, body frame). A sphere may
             also be given as a scalar radius per body, (N,).
         mass: (N,) kg.  inertia_diag: (N, 3) principal moments about the centre of mass in the
             body frame (kg m^2); default: a solid sphere's 2/5 m r^2, a solid box's m/3 (b^2 + c^2).
-        restitution, friction: scalars or (N,).  group: collision group(s).
+        restitution, friction: scalars or (N,); NaN = not stated by the engine (unknown).
+        group: collision group(s).
         force_world, torque_world: (N, 3) constant applied loads besides gravity.
         gravity: (3,) m/s^2.  ground...: the plane ``dot(normal, x) = offset`` if ``ground``.
         static_box_*: (M, ...) static boxes.
@@ -61,28 +64,38 @@ def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, f
     n = len(name)
 
     def arr(v, shape_, what, default=0.0):
-        a = np.asarray(default if v is None else v, np.float64)
+        a = _float_array(default if v is None else v, what)
         try:
             return np.broadcast_to(a, shape_).copy()
         except ValueError:
-            raise RecordError(f"body_table: {what} has shape {a.shape}, expected {shape_}") from None
+            raise RecordError(f"body_table: {what} has shape {a.shape}, expected {shape_} "
+                              f"(or a shape that broadcasts to it; N = {n} bodies)") from None
 
-    codes = np.array([SHAPE_CODES[s] if isinstance(s, str) else int(s) for s in shape], np.int64) \
-        if not isinstance(shape, str) else np.full(n, SHAPE_CODES[shape], np.int64)
-    if len(codes) != n:
-        raise RecordError(f"body_table: shape has {len(codes)} entries, expected {n}")
-    sz = np.asarray(size, np.float64)
+    if isinstance(name, str):
+        raise RecordError(f"body_table: name is the string {name!r}, expected a list of N names")
+    codes = _shape_codes([shape] * n if isinstance(shape, (str, int, np.integer)) else shape, n)
+    sz = _float_array(size, "size")
     if sz.ndim == 1 and len(sz) == n:
         sz = np.stack([sz, np.zeros(n), np.zeros(n)], axis=1)
     sz = arr(sz, (n, 3), "size")
+    none = codes == SHAPE_NONE
+    if np.any(sz[none] != 0):
+        i = int(np.flatnonzero(none & np.any(sz != 0, axis=1))[0])
+        raise RecordError(f"body_table: size[{i}] = {sz[i].tolist()} for body {name[i]!r} of shape "
+                          "'none', expected [0, 0, 0] (a body without a shape has no size)")
     m = arr(mass, (n,), "mass")
-    if np.any(m <= 0):
-        raise RecordError("body_table: mass must be positive")
+    if np.any(~(m > 0)):
+        i = int(np.flatnonzero(~(m > 0))[0])
+        raise RecordError(f"body_table: mass[{i}] = {m[i]!r} for body {name[i]!r}, expected a "
+                          "positive number (kg)")
     if inertia_diag is None:
         inertia = np.empty((n, 3))
         for i in range(n):
             if codes[i] == SHAPE_SPHERE:
                 inertia[i] = 0.4 * m[i] * sz[i, 0] ** 2
+            elif codes[i] == SHAPE_NONE:
+                raise RecordError(f"body_table: inertia_diag not given, and body {name[i]!r} has "
+                                  "no shape to compute it from: give inertia_diag (N, 3)")
             else:
                 a2, b2, c2 = sz[i] ** 2
                 inertia[i] = m[i] / 3.0 * np.array([b2 + c2, a2 + c2, a2 + b2])
@@ -95,7 +108,7 @@ def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, f
         body_torque_world=arr(torque_world, (n, 3), "torque_world"),
         body_restitution=arr(restitution, (n,), "restitution"),
         body_friction=arr(friction, (n,), "friction"),
-        body_group=np.broadcast_to(np.asarray(group, np.int64), (n,)).copy(),
+        body_group=_group(group, n),
         gravity=arr(gravity, (3,), "gravity"), ground=bool(ground),
         ground_normal=arr(ground_normal, (3,), "ground_normal"), ground_offset=float(ground_offset),
         ground_restitution=float(ground_restitution), ground_friction=float(ground_friction),
@@ -108,29 +121,114 @@ def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, f
     )
 
 
+def _float_array(v, what: str, where: str = "body_table") -> np.ndarray:
+    """``v`` as float64, or a one-line RecordError naming the argument and the value."""
+    try:
+        return np.asarray(v, np.float64)
+    except (TypeError, ValueError):
+        raise RecordError(f"{where}: {what} = {_short(v)}, expected numbers") from None
+
+
+def _short(v) -> str:
+    r = repr(v)
+    return r if len(r) <= 60 else r[:57] + "..."
+
+
+def _shape_codes(shape, n: int) -> np.ndarray:
+    """Shape names or codes -> (N,) int64 codes; unknown ones are a one-line RecordError."""
+    shape = list(shape)
+    if len(shape) != n:
+        raise RecordError(f"body_table: shape has {len(shape)} entries, expected {n} (one per name)")
+    codes = np.empty(n, np.int64)
+    valid = set(LOG_SHAPE_CODES.values())
+    for i, s in enumerate(shape):
+        code = LOG_SHAPE_CODES.get(s) if isinstance(s, str) else \
+            (int(s) if isinstance(s, (int, np.integer)) and int(s) in valid else None)
+        if code is None:
+            raise RecordError(
+                f"body_table: shape[{i}] = {s!r}, expected one of 'sphere', 'box', 'none' "
+                "(or 0, 1, -1); record a capsule, cylinder or mesh as 'none' with its inertia_diag")
+        codes[i] = code
+    return codes
+
+
+def _group(group, n: int) -> np.ndarray:
+    g = np.asarray(group)
+    if g.dtype.kind not in "iub":
+        raise RecordError(f"body_table: group = {_short(group)}, expected integers")
+    try:
+        return np.broadcast_to(g.astype(np.int64), (n,)).copy()
+    except ValueError:
+        raise RecordError(f"body_table: group has shape {g.shape}, expected () or ({n},)") from None
+
+
+#: the values of engine_settings["contact_rows"]["separation"] (docs/log-format.md, contact rows):
+#: when the logged separation was measured; a value may go on with an explanation in
+#: parentheses ("before the step (contacts found at its start)")
+CONTACT_ROWS_SEPARATION = ("after the step", "before the step")
+
+
+def _check_contact_rows(settings) -> None:
+    rows = (settings or {}).get("contact_rows") if isinstance(settings, dict) else None
+    sep = rows.get("separation") if isinstance(rows, dict) else None
+    if sep is not None and not (isinstance(sep, str) and sep.startswith(CONTACT_ROWS_SEPARATION)):
+        raise RecordError(f"engine_settings.contact_rows.separation = {_short(sep)}, expected "
+                          f"{' or '.join(map(repr, CONTACT_ROWS_SEPARATION))} (optionally followed "
+                          "by an explanation)")
+
+
 _CONTACT_FIELDS = [f.name for f in fields(Contacts)]
+_CONTACT_REQUIRED = ("step", "body_a", "body_b", "point", "normal", "separation", "normal_impulse")
+#: the values of contacts.kind (docs/log-format.md): 0 resting (or not classified), 1 impact
+KIND_VALUES = (0, 1)
 
 
 def make_contacts(n_bodies: int, *, step, body_a, body_b, point, normal, separation,
                   normal_impulse, friction_impulse=None, t=None, kind=None, dt=None) -> Contacts:
     """Contact rows from arrays (K rows; see docs/log-format.md "Contact rows"). ``t`` defaults to
-    ``step * dt``; ``friction_impulse`` to zero; ``kind`` to 0 (resting)."""
-    step = np.asarray(step, np.int64).reshape(-1)
+    ``step * dt``; ``friction_impulse`` to zero; ``kind`` to 0 (resting).
+
+    Shapes: ``step``, ``body_a``, ``body_b``, ``separation``, ``normal_impulse``, ``kind``,
+    ``t``: (K,); ``point``, ``normal``, ``friction_impulse``: (K, 3). Anything else is a one-line
+    :class:`RecordError` naming the field (``contacts.point``), its shape and the expected one."""
+    step = np.asarray(step).reshape(-1)
+    if step.dtype.kind not in "iu" and not (step.dtype.kind == "f" and np.all(step == np.rint(step))):
+        raise RecordError(f"contacts.step = {_short(step)}, expected integer step indices")
+    step = step.astype(np.int64)
     k = len(step)
     if t is None:
         if dt is None:
             raise RecordError("contacts: give t, or dt so that t = step * dt")
         t = step * float(dt)
+
+    def col(v, name, dtype, trail=()):
+        try:
+            a = np.asarray(v, dtype)
+        except (TypeError, ValueError):
+            raise RecordError(f"contacts.{name} = {_short(v)}, expected numbers") from None
+        want = (k, *trail)
+        # the shape itself, or the same values flattened ((3K,) for a point, as the MCAP rows)
+        if a.size != int(np.prod(want)) or (a.ndim > 1 and a.shape[0] != k):
+            raise RecordError(f"contacts.{name}: shape {a.shape}, expected {want} "
+                              f"(K = {k} rows, one per value of contacts.step)")
+        return a.reshape(want)
+
     out = Contacts(
-        step=step, t=np.asarray(t, np.float64).reshape(k),
-        body_a=np.asarray(body_a, np.int64).reshape(k), body_b=np.asarray(body_b, np.int64).reshape(k),
-        point=np.asarray(point, np.float64).reshape(k, 3), normal=np.asarray(normal, np.float64).reshape(k, 3),
-        separation=np.asarray(separation, np.float64).reshape(k),
-        normal_impulse=np.asarray(normal_impulse, np.float64).reshape(k),
+        step=step, t=col(t, "t", np.float64),
+        body_a=col(body_a, "body_a", np.int64), body_b=col(body_b, "body_b", np.int64),
+        point=col(point, "point", np.float64, (3,)), normal=col(normal, "normal", np.float64, (3,)),
+        separation=col(separation, "separation", np.float64),
+        normal_impulse=col(normal_impulse, "normal_impulse", np.float64),
         friction_impulse=(np.zeros((k, 3)) if friction_impulse is None
-                          else np.asarray(friction_impulse, np.float64).reshape(k, 3)),
-        kind=np.zeros(k, np.int8) if kind is None else np.asarray(kind, np.int8).reshape(k),
+                          else col(friction_impulse, "friction_impulse", np.float64, (3,))),
+        kind=np.zeros(k, np.int8),
     )
+    if kind is not None:
+        kind = col(kind, "kind", np.int64)
+        if k and not np.isin(kind, KIND_VALUES).all():
+            raise RecordError(f"contacts.kind holds {int(kind[~np.isin(kind, KIND_VALUES)][0])}, "
+                              "expected 0 (resting, or not classified) or 1 (impact)")
+        out.kind = kind.astype(np.int8)
     for name in ("body_a", "body_b"):
         a = getattr(out, name)
         if len(a) and (a.min() < -1 or a.max() >= n_bodies):
@@ -140,7 +238,10 @@ def make_contacts(n_bodies: int, *, step, body_a, body_b, point, normal, separat
 
 
 def _arr(v, name, shape):
-    a = np.asarray(v, np.float64)
+    try:
+        a = np.asarray(v, np.float64)
+    except (TypeError, ValueError):
+        raise RecordError(f"{name} = {_short(v)}, expected numbers of shape {shape}") from None
     if a.shape != shape:
         raise RecordError(f"{name}: shape {a.shape}, expected {shape} (samples, bodies, ...)")
     return a
@@ -199,7 +300,17 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     else:
         lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
     if isinstance(contacts, dict):
+        unknown = sorted(set(contacts) - set(_CONTACT_FIELDS))
+        missing = [k for k in _CONTACT_REQUIRED if k not in contacts]
+        if unknown or missing:
+            what = f"unknown field {unknown[0]!r}" if unknown else f"field {missing[0]!r} missing"
+            raise RecordError(f"contacts: {what}; the fields are {', '.join(_CONTACT_REQUIRED)} "
+                              "and optionally t, friction_impulse, kind (docs/log-format.md, "
+                              "contact rows)")
         contacts = make_contacts(n, dt=info.dt, **contacts)
+    elif contacts is not None and not isinstance(contacts, Contacts):
+        raise RecordError(f"contacts: a {type(contacts).__name__}, expected a dict of arrays "
+                          "(see make_contacts) or an rblog.Contacts")
     block = derive(model, info, step, t, position, p, quat_wxyz, rotation, lw, contacts=contacts)
     if velocity is not None and linear_momentum is not None:
         block.velocity = np.ascontiguousarray(velocity)
@@ -239,6 +350,7 @@ class Recorder:
                            (combine_restitution, "combine_restitution")):
             if rule not in C.COMBINE_RULES:
                 raise RecordError(f"{what}: {rule!r}, expected one of {', '.join(C.COMBINE_RULES)}")
+        _check_contact_rows(engine_settings)
         self.model = model
         self.info = info or RunInfo(
             integrator=integrator, orthonormalize="none", dt=float(dt), log_every=int(log_every),
@@ -359,5 +471,5 @@ def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
 #: scalar-first quaternions -> body->world matrices (re-exported for writers)
 quat_to_matrix = quat_wxyz_to_matrix
 
-__all__ = ["Recorder", "RecordError", "body_table", "build_block", "make_contacts",
+__all__ = ["CONTACT_ROWS_SEPARATION", "KIND_VALUES", "Recorder", "RecordError", "body_table", "build_block", "make_contacts",
            "trajectory_from_arrays", "matrix_to_quat", "quat_to_matrix"]

@@ -182,9 +182,9 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
                 n_contacts += 0 if c is None else len(c["step"])
                 buf.add(done, *eng.state(), c)
                 if len(buf) >= per_block or done >= n_total:
-                    rec.write(**buf.take(dt, eng.OMEGA_FRAME))
+                    rec.write(**buf.take(dt))
             if len(buf):
-                rec.write(**buf.take(dt, eng.OMEGA_FRAME))
+                rec.write(**buf.take(dt))
         wall = time.perf_counter() - t_wall
     finally:
         eng.close()
@@ -215,15 +215,11 @@ class _Buffer:
         if contacts is not None and len(contacts["step"]):
             self.c.append(contacts)
 
-    def take(self, dt, omega_frame="world"):
-        """The block as Recorder.write arguments; a body-frame angular velocity is turned into
-        the world frame with the block's quaternions (one vectorized pass per block)."""
+    def take(self, dt):
+        """The block as Recorder.write arguments (the engines' state is already in the contract's
+        frames: rblog.adapters translates it)."""
         steps = np.array(self.steps, np.int64)
         q, w = np.array(self.q), np.array(self.w)
-        if omega_frame == "body":
-            from rblog.record.recorder import quat_to_matrix
-
-            w = np.einsum("tnij,tnj->tni", quat_to_matrix(q), w)
         out = dict(t=steps * dt, step=steps, position=np.array(self.x), quat_wxyz=q,
                    velocity=np.array(self.v), angular_velocity=w)
         if self.c:

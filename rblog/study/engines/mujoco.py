@@ -18,7 +18,8 @@ Translation (see rblog/study/engines/__init__.py for the common part):
   0.99 (``solimp="0.99 0.99 0.001"``) so the soft constraint follows the reference. Where the
   default combination would differ from rblog's effective pair values (different materials), an
   explicit ``<contact><pair>`` with the effective friction and solref overrides it.
-* contacts: after each logged step ``d.contact`` holds the contacts found at the start of that
+* state and contacts: read by :mod:`rblog.adapters.mujoco` (the one translation of MuJoCo's
+  conventions): after each logged step ``d.contact`` holds the contacts found at the start of that
   step (separation ``dist`` before the solve) and ``efc_force`` the solved force over the step;
   the rows log impulse = force * dt, decoded from the pyramidal (or elliptic) cone rows.
 """
@@ -74,7 +75,7 @@ class MujocoRun:
     """One scene in MuJoCo: ``step(k)``, ``state()``, ``contacts(step)``, ``close()``."""
 
     #: frame of the angular velocity ``state()`` returns
-    OMEGA_FRAME = "body"
+    OMEGA_FRAME = "world"
 
     def __init__(self, scene, dt: float, options=()):
         try:
@@ -103,7 +104,10 @@ class MujocoRun:
         self.d.xfrc_applied[1:n + 1, :3] = model.body_force_world
         self.d.xfrc_applied[1:n + 1, 3:] = model.body_torque_world
         mujoco.mj_forward(self.m, self.d)
-        self.geom_body = np.asarray(self.m.geom_bodyid, np.int64) - 1  # -1: world (static)
+        from rblog.adapters.mujoco import inspect
+
+        # where each body's state is and how its frame turns: the adapters' one translation
+        self.layout = inspect(self.m, self.d)[1]
         o = self.m.opt
         self.settings = {
             "engine": "mujoco", "version": self.version,
@@ -208,58 +212,17 @@ class MujocoRun:
         self.mj.mj_step(self.m, self.d, nstep=int(k))
 
     def state(self):
-        """(position (N,3), quat_wxyz (N,4), velocity (N,3) world, angular velocity (N,3) body)."""
-        n = self.scene.model.n_bodies
-        qp = self.d.qpos.reshape(n, 7)
-        qv = self.d.qvel.reshape(n, 6)
-        # angular velocity in the body frame (a free joint's qvel[3:6]); run_engine turns a block
-        # of them into the world frame with the integrated quaternion (OMEGA_FRAME)
-        return qp[:, :3].copy(), qp[:, 3:].copy(), qv[:, :3].copy(), qv[:, 3:].copy()
+        """(position (N,3), quat_wxyz (N,4), velocity (N,3), angular velocity (N,3)), world frame:
+        the translation of rblog.adapters.mujoco (free joint's body-frame angular velocity turned
+        into the world frame, centre of mass, contract frame)."""
+        return self.layout.state(self.d.qpos, self.d.qvel)
 
     def contacts(self, step: int):
-        """The contacts of the step that ended at ``step``, in the contract's convention."""
-        d = self.d
-        k = int(d.ncon)
-        if k == 0:
-            return None
-        con = d.contact
-        frame = np.asarray(con.frame[:k]).reshape(k, 3, 3)
-        geom = np.asarray(con.geom[:k])
-        adr = np.asarray(con.efc_address[:k])
-        dim = np.asarray(con.dim[:k])
-        mu = np.asarray(con.friction[:k])
-        f = np.asarray(d.efc_force)
-        fn = np.zeros(k)
-        ft = np.zeros((k, 2))
-        ok = adr >= 0  # excluded contacts have no constraint rows
-        one = ok & (dim == 1)  # frictionless: one normal row
-        fn[one] = f[adr[one]]
-        three = ok & (dim == 3)  # this module sets condim 1 or 3 only
-        if three.any():
-            a3 = adr[three]
-            if self.m.opt.cone == self.mj.mjtCone.mjCONE_PYRAMIDAL:
-                # 4 pyramid edges: normal = their sum, tangent j = mu_j (f_2j - f_2j+1)
-                e = f[a3[:, None] + np.arange(4)]
-                fn[three] = e.sum(axis=1)
-                ft[three, 0] = mu[three, 0] * (e[:, 0] - e[:, 1])
-                ft[three, 1] = mu[three, 1] * (e[:, 2] - e[:, 3])
-            else:  # elliptic: normal, tangent 1, tangent 2 in the contact frame
-                fn[three] = f[a3]
-                ft[three] = f[a3[:, None] + np.arange(1, 3)]
-        # force on geom2's body along +normal (normal from geom1 to geom2)
-        normal = frame[:, 0].copy()
-        fric = ft[:, :1] * frame[:, 1] + ft[:, 1:2] * frame[:, 2]
-        body_a = self.geom_body[geom[:, 1]].copy()
-        body_b = self.geom_body[geom[:, 0]].copy()
-        flip = body_a < 0  # the static geometry is body_b in the contract
-        body_a[flip], body_b[flip] = body_b[flip], body_a[flip]
-        normal[flip] *= -1.0
-        fric[flip] *= -1.0
-        dt = self.dt
-        return dict(step=np.full(k, step, np.int64), body_a=body_a, body_b=body_b,
-                    point=np.asarray(con.pos[:k]).copy(), normal=normal,
-                    separation=np.asarray(con.dist[:k]).copy(), normal_impulse=fn * dt,
-                    friction_impulse=fric * dt)
+        """The contacts of the step that ended at ``step``, in the contract's convention
+        (rblog.adapters.mujoco's rows: mj_contactForce's force on geom2 x dt)."""
+        from rblog.adapters.mujoco import contacts
+
+        return contacts(self.m, self.d, self.layout, step)
 
     def close(self):
         pass

@@ -14,7 +14,8 @@ Translation (common part: rblog/study/engines/__init__.py):
   Restitution: per-feature values r with ``r_a r_b = max(e_a, e_b)`` for every pair that can touch
   are solved in log space (least squares); if no such values exist within RESTITUTION_REL, the run
   exits 2 naming the pair (Bullet has no per-pair restitution).
-* contacts: after each logged step ``getContactPoints()`` lists the manifold points of that step:
+* state and contacts: read by :mod:`rblog.adapters.pybullet` (``read_state``, ``read_contacts``), the
+  one translation of Bullet's conventions. After each logged step ``getContactPoints()`` lists the manifold points of that step:
   Bullet refreshes the manifolds by collision detection at the start of the step, so
   ``contactDistance`` is the separation before the step's solve and integration; ``normalForce``
   and the two lateral frictions are the applied impulses over the step divided by dt. Bullet also
@@ -210,41 +211,17 @@ class PybulletRun:
             pb.stepSimulation(physicsClientId=cid)
 
     def state(self):
-        pb, cid = self.pb, self.cid
-        n = len(self.ids)
-        x, q, v, w = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3))
-        for i, bid in enumerate(self.ids):
-            p, o = pb.getBasePositionAndOrientation(bid, physicsClientId=cid)
-            lv, av = pb.getBaseVelocity(bid, physicsClientId=cid)
-            x[i] = p
-            q[i] = (o[3], o[0], o[1], o[2])
-            v[i] = lv
-            w[i] = av
-        return x, q, v, w
+        """(position, quat_wxyz, velocity, angular velocity), world frame: the translation of
+        rblog.adapters.pybullet (the bodies' base frames are their contract frames here)."""
+        from rblog.adapters.pybullet import read_state
+
+        return read_state(self.cid, self.ids)
 
     def contacts(self, step: int):
-        pts = self.pb.getContactPoints(physicsClientId=self.cid)
-        rows = [c for c in pts if not (c[9] <= 0.0 and c[8] > 0.0)]
-        if not rows:
-            return None
-        k = len(rows)
-        idx = self.index
-        cols = list(zip(*rows))  # one pass: columns of the contact tuples
-        a = np.array([idx.get(x, -1) for x in cols[1]], np.int64)
-        b = np.array([idx.get(x, -1) for x in cols[2]], np.int64)
-        pa, pb_ = np.array(cols[5]), np.array(cols[6])
-        normal = np.array(cols[7])  # on B, pointing towards A
-        dist = np.array(cols[8])
-        fn = np.array(cols[9])
-        fric = (np.array(cols[10])[:, None] * np.array(cols[11])
-                + np.array(cols[12])[:, None] * np.array(cols[13]))
-        flip = a < 0
-        a[flip], b[flip] = b[flip], a[flip]
-        normal[flip] *= -1.0
-        fric[flip] *= -1.0
-        dt = self.dt
-        return dict(step=np.full(k, step, np.int64), body_a=a, body_b=b, point=0.5 * (pa + pb_),
-                    normal=normal, separation=dist, normal_impulse=fn * dt, friction_impulse=fric * dt)
+        """The contacts of the step that ended at ``step`` (rblog.adapters.pybullet's rows)."""
+        from rblog.adapters.pybullet import read_contacts
+
+        return read_contacts(self.cid, self.index, self.dt, step)
 
     def close(self):
         try:

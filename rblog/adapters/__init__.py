@@ -1,0 +1,44 @@
+"""rblog.adapters: record a run of another engine's own model into the log contract, in two lines.
+
+* ``mujoco``: :class:`~rblog.adapters.mujoco.MujocoRecorder` takes an ``MjModel`` (and the
+  ``MjData`` the user steps), builds the body table of every free body (mass; inertia turned out of
+  MuJoCo's principal frame ``body_iquat``; box and sphere geoms; friction; the ground plane and
+  static boxes) and, called after each ``mj_step``, logs the state (centre of mass, the free
+  joint's body-frame angular velocity turned into the world frame) and the contacts as impulses in
+  the contract's signs. :func:`~rblog.adapters.mujoco.record_rollout` does the same for the output
+  of ``mujoco.rollout``.
+* ``pybullet``: :class:`~rblog.adapters.pybullet.PybulletRecorder`, the bodies of a client.
+
+Geoms the contract has no shape for (capsules, cylinders, meshes, several geoms on one body) are
+recorded with ``body_shape = SHAPE_NONE`` (-1) and their inertia; restitution the engine does not
+state (MuJoCo has none: its bounce comes from solref) is recorded as NaN, "unknown".
+
+The engines stay optional: each module imports its engine inside its functions and raises
+:class:`AdapterError` (one line, exit code 2) when it is missing.
+
+May import: ``contract`` and ``record`` (and numpy); ``rblog.study.engines`` (``rblog run --engine``)
+uses these adapters for its translation of the engines' conventions.
+"""
+
+from __future__ import annotations
+
+from rblog.errors import RblogError
+
+
+class AdapterError(RblogError):
+    """An engine's model or data that the adapter cannot record (one line naming what and why),
+    or the engine is not installed."""
+
+
+def require(module: str, extra: str = "engines"):
+    """Import ``module`` or raise a one-line AdapterError saying how to install it."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as e:
+        raise AdapterError(f"rblog.adapters.{module} needs the {module} package, which is not "
+                           f"installed ({e}): pip install {module} (or rblog[{extra}])") from None
+
+
+__all__ = ["AdapterError", "require"]
