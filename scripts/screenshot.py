@@ -17,6 +17,7 @@ Regenerate the README's screenshot from a sample run::
 
     .venv/bin/python scripts/screenshot.py                     # -> docs/screenshot.png
     .venv/bin/python scripts/screenshot.py run.rrd -o out.png  # any recording
+    .venv/bin/python scripts/screenshot.py --docs              # every screenshot in docs/
 
 The viewer process is bounded in time (a watchdog kills its process group) and always killed.
 """
@@ -118,6 +119,7 @@ class Capture:
     views: list = field(default_factory=list)            # rerun.experimental.View
     view_pngs: dict = field(default_factory=dict)        # view_id -> PNG of that view alone
     state: object = None                                 # the final rerun.experimental.ViewerState
+    blueprint: dict = field(default_factory=dict)        # the active blueprint, as the viewer reads it
     view_problems: list[str] = field(default_factory=list)   # "view 'x' error: ..." lines
     log_errors: list[str] = field(default_factory=list)      # ERROR entries of the viewer's log
     stderr_errors: list[str] = field(default_factory=list)   # bad lines on the viewer's stderr
@@ -348,9 +350,11 @@ def capture(rrd: Path, png: Path, size=DEFAULT_SIZE, timeout: float = 120.0,
                 path.write_bytes(viewer.client.take_screenshot(v.view_id))
                 view_pngs[v.view_id] = path
         state = viewer.client.get_state()
+        blueprint = viewer.client.get_blueprint().blueprint
         views, view_problems, log_errors, log = viewer.problems()
     stderr = viewer.stderr_text()
     return Capture(png=png, seconds=seconds, views=views, view_pngs=view_pngs, state=state,
+                   blueprint=blueprint,
                    view_problems=view_problems, log_errors=log_errors,
                    stderr_errors=stderr_problems(stderr), log=log, stderr=stderr)
 
@@ -375,15 +379,114 @@ def image_stats(png: Path, region=None) -> dict:
             "colourful_fraction": float(saturated.mean())}
 
 
+def text_lines(png, region=None, min_gap: int = 3) -> list[tuple[int, int]]:
+    """(top, bottom) pixel rows of each line of text in a screenshot of a table (optionally of
+    a (x0, y0, x1, y1) region): runs of pixel rows that hold text-coloured pixels (light on the
+    viewer's dark background), separated by at least ``min_gap`` empty rows. A table with a
+    header and k rows gives k + 1 lines; a header alone gives 1."""
+    import numpy as np
+    from PIL import Image
+
+    img = np.asarray(Image.open(png).convert("L")).astype(np.int32)
+    if region is not None:
+        x0, y0, x1, y1 = (int(v) for v in region)
+        img = img[y0:y1, x0:x1]
+    ink = (img > 120).sum(axis=1) >= 2
+    lines, start, gap = [], None, 0
+    for y, on in enumerate(ink):
+        if on:
+            if start is None:
+                start = y
+            gap, end = 0, y
+        elif start is not None:
+            gap += 1
+            if gap >= min_gap:
+                lines.append((start, end + 1))
+                start = None
+    if start is not None:
+        lines.append((start, end + 1))
+    return [(a, b) for a, b in lines if b - a >= 5]   # glyphs, not rules or specks
+
+
+def view_properties(cap: Capture, view) -> dict:
+    """The blueprint properties of ``view`` (archetype -> fields), as the viewer holds them."""
+    pre = f"/view/{view.view_id}"
+    out = {}
+    for key, val in cap.blueprint.items():
+        if key == pre:
+            out.update(val)
+        elif key.startswith(pre + "/"):
+            out.update(val)
+    return out
+
+
+def colour_mask(png, rgb, tol: int = 40):
+    """Boolean image: pixels within ``tol`` (per channel) of colour ``rgb``."""
+    import numpy as np
+    from PIL import Image
+
+    img = np.asarray(Image.open(png).convert("RGB")).astype(np.int32)
+    return np.all(np.abs(img - np.asarray(rgb)) <= tol, axis=-1)
+
+
 # ------------------------------------------------------------------------------------ the CLI
 
-def record_sample(scene: Path, rrd: Path) -> None:
-    """Run a sample scene with rblog's CLI into ``rrd``."""
-    cmd = [sys.executable, "-m", "rblog_cli.main", "run", str(scene), "--rrd", str(rrd)]
+def rblog_command() -> list[str]:
     exe = Path(sys.executable).with_name("rblog")
-    if exe.exists():
-        cmd = [str(exe), "run", str(scene), "--rrd", str(rrd)]
-    subprocess.run(cmd, check=True, cwd=REPO, timeout=600)
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "rblog_cli.main"]
+
+
+def record_sample(scene: Path, out: Path, *extra: str) -> None:
+    """Run a sample scene with rblog's CLI into ``out`` (.rrd or .mcap; ``extra``: more options
+    of `rblog run`, e.g. --duration 1)."""
+    flag = "--mcap" if str(out).endswith(".mcap") else "--rrd"
+    subprocess.run([*rblog_command(), "run", str(scene), flag, str(out), *extra], check=True,
+                   cwd=REPO, timeout=900, stdout=subprocess.DEVNULL)
+
+
+def check_to_rrd(log: Path, out: Path) -> tuple[list[str], str]:
+    """`rblog check LOG --rrd OUT`, as a user types it: returns the command it prints to open the
+    findings (split into words) and its whole output."""
+    p = subprocess.run([*rblog_command(), "check", str(log), "--rrd", str(out)], cwd=REPO,
+                       capture_output=True, text=True, timeout=900)
+    text = p.stdout + p.stderr
+    if p.returncode not in (0, 1):
+        raise RuntimeError(f"rblog check exited {p.returncode}:\n{text}")
+    m = re.search(r"open with: (rerun [^)]*)\)", text)
+    if not m:
+        raise RuntimeError(f"rblog check printed no command to open the findings:\n{text}")
+    return m.group(1).split(), text
+
+
+#: the screenshots in docs/ (name -> scene, options of `rblog run`, log format checked)
+DOC_SHOTS = {
+    "viewer-tumbling_box.png": ("samples/tumbling_box.toml", (), ".mcap"),
+    "viewer-pile.png": ("samples/pile.toml", ("--duration", "1.5"), ".rrd"),
+    "findings-overlay.png": ("samples/tumbling_box.toml",
+                             ("--integrator", "seed", "--orthonormalize", "none"), ".mcap"),
+}
+
+
+def small_png(png: Path) -> None:
+    """Rewrite ``png`` with a 256-colour palette (a screenshot of the viewer is mostly flat
+    colour: ~4x smaller, no visible loss)."""
+    from PIL import Image
+
+    img = Image.open(png).convert("RGB")
+    img.quantize(256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(
+        png, optimize=True)
+
+
+def shoot_checked(scene: Path, run_args, kind: str, png: Path, tmp: Path, size=DEFAULT_SIZE,
+                  timeout: float = 180.0, per_view: bool = False) -> Capture:
+    """Run ``scene`` into a ``kind`` log, check it with `rblog check LOG --rrd`, open what that
+    prints in the headless viewer and screenshot it."""
+    log = tmp / (Path(scene).stem + kind)
+    record_sample(Path(scene), log, *run_args)
+    cmd, _ = check_to_rrd(log, tmp / (Path(scene).stem + "-checked.rrd"))
+    files = [Path(w) for w in cmd[1:]]
+    return capture(files[0], png, size=size, timeout=timeout, overlays=files[1:],
+                   per_view=per_view)
 
 
 def main(argv=None) -> int:
@@ -394,8 +497,32 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", type=Path, default=DEFAULT_SCENE, help="scene to run when no RRD is given")
     ap.add_argument("--size", default=f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}", help="viewer size WxH")
     ap.add_argument("--timeout", type=float, default=120.0)
+    ap.add_argument("--docs", action="store_true",
+                    help="regenerate docs/'s viewer screenshots: " + ", ".join(DOC_SHOTS)
+                    + " (each a run checked with `rblog check LOG --rrd`) and docs/screenshot.png")
     args = ap.parse_args(argv)
     size = tuple(int(v) for v in args.size.lower().split("x"))
+    if args.docs:
+        bad = 0
+        with tempfile.TemporaryDirectory(prefix="rblog-shot-") as tmp:
+            for name, (scene, run_args, kind) in DOC_SHOTS.items():
+                out = REPO / "docs" / name
+                sub = Path(tmp) / Path(name).stem
+                sub.mkdir()
+                cap = shoot_checked(REPO / scene, run_args, kind, out, sub, size=size,
+                                    timeout=args.timeout)
+                small_png(out)
+                print(f"wrote {out} ({out.stat().st_size // 1024} KB) in {cap.seconds:.1f} s")
+                for p in cap.problems:
+                    print("PROBLEM:", p, file=sys.stderr)
+                bad += bool(cap.problems)
+            rrd = Path(tmp) / (DEFAULT_SCENE.stem + ".rrd")
+            record_sample(DEFAULT_SCENE, rrd)
+            cap = capture(rrd, DEFAULT_OUT, size=size, timeout=args.timeout)
+            small_png(DEFAULT_OUT)
+            print(f"wrote {DEFAULT_OUT} ({DEFAULT_OUT.stat().st_size // 1024} KB)")
+            bad += bool(cap.problems)
+        return 1 if bad else 0
     with tempfile.TemporaryDirectory(prefix="rblog-shot-") as tmp:
         rrd = args.rrd
         if rrd is None:

@@ -48,24 +48,21 @@ def convert(src, dst):
 @click.argument("log", type=click.Path(dir_okay=False, path_type=str))
 @click.argument("out", type=click.Path(dir_okay=False, path_type=str))
 def findings(log, out):
-    """Check LOG with the default tolerances and write its findings to OUT: .rrd (a Rerun
-    recording overlaying the run, as `rblog check --rrd`) or .mcap (foxglove.Log messages on
-    /rblog/findings, for Foxglove's log panel and timeline). Exit 1 when something is flagged."""
+    """Check LOG with the default tolerances and write the run with its findings to OUT: .rrd
+    (one Rerun recording with the findings table and the flagged bodies marked, as `rblog check
+    --rrd`) or .mcap (the run with foxglove.Log messages on /rblog/findings and markers on
+    /rblog/findings/markers, for Foxglove). Exit 1 when something is flagged."""
     from rblog.analyze import check
     from rblog.record import load
-    from rblog.record.findings import (run_recording_id, write_findings_mcap,
-                                       write_findings_rrd)
+    from rblog.record.findings import open_command, write_checked
 
     try:
-        kind = _kind(out, "OUT")
+        _kind(out, "OUT")
         traj = load(log)
         results = check(traj)
-        if kind == ".rrd":
-            write_findings_rrd(out, traj, results, run_recording_id(log))
-        else:
-            write_findings_mcap(out, traj, results)
+        n = write_checked(out, traj, results)
     except RblogError as e:
         _fail(e)
-    n = sum(len(r.findings) for r in results)
-    click.echo(f"{log}: {n} findings written to {out}")
+    click.echo(f"{log}: the run and its {n} findings written to {out} (open with: "
+               f"{open_command(out)})")
     sys.exit(1 if any(not r.passed and not r.skipped for r in results) else 0)

@@ -236,12 +236,16 @@ BULK_DETAIL_MAX_LOGS = 20
 @click.option("--table", "table_path", type=click.Path(dir_okay=False, path_type=str),
               help="Write the per-log table here (.parquet, else CSV).")
 @click.option("--rrd", "findings_rrd", type=click.Path(dir_okay=False, path_type=str),
-              help="Write the findings as a Rerun recording overlaying the run (one LOG).")
+              help="Write one Rerun recording holding the run and its findings (table, bodies "
+                   "marked in 3D), to open with `rerun FILE` (one LOG, .rrd or .mcap).")
+@click.option("--mcap", "findings_mcap", type=click.Path(dir_okay=False, path_type=str),
+              help="Write one MCAP file holding the run and its findings (foxglove.Log and "
+                   "markers), to open in Foxglove (one LOG, .rrd or .mcap).")
 @click.option("--threads", type=click.IntRange(min=1), metavar="N",
               help="Analyzers run at once, per process (default: RBLOG_THREADS, else every "
                    "core); the verdicts are the same for any N.")
 def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_path,
-          findings_rrd, threads):
+          findings_rrd, findings_mcap, threads):
     """Audit saved logs (.rrd or .mcap): rigidity, collision momentum, resting-contact
     penetration, energy, tunneling. LOGS are files, directories (searched for logs), glob
     patterns or list files (.txt: one path per line). Every log is judged; the exit code is the
@@ -276,8 +280,9 @@ def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_
                              f"{', '.join(sorted(names))}"))
     try:
         paths = bulk_check.find_logs(logs)
-        if findings_rrd:
-            _findings_for_one_log(findings_rrd, paths, sel_only, sel_skip, tolerances)
+        outs = [(o, p) for o, p in (("--rrd", findings_rrd), ("--mcap", findings_mcap)) if p]
+        if outs:
+            _findings_for_one_log(outs, paths, sel_only, sel_skip, tolerances)
         if workers is None and scheduler is None and len(paths) > BULK_PARALLEL_MIN_LOGS \
                 and dask_available() and default_workers() > 1:
             workers = default_workers()
@@ -313,32 +318,33 @@ def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_
     sys.exit(report.exit_code)
 
 
-def _findings_for_one_log(out, paths, only, skip, tolerances):
-    """--rrd: the findings of the one log, checked here (the report itself comes from the bulk
-    check, which may run elsewhere)."""
+def _findings_for_one_log(outs, paths, only, skip, tolerances):
+    """--rrd / --mcap: the one log and its findings, checked here, in one file per option (the
+    report itself comes from the bulk check, which may run elsewhere)."""
     from rblog.analyze import check as run_checks
+    from rblog.record.findings import open_command, write_checked
     from rblog.record.reader import load
 
-    if len(paths) != 1:
-        _fail(RblogError(f"--rrd {out}: give exactly one LOG (got {len(paths)})"))
+    for opt, out in outs:
+        want = ".rrd" if opt == "--rrd" else ".mcap"
+        if not out.endswith(want):
+            _fail(RblogError(f"{opt} {out}: expected a file name ending in {want}"))
+        if len(paths) != 1:
+            _fail(RblogError(f"{opt} {out}: give exactly one LOG (got {len(paths)})"))
+        if Path(out).resolve() == Path(paths[0]).resolve():
+            _fail(RblogError(f"{opt} {out}: that is the checked log itself; name another file"))
     try:
         traj = load(paths[0])
     except RblogError:
         return  # reported as unreadable by the check itself
     results = run_checks(traj, only=only, skip=skip, tolerances=tolerances)
-    _write_findings(out, paths[0], traj, results, 1)
-
-
-def _write_findings(out, path, traj, results, n_logs):
-    from rblog.record.findings import run_recording_id, write_findings_rrd
-
-    if n_logs != 1:
-        _fail(RblogError(f"--rrd {out}: give exactly one LOG (got {n_logs})"))
-    try:
-        write_findings_rrd(out, traj, results, run_recording_id(path))
-    except RblogError as e:
-        _fail(e)
-    click.echo(f"rblog: findings written to {out} (open with: rerun {path} {out})", err=True)
+    for opt, out in outs:
+        try:
+            n = write_checked(out, traj, results)
+        except RblogError as e:
+            _fail(e)
+        click.echo(f"rblog: {paths[0]} and its {n} findings written to {out} "
+                   f"(open with: {open_command(out)})", err=True)
 
 
 def _names(csv, known, opt):

@@ -1,33 +1,45 @@
-"""`rblog check` findings as a Rerun recording that overlays the run it audits.
+"""`rblog check` findings where a user looks: in the Rerun viewer and in Foxglove.
 
-:func:`write_findings_rrd` writes an .rrd with the run's application and recording id (read from
-the run's .rrd; a new one for an .mcap run), so that opening the run and the findings together
-(``rerun run.rrd findings.rrd``) merges them into one recording in the viewer:
+:func:`write_checked` writes ONE file that holds the run and its findings, so that one command
+opens both: ``rerun checked.rrd`` or Foxglove on ``checked.mcap``. The run is re-recorded from the
+loaded trajectory through the ordinary writers (rblog.record.rerun_writer / mcap_writer), whatever
+format the checked log was, and the findings are added to the same recording.
 
-* ``findings`` (``TextLog``): one entry per finding at its time on ``sim_time`` and ``step``, level
-  ERROR, text ``[analyzer] message`` (the message names the body, time, value, limit and unit).
-* ``world/findings/bodies`` (``Ellipsoids3D``): the offending bodies, drawn in red a little larger
-  than themselves (bounding spheres) at their logged positions over the finding's interval (the
-  impact event's span, else HIGHLIGHT_S either side of the finding's time), cleared afterwards.
+In Rerun (:func:`log_findings`):
+
+* ``findings/<analyzer>`` (``TextLog``): one row per finding at its time on ``sim_time`` and
+  ``step``, text ``ANALYZER | BODIES | value V vs limit L UNIT | message``; the findings table of
+  the layout shows the time and that text. Nothing is logged static on these
+  entities: a static row would hide every temporal one. A clean check logs one INFO row saying so.
+  The expanded time panel marks the findings' times on the ``findings`` row.
+* ``world/findings/bodies`` (``Ellipsoids3D``): the offending bodies, circled by red wireframe
+  spheres a little larger than themselves (bounding spheres) and labelled with the analyzer, at their logged positions over
+  the finding's interval (the impact event's span, else HIGHLIGHT_S either side of the finding's
+  time), cleared afterwards.
 * ``world/findings/impacts`` (``Points3D``): a marker at the deepest point of every impact event
-  (the momentum analyzer's events: the point of peak penetration) at the event's end time,
-  labelled with its e_eff.
-* a blueprint: the run's own layout (rblog.record.rerun_writer) with a findings panel
-  (``TextLogView``) below the 3D view.
+  (the momentum analyzer's events) at the event's end time, labelled with its e_eff.
 
-The findings are a separate file, written after the run: the run's .rrd is never touched.
+In MCAP (:func:`write_checked_mcap`): ``foxglove.Log`` on FINDINGS_TOPIC (Foxglove's Log panel and
+its timeline) and ``foxglove.SceneUpdate`` on MARKERS_TOPIC: a red sphere on each flagged body
+(locked to the body's /tf frame) with the finding's text, over the same interval as in Rerun.
+
+:func:`write_findings_rrd` writes the findings alone, with a given recording id: an overlay for a
+run already open in a viewer (``rerun run.rrd findings.rrd`` merges the two only when the ids
+match, i.e. for a run recorded to .rrd).
 """
 
 from __future__ import annotations
 
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 
+from rblog.contract.model import SHAPE_SPHERE
 from rblog.contract.trajectory import Trajectory
-from rblog.errors import LogWriteError
+from rblog.errors import LogWriteError, RblogError
 from rblog.record import _common as C
 
 #: a finding without an interval is highlighted this long (s) either side of its time
@@ -35,7 +47,49 @@ HIGHLIGHT_S = 0.1
 #: the highlight's colour (RGBA) and how much larger than the body's bounding sphere it is drawn
 HIGHLIGHT_RGBA = (230, 30, 30, 220)
 HIGHLIGHT_SCALE = 1.15
+#: the highlight is a wireframe sphere (the body stays visible inside it): line width in points
+HIGHLIGHT_LINE = rr.components.Radius.ui_points(1.5)
 FINDINGS_ENTITY = "findings"
+#: MCAP topics of the findings: ``foxglove.Log`` (Foxglove lists them in its Log panel and marks
+#: them on the timeline, at the run's own time base) and ``foxglove.SceneUpdate`` markers
+FINDINGS_TOPIC = "/rblog/findings"
+MARKERS_TOPIC = "/rblog/findings/markers"
+
+
+@dataclass
+class Row:
+    """One finding as the viewers show it."""
+
+    analyzer: str
+    t: float
+    step: int
+    bodies: list[int]
+    body_names: str
+    value: float
+    tolerance: float
+    unit: str
+    message: str
+
+    @property
+    def text(self) -> str:
+        u = "" if self.unit in ("", "1") else f" {self.unit}"
+        return (f"{self.analyzer} | {self.body_names} | value {self.value:.4g}{u} vs limit "
+                f"{self.tolerance:.4g}{u} | {self.message}")
+
+
+def finding_rows(traj: Trajectory, results) -> list[Row]:
+    """Every finding of ``results``, in time order (then analyzer)."""
+    model = traj.model
+    rows = []
+    for r in results:
+        for f in r.findings:
+            names = [str(model.body_name[b]) if 0 <= b < model.n_bodies else "static"
+                     for b in f.bodies]
+            rows.append(Row(r.analyzer, float(f.t), int(f.step), list(f.bodies),
+                            ", ".join(names) or "-", float(f.value), float(f.tolerance),
+                            str(f.unit), f.message))
+    rows.sort(key=lambda w: (w.t, w.analyzer))
+    return rows
 
 
 def run_recording_id(path: str) -> str | None:
@@ -56,70 +110,74 @@ def _time(rec: rr.RecordingStream, step: int, t: float):
     rec.set_time("sim_time", duration=float(t))
 
 
-def write_findings_rrd(path: str, traj: Trajectory, results, recording_id: str | None = None):
-    """Write ``results`` (a list of rblog.analyze Result) on ``traj`` to ``path`` (.rrd)."""
-    from rblog.record.rerun_writer import _blueprint, position_bounds
-
-    try:
-        with open(path, "wb"):
-            pass
-    except OSError as e:
-        raise LogWriteError(str(path), e.strerror or str(e)) from None
-    rid = recording_id or str(uuid.uuid4())
-    rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
-    rec.save(str(Path(path)))
-    # sent as the active blueprint: opened after the run, it replaces the run's layout
-    rec.send_blueprint(_blueprint(traj.model, traj.info, findings=True,
-                                  bounds=position_bounds(traj.position)),
-                       make_active=True, make_default=True)
-    model = traj.model
-    t, step = np.asarray(traj.t, float), np.asarray(traj.step, np.int64)
-    radius = np.linalg.norm(np.asarray(model.body_size, float), axis=1)  # box: half diagonal
-    from rblog.contract.model import SHAPE_SPHERE
-
-    radius = np.where(np.asarray(model.body_shape) == SHAPE_SPHERE,
-                      np.asarray(model.body_size, float)[:, 0], radius) * HIGHLIGHT_SCALE
-    rec.log(FINDINGS_ENTITY, rr.TextLog("findings of rblog check (one entry per finding)",
-                                        level="INFO"), static=True)
-    # ---- text log and highlights, per finding
-    spans = []  # (k0, k1, bodies)
+def _impact_events(results) -> dict:
     events = {}
     for r in results:
         for e in r.events:
             if e.get("kind") == "impact":
                 events[(int(e["step"]), tuple(e["bodies"]))] = e
-    for r in results:
-        for f in r.findings:
-            _time(rec, f.step, f.t)
-            u = "" if f.unit in ("", "1") else f" {f.unit}"
-            rec.log(FINDINGS_ENTITY, rr.TextLog(
-                f"[{r.analyzer}] {f.message} (value {f.value:.4g}{u}, limit {f.tolerance:.4g}{u})",
-                level="ERROR"))
-            ev = events.get((int(f.step), tuple(f.bodies)))
-            t0, t1 = (ev["t_start"], ev["t_end"]) if ev else (f.t - HIGHLIGHT_S, f.t + HIGHLIGHT_S)
-            k0 = int(np.searchsorted(t, t0, "left"))
-            k1 = int(np.searchsorted(t, t1, "right")) - 1
-            bodies = [b for b in f.bodies if 0 <= b < model.n_bodies]
-            if bodies and len(t):
-                spans.append((max(k0, 0), min(max(k1, k0), len(t) - 1), bodies))
+    return events
+
+
+def _spans(traj: Trajectory, rows: list[Row], events: dict) -> list[tuple[int, int, list, str]]:
+    """(first sample, last sample, bodies, analyzer) of each finding's highlight."""
+    t = np.asarray(traj.t, float)
+    out = []
+    for w in rows:
+        ev = events.get((w.step, tuple(w.bodies)))
+        t0, t1 = (ev["t_start"], ev["t_end"]) if ev else (w.t - HIGHLIGHT_S, w.t + HIGHLIGHT_S)
+        k0 = int(np.searchsorted(t, t0, "left"))
+        k1 = int(np.searchsorted(t, t1, "right")) - 1
+        bodies = [b for b in w.bodies if 0 <= b < traj.model.n_bodies]
+        if bodies and len(t):
+            out.append((max(k0, 0), min(max(k1, k0), len(t) - 1), bodies, w.analyzer))
+    return out
+
+
+def _highlight_radius(model) -> np.ndarray:
+    size = np.asarray(model.body_size, float)
+    radius = np.linalg.norm(size, axis=1)  # box: half diagonal
+    return np.where(np.asarray(model.body_shape) == SHAPE_SPHERE, size[:, 0], radius) * HIGHLIGHT_SCALE
+
+
+def log_findings(rec: rr.RecordingStream, traj: Trajectory, results) -> int:
+    """Log the findings of ``results`` on ``traj`` into ``rec`` (see the module docstring);
+    returns how many findings."""
+    model = traj.model
+    t, step = np.asarray(traj.t, float), np.asarray(traj.step, np.int64)
+    rows = finding_rows(traj, results)
+    for w in rows:
+        _time(rec, w.step, w.t)
+        rec.log(f"{FINDINGS_ENTITY}/{w.analyzer}", rr.TextLog(w.text, level="ERROR"))
+    if not rows and len(t):
+        ran = ", ".join(r.analyzer for r in results if not r.skipped) or "none"
+        _time(rec, int(step[0]), float(t[0]))
+        rec.log(f"{FINDINGS_ENTITY}/check", rr.TextLog(f"no findings (analyzers run: {ran})",
+                                                       level="INFO"))
+    events = _impact_events(results)
+    spans = _spans(traj, rows, events)
     # highlights: per sample, the union of the bodies flagged then (one row per sample in a span,
     # an empty row after each span clears it)
     if spans and len(t):
-        flagged = [set() for _ in range(len(t))]
-        for k0, k1, bodies in spans:
+        radius = _highlight_radius(model)
+        flagged = [dict() for _ in range(len(t))]
+        for k0, k1, bodies, analyzer in spans:
             for k in range(k0, k1 + 1):
-                flagged[k].update(bodies)
-        ks = sorted({k for k0, k1, _ in spans for k in range(k0, k1 + 1)}
-                    | {k1 + 1 for _, k1, _ in spans if k1 + 1 < len(t)})
-        centers, radii, offsets = [], [], [0]
+                for b in bodies:
+                    flagged[k].setdefault(b, set()).add(analyzer)
+        ks = sorted({k for k0, k1, _, _ in spans for k in range(k0, k1 + 1)}
+                    | {k1 + 1 for _, k1, _, _ in spans if k1 + 1 < len(t)})
+        centers, radii, labels, offsets = [], [], [], [0]
         for k in ks:
             b = sorted(flagged[k])
             centers.extend(traj.position[k, b])
             radii.extend(radius[b])
+            labels.extend(f"{model.body_name[i]}: {', '.join(sorted(flagged[k][i]))}" for i in b)
             offsets.append(offsets[-1] + len(b))
         lengths = np.diff(offsets)
         rec.log("world/findings/bodies", rr.Ellipsoids3D.from_fields(
-            colors=[HIGHLIGHT_RGBA], fill_mode="solid"), static=True)
+            colors=[HIGHLIGHT_RGBA], fill_mode="MajorWireframe", line_radii=[HIGHLIGHT_LINE],
+            show_labels=True), static=True)
         rec.send_columns(
             "world/findings/bodies",
             indexes=[rr.TimeColumn("step", sequence=step[ks]),
@@ -127,6 +185,7 @@ def write_findings_rrd(path: str, traj: Trajectory, results, recording_id: str |
             columns=rr.Ellipsoids3D.columns(
                 centers=np.asarray(centers, float).reshape(-1, 3),
                 half_sizes=np.repeat(np.asarray(radii, float), 3).reshape(-1, 3),
+                labels=labels,
             ).partition(lengths))
     # ---- impact markers
     imp = [e for e in events.values() if e.get("point") and None not in e["point"]]
@@ -136,41 +195,173 @@ def write_findings_rrd(path: str, traj: Trajectory, results, recording_id: str |
         label = "impact" + (f" e={eff:.3f}" if eff is not None else "")
         rec.log("world/findings/impacts", rr.Points3D([e["point"]], radii=[0.015],
                                                       colors=[[255, 200, 0]], labels=[label]))
+    return len(rows)
+
+
+def _touch(path: str):
+    try:
+        with open(path, "wb"):
+            pass
+    except OSError as e:
+        raise LogWriteError(str(path), e.strerror or str(e)) from None
+
+
+def write_findings_rrd(path: str, traj: Trajectory, results, recording_id: str | None = None):
+    """Write the findings alone to ``path`` (.rrd), as recording ``recording_id`` (an overlay
+    for a run already open in a viewer); returns the recording id. To open a run with its
+    findings, :func:`write_checked` is the one to use."""
+    from rblog.record.rerun_writer import _blueprint
+
+    _touch(path)
+    rid = recording_id or str(uuid.uuid4())
+    rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
+    rec.save(str(Path(path)))
+    # sent as the active blueprint: opened after the run, it replaces the run's layout
+    t_end = float(traj.t[-1]) if len(traj.t) else None
+    rec.send_blueprint(_blueprint(traj.model, traj.info, findings=True,
+                                  bounds=np.asarray(traj.position[-1]) if len(traj.t) else None,
+                                  t_end=t_end),
+                       make_active=True, make_default=True)
+    log_findings(rec, traj, results)
     rec.flush()
     rec.disconnect()
     return rid
+
+
+def write_checked_rrd(path: str, traj: Trajectory, results) -> int:
+    """Write one .rrd holding the run ``traj`` (as `rblog run` records it) and its findings, with
+    the findings table in the layout; returns how many findings."""
+    from rblog.record.rerun_writer import RerunRecorder
+
+    rec = RerunRecorder(str(path), findings_panel=True)
+    rec.open(traj.model, traj.info)
+    try:
+        rec.write(traj)
+        n = 0
+        for stream in rec.streams:
+            n = log_findings(stream, traj, results)
+    except BaseException:
+        rec.close(truncated=True, reason="interrupted while writing the findings")
+        raise
+    rec.close(truncated=bool(traj.truncated))
+    return n
 
 
 def findings_count(results) -> int:
     return sum(len(r.findings) for r in results)
 
 
-#: MCAP topic of the findings (``foxglove.Log``): Foxglove lists them in its Log panel and marks
-#: them on the timeline, at the run's own time base (simulated time as log time, like the run)
-FINDINGS_TOPIC = "/rblog/findings"
+def _log_messages(traj: Trajectory, results) -> list[tuple[int, object]]:
+    from foxglove_schemas_protobuf.Log_pb2 import Log
+
+    out = []
+    for w in finding_rows(traj, results):
+        ns = int(C.time_ns(np.array([w.t]))[0])
+        msg = Log(level=Log.ERROR, message=w.text, name=f"rblog check {w.analyzer}")
+        msg.timestamp.FromNanoseconds(ns)
+        out.append((ns, msg))
+    return out
+
+
+def _marker_messages(traj: Trajectory, results) -> list[tuple[int, object]]:
+    """One SceneUpdate per finding: a red sphere on each flagged body, in the body's frame, from
+    the start of its highlight interval for its length, with the finding's text above it."""
+    from foxglove_schemas_protobuf.Color_pb2 import Color
+    from foxglove_schemas_protobuf.Pose_pb2 import Pose
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+    from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
+    from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
+    from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+
+    model = traj.model
+    names = C.view_names(model.body_name)
+    radius = _highlight_radius(model)
+    events = _impact_events(results)
+    t = np.asarray(traj.t, float)
+    rgba = [c / 255 for c in HIGHLIGHT_RGBA]
+    out = []
+    for j, w in enumerate(finding_rows(traj, results)):
+        ev = events.get((w.step, tuple(w.bodies)))
+        t0, t1 = (ev["t_start"], ev["t_end"]) if ev else (w.t - HIGHLIGHT_S, w.t + HIGHLIGHT_S)
+        if len(t):
+            t0, t1 = max(t0, float(t[0])), min(t1, float(t[-1]))
+        t1 = max(t1, t0)
+        ns0 = int(C.time_ns(np.array([t0]))[0])
+        upd = SceneUpdate()
+        for b in w.bodies:
+            if not 0 <= b < model.n_bodies:
+                continue
+            ent = upd.entities.add(frame_id=names[b], id=f"finding/{j}/{names[b]}",
+                                   frame_locked=True)
+            ent.timestamp.FromNanoseconds(ns0)
+            ent.lifetime.FromNanoseconds(max(int(round((t1 - t0) * 1e9)), 1))
+            r = 2.0 * float(radius[b])
+            ent.spheres.append(SpherePrimitive(pose=Pose(), size=Vector3(x=r, y=r, z=r),
+                                               color=Color(r=rgba[0], g=rgba[1], b=rgba[2], a=0.6)))
+            ent.texts.append(TextPrimitive(
+                pose=Pose(position=Vector3(x=0.0, y=0.0, z=float(radius[b]) * 1.2)),
+                billboard=True, font_size=14.0, scale_invariant=True,
+                color=Color(r=1.0, g=1.0, b=1.0, a=1.0), text=f"[{w.analyzer}] {w.text}"))
+        if len(upd.entities):
+            out.append((ns0, upd))
+    return out
+
+
+def write_checked_mcap(path: str, traj: Trajectory, results) -> int:
+    """Write one .mcap holding the run ``traj`` (as `rblog run` records it) and its findings as
+    ``foxglove.Log`` messages and ``foxglove.SceneUpdate`` markers; returns how many findings."""
+    from foxglove_schemas_protobuf.Log_pb2 import Log
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+
+    from rblog.record.mcap_writer import McapRecorder
+
+    logs = _log_messages(traj, results)
+    markers = _marker_messages(traj, results)
+    rec = McapRecorder(str(path))
+    rec.open(traj.model, traj.info)
+    try:
+        rec.write(traj)
+        rec.write_messages(FINDINGS_TOPIC, Log, logs)
+        rec.write_messages(MARKERS_TOPIC, SceneUpdate, markers)
+    except BaseException:
+        rec.close(truncated=True, reason="interrupted while writing the findings")
+        raise
+    rec.close(truncated=bool(traj.truncated))
+    return len(logs)
+
+
+def write_checked(path: str, traj: Trajectory, results) -> int:
+    """The run and its findings in one file: .rrd (Rerun) or .mcap (Foxglove), by extension."""
+    p = str(path)
+    if p.endswith(".rrd"):
+        return write_checked_rrd(p, traj, results)
+    if p.endswith(".mcap"):
+        return write_checked_mcap(p, traj, results)
+    raise RblogError(f"{p}: the findings file must end in .rrd or .mcap")
+
+
+def open_command(path: str) -> str:
+    """What a user types to open the file :func:`write_checked` wrote."""
+    if str(path).endswith(".mcap"):
+        return f"open {path} in Foxglove (app.foxglove.dev: Open local file)"
+    return f"rerun {path}"
 
 
 def write_findings_mcap(path: str, traj: Trajectory, results) -> int:
-    """Write the findings of ``results`` to ``path`` (.mcap) as ``foxglove.Log`` messages, one per
-    finding, stamped with the finding's simulated time (ns, as the run's messages are); returns
-    how many."""
+    """The findings alone in ``path`` (.mcap): ``foxglove.Log`` messages and markers, stamped with
+    the run's simulated time; returns how many. :func:`write_checked_mcap` adds the run."""
     from foxglove_schemas_protobuf.Log_pb2 import Log
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
     from mcap_protobuf.writer import Writer
 
-    rows = []
-    for r in results:
-        for f in r.findings:
-            u = "" if f.unit in ("", "1") else f" {f.unit}"
-            rows.append((int(C.time_ns(np.array([f.t]))[0]), r.analyzer,
-                         f"{f.message} (value {f.value:.4g}{u}, limit {f.tolerance:.4g}{u})"))
-    rows.sort()
+    logs = _log_messages(traj, results)
+    markers = _marker_messages(traj, results)
     try:
         fh = open(path, "wb")
     except OSError as e:
         raise LogWriteError(str(path), e.strerror or str(e)) from None
     with fh, Writer(fh) as w:
-        for ns, name, text in rows:
-            msg = Log(level=Log.ERROR, message=text, name=f"rblog check {name}")
-            msg.timestamp.FromNanoseconds(ns)
-            w.write_message(FINDINGS_TOPIC, msg, log_time=ns, publish_time=ns)
-    return len(rows)
+        for topic, msgs in ((FINDINGS_TOPIC, logs), (MARKERS_TOPIC, markers)):
+            for ns, msg in msgs:
+                w.write_message(topic, msg, log_time=ns, publish_time=ns)
+    return len(logs)

@@ -171,6 +171,23 @@ class McapRecorder:
         if err is not None:
             raise LogWriteError(self.path, getattr(err, "strerror", None) or str(err)) from None
 
+    def write_messages(self, topic: str, message_class, messages) -> None:
+        """Add a topic of protobuf messages of ``message_class`` (its schema embedded) and write
+        ``messages``, (log time ns, message) pairs, on it: more content beside the run (e.g. the
+        findings of rblog.record.findings). The topic must not be one of the run's."""
+        if self._w is None or self._closed:
+            raise LogWriteError(self.path, "recorder is not open")
+        if topic in self._ch:
+            raise ValueError(f"{topic} is already a topic of this log")
+        data = build_file_descriptor_set(message_class).SerializeToString()
+        try:
+            sid = self._w.register_schema(message_class.DESCRIPTOR.full_name, "protobuf", data)
+            self._ch[topic] = ch = self._w.register_channel(topic, "protobuf", sid)
+            for ns, msg in messages:
+                self._w.add_message(ch, int(ns), msg.SerializeToString(), int(ns))
+        except OSError as e:
+            raise LogWriteError(self.path, e.strerror or str(e)) from None
+
     def __enter__(self):
         return self
 

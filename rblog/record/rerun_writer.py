@@ -7,8 +7,8 @@ from the block's numpy buffers (no per-sample Python).
 
 Why this module is long: it is the one place that knows Rerun's side of the contract: the
 streams and sinks (file, live viewer, spawned viewer) and their failure modes, the column
-encoding of every entity, and the default viewer layout (the blueprint, which the findings
-overlay of rblog.record.findings reuses so that the two open as one).
+encoding of every entity, and the default viewer layout (the blueprint, which
+rblog.record.findings reuses with a findings table added).
 """
 
 from __future__ import annotations
@@ -35,10 +35,14 @@ FLUSH_EVERY_S = 0.5
 #: to log more chunks than this is written without footer (still a valid .rrd; the viewer and
 #: rblog.load read it; ``rerun rrd optimize`` can add one), so that memory stays bounded.
 RRD_FOOTER_MAX_CHUNKS = 8192
-#: chunks sent per block: state, two body entities, eight plots, contacts (data and view)
-CHUNKS_PER_BLOCK = 14
+#: chunks sent per block: state, two body entities, nine plots, contacts (data and view), and one
+#: per body of a small scene (its body-frame angular velocity plot)
+CHUNKS_PER_BLOCK = 15
 #: bodies' names are drawn in the 3D view for scenes of at most this many bodies (else on hover)
 LABELS_MAX_BODIES = 12
+#: scenes of at most this many bodies get a plot of each body's angular velocity in its own frame
+#: (3 lines a body), where a flip about the intermediate axis shows as a component changing sign
+OMEGA_PLOT_MAX_BODIES = 4
 #: view entities of the bodies: every box is an instance of one Boxes3D, every sphere of one
 #: Ellipsoids3D, in body order, posed per sample by the instances' centers and quaternions
 BOXES_ENTITY = "world/bodies/boxes"
@@ -88,10 +92,15 @@ def _descriptors(columns) -> dict[str, rr.ComponentDescriptor]:
 
 
 class RerunRecorder:
-    """Records a run to ``path`` (.rrd), and/or to a live viewer (``spawn`` / ``connect_url``)."""
+    """Records a run to ``path`` (.rrd), and/or to a live viewer (``spawn`` / ``connect_url``).
 
-    def __init__(self, path: str | None, *, spawn: bool = False, connect_url: str | None = None):
+    ``findings_panel``: the layout has the findings table (rblog.record.findings logs the findings
+    into :attr:`streams` before :meth:`close`)."""
+
+    def __init__(self, path: str | None, *, spawn: bool = False, connect_url: str | None = None,
+                 findings_panel: bool = False):
         self.path = None if path is None else str(path)
+        self.findings_panel = findings_panel
         self.spawn = spawn
         self.connect_url = connect_url
         self._rec: rr.RecordingStream | None = None  # the file's stream
@@ -116,7 +125,8 @@ class RerunRecorder:
                 raise LogWriteError(self.path, e.strerror or str(e)) from None
         self._model = model
         self._info = info
-        self._bounds = None  # (lo, hi) of every position written, for the closing blueprint
+        self._bounds = None  # the last sample's finite positions (k, 3), for the closing blueprint
+        self._t_end = None  # the last sample's time (s), for the closing blueprint
         self._n = model.n_bodies
         self._dt = float(info.dt) if info.dt else 1.0
         self.write_footer = _expected_chunks(model, info) <= RRD_FOOTER_MAX_CHUNKS
@@ -128,7 +138,7 @@ class RerunRecorder:
             if self.path is not None:
                 self._rec = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
                 self._rec.set_sinks(rr.FileSink(self.path, write_footer=self.write_footer),
-                                    default_blueprint=_blueprint(model, info))
+                                    default_blueprint=self._layout())
                 self._streams.append(self._rec)
             url = self.connect_url
             if url:
@@ -149,7 +159,7 @@ class RerunRecorder:
                 url = url or spawned
             if url:
                 self._live = rr.RecordingStream(C.APPLICATION_ID, recording_id=rid)
-                self._live.set_sinks(rr.GrpcSink(url), default_blueprint=_blueprint(model, info))
+                self._live.set_sinks(rr.GrpcSink(url), default_blueprint=self._layout())
                 self._streams.append(self._live)
         except (RuntimeError, ValueError, OSError) as e:
             self._disconnect_all()
@@ -177,8 +187,8 @@ class RerunRecorder:
         if not self._streams:
             return
         try:
-            if self._bounds is not None:  # frame every body over the whole run
-                bp = _blueprint(self._model, self._info, bounds=self._bounds)
+            if self._bounds is not None:  # frame the bodies where they end
+                bp = self._layout(bounds=self._bounds, t_end=self._t_end)
                 for rec in self._streams:
                     rec.send_blueprint(bp, make_active=True, make_default=True)
             status = rr.AnyValues(complete=np.array([not truncated]),
@@ -191,6 +201,15 @@ class RerunRecorder:
             raise LogWriteError(self.path or "rerun", str(e).splitlines()[0]) from None
         finally:
             self._disconnect_all()
+
+    @property
+    def streams(self) -> list[rr.RecordingStream]:
+        """The open recording streams (file and viewer), for more entities of the same recording."""
+        return list(self._streams)
+
+    def _layout(self, bounds=None, t_end=None) -> rrb.Blueprint:
+        return _blueprint(self._model, self._info, findings=self.findings_panel, bounds=bounds,
+                          t_end=t_end)
 
     def _disconnect_all(self):
         for rec in self._streams:
@@ -222,6 +241,7 @@ class RerunRecorder:
                 d = _descriptors(arch.columns(centers=z3, quaternions=z4))
                 self._body_groups[ent] = (members, arch, d["centers"], d["quaternions"])
         self._d_scalar = _descriptors(rr.Scalars.columns(scalars=[0.0]))["scalars"]
+        self._omega_bodies = list(range(self._n)) if self._n <= OMEGA_PLOT_MAX_BODIES else []
         self._d_pts = _descriptors(rr.Points3D.columns(positions=z3))["positions"]
         self._d_arrows = _descriptors(rr.Arrows3D.columns(vectors=z3, origins=z3))
         self._d_any = {}
@@ -267,16 +287,29 @@ class RerunRecorder:
             else:
                 geom = rr.Boxes3D(half_sizes=size, **kw)
             rec.log(ent, geom, static=True)
-        for ent, names in (("plots/momentum/linear", ["P_x", "P_y", "P_z"]),
-                           ("plots/momentum/angular", ["L_x", "L_y", "L_z"])):
+        for ent, names in (("plots/momentum/linear", ["P_x (N s)", "P_y (N s)", "P_z (N s)"]),
+                           ("plots/momentum/angular", ["L_x (N m s)", "L_y (N m s)", "L_z (N m s)"])):
             rec.log(ent, rr.SeriesLines(names=names), static=True)
         for ent, name in (("plots/energy/total", "total"),
                           ("plots/energy/translational", "translational"),
                           ("plots/energy/rotational", "rotational"),
                           ("plots/energy/potential", "potential"),
-                          ("plots/error/ortho_max", "max |R^T R - I|"),
-                          ("plots/error/quat_norm_max", "max ||q| - 1|")):
+                          ):
             rec.log(ent, rr.SeriesLines(names=[name]), static=True)
+        for ent, name, colour in ((DRIFT_ENTITY + "/ortho_max", "max |R^T R - I|",
+                                   (31, 119, 180)),
+                                  (DRIFT_ENTITY + "/quat_norm_max", "max ||q| - 1|",
+                                   (255, 127, 14))):
+            rec.log(ent, rr.SeriesLines(names=[name], colors=[colour]), static=True)
+        rec.log(DRIFT_ENTITY + "/tolerance", rr.SeriesLines(
+            names=[f"tolerance {DRIFT_TOLERANCE:g}"],
+            colors=[[230, 30, 30]], widths=[2.0]), static=True)
+        names = C.view_names(model.body_name)
+        for i in self._omega_bodies:
+            label = str(model.body_name[i])
+            rec.log(f"{OMEGA_ENTITY}/{names[i]}", rr.SeriesLines(
+                names=[f"{label} w_x", f"{label} w_y", f"{label} w_z"],
+                colors=OMEGA_COLOURS[i % len(OMEGA_COLOURS)]), static=True)
         rec.log("world/contacts", rr.Points3D.from_fields(radii=[0.02], colors=[[230, 30, 30]]),
                 static=True)
         rec.log("world/contacts/impulses", rr.Arrows3D.from_fields(colors=[[230, 120, 30]]),
@@ -300,12 +333,13 @@ class RerunRecorder:
             cols.append(_Column(self._any(name), pa.array(arr.reshape(-1)), rows * arr.shape[1]))
         self._send("rblog/state", idx, cols)
 
+        if np.isfinite(t[-1]):
+            self._t_end = float(t[-1]) if self._t_end is None else max(self._t_end, float(t[-1]))
         # body poses (float32; view only): one row of instances per sample and shape kind
         pos = a["position"].reshape(T, n, 3)
-        b = position_bounds(pos)
-        if b is not None:
-            self._bounds = b if self._bounds is None else (np.minimum(self._bounds[0], b[0]),
-                                                           np.maximum(self._bounds[1], b[1]))
+        last = pos[-1][np.all(np.isfinite(pos[-1]), axis=1)]
+        if len(last):  # the closing blueprint frames where the bodies end
+            self._bounds = last.copy()
         q = a["quat_wxyz"].reshape(T, n, 4)
         for ent, (members, _, d_c, d_q) in self._body_groups.items():
             k = len(members)
@@ -330,9 +364,18 @@ class RerunRecorder:
         scalars("plots/energy/potential", a["energy_potential"].sum(axis=1))
         scalars("plots/momentum/linear", a["total_linear_momentum"])
         scalars("plots/momentum/angular", a["total_angular_momentum"])
-        scalars("plots/error/ortho_max", a["ortho_error"].max(axis=1) if n else np.zeros(T))
-        scalars("plots/error/quat_norm_max",
-                np.abs(a["quat_norm_error"]).max(axis=1) if n else np.zeros(T))
+        scalars(DRIFT_ENTITY + "/ortho_max",
+                drift_log10(a["ortho_error"].max(axis=1) if n else np.zeros(T)))
+        scalars(DRIFT_ENTITY + "/quat_norm_max",
+                drift_log10(np.abs(a["quat_norm_error"]).max(axis=1) if n else np.zeros(T)))
+        scalars(DRIFT_ENTITY + "/tolerance", np.full(T, math.log10(DRIFT_TOLERANCE)))
+        if self._omega_bodies:
+            names = C.view_names(self._model.body_name)
+            rot = a["rotation"].reshape(T, n, 3, 3)
+            w = a["angular_velocity"].reshape(T, n, 3)
+            w_body = np.einsum("tnij,tni->tnj", rot, w)  # R^T w: the body frame's components
+            for i in self._omega_bodies:
+                scalars(f"{OMEGA_ENTITY}/{names[i]}", w_body[:, i])
         self.samples_written += T
 
     def _write_contacts(self, block: Trajectory):
@@ -415,11 +458,27 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
     return math.ceil(samples / per_block) * CHUNKS_PER_BLOCK
 
 
-#: the drift-error plot's fixed y range (dimensionless): the analyzers' rigidity tolerance
-#: (rblog.analyze.tolerances.DRIFT_ORTHO_ERROR), so round-off (~1e-15) draws as a flat line at 0
-#: instead of autoscaled spikes (the range starts a little below 0 so that line is drawn), and a
-#: fault shows as a line at the top
-ERROR_PLOT_MAX = 1e-6
+#: the drift plot: log10 of the largest rigidity errors over the bodies, beside the tolerance
+#: rblog check judges them by (a line), so that round-off (1e-16 .. 1e-12), the tolerance and a
+#: body stretched to an error of 1 all read on one axis; the axis scales to the data
+DRIFT_ENTITY = "plots/drift"
+#: the rigidity tolerance drawn as a line: rblog.analyze.tolerances.DRIFT_ORTHO_ERROR (the record
+#: room does not import the audit; tests/record/test_record.py checks the two agree)
+DRIFT_TOLERANCE = 1e-6
+#: an error of exactly 0 is drawn at this floor (log10 of it: -17), below float64 round-off
+DRIFT_FLOOR = 1e-17
+#: per-body angular velocity (body frame) of small scenes: OMEGA_ENTITY/<body view name>
+OMEGA_ENTITY = "plots/omega_body"
+#: x, y, z line colours of each body's angular velocity (reds, greens, blues; lighter per body)
+OMEGA_COLOURS = [[(235, 80, 80), (80, 200, 80), (90, 150, 250)],
+                 [(250, 160, 150), (160, 230, 150), (160, 200, 255)],
+                 [(170, 40, 40), (30, 130, 30), (40, 80, 190)],
+                 [(250, 200, 120), (200, 240, 120), (120, 220, 240)]]
+
+
+def drift_log10(err) -> np.ndarray:
+    """log10 of rigidity errors for the drift plot, floored at DRIFT_FLOOR (NaN stays NaN)."""
+    return np.log10(np.maximum(np.abs(np.asarray(err, np.float64)), DRIFT_FLOOR))  # NaN stays
 
 
 def position_bounds(position) -> tuple[np.ndarray, np.ndarray] | None:
@@ -449,44 +508,125 @@ def _start_bounds(resolved: dict) -> tuple[np.ndarray, np.ndarray] | None:
     return position_bounds(points) if points else None
 
 
+#: the 3D view's vertical field of view (Rerun's default eye, degrees) and the width / height of
+#: that view in the default layout at 1600 x 900 (the camera is placed to fit both)
+VIEW_FOV_Y_DEG = 55.0
+VIEW_ASPECT = 0.95
+VIEW_ASPECT_FINDINGS = 1.3
+#: fraction of the view's half height / half width the framed bodies may take
+FRAME_FILL = 0.8
+#: the camera looks from this direction (from above one corner)
+EYE_DIRECTION = np.array([1.2, -1.8, 1.0])
+
+
+#: with at least FRAME_TRIM_MIN_BODIES bodies, the camera frames this quantile of them (the
+#: few that bounced far from a pile may be cut, the pile itself fills the view)
+FRAME_QUANTILE = 0.98
+FRAME_TRIM_MIN_BODIES = 50
+
+
+def frame_camera(points, radius: float = 0.0, direction=EYE_DIRECTION,
+                 fov_y_deg: float = VIEW_FOV_Y_DEG, aspect: float = VIEW_ASPECT,
+                 fill: float = FRAME_FILL):
+    """(eye position, look target) of a camera looking along ``-direction`` at ``points`` (k, 3),
+    spheres of ``radius``, from the nearest distance at which they are inside the view with
+    ``fill`` of its half extents used (a FRAME_QUANTILE of them when there are many). Fitting the
+    points, not their bounding box, lets a wide flat pile fill the view."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    p = p[np.all(np.isfinite(p), axis=1)]
+    q = FRAME_QUANTILE if len(p) >= FRAME_TRIM_MIN_BODIES else 1.0
+    lo, hi = np.quantile(p, 1 - q, axis=0), np.quantile(p, q, axis=0)
+    centre = 0.5 * (lo + hi)
+    d = np.asarray(direction, np.float64)
+    d = d / np.linalg.norm(d)
+    fwd = -d
+    right = np.cross(fwd, [0.0, 0.0, 1.0])
+    right = right / (np.linalg.norm(right) or 1.0)
+    up = np.cross(right, fwd)
+    rel = p - centre
+    tan_y = math.tan(math.radians(fov_y_deg) / 2) * fill
+    tan_x = tan_y * aspect
+    # a point at distance D - p.fwd from the eye (D: the eye's distance from the centre) is in
+    # view when |p.up| + r <= tan_y (D + p.fwd) and |p.right| + r <= tan_x (D + p.fwd)
+    need = np.maximum((np.abs(rel @ up) + radius) / tan_y,
+                      (np.abs(rel @ right) + radius) / tan_x) - rel @ fwd
+    dist = float(np.quantile(need, q)) if len(need) else 1.0
+    dist = max(dist, 2.0 * radius, 1e-3)
+    return centre + dist * d, centre
+
+
+#: the plots' time axis reaches this fraction of the run past either end, so that the first and
+#: last tick labels (+0 s, +20 s) are drawn whole rather than cut at the plot's edge
+TIME_AXIS_MARGIN = 0.07
+
+
+def _time_axis(t_end: float | None):
+    if not t_end or not math.isfinite(t_end) or t_end <= 0:
+        return None
+    pad = TIME_AXIS_MARGIN * t_end
+    return rrb.TimeAxis(view_range=rr.TimeRange(
+        start=rrb.TimeRangeBoundary.absolute(seconds=-pad),
+        end=rrb.TimeRangeBoundary.absolute(seconds=t_end + pad)))
+
+
 def _blueprint(model: Model, info: RunInfo, findings: bool = False,
-               bounds: tuple[np.ndarray, np.ndarray] | None = None) -> rrb.Blueprint:
-    """3D view of the world beside the energy, momentum and error plots (legends hidden: the
-    series are named on hover; the error plot clamped to ERROR_PLOT_MAX). The camera frames
-    ``bounds`` (the (lo, hi) corners of every position the bodies took over the run: a recorder
-    sends that blueprint when it closes, so a body that flies off stays in view), else the bodies'
-    starting positions (from the resolved scene, when the log has one). ``findings``: a findings
-    panel (the ``findings`` text log of rblog.record.findings) below the 3D view."""
+               bounds=None, t_end: float | None = None) -> rrb.Blueprint:
+    """The default layout, made for a 1600 x 900 window: the 3D view beside a 2 x 2 grid of
+    plots (energy, momentum, drift, and for small scenes each body's angular velocity in its own
+    frame, else linear and angular momentum apart), each plot with its legend and a time axis a
+    little wider than the run (``t_end``, else the scene's duration) so that its end labels are
+    whole; the drift plot scales to its data and draws the tolerance as a line. With
+    ``findings``, the findings table (the ``findings`` text log of rblog.record.findings) spans
+    the width below, and the time panel is expanded so that its ``findings`` row marks when
+    they are. The camera frames ``bounds``: the bodies' positions (k, 3) at the end of the run,
+    where the viewer opens (a recorder sends that blueprint when it closes, so a pile fills the
+    view and a body that flew off is in it), or the (lo, hi) corners of a box; by default the
+    bodies' starting positions (from the resolved scene, when the log has one)."""
     eye = None
     if bounds is None:
         bounds = _start_bounds(info.scene_resolved or {})
-    if bounds is not None:
+    if bounds is not None and model.n_bodies:
+        # bounds: the bodies' positions (k, 3), or the (lo, hi) corners of a box around them
+        pts = np.asarray(bounds, np.float64).reshape(-1, 3)
+        if len(pts) == 2:
+            pts = np.array([[x, y, z] for x in pts[:, 0] for y in pts[:, 1] for z in pts[:, 2]])
         radius = float(np.max(model.body_bounding_radius))
-        lo, hi = bounds[0] - radius, bounds[1] + radius
-        centre = 0.5 * (lo + hi)
-        extent = max(float(np.max(hi - lo)), 1.0)
-        # from above one corner, 1.4 extents away: the whole box in a 60-degree view
-        eye = rrb.EyeControls3D(position=centre + 0.6 * extent * np.array([1.2, -1.8, 1.0]),
-                                look_target=centre)
-    no_legend = rrb.PlotLegend(visible=False)
+        position, target = frame_camera(pts, radius, aspect=VIEW_ASPECT_FINDINGS if findings
+                                        else VIEW_ASPECT)
+        eye = rrb.EyeControls3D(position=position, look_target=target)
+    legend = rrb.PlotLegend(corner="LeftTop", visible=True)
+    # the drift plot: the largest error rises to the top, so its legend sits at the bottom
+    drift_legend = rrb.PlotLegend(corner="LeftBottom", visible=True)
+    axis = _time_axis(t_end if t_end is not None else info.duration_s)
+    kw = dict(plot_legend=legend, axis_x=axis) if axis is not None else dict(plot_legend=legend)
     world = rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye)
+    drift = rrb.TimeSeriesView(origin=DRIFT_ENTITY, name="rigidity drift (log10 of the error)",
+                               **{**kw, "plot_legend": drift_legend})
+    if 0 < model.n_bodies <= OMEGA_PLOT_MAX_BODIES:
+        plots = [rrb.TimeSeriesView(origin="plots/energy", name="energy (J)", **kw),
+                 rrb.TimeSeriesView(origin="plots/momentum", name="total momentum", **kw),
+                 drift,
+                 rrb.TimeSeriesView(origin=OMEGA_ENTITY,
+                                    name="angular velocity, body frame (rad/s)", **kw)]
+    else:  # no per-body plot: the fourth cell splits linear and angular momentum
+        plots = [rrb.TimeSeriesView(origin="plots/energy", name="energy (J)", **kw),
+                 rrb.TimeSeriesView(origin="plots/momentum/linear",
+                                    name="total linear momentum (N s)", **kw),
+                 drift,
+                 rrb.TimeSeriesView(origin="plots/momentum/angular",
+                                    name="total angular momentum (N m s)", **kw)]
+    top = rrb.Horizontal(world, rrb.Grid(*plots, grid_columns=2), column_shares=[1, 1])
     if findings:
-        world = rrb.Vertical(world, rrb.TextLogView(origin="findings", name="findings"),
-                             row_shares=[3, 1])
+        table = rrb.TextLogView(
+            origin="findings", name="findings of rblog check (one row per finding)",
+            columns=rrb.TextLogColumns(timeline_columns=["sim_time"],
+                                       text_log_columns=["Body"]))
+        top = rrb.Vertical(top, table, row_shares=[5, 2])
     return rrb.Blueprint(
-        rrb.Horizontal(
-            world,
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="plots/energy", name="energy (J)", plot_legend=no_legend),
-                rrb.TimeSeriesView(origin="plots/momentum", name="total momentum",
-                                   plot_legend=no_legend),
-                rrb.TimeSeriesView(origin="plots/error", name="max drift errors (0..1e-6)",
-                                   plot_legend=no_legend,
-                                   axis_y=rrb.ScalarAxis(range=(-0.1 * ERROR_PLOT_MAX, ERROR_PLOT_MAX),
-                                                         zoom_lock=False)),
-            ),
-            column_shares=[3, 2],
-        ),
+        top,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="expanded" if findings else "collapsed"),
     )
 
 

@@ -1,6 +1,6 @@
-"""Findings where people look: `rblog check --rrd` (a Rerun recording with the run's recording id),
-`rblog findings LOG OUT.mcap` (foxglove.Log messages), and `rblog convert` (.mcap -> .rrd keeps the
-geometry), on the log of a pybullet run with a real fault (its second bounce keeps e = 0.21 of
+"""Findings where people look: `rblog check --rrd` (one Rerun recording with the run and its
+findings), `rblog check --mcap` / `rblog findings LOG OUT.mcap` (the run with foxglove.Log messages
+and markers), and `rblog convert` (.mcap -> .rrd keeps the geometry), on the log of a pybullet run with a real fault (its second bounce keeps e = 0.21 of
 a configured 0.8)."""
 
 from __future__ import annotations
@@ -53,38 +53,82 @@ def _chunks(path):
         return store, list(r.stream(store=store))
 
 
-def test_check_rrd_writes_findings_with_the_runs_recording_id(logs):
+@pytest.mark.parametrize("kind", [".rrd", ".mcap"])
+def test_check_rrd_writes_one_recording_with_the_run_and_its_findings(logs, kind):
+    """`rblog check LOG --rrd F.rrd` writes ONE file with the run and the findings, for an .rrd
+    and an .mcap log alike, and prints the command that opens exactly that file. (Before, an
+    .mcap log gave a findings-only file with a fresh recording id and the command `rerun
+    LOG.mcap F.rrd`, which opens two unrelated recordings.)"""
     traj, paths, d = logs
-    n_findings = sum(len(r.findings) for r in check(load(paths[".rrd"])))
+    results = check(load(paths[kind]))
+    n_findings = sum(len(r.findings) for r in results)
     assert n_findings >= 1
-    out = d / "findings.rrd"
-    res = _cli("check", paths[".rrd"], "--rrd", out)
+    out = d / f"checked-from{kind.replace('.', '-')}.rrd"
+    res = _cli("check", paths[kind], "--rrd", out)
     assert res.exit_code == 1, res.output
-    run_store, _ = _chunks(paths[".rrd"])
+    assert f"(open with: rerun {out})" in res.output, res.output
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import rerun as rr
+
+        assert len(rr.chunk.RrdReader(str(out)).recordings()) == 1
     store, chunks = _chunks(out)
-    assert store.recording_id == run_store.recording_id
     ents = {c.entity_path for c in chunks}
-    assert {"/findings", "/world/findings/bodies", "/world/findings/impacts"} <= ents, ents
-    # one text-log row per finding (plus the static header)
-    rows = sum(c.num_rows for c in chunks if c.entity_path == "/findings" and not c.is_static)
-    assert rows == n_findings
+    assert {"/rblog/state", "/world/bodies/spheres", "/world/findings/bodies"} <= ents, ents
+    # the run itself reads back from the file, sample for sample
+    back = load(out)
+    np.testing.assert_array_equal(back.position, traj.position)
+    # one temporal text-log row per finding, and nothing static on the findings entities: a
+    # static row (the old header) hides every temporal row of its entity in the viewer
+    text = [c for c in chunks if c.entity_path.startswith("/findings")]
+    assert not [c for c in text if c.is_static], [c.entity_path for c in text]
+    assert sum(c.num_rows for c in text) == n_findings
 
 
-def test_findings_as_foxglove_log_in_mcap(logs):
+def test_findings_rows_name_analyzer_body_value_limit_and_message(logs):
+    from rblog.record.findings import finding_rows
+
+    traj, paths, d = logs
+    results = check(traj)
+    rows = finding_rows(traj, results)
+    assert rows and [w.t for w in rows] == sorted(w.t for w in rows)
+    for w in rows:
+        analyzer, body, value, message = w.text.split(" | ", 3)
+        assert analyzer in {r.analyzer for r in results}
+        assert body == "ball", w.text
+        assert value.startswith("value ") and " vs limit " in value, w.text
+        assert message == next(f.message for r in results for f in r.findings
+                               if r.analyzer == w.analyzer and f.t == w.t)
+
+
+def test_check_mcap_writes_the_run_with_foxglove_logs_and_markers(logs):
+    """`rblog check LOG --mcap F.mcap` (and `rblog findings LOG F.mcap`): one MCAP file with the
+    run, the findings as foxglove.Log and SceneUpdate markers on the flagged bodies' frames;
+    rblog reads the run back from it."""
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
 
     traj, paths, d = logs
-    results = check(load(paths[".mcap"]))
+    results = check(load(paths[".rrd"]))
     want = sorted(round(f.t * 1e9) for r in results for f in r.findings)
-    out = d / "findings.mcap"
-    res = _cli("findings", paths[".mcap"], out)
-    assert res.exit_code == 1, res.output
-    with open(out, "rb") as f:
-        msgs = list(make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages())
-    assert [s.name for s, *_ in msgs] == ["foxglove.Log"] * len(want)
-    assert [m.log_time for _, _, m, _ in msgs] == want
-    assert all(p.level == 4 and "limit" in p.message for *_, p in msgs)  # 4: ERROR
+    for args, out in ((("check", paths[".rrd"], "--mcap"), d / "checked.mcap"),
+                      (("findings", paths[".mcap"]), d / "findings.mcap")):
+        res = _cli(*args, out)
+        assert res.exit_code == 1, res.output
+        assert "Foxglove" in res.output, res.output
+        with open(out, "rb") as f:
+            msgs = list(make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                topics=["/rblog/findings", "/rblog/findings/markers"]))
+        logs_ = [(m.log_time, p) for s, c, m, p in msgs if c.topic == "/rblog/findings"]
+        marks = [(m.log_time, p) for s, c, m, p in msgs if c.topic == "/rblog/findings/markers"]
+        assert [t for t, _ in logs_] == want
+        assert all(p.level == 4 and " vs limit " in p.message for _, p in logs_)  # 4: ERROR
+        assert len(marks) == len(want)
+        ents = [e for _, p in marks for e in p.entities]
+        assert {e.frame_id for e in ents} == {"ball"}
+        assert all(e.spheres and e.texts and e.lifetime.ToNanoseconds() > 0 for e in ents)
+        back = load(out)
+        np.testing.assert_array_equal(back.position, traj.position)
 
 
 def test_convert_mcap_to_rrd_keeps_shapes_and_state(logs):

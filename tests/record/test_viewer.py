@@ -17,6 +17,7 @@ import sys
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
@@ -88,7 +89,7 @@ def test_viewer_shows_a_sample_run_without_errors(viewer_ready, sample_rrd, tmp_
         stats = shot.image_stats(cap.view_pngs[v.view_id])
         assert stats["std"] > 5 and stats["non_background_fraction"] > 0.01, (v.name, stats)
         if v.view_class == "3D":
-            # the camera frames every body over the run: mixed.toml's balls end spread over
+            # the camera frames the bodies where they end: mixed.toml's balls end spread over
             # 9.7 m, so its 17 bodies of 0.1-0.2 m are small; measured 0.0015 of the view's
             # pixels coloured (2026-11-26), a grey or empty view has none
             assert stats["colourful_fraction"] > 0.0005, (v.name, stats)
@@ -132,54 +133,162 @@ def test_viewer_check_catches_a_broken_recording(viewer_ready, tmp_path):
     assert shot.image_stats(cap.png)["std"] > 10
 
 
-def test_viewer_overlays_check_findings_on_a_run(viewer_ready, tmp_path):
-    """A pybullet run of the bouncing ball (its second bounce keeps e = 0.21 of 0.8: a real
-    fault) written to .rrd, checked with `rblog check --rrd`, and both opened together: the
-    findings panel lists the finding and the ball is highlighted at the finding's time."""
-    pytest.importorskip("pybullet")
-    sys.path.insert(0, str(REPO / "tests" / "analyze"))
-    from engine_logs import engine_samples, to_trajectory
-    from rblog.analyze import check
-    from rblog.record import RerunRecorder
-    from rblog.record.findings import run_recording_id, write_findings_rrd
+# ------------------------------------------------------------------ findings and plots a user reads
+#
+# The run of samples/tumbling_box.toml with the notes' scheme and no orthonormalization: R
+# stretches (drift 0.1 over 20 s) and the energy grows, so `rblog check` flags both. It is
+# recorded to .mcap and checked from there, as a user would; the test opens exactly what
+# `rblog check` prints. RBLOG_REFRESH_DOCS=1 writes its screenshot to docs/findings-overlay.png.
 
-    traj = to_trajectory(engine_samples("pybullet", str(REPO / "samples" / "bouncing_ball.toml"),
-                                        log_every=10))
-    run = tmp_path / "pybullet_ball.rrd"
-    rec = RerunRecorder(str(run))
-    rec.open(traj.model, traj.info)
-    rec.write(traj)
-    rec.close()
-    results = check(traj)
-    findings = [f for r in results for f in r.findings]
-    assert findings, [r.reason for r in results]
-    out = tmp_path / "findings.rrd"
-    write_findings_rrd(str(out), traj, results, run_recording_id(str(run)))
-    first = min(findings, key=lambda f: f.t)
-    # the test writes its screenshots beside its logs; RBLOG_REFRESH_DOCS=1 refreshes docs/'s copy
-    import os
+SEED_RUN = ("--integrator", "seed", "--orthonormalize", "none")
+#: colours of the drift plot's series (rblog.record.rerun_writer): the largest ||R^T R - I|| and
+#: the tolerance line
+ORTHO_RGB, TOLERANCE_RGB = (31, 119, 180), (230, 30, 30)
 
-    png = (REPO / "docs" if os.environ.get("RBLOG_REFRESH_DOCS") else tmp_path) / "findings-overlay.png"
-    cap = shot.capture(run, png, timeout=120.0, per_view=True, overlays=[out],
-                       at_ns=int(first.t * 1e9))
+
+@pytest.fixture(scope="module")
+def seed_checked(viewer_ready, tmp_path_factory):
+    d = tmp_path_factory.mktemp("seed")
+    log = d / "tumbling_seed.mcap"
+    shot.record_sample(REPO / "samples" / "tumbling_box.toml", log, *SEED_RUN)
+    cmd, text = shot.check_to_rrd(log, d / "tumbling_seed-checked.rrd")
+    import rblog
+
+    n = sum(len(r.findings) for r in rblog.check(rblog.load(str(log))))
+    png = d / "findings-overlay.png"
+    cap = shot.capture(Path(cmd[1]), png, timeout=150.0, per_view=True,
+                       overlays=[Path(w) for w in cmd[2:]])
+    if os.environ.get("RBLOG_REFRESH_DOCS"):
+        import shutil
+
+        shutil.copy(png, REPO / "docs" / png.name)
+        shot.small_png(REPO / "docs" / png.name)
     print(f"screenshot {png} after {cap.seconds:.1f} s")
-    # one recording: the findings merged into the run
+    return cmd, n, cap
+
+
+def _view(cap, view_class, origin=None):
+    views = [v for v in cap.views if v.view_class == view_class
+             and (origin is None or v.origin.strip("/") == origin.strip("/"))]
+    assert views, [(v.view_class, v.origin) for v in cap.views]
+    return views[0]
+
+
+def test_check_of_an_mcap_run_opens_as_one_recording(seed_checked):
+    """`rblog check RUN.mcap --rrd F.rrd` prints one file to open, and the viewer shows one
+    recording with the run and the findings (before: `rerun RUN.mcap F.rrd`, two recordings,
+    the .mcap one with an empty viewport)."""
+    cmd, n, cap = seed_checked
+    assert cmd[0] == "rerun" and len(cmd) == 2, cmd
+    assert n >= 1
     assert len(cap.state.recordings) == 1, cap.state.recordings
-    classes = [v.view_class for v in cap.views]
-    names = [v.name for v in cap.views]
-    assert "TextLog" in classes and "findings" in names, (classes, names)
-    assert all(v.visible for v in cap.views), cap.views
     assert not cap.view_problems, _fmt(cap)
     assert not cap.log_errors, _fmt(cap)
-    # the findings panel shows text; the 3D view shows the red highlight (R high, G and B low)
-    import numpy as np
+    classes = sorted(v.view_class for v in cap.views)
+    assert classes.count("TimeSeries") == 4 and "3D" in classes and "TextLog" in classes, classes
+    assert all(v.visible for v in cap.views), cap.views
+
+
+def test_findings_table_shows_a_row_per_finding(seed_checked):
+    """The findings table holds one line of text per finding under its header: counted as lines
+    of text in the panel's pixels. (Before, a static header row on the same entity hid every
+    finding: the panel drew its header alone, one line.)"""
+    cmd, n, cap = seed_checked
+    table = _view(cap, "TextLog")
+    png = cap.view_pngs[table.view_id]
+    lines = shot.text_lines(png)
     from PIL import Image
 
-    v3d = next(v for v in cap.views if v.view_class == "3D")
+    height = Image.open(png).size[1]
+    fits = max((height - 40) // 18, 1)  # rows of ~18 px below the header
+    assert len(lines) >= 1 + min(n, fits), (lines, n, png)
+    # each row is a full line of text (analyzer | body | value vs limit | message), not a stub
+    import numpy as np
+
+    ink = np.asarray(Image.open(png).convert("L")) > 120
+    for top, bottom in lines[1:1 + min(n, fits)]:
+        cols = np.flatnonzero(ink[top:bottom].any(axis=0))
+        assert cols.max() - cols.min() > 0.5 * ink.shape[1], (top, bottom, png)
+
+
+def test_findings_mark_the_body_in_3d(seed_checked):
+    cmd, n, cap = seed_checked
+    v3d = _view(cap, "3D")
+    red = shot.colour_mask(cap.view_pngs[v3d.view_id], (230, 30, 30), tol=50)
+    assert red.mean() > 1e-3, red.mean()
+
+
+def test_drift_plot_shows_the_largest_error_and_the_tolerance(seed_checked):
+    """The drift plot scales to its data: the error (0.1 at the end, 1e-15 at the start) is a
+    line across the whole run and the tolerance is a line of its own. (Before, the y axis was
+    fixed to 0..1e-6: the error left the plot within the first second.)"""
+    cmd, n, cap = seed_checked
+    # the drift plot (plots/drift; plots/error before) is the one view that shows rigidity
+    drift = next((v for v in cap.views if v.view_class == "TimeSeries"
+                  and v.origin.strip("/") in ("plots/drift", "plots/error")), None)
+    assert drift is not None, [(v.view_class, v.origin) for v in cap.views]
+    props = shot.view_properties(cap, drift)
+    assert "range" not in props.get("ScalarAxis", {}), props
+    png = cap.view_pngs[drift.view_id]
+    err = shot.colour_mask(png, ORTHO_RGB, tol=30)
+    tol = shot.colour_mask(png, TOLERANCE_RGB, tol=30)
+    width = err.shape[1]
+    assert err.any(axis=0).sum() > 0.6 * width, err.any(axis=0).sum()  # the plot: ~0.85 of the view
+    assert tol.any(axis=0).sum() > 0.6 * width, tol.any(axis=0).sum()
+    # the error ends above the tolerance line (it is 1e5 times the tolerance)
+    col = int(0.9 * width)
+    assert np.flatnonzero(err[:, col]).min() < np.flatnonzero(tol[:, col]).min()
+
+
+def test_plots_have_legends_and_whole_time_axes_and_fit_1600x900(seed_checked):
+    cmd, n, cap = seed_checked
+    rec = next(r for r in cap.state.recordings if r.store_id == cap.state.active_recording)
+    t_end = next(t.end for t in rec.timelines if t.name == "sim_time")
+    from PIL import Image
+
+    for v in cap.views:
+        w, h = Image.open(cap.view_pngs[v.view_id]).size
+        if v.view_class == "TimeSeries":
+            props = shot.view_properties(cap, v)
+            assert props["PlotLegend"]["visible"] is True, (v.name, props)
+            # the time axis reaches past both ends, so +0 s and the last label are drawn whole
+            rng = props["TimeAxis"]["view_range"]
+            assert rng["start"]["Absolute"] < 0 < t_end < rng["end"]["Absolute"], rng
+            assert w >= 300 and h >= 150, (v.name, w, h)
+        elif v.view_class == "3D":
+            assert w >= 600 and h >= 300, (v.name, w, h)
+
+
+def test_tumbling_box_shows_the_intermediate_axis_flip(seed_checked):
+    """The body-frame angular velocity of the tumbling box: w_y swings between about +2 and -2
+    rad/s (the flip); its line reaches both the top and the bottom quarter of the plot."""
+    cmd, n, cap = seed_checked
+    omega = _view(cap, "TimeSeries", "plots/omega_body")
+    wy = shot.colour_mask(cap.view_pngs[omega.view_id], (80, 200, 80), tol=30)
+    rows = np.flatnonzero(wy.sum(axis=1) > 2)
+    h = wy.shape[0]
+    assert rows.min() < 0.35 * h and rows.max() > 0.7 * h, (rows.min(), rows.max(), h)
+
+
+@pytest.mark.slow
+def test_pile_fills_the_view(viewer_ready, tmp_path):
+    """samples/pile.toml, 1.5 s (settled): the camera frames the pile where it ends. The box
+    around its coloured pixels covers 0.45 of the 3D view (measured 2026-11-28); the old camera,
+    1.4 extents of every position over the run away, gave 0.19 (0.60 at 0.3 s, still in the air,
+    which is why the run is long enough to settle)."""
+    rrd = tmp_path / "pile.rrd"
+    shot.record_sample(REPO / "samples" / "pile.toml", rrd, "--duration", "1.5")  # settled
+    png = tmp_path / "pile.png"
+    cap = shot.capture(rrd, png, timeout=150.0, per_view=True)
+    v3d = _view(cap, "3D")
+    stats = shot.image_stats(cap.view_pngs[v3d.view_id])
+    from PIL import Image
+
     img = np.asarray(Image.open(cap.view_pngs[v3d.view_id]).convert("RGB")).astype(int)
-    red = (img[..., 0] > 150) & (img[..., 1] < 110) & (img[..., 2] < 110)
-    # the ball is ~15 px across in the default camera (measured: 1.4e-5 of the view red); an
-    # empty overlay gives exactly 0 (measured before the highlight was made opaque)
-    assert red.mean() > 3e-6, red.mean()
-    vlog = next(v for v in cap.views if v.view_class == "TextLog")
-    assert shot.image_stats(cap.view_pngs[vlog.view_id])["non_background_fraction"] > 0.01
+    colourful = (img.max(axis=-1) - img.min(axis=-1)) > 60
+    cols = np.flatnonzero(colourful.sum(axis=0) > 2)
+    rows = np.flatnonzero(colourful.sum(axis=1) > 2)
+    w, h = colourful.shape[1], colourful.shape[0]
+    box = (cols.max() - cols.min()) * (rows.max() - rows.min()) / (w * h)
+    print(f"pile spans {box:.2f} of the 3D view; {stats}")
+    assert box > 0.35, box
