@@ -709,6 +709,97 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
     return res;
 }
 
+// Body i of exact / exact4 alone over the call's steps (the sparse path of advance_exact_range,
+// tile 1): its state, anchor and flow-constant validity in locals for the whole block (the
+// arrays written when a sample is due and at the end), the step exactly advance_exact_range's.
+// Returns the samples written; fail_step the step at which the state went bad (-1 if none).
+template <int METHOD>
+i64 exact_single(const FreeArgs& a, i64 i, double* row, i64& fail_step) {
+    const double dt = a.dt;
+    const double w1 = yoshida_w1(), w0 = yoshida_w0();
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    V3<double> R = a.rotation;
+    V2<double> a_q = a.a_q, a_l = a.a_l;
+    V1<i64> a_n = a.a_n;
+    V1<double> a_dt = a.a_dt;
+    const double im = a.inv_mass[i];
+    const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
+    const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
+    const double k0 = a.inv_inertia(i, 0), k1 = a.inv_inertia(i, 1), k2 = a.inv_inertia(i, 2);
+    const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
+    const int n_sub = (METHOD == METHOD_EXACT4 && torqued) ? 3 : 1;
+    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
+    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
+    double lx = L(i, 0), ly = L(i, 1), lz = L(i, 2);
+    double qw = Q(i, 0), qx = Q(i, 1), qy = Q(i, 2), qz = Q(i, 3);
+    double aw = a_q(i, 0), ax = a_q(i, 1), ay = a_q(i, 2), az = a_q(i, 3);
+    double al0 = a_l(i, 0), al1 = a_l(i, 1), al2 = a_l(i, 2);
+    i64 an = a_n[i];
+    double adt = a_dt[i];
+    bool row_ok = false;
+    Mat3 m{};
+    bool stepped = false;
+    auto store = [&]() {
+        pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
+        mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
+        L(i, 0) = lx; L(i, 1) = ly; L(i, 2) = lz;
+        Q(i, 0) = qw; Q(i, 1) = qx; Q(i, 2) = qy; Q(i, 3) = qz;
+        store_mat(R, i, m);
+    };
+    fail_step = -1;
+    i64 j = 0;
+    for (i64 s = 1; s <= a.n_steps; ++s) {
+        flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
+        for (int sub = 0; sub < n_sub; ++sub) {
+            double h = dt;
+            if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
+            const double hk = 0.5 * h;
+            if (torqued) {
+                lx += hk * tx; ly += hk * ty; lz += hk * tz;
+            }
+            if (!anchor_holds(an, adt, al0, al1, al2, h, lx, ly, lz)) {
+                aw = qw; ax = qx; ay = qy; az = qz;
+                al0 = lx; al1 = ly; al2 = lz;
+                an = 0;
+                adt = h;
+                row_ok = false;
+            }
+            if (!row_ok) {
+                anchor_constants(row, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h);
+                row_ok = true;
+            }
+            const i64 n = an + 1;
+            double rj_c;
+            const Quat q = anchored_quat(row, aw, ax, ay, az, static_cast<double>(n) * std::fabs(h),
+                                         qw, qx, qy, qz, rj_c);
+            qw = q[0]; qx = q[1]; qy = q[2]; qz = q[3];
+            if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
+            an = n;
+            if (torqued) {
+                lx += hk * tx; ly += hk * ty; lz += hk * tz;
+            }
+        }
+        m = quat_to_mat(qw, qx, qy, qz);
+        stepped = true;
+        const double chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
+        if (!(std::isfinite(chk) && turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m))) {
+            fail_step = s;
+            break;
+        }
+        if (sample_due(a, s)) {
+            store();
+            sample<METHOD>(a, j, i);
+            j += 1;
+        }
+    }
+    if (stepped) store();
+    a_q(i, 0) = aw; a_q(i, 1) = ax; a_q(i, 2) = ay; a_q(i, 3) = az;
+    a_l(i, 0) = al0; a_l(i, 1) = al1; a_l(i, 2) = al2;
+    a_n[i] = an;
+    a_dt[i] = adt;
+    return j;
+}
+
 // The kernel of exact / exact4: advance_range's loops with the exact step written out
 // (integrators.step_body, _strang_exact and drift_exact_anchored, operation for operation).
 // The flow constants of each body of a tile are computed from its anchor on its first step in
@@ -726,6 +817,18 @@ FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
     V2<double> a_q = a.a_q, a_l = a.a_l;
     V1<i64> a_n = a.a_n;
     V1<double> a_dt = a.a_dt;
+    if (tile == 1) {  // sparse samples: one body at a time, its state in locals
+        for (i64 i = b0; i < b1; ++i) {
+            i64 fs;
+            const i64 j = exact_single<METHOD>(a, i, fc.data(), fs);
+            if (fs >= 0 && (res.bad_step < 0 || fs < res.bad_step)) {
+                res.bad_step = fs;
+                res.bad_body = i;
+            }
+            if (j > res.n_samples) res.n_samples = j;
+        }
+        return res;
+    }
     for (i64 t0 = b0; t0 < b1; t0 += tile) {
         const i64 t1 = t0 + tile < b1 ? t0 + tile : b1;
         for (i64 r = 0; r < tile; ++r) fc_ok[r] = false;
