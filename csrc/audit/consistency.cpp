@@ -100,8 +100,16 @@ void pointwise(V3<double> quat, V4<double> rot, V3<double> mom, V3<double> vel, 
     const i64 n_t = err_qm.n0, n_b = err_qm.n1;
     double rq[3][3];
     for (i64 k = 0; k < n_t; ++k) {
+        // Output rows, restrict-qualified (they never alias the inputs): the inputs are loaded
+        // once per body instead of again after each store.
+        double* __restrict__ o_err = err_qm.row(k);
+        double* __restrict__ o_ortho = ortho.row(k);
+        double* __restrict__ o_dp = dp.row(k);
+        double* __restrict__ o_pmag = p_mag.row(k);
+        double* __restrict__ o_rel = rel_l.row(k);
+        double* __restrict__ o_scale = l_scale.row(k);
         for (i64 b = 0; b < n_b; ++b) {
-            const double* q = &quat(k, b, 0);
+            const double* __restrict__ q = &quat(k, b, 0);
             double nq = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
             if (nq == 0.0) nq = 1.0;
             double w = q[0] / nq, x = q[1] / nq, y = q[2] / nq, z = q[3] / nq;
@@ -114,7 +122,7 @@ void pointwise(V3<double> quat, V4<double> rot, V3<double> mom, V3<double> vel, 
             rq[2][0] = 2 * (x * z - w * y);
             rq[2][1] = 2 * (y * z + w * x);
             rq[2][2] = 1 - 2 * (x * x + y * y);
-            const double* r = &rot(k, b, 0, 0);  // r[3 i + j] = R_ij
+            const double* __restrict__ r = &rot(k, b, 0, 0);  // r[3 i + j] = R_ij
             double e = 0.0;
             double g = 0.0;
             for (int i = 0; i < 3; ++i) {
@@ -126,16 +134,16 @@ void pointwise(V3<double> quat, V4<double> rot, V3<double> mom, V3<double> vel, 
                     g += gij * gij;
                 }
             }
-            err_qm(k, b) = std::sqrt(e);
-            ortho(k, b) = std::sqrt(g);
+            o_err[b] = std::sqrt(e);
+            o_ortho[b] = std::sqrt(g);
             const double m = mass[b];
-            const double* p = &mom(k, b, 0);
-            const double* v = &vel(k, b, 0);
+            const double* __restrict__ p = &mom(k, b, 0);
+            const double* __restrict__ v = &vel(k, b, 0);
             double a0 = p[0] - m * v[0], a1 = p[1] - m * v[1], a2 = p[2] - m * v[2];
-            dp(k, b) = std::sqrt(a0 * a0 + a1 * a1 + a2 * a2);
-            p_mag(k, b) = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-            const double* l_ = &lw(k, b, 0);
-            const double* om = &omega(k, b, 0);
+            o_dp[b] = std::sqrt(a0 * a0 + a1 * a1 + a2 * a2);
+            o_pmag[b] = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+            const double* __restrict__ l_ = &lw(k, b, 0);
+            const double* __restrict__ om = &omega(k, b, 0);
             double b0 = (r[0] * l_[0] + r[3] * l_[1] + r[6] * l_[2]) / inertia(b, 0);
             double b1 = (r[1] * l_[0] + r[4] * l_[1] + r[7] * l_[2]) / inertia(b, 1);
             double b2 = (r[2] * l_[0] + r[5] * l_[1] + r[8] * l_[2]) / inertia(b, 2);
@@ -145,8 +153,8 @@ void pointwise(V3<double> quat, V4<double> rot, V3<double> mom, V3<double> vel, 
             double imin = std::min(inertia(b, 0), std::min(inertia(b, 1), inertia(b, 2)));
             double sc = std::sqrt(om[0] * om[0] + om[1] * om[1] + om[2] * om[2]) +
                         std::sqrt(l_[0] * l_[0] + l_[1] * l_[1] + l_[2] * l_[2]) / imin;
-            l_scale(k, b) = sc;
-            rel_l(k, b) = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2) / std::max(sc, 1e-300);
+            o_scale[b] = sc;
+            o_rel[b] = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2) / std::max(sc, 1e-300);
         }
     }
 }
