@@ -114,6 +114,43 @@ i64 single_body(const FreeArgs& a, i64 i, i64 s_begin, i64 j, i64& fail_step) {
     return j;
 }
 
+// The end of a lane-wise step_body: the non-finite check (``chk``, the sum of the step's state,
+// lane by lane) and turn_within_bound_m, its cheap bound first, per lane. Shared by the pair
+// kernels below.
+inline void lanes_ok(bool ok[2], double dt, const d2& chk, const d2 m[9], const d2& lx,
+                     const d2& ly, const d2& lz, const d2& k0, const d2& k1, const d2& k2,
+                     const d2& kmax_dt, double lim2) {
+    const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
+    for (int l = 0; l < 2; ++l) {
+        ok[l] = std::isfinite(chk[l]);
+        if (ok[l] && !cheap[l]) {
+            const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
+                             m[7][l], m[8][l]};
+            ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
+        }
+    }
+}
+
+// After a pair kernel's loop stopped at step s with j samples (its state stored): both lanes ran
+// to the end, or a lane went bad at s (its bad step), or the other lane did and this one goes on
+// alone (single_body) from s + 1.
+template <int METHOD>
+inline void finish_pair(const FreeArgs& a, i64 i, i64 s, i64 j, const bool ok[2], i64 j_out[2],
+                        i64 fail_out[2]) {
+    for (int l = 0; l < 2; ++l) {
+        const i64 b = i + l;
+        if (s > a.n_steps) {
+            j_out[l] = j;
+            fail_out[l] = -1;
+        } else if (!ok[l]) {
+            j_out[l] = j;
+            fail_out[l] = s;
+        } else {
+            j_out[l] = single_body<METHOD>(a, b, s + 1, j, fail_out[l]);
+        }
+    }
+}
+
 // Bodies i and i + 1 of seed (ortho polar or none) in the two lanes of d2 (lanes.hpp), state in
 // registers: step_body<METHOD_SEED> and drift_seed / polar / turn_within_bound_m lane by lane,
 // operation for operation. When a lane's state goes bad at step s, both lanes have taken step s
@@ -225,16 +262,8 @@ inline void seed_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
         m[0] = a00; m[1] = a01; m[2] = a02; m[3] = a10; m[4] = a11; m[5] = a12;
         m[6] = a20; m[7] = a21; m[8] = a22;
         // non-finite check and turn bound (step_body, turn_within_bound_m)
-        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
-        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
-        for (int l = 0; l < 2; ++l) {
-            ok[l] = std::isfinite(chk[l]);
-            if (ok[l] && !cheap[l]) {
-                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
-                                 m[7][l], m[8][l]};
-                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
-            }
-        }
+        lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
+                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2);
         if (!ok[0] || !ok[1]) break;
         if (sample_due(a, s)) {
             store();
@@ -244,18 +273,7 @@ inline void seed_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
         }
     }
     store();
-    for (int l = 0; l < 2; ++l) {
-        const i64 b = l == 0 ? i : k;
-        if (s > a.n_steps) {  // both lanes ran to the end
-            j_out[l] = j;
-            fail_out[l] = -1;
-        } else if (!ok[l]) {
-            j_out[l] = j;
-            fail_out[l] = s;
-        } else {  // the other lane failed at s: this one goes on alone
-            j_out[l] = single_body<METHOD_SEED>(a, b, s + 1, j, fail_out[l]);
-        }
-    }
+    finish_pair<METHOD_SEED>(a, i, s, j, ok, j_out, fail_out);
 }
 
 // ---- rk4, two bodies in the lanes of d2 (integrators.hpp drift_rk4, lane by lane) -----------
@@ -459,16 +477,8 @@ inline void rk4_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
         // the torque kick
         lx += dt * tx; ly += dt * ty; lz += dt * tz;
         // non-finite check and turn bound
-        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
-        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
-        for (int l = 0; l < 2; ++l) {
-            ok[l] = std::isfinite(chk[l]);
-            if (ok[l] && !cheap[l]) {
-                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
-                                 m[7][l], m[8][l]};
-                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
-            }
-        }
+        lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
+                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2);
         if (!ok[0] || !ok[1]) break;
         if (sample_due(a, s)) {
             store();
@@ -478,18 +488,7 @@ inline void rk4_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
         }
     }
     store();
-    for (int l = 0; l < 2; ++l) {
-        const i64 b = l == 0 ? i : k;
-        if (s > a.n_steps) {
-            j_out[l] = j;
-            fail_out[l] = -1;
-        } else if (!ok[l]) {
-            j_out[l] = j;
-            fail_out[l] = s;
-        } else {
-            j_out[l] = single_body<METHOD_RK4>(a, b, s + 1, j, fail_out[l]);
-        }
-    }
+    finish_pair<METHOD_RK4>(a, i, s, j, ok, j_out, fail_out);
 }
 
 // ---- seed-quat (normalized) and splitting, two bodies in the lanes of d2 --------------------
@@ -598,16 +597,8 @@ inline void quat_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
                            q.z + 0.5 * h * d.z);
             mat2(q, m);
         }
-        const d2 chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
-        const m2 cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
-        for (int l = 0; l < 2; ++l) {
-            ok[l] = std::isfinite(chk[l]);
-            if (ok[l] && !cheap[l]) {
-                const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
-                                 m[7][l], m[8][l]};
-                ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
-            }
-        }
+        lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
+                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2);
         if (!ok[0] || !ok[1]) break;
         if (sample_due(a, s)) {
             store();
@@ -617,18 +608,7 @@ inline void quat_pair(const FreeArgs& a, i64 i, i64 j_out[2], i64 fail_out[2]) {
         }
     }
     store();
-    for (int l = 0; l < 2; ++l) {
-        const i64 b = l == 0 ? i : k;
-        if (s > a.n_steps) {
-            j_out[l] = j;
-            fail_out[l] = -1;
-        } else if (!ok[l]) {
-            j_out[l] = j;
-            fail_out[l] = s;
-        } else {
-            j_out[l] = single_body<METHOD>(a, b, s + 1, j, fail_out[l]);
-        }
-    }
+    finish_pair<METHOD>(a, i, s, j, ok, j_out, fail_out);
 }
 
 // Bodies b0 .. b1-1, n_steps steps of dt, samples written (advance_free_range's contract).
