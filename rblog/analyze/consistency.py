@@ -23,7 +23,10 @@ Checks (all from logged channels and the body table; tolerances in rblog.analyze
   first-order integrator's rate lies on). Intervals whose w changes by more than a quarter (an impulse: a contact) are
   left out; the median mismatch over a body's intervals is judged (contacts make a few
   intervals disagree). When it fails, the same test under "w is body frame" (``R w``),
-  "matrix transposed" and "quaternion in xyzw order" names the cause. The same for position and
+  "matrix transposed" and "quaternion in xyzw order" names the cause; when R is not
+  orthonormal (||R^T R - I||_F past the drift analyzer's tolerance) and its rotation part (polar
+  decomposition) turns at the logged w, the finding says so ("R is not orthonormal: see drift"):
+  the stretch of an integrator that does not re-orthonormalize, not a logging bug. The same for position and
   velocity (``dx / dt`` vs the mean velocity, with one sample's gravity change allowed).
 
 May import numpy and rblog.contract / rblog.analyze only (never rblog.engine).
@@ -88,6 +91,18 @@ def _segment_distance(r, a, b):
         s = np.where(uu > 0, np.einsum("...i,...i->...", r - a, u) / uu, 0.0)
     s = np.clip(s, 0.0, 1.0)
     return np.linalg.norm(r - (a + s[..., None] * u), axis=-1)
+
+
+def _rotation_part(rot):
+    """The rotation nearest each matrix of ``rot`` (..., 3, 3): U V^T of its SVD (the orthogonal
+    factor of the polar decomposition), with det +1."""
+    u, _, vt = np.linalg.svd(rot)
+    r = u @ vt
+    flip = np.linalg.det(r) < 0
+    if flip.any():
+        u[flip, :, 2] *= -1.0
+        r[flip] = u[flip] @ vt[flip]
+    return r
 
 
 def interval_rotvec(rot, k1, k0, b):
@@ -242,6 +257,7 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]
         med, count = _kinematic_median(rot, omega, dts, min_angle)
         bad = (count >= min_count) & (med > tol["kinematic_rel"])
         if bad.any():
+            stretch_note = ""
             bodies = [int(b) for b in np.flatnonzero(bad)]
             omega_as_body = _mv(rot, omega)
             hyps = (
@@ -253,6 +269,26 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]
                  quat_wxyz_to_matrix(quat[..., _XYZW_AS_WXYZ]), omega),
             )
             best = None
+            # a stretched R (the drift analyzer's ||R^T R - I||_F past its tolerance) has no
+            # rotation vector to compare: when its rotation part (polar decomposition) turns at
+            # the logged w, the stretch is the cause, not the logging
+            stretched = ortho[:, bad].max(axis=0) > T.DRIFT_ORTHO_ERROR
+            if stretched.any():
+                sub = np.flatnonzero(bad)[stretched]
+                m_p, _ = _kinematic_median(_rotation_part(rot[:, sub]), omega[:, sub], dts,
+                                           min_angle)
+                score = float(np.nanmax(m_p)) if np.isfinite(m_p).any() else np.inf
+                o_max = float(ortho[:, sub].max())
+                if score <= tol["kinematic_rel"]:
+                    best = (score, "rotation", (
+                        f"R is not orthonormal (||R^T R - I||_F up to {o_max:.3g}: see drift), so "
+                        "R(k+1) R(k)^T is not a rotation; its rotation part (polar decomposition) "
+                        f"turns at angular_velocity (median mismatch {score:.3g})"))
+                    hyps = ()
+                else:
+                    stretch_note = (f"; R is not orthonormal either (||R^T R - I||_F up to "
+                                    f"{o_max:.3g}: see drift), and its rotation part does not "
+                                    f"turn at angular_velocity (median mismatch {score:.3g})")
             for channel, cause, r_h, w_h in hyps:
                 m_h, c_h = _kinematic_median(r_h[:, bad], w_h[:, bad], dts, min_angle)
                 score = float(np.nanmax(m_h)) if np.isfinite(m_h).any() else np.inf
@@ -260,7 +296,7 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]
                     best = (score, channel, cause)
             channel, cause = (best[1], best[2]) if best else (
                 "angular_velocity", "angular_velocity does not turn the logged orientation "
-                "(wrong frame, sign, unit or orientation channel)")
+                "(wrong frame, sign, unit or orientation channel)" + stretch_note)
             worst = float(np.nanmax(med[bad]))
             out.append(Issue("kinematics", channel,
                              f"{cause}: the orientation's rate of change disagrees with "
