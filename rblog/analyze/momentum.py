@@ -458,8 +458,7 @@ class MomentumAnalyzer(Analyzer):
         # events without a single normal velocity (boxes' multi-point contacts, groups of
         # three or more): an impact when two or more bodies meet and one arrives faster than the
         # impact speed
-        impact = np.where(np.isfinite(approach), approach > self.tol["impact_speed_mps"],
-                          (ev.size >= 2) & (ev.speed_before > self.tol["impact_speed_mps"]))
+        impact = ev.impact(self.tol["impact_speed_mps"])
         stats["impacts"] = float(impact.sum())
         fast = approach >= self.tol["restitution_min_speed_mps"]
         dev = np.abs(ev.e_eff - e_cfg)
