@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from rblog.errors import RblogError
-from rblog.contract.model import Model
+from rblog.contract.model import SHAPE_NONE, Model
 from rblog.contract.trajectory import STATIC_BODY, Trajectory
 from rblog.analyze import _audit, geometry
 from rblog.analyze import tolerances as tol
@@ -130,6 +130,15 @@ class Result:
     events: list[dict] = field(default_factory=list)
     judged: bool = True
     not_judged: list[str] = field(default_factory=list)
+
+    def leave_out(self, lines: list[str]) -> "Result":
+        """Add ``lines`` to ``not_judged`` and say them in the reason (the verdict is about the
+        rest); returns self."""
+        lines = [x for x in lines if x not in self.not_judged]
+        if lines:
+            self.not_judged += lines
+            self.reason = "; ".join([self.reason, *lines]) if self.reason else "; ".join(lines)
+        return self
 
     @property
     def verdict(self) -> str:
@@ -286,6 +295,23 @@ def _failed_recording(res: Result, failed: str, n_samples: int) -> Result:
         res.passed, res.skipped, res.judged = False, True, False
         res.reason = f"not judged: {why}{before}"
     return res
+
+
+def shapeless(model: Model) -> np.ndarray:
+    """(N,) bool: bodies without a shape the contract describes (SHAPE_NONE: another engine's
+    capsule, cylinder, mesh), whose separations cannot be computed."""
+    return np.asarray(model.body_shape) == SHAPE_NONE
+
+
+def shapeless_note(model: Model, what: str) -> list[str]:
+    """``not_judged`` line for the bodies without a shape ([] when there are none)."""
+    idx = np.flatnonzero(shapeless(model))
+    if not len(idx):
+        return []
+    names = ", ".join(repr(model.body_name[i]) for i in idx[:3])
+    more = f" +{len(idx) - 3} more" if len(idx) > 3 else ""
+    return [f"{len(idx)} bod{'y' if len(idx) == 1 else 'ies'} without a shape in the contract "
+            f"({names}{more}: a capsule, cylinder or mesh): {what} not judged"]
 
 
 def body_label(model: Model, i: int) -> str:
@@ -574,6 +600,25 @@ class Context:
                 dk = np.concatenate([dk, ck[dyn]])
                 da = np.concatenate([da, np.minimum(ca, cb)[dyn]])
                 db = np.concatenate([db, np.maximum(ca, cb)[dyn]])
+                if len(dk):
+                    key = np.unique((dk * n + da) * n + db)
+                    dk, da, db = key // (n * n), (key // n) % n, key % n
+            none = shapeless(self.model)
+            if none.any() and not len(c) and kn:
+                # a body without a shape in a log without contact rows: its contacts cannot be
+                # found from the poses. It may touch an unknown static feature at any interval
+                # (so it is never taken for a body in free flight), and any body whose momentum
+                # jumps in an interval where it is (its geometry unknown, it may be the partner)
+                add = none[None, :] & (n_static == 0)
+                n_static = np.where(add, 1, n_static)
+                static_id = np.where(add, -3, static_id)
+                jump = self.jumps()
+                ek, eb = np.nonzero(jump)
+                for s_ in np.flatnonzero(none):
+                    m_ = eb != s_
+                    dk = np.concatenate([dk, ek[m_]])
+                    da = np.concatenate([da, np.minimum(eb[m_], s_)])
+                    db = np.concatenate([db, np.maximum(eb[m_], s_)])
                 if len(dk):
                     key = np.unique((dk * n + da) * n + db)
                     dk, da, db = key // (n * n), (key // n) % n, key % n

@@ -61,6 +61,7 @@ from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
 from rblog.analyze.events import configured_restitution, impact_events
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label, combine_friction,
+                                shapeless_note,
                    combine_restitution, static_material)
 
 _TINY = 1e-300
@@ -168,8 +169,11 @@ class MomentumAnalyzer(Analyzer):
         events = self._events(stats)
         self._logged_cone(stats)
         ok_reason = "no contacts or momentum jumps found" if not len(grp) else ""
-        return self.result(self._worst, self._findings, stats, events, ok_reason=ok_reason,
-                           n_findings=self._n_found)
+        res = self.result(self._worst, self._findings, stats, events, ok_reason=ok_reason,
+                          n_findings=self._n_found)
+        return res.leave_out([] if len(tr.contacts) else shapeless_note(
+            tr.model, "their free flights and collisions (the log has no contact rows, and "
+                      "their contacts cannot be told from the poses)"))
 
     # --- pieces -----------------------------------------------------------------------------
     def _add(self, flag, ratio, make):

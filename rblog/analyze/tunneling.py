@@ -30,7 +30,8 @@ import numpy as np
 from rblog.analyze import _audit
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
-from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
+from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
+                                shapeless_note)
 
 
 class TunnelingAnalyzer(Analyzer):
@@ -166,7 +167,9 @@ class TunnelingAnalyzer(Analyzer):
             clear, what = min(closest)
             stats["closest_clearance_m"] = clear
             ok += f"; closest approach: {what} (crossings are depths > 0)"
-        return self.result(worst, findings, stats, n_findings=n_found, ok_reason=ok)
+        return self.result(worst, findings, stats, n_findings=n_found, ok_reason=ok).leave_out(
+            shapeless_note(model, "passing through other bodies (their centres against the "
+                                  "ground and static boxes are judged)") if n > 1 else [])
 
 
 def _ratio(value, tolerance):

@@ -93,3 +93,76 @@ def test_a_log_without_samples_is_not_judged():
     res = rblog.check(rec.trajectory)
     assert all(not r.passed and r.verdict == "not judged" for r in res)
     assert all("no samples" in r.reason for r in res)
+
+
+# ---- bodies without a shape (a MuJoCo capsule) ------------------------------------------------
+CAPSULE_XML = """<mujoco><option timestep="0.002"/>
+<worldbody><geom name="floor" type="plane" size="5 5 0.1"/>
+<body name="capsule" pos="0 0 1.0" euler="0 90 0"><freejoint/>
+  <geom type="capsule" size="0.05 0.15" mass="1"/></body>
+<body name="ball" pos="0.5 0 1.0"><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>
+</worldbody></mujoco>"""
+
+
+def _capsule_run(rollout: bool):
+    """A capsule (no shape in the contract) and a ball dropped 0.95 / 0.9 m onto MuJoCo's floor,
+    2 s, recorded by the adapter after each mj_step (contact rows) or from mujoco.rollout (none).
+    """
+    mujoco = pytest.importorskip("mujoco")
+    from rblog.adapters.mujoco import MujocoRecorder, record_rollout
+
+    m = mujoco.MjModel.from_xml_string(CAPSULE_XML)
+    d = mujoco.MjData(m)
+    if not rollout:
+        rec = MujocoRecorder(m, d)
+        for _ in range(1000):
+            mujoco.mj_step(m, d)
+            rec(d)
+        rec.close()
+        return rec.trajectory
+    from mujoco import rollout as mj_rollout
+
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    x0 = np.zeros(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, d, x0, spec)
+    state, _ = mj_rollout.rollout(m, d, x0[None], nstep=1000)
+    return record_rollout(m, x0, state)
+
+
+@pytest.mark.parametrize("rollout", [False, True], ids=["contact-rows", "rollout"])
+def test_a_capsule_is_skipped_by_every_analyzer_that_needs_a_shape(rollout):
+    """Before: from a rollout (no contact rows) the capsule resting on the floor read as a body in
+    free flight: momentum "linear momentum not conserved in free flight ... 19.6 kg m/s" and
+    energy "energy drops by 2.6 J in free flight" (false: MuJoCo's floor holds it), and
+    penetration said nothing of it. Now no finding names it and the analyzers that need a shape
+    say what they left out."""
+    traj = _capsule_run(rollout)
+    from rblog.contract.model import SHAPE_NONE
+
+    assert traj.model.body_shape[0] == SHAPE_NONE
+    # the capsule lands (its centre drops from 1.0 m to its radius, 0.05 m above the floor)
+    assert abs(traj.position[-1, 0, 2] - 0.05) < 0.02
+    res = {r.analyzer: r for r in rblog.check(traj)}
+    for r in res.values():
+        assert all(0 not in f.bodies for f in r.findings), (r.analyzer, r.findings[:2])
+    need = {"penetration", "tunneling"} | ({"momentum", "energy"} if rollout else set())
+    for name in need:
+        assert any("'capsule'" in x and "not judged" in x for x in res[name].not_judged), \
+            (name, res[name].not_judged)
+        assert "without a shape" in res[name].reason
+    for name in set(res) - need:
+        assert not res[name].not_judged, (name, res[name].not_judged)
+
+
+def test_a_capsule_kicked_in_free_flight_is_still_flagged():
+    """The other direction: with contact rows the capsule's free flight is judged; a planted 1 m/s
+    horizontal kick at t = 0.1 s (0.9 m above the floor, nothing in reach) is a momentum change no
+    force explains."""
+    traj = _capsule_run(rollout=False)
+    k = int(np.searchsorted(traj.t, 0.1))
+    m = traj.model.body_mass[0]
+    traj.velocity[k:, 0, 0] += 1.0
+    traj.linear_momentum[k:, 0, 0] += m * 1.0
+    traj.position[k:, 0, 0] += 1.0 * (traj.t[k:] - traj.t[k - 1])
+    res = {r.analyzer: r for r in rblog.check(traj, only=["momentum"])}
+    assert any(f.bodies == [0] and "free flight" in f.message for f in res["momentum"].findings)
