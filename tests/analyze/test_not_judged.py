@@ -151,7 +151,8 @@ def test_a_capsule_is_skipped_by_every_analyzer_that_needs_a_shape(rollout):
             (name, res[name].not_judged)
         assert "without a shape" in res[name].reason
     for name in set(res) - need:
-        assert not res[name].not_judged, (name, res[name].not_judged)
+        assert not any("without a shape" in x for x in res[name].not_judged), \
+            (name, res[name].not_judged)
 
 
 def test_a_capsule_kicked_in_free_flight_is_still_flagged():
@@ -166,3 +167,43 @@ def test_a_capsule_kicked_in_free_flight_is_still_flagged():
     traj.position[k:, 0, 0] += 1.0 * (traj.t[k:] - traj.t[k - 1])
     res = {r.analyzer: r for r in rblog.check(traj, only=["momentum"])}
     assert any(f.bodies == [0] and "free flight" in f.message for f in res["momentum"].findings)
+
+
+# ---- restitution the engine does not state ----------------------------------------------------
+def test_unknown_restitution_is_not_judged_and_said():
+    """An exact bouncing ball (e = 0.8) whose log states no restitution (NaN: MuJoCo's soft
+    contacts have none): before, the momentum analyzer passed it silently; now it says the
+    restitution of its impacts was not judged (and judges nothing else differently)."""
+    from test_analyze import bouncing_ball
+
+    traj, t_imp = bouncing_ball(e=0.8, e_config=float("nan"))
+    mom = {r.analyzer: r for r in rblog.check(traj)}["momentum"]
+    assert mom.passed and mom.judged
+    (line,) = [x for x in mom.not_judged if x.startswith("restitution of")]
+    # every bounce of the exact ball is an impact: len(t_imp) of them
+    assert line.startswith(f"restitution of {len(t_imp)} impacts ('b0')") and "not judged" in line
+    assert mom.stats["restitution_not_judged"] == len(t_imp)
+    assert line in mom.reason
+
+
+def test_stated_restitution_is_judged_both_ways():
+    """The other direction: with e stated, the same exact ball is judged (nothing left out) and a
+    wrong configured value (0.5 for a ball bouncing at 0.8) is flagged."""
+    from test_analyze import bouncing_ball
+
+    traj, _ = bouncing_ball(e=0.8)
+    mom = {r.analyzer: r for r in rblog.check(traj)}["momentum"]
+    assert mom.passed and not mom.not_judged and mom.stats["restitution_not_judged"] == 0
+    traj, _ = bouncing_ball(e=0.8, e_config=0.5)
+    mom = {r.analyzer: r for r in rblog.check(traj)}["momentum"]
+    assert any("restitution 0.8" in f.message for f in mom.findings), mom.findings[:2]
+
+
+def test_mujoco_ball_restitution_is_not_judged():
+    """The adapter logs MuJoCo's restitution as unknown: its ball's bounce is not judged, and
+    the result says so (the ball lands at 4.2 m/s: an impact)."""
+    traj = _capsule_run(rollout=False)
+    assert np.isnan(traj.model.body_restitution).all()
+    mom = {r.analyzer: r for r in rblog.check(traj)}["momentum"]
+    assert any(x.startswith("restitution of") and "'ball'" in x for x in mom.not_judged), \
+        mom.not_judged
