@@ -4,6 +4,7 @@ consistency finding whose cause another analyzer explains says so."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from rblog.analyze import check
 
@@ -94,3 +95,27 @@ def test_consistency_still_names_a_logging_bug_under_a_stretched_rotation():
         np.einsum("tnji,tnj->tni", p, np.asarray(traj.angular_velocity)))
     msgs = [f.message for f in _res(traj)["consistency"].findings if "orientation" in f.message]
     assert msgs and "turns at angular_velocity (median" not in msgs[0], msgs
+
+
+def test_drift_growth_is_described_by_the_better_fit():
+    """Issue 31: the drift finding quoted an "e-folding rate" for a drift that grows linearly.
+    R scaled by (1 + eps t): ||R^T R - I||_F = sqrt(3) ((1 + eps t)^2 - 1), linear to 1e-3 over
+    the 3 s (eps = 1e-3): "growing linearly", no e-folding rate. R scaled by exp(2 t): det R - 1 =
+    exp(6 t) - 1 (the worst metric against its tolerance) grows exponentially; its e-folding rate
+    tends to 6/s (d/dt log(exp(6 t) - 1) = 6 / (1 - exp(-6 t)), 6.00 at t > 1 s)."""
+    from test_analyze import symmetric_top
+
+    d = _res_only(symmetric_top(stretch=lambda t: 1 + 1e-3 * t))
+    msg = d.findings[0].message
+    assert "growing linearly" in msg and "e-folding" not in msg, msg
+    assert d.stats["worst_growth_exponential"] == 0.0
+    d = _res_only(symmetric_top(stretch=lambda t: np.exp(2.0 * t)))
+    msg = d.findings[0].message
+    assert "growing exponentially (e-folding rate" in msg, msg
+    assert d.stats["worst_log_growth_rate_per_s"] == pytest.approx(6.0, rel=1e-3)
+
+
+def _res_only(traj):
+    (d,) = check(traj, only=["drift"])
+    assert not d.passed
+    return d
