@@ -20,14 +20,17 @@ Checks (all from logged channels and the body table; tolerances in rblog.analyze
   sample interval the rotation ``dR = R(k+1) R(k)^T`` has rotation vector ``theta`` (world
   frame); ``theta / dt`` must match the mean of ``w(k)`` and ``w(k+1)`` (midpoint rule, error
   ~(|w| dt)^2; the mean rate is compared with the segment between the end rates, which a
-  first-order integrator's rate lies on). Intervals whose w changes by more than a quarter (an impulse: a contact) are
-  left out; the median mismatch over a body's intervals is judged (contacts make a few
-  intervals disagree). When it fails, the same test under "w is body frame" (``R w``),
-  "matrix transposed" and "quaternion in xyzw order" names the cause; when R is not
+  first-order integrator's rate lies on). Intervals whose w changes by more than a quarter (an
+  impulse: a contact) are left out, and, when a body would fail otherwise, the intervals of the
+  momentum analyzer's impact events (:func:`impact_intervals`: an impact between samples changes
+  w at an unknown moment); the median mismatch over a body's intervals is judged. When it
+  fails, the same test under "w is body frame" (``R w``), "matrix transposed" and "quaternion in
+  xyzw order" names the cause; when R is not
   orthonormal (||R^T R - I||_F past the drift analyzer's tolerance) and its rotation part (polar
   decomposition) turns at the logged w, the finding says so ("R is not orthonormal: see drift"):
-  the stretch of an integrator that does not re-orthonormalize, not a logging bug. The same for position and
-  velocity (``dx / dt`` vs the mean velocity, with one sample's gravity change allowed).
+  the stretch of an integrator that does not re-orthonormalize, not a logging bug. The same for
+  position and velocity (``dx / dt`` vs the mean velocity, with one sample's gravity change
+  allowed).
 
 May import numpy and rblog.contract / rblog.analyze only (never rblog.engine).
 """
