@@ -21,6 +21,10 @@
 // so the result is bitwise the same for any thread count.
 #include "engine/free.hpp"
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#pragma GCC diagnostic ignored "-Wpsabi"  // d4 arguments of the AVX2 kernels (all inlined)
+#endif
+
 #include <atomic>
 #include <cmath>
 #include <memory>
@@ -120,6 +124,21 @@ inline bool sample_due(const FreeArgs& a, i64 s) {
     return s % a.stride == 0 || (a.sample_last && s == a.n_steps);
 }
 
+// sample_due for the steps s = 1, 2, ... in turn, without an integer division per step (the lane
+// kernels' loops): due at the next multiple of stride, and at the last step when sample_last.
+struct SampleClock {
+    i64 next, stride, last;
+    explicit SampleClock(const FreeArgs& a)
+        : next(a.stride), stride(a.stride), last(a.sample_last ? a.n_steps : -1) {}
+    bool due(i64 s) {
+        if (s == next) {
+            next += stride;
+            return true;
+        }
+        return s == last;
+    }
+};
+
 // Body i alone from step s_begin on (its position and momentum in registers), samples from row
 // j on: the sparse path of advance_range. Returns the samples written; fail_step the step at
 // which the body's state went bad (-1 if none).
@@ -147,20 +166,16 @@ i64 single_body(const FreeArgs& a, i64 i, i64 s_begin, i64 j, i64& fail_step) {
 }
 
 // The end of a lane-wise step_body: the non-finite check (``chk``, the sum of the step's state,
-// lane by lane) and turn_within_bound_m, its cheap bound first, per lane. Shared by the pair
-// kernels below.
-template <int W>
-inline bool all_ok(const bool ok[W]) {
-    bool r = true;
-    for (int l = 0; l < W; ++l) r = r && ok[l];
-    return r;
-}
-
+// lane by lane) and turn_within_bound_m, its cheap bound first, per lane; ok[l] set per lane
+// unless every lane is ok, which is returned (the common case decided by two lane-wise tests:
+// x - x is 0 exactly when x is finite, NaN otherwise). Shared by the lane kernels below.
 template <class V, class M = mask_of<V>>
-inline void lanes_ok(bool ok[], double dt, const V& chk, const V m[9], const V& lx,
+inline bool lanes_ok(bool ok[], double dt, const V& chk, const V m[9], const V& lx,
                      const V& ly, const V& lz, const V& k0, const V& k1, const V& k2,
                      const V& kmax_dt, double lim2) {
     const M cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
+    if (all_set(cheap & ((chk - chk) == V{}))) return true;
+    bool all = true;
     for (int l = 0; l < lanes_of<V>(); ++l) {
         ok[l] = std::isfinite(chk[l]);
         if (ok[l] && !cheap[l]) {
@@ -168,7 +183,9 @@ inline void lanes_ok(bool ok[], double dt, const V& chk, const V m[9], const V& 
                              m[7][l], m[8][l]};
             ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
         }
+        all = all && ok[l];
     }
+    return all;
 }
 
 // After a lane kernel's loop stopped at step s with j samples (its state stored): every lane ran
@@ -241,6 +258,7 @@ inline void seed_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
     i64 j = 0;
     bool ok[W];
     for (int l = 0; l < W; ++l) ok[l] = true;
+    SampleClock clock(a);
     i64 s = 1;
     for (; s <= a.n_steps; ++s) {
         // the notes: forward Euler on P and L, then x and R from the new values
@@ -311,10 +329,10 @@ inline void seed_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
         m[0] = a00; m[1] = a01; m[2] = a02; m[3] = a10; m[4] = a11; m[5] = a12;
         m[6] = a20; m[7] = a21; m[8] = a22;
         // non-finite check and turn bound (step_body, turn_within_bound_m)
-        lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
-                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2);
-        if (!all_ok<W>(ok)) break;
-        if (sample_due(a, s)) {
+        if (!lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
+                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2))
+            break;
+        if (clock.due(s)) {
             store();
             for (int l = 0; l < W; ++l) sample<METHOD_SEED>(a, j, i + l);
             j += 1;
@@ -445,6 +463,7 @@ inline void rk4_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
     i64 j = 0;
     bool ok[W];
     for (int l = 0; l < W; ++l) ok[l] = true;
+    SampleClock clock(a);
     i64 s = 1;
     for (; s <= a.n_steps; ++s) {
         // translation: exact for a constant force (flight_exact)
@@ -545,10 +564,10 @@ inline void rk4_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
         // the torque kick
         lx += dt * tx; ly += dt * ty; lz += dt * tz;
         // non-finite check and turn bound
-        lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
-                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2);
-        if (!all_ok<W>(ok)) break;
-        if (sample_due(a, s)) {
+        if (!lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
+                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2))
+            break;
+        if (clock.due(s)) {
             store();
             for (int l = 0; l < W; ++l) sample<METHOD_RK4>(a, j, i + l);
             j += 1;
@@ -634,6 +653,7 @@ inline void quat_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
     i64 j = 0;
     bool ok[W];
     for (int l = 0; l < W; ++l) ok[l] = true;
+    SampleClock clock(a);
     i64 s = 1;
     for (; s <= a.n_steps; ++s) {
         if (METHOD == METHOD_SPLITTING) {
@@ -671,10 +691,10 @@ inline void quat_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
                            q.z + 0.5 * h * d.z);
             mat2(q, m);
         }
-        lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
-                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2);
-        if (!all_ok<W>(ok)) break;
-        if (sample_due(a, s)) {
+        if (!lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
+                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2))
+            break;
+        if (clock.due(s)) {
             store();
             for (int l = 0; l < W; ++l) sample<METHOD>(a, j, i + l);
             j += 1;
@@ -792,12 +812,14 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
     return res;
 }
 
-// Body i of exact / exact4 alone over the call's steps (the sparse path of advance_exact_range,
-// tile 1): its state, anchor and flow-constant validity in locals for the whole block (the
-// arrays written when a sample is due and at the end), the step exactly advance_exact_range's.
-// Returns the samples written; fail_step the step at which the state went bad (-1 if none).
+// Body i of exact / exact4 alone from step s_begin on, samples from row j on (the sparse path of
+// advance_exact_range, tile 1): its state, anchor and flow-constant validity in locals for the
+// whole block (the arrays written when a sample is due and at the end), the step exactly
+// advance_exact_range's. The flow constants are recomputed from the anchor on the first step
+// (a pure function of it, so a start at s_begin > 1 continues bit for bit). Returns the samples
+// written; fail_step the step at which the state went bad (-1 if none).
 template <int METHOD>
-i64 exact_single(const FreeArgs& a, i64 i, double* row, i64& fail_step) {
+i64 exact_single(const FreeArgs& a, i64 i, double* row, i64 s_begin, i64 j, i64& fail_step) {
     const double dt = a.dt;
     const double w1 = yoshida_w1(), w0 = yoshida_w0();
     V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
@@ -830,8 +852,7 @@ i64 exact_single(const FreeArgs& a, i64 i, double* row, i64& fail_step) {
         store_mat(R, i, m);
     };
     fail_step = -1;
-    i64 j = 0;
-    for (i64 s = 1; s <= a.n_steps; ++s) {
+    for (i64 s = s_begin; s <= a.n_steps; ++s) {
         flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
         for (int sub = 0; sub < n_sub; ++sub) {
             double h = dt;
@@ -883,6 +904,337 @@ i64 exact_single(const FreeArgs& a, i64 i, double* row, i64& fail_step) {
     return j;
 }
 
+// ---- exact / exact4, W torque-free bodies in the lanes of V ----------------------------------
+//
+// Without torque a body's step is flight_exact and the flow from its anchor at the elapsed time
+// n h (n_sub = 1 under exact4 too), and the anchor, taken (or kept) on the first step, holds for
+// the whole call (L and h do not change). exact_lanes evaluates flow_eval's general case (exact.hpp:
+// m1 > 0, not steady) for W such bodies at once, lane by lane the scalar code's operations in its
+// order: the Landen levels, the Carlson duplications and the branches by per-lane masks, sin,
+// cos, atan / atanh and the integer phase per lane. Bodies with torque, or whose flow is steady
+// or on the separatrix, go through exact_single.
+
+// A row's constants for flow_eval, gathered lane-wise (products the scalar code forms left to
+// right from them each step are formed once here: the same roundings).
+template <class V>
+struct FlowLanes {
+    V kk1, m, m1, lam, nn, amp1, sig_amp2, s_amp3, sn0, cn0, dn0, g0, ax, ay, az, aw, sgn3;
+    V scale, mb, kb, two_kb, ell, ell_k1, phase_c, sg0, s_red0, c_mb25, c_mb5;
+    V mu[N_LANDEN];
+    int lev[lanes_of<V>()], i1[lanes_of<V>()], i2[lanes_of<V>()], max_lev;
+};
+
+template <class V>
+inline void gather_flow(FlowLanes<V>& f, const double rows[][N_FLOW]) {
+    constexpr int W = lanes_of<V>();
+    f.max_lev = 0;
+    for (int l = 0; l < W; ++l) {
+        const double* c = rows[l];
+        f.kk1[l] = c[FC_K1]; f.ell[l] = c[FC_ELL]; f.m[l] = c[FC_M]; f.m1[l] = c[FC_M1];
+        f.lam[l] = c[FC_LAM]; f.nn[l] = c[FC_N]; f.amp1[l] = c[FC_AMP1];
+        f.sig_amp2[l] = c[FC_SIGMA] * c[FC_AMP2];
+        f.s_amp3[l] = c[FC_S] * c[FC_AMP3];
+        f.sn0[l] = c[FC_SN0]; f.cn0[l] = c[FC_CN0]; f.dn0[l] = c[FC_DN0]; f.g0[l] = c[FC_G0];
+        f.aw[l] = c[FC_AW]; f.ax[l] = -c[FC_AX]; f.ay[l] = -c[FC_AY]; f.az[l] = -c[FC_AZ];
+        f.sgn3[l] = c[FC_SGN3];
+        f.i1[l] = static_cast<int>(c[FC_I1]); f.i2[l] = static_cast<int>(c[FC_I2]);
+        f.lev[l] = static_cast<int>(c[FC_LEV]);
+        if (f.lev[l] > f.max_lev) f.max_lev = f.lev[l];
+        f.scale[l] = c[FC_SCALE]; f.mb[l] = c[FC_MB];
+        for (int k = 0; k < N_LANDEN; ++k) f.mu[k][l] = c[FC_MU0 + k];
+        // sncndn_landen's K of the base parameter, flow_eval's dphi coefficients
+        const double kb = HALF_PI * (1.0 + 0.25 * c[FC_MB]);
+        f.kb[l] = kb; f.two_kb[l] = 2.0 * kb;
+        f.c_mb25[l] = 0.25 * c[FC_MB]; f.c_mb5[l] = 0.5 * c[FC_MB];
+        f.ell_k1[l] = c[FC_ELL] * c[FC_K1];
+        f.phase_c[l] = c[FC_ELL] * c[FC_D13] * c[FC_N] / c[FC_LAM];
+        const double sg0 = c[FC_CN0] >= 0.0 ? 1.0 : -1.0;
+        f.sg0[l] = sg0; f.s_red0[l] = sg0 * c[FC_SN0];
+    }
+}
+
+// carlson_rj1 lane-wise for the lanes of `act` (the others' result is not used)
+template <class V, class M = mask_of<V>>
+inline V carlson_rj1_lanes(V x, V y, V p, M act) {
+    constexpr int W = lanes_of<V>();
+    const V one = splat_v<V>(1.0);
+    const V a0 = (x + y + 1.0 + 2.0 * p) / 5.0;
+    V q = vabs(a0 - x);
+    q = vpymax(q, vabs(a0 - y));
+    q = vpymax(q, vabs(a0 - 1.0));
+    q = vpymax(q, vabs(a0 - p));
+    V e = (p - x) * (p - y) * (p - 1.0);
+    V xa = x, ya = y, za = one, pa = p, aa = a0;
+    V fac = one;
+    V s = splat_v<V>(0.0);
+    const double tol = free_constants.carlson_series_tol;
+    for (int it = 0; it < 40; ++it) {
+        act = act & ~(fac * q <= tol * aa);
+        if (!any(act)) break;
+        const V sx = vsqrt(xa), sy = vsqrt(ya), sz = vsqrt(za), sp = vsqrt(pa);
+        const V la = sx * sy + sy * sz + sz * sx;
+        const V da = (sp + sx) * (sp + sy) * (sp + sz);
+        // rc1(t): its series near 0, atan / atanh per lane beyond
+        const V t = e / (da * da);
+        V r = 1.0 + t * (-1.0 / 3.0 + t * (0.2 + t * (-1.0 / 7.0 + t * (1.0 / 9.0 + t * (-1.0 / 11.0)))));
+        const M far = act & ~(vabs(t) < 1e-3);
+        if (any(far))
+            for (int l = 0; l < W; ++l)
+                if (far[l]) r[l] = rc1(t[l]);
+        const V s_n = s + fac * r / da;
+        const V fac_n = fac * 0.25;
+        const V e_n = e * (1.0 / 64.0);
+        const V xa_n = 0.25 * (xa + la), ya_n = 0.25 * (ya + la), za_n = 0.25 * (za + la);
+        const V pa_n = 0.25 * (pa + la), aa_n = 0.25 * (aa + la);
+        s = act ? s_n : s; fac = act ? fac_n : fac; e = act ? e_n : e;
+        xa = act ? xa_n : xa; ya = act ? ya_n : ya; za = act ? za_n : za;
+        pa = act ? pa_n : pa; aa = act ? aa_n : aa;
+    }
+    return rj_series(a0, x, y, one, p, fac, aa) + 6.0 * s;
+}
+
+// flow_eval's general case lane-wise at the elapsed times t: (cw, c0, c1, c2) of each lane, and
+// rjc[l] (the row's FC_RJC) filled when a lane first needs it.
+template <class V, class M = mask_of<V>>
+inline void flow_eval_lanes(const FlowLanes<V>& f, const double rows[][N_FLOW], double rjc[], V t,
+                            V& ow, V& o0, V& o1, V& o2) {
+    constexpr int W = lanes_of<V>();
+    const V zero = splat_v<V>(0.0), one = splat_v<V>(1.0);
+    // sncndn_landen(tau = lam t)
+    const V tau = f.lam * t;
+    V v = tau / f.scale;
+    const V vq = v / f.two_kb;
+    i64 j[W];
+    V jd;
+    for (int l = 0; l < W; ++l) {
+        j[l] = static_cast<i64>(vq[l]);
+        jd[l] = static_cast<double>(j[l]);
+    }
+    v -= f.two_kb * jd;
+    const M neg = v < 0.0;
+    if (any(neg)) {  // rounding at the boundary
+        v = neg ? v + f.two_kb : v;
+        for (int l = 0; l < W; ++l)
+            if (neg[l]) j[l] -= 1;
+    }
+    V sv, cv;
+    for (int l = 0; l < W; ++l) {
+        sv[l] = std::sin(v[l]);
+        cv[l] = std::cos(v[l]);
+    }
+    const V corr = f.c_mb25 * (v - sv * cv);
+    V snr = sv - corr * cv;
+    V cnr = cv + corr * sv;
+    V dnr = 1.0 - f.c_mb5 * sv * sv;
+    for (int k = f.max_lev - 1; k >= 0; --k) {
+        M up;
+        for (int l = 0; l < W; ++l) up[l] = f.lev[l] > k ? -1 : 0;
+        V s2 = snr, c2 = cnr, d2_ = dnr;
+        landen_up(s2, c2, d2_, f.mu[k]);
+        snr = up ? s2 : snr; cnr = up ? c2 : cnr; dnr = up ? d2_ : dnr;
+    }
+    // the addition theorem (flow_eval)
+    const V m = f.m, sn0 = f.sn0, cn0 = f.cn0, dn0 = f.dn0;
+    const V gc = cnr > 0.0 ? snr * snr / (1.0 + cnr) : 1.0 - cnr;
+    const V gd = m * snr * snr / (1.0 + dnr);
+    const V mu_ = m * sn0 * sn0 * snr * snr;
+    const V den = 1.0 / (1.0 - mu_);
+    const V gam = gc + gd - gc * gd;
+    const V sn1 = sn0 + (snr * cn0 * dn0 - sn0 * gam + sn0 * mu_) * den;
+    const V cn1 = cn0 + (-cn0 * gc - sn0 * snr * dn0 * dnr + cn0 * mu_) * den;
+    const V dn1 = vsqrt(cn1 * cn1 + f.m1 * sn1 * sn1);
+    // reduced amplitudes at both ends
+    const V sg0 = f.sg0, s_red0 = f.s_red0;
+    const M same = sg0 * cn1 >= 0.0;
+    const V s_red1 = same ? sg0 * sn1 : -sg0 * sn1;
+    const M wrap_up = s_red1 - s_red0 < -1.0, wrap_down = s_red1 - s_red0 > 1.0;
+    const M has_n = f.nn != 0.0;
+    V dg = zero;
+    if (any(has_n)) {
+        const V s21 = s_red1 * s_red1;
+        const V rj = carlson_rj1_lanes(cn1 * cn1, dn1 * dn1, 1.0 + f.nn * s21, has_n);
+        dg = has_n ? s_red1 * s21 * rj / 3.0 - f.g0 : zero;
+    }
+    V sj;
+    for (int l = 0; l < W; ++l) {
+        const i64 e = same[l] ? (wrap_up[l] ? 2 : 0) : (wrap_down[l] ? -1 : 1);
+        const i64 halfs = j[l] + e;
+        if (halfs != 0 && has_n[l]) {
+            if (rjc[l] < 0.0) rjc[l] = carlson_rj1(0.0, rows[l][FC_M1], 1.0 + rows[l][FC_N]);
+            dg[l] += 2.0 * static_cast<double>(halfs) * rjc[l] / 3.0;
+        }
+        sj[l] = (j[l] & 1) ? -1.0 : 1.0;
+    }
+    const V dphi = f.ell_k1 * t - f.phase_c * dg;
+    // the momentum at u0 + tau
+    const V n1_ = f.amp1 * cn1 * sj;
+    const V n2_ = f.sig_amp2 * sn1 * sj;
+    const V n3_ = f.s_amp3 * dn1;
+    // euler_quat(n1_, n2_, n3_, ell)
+    const V rho = vsqrt(n1_ * n1_ + n2_ * n2_);
+    const M p3 = n3_ >= 0.0, p2 = n2_ >= 0.0;
+    const V xw = p3 ? f.ell + n3_ : rho, xx = p3 ? rho : f.ell - n3_;
+    const V zw = p2 ? rho + n2_ : n1_, zz = p2 ? n1_ : rho - n2_;
+    const V bw = xw * zw, bx = xx * zw, by = -xx * zz, bz = xw * zz;
+    const V hd = 0.5 * dphi;
+    V ch, sh;
+    for (int l = 0; l < W; ++l) {
+        ch[l] = std::cos(hd[l]);
+        sh[l] = std::sin(hd[l]);
+    }
+    // conj(B0) (x) rz, then (x) B1
+    const V aw = f.aw, ax = f.ax, ay = f.ay, az = f.az;
+    const V tw = aw * ch - ax * 0.0 - ay * 0.0 - az * sh;
+    const V tx = aw * 0.0 + ax * ch + ay * sh - az * 0.0;
+    const V ty = aw * 0.0 - ax * sh + ay * ch + az * 0.0;
+    const V tz = aw * sh + ax * 0.0 - ay * 0.0 + az * ch;
+    ow = tw * bw - tx * bx - ty * by - tz * bz;
+    const V cx = tw * bx + tx * bw + ty * bz - tz * by;
+    const V cy = tw * by - tx * bz + ty * bw + tz * bx;
+    const V cz = tw * bz + tx * by - ty * bx + tz * bw;
+    const V czs = cz * f.sgn3;
+    // back to the body frame, per lane
+    for (int l = 0; l < W; ++l) {
+        double cc[3] = {0.0, 0.0, 0.0};
+        cc[f.i1[l]] = cx[l];
+        cc[f.i2[l]] = cy[l];
+        cc[3 - f.i1[l] - f.i2[l]] = czs[l];
+        o0[l] = cc[0]; o1[l] = cc[1]; o2[l] = cc[2];
+    }
+    (void)one;
+}
+
+// Bodies i .. i + W - 1 of exact / exact4, none of them torqued, in the lanes of V: exact_single's
+// step lane by lane. Returns false (nothing written) when a lane's flow is not flow_eval's general
+// case; else the samples of each body in j_out, their bad steps in fail_out (a lane going bad
+// at step s: the others go on alone, exact_single from s + 1).
+template <int METHOD, class V, class M = mask_of<V>>
+inline bool exact_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
+    constexpr int W = lanes_of<V>();
+    const double dt = a.dt, h = dt;
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    V3<double> R = a.rotation;
+    V2<double> a_q = a.a_q, a_l = a.a_l;
+    V1<i64> a_n = a.a_n;
+    V1<double> a_dt = a.a_dt;
+    auto ld = [i](V2<double> v, int c) {
+        V r;
+        for (int l = 0; l < W; ++l) r[l] = v(i + l, c);
+        return r;
+    };
+    if (a.n_steps < 1) return false;
+    // the first step's anchor of each lane (exact_single's, kept for the call) and its constants
+    double rows[W][N_FLOW];
+    V aw, ax, ay, az;
+    V nf;  // the anchor's steps so far, as a double (exact: far below 2^53)
+    i64 an[W];
+    double al[W][3], adt[W];
+    for (int l = 0; l < W; ++l) {
+        const i64 b = i + l;
+        const double lx = L(b, 0), ly = L(b, 1), lz = L(b, 2);
+        an[l] = a_n[b];
+        adt[l] = a_dt[b];
+        for (int c = 0; c < 3; ++c) al[l][c] = a_l(b, c);
+        if (anchor_holds(a_n[b], a_dt[b], a_l(b, 0), a_l(b, 1), a_l(b, 2), h, lx, ly, lz)) {
+            aw[l] = a_q(b, 0); ax[l] = a_q(b, 1); ay[l] = a_q(b, 2); az[l] = a_q(b, 3);
+        } else {
+            aw[l] = Q(b, 0); ax[l] = Q(b, 1); ay[l] = Q(b, 2); az[l] = Q(b, 3);
+            al[l][0] = lx; al[l][1] = ly; al[l][2] = lz;
+            an[l] = 0;
+            adt[l] = h;
+        }
+        anchor_constants(rows[l], aw[l], ax[l], ay[l], az[l], lx, ly, lz, a.inv_inertia(b, 0),
+                         a.inv_inertia(b, 1), a.inv_inertia(b, 2), h);
+        if (rows[l][FC_STEADY] != 0.0 || !(rows[l][FC_M1] > 0.0)) return false;
+        nf[l] = static_cast<double>(an[l]);
+    }
+    FlowLanes<V> f;
+    gather_flow(f, rows);
+    double rjc[W];
+    for (int l = 0; l < W; ++l) rjc[l] = rows[l][FC_RJC];
+    V im;
+    for (int l = 0; l < W; ++l) im[l] = a.inv_mass[i + l];
+    const V fx = ld(a.force_world, 0), fy = ld(a.force_world, 1), fz = ld(a.force_world, 2);
+    const V k0 = ld(a.inv_inertia, 0), k1 = ld(a.inv_inertia, 1), k2 = ld(a.inv_inertia, 2);
+    const V kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    const double habs = std::fabs(h);
+    const double hh_flight = 0.5 * dt * dt;
+    V x = ld(pos, 0), y = ld(pos, 1), z = ld(pos, 2);
+    V px = ld(mom, 0), py = ld(mom, 1), pz = ld(mom, 2);
+    const V lx = ld(L, 0), ly = ld(L, 1), lz = ld(L, 2);
+    QV<V> q = {ld(Q, 0), ld(Q, 1), ld(Q, 2), ld(Q, 3)};
+    V m[9];
+    auto store = [&]() {
+        for (int l = 0; l < W; ++l) {
+            const i64 b = i + l;
+            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
+            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
+            Q(b, 0) = q.w[l]; Q(b, 1) = q.x[l]; Q(b, 2) = q.y[l]; Q(b, 3) = q.z[l];
+            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
+            a_q(b, 0) = aw[l]; a_q(b, 1) = ax[l]; a_q(b, 2) = ay[l]; a_q(b, 3) = az[l];
+            a_l(b, 0) = al[l][0]; a_l(b, 1) = al[l][1]; a_l(b, 2) = al[l][2];
+            a_n[b] = static_cast<i64>(nf[l]);
+            a_dt[b] = adt[l];
+        }
+    };
+    i64 j = 0;
+    bool ok[W];
+    for (int l = 0; l < W; ++l) ok[l] = true;
+    SampleClock clock(a);
+    i64 s = 1;
+    for (; s <= a.n_steps; ++s) {
+        // flight_exact
+        const V hf = hh_flight * im;
+        x = x + (dt * px * im + hf * fx);
+        y = y + (dt * py * im + hf * fy);
+        z = z + (dt * pz * im + hf * fz);
+        px = px + dt * fx; py = py + dt * fy; pz = pz + dt * fz;
+        // anchored_quat at n |h|
+        nf = nf + 1.0;
+        V cw, c0, c1, c2;
+        flow_eval_lanes(f, rows, rjc, nf * habs, cw, c0, c1, c2);
+        const QV<V> r = qmul2(aw, ax, ay, az, cw, c0, c1, c2);
+        V sc = 1.0 / vsqrt(r.w * r.w + r.x * r.x + r.y * r.y + r.z * r.z);
+        const M flip = r.w * q.w + r.x * q.x + r.y * q.y + r.z * q.z < 0.0;
+        sc = flip ? -sc : sc;
+        q = {r.w * sc, r.x * sc, r.y * sc, r.z * sc};
+        mat2(q, m);
+        if (!lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
+                      lx, ly, lz, k0, k1, k2, kmax_dt, lim2))
+            break;
+        if (clock.due(s)) {
+            store();
+            for (int l = 0; l < W; ++l) sample<METHOD>(a, j, i + l);
+            j += 1;
+        }
+    }
+    store();
+    for (int l = 0; l < W; ++l) {
+        if (s > a.n_steps) {
+            j_out[l] = j;
+            fail_out[l] = -1;
+        } else if (!ok[l]) {
+            j_out[l] = j;
+            fail_out[l] = s;
+        } else {
+            double row[N_FLOW];
+            j_out[l] = exact_single<METHOD>(a, i + l, row, s + 1, j, fail_out[l]);
+        }
+    }
+    return true;
+}
+
+#if RB_FREE_AVX2
+template <int METHOD>
+__attribute__((target("avx2"), flatten, noinline)) bool exact_lanes4(const FreeArgs& a, i64 i,
+                                                                     i64 j_out[4],
+                                                                     i64 fail_out[4]) {
+    return exact_lanes<METHOD, d4>(a, i, j_out, fail_out);
+}
+#endif
+
 // The kernel of exact / exact4: advance_range's loops with the exact step written out
 // (integrators.step_body, _strang_exact and drift_exact_anchored, operation for operation).
 // The flow constants of each body of a tile are computed from its anchor on its first step in
@@ -900,15 +1252,40 @@ FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
     V2<double> a_q = a.a_q, a_l = a.a_l;
     V1<i64> a_n = a.a_n;
     V1<double> a_dt = a.a_dt;
-    if (tile == 1) {  // sparse samples: one body at a time, its state in locals
-        for (i64 i = b0; i < b1; ++i) {
-            i64 fs;
-            const i64 j = exact_single<METHOD>(a, i, fc.data(), fs);
+    if (tile == 1) {  // sparse samples: torque-free bodies W at a time, the others one by one
+        auto collect = [&](i64 b, i64 j, i64 fs) {
             if (fs >= 0 && (res.bad_step < 0 || fs < res.bad_step)) {
                 res.bad_step = fs;
-                res.bad_body = i;
+                res.bad_body = b;
             }
             if (j > res.n_samples) res.n_samples = j;
+        };
+        auto torque_free = [&](i64 b, i64 w) {
+            for (i64 k = b; k < b + w; ++k)
+                if (a.torque_world(k, 0) != 0.0 || a.torque_world(k, 1) != 0.0
+                    || a.torque_world(k, 2) != 0.0)
+                    return false;
+            return true;
+        };
+        i64 i = b0;
+        while (i < b1) {
+            i64 js[4], fs[4];
+            int w = 1;
+#ifndef RB_FREE_NO_LANES
+#if RB_FREE_AVX2
+            if (free_lanes() == 4 && i + 4 <= b1 && torque_free(i, 4)
+                && exact_lanes4<METHOD>(a, i, js, fs))
+                w = 4;
+            else
+#endif
+            if (i + 2 <= b1 && torque_free(i, 2) && exact_lanes<METHOD, d2>(a, i, js, fs))
+                w = 2;
+#endif
+            if (w == 1) {
+                js[0] = exact_single<METHOD>(a, i, fc.data(), 1, 0, fs[0]);
+            }
+            for (int l = 0; l < w; ++l) collect(i + l, js[l], fs[l]);
+            i += w;
         }
         return res;
     }
