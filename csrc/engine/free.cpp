@@ -3,8 +3,12 @@
 //
 // Bodies are independent without contacts, so the loop runs over tiles of BODY_TILE bodies, steps
 // inside a tile: the tile's state stays in L1 for the whole block, and samples are written for
-// consecutive bodies. When samples are SPARSE_STRIDE or more steps apart the tile is one body
-// (its position and momentum in registers for the whole block). Each body's step is its
+// consecutive bodies. When samples are SPARSE_STRIDE or more steps apart, bodies are stepped
+// several at a time with their whole state in registers for the block: four (AVX2, chosen at
+// run time) or two (SSE2) per vector, one body in each lane (lanes.hpp; seed_lanes, rk4_lanes,
+// quat_lanes, and exact_lanes for torque-free bodies under exact / exact4), every lane doing the
+// scalar step's operations in its order, so the bits do not depend on the width
+// (tests/engine/test_free_lanes.py); the rest one body at a time. Each body's step is its
 // integrator's step_body below (the stages in integrators.hpp), except under exact / exact4,
 // whose kernel writes the same step out in its own body (advance_exact_range; the arithmetic of
 // step_body + drift_exact_anchored, operation for operation: tests/engine/test_exact_anchored.py
