@@ -51,6 +51,7 @@ namespace {
 
 int detect_free_lanes() {
 #if RB_FREE_AVX2
+    __builtin_cpu_init();  // (this runs as a static initializer, maybe before libgcc's own)
     return __builtin_cpu_supports("avx2") ? 4 : 2;
 #else
     return 2;
@@ -1271,6 +1272,7 @@ FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
                     return false;
             return true;
         };
+        (void)torque_free;  // (unused when built with RB_FREE_NO_LANES)
         i64 i = b0;
         while (i < b1) {
             i64 js[4], fs[4];

@@ -68,6 +68,19 @@ inline bool all_set(M m) {  // every lane set
     return r != 0;
 }
 
+#if defined(__x86_64__) && defined(__GNUC__)
+// the same from the lanes' sign bits in one instruction (masks are 0 or -1); the four-lane ones
+// are used only inside the AVX2 kernels
+inline bool any(m2 m) { return __builtin_ia32_movmskpd((d2)m) != 0; }
+inline bool all_set(m2 m) { return __builtin_ia32_movmskpd((d2)m) == 3; }
+__attribute__((target("avx2"))) inline bool any(m4 m) {
+    return __builtin_ia32_movmskpd256((d4)m) != 0;
+}
+__attribute__((target("avx2"))) inline bool all_set(m4 m) {
+    return __builtin_ia32_movmskpd256((d4)m) == 15;
+}
+#endif
+
 // The widest lane count this process uses for the free kernel's sparse path: 4 when the CPU has
 // AVX2 (x86-64), else 2; set_free_lanes changes it (2, or 4 when supported). free.cpp.
 int free_lanes();
