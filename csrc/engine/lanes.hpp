@@ -69,15 +69,17 @@ inline bool all_set(M m) {  // every lane set
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
-// the same from the lanes' sign bits in one instruction (masks are 0 or -1); the four-lane ones
-// are used only inside the AVX2 kernels
+// the same from the lanes' sign bits (masks are 0 or -1) by movmskpd, the four-lane masks folded
+// to two lanes first: a few instructions, inlined into the SSE2 and the AVX2 kernels alike
 inline bool any(m2 m) { return __builtin_ia32_movmskpd((d2)m) != 0; }
 inline bool all_set(m2 m) { return __builtin_ia32_movmskpd((d2)m) == 3; }
-__attribute__((target("avx2"))) inline bool any(m4 m) {
-    return __builtin_ia32_movmskpd256((d4)m) != 0;
+inline bool any(m4 m) {
+    const m2 o = __builtin_shufflevector(m, m, 0, 1) | __builtin_shufflevector(m, m, 2, 3);
+    return __builtin_ia32_movmskpd((d2)o) != 0;
 }
-__attribute__((target("avx2"))) inline bool all_set(m4 m) {
-    return __builtin_ia32_movmskpd256((d4)m) == 15;
+inline bool all_set(m4 m) {
+    const m2 o = __builtin_shufflevector(m, m, 0, 1) & __builtin_shufflevector(m, m, 2, 3);
+    return __builtin_ia32_movmskpd((d2)o) == 3;
 }
 #endif
 
