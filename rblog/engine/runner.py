@@ -86,6 +86,12 @@ class RunSummary:
     angular_momentum_drift_rel: max over bodies of | |L_i| - |L_i0| | / |L_i0| (spin angular
         momentum about each body's centre of mass; 0 for bodies with no initial spin).
     ortho_error_max: max ||R^T R - I||_F over bodies and samples.
+    not_applicable: the figures above that do not measure an error in this scene, each with why
+        (:func:`drift_not_applicable`): energy is an invariant only of free flight without applied
+        forces or torques, each body's |L| only of free flight without applied torques. The
+        figures are still computed; ``rblog run`` shows the reason instead of the number.
+    contact_penetration_max_m: the deepest penetration (-separation, m) in the logged contact rows
+        (end-of-step poses), 0 if none penetrates; None in a scene that runs no contact stage.
     """
 
     status: str
@@ -106,9 +112,30 @@ class RunSummary:
     log_every: int
     stages: list[str] = field(default_factory=list)
     message: str = ""
+    not_applicable: dict[str, str] = field(default_factory=dict)
+    contact_penetration_max_m: float | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def drift_not_applicable(model: Model, contacts: bool) -> dict[str, str]:
+    """Which of RunSummary's drift figures are not errors in a scene, and why: ``contacts`` is
+    True when bodies can touch (the run has a contact stage: impulses turn bodies, restitution
+    and friction take energy); applied forces and torques (``body_force_world``,
+    ``body_torque_world``) do work, and torques change |L|. Gravity is in the energy."""
+    why: dict[str, str] = {}
+    torque = bool(np.any(model.body_torque_world != 0))
+    force = bool(np.any(model.body_force_world != 0))
+    if contacts:
+        touch = "bodies touch (contacts take energy and turn bodies: not invariants here)"
+        why["energy_drift_rel"] = why["angular_momentum_drift_rel"] = touch
+    else:
+        if force or torque:
+            why["energy_drift_rel"] = "applied forces or torques do work"
+        if torque:
+            why["angular_momentum_drift_rel"] = "applied torques change L"
+    return why
 
 
 class _Drift:
@@ -129,6 +156,7 @@ class _Drift:
         self.spin = 0.0
         self.ortho = 0.0
         self.qnorm = 0.0
+        self.penetration = 0.0  # deepest -separation in the contact rows, m
         self.model = model
 
     @property
@@ -162,6 +190,9 @@ class _Drift:
             self.spin = max(self.spin, float(d.max()))
         self.ortho = max(self.ortho, float(b.ortho_error.max()))
         self.qnorm = max(self.qnorm, float(np.abs(b.quat_norm_error).max()))
+        sep = b.contacts.separation
+        if len(sep):
+            self.penetration = max(self.penetration, float(-np.min(sep)))
 
 
 def resolve_log_every(dt: float, log_every: int | None, log_rate: float | None) -> int:
@@ -401,7 +432,8 @@ def run(
         energy_drift_rel=drift.energy, angular_momentum_drift_rel=drift.spin,
         ortho_error_max=drift.ortho, quat_norm_error_max=drift.qnorm, integrator=integrator,
         orthonormalize=ortho, dt=dt, log_every=stride, stages=[s for s, _ in plan.stages],
-        message=message,
+        message=message, not_applicable=drift_not_applicable(model, plan.contacts),
+        contact_penetration_max_m=drift.penetration if plan.contacts else None,
     )
 
 
