@@ -219,7 +219,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
                                                   f"{summary.angular_momentum_drift_rel:.3e}"))
     if summary.contact_penetration_max_m is not None:
         click.echo(f"  deepest penetration     {1e3 * summary.contact_penetration_max_m:.3f} mm "
-                   "(logged contact rows; rblog check LOG judges each contact)")
+                   "(at the logged samples; rblog check LOG judges each contact)")
     click.echo(f"  max ||R^T R - I||_F     {summary.ortho_error_max:.3e}")
     for p in paths:
         click.echo(f"  wrote {p}")

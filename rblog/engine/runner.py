@@ -90,8 +90,9 @@ class RunSummary:
         (:func:`drift_not_applicable`): energy is an invariant only of free flight without applied
         forces or torques, each body's |L| only of free flight without applied torques. The
         figures are still computed; ``rblog run`` shows the reason instead of the number.
-    contact_penetration_max_m: the deepest penetration (-separation, m) in the logged contact rows
-        (end-of-step poses), 0 if none penetrates; None in a scene that runs no contact stage.
+    contact_penetration_max_m: the deepest overlap (m) of any two shapes (bodies, ground, static
+        boxes) at the logged samples, measured on their poses by the contact narrowphase
+        (``contact.measure``); 0 if none overlaps; None in a scene that runs no contact stage.
     """
 
     status: str
@@ -146,7 +147,7 @@ class _Drift:
     range of heights (along g) body i covered. A run where nothing moves has drift 0.
     """
 
-    def __init__(self, model: Model | None = None):
+    def __init__(self, model: Model | None = None, contact_world=None):
         self.e0 = None
         self.l0 = None
         self.de_max = 0.0
@@ -156,8 +157,10 @@ class _Drift:
         self.spin = 0.0
         self.ortho = 0.0
         self.qnorm = 0.0
-        self.penetration = 0.0  # deepest -separation in the contact rows, m
+        self.penetration = 0.0  # deepest overlap at the samples' poses, m
         self.model = model
+        # a ContactWorld of the scene that is never stepped: its narrowphase measures the poses
+        self.contact_world = contact_world
 
     @property
     def energy(self) -> float:
@@ -190,9 +193,12 @@ class _Drift:
             self.spin = max(self.spin, float(d.max()))
         self.ortho = max(self.ortho, float(b.ortho_error.max()))
         self.qnorm = max(self.qnorm, float(np.abs(b.quat_norm_error).max()))
-        sep = b.contacts.separation
-        if len(sep):
-            self.penetration = max(self.penetration, float(-np.min(sep)))
+        if self.contact_world is not None:
+            from rblog.engine.contact.measure import max_penetration
+
+            for k in range(b.n_samples):  # 0.2 s of CPU for the 500-box pile's 301 samples
+                self.penetration = max(self.penetration, max_penetration(
+                    self.contact_world, b.position[k], b.rotation[k]))
 
 
 def resolve_log_every(dt: float, log_every: int | None, log_rate: float | None) -> int:
@@ -300,7 +306,7 @@ def run(
                 np.empty((s, n_bodies, 3, 3)), np.empty((s, n_bodies, 3)))
 
     stop = _StopFlag()
-    drift = _Drift(model)
+    drift = _Drift(model, _measure_world(scene, method, ortho_code) if plan.contacts else None)
     opened: list[Recorder] = []
     writer: _BlockWriter | None = None
     done = 0
@@ -657,6 +663,15 @@ def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
         return "has a non-finite state"
     return (f"turns {turn:.3g} rad in one step, more than MAX_ROTATION_PER_STEP_RAD = "
             f"{MAX_ROTATION_PER_STEP_RAD:g} rad")
+
+
+def _measure_world(scene: Scene, method: int, ortho_code: int):
+    """A ContactWorld of ``scene`` for measuring overlaps at the logged samples (on the writer
+    thread; the stepping world is not shared with it)."""
+    from rblog.engine.constants import ContactParams
+    from rblog.engine.contact.world import ContactWorld
+
+    return ContactWorld(scene.model, ContactParams.from_dict(scene.contact), method, ortho_code)
 
 
 def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profile=None):

@@ -5,8 +5,8 @@ applied force or torque does work; each body's |L| about its centre of mass only
 acts (gravity and a force through the centre of mass leave it alone). Where bodies touch, contact
 impulses turn them and restitution and friction take energy, so a drift of either says nothing
 about the integration (the 500-box pile printed "|L| drift (rel) 6.557e+03"). There the summary
-says why instead, and gives the deepest penetration of the logged contact rows, which the test
-recomputes from the logged poses.
+says why instead, and gives the deepest overlap at the logged samples, which the test recomputes
+from the logged poses (a box on the ground: its lowest corner).
 """
 
 from __future__ import annotations
@@ -100,8 +100,8 @@ def test_deepest_penetration_is_the_logged_poses_deepest_corner(tmp_path):
     lowest = traj.position[:, 0, 2][:, None] + np.einsum("tj,kj->tk", r[:, 2], corners)
     depth = max(0.0, -float(lowest.min()))
     assert depth > 1e-8  # it sinks into the ground a little at rest (measured 6.0e-8 m)
-    # the rows' separations are the narrowphase's at the end-of-step poses: equal to round-off
-    # (measured 1.8e-17 m apart)
+    # the narrowphase's box-plane depth is the lowest corner's: equal to round-off (measured
+    # 1.8e-17 m apart)
     assert d["contact_penetration_max_m"] == pytest.approx(depth, abs=1e-14)
 
 
