@@ -132,6 +132,7 @@ def main(argv=None):
     ap.add_argument("--sample-every", type=int, default=50, help="steps between penetration samples")
     ap.add_argument("--mujoco-config", default="default", help=f"one of {sorted(MUJOCO_CONFIGS)}")
     ap.add_argument("--no-peers", action="store_true", help="rblog only")
+    ap.add_argument("--no-pybullet", action="store_true", help="rblog and MuJoCo only")
     ap.add_argument("--profile", action="store_true", help="print rblog's per-stage profile")
     ap.add_argument("--threads", default="1,2", help="comma-separated rblog thread counts")
     ap.add_argument("--anchors", action="store_true",
@@ -144,7 +145,7 @@ def main(argv=None):
     wm, ws = loose_pile(10)
     run_rblog(wm, ws, args.dt, 20, 10, anchors=args.anchors)  # compile / load the kernels
     have_mj = importlib.util.find_spec("mujoco") is not None
-    have_pb = importlib.util.find_spec("pybullet") is not None
+    have_pb = importlib.util.find_spec("pybullet") is not None and not args.no_pybullet
     for n in (int(b) for b in args.boxes.split(",")):
         model, state = loose_pile(n)
         print(f"\n{n} boxes")

@@ -38,9 +38,9 @@ void set_solver_path(int path) { g_path = path; }
 int solver_path() { return g_path; }
 
 const char* solver_kernel() {
-    if (g_path == PATH_SCALAR) return "scalar";
+    if (g_path == PATH_SSE2) return "sse2";
     if (g_path == PATH_AUTO && has_avx2()) return "avx2";
-    return "sse2";
+    return "scalar";
 }
 
 void solve_groups_scalar(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,
@@ -51,15 +51,15 @@ void solve_groups_scalar(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double
 
 void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,
                        i64* visits) {
-    if (g_path == PATH_SCALAR) {
-        solve_groups_scalar(g, g0, g1, cx, change, visits);
+    if (g_path == PATH_SSE2) {
+        for (i64 k = g0; k < g1; ++k) solve_group<d4>(g[k], 0, cx, change, visits);
         return;
     }
     if (g_path == PATH_AUTO && has_avx2()) {
         solve_groups_avx2(g, g0, g1, cx, change, visits);
         return;
     }
-    for (i64 k = g0; k < g1; ++k) solve_group<d4>(g[k], 0, cx, change, visits);
+    solve_groups_scalar(g, g0, g1, cx, change, visits);
 }
 
 void pack_lanes(V2<i64> mi, V2<double> mf, V2<double> pf, const ConstraintGraph& g, V1<double> bm,

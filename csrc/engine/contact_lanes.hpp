@@ -15,8 +15,11 @@
 // branches become selects that pick one of two values, never a different operation): the
 // scalar kernel solves the four lanes one after another; the wide kernel all four at once, in
 // 256-bit registers with AVX2 (contact_lanes_avx2.cpp, compiled with -mavx2, called only when
-// the processor has AVX2) or in pairs of 128-bit ones without. A lane's result is bitwise the same
-// in all three; tests/engine/contact/test_solver_lanes.py compares logs with the scalar path
+// the processor has AVX2) or, forced (PATH_SSE2), in pairs of 128-bit ones. Without AVX2 the
+// scalar kernel runs: GCC's lowering of the 4-wide vector types to SSE2 pairs measured 2.2x
+// slower than the scalar kernel on the 500-box pile (6.5 s against 2.9 s of CPU for 300 steps;
+// AVX2: 2.0 s), so that path is only a check that the portable vector code gives the same bits.
+// A lane's result is bitwise the same in all three; tests/engine/contact/test_solver_lanes.py compares logs with the scalar path
 // forced (_core.set_solver_path, RBLOG_SOLVER_PATH=scalar).
 //
 // A lane with fewer points than the group's most, or whose manifold a sweep skips (it touches no
@@ -61,7 +64,7 @@ struct SolverLanes {
 };
 
 // Which kernel the wide sets use (set_solver_path): 0 the best the processor has (AVX2, else
-// 128-bit pairs), 1 scalar, 2 the 128-bit pairs.
+// scalar), 1 scalar, 2 the 128-bit pairs.
 enum SolverPath : int { PATH_AUTO = 0, PATH_SCALAR = 1, PATH_SSE2 = 2 };
 void set_solver_path(int path);
 int solver_path();             // as set

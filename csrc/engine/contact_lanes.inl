@@ -56,7 +56,11 @@ struct W<d4> {
     static M mand(M a, M b) { return a & b; }
     static M mor(M a, M b) { return a | b; }
     static M mnot(M a) { return ~a; }
+#ifdef __AVX__
+    static bool any(M m) { return __builtin_ia32_movmskpd256((d4)m) != 0; }
+#else
     static bool any(M m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+#endif
     static bool lane(M m, int j) { return m[j] != 0; }
     static M from(const bool* b, int) {
         return M{b[0] ? -1LL : 0LL, b[1] ? -1LL : 0LL, b[2] ? -1LL : 0LL, b[3] ? -1LL : 0LL};

@@ -32,8 +32,9 @@ void bind_threads(nb::module_& m) {
               else throw nb::value_error("solver path: expected auto, scalar or sse2");
           }, nb::arg("path"),
           "The velocity solve's kernel for the colours (contact_lanes.hpp): auto (AVX2 where the "
-          "processor has it, else 128-bit pairs), scalar, sse2; every path gives bitwise the same "
-          "results. RBLOG_SOLVER_PATH sets it at import.");
+          "processor has it, else scalar), scalar, sse2 (4-wide vector types in 128-bit pairs, "
+          "a check only); every path gives bitwise the same results. RBLOG_SOLVER_PATH sets it at "
+          "import.");
     m.def("solver_kernel", [] { return std::string(solver_kernel()); },
           "The kernel the velocity solve's colours run on: avx2, sse2 or scalar.");
 }
