@@ -42,14 +42,20 @@ void colour_manifolds(V2<i64> mi, i64 n_man, i64 n_dyn, ConstraintGraph& g) {
         g.colour_of[m] = c;
         count[c] += 1;
     }
-    // sets: overflow first, then the non-empty colours in colour order
+    // sets: overflow first, then the non-empty colours from the last to the first, so that a
+    // sweep meets the static contacts (colours 22 down) before the dynamic ones (0 up): the
+    // ground carries a pile, and a sweep that settles the ground contacts first passes the load
+    // up the pile in the same sweep. Measured on the 500-box loose pile (bench_pile's scene, 2 s,
+    // one thread, CPU time): 203-213 steps/s with 390 bodies awake at the end, against 192-195
+    // steps/s and 448 awake with the colours in increasing order (main's manifold order: 167-181
+    // steps/s, 334 awake)
     g.set_start.clear();
     g.set_start.push_back(0);
     i64 at = count[OVERFLOW_COLOUR];
     g.set_start.push_back(at);
     i64 first[GRAPH_COLOURS];
     first[OVERFLOW_COLOUR] = 0;
-    for (int k = 0; k < OVERFLOW_COLOUR; ++k) {
+    for (int k = OVERFLOW_COLOUR - 1; k >= 0; --k) {
         if (count[k] == 0) {
             first[k] = -1;
             continue;

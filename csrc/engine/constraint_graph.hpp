@@ -35,7 +35,8 @@ constexpr int OVERFLOW_COLOUR = GRAPH_COLOURS - 1;   // B2_OVERFLOW_INDEX
 constexpr int DYNAMIC_COLOURS = GRAPH_COLOURS - 4;   // B2_DYNAMIC_COLOR_COUNT
 
 // The step's colouring: order (M_active,) manifold indices, the overflow set first, then each
-// non-empty colour; set_start (n_sets + 1,) offsets into order, set 0 the overflow set (possibly
+// non-empty colour from the last (static contacts) to the first (constraint_graph.cpp: why);
+// set_start (n_sets + 1,) offsets into order, set 0 the overflow set (possibly
 // empty), sets 1.. the colours. Inside a colour the manifolds are sorted by point count, most
 // first (stable), so the four lanes of a group mostly have the same count.
 struct ConstraintGraph {
