@@ -57,11 +57,13 @@
 // Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.
 //
 // Restitution (the bounce after positions moved) is in :mod:`rblog.engine.contact.restitution`.
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <vector>
 
 #include "common/task_pool.hpp"
+#include "engine/profile.hpp"
 
 #include "engine/constraint_graph.hpp"
 #include "engine/contact_lanes.hpp"
@@ -78,6 +80,15 @@ namespace {
 // barrier per colour costs about as much as solving a few groups); the results do not depend on
 // it, only the time.
 constexpr i64 MIN_GROUPS_PER_THREAD = 8;
+
+// When thread 0 spent more than half of a threaded solve waiting at the colours' barriers (on a
+// machine whose cores are busy with other processes a worker is often not running, and each of
+// the ~300 barriers of a step then waits for the scheduler), the next this many solves run on
+// one thread before threads are tried again. Measured on the shared 2-core machine (load 15):
+// the 500-box pile's solve took 71 s of wall time on two threads against 21 s on one. The
+// results do not depend on it (only which thread solves which group changes).
+constexpr i64 THREAD_BACKOFF_CALLS = 200;
+std::atomic<i64> g_thread_backoff{0};  // (atomic: worlds may step on several Python threads)
 
 inline void smul(double i0, double i1, double i2, double i3, double i4, double i5, double x,
                  double y, double z, double& ox, double& oy, double& oz) {
@@ -404,7 +415,80 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     const i64 n_sets = (i64)lanes.set_group.size() - 1;
     const i64 n_wide = lanes.set_group[n_sets] - lanes.set_group[1];
     const int n_threads = pool().threads();
-    if (n_threads < 2 || n_wide < MIN_GROUPS_PER_THREAD * n_threads) {
+    bool serial = n_threads < 2 || n_wide < MIN_GROUPS_PER_THREAD * n_threads;
+    if (!serial && g_thread_backoff.load(std::memory_order_relaxed) > 0) {
+        g_thread_backoff.fetch_sub(1, std::memory_order_relaxed);
+        serial = true;
+    }
+    bool converged = false;
+    if (!serial) {
+        // the same sweeps on every thread at once: thread 0 solves the overflow set, then each
+        // colour's groups are split in n_threads static parts, a barrier after each; the sweep's
+        // largest change is the max of the threads' (the same number on every thread, so all
+        // stop after the same sweep) and the visits their sum
+        const int nt = n_threads;
+        std::vector<double> t_change((size_t)nt * 8, 0.0);  // (a cache line per thread)
+        std::vector<i64> t_visits((size_t)nt * 8, 0), t_it((size_t)nt * 8, 0);
+        SpinBarrier bar(nt);
+        std::atomic<bool> handover{false};
+        i64 waited = 0;  // thread 0's ticks in barriers
+        const i64 t_start = ticks();
+        auto wait = [&](i64 t) {
+            if (t != 0) {
+                bar.wait();
+                return;
+            }
+            i64 w0 = ticks();
+            bar.wait();
+            waited += ticks() - w0;
+        };
+        pool().parallel_for(nt, [&](i64 t) {
+            LaneCtx tc = cx;
+            i64 my_it = 0, my_visits = 0;
+            while (my_it < max_iter) {
+                my_it += 1;
+                tc.it = my_it;
+                double change = 0.0;
+                if (t == 0)
+                    solve_groups_scalar(gr, lanes.set_group[0], lanes.set_group[1], tc, &change,
+                                        &my_visits);
+                wait(t);
+                for (i64 s = 1; s < n_sets; ++s) {
+                    i64 g0 = lanes.set_group[s], n_g = lanes.set_group[s + 1] - g0;
+                    solve_groups_wide(gr, g0 + n_g * t / nt, g0 + n_g * (t + 1) / nt, tc, &change,
+                                      &my_visits);
+                    wait(t);
+                }
+                t_change[(size_t)t * 8] = change;
+                wait(t);
+                double all = 0.0;
+                for (int k = 0; k < nt; ++k)
+                    if (t_change[(size_t)k * 8] > all) all = t_change[(size_t)k * 8];
+                // thread 0: more than half the time so far in barriers (and past a few sweeps):
+                // the threads do not run at once, hand the rest of the solve to one thread
+                if (t == 0 && my_it >= 2 && 2 * waited > ticks() - t_start)
+                    handover.store(true, std::memory_order_relaxed);
+                wait(t);  // (every thread has read the changes and the handover before the next
+                          // sweep's)
+                if (my_it >= min_iter && all <= tol) {
+                    if (t == 0) converged = true;
+                    break;
+                }
+                if (handover.load(std::memory_order_relaxed)) break;
+            }
+            t_visits[(size_t)t * 8] = my_visits;
+            t_it[(size_t)t * 8] = my_it;
+        });
+        for (int k = 0; k < nt; ++k) visits += t_visits[(size_t)k * 8];
+        it = t_it[0];
+        // handed over (or more than half the time in barriers): the threads did not run at once
+        // (the machine's cores are taken by other work), so the next THREAD_BACKOFF_CALLS
+        // solves run on one thread; the remaining sweeps of this one run below. Either gives
+        // the same bits as the threaded sweeps.
+        if (handover.load(std::memory_order_relaxed) || 2 * waited > ticks() - t_start)
+            g_thread_backoff.store(THREAD_BACKOFF_CALLS, std::memory_order_relaxed);
+    }
+    if (!converged) {
         while (it < max_iter) {
             it += 1;
             cx.it = it;
@@ -417,45 +501,6 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
                                   &visits);
             if (it >= min_iter && change <= tol) break;
         }
-    } else {
-        // the same sweeps on every thread at once: thread 0 solves the overflow set, then each
-        // colour's groups are split in n_threads static parts, a barrier after each; the sweep's
-        // largest change is the max of the threads' (the same number on every thread, so all
-        // stop after the same sweep) and the visits their sum
-        const int nt = n_threads;
-        std::vector<double> t_change((size_t)nt * 8, 0.0);  // (a cache line per thread)
-        std::vector<i64> t_visits((size_t)nt * 8, 0), t_it((size_t)nt * 8, 0);
-        SpinBarrier bar(nt);
-        pool().parallel_for(nt, [&](i64 t) {
-            LaneCtx tc = cx;
-            i64 my_it = 0, my_visits = 0;
-            while (my_it < max_iter) {
-                my_it += 1;
-                tc.it = my_it;
-                double change = 0.0;
-                if (t == 0)
-                    solve_groups_scalar(gr, lanes.set_group[0], lanes.set_group[1], tc, &change,
-                                        &my_visits);
-                bar.wait();
-                for (i64 s = 1; s < n_sets; ++s) {
-                    i64 g0 = lanes.set_group[s], n_g = lanes.set_group[s + 1] - g0;
-                    solve_groups_wide(gr, g0 + n_g * t / nt, g0 + n_g * (t + 1) / nt, tc, &change,
-                                      &my_visits);
-                    bar.wait();
-                }
-                t_change[(size_t)t * 8] = change;
-                bar.wait();
-                double all = 0.0;
-                for (int k = 0; k < nt; ++k)
-                    if (t_change[(size_t)k * 8] > all) all = t_change[(size_t)k * 8];
-                bar.wait();  // (every thread has read the changes before the next sweep's)
-                if (my_it >= min_iter && all <= tol) break;
-            }
-            t_visits[(size_t)t * 8] = my_visits;
-            t_it[(size_t)t * 8] = my_it;
-        });
-        for (int k = 0; k < nt; ++k) visits += t_visits[(size_t)k * 8];
-        it = t_it[0];
     }
     unpack_lanes(mi, pf, lanes);
     i64 den = active > 1 ? active : 1;
