@@ -364,7 +364,8 @@ def _print_report(entry):
     click.echo(f"{entry['log']}: {entry['samples']} samples x {entry['bodies']} bodies, "
                f"t = 0..{entry['t_end_s']:g} s{flag}")
     for r in entry["results"]:
-        verdict = "SKIP" if r["skipped"] else ("pass" if r["passed"] else "FAIL")
+        verdict = {"skip": "SKIP", "not judged": "----"}.get(r.get("verdict"), None) or (
+            "SKIP" if r["skipped"] else ("pass" if r["passed"] else "FAIL"))
         line = f"  {verdict:<4} {r['analyzer']:<14}"
         if not r["skipped"]:
             unit = "" if r["unit"] in ("", "1") else f" {r['unit']}"
