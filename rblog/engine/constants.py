@@ -275,7 +275,10 @@ class ContactParams:
             /work/wt/notes/rest-results.md): off, seeds 1-6 gave 15 creep findings (0.10-0.22
             mm) with one seed clean; on, 11 of 12 seeds clean before the coloured solve (seed 6:
             a box struck by a neighbour between two samples, 0.13 mm, and a neighbour's bumps read
-            as 2.2 mm/s of jitter). Off, the goldens and the pre-issue-29 trajectories come back.
+            as 2.2 mm/s of jitter), 9 of 12 on the coloured solve (seeds 3, 6, 12: 6 creep findings
+            of 0.106-0.139 mm, the one traced a steady 0.13 mm/s slide of an edge contact whose
+            load see-saws between its two points; a consistency finding at seed 12). Not yet
+            issue 29's "clean at every seed". Off, the pre-issue-29 trajectories come back.
             The 500-box pile of tests/engine/contact/test_contact.py at dt 2e-3 stays within
             0.22-0.26 mm of penetration with it on (seeds 0-2; 0.5 mm allowed).
         projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
