@@ -277,8 +277,10 @@ class ContactParams:
             a box struck by a neighbour between two samples, 0.13 mm, and a neighbour's bumps read
             as 2.2 mm/s of jitter), 9 of 12 on the coloured solve (seeds 3, 6, 12: 6 creep findings
             of 0.106-0.139 mm, the one traced a steady 0.13 mm/s slide of an edge contact whose
-            load see-saws between its two points; a consistency finding at seed 12). Not yet
-            issue 29's "clean at every seed". Off, the pre-issue-29 trajectories come back.
+            load see-saws between its two points; a consistency finding at seed 12) against 5 of
+            12 with them off there (29 findings, creep up to 0.475 mm, 8 at seed 1, the CI
+            sample). Not yet issue 29's "clean at every seed". Off, the pre-issue-29
+            trajectories come back.
             The 500-box pile of tests/engine/contact/test_contact.py at dt 2e-3 stays within
             0.22-0.26 mm of penetration with it on (seeds 0-2; 0.5 mm allowed).
         projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
