@@ -48,7 +48,7 @@ from rblog.engine.rotation import quat_to_matrix_np  # noqa: E402
 from rblog.study.scenes import loose_pile  # noqa: E402
 
 
-def run_rblog(model, state, dt, n_steps, sample_every, profile=None, anchors=False):
+def run_rblog(model, state, dt, n_steps, sample_every, profile=None, anchors=True):
     """(steps/s, penetration samples, world, end state); ``anchors``: ContactParams'
     static_friction_anchors."""
     world = ContactWorld(model, ContactParams(static_friction_anchors=anchors),
@@ -135,8 +135,8 @@ def main(argv=None):
     ap.add_argument("--no-pybullet", action="store_true", help="rblog and MuJoCo only")
     ap.add_argument("--profile", action="store_true", help="print rblog's per-stage profile")
     ap.add_argument("--threads", default="1,2", help="comma-separated rblog thread counts")
-    ap.add_argument("--anchors", action="store_true",
-                    help="rblog with [contact] static_friction_anchors = true")
+    ap.add_argument("--no-anchors", dest="anchors", action="store_false",
+                    help="rblog with [contact] static_friction_anchors = false (on by default)")
     args = ap.parse_args(argv)
     n_steps = int(round(args.duration / args.dt))
     thread_counts = [int(t) for t in args.threads.split(",")]
@@ -157,7 +157,7 @@ def main(argv=None):
                                             prof, anchors=args.anchors)
             sps_t[nt] = sps
             st = world.stats
-            print(f"  rblog{' anchors' if args.anchors else ''} {nt} thread{'s' if nt > 1 else ' '}"
+            print(f"  rblog{'' if args.anchors else ' no anchors'} {nt} thread{'s' if nt > 1 else ' '}"
                   f"  {sps:8.1f} steps/s   penetration {stats(pens)}")
             print(f"    per step: {st[3] / max(st[0], 1):.0f} contact points, "
                   f"{st[8] / max(st[0], 1):.1f} sweeps, {st[4] / max(st[0], 1):.0f} awake; "
