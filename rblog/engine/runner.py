@@ -429,6 +429,13 @@ class _BlockWriter:
 
     def __init__(self, model: Model, info: RunInfo, drift: _Drift, recorders):
         self.model, self.info, self.drift, self.recorders = model, info, drift, list(recorders)
+        # a recorder with ``lockstep`` (the live audit with --fail-fast) gets each block before
+        # the run hands over the next: submit waits until every recorder handled every block
+        # submitted so far, so a recorder's error stops the run within one block
+        self.lockstep = any(getattr(r, "lockstep", False) for r in self.recorders)
+        self._submitted = 0
+        self._handled = [0] * max(1, len(self.recorders))
+        self._cond = threading.Condition()
         self.queue: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
         self.error: BaseException | None = None
         self.lanes: list[tuple[queue.Queue, threading.Thread]] = []
@@ -437,7 +444,7 @@ class _BlockWriter:
         if len(self.recorders) > 1:
             for i, rec in enumerate(self.recorders):
                 q: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
-                t = threading.Thread(target=self._lane, args=(rec, q), name=f"rblog-recorder-{i}",
+                t = threading.Thread(target=self._lane, args=(rec, q, i), name=f"rblog-recorder-{i}",
                                      daemon=True)
                 t.start()
                 self.lanes.append((q, t))
@@ -446,10 +453,22 @@ class _BlockWriter:
 
     def submit(self, steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                contacts):
+        if self.lockstep:
+            with self._cond:
+                self._cond.wait_for(lambda: min(self._handled) >= self._submitted
+                                    or self.error is not None)
         if self.error is not None:
             raise self.error
+        self._submitted += 1
         self.queue.put((steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                         contacts))
+
+    def _mark(self, lane: int):
+        """Recorder ``lane`` handled one more block (written, failed or drained)."""
+        if self.lockstep:
+            with self._cond:
+                self._handled[lane] += 1
+                self._cond.notify_all()
 
     def _loop(self):
         dt = self.info.dt
@@ -460,6 +479,8 @@ class _BlockWriter:
                 if item is None:
                     return
                 if broken or (self.error is not None and not self.lanes):
+                    for i in range(len(self._handled)):
+                        self._mark(i)
                     continue  # drain: no recorder can take this block
                 steps, x, p, q, r, lw, contacts = item
                 try:
@@ -474,10 +495,13 @@ class _BlockWriter:
                     else:
                         for rec in self.recorders:
                             rec.write(block)
+                        self._mark(0)
                 except BaseException as e:  # re-raised in the run loop
                     broken = True
                     if self.error is None:
                         self.error = e
+                    if not self.lanes:
+                        self._mark(0)
         finally:
             # close only if every block reached the recorders (deriving did not fail); every
             # lane gets its end before any is joined (the lanes meet at a barrier to close)
@@ -487,7 +511,7 @@ class _BlockWriter:
             for _, t in self.lanes:
                 t.join()
 
-    def _lane(self, rec, lane: queue.Queue):
+    def _lane(self, rec, lane: queue.Queue, index: int):
         failed = False
         while True:
             block = lane.get()
@@ -504,6 +528,7 @@ class _BlockWriter:
                             self.error = e
                 return
             if failed:
+                self._mark(index)
                 continue  # this recorder failed: drain; the others keep writing
             try:
                 rec.write(block)
@@ -511,6 +536,7 @@ class _BlockWriter:
                 failed = True
                 if self.error is None:
                     self.error = e
+            self._mark(index)
 
     _close = False
 
