@@ -275,9 +275,8 @@ def live_report(audit) -> dict:
     return {
         "flagged": any(not r.passed and not r.skipped for r in results),
         "results": [r.to_dict(model) for r in results],
-        "announced": [dict(analyzer=lf.analyzer, at_end=lf.at_end, seen_samples=lf.samples,
-                           seen_t_s=lf.t_seen, wall_s=lf.wall_s, **lf.finding.to_dict())
-                      for lf in audit.announced],
+        "announced": [{**lf.finding.to_dict(), "at_end": lf.at_end, "seen_samples": lf.samples,
+                       "seen_t_s": lf.t_seen, "wall_s": lf.wall_s} for lf in audit.announced],
         "revised": len(audit.live.revised), "withdrawn": len(audit.live.withdrawn),
         "prefix_checks": audit.stats.checks, "audit_s": audit.stats.total_s,
     }

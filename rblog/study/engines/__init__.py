@@ -131,6 +131,12 @@ class EngineRunSummary:
         return asdict(self)
 
 
+#: with a live audit, blocks of at most this many samples (0.5 s at the default 100 Hz), so that
+#: it can announce a finding before the run ends (rblog's own run loop sizes its blocks by wall
+#: time, ~30 ms each)
+AUDIT_BLOCK_SAMPLES = 50
+
+
 def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_every=None,
                log_rate=None, rrd=None, mcap=None, keep=False, mcap_compression="lz4",
                audit=None):
@@ -168,6 +174,8 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
                        mcap_compression=mcap_compression,
                        check=audit if audit is not None else False)
         per_block = samples_per_block(scene.model.n_bodies, stride)
+        if audit is not None:  # the live audit sees the run a block at a time
+            per_block = min(per_block, AUDIT_BLOCK_SAMPLES)
         t_wall = time.perf_counter()
         t_step = 0.0
         n_contacts = 0
