@@ -161,6 +161,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         _fail(RblogError("give --log-every or --log-rate, not both"))
     if run_too and not explain:
         _fail(RblogError("--run goes with --explain (a plain `rblog run` runs already)"))
+    audit = None
     try:
         s = load_scene(scene)
         for w in s.warnings:
@@ -182,7 +183,6 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
             if not run_too:
                 return
         recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression)
-        audit = None
         if live_check:
             audit = live_audit(recorders, fail_fast, as_json)
             recorders = [*recorders, audit]

@@ -8,13 +8,12 @@ written so far, so logs stay readable up to the last good sample.
 Why this module is long: the run loop and everything that must hold while it runs live together,
 because they share its state: the wall-time sizing of compiled calls (sampling stays on global
 multiples of the stride whatever the split), the signal flag checked between calls (SIGINT and
-SIGTERM answered within a call's budget, logs closed "interrupted"), the writer thread that
-overlaps logging with stepping, and the running summary figures.
+SIGTERM answered within a call's budget, logs closed "interrupted"), and the running summary
+figures. The threads that log beside the stepping are rblog.engine.pipeline's.
 """
 
 from __future__ import annotations
 
-import queue
 import signal
 import threading
 import time
@@ -41,6 +40,7 @@ from rblog.engine.free import advance_free
 from rblog.contract.model import Model
 from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES
 from rblog.engine.scene import Scene
+from rblog.engine.pipeline import BlockPipeline
 from rblog.engine.plan import Plan, plan_stages
 from rblog.contract.trajectory import RunInfo, Trajectory, derive
 
@@ -271,7 +271,7 @@ def run(
     stop = _StopFlag()
     drift = _Drift(model)
     opened: list[Recorder] = []
-    writer: _BlockWriter | None = None
+    writer: BlockPipeline | None = None
     done = 0
     n_samples = 0
     status, message = "ok", ""
@@ -292,7 +292,7 @@ def run(
             stop.raise_now = False
             stop.check()
             t_start = time.perf_counter()  # the run's wall time: stepping and writing
-            writer = _BlockWriter(model, info, drift, opened)
+            writer = BlockPipeline(model, info, drift, opened)
             writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
                           st.quat_wxyz[None].copy(), st.rotation[None].copy(),
                           st.angular_momentum_world[None].copy(), None)
@@ -413,159 +413,10 @@ def simulate(scene: Scene, **kwargs) -> tuple[Trajectory, RunSummary]:
     return col.trajectory, summary
 
 
-class _BlockWriter:
-    """Derives each block's channels on a worker thread and hands the block to the recorders,
-    so that logging block k overlaps stepping block k+1 (the kernels release the GIL). With more
-    than one recorder, each writes on its own thread, so that one's GIL-free work (compression,
-    file I/O, the Rerun SDK's encoding) overlaps the other's. Blocks are written in order by
-    every recorder; the queues are bounded, so memory stays bounded. A recorder's error stops the
-    run at the next block; the other recorders still get every block submitted before it (good
-    samples: nothing the run produced is lost because another log failed). At the end of a run
-    that went well (:meth:`finish` with ``close=True``) the lanes close their recorders at once,
-    each on its own thread (the Rerun SDK's final flush beside the MCAP summary), once every lane
-    wrote its last block and none failed (a failure still closes every log as truncated)."""
-
-    QUEUE_BLOCKS = 2
-
-    def __init__(self, model: Model, info: RunInfo, drift: _Drift, recorders):
-        self.model, self.info, self.drift, self.recorders = model, info, drift, list(recorders)
-        # a recorder with ``lockstep`` (the live audit with --fail-fast) gets each block before
-        # the run hands over the next: submit waits until every recorder handled every block
-        # submitted so far, so a recorder's error stops the run within one block
-        self.lockstep = any(getattr(r, "lockstep", False) for r in self.recorders)
-        self._submitted = 0
-        self._handled = [0] * max(1, len(self.recorders))
-        self._cond = threading.Condition()
-        self.queue: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
-        self.error: BaseException | None = None
-        self.lanes: list[tuple[queue.Queue, threading.Thread]] = []
-        self._closed: set[int] = set()  # id() of the recorders a lane closed
-        self._barrier = threading.Barrier(max(1, len(self.recorders)))
-        if len(self.recorders) > 1:
-            for i, rec in enumerate(self.recorders):
-                q: queue.Queue = queue.Queue(maxsize=self.QUEUE_BLOCKS)
-                t = threading.Thread(target=self._lane, args=(rec, q, i), name=f"rblog-recorder-{i}",
-                                     daemon=True)
-                t.start()
-                self.lanes.append((q, t))
-        self.thread = threading.Thread(target=self._loop, name="rblog-writer", daemon=True)
-        self.thread.start()
-
-    def submit(self, steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-               contacts):
-        if self.lockstep:
-            with self._cond:
-                self._cond.wait_for(lambda: min(self._handled) >= self._submitted
-                                    or self.error is not None)
-        if self.error is not None:
-            raise self.error
-        self._submitted += 1
-        self.queue.put((steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-                        contacts))
-
-    def _mark(self, lane: int):
-        """Recorder ``lane`` handled one more block (written, failed or drained)."""
-        if self.lockstep:
-            with self._cond:
-                self._handled[lane] += 1
-                self._cond.notify_all()
-
-    def _loop(self):
-        dt = self.info.dt
-        broken = False  # deriving failed: nothing more can be written
-        try:
-            while True:
-                item = self.queue.get()
-                if item is None:
-                    return
-                if broken or (self.error is not None and not self.lanes):
-                    for i in range(len(self._handled)):
-                        self._mark(i)
-                    continue  # drain: no recorder can take this block
-                steps, x, p, q, r, lw, contacts = item
-                try:
-                    if contacts is not None:
-                        contacts.t = contacts.step * dt
-                    block = derive(self.model, self.info, steps, steps * dt, x, p, q, r, lw,
-                                   contacts=contacts)
-                    self.drift.update(block)
-                    if self.lanes:
-                        for lane, _ in self.lanes:
-                            lane.put(block)
-                    else:
-                        for rec in self.recorders:
-                            rec.write(block)
-                        self._mark(0)
-                except BaseException as e:  # re-raised in the run loop
-                    broken = True
-                    if self.error is None:
-                        self.error = e
-                    if not self.lanes:
-                        self._mark(0)
-        finally:
-            # close only if every block reached the recorders (deriving did not fail); every
-            # lane gets its end before any is joined (the lanes meet at a barrier to close)
-            end = _CLOSE if self._close and not broken else None
-            for lane, _ in self.lanes:
-                lane.put(end)
-            for _, t in self.lanes:
-                t.join()
-
-    def _lane(self, rec, lane: queue.Queue, index: int):
-        failed = False
-        while True:
-            block = lane.get()
-            if block is None or block is _CLOSE:
-                if block is _CLOSE:
-                    self._barrier.wait()  # every lane wrote its last block (or failed)
-                if block is _CLOSE and not failed and self.error is None:
-                    try:
-                        rec.close(truncated=False, reason=None)
-                        self._closed.add(id(rec))
-                    except BaseException as e:
-                        self._closed.add(id(rec))  # closed as far as it could be
-                        if self.error is None:
-                            self.error = e
-                return
-            if failed:
-                self._mark(index)
-                continue  # this recorder failed: drain; the others keep writing
-            try:
-                rec.write(block)
-            except BaseException as e:
-                failed = True
-                if self.error is None:
-                    self.error = e
-            self._mark(index)
-
-    _close = False
-
-    def finish(self, close: bool = False):
-        """Write every queued block, stop the threads, and re-raise a recorder's error. With
-        ``close`` (the run went well), each lane also closes its recorder (complete) once it
-        wrote its last block, unless some recorder failed; :meth:`has_closed` tells which."""
-        self._close = close
-        self.queue.put(None)
-        self.thread.join()
-        if self.error is not None:
-            raise self.error
-
-    def has_closed(self, rec) -> bool:
-        return id(rec) in self._closed
-
-
-#: the lanes' end-of-run item that also closes the recorder
-_CLOSE = object()
-
-
-def _finish_quietly(writer: _BlockWriter | None):
+def _finish_quietly(writer: BlockPipeline | None):
     """On the way out of a failed run: write what was queued (good samples), swallow errors."""
-    if writer is None:
-        return
-    try:
-        writer.finish()
-    except BaseException:
-        pass
+    if writer is not None:
+        writer.finish_quietly()
 
 
 def _close_all_quietly(recorders, truncated, reason):

@@ -551,8 +551,6 @@ class _BlockChunkBuilder:
             return
         ns = np.ascontiguousarray(ns, np.int64)
         m = 3 * T
-        channels = np.tile(records.channels, T)
-        times = np.repeat(ns, 3)
         st = self._stats
         t_lo, t_hi = int(ns.min()), int(ns.max())
         st.message_start_time = t_lo if st.message_count == 0 else min(st.message_start_time, t_lo)
@@ -575,10 +573,29 @@ class _BlockChunkBuilder:
                 records.metrics_off, mt_cols, position, quat_wxyz, records.tf.rest,
                 records.tf.rest_start, records.tf.dbl_off, offsets)
             if r1 > r:
-                self._index(channels[r:r1], times[r:r1], offsets[:r1 - r].astype(np.uint64))
+                self._index_samples(records.channels, ns, r, r1, offsets[:r1 - r])
             r = r1
             if self._count > self._chunk_size:
                 self._w.flush()  # closes the chunk (compressed, CRC, message indexes)
+
+    def _index_samples(self, channels3, ns, r0: int, r1: int, offsets):
+        """Index the per-sample records r0..r1 - 1 (record r: channel ``channels3[r % 3]``,
+        log time ``ns[r // 3]``) at ``offsets`` (r1 - r0,): what :meth:`_index` does with the
+        records' channels and times spelled out, without sorting them (strided views)."""
+        n = r1 - r0
+        times = ns[r0 // 3:(r1 - 1) // 3 + 1]
+        lo, hi = int(times.min()), int(times.max())
+        self.message_start_time = lo if self.num_messages == 0 else min(self.message_start_time, lo)
+        self.message_end_time = max(self.message_end_time, hi)
+        self.num_messages += n
+        for k in range(min(3, n)):  # in order of first message, as mcap's builder
+            ch = int(channels3[(r0 + k) % 3])
+            off = offsets[k::3]
+            first = (r0 + k) // 3
+            idx = self.message_indices.get(ch)
+            if idx is None:
+                idx = self.message_indices[ch] = _MessageIndexArrays(ch)
+            idx.add(ns[first:first + len(off)], off)
 
     def _index(self, channels, times, offsets):
         n = len(times)
