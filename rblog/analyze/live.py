@@ -62,8 +62,10 @@ ONE_PER_BODY = frozenset({"drift"})
 #: would hold every finding a whole second; 25 samples keeps an impact event's samples after
 #: its end, and the momentum analyzer's extrapolation from them, inside the prefix)
 HOLD_SAMPLES = 25
-#: the share of the run's wall time the prefix checks may take (the final check comes on top)
-BUDGET_FRACTION = 0.2
+#: the share of the run's wall time the prefix checks may take (the final check comes on top).
+#: benchmarks/bench_live.py on samples/pile.toml (2 cores, loaded): at 0.2, 7 prefix checks and
+#: the run 1.21-1.30x as long as with the logs alone; at 0.1 see docs/live-audit.md
+BUDGET_FRACTION = 0.1
 
 
 class AuditFailed(RblogError):
