@@ -1,12 +1,21 @@
-"""Recording benchmark: the cost of logging every step of 100 free bodies, side by side with the
-same run without logs, and bytes per body-step of each format.
+"""Recording benchmark: what logging costs a run.
 
-    python benchmarks/bench_logging.py [--bodies 100] [--steps 4000] [--integrator rk4] [--no-contacts]
+    python benchmarks/bench_logging.py [--repeats 5] [--cli] [--default-only]
+                                       [--bodies 100] [--steps 4000] [--integrator rk4] [--no-contacts]
 
-Target (issue 4): a run that logs every step to both formats takes at most 2x the run without.
-Two scenes: free bodies (no contacts: the cheapest step rblog has, so the worst case for the
-ratio) and the same number of boxes dropped onto the ground and onto each other (contacts, and
-the contacts' records in the logs).
+First (issue 28): default logging (both logs, Rerun .rrd + MCAP lz4, at 100 Hz) on
+samples/spinning_bodies.toml against the same run with --no-log, run A B A B ... in one process
+(the machine's load hits both alike), each figure printed beside the other with their ratio
+(target <= 1.3x). The wall time is rblog.run's (stepping and writing; the recorders' open is
+before the clock), the CPU time the process's (every thread: the Rerun SDK's included). With
+--cli, also the whole `rblog run` process (start-up, imports, scene, run, exit), alternating.
+
+Then (issue 4, unless --default-only): logging every step of 100 free bodies to each format, side
+by side with the same run without logs, and bytes per body-step of each format. Target: a run
+that logs every step to both formats takes at most 2x the run without. Two scenes: free bodies
+(no contacts: the cheapest step rblog has, so the worst case for the ratio) and the same number
+of boxes dropped onto the ground and onto each other (contacts, and the contacts' records in the
+logs).
 """
 
 from __future__ import annotations
@@ -14,6 +23,8 @@ from __future__ import annotations
 import argparse
 import copy
 import os
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -25,6 +36,12 @@ import numpy as np  # noqa: E402
 
 import rblog  # noqa: E402
 from rblog.record import McapRecorder, RerunRecorder  # noqa: E402
+from rblog.record.recorder import Recorder  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_SCENE = ROOT / "samples" / "spinning_bodies.toml"
+#: issue 28: default logging on DEFAULT_SCENE takes at most this times the --no-log wall time
+DEFAULT_RATIO_TARGET = 1.3
 
 SCENE = """
 [sim]
@@ -139,18 +156,86 @@ def writers_alone(scene, kw, tmp, steps):
           f"{no_mcap / sim:.2f}x")
 
 
+def _timed(fn):
+    """(wall s, process CPU s) of ``fn()``."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    fn()
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def default_logging(tmp, repeats: int, cli: bool):
+    """Issue 28's figure: --no-log and default logging (both logs at 100 Hz) on DEFAULT_SCENE,
+    alternating, side by side with their ratio."""
+    scene = rblog.load_scene(str(DEFAULT_SCENE))
+    rrd, mcap = os.path.join(tmp, "d.rrd"), os.path.join(tmp, "d.mcap")
+
+    def logged():
+        # as `rblog run` records: one Recorder per writer (cli/rblog_cli/main.py)
+        return rblog.run(scene, recorders=[Recorder(writers=[RerunRecorder(rrd)]),
+                                           Recorder(writers=[McapRecorder(mcap)])])
+
+    def bare():
+        return rblog.run(scene)
+
+    logged(), bare()  # warm: imports, first allocations
+    rows = {"no log": [], "both logs": []}
+    for _ in range(repeats):
+        rows["no log"].append(_timed(bare))
+        rows["both logs"].append(_timed(logged))
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"{DEFAULT_SCENE.relative_to(ROOT)}: default logging (.rrd + .mcap lz4, 100 Hz) vs "
+          f"--no-log, {repeats} alternating repeats in one process (load average {load:.1f}, "
+          f"{os.cpu_count()} cores)")
+    _side_by_side("rblog.run", rows)
+    sizes = os.path.getsize(rrd), os.path.getsize(mcap)
+    print(f"  logs: rrd {sizes[0] / 1e6:.1f} MB, mcap {sizes[1] / 1e6:.1f} MB")
+    if cli:
+        exe = str(Path(sys.executable).with_name("rblog"))
+        base = [exe, "run", str(DEFAULT_SCENE)]
+        rows = {"no log": [], "both logs": []}
+        for _ in range(repeats):
+            for name, argv in (("no log", base + ["--no-log"]),
+                               ("both logs", base + ["--rrd", rrd, "--mcap", mcap])):
+                t0 = time.perf_counter()
+                r0 = os.times()
+                subprocess.run(argv, check=True, capture_output=True, cwd=tmp)
+                r1 = os.times()
+                rows[name].append((time.perf_counter() - t0, (r1.children_user - r0.children_user)
+                                   + (r1.children_system - r0.children_system)))
+        _side_by_side("whole `rblog run` process", rows)
+
+
+def _side_by_side(what: str, rows: dict):
+    (na, a), (nb, b) = rows.items()
+    wa, wb = [w for w, _ in a], [w for w, _ in b]
+    print(f"  {what}: wall s (CPU s) per repeat, {na} | {nb}")
+    for (x, cx), (y, cy) in zip(a, b):
+        print(f"    {x:7.3f} ({cx:6.3f}) | {y:7.3f} ({cy:6.3f})   {y / x:5.2f}x")
+    ma, mb = statistics.median(wa), statistics.median(wb)
+    ca, cb = statistics.median([c for _, c in a]), statistics.median([c for _, c in b])
+    print(f"    median {ma:.3f} s | {mb:.3f} s: {mb / ma:.2f}x (best {min(wb) / min(wa):.2f}x; "
+          f"target {DEFAULT_RATIO_TARGET}x); CPU {ca:.3f} s | {cb:.3f} s")
+
+
 def main():
-    with tempfile.TemporaryDirectory() as tmp:  # ~0.5 GB of logs, removed at the end
-        bench(tmp)
-
-
-def bench(tmp):
     ap = argparse.ArgumentParser()
     ap.add_argument("--bodies", type=int, default=100)
     ap.add_argument("--steps", type=int, default=4000)
     ap.add_argument("--integrator", default="rk4")
     ap.add_argument("--no-contacts", action="store_true", help="skip the scene with contacts")
+    ap.add_argument("--repeats", type=int, default=5, help="alternating repeats of the default run")
+    ap.add_argument("--cli", action="store_true", help="also time the whole `rblog run` process")
+    ap.add_argument("--default-only", action="store_true",
+                    help="only the default-logging figure (issue 28)")
     args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:  # ~0.5 GB of logs, removed at the end
+        default_logging(tmp, args.repeats, args.cli)
+        if not args.default_only:
+            print()
+            bench(tmp, args)
+
+
+def bench(tmp, args):
     nx = int(round(args.bodies ** 0.5))
     ny = args.bodies // nx
     n = nx * ny

@@ -57,8 +57,13 @@ from rblog.contract.trajectory import Contacts, RunInfo, derive
 QUEUE_BLOCKS = 2
 #: the derive thread joins the blocks that arrive within this wall time of the first one (s) ...
 GATHER_HOLD_S = 0.15
-#: ... up to this many body-samples (two of the run loop's largest blocks, ~28 MB derived)
-GATHER_MAX_BODY_SAMPLES = 65_536
+#: ... up to this many body-samples (one of the run loop's largest blocks, ~14 MB derived). The
+#: Rerun SDK has a sweet spot in chunk size: samples/spinning_bodies.toml's 501 samples x 300
+#: bodies replayed to the .rrd writer in k equal blocks cost (process CPU, median of 5, loaded
+#: 2-core machine) k = 1: 360 ms, 3: 226, 5: 161-184, 8: 203, 12: 218, 20: 251, 30: 349 ms: per
+#: block ~0.4 ms a chunk in the calling thread, and the SDK's own threads slow down on chunks of
+#: tens of MB. 32,768 body-samples is k ~ 5 there.
+GATHER_MAX_BODY_SAMPLES = 32_768
 
 #: the end of the submitted blocks (derive thread), and the lanes' end-of-run item that also
 #: closes the recorder
