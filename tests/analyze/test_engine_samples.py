@@ -16,7 +16,8 @@ Why each is real (not a false alarm of the check), from the traces in benchmarks
   one finding per contact event).
 * ``sink`` (any time) and ``resting sink``: MuJoCo's soft contacts (omega dt = 0.2 here) let a
   ball sink 19 mm at a 4.4 m/s bounce, a 10-box stack at dt = 10 ms 24 mm (7.6 mm at rest), the
-  pile 18 mm; pybullet's stack at dt = 10 ms sinks 6 mm, its pile 5.7 mm (tol 5 mm).
+  pile 18 mm; pybullet's stack at dt = 10 ms sinks 6 mm, its pile 4.8-5.7 mm (tol 5 mm: marginal, see
+  MARGINAL).
 * ``creep``: with the friction inside the Coulomb cone (sliding contacts are not counted):
   MuJoCo's soft pyramidal cone lets balls and boxes slip on the ramp (tests/analyze/
   test_engine_creep.py isolates it: 3.95 mm in 2 s) and in the pile (2.8 mm); pybullet's resting
@@ -36,6 +37,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from rblog.analyze import tolerances as T
 from rblog_cli.main import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -109,7 +111,7 @@ KNOWN: dict[tuple[str, str], dict[str, float]] = {
     ("pile", "pybullet"): {
         "momentum: collision angular": 0.000109,
         "penetration: creep": 0.000621,
-        "penetration: sink": 0.00565,
+        # "penetration: sink" is MARGINAL below: pybullet's pile sinks right at the tolerance
     },
     ("resting_box", "mujoco"): {"penetration: jitter": 0.00203},
     ("resting_box", "pybullet"): {"penetration: creep": 0.000218},
@@ -130,6 +132,29 @@ KNOWN: dict[tuple[str, str], dict[str, float]] = {
         "momentum: flight angular": 0.0026,
     },
 }
+
+
+#: (sample, engine) -> {kind: the analyzer's tolerance it is judged against}: faults whose true
+#: size sits at the tolerance, so that whether they are flagged depends on the machine (the pile
+#: is chaotic: libm and CPU differences move every box). pybullet's 500-box pile: its own deepest
+#: contact (contactDistance, logged in its contact rows) 5.05 mm and the analyzer's depth from the
+#: logged poses 4.78 mm on the 2026-11-28 machine (not flagged), 5.65 mm on the 2026-11-26 one
+#: (flagged); tol 5 mm. The test checks that the engine's own depth really is within
+#: MARGINAL_BAND of the tolerance (an independent measure: the engine's collision detection, not
+#: the analyzer's), and then accepts the finding either way.
+MARGINAL: dict[tuple[str, str], dict[str, float]] = {
+    ("pile", "pybullet"): {"penetration: sink": T.PENETRATION_TRANSIENT_DEPTH_M},
+}
+MARGINAL_BAND = 0.15
+
+
+def engine_depth(log) -> float:
+    """The engine's own deepest contact in ``log`` (m, >= 0): minus the least separation of its
+    logged contact rows."""
+    from rblog.record.reader import load
+
+    sep = load(log).contacts.separation
+    return float(max(0.0, -sep.min())) if len(sep) else 0.0
 
 
 def findings_of(tmp_path, sample: str, engine: str) -> dict[str, float]:
@@ -157,6 +182,14 @@ def test_check_flags_only_the_engines_real_faults(tmp_path, sample, engine):
     pytest.importorskip(engine)
     got = findings_of(tmp_path, sample, engine)
     want = KNOWN.get((sample, engine), {})
+    marginal = MARGINAL.get((sample, engine), {})
+    if marginal:
+        depth = engine_depth(tmp_path / f"{sample}-{engine}.mcap")
+        for k, tol in marginal.items():
+            assert abs(depth - tol) <= MARGINAL_BAND * tol, (k, depth, tol)
+            if k in got:
+                assert abs(got[k] - tol) <= MARGINAL_BAND * tol, (k, got[k], tol)
+        got = {k: v for k, v in got.items() if k not in marginal}
     assert set(got) == set(want), {"unexpected": sorted(set(got) - set(want)),
                                    "gone": sorted(set(want) - set(got)), "got": got}
     for k, v in want.items():
