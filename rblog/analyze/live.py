@@ -64,7 +64,8 @@ ONE_PER_BODY = frozenset({"drift"})
 HOLD_SAMPLES = 25
 #: the share of the run's wall time the prefix checks may take (the final check comes on top).
 #: benchmarks/bench_live.py on samples/pile.toml (2 cores, loaded): at 0.2, 7 prefix checks and
-#: the run 1.21-1.30x as long as with the logs alone; at 0.1 see docs/live-audit.md
+#: the run 1.21-1.30x as long as with the logs alone; at 0.1, 4-5 prefix checks, wall 0.99-1.18x,
+#: process CPU 1.17-1.28x (docs/live-audit.md)
 BUDGET_FRACTION = 0.1
 
 
