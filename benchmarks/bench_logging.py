@@ -189,6 +189,31 @@ def default_logging(tmp, repeats: int, cli: bool):
     _side_by_side("rblog.run", rows)
     sizes = os.path.getsize(rrd), os.path.getsize(mcap)
     print(f"  logs: rrd {sizes[0] / 1e6:.1f} MB, mcap {sizes[1] / 1e6:.1f} MB")
+    # where the time goes: each writer alone, replaying the run's blocks (as the pipeline joined
+    # them), write + close; the Rerun SDK's own threads are the process CPU the calling thread
+    # did not spend
+    keep = _Keep()
+    rblog.run(scene, recorders=[keep])
+    parts = {"stepping alone (no-log, main thread)": [], "Rerun writer": [], "MCAP writer": []}
+    for _ in range(repeats):
+        t0 = time.thread_time()
+        bare()
+        parts["stepping alone (no-log, main thread)"].append((time.thread_time() - t0, 0.0))
+        for name, make in (("Rerun writer", lambda: RerunRecorder(os.path.join(tmp, "w.rrd"))),
+                           ("MCAP writer", lambda: McapRecorder(os.path.join(tmp, "w.mcap")))):
+            rec = make()
+            rec.open(keep.model, keep.info)
+            c0, t0 = time.process_time(), time.thread_time()
+            for b in keep.blocks:
+                rec.write(b)
+            rec.close()
+            mine = time.thread_time() - t0
+            parts[name].append((mine, time.process_time() - c0 - mine))
+    print(f"  where the time goes ({len(keep.blocks)} blocks; CPU ms, median of {repeats}; "
+          "calling thread + other threads):")
+    for name, v in parts.items():
+        print(f"    {name:<38} {statistics.median(a for a, _ in v) * 1e3:6.0f} + "
+              f"{statistics.median(b for _, b in v) * 1e3:4.0f} ms")
     if cli:
         exe = str(Path(sys.executable).with_name("rblog"))
         base = [exe, "run", str(DEFAULT_SCENE)]
