@@ -1,13 +1,17 @@
-"""Free-body kernel speed per integrator, one thread, side by side with another version of rblog.
+"""Free-body kernel speed per integrator on one and two threads, side by side with another
+version of rblog.
 
-ns per body-step of ``free.advance_free`` on one thread, best of 3 (after a warm-up call), in two
-sampling regimes: sparse (10,000 bodies, 100 steps, one sample: the one-body-at-a-time path) and
-dense (1,000 bodies, 200 steps, every step sampled: the tiled path).
+ns per body-step of ``free.advance_free`` (wall time), best of 3 (after a warm-up call), on one
+and two threads in alternation, in two sampling regimes: sparse (10,000 bodies, 100 steps, one
+sample: the lane kernels, several bodies per vector) and dense (1,000 bodies, 200 steps, every
+step sampled: the tiled path). The 1-thread figure is also given in CPU time (the process's),
+steadier than wall time on a shared machine; the load average is printed beside the figures.
 
-    python benchmarks/bench_free_kernel.py [--compare REF] [--integrators seed,rk4,...]
+    python benchmarks/bench_free_kernel.py [--compare PYTHON] [--integrators seed,rk4,...]
 
-``--compare REF`` runs the same measurement on that git commit of rblog (exported as in
-bench_firstrun.py) in alternation with this tree: REF, this tree, REF, this tree.
+``--compare PYTHON`` runs the same measurement with another interpreter, whose ``import rblog``
+is another version of rblog (e.g. the .venv of a worktree of main, built), in alternation with
+this tree's: other, this tree, other, this tree.
 """
 
 from __future__ import annotations
@@ -47,15 +51,22 @@ def measure(integrators: list[str]) -> dict:
             bufs = [np.empty((ns, n, 3)), np.empty((ns, n, 3)), np.empty((ns, n, 4)),
                     np.empty((ns, n, 3, 3)), np.empty((ns, n, 3))]
             ortho = ORTHO_CODES[ORTHO_ALLOWED[integ][1]]
-            best = float("inf")
-            for r in range(4):  # the first call loads (or compiles) the kernel
-                st = [a.copy() for a in state0]
-                t0 = time.perf_counter()
-                advance_free(METHOD_CODES[integ], ortho, 1e-3, steps, stride, False, *params, *st,
-                             *bufs, n_threads=1)
-                if r:
-                    best = min(best, time.perf_counter() - t0)
-            out[f"{integ}/{case}"] = best / (n * steps) * 1e9
+            best = {1: float("inf"), 2: float("inf"), "cpu": float("inf")}
+            for r in range(4):  # the first round loads (or compiles) the kernel
+                for threads in (1, 2):
+                    st = [a.copy() for a in state0]
+                    c0 = time.process_time()
+                    t0 = time.perf_counter()
+                    advance_free(METHOD_CODES[integ], ortho, 1e-3, steps, stride, False, *params,
+                                 *st, *bufs, n_threads=threads)
+                    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+                    if r:
+                        best[threads] = min(best[threads], wall)
+                        if threads == 1:
+                            best["cpu"] = min(best["cpu"], cpu)
+            for k, v in best.items():
+                out[f"{integ}/{case}/{k}"] = v / (n * steps) * 1e9
+    out["load"] = os.getloadavg()[0]
     return out
 
 
@@ -69,29 +80,41 @@ def main():
     if args.worker:
         print(json.dumps(measure(integrators)))
         return
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    from bench_firstrun import export
-
     with tempfile.TemporaryDirectory() as tmp:
-        versions = [("this tree", None)]
+        versions = [("this tree", sys.executable, str(ROOT))]
         if args.compare:
-            versions.insert(0, (args.compare, export(args.compare, Path(tmp))))
-        results = {label: [] for label, _ in versions}
+            versions.insert(0, ("other", args.compare, None))
+        results = {label: [] for label, *_ in versions}
         for _ in range(2):
-            for label, pythonpath in versions:
+            for label, python, pythonpath in versions:
                 env = dict(os.environ)
-                env["PYTHONPATH"] = pythonpath or str(ROOT)
-                res = subprocess.run([sys.executable, __file__, "--worker", "--integrators",
+                env.pop("PYTHONPATH", None)
+                if pythonpath:
+                    env["PYTHONPATH"] = pythonpath
+                res = subprocess.run([python, __file__, "--worker", "--integrators",
                                       args.integrators], env=env, check=True, capture_output=True,
                                      text=True, cwd=tmp)
                 results[label].append(json.loads(res.stdout))
-    print("ns per body-step, one thread, best of 3 per process, best of the 2 processes")
-    print(f"{'integrator':<12}{'case':<8}" + "".join(f"{label:>14}" for label, _ in versions))
+    loads = [r["load"] for label, *_ in versions for r in results[label]]
+    if args.compare:
+        print(f"other: {args.compare}")
+    print("ns per body-step: 1 thread (wall and CPU time), 2 threads (wall), and the speed-up; "
+          "best of 3 per process, best of the 2 processes; load average "
+          f"{min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} CPUs")
+    cols = ("1 thr", "1 thr cpu", "2 thr", "speed-up")
+    print(f"{'integrator':<12}{'case':<8}" + "".join(
+        f"{label[:16] + ' ' + c:>{max(12, len(label[:16]) + len(c) + 2)}}" for label, *_ in versions
+        for c in cols))
     for integ in integrators:
         for case, *_ in CASES:
-            key = f"{integ}/{case}"
-            print(f"{integ:<12}{case:<8}" + "".join(
-                f"{min(r[key] for r in results[label]):>14.1f}" for label, _ in versions))
+            row = f"{integ:<12}{case:<8}"
+            for label, *_ in versions:
+                one, cpu, two = (min(r[f"{integ}/{case}/{k}"] for r in results[label])
+                                 for k in ("1", "cpu", "2"))
+                for c, v in zip(cols, (one, cpu, two, one / two)):
+                    w = max(12, len(label[:16]) + len(c) + 2)
+                    row += f"{v:>{w}.2f}x" if c == "speed-up" else f"{v:>{w}.1f}"
+            print(row)
 
 
 if __name__ == "__main__":

@@ -43,19 +43,24 @@ def random_bodies(n: int, seed: int = 0):
     )
 
 
-def time_kernel(integrator: str, n: int, steps: int, repeats: int = 3, threads=None) -> float:
-    """Best-of-repeats ns per body-step of advance_free (one sample at the end)."""
+def time_kernel(integrator: str, n: int, steps: int, repeats: int = 3, threads=None, cpu=False):
+    """Best-of-repeats ns per body-step of advance_free (one sample at the end), wall time; with
+    ``cpu`` also the best process CPU time, as (wall, cpu)."""
     b = random_bodies(n)
     ortho = ORTHO_CODES[ORTHO_ALLOWED[integrator][1]]
     out = [np.empty((1, n, 3)), np.empty((1, n, 3)), np.empty((1, n, 4)), np.empty((1, n, 3, 3)),
            np.empty((1, n, 3))]
-    best = np.inf
+    best = best_cpu = np.inf
     for _ in range(repeats):
         st = [b["position"].copy(), b["momentum"].copy(), b["quat"].copy(), b["rot"].copy(), b["L"].copy()]
+        c0 = time.process_time()
         t0 = time.perf_counter()
         advance_free(METHOD_CODES[integrator], ortho, 1e-3, steps, steps, False, b["inv_mass"],
                      b["inv_inertia"], b["force"], b["torque"], *st, *out, n_threads=threads)
         best = min(best, time.perf_counter() - t0)
+        best_cpu = min(best_cpu, time.process_time() - c0)
+    if cpu:
+        return best / (n * steps) * 1e9, best_cpu / (n * steps) * 1e9
     return best / (n * steps) * 1e9
 
 
@@ -188,29 +193,42 @@ def accuracy_for_cost(quick: bool):
 
 
 def thread_scaling(steps: int):
-    """ns per body-step on 10,000 free bodies with 1 and 2 threads, and the speed-up; MuJoCo's
-    Euler and RK4 on one thread beside them (at 100 bodies: its default arena does not hold
-    10,000 free bodies). The exact integrators carry their flow anchors within each timed call
-    (one call of ``steps`` steps: every body-step after the first evaluates the flow from the
-    anchor with its cached constants)."""
+    """ns per body-step on 10,000 free bodies with 1 and 2 threads (wall time, best of 3 calls of
+    each, the two thread counts in alternation), the speed-up, and the 1-thread figure in CPU
+    time (steadier than wall time on a shared machine); MuJoCo's Euler and RK4 on one thread
+    beside them (at 100 bodies: its default arena does not hold 10,000 free bodies). The exact
+    integrators carry their flow anchors within each timed call (one call of ``steps`` steps:
+    every body-step after the first evaluates the flow from the anchor with its cached
+    constants). The partition is static (free.body_ranges: one contiguous BODY_TILE-aligned
+    range per thread), so the speed-up measures the machine: with other processes on its
+    cores it falls below 2 whatever the kernel does (the load average is printed)."""
     from rblog.engine import _core
 
     top = _core.hardware_threads()
-    print(f"10,000 free bodies, {steps} steps, ns per body-step (best of 3); "
-          f"{top} hardware threads")
-    print(f"{'integrator':<12}{'1 thread':>10}{'2 threads':>11}{'speed-up':>10}")
+    print(f"10,000 free bodies, {steps} steps, ns per body-step (best of 3, 1 and 2 threads "
+          f"alternating); {top} hardware threads, load average {os.getloadavg()[0]:.1f}, "
+          f"{_core.free_lanes()} bodies per vector")
+    print("  (cpu: the process's CPU time per body-step; 2-thread cpu / 1-thread cpu near 1 means "
+          "the second thread adds no work: no false sharing, no waiting)")
+    print(f"{'integrator':<12}{'1 thread':>10}{'1 thr cpu':>11}{'2 threads':>11}{'2 thr cpu':>11}"
+          f"{'speed-up':>10}{'cpu ratio':>11}")
     for integ in METHOD_CODES:
         time_kernel(integ, 1, 10)  # load
-        one = time_kernel(integ, 10_000, steps, threads=1)
-        two = time_kernel(integ, 10_000, steps, threads=2)
-        print(f"{integ:<12}{one:>10.1f}{two:>11.1f}{one / two:>9.2f}x")
+        one = two = cpu1 = cpu2 = np.inf
+        for _ in range(3):
+            w, c = time_kernel(integ, 10_000, steps, repeats=1, threads=1, cpu=True)
+            one, cpu1 = min(one, w), min(cpu1, c)
+            w, c = time_kernel(integ, 10_000, steps, repeats=1, threads=2, cpu=True)
+            two, cpu2 = min(two, w), min(cpu2, c)
+        print(f"{integ:<12}{one:>10.1f}{cpu1:>11.1f}{two:>11.1f}{cpu2:>11.1f}{one / two:>9.2f}x"
+              f"{cpu2 / cpu1:>11.2f}")
     for integ in ("Euler", "RK4"):
         v = mujoco_step_ns(100, 10 * steps, integ)
         if v is None:
             print(f"mujoco {integ}: not installed")
             break
-        print(f"{'mujoco ' + integ:<12}{v:>10.1f}{'-':>11}{'-':>10}   (100 bodies, one thread: the "
-              "comparator)")
+        print(f"{'mujoco ' + integ:<12}{v:>10.1f}{'-':>11}{'-':>11}{'-':>11}{'-':>10}   (100 bodies, "
+              "one thread: the comparator)")
 
 
 def main():
@@ -245,6 +263,9 @@ def main():
     for integ in METHOD_CODES:
         time_kernel(integ, 1, 10)  # load
         print(f"{integ:<12}" + "".join(f"{time_kernel(integ, n, s):>12.1f}" for n, s in steps.items()))
+    print()
+    thread_scaling(100 if not args.quick else 10)
+    print()
     np_steps = {1: 2000, 100: 200, 10_000: 5} if not args.quick else {1: 200, 100: 20, 10_000: 2}
     print(f"{'numpy seed':<12}" + "".join(f"{numpy_seed_step_ns(n, s):>12.1f}" for n, s in np_steps.items())
           + "   (comparator: the same step in vectorized numpy, SVD polar)")

@@ -19,6 +19,12 @@ def _fail(err: RblogError):
     sys.exit(err.exit_code)
 
 
+def _note(text: str):
+    """A one-line note on stderr before any work (what is missing and how to install it)."""
+    if text:
+        click.echo(f"rblog: note: {text}", err=True)
+
+
 def _progress(enabled: bool):
     if not enabled:
         return None
@@ -50,7 +56,7 @@ def _command() -> str:
 def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, progress, workers,
           scheduler):
     """Work-precision study: every integrator x a range of dt on problems with exact answers."""
-    from rblog.study.bench import format_table, run_bench, write_outputs
+    from rblog.study.bench import format_table, missing_dependencies, run_bench, write_outputs
     from rblog.study.reference import PROBLEMS
 
     for p in problems:
@@ -58,6 +64,7 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
             _fail(RblogError(f"--problem: unknown problem {p!r} (expected one of: "
                              f"{', '.join(PROBLEMS)})"))
     _check_integrators(integrators)
+    _note(missing_dependencies(problems or None, what="bench.png"))
     show = sys.stderr.isatty() if progress is None else progress
     try:
         with _make_executor(workers, scheduler) as ex:
@@ -92,12 +99,15 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
 def stress(quick, out_dir, as_json, cases, integrators, progress, workers, scheduler):
     """Stability suite: fast spin, extreme inertia, long runs, dt up to instability, impacts,
     stacks, many bodies, mass ratios. A blow-up is reported, never fatal."""
+    from rblog.study.bench import BENCH_EXTRA, PLOT_MODULE, module_missing
     from rblog.study.stress import CASE_NAMES, format_table, run_stress, write_outputs
 
     for c in cases:
         if c not in CASE_NAMES:
             _fail(RblogError(f"--case: unknown case {c!r} (expected one of: {', '.join(CASE_NAMES)})"))
     _check_integrators(integrators)
+    if module_missing(PLOT_MODULE):
+        _note(f"{PLOT_MODULE} is not installed: no stress.png. To draw it: {BENCH_EXTRA}")
     show = sys.stderr.isatty() if progress is None else progress
     try:
         with _make_executor(workers, scheduler) as ex:

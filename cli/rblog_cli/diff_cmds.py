@@ -44,7 +44,8 @@ def diff(log_a, log_b, position_tol, angle_tol, as_json, png):
         try:
             plot(report, png)
         except ImportError as e:
-            _fail(RblogError(f"--png {png}: needs matplotlib ({e}); pip install 'rblog[bench]'"))
+            _fail(RblogError(f"--png {png}: needs matplotlib ({e}); pip install -e \".[bench]\" "
+                             "in a checkout (or pip install \"rblog[bench]\")"))
         except OSError as e:
             _fail(RblogError(f"--png {png}: cannot write ({e.strerror or e})"))
     if as_json:

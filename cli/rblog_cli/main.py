@@ -120,7 +120,8 @@ def validate(scene):
 @click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
 @click.option("--engine", type=click.Choice(["rblog", "mujoco", "pybullet"]), default="rblog",
-              show_default=True, help="Engine to run the scene in (mujoco/pybullet: rblog[engines]).")
+              show_default=True,
+              help='Engine to run the scene in (mujoco/pybullet: pip install -e ".[engines]").')
 @click.option("--engine-option", "engine_options", multiple=True, metavar="KEY=VALUE",
               help="A setting of the --engine, e.g. integrator=RK4 (repeatable).")
 @click.option("--profile", "profile", is_flag=True, help="Print the time spent in each stage.")
@@ -206,6 +207,8 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         _fail(e)
     d = summary.to_dict()
     d["logs"] = paths
+    for key in summary.not_applicable:  # not an error in this scene: no number, the reason
+        d[key] = None
     if prof is not None:
         d["profile_s"] = {name: sec for name, sec, _ in prof.table()}
         if audit is not None:
@@ -235,8 +238,18 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         f"{summary.body_steps_per_s:,.0f} body-steps/s)")
     click.echo(f"  integrator {summary.integrator} (orthonormalize {summary.orthonormalize}), "
                f"dt {summary.dt:g} s, logged every {summary.log_every} steps ({summary.samples} samples)")
-    click.echo(f"  energy drift (rel)      {summary.energy_drift_rel:.3e}")
-    click.echo(f"  |L| drift (rel)         {summary.angular_momentum_drift_rel:.3e}")
+    na = summary.not_applicable
+    e_why, l_why = na.get("energy_drift_rel"), na.get("angular_momentum_drift_rel")
+    if e_why and e_why == l_why:
+        click.echo(f"  energy, |L| drift       not shown: {e_why}")
+    else:
+        click.echo("  energy drift (rel)      " + (f"not shown: {e_why}" if e_why else
+                                                  f"{summary.energy_drift_rel:.3e}"))
+        click.echo("  |L| drift (rel)         " + (f"not shown: {l_why}" if l_why else
+                                                  f"{summary.angular_momentum_drift_rel:.3e}"))
+    if summary.contact_penetration_max_m is not None:
+        click.echo(f"  deepest penetration     {1e3 * summary.contact_penetration_max_m:.3f} mm "
+                   "(at the logged samples; rblog check LOG judges each contact)")
     click.echo(f"  max ||R^T R - I||_F     {summary.ortho_error_max:.3e}")
     for p in paths:
         click.echo(f"  wrote {p}")
@@ -461,7 +474,8 @@ def _print_report(entry):
     click.echo(f"{entry['log']}: {entry['samples']} samples x {entry['bodies']} bodies, "
                f"t = 0..{entry['t_end_s']:g} s{flag}")
     for r in entry["results"]:
-        verdict = "SKIP" if r["skipped"] else ("pass" if r["passed"] else "FAIL")
+        verdict = {"skip": "SKIP", "not judged": "----"}.get(r.get("verdict"), None) or (
+            "SKIP" if r["skipped"] else ("pass" if r["passed"] else "FAIL"))
         line = f"  {verdict:<4} {r['analyzer']:<14}"
         if not r["skipped"]:
             unit = "" if r["unit"] in ("", "1") else f" {r['unit']}"

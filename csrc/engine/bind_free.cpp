@@ -17,6 +17,7 @@
 #include "engine/free.hpp"
 #include "engine/free_constants.hpp"
 #include "engine/integrators.hpp"
+#include "engine/lanes.hpp"
 
 namespace rb {
 namespace nb = nanobind;
@@ -125,6 +126,11 @@ void bind_free(nb::module_& m) {
     m.attr("YOSHIDA_W0") = yoshida_w0();
 
     // ---- free-body kernels ------------------------------------------------------------------
+    m.def("free_lanes", &free_lanes,
+          "Bodies per vector in the free kernel's sparse path: 4 (AVX2) or 2 (lanes.hpp).");
+    m.def("set_free_lanes", &set_free_lanes, nb::arg("lanes"),
+          "Use 2 or (on a CPU with AVX2) 4 lanes in the free kernel's sparse path; the results "
+          "are bitwise the same (tests compare them).");
     m.def(
         "advance_free",
         [](int method, int ortho, double dt, i64 n_steps, i64 stride, bool sample_last,

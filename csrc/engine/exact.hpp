@@ -75,11 +75,13 @@ inline void landen_down(double b, double& mu, double& b_next) {
 
 // sn, cn, dn at parameter m from those at m' = mu^2, argument scaled by 1 + mu (A&S 16.12.2-4);
 // 1 - mu sn^2 written as (1 - mu) + mu cn^2 so that dn keeps its relative accuracy.
-inline void landen_up(double& sn, double& cn, double& dn, double mu) {
-    const double den = 1.0 / (1.0 + mu * sn * sn);
-    const double s = (1.0 + mu) * sn * den;
-    const double c = cn * dn * den;
-    const double d = ((1.0 - mu) + mu * cn * cn) * den;
+// (T: double, or a vector of doubles for the free kernel's lanes: the same operations lane-wise.)
+template <class T>
+inline void landen_up(T& sn, T& cn, T& dn, T mu) {
+    const T den = 1.0 / (1.0 + mu * sn * sn);
+    const T s = (1.0 + mu) * sn * den;
+    const T c = cn * dn * den;
+    const T d = ((1.0 - mu) + mu * cn * cn) * den;
     sn = s; cn = c; dn = d;
 }
 
@@ -154,19 +156,30 @@ inline double rc1(double t) {
 // Python's max(a, b) for floats: a unless b > a.
 inline double pymax(double a, double b) { return b > a ? b : a; }
 
+// sqrt of a double, or lane-wise of a vector of doubles (the free kernel's lanes).
+inline double sqrt_t(double a) { return std::sqrt(a); }
+template <class V>
+inline V sqrt_t(V a) {
+    V r;
+    for (int l = 0; l < static_cast<int>(sizeof(V) / sizeof(double)); ++l) r[l] = std::sqrt(a[l]);
+    return r;
+}
+
 // The fifth-order series of R_J after the duplications (DLMF 19.36.2), times 4^-n A^-3/2.
-inline double rj_series(double a0, double x, double y, double z, double p, double fac, double a) {
-    const double xj = (a0 - x) * fac / a;
-    const double yj = (a0 - y) * fac / a;
-    const double zj = (a0 - z) * fac / a;
-    const double pj = -0.5 * (xj + yj + zj);
-    const double f2 = xj * yj + xj * zj + yj * zj - 3.0 * pj * pj;
-    const double f3 = xj * yj * zj + 2.0 * f2 * pj + 4.0 * pj * pj * pj;
-    const double f4 = (2.0 * xj * yj * zj + f2 * pj + 3.0 * pj * pj * pj) * pj;
-    const double f5 = xj * yj * zj * pj * pj;
-    const double ser = (1.0 - 3.0 * f2 / 14.0 + f3 / 6.0 + 9.0 * f2 * f2 / 88.0 - 3.0 * f4 / 22.0
-                        - 9.0 * f2 * f3 / 52.0 + 3.0 * f5 / 26.0);
-    return fac * ser / (a * std::sqrt(a));
+// (T as landen_up's.)
+template <class T>
+inline T rj_series(T a0, T x, T y, T z, T p, T fac, T a) {
+    const T xj = (a0 - x) * fac / a;
+    const T yj = (a0 - y) * fac / a;
+    const T zj = (a0 - z) * fac / a;
+    const T pj = -0.5 * (xj + yj + zj);
+    const T f2 = xj * yj + xj * zj + yj * zj - 3.0 * pj * pj;
+    const T f3 = xj * yj * zj + 2.0 * f2 * pj + 4.0 * pj * pj * pj;
+    const T f4 = (2.0 * xj * yj * zj + f2 * pj + 3.0 * pj * pj * pj) * pj;
+    const T f5 = xj * yj * zj * pj * pj;
+    const T ser = (1.0 - 3.0 * f2 / 14.0 + f3 / 6.0 + 9.0 * f2 * f2 / 88.0 - 3.0 * f4 / 22.0
+                   - 9.0 * f2 * f3 / 52.0 + 3.0 * f5 / 26.0);
+    return fac * ser / (a * sqrt_t(a));
 }
 
 // R_J(x, y, 1, p) alone (x, y >= 0, at most one zero; p > 0): the R_J half of carlson_rf_rj,

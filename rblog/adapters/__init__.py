@@ -38,7 +38,8 @@ def require(module: str, extra: str = "engines"):
         return importlib.import_module(module)
     except ImportError as e:
         raise AdapterError(f"rblog.adapters.{module} needs the {module} package, which is not "
-                           f"installed ({e}): pip install {module} (or rblog[{extra}])") from None
+                           f"installed ({e}): pip install {module} (in a checkout: pip install -e "
+                           f"\".[{extra}]\")") from None
 
 
 __all__ = ["AdapterError", "require"]

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from rblog.errors import RblogError
-from rblog.contract.model import Model
+from rblog.contract.model import SHAPE_NONE, Model
 from rblog.contract.trajectory import STATIC_BODY, Trajectory
 from rblog.analyze import _audit, geometry
 from rblog.analyze import tolerances as tol
@@ -99,6 +99,20 @@ class Result:
     ``worst_*`` is the measurement closest to (or furthest past) its tolerance, also when the
     trajectory passes. ``events`` lists what the analyzer measured that is not a problem in itself
     (impacts with their effective restitution, resting intervals), at most MAX_EVENTS of them.
+
+    The verdict (:attr:`verdict`) is one of:
+
+    * ``pass``: judged, nothing found (``passed``).
+    * ``FAIL``: findings (``passed`` False).
+    * ``skip``: nothing this analyzer checks is in the log (tunneling in a scene of one body
+      without ground or static boxes): ``skipped``, and ``passed`` (nothing can be wrong).
+    * ``not judged``: the analyzer could not judge the trajectory (a failed recording, a log
+      without samples): ``judged`` False, ``skipped``, and ``passed`` False, so code that reads
+      ``passed`` never takes it for a clean run; the reason starts with "not judged".
+
+    ``not_judged`` lists the parts of a judged trajectory an analyzer left out, one line each with
+    why (bodies without a shape the contract describes, impacts whose restitution the engine did
+    not state); the verdict is about the rest.
     """
 
     analyzer: str
@@ -114,10 +128,31 @@ class Result:
     stats: dict[str, float] = field(default_factory=dict)
     skipped: bool = False
     events: list[dict] = field(default_factory=list)
+    judged: bool = True
+    not_judged: list[str] = field(default_factory=list)
+
+    def leave_out(self, lines: list[str]) -> "Result":
+        """Add ``lines`` to ``not_judged`` and say them in the reason (the verdict is about the
+        rest); returns self."""
+        lines = [x for x in lines if x not in self.not_judged]
+        if lines:
+            self.not_judged += lines
+            self.reason = "; ".join([self.reason, *lines]) if self.reason else "; ".join(lines)
+        return self
+
+    @property
+    def verdict(self) -> str:
+        """``pass``, ``FAIL``, ``skip`` or ``not judged`` (see the class docstring)."""
+        if not self.judged:
+            return "not judged"
+        if self.findings or not self.passed:
+            return "FAIL"
+        return "skip" if self.skipped else "pass"
 
     def to_dict(self, model: Model | None = None) -> dict:
         """JSON-able dict (non-finite floats become None); with ``model``, body names too."""
         d = _json(asdict(self))
+        d["verdict"] = self.verdict
         if model is not None:
             d["worst_body_names"] = [model.body_name[i] for i in self.worst_bodies]
             for f, fd in zip(self.findings, d["findings"]):
@@ -198,19 +233,28 @@ class Analyzer:
         A state that turns NaN or infinite ends the analysis at the sample before it (the drift
         analyzer reports it)."""
         ctx = ctx if ctx is not None else Context(traj)
-        if ctx.traj.n_samples == 0:
-            if ctx.nonfinite is not None and self.name == "drift":
-                return self.analyze(ctx)
-            return self.skip("the log holds no samples" if ctx.nonfinite is None else
-                             "the first sample is already non-finite")
-        return self.analyze(ctx)
+        if ctx.traj.n_samples == 0 and not (ctx.nonfinite is not None and self.name == "drift"):
+            res = self.not_judged("the log holds no samples" if ctx.nonfinite is None else
+                                  "the first sample is already non-finite")
+        else:
+            res = self.analyze(ctx)
+        failed = getattr(ctx.full_traj, "failed", "")
+        if failed:
+            res = _failed_recording(res, failed, ctx.full_traj.n_samples)
+        return res
 
     def analyze(self, ctx: "Context") -> Result:  # pragma: no cover - abstract
         raise NotImplementedError
 
     # --- helpers for subclasses ---------------------------------------------------------------
     def skip(self, reason: str) -> Result:
+        """Nothing this analyzer checks is in the log (verdict ``skip``, passed)."""
         return Result(self.name, True, 0.0, 0.0, "", None, None, [], reason, skipped=True)
+
+    def not_judged(self, reason: str) -> Result:
+        """The trajectory cannot be judged (verdict ``not judged``: never ``passed``)."""
+        return Result(self.name, False, 0.0, 0.0, "", None, None, [], f"not judged: {reason}",
+                      skipped=True, judged=False, not_judged=[reason])
 
     def result(self, worst: Worst, findings: list[Finding], stats: dict, events=(), ok_reason="",
                n_findings: int | None = None) -> Result:
@@ -238,6 +282,36 @@ class Analyzer:
             worst_bodies=worst.bodies, reason=reason, findings=findings[: tol.MAX_FINDINGS],
             stats={k: float(v) for k, v in stats.items()}, events=events[: tol.MAX_EVENTS],
         )
+
+
+def _failed_recording(res: Result, failed: str, n_samples: int) -> Result:
+    """``res`` on a trajectory whose recording failed (Trajectory.failed): findings on the samples
+    recorded stand, but no result passes: what was not recorded cannot be judged."""
+    why = f"the recording failed ({failed})"
+    res.not_judged = [why] + [w for w in res.not_judged if w != why]
+    if res.passed or not res.judged:
+        before = "" if not res.judged else \
+            f"; the {n_samples} samples recorded before it: {res.reason}"
+        res.passed, res.skipped, res.judged = False, True, False
+        res.reason = f"not judged: {why}{before}"
+    return res
+
+
+def shapeless(model: Model) -> np.ndarray:
+    """(N,) bool: bodies without a shape the contract describes (SHAPE_NONE: another engine's
+    capsule, cylinder, mesh), whose separations cannot be computed."""
+    return np.asarray(model.body_shape) == SHAPE_NONE
+
+
+def shapeless_note(model: Model, what: str) -> list[str]:
+    """``not_judged`` line for the bodies without a shape ([] when there are none)."""
+    idx = np.flatnonzero(shapeless(model))
+    if not len(idx):
+        return []
+    names = ", ".join(repr(model.body_name[i]) for i in idx[:3])
+    more = f" +{len(idx) - 3} more" if len(idx) > 3 else ""
+    return [f"{len(idx)} bod{'y' if len(idx) == 1 else 'ies'} without a shape in the contract "
+            f"({names}{more}: a capsule, cylinder or mesh): {what} not judged"]
 
 
 def body_label(model: Model, i: int) -> str:
@@ -526,6 +600,25 @@ class Context:
                 dk = np.concatenate([dk, ck[dyn]])
                 da = np.concatenate([da, np.minimum(ca, cb)[dyn]])
                 db = np.concatenate([db, np.maximum(ca, cb)[dyn]])
+                if len(dk):
+                    key = np.unique((dk * n + da) * n + db)
+                    dk, da, db = key // (n * n), (key // n) % n, key % n
+            none = shapeless(self.model)
+            if none.any() and not len(c) and kn:
+                # a body without a shape in a log without contact rows: its contacts cannot be
+                # found from the poses. It may touch an unknown static feature at any interval
+                # (so it is never taken for a body in free flight), and any body whose momentum
+                # jumps in an interval where it is (its geometry unknown, it may be the partner)
+                add = none[None, :] & (n_static == 0)
+                n_static = np.where(add, 1, n_static)
+                static_id = np.where(add, -3, static_id)
+                jump = self.jumps()
+                ek, eb = np.nonzero(jump)
+                for s_ in np.flatnonzero(none):
+                    m_ = eb != s_
+                    dk = np.concatenate([dk, ek[m_]])
+                    da = np.concatenate([da, np.minimum(eb[m_], s_)])
+                    db = np.concatenate([db, np.maximum(eb[m_], s_)])
                 if len(dk):
                     key = np.unique((dk * n + da) * n + db)
                     dk, da, db = key // (n * n), (key // n) % n, key % n

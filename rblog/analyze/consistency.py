@@ -20,11 +20,17 @@ Checks (all from logged channels and the body table; tolerances in rblog.analyze
   sample interval the rotation ``dR = R(k+1) R(k)^T`` has rotation vector ``theta`` (world
   frame); ``theta / dt`` must match the mean of ``w(k)`` and ``w(k+1)`` (midpoint rule, error
   ~(|w| dt)^2; the mean rate is compared with the segment between the end rates, which a
-  first-order integrator's rate lies on). Intervals whose w changes by more than a quarter (an impulse: a contact) are
-  left out; the median mismatch over a body's intervals is judged (contacts make a few
-  intervals disagree). When it fails, the same test under "w is body frame" (``R w``),
-  "matrix transposed" and "quaternion in xyzw order" names the cause. The same for position and
-  velocity (``dx / dt`` vs the mean velocity, with one sample's gravity change allowed).
+  first-order integrator's rate lies on). Intervals whose w changes by more than a quarter (an
+  impulse: a contact) are left out, and, when a body would fail otherwise, the intervals of the
+  momentum analyzer's impact events (:func:`impact_intervals`: an impact between samples changes
+  w at an unknown moment); the median mismatch over a body's intervals is judged. When it
+  fails, the same test under "w is body frame" (``R w``), "matrix transposed" and "quaternion in
+  xyzw order" names the cause; when R is not
+  orthonormal (||R^T R - I||_F past the drift analyzer's tolerance) and its rotation part (polar
+  decomposition) turns at the logged w, the finding says so ("R is not orthonormal: see drift"):
+  the stretch of an integrator that does not re-orthonormalize, not a logging bug. The same for
+  position and velocity (``dx / dt`` vs the mean velocity, with one sample's gravity change
+  allowed).
 
 May import numpy and rblog.contract / rblog.analyze only (never rblog.engine).
 """
@@ -90,6 +96,18 @@ def _segment_distance(r, a, b):
     return np.linalg.norm(r - (a + s[..., None] * u), axis=-1)
 
 
+def _rotation_part(rot):
+    """The rotation nearest each matrix of ``rot`` (..., 3, 3): U V^T of its SVD (the orthogonal
+    factor of the polar decomposition), with det +1."""
+    u, _, vt = np.linalg.svd(rot)
+    r = u @ vt
+    flip = np.linalg.det(r) < 0
+    if flip.any():
+        u[flip, :, 2] *= -1.0
+        r[flip] = u[flip] @ vt[flip]
+    return r
+
+
 def interval_rotvec(rot, k1, k0, b):
     """Rotation vector (angle times axis, world frame, rad) of R(k1) R(k0)^T of body b, rot
     (T, N, 3, 3): a tuple (x, y, z) (the compiled passes' own function, csrc/audit/audit.hpp)."""
@@ -97,15 +115,24 @@ def interval_rotvec(rot, k1, k0, b):
                                   int(b))
 
 
-def _kinematic_median(rot, omega_world, dts, min_angle):
+def _kinematic_median(rot, omega_world, dts, min_angle, skip=None):
     """Per body: (median relative mismatch, usable interval count) between the rotation vector of
     R(k+1) R(k)^T over dt and the logged world angular velocity (kinematic_rel,
-    csrc/audit/consistency.cpp). rot (T, N, 3, 3), omega_world (T, N, 3), dts (T-1,)."""
+    csrc/audit/consistency.cpp). rot (T, N, 3, 3), omega_world (T, N, 3), dts (T-1,); skip
+    (T-1, N) bool: intervals left out (impacts)."""
     rel = np.empty((len(dts), rot.shape[1]))
     _audit.kinematic_rel(np.ascontiguousarray(rot, np.float64),
                          np.ascontiguousarray(omega_world, np.float64),
                          np.ascontiguousarray(dts, np.float64), float(min_angle),
                          float(SMOOTH_FRAC), float(T.CONSISTENCY_CORRECTION), rel)
+    return _median(rel, skip)
+
+
+def _median(rel, skip=None):
+    """Per body (column): (nanmedian, count of non-NaN) of rel (T-1, N), without the ``skip``
+    intervals."""
+    if skip is not None:
+        rel = np.where(skip, np.nan, rel)
     use = ~np.isnan(rel)
     count = use.sum(axis=0)
     with np.errstate(all="ignore"):
@@ -117,10 +144,26 @@ def _kinematic_median(rot, omega_world, dts, min_angle):
     return med, count
 
 
-def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]:
+def impact_intervals(ctx: Context) -> np.ndarray:
+    """(T-1, N) bool: the intervals in which each body is in one of the momentum analyzer's impact
+    events (rblog.analyze.events, with the momentum analyzer's defaults): the kinematic checks
+    leave them out. Between two samples an impact changes w (and v) at an unknown moment, and
+    an engine's position correction turns and shifts a pressed body without a velocity, so the
+    rate over such an interval has nothing to do with the end samples' rates (rblog's loose
+    500-box pile: box 41's w goes 0.14 -> 0.06 rad/s while its pose turns as if at 1 rad/s)."""
+    from rblog.analyze.events import impact_events
+
+    ev = impact_events(ctx, T.CONTACT_DISTANCE_M, T.ENERGY_DT_FACTOR)
+    return ev.impact_intervals(T.MOMENTUM_IMPACT_SPEED_MPS, max(ctx.traj.n_samples - 1, 0),
+                               ctx.traj.n_bodies)
+
+
+def inspect(traj: Trajectory, tol: dict | None = None, finite=(), ctx: Context | None = None
+            ) -> list[Issue]:
     """Every consistency issue of ``traj`` (see the module docstring); ``tol`` overrides the
     defaults of :class:`ConsistencyAnalyzer` by name; ``finite`` names channels already known
-    to hold no NaN or inf (not scanned again)."""
+    to hold no NaN or inf (not scanned again). ``ctx``: the analyzers' Context of ``traj``
+    (its impact events are computed, once, only when a kinematic check would otherwise fail)."""
     tol = {**ConsistencyAnalyzer.defaults, **(tol or {})}
     out: list[Issue] = []
     n_t, n = traj.n_samples, traj.n_bodies
@@ -239,9 +282,30 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]
             dts = np.where(good, dts, np.nan)
         min_angle = tol["min_angle_rad"]
         min_count = tol["min_intervals_samples"]
-        med, count = _kinematic_median(rot, omega, dts, min_angle)
+        rel_w = np.empty((len(dts), n))
+        _audit.kinematic_rel(c(rot), c(omega), c(dts), float(min_angle), float(SMOOTH_FRAC),
+                             float(T.CONSISTENCY_CORRECTION), rel_w)
+        med, count = _median(rel_w)
+        # position vs velocity: allow one sample's change of velocity by gravity and loads
+        g = np.linalg.norm(np.asarray(model.gravity, float))
+        acc = g + np.linalg.norm(np.asarray(model.body_force_world, float), axis=-1) / mass
+        rel_v = np.empty((len(dts), n))
+        # (min_angle in m: see the tolerance)
+        _audit.linear_rel(c(pos), c(vel), c(dts), float(min_angle) * 1.0, float(SMOOTH_FRAC),
+                          c(acc), float(T.CONSISTENCY_CORRECTION), rel_v)
+        med_v, cnt = _median(rel_v)
+        skip = None
+        if whole and (((count >= min_count) & (med > tol["kinematic_rel"])).any()
+                      or ((cnt >= min_count) & (med_v > tol["kinematic_rel"])).any()):
+            # judged over the intervals without an impact only (computed when needed: the
+            # events cost a proximity pass)
+            skip = impact_intervals(ctx if ctx is not None else Context(traj))
+            med, count = _median(rel_w, skip)
+            med_v, cnt = _median(rel_v, skip)
         bad = (count >= min_count) & (med > tol["kinematic_rel"])
         if bad.any():
+            stretch_note = ""
+            skip_b = None if skip is None else skip[:, bad]
             bodies = [int(b) for b in np.flatnonzero(bad)]
             omega_as_body = _mv(rot, omega)
             hyps = (
@@ -253,34 +317,40 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=()) -> list[Issue]
                  quat_wxyz_to_matrix(quat[..., _XYZW_AS_WXYZ]), omega),
             )
             best = None
+            # a stretched R (the drift analyzer's ||R^T R - I||_F past its tolerance) has no
+            # rotation vector to compare: when its rotation part (polar decomposition) turns at
+            # the logged w, the stretch is the cause, not the logging
+            stretched = ortho[:, bad].max(axis=0) > T.DRIFT_ORTHO_ERROR
+            if stretched.any():
+                sub = np.flatnonzero(bad)[stretched]
+                m_p, _ = _kinematic_median(_rotation_part(rot[:, sub]), omega[:, sub], dts,
+                                           min_angle, None if skip is None else skip[:, sub])
+                score = float(np.nanmax(m_p)) if np.isfinite(m_p).any() else np.inf
+                o_max = float(ortho[:, sub].max())
+                if score <= tol["kinematic_rel"]:
+                    best = (score, "rotation", (
+                        f"R is not orthonormal (||R^T R - I||_F up to {o_max:.3g}: see drift), so "
+                        "R(k+1) R(k)^T is not a rotation; its rotation part (polar decomposition) "
+                        f"turns at angular_velocity (median mismatch {score:.3g})"))
+                    hyps = ()
+                else:
+                    stretch_note = (f"; R is not orthonormal either (||R^T R - I||_F up to "
+                                    f"{o_max:.3g}: see drift), and its rotation part does not "
+                                    f"turn at angular_velocity (median mismatch {score:.3g})")
             for channel, cause, r_h, w_h in hyps:
-                m_h, c_h = _kinematic_median(r_h[:, bad], w_h[:, bad], dts, min_angle)
+                m_h, c_h = _kinematic_median(r_h[:, bad], w_h[:, bad], dts, min_angle, skip_b)
                 score = float(np.nanmax(m_h)) if np.isfinite(m_h).any() else np.inf
                 if score <= tol["kinematic_rel"] and (best is None or score < best[0]):
                     best = (score, channel, cause)
             channel, cause = (best[1], best[2]) if best else (
                 "angular_velocity", "angular_velocity does not turn the logged orientation "
-                "(wrong frame, sign, unit or orientation channel)")
+                "(wrong frame, sign, unit or orientation channel)" + stretch_note)
             worst = float(np.nanmax(med[bad]))
             out.append(Issue("kinematics", channel,
                              f"{cause}: the orientation's rate of change disagrees with "
                              f"angular_velocity by a median {worst:.3g} (relative) for "
                              f"{_names(traj, bodies)}", worst, tol["kinematic_rel"],
                              int(step[0]), float(t[0]), bodies))
-        # position vs velocity: allow one sample's change of velocity by gravity and loads
-        g = np.linalg.norm(np.asarray(model.gravity, float))
-        acc = g + np.linalg.norm(np.asarray(model.body_force_world, float), axis=-1) / mass
-        rel = np.empty((len(dts), n))
-        # (min_angle in m: see the tolerance)
-        _audit.linear_rel(c(pos), c(vel), c(dts), float(min_angle) * 1.0, float(SMOOTH_FRAC),
-                          c(acc), float(T.CONSISTENCY_CORRECTION), rel)
-        use = ~np.isnan(rel)
-        cnt = use.sum(axis=0)
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med_v = np.nanmedian(rel, axis=0)
         bad = (cnt >= min_count) & (med_v > tol["kinematic_rel"])
         if bad.any():
             bodies = [int(b) for b in np.flatnonzero(bad)]
@@ -315,7 +385,7 @@ class ConsistencyAnalyzer(Analyzer):
     def analyze(self, ctx: Context) -> Result:
         # the samples before the first non-finite one (drift reports that one; load's warnings
         # name the channel)
-        return self._result(ctx.traj, inspect(ctx.traj, self.tol, ctx.finite_channels))
+        return self._result(ctx.traj, inspect(ctx.traj, self.tol, ctx.finite_channels, ctx))
 
     def _result(self, traj: Trajectory, issues: list[Issue]) -> Result:
         worst = Worst("1", self.tol["kinematic_rel"])

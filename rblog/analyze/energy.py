@@ -33,6 +33,7 @@ import numpy as np
 from rblog.analyze import _audit
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
+                                shapeless_note,
                                 static_material)
 from rblog.analyze.events import configured_restitution, impact_events
 
@@ -156,4 +157,7 @@ class EnergyAnalyzer(Analyzer):
                     float(t[ka[j]]), bodies))
         if ctx.has_torque.any():
             stats["bodies_with_torque_skipped"] = float(ctx.has_torque.sum())
-        return self.result(worst, findings, stats, n_findings=n_found)
+        res = self.result(worst, findings, stats, n_findings=n_found)
+        return res.leave_out([] if len(tr.contacts) else shapeless_note(
+            tr.model, "their free-flight energy (the log has no contact rows, and their contacts "
+                      "cannot be told from the poses)"))

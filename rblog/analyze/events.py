@@ -89,9 +89,27 @@ class Events:
     speed_before: np.ndarray   # (E,) fastest member's |v| at the sample before (m/s)
     stored_before: np.ndarray  # (E,) elastic energy a compliant contact may hold at k0 (J)
     stored_after: np.ndarray   # (E,) ... at k1 + 1 (J)
+    member_event: np.ndarray   # (Q,) the event of each member (groups.mem_k, groups.mem_i)
 
     def __len__(self) -> int:
         return len(self.k0)
+
+    def impact(self, impact_speed: float) -> np.ndarray:
+        """(E,) which events are impacts: the contact point approaches faster than
+        ``impact_speed`` (m/s); for events without a single normal velocity (boxes' multi-point
+        contacts, groups of three or more), two or more bodies meet and one arrives faster."""
+        approach = -self.v_minus
+        return np.where(np.isfinite(approach), approach > impact_speed,
+                        (self.size >= 2) & (self.speed_before > impact_speed))
+
+    def impact_intervals(self, impact_speed: float, n_intervals: int, n_bodies: int) -> np.ndarray:
+        """(T-1, N) bool: the sample intervals in which each body is a member of an impact
+        event (:meth:`impact`)."""
+        out = np.zeros((n_intervals, n_bodies), bool)
+        if len(self):
+            sel = self.impact(impact_speed)[self.member_event]
+            out[self.groups.mem_k[sel], self.groups.mem_i[sel]] = True
+        return out
 
     def members(self, j: int) -> list[int]:
         return self.groups.members(int(self.first[j]))
@@ -296,7 +314,8 @@ def _events(ctx, cd, dt_factor) -> Events:
                   ke_before=ke_before, ke_after=ke_after, dt_allow=dt_allow,
                   mass_accel=mass_accel, speed_before=speed_before,
                   stored_before=per_event(stored_energy(ctx, kbm, mem)),
-                  stored_after=per_event(stored_energy(ctx, kam, mem)))
+                  stored_after=per_event(stored_energy(ctx, kam, mem)),
+                  member_event=ev_of_member)
 
 
 def stored_energy(ctx, k: np.ndarray, i: np.ndarray) -> np.ndarray:

@@ -61,6 +61,7 @@ from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
 from rblog.analyze.events import configured_restitution, impact_events
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label, combine_friction,
+                                shapeless_note,
                    combine_restitution, static_material)
 
 _TINY = 1e-300
@@ -158,6 +159,7 @@ class MomentumAnalyzer(Analyzer):
         # in threads it would otherwise wait for them until the end of this analysis
         impact_events(ctx, cd, self.tol["dt_factor"])
         self._ctx, self._grp, self._tr, self._model = ctx, grp, tr, tr.model
+        self._not_judged: list[str] = []
         self._worst = Worst("1", self.tol["linear_rel"])
         self._findings: list[Finding] = []
         self._n_found = 0
@@ -168,8 +170,12 @@ class MomentumAnalyzer(Analyzer):
         events = self._events(stats)
         self._logged_cone(stats)
         ok_reason = "no contacts or momentum jumps found" if not len(grp) else ""
-        return self.result(self._worst, self._findings, stats, events, ok_reason=ok_reason,
-                           n_findings=self._n_found)
+        res = self.result(self._worst, self._findings, stats, events, ok_reason=ok_reason,
+                          n_findings=self._n_found)
+        res.leave_out(self._not_judged)
+        return res.leave_out([] if len(tr.contacts) else shapeless_note(
+            tr.model, "their free flights and collisions (the log has no contact rows, and "
+                      "their contacts cannot be told from the poses)"))
 
     # --- pieces -----------------------------------------------------------------------------
     def _add(self, flag, ratio, make):
@@ -458,10 +464,22 @@ class MomentumAnalyzer(Analyzer):
         # events without a single normal velocity (boxes' multi-point contacts, groups of
         # three or more): an impact when two or more bodies meet and one arrives faster than the
         # impact speed
-        impact = np.where(np.isfinite(approach), approach > self.tol["impact_speed_mps"],
-                          (ev.size >= 2) & (ev.speed_before > self.tol["impact_speed_mps"]))
+        impact = ev.impact(self.tol["impact_speed_mps"])
         stats["impacts"] = float(impact.sum())
         fast = approach >= self.tol["restitution_min_speed_mps"]
+        # restitution the engine did not state (NaN in the body table: MuJoCo's soft contacts):
+        # the impacts it would decide are not judged, and the result says so
+        unknown = ev.sphere & impact & ~np.isfinite(e_cfg)
+        stats["restitution_not_judged"] = float(unknown.sum())
+        if unknown.any():
+            who = sorted({b for j in np.flatnonzero(unknown) for b in ev.members(j)})
+            names = ", ".join(repr(model.body_name[b]) for b in who[:3])
+            more = f" +{len(who) - 3} more" if len(who) > 3 else ""
+            self._not_judged.append(
+                f"restitution of {int(unknown.sum())} impact{'s' if unknown.sum() > 1 else ''} "
+                f"({names}{more}) not judged: the log states no restitution (NaN) for "
+                f"{'them' if len(who) > 1 else 'it'}, so the bounce, a lost bounce and the "
+                "energy across the impact have no expected value")
         dev = np.abs(ev.e_eff - e_cfg)
         judged = ev.sphere & impact & ev.separated & np.isfinite(dev)
         judged &= fast | (ev.e_eff > e_cfg)

@@ -71,7 +71,7 @@ import numpy as np
 from rblog.analyze import _audit, geometry
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
-                                combine_friction, static_material)
+                                combine_friction, shapeless, shapeless_note, static_material)
 from rblog.analyze.momentum import static_feature_of_points
 from rblog.contract.trajectory import STATIC_BODY
 
@@ -125,8 +125,14 @@ class PenetrationAnalyzer(Analyzer):
         cd = self.tol["contact_distance_m"]
         prox = ctx.proximity(cd)
         near = prox.near_pairs(cd)
-        pk, pa, pb, ps = near["k"], near["a"], near["b"], near["sep"]
         ground = prox.ground_sep if prox.ground_sep is not None else np.zeros((0, 0))
+        none = shapeless(model)
+        if none.any():  # no separations for bodies without a shape: left out (not_judged)
+            keep = ~none[near["a"]] & ~((near["b"] < n) & none[np.minimum(near["b"], n - 1)])
+            near = {key: v[keep] for key, v in near.items()}
+            if ground.size:
+                ground = np.where(none[None, :], np.inf, ground)
+        pk, pa, pb, ps = near["k"], near["a"], near["b"], near["sep"]
         kind = np.full((n, t_n), -1, np.int8)  # -1 none, 0 ground, 1 pair as a, 2 pair as b
         ref = np.zeros((n, t_n), np.int64)
         c = np.ascontiguousarray
@@ -550,4 +556,5 @@ class PenetrationAnalyzer(Analyzer):
                     "creep_m": None if np.isnan(creep[r]) else float(creep[r]),
                 })
         ok = "" if nr or nrow else "no contacts found"
-        return self.result(worst, findings, stats, events, ok_reason=ok, n_findings=n_found)
+        res = self.result(worst, findings, stats, events, ok_reason=ok, n_findings=n_found)
+        return res.leave_out(shapeless_note(model, "depth, jitter and creep of their contacts"))

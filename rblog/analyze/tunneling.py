@@ -16,6 +16,11 @@ logged samples.
 
 Candidates come from the broadphase of bounding spheres swept over each interval, so bodies that
 are far apart at both samples but meet in between are still examined.
+
+Sign convention of the result: ``worst_value`` is the worst crossing, a depth >= 0 (m): 0 when
+nothing crosses. A clean log's closest approach is reported in words as a positive clearance
+(``reason``; ``stats["closest_clearance_m"]``): how far above the ground a centre stays, how far
+beyond half their inner radii two centres' paths stay.
 """
 
 from __future__ import annotations
@@ -25,7 +30,8 @@ import numpy as np
 from rblog.analyze import _audit
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
-from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
+from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
+                                shapeless_note)
 
 
 class TunnelingAnalyzer(Analyzer):
@@ -55,6 +61,8 @@ class TunnelingAnalyzer(Analyzer):
         n_found = 0
         # candidates: (kind, value m, interval k, body a, other b (-1 ground, N+m static))
         found = []
+        # the closest approach without a crossing: (clearance m > 0, its description)
+        closest: list[tuple[float, str]] = []
 
         if prox.ground_height is not None:
             h = prox.ground_height
@@ -64,8 +72,13 @@ class TunnelingAnalyzer(Analyzer):
             if len(kk):
                 # worst: the deepest any centre gets right after being above (passes: negative)
                 j = int(np.argmax(depth[kk, ii]))
-                worst.offer(_ratio(depth[kk[j], ii[j]], cross), depth[kk[j], ii[j]], cross, "m",
-                            step[kk[j] + 1], t[kk[j] + 1], [ii[j]], "centre depth below ground")
+                d = float(depth[kk[j], ii[j]])
+                worst.offer(_ratio(d, cross), max(d, 0.0), cross, "m", step[kk[j] + 1],
+                            t[kk[j] + 1], [ii[j]], "depth of a centre below the ground")
+                if d < 0:
+                    closest.append((-d, f"{body_label(model, int(ii[j]))}'s centre "
+                                        f"{-d:.3g} m above the ground at t = "
+                                        f"{t[kk[j] + 1]:.6g} s"))
             hit = above & (depth > cross)
             kk, ii = np.nonzero(hit)
             found.append(("the ground", depth[kk, ii], kk, ii, np.full(len(kk), -1)))
@@ -94,8 +107,9 @@ class TunnelingAnalyzer(Analyzer):
             if len(depth):
                 j = int(np.argmax(depth))
                 if np.isfinite(depth[j]):
-                    worst.offer(_ratio(depth[j], cross), depth[j], cross, "m", step[k[j] + 1],
-                                t[k[j] + 1], [a[j]], "centre path depth inside a static box")
+                    worst.offer(_ratio(depth[j], cross), max(float(depth[j]), 0.0), cross, "m",
+                                step[k[j] + 1], t[k[j] + 1], [a[j]],
+                                "depth of a centre's path inside a static box")
             sel = enters & (depth > cross)
             found.append(("static box", depth[sel], k[sel], a[sel], n + b[sel]))
             stats["static_crossings"] = float(sel.sum())
@@ -113,8 +127,16 @@ class TunnelingAnalyzer(Analyzer):
             if len(depth):
                 j = int(np.argmax(depth))
                 if np.isfinite(depth[j]):
-                    worst.offer(_ratio(depth[j], cross), depth[j], cross, "m", step[k[j] + 1],
-                                t[k[j] + 1], [a[j], b[j]], "centre path overlap of two bodies")
+                    d = float(depth[j])
+                    worst.offer(_ratio(d, cross), max(d, 0.0), cross, "m", step[k[j] + 1],
+                                t[k[j] + 1], [a[j], b[j]],
+                                "how much closer than half their inner radii two centres' "
+                                "paths come")
+                    if d < 0:
+                        closest.append((-d, f"the centres of {body_label(model, int(a[j]))} and "
+                                            f"{body_label(model, int(b[j]))} stay {-d:.3g} m "
+                                            "beyond half their inner radii at t = "
+                                            f"{t[k[j] + 1]:.6g} s"))
             sel = apart & (depth > cross)
             found.append(("body", depth[sel], k[sel], a[sel], b[sel]))
             stats["body_crossings"] = float(sel.sum())
@@ -141,7 +163,13 @@ class TunnelingAnalyzer(Analyzer):
                     f"{body_label(model, a)} {what} between t = {t[k]:.6g} and {t[k + 1]:.6g} s",
                     float(val[j]), cross, "m", int(step[k + 1]), float(t[k + 1]), bodies))
         ok = "no body passes through the ground, a static box or another body between samples"
-        return self.result(worst, findings, stats, n_findings=n_found, ok_reason=ok)
+        if closest:
+            clear, what = min(closest)
+            stats["closest_clearance_m"] = clear
+            ok += f"; closest approach: {what} (crossings are depths > 0)"
+        return self.result(worst, findings, stats, n_findings=n_found, ok_reason=ok).leave_out(
+            shapeless_note(model, "passing through other bodies (their centres against the "
+                                  "ground and static boxes are judged)") if n > 1 else [])
 
 
 def _ratio(value, tolerance):

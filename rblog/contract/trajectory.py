@@ -154,6 +154,10 @@ class Trajectory:
             (sum of x cross P + L).  total_energy: (T,) J.
         contacts: contacts at the logged steps.
         truncated: True when the log ended early (interrupted or diverged run, cut file).
+        failed: why the recording failed ('' when it did not): a write that raised (bad arrays,
+            a full disk) leaves a run whose samples stop or have a gap where it raised, so the
+            analyzers judge none of it clean (rblog.analyze: "not judged"); findings on the
+            samples that were recorded are still reported.
         warnings: messages from the reader.
     """
 
@@ -179,6 +183,7 @@ class Trajectory:
     contacts: Contacts = field(default_factory=Contacts.empty)
     truncated: bool = False
     warnings: list[str] = field(default_factory=list)
+    failed: str = ""
 
     @property
     def n_samples(self) -> int:
@@ -208,7 +213,7 @@ class Trajectory:
         else:
             c = Contacts.empty()
         return Trajectory(self.model, self.info, contacts=c, truncated=self.truncated,
-                          warnings=list(self.warnings), **kw)
+                          warnings=list(self.warnings), failed=self.failed, **kw)
 
     @staticmethod
     def concat(parts: list["Trajectory"]) -> "Trajectory":
@@ -221,7 +226,8 @@ class Trajectory:
         return Trajectory(
             first.model, first.info, contacts=Contacts.concat([p.contacts for p in parts]),
             truncated=any(p.truncated for p in parts),
-            warnings=[w for p in parts for w in p.warnings], **kw,
+            warnings=[w for p in parts for w in p.warnings],
+            failed=next((p.failed for p in parts if p.failed), ""), **kw,
         )
 
 

@@ -3,7 +3,8 @@
 
 Bodies are independent without contacts, so the kernel runs over tiles of BODY_TILE bodies, steps
 inside a tile: the tile's state stays in L1 for the whole block, and samples are written for
-consecutive bodies; with samples SPARSE_STRIDE or more steps apart, one body at a time. Each
+consecutive bodies; with samples SPARSE_STRIDE or more steps apart, bodies four (AVX2) or two at
+a time in the lanes of a vector, their state in registers (bitwise the one-body results). Each
 integrator has its own instantiation of the kernel (its step compiled into the loop; the stages
 in csrc/engine/integrators.hpp). Samples are written after every ``stride``-th step (and after
 the last step of the block when ``sample_last``).

@@ -22,7 +22,6 @@ one by one.
 
 from __future__ import annotations
 
-import struct
 import time
 
 import numpy as np
@@ -37,8 +36,7 @@ from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import ChunkIndex
-from mcap.writer import CompressionType, IndexType, Writer
+from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from rblog import __version__
@@ -115,7 +113,7 @@ class McapRecorder:
             self._model = model
             self._n = model.n_bodies
             self._names = C.view_names(model.body_name)
-            self._w = _Writer(self._fh, chunk_size=CHUNK_BYTES,
+            self._w = Writer(self._fh, chunk_size=CHUNK_BYTES,
                              compression=_compression(self.compression))
             self._chunks = _BlockChunkBuilder.install(self._w)
             self._w.start(profile="", library=f"rblog {__version__}")
@@ -479,69 +477,6 @@ class _MessageIndexArrays:
         stream.write4(pairs.nbytes)
         stream.write(pairs.tobytes())
         stream.finish_record()
-
-
-class _Writer(Writer):
-    """mcap's ``Writer`` with its chunk finalization (``Writer.__finalize_chunk``, mcap 1.x) done
-    here: the same records byte for byte (the Chunk record, its MessageIndex records, the
-    ChunkIndex kept for the summary), with the chunk's CRC-32 from the compiled ``_encode.crc32``
-    (7 ms instead of zlib's 18 ms for spinning_bodies' 54 MB of records) and the compressed data
-    written to the file as it is (mcap copies it twice through a BytesIO on the way). Where mcap
-    keeps its state elsewhere (another major version) or data-section CRCs are on, mcap's own
-    finalization runs."""
-
-    _OWN_STATE = ("_Writer__chunk_builder", "_Writer__statistics", "_Writer__compression",
-                  "_Writer__enable_crcs", "_Writer__enable_data_crcs", "_Writer__stream",
-                  "_Writer__record_builder", "_Writer__index_types", "_Writer__chunk_indices")
-
-    def _Writer__finalize_chunk(self):
-        if not all(hasattr(self, a) for a in self._OWN_STATE) or self._Writer__enable_data_crcs \
-                or not hasattr(Writer, "_Writer__finalize_chunk"):
-            return Writer._Writer__finalize_chunk(self)
-        builder = self._Writer__chunk_builder
-        if not builder or builder.num_messages == 0:
-            return
-        self._Writer__statistics.chunk_count += 1
-        chunk_data = builder.end()
-        compression = self._Writer__compression
-        if compression == CompressionType.LZ4:
-            import lz4.frame
-
-            name, data = "lz4", lz4.frame.compress(chunk_data)
-        elif compression == CompressionType.ZSTD:
-            import zstandard
-
-            name, data = "zstd", zstandard.compress(chunk_data)
-        else:
-            name, data = "", chunk_data
-        crc = _encode.crc32(np.frombuffer(chunk_data, np.uint8)) if self._Writer__enable_crcs else 0
-        # the Chunk record (mcap.records.Chunk.write): opcode, record length, start and end
-        # time, uncompressed size, CRC, compression (u32-prefixed string), data (u64-prefixed)
-        enc = name.encode()
-        body = 8 + 8 + 8 + 4 + 4 + len(enc) + 8 + len(data)
-        head = struct.pack("<BQQQQII", Opcode.CHUNK, body, builder.message_start_time,
-                           builder.message_end_time, len(chunk_data), crc, len(enc)) \
-            + enc + struct.pack("<Q", len(data))
-        self._Writer__flush()
-        stream = self._Writer__stream
-        chunk_start_offset = stream.tell()
-        stream.write(head)
-        stream.write(data)
-        index = ChunkIndex(
-            message_start_time=builder.message_start_time,
-            message_end_time=builder.message_end_time, chunk_start_offset=chunk_start_offset,
-            chunk_length=len(head) + len(data), message_index_offsets={}, message_index_length=0,
-            compression=name, compressed_size=len(data), uncompressed_size=len(chunk_data))
-        message_index_start_offset = stream.tell()
-        rb = self._Writer__record_builder
-        if self._Writer__index_types & IndexType.MESSAGE:
-            for cid, idx in builder.message_indices.items():
-                index.message_index_offsets[cid] = message_index_start_offset + rb.count
-                idx.write(rb)
-        index.message_index_length = rb.count
-        self._Writer__flush()
-        self._Writer__chunk_indices.append(index)
-        builder.reset()
 
 
 class _BlockChunkBuilder:

@@ -401,6 +401,10 @@ class Recorder:
         self._truncated = False
         self._last_step: int | None = None
         self.samples_written = 0
+        self.blocks_written = 0
+        #: why the recording failed ('' while it has not): the first write that raised. The
+        #: trajectory carries it (Trajectory.failed), and rblog.check judges none of it clean.
+        self.failed = ""
 
     # --- lifecycle --------------------------------------------------------------------------
     def open(self, model: Model | None = None, info: RunInfo | None = None) -> "Recorder":
@@ -433,13 +437,22 @@ class Recorder:
             raise RecordError("recorder is closed")
         if not self._open:
             self.open()
-        if block is None:
-            block = build_block(self.model, self.info, **arrays)
-        if block.n_samples and self._last_step is not None and block.step[0] <= self._last_step:
-            raise RecordError(f"step {int(block.step[0])} after step {self._last_step}: blocks must "
-                              "be written in time order")
-        for w in self._opened:
-            w.write(block)
+        try:
+            if block is None:
+                block = build_block(self.model, self.info, **arrays)
+            if block.n_samples and self._last_step is not None and \
+                    block.step[0] <= self._last_step:
+                raise RecordError(f"step {int(block.step[0])} after step {self._last_step}: "
+                                  "blocks must be written in time order")
+            for w in self._opened:
+                w.write(block)
+        except BaseException as e:  # an interrupt as well
+            # the run now misses this block's samples: its trajectory is never judged clean
+            if not self.failed:
+                self.failed = (f"write of block {self.blocks_written + 1} raised "
+                               f"{type(e).__name__}: {e}")
+            raise
+        self.blocks_written += 1
         if self.keep:
             self.blocks.append(block)
         if block.n_samples:
@@ -463,17 +476,21 @@ class Recorder:
 
     @property
     def trajectory(self) -> Trajectory:
-        """The run recorded so far (needs ``keep``)."""
+        """The run recorded so far (needs ``keep``). After a write that raised, its
+        ``failed`` says so (and it is ``truncated``): ``rblog.check`` then returns no result with
+        ``passed`` (docs/log-format.md, "not judged")."""
         if not self.keep:
             raise RecordError("the Recorder was not asked to keep the run (keep=True)")
         if not self.blocks:
-            return build_block(self.model, self.info, t=np.zeros(0), step=np.zeros(0, np.int64),
+            traj = build_block(self.model, self.info, t=np.zeros(0), step=np.zeros(0, np.int64),
                                position=np.zeros((0, self.model.n_bodies, 3)),
                                quat_wxyz=np.zeros((0, self.model.n_bodies, 4)),
                                velocity=np.zeros((0, self.model.n_bodies, 3)),
                                angular_velocity=np.zeros((0, self.model.n_bodies, 3)))
-        traj = Trajectory.concat(self.blocks)
-        traj.truncated = self._truncated
+        else:
+            traj = Trajectory.concat(self.blocks)
+        traj.truncated = self._truncated or bool(self.failed)
+        traj.failed = self.failed
         return traj
 
 

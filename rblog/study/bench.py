@@ -118,6 +118,43 @@ def machine_info() -> dict:
     return info
 
 
+#: what installs the study's optional modules (scipy, matplotlib) into a checkout's venv
+BENCH_EXTRA = 'pip install -e ".[bench]"'
+#: the optional module that draws bench.png and stress.png
+PLOT_MODULE = "matplotlib"
+
+
+def module_missing(name: str) -> bool:
+    """True when the optional module ``name`` cannot be imported (found without importing it)."""
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec(name) is None
+    except (ImportError, ValueError):  # a module set to None in sys.modules, a broken package
+        return True
+
+
+def missing_dependencies(problems: list[str] | tuple | None = None, *, plot: bool = True,
+                         what: str = "bench.png") -> str:
+    """One line naming the optional modules the study lacks, what each costs (problems left out,
+    the plot not drawn) and the command that installs them; "" when nothing is missing. Meant
+    to be printed before any run (``rblog bench`` and ``rblog stress`` do)."""
+    names = list(problems) if problems else list(PROBLEMS_QUICK)
+    by_module: dict[str, list[str]] = {}
+    for n in names:
+        if n in PROBLEMS:
+            for mod in get_problem(n).needs:
+                if module_missing(mod):
+                    by_module.setdefault(mod, []).append(n)
+    parts = [f"{mod} is not installed: {len(skip)} of {len(names)} problems skipped "
+             f"({', '.join(skip)})" for mod, skip in by_module.items()]
+    if plot and module_missing(PLOT_MODULE):
+        parts.append(f"{PLOT_MODULE} is not installed: no {what}")
+    if not parts:
+        return ""
+    return "; ".join(parts) + f". To run everything: {BENCH_EXTRA}"
+
+
 def new_row(engine: str, problem: str, integrator: str, dt: float) -> dict:
     row = {k: None for k in CSV_COLUMNS}
     row.update(engine=engine, problem=problem, integrator=integrator, dt=dt, status="ok",
@@ -279,6 +316,10 @@ def run_bench(
                 "available": True, "reason": ""}
         if p.contacts and not contact_ok:
             info.update(available=False, reason=contact_why)
+        lacking = [m for m in p.needs if module_missing(m)]
+        if lacking:  # its exact answer cannot be computed: no run is made, for rblog or peers
+            info.update(available=False, reason=f"needs {', '.join(lacking)} (not installed; "
+                                                f"{BENCH_EXTRA})")
         plist.append(info)
         runs = [(spec, dt) for spec in specs for dt in dt_list]
         done = map_cases(executor, lambda c: run_rblog(p, c[0], c[1], repeats=repeats),
@@ -296,6 +337,11 @@ def run_bench(
         for peer in peer_objs:
             for integ in peer.integrators:
                 for dt in dt_list:
+                    if lacking:  # the peers' runs could not be scored either
+                        r = new_row(peer.name, p.name, integ, dt)
+                        r.update(status="unavailable", message=info["reason"])
+                        rows.append(r)
+                        continue
                     say(f"{peer.name} {p.name} {integ} dt={dt:g}")
                     rows.append(run_peer(peer, p, integ, dt, repeats=repeats))
     for name in (peers or ()):
@@ -441,7 +487,8 @@ def format_table(report: BenchReport) -> str:
         if not info["available"]:
             lines.append(f"  unavailable: {info['reason']}")
         rs = [r for r in report.rows if r["problem"] == info["name"]]
-        if not info["available"] and all(r["engine"] == "rblog" for r in rs):
+        if not info["available"] and all(r["engine"] == "rblog" or r["status"] == "unavailable"
+                                         for r in rs):
             continue
         lines.append(head)
         for r in rs:
@@ -592,4 +639,4 @@ def write_outputs(report: BenchReport, out_dir: str | Path, stem: str = "bench")
 __all__ = ["run_bench", "BenchReport", "format_table", "write_csv", "write_plot", "write_outputs",
            "CSV_COLUMNS", "SCHEMA", "INTEGRATORS", "DTS", "DTS_QUICK", "fit_order",
            "convergence_orders", "mark_pareto", "peer_ratios", "machine_info", "run_rblog",
-           "run_peer", "parse_integrator"]
+           "run_peer", "parse_integrator", "missing_dependencies", "BENCH_EXTRA"]

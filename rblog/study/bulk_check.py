@@ -97,13 +97,15 @@ def check_log(path: str, only=None, skip=None, tolerances: dict | None = None) -
         results = check(traj, only=only, skip=skip, tolerances=tolerances)
     except RblogError as e:
         return {"log": path, "status": "unreadable", "error": str(e)}
-    flagged = any(not r.passed and not r.skipped for r in results)
+    flagged = any(r.verdict == "FAIL" for r in results)
     warns = list(traj.warnings)
     status = "flagged" if flagged else "clean"
     if not flagged and traj.n_samples < MIN_SAMPLES_TO_JUDGE:
         status = "not judged"
         warns.append(f"not judged: {traj.n_samples} sample(s), an audit needs at least "
                      f"{MIN_SAMPLES_TO_JUDGE}")
+    elif not flagged and any(r.verdict == "not judged" for r in results):
+        status = "not judged"
     return {"log": path, "status": status,
             "samples": traj.n_samples, "bodies": traj.n_bodies, "truncated": traj.truncated,
             "t_end_s": float(traj.t[-1]) if traj.n_samples else 0.0,
@@ -181,14 +183,22 @@ def exit_code(entries: Sequence[dict]) -> int:
     return max((STATUS_EXIT[e["status"]] for e in entries), default=0)
 
 
+def _verdict(r: dict) -> str:
+    """A result's verdict (Result.verdict) from its dict."""
+    if "verdict" in r:
+        return r["verdict"]
+    return "skip" if r["skipped"] else ("pass" if r["passed"] else "FAIL")
+
+
 def summarize(entries: Sequence[dict]) -> dict:
     logs = {s: 0 for s in STATUS_EXIT}
     per: dict[str, dict[str, int]] = {}
     for e in entries:
         logs[e["status"]] += 1
         for r in e.get("results", ()):
-            v = "skip" if r["skipped"] else ("pass" if r["passed"] else "FAIL")
-            per.setdefault(r["analyzer"], {"pass": 0, "FAIL": 0, "skip": 0})[v] += 1
+            v = _verdict(r)
+            per.setdefault(r["analyzer"], {"pass": 0, "FAIL": 0, "skip": 0,
+                                           "not judged": 0})[v] += 1
     return {"logs": logs, "analyzers": per}
 
 
@@ -210,7 +220,7 @@ def table_rows(entries: Sequence[dict]) -> tuple[list[str], list[dict]]:
                    warnings=len(e["warnings"]) if "warnings" in e else None)
         for r in e.get("results", ()):
             n = r["analyzer"]
-            row[n] = "skip" if r["skipped"] else ("pass" if r["passed"] else "FAIL")
+            row[n] = _verdict(r)
             if not r["skipped"]:
                 row[f"{n}_worst"], row[f"{n}_tol"] = r["worst_value"], r["tolerance"]
                 row[f"{n}_unit"] = r["unit"]
@@ -247,9 +257,11 @@ def format_summary(report: BulkReport) -> str:
     lines = [f"{n} logs: {s['logs']['clean']} clean, {s['logs']['flagged']} flagged, "
              f"{s['logs']['unreadable']} unreadable"
              + (f", {s['logs']['failed']} failed (worker died)" if s["logs"]["failed"] else "")
+             + (f", {s['logs']['not judged']} not judged" if s["logs"]["not judged"] else "")
              + f"  [{report.executor}, {report.wall_s:.2f} s]"]
     if s["analyzers"]:
-        lines.append(f"  {'analyzer':<14}{'pass':>7}{'FAIL':>7}{'skip':>7}")
+        lines.append(f"  {'analyzer':<14}{'pass':>7}{'FAIL':>7}{'skip':>7}{'not judged':>12}")
         for name, c in s["analyzers"].items():
-            lines.append(f"  {name:<14}{c['pass']:>7}{c['FAIL']:>7}{c['skip']:>7}")
+            lines.append(f"  {name:<14}{c['pass']:>7}{c['FAIL']:>7}{c['skip']:>7}"
+                         f"{c['not judged']:>12}")
     return "\n".join(lines)

@@ -1,8 +1,8 @@
 """Optional peers: the reference problems of :mod:`rblog.study.reference` run in MuJoCo and pybullet,
 reduced to the same :class:`~rblog.study.reference.Samples` and scored by the same code as rblog.
 
-Both are optional (``pip install rblog[peers]``); :func:`available_peers` returns the installed
-ones. What each engine is given:
+Both are optional (``pip install -e ".[engines]"`` in a checkout); :func:`available_peers` returns
+the installed ones. What each engine is given:
 
 * MuJoCo: one body per rblog body with a free joint and an explicit ``<inertial>`` (mass and
   principal moments, like rblog's ``inertia_diag``); its integrators ``Euler`` (the default,
@@ -249,7 +249,8 @@ def unavailable_reason(name: str) -> str:
     try:
         _PEERS[name]()
     except Exception as e:
-        return f"not installed ({type(e).__name__}: {e}); pip install 'rblog[peers]'"
+        return (f"not installed ({type(e).__name__}: {e}); pip install -e \".[engines]\" in a "
+                "checkout (or pip install \"rblog[engines]\")")
     return ""
 
 

@@ -549,6 +549,8 @@ class Problem:
         conservative: energy and |L| are invariants (drifts are errors).
         sample_rate: logged samples per simulated second (s^-1); 0 logs every step.
         extend_for_timing: the motion can be run longer to time it (free bodies only).
+        needs: the optional modules its exact answer is computed with (``scipy``: elliptic
+            functions, DOP853), so that ``rblog bench`` can say what is missing before it runs.
     """
 
     name: str
@@ -563,6 +565,7 @@ class Problem:
     sample_rate: float = 100.0
     extend_for_timing: bool = True
     params: dict = field(default_factory=dict)
+    needs: tuple = ()
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     # -- scene --
@@ -825,7 +828,7 @@ def torque_free_intermediate() -> Problem:
         "torque-free-intermediate", "torque-free box, intermediate axis (I=1,2,3; w0=0.05,2,0.05)",
         [BodySpec("box", "box", (0.3, 0.2, 0.1), 1.0, (1.0, 2.0, 3.0), (0.0, 0.0, 1.0),
                   omega_body=(0.05, 2.0, 0.05))],
-        duration=20.0, primary="angle_rad", params={"kind": "free"})
+        duration=20.0, primary="angle_rad", params={"kind": "free"}, needs=("scipy",))
 
 
 def torque_free_generic() -> Problem:
@@ -834,7 +837,7 @@ def torque_free_generic() -> Problem:
         "torque-free-generic", "torque-free body, generic (I=1,1.5,2.2; w0=1.4,0.5,0.7)",
         [BodySpec("body", "box", (0.3, 0.2, 0.1), 1.0, (1.0, 1.5, 2.2), (0.0, 0.0, 0.0),
                   omega_body=(1.4, 0.5, 0.7))],
-        duration=10.0, primary="angle_rad", params={"kind": "free"})
+        duration=10.0, primary="angle_rad", params={"kind": "free"}, needs=("scipy",))
 
 
 def free_fall() -> Problem:
@@ -843,7 +846,8 @@ def free_fall() -> Problem:
         "free-fall", "free fall, tossed spinning box (samples/free_fall.toml)",
         [BodySpec("box", "box", (0.2, 0.1, 0.05), 8.0, None, (0.0, 0.0, 10.0),
                   velocity=(1.0, 0.0, 5.0), omega_body=(0.5, 3.0, 1.0))],
-        gravity=(0.0, 0.0, -GRAVITY), duration=2.0, primary="position_m", params={"kind": "free"})
+        gravity=(0.0, 0.0, -GRAVITY), duration=2.0, primary="position_m", params={"kind": "free"},
+        needs=("scipy",))
 
 
 def bouncing_ball(e: float = 0.8, h0: float = 1.0, bounces: int = 3) -> Problem:
@@ -890,7 +894,8 @@ def torqued_body() -> Problem:
         "torqued-body", "generic body, constant world torque (0.3,-0.2,0.5) N m (DOP853 reference)",
         [BodySpec("body", "box", (0.3, 0.2, 0.1), 1.0, (1.0, 1.5, 2.2), (0.0, 0.0, 0.0),
                   omega_body=(1.4, 0.5, 0.7), torque=(0.3, -0.2, 0.5))],
-        duration=10.0, primary="angle_rad", conservative=False, params={"kind": "torqued"})
+        duration=10.0, primary="angle_rad", conservative=False, params={"kind": "torqued"},
+        needs=("scipy",))
 
 
 #: every reference problem, by name, in table order

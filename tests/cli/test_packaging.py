@@ -91,3 +91,18 @@ def test_benchmark_mujoco_leaves_no_log_in_cwd(tmp_path, monkeypatch):
     except Exception:  # noqa: BLE001 - newer MuJoCo may reject nconmax; the point is the cwd
         pass
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_readme_documents_every_command():
+    """Every command `rblog --help` lists has its own mention (`rblog NAME`) in README."""
+    from rblog_cli.main import main
+
+    missing = [name for name in main.commands if not re.search(rf"\brblog {name}\b", README)]
+    assert not missing, f"README does not document: {', '.join(missing)}"
+
+
+def test_readme_is_a_guide_of_today():
+    """No project history (it belongs in git log), and extras as a checkout's user types them."""
+    assert not re.search(r"\bissues?[- ]\d+", README, re.I), "README names an issue"
+    assert "pip install 'rblog[" not in README and 'pip install "rblog[' not in README
+    assert 'pip install -e ".[engines]"' in README and 'pip install -e ".[bench]"' in README

@@ -1,6 +1,7 @@
 """Run a scene (TOML) in another engine and record it into rblog's log contract.
 
-``rblog run SCENE --engine mujoco|pybullet`` (optional extra ``rblog[engines]``). Each engine module
+``rblog run SCENE --engine mujoco|pybullet`` (optional extra ``engines``: ``pip install -e
+".[engines]"``). Each engine module
 translates the scene's :class:`~rblog.contract.model.Model` and initial state into the engine's
 model (spheres, boxes, ground plane, static boxes, masses, principal inertias, gravity, constant
 force/torque, collision groups), translates materials with the engine's own combine rule so that
@@ -36,7 +37,8 @@ class EngineUnsupported(RblogError):
 class EngineMissing(RblogError):
     def __init__(self, engine: str, err: Exception):
         super().__init__(f"--engine {engine}: not installed ({type(err).__name__}: {err}); "
-                         "pip install 'rblog[engines]'")
+                         'pip install -e ".[engines]" in a checkout (or pip install '
+                         '"rblog[engines]")')
 
 
 def parse_options(engine: str, items, known: dict[str, str]) -> dict[str, str]:
