@@ -17,7 +17,12 @@ like a file::
     results = rblog.check(rblog.load("ball.mcap"))
 
 :func:`trajectory_from_arrays` builds a :class:`~rblog.contract.trajectory.Trajectory` from whole
-arrays in one call.
+arrays in one call. ``Recorder(..., check=True)`` audits the blocks as they are written
+(rblog.record.live_audit).
+
+Why this module is long: it is the whole public writer API, and each of its entry points
+(:func:`body_table`, :func:`make_contacts`, :func:`build_block`, :class:`Recorder`) checks its
+arguments with one-line errors naming the argument, its shape and what was expected.
 """
 
 from __future__ import annotations
