@@ -17,10 +17,13 @@ Engines, each stepping the same initial state at the same dt:
   rigid-body pipeline, not Featherstone), default solver, one Python call per step.
 
 Penetration is measured the same way for all three: rblog's narrowphase on each sampled state
-(every ``--sample-every`` steps), deepest overlap of any pair. Threads: set NUMBA_NUM_THREADS.
+(every ``--sample-every`` steps), deepest overlap of any pair. Threads: rblog runs once per
+count in ``--threads`` (default 1 and 2; the core's task pool, as ``rblog run --threads N`` or
+RBLOG_THREADS sets it), and each is printed beside MuJoCo (which steps on one thread). The
+velocity solve's kernel (AVX2, SSE2 or scalar; RBLOG_SOLVER_PATH) is printed too.
 
     python benchmarks/bench_pile.py                          # 10, 100, 500 boxes
-    python benchmarks/bench_pile.py --boxes 500 --no-peers --profile
+    python benchmarks/bench_pile.py --boxes 500 --no-peers --profile --threads 1
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_contact import MUJOCO_CONFIGS, run_mujoco, stats  # noqa: E402
 
+from rblog.engine import _core  # noqa: E402
 from rblog.engine import integrators as rot  # noqa: E402
 from rblog.engine.contact import ContactParams, ContactWorld  # noqa: E402
 from rblog.engine.contact.measure import separations  # noqa: E402
@@ -44,7 +48,7 @@ from rblog.engine.rotation import quat_to_matrix_np  # noqa: E402
 from rblog.study.scenes import loose_pile  # noqa: E402
 
 
-def run_rblog(model, state, dt, n_steps, sample_every, profile=None, anchors=False):
+def run_rblog(model, state, dt, n_steps, sample_every, profile=None, anchors=True):
     """(steps/s, penetration samples, world, end state); ``anchors``: ContactParams'
     static_friction_anchors."""
     world = ContactWorld(model, ContactParams(static_friction_anchors=anchors),
@@ -128,32 +132,39 @@ def main(argv=None):
     ap.add_argument("--sample-every", type=int, default=50, help="steps between penetration samples")
     ap.add_argument("--mujoco-config", default="default", help=f"one of {sorted(MUJOCO_CONFIGS)}")
     ap.add_argument("--no-peers", action="store_true", help="rblog only")
+    ap.add_argument("--no-pybullet", action="store_true", help="rblog and MuJoCo only")
     ap.add_argument("--profile", action="store_true", help="print rblog's per-stage profile")
-    ap.add_argument("--anchors", action="store_true",
-                    help="rblog with [contact] static_friction_anchors = true")
+    ap.add_argument("--threads", default="1,2", help="comma-separated rblog thread counts")
+    ap.add_argument("--no-anchors", dest="anchors", action="store_false",
+                    help="rblog with [contact] static_friction_anchors = false (on by default)")
     args = ap.parse_args(argv)
     n_steps = int(round(args.duration / args.dt))
-    threads = os.environ.get("NUMBA_NUM_THREADS", "default")
-    print(f"loose pile: dt {args.dt:g} s, {n_steps} steps ({args.duration:g} s); "
-          f"rblog NUMBA_NUM_THREADS={threads}")
+    thread_counts = [int(t) for t in args.threads.split(",")]
+    print(f"loose pile: dt {args.dt:g} s, {n_steps} steps ({args.duration:g} s); rblog threads "
+          f"{thread_counts}, solver kernel {_core.solver_kernel()}")
     wm, ws = loose_pile(10)
     run_rblog(wm, ws, args.dt, 20, 10, anchors=args.anchors)  # compile / load the kernels
     have_mj = importlib.util.find_spec("mujoco") is not None
-    have_pb = importlib.util.find_spec("pybullet") is not None
+    have_pb = importlib.util.find_spec("pybullet") is not None and not args.no_pybullet
     for n in (int(b) for b in args.boxes.split(",")):
         model, state = loose_pile(n)
-        prof = Profile() if args.profile else None
-        sps, pens, world, _ = run_rblog(model, state, args.dt, n_steps, args.sample_every, prof,
-                                        anchors=args.anchors)
-        st = world.stats
         print(f"\n{n} boxes")
-        print(f"  rblog{' anchors' if args.anchors else '        '}    {sps:8.1f} steps/s   penetration {stats(pens)}")
-        print(f"    per step: {st[3] / max(st[0], 1):.0f} contact points, "
-              f"{st[8] / max(st[0], 1):.1f} sweeps, {st[4] / max(st[0], 1):.0f} awake; "
-              f"{world.n_awake} awake at the end")
-        if prof is not None:
-            for name, sec, share in prof.table():
-                print(f"      {name:<36} {sec:8.3f} s  {100 * share:5.1f} %")
+        sps_t = {}
+        for nt in thread_counts:
+            _core.set_threads(nt)
+            prof = Profile() if args.profile else None
+            sps, pens, world, _ = run_rblog(model, state, args.dt, n_steps, args.sample_every,
+                                            prof, anchors=args.anchors)
+            sps_t[nt] = sps
+            st = world.stats
+            print(f"  rblog{'' if args.anchors else ' no anchors'} {nt} thread{'s' if nt > 1 else ' '}"
+                  f"  {sps:8.1f} steps/s   penetration {stats(pens)}")
+            print(f"    per step: {st[3] / max(st[0], 1):.0f} contact points, "
+                  f"{st[8] / max(st[0], 1):.1f} sweeps, {st[4] / max(st[0], 1):.0f} awake; "
+                  f"{world.n_awake} awake at the end")
+            if prof is not None:
+                for name, sec, share in prof.table():
+                    print(f"      {name:<36} {sec:8.3f} s  {100 * share:5.1f} %")
         if args.no_peers:
             continue
         if have_mj:
@@ -175,7 +186,11 @@ def main(argv=None):
         else:
             sps_p = float("nan")
             print("  pybullet not installed: skipped")
-        print(f"  rblog / MuJoCo {sps / sps_m:.2f}x   rblog / pybullet {sps / sps_p:.2f}x")
+        for nt, sps in sps_t.items():
+            print(f"  rblog {nt} thread{'s' if nt > 1 else ' '}: / MuJoCo {sps / sps_m:.2f}x   "
+                  f"/ pybullet {sps / sps_p:.2f}x")
+        if 1 in sps_t and 2 in sps_t:
+            print(f"  rblog 2 threads / 1 thread {sps_t[2] / sps_t[1]:.2f}x")
 
 
 if __name__ == "__main__":

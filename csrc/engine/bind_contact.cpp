@@ -98,7 +98,7 @@ void bind_contact(nb::module_& m) {
         RB_FIELD2(lo) RB_FIELD2(hi) RB_FIELD1(reach) RB_FIELD1(in_contact) RB_FIELD1(bm)
         RB_FIELD2(bI) RB_FIELD2(bv) RB_FIELD2(bw) RB_FIELD2(bv0) RB_FIELD2(bw0) RB_FIELD2(pv)
         RB_FIELD2(pw) RB_FIELD2(p0) RB_FIELD2(l0) RB_FIELD2(l_drift) RB_FIELD1(parent)
-        RB_FIELD1(isl_time) RB_FIELD1(isl_sup) RB_FIELD2(blk) RB_FIELD1(hot)
+        RB_FIELD1(isl_time) RB_FIELD1(isl_sup) RB_FIELD1(hot)
         RB_FIELD2(dx_step) RB_FIELD2(proj_dx) RB_FIELD2(proj_dth) RB_FIELD1(pushed)
         RB_FIELD1(push_root) RB_FIELD2(flow_c);
 #undef RB_FIELD1
@@ -267,13 +267,19 @@ void bind_contact(nb::module_& m) {
     m.def("solve_velocities", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
                                  nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
                                  double inv_h, i64 min_iter, i64 max_iter, double tol,
-                                 nb::handle blk, nb::handle hot, nb::handle degree, double sor,
+                                 nb::handle hot, nb::handle degree, double sor,
                                  i64 newton_iters, double newton_tol) {
+        // the world step colours in a stage of its own; a call from Python colours here
+        V2<i64> mi_ = v2<i64>(mi, "mi");
+        V1<double> bm_ = v1<double>(bm, "bm");
+        ConstraintGraph g;
+        SolverLanes lanes;
+        colour_manifolds(mi_, n_man, bm_.n0 - 1, g);
         return solve_velocities(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"),
                                 n_man, v1<double>(bm, "bm"), v2<double>(bI, "bI"),
                                 v2<double>(bv, "bv"), v2<double>(bw, "bw"), inv_h, min_iter,
-                                max_iter, tol, v2<double>(blk, "blk"), v1<i64>(hot, "hot"),
-                                v1<i64>(degree, "degree"), sor, newton_iters, newton_tol);
+                                max_iter, tol, v1<i64>(hot, "hot"),
+                                v1<i64>(degree, "degree"), sor, newton_iters, newton_tol, g, lanes);
     });
     m.def("anchor_friction", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
                                 nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,

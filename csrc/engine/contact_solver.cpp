@@ -57,15 +57,38 @@
 // Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.
 //
 // Restitution (the bounce after positions moved) is in :mod:`rblog.engine.contact.restitution`.
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
+#include <vector>
 
+#include "common/task_pool.hpp"
+#include "engine/profile.hpp"
+
+#include "engine/constraint_graph.hpp"
+#include "engine/contact_lanes.hpp"
 #include "engine/contact_solver.hpp"
 #include "engine/manifold.hpp"
 
 namespace rb {
 
+TaskPool& pool();  // the engine's pool (threads.cpp)
+
 namespace {
+
+// A colour's groups go to threads only when each thread gets this many per sweep on average (a
+// barrier per colour costs about as much as solving a few groups); the results do not depend on
+// it, only the time.
+constexpr i64 MIN_GROUPS_PER_THREAD = 8;
+
+// When thread 0 spent more than half of a threaded solve waiting at the colours' barriers (on a
+// machine whose cores are busy with other processes a worker is often not running, and each of
+// the ~300 barriers of a step then waits for the scheduler), the next this many solves run on
+// one thread before threads are tried again. Measured on the shared 2-core machine (load 15):
+// the 500-box pile's solve took 71 s of wall time on two threads against 21 s on one. The
+// results do not depend on it (only which thread solves which group changes).
+constexpr i64 THREAD_BACKOFF_CALLS = 200;
+std::atomic<i64> g_thread_backoff{0};  // (atomic: worlds may step on several Python threads)
 
 inline void smul(double i0, double i1, double i2, double i3, double i4, double i5, double x,
                  double y, double z, double& ox, double& oy, double& oz) {
@@ -136,9 +159,10 @@ inline void friction_impulse(double k11, double k12, double k22, double o1, doub
 // PF_KN rows) into mf[m, MF_LU:] (U on and above the diagonal, the elimination multipliers below
 // it, each left where it was computed), the pivot rows into mf[m, MF_PIV:] and mf[m, MF_LUOK] =
 // 1.0 if no pivot vanished. The block depends on the geometry and masses only, so it is factored
-// once per step here instead of once per sweep; lu_solve then makes exactly the floating-point
-// operations of Gaussian elimination with partial pivoting on [K | rhs] (the same pivots,
-// multipliers, order), so its results are bitwise those of an elimination per sweep.
+// once per step here instead of once per sweep; the sweep (solve_group in contact_lanes.inl)
+// then makes exactly the floating-point operations of Gaussian elimination with partial pivoting
+// on [K | rhs] (the same pivots, multipliers, order), so its results are bitwise those of an
+// elimination per sweep.
 void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double block_reg) {
     double* f = mf.row(m);
     const i64 base = MF_LU;
@@ -168,27 +192,6 @@ void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double 
         }
     }
     f[MF_LUOK] = 1.0;
-}
-
-// Solve the factored block of manifold m (see factor_block) for the right-hand side in
-// blk[:n, 4], in place.
-inline void lu_solve(V2<double> mf, i64 m, V2<double> blk, i64 n) {
-    const double* f = mf.row(m);
-    const i64 base = MF_LU;
-    for (i64 c = 0; c < n; ++c) {
-        i64 piv = (i64)f[MF_PIV + c];
-        if (piv != c) {
-            double t = blk(c, 4);
-            blk(c, 4) = blk(piv, 4);
-            blk(piv, 4) = t;
-        }
-        for (i64 r = c + 1; r < n; ++r) blk(r, 4) -= f[base + 4 * r + c] * blk(c, 4);
-    }
-    for (i64 c = n - 1; c >= 0; --c) {
-        double x = blk(c, 4);
-        for (i64 k = c + 1; k < n; ++k) x -= f[base + 4 * c + k] * blk(k, 4);
-        blk(c, 4) = x / f[base + 5 * c];
-    }
 }
 
 }  // namespace
@@ -374,7 +377,11 @@ void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
     }
 }
 
-// Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order).
+// Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order), the
+// manifolds in the order of the constraint graph's colouring (constraint_graph.hpp): the
+// overflow set one manifold after another, then each colour, whose manifolds share no dynamic
+// body and are solved four at a time in the lanes of a vector (contact_lanes.hpp; the kernel's
+// formulas are the ones of the scalar code above and below: solve_group in contact_lanes.inl).
 //
 // Sweeps at least min_iter times, then until the largest velocity change a sweep makes at any
 // point is below tol (m/s), at most max_iter sweeps. Past min_iter a sweep visits only manifolds
@@ -388,150 +395,114 @@ void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
 // manifolds per body). Plain Gauss-Seidel moves a load through a chain of n bodies in ~n^2
 // sweeps, over-relaxed in ~n. A manifold whose bodies touch nothing else is solved exactly by one
 // update, so it is not relaxed (that would only make it oscillate).
+//
+// Nothing in a sweep depends on the order of the manifolds inside a colour (each reads and
+// writes only its own bodies' velocities and hot marks; the largest change is a max and the
+// visits a sum), so the result is the same whichever lanes and threads solve them.
 i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
                      V2<double> bI, V2<double> bv, V2<double> bw, double inv_h, i64 min_iter,
-                     i64 max_iter, double tol, V2<double> blk, V1<i64> hot, V1<i64> degree,
-                     double sor, i64 newton_iters, double newton_tol) {
+                     i64 max_iter, double tol, V1<i64> hot, V1<i64> degree, double sor,
+                     i64 newton_iters, double newton_tol, const ConstraintGraph& g,
+                     SolverLanes& lanes) {
     i64 it = 0;
     i64 visits = 0;
     for (i64 k = 0; k < hot.n0; ++k) hot[k] = 0;
     i64 active = 0;
     for (i64 m = 0; m < n_man; ++m) active += mi(m, MI_ACTIVE);
-    while (it < max_iter) {
-        it += 1;
-        double change = 0.0;
-        for (i64 m = 0; m < n_man; ++m) {
-            const i64* im_ = mi.row(m);
-            if (!im_[MI_ACTIVE]) continue;
-            i64 ia = im_[MI_A], ib = im_[MI_B];
-            if (it > min_iter && hot[ia] < it - 1 && hot[ib] < it - 1) continue;
-            visits += 1;
-            bool mark_a = false;
-            double ma = bm[ia], mb = bm[ib];
-            double om = 1.0;
-            if ((ma > 0.0 && degree[ia] > 1) || (mb > 0.0 && degree[ib] > 1)) om = sor;
-            const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
-            const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
-            const double* fm = mf.row(m);
-            double nx = fm[MF_N], ny = fm[MF_N + 1], nz = fm[MF_N + 2];
-            double t1x = fm[MF_T1], t1y = fm[MF_T1 + 1], t1z = fm[MF_T1 + 2];
-            double t2x = fm[MF_T2], t2y = fm[MF_T2 + 1], t2z = fm[MF_T2 + 2];
-            double mu = fm[MF_MU];
-            double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
-            double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
-            double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
-            double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
-            i64 start = im_[MI_START];
-            i64 end = start + im_[MI_COUNT];
-            // non-penetration: the manifold's points together (block), else one by one
-            bool solved = false;
-            i64 cnt = end - start;
-            if (cnt > 1 && fm[MF_LUOK] > 0.0) {
-                for (i64 i = 0; i < cnt; ++i) {
-                    const double* q = pf.row(start + i);
-                    double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-                    double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-                    double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-                    double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-                    double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
-                    double vn = dvx * nx + dvy * ny + dvz * nz;
-                    double s = q[PF_S];
-                    double target = s > 0.0 ? -s * inv_h : 0.0;
-                    blk(i, 4) = target - vn;
-                }
-                lu_solve(mf, m, blk, cnt);
-                bool ok = true;
-                for (i64 i = 0; i < cnt; ++i)
-                    if (pf(start + i, PF_LN) + om * blk(i, 4) < 0.0) ok = false;
-                if (ok) {
-                    solved = true;
-                    for (i64 i = 0; i < cnt; ++i) {
-                        double* q = pf.row(start + i);
-                        double d = om * blk(i, 4);
-                        q[PF_LN] += d;
-                        if (d != 0.0) {
-                            double dv = std::fabs(d) / q[PF_NMASS];
-                            if (dv > change) change = dv;
-                            if (dv > tol) mark_a = true;
-                        }
-                        apply_impulse(ma, a6, mb, b6, q[PF_RA], q[PF_RA + 1], q[PF_RA + 2],
-                                      q[PF_RB], q[PF_RB + 1], q[PF_RB + 2], d * nx, d * ny,
-                                      d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx,
-                                      wby, wbz);
-                    }
-                }
-            }
-            if (!solved) {
-                for (i64 p = start; p < end; ++p) {
-                    double* q = pf.row(p);
-                    double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-                    double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-                    // relative normal velocity at the contact (a minus b)
-                    double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-                    double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-                    double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
-                    double vn = dvx * nx + dvy * ny + dvz * nz;
-                    double s = q[PF_S];
-                    // speculative: the gap may close within the step, not more
-                    double target = s > 0.0 ? -s * inv_h : 0.0;
-                    // clamp the accumulated impulse
-                    double old = q[PF_LN];
-                    double nw = old + om * q[PF_NMASS] * (target - vn);
-                    if (nw < 0.0) nw = 0.0;
-                    q[PF_LN] = nw;
-                    double d = nw - old;
-                    if (d != 0.0) {
-                        double dv = std::fabs(d) / q[PF_NMASS];
-                        if (dv > change) change = dv;
-                        if (dv > tol) mark_a = true;
-                    }
-                    apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny,
-                                  d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby,
-                                  wbz);
-                }
-            }
-            // friction
-            if (mu > 0.0) {
-                for (i64 p = start; p < end; ++p) {
-                    double* q = pf.row(p);
-                    double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-                    double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-                    double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-                    double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-                    double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
-                    double vt1 = dvx * t1x + dvy * t1y + dvz * t1z;
-                    double vt2 = dvx * t2x + dvy * t2y + dvz * t2z;
-                    double k11 = q[PF_TK], k12 = q[PF_TK + 1], k22 = q[PF_TK + 2];
-                    double o1 = q[PF_L1], o2 = q[PF_L2];
-                    double n1, n2;
-                    friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, mu * q[PF_LN],
-                                     newton_iters, newton_tol, n1, n2);
-                    q[PF_L1] = n1;
-                    q[PF_L2] = n2;
-                    double d1 = n1 - o1;
-                    double d2 = n2 - o2;
-                    double dv = std::fabs(d1) * k11 + std::fabs(d2) * k22;
-                    if (dv > change) change = dv;
-                    if (dv > tol) mark_a = true;
-                    double px = d1 * t1x + d2 * t2x;
-                    double py = d1 * t1y + d2 * t2y;
-                    double pz = d1 * t1z + d2 * t2z;
-                    apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, px, py, pz, vax,
-                                  vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
-                }
-            }
-            bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
-            bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
-            bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
-            bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
-            if (mark_a) {
-                // the static dummy (zero inverse mass) never turns hot
-                if (ma > 0.0) hot[ia] = it;
-                if (mb > 0.0) hot[ib] = it;
-            }
-        }
-        if (it >= min_iter && change <= tol) break;
+    pack_lanes(mi, mf, pf, g, bm, bI, degree, inv_h, sor, lanes);
+    LaneCtx cx{bv.p, bw.p, hot.p, bm.n0 - 1, 0, min_iter, tol, newton_iters, newton_tol};
+    WideGroup* gr = lanes.groups.data();
+    const i64 n_sets = (i64)lanes.set_group.size() - 1;
+    const i64 n_wide = lanes.set_group[n_sets] - lanes.set_group[1];
+    const int n_threads = pool().threads();
+    bool serial = n_threads < 2 || n_wide < MIN_GROUPS_PER_THREAD * n_threads;
+    if (!serial && g_thread_backoff.load(std::memory_order_relaxed) > 0) {
+        g_thread_backoff.fetch_sub(1, std::memory_order_relaxed);
+        serial = true;
     }
+    bool converged = false;
+    if (!serial) {
+        // the same sweeps on every thread at once: thread 0 solves the overflow set, then each
+        // colour's groups are split in n_threads static parts, a barrier after each; the sweep's
+        // largest change is the max of the threads' (the same number on every thread, so all
+        // stop after the same sweep) and the visits their sum
+        const int nt = n_threads;
+        std::vector<double> t_change((size_t)nt * 8, 0.0);  // (a cache line per thread)
+        std::vector<i64> t_visits((size_t)nt * 8, 0), t_it((size_t)nt * 8, 0);
+        SpinBarrier bar(nt);
+        std::atomic<bool> handover{false};
+        i64 waited = 0;  // thread 0's ticks in barriers
+        const i64 t_start = ticks();
+        auto wait = [&](i64 t) {
+            if (t != 0) {
+                bar.wait();
+                return;
+            }
+            i64 w0 = ticks();
+            bar.wait();
+            waited += ticks() - w0;
+        };
+        pool().parallel_for(nt, [&](i64 t) {
+            LaneCtx tc = cx;
+            i64 my_it = 0, my_visits = 0;
+            while (my_it < max_iter) {
+                my_it += 1;
+                tc.it = my_it;
+                double change = 0.0;
+                if (t == 0)
+                    solve_groups_scalar(gr, lanes.set_group[0], lanes.set_group[1], tc, &change,
+                                        &my_visits);
+                wait(t);
+                for (i64 s = 1; s < n_sets; ++s) {
+                    i64 g0 = lanes.set_group[s], n_g = lanes.set_group[s + 1] - g0;
+                    solve_groups_wide(gr, g0 + n_g * t / nt, g0 + n_g * (t + 1) / nt, tc, &change,
+                                      &my_visits);
+                    wait(t);
+                }
+                t_change[(size_t)t * 8] = change;
+                wait(t);
+                double all = 0.0;
+                for (int k = 0; k < nt; ++k)
+                    if (t_change[(size_t)k * 8] > all) all = t_change[(size_t)k * 8];
+                // thread 0: more than half the time so far in barriers (and past a few sweeps):
+                // the threads do not run at once, hand the rest of the solve to one thread
+                if (t == 0 && my_it >= 2 && 2 * waited > ticks() - t_start)
+                    handover.store(true, std::memory_order_relaxed);
+                wait(t);  // (every thread has read the changes and the handover before the next
+                          // sweep's)
+                if (my_it >= min_iter && all <= tol) {
+                    if (t == 0) converged = true;
+                    break;
+                }
+                if (handover.load(std::memory_order_relaxed)) break;
+            }
+            t_visits[(size_t)t * 8] = my_visits;
+            t_it[(size_t)t * 8] = my_it;
+        });
+        for (int k = 0; k < nt; ++k) visits += t_visits[(size_t)k * 8];
+        it = t_it[0];
+        // handed over (or more than half the time in barriers): the threads did not run at once
+        // (the machine's cores are taken by other work), so the next THREAD_BACKOFF_CALLS
+        // solves run on one thread; the remaining sweeps of this one run below. Either gives
+        // the same bits as the threaded sweeps.
+        if (handover.load(std::memory_order_relaxed) || 2 * waited > ticks() - t_start)
+            g_thread_backoff.store(THREAD_BACKOFF_CALLS, std::memory_order_relaxed);
+    }
+    if (!converged) {
+        while (it < max_iter) {
+            it += 1;
+            cx.it = it;
+            double change = 0.0;
+            // the overflow set: one manifold after another
+            solve_groups_scalar(gr, lanes.set_group[0], lanes.set_group[1], cx, &change, &visits);
+            // the colours, one after another; a colour's groups in any order
+            for (i64 s = 1; s < n_sets; ++s)
+                solve_groups_wide(gr, lanes.set_group[s], lanes.set_group[s + 1], cx, &change,
+                                  &visits);
+            if (it >= min_iter && change <= tol) break;
+        }
+    }
+    unpack_lanes(mi, pf, lanes);
     i64 den = active > 1 ? active : 1;
     i64 r = (visits + active - 1) / den;
     return r > 1 ? r : 1;

@@ -17,6 +17,9 @@
 
 namespace rb {
 
+struct ConstraintGraph;
+struct SolverLanes;
+
 // ---- the one place an impulse acts on a pair ---------------------------------------------------
 
 // +P on body a at anchor r_a, -P on body b at r_b: velocity changes m^-1 P and I_world^-1 (r x P),
@@ -69,12 +72,14 @@ void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<do
 void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
                 V2<double> bI, V2<double> bv, V2<double> bw);
 
-// newton_iters, newton_tol: FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL. Returns the full-sweep
+// newton_iters, newton_tol: FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL; g: the colouring of
+// the active manifolds (constraint_graph.hpp), lanes: work buffers. Returns the full-sweep
 // equivalents (at least 1).
 i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
                      V2<double> bI, V2<double> bv, V2<double> bw, double inv_h, i64 min_iter,
-                     i64 max_iter, double tol, V2<double> blk, V1<i64> hot, V1<i64> degree,
-                     double sor, i64 newton_iters, double newton_tol);
+                     i64 max_iter, double tol, V1<i64> hot, V1<i64> degree, double sor,
+                     i64 newton_iters, double newton_tol, const ConstraintGraph& g,
+                     SolverLanes& lanes);
 
 void anchor_friction(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
                      V2<double> bI, V2<double> bv, V2<double> bw, i64 newton_iters,

@@ -15,6 +15,8 @@
 #include <memory>
 #include <vector>
 
+#include "engine/constraint_graph.hpp"
+#include "engine/contact_lanes.hpp"
 #include "common/array.hpp"
 #include "common/py.hpp"
 #include "engine/collision.hpp"
@@ -257,7 +259,8 @@ struct Scratch {
     Buf2<double> isl_time;                            // (N,)
     Buf2<i64> isl_sup;                                // (N,)
     ColliderBuffers cb;                               // nrm pts sep fid work poly
-    Buf2<double> blk;                                 // (4, 5)
+    ConstraintGraph graph;                            // the colouring of this step's manifolds
+    SolverLanes lanes;                                // the velocity solve's packed groups
     Buf2<i64> hot;                                    // (N+1,)
     Buf2<double> dx_step, proj_dx, proj_dth;          // (N+1, 3)
     Buf2<i64> pushed, push_root;                      // (N+1,)

@@ -9,6 +9,8 @@
 //     2  broadphase       swept AABBs, sort-and-sweep, ground pairs  (broadphase.py)
 //     3  wake             sleeping islands an awake body may touch   (island.py)
 //     4  collide          narrowphase table -> manifolds, warm-start matching, sleeping carried
+//     4b colour           the constraint graph's colours: sets of manifolds that share no
+//                         dynamic body (constraint_graph.hpp), the order the solve sweeps in
 //     5  prepare          effective masses, pre-solve gap velocities (solver.py)
 //     6  warm start       apply last step's impulses
 //     7  solve            sequential impulses, Coulomb friction, speculative targets; then one
@@ -151,7 +153,6 @@ void Scratch::make(i64 n_bodies, const Statics& st) {
     zeroed(isl_time, n, 1);
     zeroed(isl_sup, n, 1);
     cb = collider_buffers();
-    zeroed(blk, 4, 5);
     zeroed(hot, n1, 1);
     zeroed(dx_step, n1, 3);
     zeroed(proj_dx, n1, 3);
@@ -510,6 +511,8 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             stats[ST_MANIFOLDS] += n_man;
             stats[ST_POINTS] += cc.n_pts;
             if (do_prof) t = lap(prof, P_COLLIDE, t);
+            colour_manifolds(c.mi1.view(), n_man, n, sc.graph);                          // 4b
+            if (do_prof) t = lap(prof, P_COLOUR, t);
             V2<i64> mi1 = c.mi1.view();
             V2<double> mf1 = c.mf1.view(), pf1 = c.pf1.view();
             V1<double> bm = col(sc.bm);
@@ -518,8 +521,8 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (cfg.warm) warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw);                // 6
             stats[ST_SWEEPS] += solve_velocities(                                           // 7
                 mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h, cfg.n_vel, cfg.max_vel, cfg.vel_tol,
-                sc.blk.view(), col(sc.hot), col(sc.in_contact), cfg.sor, cfg.newton_iters,
-                cfg.newton_tol);
+                col(sc.hot), col(sc.in_contact), cfg.sor, cfg.newton_iters, cfg.newton_tol,
+                sc.graph, sc.lanes);
             if (cfg.anchors_on)                                                             // 7b
                 anchor_friction(mi1, mf1, pf1, n_man, bm, bI, bv, bw, cfg.newton_iters,
                                 cfg.newton_tol);

@@ -21,11 +21,11 @@ import numpy as np
 
 from rblog.engine import _core
 
-(P_KICK, P_BROADPHASE, P_WAKE, P_COLLIDE, P_SOLVE, P_RELAX, P_INTEGRATE, P_RESTITUTION,
- P_PROJECT, P_SLEEP, P_SAMPLE) = range(11)
-N_PROF = 11
+(P_KICK, P_BROADPHASE, P_WAKE, P_COLLIDE, P_COLOUR, P_SOLVE, P_RELAX, P_INTEGRATE,
+ P_RESTITUTION, P_PROJECT, P_SLEEP, P_SAMPLE) = range(12)
+N_PROF = 12
 #: stage names in step order, matching the P_* indices
-STAGES = ("kick", "broadphase", "wake", "collide", "solve", "relax", "integrate", "restitution",
+STAGES = ("kick", "broadphase", "wake", "collide", "colour", "solve", "relax", "integrate", "restitution",
           "project", "sleep", "sample")
 
 

@@ -1,7 +1,8 @@
 """Determinism across processes and thread counts, as log bytes (issue 19).
 
-A free scene (the core's free kernel splits its bodies over the task pool's threads) and a
-contact scene (serial today; this test guards any later parallel stage) are each run in separate
+A free scene (the core's free kernel splits its bodies over the task pool's threads), a
+contact scene and the 500-box pile (the velocity solve splits each colour of the constraint
+graph over the threads: csrc/engine/contact_solver.cpp) are each run in separate
 processes with RBLOG_THREADS=1 and =2 (and `--threads 4`); every record of the .mcap files must
 be byte-identical (the file bytes may differ only in where chunks end: see _mcap_records) and the
 .rrd files (which carry a random recording id) must hold bit-identical samples.
@@ -132,6 +133,17 @@ def test_contact_scene_logs_same_bytes_for_1_and_2_threads(tmp_path):
     two = _run(tmp_path, scene, "contact", 2, ("--duration", "1"))
     traj = _same_logs(one, two)
     assert len(traj.contacts) > 0  # bodies did touch
+
+
+def test_pile_logs_same_bytes_for_1_2_and_4_threads(tmp_path):
+    """samples/pile.toml to 0.6 s: the two lowest layers have landed, some 300 manifolds, i.e.
+    ~80 groups of four in the colours, past the threshold (8 groups a thread) where a colour is
+    split over 2 and 4 threads."""
+    scene = SAMPLES_DIR / "pile.toml"
+    one = _run(tmp_path, scene, "pile", 1, ("--duration", "0.6"))
+    for n in (2, 4):
+        traj = _same_logs(one, _run(tmp_path, scene, "pile", n, ("--duration", "0.6")))
+    assert len(traj.contacts) > 0
 
 
 def test_determinism_across_processes(tmp_path):

@@ -48,14 +48,15 @@ def warm_start(mi, mf, pf, n_man, bm, bI, bv, bw):
     _core.warm_start(mi, mf, pf, int(n_man), bm, bI, bv, bw)
 
 
-def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_iter, tol, blk,
-                     hot, degree, sor):
+def solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, inv_h, min_iter, max_iter, tol, hot,
+                     degree, sor):
     """Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order), at
     least ``min_iter`` sweeps, then until the largest velocity change is below ``tol`` (m/s), at
     most ``max_iter``; normal increments over-relaxed by ``sor`` where a body touches more than
-    one thing (``degree``). Returns the full-sweep equivalents (at least 1)."""
+    one thing (``degree``); the manifolds in the order of their constraint-graph colouring
+    (csrc/engine/constraint_graph.hpp). Returns the full-sweep equivalents (at least 1)."""
     return _core.solve_velocities(mi, mf, pf, int(n_man), bm, bI, bv, bw, float(inv_h),
-                                  int(min_iter), int(max_iter), float(tol), blk, hot, degree,
+                                  int(min_iter), int(max_iter), float(tol), hot, degree,
                                   float(sor), int(_c.FRICTION_NEWTON_ITERS),
                                   float(_c.FRICTION_NEWTON_TOL))
 

@@ -1,0 +1,155 @@
+// The velocity solve's lanes (contact_lanes.hpp): packing the colouring's sets into groups of
+// four manifolds, the scalar and the portable wide kernels, and the choice between them.
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+
+#include "engine/constraint_graph.hpp"
+#include "engine/contact_lanes.hpp"
+#include "engine/manifold.hpp"
+
+namespace rb {
+
+namespace {
+#include "engine/contact_lanes.inl"
+
+// RBLOG_SOLVER_PATH=scalar|sse2 forces a path at import (the tests' and benchmarks' switch)
+int initial_path() {
+    const char* e = std::getenv("RBLOG_SOLVER_PATH");
+    if (e && std::strcmp(e, "scalar") == 0) return PATH_SCALAR;
+    if (e && std::strcmp(e, "sse2") == 0) return PATH_SSE2;
+    return PATH_AUTO;
+}
+
+int g_path = initial_path();
+
+bool has_avx2() {
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+    static const bool yes = __builtin_cpu_supports("avx2");
+    return yes;
+#else
+    return false;
+#endif
+}
+
+}  // namespace
+
+void set_solver_path(int path) { g_path = path; }
+int solver_path() { return g_path; }
+
+const char* solver_kernel() {
+    if (g_path == PATH_SSE2) return "sse2";
+    if (g_path == PATH_AUTO && has_avx2()) return "avx2";
+    return "scalar";
+}
+
+void solve_groups_scalar(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,
+                         i64* visits) {
+    for (i64 k = g0; k < g1; ++k)
+        for (int l = 0; l < 4; ++l) solve_group<double>(g[k], l, cx, change, visits);
+}
+
+void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,
+                       i64* visits) {
+    if (g_path == PATH_SSE2) {
+        for (i64 k = g0; k < g1; ++k) solve_group<d4>(g[k], 0, cx, change, visits);
+        return;
+    }
+    if (g_path == PATH_AUTO && has_avx2()) {
+        solve_groups_avx2(g, g0, g1, cx, change, visits);
+        return;
+    }
+    solve_groups_scalar(g, g0, g1, cx, change, visits);
+}
+
+void pack_lanes(V2<i64> mi, V2<double> mf, V2<double> pf, const ConstraintGraph& g, V1<double> bm,
+                V2<double> bI, V1<i64> degree, double inv_h, double sor, SolverLanes& lanes) {
+    i64 n_sets = g.n_sets();
+    lanes.set_group.assign(n_sets + 1, 0);
+    i64 n_groups = 0;
+    for (i64 s = 0; s < n_sets; ++s) {
+        lanes.set_group[s] = n_groups;
+        n_groups += (g.set_start[s + 1] - g.set_start[s] + 3) / 4;
+    }
+    lanes.set_group[n_sets] = n_groups;
+    if ((i64)lanes.groups.size() < n_groups) lanes.groups.resize(n_groups);
+    const i64 dummy = bm.n0 - 1;
+    for (i64 s = 0; s < n_sets; ++s) {
+        i64 k0 = g.set_start[s], k1 = g.set_start[s + 1];
+        for (i64 q = lanes.set_group[s]; q < lanes.set_group[s + 1]; ++q) {
+            WideGroup& gr = lanes.groups[q];
+            std::memset(&gr, 0, sizeof gr);
+            gr.n_pts = 0;
+            for (int j = 0; j < 4; ++j) {
+                i64 k = k0 + 4 * (q - lanes.set_group[s]) + j;
+                if (k >= k1) {
+                    gr.m[j] = -1;
+                    gr.a[j] = dummy;
+                    gr.b[j] = dummy;
+                    continue;
+                }
+                i64 m = g.order[k];
+                i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+                i64 start = mi(m, MI_START), cnt = mi(m, MI_COUNT);
+                gr.m[j] = m;
+                gr.a[j] = ia;
+                gr.b[j] = ib;
+                if (cnt > gr.n_pts) gr.n_pts = cnt;
+                double ma = bm[ia], mb = bm[ib];
+                gr.on[j] = 1.0;
+                gr.cnt[j] = (double)cnt;
+                gr.luok[j] = mf(m, MF_LUOK);
+                gr.om[j] = ((ma > 0.0 && degree[ia] > 1) || (mb > 0.0 && degree[ib] > 1)) ? sor : 1.0;
+                gr.mu[j] = mf(m, MF_MU);
+                gr.ma[j] = ma;
+                gr.mb[j] = mb;
+                for (int c = 0; c < 6; ++c) {
+                    gr.a6[c][j] = bI(ia, c);
+                    gr.b6[c][j] = bI(ib, c);
+                }
+                for (int c = 0; c < 3; ++c) {
+                    gr.n[c][j] = mf(m, MF_N + c);
+                    gr.t1[c][j] = mf(m, MF_T1 + c);
+                    gr.t2[c][j] = mf(m, MF_T2 + c);
+                }
+                for (int c = 0; c < 16; ++c) gr.lu[c][j] = mf(m, MF_LU + c);
+                for (int c = 0; c < 4; ++c) gr.piv[c][j] = mf(m, MF_PIV + c);
+                for (i64 i = 0; i < cnt; ++i) {
+                    const double* q_ = pf.row(start + i);
+                    for (int c = 0; c < 3; ++c) {
+                        gr.ra[i][c][j] = q_[PF_RA + c];
+                        gr.rb[i][c][j] = q_[PF_RB + c];
+                        gr.tk[i][c][j] = q_[PF_TK + c];
+                    }
+                    double sep = q_[PF_S];
+                    // speculative: the gap may close within the step, not more
+                    gr.target[i][j] = sep > 0.0 ? -sep * inv_h : 0.0;
+                    gr.nmass[i][j] = q_[PF_NMASS];
+                    gr.ln[i][j] = q_[PF_LN];
+                    gr.l1[i][j] = q_[PF_L1];
+                    gr.l2[i][j] = q_[PF_L2];
+                }
+            }
+        }
+    }
+}
+
+void unpack_lanes(V2<i64> mi, V2<double> pf, const SolverLanes& lanes) {
+    i64 n_groups = lanes.set_group.empty() ? 0 : lanes.set_group.back();
+    for (i64 q = 0; q < n_groups; ++q) {
+        const WideGroup& gr = lanes.groups[q];
+        for (int j = 0; j < 4; ++j) {
+            i64 m = gr.m[j];
+            if (m < 0) continue;
+            i64 start = mi(m, MI_START), cnt = mi(m, MI_COUNT);
+            for (i64 i = 0; i < cnt; ++i) {
+                double* q_ = pf.row(start + i);
+                q_[PF_LN] = gr.ln[i][j];
+                q_[PF_L1] = gr.l1[i][j];
+                q_[PF_L2] = gr.l2[i][j];
+            }
+        }
+    }
+}
+
+}  // namespace rb

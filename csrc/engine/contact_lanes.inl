@@ -1,0 +1,373 @@
+// The group kernel of the velocity solve (contact_lanes.hpp), one template for the scalar and the
+// wide builds. Included inside an anonymous namespace by contact_lanes.cpp and
+// contact_lanes_avx2.cpp, so that nothing compiled with -mavx2 can be linked in place of the
+// portable code (every function here has internal linkage; only raw pointers, no views).
+//
+// The formulas and their order are contact_solver.cpp's (solve_velocities, friction_impulse,
+// lu_solve, apply_impulse): read them there; here each `if` on a lane's value is a select
+// (W<T>::sel) and a loop with a lane-dependent length runs to the group's longest with the
+// shorter lanes masked.
+
+#pragma GCC diagnostic ignored "-Wpsabi"  // (internal, inlined: no ABI crosses a TU)
+typedef double d4 __attribute__((vector_size(32)));
+typedef long long m4 __attribute__((vector_size(32)));
+
+template <class T>
+struct W;
+
+// one lane: T = double, masks are bools, lane l of the group's arrays
+template <>
+struct W<double> {
+    typedef bool M;
+    static constexpr int width = 1;
+    static double ld(const double* p, int l) { return p[l]; }
+    static void st(double* p, int l, double x) { p[l] = x; }
+    static double splat(double x) { return x; }
+    static double sel(M m, double a, double b) { return m ? a : b; }
+    static M mand(M a, M b) { return a && b; }
+    static M mor(M a, M b) { return a || b; }
+    static M mnot(M a) { return !a; }
+    static bool any(M m) { return m; }
+    static bool lane(M m, int) { return m; }
+    static M from(const bool* b, int l) { return b[l]; }
+    static double vabs(double x) { return std::fabs(x); }
+    static double vsqrt(double x) { return std::sqrt(x); }
+    static double gat(const double* base, const i64* rows, int k, int l) {
+        return base[rows[l] * 3 + k];
+    }
+    static void sca(double* base, const i64* rows, int k, int l, double x, M w) {
+        if (w) base[rows[l] * 3 + k] = x;
+    }
+};
+
+// four lanes: T = d4 (GCC vector extension; AVX2 or two SSE2 halves), masks 0 / -1 per lane
+template <>
+struct W<d4> {
+    typedef m4 M;
+    static constexpr int width = 4;
+    static d4 ld(const double* p, int) {
+        d4 r;
+        std::memcpy(&r, p, sizeof r);
+        return r;
+    }
+    static void st(double* p, int, d4 x) { std::memcpy(p, &x, sizeof x); }
+    static d4 splat(double x) { return d4{x, x, x, x}; }
+    static d4 sel(M m, d4 a, d4 b) { return m ? a : b; }
+    static M mand(M a, M b) { return a & b; }
+    static M mor(M a, M b) { return a | b; }
+    static M mnot(M a) { return ~a; }
+#ifdef __AVX__
+    static bool any(M m) { return __builtin_ia32_movmskpd256((d4)m) != 0; }
+#else
+    static bool any(M m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+#endif
+    static bool lane(M m, int j) { return m[j] != 0; }
+    static M from(const bool* b, int) {
+        return M{b[0] ? -1LL : 0LL, b[1] ? -1LL : 0LL, b[2] ? -1LL : 0LL, b[3] ? -1LL : 0LL};
+    }
+    static d4 vabs(d4 x) {
+        m4 bits;
+        std::memcpy(&bits, &x, sizeof x);
+        bits &= 0x7fffffffffffffffLL;
+        d4 r;
+        std::memcpy(&r, &bits, sizeof r);
+        return r;
+    }
+    static d4 vsqrt(d4 x) {
+#ifdef __AVX__
+        return __builtin_ia32_sqrtpd256(x);
+#else
+        return d4{std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3])};
+#endif
+    }
+    static d4 gat(const double* base, const i64* rows, int k, int) {
+        return d4{base[rows[0] * 3 + k], base[rows[1] * 3 + k], base[rows[2] * 3 + k],
+                  base[rows[3] * 3 + k]};
+    }
+    static void sca(double* base, const i64* rows, int k, int, d4 x, M w) {
+        for (int j = 0; j < 4; ++j)
+            if (w[j]) base[rows[j] * 3 + k] = x[j];
+    }
+};
+
+// contact_solver.hpp's apply_impulse, lanes where `on` (the others keep their velocities).
+template <class T>
+inline void lane_impulse(typename W<T>::M on, const T& ma, const T* a6, const T& mb, const T* b6,
+                         const T* ra, const T* rb, const T& px, const T& py, const T& pz, T* va,
+                         T* wa, T* vb, T* wb) {
+    typedef W<T> w;
+    if (!w::any(on)) return;
+    T cx = ra[1] * pz - ra[2] * py, cy = ra[2] * px - ra[0] * pz, cz = ra[0] * py - ra[1] * px;
+    T ex = a6[0] * cx + a6[3] * cy + a6[4] * cz;
+    T ey = a6[3] * cx + a6[1] * cy + a6[5] * cz;
+    T ez = a6[4] * cx + a6[5] * cy + a6[2] * cz;
+    va[0] = w::sel(on, va[0] + ma * px, va[0]);
+    va[1] = w::sel(on, va[1] + ma * py, va[1]);
+    va[2] = w::sel(on, va[2] + ma * pz, va[2]);
+    wa[0] = w::sel(on, wa[0] + ex, wa[0]);
+    wa[1] = w::sel(on, wa[1] + ey, wa[1]);
+    wa[2] = w::sel(on, wa[2] + ez, wa[2]);
+    cx = rb[1] * pz - rb[2] * py;
+    cy = rb[2] * px - rb[0] * pz;
+    cz = rb[0] * py - rb[1] * px;
+    ex = b6[0] * cx + b6[3] * cy + b6[4] * cz;
+    ey = b6[3] * cx + b6[1] * cy + b6[5] * cz;
+    ez = b6[4] * cx + b6[5] * cy + b6[2] * cz;
+    vb[0] = w::sel(on, vb[0] - mb * px, vb[0]);
+    vb[1] = w::sel(on, vb[1] - mb * py, vb[1]);
+    vb[2] = w::sel(on, vb[2] - mb * pz, vb[2]);
+    wb[0] = w::sel(on, wb[0] - ex, wb[0]);
+    wb[1] = w::sel(on, wb[1] - ey, wb[1]);
+    wb[2] = w::sel(on, wb[2] - ez, wb[2]);
+}
+
+// the relative velocity at the point (a minus b), contact_solver.cpp's expression
+template <class T>
+inline void gap_velocity(const T* va, const T* wa, const T* vb, const T* wb, const T* ra,
+                         const T* rb, T& dvx, T& dvy, T& dvz) {
+    dvx = va[0] + wa[1] * ra[2] - wa[2] * ra[1] - vb[0] - wb[1] * rb[2] + wb[2] * rb[1];
+    dvy = va[1] + wa[2] * ra[0] - wa[0] * ra[2] - vb[1] - wb[2] * rb[0] + wb[0] * rb[2];
+    dvz = va[2] + wa[0] * ra[1] - wa[1] * ra[0] - vb[2] - wb[0] * rb[1] + wb[1] * rb[0];
+}
+
+// contact_solver.cpp's friction_impulse, lane-wise: its early returns are selects, its Newton
+// loop runs while some lane of `on` has not met its bound (a lane that has keeps its values).
+template <class T>
+inline void lane_friction(typename W<T>::M on, const T& k11, const T& k12, const T& k22,
+                          const T& o1, const T& o2, const T& vt1, const T& vt2, const T& fmax,
+                          i64 newton_iters, double newton_tol, T& out1, T& out2) {
+    typedef W<T> w;
+    typedef typename W<T>::M M;
+    const T zero = w::splat(0.0);
+    T det0 = k11 * k22 - k12 * k12;
+    M none = w::mor(det0 <= zero, fmax <= zero);
+    T kc1 = k11 * o1 + k12 * o2 - vt1;
+    T kc2 = k12 * o1 + k22 * o2 - vt2;
+    T g = zero;
+    T l1 = (k22 * kc1 - k12 * kc2) / det0;
+    T l2 = (k11 * kc2 - k12 * kc1) / det0;
+    T nl = w::vsqrt(l1 * l1 + l2 * l2);
+    M inside = nl <= fmax;
+    M act = w::mand(on, w::mnot(w::mor(none, inside)));
+    const T one = w::splat(1.0);
+    const T bound = fmax * (one + w::splat(newton_tol));
+    for (i64 it = 0; it < newton_iters && w::any(act); ++it) {
+        T a = k11 + g;
+        T d = k22 + g;
+        T det = a * d - k12 * k12;
+        T n1 = (d * kc1 - k12 * kc2) / det;
+        T n2 = (a * kc2 - k12 * kc1) / det;
+        T nn = w::vsqrt(n1 * n1 + n2 * n2);
+        l1 = w::sel(act, n1, l1);
+        l2 = w::sel(act, n2, l2);
+        nl = w::sel(act, nn, nl);
+        act = w::mand(act, w::mnot(nn <= bound));
+        T m1 = (d * n1 - k12 * n2) / det;
+        T m2 = (a * n2 - k12 * n1) / det;
+        T f = one / fmax - one / nn;
+        T fp = -(n1 * m1 + n2 * m2) / (nn * nn * nn);
+        g = w::sel(act, g - f / fp, g);
+    }
+    T sc = fmax / nl;
+    T s1 = l1 * sc, s2 = l2 * sc;
+    out1 = w::sel(none, zero, w::sel(inside, l1, s1));
+    out2 = w::sel(none, zero, w::sel(inside, l2, s2));
+}
+
+// One sweep's visit of group gr (solve_velocities' loop body for its four manifolds): lane l for
+// T = double, all four for T = d4.
+template <class T>
+inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change, i64* visits) {
+    typedef W<T> w;
+    typedef typename W<T>::M M;
+    const int j0 = w::width == 1 ? l : 0, j1 = w::width == 1 ? l + 1 : 4;
+    // which lanes this sweep visits: past min_iter, those with a body a previous sweep changed
+    bool vb_[4] = {false, false, false, false};
+    bool any_visit = false;
+    for (int j = j0; j < j1; ++j) {
+        i64 ia = gr.a[j], ib = gr.b[j];
+        vb_[j] = gr.on[j] != 0.0 &&
+                 !(cx.it > cx.min_iter && cx.hot[ia] < cx.it - 1 && cx.hot[ib] < cx.it - 1);
+        if (vb_[j]) {
+            *visits += 1;
+            any_visit = true;
+        }
+    }
+    if (!any_visit) return;
+    const M vis = w::from(vb_, l);
+    const T zero = w::splat(0.0);
+    const T tol = w::splat(cx.tol);
+    T chg = zero;
+    M mark = vis & w::mnot(vis);  // all false
+    const T ma = w::ld(gr.ma, l), mb = w::ld(gr.mb, l), om = w::ld(gr.om, l);
+    T a6[6], b6[6];
+    for (int k = 0; k < 6; ++k) {
+        a6[k] = w::ld(gr.a6[k], l);
+        b6[k] = w::ld(gr.b6[k], l);
+    }
+    T nv[3], t1[3], t2[3];
+    for (int k = 0; k < 3; ++k) {
+        nv[k] = w::ld(gr.n[k], l);
+        t1[k] = w::ld(gr.t1[k], l);
+        t2[k] = w::ld(gr.t2[k], l);
+    }
+    const T mu = w::ld(gr.mu, l), cnt = w::ld(gr.cnt, l);
+    T va[3], wa[3], vb[3], wb[3];
+    for (int k = 0; k < 3; ++k) {
+        va[k] = w::gat(cx.bv, gr.a, k, l);
+        wa[k] = w::gat(cx.bw, gr.a, k, l);
+        vb[k] = w::gat(cx.bv, gr.b, k, l);
+        wb[k] = w::gat(cx.bw, gr.b, k, l);
+    }
+    const int np = (int)gr.n_pts;
+    M pt[4];  // point slot i exists in the lane
+    for (int i = 0; i < 4; ++i) pt[i] = w::splat((double)i) < cnt;
+    // non-penetration: the manifold's points together (block), else one by one
+    M block = w::mand(vis, w::mand(w::splat(1.0) < cnt, zero < w::ld(gr.luok, l)));
+    M solved = block & w::mnot(block);
+    if (w::any(block)) {
+        T rhs[4];
+        for (int i = 0; i < np; ++i) {
+            T ra[3], rb[3];
+            for (int k = 0; k < 3; ++k) {
+                ra[k] = w::ld(gr.ra[i][k], l);
+                rb[k] = w::ld(gr.rb[i][k], l);
+            }
+            T dvx, dvy, dvz;
+            gap_velocity(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
+            T vn = dvx * nv[0] + dvy * nv[1] + dvz * nv[2];
+            rhs[i] = w::ld(gr.target[i], l) - vn;
+        }
+        // lu_solve: the row exchanges and the elimination, each step in the lanes that have it
+        for (int c = 0; c < np; ++c) {
+            M cm = pt[c];
+            T piv = w::ld(gr.piv[c], l);
+            T rc = rhs[c];
+            T nc = rc;
+            for (int r = c + 1; r < np; ++r) {
+                M sw = w::mand(cm, piv == w::splat((double)r));
+                nc = w::sel(sw, rhs[r], nc);
+                rhs[r] = w::sel(sw, rc, rhs[r]);
+            }
+            rhs[c] = nc;
+            for (int r = c + 1; r < np; ++r)
+                rhs[r] = w::sel(pt[r], rhs[r] - w::ld(gr.lu[4 * r + c], l) * rhs[c], rhs[r]);
+        }
+        for (int c = np - 1; c >= 0; --c) {
+            T x = rhs[c];
+            for (int k = c + 1; k < np; ++k)
+                x = w::sel(pt[k], x - w::ld(gr.lu[4 * c + k], l) * rhs[k], x);
+            rhs[c] = w::sel(pt[c], x / w::ld(gr.lu[5 * c], l), rhs[c]);
+        }
+        M ok = block;
+        for (int i = 0; i < np; ++i)
+            ok = w::mand(ok, w::mnot(w::mand(pt[i], w::ld(gr.ln[i], l) + om * rhs[i] < zero)));
+        solved = ok;
+        if (w::any(ok)) {
+            for (int i = 0; i < np; ++i) {
+                M on = w::mand(ok, pt[i]);
+                T d = om * rhs[i];
+                T ln = w::ld(gr.ln[i], l);
+                w::st(gr.ln[i], l, w::sel(on, ln + d, ln));
+                M moved = w::mand(on, d != zero);
+                T dv = w::vabs(d) / w::ld(gr.nmass[i], l);
+                chg = w::sel(w::mand(moved, dv > chg), dv, chg);
+                mark = w::mor(mark, w::mand(moved, dv > tol));
+                T ra[3], rb[3];
+                for (int k = 0; k < 3; ++k) {
+                    ra[k] = w::ld(gr.ra[i][k], l);
+                    rb[k] = w::ld(gr.rb[i][k], l);
+                }
+                lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, d * nv[0], d * nv[1], d * nv[2], va,
+                                wa, vb, wb);
+            }
+        }
+    }
+    M single = w::mand(vis, w::mnot(solved));
+    if (w::any(single)) {
+        for (int i = 0; i < np; ++i) {
+            M on = w::mand(single, pt[i]);
+            T ra[3], rb[3];
+            for (int k = 0; k < 3; ++k) {
+                ra[k] = w::ld(gr.ra[i][k], l);
+                rb[k] = w::ld(gr.rb[i][k], l);
+            }
+            // relative normal velocity at the contact (a minus b)
+            T dvx, dvy, dvz;
+            gap_velocity(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
+            T vn = dvx * nv[0] + dvy * nv[1] + dvz * nv[2];
+            // clamp the accumulated impulse
+            T old = w::ld(gr.ln[i], l);
+            T nw = old + om * w::ld(gr.nmass[i], l) * (w::ld(gr.target[i], l) - vn);
+            nw = w::sel(nw < zero, zero, nw);
+            w::st(gr.ln[i], l, w::sel(on, nw, old));
+            T d = nw - old;
+            M moved = w::mand(on, d != zero);
+            T dv = w::vabs(d) / w::ld(gr.nmass[i], l);
+            chg = w::sel(w::mand(moved, dv > chg), dv, chg);
+            mark = w::mor(mark, w::mand(moved, dv > tol));
+            lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, d * nv[0], d * nv[1], d * nv[2], va, wa,
+                            vb, wb);
+        }
+    }
+    // friction
+    M fric = w::mand(vis, zero < mu);
+    if (w::any(fric)) {
+        for (int i = 0; i < np; ++i) {
+            M on = w::mand(fric, pt[i]);
+            T ra[3], rb[3];
+            for (int k = 0; k < 3; ++k) {
+                ra[k] = w::ld(gr.ra[i][k], l);
+                rb[k] = w::ld(gr.rb[i][k], l);
+            }
+            T dvx, dvy, dvz;
+            gap_velocity(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
+            T vt1 = dvx * t1[0] + dvy * t1[1] + dvz * t1[2];
+            T vt2 = dvx * t2[0] + dvy * t2[1] + dvz * t2[2];
+            T k11 = w::ld(gr.tk[i][0], l), k12 = w::ld(gr.tk[i][1], l), k22 = w::ld(gr.tk[i][2], l);
+            T o1 = w::ld(gr.l1[i], l), o2 = w::ld(gr.l2[i], l);
+            T n1, n2;
+            lane_friction<T>(on, k11, k12, k22, o1, o2, vt1, vt2, mu * w::ld(gr.ln[i], l),
+                             cx.newton_iters, cx.newton_tol, n1, n2);
+            w::st(gr.l1[i], l, w::sel(on, n1, o1));
+            w::st(gr.l2[i], l, w::sel(on, n2, o2));
+            T d1 = n1 - o1;
+            T d2 = n2 - o2;
+            T dv = w::vabs(d1) * k11 + w::vabs(d2) * k22;
+            chg = w::sel(w::mand(on, dv > chg), dv, chg);
+            mark = w::mor(mark, w::mand(on, dv > tol));
+            T px = d1 * t1[0] + d2 * t2[0];
+            T py = d1 * t1[1] + d2 * t2[1];
+            T pz = d1 * t1[2] + d2 * t2[2];
+            lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, px, py, pz, va, wa, vb, wb);
+        }
+    }
+    // scatter the velocities of the visited lanes' bodies (never the static dummy's: it does not
+    // move, and the lanes of a colour all touch it), the hot marks, the largest change
+    bool a_dyn[4] = {false, false, false, false}, b_dyn[4] = {false, false, false, false};
+    for (int j = j0; j < j1; ++j) {
+        a_dyn[j] = gr.a[j] != cx.dummy;
+        b_dyn[j] = gr.b[j] != cx.dummy;
+    }
+    M wa_on = w::mand(vis, w::from(a_dyn, l));
+    M wb_on = w::mand(vis, w::from(b_dyn, l));
+    for (int k = 0; k < 3; ++k) {
+        w::sca(cx.bv, gr.a, k, l, va[k], wa_on);
+        w::sca(cx.bw, gr.a, k, l, wa[k], wa_on);
+    }
+    for (int k = 0; k < 3; ++k) {
+        w::sca(cx.bv, gr.b, k, l, vb[k], wb_on);
+        w::sca(cx.bw, gr.b, k, l, wb[k], wb_on);
+    }
+    for (int j = j0; j < j1; ++j) {
+        int jj = w::width == 1 ? 0 : j;
+        if (w::lane(mark, jj)) {
+            // the static dummy (zero inverse mass) never turns hot
+            if (gr.ma[j] > 0.0) cx.hot[gr.a[j]] = cx.it;
+            if (gr.mb[j] > 0.0) cx.hot[gr.b[j]] = cx.it;
+        }
+        double cj;
+        std::memcpy(&cj, reinterpret_cast<const double*>(&chg) + jj, sizeof cj);
+        if (cj > *change) *change = cj;
+    }
+}
