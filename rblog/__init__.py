@@ -39,6 +39,7 @@ _API = {
     "RecordError": ("rblog.record.recorder", "RecordError"),
     "SimulationDiverged": ("rblog.errors", "SimulationDiverged"),
     "RunInterrupted": ("rblog.errors", "RunInterrupted"),
+    "AuditFailed": ("rblog.analyze.live", "AuditFailed"),
 }
 
 __all__ = ["__version__", *_API]

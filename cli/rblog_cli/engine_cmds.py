@@ -11,7 +11,8 @@ from rblog.errors import RblogError
 
 
 def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, orthonormalize,
-                    rrd, mcap, mcap_compression, no_log, log_every, log_rate, as_json, fail):
+                    rrd, mcap, mcap_compression, no_log, log_every, log_rate, as_json, fail,
+                    live_check=False, fail_fast=False):
     """Load the scene, run it in ``engine``, print the summary (like ``rblog run``)."""
     from pathlib import Path
 
@@ -26,15 +27,31 @@ def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, or
     if not (rrd or mcap or no_log):
         stem = f"{Path(scene_path).stem}-{engine}"
         rrd, mcap = f"{stem}.rrd", f"{stem}.mcap"
+    audit = None
+    if live_check:
+        from rblog_cli.main import live_audit
+
+        audit = live_audit([], fail_fast, as_json)
     try:
         s = load_scene(scene_path)
         summary, _ = run_engine(s, engine, options=options, dt=dt, duration=duration,
                                 log_every=log_every, log_rate=log_rate, rrd=rrd, mcap=mcap,
-                                mcap_compression=mcap_compression)
+                                mcap_compression=mcap_compression, audit=audit)
     except RblogError as e:
+        if audit is not None and audit.failed is not None and e is audit.failed:
+            from rblog_cli.main import print_live_report
+
+            print_live_report(audit, as_json, paths=[p for p in (rrd, mcap) if p])
         fail(e)
     if as_json:
-        click.echo(json.dumps(summary.to_dict()))
+        d = summary.to_dict()
+        if audit is not None:
+            from rblog_cli.main import live_report
+
+            d["check"] = live_report(audit)
+        click.echo(json.dumps(d))
+        if audit is not None and d["check"]["flagged"]:
+            raise SystemExit(1)
         return
     click.echo(f"{scene_path}: {engine} {summary.version}, {summary.steps} steps x {summary.bodies} "
                f"bodies, {summary.sim_time_s:g} s simulated in {summary.wall_time_s:.3f} s wall "
@@ -44,3 +61,8 @@ def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, or
                f"{summary.log_every} steps ({summary.samples} samples, {summary.contacts} contact rows)")
     for p in summary.logs:
         click.echo(f"  wrote {p}")
+    if audit is not None:
+        from rblog_cli.main import print_live_report
+
+        if print_live_report(audit, as_json, paths=summary.logs):
+            raise SystemExit(1)

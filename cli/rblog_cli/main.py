@@ -128,10 +128,19 @@ def validate(scene):
 @click.option("--threads", type=click.IntRange(min=1), metavar="N",
               help="Threads to step on (default: RBLOG_THREADS, else every core); the result is "
                    "bitwise the same for any N.")
+@click.option("--check", "live_check", is_flag=True,
+              help="Audit while running: the analyzers of `rblog check` run on the blocks as they "
+                   "are written, each finding is printed (and streamed into the .rrd) when it is "
+                   "final, and the verdict of `rblog check` on the log is printed at the end "
+                   "(exit 1 if flagged).")
+@click.option("--fail-fast", is_flag=True,
+              help="With --check (implied): stop the run at the first finding (exit 1; logs "
+                   "closed, readable, marked truncated).")
 def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compression, no_log,
         log_every, log_rate, spawn, connect_url, explain, run_too, all_stages, as_json, engine,
-        engine_options, profile, threads):
+        engine_options, profile, threads, live_check, fail_fast):
     """Simulate SCENE (a .toml file) and record it."""
+    live_check = live_check or fail_fast
     if engine != "rblog" or engine_options:
         if engine == "rblog" or spawn or connect_url or explain or all_stages or profile:
             _fail(RblogError("--engine-option needs --engine mujoco|pybullet, which takes no "
@@ -143,7 +152,8 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         return run_with_engine(scene, engine, engine_options, dt=dt, duration=duration,
                                integrator=integrator, orthonormalize=orthonormalize, rrd=rrd,
                                mcap=mcap, mcap_compression=mcap_compression, no_log=no_log,
-                               log_every=log_every, log_rate=log_rate, as_json=as_json, fail=_fail)
+                               log_every=log_every, log_rate=log_rate, as_json=as_json, fail=_fail,
+                               live_check=live_check, fail_fast=fail_fast)
     from rblog.engine.scene import load_scene
     from rblog.engine.runner import run as run_scene
     from rblog.engine.plan import plan_stages
@@ -152,6 +162,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         _fail(RblogError("give --log-every or --log-rate, not both"))
     if run_too and not explain:
         _fail(RblogError("--run goes with --explain (a plain `rblog run` runs already)"))
+    audit = None
     try:
         s = load_scene(scene)
         for w in s.warnings:
@@ -173,6 +184,9 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
             if not run_too:
                 return
         recorders, paths = _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression)
+        if live_check:
+            audit = live_audit(recorders, fail_fast, as_json)
+            recorders = [*recorders, audit]
         prog = _Progress(enabled=sys.stderr.isatty())
         prof = None
         if profile:
@@ -188,6 +202,8 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         finally:
             prog.close()
     except RblogError as e:
+        if audit is not None and audit.failed is not None and e is audit.failed:
+            print_live_report(audit, as_json, paths=paths)
         _fail(e)
     d = summary.to_dict()
     d["logs"] = paths
@@ -195,12 +211,26 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
         d[key] = None
     if prof is not None:
         d["profile_s"] = {name: sec for name, sec, _ in prof.table()}
+        if audit is not None:
+            # the live audit runs beside the stepping (its own thread); what it cost the run is
+            # in the wall time, compared in benchmarks/bench_live.py; here its own seconds
+            d["profile_s"]["live audit (own thread)"] = audit.stats.total_s
         if not as_json:
             click.echo("profile (s, share of wall time):")
             for name, sec, share in prof.table():
                 click.echo(f"  {name:<36} {sec:9.4f}  {100 * share:5.1f} %")
+            if audit is not None:
+                st = audit.stats
+                click.echo(f"  {'live audit (own thread)':<36} {st.total_s:9.4f}  "
+                           f"{100 * st.total_s / max(summary.wall_time_s, 1e-12):5.1f} %  "
+                           f"({st.checks} prefix checks {st.check_s:.4f} s, final check "
+                           f"{st.final_s:.4f} s)")
     if as_json:
+        if audit is not None:
+            d["check"] = live_report(audit)
         click.echo(json.dumps(d))
+        if audit is not None:
+            sys.exit(1 if d["check"]["flagged"] else 0)
         return
     click.echo(
         f"{scene}: {summary.steps} steps x {summary.bodies} bodies, {summary.sim_time_s:g} s "
@@ -223,6 +253,73 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
     click.echo(f"  max ||R^T R - I||_F     {summary.ortho_error_max:.3e}")
     for p in paths:
         click.echo(f"  wrote {p}")
+    if audit is not None:
+        flagged = print_live_report(audit, as_json, paths=paths)
+        sys.exit(1 if flagged else 0)
+
+
+def live_audit(recorders, fail_fast: bool, as_json: bool):
+    """The live audit for `rblog run --check` (rblog.record.live_audit), streaming into the
+    Rerun log of ``recorders`` and printing each finding when announced (stderr with --json)."""
+    from rblog.record.live_audit import LiveAudit
+    from rblog.record.rerun_writer import RerunRecorder
+
+    rerun = [w for r in recorders for w in getattr(r, "writers", [r])
+             if isinstance(w, RerunRecorder)]
+    audit = None
+
+    def echo(lf):
+        from rblog.record.live_audit import live_text
+
+        if lf.at_end:
+            return  # the end report lists them
+        click.echo(f"live (seen at t = {lf.t_seen:.6g} s): {live_text(audit.model, lf)}",
+                   err=as_json)
+
+    audit = LiveAudit(fail_fast=fail_fast, on_finding=echo, rerun=rerun)
+    return audit
+
+
+def live_report(audit) -> dict:
+    """The live audit's verdict as JSON: ``results`` (as `rblog check --json`), ``announced``
+    (each finding with when it was announced), ``revised``, ``withdrawn``, ``flagged``."""
+    results = audit.finish()
+    model = audit.model
+    return {
+        "flagged": any(not r.passed and not r.skipped for r in results),
+        "results": [r.to_dict(model) for r in results],
+        "announced": [{**lf.finding.to_dict(), "at_end": lf.at_end, "seen_samples": lf.samples,
+                       "seen_t_s": lf.t_seen, "wall_s": lf.wall_s} for lf in audit.announced],
+        "revised": len(audit.live.revised), "withdrawn": len(audit.live.withdrawn),
+        "prefix_checks": audit.stats.checks, "audit_s": audit.stats.total_s,
+    }
+
+
+def print_live_report(audit, as_json: bool, paths=()) -> bool:
+    """Print the live audit's verdict (the report of `rblog check` on the log); returns True
+    when the run is flagged."""
+    results = audit.finish()
+    traj = audit.live.trajectory
+    flagged = any(not r.passed and not r.skipped for r in results)
+    if as_json:
+        return flagged
+    live = audit.live
+    during = sum(not lf.at_end for lf in live.announced)
+    n = sum(len(r.findings) for r in results)
+    click.echo(f"live audit: {n} finding(s), {during} announced during the run, "
+               f"{len(live.announced) - during} at its end; {live.stats.checks} prefix checks")
+    for lf, f in live.revised:
+        click.echo(f"  revised at the end ({lf.analyzer}, step {lf.finding.step} -> {f.step}): "
+                   f"{f.message}")
+    for lf in live.withdrawn:
+        click.echo(f"  withdrawn at the end ({lf.analyzer}, step {lf.finding.step}): "
+                   f"{lf.finding.message}")
+    if traj is not None:
+        _print_report({"log": ", ".join(paths) or "(run)", "truncated": bool(audit.failed),
+                       "samples": traj.n_samples, "bodies": traj.n_bodies,
+                       "t_end_s": float(traj.t[-1]) if traj.n_samples else 0.0,
+                       "results": [r.to_dict(traj.model) for r in results]})
+    return flagged
 
 
 #: `rblog check` uses local workers by default above this many logs (starting them costs ~2 s)

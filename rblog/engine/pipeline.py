@@ -26,6 +26,11 @@ stepping (the core releases the GIL). The pipeline's threads do the rest::
   at :meth:`~BlockPipeline.finish`, re-raised in the run loop's thread (a ``RecordError`` or
   ``LogWriteError`` as raised, never lost in a thread); the other recorders still get every block
   submitted before it (nothing the run produced is lost because another log failed).
+- **Lockstep.** A recorder with a true ``lockstep`` attribute (the live audit with
+  ``--fail-fast``, rblog.record.live_audit) gets each block before the run loop hands over the
+  next: :meth:`~BlockPipeline.submit` waits until every recorder handled every block submitted
+  so far (the next call's stepping still overlaps the writing), and blocks are not gathered. So
+  its error stops the run within one block.
 - **Closing.** At the end of a run that went well (``finish(close=True)``) the lanes close their
   recorders at once, each on its own thread (the Rerun SDK's final flush beside the MCAP
   summary), once every lane wrote its last block and none failed; after a failure or an
@@ -80,10 +85,14 @@ class BlockPipeline:
         self._close = False
         self._barrier = threading.Barrier(max(1, len(self.recorders)))
         self._max_samples = max(1, GATHER_MAX_BODY_SAMPLES // max(1, model.n_bodies))
+        self.lockstep = any(getattr(r, "lockstep", False) for r in self.recorders)
+        self._submitted = 0  # items submitted, and handled by each recorder (lockstep)
+        self._handled = [0] * max(1, len(self.recorders))
+        self._cond = threading.Condition()
         if len(self.recorders) > 1:
             for i, rec in enumerate(self.recorders):
                 q: queue.Queue = queue.Queue(maxsize=QUEUE_BLOCKS)
-                t = threading.Thread(target=self._lane, args=(rec, q), name=f"rblog-recorder-{i}",
+                t = threading.Thread(target=self._lane, args=(rec, q, i), name=f"rblog-recorder-{i}",
                                      daemon=True)
                 t.start()
                 self.lanes.append((q, t))
@@ -97,10 +106,24 @@ class BlockPipeline:
         linear_momentum (T, N, 3), quat_wxyz (T, N, 4), rotation (T, N, 3, 3),
         angular_momentum (T, N, 3) world frame (owned by the pipeline from now on); contacts
         with global steps, or None. Waits while the queue is full; raises a recorder's error."""
+        if self.lockstep:
+            with self._cond:
+                self._cond.wait_for(lambda: min(self._handled) >= self._submitted
+                                    or self.error is not None)
         if self.error is not None:
             raise self.error
+        self._submitted += 1
         self.queue.put((steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                         contacts))
+
+    def _mark(self, lanes, n: int = 1):
+        """Lockstep: recorders ``lanes`` handled ``n`` more submitted items (written, failed or
+        drained)."""
+        if self.lockstep:
+            with self._cond:
+                for i in lanes:
+                    self._handled[i] += n
+                self._cond.notify_all()
 
     def finish(self, close: bool = False):
         """Write every queued block, stop the threads, and re-raise a recorder's error. With
@@ -129,6 +152,8 @@ class BlockPipeline:
         cap): (items, ended) where ``ended`` tells that the end of the run was reached."""
         items = [first]
         samples = len(first[0])
+        if self.lockstep:
+            return items, False
         deadline = time.monotonic() + GATHER_HOLD_S
         while samples < self._max_samples:
             wait = deadline - time.monotonic()
@@ -163,7 +188,9 @@ class BlockPipeline:
                 item = self.queue.get()
                 if item is _END:
                     return
+                every = range(len(self._handled))
                 if broken or (self.error is not None and not self.lanes):
+                    self._mark(every)
                     continue  # drain: no recorder can take this block
                 items, ended = self._gather(item)
                 try:
@@ -171,14 +198,17 @@ class BlockPipeline:
                     self.drift.update(block)
                     if self.lanes:
                         for lane, _ in self.lanes:
-                            lane.put(block)
+                            lane.put((block, len(items)))  # the items it holds (lockstep)
                     else:
                         for rec in self.recorders:
                             rec.write(block)
+                        self._mark(every, len(items))
                 except BaseException as e:  # re-raised in the run loop
                     broken = True
                     if self.error is None:
                         self.error = e
+                    if not self.lanes:
+                        self._mark(every, len(items))
         finally:
             # close only if every block reached the recorders (deriving did not fail); every
             # lane gets its end before any is joined (the lanes meet at a barrier to close)
@@ -189,11 +219,12 @@ class BlockPipeline:
                 t.join()
 
     # --- a lane (one recorder) ----------------------------------------------------------------
-    def _lane(self, rec, lane: queue.Queue):
+    def _lane(self, rec, lane: queue.Queue, index: int):
         failed = False
         while True:
-            block = lane.get()
-            if block is _END or block is _CLOSE:
+            got = lane.get()
+            if got is _END or got is _CLOSE:
+                block = got
                 if block is _CLOSE:
                     self._barrier.wait()  # every lane wrote its last block (or failed)
                 if block is _CLOSE and not failed and self.error is None:
@@ -205,7 +236,9 @@ class BlockPipeline:
                         if self.error is None:
                             self.error = e
                 return
+            block, n_items = got
             if failed:
+                self._mark([index], n_items)
                 continue  # this recorder failed: drain; the others keep writing
             try:
                 rec.write(block)
@@ -213,3 +246,4 @@ class BlockPipeline:
                 failed = True
                 if self.error is None:
                     self.error = e
+            self._mark([index], n_items)

@@ -17,7 +17,12 @@ like a file::
     results = rblog.check(rblog.load("ball.mcap"))
 
 :func:`trajectory_from_arrays` builds a :class:`~rblog.contract.trajectory.Trajectory` from whole
-arrays in one call.
+arrays in one call. ``Recorder(..., check=True)`` audits the blocks as they are written
+(rblog.record.live_audit).
+
+Why this module is long: it is the whole public writer API, and each of its entry points
+(:func:`body_table`, :func:`make_contacts`, :func:`build_block`, :class:`Recorder`) checks its
+arguments with one-line errors naming the argument, its shape and what was expected.
 """
 
 from __future__ import annotations
@@ -333,6 +338,14 @@ class Recorder:
         engine_settings: every solver setting used (logged as JSON).
         keep: keep the blocks in memory (default: when there is no output path).
         info: a ready :class:`RunInfo` instead of the fields above.
+        check: run the analyzers on each block as it is written (the live audit,
+            rblog.record.live_audit): ``True``, a dict of :class:`~rblog.record.live_audit.LiveAudit`
+            options (``only``, ``skip``, ``tolerances``, ``budget``, ``on_finding``), or a
+            ready ``LiveAudit``. Findings
+            stream into the ``.rrd``; after :meth:`close`, :attr:`audit` ``.results`` is the
+            verdict of ``rblog check`` on the finished log and ``.announced`` what was found when.
+        fail_fast: with ``check``, :meth:`write` raises ``AuditFailed`` at the first finding
+            (after the block reached the logs; leaving the ``with`` block closes them).
 
     ``write(...)`` takes a block (see :func:`build_block`); ``close(truncated, reason)`` (or
     leaving the ``with`` block; an exception marks the log truncated) finishes the files.
@@ -345,7 +358,8 @@ class Recorder:
                  engine_settings: dict | None = None, scene_path: str = "", scene_toml: str = "",
                  scene_resolved: dict | None = None, seed: int | None = None,
                  keep: bool | None = None, info: RunInfo | None = None,
-                 mcap_compression: str = "lz4", writers: list | None = None):
+                 mcap_compression: str = "lz4", writers: list | None = None,
+                 check: bool | dict = False, fail_fast: bool = False):
         for rule, what in ((combine_friction, "combine_friction"),
                            (combine_restitution, "combine_restitution")):
             if rule not in C.COMBINE_RULES:
@@ -369,6 +383,22 @@ class Recorder:
 
             self.writers.append(McapRecorder(mcap, compression=mcap_compression))
         self.keep = (not self.writers) if keep is None else keep
+        #: the live audit (rblog.record.live_audit.LiveAudit) with ``check``, else None; it
+        #: writes after the logs, so a block that fails it is in them
+        self.audit = None
+        if check is not False and check is not None or fail_fast:
+            from rblog.record.live_audit import LiveAudit
+            from rblog.record.rerun_writer import RerunRecorder
+
+            if isinstance(check, LiveAudit):
+                self.audit = check
+            else:
+                opts = dict(check) if isinstance(check, dict) else {}
+                self.audit = LiveAudit(fail_fast=fail_fast, **opts)
+            for w in self.writers:
+                if isinstance(w, RerunRecorder):
+                    self.audit.attach_rerun(w)
+            self.writers.append(self.audit)
         self.blocks: list[Trajectory] = []
         self._opened: list = []
         self._open = False

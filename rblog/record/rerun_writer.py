@@ -95,7 +95,9 @@ class RerunRecorder:
     """Records a run to ``path`` (.rrd), and/or to a live viewer (``spawn`` / ``connect_url``).
 
     ``findings_panel``: the layout has the findings table (rblog.record.findings logs the findings
-    into :attr:`streams` before :meth:`close`)."""
+    into :attr:`streams` before :meth:`close`). ``before_close``: callables ``f(streams)`` run
+    first thing in :meth:`close`, while the streams are open (the live audit logs its final
+    findings there: rblog.record.live_audit)."""
 
     def __init__(self, path: str | None, *, spawn: bool = False, connect_url: str | None = None,
                  findings_panel: bool = False):
@@ -109,6 +111,7 @@ class RerunRecorder:
         self._closed = False
         self._last_flush = 0.0
         self.samples_written = 0
+        self.before_close: list = []
 
     # --- lifecycle ------------------------------------------------------------------------------
 
@@ -187,6 +190,8 @@ class RerunRecorder:
         if not self._streams:
             return
         try:
+            for hook in self.before_close:
+                hook(list(self._streams))
             if self._bounds is not None:  # frame the bodies where they end
                 bp = self._layout(bounds=self._bounds, t_end=self._t_end)
                 for rec in self._streams:

@@ -133,12 +133,20 @@ class EngineRunSummary:
         return asdict(self)
 
 
+#: with a live audit, blocks of at most this many samples (0.5 s at the default 100 Hz), so that
+#: it can announce a finding before the run ends (rblog's own run loop sizes its blocks by wall
+#: time, ~30 ms each)
+AUDIT_BLOCK_SAMPLES = 50
+
+
 def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_every=None,
-               log_rate=None, rrd=None, mcap=None, keep=False, mcap_compression="lz4"):
+               log_rate=None, rrd=None, mcap=None, keep=False, mcap_compression="lz4",
+               audit=None):
     """Run ``scene`` in ``engine`` and record it; returns (EngineRunSummary, Trajectory or None).
 
     The time split: ``step_wall_s`` is the engine's own stepping, ``record_wall_s`` everything
-    else (reading the engine's state and contacts, deriving, encoding, writing)."""
+    else (reading the engine's state and contacts, deriving, encoding, writing). ``audit``: a
+    rblog.record.live_audit.LiveAudit that checks the blocks as they are recorded."""
     from rblog.engine.runner import resolve_log_every, samples_per_block
     from rblog.record.recorder import Recorder
 
@@ -165,8 +173,11 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
                        combine_restitution="max", engine_settings=eng.settings,
                        scene_path=scene.path, scene_toml=scene.toml_text,
                        scene_resolved=scene.resolved, seed=sim.seed, keep=keep,
-                       mcap_compression=mcap_compression)
+                       mcap_compression=mcap_compression,
+                       check=audit if audit is not None else False)
         per_block = samples_per_block(scene.model.n_bodies, stride)
+        if audit is not None:  # the live audit sees the run a block at a time
+            per_block = min(per_block, AUDIT_BLOCK_SAMPLES)
         t_wall = time.perf_counter()
         t_step = 0.0
         n_contacts = 0
