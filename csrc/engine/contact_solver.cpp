@@ -50,8 +50,8 @@
 // or none of its loaded points sticks (friction strictly inside the cone), and collide re-anchors
 // a pair that drifted beyond FRICTION_ANCHOR_MAX_DRIFT_M. Friction impulses are equal and
 // opposite, so the anchor changes no momentum. What the pass does not do: it is not followed by
-// the normal rows (a pointwise normal sweep after it was measured to make the pile creep more,
-// benchmarks/RESULTS.md), and a box resting on two single-point contacts can still turn about
+// the normal rows (a pointwise normal sweep after it was measured to make the pile creep more;
+// `git log -p benchmarks/RESULTS.md`), and a box resting on two single-point contacts can still turn about
 // the line through them (no friction row sees that motion).
 //
 // Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.

@@ -217,7 +217,8 @@ class ContactParams:
             stage bounds it) and the 10-box stack still within 0.1 mm. Lower caps are faster in
             piles but let tall stacks sink until they converge. The cap also sets how far resting
             boxes creep while a pile settles: up to 1.3 mm over ~2 s at 30 sweeps, under 0.8 mm
-            converged (300 sweeps, tolerance 1e-6 m/s, 5-6x the run time; benchmarks/RESULTS.md).
+            converged (300 sweeps, tolerance 1e-6 m/s, 5-6x the run time; measured 2026-11, in
+            `git log -p benchmarks/RESULTS.md`).
         velocity_tolerance: m/s. Convergence test of the velocity solve (see above). Smaller
             values give exacter resting contact (no sinking, no creep) for more sweeps.
         over_relaxation: successive over-relaxation factor of the normal impulses, in (0, 2)
@@ -266,21 +267,15 @@ class ContactParams:
             feature id). Turning it off is only useful to demonstrate why it exists.
         static_friction_anchors: run the anchor pass after the velocity solve (solver.py,
             "Friction anchor"): a sticking pair keeps the pose it stuck at, and its points' friction
-            rows take back half their drift from it per step. On by default since issue 29: the
+            rows take back half their drift from it per step. On by default: the
             velocity solve stops at ``velocity_tolerance`` (1e-4 m/s), and a sticking contact's
             leftover slip of that order adds up to the analyzer's 0.1 mm of creep within a second
             or two; the anchor closes that loop over steps whatever the sweep count or order.
-            Measured on samples/pile.toml at seeds 1-12 (`rblog check`, issue 29's target; the
-            figures, commands and the candidates that lost are in benchmarks/RESULTS.md /
-            /work/wt/notes/rest-results.md): off, seeds 1-6 gave 15 creep findings (0.10-0.22
-            mm) with one seed clean; on, 11 of 12 seeds clean before the coloured solve (seed 6:
-            a box struck by a neighbour between two samples, 0.13 mm, and a neighbour's bumps read
-            as 2.2 mm/s of jitter), 9 of 12 on the coloured solve (seeds 3, 6, 12: 6 creep findings
-            of 0.106-0.139 mm, the one traced a steady 0.13 mm/s slide of an edge contact whose
-            load see-saws between its two points; a consistency finding at seed 12) against 5 of
-            12 with them off there (29 findings, creep up to 0.475 mm, 8 at seed 1, the CI
-            sample). Not yet issue 29's "clean at every seed". Off, the pre-issue-29
-            trajectories come back.
+            Measured on samples/pile.toml at seeds 1-12 (`rblog check`; benchmarks/RESULTS.md,
+            "Contact solver: the loose pile", 2026-11-28): on, 11 of 12 seeds clean on the
+            coloured solve (seed 5: box132 creeps 0.155 mm on the ground); off, 5 of 12 (29
+            findings, creep up to 0.475 mm, measured with the colours in increasing order).
+            Off, the earlier trajectories come back.
             The 500-box pile of tests/engine/contact/test_contact.py at dt 2e-3 stays within
             0.22-0.26 mm of penetration with it on (seeds 0-2; 0.5 mm allowed).
         projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
