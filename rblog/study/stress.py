@@ -23,7 +23,8 @@ a collapsed stack, penetration). "First went wrong" is the earliest logged sampl
 tighter warning limit was crossed (:data:`WARN_ENERGY`, :data:`WARN_ORTHO`, :data:`WARN_SPIN`,
 or the case check), or the step that diverged. Energies are relative to the kinetic energy plus
 the potential energy above the ground at t = 0. Nothing a run raises stops the suite: every
-:class:`~rblog.errors.RblogError` and any other exception becomes a row with its message.
+:class:`~rblog.errors.RblogError` and any other exception becomes a row with its message, except
+:class:`~rblog.errors.RunInterrupted` (Ctrl-C or SIGTERM), which stops the suite (exit 130/143).
 
 JSON (``schema`` = :data:`SCHEMA`)::
 
@@ -49,7 +50,7 @@ from typing import Callable
 import numpy as np
 
 from rblog.study.bench import machine_info, parse_integrator
-from rblog.errors import LogWriteError, RblogError, SimulationDiverged
+from rblog.errors import LogWriteError, RblogError, RunInterrupted, SimulationDiverged
 from rblog.study.reference import contact_engine_status
 
 SCHEMA = "rblog-stress/1"
@@ -332,6 +333,8 @@ def run_variant(case: Case, v: Variant, spec: str) -> dict:
     except (ImportError, NotImplementedError) as e:
         row.update(status="unavailable", stable=None, message=f"{type(e).__name__}: {e}")
         return row
+    except RunInterrupted:  # Ctrl-C or kill: the user stops the suite, not this one run
+        raise
     except RblogError as e:
         row.update(status="error", stable=None, message=str(e))
         return row

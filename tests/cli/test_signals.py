@@ -180,3 +180,25 @@ def _split(traj, k):
 
     edges = np.linspace(0, traj.n_samples, k + 1).astype(int)
     return [traj.slice(slice(int(a), int(b))) for a, b in zip(edges[:-1], edges[1:])]
+
+
+def test_sigterm_stops_rblog_stress(tmp_path):
+    """``kill`` stops the whole stability suite, not just the run it lands in. Before, the
+    interrupted run became a row ("error") and the suite went on for minutes (the full suite:
+    over 7 min on the 2-core machine); now the interruption leaves the suite: exit 143 (128 +
+    SIGTERM) when it lands in a run, or the default action (-15) between runs."""
+    p = subprocess.Popen([RBLOG, "stress", "--no-progress", "--out", str(tmp_path / "out")],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(3.0)  # past start-up (~0.5-1 s), inside the suite's first runs
+    assert p.poll() is None, p.communicate()
+    t0 = time.monotonic()
+    p.send_signal(signal.SIGTERM)
+    try:
+        out, err = p.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        out, err = p.communicate()
+        raise AssertionError(f"rblog stress still running 20 s after SIGTERM: {err[-500:]}")
+    assert p.returncode in (143, -signal.SIGTERM), (p.returncode, err[-500:])
+    assert time.monotonic() - t0 < 20
+    assert not (tmp_path / "out" / "stress.json").exists()
