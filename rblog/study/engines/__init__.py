@@ -147,6 +147,7 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
     The time split: ``step_wall_s`` is the engine's own stepping, ``record_wall_s`` everything
     else (reading the engine's state and contacts, deriving, encoding, writing). ``audit``: a
     rblog.record.live_audit.LiveAudit that checks the blocks as they are recorded."""
+    from rblog.adapters._common import SampleStream
     from rblog.engine.runner import resolve_log_every, samples_per_block
     from rblog.record.recorder import Recorder
 
@@ -182,7 +183,7 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
         t_step = 0.0
         n_contacts = 0
         with rec:
-            buf = _Buffer()
+            buf = SampleStream(rec, block=per_block)  # writes a block every per_block samples
             buf.add(0, *eng.state(), None)
             done = 0
             while done < n_total:
@@ -194,10 +195,7 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
                 c = eng.contacts(done)
                 n_contacts += 0 if c is None else len(c["step"])
                 buf.add(done, *eng.state(), c)
-                if len(buf) >= per_block or done >= n_total:
-                    rec.write(**buf.take(dt))
-            if len(buf):
-                rec.write(**buf.take(dt))
+            buf.flush(dt)
         wall = time.perf_counter() - t_wall
     finally:
         eng.close()
@@ -208,37 +206,6 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
         record_wall_s=wall - t_step, settings=eng.settings,
         logs=[p for p in (rrd, mcap) if p])
     return summary, (rec.trajectory if keep else None)
-
-
-class _Buffer:
-    """Samples gathered between writes: lists of (N, ...) arrays and contact dicts."""
-
-    def __init__(self):
-        self.steps, self.x, self.q, self.v, self.w, self.c = [], [], [], [], [], []
-
-    def __len__(self):
-        return len(self.steps)
-
-    def add(self, step, x, q, v, w, contacts):
-        self.steps.append(step)
-        self.x.append(x)
-        self.q.append(q)
-        self.v.append(v)
-        self.w.append(w)
-        if contacts is not None and len(contacts["step"]):
-            self.c.append(contacts)
-
-    def take(self, dt):
-        """The block as Recorder.write arguments (the engines' state is already in the contract's
-        frames: rblog.adapters translates it)."""
-        steps = np.array(self.steps, np.int64)
-        q, w = np.array(self.q), np.array(self.w)
-        out = dict(t=steps * dt, step=steps, position=np.array(self.x), quat_wxyz=q,
-                   velocity=np.array(self.v), angular_velocity=w)
-        if self.c:
-            out["contacts"] = {k: np.concatenate([c[k] for c in self.c]) for k in self.c[0]}
-        self.__init__()
-        return out
 
 
 __all__ = ["ENGINE_NAMES", "EngineMissing", "EngineUnsupported", "EngineRunSummary", "run_engine"]

@@ -104,23 +104,17 @@ class MujocoRun:
         self.d.xfrc_applied[1:n + 1, :3] = model.body_force_world
         self.d.xfrc_applied[1:n + 1, 3:] = model.body_torque_world
         mujoco.mj_forward(self.m, self.d)
-        from rblog.adapters.mujoco import inspect
+        from rblog.adapters.mujoco import inspect, settings
 
         # where each body's state is and how its frame turns: the adapters' one translation
         self.layout = inspect(self.m, self.d)[1]
-        o = self.m.opt
+        # MuJoCo's solver settings as the adapters read them, and what this translation of the
+        # scene sets on top
         self.settings = {
-            "engine": "mujoco", "version": self.version,
-            "integrator": mujoco.mjtIntegrator(o.integrator).name.removeprefix("mjINT_"),
-            "solver": mujoco.mjtSolver(o.solver).name.removeprefix("mjSOL_"),
-            "cone": mujoco.mjtCone(o.cone).name.removeprefix("mjCONE_"),
-            "iterations": int(o.iterations), "ls_iterations": int(o.ls_iterations),
-            "tolerance": float(o.tolerance), "noslip_iterations": int(o.noslip_iterations),
-            "impratio": float(o.impratio), "timestep": float(o.timestep),
+            **settings(self.m),
             "contact_model": "soft: direct solref -k -b, k = (omega_dt/dt)^2, b = 2 zeta(e) sqrt(k)",
             "omega_dt": self.omega_dt, "solimp": SOLIMP, "condim": 3, "margin": 0.0,
             "explicit_pairs": self.n_pairs,
-            "combine_native": {"friction": "max", "solref": "solmix-weighted mean"},
             "contact_rows": {"separation": "before the step (contacts found at its start)",
                              "impulse": "solved force over the step * dt", "speculative": False},
             "ignored_scene_tables": ["contact"] if scene.contact else [],
