@@ -1,14 +1,25 @@
-// The core's own task pool: std::thread workers, static partitions, no work stealing.
+// The core's own task pool: std::thread workers, blocks claimed from an atomic counter.
 //
-// parallel_for(n_tasks, fn) runs fn(task) for task in [0, n_tasks): task t goes to worker
-// t % n_workers, always, and the caller's thread is worker 0. A task writes only its own part of
-// the output (a range of bodies, say), so the result is bitwise the same for any thread count
-// (Box2D v3 hands fixed-size blocks to its task system for the same reason). Box2D and Jolt leave
-// the pool to the user; rblog owns one per process, sized by set_threads (rblog run --threads N,
+// run(n_blocks, fn) calls fn(block, worker) once for every block in [0, n_blocks), on the
+// caller's thread (worker 0) and the pool's workers (1..threads()-1), and returns when every
+// block is done. Which worker runs which block depends on timing; a block writes only its own
+// part of the output (a range of bodies or pairs, say) and per-worker scratch is indexed by
+// `worker`, so the result is bitwise the same for any thread count. This is Box2D v3's scheme
+// (solver.c: b2ExecuteMainStage hands a stage's blocks out through an atomic, the main thread
+// takes part and waits for the completion count, not for the workers): a worker that the
+// operating system has descheduled holds up a call only while it holds a block, never by not
+// having woken up (the caller then claims every block itself). Box2D and Jolt leave the pool to
+// the user; rblog owns one per process, sized by set_threads (rblog run --threads N,
 // RBLOG_THREADS, default: the machine's cores).
+//
+// Waking: a worker spins on the call generation for WAKE_SPIN_US after its last block (a step's
+// stages follow each other within microseconds, and a futex wake-up costs tens of them), with a
+// yield in the loop so that it gives its core away on a busy machine, then sleeps on a condition
+// variable.
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <exception>
@@ -17,10 +28,20 @@
 #include <thread>
 #include <vector>
 
+#if defined(__x86_64__) || defined(_M_X64)
+#include <immintrin.h>
+#define RB_CPU_RELAX() _mm_pause()
+#else
+#define RB_CPU_RELAX() std::this_thread::yield()
+#endif
+
 namespace rb {
 
 class TaskPool {
 public:
+    // How long an idle worker spins before it sleeps (microseconds).
+    static constexpr int WAKE_SPIN_US = 300;
+
     explicit TaskPool(int n_threads = 1) { resize(n_threads); }
     ~TaskPool() { stop(); }
     TaskPool(const TaskPool&) = delete;
@@ -34,70 +55,112 @@ public:
         if (n_threads == n_threads_) return;
         stop();
         n_threads_ = n_threads;
-        quit_ = false;
-        // a new worker has seen every generation so far: it must not run the last call's tasks
-        // again (its fn_ is gone), only the next call's
-        const std::uint64_t seen = generation_;
+        quit_.store(false);
+        const std::uint32_t seen = gen_.load();
         for (int w = 1; w < n_threads_; ++w) workers_.emplace_back([this, w, seen] { loop(w, seen); });
     }
 
-    // fn(task) for task in [0, n_tasks), task t on worker t % threads(); returns when all are
-    // done. The first exception a task throws is rethrown here (the others' are dropped).
-    // Not reentrant: one parallel_for at a time per pool.
-    void parallel_for(std::int64_t n_tasks, const std::function<void(std::int64_t)>& fn) {
-        if (n_tasks <= 0) return;
-        int used = n_tasks < n_threads_ ? static_cast<int>(n_tasks) : n_threads_;
-        if (used <= 1) {
-            for (std::int64_t t = 0; t < n_tasks; ++t) fn(t);
+    // fn(block, worker) for block in [0, n_blocks); returns when all are done. The first
+    // exception a block throws is rethrown here (the others' are dropped). Not reentrant: one
+    // call at a time per pool (others wait).
+    void run(std::int64_t n_blocks, const std::function<void(std::int64_t, int)>& fn) {
+        if (n_blocks <= 0) return;
+        if (n_threads_ <= 1 || n_blocks == 1) {
+            for (std::int64_t b = 0; b < n_blocks; ++b) fn(b, 0);
             return;
         }
         std::lock_guard<std::mutex> serial(call_);
+        const std::uint32_t g = gen_.load(std::memory_order_relaxed) + 1;
+        fn_.store(&fn, std::memory_order_relaxed);
+        n_blocks_.store(n_blocks, std::memory_order_relaxed);
+        error_ = nullptr;
+        done_.store(0, std::memory_order_relaxed);
+        claim_.store(std::uint64_t(g) << 32, std::memory_order_release);
         {
             std::lock_guard<std::mutex> lk(m_);
-            fn_ = &fn;
-            n_tasks_ = n_tasks;
-            used_ = used;
-            pending_ = used - 1;
-            error_ = nullptr;
-            ++generation_;
+            gen_.store(g, std::memory_order_release);
         }
-        cv_.notify_all();
-        run_share(0);
-        std::unique_lock<std::mutex> lk(m_);
-        done_.wait(lk, [this] { return pending_ == 0; });
-        fn_ = nullptr;
+        if (sleepers_.load(std::memory_order_acquire) > 0) cv_.notify_all();
+        work(g, 0);
+        // the blocks others claimed: spin (they take microseconds), yielding now and then
+        for (int spin = 0; done_.load(std::memory_order_acquire) < n_blocks; ++spin) {
+            if (spin < 256)
+                RB_CPU_RELAX();
+            else
+                std::this_thread::yield();
+        }
+        fn_.store(nullptr, std::memory_order_relaxed);
         if (error_) std::rethrow_exception(error_);
     }
 
+    // fn(task) for task in [0, n_tasks), in any order on any threads (run without the worker).
+    void parallel_for(std::int64_t n_tasks, const std::function<void(std::int64_t)>& fn) {
+        run(n_tasks, [&fn](std::int64_t t, int) { fn(t); });
+    }
+
+    // Blocks of about `per_block` items for n items (at least 1 block; threads() blocks or more
+    // when n is large, so that the claims even out the threads' loads).
+    static std::int64_t blocks_for(std::int64_t n, std::int64_t per_block) {
+        if (per_block < 1) per_block = 1;
+        std::int64_t b = (n + per_block - 1) / per_block;
+        return b < 1 ? 1 : b;
+    }
+
 private:
-    void run_share(int w) {
-        try {
-            for (std::int64_t t = w; t < n_tasks_; t += used_) (*fn_)(t);
-        } catch (...) {
-            std::lock_guard<std::mutex> lk(m_);
-            if (!error_) error_ = std::current_exception();
+    // Claim and run blocks of call generation g until none is left.
+    void work(std::uint32_t g, int w) {
+        for (;;) {
+            std::uint64_t c = claim_.load(std::memory_order_acquire);
+            if (std::uint32_t(c >> 32) != g) return;  // a later call: this one is over
+            const std::int64_t b = std::int64_t(c & 0xffffffffu);
+            if (b >= n_blocks_.load(std::memory_order_relaxed)) return;
+            if (!claim_.compare_exchange_weak(c, c + 1, std::memory_order_acq_rel)) continue;
+            // a block of g was claimed, so g is not over and fn_ is still g's (the caller
+            // rewrites it only after all of g's blocks are done)
+            try {
+                (*fn_.load(std::memory_order_relaxed))(b, w);
+            } catch (...) {
+                std::lock_guard<std::mutex> lk(m_);
+                if (!error_) error_ = std::current_exception();
+            }
+            done_.fetch_add(1, std::memory_order_acq_rel);
         }
     }
 
-    void loop(int w, std::uint64_t seen) {
+    void loop(int w, std::uint32_t seen) {
         for (;;) {
-            {
-                std::unique_lock<std::mutex> lk(m_);
-                cv_.wait(lk, [&] { return quit_ || generation_ != seen; });
-                if (quit_) return;
-                seen = generation_;
-                if (w >= used_) continue;
+            // spin a while for the next call, then sleep
+            auto t0 = std::chrono::steady_clock::now();
+            for (int spin = 0; gen_.load(std::memory_order_acquire) == seen &&
+                               !quit_.load(std::memory_order_relaxed);
+                 ++spin) {
+                if ((spin & 63) == 63) {
+                    if (std::chrono::steady_clock::now() - t0 >
+                        std::chrono::microseconds(WAKE_SPIN_US))
+                        break;
+                    std::this_thread::yield();
+                } else {
+                    RB_CPU_RELAX();
+                }
             }
-            run_share(w);
-            std::lock_guard<std::mutex> lk(m_);
-            if (--pending_ == 0) done_.notify_one();
+            if (gen_.load(std::memory_order_acquire) == seen && !quit_.load()) {
+                std::unique_lock<std::mutex> lk(m_);
+                sleepers_.fetch_add(1, std::memory_order_acq_rel);
+                cv_.wait(lk, [&] {
+                    return quit_.load() || gen_.load(std::memory_order_acquire) != seen;
+                });
+                sleepers_.fetch_sub(1, std::memory_order_acq_rel);
+            }
+            if (quit_.load()) return;
+            seen = gen_.load(std::memory_order_acquire);
+            work(seen, w);
         }
     }
 
     void stop() {
         {
             std::lock_guard<std::mutex> lk(m_);
-            quit_ = true;
+            quit_.store(true);
         }
         cv_.notify_all();
         for (auto& t : workers_) t.join();
@@ -108,21 +171,22 @@ private:
     int n_threads_ = 1;
     std::vector<std::thread> workers_;
     std::mutex m_, call_;
-    std::condition_variable cv_, done_;
-    const std::function<void(std::int64_t)>* fn_ = nullptr;
-    std::int64_t n_tasks_ = 0;
-    int used_ = 0;
-    int pending_ = 0;
-    std::uint64_t generation_ = 0;
-    bool quit_ = false;
+    std::condition_variable cv_;
+    std::atomic<int> sleepers_{0};
+    std::atomic<bool> quit_{false};
+    std::atomic<std::uint32_t> gen_{0};
+    alignas(64) std::atomic<std::uint64_t> claim_{0};  // (generation << 32) | next block
+    alignas(64) std::atomic<std::int64_t> done_{0};
+    std::atomic<const std::function<void(std::int64_t, int)>*> fn_{nullptr};
+    std::atomic<std::int64_t> n_blocks_{0};
     std::exception_ptr error_;
 };
 
 // A barrier for the tasks of one parallel_for that must all run at once (n_tasks == threads():
-// one task per worker), as the stages of Box2D v3's solver wait on each other: wait() returns
-// once all n have called it, and what a task wrote before its wait() is seen by every task after
-// theirs (release on arrival, acquire on leaving). Waiters spin a little, then yield (on a loaded
-// machine a worker may not be running, and spinning would only keep it off its core).
+// one task per worker): wait() returns once all n have called it, and what a task wrote before
+// its wait() is seen by every task after theirs (release on arrival, acquire on leaving).
+// Waiters spin a little, then yield (on a loaded machine a worker may not be running, and
+// spinning would only keep it off its core).
 class SpinBarrier {
 public:
     explicit SpinBarrier(int n) : n_(n) {}

@@ -29,9 +29,12 @@
 #include <numeric>
 #include <vector>
 
+#include "common/task_pool.hpp"
 #include "engine/collision.hpp"
 
 namespace rb {
+
+TaskPool& pool();  // the engine's pool (threads.cpp)
 
 std::array<double, 6> tangent_basis(double nx, double ny, double nz) {
     double ax = std::fabs(nx), ay = std::fabs(ny), az = std::fabs(nz);
@@ -97,6 +100,38 @@ void grow_points(Buf2<double>& pf, Buf2<i64>& pid, i64 cap) {
     pid.grow(pf.rows);
 }
 
+namespace {
+
+// What the collider returned for one pair (the output half of ColliderBuffers: a first manifold
+// in rows 0..3, a box pair's second in rows 4..7), kept per pair between the two passes of
+// collide_pairs; res as collide() returns it (0: no points; -2: both sides still, carried over).
+struct PairOut {
+    double nrm[6];
+    double pts[2 * MAX_MANIFOLD_POINTS][3];
+    double sep[2 * MAX_MANIFOLD_POINTS];
+    i64 fid[2 * MAX_MANIFOLD_POINTS];
+    i64 res;
+    i64 n_man, n_pts;  // manifolds and points the pair adds
+};
+
+// The per-call work of collide_pairs, kept by the calling thread (worlds may step on several
+// Python threads at once) so that a step allocates nothing once it has grown to the scene.
+struct CollideWork {
+    std::vector<PairOut> out;
+    std::vector<i64> man_off, pts_off;    // (n_pairs + 1,) where each pair's rows start
+    std::vector<ColliderBuffers> scratch;  // one per pool thread
+};
+
+CollideWork& collide_work() {
+    static thread_local CollideWork w;
+    return w;
+}
+
+// Pairs per block of the two passes (a box pair's collider costs ~2-5 us).
+constexpr i64 PAIRS_PER_BLOCK = 64;
+
+}  // namespace
+
 // Append one manifold (points rows row.. of the collider's output) with warm starting. `rolls`:
 // a sphere's pair, which gets no friction anchor.
 static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_awake,
@@ -107,7 +142,7 @@ static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_
                          double g_mu, V2<i64> prev_mi, V2<double> prev_mf, V2<double> prev_pf,
                          V1<i64> prev_pid, V1<i64> prev_keys, V1<i64> prev_idx, i64 prev_n,
                          V2<i64> mi, V2<double> mf, V2<double> pf, V1<i64> pid, i64& n_man,
-                         i64& n_pts, bool warm, double ad2, const ColliderBuffers& buf) {
+                         i64& n_pts, bool warm, double ad2, const PairOut& buf) {
     static const double IDENTITY[9] = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
     static const double ZERO3[3] = {0.0, 0.0, 0.0};
     const CollisionConstants& cc = collision_constants();
@@ -304,6 +339,11 @@ static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_
     n_pts += cnt;
 }
 
+// Two passes over the candidate pairs, each split in blocks over the task pool (pairs are
+// independent): the first runs the colliders (or, for a pair whose sides both sleep, finds the
+// manifolds to carry over) and keeps each pair's output and its manifold and point counts; a
+// prefix sum gives each pair its rows; the second writes the manifolds there with warm
+// starting. The rows are those of one pass in pair order, whichever thread ran which block.
 CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
                            V2<double> size, V1<i64> awake, V2<double> position,
                            V3<double> rotation, V1<double> reach, double margin,
@@ -317,56 +357,117 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                            ColliderBuffers& buf) {
     require_collision_constants();
     const i64 n_shapes = n_dyn + n_static + 1;
-    i64 n_man = 0;
-    i64 n_pts = 0;
     const double ad2 = anchor_distance * anchor_distance;
-    for (i64 k = 0; k < n_pairs; ++k) {
-        const i64 a = pairs(k, 0);
-        const i64 b = pairs(k, 1);
-        const i64 key = a * n_shapes + b;  // manifold keys are 2 key + part
-        const bool b_dyn = b < n_dyn;
-        const bool a_awake = awake[a] != 0;
-        const bool b_awake = b_dyn && awake[b] != 0;
-        if (!a_awake && !b_awake) {
-            // both sides still: carry the manifolds over as they were
-            for (i64 part = 0; part < 2; ++part) {
-                i64 j = find_manifold(prev_keys, prev_idx, prev_n, 2 * key + part);
-                if (j < 0) continue;
-                const i64 cnt = prev_mi(j, MI_COUNT);
-                for (i64 c = 0; c < MI_COLS; ++c) mi(n_man, c) = prev_mi(j, c);
-                for (i64 c = 0; c < MF_COLS; ++c) mf(n_man, c) = prev_mf(j, c);
-                const i64 ps = prev_mi(j, MI_START);
-                for (i64 q = 0; q < cnt; ++q) {
-                    for (i64 c = 0; c < PF_COLS; ++c) pf(n_pts + q, c) = prev_pf(ps + q, c);
-                    pid[n_pts + q] = prev_pid[ps + q];
+    CollideWork& w = collide_work();
+    if ((i64)w.out.size() < n_pairs) w.out.resize((size_t)n_pairs);
+    w.man_off.resize((size_t)n_pairs + 1);
+    w.pts_off.resize((size_t)n_pairs + 1);
+    const int nt = pool().threads();
+    if ((int)w.scratch.size() < nt) w.scratch.resize((size_t)nt);
+    const i64 n_blocks = TaskPool::blocks_for(n_pairs, PAIRS_PER_BLOCK);
+    // pass 1: colliders
+    pool().run(n_blocks, [&](i64 blk, int worker) {
+        ColliderBuffers& cb = worker == 0 ? buf : w.scratch[(size_t)worker];
+        const i64 k0 = n_pairs * blk / n_blocks, k1 = n_pairs * (blk + 1) / n_blocks;
+        for (i64 k = k0; k < k1; ++k) {
+            PairOut& o = w.out[(size_t)k];
+            const i64 a = pairs(k, 0);
+            const i64 b = pairs(k, 1);
+            const i64 key = a * n_shapes + b;  // manifold keys are 2 key + part
+            const bool b_dyn = b < n_dyn;
+            const bool a_awake = awake[a] != 0;
+            const bool b_awake = b_dyn && awake[b] != 0;
+            o.n_man = 0;
+            o.n_pts = 0;
+            if (!a_awake && !b_awake) {
+                // both sides still: the manifolds are carried over as they were (pass 2)
+                o.res = -2;
+                for (i64 part = 0; part < 2; ++part) {
+                    i64 j = find_manifold(prev_keys, prev_idx, prev_n, 2 * key + part);
+                    if (j < 0) continue;
+                    o.n_man += 1;
+                    o.n_pts += prev_mi(j, MI_COUNT);
                 }
-                mi(n_man, MI_START) = n_pts;
-                mi(n_man, MI_ACTIVE) = 0;
-                n_man += 1;
-                n_pts += cnt;
+                continue;
             }
-            continue;
+            const i64 ga = geom[a];
+            const PairGeometry g = pair_geometry(a, b, n_dyn, n_static, geom, size, position,
+                                                 rotation, sb_pos, sb_rot, sb_ext);
+            double spec = margin + reach[a];
+            if (b_dyn) spec += reach[b];
+            const i64 res = collide(ga, g.geom, position.row(a), rotation.row(a), size.row(a),
+                                    g.centre, g.rotation, g.size, gn.p, goff, spec, cb);
+            o.res = res;
+            if (res <= 0) continue;
+            for (int c = 0; c < 6; ++c) o.nrm[c] = cb.nrm[c];
+            for (i64 part = 0; part < 2; ++part) {
+                const ManifoldPart mp = manifold_part(res, part);
+                if (mp.count == 0) continue;
+                o.n_man += 1;
+                o.n_pts += mp.count;
+                for (i64 q = mp.row; q < mp.row + mp.count; ++q) {
+                    for (int c = 0; c < 3; ++c) o.pts[q][c] = cb.pts[q][c];
+                    o.sep[q] = cb.sep[q];
+                    o.fid[q] = cb.fid[q];
+                }
+            }
         }
-        const i64 ga = geom[a];
-        const PairGeometry g = pair_geometry(a, b, n_dyn, n_static, geom, size, position, rotation,
-                                             sb_pos, sb_rot, sb_ext);
-        double spec = margin + reach[a];
-        if (b_dyn) spec += reach[b];
-        const i64 res = collide(ga, g.geom, position.row(a), rotation.row(a), size.row(a),
-                                g.centre, g.rotation, g.size, gn.p, goff, spec, buf);
-        if (res <= 0) continue;
-        const bool rolls = ga == GEOM_SPHERE || g.geom == GEOM_SPHERE;
-        for (i64 part = 0; part < 2; ++part) {
-            const ManifoldPart mp = manifold_part(res, part);
-            if (mp.count == 0) continue;
-            add_manifold(2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn, mp.count,
-                         mp.row, part, rolls, position, rotation, sb_pos, sb_rot, restitution,
-                         friction, accel, sb_e, sb_mu, g_e, g_mu, prev_mi, prev_mf, prev_pf,
-                         prev_pid, prev_keys, prev_idx, prev_n, mi, mf, pf, pid, n_man, n_pts,
-                         warm, ad2, buf);
-        }
+    });
+    // each pair's first manifold and point row
+    w.man_off[0] = 0;
+    w.pts_off[0] = 0;
+    for (i64 k = 0; k < n_pairs; ++k) {
+        w.man_off[(size_t)k + 1] = w.man_off[(size_t)k] + w.out[(size_t)k].n_man;
+        w.pts_off[(size_t)k + 1] = w.pts_off[(size_t)k] + w.out[(size_t)k].n_pts;
     }
-    return {n_man, n_pts};
+    // pass 2: the manifolds, warm started, at their rows
+    pool().run(n_blocks, [&](i64 blk, int) {
+        const i64 k0 = n_pairs * blk / n_blocks, k1 = n_pairs * (blk + 1) / n_blocks;
+        for (i64 k = k0; k < k1; ++k) {
+            const PairOut& o = w.out[(size_t)k];
+            if (o.n_man == 0) continue;
+            i64 n_man = w.man_off[(size_t)k];
+            i64 n_pts = w.pts_off[(size_t)k];
+            const i64 a = pairs(k, 0);
+            const i64 b = pairs(k, 1);
+            const i64 key = a * n_shapes + b;
+            const bool b_dyn = b < n_dyn;
+            const bool a_awake = awake[a] != 0;
+            const bool b_awake = b_dyn && awake[b] != 0;
+            if (o.res == -2) {
+                for (i64 part = 0; part < 2; ++part) {
+                    i64 j = find_manifold(prev_keys, prev_idx, prev_n, 2 * key + part);
+                    if (j < 0) continue;
+                    const i64 cnt = prev_mi(j, MI_COUNT);
+                    for (i64 c = 0; c < MI_COLS; ++c) mi(n_man, c) = prev_mi(j, c);
+                    for (i64 c = 0; c < MF_COLS; ++c) mf(n_man, c) = prev_mf(j, c);
+                    const i64 ps = prev_mi(j, MI_START);
+                    for (i64 q = 0; q < cnt; ++q) {
+                        for (i64 c = 0; c < PF_COLS; ++c) pf(n_pts + q, c) = prev_pf(ps + q, c);
+                        pid[n_pts + q] = prev_pid[ps + q];
+                    }
+                    mi(n_man, MI_START) = n_pts;
+                    mi(n_man, MI_ACTIVE) = 0;
+                    n_man += 1;
+                    n_pts += cnt;
+                }
+                continue;
+            }
+            const i64 ga = geom[a];
+            const i64 gb = b < n_dyn ? geom[b] : (b < n_dyn + n_static ? GEOM_BOX : GEOM_PLANE);
+            const bool rolls = ga == GEOM_SPHERE || gb == GEOM_SPHERE;
+            for (i64 part = 0; part < 2; ++part) {
+                const ManifoldPart mp = manifold_part(o.res, part);
+                if (mp.count == 0) continue;
+                add_manifold(2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn,
+                             mp.count, mp.row, part, rolls, position, rotation, sb_pos, sb_rot,
+                             restitution, friction, accel, sb_e, sb_mu, g_e, g_mu, prev_mi,
+                             prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n, mi, mf, pf,
+                             pid, n_man, n_pts, warm, ad2, o);
+            }
+        }
+    });
+    return {w.man_off[(size_t)n_pairs], w.pts_off[(size_t)n_pairs]};
 }
 
 }  // namespace rb

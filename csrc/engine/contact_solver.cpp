@@ -73,20 +73,27 @@
 namespace rb {
 
 TaskPool& pool();  // the engine's pool (threads.cpp)
+// counts of the threaded solves (threads.cpp, _core.thread_stats): stages handed to the threads,
+// whether the driver went on alone
+void thread_stats_add(i64 stages_shared, bool handover);
 
 namespace {
 
-// A colour's groups go to threads only when each thread gets this many per sweep on average (a
-// barrier per colour costs about as much as solving a few groups); the results do not depend on
-// it, only the time.
-constexpr i64 MIN_GROUPS_PER_THREAD = 8;
+// A colour's groups go to threads only when each thread gets this many to visit in a sweep (the
+// driver's hand-off of a stage and the wait for its last block cost about as much as solving a
+// few groups); the results do not depend on it, only the time.
+constexpr i64 MIN_GROUPS_PER_THREAD = 4;
+// A shared colour is cut into blocks of about this many groups, at most BLOCKS_PER_THREAD blocks
+// a thread (blocks are claimed one at a time: smaller ones even out the threads' loads, each
+// claim costs an atomic on a shared cache line).
+constexpr i64 GROUPS_PER_BLOCK = 2;
+constexpr i64 BLOCKS_PER_THREAD = 4;
 
-// When thread 0 spent more than half of a threaded solve waiting at the colours' barriers (on a
-// machine whose cores are busy with other processes a worker is often not running, and each of
-// the ~300 barriers of a step then waits for the scheduler), the next this many solves run on
-// one thread before threads are tried again. Measured on the shared 2-core machine (load 15):
-// the 500-box pile's solve took 71 s of wall time on two threads against 21 s on one. The
-// results do not depend on it (only which thread solves which group changes).
+// When the driver spent more than half of a threaded solve waiting for blocks that other threads
+// had claimed (on a machine whose cores are busy with other processes a worker is often not
+// running, and it may be descheduled while it holds a block), it finishes the solve alone and
+// the next this many solves run on one thread before threads are tried again. The results do not
+// depend on it (only which thread solves which group changes).
 constexpr i64 THREAD_BACKOFF_CALLS = 200;
 std::atomic<i64> g_thread_backoff{0};  // (atomic: worlds may step on several Python threads)
 
@@ -422,71 +429,144 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     }
     bool converged = false;
     if (!serial) {
-        // the same sweeps on every thread at once: thread 0 solves the overflow set, then each
-        // colour's groups are split in n_threads static parts, a barrier after each; the sweep's
-        // largest change is the max of the threads' (the same number on every thread, so all
-        // stop after the same sweep) and the visits their sum
+        // Box2D v3's stages (solver.c, b2SolverStage / b2ExecuteMainStage): the calling thread
+        // drives, the pool's workers follow. A stage is one set of one sweep; the driver posts it
+        // (claim word = stage << 24), every thread claims its blocks of groups from the word,
+        // and the driver waits until the stage's done count reaches its block count before it
+        // posts the next (colour c + 1 must see colour c). So a worker the system has
+        // descheduled holds the others up only while it holds a block, not by being late. The
+        // driver runs a set alone when it is too small to share (the overflow set, always: its
+        // manifolds one after another in order; a colour whose last sweep visited fewer than
+        // MIN_GROUPS_PER_THREAD groups a thread), and it decides when the sweeps stop (the max
+        // of the blocks' changes). Which thread solves which block changes nothing: a block
+        // reads and writes only its own manifolds' bodies (constraint_graph.hpp).
         const int nt = n_threads;
-        std::vector<double> t_change((size_t)nt * 8, 0.0);  // (a cache line per thread)
-        std::vector<i64> t_visits((size_t)nt * 8, 0), t_it((size_t)nt * 8, 0);
-        SpinBarrier bar(nt);
-        std::atomic<bool> handover{false};
-        i64 waited = 0;  // thread 0's ticks in barriers
-        const i64 t_start = ticks();
-        auto wait = [&](i64 t) {
-            if (t != 0) {
-                bar.wait();
-                return;
-            }
-            i64 w0 = ticks();
-            bar.wait();
-            waited += ticks() - w0;
+        // blocks of each set: [set_blk[s], set_blk[s + 1]) of a sweep's n_blk
+        std::vector<i64> set_blk((size_t)n_sets + 1, 0);
+        for (i64 s = 0; s < n_sets; ++s) {
+            i64 n_g = lanes.set_group[s + 1] - lanes.set_group[s];
+            i64 nb = s == 0 ? (n_g > 0 ? 1 : 0) : (n_g + GROUPS_PER_BLOCK - 1) / GROUPS_PER_BLOCK;
+            if (nb > BLOCKS_PER_THREAD * nt) nb = BLOCKS_PER_THREAD * nt;
+            set_blk[(size_t)s + 1] = set_blk[(size_t)s] + nb;
+        }
+        const i64 n_blk = set_blk[(size_t)n_sets];
+        std::vector<double> blk_change((size_t)n_blk, 0.0);
+        std::vector<i64> blk_visits((size_t)n_blk, 0), set_visits((size_t)n_sets, 0);
+        struct alignas(64) Word {
+            std::atomic<i64> v{0};
         };
-        pool().parallel_for(nt, [&](i64 t) {
+        Word claim, done;  // claim: (stage << 24) | next block; done: blocks finished
+        constexpr i64 FINISH = i64(1) << 38;  // the stage that ends the solve
+        auto stage_of = [&](i64 sweep, i64 s) { return (sweep - 1) * n_sets + s; };
+        // solve block j of set s in sweep `sweep` (results into the block's slots)
+        auto run_block = [&](i64 sweep, i64 s, i64 j) {
             LaneCtx tc = cx;
-            i64 my_it = 0, my_visits = 0;
-            while (my_it < max_iter) {
-                my_it += 1;
-                tc.it = my_it;
-                double change = 0.0;
-                if (t == 0)
-                    solve_groups_scalar(gr, lanes.set_group[0], lanes.set_group[1], tc, &change,
-                                        &my_visits);
-                wait(t);
-                for (i64 s = 1; s < n_sets; ++s) {
-                    i64 g0 = lanes.set_group[s], n_g = lanes.set_group[s + 1] - g0;
-                    solve_groups_wide(gr, g0 + n_g * t / nt, g0 + n_g * (t + 1) / nt, tc, &change,
-                                      &my_visits);
-                    wait(t);
+            tc.it = sweep;
+            double change = 0.0;
+            i64 vis = 0;
+            i64 g0 = lanes.set_group[s], n_g = lanes.set_group[s + 1] - g0;
+            i64 nb = set_blk[(size_t)s + 1] - set_blk[(size_t)s];
+            if (s == 0)
+                solve_groups_scalar(gr, g0, g0 + n_g, tc, &change, &vis);
+            else
+                solve_groups_wide(gr, g0 + n_g * j / nb, g0 + n_g * (j + 1) / nb, tc, &change,
+                                  &vis);
+            blk_change[(size_t)(set_blk[(size_t)s] + j)] = change;
+            blk_visits[(size_t)(set_blk[(size_t)s] + j)] = vis;
+        };
+        // claim and solve blocks of the posted stage until none is left; false once finished
+        auto claim_blocks = [&](i64& exhausted) {
+            i64 c = claim.v.load(std::memory_order_acquire);
+            i64 stage = c >> 24;
+            if (stage >= FINISH) return false;
+            if (stage == exhausted) {
+                RB_CPU_RELAX();
+                return true;
+            }
+            i64 s = stage % n_sets, sweep = stage / n_sets + 1;
+            i64 j = c & 0xffffff;
+            if (j >= set_blk[(size_t)s + 1] - set_blk[(size_t)s]) {
+                exhausted = stage;
+                return true;
+            }
+            if (claim.v.compare_exchange_weak(c, c + 1, std::memory_order_acq_rel)) {
+                run_block(sweep, s, j);
+                done.v.fetch_add(1, std::memory_order_acq_rel);
+            }
+            return true;
+        };
+        i64 waited = 0, n_posted = 0;  // the driver's ticks waiting for others' blocks; stages
+        const i64 t_start = ticks();
+        bool handover = false;
+        auto drive = [&]() {
+            i64 exhausted = -1;
+            while (it < max_iter) {
+                it += 1;
+                for (i64 s = 0; s < n_sets; ++s) {
+                    i64 b0 = set_blk[(size_t)s], nb = set_blk[(size_t)s + 1] - b0;
+                    if (nb == 0) continue;
+                    // shared when every thread gets MIN_GROUPS_PER_THREAD groups to visit (the
+                    // first min_iter sweeps visit all; later ones about what the last did)
+                    i64 n_g = lanes.set_group[s + 1] - lanes.set_group[s];
+                    i64 expect = it <= min_iter ? 4 * n_g : set_visits[(size_t)s];
+                    bool share = !handover && s > 0 && nb > 1 &&
+                                 expect >= 4 * MIN_GROUPS_PER_THREAD * nt;
+                    if (!share) {
+                        for (i64 j = 0; j < nb; ++j) run_block(it, s, j);
+                        continue;
+                    }
+                    n_posted += 1;
+                    done.v.store(0, std::memory_order_relaxed);
+                    claim.v.store(stage_of(it, s) << 24, std::memory_order_release);
+                    while (claim_blocks(exhausted) && exhausted != stage_of(it, s)) {
+                    }
+                    if (done.v.load(std::memory_order_acquire) < nb) {
+                        i64 w0 = ticks();
+                        for (int spin = 0; done.v.load(std::memory_order_acquire) < nb; ++spin) {
+                            if (spin < 256)
+                                RB_CPU_RELAX();
+                            else
+                                std::this_thread::yield();
+                        }
+                        waited += ticks() - w0;
+                    }
                 }
-                t_change[(size_t)t * 8] = change;
-                wait(t);
                 double all = 0.0;
-                for (int k = 0; k < nt; ++k)
-                    if (t_change[(size_t)k * 8] > all) all = t_change[(size_t)k * 8];
-                // thread 0: more than half the time so far in barriers (and past a few sweeps):
-                // the threads do not run at once, hand the rest of the solve to one thread
-                if (t == 0 && my_it >= 2 && 2 * waited > ticks() - t_start)
-                    handover.store(true, std::memory_order_relaxed);
-                wait(t);  // (every thread has read the changes and the handover before the next
-                          // sweep's)
-                if (my_it >= min_iter && all <= tol) {
-                    if (t == 0) converged = true;
+                for (i64 s = 0; s < n_sets; ++s) {
+                    i64 v = 0;
+                    for (i64 b = set_blk[(size_t)s]; b < set_blk[(size_t)s + 1]; ++b) {
+                        if (blk_change[(size_t)b] > all) all = blk_change[(size_t)b];
+                        v += blk_visits[(size_t)b];
+                    }
+                    set_visits[(size_t)s] = v;
+                    visits += v;
+                }
+                if (it >= min_iter && all <= tol) {
+                    converged = true;
                     break;
                 }
-                if (handover.load(std::memory_order_relaxed)) break;
+                // more than half of the time so far waiting for blocks that others hold (past a
+                // few sweeps): the threads do not run at once, the driver goes on alone
+                if (!handover && it >= 2 && 2 * waited > ticks() - t_start) handover = true;
             }
-            t_visits[(size_t)t * 8] = my_visits;
-            t_it[(size_t)t * 8] = my_it;
+            claim.v.store(FINISH << 24, std::memory_order_release);
+        };
+        pool().run(nt, [&](i64, int w) {
+            if (w == 0) {
+                drive();
+                return;
+            }
+            i64 exhausted = -1;
+            for (int spin = 0; claim_blocks(exhausted); ++spin) {
+                if ((spin & 1023) == 1023) std::this_thread::yield();
+            }
         });
-        for (int k = 0; k < nt; ++k) visits += t_visits[(size_t)k * 8];
-        it = t_it[0];
-        // handed over (or more than half the time in barriers): the threads did not run at once
-        // (the machine's cores are taken by other work), so the next THREAD_BACKOFF_CALLS
-        // solves run on one thread; the remaining sweeps of this one run below. Either gives
-        // the same bits as the threaded sweeps.
-        if (handover.load(std::memory_order_relaxed) || 2 * waited > ticks() - t_start)
-            g_thread_backoff.store(THREAD_BACKOFF_CALLS, std::memory_order_relaxed);
+        converged = converged || it >= max_iter;
+        thread_stats_add(n_posted, handover);
+        // handed over: the threads did not run at once (the machine's cores are taken by other
+        // work), so the next THREAD_BACKOFF_CALLS solves run on one thread. Either gives the
+        // same bits as the threaded sweeps.
+        if (handover) g_thread_backoff.store(THREAD_BACKOFF_CALLS, std::memory_order_relaxed);
     }
     if (!converged) {
         while (it < max_iter) {

@@ -1,4 +1,5 @@
 // The engine's task pool and its size.
+#include <atomic>
 #include <string>
 #include <thread>
 
@@ -20,7 +21,35 @@ TaskPool& pool() {
     return p;
 }
 
+// What the threaded velocity solves did since the last thread_stats(reset=True): solves run on
+// threads, stages (a colour of a sweep) handed to the threads (each ends with a wait for its
+// last block: the solve's barriers), solves the driver finished alone (contact_solver.cpp).
+namespace {
+std::atomic<i64> g_solves{0}, g_stages{0}, g_handovers{0};
+}
+
+void thread_stats_add(i64 stages_shared, bool handover) {
+    g_solves.fetch_add(1, std::memory_order_relaxed);
+    g_stages.fetch_add(stages_shared, std::memory_order_relaxed);
+    if (handover) g_handovers.fetch_add(1, std::memory_order_relaxed);
+}
+
 void bind_threads(nb::module_& m) {
+    m.def("thread_stats", [](bool reset) {
+              nb::dict d;
+              d["threaded_solves"] = g_solves.load();
+              d["shared_stages"] = g_stages.load();
+              d["handovers"] = g_handovers.load();
+              if (reset) {
+                  g_solves.store(0);
+                  g_stages.store(0);
+                  g_handovers.store(0);
+              }
+              return d;
+          }, nb::arg("reset") = false,
+          "Counts of the threaded velocity solves: threaded_solves, shared_stages (stages of a "
+          "sweep handed to the threads, each ended by a wait for its last block), handovers "
+          "(solves the driver finished alone because the threads did not run at once).");
     m.def("set_threads", [](int n) { pool().resize(n < 1 ? 1 : n); }, nb::arg("n"),
           "Threads the core steps on (the caller's included); results do not depend on it.");
     m.def("threads", [] { return pool().threads(); }, "Threads the core steps on.");

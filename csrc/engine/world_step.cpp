@@ -68,6 +68,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/task_pool.hpp"
 #include "engine/contact_solver.hpp"
 #include "engine/integrators.hpp"
 #include "engine/profile.hpp"
@@ -77,7 +78,34 @@
 
 namespace rb {
 
+TaskPool& pool();  // the engine's pool (threads.cpp)
+
 namespace {
+
+// Items per block when a stage's loop over bodies or manifolds is split over the task pool
+// (a body's integration or a manifold's preparation costs ~0.1-0.5 us; below a few hundred
+// items a block does not pay for its hand-off).
+constexpr i64 BODIES_PER_BLOCK = 128;
+constexpr i64 MANIFOLDS_PER_BLOCK = 64;
+
+// fn(i0, i1) over [0, n) cut in blocks of about per_block items, the blocks on the task pool
+// (one block, on the caller, with one thread or a small n). For loops whose items write only
+// their own rows: the result is the serial loop's whatever the threads.
+template <class F>
+void par_ranges(i64 n, i64 per_block, const F& fn) {
+    const i64 nb = pool().threads() > 1 ? TaskPool::blocks_for(n, per_block) : 1;
+    if (nb <= 1) {
+        fn(i64(0), n);
+        return;
+    }
+    pool().run(nb, [&](i64 b, int) { fn(n * b / nb, n * (b + 1) / nb); });
+}
+
+// Rows [r0, r1) of a (M, C) view.
+template <class T>
+V2<T> rows(V2<T> v, i64 r0, i64 r1) {
+    return V2<T>{v.p + r0 * v.n1, r1 - r0, v.n1};
+}
 
 template <class T>
 void zeroed(Buf2<T>& b, i64 rows, i64 cols) {
@@ -240,8 +268,13 @@ void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch&
                 x.rotation, x.linear_momentum, x.angular_momentum, col(sc.in_contact),
                 col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view(), sc.bv0.view(),
                 sc.bw0.view(), sc.pv.view(), sc.pw.view(), sc.p0.view(), sc.l0.view());
-    prepare_contacts(mi, mf, pf, n_man, col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view(), h,
-                     cfg.anchor_rate, cfg.block_reg);
+    // a manifold's preparation writes only its own rows (mf, its points' pf): blocks of
+    // manifolds on the pool (pf stays whole: a manifold's MI_START indexes it)
+    par_ranges(n_man, MANIFOLDS_PER_BLOCK, [&](i64 m0, i64 m1) {
+        prepare_contacts(rows(mi, m0, m1), rows(mf, m0, m1), pf, m1 - m0, col(sc.bm),
+                         sc.bI.view(), sc.bv.view(), sc.bw.view(), h, cfg.anchor_rate,
+                         cfg.block_reg);
+    });
 }
 
 // Sort the awake bodies by how they move this step (sc.pushed, read by stage 9):
@@ -308,7 +341,9 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
     V2<double> p0 = sc.p0.view(), l0 = sc.l0.view();
     V1<i64> in_contact = col(sc.in_contact), pushed_of = col(sc.pushed);
     V2<double> lm = x.linear_momentum, am = x.angular_momentum, pos = x.position;
-    for (i64 i = 0; i < n; ++i) {
+    // each body reads and writes only its own rows: blocks of bodies on the pool
+    par_ranges(n, BODIES_PER_BLOCK, [&](i64 i0, i64 i1) {
+    for (i64 i = i0; i < i1; ++i) {
         if (!awake[i]) continue;
         double im = bd.inv_mass[i];
         for (int k = 0; k < 3; ++k) l_drift(i, k) = am(i, k);
@@ -373,6 +408,7 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
             am(i, 2) -= sx * qy - sy * qx;
         }
     }
+    });
 }
 
 // 12 project: narrowphase again at the end-of-step poses; points deeper than projection_depth
