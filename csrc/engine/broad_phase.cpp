@@ -30,8 +30,10 @@ namespace rb {
 TaskPool& pool();  // the engine's pool (threads.cpp)
 
 namespace {
-// bodies per block of body_aabbs on the task pool (~50 ns a body: smaller blocks do not pay)
+// bodies per block of body_aabbs on the task pool (~50 ns a body: smaller blocks do not pay),
+// boxes per block of the sweep (~0.1-0.3 us a box)
 constexpr i64 BODIES_PER_BLOCK = 256;
+constexpr i64 ITEMS_PER_BLOCK = 128;
 }  // namespace
 
 void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv_mass,
@@ -140,29 +142,49 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
         bx[4] = lo(i, ax2);
         bx[5] = hi(i, ax2);
     }
-    i64 count = 0;
-    for (i64 ii = 0; ii < n_items; ++ii) {
-        const i64 i = order[ii].id;
-        const double* bi = box.data() + 6 * ii;
-        const double hi_i = bi[1];
-        for (i64 jj = ii + 1; jj < n_items; ++jj) {
-            const i64 j = order[jj].id;
-            const double* bj = box.data() + 6 * jj;
-            // written as "not overlapping" so that a NaN box never pairs with anything
-            if (!(bj[0] <= hi_i)) break;
-            if (i >= n_dyn && j >= n_dyn) continue;
-            if (!(bj[2] <= bi[3] && bi[2] <= bj[3])) continue;
-            if (!(bj[4] <= bi[5] && bi[4] <= bj[5])) continue;
-            const i64 a = std::min(i, j);
-            const i64 b = std::max(i, j);
-            if (b < n_dyn) {
-                i64 ga = group[a];
-                i64 gb = group[b];
-                if (ga != 0 && gb != 0 && ga != gb) continue;
+    // the sweep: each box against the boxes after it in sweep order, in blocks of boxes on the
+    // task pool, each block's pairs into its own list; the lists are then joined in block order,
+    // so the pairs come out in the serial sweep's order
+    const i64 nb = pool().threads() > 1 ? TaskPool::blocks_for(n_items, ITEMS_PER_BLOCK) : 1;
+    // (the calling thread's lists, kept: no allocation once grown; a reference, since a
+    // lambda running on a worker would name the worker's own thread_local)
+    static thread_local std::vector<std::vector<i64>> kept;
+    std::vector<std::vector<i64>>& found = kept;
+    if ((i64)found.size() < nb) found.resize((size_t)nb);
+    pool().run(nb, [&](i64 blk, int) {
+        std::vector<i64>& out = found[(size_t)blk];
+        out.clear();
+        for (i64 ii = n_items * blk / nb; ii < n_items * (blk + 1) / nb; ++ii) {
+            const i64 i = order[ii].id;
+            const double* bi = box.data() + 6 * ii;
+            const double hi_i = bi[1];
+            for (i64 jj = ii + 1; jj < n_items; ++jj) {
+                const i64 j = order[jj].id;
+                const double* bj = box.data() + 6 * jj;
+                // written as "not overlapping" so that a NaN box never pairs with anything
+                if (!(bj[0] <= hi_i)) break;
+                if (i >= n_dyn && j >= n_dyn) continue;
+                if (!(bj[2] <= bi[3] && bi[2] <= bj[3])) continue;
+                if (!(bj[4] <= bi[5] && bi[4] <= bj[5])) continue;
+                const i64 a = std::min(i, j);
+                const i64 b = std::max(i, j);
+                if (b < n_dyn) {
+                    i64 ga = group[a];
+                    i64 gb = group[b];
+                    if (ga != 0 && gb != 0 && ga != gb) continue;
+                }
+                out.push_back(a);
+                out.push_back(b);
             }
+        }
+    });
+    i64 count = 0;
+    for (i64 blk = 0; blk < nb; ++blk) {
+        const std::vector<i64>& out = found[(size_t)blk];
+        for (size_t k = 0; k < out.size(); k += 2) {
             if (count == pairs.rows) grow_pairs(pairs);
-            pairs(count, 0) = a;
-            pairs(count, 1) = b;
+            pairs(count, 0) = out[k];
+            pairs(count, 1) = out[k + 1];
             count += 1;
         }
     }

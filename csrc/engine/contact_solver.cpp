@@ -96,6 +96,12 @@ constexpr i64 BLOCKS_PER_THREAD = 4;
 // depend on it (only which thread solves which group changes).
 constexpr i64 THREAD_BACKOFF_CALLS = 200;
 std::atomic<i64> g_thread_backoff{0};  // (atomic: worlds may step on several Python threads)
+// RBLOG_THREAD_HANDOVER=0 turns the hand-over off (for measurements under valgrind, which runs
+// one thread at a time, so that every driver wait looks like a descheduled worker)
+const bool g_handover_on = [] {
+    const char* e = std::getenv("RBLOG_THREAD_HANDOVER");
+    return !(e && e[0] == '0');
+}();
 
 inline void smul(double i0, double i1, double i2, double i3, double i4, double i5, double x,
                  double y, double z, double& ox, double& oy, double& oz) {
@@ -547,7 +553,8 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
                 }
                 // more than half of the time so far waiting for blocks that others hold (past a
                 // few sweeps): the threads do not run at once, the driver goes on alone
-                if (!handover && it >= 2 && 2 * waited > ticks() - t_start) handover = true;
+                if (g_handover_on && !handover && it >= 2 && 2 * waited > ticks() - t_start)
+                    handover = true;
             }
             claim.v.store(FINISH << 24, std::memory_order_release);
         };
