@@ -21,6 +21,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstdint>
 #include <exception>
 #include <functional>
@@ -37,6 +38,31 @@
 
 namespace rb {
 
+// Wait until ready() holds: spin with a pause, yielding the core after a while (on a loaded
+// machine the thread we wait for may need it). Not inlined, so that a profile (callgrind) puts
+// every wait of the pool and the threaded solve under one name.
+template <class Ready>
+[[gnu::noinline]] void spin_until(const Ready& ready) {
+    for (int spin = 0; !ready(); ++spin) {
+        if (spin < 256)
+            RB_CPU_RELAX();
+        else
+            std::this_thread::yield();
+    }
+}
+
+// RBLOG_THREAD_STATIC=1: block b of a call (and of a threaded solve's stage) runs on worker
+// b % threads(), as an OpenMP static schedule, instead of whichever claims it first. For
+// measurements only (valgrind runs one thread at a time, so with claims the caller would take
+// nearly every block); the results are the same, but a descheduled worker then stalls the call.
+inline bool static_blocks() {
+    static const bool on = [] {
+        const char* e = std::getenv("RBLOG_THREAD_STATIC");
+        return e != nullptr && e[0] == '1';
+    }();
+    return on;
+}
+
 class TaskPool {
 public:
     // How long an idle worker spins before it sleeps (microseconds).
@@ -48,6 +74,8 @@ public:
     TaskPool& operator=(const TaskPool&) = delete;
 
     int threads() const { return n_threads_; }
+    // Calls handed to the workers so far (each ends with a wait for its last block).
+    std::int64_t calls() const { return calls_.load(std::memory_order_relaxed); }
 
     // Number of threads, including the caller's; 1 = no workers.
     void resize(int n_threads) {
@@ -70,6 +98,7 @@ public:
             return;
         }
         std::lock_guard<std::mutex> serial(call_);
+        calls_.fetch_add(1, std::memory_order_relaxed);
         const std::uint32_t g = gen_.load(std::memory_order_relaxed) + 1;
         fn_.store(&fn, std::memory_order_relaxed);
         n_blocks_.store(n_blocks, std::memory_order_relaxed);
@@ -82,13 +111,8 @@ public:
         }
         if (sleepers_.load(std::memory_order_acquire) > 0) cv_.notify_all();
         work(g, 0);
-        // the blocks others claimed: spin (they take microseconds), yielding now and then
-        for (int spin = 0; done_.load(std::memory_order_acquire) < n_blocks; ++spin) {
-            if (spin < 256)
-                RB_CPU_RELAX();
-            else
-                std::this_thread::yield();
-        }
+        // the blocks others claimed: they take microseconds
+        spin_until([&] { return done_.load(std::memory_order_acquire) >= n_blocks; });
         fn_.store(nullptr, std::memory_order_relaxed);
         if (error_) std::rethrow_exception(error_);
     }
@@ -109,6 +133,16 @@ public:
 private:
     // Claim and run blocks of call generation g until none is left.
     void work(std::uint32_t g, int w) {
+        if (static_blocks()) {  // (measurements: block b on worker b % threads)
+            std::uint64_t c = claim_.load(std::memory_order_acquire);
+            if (std::uint32_t(c >> 32) != g) return;
+            const std::int64_t n = n_blocks_.load(std::memory_order_relaxed);
+            for (std::int64_t b = w; b < n; b += n_threads_) {
+                (*fn_.load(std::memory_order_relaxed))(b, w);
+                done_.fetch_add(1, std::memory_order_acq_rel);
+            }
+            return;
+        }
         for (;;) {
             std::uint64_t c = claim_.load(std::memory_order_acquire);
             if (std::uint32_t(c >> 32) != g) return;  // a later call: this one is over
@@ -127,22 +161,26 @@ private:
         }
     }
 
+    // Spin a while (WAKE_SPIN_US) for a call after generation `seen`, then return.
+    [[gnu::noinline]] void idle_spin(std::uint32_t seen) {
+        auto t0 = std::chrono::steady_clock::now();
+        for (int spin = 0; gen_.load(std::memory_order_acquire) == seen &&
+                           !quit_.load(std::memory_order_relaxed);
+             ++spin) {
+            if ((spin & 63) == 63) {
+                if (std::chrono::steady_clock::now() - t0 >
+                    std::chrono::microseconds(WAKE_SPIN_US))
+                    return;
+                std::this_thread::yield();
+            } else {
+                RB_CPU_RELAX();
+            }
+        }
+    }
+
     void loop(int w, std::uint32_t seen) {
         for (;;) {
-            // spin a while for the next call, then sleep
-            auto t0 = std::chrono::steady_clock::now();
-            for (int spin = 0; gen_.load(std::memory_order_acquire) == seen &&
-                               !quit_.load(std::memory_order_relaxed);
-                 ++spin) {
-                if ((spin & 63) == 63) {
-                    if (std::chrono::steady_clock::now() - t0 >
-                        std::chrono::microseconds(WAKE_SPIN_US))
-                        break;
-                    std::this_thread::yield();
-                } else {
-                    RB_CPU_RELAX();
-                }
-            }
+            idle_spin(seen);
             if (gen_.load(std::memory_order_acquire) == seen && !quit_.load()) {
                 std::unique_lock<std::mutex> lk(m_);
                 sleepers_.fetch_add(1, std::memory_order_acq_rel);
@@ -173,6 +211,7 @@ private:
     std::mutex m_, call_;
     std::condition_variable cv_;
     std::atomic<int> sleepers_{0};
+    std::atomic<std::int64_t> calls_{0};
     std::atomic<bool> quit_{false};
     std::atomic<std::uint32_t> gen_{0};
     alignas(64) std::atomic<std::uint64_t> claim_{0};  // (generation << 32) | next block

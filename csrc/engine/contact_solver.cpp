@@ -480,18 +480,31 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
             blk_change[(size_t)(set_blk[(size_t)s] + j)] = change;
             blk_visits[(size_t)(set_blk[(size_t)s] + j)] = vis;
         };
-        // claim and solve blocks of the posted stage until none is left; false once finished
-        auto claim_blocks = [&](i64& exhausted) {
+        // solve blocks of the posted stage until none is left (claimed, or with
+        // RBLOG_THREAD_STATIC block j on thread j % nt); then `exhausted` is the stage. False
+        // once the solve is finished.
+        const bool fixed = static_blocks();
+        auto claim_blocks = [&](i64& exhausted, int w) {
             i64 c = claim.v.load(std::memory_order_acquire);
             i64 stage = c >> 24;
             if (stage >= FINISH) return false;
             if (stage == exhausted) {
-                RB_CPU_RELAX();
+                spin_until(
+                    [&] { return claim.v.load(std::memory_order_acquire) >> 24 != stage; });
                 return true;
             }
             i64 s = stage % n_sets, sweep = stage / n_sets + 1;
+            i64 nb = set_blk[(size_t)s + 1] - set_blk[(size_t)s];
+            if (fixed) {
+                for (i64 j = w; j < nb; j += nt) {
+                    run_block(sweep, s, j);
+                    done.v.fetch_add(1, std::memory_order_acq_rel);
+                }
+                exhausted = stage;
+                return true;
+            }
             i64 j = c & 0xffffff;
-            if (j >= set_blk[(size_t)s + 1] - set_blk[(size_t)s]) {
+            if (j >= nb) {
                 exhausted = stage;
                 return true;
             }
@@ -524,16 +537,10 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
                     n_posted += 1;
                     done.v.store(0, std::memory_order_relaxed);
                     claim.v.store(stage_of(it, s) << 24, std::memory_order_release);
-                    while (claim_blocks(exhausted) && exhausted != stage_of(it, s)) {
-                    }
+                    while (exhausted != stage_of(it, s)) claim_blocks(exhausted, 0);
                     if (done.v.load(std::memory_order_acquire) < nb) {
                         i64 w0 = ticks();
-                        for (int spin = 0; done.v.load(std::memory_order_acquire) < nb; ++spin) {
-                            if (spin < 256)
-                                RB_CPU_RELAX();
-                            else
-                                std::this_thread::yield();
-                        }
+                        spin_until([&] { return done.v.load(std::memory_order_acquire) >= nb; });
                         waited += ticks() - w0;
                     }
                 }
@@ -564,8 +571,7 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
                 return;
             }
             i64 exhausted = -1;
-            for (int spin = 0; claim_blocks(exhausted); ++spin) {
-                if ((spin & 1023) == 1023) std::this_thread::yield();
+            while (claim_blocks(exhausted, w)) {
             }
         });
         converged = converged || it >= max_iter;

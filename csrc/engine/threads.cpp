@@ -26,6 +26,7 @@ TaskPool& pool() {
 // last block: the solve's barriers), solves the driver finished alone (contact_solver.cpp).
 namespace {
 std::atomic<i64> g_solves{0}, g_stages{0}, g_handovers{0};
+i64 g_calls0 = 0;  // pool().calls() at the last reset
 }
 
 void thread_stats_add(i64 stages_shared, bool handover) {
@@ -40,7 +41,9 @@ void bind_threads(nb::module_& m) {
               d["threaded_solves"] = g_solves.load();
               d["shared_stages"] = g_stages.load();
               d["handovers"] = g_handovers.load();
+              d["pool_calls"] = pool().calls() - g_calls0;
               if (reset) {
+                  g_calls0 = pool().calls();
                   g_solves.store(0);
                   g_stages.store(0);
                   g_handovers.store(0);
@@ -49,7 +52,9 @@ void bind_threads(nb::module_& m) {
           }, nb::arg("reset") = false,
           "Counts of the threaded velocity solves: threaded_solves, shared_stages (stages of a "
           "sweep handed to the threads, each ended by a wait for its last block), handovers "
-          "(solves the driver finished alone because the threads did not run at once).");
+          "(solves the driver finished alone because the threads did not run at once), pool_calls "
+          "(the stages' loops handed to the pool: collide, prepare, relax colours ...; each ends "
+          "with a wait for its last block, as a shared solve stage does).");
     m.def("set_threads", [](int n) { pool().resize(n < 1 ? 1 : n); }, nb::arg("n"),
           "Threads the core steps on (the caller's included); results do not depend on it.");
     m.def("threads", [] { return pool().threads(); }, "Threads the core steps on.");
