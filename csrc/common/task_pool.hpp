@@ -122,9 +122,12 @@ public:
         run(n_tasks, [&fn](std::int64_t t, int) { fn(t); });
     }
 
-    // Blocks of about `per_block` items for n items (at least 1 block; threads() blocks or more
-    // when n is large, so that the claims even out the threads' loads).
-    static std::int64_t blocks_for(std::int64_t n, std::int64_t per_block) {
+    // Blocks of about `per_block` items for n items: 1 below min_items (a loop that small is not
+    // worth a hand-off: the scene is small, the caller's thread does it alone), else n /
+    // per_block rounded up, so that the claims even out the threads' loads.
+    static std::int64_t blocks_for(std::int64_t n, std::int64_t per_block,
+                                   std::int64_t min_items = 0) {
+        if (n < min_items) return 1;
         if (per_block < 1) per_block = 1;
         std::int64_t b = (n + per_block - 1) / per_block;
         return b < 1 ? 1 : b;

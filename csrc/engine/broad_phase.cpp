@@ -30,10 +30,13 @@ namespace rb {
 TaskPool& pool();  // the engine's pool (threads.cpp)
 
 namespace {
-// bodies per block of body_aabbs on the task pool (~50 ns a body: smaller blocks do not pay),
-// boxes per block of the sweep (~0.1-0.3 us a box)
+// bodies per block of body_aabbs on the task pool, and the fewest bodies worth a hand-off
+// (~180 instructions a body: 1,024 bodies are ~60 us), boxes per block of the sweep and the
+// fewest worth it (~1,000 instructions a box in the 500-box pile)
 constexpr i64 BODIES_PER_BLOCK = 256;
+constexpr i64 MIN_BODIES = 1024;
 constexpr i64 ITEMS_PER_BLOCK = 128;
+constexpr i64 MIN_ITEMS = 256;
 }  // namespace
 
 void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv_mass,
@@ -43,7 +46,7 @@ void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv
     const i64 n = position.n0;
     const double pad = 0.5 * margin;
     // each body writes only its own rows: blocks of bodies on the task pool
-    const i64 nb = pool().threads() > 1 ? TaskPool::blocks_for(n, BODIES_PER_BLOCK) : 1;
+    const i64 nb = pool().threads() > 1 ? TaskPool::blocks_for(n, BODIES_PER_BLOCK, MIN_BODIES) : 1;
     pool().run(nb, [&](i64 blk, int) {
     for (i64 i = n * blk / nb; i < n * (blk + 1) / nb; ++i) {
         double ex, ey, ez;
@@ -145,7 +148,8 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
     // the sweep: each box against the boxes after it in sweep order, in blocks of boxes on the
     // task pool, each block's pairs into its own list; the lists are then joined in block order,
     // so the pairs come out in the serial sweep's order
-    const i64 nb = pool().threads() > 1 ? TaskPool::blocks_for(n_items, ITEMS_PER_BLOCK) : 1;
+    const i64 nb =
+        pool().threads() > 1 ? TaskPool::blocks_for(n_items, ITEMS_PER_BLOCK, MIN_ITEMS) : 1;
     // (the calling thread's lists, kept: no allocation once grown; a reference, since a
     // lambda running on a worker would name the worker's own thread_local)
     static thread_local std::vector<std::vector<i64>> kept;

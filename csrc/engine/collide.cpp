@@ -127,8 +127,11 @@ CollideWork& collide_work() {
     return w;
 }
 
-// Pairs per block of the two passes (a box pair's collider costs ~2-5 us).
+// Pairs per block of the two passes, and the fewest pairs worth a hand-off to the pool (the
+// 500-box pile's pairs cost ~1,400 instructions each in the two passes, most of them ground or
+// rejected pairs; the 100-box pile's ~250 pairs stay on one thread)
 constexpr i64 PAIRS_PER_BLOCK = 64;
+constexpr i64 MIN_PAIRS = 512;
 
 }  // namespace
 
@@ -364,7 +367,7 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
     w.pts_off.resize((size_t)n_pairs + 1);
     const int nt = pool().threads();
     if ((int)w.scratch.size() < nt) w.scratch.resize((size_t)nt);
-    const i64 n_blocks = TaskPool::blocks_for(n_pairs, PAIRS_PER_BLOCK);
+    const i64 n_blocks = TaskPool::blocks_for(n_pairs, PAIRS_PER_BLOCK, MIN_PAIRS);
     // pass 1: colliders
     pool().run(n_blocks, [&](i64 blk, int worker) {
         ColliderBuffers& cb = worker == 0 ? buf : w.scratch[(size_t)worker];

@@ -79,10 +79,14 @@ void thread_stats_add(i64 stages_shared, bool handover);
 
 namespace {
 
-// A colour's groups go to threads only when each thread gets this many to visit in a sweep (the
-// driver's hand-off of a stage and the wait for its last block cost about as much as solving a
-// few groups); the results do not depend on it, only the time.
-constexpr i64 MIN_GROUPS_PER_THREAD = 4;
+// The solve goes to threads only when the colours hold this many groups (a smaller scene, the
+// 100-box pile's ~30 groups say, solves on one thread: ~1 us a group visit, and the threads
+// would mostly wait for each other), and a colour's groups only when each thread gets
+// MIN_STAGE_GROUPS_PER_THREAD to visit in the sweep (the driver's hand-off of a stage and the
+// wait for its last block cost about as much as solving a group or two). The results do not
+// depend on either, only the time.
+constexpr i64 MIN_THREADED_GROUPS = 64;
+constexpr i64 MIN_STAGE_GROUPS_PER_THREAD = 4;
 // A shared colour is cut into blocks of about this many groups, at most BLOCKS_PER_THREAD blocks
 // a thread (blocks are claimed one at a time: smaller ones even out the threads' loads, each
 // claim costs an atomic on a shared cache line).
@@ -428,7 +432,7 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     const i64 n_sets = (i64)lanes.set_group.size() - 1;
     const i64 n_wide = lanes.set_group[n_sets] - lanes.set_group[1];
     const int n_threads = pool().threads();
-    bool serial = n_threads < 2 || n_wide < MIN_GROUPS_PER_THREAD * n_threads;
+    bool serial = n_threads < 2 || n_wide < MIN_THREADED_GROUPS;
     if (!serial && g_thread_backoff.load(std::memory_order_relaxed) > 0) {
         g_thread_backoff.fetch_sub(1, std::memory_order_relaxed);
         serial = true;
@@ -443,8 +447,8 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
         // descheduled holds the others up only while it holds a block, not by being late. The
         // driver runs a set alone when it is too small to share (the overflow set, always: its
         // manifolds one after another in order; a colour whose last sweep visited fewer than
-        // MIN_GROUPS_PER_THREAD groups a thread), and it decides when the sweeps stop (the max
-        // of the blocks' changes). Which thread solves which block changes nothing: a block
+        // MIN_STAGE_GROUPS_PER_THREAD groups a thread), and it decides when the sweeps stop (the
+        // max of the blocks' changes). Which thread solves which block changes nothing: a block
         // reads and writes only its own manifolds' bodies (constraint_graph.hpp).
         const int nt = n_threads;
         // blocks of each set: [set_blk[s], set_blk[s + 1]) of a sweep's n_blk
@@ -524,12 +528,12 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
                 for (i64 s = 0; s < n_sets; ++s) {
                     i64 b0 = set_blk[(size_t)s], nb = set_blk[(size_t)s + 1] - b0;
                     if (nb == 0) continue;
-                    // shared when every thread gets MIN_GROUPS_PER_THREAD groups to visit (the
-                    // first min_iter sweeps visit all; later ones about what the last did)
+                    // shared when every thread gets MIN_STAGE_GROUPS_PER_THREAD groups to visit
+                    // (the first min_iter sweeps visit all; later ones about what the last did)
                     i64 n_g = lanes.set_group[s + 1] - lanes.set_group[s];
                     i64 expect = it <= min_iter ? 4 * n_g : set_visits[(size_t)s];
                     bool share = !handover && s > 0 && nb > 1 &&
-                                 expect >= 4 * MIN_GROUPS_PER_THREAD * nt;
+                                 expect >= 4 * MIN_STAGE_GROUPS_PER_THREAD * nt;
                     if (!share) {
                         for (i64 j = 0; j < nb; ++j) run_block(it, s, j);
                         continue;

@@ -80,9 +80,11 @@ inline void relax_manifold(i64 m, V2<i64> mi, V2<double> mf, V2<double> pf, V1<d
 
 // manifolds per block when a colour's manifolds go to the task pool, and the fewest manifolds a
 // colour needs for that (below, the caller's thread relaxes it alone: a hand-off costs about as
-// much as relaxing ~20 manifolds)
+// much as relaxing ~20 manifolds), and the step (a small scene, the 100-box pile's ~100
+// manifolds, relaxes on one thread: ~500 instructions a manifold and sweep)
 constexpr i64 MANIFOLDS_PER_BLOCK = 32;
 constexpr i64 MIN_SHARED_MANIFOLDS = 64;
+constexpr i64 MIN_SHARED_STEP = 256;
 
 }  // namespace
 
@@ -105,7 +107,7 @@ void relax_positions_coloured(V2<i64> mi, V2<double> mf, V2<double> pf, V1<doubl
                               i64 n_iter, double slop, double beta, double max_speed,
                               const ConstraintGraph& g) {
     const i64* order = g.order.data();
-    const int nt = pool().threads();
+    const int nt = (i64)g.order.size() >= MIN_SHARED_STEP ? pool().threads() : 1;
     for (i64 it = 0; it < n_iter; ++it) {
         for (i64 s = 0; s < g.n_sets(); ++s) {
             const i64 k0 = g.set_start[(size_t)s], k1 = g.set_start[(size_t)s + 1];

@@ -29,8 +29,10 @@ TaskPool& pool();  // the engine's pool (threads.cpp)
 
 namespace {
 
-// manifolds per block of the first pass on the task pool (~0.1 us a point)
+// manifolds per block of the first pass on the task pool, and the fewest worth a hand-off
+// (~660 instructions a manifold)
 constexpr i64 MANIFOLDS_PER_BLOCK = 128;
+constexpr i64 MIN_MANIFOLDS = 256;
 
 inline double gap_rate(V2<double> v, V2<double> w, i64 ia, i64 ib, double nx, double ny,
                        double nz, double rax, double ray, double raz, double rbx, double rby,
@@ -147,7 +149,7 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
     // the end-of-step gaps and the impact points: each manifold writes only its own points'
     // rows, so blocks of manifolds run on the task pool; the impacts are counted per block
     const i64 n_blocks =
-        pool().threads() > 1 ? TaskPool::blocks_for(n_man, MANIFOLDS_PER_BLOCK) : 1;
+        pool().threads() > 1 ? TaskPool::blocks_for(n_man, MANIFOLDS_PER_BLOCK, MIN_MANIFOLDS) : 1;
     std::vector<i64> blk_impacts((size_t)n_blocks, 0);
     pool().run(n_blocks, [&](i64 blk, int) {
     i64 n_impacts = 0;

@@ -82,18 +82,20 @@ TaskPool& pool();  // the engine's pool (threads.cpp)
 
 namespace {
 
-// Items per block when a stage's loop over bodies or manifolds is split over the task pool
-// (a body's integration or a manifold's preparation costs ~0.1-0.5 us; below a few hundred
-// items a block does not pay for its hand-off).
+// Items per block when a stage's loop over bodies or manifolds is split over the task pool, and
+// the fewest items worth a hand-off (a body's integration costs ~1,200 instructions, a
+// manifold's preparation ~3,500: below a few hundred items, ~100 us, the scene is small and
+// the caller's thread does the loop alone).
 constexpr i64 BODIES_PER_BLOCK = 128;
 constexpr i64 MANIFOLDS_PER_BLOCK = 64;
+constexpr i64 MIN_ITEMS = 256;
 
 // fn(i0, i1) over [0, n) cut in blocks of about per_block items, the blocks on the task pool
 // (one block, on the caller, with one thread or a small n). For loops whose items write only
 // their own rows: the result is the serial loop's whatever the threads.
 template <class F>
 void par_ranges(i64 n, i64 per_block, const F& fn) {
-    const i64 nb = pool().threads() > 1 ? TaskPool::blocks_for(n, per_block) : 1;
+    const i64 nb = pool().threads() > 1 ? TaskPool::blocks_for(n, per_block, MIN_ITEMS) : 1;
     if (nb <= 1) {
         fn(i64(0), n);
         return;
