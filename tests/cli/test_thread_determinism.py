@@ -137,8 +137,8 @@ def test_contact_scene_logs_same_bytes_for_1_and_2_threads(tmp_path):
 
 def test_pile_logs_same_bytes_for_1_2_and_4_threads(tmp_path):
     """samples/pile.toml to 0.6 s: the two lowest layers have landed, some 300 manifolds, i.e.
-    ~80 groups of four in the colours, past the threshold (8 groups a thread) where a colour is
-    split over 2 and 4 threads."""
+    ~80 groups of four in the colours, past the threshold (64 groups) where the solve goes to the
+    threads and its large colours are split over 2 and 4 threads (contact_solver.cpp)."""
     scene = SAMPLES_DIR / "pile.toml"
     one = _run(tmp_path, scene, "pile", 1, ("--duration", "0.6"))
     for n in (2, 4):

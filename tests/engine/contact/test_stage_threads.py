@@ -155,7 +155,12 @@ def test_dense_cloud_steps_to_the_same_bytes_on_1_2_and_4_threads(threads):
     assert stats[ST_SWEEPS] > 0
     for t in (2, 4):
         threads(t)
+        _core.thread_stats(reset=True)
         other, stats_t, logs_t = _step(model, state, 30)
+        # the threads did take part: solves split in stages, the stages' loops on the pool
+        used = _core.thread_stats(reset=True)
+        assert used["threaded_solves"] > 0 and used["shared_stages"] > 0, used
+        assert used["pool_calls"] >= 30 * 6, used  # collide (2), prepare, relax, integrate ...
         for k in ("position", "linear_momentum", "quat_wxyz", "rotation",
                   "angular_momentum_world"):
             assert getattr(one, k).tobytes() == getattr(other, k).tobytes(), (t, k)
