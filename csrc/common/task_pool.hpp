@@ -224,30 +224,4 @@ private:
     std::exception_ptr error_;
 };
 
-// A barrier for the tasks of one parallel_for that must all run at once (n_tasks == threads():
-// one task per worker): wait() returns once all n have called it, and what a task wrote before
-// its wait() is seen by every task after theirs (release on arrival, acquire on leaving).
-// Waiters spin a little, then yield (on a loaded machine a worker may not be running, and
-// spinning would only keep it off its core).
-class SpinBarrier {
-public:
-    explicit SpinBarrier(int n) : n_(n) {}
-    void wait() {
-        const std::uint32_t gen = gen_.load(std::memory_order_acquire);
-        if (count_.fetch_add(1, std::memory_order_acq_rel) + 1 == n_) {
-            count_.store(0, std::memory_order_relaxed);
-            gen_.fetch_add(1, std::memory_order_release);
-            return;
-        }
-        for (int spin = 0; gen_.load(std::memory_order_acquire) == gen; ++spin) {
-            if (spin > 64) std::this_thread::yield();
-        }
-    }
-
-private:
-    const int n_;
-    std::atomic<int> count_{0};
-    std::atomic<std::uint32_t> gen_{0};
-};
-
 }  // namespace rb
