@@ -146,8 +146,9 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
         bx[5] = hi(i, ax2);
     }
     // the sweep: each box against the boxes after it in sweep order, in blocks of boxes on the
-    // task pool, each block's pairs into its own list; the lists are then joined in block order,
-    // so the pairs come out in the serial sweep's order
+    // task pool, the first block's pairs straight into `pairs` (one block: the serial sweep),
+    // the others' into lists of their own, joined after it in block order, so the pairs come
+    // out in the serial sweep's order
     const i64 nb =
         pool().threads() > 1 ? TaskPool::blocks_for(n_items, ITEMS_PER_BLOCK, MIN_ITEMS) : 1;
     // (the calling thread's lists, kept: no allocation once grown; a reference, since a
@@ -155,9 +156,21 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
     static thread_local std::vector<std::vector<i64>> kept;
     std::vector<std::vector<i64>>& found = kept;
     if ((i64)found.size() < nb) found.resize((size_t)nb);
+    i64 count = 0;
     pool().run(nb, [&](i64 blk, int) {
         std::vector<i64>& out = found[(size_t)blk];
         out.clear();
+        auto emit = [&](i64 a, i64 b) {
+            if (blk == 0) {
+                if (count == pairs.rows) grow_pairs(pairs);
+                pairs(count, 0) = a;
+                pairs(count, 1) = b;
+                count += 1;
+            } else {
+                out.push_back(a);
+                out.push_back(b);
+            }
+        };
         for (i64 ii = n_items * blk / nb; ii < n_items * (blk + 1) / nb; ++ii) {
             const i64 i = order[ii].id;
             const double* bi = box.data() + 6 * ii;
@@ -177,13 +190,11 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
                     i64 gb = group[b];
                     if (ga != 0 && gb != 0 && ga != gb) continue;
                 }
-                out.push_back(a);
-                out.push_back(b);
+                emit(a, b);
             }
         }
     });
-    i64 count = 0;
-    for (i64 blk = 0; blk < nb; ++blk) {
+    for (i64 blk = 1; blk < nb; ++blk) {
         const std::vector<i64>& out = found[(size_t)blk];
         for (size_t k = 0; k < out.size(); k += 2) {
             if (count == pairs.rows) grow_pairs(pairs);

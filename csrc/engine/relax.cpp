@@ -22,9 +22,13 @@ namespace {
 
 // One manifold's split-impulse update (its penetrating points one after another), the pseudo
 // velocities of its two bodies in place.
-inline void relax_manifold(i64 m, V2<i64> mi, V2<double> mf, V2<double> pf, V1<double> bm,
-                           V2<double> bI, V2<double> pv, V2<double> pw, double inv_h,
-                           double slop, double beta, double max_speed) {
+// (inlined: it is the loop body of both sweeps below)
+__attribute__((always_inline)) inline void relax_manifold(i64 m, V2<i64> mi, V2<double> mf,
+                                                          V2<double> pf, V1<double> bm,
+                                                          V2<double> bI, V2<double> pv,
+                                                          V2<double> pw, double inv_h,
+                                                          double slop, double beta,
+                                                          double max_speed) {
     if (!mi(m, MI_ACTIVE)) return;
     i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
     i64 start = mi(m, MI_START);
