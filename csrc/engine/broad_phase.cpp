@@ -171,23 +171,29 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
                 out.push_back(b);
             }
         };
-        for (i64 ii = n_items * blk / nb; ii < n_items * (blk + 1) / nb; ++ii) {
-            const i64 i = order[ii].id;
-            const double* bi = box.data() + 6 * ii;
+        // (locals, not the captures: the pair writes could alias them for all the compiler
+        // knows, and it would reload them every test)
+        const Item* ord = order.data();
+        const double* bx = box.data();
+        const i64 n_it = n_items, n_d = n_dyn;
+        const V1<i64> grp = group;
+        for (i64 ii = n_it * blk / nb; ii < n_it * (blk + 1) / nb; ++ii) {
+            const i64 i = ord[ii].id;
+            const double* bi = bx + 6 * ii;
             const double hi_i = bi[1];
-            for (i64 jj = ii + 1; jj < n_items; ++jj) {
-                const i64 j = order[jj].id;
-                const double* bj = box.data() + 6 * jj;
+            for (i64 jj = ii + 1; jj < n_it; ++jj) {
+                const i64 j = ord[jj].id;
+                const double* bj = bx + 6 * jj;
                 // written as "not overlapping" so that a NaN box never pairs with anything
                 if (!(bj[0] <= hi_i)) break;
-                if (i >= n_dyn && j >= n_dyn) continue;
+                if (i >= n_d && j >= n_d) continue;
                 if (!(bj[2] <= bi[3] && bi[2] <= bj[3])) continue;
                 if (!(bj[4] <= bi[5] && bi[4] <= bj[5])) continue;
                 const i64 a = std::min(i, j);
                 const i64 b = std::max(i, j);
-                if (b < n_dyn) {
-                    i64 ga = group[a];
-                    i64 gb = group[b];
+                if (b < n_d) {
+                    i64 ga = grp[a];
+                    i64 gb = grp[b];
                     if (ga != 0 && gb != 0 && ga != gb) continue;
                 }
                 emit(a, b);
