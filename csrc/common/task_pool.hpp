@@ -13,9 +13,8 @@
 // RBLOG_THREADS, default: the machine's cores).
 //
 // Waking: a worker spins on the call generation for WAKE_SPIN_US after its last block (a step's
-// stages follow each other within microseconds, and a futex wake-up costs tens of them), with a
-// yield in the loop so that it gives its core away on a busy machine, then sleeps on a condition
-// variable.
+// stages follow each other within microseconds, and a futex wake-up costs tens of them), then
+// sleeps on a condition variable.
 #pragma once
 
 #include <atomic>
@@ -29,6 +28,8 @@
 #include <thread>
 #include <vector>
 
+#include <time.h>  // clock_gettime (POSIX)
+
 #if defined(__x86_64__) || defined(_M_X64)
 #include <immintrin.h>
 #define RB_CPU_RELAX() _mm_pause()
@@ -38,16 +39,36 @@
 
 namespace rb {
 
-// Wait until ready() holds: spin with a pause, yielding the core after a while (on a loaded
-// machine the thread we wait for may need it). Not inlined, so that a profile (callgrind) puts
-// every wait of the pool and the threaded solve under one name.
+// How long a waiting thread spins with a pause only, before it yields its core between checks
+// (microseconds). Not shorter: a yield on a machine where other processes wait for the core hands
+// it to them for a whole time slice (milliseconds under Linux's CFS), and the wait it was in
+// then takes that long (measured: with a yield after 256 pauses the pool's worker took part in
+// 2 % of the 500-box pile's blocks at load 5). Not much longer: the thread we wait for may need
+// the core (an oversubscribed machine).
+constexpr int SPIN_US = 200;
+
+// Wait until ready() holds: spin with a pause for SPIN_US, then yield between checks. Not
+// inlined, so that a profile (callgrind) puts every wait of the pool and the threaded solve
+// under one name.
 template <class Ready>
 [[gnu::noinline]] void spin_until(const Ready& ready) {
+    std::chrono::steady_clock::time_point t0;
+    bool timed = false, yielding = false;
     for (int spin = 0; !ready(); ++spin) {
-        if (spin < 256)
-            RB_CPU_RELAX();
-        else
+        if (yielding) {
             std::this_thread::yield();
+            continue;
+        }
+        RB_CPU_RELAX();
+        if ((spin & 255) == 255) {
+            auto now = std::chrono::steady_clock::now();
+            if (!timed) {
+                t0 = now;
+                timed = true;
+            } else if (now - t0 > std::chrono::microseconds(SPIN_US)) {
+                yielding = true;
+            }
+        }
     }
 }
 
@@ -63,6 +84,19 @@ inline bool static_blocks() {
     return on;
 }
 
+// Wall-clock and this thread's CPU time, nanoseconds (a thread whose CPU time falls behind the
+// wall clock was descheduled: the machine's cores are taken by other work).
+inline std::int64_t wall_ns() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+}
+inline std::int64_t thread_cpu_ns() {
+    timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return std::int64_t(t.tv_sec) * 1000000000 + t.tv_nsec;
+}
+
 class TaskPool {
 public:
     // How long an idle worker spins before it sleeps (microseconds).
@@ -74,8 +108,18 @@ public:
     TaskPool& operator=(const TaskPool&) = delete;
 
     int threads() const { return n_threads_; }
-    // Calls handed to the workers so far (each ends with a wait for its last block).
+    // Calls handed to the workers so far (each ends with a wait for its last block), and the
+    // blocks of those calls that workers other than the caller ran.
     std::int64_t calls() const { return calls_.load(std::memory_order_relaxed); }
+    std::int64_t worker_blocks() const { return worker_blocks_.load(std::memory_order_relaxed); }
+
+    // Run every call on the caller's thread alone for the next `ns` nanoseconds (the caller saw
+    // that the threads do not run at once: an oversubscribed machine; the workers then sleep
+    // instead of taking the cores from the caller), and whether that is so now.
+    void hold_off(std::int64_t ns) {
+        hold_until_.store(wall_ns() + ns, std::memory_order_relaxed);
+    }
+    bool held() const { return wall_ns() < hold_until_.load(std::memory_order_relaxed); }
 
     // Number of threads, including the caller's; 1 = no workers.
     void resize(int n_threads) {
@@ -93,7 +137,7 @@ public:
     // call at a time per pool (others wait).
     void run(std::int64_t n_blocks, const std::function<void(std::int64_t, int)>& fn) {
         if (n_blocks <= 0) return;
-        if (n_threads_ <= 1 || n_blocks == 1) {
+        if (n_threads_ <= 1 || n_blocks == 1 || held()) {
             for (std::int64_t b = 0; b < n_blocks; ++b) fn(b, 0);
             return;
         }
@@ -160,24 +204,22 @@ private:
                 std::lock_guard<std::mutex> lk(m_);
                 if (!error_) error_ = std::current_exception();
             }
+            if (w != 0) worker_blocks_.fetch_add(1, std::memory_order_relaxed);
             done_.fetch_add(1, std::memory_order_acq_rel);
         }
     }
 
-    // Spin a while (WAKE_SPIN_US) for a call after generation `seen`, then return.
+    // Spin (a pause, no yield: see SPIN_US) for WAKE_SPIN_US for a call after generation
+    // `seen`, then return.
     [[gnu::noinline]] void idle_spin(std::uint32_t seen) {
         auto t0 = std::chrono::steady_clock::now();
         for (int spin = 0; gen_.load(std::memory_order_acquire) == seen &&
                            !quit_.load(std::memory_order_relaxed);
              ++spin) {
-            if ((spin & 63) == 63) {
-                if (std::chrono::steady_clock::now() - t0 >
-                    std::chrono::microseconds(WAKE_SPIN_US))
-                    return;
-                std::this_thread::yield();
-            } else {
-                RB_CPU_RELAX();
-            }
+            RB_CPU_RELAX();
+            if ((spin & 255) == 255 && std::chrono::steady_clock::now() - t0 >
+                                           std::chrono::microseconds(WAKE_SPIN_US))
+                return;
         }
     }
 
@@ -214,7 +256,8 @@ private:
     std::mutex m_, call_;
     std::condition_variable cv_;
     std::atomic<int> sleepers_{0};
-    std::atomic<std::int64_t> calls_{0};
+    std::atomic<std::int64_t> calls_{0}, worker_blocks_{0};
+    std::atomic<std::int64_t> hold_until_{0};
     std::atomic<bool> quit_{false};
     std::atomic<std::uint32_t> gen_{0};
     alignas(64) std::atomic<std::uint64_t> claim_{0};  // (generation << 32) | next block

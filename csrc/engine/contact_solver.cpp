@@ -75,7 +75,8 @@ namespace rb {
 TaskPool& pool();  // the engine's pool (threads.cpp)
 // counts of the threaded solves (threads.cpp, _core.thread_stats): stages handed to the threads,
 // whether the driver went on alone
-void thread_stats_add(i64 stages_shared, bool handover);
+void thread_stats_add(i64 stages_shared, i64 worker_blocks, bool handover, i64 wait_ticks,
+                      i64 solve_ticks);
 
 namespace {
 
@@ -93,13 +94,18 @@ constexpr i64 MIN_STAGE_GROUPS_PER_THREAD = 4;
 constexpr i64 GROUPS_PER_BLOCK = 2;
 constexpr i64 BLOCKS_PER_THREAD = 4;
 
-// When the driver spent more than half of a threaded solve waiting for blocks that other threads
-// had claimed (on a machine whose cores are busy with other processes a worker is often not
-// running, and it may be descheduled while it holds a block), it finishes the solve alone and
-// the next this many solves run on one thread before threads are tried again. The results do not
-// depend on it (only which thread solves which group changes).
-constexpr i64 THREAD_BACKOFF_CALLS = 200;
-std::atomic<i64> g_thread_backoff{0};  // (atomic: worlds may step on several Python threads)
+// The fallback for an oversubscribed machine. When, two sweeps or more into a threaded solve,
+// the driver has spent more than half of it waiting for blocks that other threads claimed (a
+// worker descheduled while it holds a block), or its own CPU time has fallen below
+// THREAD_CPU_SHARE of the wall time (it was descheduled: the cores are busy with other
+// processes, or the threads share a scheduler group's slice, Linux's autogroup, so that a
+// spinning worker takes the driver's time), it finishes the solve alone and every stage runs on
+// one thread for the next THREAD_HOLD_NS (the pool's hold_off: the workers sleep), after which
+// threads are tried again. On a quiet machine the driver keeps its core (CPU time ~ wall time)
+// and waits only for blocks in flight, so neither fires. The results do not depend on it (only
+// which thread solves which group changes).
+constexpr double THREAD_CPU_SHARE = 0.75;
+constexpr i64 THREAD_HOLD_NS = 500000000;  // 0.5 s
 // RBLOG_THREAD_HANDOVER=0 turns the hand-over off (for measurements under valgrind, which runs
 // one thread at a time, so that every driver wait looks like a descheduled worker)
 const bool g_handover_on = [] {
@@ -432,11 +438,7 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     const i64 n_sets = (i64)lanes.set_group.size() - 1;
     const i64 n_wide = lanes.set_group[n_sets] - lanes.set_group[1];
     const int n_threads = pool().threads();
-    bool serial = n_threads < 2 || n_wide < MIN_THREADED_GROUPS;
-    if (!serial && g_thread_backoff.load(std::memory_order_relaxed) > 0) {
-        g_thread_backoff.fetch_sub(1, std::memory_order_relaxed);
-        serial = true;
-    }
+    bool serial = n_threads < 2 || n_wide < MIN_THREADED_GROUPS || pool().held();
     bool converged = false;
     if (!serial) {
         // Box2D v3's stages (solver.c, b2SolverStage / b2ExecuteMainStage): the calling thread
@@ -466,6 +468,7 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
             std::atomic<i64> v{0};
         };
         Word claim, done;  // claim: (stage << 24) | next block; done: blocks finished
+        Word helped;       // blocks the workers (not the driver) solved
         constexpr i64 FINISH = i64(1) << 38;  // the stage that ends the solve
         auto stage_of = [&](i64 sweep, i64 s) { return (sweep - 1) * n_sets + s; };
         // solve block j of set s in sweep `sweep` (results into the block's slots)
@@ -502,6 +505,7 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
             if (fixed) {
                 for (i64 j = w; j < nb; j += nt) {
                     run_block(sweep, s, j);
+                    if (w != 0) helped.v.fetch_add(1, std::memory_order_relaxed);
                     done.v.fetch_add(1, std::memory_order_acq_rel);
                 }
                 exhausted = stage;
@@ -514,12 +518,14 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
             }
             if (claim.v.compare_exchange_weak(c, c + 1, std::memory_order_acq_rel)) {
                 run_block(sweep, s, j);
+                if (w != 0) helped.v.fetch_add(1, std::memory_order_relaxed);
                 done.v.fetch_add(1, std::memory_order_acq_rel);
             }
             return true;
         };
         i64 waited = 0, n_posted = 0;  // the driver's ticks waiting for others' blocks; stages
         const i64 t_start = ticks();
+        const i64 wall0 = wall_ns(), cpu0 = thread_cpu_ns();
         bool handover = false;
         auto drive = [&]() {
             i64 exhausted = -1;
@@ -562,9 +568,12 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
                     converged = true;
                     break;
                 }
-                // more than half of the time so far waiting for blocks that others hold (past a
-                // few sweeps): the threads do not run at once, the driver goes on alone
-                if (g_handover_on && !handover && it >= 2 && 2 * waited > ticks() - t_start)
+                // more than half of the time so far waiting for blocks that others hold, or
+                // descheduled for more than 1 - THREAD_CPU_SHARE of it (past two sweeps): the
+                // threads do not run at once, the driver goes on alone
+                if (g_handover_on && !handover && it >= 2 &&
+                    (2 * waited > ticks() - t_start ||
+                     double(thread_cpu_ns() - cpu0) < THREAD_CPU_SHARE * double(wall_ns() - wall0)))
                     handover = true;
             }
             claim.v.store(FINISH << 24, std::memory_order_release);
@@ -579,11 +588,11 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
             }
         });
         converged = converged || it >= max_iter;
-        thread_stats_add(n_posted, handover);
+        thread_stats_add(n_posted, helped.v.load(), handover, waited, ticks() - t_start);
         // handed over: the threads did not run at once (the machine's cores are taken by other
-        // work), so the next THREAD_BACKOFF_CALLS solves run on one thread. Either gives the
-        // same bits as the threaded sweeps.
-        if (handover) g_thread_backoff.store(THREAD_BACKOFF_CALLS, std::memory_order_relaxed);
+        // work), so every stage runs on one thread for THREAD_HOLD_NS. Either gives the same
+        // bits as the threaded sweeps.
+        if (handover) pool().hold_off(THREAD_HOLD_NS);
     }
     if (!converged) {
         while (it < max_iter) {

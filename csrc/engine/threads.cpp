@@ -25,11 +25,16 @@ TaskPool& pool() {
 // threads, stages (a colour of a sweep) handed to the threads (each ends with a wait for its
 // last block: the solve's barriers), solves the driver finished alone (contact_solver.cpp).
 namespace {
-std::atomic<i64> g_solves{0}, g_stages{0}, g_handovers{0};
-i64 g_calls0 = 0;  // pool().calls() at the last reset
+std::atomic<i64> g_solves{0}, g_stages{0}, g_handovers{0}, g_wait{0}, g_solve_ticks{0},
+    g_helped{0};
+i64 g_calls0 = 0, g_wblocks0 = 0;  // pool().calls(), worker_blocks() at the last reset
 }
 
-void thread_stats_add(i64 stages_shared, bool handover) {
+void thread_stats_add(i64 stages_shared, i64 worker_blocks, bool handover, i64 wait_ticks,
+                      i64 solve_ticks) {
+    g_helped.fetch_add(worker_blocks, std::memory_order_relaxed);
+    g_wait.fetch_add(wait_ticks, std::memory_order_relaxed);
+    g_solve_ticks.fetch_add(solve_ticks, std::memory_order_relaxed);
     g_solves.fetch_add(1, std::memory_order_relaxed);
     g_stages.fetch_add(stages_shared, std::memory_order_relaxed);
     if (handover) g_handovers.fetch_add(1, std::memory_order_relaxed);
@@ -42,7 +47,16 @@ void bind_threads(nb::module_& m) {
               d["shared_stages"] = g_stages.load();
               d["handovers"] = g_handovers.load();
               d["pool_calls"] = pool().calls() - g_calls0;
+              d["pool_worker_blocks"] = pool().worker_blocks() - g_wblocks0;
+              d["solve_worker_blocks"] = g_helped.load();
+              d["wait_share"] = g_solve_ticks.load() > 0
+                                    ? double(g_wait.load()) / double(g_solve_ticks.load())
+                                    : 0.0;
               if (reset) {
+                  g_helped.store(0);
+                  g_wblocks0 = pool().worker_blocks();
+                  g_wait.store(0);
+                  g_solve_ticks.store(0);
                   g_calls0 = pool().calls();
                   g_solves.store(0);
                   g_stages.store(0);
@@ -52,7 +66,8 @@ void bind_threads(nb::module_& m) {
           }, nb::arg("reset") = false,
           "Counts of the threaded velocity solves: threaded_solves, shared_stages (stages of a "
           "sweep handed to the threads, each ended by a wait for its last block), handovers "
-          "(solves the driver finished alone because the threads did not run at once), pool_calls "
+          "(solves the driver finished alone because the threads did not run at once), wait_share "
+          "(of the threaded solves' time, the driver's waits for blocks others held), pool_calls "
           "(the stages' loops handed to the pool: collide, prepare, relax colours ...; each ends "
           "with a wait for its last block, as a shared solve stage does).");
     m.def("set_threads", [](int n) { pool().resize(n < 1 ? 1 : n); }, nb::arg("n"),
