@@ -106,12 +106,13 @@ constexpr i64 BLOCKS_PER_THREAD = 4;
 // which thread solves which group changes).
 constexpr double THREAD_CPU_SHARE = 0.75;
 constexpr i64 THREAD_HOLD_NS = 500000000;  // 0.5 s
-// RBLOG_THREAD_HANDOVER=0 turns the hand-over off (for measurements under valgrind, which runs
-// one thread at a time, so that every driver wait looks like a descheduled worker)
-const bool g_handover_on = [] {
+// RBLOG_THREAD_HANDOVER=0 (or _core.set_thread_fallback(False)) turns the hand-over off: for
+// measurements under valgrind, which runs one thread at a time, so that every driver wait looks
+// like a descheduled worker, and for tests that must see the threads work on a loaded machine
+std::atomic<bool> g_handover_on{[] {
     const char* e = std::getenv("RBLOG_THREAD_HANDOVER");
     return !(e && e[0] == '0');
-}();
+}()};
 
 inline void smul(double i0, double i1, double i2, double i3, double i4, double i5, double x,
                  double y, double z, double& ox, double& oy, double& oz) {
@@ -218,6 +219,11 @@ void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double 
 }
 
 }  // namespace
+
+void set_thread_fallback(bool on) {
+    g_handover_on.store(on);
+    if (!on) pool().hold_off(0);
+}
 
 // Count the active manifolds of each body (in_contact: (N+1,), row N the static dummy) and load
 // the solver state of the bodies that have any.
@@ -571,7 +577,7 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
                 // more than half of the time so far waiting for blocks that others hold, or
                 // descheduled for more than 1 - THREAD_CPU_SHARE of it (past two sweeps): the
                 // threads do not run at once, the driver goes on alone
-                if (g_handover_on && !handover && it >= 2 &&
+                if (g_handover_on.load(std::memory_order_relaxed) && !handover && it >= 2 &&
                     (2 * waited > ticks() - t_start ||
                      double(thread_cpu_ns() - cpu0) < THREAD_CPU_SHARE * double(wall_ns() - wall0)))
                     handover = true;

@@ -30,6 +30,8 @@ std::atomic<i64> g_solves{0}, g_stages{0}, g_handovers{0}, g_wait{0}, g_solve_ti
 i64 g_calls0 = 0, g_wblocks0 = 0;  // pool().calls(), worker_blocks() at the last reset
 }
 
+void set_thread_fallback(bool on);  // contact_solver.cpp
+
 void thread_stats_add(i64 stages_shared, i64 worker_blocks, bool handover, i64 wait_ticks,
                       i64 solve_ticks) {
     g_helped.fetch_add(worker_blocks, std::memory_order_relaxed);
@@ -41,6 +43,11 @@ void thread_stats_add(i64 stages_shared, i64 worker_blocks, bool handover, i64 w
 }
 
 void bind_threads(nb::module_& m) {
+    m.def("set_thread_fallback", &set_thread_fallback, nb::arg("on"),
+          "The oversubscribed machine's fallback (contact_solver.cpp: a threaded solve whose "
+          "driver waited or was descheduled too long hands over, and every stage runs on one "
+          "thread for a while): on by default (RBLOG_THREAD_HANDOVER=0: off); off clears a hold. "
+          "Results do not depend on it.");
     m.def("thread_stats", [](bool reset) {
               nb::dict d;
               d["threaded_solves"] = g_solves.load();

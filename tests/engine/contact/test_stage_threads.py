@@ -30,9 +30,13 @@ from rblog.study.scenes import make_model, make_state
 
 @pytest.fixture
 def threads():
-    """Set the core's threads for a test; back to what they were after."""
+    """Set the core's threads for a test; back to what they were after. The oversubscribed
+    machine's fallback is off meanwhile (on a loaded machine it would put the threaded runs on one
+    thread; it changes no result, only which thread solves what)."""
     before = _core.threads()
+    _core.set_thread_fallback(False)
     yield _core.set_threads
+    _core.set_thread_fallback(True)
     _core.set_threads(before)
 
 
