@@ -220,6 +220,36 @@ void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double 
 
 }  // namespace
 
+// Measured choice between the threaded and the serial solve: the cost of each (nanoseconds of
+// wall time per 1,000 manifold visits, a running mean over the solves that ran that way, 0:
+// not measured yet) and a count of the eligible solves. An eligible solve runs the way whose
+// cost is lower, and every PROBE_EVERY-th the other way, so that both stay measured as the
+// scene and the machine change. On a machine where the second thread does not pay (measured on
+// this session's 2-vCPU KVM guest: the 500-box pile's solve took 4.7-4.9 ms a step on one thread
+// and 4.9-5.5 ms on two, both threads running), the solves stay serial. Results do not depend on
+// it (RBLOG_THREAD_HANDOVER=0 or set_thread_fallback(False): always threaded).
+constexpr i64 PROBE_EVERY = 32;
+std::atomic<i64> g_cost_serial{0}, g_cost_threaded{0}, g_eligible{0};
+
+static bool choose_threaded() {
+    if (!g_handover_on.load(std::memory_order_relaxed)) return true;
+    i64 k = g_eligible.fetch_add(1, std::memory_order_relaxed);
+    i64 cs = g_cost_serial.load(std::memory_order_relaxed);
+    i64 ct = g_cost_threaded.load(std::memory_order_relaxed);
+    if (ct == 0) return true;
+    if (cs == 0) return false;
+    bool threaded = ct < cs;
+    return k % PROBE_EVERY == 0 ? !threaded : threaded;
+}
+
+static void record_cost(bool threaded, i64 wall, i64 visits) {
+    if (visits <= 0) return;
+    i64 c = wall * 1000 / visits;
+    std::atomic<i64>& m = threaded ? g_cost_threaded : g_cost_serial;
+    i64 old = m.load(std::memory_order_relaxed);
+    m.store(old == 0 ? c : (3 * old + c) / 4, std::memory_order_relaxed);
+}
+
 void set_thread_fallback(bool on) {
     g_handover_on.store(on);
     if (!on) pool().hold_off(0);
@@ -445,6 +475,9 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     const i64 n_wide = lanes.set_group[n_sets] - lanes.set_group[1];
     const int n_threads = pool().threads();
     bool serial = n_threads < 2 || n_wide < MIN_THREADED_GROUPS || pool().held();
+    const bool eligible = !serial;  // (the solve's cost is measured for the choice)
+    if (eligible && !choose_threaded()) serial = true;
+    const i64 solve_wall0 = eligible ? wall_ns() : 0;
     bool converged = false;
     if (!serial) {
         // Box2D v3's stages (solver.c, b2SolverStage / b2ExecuteMainStage): the calling thread
@@ -614,6 +647,7 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
             if (it >= min_iter && change <= tol) break;
         }
     }
+    if (eligible) record_cost(!serial, wall_ns() - solve_wall0, visits);
     unpack_lanes(mi, pf, lanes);
     i64 den = active > 1 ? active : 1;
     i64 r = (visits + active - 1) / den;
