@@ -1,8 +1,6 @@
 // The velocity solve's lanes (contact_lanes.hpp): packing the colouring's sets into groups of
 // four manifolds, the scalar and the portable wide kernels, and the choice between them.
 #include <cmath>
-#include <cstddef>
-#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 
@@ -62,110 +60,6 @@ void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* 
         return;
     }
     solve_groups_scalar(g, g0, g1, cx, change, visits);
-}
-
-namespace {
-
-// A group with at least this many lanes visited is solved where it is; one with fewer gives its
-// visited lanes to the dense groups (copying a lane in and its impulses back costs about a
-// quarter of a group's visit, measured below in solve_set_dense's comment).
-#ifndef DENSE_KEEP
-#define DENSE_KEEP 3
-#endif
-constexpr int DENSE_KEEP_LANES = DENSE_KEEP;
-
-// WideGroup from `on` to its end is rows of four doubles, [row][lane]
-constexpr std::size_t ROW0 = offsetof(WideGroup, on);
-constexpr std::size_t N_ROWS = (sizeof(WideGroup) - ROW0) / (4 * sizeof(double));
-static_assert(ROW0 % 32 == 0 && (sizeof(WideGroup) - ROW0) % 32 == 0, "WideGroup rows");
-constexpr std::size_t ROW_LN = (offsetof(WideGroup, ln) - ROW0) / 32;
-constexpr std::size_t N_IMPULSE_ROWS = 12;  // ln, l1, l2: [4][4] each, contiguous
-static_assert(offsetof(WideGroup, l2) + sizeof(WideGroup::l2) ==
-                  offsetof(WideGroup, ln) + N_IMPULSE_ROWS * 32, "ln, l1, l2 contiguous");
-
-inline double* rows(WideGroup& g) { return reinterpret_cast<double*>(reinterpret_cast<char*>(&g) + ROW0); }
-inline const double* rows(const WideGroup& g) {
-    return reinterpret_cast<const double*>(reinterpret_cast<const char*>(&g) + ROW0);
-}
-
-long long g_stat_groups = 0, g_stat_lanes = 0, g_stat_dense = 0, g_stat_moved = 0;
-struct StatPrint {
-    ~StatPrint() {
-        if (std::getenv("RBLOG_DENSE_STATS"))
-            std::fprintf(stderr, "tail: group visits %lld (in place), lanes %lld, dense groups %lld, moved lanes %lld\n",
-                         g_stat_groups, g_stat_lanes, g_stat_dense, g_stat_moved);
-    }
-} g_stat_print;
-
-}  // namespace
-
-void solve_set_dense(SolverLanes& lanes, i64 g0, i64 g1, const LaneCtx& cx, double* change,
-                     i64* visits) {
-    WideGroup* g = lanes.groups.data();
-    if (cx.it <= cx.min_iter || std::strcmp(solver_kernel(), "scalar") == 0) {
-        solve_groups_wide(g, g0, g1, cx, change, visits);
-        return;
-    }
-    std::vector<i64>& src = lanes.dense_src;
-    src.clear();
-    const i64 prev = cx.it - 1;
-    for (i64 q = g0; q < g1; ++q) {
-        const WideGroup& gr = g[q];
-        int v = 0;
-        bool vis[4];
-        for (int j = 0; j < 4; ++j) {
-            vis[j] = gr.on[j] != 0.0 && !(cx.hot[gr.a[j]] < prev && cx.hot[gr.b[j]] < prev);
-            v += vis[j];
-        }
-        if (v == 0) continue;
-        if (v >= DENSE_KEEP_LANES) {
-            g_stat_groups += 1;
-            g_stat_lanes += v;
-            solve_groups_wide(g, q, q + 1, cx, change, visits);
-            continue;
-        }
-        for (int j = 0; j < 4; ++j)
-            if (vis[j]) src.push_back(q * 4 + j);
-    }
-    const i64 n_src = (i64)src.size();
-    if (n_src == 0) return;
-    const i64 n_dense = (n_src + 3) / 4;
-    if ((i64)lanes.dense.size() < n_dense) lanes.dense.resize(n_dense);
-    WideGroup* d = lanes.dense.data();
-    g_stat_dense += n_dense;
-    g_stat_moved += n_src;
-    const i64 dummy = cx.dummy;
-    for (i64 k = 0; k < n_dense; ++k) {
-        WideGroup& dg = d[k];
-        dg.n_pts = 0;
-        double* dr = rows(dg);
-        for (int j = 0; j < 4; ++j) {
-            i64 t = 4 * k + j;
-            if (t >= n_src) {
-                dg.m[j] = -1;
-                dg.a[j] = dummy;
-                dg.b[j] = dummy;
-                for (std::size_t r = 0; r < N_ROWS; ++r) dr[4 * r + j] = 0.0;
-                continue;
-            }
-            const WideGroup& sg = g[src[t] / 4];
-            const int sj = (int)(src[t] % 4);
-            dg.m[j] = sg.m[sj];
-            dg.a[j] = sg.a[sj];
-            dg.b[j] = sg.b[sj];
-            if ((i64)sg.cnt[sj] > dg.n_pts) dg.n_pts = (i64)sg.cnt[sj];
-            const double* sr = rows(sg);
-            for (std::size_t r = 0; r < N_ROWS; ++r) dr[4 * r + j] = sr[4 * r + sj];
-        }
-    }
-    solve_groups_wide(d, 0, n_dense, cx, change, visits);
-    for (i64 t = 0; t < n_src; ++t) {
-        double* sr = rows(g[src[t] / 4]);
-        const int sj = (int)(src[t] % 4);
-        const double* dr = rows(d[t / 4]);
-        const int j = (int)(t % 4);
-        for (std::size_t r = ROW_LN; r < ROW_LN + N_IMPULSE_ROWS; ++r) sr[4 * r + sj] = dr[4 * r + j];
-    }
 }
 
 void pack_lanes(V2<i64> mi, V2<double> mf, V2<double> pf, const ConstraintGraph& g, V1<double> bm,

@@ -61,10 +61,6 @@ struct alignas(32) WideGroup {
 struct SolverLanes {
     std::vector<WideGroup> groups;
     std::vector<i64> set_group;
-    // (work arrays of solve_set_dense: the gathered lanes and where each came from, group * 4 +
-    // lane)
-    std::vector<WideGroup> dense;
-    std::vector<i64> dense_src;
 };
 
 // Which kernel the wide sets use (set_solver_path): 0 the best the processor has (AVX2, else
@@ -94,14 +90,6 @@ void solve_groups_scalar(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double
                          i64* visits);
 void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,
                        i64* visits);
-// Solve one colour's groups [g0, g1) of lanes.groups once, as solve_groups_wide, but past
-// min_iter (where a sweep visits only the lanes with a hot body) the visited lanes of groups
-// where few lanes are visited are first gathered into full groups (lanes.dense), solved there
-// and their impulses written back. The lanes of a colour share no dynamic body, so which group
-// holds a lane changes no bit of its result (nor the hot marks, the largest change, the
-// visits); it only stops the kernel from paying four lanes for one.
-void solve_set_dense(SolverLanes& lanes, i64 g0, i64 g1, const LaneCtx& cx, double* change,
-                     i64* visits);
 // Pack the sets of g (the colouring of mi's active manifolds) into lanes.groups after the warm
 // start: bm, bI the solver bodies, degree (N+1,) active manifolds per body (over-relaxation where
 // a dynamic body has more than one), inv_h, sor as solve_velocities.

@@ -497,8 +497,8 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
             solve_groups_scalar(gr, lanes.set_group[0], lanes.set_group[1], cx, &change, &visits);
             // the colours, one after another; a colour's groups in any order
             for (i64 s = 1; s < n_sets; ++s)
-                solve_set_dense(lanes, lanes.set_group[s], lanes.set_group[s + 1], cx, &change,
-                                &visits);
+                solve_groups_wide(gr, lanes.set_group[s], lanes.set_group[s + 1], cx, &change,
+                                  &visits);
             if (it >= min_iter && change <= tol) break;
         }
     }
