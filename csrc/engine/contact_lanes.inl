@@ -28,6 +28,7 @@ struct W<double> {
     static M mor(M a, M b) { return a || b; }
     static M mnot(M a) { return !a; }
     static bool any(M m) { return m; }
+    static bool all(M m) { return m; }
     static bool lane(M m, int) { return m; }
     static M from(const bool* b, int l) { return b[l]; }
     static double vabs(double x) { return std::fabs(x); }
@@ -35,9 +36,7 @@ struct W<double> {
     static double gat(const double* base, const i64* rows, int k, int l) {
         return base[rows[l] * 3 + k];
     }
-    static void sca(double* base, const i64* rows, int k, int l, double x, M w) {
-        if (w) base[rows[l] * 3 + k] = x;
-    }
+    static void put(double* base, i64 i, double x, int) { base[i] = x; }
 };
 
 // four lanes: T = d4 (GCC vector extension; AVX2 or two SSE2 halves), masks 0 / -1 per lane
@@ -58,8 +57,10 @@ struct W<d4> {
     static M mnot(M a) { return ~a; }
 #ifdef __AVX__
     static bool any(M m) { return __builtin_ia32_movmskpd256((d4)m) != 0; }
+    static bool all(M m) { return __builtin_ia32_movmskpd256((d4)m) == 15; }
 #else
     static bool any(M m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+    static bool all(M m) { return (m[0] & m[1] & m[2] & m[3]) != 0; }
 #endif
     static bool lane(M m, int j) { return m[j] != 0; }
     static M from(const bool* b, int) {
@@ -84,13 +85,12 @@ struct W<d4> {
         return d4{base[rows[0] * 3 + k], base[rows[1] * 3 + k], base[rows[2] * 3 + k],
                   base[rows[3] * 3 + k]};
     }
-    static void sca(double* base, const i64* rows, int k, int, d4 x, M w) {
-        for (int j = 0; j < 4; ++j)
-            if (w[j]) base[rows[j] * 3 + k] = x[j];
-    }
+    static void put(double* base, i64 i, d4 x, int j) { base[i] = x[j]; }
 };
 
-// contact_solver.hpp's apply_impulse, lanes where `on` (the others keep their velocities).
+// contact_solver.hpp's apply_impulse, lanes where `on` (the others keep their velocities). When
+// every lane is on (most calls: the groups of a colour hold four manifolds of one point count)
+// the selects are left out: sel(on, x, y) is x then, so the bits are the same either way.
 template <class T>
 inline void lane_impulse(typename W<T>::M on, const T& ma, const T* a6, const T& mb, const T* b6,
                          const T* ra, const T* rb, const T& px, const T& py, const T& pz, T* va,
@@ -101,24 +101,37 @@ inline void lane_impulse(typename W<T>::M on, const T& ma, const T* a6, const T&
     T ex = a6[0] * cx + a6[3] * cy + a6[4] * cz;
     T ey = a6[3] * cx + a6[1] * cy + a6[5] * cz;
     T ez = a6[4] * cx + a6[5] * cy + a6[2] * cz;
+    T dx = rb[1] * pz - rb[2] * py, dy = rb[2] * px - rb[0] * pz, dz = rb[0] * py - rb[1] * px;
+    T fx = b6[0] * dx + b6[3] * dy + b6[4] * dz;
+    T fy = b6[3] * dx + b6[1] * dy + b6[5] * dz;
+    T fz = b6[4] * dx + b6[5] * dy + b6[2] * dz;
+    if (w::all(on)) {
+        va[0] = va[0] + ma * px;
+        va[1] = va[1] + ma * py;
+        va[2] = va[2] + ma * pz;
+        wa[0] = wa[0] + ex;
+        wa[1] = wa[1] + ey;
+        wa[2] = wa[2] + ez;
+        vb[0] = vb[0] - mb * px;
+        vb[1] = vb[1] - mb * py;
+        vb[2] = vb[2] - mb * pz;
+        wb[0] = wb[0] - fx;
+        wb[1] = wb[1] - fy;
+        wb[2] = wb[2] - fz;
+        return;
+    }
     va[0] = w::sel(on, va[0] + ma * px, va[0]);
     va[1] = w::sel(on, va[1] + ma * py, va[1]);
     va[2] = w::sel(on, va[2] + ma * pz, va[2]);
     wa[0] = w::sel(on, wa[0] + ex, wa[0]);
     wa[1] = w::sel(on, wa[1] + ey, wa[1]);
     wa[2] = w::sel(on, wa[2] + ez, wa[2]);
-    cx = rb[1] * pz - rb[2] * py;
-    cy = rb[2] * px - rb[0] * pz;
-    cz = rb[0] * py - rb[1] * px;
-    ex = b6[0] * cx + b6[3] * cy + b6[4] * cz;
-    ey = b6[3] * cx + b6[1] * cy + b6[5] * cz;
-    ez = b6[4] * cx + b6[5] * cy + b6[2] * cz;
     vb[0] = w::sel(on, vb[0] - mb * px, vb[0]);
     vb[1] = w::sel(on, vb[1] - mb * py, vb[1]);
     vb[2] = w::sel(on, vb[2] - mb * pz, vb[2]);
-    wb[0] = w::sel(on, wb[0] - ex, wb[0]);
-    wb[1] = w::sel(on, wb[1] - ey, wb[1]);
-    wb[2] = w::sel(on, wb[2] - ez, wb[2]);
+    wb[0] = w::sel(on, wb[0] - fx, wb[0]);
+    wb[1] = w::sel(on, wb[1] - fy, wb[1]);
+    wb[2] = w::sel(on, wb[2] - fz, wb[2]);
 }
 
 // the relative velocity at the point (a minus b), contact_solver.cpp's expression
@@ -162,6 +175,9 @@ inline void lane_friction(typename W<T>::M on, const T& k11, const T& k12, const
         l2 = w::sel(act, n2, l2);
         nl = w::sel(act, nn, nl);
         act = w::mand(act, w::mnot(nn <= bound));
+        // (every lane within its bound: the step below would change no lane's g, and the loop
+        // would stop at its test; leaving now gives the same bits)
+        if (!w::any(act)) break;
         T m1 = (d * n1 - k12 * n2) / det;
         T m2 = (a * n2 - k12 * n1) / det;
         T f = one / fmax - one / nn;
@@ -351,13 +367,21 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     }
     M wa_on = w::mand(vis, w::from(a_dyn, l));
     M wb_on = w::mand(vis, w::from(b_dyn, l));
-    for (int k = 0; k < 3; ++k) {
-        w::sca(cx.bv, gr.a, k, l, va[k], wa_on);
-        w::sca(cx.bw, gr.a, k, l, wa[k], wa_on);
-    }
-    for (int k = 0; k < 3; ++k) {
-        w::sca(cx.bv, gr.b, k, l, vb[k], wb_on);
-        w::sca(cx.bw, gr.b, k, l, wb[k], wb_on);
+    // (lane by lane, a body's six numbers together: one test per body instead of one per number)
+    for (int j = j0; j < j1; ++j) {
+        int jj = w::width == 1 ? 0 : j;
+        if (w::lane(wa_on, jj)) {
+            for (int k = 0; k < 3; ++k) {
+                w::put(cx.bv, gr.a[j] * 3 + k, va[k], jj);
+                w::put(cx.bw, gr.a[j] * 3 + k, wa[k], jj);
+            }
+        }
+        if (w::lane(wb_on, jj)) {
+            for (int k = 0; k < 3; ++k) {
+                w::put(cx.bv, gr.b[j] * 3 + k, vb[k], jj);
+                w::put(cx.bw, gr.b[j] * 3 + k, wb[k], jj);
+            }
+        }
     }
     for (int j = j0; j < j1; ++j) {
         int jj = w::width == 1 ? 0 : j;
