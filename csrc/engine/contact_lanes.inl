@@ -33,10 +33,20 @@ struct W<double> {
     static M from(const bool* b, int l) { return b[l]; }
     static double vabs(double x) { return std::fabs(x); }
     static double vsqrt(double x) { return std::sqrt(x); }
-    static double gat(const double* base, const i64* rows, int k, int l) {
-        return base[rows[l] * 3 + k];
+    // a body's three numbers at vel + 8 rows[l] + off (off 0: v, 4: w)
+    static void gather3(const double* vel, const i64* rows, int off, int l, double* o) {
+        const double* p = vel + rows[l] * 8 + off;
+        o[0] = p[0];
+        o[1] = p[1];
+        o[2] = p[2];
     }
-    static void put(double* base, i64 i, double x, int) { base[i] = x; }
+    static void scatter3(double* vel, const i64* rows, int off, int l, const double* x, M m) {
+        if (!m) return;
+        double* p = vel + rows[l] * 8 + off;
+        p[0] = x[0];
+        p[1] = x[1];
+        p[2] = x[2];
+    }
 };
 
 // four lanes: T = d4 (GCC vector extension; AVX2 or two SSE2 halves), masks 0 / -1 per lane
@@ -81,11 +91,33 @@ struct W<d4> {
         return d4{std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3])};
 #endif
     }
-    static d4 gat(const double* base, const i64* rows, int k, int) {
-        return d4{base[rows[0] * 3 + k], base[rows[1] * 3 + k], base[rows[2] * 3 + k],
-                  base[rows[3] * 3 + k]};
+    // the four lanes' bodies: four rows (x, y, z, 0) loaded and transposed into x, y, z
+    static void gather3(const double* vel, const i64* rows, int off, int, d4* o) {
+        d4 r0, r1, r2, r3;
+        std::memcpy(&r0, vel + rows[0] * 8 + off, sizeof r0);
+        std::memcpy(&r1, vel + rows[1] * 8 + off, sizeof r1);
+        std::memcpy(&r2, vel + rows[2] * 8 + off, sizeof r2);
+        std::memcpy(&r3, vel + rows[3] * 8 + off, sizeof r3);
+        d4 t0 = __builtin_shuffle(r0, r1, m4{0, 4, 2, 6});  // x0 x1 z0 z1
+        d4 t1 = __builtin_shuffle(r0, r1, m4{1, 5, 3, 7});  // y0 y1 . .
+        d4 t2 = __builtin_shuffle(r2, r3, m4{0, 4, 2, 6});  // x2 x3 z2 z3
+        d4 t3 = __builtin_shuffle(r2, r3, m4{1, 5, 3, 7});  // y2 y3 . .
+        o[0] = __builtin_shuffle(t0, t2, m4{0, 1, 4, 5});
+        o[1] = __builtin_shuffle(t1, t3, m4{0, 1, 4, 5});
+        o[2] = __builtin_shuffle(t0, t2, m4{2, 3, 6, 7});
     }
-    static void put(double* base, i64 i, d4 x, int j) { base[i] = x[j]; }
+    // the transpose back, and each row stored where lane j of m is set
+    static void scatter3(double* vel, const i64* rows, int off, int, const d4* x, M m) {
+        const d4 zero = {0.0, 0.0, 0.0, 0.0};
+        d4 u0 = __builtin_shuffle(x[0], x[1], m4{0, 4, 2, 6});  // x0 y0 x2 y2
+        d4 u1 = __builtin_shuffle(x[0], x[1], m4{1, 5, 3, 7});  // x1 y1 x3 y3
+        d4 u2 = __builtin_shuffle(x[2], zero, m4{0, 4, 2, 6});  // z0 0 z2 0
+        d4 u3 = __builtin_shuffle(x[2], zero, m4{1, 5, 3, 7});  // z1 0 z3 0
+        d4 r[4] = {__builtin_shuffle(u0, u2, m4{0, 1, 4, 5}), __builtin_shuffle(u1, u3, m4{0, 1, 4, 5}),
+                   __builtin_shuffle(u0, u2, m4{2, 3, 6, 7}), __builtin_shuffle(u1, u3, m4{2, 3, 6, 7})};
+        for (int j = 0; j < 4; ++j)
+            if (m[j]) std::memcpy(vel + rows[j] * 8 + off, &r[j], sizeof r[j]);
+    }
 };
 
 // contact_solver.hpp's apply_impulse, lanes where `on` (the others keep their velocities). When
@@ -229,12 +261,10 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     }
     const T mu = w::ld(gr.mu, l), cnt = w::ld(gr.cnt, l);
     T va[3], wa[3], vb[3], wb[3];
-    for (int k = 0; k < 3; ++k) {
-        va[k] = w::gat(cx.bv, gr.a, k, l);
-        wa[k] = w::gat(cx.bw, gr.a, k, l);
-        vb[k] = w::gat(cx.bv, gr.b, k, l);
-        wb[k] = w::gat(cx.bw, gr.b, k, l);
-    }
+    w::gather3(cx.vel, gr.a, 0, l, va);
+    w::gather3(cx.vel, gr.a, 4, l, wa);
+    w::gather3(cx.vel, gr.b, 0, l, vb);
+    w::gather3(cx.vel, gr.b, 4, l, wb);
     const int np = (int)gr.n_pts;
     M pt[4];  // point slot i exists in the lane
     for (int i = 0; i < 4; ++i) pt[i] = w::splat((double)i) < cnt;
@@ -367,22 +397,10 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     }
     M wa_on = w::mand(vis, w::from(a_dyn, l));
     M wb_on = w::mand(vis, w::from(b_dyn, l));
-    // (lane by lane, a body's six numbers together: one test per body instead of one per number)
-    for (int j = j0; j < j1; ++j) {
-        int jj = w::width == 1 ? 0 : j;
-        if (w::lane(wa_on, jj)) {
-            for (int k = 0; k < 3; ++k) {
-                w::put(cx.bv, gr.a[j] * 3 + k, va[k], jj);
-                w::put(cx.bw, gr.a[j] * 3 + k, wa[k], jj);
-            }
-        }
-        if (w::lane(wb_on, jj)) {
-            for (int k = 0; k < 3; ++k) {
-                w::put(cx.bv, gr.b[j] * 3 + k, vb[k], jj);
-                w::put(cx.bw, gr.b[j] * 3 + k, wb[k], jj);
-            }
-        }
-    }
+    w::scatter3(cx.vel, gr.a, 0, l, va, wa_on);
+    w::scatter3(cx.vel, gr.a, 4, l, wa, wa_on);
+    w::scatter3(cx.vel, gr.b, 0, l, vb, wb_on);
+    w::scatter3(cx.vel, gr.b, 4, l, wb, wb_on);
     for (int j = j0; j < j1; ++j) {
         int jj = w::width == 1 ? 0 : j;
         if (w::lane(mark, jj)) {

@@ -409,7 +409,20 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     i64 active = 0;
     for (i64 m = 0; m < n_man; ++m) active += mi(m, MI_ACTIVE);
     pack_lanes(mi, mf, pf, g, bm, bI, degree, inv_h, sor, lanes);
-    LaneCtx cx{bv.p, bw.p, hot.p, bm.n0 - 1, 0, min_iter, tol, newton_iters, newton_tol};
+    // the velocities in the kernels' layout (contact_lanes.hpp: BodyVel) while the sweeps run
+    const i64 n_rows = bm.n0;
+    lanes.vel.resize(n_rows);
+    for (i64 i = 0; i < n_rows; ++i) {
+        BodyVel& b = lanes.vel[i];
+        for (int k = 0; k < 3; ++k) {
+            b.v[k] = bv(i, k);
+            b.w[k] = bw(i, k);
+        }
+        b.v[3] = 0.0;
+        b.w[3] = 0.0;
+    }
+    LaneCtx cx{reinterpret_cast<double*>(lanes.vel.data()), hot.p, bm.n0 - 1, 0, min_iter, tol,
+               newton_iters, newton_tol};
     WideGroup* gr = lanes.groups.data();
     const i64 n_sets = (i64)lanes.set_group.size() - 1;
     const i64 n_wide = lanes.set_group[n_sets] - lanes.set_group[1];
@@ -502,6 +515,13 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
         }
     }
     unpack_lanes(mi, pf, lanes);
+    for (i64 i = 0; i < n_rows; ++i) {
+        const BodyVel& b = lanes.vel[i];
+        for (int k = 0; k < 3; ++k) {
+            bv(i, k) = b.v[k];
+            bw(i, k) = b.w[k];
+        }
+    }
     i64 den = active > 1 ? active : 1;
     i64 r = (visits + active - 1) / den;
     return r > 1 ? r : 1;
