@@ -123,20 +123,26 @@ struct W<d4> {
 // contact_solver.hpp's apply_impulse, lanes where `on` (the others keep their velocities). When
 // every lane is on (most calls: the groups of a colour hold four manifolds of one point count)
 // the selects are left out: sel(on, x, y) is x then, so the bits are the same either way.
+// (The inverse masses and inertias are read from the group where they are used, not held in
+// locals: the kernel has more live values than a processor has vector registers, and a value
+// read from memory folds into the multiply instead of being spilled and reloaded.)
 template <class T>
-inline void lane_impulse(typename W<T>::M on, const T& ma, const T* a6, const T& mb, const T* b6,
-                         const T* ra, const T* rb, const T& px, const T& py, const T& pz, T* va,
-                         T* wa, T* vb, T* wb) {
+inline void lane_impulse(typename W<T>::M on, const WideGroup& gr, int l, const T* ra,
+                         const T* rb, const T& px, const T& py, const T& pz, T* va, T* wa, T* vb,
+                         T* wb) {
     typedef W<T> w;
     if (!w::any(on)) return;
+    auto a6 = [&](int k) { return w::ld(gr.a6[k], l); };
+    auto b6 = [&](int k) { return w::ld(gr.b6[k], l); };
+    const T ma = w::ld(gr.ma, l), mb = w::ld(gr.mb, l);
     T cx = ra[1] * pz - ra[2] * py, cy = ra[2] * px - ra[0] * pz, cz = ra[0] * py - ra[1] * px;
-    T ex = a6[0] * cx + a6[3] * cy + a6[4] * cz;
-    T ey = a6[3] * cx + a6[1] * cy + a6[5] * cz;
-    T ez = a6[4] * cx + a6[5] * cy + a6[2] * cz;
+    T ex = a6(0) * cx + a6(3) * cy + a6(4) * cz;
+    T ey = a6(3) * cx + a6(1) * cy + a6(5) * cz;
+    T ez = a6(4) * cx + a6(5) * cy + a6(2) * cz;
     T dx = rb[1] * pz - rb[2] * py, dy = rb[2] * px - rb[0] * pz, dz = rb[0] * py - rb[1] * px;
-    T fx = b6[0] * dx + b6[3] * dy + b6[4] * dz;
-    T fy = b6[3] * dx + b6[1] * dy + b6[5] * dz;
-    T fz = b6[4] * dx + b6[5] * dy + b6[2] * dz;
+    T fx = b6(0) * dx + b6(3) * dy + b6(4) * dz;
+    T fy = b6(3) * dx + b6(1) * dy + b6(5) * dz;
+    T fz = b6(4) * dx + b6(5) * dy + b6(2) * dz;
     if (w::all(on)) {
         va[0] = va[0] + ma * px;
         va[1] = va[1] + ma * py;
@@ -247,12 +253,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     const T tol = w::splat(cx.tol);
     T chg = zero;
     M mark = vis & w::mnot(vis);  // all false
-    const T ma = w::ld(gr.ma, l), mb = w::ld(gr.mb, l), om = w::ld(gr.om, l);
-    T a6[6], b6[6];
-    for (int k = 0; k < 6; ++k) {
-        a6[k] = w::ld(gr.a6[k], l);
-        b6[k] = w::ld(gr.b6[k], l);
-    }
+    const T om = w::ld(gr.om, l);
     T nv[3], t1[3], t2[3];
     for (int k = 0; k < 3; ++k) {
         nv[k] = w::ld(gr.n[k], l);
@@ -324,7 +325,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
                     ra[k] = w::ld(gr.ra[i][k], l);
                     rb[k] = w::ld(gr.rb[i][k], l);
                 }
-                lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, d * nv[0], d * nv[1], d * nv[2], va,
+                lane_impulse<T>(on, gr, l, ra, rb, d * nv[0], d * nv[1], d * nv[2], va,
                                 wa, vb, wb);
             }
         }
@@ -352,7 +353,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             T dv = w::vabs(d) / w::ld(gr.nmass[i], l);
             chg = w::sel(w::mand(moved, dv > chg), dv, chg);
             mark = w::mor(mark, w::mand(moved, dv > tol));
-            lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, d * nv[0], d * nv[1], d * nv[2], va, wa,
+            lane_impulse<T>(on, gr, l, ra, rb, d * nv[0], d * nv[1], d * nv[2], va, wa,
                             vb, wb);
         }
     }
@@ -385,7 +386,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             T px = d1 * t1[0] + d2 * t2[0];
             T py = d1 * t1[1] + d2 * t2[1];
             T pz = d1 * t1[2] + d2 * t2[2];
-            lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, px, py, pz, va, wa, vb, wb);
+            lane_impulse<T>(on, gr, l, ra, rb, px, py, pz, va, wa, vb, wb);
         }
     }
     // scatter the velocities of the visited lanes' bodies (never the static dummy's: it does not
