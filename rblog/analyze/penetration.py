@@ -92,6 +92,48 @@ def _partner_label(model, b: int) -> str:
     return body_label(model, b)
 
 
+def _mutual_lower(pk, pi_, pb, normal, model, n: int, t_n: int) -> np.ndarray:
+    """(R,) True at the support rows of a body whose partner (a body) takes it as its own support
+    at the same sample, for the one of the two that lies below: normal (partner -> body) less
+    along -gravity than its partner's (the lower body index when level or without gravity)."""
+    r_n = len(pk)
+    out = np.zeros(r_n, bool)
+    dyn = (pb >= 0) & (pb < n)
+    if not dyn.any():
+        return out
+    row_of = np.full((n, t_n), -1, np.int64)
+    row_of[pi_, pk] = np.arange(r_n)
+    rows = np.nonzero(dyn)[0]
+    other = row_of[pb[rows], pk[rows]]
+    mutual = (other >= 0) & (pb[np.maximum(other, 0)] == pi_[rows])
+    rows, other = rows[mutual], other[mutual]
+    g = np.asarray(model.gravity, float)
+    gn = np.linalg.norm(g)
+    up = -g / gn if gn > 0 else np.zeros(3)
+    mine, theirs = normal[rows] @ up, normal[other] @ up
+    out[rows] = (mine < theirs) | ((mine == theirs) & (pi_[rows] > pi_[other]))
+    return out
+
+
+def _main_partner(contrib, run_of, pb, in_run, nr: int, partner_default) -> np.ndarray:
+    """(runs,) the partner of each run whose intervals slide the most in net (|sum|), or
+    ``partner_default`` where nothing slid."""
+    out = np.asarray(partner_default).copy()
+    rows = np.nonzero(in_run & (np.abs(contrib).sum(axis=1) > 0))[0]
+    if not len(rows):
+        return out
+    key = run_of[rows].astype(np.int64) * (int(pb.max()) + 2) + (pb[rows] + 1)
+    uk, inv = np.unique(key, return_inverse=True)
+    tot = np.stack([np.bincount(inv, contrib[rows, d], len(uk)) for d in range(3)], 1)
+    mag = np.linalg.norm(tot, axis=1)
+    run_k = uk // (int(pb.max()) + 2)
+    order = np.lexsort((-mag, run_k))
+    first = np.r_[True, run_k[order][1:] != run_k[order][:-1]]
+    best = order[first]
+    out[run_k[best]] = (uk[best] % (int(pb.max()) + 2)) - 1
+    return out
+
+
 #: per-interval slides closer than this fraction of the creep tolerance are equal (1e-10 m at the
 #: default: four orders above the round-off of a pose difference, six below the tolerance)
 _EQUAL_SLIDE_FRAC = 1e-6
@@ -553,7 +595,14 @@ class PenetrationAnalyzer(Analyzer):
                     contrib, both & (weight > 0) & in_run & ~settled,
                     both & (weight > 0) & settled & (t_row < t_run0 + 2.0 * tol["settle_s"]),
                     run_of, dt_row * weight, nr, _EQUAL_SLIDE_FRAC * tol["creep_m"])
+            # a contact two bodies both take as their support (each the other's deepest: boxes
+            # side by side in a pile) slides the same for both: it is counted once, for the body
+            # it holds up (the one on top along gravity; the lower index when level)
+            contrib[_mutual_lower(pk, pi_, pb, pnorm, model, n, t_n)] = 0.0
             creep = np.linalg.norm(red(np.add, contrib), axis=1)
+            # the partner the creep was measured against (a stay may change its deepest contact):
+            # the one whose intervals slide the most, named when it is not the stay's first
+            creep_partner = _main_partner(contrib, run_of, pb, in_run, nr, partner_default=pb[starts])
             jit = np.where(has_settled, jit, np.nan)
             creep = np.where(has_settled, creep, np.nan)
             speed_settled = np.where(has_settled, speed_settled, np.nan)
@@ -601,8 +650,10 @@ class PenetrationAnalyzer(Analyzer):
                 (fin & (np.nan_to_num(creep) > tol["creep_m"]), lambda r: Finding(
                     self.name,
                     f"{body_label(model, int(bs[r]))} creeps {what_rest(r)}: slides "
-                    f"{creep[r] * 1e3:.3g} mm at the contact while settled (tol "
-                    f"{tol['creep_m'] * 1e3:.3g} mm)",
+                    f"{creep[r] * 1e3:.3g} mm at the contact while settled"
+                    + ("" if creep_partner[r] == partner[r] else
+                       f", on {_partner_label(model, int(creep_partner[r]))}")
+                    + f" (tol {tol['creep_m'] * 1e3:.3g} mm)",
                     float(creep[r]), tol["creep_m"], "m", int(step[ke[r]]), float(t[ke[r]]),
                     [int(bs[r])])),
             )

@@ -148,3 +148,36 @@ def test_a_box_that_stops_and_then_creeps_reads_the_creep_alone(mu):
     res = penetration(arriving_box(0.04, mu, creep_speed=c, t_creep=0.09))
     (f,) = creeps(res).values()
     assert f.value == pytest.approx(c * (2.0 - 0.09), abs=c * 0.01)
+
+
+def side_by_side(d, overlap=2e-5, duration=3.0):
+    """Boxes "left" and "right" on the ground (touching it exactly), their facing sides
+    overlapping by ``overlap`` (m), so that each is the other's deepest contact (its support);
+    "right" slides d metres along y (along the shared face) from t = 0.5 to 2.5 s."""
+    model = make_model([dict(shape="box", size=(HH, HH, HH), mass=1.0, name="left"),
+                        dict(shape="box", size=(HH, HH, HH), mass=1.0, name="right")],
+                       ground=True)
+    t = times(duration)
+    s = np.clip(t - 0.5, 0, 2.0) / 2.0
+    x = np.zeros((len(t), 2, 3))
+    v = np.zeros((len(t), 2, 3))
+    x[:, 0] = [0.3, 0.0, HH]
+    x[:, 1] = np.stack([np.full_like(t, 0.3 + 2 * HH - overlap), d * s, np.full_like(t, HH)], 1)
+    v[:, 1, 1] = d * ((t >= 0.5) & (t < 2.5)) / 2.0
+    r = np.broadcast_to(np.eye(3), (len(t), 2, 3, 3))
+    return build(model, t, x, v, r, np.zeros((len(t), 2, 3)))
+
+
+def test_a_slide_between_two_bodies_that_support_each_other_is_reported_once():
+    """Each box takes the other as its support (their side overlap is deeper than their ground
+    contact); "right" slides 0.2 mm along the shared face. That slide is one creep, 0.2 mm, named
+    against the partner it was measured on. Before it was reported for both bodies (the 500-box
+    pile's box315 "on the ground" and box317 "on box316" with the identical 0.10510987350322816 m
+    was one slide between 315 and 317)."""
+    res = penetration(side_by_side(2e-4))
+    found = creeps(res)
+    assert len(found) == 1, [f.message for f in found.values()]
+    (f,) = found.values()
+    assert f.value == pytest.approx(2e-4, rel=1e-9)
+    assert ("'left'" in f.message and "body 1 ('right')" in f.message) or \
+        ("'right'" in f.message and "body 0 ('left')" in f.message)
