@@ -28,7 +28,8 @@ Per event (arrays of E events):
   own uncertainty (the stepper's flight error, :func:`flight_error`, over the extrapolation) and
   then to the integrator steps (RunInfo.dt) they fall in, within the event's samples; +inf where
   the approach would have stopped within the window. e(tau) is monotonic, so the range is its
-  ends' (and holds e_eff). Exact arcs give e_lo = e_hi = e_eff up to the step. ``gap_s`` the
+  ends' (and holds e_eff). Exact arcs give the range of the one step the touch falls in (their
+  touch and separation coincide, and their flight error is round-off). ``gap_s`` the
   separation minus the touch time (negative when the rebound arc leaves before the approach arc
   arrives: a stepper that reflects the penetration), ``duration_s`` (from
   touch to separation when both are known, else the event's sample span), ``impulse_ns`` (|sum of
@@ -359,7 +360,8 @@ def _events(ctx, cd, dt_factor) -> Events:
     return Events(k0=k0, k1=k1, static_id=sid, size=size, first=first, groups=grp,
                   t0=t[kb] if e_n else np.zeros(0), t1=t[ka] if e_n else np.zeros(0),
                   v_minus=v_minus, v_plus=v_plus, e_eff=e_eff, e_lo=e_lo, e_hi=e_hi,
-                  gap_s=gap, sphere=sphere, duration_s=duration, impulse_ns=impulse, peak_penetration_m=peak,
+                  gap_s=gap, sphere=sphere, duration_s=duration, impulse_ns=impulse,
+                  peak_penetration_m=peak,
                   peak_point=peak_pt, separated=separated, energy_change=energy_change,
                   ke_before=ke_before, ke_after=ke_after, dt_allow=dt_allow,
                   mass_accel=mass_accel, speed_before=speed_before,
@@ -370,11 +372,11 @@ def _events(ctx, cd, dt_factor) -> Events:
 
 def flight_error(ctx, k: np.ndarray, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
     """(P,) how far the logged velocities of body a (and b) disagree with their positions over
-    the sample interval k .. k+1 (m/s): ``|(x(k+1) - x(k)) / dt - (v(k) + v(k+1)) / 2|``, the
-    larger of the two bodies; NaN where k is outside the log. The trapezoid rule is exact for
-    motion at constant acceleration, so exact flight gives round-off; a first-order stepper logs
-    the velocity of its step's second half (symplectic Euler) or first half (explicit Euler):
-    |a| dt / 2. An impulse inside the interval shows as a larger value."""
+    the sample interval k .. k+1 (m/s): ``|(x(k+1) - x(k)) / dt - (v(k) + v(k+1)) / 2|``, summed
+    over the two bodies (a bound on their relative motion's); NaN where k is outside the log. The
+    trapezoid rule is exact for motion at constant acceleration, so exact flight gives round-off;
+    a first-order stepper logs the velocity of its step's second half (symplectic Euler) or first
+    half (explicit Euler): |a| dt / 2. An impulse inside the interval shows as a larger value."""
     tr = ctx.traj
     out = np.full(len(k), np.nan)
     ok = (k >= 0) & (k < tr.n_samples - 1)
@@ -391,7 +393,7 @@ def flight_error(ctx, k: np.ndarray, a: np.ndarray, b: np.ndarray | None = None)
         v0, v1 = tr.velocity[kk, i], tr.velocity[kk + 1, i]
         with np.errstate(invalid="ignore", divide="ignore"):
             d = np.linalg.norm((x1 - x0) / dt[:, None] - 0.5 * (v0 + v1), axis=1)
-        res = np.maximum(res, np.where(dt > 0, d, np.inf))
+        res = res + np.where(dt > 0, d, np.inf)
     out[ok] = res
     return out
 

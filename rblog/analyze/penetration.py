@@ -13,7 +13,8 @@ pivoting on a corner of another) has no slip there.
   sphere rolling without slip, and a box tipping over an edge, have a resting contact point; a
   bouncing ball does not.
 * Per resting interval: max and mean depth, duration; after SETTLE_S, the largest contact-point
-  speed and jitter; creep over the whole interval less its settling slide. Jitter is the alternating part of the contact-point velocity,
+  speed and jitter; creep over the whole interval less its settling slide. Jitter is the
+  alternating part of the contact-point velocity,
   ``|v(k+1) - 2 v(k) + v(k-1)| / 4`` on one partner, kept only where it persists over
   JITTER_PERSIST_SAMPLES consecutive samples: exactly the amplitude of a velocity that flips
   between samples, and zero for any motion at constant acceleration (a body that slides off
@@ -45,7 +46,12 @@ pivoting on a corner of another) has no slip there.
   SETTLE_S (:func:`_settling_slide`). A body at rest, or creeping at a steady rate from its first
   sample, is settled throughout (a 0.30 mm creep reads 0.30 mm wherever in the stay it begins;
   before, the first SETTLE_S never counted: 0.285 mm for a creep from the first sample); a box
-  that lands or slides to a stop keeps none of its arrival (tests/analyze/test_creep.py).
+  that lands or slides to a stop keeps none of its arrival (tests/analyze/test_creep.py). A
+  contact two bodies both take as their support (each the other's deepest: boxes side by side in
+  a pile) slides the same for both: it counts once, for the body it holds up (along -gravity;
+  the lower index when level), and a finding names the partner its creep was measured against
+  when that is not the stay's first (the 500-box pile once read the one slide between box315 and
+  box317, 0.105 mm, as box315's "on the ground" and box317's "on box316").
 * Sliding is not resting: at a sample where the support contact's logged rows (the pair's points
   at the sample's step) are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all
   but at most one (a rigid contact that slips, translating or twisting about its normal, slips
@@ -602,7 +608,8 @@ class PenetrationAnalyzer(Analyzer):
             creep = np.linalg.norm(red(np.add, contrib), axis=1)
             # the partner the creep was measured against (a stay may change its deepest contact):
             # the one whose intervals slide the most, named when it is not the stay's first
-            creep_partner = _main_partner(contrib, run_of, pb, in_run, nr, partner_default=pb[starts])
+            creep_partner = _main_partner(contrib, run_of, pb, in_run, nr,
+                                          partner_default=pb[starts])
             jit = np.where(has_settled, jit, np.nan)
             creep = np.where(has_settled, creep, np.nan)
             speed_settled = np.where(has_settled, speed_settled, np.nan)

@@ -156,7 +156,8 @@ def test_user_stepper_at_100hz_with_its_declared_restitution_passes(kind):
     traj, hits = stepper_drop(DECLARED, kind)
     res, impacts, flagged = momentum(traj)
     assert not flagged, [f.message for f in flagged]
-    judged = [ev for ev in impacts if ev["approach_speed_mps"] >= T.MOMENTUM_RESTITUTION_MIN_SPEED_MPS]
+    judged = [ev for ev in impacts
+              if ev["approach_speed_mps"] >= T.MOMENTUM_RESTITUTION_MIN_SPEED_MPS]
     assert len(judged) >= 2
     # the first impact: with the impulse after the kick (tau = the step's end), the logged
     # velocities give the stepper's e exactly, and the range holds it
