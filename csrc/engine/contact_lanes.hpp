@@ -57,10 +57,20 @@ struct alignas(32) WideGroup {
     double ln[4][4], l1[4][4], l2[4][4]; // accumulated impulses
 };
 
-// The packed sets of one step: groups of set s are [set_group[s], set_group[s + 1]).
+// A body's velocities during the solve: v and w (world) each padded to four doubles, so that a
+// group reads or writes one body's three numbers with one 256-bit load or store (and four bodies'
+// with four plus a 4x4 transpose).
+struct alignas(32) BodyVel {
+    double v[4];  // vx, vy, vz, 0
+    double w[4];  // wx, wy, wz, 0
+};
+
+// The packed sets of one step: groups of set s are [set_group[s], set_group[s + 1]); vel (N+1,)
+// the bodies' velocities while the sweeps run (copied from and back to the solver's bv, bw).
 struct SolverLanes {
     std::vector<WideGroup> groups;
     std::vector<i64> set_group;
+    std::vector<BodyVel> vel;
 };
 
 // Which kernel the wide sets use (set_solver_path): 0 the best the processor has (AVX2, else
@@ -70,11 +80,10 @@ void set_solver_path(int path);
 int solver_path();             // as set
 const char* solver_kernel();   // the kernel the wide sets run: "avx2", "sse2" or "scalar"
 
-// What the kernels read besides a group: body velocities (N+1, 3) in place, the hot marks
-// (N+1,), and the solve's parameters.
+// What the kernels read besides a group: body velocities (SolverLanes::vel as doubles, 8 a
+// body: v at 8 i, w at 8 i + 4) in place, the hot marks (N+1,), and the solve's parameters.
 struct LaneCtx {
-    double* bv;
-    double* bw;
+    double* vel;
     i64* hot;
     i64 dummy;  // the static dummy's row (N): never written
     i64 it, min_iter;

@@ -28,15 +28,24 @@ struct W<double> {
     static M mor(M a, M b) { return a || b; }
     static M mnot(M a) { return !a; }
     static bool any(M m) { return m; }
+    static bool all(M m) { return m; }
     static bool lane(M m, int) { return m; }
     static M from(const bool* b, int l) { return b[l]; }
     static double vabs(double x) { return std::fabs(x); }
     static double vsqrt(double x) { return std::sqrt(x); }
-    static double gat(const double* base, const i64* rows, int k, int l) {
-        return base[rows[l] * 3 + k];
+    // a body's three numbers at vel + 8 rows[l] + off (off 0: v, 4: w)
+    static void gather3(const double* vel, const i64* rows, int off, int l, double* o) {
+        const double* p = vel + rows[l] * 8 + off;
+        o[0] = p[0];
+        o[1] = p[1];
+        o[2] = p[2];
     }
-    static void sca(double* base, const i64* rows, int k, int l, double x, M w) {
-        if (w) base[rows[l] * 3 + k] = x;
+    static void scatter3(double* vel, const i64* rows, int off, int l, const double* x, M m) {
+        if (!m) return;
+        double* p = vel + rows[l] * 8 + off;
+        p[0] = x[0];
+        p[1] = x[1];
+        p[2] = x[2];
     }
 };
 
@@ -58,8 +67,10 @@ struct W<d4> {
     static M mnot(M a) { return ~a; }
 #ifdef __AVX__
     static bool any(M m) { return __builtin_ia32_movmskpd256((d4)m) != 0; }
+    static bool all(M m) { return __builtin_ia32_movmskpd256((d4)m) == 15; }
 #else
     static bool any(M m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+    static bool all(M m) { return (m[0] & m[1] & m[2] & m[3]) != 0; }
 #endif
     static bool lane(M m, int j) { return m[j] != 0; }
     static M from(const bool* b, int) {
@@ -80,45 +91,85 @@ struct W<d4> {
         return d4{std::sqrt(x[0]), std::sqrt(x[1]), std::sqrt(x[2]), std::sqrt(x[3])};
 #endif
     }
-    static d4 gat(const double* base, const i64* rows, int k, int) {
-        return d4{base[rows[0] * 3 + k], base[rows[1] * 3 + k], base[rows[2] * 3 + k],
-                  base[rows[3] * 3 + k]};
+    // the four lanes' bodies: four rows (x, y, z, 0) loaded and transposed into x, y, z
+    static void gather3(const double* vel, const i64* rows, int off, int, d4* o) {
+        d4 r0, r1, r2, r3;
+        std::memcpy(&r0, vel + rows[0] * 8 + off, sizeof r0);
+        std::memcpy(&r1, vel + rows[1] * 8 + off, sizeof r1);
+        std::memcpy(&r2, vel + rows[2] * 8 + off, sizeof r2);
+        std::memcpy(&r3, vel + rows[3] * 8 + off, sizeof r3);
+        d4 t0 = __builtin_shuffle(r0, r1, m4{0, 4, 2, 6});  // x0 x1 z0 z1
+        d4 t1 = __builtin_shuffle(r0, r1, m4{1, 5, 3, 7});  // y0 y1 . .
+        d4 t2 = __builtin_shuffle(r2, r3, m4{0, 4, 2, 6});  // x2 x3 z2 z3
+        d4 t3 = __builtin_shuffle(r2, r3, m4{1, 5, 3, 7});  // y2 y3 . .
+        o[0] = __builtin_shuffle(t0, t2, m4{0, 1, 4, 5});
+        o[1] = __builtin_shuffle(t1, t3, m4{0, 1, 4, 5});
+        o[2] = __builtin_shuffle(t0, t2, m4{2, 3, 6, 7});
     }
-    static void sca(double* base, const i64* rows, int k, int, d4 x, M w) {
+    // the transpose back, and each row stored where lane j of m is set
+    static void scatter3(double* vel, const i64* rows, int off, int, const d4* x, M m) {
+        const d4 zero = {0.0, 0.0, 0.0, 0.0};
+        d4 u0 = __builtin_shuffle(x[0], x[1], m4{0, 4, 2, 6});  // x0 y0 x2 y2
+        d4 u1 = __builtin_shuffle(x[0], x[1], m4{1, 5, 3, 7});  // x1 y1 x3 y3
+        d4 u2 = __builtin_shuffle(x[2], zero, m4{0, 4, 2, 6});  // z0 0 z2 0
+        d4 u3 = __builtin_shuffle(x[2], zero, m4{1, 5, 3, 7});  // z1 0 z3 0
+        d4 r[4] = {__builtin_shuffle(u0, u2, m4{0, 1, 4, 5}), __builtin_shuffle(u1, u3, m4{0, 1, 4, 5}),
+                   __builtin_shuffle(u0, u2, m4{2, 3, 6, 7}), __builtin_shuffle(u1, u3, m4{2, 3, 6, 7})};
         for (int j = 0; j < 4; ++j)
-            if (w[j]) base[rows[j] * 3 + k] = x[j];
+            if (m[j]) std::memcpy(vel + rows[j] * 8 + off, &r[j], sizeof r[j]);
     }
 };
 
-// contact_solver.hpp's apply_impulse, lanes where `on` (the others keep their velocities).
+// contact_solver.hpp's apply_impulse, lanes where `on` (the others keep their velocities). When
+// every lane is on (most calls: the groups of a colour hold four manifolds of one point count)
+// the selects are left out: sel(on, x, y) is x then, so the bits are the same either way.
+// (The inverse masses and inertias are read from the group where they are used, not held in
+// locals: the kernel has more live values than a processor has vector registers, and a value
+// read from memory folds into the multiply instead of being spilled and reloaded.)
 template <class T>
-inline void lane_impulse(typename W<T>::M on, const T& ma, const T* a6, const T& mb, const T* b6,
-                         const T* ra, const T* rb, const T& px, const T& py, const T& pz, T* va,
-                         T* wa, T* vb, T* wb) {
+inline void lane_impulse(typename W<T>::M on, const WideGroup& gr, int l, const T* ra,
+                         const T* rb, const T& px, const T& py, const T& pz, T* va, T* wa, T* vb,
+                         T* wb) {
     typedef W<T> w;
     if (!w::any(on)) return;
+    auto a6 = [&](int k) { return w::ld(gr.a6[k], l); };
+    auto b6 = [&](int k) { return w::ld(gr.b6[k], l); };
+    const T ma = w::ld(gr.ma, l), mb = w::ld(gr.mb, l);
     T cx = ra[1] * pz - ra[2] * py, cy = ra[2] * px - ra[0] * pz, cz = ra[0] * py - ra[1] * px;
-    T ex = a6[0] * cx + a6[3] * cy + a6[4] * cz;
-    T ey = a6[3] * cx + a6[1] * cy + a6[5] * cz;
-    T ez = a6[4] * cx + a6[5] * cy + a6[2] * cz;
+    T ex = a6(0) * cx + a6(3) * cy + a6(4) * cz;
+    T ey = a6(3) * cx + a6(1) * cy + a6(5) * cz;
+    T ez = a6(4) * cx + a6(5) * cy + a6(2) * cz;
+    T dx = rb[1] * pz - rb[2] * py, dy = rb[2] * px - rb[0] * pz, dz = rb[0] * py - rb[1] * px;
+    T fx = b6(0) * dx + b6(3) * dy + b6(4) * dz;
+    T fy = b6(3) * dx + b6(1) * dy + b6(5) * dz;
+    T fz = b6(4) * dx + b6(5) * dy + b6(2) * dz;
+    if (w::all(on)) {
+        va[0] = va[0] + ma * px;
+        va[1] = va[1] + ma * py;
+        va[2] = va[2] + ma * pz;
+        wa[0] = wa[0] + ex;
+        wa[1] = wa[1] + ey;
+        wa[2] = wa[2] + ez;
+        vb[0] = vb[0] - mb * px;
+        vb[1] = vb[1] - mb * py;
+        vb[2] = vb[2] - mb * pz;
+        wb[0] = wb[0] - fx;
+        wb[1] = wb[1] - fy;
+        wb[2] = wb[2] - fz;
+        return;
+    }
     va[0] = w::sel(on, va[0] + ma * px, va[0]);
     va[1] = w::sel(on, va[1] + ma * py, va[1]);
     va[2] = w::sel(on, va[2] + ma * pz, va[2]);
     wa[0] = w::sel(on, wa[0] + ex, wa[0]);
     wa[1] = w::sel(on, wa[1] + ey, wa[1]);
     wa[2] = w::sel(on, wa[2] + ez, wa[2]);
-    cx = rb[1] * pz - rb[2] * py;
-    cy = rb[2] * px - rb[0] * pz;
-    cz = rb[0] * py - rb[1] * px;
-    ex = b6[0] * cx + b6[3] * cy + b6[4] * cz;
-    ey = b6[3] * cx + b6[1] * cy + b6[5] * cz;
-    ez = b6[4] * cx + b6[5] * cy + b6[2] * cz;
     vb[0] = w::sel(on, vb[0] - mb * px, vb[0]);
     vb[1] = w::sel(on, vb[1] - mb * py, vb[1]);
     vb[2] = w::sel(on, vb[2] - mb * pz, vb[2]);
-    wb[0] = w::sel(on, wb[0] - ex, wb[0]);
-    wb[1] = w::sel(on, wb[1] - ey, wb[1]);
-    wb[2] = w::sel(on, wb[2] - ez, wb[2]);
+    wb[0] = w::sel(on, wb[0] - fx, wb[0]);
+    wb[1] = w::sel(on, wb[1] - fy, wb[1]);
+    wb[2] = w::sel(on, wb[2] - fz, wb[2]);
 }
 
 // the relative velocity at the point (a minus b), contact_solver.cpp's expression
@@ -162,6 +213,9 @@ inline void lane_friction(typename W<T>::M on, const T& k11, const T& k12, const
         l2 = w::sel(act, n2, l2);
         nl = w::sel(act, nn, nl);
         act = w::mand(act, w::mnot(nn <= bound));
+        // (every lane within its bound: the step below would change no lane's g, and the loop
+        // would stop at its test; leaving now gives the same bits)
+        if (!w::any(act)) break;
         T m1 = (d * n1 - k12 * n2) / det;
         T m2 = (a * n2 - k12 * n1) / det;
         T f = one / fmax - one / nn;
@@ -199,12 +253,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     const T tol = w::splat(cx.tol);
     T chg = zero;
     M mark = vis & w::mnot(vis);  // all false
-    const T ma = w::ld(gr.ma, l), mb = w::ld(gr.mb, l), om = w::ld(gr.om, l);
-    T a6[6], b6[6];
-    for (int k = 0; k < 6; ++k) {
-        a6[k] = w::ld(gr.a6[k], l);
-        b6[k] = w::ld(gr.b6[k], l);
-    }
+    const T om = w::ld(gr.om, l);
     T nv[3], t1[3], t2[3];
     for (int k = 0; k < 3; ++k) {
         nv[k] = w::ld(gr.n[k], l);
@@ -213,12 +262,10 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     }
     const T mu = w::ld(gr.mu, l), cnt = w::ld(gr.cnt, l);
     T va[3], wa[3], vb[3], wb[3];
-    for (int k = 0; k < 3; ++k) {
-        va[k] = w::gat(cx.bv, gr.a, k, l);
-        wa[k] = w::gat(cx.bw, gr.a, k, l);
-        vb[k] = w::gat(cx.bv, gr.b, k, l);
-        wb[k] = w::gat(cx.bw, gr.b, k, l);
-    }
+    w::gather3(cx.vel, gr.a, 0, l, va);
+    w::gather3(cx.vel, gr.a, 4, l, wa);
+    w::gather3(cx.vel, gr.b, 0, l, vb);
+    w::gather3(cx.vel, gr.b, 4, l, wb);
     const int np = (int)gr.n_pts;
     M pt[4];  // point slot i exists in the lane
     for (int i = 0; i < 4; ++i) pt[i] = w::splat((double)i) < cnt;
@@ -278,7 +325,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
                     ra[k] = w::ld(gr.ra[i][k], l);
                     rb[k] = w::ld(gr.rb[i][k], l);
                 }
-                lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, d * nv[0], d * nv[1], d * nv[2], va,
+                lane_impulse<T>(on, gr, l, ra, rb, d * nv[0], d * nv[1], d * nv[2], va,
                                 wa, vb, wb);
             }
         }
@@ -306,7 +353,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             T dv = w::vabs(d) / w::ld(gr.nmass[i], l);
             chg = w::sel(w::mand(moved, dv > chg), dv, chg);
             mark = w::mor(mark, w::mand(moved, dv > tol));
-            lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, d * nv[0], d * nv[1], d * nv[2], va, wa,
+            lane_impulse<T>(on, gr, l, ra, rb, d * nv[0], d * nv[1], d * nv[2], va, wa,
                             vb, wb);
         }
     }
@@ -339,7 +386,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             T px = d1 * t1[0] + d2 * t2[0];
             T py = d1 * t1[1] + d2 * t2[1];
             T pz = d1 * t1[2] + d2 * t2[2];
-            lane_impulse<T>(on, ma, a6, mb, b6, ra, rb, px, py, pz, va, wa, vb, wb);
+            lane_impulse<T>(on, gr, l, ra, rb, px, py, pz, va, wa, vb, wb);
         }
     }
     // scatter the velocities of the visited lanes' bodies (never the static dummy's: it does not
@@ -351,14 +398,10 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     }
     M wa_on = w::mand(vis, w::from(a_dyn, l));
     M wb_on = w::mand(vis, w::from(b_dyn, l));
-    for (int k = 0; k < 3; ++k) {
-        w::sca(cx.bv, gr.a, k, l, va[k], wa_on);
-        w::sca(cx.bw, gr.a, k, l, wa[k], wa_on);
-    }
-    for (int k = 0; k < 3; ++k) {
-        w::sca(cx.bv, gr.b, k, l, vb[k], wb_on);
-        w::sca(cx.bw, gr.b, k, l, wb[k], wb_on);
-    }
+    w::scatter3(cx.vel, gr.a, 0, l, va, wa_on);
+    w::scatter3(cx.vel, gr.a, 4, l, wa, wa_on);
+    w::scatter3(cx.vel, gr.b, 0, l, vb, wb_on);
+    w::scatter3(cx.vel, gr.b, 4, l, wb, wb_on);
     for (int j = j0; j < j1; ++j) {
         int jj = w::width == 1 ? 0 : j;
         if (w::lane(mark, jj)) {

@@ -341,32 +341,31 @@ void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<do
         double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
         i64 start = mi(m, MI_START);
         i64 cnt = mi(m, MI_COUNT);
-        // normal block K_ij = J_i M^-1 J_j^T of the manifold's points
-        for (i64 p = start; p < start + cnt; ++p) {
-            double cax, cay, caz, cbx, cby, cbz, ix, iy, iz, jx, jy, jz;
-            cross(pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2), nx, ny, nz, cax, cay, caz);
-            cross(pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2), nx, ny, nz, cbx, cby, cbz);
-            smul(a0, a1, a2, a3, a4, a5, cax, cay, caz, ix, iy, iz);
-            smul(b0, b1, b2, b3, b4, b5, cbx, cby, cbz, jx, jy, jz);
-            for (i64 q = start; q < start + cnt; ++q) {
-                double dax, day, daz, dbx, dby, dbz;
-                cross(pf(q, PF_RA), pf(q, PF_RA + 1), pf(q, PF_RA + 2), nx, ny, nz, dax, day, daz);
-                cross(pf(q, PF_RB), pf(q, PF_RB + 1), pf(q, PF_RB + 2), nx, ny, nz, dbx, dby, dbz);
-                pf(p, PF_KN + q - start) = (ma + mb + dax * ix + day * iy + daz * iz + dbx * jx +
-                                            dby * jy + dbz * jz);
-            }
+        // normal block K_ij = J_i M^-1 J_j^T of the manifold's points (r x n of each point and
+        // I^-1 (r x n) once per point, then the products; a manifold has at most 4 points)
+        double ca[4][3], cb[4][3], jna[4][3], jnb[4][3];
+        for (i64 i = 0; i < cnt; ++i) {
+            i64 p = start + i;
+            cross(pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2), nx, ny, nz, ca[i][0], ca[i][1],
+                  ca[i][2]);
+            cross(pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2), nx, ny, nz, cb[i][0], cb[i][1],
+                  cb[i][2]);
+            smul(a0, a1, a2, a3, a4, a5, ca[i][0], ca[i][1], ca[i][2], jna[i][0], jna[i][1], jna[i][2]);
+            smul(b0, b1, b2, b3, b4, b5, cb[i][0], cb[i][1], cb[i][2], jnb[i][0], jnb[i][1], jnb[i][2]);
+        }
+        for (i64 i = 0; i < cnt; ++i) {
+            double* q_ = pf.row(start + i);
+            for (i64 j = 0; j < cnt; ++j)
+                q_[PF_KN + j] = (ma + mb + ca[j][0] * jna[i][0] + ca[j][1] * jna[i][1] +
+                                 ca[j][2] * jna[i][2] + cb[j][0] * jnb[i][0] + cb[j][1] * jnb[i][1] +
+                                 cb[j][2] * jnb[i][2]);
         }
         if (cnt > 1) factor_block(mf, m, pf, start, cnt, block_reg);
         for (i64 p = start; p < start + cnt; ++p) {
             double rax = pf(p, PF_RA), ray = pf(p, PF_RA + 1), raz = pf(p, PF_RA + 2);
             double rbx = pf(p, PF_RB), rby = pf(p, PF_RB + 1), rbz = pf(p, PF_RB + 2);
-            // normal row
-            double cax, cay, caz, cbx, cby, cbz, ix, iy, iz, jx, jy, jz;
-            cross(rax, ray, raz, nx, ny, nz, cax, cay, caz);
-            cross(rbx, rby, rbz, nx, ny, nz, cbx, cby, cbz);
-            smul(a0, a1, a2, a3, a4, a5, cax, cay, caz, ix, iy, iz);
-            smul(b0, b1, b2, b3, b4, b5, cbx, cby, cbz, jx, jy, jz);
-            double k = ma + mb + cax * ix + cay * iy + caz * iz + cbx * jx + cby * jy + cbz * jz;
+            // normal row: K_pp, the block's diagonal (the same products in the same order)
+            double k = pf(p, PF_KN + (p - start));
             pf(p, PF_NMASS) = k > 0.0 ? 1.0 / k : 0.0;
             // tangent block
             double ua1x, ua1y, ua1z, ua2x, ua2y, ua2z, ub1x, ub1y, ub1z, ub2x, ub2y, ub2z;
@@ -469,7 +468,20 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     i64 active = 0;
     for (i64 m = 0; m < n_man; ++m) active += mi(m, MI_ACTIVE);
     pack_lanes(mi, mf, pf, g, bm, bI, degree, inv_h, sor, lanes);
-    LaneCtx cx{bv.p, bw.p, hot.p, bm.n0 - 1, 0, min_iter, tol, newton_iters, newton_tol};
+    // the velocities in the kernels' layout (contact_lanes.hpp: BodyVel) while the sweeps run
+    const i64 n_rows = bm.n0;
+    lanes.vel.resize(n_rows);
+    for (i64 i = 0; i < n_rows; ++i) {
+        BodyVel& b = lanes.vel[i];
+        for (int k = 0; k < 3; ++k) {
+            b.v[k] = bv(i, k);
+            b.w[k] = bw(i, k);
+        }
+        b.v[3] = 0.0;
+        b.w[3] = 0.0;
+    }
+    LaneCtx cx{reinterpret_cast<double*>(lanes.vel.data()), hot.p, bm.n0 - 1, 0, min_iter, tol,
+               newton_iters, newton_tol};
     WideGroup* gr = lanes.groups.data();
     const i64 n_sets = (i64)lanes.set_group.size() - 1;
     const i64 n_wide = lanes.set_group[n_sets] - lanes.set_group[1];
@@ -649,6 +661,13 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     }
     if (eligible) record_cost(!serial, wall_ns() - solve_wall0, visits);
     unpack_lanes(mi, pf, lanes);
+    for (i64 i = 0; i < n_rows; ++i) {
+        const BodyVel& b = lanes.vel[i];
+        for (int k = 0; k < 3; ++k) {
+            bv(i, k) = b.v[k];
+            bw(i, k) = b.w[k];
+        }
+    }
     i64 den = active > 1 ? active : 1;
     i64 r = (visits + active - 1) / den;
     return r > 1 ? r : 1;
