@@ -273,8 +273,11 @@ class ContactParams:
             or two; the anchor closes that loop over steps whatever the sweep count or order.
             Measured on samples/pile.toml at seeds 1-12 (`rblog check`; benchmarks/RESULTS.md,
             "Contact solver: the loose pile", 2026-11-28): on, 11 of 12 seeds clean on the
-            coloured solve (seed 5: box132 creeps 0.155 mm on the ground); off, 5 of 12 (29
-            findings, creep up to 0.475 mm, measured with the colours in increasing order).
+            coloured solve; off, 5 of 12 (29 findings, creep up to 0.475 mm, measured with the
+            colours in increasing order). Seed 5's finding (box132 "creeps 0.155 mm on the
+            ground") is no creep: box182 strikes it twice between samples (steps 794 and 814),
+            it slides 99.96 and 51 um and stops before the next sample, and its slow slip is
+            5.9 um; the same run logged at every step reads 18.9 um of creep at most (0-1.5 s).
             Off, the earlier trajectories come back.
             The 500-box pile of tests/engine/contact/test_contact.py at dt 2e-3 stays within
             0.22-0.26 mm of penetration with it on (seeds 0-2; 0.5 mm allowed).
