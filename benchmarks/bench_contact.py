@@ -52,6 +52,8 @@ of the run (the settled pile); MuJoCo's own contact distances are shown too.
     python benchmarks/bench_contact.py --boxes 200 --duration 2 --no-mujoco
     python benchmarks/bench_contact.py --mujoco-config all   # default, tuned, soft, fast
     python benchmarks/bench_contact.py --no-pile             # only the stage-selection scenes
+    python benchmarks/bench_contact.py --no-forced --interleave --mujoco-config default
+                                    # both engines in turn, 10 steps each, wall and CPU time
 
 Stage selection is also shown on three scenes built for it (resting cubes that fall asleep,
 spheres that can never touch, bouncing spheres), where the forced run keeps every stage on.
@@ -73,28 +75,45 @@ from rblog.study.scenes import box_pile, make_model, make_state
 from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
 
 
-def run_rblog(model, state, dt, n_steps, sample_every, force_all=False, params=None):
+def rblog_chunks(model, state, dt, n_steps, sample_every, force_all=False, params=None):
+    """Step rblog's ContactWorld ``sample_every`` steps at a time; yields (steps, wall s, CPU s,
+    penetration m) per chunk, and returns the world (``yield from``)."""
     world = ContactWorld(model, params or ContactParams(), rot.METHOD_SPLITTING,
                          rot.ORTHO_NORMALIZE, force_all_stages=force_all)
     s = state.copy()
     n = model.n_bodies
     outs = [np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros((1, n, 4)), np.zeros((1, n, 3, 3)),
             np.zeros((1, n, 3))]
-    pens = []
-    wall = 0.0
     done = 0
     while done < n_steps:
         k = min(sample_every, n_steps - done)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         _, bad, _, _ = world.advance(dt, k, k, False, s.position, s.linear_momentum, s.quat_wxyz,
                                      s.rotation, s.angular_momentum_world, *outs)
-        wall += time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         if bad >= 0:
             raise RuntimeError(f"rblog diverged at step {done + bad}")
         done += k
         sep = separations(world, s.position, s.rotation)
-        pens.append(max(0.0, -sep.min()) if len(sep) else 0.0)
-    return n_steps / wall, np.array(pens), world
+        yield k, wall, cpu, (max(0.0, -sep.min()) if len(sep) else 0.0)
+    return world
+
+
+def _drain(gen):
+    """Run a chunk generator to its end: (list of its chunks, its return value)."""
+    chunks = []
+    while True:
+        try:
+            chunks.append(next(gen))
+        except StopIteration as stop:
+            return chunks, stop.value
+
+
+def run_rblog(model, state, dt, n_steps, sample_every, force_all=False, params=None):
+    chunks, world = _drain(rblog_chunks(model, state, dt, n_steps, sample_every, force_all,
+                                        params))
+    wall = sum(c[1] for c in chunks)
+    return n_steps / wall, np.array([c[3] for c in chunks]), world
 
 
 class MujocoConfig(NamedTuple):
@@ -173,35 +192,80 @@ def in_scratch_dir(fn, *args, **kwargs):
             os.chdir(old)
 
 
-def _run_mujoco(model, state, dt, n_steps, sample_every, world, config=MUJOCO_CONFIGS["default"]):
-    """Steps/s, penetration samples (rblog's narrowphase), MuJoCo's own deepest contact per
-    sample, version, and per-sample (contacts, solver iterations, awake bodies)."""
+def mujoco_chunks(model, state, dt, n_steps, sample_every, world, config=MUJOCO_CONFIGS["default"]):
+    """Step MuJoCo ``sample_every`` steps at a time; yields (steps, wall s, CPU s, penetration by
+    rblog's narrowphase m, MuJoCo's own deepest contact m, (contacts, solver iterations, awake
+    bodies)) per chunk, and returns MuJoCo's version (``yield from``)."""
     import mujoco
 
     m = mujoco.MjModel.from_xml_string(mujoco_model_xml(model, state, dt, config))
     d = mujoco.MjData(m)
     n = model.n_bodies
-    pens, own, work = [], [], []
-    wall = 0.0
     done = 0
     rot_buf = np.zeros((n, 3, 3))
     while done < n_steps:
         k = min(sample_every, n_steps - done)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         mujoco.mj_step(m, d, nstep=k)
-        wall += time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         done += k
         qpos = d.qpos.reshape(n, 7)
         rot_buf[:] = rotation.quat_to_matrix_np(qpos[:, 3:7] / np.linalg.norm(qpos[:, 3:7], axis=1,
                                                                         keepdims=True))
         sep = separations(world, np.ascontiguousarray(qpos[:, :3]), rot_buf)
-        pens.append(max(0.0, -sep.min()) if len(sep) else 0.0)
         dist = d.contact.dist[: d.ncon]
-        own.append(max(0.0, -dist.min()) if d.ncon else 0.0)
         iters = int(d.solver_niter[: max(d.nisland, 1)].max())
         asleep = getattr(d, "tree_asleep", None)
-        work.append((d.ncon, iters, n if asleep is None else int((asleep < 0).sum())))
-    return n_steps / wall, np.array(pens), np.array(own), mujoco.__version__, np.array(work)
+        yield (k, wall, cpu, max(0.0, -sep.min()) if len(sep) else 0.0,
+               max(0.0, -dist.min()) if d.ncon else 0.0,
+               (d.ncon, iters, n if asleep is None else int((asleep < 0).sum())))
+    return mujoco.__version__
+
+
+def _run_mujoco(model, state, dt, n_steps, sample_every, world, config=MUJOCO_CONFIGS["default"]):
+    """Steps/s, penetration samples (rblog's narrowphase), MuJoCo's own deepest contact per
+    sample, version, and per-sample (contacts, solver iterations, awake bodies)."""
+    chunks, version = _drain(mujoco_chunks(model, state, dt, n_steps, sample_every, world, config))
+    wall = sum(c[1] for c in chunks)
+    return (n_steps / wall, np.array([c[3] for c in chunks]), np.array([c[4] for c in chunks]),
+            version, np.array([c[5] for c in chunks]))
+
+
+def run_interleaved(model, state, dt, n_steps, sample_every, config):
+    """rblog and MuJoCo stepped chunk by chunk in turn (``sample_every`` steps of one, then of the
+    other) in this one thread, so that whatever else the machine runs slows both alike; returns
+    per engine (steps/s of wall time, steps/s of CPU time, penetrations), MuJoCo's own contact
+    depths, its work samples, its version and rblog's world."""
+    import mujoco  # noqa: F401  (fail here, not after rblog's first chunk)
+
+    from rblog.engine import _core
+
+    _core.set_threads(1)  # MuJoCo steps on one thread
+    rg = rblog_chunks(model, state, dt, n_steps, sample_every)
+    # MuJoCo's penetration is measured by rblog's narrowphase: a world of the same bodies
+    probe = ContactWorld(model, ContactParams(), rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
+    mg = mujoco_chunks(model, state, dt, n_steps, sample_every, probe, config)
+    r_chunks, m_chunks = [], []
+    world = version = None
+    while world is None or version is None:
+        if world is None:
+            try:
+                r_chunks.append(next(rg))
+            except StopIteration as stop:
+                world = stop.value
+        if version is None:
+            try:
+                m_chunks.append(next(mg))
+            except StopIteration as stop:
+                version = stop.value
+
+    def rates(chunks):
+        steps = sum(c[0] for c in chunks)
+        return (steps / sum(c[1] for c in chunks), steps / sum(c[2] for c in chunks),
+                np.array([c[3] for c in chunks]))
+
+    return (rates(r_chunks), rates(m_chunks), np.array([c[4] for c in m_chunks]),
+            np.array([c[5] for c in m_chunks]), version, world)
 
 
 def stage_scenes():
@@ -265,6 +329,10 @@ def main(argv=None):
     ap.add_argument("--no-mujoco", action="store_true")
     ap.add_argument("--no-forced", action="store_true", help="skip the force_all_stages runs")
     ap.add_argument("--no-pile", action="store_true", help="only the stage-selection scenes")
+    ap.add_argument("--interleave", action="store_true",
+                    help="step rblog (one thread) and MuJoCo chunk by chunk in turn, over the "
+                         "same --duration, and report wall- and CPU-time steps/s of both (one "
+                         "MuJoCo setup: --mujoco-config NAME)")
     args = ap.parse_args(argv)
     if args.mujoco_config not in ("both", "all"):
         bad = set(args.mujoco_config.split(",")) - set(MUJOCO_CONFIGS)
@@ -289,9 +357,32 @@ def main(argv=None):
     n_steps = int(round(args.duration / args.dt))
     print(f"pile: {args.boxes} cubes 0.1 m, dropped from up to 2 m; dt = {args.dt:g} s, "
           f"{n_steps} steps ({args.duration:g} s)")
-    # warm-up: compile the kernels on a small pile (cached afterwards)
+    # warm-up: first-call costs (imports, allocations) on a small pile
     wm, ws = box_pile(20)
     run_rblog(wm, ws, args.dt, 20, 10)
+    if args.interleave:
+        name = args.mujoco_config
+        if name not in MUJOCO_CONFIGS:
+            ap.error(f"--interleave takes one --mujoco-config of {sorted(MUJOCO_CONFIGS)}")
+        if importlib.util.find_spec("mujoco") is None:
+            ap.error("--interleave needs MuJoCo (pip install mujoco)")
+        (r_wall, r_cpu, r_pen), (m_wall, m_cpu, m_pen), own_m, work, ver, world = \
+            run_interleaved(model, state, args.dt, n_steps, args.sample_every,
+                            MUJOCO_CONFIGS[name])
+        st = world.stats
+        print(f"interleaved, {args.sample_every} steps of each in turn, one thread each\n")
+        print(f"  {'engine':24s} {'wall steps/s':>13s} {'CPU steps/s':>12s}   penetration")
+        print(f"  {'rblog':24s} {r_wall:13.1f} {r_cpu:12.1f}   {stats(r_pen)}")
+        print(f"  {'MuJoCo ' + ver + ' ' + name:24s} {m_wall:13.1f} {m_cpu:12.1f}   "
+              f"{stats(m_pen)}")
+        print(f"  rblog per step: {st[3] / max(st[0], 1):.0f} contact points, "
+              f"{st[8] / max(st[0], 1):.1f} sweeps; {world.n_awake} awake at the end")
+        print(f"  MuJoCo per sample: {work[:, 0].mean():.0f} contacts, {work[:, 1].mean():.1f} "
+              f"solver iterations (max {work[:, 1].max()}); own contact distances "
+              f"{stats(own_m)}")
+        print(f"  {MUJOCO_CONFIGS[name].summary}")
+        print(f"  rblog / MuJoCo {name}: {r_wall / m_wall:.2f}x (wall), {r_cpu / m_cpu:.2f}x (CPU)")
+        return
 
     sps, pens, world = run_rblog(model, state, args.dt, n_steps, args.sample_every)
     print("\nstages chosen:")
