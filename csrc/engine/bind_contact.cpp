@@ -226,12 +226,16 @@ void bind_contact(nb::module_& m) {
                                     v2<double>(inv_inertia, "inv_inertia"), h);
     });
     m.def("stage_record_contacts", [](i64 s, nb::handle mi, nb::handle mf, nb::handle pf,
-                                      i64 n_man, nb::handle log_i_, nb::handle log_f_,
+                                      i64 n_man, nb::handle position, nb::handle rotation,
+                                      nb::handle pose0, nb::handle log_i_, nb::handle log_f_,
                                       i64 n_log) {
         Buf2<i64> log_i = buf_from<i64>(log_i_, "log_i");
         Buf2<double> log_f = buf_from<double>(log_f_, "log_f");
         n_log = step::record_contacts(s, v2<i64>(mi, "mi"), v2<double>(mf, "mf"),
-                                      v2<double>(pf, "pf"), n_man, log_i, log_f, n_log);
+                                      v2<double>(pf, "pf"), n_man,
+                                      v2<double>(position, "position"),
+                                      v3<double>(rotation, "rotation"),
+                                      v2<double>(pose0, "pose0"), log_i, log_f, n_log);
         return std::make_tuple(copy_out(log_i), copy_out(log_f), n_log);
     });
 

@@ -286,6 +286,9 @@ struct ContactCache {
     Buf2<double> mf0, pf0;
     Buf2<i64> pid0;  // one column
     i64 n_man0 = 0;
+    // (N, 12) each body's position and row-major rotation at the start of the step that made
+    // mi0 (the contact rows' separations carry the anchors from there: record_contacts)
+    Buf2<double> pose0;
     Buf2<i64> keys0, idx0;  // one column
     Buf2<i64> mi1;
     Buf2<double> mf1, pf1;

@@ -426,28 +426,58 @@ i64 first_diverged(V1<i64> awake, const BodyState& x, V2<double> inv_inertia, do
     return -1;
 }
 
-// The contact rows of step s: every point that pushed or touches (trajectory.Contacts).
-// Returns n_log; the log may have grown.
+// The contact rows of step s: every point that pushed or touches (trajectory.Contacts), from
+// the manifolds of the last step run (mi, mf, pf), with the separation at the end-of-step poses
+// (the contract's "after the step").
+//
+// A point's two anchors start at the one world point p (PF_RA = p - x_a, PF_RB = p - x_b at the
+// step's start; pose0: (N, 12) each body's position and row-major rotation then) with the gap
+// PF_S along the normal n. Each anchor moves with its body's whole motion over the step, the
+// project stage's pushes included: a_end = x_a + R_a R0_a^T r_a (b likewise; static geometry
+// does not move), so the end-of-step gap is PF_S + n . (a_end - b_end). The normal is the
+// step's: its turn changes the gap only by turn x |a_end - b_end|, second order, since the
+// anchors start together. (PF_SEND, the solver's linear estimate s + h (v_n + v_n pseudo) read by
+// the restitution and sleep stages, misses the project stage's pushes: up to 1.3 mm off the
+// poses on samples/pile.toml's rows.) Returns n_log; the log may have grown.
 i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
+                    V2<double> position, V3<double> rotation, V2<double> pose0,
                     Buf2<i64>& log_i, Buf2<double>& log_f, i64 n_log) {
     i64 need = n_log;
     for (i64 m = 0; m < n_man; ++m) need += mi(m, MI_COUNT);
     log_i.grow(need);
     log_f.grow(need);
+    // the world displacement of anchor r of body i over the step: x - x0 + (R R0^T - I) r
+    auto moved = [&](i64 i, const double* r, double* d) {
+        const double* q0 = pose0.row(i);
+        const double* R0 = q0 + 3;
+        double u[3];  // R0^T r: the anchor in the body frame
+        for (int k = 0; k < 3; ++k) u[k] = R0[k] * r[0] + R0[3 + k] * r[1] + R0[6 + k] * r[2];
+        for (int k = 0; k < 3; ++k)
+            d[k] = position(i, k) - q0[k] +
+                   (rotation(i, k, 0) * u[0] + rotation(i, k, 1) * u[1] + rotation(i, k, 2) * u[2]) -
+                   r[k];
+    };
     for (i64 m = 0; m < n_man; ++m) {
         i64 start = mi(m, MI_START);
+        i64 a = mi(m, MI_REC_A), b = mi(m, MI_REC_B);
+        const double n[3] = {mf(m, MF_N), mf(m, MF_N + 1), mf(m, MF_N + 2)};
         for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            if (pf(p, PF_LN) <= 0.0 && pf(p, PF_SEND) > 0.0) continue;
+            double da[3], db[3] = {0.0, 0.0, 0.0};
+            moved(a, pf.row(p) + PF_RA, da);
+            if (b >= 0) moved(b, pf.row(p) + PF_RB, db);
+            double sep = pf(p, PF_S) + n[0] * (da[0] - db[0]) + n[1] * (da[1] - db[1]) +
+                         n[2] * (da[2] - db[2]);
+            if (pf(p, PF_LN) <= 0.0 && sep > 0.0) continue;
             log_i(n_log, LOG_STEP) = s;
-            log_i(n_log, LOG_A) = mi(m, MI_REC_A);
-            log_i(n_log, LOG_B) = mi(m, MI_REC_B);
+            log_i(n_log, LOG_A) = a;
+            log_i(n_log, LOG_B) = b;
             log_i(n_log, LOG_KIND) = pf(p, PF_IMPACT) > 0.0 ? CONTACT_IMPACT : CONTACT_RESTING;
             for (int k = 0; k < 3; ++k) {
                 log_f(n_log, LOG_P + k) = pf(p, PF_P + k);
-                log_f(n_log, LOG_N + k) = mf(m, MF_N + k);
+                log_f(n_log, LOG_N + k) = n[k];
                 log_f(n_log, LOG_F + k) = pf(p, PF_F + k);
             }
-            log_f(n_log, LOG_S) = pf(p, PF_SEND);
+            log_f(n_log, LOG_S) = sep;
             log_f(n_log, LOG_LN) = pf(p, PF_LN);
             n_log += 1;
         }
@@ -481,6 +511,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
     double inv_h = 1.0 / dt;
     Scratch& sc = c.sc;
     sc.make(n, st);
+    if (c.pose0.rows != n || c.pose0.cols != 12) c.pose0 = Buf2<double>(n, 12);
     i64 n_log = 0;
     i64 n_samples = 0;
     // garbage in: a non-finite state handed to this call is reported at its first step
@@ -497,6 +528,12 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
         if (n_awake > 0) {
             stats[ST_STEPS] += 1;
             stats[ST_AWAKE] += n_awake;
+            // the poses the contact rows' anchors start from (record_contacts)
+            for (i64 i = 0; i < n; ++i) {
+                double* q0 = &c.pose0(i, 0);
+                for (int k = 0; k < 3; ++k) q0[k] = x.position(i, k);
+                for (int k = 0; k < 9; ++k) q0[3 + k] = x.rotation(i, k / 3, k % 3);
+            }
             if (do_prof) t = ticks();
             if (cfg.do_kick) kick(bd, sl.awake, x, h);                                     // 1
             if (do_prof) t = lap(prof, P_KICK, t);
@@ -572,7 +609,8 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
                              out.quat_wxyz, out.rotation, out.angular_momentum);
             n_samples += 1;
             n_log = record_contacts(s, c.mi0.view(), c.mf0.view(), c.pf0.view(), c.n_man0,
-                                    c.log_i, c.log_f, n_log);
+                                    x.position, x.rotation, c.pose0.view(), c.log_i, c.log_f,
+                                    n_log);
             if (do_prof) t = lap(prof, P_SAMPLE, t);
         }
     }

@@ -49,6 +49,7 @@ std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const Sle
                                 V2<double> pf, i64 n_man, double h, i64 n_awake);
 i64 first_diverged(V1<i64> awake, const BodyState& x, V2<double> inv_inertia, double h);
 i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
+                    V2<double> position, V3<double> rotation, V2<double> pose0,
                     Buf2<i64>& log_i, Buf2<double>& log_f, i64 n_log);
 
 }  // namespace step

@@ -21,7 +21,17 @@ Per event (arrays of E events):
   samples before and after (the time of touch is where the separation sep + v_n tau + a_n tau^2/2
   reaches 0). Computed for one body against one static feature (contact point: witness of the
   deepest point) and for two spheres (line of centres); NaN otherwise.
-* ``e_eff = -v_plus / v_minus`` (Newton's restitution of the whole event), ``duration_s`` (from
+* ``e_eff = -v_plus / v_minus`` (Newton's restitution of the whole event); ``e_lo, e_hi`` the
+  range of restitutions the samples allow: ``-v_n+(tau) / v_n-(tau)`` with the approach arc (from
+  sample k0) and the rebound arc (back from k1+1) both taken to one moment tau of the impulse,
+  for tau anywhere from the touch to the separation, widened by the touch's and the separation's
+  own uncertainty (the stepper's flight error, :func:`flight_error`, over the extrapolation) and
+  then to the integrator steps (RunInfo.dt) they fall in, within the event's samples; +inf where
+  the approach would have stopped within the window. e(tau) is monotonic, so the range is its
+  ends' (and holds e_eff). Exact arcs give the range of the one step the touch falls in (their
+  touch and separation coincide, and their flight error is round-off). ``gap_s`` the
+  separation minus the touch time (negative when the rebound arc leaves before the approach arc
+  arrives: a stepper that reflects the penetration), ``duration_s`` (from
   touch to separation when both are known, else the event's sample span), ``impulse_ns`` (|sum of
   the first member's contact impulses over the event|, N s), ``peak_penetration_m`` (deepest
   overlap of the members with their partner at the event's samples, recomputed from the poses),
@@ -44,6 +54,10 @@ from rblog.analyze import _audit
 from rblog.contract.model import SHAPE_SPHERE
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
+
+
+#: a touch within this fraction of a step of a step boundary may lie in either step
+_STEP_EPS = 1e-6
 
 
 def contact_time(sep0, vn0, an, dt):
@@ -75,6 +89,9 @@ class Events:
     v_minus: np.ndarray
     v_plus: np.ndarray
     e_eff: np.ndarray
+    e_lo: np.ndarray           # (E,) restitution range the samples allow (see the docstring)
+    e_hi: np.ndarray
+    gap_s: np.ndarray          # (E,) separation minus touch time, signed (NaN: not computed)
     sphere: np.ndarray         # (E,) restitution is one number (spheres)
     duration_s: np.ndarray
     impulse_ns: np.ndarray
@@ -204,6 +221,9 @@ def _events(ctx, cd, dt_factor) -> Events:
 
     v_minus = np.full(e_n, np.nan)
     v_plus = np.full(e_n, np.nan)
+    gap = np.full(e_n, np.nan)
+    e_at_touch = np.full(e_n, np.nan)
+    e_at_sep = np.full(e_n, np.nan)
     duration = span.astype(float).copy()
     peak = np.zeros(e_n)
     peak_pt = np.full((e_n, 3), np.nan)
@@ -254,10 +274,41 @@ def _events(ctx, cd, dt_factor) -> Events:
         ts = contact_time(sep["a"], -vn1, an1, dt_a)              # separation before sample k1+1
         v_minus[idx] = vn0 + an0 * tc
         v_plus[idx] = vn1 - an1 * ts
-        duration[idx] = np.maximum(span[idx] - tc - ts, 0.0)
+        gap[idx] = span[idx] - tc - ts
+        duration[idx] = np.maximum(gap[idx], 0.0)
+        # the window the impulse may lie in (s after sample k0): from the touch to the separation,
+        # widened to the integrator steps they fall in; both arcs are taken to its ends
+        sp = span[idx]
+        t_sep = sp - ts
+        h = ctx.dt_step if ctx.dt_step > 0 else np.inf
+        # the touch and the separation come from the logged velocity and position at k0 (k1+1);
+        # where a stepper's velocities disagree with its positions by dv (its flight error,
+        # measured over the free intervals next to the event), the extrapolated height is off by
+        # dv tau and the moment by dv tau / |v_n|
+        dv = np.fmax(flight_error(ctx, kb[idx] - 1, a, b if kind == "pair" else None),
+                     flight_error(ctx, ka[idx], a, b if kind == "pair" else None))
+        dv = np.where(np.isnan(dv), 0.5 * np.abs(np.fmax(an0, an1)) * (h if np.isfinite(h)
+                                                                        else dt_b), dv)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d_tc = np.nan_to_num(dv * tc / np.abs(v_minus[idx]), nan=np.inf)
+            d_ts = np.nan_to_num(dv * ts / np.abs(v_plus[idx]), nan=np.inf)
+        lo = np.minimum(tc - d_tc, t_sep - d_ts)
+        hi = np.maximum(tc + d_tc, t_sep + d_ts)
+        if np.isfinite(h):
+            lo = np.floor(lo / h - _STEP_EPS) * h
+            hi = (np.floor(hi / h + _STEP_EPS) + 1.0) * h
+        else:
+            lo, hi = np.zeros_like(sp), sp
+        lo, hi = np.clip(lo, 0.0, sp), np.clip(hi, 0.0, sp)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for out, tau in ((e_at_touch, lo), (e_at_sep, hi)):
+                v_in = vn0 + an0 * tau
+                out[idx] = np.where(v_in < 0, -(vn1 - an1 * (sp - tau)) / v_in, np.inf)
         sphere[idx] = shape[a] == SHAPE_SPHERE
     with np.errstate(invalid="ignore", divide="ignore"):
         e_eff = -v_plus / v_minus
+    e_lo = np.fmin(np.fmin(e_at_touch, e_at_sep), e_eff)
+    e_hi = np.fmax(np.fmax(e_at_touch, e_at_sep), e_eff)
     last = tr.n_samples - 1
     separated = (ka < last) & ~(v_plus < 0)
     # peak penetration over the event's samples: the members against the ground (at both samples
@@ -308,14 +359,43 @@ def _events(ctx, cd, dt_factor) -> Events:
                 peak_pt[evs_hit[r]] = prox.iv_geometry(x[r], end)[2]
     return Events(k0=k0, k1=k1, static_id=sid, size=size, first=first, groups=grp,
                   t0=t[kb] if e_n else np.zeros(0), t1=t[ka] if e_n else np.zeros(0),
-                  v_minus=v_minus, v_plus=v_plus, e_eff=e_eff, sphere=sphere,
-                  duration_s=duration, impulse_ns=impulse, peak_penetration_m=peak,
+                  v_minus=v_minus, v_plus=v_plus, e_eff=e_eff, e_lo=e_lo, e_hi=e_hi,
+                  gap_s=gap, sphere=sphere, duration_s=duration, impulse_ns=impulse,
+                  peak_penetration_m=peak,
                   peak_point=peak_pt, separated=separated, energy_change=energy_change,
                   ke_before=ke_before, ke_after=ke_after, dt_allow=dt_allow,
                   mass_accel=mass_accel, speed_before=speed_before,
                   stored_before=per_event(stored_energy(ctx, kbm, mem)),
                   stored_after=per_event(stored_energy(ctx, kam, mem)),
                   member_event=ev_of_member)
+
+
+def flight_error(ctx, k: np.ndarray, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
+    """(P,) how far the logged velocities of body a (and b) disagree with their positions over
+    the sample interval k .. k+1 (m/s): ``|(x(k+1) - x(k)) / dt - (v(k) + v(k+1)) / 2|``, summed
+    over the two bodies (a bound on their relative motion's); NaN where k is outside the log. The
+    trapezoid rule is exact for motion at constant acceleration, so exact flight gives round-off;
+    a first-order stepper logs the velocity of its step's second half (symplectic Euler) or first
+    half (explicit Euler): |a| dt / 2. An impulse inside the interval shows as a larger value."""
+    tr = ctx.traj
+    out = np.full(len(k), np.nan)
+    ok = (k >= 0) & (k < tr.n_samples - 1)
+    if not ok.any():
+        return out
+    kk = k[ok]
+    dt = ctx.dts[kk]
+    res = np.zeros(len(kk))
+    for body in (a, b):
+        if body is None:
+            continue
+        i = body[ok]
+        x0, x1 = tr.position[kk, i], tr.position[kk + 1, i]
+        v0, v1 = tr.velocity[kk, i], tr.velocity[kk + 1, i]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = np.linalg.norm((x1 - x0) / dt[:, None] - 0.5 * (v0 + v1), axis=1)
+        res = res + np.where(dt > 0, d, np.inf)
+    out[ok] = res
+    return out
 
 
 def stored_energy(ctx, k: np.ndarray, i: np.ndarray) -> np.ndarray:

@@ -13,13 +13,14 @@ pivoting on a corner of another) has no slip there.
   sphere rolling without slip, and a box tipping over an edge, have a resting contact point; a
   bouncing ball does not.
 * Per resting interval: max and mean depth, duration; after SETTLE_S, the largest contact-point
-  speed, jitter and creep. Jitter is the alternating part of the contact-point velocity,
+  speed and jitter; creep over the whole interval less its settling slide. Jitter is the
+  alternating part of the contact-point velocity,
   ``|v(k+1) - 2 v(k) + v(k-1)| / 4`` on one partner, kept only where it persists over
   JITTER_PERSIST_SAMPLES consecutive samples: exactly the amplitude of a velocity that flips
   between samples, and zero for any motion at constant acceleration (a body that slides off
   slowly, decelerates to a stop or tips over) and for a single kick (a resting box struck by
-  another: an impact, not jitter). Creep is the net tangential slide at the contact over the
-  settled part of the interval, taken from the poses (not the logged velocities): over each
+  another: an impact, not jitter). Creep is the net tangential slide at the contact while
+  settled, taken from the poses (not the logged velocities): over each
   sample interval, each body's rigid displacement field ``d(y) = dx + theta x (y - x)`` (dx its
   centre's displacement, theta the rotation vector of R(k+1) R(k)^T) at the contact point, body
   minus partner, tangential part, summed; an interval counts in full when both its samples are
@@ -38,7 +39,19 @@ pivoting on a corner of another) has no slip there.
   contact_slide in csrc/audit/penetration.cpp). From the poses, motion the
   velocities do not show is creep too (an engine's position correction pushing a resting body
   along at a few mm/s, steps between samples at which a contact slipped slowly),
-  and velocities that never move the body (spikes between steps) are not.
+  and velocities that never move the body (spikes between steps) are not. Settled means after
+  the settling slide: a stay begins with the body's arrival (it lands, slides to a stop, the
+  solver settles it), so within its first SETTLE_S the intervals before the first of least slide
+  do not count, and the others count at most at the stay's steady slip speed over the next
+  SETTLE_S (:func:`_settling_slide`). A body at rest, or creeping at a steady rate from its first
+  sample, is settled throughout (a 0.30 mm creep reads 0.30 mm wherever in the stay it begins;
+  before, the first SETTLE_S never counted: 0.285 mm for a creep from the first sample); a box
+  that lands or slides to a stop keeps none of its arrival (tests/analyze/test_creep.py). A
+  contact two bodies both take as their support (each the other's deepest: boxes side by side in
+  a pile) slides the same for both: it counts once, for the body it holds up (along -gravity;
+  the lower index when level), and a finding names the partner its creep was measured against
+  when that is not the stay's first (the 500-box pile once read the one slide between box315 and
+  box317, 0.105 mm, as box315's "on the ground" and box317's "on box316").
 * Sliding is not resting: at a sample where the support contact's logged rows (the pair's points
   at the sample's step) are at their Coulomb limit, ``|f| >= (1 - SLIDE_CONE_FRAC) mu J_n``, all
   but at most one (a rigid contact that slips, translating or twisting about its normal, slips
@@ -83,6 +96,98 @@ def _partner_label(model, b: int) -> str:
     if b >= n:
         return f"static box {b - n}"
     return body_label(model, b)
+
+
+def _mutual_lower(pk, pi_, pb, normal, model, n: int, t_n: int) -> np.ndarray:
+    """(R,) True at the support rows of a body whose partner (a body) takes it as its own support
+    at the same sample, for the one of the two that lies below: normal (partner -> body) less
+    along -gravity than its partner's (the lower body index when level or without gravity)."""
+    r_n = len(pk)
+    out = np.zeros(r_n, bool)
+    dyn = (pb >= 0) & (pb < n)
+    if not dyn.any():
+        return out
+    row_of = np.full((n, t_n), -1, np.int64)
+    row_of[pi_, pk] = np.arange(r_n)
+    rows = np.nonzero(dyn)[0]
+    other = row_of[pb[rows], pk[rows]]
+    mutual = (other >= 0) & (pb[np.maximum(other, 0)] == pi_[rows])
+    rows, other = rows[mutual], other[mutual]
+    g = np.asarray(model.gravity, float)
+    gn = np.linalg.norm(g)
+    up = -g / gn if gn > 0 else np.zeros(3)
+    mine, theirs = normal[rows] @ up, normal[other] @ up
+    out[rows] = (mine < theirs) | ((mine == theirs) & (pi_[rows] > pi_[other]))
+    return out
+
+
+def _main_partner(contrib, run_of, pb, in_run, nr: int, partner_default) -> np.ndarray:
+    """(runs,) the partner of each run whose intervals slide the most in net (|sum|), or
+    ``partner_default`` where nothing slid."""
+    out = np.asarray(partner_default).copy()
+    rows = np.nonzero(in_run & (np.abs(contrib).sum(axis=1) > 0))[0]
+    if not len(rows):
+        return out
+    key = run_of[rows].astype(np.int64) * (int(pb.max()) + 2) + (pb[rows] + 1)
+    uk, inv = np.unique(key, return_inverse=True)
+    tot = np.stack([np.bincount(inv, contrib[rows, d], len(uk)) for d in range(3)], 1)
+    mag = np.linalg.norm(tot, axis=1)
+    run_k = uk // (int(pb.max()) + 2)
+    order = np.lexsort((-mag, run_k))
+    first = np.r_[True, run_k[order][1:] != run_k[order][:-1]]
+    best = order[first]
+    out[run_k[best]] = (uk[best] % (int(pb.max()) + 2)) - 1
+    return out
+
+
+#: per-interval slides closer than this fraction of the creep tolerance are equal (1e-10 m at the
+#: default: four orders above the round-off of a pose difference, six below the tolerance)
+_EQUAL_SLIDE_FRAC = 1e-6
+#: an early interval slipping within this fraction of the stay's steady slip speed counts in full
+#: (a box swinging at 0.05 rad/s as it creeps along its edge, tests/analyze/test_witness.py,
+#: changes its slip speed by up to 1 - cos(0.05 x 0.2) = 5e-5 of itself over two SETTLE_S)
+_STEADY_FRAC = 1e-2
+
+
+def _settling_slide(contrib: np.ndarray, early: np.ndarray, ref: np.ndarray,
+                    run_of: np.ndarray, dt_w: np.ndarray, nr: int, equal_m: float) -> np.ndarray:
+    """The slide of each interval (R, 3) (row r: the interval from row r to r + 1, already
+    weighted), with the settling slide of each stay taken out of its first SETTLE_S.
+
+    Of the ``early`` intervals (R bool: those starting within the stay's first SETTLE_S), the ones
+    before the first of least slide count 0 (the body slowing to its least: arriving, landing,
+    sliding to a stop, the solver settling), and the others count at most the stay's steady slip
+    speed, ``sum of |slide| / sum of dt_w`` over its ``ref`` intervals (the next SETTLE_S; dt_w
+    (R,) the interval's weighted duration, s), times their own dt_w, within _STEADY_FRAC (a steady
+    slip whose speed drifts slowly, a box swinging as it creeps, changes by far less per
+    SETTLE_S). Slides within ``equal_m`` (m) of the least count as equal to it (the round-off of
+    a difference of poses is ~1e-14 m). So a body at rest, or creeping at a steady
+    rate from its first sample, keeps all of its slide, and a box that lands or slides to a stop
+    keeps none of its arrival.
+    """
+    out = contrib.copy()
+    rows = np.nonzero(early)[0]
+    if not len(rows):
+        return out
+    ref_rows = np.nonzero(ref)[0]
+    tot = np.bincount(run_of[ref_rows], weights=np.linalg.norm(contrib[ref_rows], axis=1),
+                      minlength=nr)
+    dur = np.bincount(run_of[ref_rows], weights=dt_w[ref_rows], minlength=nr)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rate = np.where(dur > 0, tot / dur, 0.0)
+    mag = np.linalg.norm(contrib[rows], axis=1)
+    run = run_of[rows]
+    least = np.full(nr, np.inf)
+    np.minimum.at(least, run, mag)
+    at = rows[mag <= least[run] + equal_m]
+    first = np.full(nr, np.iinfo(np.int64).max)
+    np.minimum.at(first, run_of[at], at)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        keep = np.where(rows >= first[run],
+                        np.minimum(1.0, np.where(mag > 0, (1.0 + _STEADY_FRAC) * rate[run]
+                                                 * dt_w[rows] / mag, 1.0)), 0.0)
+    out[rows] *= keep[:, None]
+    return out
 
 
 class PenetrationAnalyzer(Analyzer):
@@ -439,13 +544,14 @@ class PenetrationAnalyzer(Analyzer):
                 osc = eroded
             jit = red(np.maximum, osc)
             has_settled = red(np.maximum, settled.astype(float)) > 0
-            slow = settled & ~slides & (np.sqrt(np.einsum("ij,ij->i", slip, slip))
-                                        <= tol["creep_speed_mps"])
-            # the contact's slide over each interval between consecutive settled rows of the
-            # same run on the same partner, from the poses; an interval counts in full when both
-            # ends are slow and not sliding, half when one is (a trapezoid of the slip)
+            slow = in_run & ~slides & (np.sqrt(np.einsum("ij,ij->i", slip, slip))
+                                       <= tol["creep_speed_mps"])
+            # the contact's slide over each interval between consecutive rows of the same run on
+            # the same partner, from the poses; an interval counts in full when both ends are
+            # slow and not sliding, half when one is (a trapezoid of the slip); the intervals of
+            # the first SETTLE_S only as far as the settling allows (_settling_slide)
             both = np.zeros(nrow, bool)
-            both[:-1] = settled[:-1] & settled[1:] & nxt_same[:-1] & (pb[1:] == pb[:-1])
+            both[:-1] = in_run[:-1] & in_run[1:] & nxt_same[:-1] & (pb[1:] == pb[:-1])
             # ... and no impact between the samples: an interval over which the body (or a body
             # partner) changes its velocity, or its angular velocity times its reach, by more than
             # the creep speed beyond what its neighbouring intervals change it (a steady
@@ -486,7 +592,24 @@ class PenetrationAnalyzer(Analyzer):
                 weight[:-1] = np.where(fast, 0.0, weight[:-1])
                 stats["creep_fast_intervals"] = float(fast.sum())
             contrib *= weight[:, None]
+            if nrow > 1 and t_n > 1:
+                t_run0 = t[ks][run_of]
+                t_row = t[pk]
+                dt_row = np.zeros(nrow)
+                dt_row[:-1] = span_t
+                contrib = _settling_slide(
+                    contrib, both & (weight > 0) & in_run & ~settled,
+                    both & (weight > 0) & settled & (t_row < t_run0 + 2.0 * tol["settle_s"]),
+                    run_of, dt_row * weight, nr, _EQUAL_SLIDE_FRAC * tol["creep_m"])
+            # a contact two bodies both take as their support (each the other's deepest: boxes
+            # side by side in a pile) slides the same for both: it is counted once, for the body
+            # it holds up (the one on top along gravity; the lower index when level)
+            contrib[_mutual_lower(pk, pi_, pb, pnorm, model, n, t_n)] = 0.0
             creep = np.linalg.norm(red(np.add, contrib), axis=1)
+            # the partner the creep was measured against (a stay may change its deepest contact):
+            # the one whose intervals slide the most, named when it is not the stay's first
+            creep_partner = _main_partner(contrib, run_of, pb, in_run, nr,
+                                          partner_default=pb[starts])
             jit = np.where(has_settled, jit, np.nan)
             creep = np.where(has_settled, creep, np.nan)
             speed_settled = np.where(has_settled, speed_settled, np.nan)
@@ -534,8 +657,10 @@ class PenetrationAnalyzer(Analyzer):
                 (fin & (np.nan_to_num(creep) > tol["creep_m"]), lambda r: Finding(
                     self.name,
                     f"{body_label(model, int(bs[r]))} creeps {what_rest(r)}: slides "
-                    f"{creep[r] * 1e3:.3g} mm at the contact while settled (tol "
-                    f"{tol['creep_m'] * 1e3:.3g} mm)",
+                    f"{creep[r] * 1e3:.3g} mm at the contact while settled"
+                    + ("" if creep_partner[r] == partner[r] else
+                       f", on {_partner_label(model, int(creep_partner[r]))}")
+                    + f" (tol {tol['creep_m'] * 1e3:.3g} mm)",
                     float(creep[r]), tol["creep_m"], "m", int(step[ke[r]]), float(t[ke[r]]),
                     [int(bs[r])])),
             )

@@ -89,10 +89,12 @@ MOMENTUM_CONE_REL = 1e-3
 MOMENTUM_IMPACT_SPEED_MPS = 0.1
 #: |e_effective - e_configured| allowed for a sphere's impact event, as a fraction of the
 #: configured e (dimensionless): 2% of e (0.016 at e = 0.8, so MuJoCo's 0.82 for a configured 0.8
-#: is caught), on top of the discretization term (1 + e) |a_n| dt / |v_n| (an engine resolves the
-#: impact at a step boundary, up to dt away from the exact time of contact). e_effective is the
-#: whole event's -v_n(separation) / v_n(touch) (rblog.analyze.events), so an impact a soft engine
-#: spreads over many steps is judged once.
+#: is caught), on top of what the samples leave unknown: the moment of the impulse, anywhere from
+#: the touch to the separation and within the integrator steps they fall in, which gives a range
+#: of restitutions (rblog.analyze.events, Events.e_lo .. e_hi; one step at a 1 m drop: 0.033 at
+#: dt = 10 ms, 0.0033 at 1 ms); only the part of the range between e_effective and the configured
+#: e is added. e_effective is the whole event's -v_n(separation) / v_n(touch), so an impact a soft
+#: engine spreads over many steps is judged once.
 MOMENTUM_RESTITUTION_REL = 0.02
 #: An event is judged as an impact (restitution, lost bounce) only while the free acceleration
 #: changes the normal velocity during it by less than this fraction of the approach speed,
@@ -139,8 +141,10 @@ PENETRATION_TRANSIENT_FRAC = 0.25
 #: for at least REST_MIN_SAMPLES consecutive samples. A rolling sphere's contact point is at rest.
 PENETRATION_REST_SPEED_MPS = 0.05
 PENETRATION_REST_MIN_SAMPLES = 3
-#: Jitter and creep are measured after the body has rested this long (s): a body sliding to a
-#: stop from REST_SPEED under friction mu >= 0.05 needs < 0.1 s.
+#: Jitter is measured after the body has rested this long (s): a body sliding to a stop from
+#: REST_SPEED under friction mu >= 0.05 needs < 0.1 s. Creep counts the whole stay but the
+#: settling slide within this time: the slide before the body first slows to its least, and what
+#: it slides faster than its steady slip over the next SETTLE_S (rblog.analyze.penetration).
 PENETRATION_SETTLE_S = 0.1
 #: Max jitter while settled (m/s): the alternating part of the contact-point velocity between
 #: samples (see rblog.analyze.penetration). 2 mm/s is 20 um per frame at 100 Hz, below what shows;
@@ -151,8 +155,9 @@ PENETRATION_JITTER_MPS = 2e-3
 #: samples (samples). A step change of velocity (a kick) makes two alternating second
 #: differences, a one-sample spike three; an oscillation that lasts longer is jitter.
 PENETRATION_JITTER_PERSIST_SAMPLES = 4
-#: Max net slide at the contact while settled (m), over the whole resting interval, from the poses
-#: (rblog.analyze.penetration); only samples slower than CREEP_SPEED_MPS count, so that a body
+#: Max net slide at the contact while settled (m), over the whole resting interval less its
+#: settling slide (SETTLE_S), from the poses (rblog.analyze.penetration); only samples slower than
+#: CREEP_SPEED_MPS count, so that a body
 #: that slides off (a ramp steeper than its friction allows) is not creep, and only sample
 #: intervals over which the contact slid slower than it on average (a kick between two slow
 #: samples is a slide). 0.1 mm: a box that creeps a fraction of a millimetre over

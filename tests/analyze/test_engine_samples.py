@@ -84,6 +84,11 @@ KNOWN: dict[tuple[str, str], dict[str, float]] = {
     ("mixed", "mujoco"): {
         "momentum: collision angular": 0.000442,
         "momentum: flight angular": 0.00486,
+        # the balls bounce off the 20 deg ramp at e = 0.564 (declared 0.5), hidden before by the
+        # symmetric (1 + e) g D / V term (D = 15.6 ms: 0.094): parabolas fitted to ball0's 22
+        # free-flight samples either side (residual 2e-15 m) touch at 2.4387 m/s and leave at
+        # 1.3683 m/s 15.6 ms later: 0.530..0.620 however gravity during the contact is counted
+        "momentum: restitution": 0.0642,
         # creep from the poses since 7a2eb36 (the velocity trapezoid read 0.975 mm)
         "penetration: creep": 0.000483,
         "penetration: jitter": 0.00382,

@@ -118,21 +118,22 @@ def test_box_pushed_by_its_neighbour_slides_when_the_push_reaches_the_cone():
 @pytest.mark.parametrize("rows", [True, False], ids=["logged-friction", "inferred-impulse"])
 def test_planted_creep_of_a_box_held_by_static_friction_is_flagged(tmp_path, rows):
     """Pushed at half the limit, friction logged at half the limit (static friction holds it):
-    a 0.1 mm/s creep slides 0.1 mm/s x (2 s - SETTLE_S) = 0.19 mm > 0.1 mm."""
+    a 0.1 mm/s creep from the first sample slides 0.1 mm/s x 2 s = 0.2 mm > 0.1 mm (a steady
+    slip has no settling slide: the whole stay counts)."""
     speed = 1e-4
     traj = pushed_boxes(tmp_path / "creep.mcap", speed=speed, push=0.5, friction=0.5, rows=rows)
     p = pen(traj)
     (f,) = creep_findings(p)
-    assert f.value == pytest.approx(speed * (DURATION - T.PENETRATION_SETTLE_S), rel=1e-9)
+    assert f.value == pytest.approx(speed * DURATION, rel=1e-9)
     assert f.tolerance == T.PENETRATION_CREEP_M and f.unit == "m" and f.bodies == [0]
     assert "box0" in f.message and "mm" in f.message and "tol 0.1 mm" in f.message
     assert p.stats["sliding_friction_at_limit"] + p.stats["sliding_inferred"] == 0
 
 
 def test_planted_creep_below_the_tolerance_passes():
-    """0.05 mm/s x 1.9 s = 0.095 mm: under the 0.1 mm creep tolerance."""
-    p = pen(pushed_boxes(speed=5e-5, push=0.5, friction=0.5))
-    assert p.passed and p.stats["creep_max_m"] == pytest.approx(5e-5 * 1.9, rel=1e-9)
+    """0.045 mm/s x 2 s = 0.09 mm: under the 0.1 mm creep tolerance."""
+    p = pen(pushed_boxes(speed=4.5e-5, push=0.5, friction=0.5))
+    assert p.passed and p.stats["creep_max_m"] == pytest.approx(4.5e-5 * DURATION, rel=1e-9)
 
 
 def test_creep_between_sliding_samples_is_still_creep():
@@ -149,7 +150,7 @@ def test_creep_between_sliding_samples_is_still_creep():
     (f,) = creep_findings(p)
     # the slip of intervals with no sliding end: 2 of 3 samples are not sliding; an interval
     # counts half of each non-sliding end's slip: (1/3 both ends + 2/3 one end x 1/2) = 2/3
-    assert f.value == pytest.approx(1e-3 * (DURATION - T.PENETRATION_SETTLE_S) * 2 / 3, rel=0.02)
+    assert f.value == pytest.approx(1e-3 * DURATION * 2 / 3, rel=0.02)
     assert len(p.events) == 1  # one resting interval, not one per stick phase
 
 
@@ -209,11 +210,12 @@ def test_a_box_pivoting_on_a_corner_slides_and_is_not_creep():
 
 def test_a_box_pivoting_with_friction_inside_the_cone_is_creep():
     """The same motion with every point at half its limit: static friction should hold it; the
-    centre slips 3.5 mm/s x 1.9 s ~ 6.7 mm along its arc."""
+    centre slips 3.5 mm/s x 2 s ~ 7.1 mm along its arc (from its first sample: a steady slip,
+    no settling slide)."""
     p = pen(pivoting_box(friction=0.5))
     (f,) = creep_findings(p)
-    arc = 0.05 * np.hypot(HH, HH) * (DURATION - T.PENETRATION_SETTLE_S)
-    assert f.value == pytest.approx(arc, rel=1e-3)  # chord of a 0.095 rad arc: 4e-4 shorter
+    arc = 0.05 * np.hypot(HH, HH) * DURATION
+    assert f.value == pytest.approx(arc, rel=1e-3)  # chord of a 0.1 rad arc: 4.2e-4 shorter
 
 
 N_LOGGED = int(round(DURATION / (DT * EVERY)))  # samples with contact rows (all but the first)
@@ -277,11 +279,12 @@ def test_a_box_on_an_unloaded_support_slides_and_is_not_creep():
 
 def test_the_same_slide_on_a_loaded_support_is_creep():
     """The same motion with box 1's weight on its rows and no friction logged (inside the
-    cone): static friction should hold it; 1 mm/s x (2 s - SETTLE_S) = 1.9 mm is creep."""
+    cone): static friction should hold it; 1 mm/s x 2 s = 2 mm is creep (the whole stay: the
+    slip is steady from the first sample)."""
     p = pen(stacked_boxes(load=1.0))
     (f,) = creep_findings(p)
     assert f.bodies == [1]
-    assert f.value == pytest.approx(1e-3 * (DURATION - T.PENETRATION_SETTLE_S), rel=1e-9)
+    assert f.value == pytest.approx(1e-3 * DURATION, rel=1e-9)
     assert p.stats["sliding_unloaded"] == 0
 
 

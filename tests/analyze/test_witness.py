@@ -230,13 +230,13 @@ def stacked_rows(step, top_point, bottom_half, also=None, g=9.81):
 def turning_on_a_corner(drift, rows):
     """Cube "top" stands on its corner on cube "bottom" (resting on the ground) and turns about
     the vertical through the corner at W; with ``drift`` (m) the corner also slides along x,
-    uniformly over the settled part of the rest (after SETTLE_S). Logged with the writer API;
+    uniformly over the whole rest (from its first sample). Logged with the writer API;
     with ``rows``, one contact row per logged step at the corner carrying the top's weight
     (friction zero: inside the cone) and the bottom's ground rows."""
     n_s = int(round(DURATION / (DT * EVERY))) + 1
     step = np.arange(n_s, dtype=np.int64) * EVERY
     t = step * DT
-    vs = drift / (DURATION - T.PENETRATION_SETTLE_S)
+    vs = drift / DURATION
     # a generic tilt of a cube on its corner (its edges 15..55 deg from the horizontal)
     r0 = Rotation.from_euler("xyz", [0.3, -0.2, 0.0]).as_matrix() @ corner_down(CORNER)[1]
     signs = np.array(list(np.ndindex(2, 2, 2))) * 2.0 - 1.0
@@ -290,8 +290,9 @@ def test_the_same_box_dragging_its_corner_03_mm_creeps(rows):
     traj, _ = turning_on_a_corner(drift=3e-4, rows=rows)
     pen, creep = creep_of_top(traj)
     (f,) = [f for f in creep if "'top'" in f.message]
-    # the corner slides 0.3 mm at constant speed over the settled samples (from the poses, plus
-    # the turn's third-order remainder, 6e-11 m: measured 3.00000006e-4)
+    # the corner slides 0.3 mm at constant speed over the whole rest (a steady slip from the
+    # first sample: no settling slide; from the poses, plus the turn's third-order remainder,
+    # 6e-11 m)
     assert f.value == pytest.approx(3e-4, rel=1e-6)
 
 
@@ -300,14 +301,14 @@ def swinging_on_an_edge(drift, far_end_loaded=False):
     top face of slab "bottom" (0.4 x 0.3 x 0.1 m, on the ground), and swings about the vertical
     through the edge's end at the origin's (0, 0, 0.1) at W: that end stays, the other end
     scrapes sideways (the swing of rblog's pile at seed 5, box 444 on box 441). With ``drift`` (m)
-    the whole box also slides along the edge (x), uniformly over the settled part of the rest.
+    the whole box also slides along the edge (x), uniformly over the whole rest.
     One contact row per logged step at the pivot end carries the top's weight (friction zero:
     inside the cone), and the slab's four ground rows its own and the top's; with
     ``far_end_loaded`` the edge's other end has a row too, and each carries half the weight."""
     n_s = int(round(DURATION / (DT * EVERY))) + 1
     step = np.arange(n_s, dtype=np.int64) * EVERY
     t = step * DT
-    vs = drift / (DURATION - T.PENETRATION_SETTLE_S)
+    vs = drift / DURATION
     slab = np.array([0.2, 0.15, 0.05])
     pivot = np.array([0.0, 0.0, 2 * slab[2]])[None] + vs * t[:, None] * [1.0, 0.0, 0.0]
     r0 = rx(np.pi / 4)
@@ -357,23 +358,24 @@ def test_the_same_box_sliding_03_mm_along_its_edge_creeps():
     vs / W = 3.2 mm off the pivot, across the drift. The patch's least-slipping point is the foot
     of that centre on the edge, which slides at vs cos(theta) along the edge (theta = W t, the
     edge's angle to x): creep |integral of vs cos(theta) (cos theta, sin theta) dt| over the
-    settled part, 0.29936 mm (the part of the drift across the edge is the swing's, not creep)."""
+    whole rest (a steady slip from the first sample), 0.29933 mm (the part of the drift across
+    the edge is the swing's, not creep)."""
     drift = 3e-4
     pen, creep = creep_of_top(swinging_on_an_edge(drift=drift))
     (f,) = [f for f in creep if "'top'" in f.message]
-    vs = drift / (DURATION - T.PENETRATION_SETTLE_S)
-    t0, t1 = T.PENETRATION_SETTLE_S, DURATION
+    vs = drift / DURATION
+    t0, t1 = 0.0, DURATION
     along = vs * ((t1 - t0) / 2 + (np.sin(2 * W * t1) - np.sin(2 * W * t0)) / (4 * W))
     across = vs * (np.sin(W * t1) ** 2 - np.sin(W * t0) ** 2) / (2 * W)
-    # measured 2.99361451e-4 against 2.99361445e-4: the midpoint field's remainder
     assert f.value == pytest.approx(np.hypot(along, across), rel=1e-6)
 
 
 def test_the_same_swing_with_both_ends_of_the_edge_loaded_creeps():
     """Both ends of the edge carry load with their friction inside the cone: static friction
     holds the far end too, so the swing is creep, read at the edge's middle (H from the pivot):
-    the chord of its arc over the settled part, 2 H sin(W (2 s - SETTLE_S) / 2) = 4.748 mm."""
+    the chord of its arc over the whole rest (a steady swing from the first sample),
+    2 H sin(W 2 s / 2) = 4.998 mm."""
     pen, creep = creep_of_top(swinging_on_an_edge(drift=0.0, far_end_loaded=True))
     (f,) = [f for f in creep if f.bodies == [1]]
-    chord = 2 * H * np.sin(W * (DURATION - T.PENETRATION_SETTLE_S) / 2)
-    assert f.value == pytest.approx(chord, rel=1e-6)  # measured 4.748214003578e-3
+    chord = 2 * H * np.sin(W * DURATION / 2)
+    assert f.value == pytest.approx(chord, rel=1e-6)

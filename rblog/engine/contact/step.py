@@ -219,10 +219,13 @@ def first_diverged(awake, x, inv_inertia, h):
     return _core.stage_first_diverged(awake, x, inv_inertia, float(h))
 
 
-def record_contacts(s, mi, mf, pf, n_man, log_i, log_f, n_log):
-    """The contact rows of step s: every point that pushed or touches (trajectory.Contacts).
-    Returns (log_i, log_f, n_log) (new arrays, grown as needed)."""
-    return _core.stage_record_contacts(int(s), mi, mf, pf, int(n_man), log_i, log_f, int(n_log))
+def record_contacts(s, mi, mf, pf, n_man, position, rotation, pose0, log_i, log_f, n_log):
+    """The contact rows of step s: every point that pushed or touches (trajectory.Contacts),
+    with its separation at the end-of-step poses ``position`` (N, 3), ``rotation`` (N, 3, 3),
+    its anchors carried there from the step's start poses ``pose0`` (N, 12: position, row-major
+    rotation). Returns (log_i, log_f, n_log) (new arrays, grown as needed)."""
+    return _core.stage_record_contacts(int(s), mi, mf, pf, int(n_man), position, rotation,
+                                       pose0, log_i, log_f, int(n_log))
 
 
 # ---- the step ---------------------------------------------------------------------------------
