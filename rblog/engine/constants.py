@@ -273,9 +273,13 @@ class ContactParams:
             or two; the anchor closes that loop over steps whatever the sweep count or order.
             Measured on samples/pile.toml at seeds 1-12 (`rblog check`; benchmarks/RESULTS.md,
             "Contact solver: the loose pile", 2026-11-28): on, 11 of 12 seeds clean on the
-            coloured solve (seed 5: box132 creeps 0.155 mm on the ground); off, 5 of 12 (29
-            findings, creep up to 0.475 mm, measured with the colours in increasing order).
-            Off, the earlier trajectories come back.
+            coloured solve; off, 5 of 12 (29 findings, creep up to 0.475 mm, measured with the
+            colours in increasing order). Off, the earlier trajectories come back.
+            Seed 5's finding (box132 "creeps 0.155 mm on the ground") is no creep: box182
+            strikes it twice between samples (steps 794 and 814), it slides 99.96 and 51 um and
+            stops before the next sample, and its slow slip is 5.9 um. The same runs logged at
+            every step (the same physics: seed 5's shared samples compared bit for bit) read at
+            most 16.5 um of creep at seed 5 and 39.2 um at seeds 1-12.
             The 500-box pile of tests/engine/contact/test_contact.py at dt 2e-3 stays within
             0.22-0.26 mm of penetration with it on (seeds 0-2; 0.5 mm allowed).
         projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
