@@ -93,12 +93,6 @@ void store_impulses(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, double 
 void relax_positions(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
                      V2<double> bI, V2<double> pv, V2<double> pw, double inv_h, i64 n_iter,
                      double slop, double beta, double max_speed);
-// The same sweeps over g's sets in its order, a colour's manifolds on the task pool (the world
-// step's relax; relax.cpp).
-void relax_positions_coloured(V2<i64> mi, V2<double> mf, V2<double> pf, V1<double> bm,
-                              V2<double> bI, V2<double> pv, V2<double> pw, double inv_h,
-                              i64 n_iter, double slop, double beta, double max_speed,
-                              const ConstraintGraph& g);
 
 // ---- restitution.py ------------------------------------------------------------------------
 

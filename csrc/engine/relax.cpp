@@ -9,121 +9,61 @@
 // momentum nor kinetic energy (the pseudo impulses are also equal and opposite, so the pair's
 // centre of mass does not move either).
 
-#include "common/task_pool.hpp"
-#include "engine/constraint_graph.hpp"
 #include "engine/contact_solver.hpp"
 #include "engine/manifold.hpp"
 
 namespace rb {
 
-TaskPool& pool();  // the engine's pool (threads.cpp)
-
-namespace {
-
-// One manifold's split-impulse update (its penetrating points one after another), the pseudo
-// velocities of its two bodies in place.
-// (inlined: it is the loop body of both sweeps below)
-__attribute__((always_inline)) inline void relax_manifold(i64 m, V2<i64> mi, V2<double> mf,
-                                                          V2<double> pf, V1<double> bm,
-                                                          V2<double> bI, V2<double> pv,
-                                                          V2<double> pw, double inv_h,
-                                                          double slop, double beta,
-                                                          double max_speed) {
-    if (!mi(m, MI_ACTIVE)) return;
-    i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-    i64 start = mi(m, MI_START);
-    i64 end = start + mi(m, MI_COUNT);
-    bool deep = false;
-    for (i64 p = start; p < end; ++p)
-        if (pf(p, PF_S) <= 0.0) deep = true;
-    if (!deep) return;
-    double ma = bm[ia], mb = bm[ib];
-    const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
-    const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
-    double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
-    double vax = pv(ia, 0), vay = pv(ia, 1), vaz = pv(ia, 2);
-    double wax = pw(ia, 0), way = pw(ia, 1), waz = pw(ia, 2);
-    double vbx = pv(ib, 0), vby = pv(ib, 1), vbz = pv(ib, 2);
-    double wbx = pw(ib, 0), wby = pw(ib, 1), wbz = pw(ib, 2);
-    for (i64 p = start; p < end; ++p) {
-        double* q = pf.row(p);
-        double s = q[PF_S];
-        if (s > 0.0) continue;
-        double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-        double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-        double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-        double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-        double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
-        double vn = dvx * nx + dvy * ny + dvz * nz;
-        double target = -(s + slop) * beta * inv_h;
-        if (target < 0.0) {
-            target = 0.0;
-        } else if (target > max_speed) {
-            target = max_speed;
-        }
-        double old = q[PF_LP];
-        double nw = old + q[PF_NMASS] * (target - vn);
-        if (nw < 0.0) nw = 0.0;
-        q[PF_LP] = nw;
-        double d = nw - old;
-        apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny,
-                      d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
-    }
-    // (not the static dummy's row, bm's last: it never moves, and the manifolds of a colour
-    // that the threads relax at once all touch it)
-    const i64 dummy = bm.n0 - 1;
-    if (ia != dummy) {
-        pv(ia, 0) = vax; pv(ia, 1) = vay; pv(ia, 2) = vaz;
-        pw(ia, 0) = wax; pw(ia, 1) = way; pw(ia, 2) = waz;
-    }
-    if (ib != dummy) {
-        pv(ib, 0) = vbx; pv(ib, 1) = vby; pv(ib, 2) = vbz;
-        pw(ib, 0) = wbx; pw(ib, 1) = wby; pw(ib, 2) = wbz;
-    }
-}
-
-// manifolds per block when a colour's manifolds go to the task pool, and the fewest manifolds a
-// colour needs for that (below, the caller's thread relaxes it alone: a hand-off costs about as
-// much as relaxing ~20 manifolds), and the step (a small scene, the 100-box pile's ~100
-// manifolds, relaxes on one thread: ~500 instructions a manifold and sweep)
-constexpr i64 MANIFOLDS_PER_BLOCK = 32;
-constexpr i64 MIN_SHARED_MANIFOLDS = 64;
-constexpr i64 MIN_SHARED_STEP = 256;
-
-}  // namespace
-
-// Split impulses: Gauss-Seidel on pseudo velocities that remove penetration beyond slop, the
-// manifolds in their order (the Python stage, rblog.engine.contact.relax).
+// Split impulses: Gauss-Seidel on pseudo velocities that remove penetration beyond slop.
 void relax_positions(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
                      V2<double> bI, V2<double> pv, V2<double> pw, double inv_h, i64 n_iter,
                      double slop, double beta, double max_speed) {
-    for (i64 it = 0; it < n_iter; ++it)
-        for (i64 m = 0; m < n_man; ++m)
-            relax_manifold(m, mi, mf, pf, bm, bI, pv, pw, inv_h, slop, beta, max_speed);
-}
-
-// The same sweeps in the order of the constraint graph's colouring (the world step's; the
-// velocity solve's order): the overflow set one manifold after another, then each colour,
-// whose manifolds share no dynamic body, so that a colour's manifolds can be relaxed in any
-// order, on any threads, with the same bits (a large colour in blocks on the task pool).
-void relax_positions_coloured(V2<i64> mi, V2<double> mf, V2<double> pf, V1<double> bm,
-                              V2<double> bI, V2<double> pv, V2<double> pw, double inv_h,
-                              i64 n_iter, double slop, double beta, double max_speed,
-                              const ConstraintGraph& g) {
-    const i64* order = g.order.data();
-    const int nt = (i64)g.order.size() >= MIN_SHARED_STEP ? pool().threads() : 1;
     for (i64 it = 0; it < n_iter; ++it) {
-        for (i64 s = 0; s < g.n_sets(); ++s) {
-            const i64 k0 = g.set_start[(size_t)s], k1 = g.set_start[(size_t)s + 1];
-            const i64 n = k1 - k0;
-            const i64 nb = (s > 0 && nt > 1 && n >= MIN_SHARED_MANIFOLDS)
-                               ? TaskPool::blocks_for(n, MANIFOLDS_PER_BLOCK)
-                               : 1;
-            pool().run(nb, [&](i64 b, int) {
-                for (i64 k = k0 + n * b / nb; k < k0 + n * (b + 1) / nb; ++k)
-                    relax_manifold(order[k], mi, mf, pf, bm, bI, pv, pw, inv_h, slop, beta,
-                                   max_speed);
-            });
+        for (i64 m = 0; m < n_man; ++m) {
+            if (!mi(m, MI_ACTIVE)) continue;
+            i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+            i64 start = mi(m, MI_START);
+            i64 end = start + mi(m, MI_COUNT);
+            bool deep = false;
+            for (i64 p = start; p < end; ++p)
+                if (pf(p, PF_S) <= 0.0) deep = true;
+            if (!deep) continue;
+            double ma = bm[ia], mb = bm[ib];
+            const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
+            const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
+            double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
+            double vax = pv(ia, 0), vay = pv(ia, 1), vaz = pv(ia, 2);
+            double wax = pw(ia, 0), way = pw(ia, 1), waz = pw(ia, 2);
+            double vbx = pv(ib, 0), vby = pv(ib, 1), vbz = pv(ib, 2);
+            double wbx = pw(ib, 0), wby = pw(ib, 1), wbz = pw(ib, 2);
+            for (i64 p = start; p < end; ++p) {
+                double* q = pf.row(p);
+                double s = q[PF_S];
+                if (s > 0.0) continue;
+                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
+                double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
+                double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                double vn = dvx * nx + dvy * ny + dvz * nz;
+                double target = -(s + slop) * beta * inv_h;
+                if (target < 0.0) {
+                    target = 0.0;
+                } else if (target > max_speed) {
+                    target = max_speed;
+                }
+                double old = q[PF_LP];
+                double nw = old + q[PF_NMASS] * (target - vn);
+                if (nw < 0.0) nw = 0.0;
+                q[PF_LP] = nw;
+                double d = nw - old;
+                apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny,
+                              d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+            }
+            pv(ia, 0) = vax; pv(ia, 1) = vay; pv(ia, 2) = vaz;
+            pw(ia, 0) = wax; pw(ia, 1) = way; pw(ia, 2) = waz;
+            pv(ib, 0) = vbx; pv(ib, 1) = vby; pv(ib, 2) = vbz;
+            pw(ib, 0) = wbx; pw(ib, 1) = wby; pw(ib, 2) = wbz;
         }
     }
 }

@@ -603,9 +603,8 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
                                 cfg.newton_tol);
             if (do_prof) t = lap(prof, P_SOLVE, t);
             if (cfg.n_pos > 0)                                                              // 8
-                relax_positions_coloured(mi1, mf1, pf1, bm, bI, sc.pv.view(), sc.pw.view(),
-                                         inv_h, cfg.n_pos, cfg.slop, cfg.beta, cfg.max_speed,
-                                         sc.graph);
+                relax_positions(mi1, mf1, pf1, n_man, bm, bI, sc.pv.view(), sc.pw.view(), inv_h,
+                                cfg.n_pos, cfg.slop, cfg.beta, cfg.max_speed);
             mark_pushed(mi1, pf1, n_man, n, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
