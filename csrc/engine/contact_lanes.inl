@@ -348,7 +348,10 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             // clamp the accumulated impulse
             T old = w::ld(gr.ln[i], l);
             T nw = old + om * w::ld(gr.nmass[i], l) * (w::ld(gr.target[i], l) - vn);
-            unload = w::mor(unload, w::mand(on, w::mand(zero < old, nw < zero)));
+            // unloaded by the over-relaxation: plain Gauss-Seidel would have kept a load
+            T gs = old + w::ld(gr.nmass[i], l) * (w::ld(gr.target[i], l) - vn);
+            unload = w::mor(unload, w::mand(on, w::mand(w::mand(zero < old, nw < zero),
+                                                        w::mnot(gs < zero))));
             nw = w::sel(nw < zero, zero, nw);
             w::st(gr.ln[i], l, w::sel(on, nw, old));
             T d = nw - old;
@@ -360,7 +363,8 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
                             vb, wb);
         }
         // Safeguarded SOR: a manifold whose over-relaxed normal update clamped a loaded point
-        // to zero is solved by plain Gauss-Seidel (om = 1) for the rest of this solve. Projected
+        // to zero, where plain Gauss-Seidel would have kept it loaded, is solved by plain
+        // Gauss-Seidel (om = 1) for the rest of this solve. Projected
         // SOR converges on the normal rows alone (symmetric positive definite, Cryer 1971), but
         // the Coulomb rows make the problem unsymmetric (their bound is mu lambda_n): a sliding
         // corner over-relaxed by 1.6 can overshoot (vn > 0), lose its load to the clamp in the
