@@ -222,9 +222,13 @@ class ContactParams:
         velocity_tolerance: m/s. Convergence test of the velocity solve (see above). Smaller
             values give exacter resting contact (no sinking, no creep) for more sweeps.
         over_relaxation: successive over-relaxation factor of the normal impulses, in (0, 2)
-            (ODE's quickstep uses 1.3; projected SOR converges for any value in the range).
-            Applied to the manifolds whose bodies touch something else; a manifold on its own
-            is solved exactly by one update and is never relaxed. 1.0 is plain Gauss-Seidel.
+            (ODE's quickstep uses 1.3; projected SOR converges for any value in the range on
+            the normal rows alone, not with the friction rows coupled to them). Applied to the
+            manifolds whose bodies touch something else; a manifold on its own is solved
+            exactly by one update and is never relaxed. 1.0 is plain Gauss-Seidel. Safeguard: a
+            manifold whose over-relaxed update clamps a loaded point to zero is solved by plain
+            Gauss-Seidel for the rest of the step (a sliding corner at 1.6 otherwise cycled
+            between loaded and unloaded every sweep; csrc/engine/contact_lanes.inl).
             Higher values move loads through stacks in fewer sweeps (10-box stack capped at 30
             sweeps: its top sinks 0.06 mm at 1.6, 0.22 mm at 1.5, 0.38 mm at 1.3 and 5 mm,
             sliding sideways, at 1.0).

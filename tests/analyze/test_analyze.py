@@ -745,6 +745,55 @@ def test_penetration_single_kick_is_not_jitter(kind):
     assert pen.stats["jitter_max_mps"] == pytest.approx(0.04, rel=1e-9)
 
 
+def hopping_ball(rows_in_the_air: bool):
+    """A ball (r = 0.08 m, 0.2 kg) resting on the ground is struck at t = 0.5 s and hops: at two
+    samples it is 0.193 and 0.041 mm up with the velocities of samples/mixed.toml's ball1 struck
+    by ball4 (rblog, logged at 100 Hz; an every-step log of the same run shows the strike, the
+    0.22 mm hop and two landings within 25 ms). A box rests far away, so the log carries contact
+    rows at every sample. rows_in_the_air: the engine's rows for the ball at the two samples
+    (False: none, as rblog logs a body touching nothing)."""
+    r_, hh, m = 0.08, 0.1, 0.2
+    model = make_model([dict(shape="sphere", size=r_, mass=m),
+                        dict(shape="box", size=(hh, hh, hh), mass=1.0)], ground=True)
+    t = times(1.0)
+    k0 = int(np.searchsorted(t, 0.5))
+    x = np.broadcast_to([[0.0, 0.0, r_], [1.0, 0.0, hh]], (len(t), 2, 3)).copy()
+    v = np.zeros((len(t), 2, 3))
+    x[k0, 0, 2] += 0.193e-3
+    x[k0 + 1, 0, 2] += 0.041e-3
+    v[k0, 0] = (-0.04275, -0.00609, -0.02211)
+    v[k0 + 1, 0] = (0.0004, -0.00005, -0.01632)
+    r = np.broadcast_to(np.eye(3), (len(t), 2, 3, 3))
+    rows = []
+    step = np.round(t / DT).astype(np.int64)
+    for k in range(len(t)):
+        if rows_in_the_air or k not in (k0, k0 + 1):
+            rows.append(dict(step=step[k], t=t[k], a=0, b=STATIC_BODY, point=(0.0, 0.0, 0.0),
+                             normal=(0, 0, 1), sep=0.0, jn=m * GM * DT, kind=CONTACT_RESTING))
+        rows.append(dict(step=step[k], t=t[k], a=1, b=STATIC_BODY, point=(1.0, 0.0, 0.0),
+                         normal=(0, 0, 1), sep=0.0, jn=GM * DT, kind=CONTACT_RESTING))
+    return build(model, t, x, v, r, np.zeros((len(t), 2, 3)), contacts=contacts_of(rows)), v[:, 0]
+
+
+def test_penetration_body_in_the_air_is_not_jitter():
+    """A struck ball that hops between two samples is not jittering: where the engine logs no
+    contact of the ball at all (at samples whose other rows show that it logs contacts) it
+    touches nothing, as a support whose rows carry no load. The same log with rows claiming
+    contact at those samples is jitter by the rule's definition: |v+ - 2 v + v-| / 4, its least
+    over four consecutive samples."""
+    traj, v = hopping_ball(rows_in_the_air=False)
+    pen = results(traj)["penetration"]
+    assert not any("jitters" in f.message for f in pen.findings), pen.findings
+    traj, v = hopping_ball(rows_in_the_air=True)
+    pen = results(traj)["penetration"]
+    osc = np.zeros(len(v))
+    osc[1:-1] = 0.25 * np.linalg.norm(v[2:] - 2.0 * v[1:-1] + v[:-2], axis=1)
+    expect = np.lib.stride_tricks.sliding_window_view(osc, 4).min(axis=1).max()
+    assert expect == pytest.approx(4.08e-3, rel=1e-3)  # the mixed.toml finding's value
+    (f,) = [f for f in pen.findings if "jitters" in f.message]
+    assert f.value == pytest.approx(expect, rel=1e-9)
+
+
 def test_penetration_flags_jitter_and_creep():
     jit = results(resting_box(shake=0.01))["penetration"]
     assert not jit.passed and any("jitters" in f.message for f in jit.findings)
