@@ -75,16 +75,20 @@ i64 find_manifold(V1<i64> sorted_keys, V1<i64> sorted_idx, i64 n, i64 key) {
 }
 
 void sort_manifolds(V2<i64> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_idx) {
-    std::vector<i64> order(n_man);
-    std::iota(order.begin(), order.end(), i64(0));
-    const i64* mp = mi.p;
-    const i64 cols = mi.n1;
-    std::stable_sort(order.begin(), order.end(), [mp, cols](i64 a, i64 b) {
-        return mp[a * cols + MI_KEY] < mp[b * cols + MI_KEY];
+    // (key, index) pairs in lexicographic order: the order of a stable sort by key
+    struct KeyIdx {
+        i64 key, idx;
+    };
+    static thread_local std::vector<KeyIdx> kept;
+    std::vector<KeyIdx>& order = kept;
+    order.resize((size_t)n_man);
+    for (i64 m = 0; m < n_man; ++m) order[(size_t)m] = KeyIdx{mi(m, MI_KEY), m};
+    std::sort(order.begin(), order.end(), [](const KeyIdx& a, const KeyIdx& b) {
+        return a.key < b.key || (a.key == b.key && a.idx < b.idx);
     });
     for (i64 k = 0; k < n_man; ++k) {
-        sorted_idx[k] = order[k];
-        sorted_keys[k] = mi(order[k], MI_KEY);
+        sorted_idx[k] = order[(size_t)k].idx;
+        sorted_keys[k] = order[(size_t)k].key;
     }
 }
 

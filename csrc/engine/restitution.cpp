@@ -193,16 +193,25 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
     i64 n_impacts = 0;
     for (i64 c : blk_impacts) n_impacts += c;
     if (n_impacts == 0) return 0;
-    // Gauss-Seidel on the bounce targets of the impact points only
+    // Gauss-Seidel on the bounce targets of the impact points only (the manifolds with a
+    // target listed once: PF_WT does not change in the sweeps)
+    static thread_local std::vector<i64> kept;
+    std::vector<i64>& targeted = kept;
+    targeted.clear();
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        const i64 start = mi(m, MI_START);
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+            if (pf(p, PF_WT) >= 0.0) {
+                targeted.push_back(m);
+                break;
+            }
+        }
+    }
     for (i64 it = 0; it < n_iter; ++it) {
-        for (i64 m = 0; m < n_man; ++m) {
-            if (!mi(m, MI_ACTIVE)) continue;
+        for (const i64 m : targeted) {
             i64 start = mi(m, MI_START);
             i64 end = start + mi(m, MI_COUNT);
-            bool any_target = false;
-            for (i64 p = start; p < end; ++p)
-                if (pf(p, PF_WT) >= 0.0) any_target = true;
-            if (!any_target) continue;
             i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
             double ma = bm[ia], mb = bm[ib];
             double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
