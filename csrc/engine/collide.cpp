@@ -223,15 +223,18 @@ static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_
     }
     const M3 ra = rotation.row(a);
     const bool anchored = j >= 0 && prev_mf(j, MF_AOK) > 0.0 && !rolls;
-    for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) {
-            // R_b^T R_a
-            double v = rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) + rb_(2, r) * ra(2, c);
-            mfm[MF_AR + 3 * r + c] = anchored ? prev_mf(j, MF_AR + 3 * r + c) : v;
+    if (anchored) {
+        const double* pm = prev_mf.row(j);
+        for (int c = 0; c < 9; ++c) mfm[MF_AR + c] = pm[MF_AR + c];
+        for (int r = 0; r < 3; ++r) mfm[MF_AT + r] = pm[MF_AT + r];
+    } else {
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c)  // R_b^T R_a
+                mfm[MF_AR + 3 * r + c] =
+                    rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) + rb_(2, r) * ra(2, c);
+            mfm[MF_AT + r] = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
+                             rb_(2, r) * (pa[2] - xb[2]);
         }
-        double v = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
-                   rb_(2, r) * (pa[2] - xb[2]);
-        mfm[MF_AT + r] = anchored ? prev_mf(j, MF_AT + r) : v;
     }
     mfm[MF_AOK] = rolls ? 0.0 : 1.0;
     double drift_max = 0.0;

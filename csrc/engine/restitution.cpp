@@ -151,6 +151,16 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
     const i64 n_blocks =
         pool().threads() > 1 ? TaskPool::blocks_for(n_man, MANIFOLDS_PER_BLOCK, MIN_MANIFOLDS) : 1;
     std::vector<i64> blk_impacts((size_t)n_blocks, 0);
+    // bodies whose pseudo velocities are all zero (the relax stage pushed most bodies not at
+    // all): a point between two of them has the pseudo gap rate pn = +-0 (a sum of products
+    // with a zero factor), and s0 + h (vn + pn) is s0 + h vn bit for bit unless vn and s0 are
+    // both zero (then the sum is taken as written)
+    static thread_local std::vector<char> still_kept;
+    std::vector<char>& still = still_kept;
+    still.resize((size_t)pv.n0);
+    for (i64 i = 0; i < pv.n0; ++i)
+        still[(size_t)i] = pv(i, 0) == 0.0 && pv(i, 1) == 0.0 && pv(i, 2) == 0.0 &&
+                           pw(i, 0) == 0.0 && pw(i, 1) == 0.0 && pw(i, 2) == 0.0;
     pool().run(n_blocks, [&](i64 blk, int) {
     i64 n_impacts = 0;
     for (i64 m = n_man * blk / n_blocks; m < n_man * (blk + 1) / n_blocks; ++m) {
@@ -159,15 +169,21 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
         double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
         double e = mf(m, MF_E);
         double acc = mf(m, MF_ACC);
+        const bool pair_still = still[(size_t)ia] && still[(size_t)ib];
         i64 start = mi(m, MI_START);
         for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
             double* q = pf.row(p);
             double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
             double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
             double vn = gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
-            double pn = gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
             double s0 = q[PF_S];
-            double s1 = s0 + h * (vn + pn);
+            double s1;
+            if (pair_still && (vn != 0.0 || s0 != 0.0)) {
+                s1 = s0 + h * vn;
+            } else {
+                double pn = gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
+                s1 = s0 + h * (vn + pn);
+            }
             q[PF_SEND] = s1;
             q[PF_LWS] = q[PF_LN];
             q[PF_WT] = -1.0;
