@@ -141,7 +141,7 @@ constexpr i64 MIN_PAIRS = 512;
 
 // Append one manifold (points rows row.. of the collider's output) with warm starting. `rolls`:
 // a sphere's pair, which gets no friction anchor.
-static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_awake,
+[[gnu::always_inline]] static inline void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_awake,
                          bool b_awake, bool b_dyn, i64 cnt, i64 row, i64 part, bool rolls,
                          V2<double> position, V3<double> rotation, V2<double> sb_pos,
                          V3<double> sb_rot, V1<double> restitution, V1<double> friction,

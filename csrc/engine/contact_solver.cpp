@@ -322,21 +322,12 @@ void load_bodies(V2<i64> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V1<i64> is
 }
 
 // Effective masses, and the gap velocity before the step (for restitution).
-//
-// A side of the manifold that is the static dummy (row bm.n0 - 1: static geometry or a sleeping
-// body; inverse mass and inertia +0) adds only products that are +0 or -0 to K's sums. They are
-// left out where that provably changes no bit: a sum that starts at ma + mb (>= +0, never -0; in
-// round-to-nearest a sum is -0 only when both terms are, so it stays non-negative-signed) is not
-// changed by adding +-0. A sum that starts with a product (k12) can be -0 and adding +0 would
-// make it +0: when the sum of the kept terms is zero, the whole sum is taken as before.
 void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
                       V2<double> bI, V2<double> bv, V2<double> bw, double h, double anchor_rate,
                       double block_reg) {
-    const i64 dummy = bm.n0 - 1;
     for (i64 m = 0; m < n_man; ++m) {
         if (!mi(m, MI_ACTIVE)) continue;
         i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-        const bool a_on = ia != dummy, b_on = ib != dummy;
         double ma = bm[ia], mb = bm[ib];
         double a0 = bI(ia, 0), a1 = bI(ia, 1), a2 = bI(ia, 2), a3 = bI(ia, 3), a4 = bI(ia, 4), a5 = bI(ia, 5);
         double b0 = bI(ib, 0), b1 = bI(ib, 1), b2 = bI(ib, 2), b3 = bI(ib, 3), b4 = bI(ib, 4), b5 = bI(ib, 5);
@@ -355,29 +346,19 @@ void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<do
         double ca[4][3], cb[4][3], jna[4][3], jnb[4][3];
         for (i64 i = 0; i < cnt; ++i) {
             i64 p = start + i;
-            if (a_on) {
-                cross(pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2), nx, ny, nz, ca[i][0],
-                      ca[i][1], ca[i][2]);
-                smul(a0, a1, a2, a3, a4, a5, ca[i][0], ca[i][1], ca[i][2], jna[i][0], jna[i][1],
-                     jna[i][2]);
-            }
-            if (b_on) {
-                cross(pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2), nx, ny, nz, cb[i][0],
-                      cb[i][1], cb[i][2]);
-                smul(b0, b1, b2, b3, b4, b5, cb[i][0], cb[i][1], cb[i][2], jnb[i][0], jnb[i][1],
-                     jnb[i][2]);
-            }
+            cross(pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2), nx, ny, nz, ca[i][0], ca[i][1],
+                  ca[i][2]);
+            cross(pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2), nx, ny, nz, cb[i][0], cb[i][1],
+                  cb[i][2]);
+            smul(a0, a1, a2, a3, a4, a5, ca[i][0], ca[i][1], ca[i][2], jna[i][0], jna[i][1], jna[i][2]);
+            smul(b0, b1, b2, b3, b4, b5, cb[i][0], cb[i][1], cb[i][2], jnb[i][0], jnb[i][1], jnb[i][2]);
         }
         for (i64 i = 0; i < cnt; ++i) {
             double* q_ = pf.row(start + i);
-            for (i64 j = 0; j < cnt; ++j) {
-                double k = ma + mb;
-                if (a_on)
-                    k = k + ca[j][0] * jna[i][0] + ca[j][1] * jna[i][1] + ca[j][2] * jna[i][2];
-                if (b_on)
-                    k = k + cb[j][0] * jnb[i][0] + cb[j][1] * jnb[i][1] + cb[j][2] * jnb[i][2];
-                q_[PF_KN + j] = k;
-            }
+            for (i64 j = 0; j < cnt; ++j)
+                q_[PF_KN + j] = (ma + mb + ca[j][0] * jna[i][0] + ca[j][1] * jna[i][1] +
+                                 ca[j][2] * jna[i][2] + cb[j][0] * jnb[i][0] + cb[j][1] * jnb[i][1] +
+                                 cb[j][2] * jnb[i][2]);
         }
         if (cnt > 1) factor_block(mf, m, pf, start, cnt, block_reg);
         for (i64 p = start; p < start + cnt; ++p) {
@@ -386,48 +367,20 @@ void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<do
             // normal row: K_pp, the block's diagonal (the same products in the same order)
             double k = pf(p, PF_KN + (p - start));
             pf(p, PF_NMASS) = k > 0.0 ? 1.0 / k : 0.0;
-            // tangent block: each side's r x t and I^-1 (r x t)
-            double ua1x = 0, ua1y = 0, ua1z = 0, ua2x = 0, ua2y = 0, ua2z = 0;
-            double ia1x = 0, ia1y = 0, ia1z = 0, ia2x = 0, ia2y = 0, ia2z = 0;
-            double ub1x = 0, ub1y = 0, ub1z = 0, ub2x = 0, ub2y = 0, ub2z = 0;
-            double ib1x = 0, ib1y = 0, ib1z = 0, ib2x = 0, ib2y = 0, ib2z = 0;
-            auto side_a = [&] {
-                cross(rax, ray, raz, t1x, t1y, t1z, ua1x, ua1y, ua1z);
-                cross(rax, ray, raz, t2x, t2y, t2z, ua2x, ua2y, ua2z);
-                smul(a0, a1, a2, a3, a4, a5, ua1x, ua1y, ua1z, ia1x, ia1y, ia1z);
-                smul(a0, a1, a2, a3, a4, a5, ua2x, ua2y, ua2z, ia2x, ia2y, ia2z);
-            };
-            auto side_b = [&] {
-                cross(rbx, rby, rbz, t1x, t1y, t1z, ub1x, ub1y, ub1z);
-                cross(rbx, rby, rbz, t2x, t2y, t2z, ub2x, ub2y, ub2z);
-                smul(b0, b1, b2, b3, b4, b5, ub1x, ub1y, ub1z, ib1x, ib1y, ib1z);
-                smul(b0, b1, b2, b3, b4, b5, ub2x, ub2y, ub2z, ib2x, ib2y, ib2z);
-            };
-            if (a_on) side_a();
-            if (b_on) side_b();
-            double k11 = ma + mb, k22 = ma + mb;
-            if (a_on) {
-                k11 = k11 + ua1x * ia1x + ua1y * ia1y + ua1z * ia1z;
-                k22 = k22 + ua2x * ia2x + ua2y * ia2y + ua2z * ia2z;
-            }
-            if (b_on) {
-                k11 = k11 + ub1x * ib1x + ub1y * ib1y + ub1z * ib1z;
-                k22 = k22 + ub2x * ib2x + ub2y * ib2y + ub2z * ib2z;
-            }
-            double k12;
-            if (a_on && b_on) {
-                k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y + ub1z * ib2z;
-            } else {
-                k12 = a_on ? ua1x * ia2x + ua1y * ia2y + ua1z * ia2z
-                           : ub1x * ib2x + ub1y * ib2y + ub1z * ib2z;
-                if (k12 == 0.0) {
-                    // a zero of either sign: the whole sum, as written for two bodies
-                    if (!a_on) side_a();
-                    if (!b_on) side_b();
-                    k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y +
-                          ub1z * ib2z;
-                }
-            }
+            // tangent block
+            double ua1x, ua1y, ua1z, ua2x, ua2y, ua2z, ub1x, ub1y, ub1z, ub2x, ub2y, ub2z;
+            cross(rax, ray, raz, t1x, t1y, t1z, ua1x, ua1y, ua1z);
+            cross(rax, ray, raz, t2x, t2y, t2z, ua2x, ua2y, ua2z);
+            cross(rbx, rby, rbz, t1x, t1y, t1z, ub1x, ub1y, ub1z);
+            cross(rbx, rby, rbz, t2x, t2y, t2z, ub2x, ub2y, ub2z);
+            double ia1x, ia1y, ia1z, ia2x, ia2y, ia2z, ib1x, ib1y, ib1z, ib2x, ib2y, ib2z;
+            smul(a0, a1, a2, a3, a4, a5, ua1x, ua1y, ua1z, ia1x, ia1y, ia1z);
+            smul(a0, a1, a2, a3, a4, a5, ua2x, ua2y, ua2z, ia2x, ia2y, ia2z);
+            smul(b0, b1, b2, b3, b4, b5, ub1x, ub1y, ub1z, ib1x, ib1y, ib1z);
+            smul(b0, b1, b2, b3, b4, b5, ub2x, ub2y, ub2z, ib2x, ib2y, ib2z);
+            double k11 = ma + mb + ua1x * ia1x + ua1y * ia1y + ua1z * ia1z + ub1x * ib1x + ub1y * ib1y + ub1z * ib1z;
+            double k22 = ma + mb + ua2x * ia2x + ua2y * ia2y + ua2z * ia2z + ub2x * ib2x + ub2y * ib2y + ub2z * ib2z;
+            double k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y + ub1z * ib2z;
             pf(p, PF_TK) = k11;
             pf(p, PF_TK + 1) = k12;
             pf(p, PF_TK + 2) = k22;
