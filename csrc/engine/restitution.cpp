@@ -87,12 +87,12 @@ void apply_pair_impulse(V2<double> bv, V2<double> bw, V2<double> linear_momentum
 // The bounce pass may lower a point's accumulated normal impulse (down to 0) after friction was
 // solved against the higher one; the friction impulse is then scaled back onto the cone
 // |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the bounce,
-// so that the pair's momenta stay exactly balanced.
-void reclamp_friction(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                      V2<double> bI, V2<double> bv, V2<double> bw, V2<double> dx,
+// so that the pair's momenta stay exactly balanced. targeted: the manifolds with a bouncing point
+// (PF_WT >= 0), in manifold order.
+void reclamp_friction(V2<i64> mi, V2<double> mf, V2<double> pf, const std::vector<i64>& targeted,
+                      V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> dx,
                       V2<double> linear_momentum, V2<double> angular_momentum) {
-    for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
+    for (const i64 m : targeted) {
         double mu = mf(m, MF_MU);
         i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
         double ma = bm[ia], mb = bm[ib];
@@ -256,7 +256,8 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
             }
         }
     }
-    reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum);
+    // (only the targeted manifolds hold points with PF_WT >= 0, the ones reclamp_friction acts on)
+    reclamp_friction(mi, mf, pf, targeted, bm, bI, bv, bw, dx, linear_momentum, angular_momentum);
     return n_impacts;
 }
 
