@@ -99,12 +99,16 @@ static i64 face_contact(const double* cr, M3 rotr, const double* er, const doubl
     double t2x = rotr(0, k2), t2y = rotr(1, k2), t2z = rotr(2, k2);
     // incident polygon in reference coordinates (x along t1, y along t2, z along n_ref)
     Poly4 src = poly[0];
+    // (in locals: the stores into poly could alias them for all the compiler knows)
+    const double eu = ei[u], ev = ei[v];
+    const double ru0 = roti(0, u), ru1 = roti(1, u), ru2 = roti(2, u);
+    const double rv0 = roti(0, v), rv1 = roti(1, v), rv2 = roti(2, v);
     for (int k = 0; k < 4; ++k) {
         double su = (k == 0 || k == 3) ? 1.0 : -1.0;
         double sv = k < 2 ? 1.0 : -1.0;
-        double px = icx + su * ei[u] * roti(0, u) + sv * ei[v] * roti(0, v) - fcx;
-        double py = icy + su * ei[u] * roti(1, u) + sv * ei[v] * roti(1, v) - fcy;
-        double pz = icz + su * ei[u] * roti(2, u) + sv * ei[v] * roti(2, v) - fcz;
+        double px = icx + su * eu * ru0 + sv * ev * rv0 - fcx;
+        double py = icy + su * eu * ru1 + sv * ev * rv1 - fcy;
+        double pz = icz + su * eu * ru2 + sv * ev * rv2 - fcz;
         src[k][0] = px * t1x + py * t1y + pz * t1z;
         src[k][1] = px * t2x + py * t2y + pz * t2z;
         src[k][2] = px * rx + py * ry + pz * rz;
