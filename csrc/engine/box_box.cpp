@@ -43,12 +43,10 @@ static i64 clip_polygon(Poly4 src, i64 n_src, Poly4 dst, int axis, double sign, 
                         int plane_id) {
     i64 n_dst = 0;
     if (n_src == 0) return 0;
-    double dist[2 * MAX_CLIP_POINTS];  // each vertex's signed distance, computed once (poly's rows)
-    for (i64 i = 0; i < n_src; ++i) dist[i] = sign * src[i][axis] - limit;
     for (i64 i = 0; i < n_src; ++i) {
-        i64 j = i + 1 == n_src ? 0 : i + 1;
-        double di = dist[i];
-        double dj = dist[j];
+        i64 j = (i + 1) % n_src;
+        double di = sign * src[i][axis] - limit;
+        double dj = sign * src[j][axis] - limit;
         if (di <= 0.0) {
             for (int k = 0; k < 4; ++k) dst[n_dst][k] = src[i][k];
             n_dst += 1;
@@ -299,23 +297,17 @@ i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* c
     const CollisionConstants& cc = collision_constants();
     double dx = cb[0] - ca[0], dy = cb[1] - ca[1], dz = cb[2] - ca[2];
     double* c = work;  // c[3 i + j] = a_i . b_j ; c[9 + ...] = |c| + eps
+    // faces of a: row i of c and a's axis i . d just before its test (a pair separated along
+    // a_0 needs neither the other rows nor b's axes; the same values, the same operations)
+    double sep_a = -1e300;
+    int ax_a = 0;
     for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
             double v = rota(0, i) * rotb(0, j) + rota(1, i) * rotb(1, j) + rota(2, i) * rotb(2, j);
             c[3 * i + j] = v;
             c[9 + 3 * i + j] = std::fabs(v) + 1e-14;
         }
-    }
-    double da0 = rota(0, 0) * dx + rota(1, 0) * dy + rota(2, 0) * dz;
-    double da1 = rota(0, 1) * dx + rota(1, 1) * dy + rota(2, 1) * dz;
-    double da2 = rota(0, 2) * dx + rota(1, 2) * dy + rota(2, 2) * dz;
-    work[18] = da0;
-    work[19] = da1;
-    work[20] = da2;
-    // faces of a
-    double sep_a = -1e300;
-    int ax_a = 0;
-    for (int i = 0; i < 3; ++i) {
+        work[18 + i] = rota(0, i) * dx + rota(1, i) * dy + rota(2, i) * dz;
         double s = std::fabs(work[18 + i]) - ea[i] -
                    (c[9 + 3 * i] * eb[0] + c[10 + 3 * i] * eb[1] + c[11 + 3 * i] * eb[2]);
         if (s > spec) return 0;
@@ -324,6 +316,7 @@ i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* c
             ax_a = i;
         }
     }
+    const double da0 = work[18], da1 = work[19], da2 = work[20];
     // faces of b
     double sep_b = -1e300;
     int ax_b = 0;
