@@ -55,7 +55,8 @@ static i64 clip_polygon(Poly4 src, i64 n_src, Poly4 dst, int axis, double sign, 
             double t = di / (di - dj);
             for (int k = 0; k < 3; ++k) dst[n_dst][k] = src[i][k] + t * (src[j][k] - src[i][k]);
             // id: which edge (by its start vertex's id) crossed which clip plane
-            dst[n_dst][3] = 16.0 * (plane_id + 1) + std::fmod(src[i][3], 16.0);
+            // (ids are integers 0..79 held in doubles: fmod(id, 16) is exactly id & 15)
+            dst[n_dst][3] = 16.0 * (plane_id + 1) + (double)((i64)src[i][3] & 15);
             n_dst += 1;
         }
     }
@@ -96,12 +97,16 @@ static i64 face_contact(const double* cr, M3 rotr, const double* er, const doubl
     double t2x = rotr(0, k2), t2y = rotr(1, k2), t2z = rotr(2, k2);
     // incident polygon in reference coordinates (x along t1, y along t2, z along n_ref)
     Poly4 src = poly[0];
+    // (in locals: the stores into poly could alias them for all the compiler knows)
+    const double eu = ei[u], ev = ei[v];
+    const double ru0 = roti(0, u), ru1 = roti(1, u), ru2 = roti(2, u);
+    const double rv0 = roti(0, v), rv1 = roti(1, v), rv2 = roti(2, v);
     for (int k = 0; k < 4; ++k) {
         double su = (k == 0 || k == 3) ? 1.0 : -1.0;
         double sv = k < 2 ? 1.0 : -1.0;
-        double px = icx + su * ei[u] * roti(0, u) + sv * ei[v] * roti(0, v) - fcx;
-        double py = icy + su * ei[u] * roti(1, u) + sv * ei[v] * roti(1, v) - fcy;
-        double pz = icz + su * ei[u] * roti(2, u) + sv * ei[v] * roti(2, v) - fcz;
+        double px = icx + su * eu * ru0 + sv * ev * rv0 - fcx;
+        double py = icy + su * eu * ru1 + sv * ev * rv1 - fcy;
+        double pz = icz + su * eu * ru2 + sv * ev * rv2 - fcz;
         src[k][0] = px * t1x + py * t1y + pz * t1z;
         src[k][1] = px * t2x + py * t2y + pz * t2z;
         src[k][2] = px * rx + py * ry + pz * rz;
@@ -245,6 +250,44 @@ static i64 edge_contact(const double* ca, M3 rota, const double* ea, const doubl
     return 1;
 }
 
+// The separation along edge axis a_I x b_j (in a's frame e_I x c[:, j], c[3 i + j] = a_i . b_j),
+// as the 15-axis test defines it:
+//
+//   l = e_I x c[:, j],  ln = |l|,  s = (|l . da| - sum_i ea_i |l_i| - sum_m eb_m |l . c[:, m]|) / ln
+//
+// Component I of l is exactly 0, and its terms are left out of every sum here. That changes no
+// bit: 0 * x is +-0 for finite x, and adding +-0 to a sum changes at most the sign of an exact
+// zero; ln's and r_a's sums are of non-negative terms, which start at +0 and stay >= +0, and the
+// other sums are taken in absolute value. Returns false (no s) for near-parallel edges
+// (ln < tol).
+template <int I>
+static inline bool edge_axis_sep(const double* c, int j, const double* ea, const double* eb,
+                                 const double* da, double tol, double& s) {
+    const double c0 = c[j], c1 = c[3 + j], c2 = c[6 + j];
+    // the two nonzero components (u, v) of l, on axes (U, V), U < V
+    constexpr int U = I == 0 ? 1 : 0;
+    constexpr int V = I == 2 ? 1 : 2;
+    double lu, lv;
+    if (I == 0) {
+        lu = -c2;  // l = (0, -c2, c1)
+        lv = c1;
+    } else if (I == 1) {
+        lu = c2;  // l = (c2, 0, -c0)
+        lv = -c0;
+    } else {
+        lu = -c1;  // l = (-c1, c0, 0)
+        lv = c0;
+    }
+    const double ln = std::sqrt(lu * lu + lv * lv);
+    if (ln < tol) return false;
+    const double r_a = ea[U] * std::fabs(lu) + ea[V] * std::fabs(lv);
+    double r_b = 0.0;
+    for (int m = 0; m < 3; ++m)
+        r_b += eb[m] * std::fabs(lu * c[3 * U + m] + lv * c[3 * V + m]);
+    s = (std::fabs(lu * da[U] + lv * da[V]) - r_a - r_b) / ln;
+    return true;
+}
+
 // Box a vs box b: separating-axis test over 15 axes, then a clipped face manifold (up to four
 // points) or a single edge-edge point (plus, maybe, a face manifold in rows 4..). `work` (>= 24
 // floats) and `poly` are scratch. Returns n1 + 8 n2.
@@ -254,23 +297,17 @@ i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* c
     const CollisionConstants& cc = collision_constants();
     double dx = cb[0] - ca[0], dy = cb[1] - ca[1], dz = cb[2] - ca[2];
     double* c = work;  // c[3 i + j] = a_i . b_j ; c[9 + ...] = |c| + eps
+    // faces of a: row i of c and a's axis i . d just before its test (a pair separated along
+    // a_0 needs neither the other rows nor b's axes; the same values, the same operations)
+    double sep_a = -1e300;
+    int ax_a = 0;
     for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
             double v = rota(0, i) * rotb(0, j) + rota(1, i) * rotb(1, j) + rota(2, i) * rotb(2, j);
             c[3 * i + j] = v;
             c[9 + 3 * i + j] = std::fabs(v) + 1e-14;
         }
-    }
-    double da0 = rota(0, 0) * dx + rota(1, 0) * dy + rota(2, 0) * dz;
-    double da1 = rota(0, 1) * dx + rota(1, 1) * dy + rota(2, 1) * dz;
-    double da2 = rota(0, 2) * dx + rota(1, 2) * dy + rota(2, 2) * dz;
-    work[18] = da0;
-    work[19] = da1;
-    work[20] = da2;
-    // faces of a
-    double sep_a = -1e300;
-    int ax_a = 0;
-    for (int i = 0; i < 3; ++i) {
+        work[18 + i] = rota(0, i) * dx + rota(1, i) * dy + rota(2, i) * dz;
         double s = std::fabs(work[18 + i]) - ea[i] -
                    (c[9 + 3 * i] * eb[0] + c[10 + 3 * i] * eb[1] + c[11 + 3 * i] * eb[2]);
         if (s > spec) return 0;
@@ -279,6 +316,7 @@ i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* c
             ax_a = i;
         }
     }
+    const double da0 = work[18], da1 = work[19], da2 = work[20];
     // faces of b
     double sep_b = -1e300;
     int ax_b = 0;
@@ -292,40 +330,41 @@ i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* c
             ax_b = j;
         }
     }
-    // edges: axis a_i x b_j, expressed in a's frame: e_i x c[:, j]
+    // edges: axis a_i x b_j, expressed in a's frame: e_i x c[:, j] (edge_axis_sep: the terms of
+    // its zero component left out, which changes no bit)
     double sep_e = -1e300;
     int ei_best = -1;
     int ej_best = -1;
-    for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) {
-            double c0 = c[j], c1 = c[3 + j], c2 = c[6 + j];
-            double l0, l1, l2;
-            if (i == 0) {
-                l0 = 0.0;
-                l1 = -c2;
-                l2 = c1;
-            } else if (i == 1) {
-                l0 = c2;
-                l1 = 0.0;
-                l2 = -c0;
-            } else {
-                l0 = -c1;
-                l1 = c0;
-                l2 = 0.0;
-            }
-            double ln = std::sqrt(l0 * l0 + l1 * l1 + l2 * l2);
-            if (ln < cc.edge_parallel_tol) continue;
-            double r_a = ea[0] * std::fabs(l0) + ea[1] * std::fabs(l1) + ea[2] * std::fabs(l2);
-            double r_b = 0.0;
-            for (int m = 0; m < 3; ++m)
-                r_b += eb[m] * std::fabs(l0 * c[m] + l1 * c[3 + m] + l2 * c[6 + m]);
-            double s = (std::fabs(l0 * da0 + l1 * da1 + l2 * da2) - r_a - r_b) / ln;
-            if (s > spec) return 0;
-            if (s > sep_e) {
-                sep_e = s;
-                ei_best = i;
-                ej_best = j;
-            }
+    const double tol = cc.edge_parallel_tol;
+    const double da[3] = {da0, da1, da2};
+    for (int j = 0; j < 3; ++j) {
+        double s;
+        if (!edge_axis_sep<0>(c, j, ea, eb, da, tol, s)) continue;
+        if (s > spec) return 0;
+        if (s > sep_e) {
+            sep_e = s;
+            ei_best = 0;
+            ej_best = j;
+        }
+    }
+    for (int j = 0; j < 3; ++j) {
+        double s;
+        if (!edge_axis_sep<1>(c, j, ea, eb, da, tol, s)) continue;
+        if (s > spec) return 0;
+        if (s > sep_e) {
+            sep_e = s;
+            ei_best = 1;
+            ej_best = j;
+        }
+    }
+    for (int j = 0; j < 3; ++j) {
+        double s;
+        if (!edge_axis_sep<2>(c, j, ea, eb, da, tol, s)) continue;
+        if (s > spec) return 0;
+        if (s > sep_e) {
+            sep_e = s;
+            ei_best = 2;
+            ej_best = j;
         }
     }
     double face_sep = std::max(sep_a, sep_b);

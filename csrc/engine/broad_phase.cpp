@@ -180,15 +180,17 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
         for (i64 ii = n_it * blk / nb; ii < n_it * (blk + 1) / nb; ++ii) {
             const i64 i = ord[ii].id;
             const double* bi = bx + 6 * ii;
-            const double hi_i = bi[1];
+            const double hi_i = bi[1], lo1 = bi[2], hi1 = bi[3], lo2 = bi[4], hi2 = bi[5];
+            const bool i_static = i >= n_d;
             for (i64 jj = ii + 1; jj < n_it; ++jj) {
-                const i64 j = ord[jj].id;
                 const double* bj = bx + 6 * jj;
                 // written as "not overlapping" so that a NaN box never pairs with anything
+                // (the box tests before the id's: the same conjunction, cheapest first)
                 if (!(bj[0] <= hi_i)) break;
-                if (i >= n_d && j >= n_d) continue;
-                if (!(bj[2] <= bi[3] && bi[2] <= bj[3])) continue;
-                if (!(bj[4] <= bi[5] && bi[4] <= bj[5])) continue;
+                if (!(bj[2] <= hi1 && lo1 <= bj[3])) continue;
+                if (!(bj[4] <= hi2 && lo2 <= bj[5])) continue;
+                const i64 j = ord[jj].id;
+                if (i_static && j >= n_d) continue;
                 const i64 a = std::min(i, j);
                 const i64 b = std::max(i, j);
                 if (b < n_d) {

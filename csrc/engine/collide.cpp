@@ -75,16 +75,20 @@ i64 find_manifold(V1<i64> sorted_keys, V1<i64> sorted_idx, i64 n, i64 key) {
 }
 
 void sort_manifolds(V2<i64> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_idx) {
-    std::vector<i64> order(n_man);
-    std::iota(order.begin(), order.end(), i64(0));
-    const i64* mp = mi.p;
-    const i64 cols = mi.n1;
-    std::stable_sort(order.begin(), order.end(), [mp, cols](i64 a, i64 b) {
-        return mp[a * cols + MI_KEY] < mp[b * cols + MI_KEY];
+    // (key, index) pairs in lexicographic order: the order of a stable sort by key
+    struct KeyIdx {
+        i64 key, idx;
+    };
+    static thread_local std::vector<KeyIdx> kept;
+    std::vector<KeyIdx>& order = kept;
+    order.resize((size_t)n_man);
+    for (i64 m = 0; m < n_man; ++m) order[(size_t)m] = KeyIdx{mi(m, MI_KEY), m};
+    std::sort(order.begin(), order.end(), [](const KeyIdx& a, const KeyIdx& b) {
+        return a.key < b.key || (a.key == b.key && a.idx < b.idx);
     });
     for (i64 k = 0; k < n_man; ++k) {
-        sorted_idx[k] = order[k];
-        sorted_keys[k] = mi(order[k], MI_KEY);
+        sorted_idx[k] = order[(size_t)k].idx;
+        sorted_keys[k] = order[(size_t)k].key;
     }
 }
 
@@ -137,7 +141,7 @@ constexpr i64 MIN_PAIRS = 512;
 
 // Append one manifold (points rows row.. of the collider's output) with warm starting. `rolls`:
 // a sphere's pair, which gets no friction anchor.
-static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_awake,
+[[gnu::always_inline]] static inline void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_awake,
                          bool b_awake, bool b_dyn, i64 cnt, i64 row, i64 part, bool rolls,
                          V2<double> position, V3<double> rotation, V2<double> sb_pos,
                          V3<double> sb_rot, V1<double> restitution, V1<double> friction,
@@ -219,33 +223,57 @@ static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_
     }
     const M3 ra = rotation.row(a);
     const bool anchored = j >= 0 && prev_mf(j, MF_AOK) > 0.0 && !rolls;
-    for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) {
-            // R_b^T R_a
-            double v = rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) + rb_(2, r) * ra(2, c);
-            mfm[MF_AR + 3 * r + c] = anchored ? prev_mf(j, MF_AR + 3 * r + c) : v;
+    if (anchored) {
+        const double* pm = prev_mf.row(j);
+        for (int c = 0; c < 9; ++c) mfm[MF_AR + c] = pm[MF_AR + c];
+        for (int r = 0; r < 3; ++r) mfm[MF_AT + r] = pm[MF_AT + r];
+    } else {
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c)  // R_b^T R_a
+                mfm[MF_AR + 3 * r + c] =
+                    rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) + rb_(2, r) * ra(2, c);
+            mfm[MF_AT + r] = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
+                             rb_(2, r) * (pa[2] - xb[2]);
         }
-        double v = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
-                   rb_(2, r) * (pa[2] - xb[2]);
-        mfm[MF_AT + r] = anchored ? prev_mf(j, MF_AT + r) : v;
     }
     mfm[MF_AOK] = rolls ? 0.0 : 1.0;
+    // what the points' loop reads, in locals (its stores into pf could alias these arrays for all
+    // the compiler knows, and it would load them again for every point): the same values
+    const double pa0 = pa[0], pa1 = pa[1], pa2 = pa[2];
+    const double xb0 = xb[0], xb1 = xb[1], xb2 = xb[2];
+    double pb0 = 0.0, pb1 = 0.0, pb2 = 0.0;
+    if (b_dyn) {
+        const double* pb = position.row(b);
+        pb0 = pb[0];
+        pb1 = pb[1];
+        pb2 = pb[2];
+    }
+    double RA[3][3], RB[3][3], AR[9], AT[3];
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            RA[r][c] = ra(r, c);
+            RB[r][c] = rb_(r, c);
+        }
+        AT[r] = mfm[MF_AT + r];
+    }
+    for (int c = 0; c < 9; ++c) AR[c] = mfm[MF_AR + c];
     double drift_max = 0.0;
     for (i64 q = 0; q < cnt; ++q) {
         const i64 p = n_pts + q;
         double* pfp = pf.row(p);
         const double px = buf.pts[row + q][0], py = buf.pts[row + q][1], pz = buf.pts[row + q][2];
+        // p - x_a: the anchor r_a and a's material point's offset
+        const double rax = px - pa0, ray = py - pa1, raz = pz - pa2;
         pfp[PF_P] = px;
         pfp[PF_P + 1] = py;
         pfp[PF_P + 2] = pz;
-        pfp[PF_RA] = px - pa[0];
-        pfp[PF_RA + 1] = py - pa[1];
-        pfp[PF_RA + 2] = pz - pa[2];
+        pfp[PF_RA] = rax;
+        pfp[PF_RA + 1] = ray;
+        pfp[PF_RA + 2] = raz;
         if (b_dyn) {
-            const double* pb = position.row(b);
-            pfp[PF_RB] = px - pb[0];
-            pfp[PF_RB + 1] = py - pb[1];
-            pfp[PF_RB + 2] = pz - pb[2];
+            pfp[PF_RB] = px - pb0;
+            pfp[PF_RB + 1] = py - pb1;
+            pfp[PF_RB + 2] = pz - pb2;
         } else {
             pfp[PF_RB] = 0.0;
             pfp[PF_RB + 1] = 0.0;
@@ -290,17 +318,15 @@ static void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_
         }
         // drift of a's material point at the contact: y = R_a^T (p - x_a) in a's frame, put by
         // the anchor pose at x_b + R_b (A_R y + A_t); D = p minus that (world)
-        double y0 = ra(0, 0) * (px - pa[0]) + ra(1, 0) * (py - pa[1]) + ra(2, 0) * (pz - pa[2]);
-        double y1 = ra(0, 1) * (px - pa[0]) + ra(1, 1) * (py - pa[1]) + ra(2, 1) * (pz - pa[2]);
-        double y2 = ra(0, 2) * (px - pa[0]) + ra(1, 2) * (py - pa[1]) + ra(2, 2) * (pz - pa[2]);
-        double q0 = mfm[MF_AR] * y0 + mfm[MF_AR + 1] * y1 + mfm[MF_AR + 2] * y2 + mfm[MF_AT];
-        double q1 =
-            mfm[MF_AR + 3] * y0 + mfm[MF_AR + 4] * y1 + mfm[MF_AR + 5] * y2 + mfm[MF_AT + 1];
-        double q2 =
-            mfm[MF_AR + 6] * y0 + mfm[MF_AR + 7] * y1 + mfm[MF_AR + 8] * y2 + mfm[MF_AT + 2];
-        double dx = px - (xb[0] + rb_(0, 0) * q0 + rb_(0, 1) * q1 + rb_(0, 2) * q2);
-        double dy = py - (xb[1] + rb_(1, 0) * q0 + rb_(1, 1) * q1 + rb_(1, 2) * q2);
-        double dz = pz - (xb[2] + rb_(2, 0) * q0 + rb_(2, 1) * q1 + rb_(2, 2) * q2);
+        double y0 = RA[0][0] * rax + RA[1][0] * ray + RA[2][0] * raz;
+        double y1 = RA[0][1] * rax + RA[1][1] * ray + RA[2][1] * raz;
+        double y2 = RA[0][2] * rax + RA[1][2] * ray + RA[2][2] * raz;
+        double q0 = AR[0] * y0 + AR[1] * y1 + AR[2] * y2 + AT[0];
+        double q1 = AR[3] * y0 + AR[4] * y1 + AR[5] * y2 + AT[1];
+        double q2 = AR[6] * y0 + AR[7] * y1 + AR[8] * y2 + AT[2];
+        double dx = px - (xb0 + RB[0][0] * q0 + RB[0][1] * q1 + RB[0][2] * q2);
+        double dy = py - (xb1 + RB[1][0] * q0 + RB[1][1] * q1 + RB[1][2] * q2);
+        double dz = pz - (xb2 + RB[2][0] * q0 + RB[2][1] * q1 + RB[2][2] * q2);
         if (rolls) {
             dx = 0.0;
             dy = 0.0;

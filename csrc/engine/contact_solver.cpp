@@ -187,7 +187,11 @@ inline void friction_impulse(double k11, double k12, double k22, double o1, doub
 // then makes exactly the floating-point operations of Gaussian elimination with partial pivoting
 // on [K | rhs] (the same pivots, multipliers, order), so its results are bitwise those of an
 // elimination per sweep.
-void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double block_reg) {
+// (N: the point count as a template argument, so that the compiler unrolls the short loops;
+// factor_block picks it, N = 0: n_any. The loops and their order are the same for every N.)
+template <i64 N>
+void factor_block_n(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n_any, double block_reg) {
+    const i64 n = N > 0 ? N : n_any;
     double* f = mf.row(m);
     const i64 base = MF_LU;
     for (i64 i = 0; i < n; ++i) {
@@ -216,6 +220,15 @@ void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double 
         }
     }
     f[MF_LUOK] = 1.0;
+}
+
+void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double block_reg) {
+    switch (n) {
+        case 2: factor_block_n<2>(mf, m, pf, start, n, block_reg); break;
+        case 3: factor_block_n<3>(mf, m, pf, start, n, block_reg); break;
+        case 4: factor_block_n<4>(mf, m, pf, start, n, block_reg); break;
+        default: factor_block_n<0>(mf, m, pf, start, n, block_reg); break;
+    }
 }
 
 }  // namespace

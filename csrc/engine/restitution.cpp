@@ -87,12 +87,12 @@ void apply_pair_impulse(V2<double> bv, V2<double> bw, V2<double> linear_momentum
 // The bounce pass may lower a point's accumulated normal impulse (down to 0) after friction was
 // solved against the higher one; the friction impulse is then scaled back onto the cone
 // |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the bounce,
-// so that the pair's momenta stay exactly balanced.
-void reclamp_friction(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                      V2<double> bI, V2<double> bv, V2<double> bw, V2<double> dx,
+// so that the pair's momenta stay exactly balanced. targeted: the manifolds with a bouncing point
+// (PF_WT >= 0), in manifold order.
+void reclamp_friction(V2<i64> mi, V2<double> mf, V2<double> pf, const std::vector<i64>& targeted,
+                      V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> dx,
                       V2<double> linear_momentum, V2<double> angular_momentum) {
-    for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
+    for (const i64 m : targeted) {
         double mu = mf(m, MF_MU);
         i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
         double ma = bm[ia], mb = bm[ib];
@@ -151,6 +151,16 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
     const i64 n_blocks =
         pool().threads() > 1 ? TaskPool::blocks_for(n_man, MANIFOLDS_PER_BLOCK, MIN_MANIFOLDS) : 1;
     std::vector<i64> blk_impacts((size_t)n_blocks, 0);
+    // bodies whose pseudo velocities are all zero (the relax stage pushed most bodies not at
+    // all): a point between two of them has the pseudo gap rate pn = +-0 (a sum of products
+    // with a zero factor), and s0 + h (vn + pn) is s0 + h vn bit for bit unless vn and s0 are
+    // both zero (then the sum is taken as written)
+    static thread_local std::vector<char> still_kept;
+    std::vector<char>& still = still_kept;
+    still.resize((size_t)pv.n0);
+    for (i64 i = 0; i < pv.n0; ++i)
+        still[(size_t)i] = pv(i, 0) == 0.0 && pv(i, 1) == 0.0 && pv(i, 2) == 0.0 &&
+                           pw(i, 0) == 0.0 && pw(i, 1) == 0.0 && pw(i, 2) == 0.0;
     pool().run(n_blocks, [&](i64 blk, int) {
     i64 n_impacts = 0;
     for (i64 m = n_man * blk / n_blocks; m < n_man * (blk + 1) / n_blocks; ++m) {
@@ -159,15 +169,21 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
         double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
         double e = mf(m, MF_E);
         double acc = mf(m, MF_ACC);
+        const bool pair_still = still[(size_t)ia] && still[(size_t)ib];
         i64 start = mi(m, MI_START);
         for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
             double* q = pf.row(p);
             double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
             double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
             double vn = gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
-            double pn = gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
             double s0 = q[PF_S];
-            double s1 = s0 + h * (vn + pn);
+            double s1;
+            if (pair_still && (vn != 0.0 || s0 != 0.0)) {
+                s1 = s0 + h * vn;
+            } else {
+                double pn = gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
+                s1 = s0 + h * (vn + pn);
+            }
             q[PF_SEND] = s1;
             q[PF_LWS] = q[PF_LN];
             q[PF_WT] = -1.0;
@@ -193,16 +209,25 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
     i64 n_impacts = 0;
     for (i64 c : blk_impacts) n_impacts += c;
     if (n_impacts == 0) return 0;
-    // Gauss-Seidel on the bounce targets of the impact points only
+    // Gauss-Seidel on the bounce targets of the impact points only (the manifolds with a
+    // target listed once: PF_WT does not change in the sweeps)
+    static thread_local std::vector<i64> kept;
+    std::vector<i64>& targeted = kept;
+    targeted.clear();
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE)) continue;
+        const i64 start = mi(m, MI_START);
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+            if (pf(p, PF_WT) >= 0.0) {
+                targeted.push_back(m);
+                break;
+            }
+        }
+    }
     for (i64 it = 0; it < n_iter; ++it) {
-        for (i64 m = 0; m < n_man; ++m) {
-            if (!mi(m, MI_ACTIVE)) continue;
+        for (const i64 m : targeted) {
             i64 start = mi(m, MI_START);
             i64 end = start + mi(m, MI_COUNT);
-            bool any_target = false;
-            for (i64 p = start; p < end; ++p)
-                if (pf(p, PF_WT) >= 0.0) any_target = true;
-            if (!any_target) continue;
             i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
             double ma = bm[ia], mb = bm[ib];
             double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
@@ -231,7 +256,8 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
             }
         }
     }
-    reclamp_friction(mi, mf, pf, n_man, bm, bI, bv, bw, dx, linear_momentum, angular_momentum);
+    // (only the targeted manifolds hold points with PF_WT >= 0, the ones reclamp_friction acts on)
+    reclamp_friction(mi, mf, pf, targeted, bm, bI, bv, bw, dx, linear_momentum, angular_momentum);
     return n_impacts;
 }
 
