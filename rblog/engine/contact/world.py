@@ -134,7 +134,10 @@ class ContactWorld:
             float(p.speculative_distance), -1.0,  # e_threshold: set per dt by advance()
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
             bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth),
-            bool(p.static_friction_anchors), **solver_constants())
+            bool(p.static_friction_anchors), **solver_constants(),
+            soft=p.solver == "soft_step", substeps=int(p.substeps),
+            soft_hertz=float("inf") if p.contact_hertz is None else float(p.contact_hertz),
+            soft_zeta=float(p.contact_damping_ratio))
         # the free-body kernel's inputs, for scenes where nothing can touch
         self._inv_mass = 1.0 / mass
         self._inv_inertia = inv_inertia
