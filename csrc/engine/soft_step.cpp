@@ -325,15 +325,11 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
 }
 
 void soft_island_flight(V1<i64> awake, V1<i64> in_contact, V1<i64> pushed, V2<double> accel,
-                        V2<double> position, V2<double> dx_step, double h, i64 substeps) {
-    const double c = h * h * double(substeps - 1) / (2.0 * double(substeps));
-    for (i64 i = 0; i < position.n0; ++i) {
+                        V2<double> pv, double h, i64 substeps) {
+    const double c = h * double(substeps - 1) / (2.0 * double(substeps));
+    for (i64 i = 0; i < accel.n0; ++i) {
         if (!awake[i] || !in_contact[i] || pushed[i] != 1) continue;
-        for (int k = 0; k < 3; ++k) {
-            double d = c * accel(i, k);
-            position(i, k) += d;
-            dx_step(i, k) += d;
-        }
+        for (int k = 0; k < 3; ++k) pv(i, k) += c * accel(i, k);
     }
 }
 

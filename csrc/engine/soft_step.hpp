@@ -42,11 +42,15 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
                V2<double> pw, V2<double> accel, V2<double> torque, bool do_kick, double h,
                const SoftSettings& ss);
 
-// After stage 9: a pushed body of an island away from static geometry (pushed == 1, see
-// world_step.cpp's mark_pushed) got stage 9's exact-flight term - h^2 a / 2, the one a single
-// symplectic Euler step needs; the substeps' own error is - h^2 a / (2 substeps), so the body
-// is moved by h^2 a (substeps - 1) / (2 substeps) back (position and dx_step: (N+1, 3)).
+// Between mark_pushed and stage 9: the pseudo velocity of a pushed body of an island away from
+// static geometry (pushed == 1, see world_step.cpp's mark_pushed) loses the substeps' own lag
+// behind the end velocity under the constant acceleration a, pv += h a (substeps - 1) /
+// (2 substeps) (a free body's substeps move it h v_end - h^2 a (substeps - 1) / (2 substeps)).
+// Stage 9's exact-flight term - h^2 a / 2 then moves the body by the substeps' displacement
+// minus h^2 a / (2 substeps), each substep's exact flight, so that such an island's centre of
+// mass stays on the exact parabola; and the orbital hand-back h v' x P sees only what the
+// contacts' timing within the step moved, as with the PGS solve's relax stage. pv: (N+1, 3).
 void soft_island_flight(V1<i64> awake, V1<i64> in_contact, V1<i64> pushed, V2<double> accel,
-                        V2<double> position, V2<double> dx_step, double h, i64 substeps);
+                        V2<double> pv, double h, i64 substeps);
 
 }  // namespace rb

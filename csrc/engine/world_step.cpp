@@ -453,8 +453,8 @@ std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const Sle
 }
 
 // 6-9 in soft_step mode: the substeps (soft_step.cpp: warm start, soft solve, relax per
-// substep), then the bodies sorted and moved as stage 9 does, and the exact-flight term of the
-// islands away from static geometry set to the substeps' (soft_island_flight). Returns the
+// substep), then the bodies sorted, the pseudo velocities of islands away from static geometry
+// made the contacts' part only (soft_island_flight), and stage 9 as ever. Returns the
 // sweeps; t: the profile clock, lapped into P_SOLVE, P_RELAX and P_INTEGRATE.
 i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc,
                 V1<i64> awake, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, int method,
@@ -467,11 +467,11 @@ i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scrat
                             bd.torque, cfg.do_kick, h, ss);
     if (do_prof) t = lap(prof, P_SOLVE, t);
     mark_pushed(mi, pf, n_man, x.position.n0, sc);
+    if (cfg.do_kick)
+        soft_island_flight(awake, col(sc.in_contact), col(sc.pushed), bd.accel, sc.pv.view(), h,
+                           cfg.substeps);
     if (do_prof) t = lap(prof, P_RELAX, t);
     integrate_positions(method, ortho, bd, cfg, awake, x, sc, h, an);
-    if (cfg.do_kick)
-        soft_island_flight(awake, col(sc.in_contact), col(sc.pushed), bd.accel, x.position,
-                           sc.dx_step.view(), h, cfg.substeps);
     if (do_prof) t = lap(prof, P_INTEGRATE, t);
     return sweeps;
 }
