@@ -79,12 +79,32 @@ struct SoftWork {
 };
 thread_local SoftWork g_work;
 
+// Solve K x = b in place (b: x, n <= 4) with manifold f's factors from prepare_contacts'
+// factor_block: the row exchanges MF_PIV, the multipliers below MF_LU's diagonal, U on and above.
+inline void lu_solve(const double* f, i64 n, double* x) {
+    for (i64 c = 0; c < n; ++c) {
+        i64 piv = (i64)f[MF_PIV + c];
+        if (piv != c) {
+            double t = x[c];
+            x[c] = x[piv];
+            x[piv] = t;
+        }
+        for (i64 r = c + 1; r < n; ++r) x[r] -= f[MF_LU + 4 * r + c] * x[c];
+    }
+    for (i64 c = n - 1; c >= 0; --c) {
+        double v = x[c];
+        for (i64 k = c + 1; k < n; ++k) v -= f[MF_LU + 4 * c + k] * x[k];
+        x[c] = v / f[MF_LU + 5 * c];
+    }
+}
+
 // One sweep over the manifolds (in manifold order): the normal rows, then friction (Box2D v3's
 // order), with the soft bias when use_bias, rigid otherwise.
 void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V2<double> bI,
            V2<double> bv, V2<double> bw, const double* dp, const double* dth, double* lam,
            double inv_hs, bool use_bias, const Softness& soft, const Softness& soft_static,
-           double push_max, i64 newton_iters, double newton_tol) {
+           double push_max, bool anchors, bool block_rows, i64 newton_iters,
+           double newton_tol) {
     for (i64 m = 0; m < n_man; ++m) {
         if (!mi(m, MI_ACTIVE)) continue;
         i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
@@ -106,10 +126,14 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
         const double* qb = dth + 3 * ib;
         i64 start = mi(m, MI_START);
         i64 end = start + mi(m, MI_COUNT);
-        // normal rows
+        // normal rows: each point's target (the soft bias, or the speculative one), then the
+        // manifold's points together through its factored block K (prepare_contacts' MF_LU, as
+        // the PGS solve), else one by one
+        i64 cnt = end - start;
+        double rhs[4], ms[4], is[4];
         for (i64 p = start; p < end; ++p) {
             const double* q = pf.row(p);
-            double* l = lam + 3 * p;
+            i64 i = p - start;
             double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
             double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
             // current separation: s0 + n . (dp_a + dth_a x r_a - dp_b - dth_b x r_b)
@@ -117,28 +141,71 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
             double dy = pa[1] + qa[2] * rax - qa[0] * raz - pb[1] - qb[2] * rbx + qb[0] * rbz;
             double dz = pa[2] + qa[0] * ray - qa[1] * rax - pb[2] - qb[0] * rby + qb[1] * rbx;
             double s = q[PF_S] + nx * dx + ny * dy + nz * dz;
-            double bias = 0.0, mscale = 1.0, iscale = 0.0;
+            double bias = 0.0;
+            ms[i] = 1.0;
+            is[i] = 0.0;
             if (s > 0.0) {
                 bias = s * inv_hs;  // speculative: close the gap, do not cross it
             } else if (use_bias) {
                 bias = sf.bias_rate * s;
                 if (bias < -push_max) bias = -push_max;
-                mscale = sf.mass_scale;
-                iscale = sf.impulse_scale;
+                ms[i] = sf.mass_scale;
+                is[i] = sf.impulse_scale;
             }
-            // relative normal velocity
-            double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-            double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-            double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
-            double vn = dvx * nx + dvy * ny + dvz * nz;
-            // incremental impulse, clamp the accumulated one
-            double old = l[0];
-            double nw = old - q[PF_NMASS] * mscale * (vn + bias) - iscale * old;
-            if (nw < 0.0) nw = 0.0;
-            l[0] = nw;
-            double d = nw - old;
-            apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz,
-                          vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+            rhs[i] = bias;
+        }
+        bool block = block_rows && cnt > 1 && mf(m, MF_LUOK) > 0.0;
+        if (block) {
+            // x = K^-1 (-(v_n + bias)); dlambda_i = mass_scale_i x_i - impulse_scale_i lambda_i
+            double x[4];
+            for (i64 i = 0; i < cnt; ++i) {
+                const double* q = pf.row(start + i);
+                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
+                double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
+                double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                x[i] = -(dvx * nx + dvy * ny + dvz * nz + rhs[i]);
+            }
+            lu_solve(mf.row(m), cnt, x);
+            for (i64 i = 0; i < cnt && block; ++i) {
+                double* l = lam + 3 * (start + i);
+                x[i] = ms[i] * x[i] - is[i] * l[0];
+                if (l[0] + x[i] < 0.0) block = false;
+            }
+            if (block) {
+                for (i64 i = 0; i < cnt; ++i) {
+                    const double* q = pf.row(start + i);
+                    double* l = lam + 3 * (start + i);
+                    l[0] += x[i];
+                    double d = x[i];
+                    apply_impulse(ma, a6, mb, b6, q[PF_RA], q[PF_RA + 1], q[PF_RA + 2],
+                                  q[PF_RB], q[PF_RB + 1], q[PF_RB + 2], d * nx, d * ny, d * nz,
+                                  vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+                }
+            }
+        }
+        if (!block) {
+            for (i64 p = start; p < end; ++p) {
+                const double* q = pf.row(p);
+                double* l = lam + 3 * p;
+                i64 i = p - start;
+                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
+                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                // relative normal velocity
+                double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
+                double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
+                double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                double vn = dvx * nx + dvy * ny + dvz * nz;
+                // incremental impulse, clamp the accumulated one
+                double old = l[0];
+                double nw = old - q[PF_NMASS] * ms[i] * (vn + rhs[i]) - is[i] * old;
+                if (nw < 0.0) nw = 0.0;
+                l[0] = nw;
+                double d = nw - old;
+                apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny,
+                              d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+            }
         }
         // friction rows: the cone of this substep's normal impulse
         if (mu > 0.0) {
@@ -152,6 +219,10 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
                 double vt1 = dvx * t1x + dvy * t1y + dvz * t1z;
                 double vt2 = dvx * t2x + dvy * t2y + dvz * t2z;
+                if (use_bias && anchors) {  // slip relative to the anchor's target -D rate / h
+                    vt1 += q[PF_DB];
+                    vt2 += q[PF_DB + 1];
+                }
                 double o1 = l[1], o2 = l[2];
                 double n1, n2;
                 friction_impulse(q[PF_TK], q[PF_TK + 1], q[PF_TK + 2], o1, o2, vt1, vt2,
@@ -283,7 +354,7 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
         }
         // solve, with the soft bias
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, true, soft, soft_static,
-              ss.push_max, ss.newton_iters, ss.newton_tol);
+              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol);
         // integrate positions (into the displacements; the static dummy's stay zero)
         for (i64 i = 0; i < n_dyn; ++i) {
             if (!in_contact[i]) continue;
@@ -294,7 +365,7 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
         }
         // relax, rigid
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, false, soft, soft_static,
-              ss.push_max, ss.newton_iters, ss.newton_tol);
+              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol);
         // what this substep applied
         for (i64 m = 0; m < n_man; ++m) {
             if (!mi(m, MI_ACTIVE)) continue;

@@ -22,6 +22,9 @@ struct SoftSettings {
     double hertz;         // ContactParams.contact_hertz (capped at a quarter of the substep rate)
     double zeta;          // ContactParams.contact_damping_ratio
     double push_max;      // ContactParams.max_correction_speed: cap on the push-out speed (m/s)
+    bool anchors;         // ContactParams.static_friction_anchors: the solve sweeps' friction
+                          // rows aim at the anchors' slip rate (PF_DB)
+    bool block;           // a manifold's normal rows solved together (its factored block K)
     i64 newton_iters;     // FRICTION_NEWTON_ITERS
     double newton_tol;    // FRICTION_NEWTON_TOL
 };
