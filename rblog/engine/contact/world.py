@@ -230,19 +230,18 @@ class ContactWorld:
             e.append(("isotropic shortcut", f"{int(iso.sum())} of {n} bodies isotropic"))
         else:
             e.append(("inertia: R diag(1/I) R^T per body", "no body has isotropic inertia"))
-        e.append(("solve: sequential impulses",
-                  f"{p.velocity_iterations} to {p.max_velocity_iterations} sweeps (until the "
-                  f"largest correction < {p.velocity_tolerance:g} m/s), normal impulses "
-                  f"over-relaxed x{p.over_relaxation:g} where bodies touch more than one "
-                  f"thing, Coulomb friction sqrt(mu_a mu_b), "
-                  f"warm starting {'on' if p.warm_starting else 'off'}, speculative "
-                  f"distance {p.speculative_distance:g} m + relative motion per step"))
-        if p.position_iterations > 0:
-            e.append(("relax: split impulses",
-                      f"{p.position_iterations} sweeps on pseudo velocities, slop "
-                      f"{p.allowed_penetration:g} m, rate {p.position_correction_rate:g}"))
+        if p.solver == "soft_step":
+            cap = "a quarter of the substep rate" if p.contact_hertz is None else (
+                f"min({p.contact_hertz:g} Hz, a quarter of the substep rate)")
+            e.append(("solve: soft step (Box2D v3)",
+                      f"{p.substeps} substeps of dt / {p.substeps}, each a warm start, one soft "
+                      f"sweep (contact springs of {cap}, damping ratio "
+                      f"{p.contact_damping_ratio:g}, push-out <= {p.max_correction_speed:g} m/s), "
+                      f"the positions moved, one rigid relax sweep; Coulomb friction "
+                      f"sqrt(mu_a mu_b), speculative distance {p.speculative_distance:g} m + "
+                      f"relative motion per step"))
         else:
-            e.append(("relax: skipped", "position_iterations = 0"))
+            self._explain_pgs(e, p)
         if p.restitution_threshold is None:
             above = (f"{RESTITUTION_THRESHOLD_KICKS:g} |a| dt + {p.velocity_tolerance:g} m/s "
                      f"(|a| = {self.accel_max:g} m/s^2)")
@@ -264,6 +263,24 @@ class ContactWorld:
             e.append(("sleeping: off", "contact.sleep = false"))
 
     # ---- API --------------------------------------------------------------------------------
+
+
+    @staticmethod
+    def _explain_pgs(e, p):
+        """explain()'s rows of the projected Gauss-Seidel solve and its relax stage."""
+        e.append(("solve: sequential impulses",
+                  f"{p.velocity_iterations} to {p.max_velocity_iterations} sweeps (until the "
+                  f"largest correction < {p.velocity_tolerance:g} m/s), normal impulses "
+                  f"over-relaxed x{p.over_relaxation:g} where bodies touch more than one "
+                  f"thing, Coulomb friction sqrt(mu_a mu_b), "
+                  f"warm starting {'on' if p.warm_starting else 'off'}, speculative "
+                  f"distance {p.speculative_distance:g} m + relative motion per step"))
+        if p.position_iterations > 0:
+            e.append(("relax: split impulses",
+                      f"{p.position_iterations} sweeps on pseudo velocities, slop "
+                      f"{p.allowed_penetration:g} m, rate {p.position_correction_rate:g}"))
+        else:
+            e.append(("relax: skipped", "position_iterations = 0"))
 
     def explain(self) -> list[tuple[str, str]]:
         """Stages chosen for this scene, and why, in step order."""
