@@ -67,7 +67,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
 #include "common/task_pool.hpp"
 #include "engine/contact_solver.hpp"
@@ -462,8 +461,7 @@ i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scrat
                 int ortho, double h, const FlowAnchors& an, V1<i64> prof, i64& t) {
     bool do_prof = prof.n0 > 0;
     SoftSettings ss{cfg.substeps, cfg.soft_hertz, cfg.soft_zeta, cfg.max_speed,
-                    cfg.anchors_on && std::getenv("SOFT_NO_ANCHOR") == nullptr,
-                    std::getenv("SOFT_NO_BLOCK") == nullptr, cfg.newton_iters, cfg.newton_tol};
+                    cfg.anchors_on, true, cfg.newton_iters, cfg.newton_tol};
     i64 sweeps = soft_solve(mi, mf, pf, n_man, col(sc.in_contact), col(sc.bm), sc.bI.view(),
                             sc.bv.view(), sc.bw.view(), sc.pv.view(), sc.pw.view(), bd.accel,
                             bd.torque, cfg.do_kick, h, ss);

@@ -303,12 +303,16 @@ class ContactParams:
             manifold), then the friction anchors' pass and the split-impulse relax stage.
             ``"soft_step"``: Box2D v3's soft step (csrc/engine/soft_step.cpp): ``substeps``
             substeps of dt / substeps, each a warm start, one sweep of soft contacts (springs of
-            ``contact_hertz``), the positions moved, one rigid relax sweep; fixed cost, no
-            convergence test, no friction anchors. ``velocity_iterations``,
-            ``max_velocity_iterations``, ``velocity_tolerance``, ``over_relaxation``,
-            ``position_iterations``, ``position_correction_rate`` and
-            ``static_friction_anchors`` are the PGS solve's and do nothing under the soft step;
-            ``max_correction_speed`` caps both solves' push-out speed.
+            ``contact_hertz``; a manifold's normal rows through its block, as the PGS solve),
+            the positions moved, one rigid relax sweep; fixed cost, no convergence test; with
+            ``static_friction_anchors`` the soft sweeps' friction rows aim at the anchors' slip
+            rate. ``velocity_iterations``, ``max_velocity_iterations``, ``velocity_tolerance``,
+            ``over_relaxation``, ``position_iterations`` and ``position_correction_rate`` are
+            the PGS solve's and do nothing under the soft step; ``max_correction_speed`` caps
+            both solves' push-out speed. Measured against the PGS solve (2026-11-28, the 500-box
+            pile from its 1 s state, 4 substeps): 1.13x fewer instructions a step, the pile's
+            checks as clean; it does not yet pass every closed-form contact test (a 10-box stack
+            at dt = 1e-2 topples below 16 substeps: its springs' sag, see ``contact_hertz``).
         substeps: the soft step's substeps per step (Box2D v3 uses 4). More substeps make
             stiffer contacts possible (see ``contact_hertz``) and cost one solve and one relax
             sweep each.
