@@ -370,6 +370,7 @@ CONTACT_RANGES = {
     "substeps": "an integer >= 1",
     "contact_hertz": "a number > 0 (Hz)",
     "contact_damping_ratio": "a number >= 0",
+    "max_substep": "a number > 0 (s)",
 }
 
 

@@ -234,7 +234,9 @@ class ContactWorld:
             cap = "a quarter of the substep rate" if p.contact_hertz is None else (
                 f"min({p.contact_hertz:g} Hz, a quarter of the substep rate)")
             e.append(("solve: soft step (Box2D v3)",
-                      f"{p.substeps} substeps of dt / {p.substeps}, each a warm start, one soft "
+                      (f"{p.substeps} substeps of dt / {p.substeps}" if p.max_substep is None
+                       else f"max({p.substeps}, ceil(dt / {p.max_substep:g} s)) substeps")
+                      + f", each a warm start, one soft "
                       f"sweep (contact springs of {cap}, damping ratio "
                       f"{p.contact_damping_ratio:g}, push-out <= {p.max_correction_speed:g} m/s), "
                       f"the positions moved, one rigid relax sweep; Coulomb friction "
@@ -348,10 +350,14 @@ class ContactWorld:
         return self.params.restitution_threshold_at(float(dt), self.accel_max)
 
     def settings_at(self, dt: float):
-        """The Settings record for steps of ``dt`` (s): the restitution threshold depends on it."""
+        """The Settings record for steps of ``dt`` (s): the restitution threshold depends on it,
+        and the soft step's substeps (ContactParams.substeps_at)."""
         threshold = self.restitution_threshold(dt)
         if self._settings.e_threshold != threshold:
             self._settings = self._settings._replace(e_threshold=threshold)
+        sub = self.params.substeps_at(float(dt))
+        if self._settings.substeps != sub:
+            self._settings = self._settings._replace(substeps=sub)
         return self._settings
 
     @property

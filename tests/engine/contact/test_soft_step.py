@@ -52,7 +52,8 @@ def test_solver_default_is_pgs_and_values_are_checked():
     assert set(CONTACT_SOLVERS) == {"pgs", "soft_step"}
     ContactParams(solver="soft_step", substeps=8, contact_hertz=60.0)
     for bad in (dict(solver="box2d"), dict(substeps=0), dict(substeps=2.5),
-                dict(contact_hertz=0.0), dict(contact_damping_ratio=-1.0)):
+                dict(contact_hertz=0.0), dict(contact_damping_ratio=-1.0),
+                dict(max_substep=0.0)):
         with pytest.raises(ValueError, match=f"contact.{next(iter(bad))}"):
             ContactParams(**bad)
 
@@ -67,6 +68,12 @@ def test_bad_soft_step_setting_is_a_one_line_scene_error(line, key, shown):
     msg = str(e.value)
     assert "\n" not in msg
     assert msg.startswith(f"s.toml: contact.{key}: expected ") and msg.endswith(f"got {shown}")
+
+
+def test_max_substep_sets_the_substeps_from_dt():
+    p = ContactParams(solver="soft_step", substeps=4, max_substep=2.5e-4)
+    assert [p.substeps_at(dt) for dt in (1e-4, 1e-3, 1e-2, 1.1e-3)] == [4, 4, 40, 5]
+    assert ContactParams(substeps=3).substeps_at(1e-2) == 3
 
 
 def test_scene_selects_the_soft_step():
