@@ -110,12 +110,13 @@ inline void lu_solve(const double* f, i64 n, double* x) {
 }
 
 // One sweep over the manifolds (in manifold order): the normal rows, then friction (Box2D v3's
-// order), with the soft bias when use_bias, rigid otherwise.
+// order), with the soft bias when use_bias, rigid otherwise; sum: the relax sweep adds each
+// point's impulses of the substep into it (nullptr: the solve sweep).
 void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V2<double> bI,
            V2<double> bv, V2<double> bw, const double* dp, const double* dth, double* lam,
            double inv_hs, bool use_bias, const Softness& soft, const Softness& soft_static,
            double push_max, bool anchors, bool block_rows, i64 newton_iters,
-           double newton_tol) {
+           double newton_tol, double* sum) {
     for (i64 m = 0; m < n_man; ++m) {
         if (!mi(m, MI_ACTIVE)) continue;
         i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
@@ -214,6 +215,7 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 if (nw < 0.0) nw = 0.0;
                 l[0] = nw;
                 double d = nw - old;
+                if (d == 0.0) continue;  // (a speculative point left open)
                 apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny,
                               d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
             }
@@ -223,6 +225,8 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
             for (i64 p = start; p < end; ++p) {
                 const double* q = pf.row(p);
                 double* l = lam + 3 * p;
+                // no normal impulse and no friction impulse: the cone is a point, nothing to do
+                if (l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0) continue;
                 double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
                 double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
                 double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
@@ -250,6 +254,8 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
         bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
         bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
         bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+        if (sum != nullptr)  // the relax sweep: what this substep applied, into the step's sums
+            for (i64 p = 3 * start; p < 3 * end; ++p) sum[p] += lam[p];
     }
 }
 
@@ -365,7 +371,7 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
         }
         // solve, with the soft bias
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, true, soft, soft_static,
-              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol);
+              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol, nullptr);
         // integrate positions (into the displacements; the static dummy's stay zero)
         for (i64 i = 0; i < n_dyn; ++i) {
             if (!in_contact[i]) continue;
@@ -376,14 +382,7 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
         }
         // relax, rigid
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, false, soft, soft_static,
-              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol);
-        // what this substep applied
-        for (i64 m = 0; m < n_man; ++m) {
-            if (!mi(m, MI_ACTIVE)) continue;
-            i64 start = mi(m, MI_START);
-            for (i64 p = start; p < start + mi(m, MI_COUNT); ++p)
-                for (int k = 0; k < 3; ++k) sum[3 * p + k] += lam[3 * p + k];
-        }
+              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol, sum);
     }
     // the step's impulses, and the pseudo velocities that carry the substeps' displacement
     for (i64 m = 0; m < n_man; ++m) {
