@@ -109,6 +109,32 @@ inline void lu_solve(const double* f, i64 n, double* x) {
     }
 }
 
+// The impulses x_i n at anchors r_a,i / r_b,i of one manifold at once: D = sum x_i, sa = sum x_i
+// r_a,i, sb = sum x_i r_b,i; velocity changes +-m^-1 D n and +-I^-1 (s x n), what apply_impulse
+// makes point by point (to round-off).
+inline void apply_moments(double ma, const double* a6, double mb, const double* b6,
+                          const double* sa, const double* sb, double dsum, double nx, double ny,
+                          double nz, double& vax, double& vay, double& vaz, double& wax,
+                          double& way, double& waz, double& vbx, double& vby, double& vbz,
+                          double& wbx, double& wby, double& wbz) {
+    double cx = sa[1] * nz - sa[2] * ny, cy = sa[2] * nx - sa[0] * nz, cz = sa[0] * ny - sa[1] * nx;
+    vax += ma * dsum * nx;
+    vay += ma * dsum * ny;
+    vaz += ma * dsum * nz;
+    wax += a6[0] * cx + a6[3] * cy + a6[4] * cz;
+    way += a6[3] * cx + a6[1] * cy + a6[5] * cz;
+    waz += a6[4] * cx + a6[5] * cy + a6[2] * cz;
+    cx = sb[1] * nz - sb[2] * ny;
+    cy = sb[2] * nx - sb[0] * nz;
+    cz = sb[0] * ny - sb[1] * nx;
+    vbx -= mb * dsum * nx;
+    vby -= mb * dsum * ny;
+    vbz -= mb * dsum * nz;
+    wbx -= b6[0] * cx + b6[3] * cy + b6[4] * cz;
+    wby -= b6[3] * cx + b6[1] * cy + b6[5] * cz;
+    wbz -= b6[4] * cx + b6[5] * cy + b6[2] * cz;
+}
+
 // One sweep over the manifolds (in manifold order): the normal rows, then friction (Box2D v3's
 // order), with the soft bias when use_bias, rigid otherwise; sum: the relax sweep adds each
 // point's impulses of the substep into it (nullptr: the solve sweep).
@@ -186,15 +212,20 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 if (l[0] + x[i] < 0.0) block = false;
             }
             if (block) {
+                // the points' impulses at once: D n on the bodies' centres, and the moments
+                // (sum x_i r_i) x n, so one velocity update instead of one per point
+                double dsum = 0.0, sa[3] = {0.0, 0.0, 0.0}, sb[3] = {0.0, 0.0, 0.0};
                 for (i64 i = 0; i < cnt; ++i) {
                     const double* q = pf.row(start + i);
-                    double* l = lam + 3 * (start + i);
-                    l[0] += x[i];
-                    double d = x[i];
-                    apply_impulse(ma, a6, mb, b6, q[PF_RA], q[PF_RA + 1], q[PF_RA + 2],
-                                  q[PF_RB], q[PF_RB + 1], q[PF_RB + 2], d * nx, d * ny, d * nz,
-                                  vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+                    lam[3 * (start + i)] += x[i];
+                    dsum += x[i];
+                    for (int k = 0; k < 3; ++k) {
+                        sa[k] += x[i] * q[PF_RA + k];
+                        sb[k] += x[i] * q[PF_RB + k];
+                    }
                 }
+                apply_moments(ma, a6, mb, b6, sa, sb, dsum, nx, ny, nz, vax, vay, vaz, wax, way,
+                              waz, vbx, vby, vbz, wbx, wby, wbz);
             }
         }
         if (!block) {
