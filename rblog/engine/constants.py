@@ -312,9 +312,12 @@ class ContactParams:
             ``over_relaxation``, ``position_iterations`` and ``position_correction_rate`` are
             the PGS solve's and do nothing under the soft step; ``max_correction_speed`` caps
             both solves' push-out speed. Measured against the PGS solve (2026-11-28, the 500-box
-            pile from its 1 s state, 4 substeps): 1.13x fewer instructions a step, the pile's
-            checks as clean; it does not yet pass every closed-form contact test (a 10-box stack
-            at dt = 1e-2 topples below 16 substeps: its springs' sag, see ``contact_hertz``).
+            pile from its 1 s state, 4 substeps, the soft sweeps scalar): 1.25x fewer
+            instructions a step, samples/pile.toml's checks clean at seeds 1-3; it does not pass
+            every closed-form contact test: a 10-box stack at dt = 1e-2 topples below 8
+            substeps (its springs' sag, see ``contact_hertz``; ``max_substep`` = 2.5e-4 keeps
+            it), and the tests of exact rolling, of overlaps pushed out without velocity and of
+            a zero resting depth fail by construction.
         substeps: the soft step's substeps per step (Box2D v3 uses 4). More substeps make
             stiffer contacts possible (see ``contact_hertz``) and cost one solve and one relax
             sweep each.
