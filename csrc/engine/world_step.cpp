@@ -32,6 +32,11 @@
 //                         dx x P is handed back to the spin, as in 8
 //     13 sleep            rest timers, islands, put resting islands to sleep (island.py)
 //
+// With ContactParams.solver = "soft_step", stages 6-8 are Box2D v3's substeps instead
+// (soft_step.cpp: per substep a share of the kick, warm start, soft solve, positions, relax;
+// no anchor pass, no split-impulse relax stage), and stage 9 moves the bodies by the substeps'
+// displacement (step::soft_stages).
+//
 // Translation (stage 9; mark_pushed sorts the bodies after the solve). A body that no contact
 // pushes in a step (no manifold, or only manifolds whose accumulated impulses all ended at zero: a
 // speculative contact that was not reached, a pair moving apart) moves exactly under its constant
