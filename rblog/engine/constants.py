@@ -316,8 +316,9 @@ class ContactParams:
             instructions a step, samples/pile.toml's checks clean at seeds 1-3; it does not pass
             every closed-form contact test: a 10-box stack at dt = 1e-2 topples below 8
             substeps (its springs' sag, see ``contact_hertz``; ``max_substep`` = 2.5e-4 keeps
-            it), and the tests of exact rolling, of overlaps pushed out without velocity and of
-            a zero resting depth fail by construction.
+            it), the 10-box stack at dt 1e-3 x 4 wanders sideways after ~10 s (1 mm at 12 s,
+            growing from round-off), and the tests of exact rolling, of overlaps pushed out
+            without velocity and of a zero resting depth fail by construction.
         substeps: the soft step's substeps per step (Box2D v3 uses 4). More substeps make
             stiffer contacts possible (see ``contact_hertz``) and cost one solve and one relax
             sweep each.
