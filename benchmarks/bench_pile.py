@@ -48,10 +48,10 @@ from rblog.engine.rotation import quat_to_matrix_np  # noqa: E402
 from rblog.study.scenes import loose_pile  # noqa: E402
 
 
-def run_rblog(model, state, dt, n_steps, sample_every, profile=None, anchors=True):
+def run_rblog(model, state, dt, n_steps, sample_every, profile=None, anchors=True, **contact):
     """(steps/s, penetration samples, world, end state); ``anchors``: ContactParams'
-    static_friction_anchors."""
-    world = ContactWorld(model, ContactParams(static_friction_anchors=anchors),
+    static_friction_anchors; ``contact``: further ContactParams fields (solver, substeps ...)."""
+    world = ContactWorld(model, ContactParams(static_friction_anchors=anchors, **contact),
                          rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
     if profile is not None:
         world.profile_ticks = profile.ticks
@@ -137,11 +137,18 @@ def main(argv=None):
     ap.add_argument("--threads", default="1,2", help="comma-separated rblog thread counts")
     ap.add_argument("--no-anchors", dest="anchors", action="store_false",
                     help="rblog with [contact] static_friction_anchors = false (on by default)")
+    ap.add_argument("--solver", default="pgs", help="ContactParams.solver: pgs or soft_step")
+    ap.add_argument("--substeps", type=int, default=4, help="the soft step's substeps")
+    ap.add_argument("--contact-hertz", type=float, default=None,
+                    help="the soft step's contact_hertz (default: the substeps' cap)")
     args = ap.parse_args(argv)
+    contact = dict(solver=args.solver, substeps=args.substeps, contact_hertz=args.contact_hertz)
     n_steps = int(round(args.duration / args.dt))
     thread_counts = [int(t) for t in args.threads.split(",")]
     print(f"loose pile: dt {args.dt:g} s, {n_steps} steps ({args.duration:g} s); rblog threads "
-          f"{thread_counts}, solver kernel {_core.solver_kernel()}")
+          f"{thread_counts}, solver kernel {_core.solver_kernel()}, solver {args.solver}"
+          + (f" ({args.substeps} substeps, contact_hertz {args.contact_hertz})"
+             if args.solver == "soft_step" else ""))
     wm, ws = loose_pile(10)
     run_rblog(wm, ws, args.dt, 20, 10, anchors=args.anchors)  # compile / load the kernels
     have_mj = importlib.util.find_spec("mujoco") is not None
@@ -154,7 +161,7 @@ def main(argv=None):
             _core.set_threads(nt)
             prof = Profile() if args.profile else None
             sps, pens, world, _ = run_rblog(model, state, args.dt, n_steps, args.sample_every,
-                                            prof, anchors=args.anchors)
+                                            prof, anchors=args.anchors, **contact)
             sps_t[nt] = sps
             st = world.stats
             print(f"  rblog{'' if args.anchors else ' no anchors'} {nt} thread{'s' if nt > 1 else ' '}"

@@ -35,6 +35,10 @@ def main(argv=None):
     ap.add_argument("--load", help="step --steps on from this stored state")
     ap.add_argument("--steps", type=int, default=1000)
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--solver", default="pgs", help="ContactParams.solver: pgs or soft_step")
+    ap.add_argument("--substeps", type=int, default=4, help="the soft step's substeps")
+    ap.add_argument("--contact-hertz", type=float, default=None,
+                    help="the soft step's contact_hertz (default: the substeps' cap)")
     args = ap.parse_args(argv)
     _core.set_threads(args.threads)
     model, state = loose_pile(args.boxes)
@@ -42,7 +46,9 @@ def main(argv=None):
         z = np.load(args.load)
         for f in FIELDS:
             getattr(state, f)[...] = z[f]
-    world = ContactWorld(model, ContactParams(), rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
+    params = ContactParams(solver=args.solver, substeps=args.substeps,
+                           contact_hertz=args.contact_hertz)
+    world = ContactWorld(model, params, rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
     n = model.n_bodies
     outs = [np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros((1, n, 4)), np.zeros((1, n, 3, 3)),
             np.zeros((1, n, 3))]

@@ -3,7 +3,7 @@
 // contact_lanes_avx2.cpp, so that nothing compiled with -mavx2 can be linked in place of the
 // portable code (every function here has internal linkage; only raw pointers, no views).
 //
-// The formulas and their order are contact_solver.cpp's (solve_velocities, friction_impulse,
+// The formulas and their order are contact_solver.cpp's (solve_velocities, friction.hpp's friction_impulse,
 // lu_solve, apply_impulse): read them there; here each `if` on a lane's value is a select
 // (W<T>::sel) and a loop with a lane-dependent length runs to the group's longest with the
 // shorter lanes masked.

@@ -77,6 +77,11 @@ struct Settings {
     double anchor_rate = 0.0;   // constants.FRICTION_ANCHOR_RATE
     double slide_frac = 0.0;    // constants.FRICTION_ANCHOR_SLIDE_FRAC
     i64 proj_rings = 0;         // constants.PROJECTION_RINGS
+    // ContactParams.solver == "soft_step" (soft_step.cpp) and its substeps, contact_hertz,
+    // contact_damping_ratio
+    bool soft = false;
+    i64 substeps = 1;
+    double soft_hertz = 0.0, soft_zeta = 0.0;
     static Settings from_py(nanobind::handle r);
 };
 
@@ -185,6 +190,10 @@ inline Settings Settings::from_py(nanobind::handle r) {
     c.anchor_rate = scalar<double>(r, "anchor_rate");
     c.slide_frac = scalar<double>(r, "slide_frac");
     c.proj_rings = scalar<i64>(r, "proj_rings");
+    c.soft = scalar<bool>(r, "soft");
+    c.substeps = scalar<i64>(r, "substeps");
+    c.soft_hertz = scalar<double>(r, "soft_hertz");
+    c.soft_zeta = scalar<double>(r, "soft_zeta");
     return c;
 }
 

@@ -32,6 +32,11 @@
 //                         dx x P is handed back to the spin, as in 8
 //     13 sleep            rest timers, islands, put resting islands to sleep (island.py)
 //
+// With ContactParams.solver = "soft_step", stages 6-8 are Box2D v3's substeps instead
+// (soft_step.cpp: per substep a share of the kick, warm start, soft solve, positions, relax;
+// no anchor pass, no split-impulse relax stage), and stage 9 moves the bodies by the substeps'
+// displacement (step::soft_stages).
+//
 // Translation (stage 9; mark_pushed sorts the bodies after the solve). A body that no contact
 // pushes in a step (no manifold, or only manifolds whose accumulated impulses all ended at zero: a
 // speculative contact that was not reached, a pair moving apart) moves exactly under its constant
@@ -74,6 +79,7 @@
 #include "engine/profile.hpp"
 #include "engine/project.hpp"
 #include "engine/rotation.hpp"
+#include "engine/soft_step.hpp"
 #include "engine/world_step.hpp"
 
 namespace rb {
@@ -451,6 +457,30 @@ std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const Sle
     return {woken, slept};
 }
 
+// 6-9 in soft_step mode: the substeps (soft_step.cpp: warm start, soft solve, relax per
+// substep), then the bodies sorted, the pseudo velocities of islands away from static geometry
+// made the contacts' part only (soft_island_flight), and stage 9 as ever. Returns the
+// sweeps; t: the profile clock, lapped into P_SOLVE, P_RELAX and P_INTEGRATE.
+i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc,
+                V1<i64> awake, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, int method,
+                int ortho, double h, const FlowAnchors& an, V1<i64> prof, i64& t) {
+    bool do_prof = prof.n0 > 0;
+    SoftSettings ss{cfg.substeps, cfg.soft_hertz, cfg.soft_zeta, cfg.max_speed,
+                    cfg.anchors_on, true, cfg.newton_iters, cfg.newton_tol};
+    i64 sweeps = soft_solve(mi, mf, pf, n_man, col(sc.in_contact), col(sc.bm), sc.bI.view(),
+                            sc.bv.view(), sc.bw.view(), sc.pv.view(), sc.pw.view(), bd.accel,
+                            bd.torque, cfg.do_kick, h, ss);
+    if (do_prof) t = lap(prof, P_SOLVE, t);
+    mark_pushed(mi, pf, n_man, x.position.n0, sc);
+    if (cfg.do_kick)
+        soft_island_flight(awake, col(sc.in_contact), col(sc.pushed), bd.accel, sc.pv.view(), h,
+                           cfg.substeps);
+    if (do_prof) t = lap(prof, P_RELAX, t);
+    integrate_positions(method, ortho, bd, cfg, awake, x, sc, h, an);
+    if (do_prof) t = lap(prof, P_INTEGRATE, t);
+    return sweeps;
+}
+
 // The first awake body whose state is not finite or that turns more than
 // MAX_ROTATION_PER_STEP_RAD in a step of h (turn_within_bound), or -1: the run has diverged
 // there (a torque of 1e40 N m on a resting box, say), though its state may be finite.
@@ -593,6 +623,10 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             V1<double> bm = col(sc.bm);
             V2<double> bI = sc.bI.view(), bv = sc.bv.view(), bw = sc.bw.view();
             prepare(bd, cfg, x, sc, mi1, mf1, pf1, n_man, h);                               // 5
+            if (cfg.soft) {  // 6-9 as Box2D v3's substeps (soft_step.cpp)
+                stats[ST_SWEEPS] += soft_stages(bd, cfg, x, sc, sl.awake, mi1, mf1, pf1, n_man,
+                                                method, ortho, h, an, prof, t);
+            } else {
             if (cfg.warm) warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw);                // 6
             stats[ST_SWEEPS] += solve_velocities(                                           // 7
                 mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h, cfg.n_vel, cfg.max_vel, cfg.vel_tol,
@@ -609,6 +643,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_RELAX, t);
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
             if (do_prof) t = lap(prof, P_INTEGRATE, t);
+            }
             stats[ST_IMPACTS] += restitution(                                               // 10
                 mi1, mf1, pf1, n_man, bm, bI, bv, bw, sc.pv.view(), sc.pw.view(), h,
                 cfg.e_threshold, cfg.n_vel, sc.dx_step.view(), x.linear_momentum,

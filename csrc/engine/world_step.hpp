@@ -47,6 +47,9 @@ i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Se
 std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const SleepState& sl,
                                 const BodyState& x, Scratch& sc, V2<i64> mi, V2<double> mf,
                                 V2<double> pf, i64 n_man, double h, i64 n_awake);
+i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc,
+                V1<i64> awake, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, int method,
+                int ortho, double h, const FlowAnchors& an, V1<i64> prof, i64& t);
 i64 first_diverged(V1<i64> awake, const BodyState& x, V2<double> inv_inertia, double h);
 i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
                     V2<double> position, V3<double> rotation, V2<double> pose0,

@@ -318,7 +318,7 @@ def _contact_table(ctx: _Ctx, t: dict) -> dict:
     """Check ``[contact]`` against the contact solver's settings (rblog.engine.constants)."""
     from dataclasses import fields
 
-    from rblog.engine.constants import ContactParams
+    from rblog.engine.constants import CONTACT_SOLVERS, ContactParams
 
     defaults = ContactParams()
     known = {f.name for f in fields(ContactParams)}
@@ -329,6 +329,10 @@ def _contact_table(ctx: _Ctx, t: dict) -> dict:
         key = f"contact.{k}"
         if isinstance(d, bool):
             out[k] = ctx.boolean(v, key)
+        elif isinstance(d, str):
+            if not isinstance(v, str) or v not in CONTACT_SOLVERS:
+                ctx.fail(key, f"expected {CONTACT_RANGES[k]}, got {v!r}")
+            out[k] = v
         elif isinstance(d, int):
             out[k] = ctx.integer(v, key)
         else:
@@ -362,6 +366,11 @@ CONTACT_RANGES = {
     "sleep_time": "a number >= 0 (s)",
     "projection_iterations": "an integer >= 0",
     "projection_depth": "a number > 0 (m)",
+    "solver": "one of \"pgs\", \"soft_step\"",
+    "substeps": "an integer >= 1",
+    "contact_hertz": "a number > 0 (Hz)",
+    "contact_damping_ratio": "a number >= 0",
+    "max_substep": "a number > 0 (s)",
 }
 
 

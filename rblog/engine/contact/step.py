@@ -80,13 +80,15 @@ Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff 
 #: module-level solver tolerances of rblog.engine.constants the C++ stages read (newton_iters:
 #: FRICTION_NEWTON_ITERS, newton_tol: FRICTION_NEWTON_TOL, block_reg: BLOCK_REG, anchor_rate:
 #: FRICTION_ANCHOR_RATE, slide_frac: FRICTION_ANCHOR_SLIDE_FRAC, proj_rings: PROJECTION_RINGS;
-#: :func:`solver_constants`), so that C++ holds no second copy of them
+#: :func:`solver_constants`), so that C++ holds no second copy of them; last the soft step's
+#: switch (ContactParams.solver == "soft_step") and its substeps, contact_hertz (Hz) and
+#: contact_damping_ratio
 Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol sor n_pos slop "
                                   "beta max_speed "
                                   "margin e_threshold anchor sleep_speed sleep_time warm "
                                   "n_proj proj_depth anchors_on "
                                   "newton_iters newton_tol block_reg anchor_rate slide_frac "
-                                  "proj_rings")
+                                  "proj_rings soft substeps soft_hertz soft_zeta")
 
 
 def solver_constants() -> dict:

@@ -134,7 +134,10 @@ class ContactWorld:
             float(p.speculative_distance), -1.0,  # e_threshold: set per dt by advance()
             float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
             bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth),
-            bool(p.static_friction_anchors), **solver_constants())
+            bool(p.static_friction_anchors), **solver_constants(),
+            soft=p.solver == "soft_step", substeps=int(p.substeps),
+            soft_hertz=float("inf") if p.contact_hertz is None else float(p.contact_hertz),
+            soft_zeta=float(p.contact_damping_ratio))
         # the free-body kernel's inputs, for scenes where nothing can touch
         self._inv_mass = 1.0 / mass
         self._inv_inertia = inv_inertia
@@ -227,19 +230,20 @@ class ContactWorld:
             e.append(("isotropic shortcut", f"{int(iso.sum())} of {n} bodies isotropic"))
         else:
             e.append(("inertia: R diag(1/I) R^T per body", "no body has isotropic inertia"))
-        e.append(("solve: sequential impulses",
-                  f"{p.velocity_iterations} to {p.max_velocity_iterations} sweeps (until the "
-                  f"largest correction < {p.velocity_tolerance:g} m/s), normal impulses "
-                  f"over-relaxed x{p.over_relaxation:g} where bodies touch more than one "
-                  f"thing, Coulomb friction sqrt(mu_a mu_b), "
-                  f"warm starting {'on' if p.warm_starting else 'off'}, speculative "
-                  f"distance {p.speculative_distance:g} m + relative motion per step"))
-        if p.position_iterations > 0:
-            e.append(("relax: split impulses",
-                      f"{p.position_iterations} sweeps on pseudo velocities, slop "
-                      f"{p.allowed_penetration:g} m, rate {p.position_correction_rate:g}"))
+        if p.solver == "soft_step":
+            cap = "a quarter of the substep rate" if p.contact_hertz is None else (
+                f"min({p.contact_hertz:g} Hz, a quarter of the substep rate)")
+            e.append(("solve: soft step (Box2D v3)",
+                      (f"{p.substeps} substeps of dt / {p.substeps}" if p.max_substep is None
+                       else f"max({p.substeps}, ceil(dt / {p.max_substep:g} s)) substeps")
+                      + f", each a warm start, one soft "
+                      f"sweep (contact springs of {cap}, damping ratio "
+                      f"{p.contact_damping_ratio:g}, push-out <= {p.max_correction_speed:g} m/s), "
+                      f"the positions moved, one rigid relax sweep; Coulomb friction "
+                      f"sqrt(mu_a mu_b), speculative distance {p.speculative_distance:g} m + "
+                      f"relative motion per step"))
         else:
-            e.append(("relax: skipped", "position_iterations = 0"))
+            self._explain_pgs(e, p)
         if p.restitution_threshold is None:
             above = (f"{RESTITUTION_THRESHOLD_KICKS:g} |a| dt + {p.velocity_tolerance:g} m/s "
                      f"(|a| = {self.accel_max:g} m/s^2)")
@@ -261,6 +265,24 @@ class ContactWorld:
             e.append(("sleeping: off", "contact.sleep = false"))
 
     # ---- API --------------------------------------------------------------------------------
+
+
+    @staticmethod
+    def _explain_pgs(e, p):
+        """explain()'s rows of the projected Gauss-Seidel solve and its relax stage."""
+        e.append(("solve: sequential impulses",
+                  f"{p.velocity_iterations} to {p.max_velocity_iterations} sweeps (until the "
+                  f"largest correction < {p.velocity_tolerance:g} m/s), normal impulses "
+                  f"over-relaxed x{p.over_relaxation:g} where bodies touch more than one "
+                  f"thing, Coulomb friction sqrt(mu_a mu_b), "
+                  f"warm starting {'on' if p.warm_starting else 'off'}, speculative "
+                  f"distance {p.speculative_distance:g} m + relative motion per step"))
+        if p.position_iterations > 0:
+            e.append(("relax: split impulses",
+                      f"{p.position_iterations} sweeps on pseudo velocities, slop "
+                      f"{p.allowed_penetration:g} m, rate {p.position_correction_rate:g}"))
+        else:
+            e.append(("relax: skipped", "position_iterations = 0"))
 
     def explain(self) -> list[tuple[str, str]]:
         """Stages chosen for this scene, and why, in step order."""
@@ -328,10 +350,14 @@ class ContactWorld:
         return self.params.restitution_threshold_at(float(dt), self.accel_max)
 
     def settings_at(self, dt: float):
-        """The Settings record for steps of ``dt`` (s): the restitution threshold depends on it."""
+        """The Settings record for steps of ``dt`` (s): the restitution threshold depends on it,
+        and the soft step's substeps (ContactParams.substeps_at)."""
         threshold = self.restitution_threshold(dt)
         if self._settings.e_threshold != threshold:
             self._settings = self._settings._replace(e_threshold=threshold)
+        sub = self.params.substeps_at(float(dt))
+        if self._settings.substeps != sub:
+            self._settings = self._settings._replace(substeps=sub)
         return self._settings
 
     @property

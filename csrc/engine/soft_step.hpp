@@ -1,0 +1,59 @@
+// The soft step (soft_step.cpp): Box2D v3's sub-stepped contact solve, the world step's stages 6-8
+// when ContactParams.solver is "soft_step". Shapes and frames as contact_solver.hpp.
+#pragma once
+
+#include <cstddef>  // size_t, which common/array.hpp uses
+
+#include "common/array.hpp"
+
+namespace rb {
+
+// Box2D v3's b2Softness (solver.h, b2MakeSoft): a contact as a spring of `hertz` with damping
+// ratio `zeta`, stepped by implicit Euler over h. bias_rate (1/s) turns a separation into a
+// target velocity; mass_scale and impulse_scale soften the impulse (see soft_step.cpp).
+struct Softness {
+    double bias_rate, mass_scale, impulse_scale;
+};
+Softness make_soft(double hertz, double zeta, double h);
+
+// What the soft step needs beyond the velocity solve's arrays.
+struct SoftSettings {
+    i64 substeps;         // ContactParams.substeps
+    double hertz;         // ContactParams.contact_hertz (capped at a quarter of the substep rate)
+    double zeta;          // ContactParams.contact_damping_ratio
+    double push_max;      // ContactParams.max_correction_speed: cap on the push-out speed (m/s)
+    bool anchors;         // ContactParams.static_friction_anchors: the solve sweeps' friction
+                          // rows aim at the anchors' slip rate (PF_DB)
+    bool block;           // a manifold's normal rows solved together (its factored block K)
+    i64 newton_iters;     // FRICTION_NEWTON_ITERS
+    double newton_tol;    // FRICTION_NEWTON_TOL
+};
+
+// Stages 6-8 as Box2D v3's b2SolverStage loop over `substeps` substeps of h / substeps: gravity
+// (and the applied forces) are kicked per substep, and per substep the bodies' velocities are
+// warm-started, solved with the soft bias, their positions integrated (into per-body
+// displacements only) and relaxed without bias. On return PF_LN, PF_L1, PF_L2 hold the step's
+// total impulses (the sum over the substeps, as the PGS solve's accumulated impulses), bv/bw the
+// end velocities and pv/pw the difference between the substeps' mean velocity and the end one,
+// so that stage 9's x += h (v + v') moves every pushed body by the substeps' displacement.
+//
+// in_contact: (N+1,) active manifolds per body (load_bodies); accel: (N, 3) g + F/m; torque:
+// (N, 3) applied torque (world); do_kick: the kick stage ran (its h a and h I^-1 tau are taken
+// back out of bv/bw and applied per substep). Returns the manifold sweeps made (2 a substep).
+i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_contact,
+               V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> pv,
+               V2<double> pw, V2<double> accel, V2<double> torque, bool do_kick, double h,
+               const SoftSettings& ss);
+
+// Between mark_pushed and stage 9: the pseudo velocity of a pushed body of an island away from
+// static geometry (pushed == 1, see world_step.cpp's mark_pushed) loses the substeps' own lag
+// behind the end velocity under the constant acceleration a, pv += h a (substeps - 1) /
+// (2 substeps) (a free body's substeps move it h v_end - h^2 a (substeps - 1) / (2 substeps)).
+// Stage 9's exact-flight term - h^2 a / 2 then moves the body by the substeps' displacement
+// minus h^2 a / (2 substeps), each substep's exact flight, so that such an island's centre of
+// mass stays on the exact parabola; and the orbital hand-back h v' x P sees only what the
+// contacts' timing within the step moved, as with the PGS solve's relax stage. pv: (N+1, 3).
+void soft_island_flight(V1<i64> awake, V1<i64> in_contact, V1<i64> pushed, V2<double> accel,
+                        V2<double> pv, double h, i64 substeps);
+
+}  // namespace rb
