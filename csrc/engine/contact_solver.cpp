@@ -365,9 +365,12 @@ void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<do
     }
 }
 
-// Apply the impulses carried over from the previous step.
-void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                V2<double> bI, V2<double> bv, V2<double> bw) {
+// Apply each active point's stored impulse (normal, t1, t2 components at lam + lam_stride p) to
+// its manifold's bodies: the velocity solve's warm start (the impulses carried over from the
+// previous step, pf's PF_LN, PF_L1, PF_L2) and the soft step's (the last substep's).
+void apply_stored_impulses(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                           V2<double> bI, V2<double> bv, V2<double> bw, const double* lam,
+                           i64 lam_stride) {
     for (i64 m = 0; m < n_man; ++m) {
         if (!mi(m, MI_ACTIVE)) continue;
         i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
@@ -383,7 +386,8 @@ void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
         double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
         i64 start = mi(m, MI_START);
         for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            double ln = pf(p, PF_LN), l1 = pf(p, PF_L1), l2 = pf(p, PF_L2);
+            const double* l = lam + lam_stride * p;
+            double ln = l[0], l1 = l[1], l2 = l[2];
             if (ln == 0.0 && l1 == 0.0 && l2 == 0.0) continue;
             double px = ln * nx + l1 * t1x + l2 * t2x;
             double py = ln * ny + l1 * t1y + l2 * t2y;
@@ -397,6 +401,13 @@ void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
         bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
         bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
     }
+}
+
+// Apply the impulses carried over from the previous step (PF_LN, PF_L1, PF_L2: adjacent columns).
+void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                V2<double> bI, V2<double> bv, V2<double> bw) {
+    static_assert(PF_L1 == PF_LN + 1 && PF_L2 == PF_LN + 2, "warm start reads three adjacent columns");
+    apply_stored_impulses(mi, mf, pf, n_man, bm, bI, bv, bw, pf.p + PF_LN, pf.n1);
 }
 
 // Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order), the

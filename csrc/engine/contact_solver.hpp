@@ -72,6 +72,12 @@ void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<do
 void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
                 V2<double> bI, V2<double> bv, V2<double> bw);
 
+// Apply each active point's stored impulse, its (normal, t1, t2) components at
+// lam[lam_stride p + 0..2], to its manifold's bodies (warm_start's loop; the soft step's).
+void apply_stored_impulses(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
+                           V2<double> bI, V2<double> bv, V2<double> bw, const double* lam,
+                           i64 lam_stride);
+
 // newton_iters, newton_tol: FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL; g: the colouring of
 // the active manifolds (constraint_graph.hpp), lanes: work buffers. Returns the full-sweep
 // equivalents (at least 1).

@@ -371,35 +371,7 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
             }
         }
         // warm start: this substep begins with the last one's impulses applied
-        for (i64 m = 0; m < n_man; ++m) {
-            if (!mi(m, MI_ACTIVE)) continue;
-            i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-            double ma = bm[ia], mb = bm[ib];
-            const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
-            const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
-            double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
-            double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
-            double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
-            double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
-            double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
-            double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
-            double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
-            i64 start = mi(m, MI_START);
-            for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-                const double* l = lam + 3 * p;
-                if (l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0) continue;
-                apply_impulse(ma, a6, mb, b6, pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2),
-                              pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2),
-                              l[0] * nx + l[1] * t1x + l[2] * t2x,
-                              l[0] * ny + l[1] * t1y + l[2] * t2y,
-                              l[0] * nz + l[1] * t1z + l[2] * t2z, vax, vay, vaz, wax, way, waz,
-                              vbx, vby, vbz, wbx, wby, wbz);
-            }
-            bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
-            bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
-            bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
-            bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
-        }
+        apply_stored_impulses(mi, mf, pf, n_man, bm, bI, bv, bw, lam, 3);
         // solve, with the soft bias
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, true, soft, soft_static,
               ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol, nullptr);

@@ -264,9 +264,6 @@ class ContactWorld:
         else:
             e.append(("sleeping: off", "contact.sleep = false"))
 
-    # ---- API --------------------------------------------------------------------------------
-
-
     @staticmethod
     def _explain_pgs(e, p):
         """explain()'s rows of the projected Gauss-Seidel solve and its relax stage."""
@@ -283,6 +280,8 @@ class ContactWorld:
                       f"{p.allowed_penetration:g} m, rate {p.position_correction_rate:g}"))
         else:
             e.append(("relax: skipped", "position_iterations = 0"))
+
+    # ---- API --------------------------------------------------------------------------------
 
     def explain(self) -> list[tuple[str, str]]:
         """Stages chosen for this scene, and why, in step order."""
