@@ -7,7 +7,7 @@ audit), ``study`` (benchmarks, stress, references, peers); ``errors`` is shared 
 The public API, imported lazily so that ``import rblog`` stays cheap::
 
     scene = rblog.load_scene("samples/tumbling_box.toml")
-    traj, summary = rblog.engine.runner(scene)          # in memory
+    traj, summary = rblog.simulate(scene)              # in memory
     summary = rblog.run(scene, recorders=[...])    # streamed to log writers
     traj = rblog.load("run.mcap")                  # read a log back (.rrd or .mcap)
     results = rblog.check(traj)                    # physics analyzers
