@@ -94,6 +94,10 @@ COLLIDE_ALL = -1
 #: impulse_<kind>_linear / _angular) and work kinds (body_work_supplied; work_<kind>)
 IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint")
 WORK_KINDS = ("applied", "passive", "actuator")
+#: body_impulse_supplied / body_work_supplied codes, per body and kind
+SUPPLIED_MISSING = 0   # the writer does not know it: what needs it is not judged
+SUPPLIED_LOGGED = 1    # in the log's impulse_<kind>_* / work_<kind> channels
+SUPPLIED_NONE = 2      # the engine has no such force on the body: zero, not stored
 
 #: geom fields: name -> trailing shape per geom (dtype int64 for the int ones, str for names)
 GEOM_FIELDS = {"geom_name": (), "geom_body": (), "geom_type": (), "geom_pos_body": (3,),
@@ -132,9 +136,10 @@ class Model:
         static_box_position: (M, 3), static_box_quat_wxyz: (M, 4), static_box_half_extents: (M, 3),
         static_box_restitution, static_box_friction: (M,) static boxes (walls, ramps).
         body_kind: (N,) int BODY_* (default BODY_FREE).  body_parent: (N,) int, -1 = world.
-        body_impulse_supplied: (N, 5) bool, columns IMPULSE_KINDS: the log holds that impulse of
-            that body (False: missing, not to be judged).  body_work_supplied: (N, 3) bool,
-            columns WORK_KINDS.
+        body_impulse_supplied: (N, 5) int, columns IMPULSE_KINDS, SUPPLIED_* codes: the log
+            holds that impulse of that body (1), the engine has no such force on it (2: zero,
+            not stored), or it is missing (0: not to be judged).  body_work_supplied: (N, 3),
+            columns WORK_KINDS, likewise.
         joint_name (J,), joint_type (J,) JOINT_*, joint_body (J,) the child body,
             joint_anchor_body (J, 3) m in the child's body frame, joint_anchor_parent (J, 3) the
             same point in the parent's frame at the joint's zero position, joint_axis_body /
@@ -203,9 +208,9 @@ class Model:
         if self.body_parent is None:
             self.body_parent = np.full(n, -1, np.int64)
         if self.body_impulse_supplied is None:
-            self.body_impulse_supplied = np.zeros((n, len(IMPULSE_KINDS)), bool)
+            self.body_impulse_supplied = np.zeros((n, len(IMPULSE_KINDS)), np.int64)
         if self.body_work_supplied is None:
-            self.body_work_supplied = np.zeros((n, len(WORK_KINDS)), bool)
+            self.body_work_supplied = np.zeros((n, len(WORK_KINDS)), np.int64)
         if self.joint_type is None:
             for name, trail in JOINT_FIELDS.items():
                 if getattr(self, name) is None:
@@ -251,8 +256,13 @@ class Model:
         return self.mesh_vert[a:a + k]
 
     def impulse_supplied(self, kind: str) -> np.ndarray:
-        """(N,) bool: which bodies' ``impulse_<kind>_*`` the log holds."""
-        return self.body_impulse_supplied[:, IMPULSE_KINDS.index(kind)]
+        """(N,) bool: the bodies whose impulse ``kind`` is known (logged, or none in the
+        engine): the ones an analyzer can judge with it."""
+        return self.body_impulse_supplied[:, IMPULSE_KINDS.index(kind)] != SUPPLIED_MISSING
+
+    def work_supplied(self, kind: str) -> np.ndarray:
+        """(N,) bool: the bodies whose work ``kind`` is known (logged, or none)."""
+        return self.body_work_supplied[:, WORK_KINDS.index(kind)] != SUPPLIED_MISSING
 
 
 def quat_z_to(normal) -> np.ndarray:

@@ -54,11 +54,12 @@ def _model() -> Model:
                   axis_body=[[0, 1, 0], [0, 0, 1], [0, 0, 0]],
                   axis_parent=[[0, 1, 0], [0, 0, 1], [0, 0, 0]],
                   range=[[-1.5, 1.5], [-0.05, 0.05], [0, np.nan]], name=["shoulder", "wrist_slide", "wrist"])
-    supplied = np.zeros((6, 5), bool)
-    supplied[:, 0] = True            # contact: every body
-    supplied[[1, 2], 4] = True       # joint: the bodies on joints
-    work = np.zeros((6, 3), bool)
-    work[[1, 2], 2] = True           # actuator work on the arm and the hand
+    supplied = np.zeros((6, 5), np.int64)   # SUPPLIED_*: 0 missing, 1 logged, 2 none
+    supplied[:, 0] = 1               # contact: every body
+    supplied[[1, 2], 4] = 1          # joint: the bodies on joints
+    supplied[[0, 3, 4], 4] = 2       # ... the free bodies have none
+    work = np.zeros((6, 3), np.int64)
+    work[[1, 2], 2] = 1              # actuator work on the arm and the hand
     return rblog.body_table(
         name=["base", "arm", "hand", "rock", "ball", "mocap"], mass=[3.0, 1.0, 0.5, 0.7, 1.0, 2.0],
         inertia_diag=[[0.1, 0.2, 0.3], [0.01, 0.01, 0.002], [0.001, 0.002, 0.003],
@@ -116,7 +117,7 @@ def test_geom_joint_and_body_tables():
     assert m.ground_offset == 0.0 and m.ground_friction == 0.9
     assert np.array_equal(m.static_box_position, [[1, 0, 0.5]])
     assert np.array_equal(m.static_box_quat_wxyz, [[C45, 0, 0, S45]])
-    assert m.impulse_supplied("joint").tolist() == [False, True, True, False, False, False]
+    assert m.impulse_supplied("joint").tolist() == [True, True, True, True, True, False]
 
 
 @pytest.mark.parametrize("fmt", ["mcap", "rrd"])
@@ -143,6 +144,10 @@ def test_v3_round_trip_bit_identical(tmp_path, fmt):
     # what a body does not supply is NaN; what it supplies is the writer's value, bit for bit
     lin = got.impulse_joint_linear
     assert np.isnan(lin[:, [0, 3, 4, 5]]).all()
+    # impulse(kind): the free bodies' joint impulse is none (0), the kinematic body's missing
+    j_lin, j_ang = got.impulse("joint")
+    assert (j_lin[:, [0, 3, 4]] == 0).all() and np.isnan(j_ang[:, 5]).all()
+    assert j_lin[:, 1:3].tobytes() == lin[:, 1:3].tobytes()
     assert lin[:, [1, 2]].tobytes() == np.ascontiguousarray(
         arrays["impulse_joint_linear"][:, [1, 2]]).tobytes()
     assert got.impulse("passive") is None and got.impulse("contact")[0] is got.impulse_contact_linear
@@ -253,6 +258,8 @@ def test_bad_tables_are_one_line_errors():
              axis_body=[[0, 0, 2]], axis_parent=[[0, 0, 1]])
     _raises(lambda: bt(**ok, geoms=g, joints=j), "joints.axis_body[0]", "unit axis")
     _raises(lambda: bt(**ok, geoms=g, impulses=("contact", "gravity")), "'gravity'", "'passive'")
+    _raises(lambda: bt(**ok, geoms=g, impulses=[[1, 1, 1, 1, 3]]), "impulses", "2 (none)")
+    _raises(lambda: bt(**ok, geoms=g, impulses="joint", impulses_none="joint"), "both")
     _raises(lambda: bt(**ok, geoms=g, collide_rule="xor"), "collide_rule", "'and'")
 
 
