@@ -304,9 +304,13 @@ def shapeless(model: Model) -> np.ndarray:
     return np.asarray(model.body_shape) == SHAPE_NONE
 
 
-def shapeless_note(model: Model, what: str) -> list[str]:
-    """``not_judged`` line for the bodies without a shape ([] when there are none)."""
-    idx = np.flatnonzero(shapeless(model))
+def shapeless_note(model: Model, what: str, known: np.ndarray | None = None) -> list[str]:
+    """``not_judged`` line for the bodies without a shape ([] when there are none), leaving out
+    the ``known`` ones ((N,) bool: e.g. those whose logged contact impulses say when they touch)."""
+    mask = shapeless(model)
+    if known is not None:
+        mask = mask & ~known
+    idx = np.flatnonzero(mask)
     if not len(idx):
         return []
     names = ", ".join(repr(model.body_name[i]) for i in idx[:3])
@@ -597,6 +601,14 @@ class Context:
     def has_torque(self) -> np.ndarray:
         return self.cached("torque", lambda: np.abs(self.torque_const).max(axis=1) > 0)
 
+    def contact_impulse_known(self) -> np.ndarray:
+        """(N,) bool: bodies whose contact impulses the log carries at every interval (so when
+        they touch anything is known, whatever their shapes)."""
+        logged = self.logged_contact_impulse()
+        if logged is None or self.traj.n_samples < 2:
+            return np.zeros(self.traj.n_bodies, bool)
+        return ~np.isnan(logged[0][1:]).any(axis=(0, 2))
+
     def logged_contact_impulse(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(linear, angular) (T, N, 3) logged per-interval contact impulses, NaN for bodies
         that do not log them; None when the log has none."""
@@ -731,6 +743,9 @@ class Context:
                     key = np.unique((dk * n + da) * n + db)
                     dk, da, db = key // (n * n), (key // n) % n, key % n
             none = shapeless(self.model)
+            logged = self.logged_contact_impulse()
+            # a body whose contact impulses are logged touches nothing where they are zero
+            none &= ~self.contact_impulse_known()
             if none.any() and not len(c) and kn:
                 # a body without a shape in a log without contact rows: its contacts cannot be
                 # found from the poses. It may touch an unknown static feature at any interval
@@ -749,7 +764,6 @@ class Context:
                 if len(dk):
                     key = np.unique((dk * n + da) * n + db)
                     dk, da, db = key // (n * n), (key // n) % n, key % n
-            logged = self.logged_contact_impulse()
             if logged is not None and kn:
                 # a body whose logged contact impulse over an interval is not zero touched
                 # something in it, seen by the poses and contact rows or not (a contact between

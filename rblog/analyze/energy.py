@@ -264,4 +264,4 @@ class EnergyAnalyzer(Analyzer):
         res.leave_out(not_judged)
         return res.leave_out([] if len(tr.contacts) else shapeless_note(
             tr.model, "their free-flight energy (the log has no contact rows, and their contacts "
-                      "cannot be told from the poses)"))
+                      "cannot be told from the poses)", known=ctx.contact_impulse_known()))

@@ -210,7 +210,8 @@ class MomentumAnalyzer(Analyzer):
         res.leave_out(self._not_judged)
         return res.leave_out([] if len(tr.contacts) else shapeless_note(
             tr.model, "their free flights and collisions (the log has no contact rows, and "
-                      "their contacts cannot be told from the poses)"))
+                      "their contacts cannot be told from the poses)",
+            known=ctx.contact_impulse_known()))
 
     # --- pieces -----------------------------------------------------------------------------
     def _add(self, flag, ratio, make):

@@ -47,7 +47,8 @@ def _push(t):
 STATEMENTS = {
     "full": dict(impulses=("contact", "applied"), impulses_none=("passive", "actuator", "joint")),
     "v2": dict(impulses=(), impulses_none=("applied", "passive", "actuator", "joint")),
-    "no-push": dict(impulses=("contact",), impulses_none=("passive", "actuator", "joint")),
+    "no-push": dict(impulses=("contact",), impulses_none=("passive", "actuator", "joint"),
+                    impulses_missing=("applied",)),
 }
 
 
@@ -150,3 +151,126 @@ def test_velocity_kick_in_the_log_only_is_caught_at_its_sample(tmp_path):
     assert f.t == pytest.approx(kick_at * STRIDE * 0.002)
     # the residual is the kick's momentum, 1 kg x 0.05 m/s
     assert "0.05 kg m/s" in f.message
+
+
+# --- an articulated passive system: energy judged per tree ----------------------------------
+
+PENDULUM_XML = """
+<mujoco>
+  <option timestep="0.001" integrator="RK4" gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="upper" pos="0 0 2">
+      <joint name="shoulder" type="hinge" axis="0 1 0"/>
+      <geom name="upper_geom" type="capsule" fromto="0 0 0 0.5 0 0" size="0.04" mass="1"/>
+      <body name="lower" pos="0.5 0 0">
+        <joint name="elbow" type="hinge" axis="0 1 0"/>
+        <geom name="lower_geom" type="capsule" fromto="0 0 0 0.4 0 0" size="0.03" mass="0.6"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def record_double_pendulum(path, *, gain_from=None, gain=0.0, steps=3000, stride=10):
+    """A double pendulum released from horizontal, no damping (passive: gravity and ideal
+    joints only), logged at every ``stride``-th step from MuJoCo's own state: each body's centre
+    of mass (xipos), inertial frame (ximat), centre-of-mass velocity and world angular velocity
+    (mj_jacBodyCom @ qvel). ``gain_from``: a sample index from which the logged velocities are
+    scaled so that the system's kinetic energy there is larger by ``gain`` of its total energy
+    scale (a fault in the log only). Returns (path, MuJoCo's own energy range relative to the
+    scale)."""
+    m = mujoco.MjModel.from_xml_string(PENDULUM_XML)
+    d = mujoco.MjData(m)
+    nb = m.nbody - 1
+    mass = m.body_mass[1:].copy()
+    model = rblog.body_table(
+        name=["upper", "lower"], mass=mass, inertia_diag=m.body_inertia[1:].copy(),
+        kind="joints", parent=[-1, 0], gravity=m.opt.gravity.copy(),
+        geoms=dict(body=[0, 1], type=["capsule", "capsule"], size=[[0.04, 0.25, 0],
+                                                                    [0.03, 0.2, 0]],
+                   # the capsules lie along the bodies' x axes; their centres are the COMs
+                   quat_wxyz_body=[[np.sqrt(0.5), 0, np.sqrt(0.5), 0]] * 2),
+        joints=dict(body=[0, 1], type=["hinge", "hinge"], anchor_body=[[-0.25, 0, 0],
+                                                                      [-0.2, 0, 0]],
+                    anchor_parent=[[0, 0, 2], [0.25, 0, 0]], axis_body=[[0, 1, 0]] * 2,
+                    axis_parent=[[0, 1, 0]] * 2),
+        # the joints' impulses are not logged: the writer says they act and are missing; the
+        # contact impulses are (zero: MuJoCo finds no contact, checked below), so the analyzers
+        # know the capsules touch nothing
+        impulses=("contact",), impulses_none=("applied", "passive", "actuator"),
+        impulses_missing=("joint",), collide_rule="or")
+    rows = {k: [] for k in ("t", "position", "quat_wxyz", "velocity", "angular_velocity")}
+    energy = []
+    jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    for k in range(steps + 1):
+        mujoco.mj_forward(m, d)
+        if k % stride == 0:
+            q = np.zeros((nb, 4))
+            v, w = np.zeros((nb, 3)), np.zeros((nb, 3))
+            for b in range(nb):
+                mujoco.mju_mat2Quat(q[b], d.ximat[b + 1])
+                mujoco.mj_jacBodyCom(m, d, jp, jr, b + 1)
+                v[b], w[b] = jp @ d.qvel, jr @ d.qvel
+            mujoco.mj_energyPos(m, d)
+            mujoco.mj_energyVel(m, d)
+            energy.append(d.energy.sum())
+            for key, val in (("t", d.time), ("position", d.xipos[1:].copy()), ("quat_wxyz", q),
+                             ("velocity", v), ("angular_velocity", w)):
+                rows[key].append(val)
+        if k == steps:
+            break
+        mujoco.mj_step(m, d)
+        assert d.ncon == 0
+    arr = {k: np.asarray(v) for k, v in rows.items()}
+    zero = np.zeros_like(arr["velocity"])
+    arr["impulse_contact_linear"], arr["impulse_contact_angular"] = zero, zero
+    energy = np.asarray(energy)
+    ke = 0.5 * (mass[None, :, None] * arr["velocity"] ** 2).sum(axis=(1, 2))
+    scale = max(ke.max(), np.ptp(-(mass[None, :, None] * m.opt.gravity * arr["position"]).sum(
+        axis=(1, 2))))
+    if gain_from is not None:
+        # KE' = f^2 KE for velocities scaled by f: pick f so that KE' - KE = gain x scale at the
+        # sample where the fault starts
+        f = np.sqrt(1.0 + gain * scale / ke[gain_from])
+        arr["velocity"][gain_from:] *= f
+        arr["angular_velocity"][gain_from:] *= f
+    with rblog.Recorder(model, mcap=str(path), dt=m.opt.timestep, log_every=stride,
+                        writer="mujoco test", integrator="rk4",
+                        engine_settings={"contact_rows": {"separation": "before the step"}}) as rec:
+        rec.write(step=np.arange(len(arr["t"])) * stride, **arr)
+    return path, float(np.ptp(energy) / scale)
+
+
+def test_passive_articulated_energy_is_judged_per_tree(tmp_path):
+    path, mujoco_rel = record_double_pendulum(tmp_path / "pendulum.mcap")
+    # MuJoCo's own energy (mj_energyPos + mj_energyVel) over the swing: RK4 at dt 1 ms keeps it
+    # to 1.2e-10 of the scale (measured), far inside the analyzer's 1e-3
+    assert mujoco_rel < 1e-8
+    res = check(rblog.load(path))
+    energy = _result(res, "energy")
+    assert energy.passed, [f.message for f in energy.findings]
+    assert energy.stats["free_stretches"] >= 1  # the tree was judged, not skipped
+    # the log's energy, recomputed by the analyzer from the logged state, is MuJoCo's: measured
+    # 1.2e-11 of the scale
+    assert energy.worst_value < 1e-8
+    assert not any("without a shape" in line for line in energy.not_judged)
+    # its momentum is not judged: the joints' impulses are not in the log
+    mom = _result(res, "momentum")
+    assert mom.passed and not mom.findings
+    assert any("joint impulses are not in the log" in line for line in mom.not_judged)
+
+
+def test_one_percent_energy_gain_in_a_passive_tree_is_caught(tmp_path):
+    # measured: the gain reads 0.0173 of the energy scale (the velocities stay scaled, so the
+    # kinetic energy's gain grows past 1 % as the swing speeds up) against a limit of 0.011
+    # (1e-3 + the first-order step allowance, which does not know RK4 is fourth order)
+    gain_from = 150  # sample: t = 1.5 s
+    path, _ = record_double_pendulum(tmp_path / "gain.mcap", gain_from=gain_from, gain=0.01)
+    energy = _result(check(rblog.load(path)), "energy")
+    assert not energy.passed
+    assert len(energy.findings) == 1, [f.message for f in energy.findings]
+    f = energy.findings[0]
+    assert sorted(f.bodies) == [0, 1]
+    assert "tree" in f.message and "grows" in f.message
+    assert f.t >= 1.5 - 1e-9
