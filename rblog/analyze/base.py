@@ -130,6 +130,9 @@ class Result:
     events: list[dict] = field(default_factory=list)
     judged: bool = True
     not_judged: list[str] = field(default_factory=list)
+    #: what ``worst_value`` measures, in words ("resting penetration depth"): the tolerance is
+    #: that quantity's own
+    worst_what: str = ""
 
     def leave_out(self, lines: list[str]) -> "Result":
         """Add ``lines`` to ``not_judged`` and say them in the reason (the verdict is about the
@@ -281,6 +284,7 @@ class Analyzer:
             tolerance=worst.tolerance, unit=worst.unit, worst_step=worst.step, worst_t=worst.t,
             worst_bodies=worst.bodies, reason=reason, findings=findings[: tol.MAX_FINDINGS],
             stats={k: float(v) for k, v in stats.items()}, events=events[: tol.MAX_EVENTS],
+            worst_what=worst.what if worst.step is not None else "",
         )
 
 

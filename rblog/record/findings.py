@@ -340,11 +340,12 @@ def write_checked(path: str, traj: Trajectory, results) -> int:
     raise RblogError(f"{p}: the findings file must end in .rrd or .mcap")
 
 
-def open_command(path: str) -> str:
-    """What a user types to open the file :func:`write_checked` wrote."""
+def open_command(path: str, rerun: str = "rerun") -> str:
+    """What a user types to open the file :func:`write_checked` wrote (``rerun``: how the Rerun
+    viewer is called from here, e.g. ``.venv/bin/rerun``)."""
     if str(path).endswith(".mcap"):
         return f"open {path} in Foxglove (app.foxglove.dev: Open local file)"
-    return f"rerun {path}"
+    return f"{rerun} {path}"
 
 
 def write_findings_mcap(path: str, traj: Trajectory, results) -> int:
