@@ -15,14 +15,19 @@ import click
 
 def program(name: str) -> str:
     """How to call the program ``name`` from the current folder: its bare name when the shell
-    finds this installation's copy on PATH, else its path beside this Python (``.venv/bin/rerun``
-    in a venv that is not activated)."""
-    beside = Path(sys.executable).with_name(name)
+    finds this installation's copy on PATH, else its path beside the ``rblog`` that was typed
+    (``.venv/bin/rerun`` after ``.venv/bin/rblog run ...`` in a venv that is not activated), or
+    beside this Python."""
+    typed = sys.argv[0]
+    if os.sep in typed and Path(typed).name == "rblog":
+        beside = Path(typed).with_name(name)
+    else:
+        beside = Path(sys.executable).with_name(name)
     found = shutil.which(name)
-    if found and (not beside.exists() or Path(found).resolve() == beside.resolve()):
+    if not beside.exists() or (found and Path(found).resolve() == beside.resolve()):
         return name
-    if not beside.exists():
-        return name
+    if not beside.is_absolute():
+        return str(beside)
     rel = os.path.relpath(beside)
     return rel if not rel.startswith("..") else str(beside)
 
