@@ -34,15 +34,11 @@ from typing import Any
 
 import numpy as np
 
-from rblog.errors import RblogError
+from rblog.errors import RblogError, CheckOptionError
 from rblog.contract.model import SHAPE_NONE, Model
 from rblog.contract.trajectory import STATIC_BODY, Trajectory
 from rblog.analyze import _audit, geometry
 from rblog.analyze import tolerances as tol
-
-
-class CheckOptionError(RblogError):
-    """An unknown analyzer or tolerance name, or a tolerance that is not a number."""
 
 
 def _json_float(x):

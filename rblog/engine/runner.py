@@ -5,11 +5,12 @@ Python runs once per block (see :func:`samples_per_block`),
 never per step. A diverging, interrupted or failing run closes every recorder with what was
 written so far, so logs stay readable up to the last good sample.
 
-Why this module is long: the run loop and everything that must hold while it runs live together,
-because they share its state: the wall-time sizing of compiled calls (sampling stays on global
-multiples of the stride whatever the split), the signal flag checked between calls (SIGINT and
-SIGTERM answered within a call's budget, logs closed "interrupted"), and the running summary
-figures. The threads that log beside the stepping are rblog.engine.pipeline's.
+:func:`run` reads as its sequence: check the options, choose the stages, then ``_Loop``'s
+open (the logs and their first sample), step_all (compiled calls sized to CALL_WALL_BUDGET_S of
+wall time, samples on global multiples of the stride whatever the split), close; ``_Loop.abort``
+is the one way out of a run that does not get there. SIGINT and SIGTERM set a flag checked
+between calls (``_StopFlag``) and end the run as RunInterrupted with the logs closed
+"interrupted". The threads that log beside the stepping are rblog.engine.pipeline's.
 """
 
 from __future__ import annotations

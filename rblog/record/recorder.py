@@ -35,13 +35,8 @@ from rblog import __version__
 from rblog.contract.model import LOG_SHAPE_CODES, SHAPE_NONE, SHAPE_SPHERE, Model
 from rblog.contract.orientation import matrix_to_quat, quat_wxyz_to_matrix
 from rblog.contract.trajectory import Contacts, RunInfo, Trajectory, derive
-from rblog.errors import RblogError
+from rblog.errors import RblogError, RecordError
 from rblog.record import _common as C
-
-
-class RecordError(RblogError):
-    """Arrays handed to the Recorder do not fit the body table or the contract (a one-line
-    message naming the argument, its shape and what was expected)."""
 
 
 def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, friction=0.5,
