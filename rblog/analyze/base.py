@@ -73,6 +73,9 @@ class Finding:
         value, tolerance, unit: the measured value against its tolerance.
         step, t: when (step index and simulated time of the sample where it shows).
         bodies: which bodies (indices; names via model.body_name).
+        onset_step, onset_t: where a finding that grows began (the first sample past its
+            tolerance, e.g. the drift's onset), when that is earlier than ``step``; else None.
+            The viewers place the finding there.
     """
 
     analyzer: str
@@ -83,6 +86,8 @@ class Finding:
     step: int
     t: float
     bodies: list[int]
+    onset_step: int | None = None
+    onset_t: float | None = None
 
     def to_dict(self) -> dict:
         return _json(asdict(self))

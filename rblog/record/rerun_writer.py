@@ -294,13 +294,13 @@ class RerunRecorder:
             rec.log(ent, geom, static=True)
         for ent, names in (("plots/momentum/linear", ["P_x (N s)", "P_y (N s)", "P_z (N s)"]),
                            ("plots/momentum/angular", ["L_x (N m s)", "L_y (N m s)", "L_z (N m s)"])):
-            rec.log(ent, rr.SeriesLines(names=names), static=True)
+            rec.log(ent, rr.SeriesLines(names=names, colors=SERIES_COLOURS[ent]), static=True)
         for ent, name in (("plots/energy/total", "total"),
                           ("plots/energy/translational", "translational"),
                           ("plots/energy/rotational", "rotational"),
                           ("plots/energy/potential", "potential"),
                           ):
-            rec.log(ent, rr.SeriesLines(names=[name]), static=True)
+            rec.log(ent, rr.SeriesLines(names=[name], colors=SERIES_COLOURS[ent]), static=True)
         for ent, name, colour in ((DRIFT_ENTITY + "/ortho_max", "max |R^T R - I|",
                                    (31, 119, 180)),
                                   (DRIFT_ENTITY + "/quat_norm_max", "max ||q| - 1|",
@@ -472,6 +472,17 @@ DRIFT_ENTITY = "plots/drift"
 DRIFT_TOLERANCE = 1e-6
 #: an error of exactly 0 is drawn at this floor (log10 of it: -17), below float64 round-off
 DRIFT_FLOOR = 1e-17
+#: the line colours of the energy and momentum plots (RGB): hues far apart on the colour wheel,
+#: so that no two series of one plot look alike (the viewer's own picks were blues and purples);
+#: total energy dark, x/y/z as red/green/blue for P and orange/grey/magenta for L
+SERIES_COLOURS = {
+    "plots/energy/total": [(40, 40, 40)],
+    "plots/energy/translational": [(31, 119, 180)],
+    "plots/energy/rotational": [(255, 127, 14)],
+    "plots/energy/potential": [(44, 160, 44)],
+    "plots/momentum/linear": [(214, 39, 40), (44, 160, 44), (31, 119, 180)],
+    "plots/momentum/angular": [(255, 160, 0), (70, 70, 70), (227, 119, 194)],
+}
 #: per-body angular velocity (body frame) of small scenes: OMEGA_ENTITY/<body view name>
 OMEGA_ENTITY = "plots/omega_body"
 #: x, y, z line colours of each body's angular velocity (reds, greens, blues; lighter per body)
