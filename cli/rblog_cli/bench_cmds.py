@@ -66,22 +66,11 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
     _check_integrators(integrators)
     _note(missing_dependencies(problems or None, what="bench.png"))
     show = sys.stderr.isatty() if progress is None else progress
-    try:
-        with _make_executor(workers, scheduler) as ex:
-            report = run_bench(quick=quick, problems=problems or None,
-                               integrators=integrators or None, dts=dts or None,
-                               peers=() if no_peers else (peers or None),
-                               progress=_progress(show), command=_command(), executor=ex)
-        write_outputs(report, out_dir)
-    except RblogError as e:
-        _fail(e)
-    if as_json:
-        click.echo(json.dumps(report.to_dict()))
-        return
-    click.echo(format_table(report))
-    click.echo("")
-    for kind, path in report.files.items():
-        click.echo(f"wrote {path}")
+    _run_and_print(lambda ex: run_bench(quick=quick, problems=problems or None,
+                                        integrators=integrators or None, dts=dts or None,
+                                        peers=() if no_peers else (peers or None),
+                                        progress=_progress(show), command=_command(), executor=ex),
+                   workers, scheduler, write_outputs, format_table, out_dir, as_json)
 
 
 @click.command()
@@ -109,10 +98,18 @@ def stress(quick, out_dir, as_json, cases, integrators, progress, workers, sched
     if module_missing(PLOT_MODULE):
         _note(f"{PLOT_MODULE} is not installed: no stress.png. To draw it: {BENCH_EXTRA}")
     show = sys.stderr.isatty() if progress is None else progress
+    _run_and_print(lambda ex: run_stress(quick=quick, cases=cases or None,
+                                         integrators=integrators or None,
+                                         progress=_progress(show), command=_command(), executor=ex),
+                   workers, scheduler, write_outputs, format_table, out_dir, as_json)
+
+
+def _run_and_print(run, workers, scheduler, write_outputs, format_table, out_dir, as_json):
+    """Run a suite (``run(executor)`` -> report) on the executor asked for, write its files, and
+    print the report (a table, or JSON with ``as_json``) and the files written."""
     try:
         with _make_executor(workers, scheduler) as ex:
-            report = run_stress(quick=quick, cases=cases or None, integrators=integrators or None,
-                                progress=_progress(show), command=_command(), executor=ex)
+            report = run(ex)
         write_outputs(report, out_dir)
     except RblogError as e:
         _fail(e)
@@ -121,7 +118,7 @@ def stress(quick, out_dir, as_json, cases, integrators, progress, workers, sched
         return
     click.echo(format_table(report))
     click.echo("")
-    for kind, path in report.files.items():
+    for path in report.files.values():
         click.echo(f"wrote {path}")
 
 

@@ -1,5 +1,3 @@
-// rblog/engine/contact/solver.py's stages in C++ (the same formulas in the same order).
-//
 // Contact solver: sequential impulses (projected Gauss-Seidel) with accumulated-impulse clamping.
 //
 // Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
@@ -189,7 +187,7 @@ void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double 
 // not measured yet) and a count of the eligible solves. An eligible solve runs the way whose
 // cost is lower, and every PROBE_EVERY-th the other way, so that both stay measured as the
 // scene and the machine change. On a machine where the second thread does not pay (measured on
-// this session's 2-vCPU KVM guest: the 500-box pile's solve took 4.7-4.9 ms a step on one thread
+// a shared 2-vCPU KVM guest: the 500-box pile's solve took 4.7-4.9 ms a step on one thread
 // and 4.9-5.5 ms on two, both threads running), the solves stay serial. Results do not depend on
 // it (RBLOG_THREAD_HANDOVER=0 or set_thread_fallback(False): always threaded).
 constexpr i64 PROBE_EVERY = 32;

@@ -1,5 +1,3 @@
-// rblog/engine/contact/step.py in C++: the world step with contacts, many steps per call.
-//
 // The compiled world step with contacts: many steps per call, no Python between steps.
 //
 // One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_Step`` and
@@ -61,7 +59,7 @@
 //
 // The restitution stage measures and sets bounce speeds with the exact flight's energy
 // (restitution.py), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
-// kicks, as before.
+// applied as kicks.
 //
 // Samples follow free.advance_free: after every ``stride``-th step and after the last step when
 // ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.

@@ -22,12 +22,7 @@ uses these adapters for its translation of the engines' conventions.
 
 from __future__ import annotations
 
-from rblog.errors import RblogError
-
-
-class AdapterError(RblogError):
-    """An engine's model or data that the adapter cannot record (one line naming what and why),
-    or the engine is not installed."""
+from rblog.errors import RblogError, AdapterError
 
 
 def require(module: str, extra: str = "engines"):

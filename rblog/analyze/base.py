@@ -34,16 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from rblog.errors import RblogError
+from rblog.errors import RblogError, CheckOptionError
 from rblog.contract.model import (BODY_KINEMATIC, BODY_STATIC, IMPULSE_KINDS, SHAPE_NONE,
                                   SUPPLIED_LOGGED, SUPPLIED_MISSING, Model)
 from rblog.contract.trajectory import STATIC_BODY, Trajectory
 from rblog.analyze import _audit, geometry
 from rblog.analyze import tolerances as tol
-
-
-class CheckOptionError(RblogError):
-    """An unknown analyzer or tolerance name, or a tolerance that is not a number."""
 
 
 def _json_float(x):
@@ -78,6 +74,9 @@ class Finding:
         value, tolerance, unit: the measured value against its tolerance.
         step, t: when (step index and simulated time of the sample where it shows).
         bodies: which bodies (indices; names via model.body_name).
+        onset_step, onset_t: where a finding that grows began (the first sample past its
+            tolerance, e.g. the drift's onset), when that is earlier than ``step``; else None.
+            The viewers place the finding there.
     """
 
     analyzer: str
@@ -88,6 +87,8 @@ class Finding:
     step: int
     t: float
     bodies: list[int]
+    onset_step: int | None = None
+    onset_t: float | None = None
 
     def to_dict(self) -> dict:
         return _json(asdict(self))
@@ -131,6 +132,9 @@ class Result:
     events: list[dict] = field(default_factory=list)
     judged: bool = True
     not_judged: list[str] = field(default_factory=list)
+    #: what ``worst_value`` measures, in words ("resting penetration depth"): the tolerance is
+    #: that quantity's own
+    worst_what: str = ""
 
     def leave_out(self, lines: list[str]) -> "Result":
         """Add ``lines`` to ``not_judged`` and say them in the reason (the verdict is about the
@@ -282,6 +286,7 @@ class Analyzer:
             tolerance=worst.tolerance, unit=worst.unit, worst_step=worst.step, worst_t=worst.t,
             worst_bodies=worst.bodies, reason=reason, findings=findings[: tol.MAX_FINDINGS],
             stats={k: float(v) for k, v in stats.items()}, events=events[: tol.MAX_EVENTS],
+            worst_what=worst.what if worst.step is not None else "",
         )
 
 

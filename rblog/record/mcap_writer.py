@@ -612,7 +612,7 @@ class _BlockChunkBuilder:
         st.message_start_time = t_lo if st.message_count == 0 else min(st.message_start_time, t_lo)
         st.message_end_time = max(st.message_end_time, t_hi)
         st.message_count += m
-        for ch in sorted(records.channels.tolist()):  # in np.unique's order (as before)
+        for ch in sorted(records.channels.tolist()):  # ascending channel id, np.unique's order
             st.channel_message_counts[int(ch)] += T
         st_cols, mt_cols = _byte_rows(state, T), _byte_rows(metrics, T)
         position = np.ascontiguousarray(position, np.float64)

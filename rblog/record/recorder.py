@@ -39,13 +39,8 @@ from rblog.contract.model import (BODY_FREE, BODY_KIND_CODES, COLLIDE_ALL, COLLI
                                   SHAPE_SPHERE, WORK_KINDS, Model, v2_from_geoms)
 from rblog.contract.orientation import matrix_to_quat, quat_wxyz_to_matrix
 from rblog.contract.trajectory import INTERVAL_CHANNELS, Contacts, RunInfo, Trajectory, derive
-from rblog.errors import RblogError
+from rblog.errors import RblogError, RecordError
 from rblog.record import _common as C
-
-
-class RecordError(RblogError):
-    """Arrays handed to the Recorder do not fit the body table or the contract (a one-line
-    message naming the argument, its shape and what was expected)."""
 
 
 def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitution=None,

@@ -309,13 +309,13 @@ class RerunRecorder:
             rec.log(ent, _mesh(model, g, _PALETTE[b % len(_PALETTE)]), static=True)
         for ent, names in (("plots/momentum/linear", ["P_x (N s)", "P_y (N s)", "P_z (N s)"]),
                            ("plots/momentum/angular", ["L_x (N m s)", "L_y (N m s)", "L_z (N m s)"])):
-            rec.log(ent, rr.SeriesLines(names=names), static=True)
+            rec.log(ent, rr.SeriesLines(names=names, colors=SERIES_COLOURS[ent]), static=True)
         for ent, name in (("plots/energy/total", "total"),
                           ("plots/energy/translational", "translational"),
                           ("plots/energy/rotational", "rotational"),
                           ("plots/energy/potential", "potential"),
                           ):
-            rec.log(ent, rr.SeriesLines(names=[name]), static=True)
+            rec.log(ent, rr.SeriesLines(names=[name], colors=SERIES_COLOURS[ent]), static=True)
         for ent, name, colour in ((DRIFT_ENTITY + "/ortho_max", "max |R^T R - I|",
                                    (31, 119, 180)),
                                   (DRIFT_ENTITY + "/quat_norm_max", "max ||q| - 1|",
@@ -491,13 +491,29 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
 
 #: the drift plot: log10 of the largest rigidity errors over the bodies, beside the tolerance
 #: rblog check judges them by (a line), so that round-off (1e-16 .. 1e-12), the tolerance and a
-#: body stretched to an error of 1 all read on one axis; the axis scales to the data
+#: body stretched to an error of 1 all read on one axis (DRIFT_AXIS_LOG10)
 DRIFT_ENTITY = "plots/drift"
 #: the rigidity tolerance drawn as a line: rblog.analyze.tolerances.DRIFT_ORTHO_ERROR (the record
 #: room does not import the audit; tests/record/test_record.py checks the two agree)
 DRIFT_TOLERANCE = 1e-6
 #: an error of exactly 0 is drawn at this floor (log10 of it: -17), below float64 round-off
 DRIFT_FLOOR = 1e-17
+#: the drift plot's y range (log10 of the error): from the floor to an error of 10, so that
+#: round-off, the tolerance (-6) and a stretched body (0) stand at their own heights with a tick
+#: every few decades, whatever the run (scaled to the data, a clean run's axis spanned a
+#: fraction of a decade and showed one tick label); the viewer still zooms
+DRIFT_AXIS_LOG10 = (math.log10(DRIFT_FLOOR), 1.0)
+#: the line colours of the energy and momentum plots (RGB): hues far apart on the colour wheel,
+#: so that no two series of one plot look alike (the viewer's own picks were blues and purples);
+#: total energy dark, x/y/z as red/green/blue for P and orange/grey/magenta for L
+SERIES_COLOURS = {
+    "plots/energy/total": [(40, 40, 40)],
+    "plots/energy/translational": [(31, 119, 180)],
+    "plots/energy/rotational": [(255, 127, 14)],
+    "plots/energy/potential": [(44, 160, 44)],
+    "plots/momentum/linear": [(214, 39, 40), (44, 160, 44), (31, 119, 180)],
+    "plots/momentum/angular": [(255, 160, 0), (70, 70, 70), (227, 119, 194)],
+}
 #: per-body angular velocity (body frame) of small scenes: OMEGA_ENTITY/<body view name>
 OMEGA_ENTITY = "plots/omega_body"
 #: x, y, z line colours of each body's angular velocity (reds, greens, blues; lighter per body)
@@ -606,7 +622,7 @@ def _blueprint(model: Model, info: RunInfo, findings: bool = False,
     plots (energy, momentum, drift, and for small scenes each body's angular velocity in its own
     frame, else linear and angular momentum apart), each plot with its legend and a time axis a
     little wider than the run (``t_end``, else the scene's duration) so that its end labels are
-    whole; the drift plot scales to its data and draws the tolerance as a line. With
+    whole; the drift plot spans DRIFT_AXIS_LOG10 and draws the tolerance as a line. With
     ``findings``, the findings table (the ``findings`` text log of rblog.record.findings) spans
     the width below, and the time panel is expanded so that its ``findings`` row marks when
     they are. The camera frames ``bounds``: the bodies' positions (k, 3) at the end of the run,
@@ -632,6 +648,7 @@ def _blueprint(model: Model, info: RunInfo, findings: bool = False,
     kw = dict(plot_legend=legend, axis_x=axis) if axis is not None else dict(plot_legend=legend)
     world = rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye)
     drift = rrb.TimeSeriesView(origin=DRIFT_ENTITY, name="rigidity drift (log10 of the error)",
+                               axis_y=rrb.ScalarAxis(range=DRIFT_AXIS_LOG10),
                                **{**kw, "plot_legend": drift_legend})
     if 0 < model.n_bodies <= OMEGA_PLOT_MAX_BODIES:
         plots = [rrb.TimeSeriesView(origin="plots/energy", name="energy (J)", **kw),

@@ -1,15 +1,15 @@
 """Contact solver: sequential impulses (projected Gauss-Seidel) with accumulated-impulse clamping.
 
 Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
-``load_bodies`` -> ``prepare_contacts`` -> ``warm_start`` -> ``solve_velocities`` ->
+``prepare_contacts`` (bodies loaded first) -> ``warm_start`` -> ``solve_velocities`` ->
 ``anchor_friction`` (with ContactParams.static_friction_anchors) -> ``relax_positions`` (split
 impulses) -> [integrate positions, in step.py] -> ``restitution`` -> [project: fresh narrowphase
 and nonlinear position pass, in project.py].
 
 The stages are C++ (csrc/engine/contact_solver.cpp, whose header comment holds the derivations:
 the gap velocity and effective mass, Coulomb friction by maximum dissipation, over-relaxation,
-speculative targets, the friction anchor). These functions call them with the same arguments as
-before; the tolerances they read (FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL, BLOCK_REG,
+speculative targets, the friction anchor). These functions call them one by one (the tests
+test them so); the tolerances they read (FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL, BLOCK_REG,
 FRICTION_ANCHOR_RATE, FRICTION_ANCHOR_SLIDE_FRAC) come from rblog.engine.constants, their one home,
 at each call (the world step passes them through its Settings record).
 
@@ -21,20 +21,6 @@ from __future__ import annotations
 
 from rblog.engine import _core
 from rblog.engine import constants as _c
-
-
-def load_bodies(mi, n_man, n_dyn, iso_shortcut, iso, inv_mass, inv_inertia, rotation,
-                linear_momentum, angular_momentum, in_contact, bm, bI, bv, bw, bv0, bw0, pv, pw,
-                p0, l0):
-    """Count the active manifolds of each body (``in_contact``: (N+1,), row N the static
-    dummy) and load the solver state of the bodies that have any.
-
-    bm: (N+1,) inverse mass, bI: (N+1, 6) world inverse inertia (xx, yy, zz, xy, xz, yz), bv/bw:
-    (N+1, 3) velocity and angular velocity (world), bv0/bw0 their values before the solve, pv/pw
-    pseudo velocities, p0/l0 momenta before the solve. Row N is the static dummy (all zero)."""
-    _core.load_bodies(mi, int(n_man), int(n_dyn), bool(iso_shortcut), iso, inv_mass, inv_inertia,
-                      rotation, linear_momentum, angular_momentum, in_contact, bm, bI, bv, bw,
-                      bv0, bw0, pv, pw, p0, l0)
 
 
 def prepare_contacts(mi, mf, pf, n_man, bm, bI, bv, bw, h):

@@ -50,7 +50,7 @@ of the step as s + h w (w the solved gap rate):
 
 The restitution stage measures and sets bounce speeds with the exact flight's energy
 (restitution.py), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
-kicks, as before.
+applied as kicks.
 
 Samples follow free.advance_free: after every ``stride``-th step and after the last step when
 ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.
@@ -151,12 +151,6 @@ def broadphase(bd, st, margin, awake, x, h, sc, pairs):
     return _core.stage_broadphase(bd, st, float(margin), awake, x, float(h), sc, pairs)
 
 
-def wake(bd, st, cfg, sl, x, h, sc, pairs, n_pairs):
-    """3 wake: sleeping islands that an awake body may touch within the step. Returns islands
-    woken."""
-    return _core.stage_wake(bd, st, cfg, sl, x, float(h), sc, pairs, int(n_pairs))
-
-
 def collide(bd, st, cfg, awake, x, sc, pairs, n_pairs, c):
     """4 collide: the narrowphase table over the candidate pairs into this step's buffers (c.mi1,
     ...), matching last step's manifolds (c.mi0, ...) for warm starting. Returns (n_man, n_pts);
@@ -170,23 +164,11 @@ def prepare(bd, cfg, x, sc, mi, mf, pf, n_man, h):
     _core.stage_prepare(bd, cfg, x, sc, mi, mf, pf, int(n_man), float(h))
 
 
-def mark_pushed(mi, pf, n_man, n, sc):
-    """Sort the awake bodies by how they move this step (``sc.pushed``, read by stage 9):
-
-    * 0: no contact pushed it (no manifold, or manifolds whose accumulated normal, friction and
-      pseudo impulses all ended at zero): it flies exactly;
-    * 1: pushed, within a group of bodies that pushing contacts connect (an island of this
-      step) that touches no static geometry: it moves by the solver's velocity plus the same
-      exact-flight term as a free body, so that every body away from static geometry flies
-      alike (one scheme inside any group of bodies that only push each other);
-    * 2: pushed, in an island that some static contact pushes: symplectic Euler (resting
-      contact).
-    """
-    _core.stage_mark_pushed(mi, pf, int(n_man), int(n), sc)
-
-
 def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h, an):
-    """9 integrate: move every awake body over the step (how: ``sc.pushed``, see mark_pushed).
+    """9 integrate: move every awake body over the step, as ``sc.pushed`` says (set by the
+    compiled step: 0, no contact pushed it (no manifold, or manifolds whose impulses all ended
+    at zero); 1, pushed, in an island of this step that touches no static geometry; 2, pushed, in
+    an island that some static contact pushes).
     A body that a contact pushed (solve or relax) moves with the solver's velocity,
     x += h (v + v'), its momenta rebuilt from the solver's velocity changes, and when its island
     touches no static geometry, by - h^2 a / 2 more (the exact flight's term); every other body
@@ -199,35 +181,11 @@ def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h, an):
     _core.stage_integrate_positions(int(method), int(ortho), bd, cfg, awake, x, sc, float(h), an)
 
 
-def project(method, ortho, bd, st, cfg, awake, x, sc, pairs, n_pairs, an):
-    """12 project: narrowphase again at the end-of-step poses; points deeper than
-    projection_depth are pushed out (project.py) and the bodies moved (a moved body's flow
-    anchor is dropped: its attitude changed other than by the flow). Returns n_deep."""
-    return _core.stage_project(int(method), int(ortho), bd, st, cfg, awake, x, sc, pairs,
-                               int(n_pairs), an)
-
-
-def sleep_stage(bd, cfg, sl, x, sc, mi, mf, pf, n_man, h, n_awake):
-    """13 sleep: wake what this step pushed on (when some bodies slept at the step's start,
-    ``n_awake`` < N), advance rest timers, put resting islands to sleep. Returns (islands woken,
-    bodies put to sleep)."""
-    return _core.stage_sleep(bd, cfg, sl, x, sc, mi, mf, pf, int(n_man), float(h), int(n_awake))
-
-
 def first_diverged(awake, x, inv_inertia, h):
     """The first awake body whose state is not finite or that turns more than
     MAX_ROTATION_PER_STEP_RAD in a step of h (integrators.turn_within_bound), or -1: the run has
     diverged there (a torque of 1e40 N m on a resting box, say), though its state may be finite."""
     return _core.stage_first_diverged(awake, x, inv_inertia, float(h))
-
-
-def record_contacts(s, mi, mf, pf, n_man, position, rotation, pose0, log_i, log_f, n_log):
-    """The contact rows of step s: every point that pushed or touches (trajectory.Contacts),
-    with its separation at the end-of-step poses ``position`` (N, 3), ``rotation`` (N, 3, 3),
-    its anchors carried there from the step's start poses ``pose0`` (N, 12: position, row-major
-    rotation). Returns (log_i, log_f, n_log) (new arrays, grown as needed)."""
-    return _core.stage_record_contacts(int(s), mi, mf, pf, int(n_man), position, rotation,
-                                       pose0, log_i, log_f, int(n_log))
 
 
 # ---- the step ---------------------------------------------------------------------------------

@@ -22,23 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rblog.errors import RblogError
+from rblog.errors import RblogError, EngineUnsupported, EngineMissing
 
 ENGINE_NAMES = ("mujoco", "pybullet")
-
-
-class EngineUnsupported(RblogError):
-    """The scene (or an option) needs something the chosen engine cannot represent."""
-
-    def __init__(self, engine: str, feature: str):
-        super().__init__(f"--engine {engine}: cannot represent {feature}")
-
-
-class EngineMissing(RblogError):
-    def __init__(self, engine: str, err: Exception):
-        super().__init__(f"--engine {engine}: not installed ({type(err).__name__}: {err}); "
-                         'pip install -e ".[engines]" in a checkout (or pip install '
-                         '"rblog[engines]")')
 
 
 def parse_options(engine: str, items, known: dict[str, str]) -> dict[str, str]:
