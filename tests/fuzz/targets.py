@@ -152,18 +152,21 @@ def _edit_field(msg, fpick: int, op: int, value: float, raw: int) -> None:
             else raw % (1 << bits)
         if op & 4:
             new = int(op >> 3) - 2  # small values: -2..29 (indices near the valid range)
-    if not is_rep:
-        setattr(msg, f.name, new)
+    try:
+        if not is_rep:
+            setattr(msg, f.name, new)
+            return
+        o = op & 3
+        if o == 0 and len(v):
+            v[raw % len(v)] = new
+        elif o == 1:
+            v.append(new)
+        elif o == 2 and len(v):
+            del v[raw % len(v):]
+        else:
+            del v[:]
+    except (ValueError, TypeError):  # not a value of the field's type (-2 for a uint32)
         return
-    o = op & 3
-    if o == 0 and len(v):
-        v[raw % len(v)] = new
-    elif o == 1:
-        v.append(new)
-    elif o == 2 and len(v):
-        del v[raw % len(v):]
-    else:
-        del v[:]
 
 
 def rrd_payload(data: bytes) -> None:
