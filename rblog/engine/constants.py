@@ -100,6 +100,15 @@ MAX_BODIES = 10_000_000
 #: message: peak resident memory of a free-body run measured 1.9 kB per body at 100,000 bodies
 #: and 2.8 kB at 10,000 (benchmarks/bench_memory.py; generators expand straight into arrays).
 BYTES_PER_BODY_ESTIMATE = 2_000
+#: Approximate bytes of memory per pair of bodies whose bounding spheres overlap at the start of
+#: a run (manifolds, solver rows and scratch the first steps hold for it), for the scene's memory
+#: check (rblog.engine.scene_checks): peak resident memory of `rblog run --duration 0.01` (both
+#: logs) of samples/box_stack.toml's boxes in a column 1 mm apart measured 1.57 GB at 1,000 boxes
+#: (499,500 pairs counted) and 0.53 GB at 500 boxes 2 mm apart (124,750): 2.9 kB per pair.
+BYTES_PER_PAIR_ESTIMATE = 3_000
+#: The deepest nesting of arrays and tables a scene may have (a scene needs 4: the document, a
+#: [[generator]] array, its table, a vector); Python's TOML parser recurses and fails near 1,000.
+MAX_NESTING = 32
 #: Bodies that start interpenetrating deeper than this (m) are reported with a warning (the
 #: solver pushes them apart violently in the first steps). Bodies stacked exactly touching
 #: measure ~1e-16 m.

@@ -26,8 +26,10 @@ from rblog.engine.state import State
 from rblog.engine.rotation import axis_angle_to_quat_np, quat_to_matrix_np
 from rblog.engine.integrators import ORTHO_ALLOWED
 from rblog.engine.constants import (
-    BYTES_PER_BODY_ESTIMATE, MAX_BODIES, MAX_RUN_STEPS, QUAT_MIN_NORM, QUAT_NORM_WARN_TOL,
+    BYTES_PER_BODY_ESTIMATE, MAX_BODIES, MAX_NESTING, MAX_RUN_STEPS, QUAT_MIN_NORM,
+    QUAT_NORM_WARN_TOL,
 )
+from rblog.engine import scene_checks
 
 INTEGRATORS = tuple(ORTHO_ALLOWED)
 #: the default integrator; chosen by benchmarks/bench_integrators.py (see benchmarks/RESULTS.md)
@@ -184,7 +186,9 @@ def load_scene(path: str | Path) -> Scene:
 def parse_scene(text: str, path: str = "<scene>") -> Scene:
     """Validate scene TOML text. ``path`` is used in error messages."""
     try:
-        return _parse_scene(text, path)
+        # an overflow gives inf, which rblog.engine.scene_checks names; numpy need not warn
+        with np.errstate(over="ignore", invalid="ignore"):
+            return _parse_scene(text, path)
     except MemoryError:
         raise SceneError(path, "", "out of memory while building the scene (too many bodies "
                          "for this machine; see [[generator]] count/grid)") from None
@@ -196,6 +200,12 @@ def _parse_scene(text: str, path: str) -> Scene:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(path, "", f"not valid TOML: {e}") from None
+    except RecursionError:
+        raise SceneError(path, "", f"arrays or tables nested deeper than Python can parse "
+                         f"(expected at most {MAX_NESTING} levels)") from None
+    if scene_checks.nesting_depth(doc) > MAX_NESTING:
+        ctx.fail("", f"arrays or tables nested more than {MAX_NESTING} levels deep (expected at "
+                 f"most {MAX_NESTING})")
     ctx.keys(doc, "", TOP_KEYS)
     if "sim" not in doc:
         ctx.fail("sim", "missing table [sim] (needs at least dt and duration)")
@@ -305,6 +315,10 @@ def _parse_scene(text: str, path: str) -> Scene:
         contact = _contact_table(ctx, ctx.table(doc["contact"], "contact"))
 
     model, state = _build(blocks, statics, gravity, ground, g_normal, g_offset, g_rest, g_fric)
+    # what the values imply together (rblog.engine.scene_checks)
+    scene_checks.check_log_stride(ctx, sim)
+    scene_checks.check_state(ctx, model, state)
+    scene_checks.check_memory(ctx, model, state, _available_memory())
     resolved["body"] = [_jsonable(b) for b in explicit]
     if generators:
         resolved["generator"] = generators
@@ -395,6 +409,7 @@ def _orientation(ctx: _Ctx, d: dict, key: str) -> np.ndarray:
     elif k == "rotvec":
         rv = ctx.vec(d[k], f"{key}.rotvec")
         ang = float(np.linalg.norm(rv))
+        scene_checks.finite_angle(ctx, ang, f"{key}.rotvec")
         q = axis_angle_to_quat_np(rv, ang) if ang > 0 else np.array([1.0, 0, 0, 0])
     else:
         aa = ctx.table(d[k], f"{key}.axis_angle")
@@ -426,14 +441,14 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
             ctx.fail(f"{key}.radius", "missing (a positive number, m)")
         r = ctx.num(b["radius"], f"{key}.radius", positive=True)
         size = np.array([r, 0.0, 0.0])
-        volume = 4.0 / 3.0 * math.pi * r**3
+        volume = scene_checks.sphere_volume(r)
     else:
         if "radius" in b:
             ctx.fail(f"{key}.radius", "a box takes half_extents, not radius")
         if "half_extents" not in b:
             ctx.fail(f"{key}.half_extents", "missing (a list of 3 positive numbers, m)")
         size = ctx.vec(b["half_extents"], f"{key}.half_extents", positive=True)
-        volume = 8.0 * float(np.prod(size))
+        volume = 8.0 * math.prod(size.tolist())  # inf past 1e308: check_body names it
     if ("mass" in b) == ("density" in b):
         ctx.fail(f"{key}.mass", "expected exactly one of mass (kg) or density (kg/m^3)")
     mass = (ctx.num(b["mass"], f"{key}.mass", positive=True) if "mass" in b
@@ -453,7 +468,7 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
     if "angular_velocity" in b and "angular_velocity_body" in b:
         ctx.fail(f"{key}.angular_velocity_body", "give angular_velocity (world) or "
                  "angular_velocity_body, not both")
-    return {
+    out = {
         "name": ctx.string(b.get("name", default_name), f"{key}.name"),
         "shape": shape,
         "size": size,
@@ -472,6 +487,8 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
         "friction": ctx.num(b.get("friction", DEFAULT_FRICTION), f"{key}.friction", nonneg=True),
         "group": ctx.integer(b.get("group", 0), f"{key}.group", lo=0),
     }
+    scene_checks.check_body(ctx, out, key)
+    return out
 
 
 def _check_body_count(ctx: _Ctx, key: str, n: int):

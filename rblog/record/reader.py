@@ -4,17 +4,14 @@ Only the canonical channels are read (``rblog/...`` entities, ``/rblog/...`` top
 docs/log-format.md); their float64 values come back bit-identical to what was written. A file
 cut short (a killed writer) is read up to its last complete record and marked ``truncated``.
 
-Why this module is long: it reads both formats (Rerun .rrd through the SDK's dataframe API, MCAP
-through the protobuf schemas) into one Trajectory with one channel table and one validation,
+Why this module is long: it reads both formats (Rerun .rrd through pyarrow under checks,
+rblog.record.safe_rrd; MCAP through the protobuf schemas) into one Trajectory with one channel table and one validation,
 including what can be recovered from truncated and killed logs.
 """
 
 from __future__ import annotations
 
 import os
-import struct
-import tempfile
-import warnings
 from dataclasses import fields
 from pathlib import Path
 
@@ -25,6 +22,7 @@ from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
 from rblog.contract.trajectory import (BODY_CHANNELS, INTERVAL_CHANNELS, TOTAL_CHANNELS, Contacts,
                                        Trajectory)
 from rblog.record import _common as C
+from rblog.record import safe_rrd, validate
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 RRD_MAGIC = b"RRF2"
@@ -116,6 +114,7 @@ class _Collector:
             if self.cut:
                 raise LogReadError(where, f"no readable run record ({self.cut})")
             raise LogReadError(where, "no rblog run record: not a log written by rblog")
+        validate.model_record(where, self.model)
         try:
             model = C.model_from_arrays(self.model)
             info = C.info_from_fields(self.run)
@@ -158,8 +157,10 @@ class _Collector:
         if info.log_format > C.LOG_FORMAT_VERSION:
             warns.append(f"log follows contract version {info.log_format}, newer than this reader's "
                          f"{C.LOG_FORMAT_VERSION}; channels it does not know are ignored")
+        validate.contact_records(where, self.contacts, n, "contacts (rblog/contacts, /rblog/contacts)")
         traj = Trajectory(model=model, info=info, contacts=self._contacts(), truncated=truncated,
                           warnings=warns, **kw)
+        validate.trajectory(where, traj, "contacts (rblog/contacts, /rblog/contacts)")
         from rblog.analyze.consistency import consistency_warnings  # checks on read (contract v2)
 
         traj.warnings.extend(consistency_warnings(traj))
@@ -239,7 +240,8 @@ def _load_mcap(path: Path) -> Trajectory:
                                       "reason": msg.reason}
     except Exception as e:  # noqa: BLE001 - any failure past the header means a cut/corrupt tail
         col.cut = _short(e, "the file is cut or corrupt after this point")
-    flush_state()
+    with validate.decoding(str(path), "/rblog/state"):
+        flush_state()
     if n_bodies is None and col.run is None and col.cut and not schemas:
         raise LogReadError(str(path), f"unreadable MCAP file ({col.cut})")
     return col.build()
@@ -428,91 +430,36 @@ def _run_of(msg) -> tuple[dict, dict]:
 
 def _load_rrd(path: Path) -> Trajectory:
     col = _Collector(path)
-    try:
-        _read_rrd_into(col, path)
-    except Exception as e:  # noqa: BLE001 - the SDK reports a cut file as a RuntimeError
-        first = _short(e, "unreadable")
-        prefix_len = _rrd_complete_prefix(path)
-        if prefix_len is None:
-            raise LogReadError(str(path), f"unreadable Rerun file ({first})") from None
-        col = _Collector(path)
-        col.cut = "the file is cut after its last complete message"
-        fd, tmp = tempfile.mkstemp(suffix=".rrd")
-        try:
-            with os.fdopen(fd, "wb") as out, open(path, "rb") as src:
-                remaining = prefix_len
-                while remaining:
-                    buf = src.read(min(remaining, 1 << 24))
-                    if not buf:
-                        break
-                    out.write(buf)
-                    remaining -= len(buf)
-            try:
-                _read_rrd_into(col, Path(tmp))
-            except Exception as e2:  # noqa: BLE001
-                raise LogReadError(str(path), f"unreadable Rerun file ({_short(e2, first)})") from None
-        finally:
-            os.unlink(tmp)
-        col.path = path
+    _read_rrd_into(col, path)
     return col.build()
 
 
-def _rrd_complete_prefix(path: Path) -> int | None:
-    """Length of the longest prefix of complete messages of an .rrd file, or None if the file
-    does not even have a stream header.
-
-    Stream framing (rerun 0.41): a 12-byte header ``RRF2`` + version + options, then messages of
-    ``kind: u64 LE, length: u64 LE, payload[length]``; kind 0 ends the stream.
-    """
-    size = path.stat().st_size
-    with open(path, "rb") as f:
-        head = f.read(12)
-        if len(head) < 12 or not head.startswith(RRD_MAGIC):
-            return None
-        off = 12
-        while off + 16 <= size:
-            f.seek(off)
-            kind, length = struct.unpack("<QQ", f.read(16))
-            if off + 16 + length > size:
-                break
-            off += 16 + length
-            if kind == 0:
-                break
-    return off
-
-
 def _read_rrd_into(col: _Collector, path: Path) -> None:
-    import rerun as rr
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # "no footer" on cut or streamed files: expected
-        reader = rr.chunk.RrdReader(path)
-        recs = reader.recordings()
-        if not recs:
-            raise LogReadError(str(col.path), "Rerun file holds no recording")
-        stores = [s for s in recs if s.application_id == C.APPLICATION_ID] or recs
-        state: list[dict[str, np.ndarray]] = []
-        for chunk in reader.stream(store=stores[0]):
-            ent = chunk.entity_path.lstrip("/")
-            if not ent.startswith("rblog/"):
-                continue
-            batch = chunk.to_record_batch()
-            comps = _components(batch) if ent != "rblog/state" else {}
-            if ent == "rblog/run":
-                col.run = {**(col.run or {}), **{k: _scalar(v[-1]) for k, v in comps.items()
-                                                 if v and v[-1] is not None and len(v[-1])}}
-            elif ent == "rblog/model":
-                col.model = {**(col.model or {}), **{k: v[-1] for k, v in comps.items()
-                                                     if v and v[-1] is not None}}
-            elif ent == "rblog/status":
-                col.status = {k: _scalar(v[-1]) for k, v in comps.items() if v and v[-1] is not None}
-            elif ent == "rblog/state":
-                comps = _components(batch, flat=True)
-                if "step" in batch.schema.names:
-                    comps["step"] = np.asarray(batch.column("step").to_numpy(), np.int64)
-                state.append(comps)
-            elif ent == "rblog/contacts":
-                _rrd_contacts(col, comps)
+    # pyarrow under checks, not the SDK's Rust reader, which a corrupted payload can abort
+    # (rblog/record/safe_rrd.py); a cut file is read up to its last complete message
+    chunks, col.cut = safe_rrd.chunks(path, C.APPLICATION_ID)
+    state: list[dict[str, np.ndarray]] = []
+    for chunk in chunks:
+        ent = chunk.entity_path.lstrip("/")
+        if not ent.startswith("rblog/"):
+            continue
+        batch = chunk.batch
+        comps = _components(batch) if ent != "rblog/state" else {}
+        if ent == "rblog/run":
+            col.run = {**(col.run or {}), **{k: _scalar(v[-1]) for k, v in comps.items()
+                                             if v and v[-1] is not None and len(v[-1])}}
+        elif ent == "rblog/model":
+            col.model = {**(col.model or {}), **{k: v[-1] for k, v in comps.items()
+                                                 if v and v[-1] is not None}}
+        elif ent == "rblog/status":
+            col.status = {k: _scalar(v[-1]) for k, v in comps.items() if v and v[-1] is not None}
+        elif ent == "rblog/state":
+            comps = _components(batch, flat=True)
+            if "step" in batch.schema.names:
+                comps["step"] = np.asarray(batch.column("step").to_numpy(), np.int64)
+            state.append(comps)
+        elif ent == "rblog/contacts":
+            _rrd_contacts(col, comps)
     if col.model is None:
         return
     n = len(col.model["body_name"])

@@ -27,6 +27,7 @@ arguments with one-line errors naming the argument, its shape and what was expec
 
 from __future__ import annotations
 
+import math
 from dataclasses import fields
 
 import numpy as np
@@ -41,13 +42,14 @@ from rblog.contract.orientation import matrix_to_quat, quat_wxyz_to_matrix
 from rblog.contract.trajectory import INTERVAL_CHANNELS, Contacts, RunInfo, Trajectory, derive
 from rblog.errors import RblogError, RecordError
 from rblog.record import _common as C
+from rblog.record import arguments
 
 
 def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitution=None,
                friction=None, group=0, force_world=None, torque_world=None,
                gravity=(0.0, 0.0, -9.81), ground: bool = False, ground_normal=(0.0, 0.0, 1.0),
-               ground_offset: float = 0.0, ground_restitution: float = 0.5,
-               ground_friction: float = 0.5, static_box_position=None, static_box_quat_wxyz=None,
+               ground_offset: float = 0.0, ground_restitution: float = math.nan,
+               ground_friction: float = math.nan, static_box_position=None, static_box_quat_wxyz=None,
                static_box_half_extents=None, static_box_restitution=None,
                static_box_friction=None, kind=None, parent=None, geoms=None, joints=None,
                collide_rule: str = "and", impulses=(), work=(), impulses_none=(),
@@ -63,8 +65,9 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
         mass: (N,) kg, > 0.  inertia_diag: (N, 3) principal moments about the centre of mass in
             the body frame (kg m^2); default: a solid sphere's 2/5 m r^2, a solid box's
             m/3 (b^2 + c^2).
-        restitution, friction: scalars or (N,); NaN = not stated by the engine (unknown).
-            Default 0.5, or with ``geoms`` each body's first geom's.
+        restitution, friction: scalars or (N,); NaN = not stated by the engine (unknown):
+            the value of every material not given (the ground's and static boxes' too), or with
+            ``geoms`` each body's first geom's.
         group: collision group(s).
         force_world, torque_world: (N, 3) constant applied loads besides gravity.
         gravity: (3,) m/s^2.  ground...: the plane ``dot(normal, x) = offset`` if ``ground``.
@@ -91,6 +94,8 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
             others none: no force besides gravity, contacts and the constant force_world /
             torque_world; work none).
     """
+    arguments.body_table(name=name, shape=shape, ground=ground, ground_offset=ground_offset,
+                         ground_restitution=ground_restitution, ground_friction=ground_friction)
     n = len(name)
 
     def arr(v, shape_, what, default=0.0):
@@ -174,20 +179,24 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
                                          DEFAULT_WORK_SUPPLIED, "work")
     if geoms is not None:
         world = {k: v for k, v in derived.items() if k.startswith(("ground", "static_box"))}
-        return Model(
+        model = Model(
             body_name=[str(x) for x in name], body_shape=codes, body_size=sz, body_mass=m,
             body_inertia_diag=inertia, body_force_world=arr(force_world, (n, 3), "force_world"),
             body_torque_world=arr(torque_world, (n, 3), "torque_world"),
-            body_restitution=arr(restitution, (n,), "restitution", 0.5),
-            body_friction=arr(friction, (n,), "friction", 0.5), body_group=_group(group, n),
+            body_restitution=arr(restitution, (n,), "restitution", arguments.UNKNOWN_MATERIAL),
+            body_friction=arr(friction, (n,), "friction", arguments.UNKNOWN_MATERIAL),
+            body_group=_group(group, n),
             gravity=arr(gravity, (3,), "gravity"), collide_rule=collide_rule, **world, **v3)
-    mcount = 0 if static_box_position is None else len(static_box_position)
-    return Model(
+        arguments.model_values(model)
+        return model
+    mcount = 0 if static_box_position is None else len(_float_array(static_box_position,
+                                                                    "static_box_position"))
+    model = Model(
         body_name=[str(x) for x in name], body_shape=codes, body_size=sz, body_mass=m,
         body_inertia_diag=inertia, body_force_world=arr(force_world, (n, 3), "force_world"),
         body_torque_world=arr(torque_world, (n, 3), "torque_world"),
-        body_restitution=arr(restitution, (n,), "restitution", 0.5),
-        body_friction=arr(friction, (n,), "friction", 0.5),
+        body_restitution=arr(restitution, (n,), "restitution", arguments.UNKNOWN_MATERIAL),
+        body_friction=arr(friction, (n,), "friction", arguments.UNKNOWN_MATERIAL),
         body_group=_group(group, n),
         gravity=arr(gravity, (3,), "gravity"), ground=bool(ground),
         ground_normal=arr(ground_normal, (3,), "ground_normal"), ground_offset=float(ground_offset),
@@ -196,10 +205,14 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
         static_box_quat_wxyz=arr(static_box_quat_wxyz if mcount else None, (mcount, 4),
                                  "static_box_quat_wxyz", default=[1.0, 0, 0, 0]),
         static_box_half_extents=arr(static_box_half_extents, (mcount, 3), "static_box_half_extents"),
-        static_box_restitution=arr(static_box_restitution, (mcount,), "static_box_restitution", 0.5),
-        static_box_friction=arr(static_box_friction, (mcount,), "static_box_friction", 0.5),
+        static_box_restitution=arr(static_box_restitution, (mcount,), "static_box_restitution",
+                                   arguments.UNKNOWN_MATERIAL),
+        static_box_friction=arr(static_box_friction, (mcount,), "static_box_friction",
+                                arguments.UNKNOWN_MATERIAL),
         collide_rule=collide_rule, **v3,
     )
+    arguments.model_values(model)
+    return model
 
 
 def _codes(v, count: int, names: dict, what: str, valid) -> np.ndarray:
@@ -642,6 +655,12 @@ class Recorder:
                  keep: bool | None = None, info: RunInfo | None = None,
                  mcap_compression: str = "lz4", writers: list | None = None,
                  check: bool | dict = False, fail_fast: bool = False):
+        arguments.recorder(model=model, rrd=rrd, mcap=mcap, dt=dt, writer=writer,
+                           integrator=integrator, log_every=log_every, duration_s=duration_s,
+                           engine_settings=engine_settings, scene_path=scene_path,
+                           scene_toml=scene_toml, scene_resolved=scene_resolved, seed=seed,
+                           keep=keep, info=info, mcap_compression=mcap_compression,
+                           writers=writers, fail_fast=fail_fast)
         for rule, what in ((combine_friction, "combine_friction"),
                            (combine_restitution, "combine_restitution")):
             if rule not in C.COMBINE_RULES:

@@ -1,0 +1,178 @@
+"""The reader's boundary: every decoded channel checked against the contract (docs/log-format.md,
+"The data" and "Fields with fixed values") before a Trajectory leaves the reader.
+
+A log that frames and checksums correctly can still hold contents no writer following the
+contract produces: a body table whose arrays disagree on N, contact rows whose arrays differ in
+length, body indices out of range, rows of steps that have no sample, a message that is not the
+protobuf its schema names. Each check raises :class:`~rblog.errors.LogReadError` naming the
+channel, the record and what the contract expects, so that an analyzer never indexes out of
+range and the CLI prints one line.
+
+What is not checked here: the state channels' values (non-finite positions, a clock that runs
+backwards, quaternions that disagree with the matrix). Those are findings about the run, reported
+by rblog.analyze.consistency, not reasons to refuse the log.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import numpy as np
+
+from rblog.contract.model import LOG_SHAPE_CODES
+from rblog.contract.trajectory import CONTACT_IMPACT, CONTACT_RESTING, STATIC_BODY, Trajectory
+from rblog.errors import LogReadError
+from rblog.record import _common as C
+
+#: model fields whose values must be finite numbers (materials may be NaN: unknown)
+_FINITE_MODEL = ("body_size", "body_mass", "body_inertia_diag", "body_force_world",
+                 "body_torque_world", "gravity", "ground_normal", "ground_offset",
+                 "static_box_position", "static_box_quat_wxyz", "static_box_half_extents")
+_MATERIALS = ("body_restitution", "body_friction", "ground_restitution", "ground_friction",
+              "static_box_restitution", "static_box_friction")
+#: contact row fields: values per contact (1 or 3)
+_CONTACT_WIDTH = {"step": 1, "t": 1, "body_a": 1, "body_b": 1, "kind": 1, "separation": 1,
+                  "normal_impulse": 1, "point": 3, "normal": 3, "friction_impulse": 3}
+_CONTACT_INTEGER = ("step", "body_a", "body_b", "kind")
+
+
+def _numeric(path: str, where: str, v, integer: bool) -> np.ndarray:
+    try:
+        a = np.asarray(v)
+    except (TypeError, ValueError):
+        raise LogReadError(path, f"{where}: not an array of numbers") from None
+    if a.dtype.kind not in ("iub" if integer else "iubf"):
+        want = "integers" if integer else "numbers"
+        raise LogReadError(path, f"{where}: holds {a.dtype} values, expected {want}")
+    return a.reshape(-1)
+
+
+def model_record(path: str, model: dict) -> None:
+    """The run record's body table as flat arrays (what ``_common.model_from_arrays`` takes):
+    every field present that the contract requires, of its kind, N (or M) entries of its width,
+    finite where a value is required, materials >= 0 or NaN (unknown)."""
+    where = "run record (rblog/model, /rblog/run)"
+    names = model.get("body_name")
+    if names is None or isinstance(names, (str, bytes)) or len(names) == 0:
+        raise LogReadError(path, f"{where}: body_name holds no body, expected N >= 1 names")
+    if not all(isinstance(x, str) for x in names):
+        raise LogReadError(path, f"{where}: body_name holds non-text values, expected N names")
+    n = len(names)
+    m_count: int | None = None
+    for name, (kind, shape) in C.MODEL_FIELDS.items():
+        if name == "body_name":
+            continue
+        v = model.get(name)
+        if v is None:
+            if name.startswith("body_"):
+                raise LogReadError(path, f"{where}: {name} missing, expected {n} values")
+            continue
+        a = _numeric(path, f"{where}: {name}", v, integer=kind in "ib")
+        if shape is None:
+            want = 3 if name in ("gravity", "ground_normal") else 1
+            if a.size != want:
+                raise LogReadError(path, f"{where}: {name} holds {a.size} values, expected {want}")
+        else:
+            width = int(np.prod(shape)) if shape else 1
+            if name.startswith("body_"):
+                if a.size != n * width:
+                    raise LogReadError(path, f"{where}: {name} holds {a.size} values, expected "
+                                       f"{n * width} ({width} for each of {n} bodies)")
+            else:
+                count, rest = divmod(a.size, width)
+                if rest or (m_count is not None and count != m_count):
+                    raise LogReadError(path, f"{where}: {name} holds {a.size} values, expected "
+                                       f"{width} per static box"
+                                       + (f" for {m_count} boxes" if m_count is not None else ""))
+                m_count = count
+        if name in _FINITE_MODEL and not np.isfinite(a).all():
+            raise LogReadError(path, f"{where}: {name} holds {_first_bad(a)}, expected finite "
+                               "numbers")
+        if name in _MATERIALS and (np.isinf(a).any() or (a < 0).any()):
+            raise LogReadError(path, f"{where}: {name} holds {_first_bad(a, a < 0)}, expected "
+                               "numbers >= 0 (or NaN: unknown)")
+        if name == "body_mass" and not (a > 0).all():
+            raise LogReadError(path, f"{where}: body_mass holds {_first_bad(a, ~(a > 0))}, "
+                               "expected positive masses (kg)")
+        if name == "body_inertia_diag" and (a < 0).any():
+            raise LogReadError(path, f"{where}: body_inertia_diag holds {_first_bad(a, a < 0)}, "
+                               "expected moments >= 0 (kg m^2)")
+        if name == "body_shape" and not np.isin(a, list(LOG_SHAPE_CODES.values())).all():
+            bad = a[~np.isin(a, list(LOG_SHAPE_CODES.values()))][0]
+            raise LogReadError(path, f"{where}: body_shape holds {int(bad)}, expected 0 (sphere), "
+                               "1 (box) or -1 (none)")
+
+
+def _first_bad(a: np.ndarray, mask: np.ndarray | None = None) -> str:
+    mask = ~np.isfinite(a) if mask is None else (mask | np.isinf(a))
+    i = int(np.flatnonzero(mask)[0])
+    return f"{a[i]!r} at index {i}"
+
+
+def contact_records(path: str, records: list[dict], n_bodies: int, channel: str) -> None:
+    """Each contact record (one message or row: the contacts of one step) before they are joined:
+    its K contacts have K values of each scalar field and 3 K of point, normal and
+    friction_impulse; body_a in 0..N-1, body_b in -1..N-1, kind 0 or 1; finite values."""
+    for r, rec in enumerate(records):
+        where = f"{channel} record {r}"
+        if not isinstance(rec, dict) or "body_a" not in rec:
+            raise LogReadError(path, f"{where}: no body_a field, expected the contact fields "
+                               f"{', '.join(_CONTACT_WIDTH)}")
+        k = np.asarray(rec["body_a"]).size
+        for name, width in _CONTACT_WIDTH.items():
+            if name not in rec:
+                raise LogReadError(path, f"{where}: {name} missing")
+            a = _numeric(path, f"{where}: {name}", rec[name], integer=name in _CONTACT_INTEGER)
+            if a.size != width * k:
+                raise LogReadError(path, f"{where}: {name} holds {a.size} values, expected "
+                                   f"{width * k} ({width} for each of its {k} contacts)")
+            if a.dtype.kind == "f" and not np.isfinite(a).all():
+                raise LogReadError(path, f"{where}: {name} holds {_first_bad(a)}, expected "
+                                   "finite numbers")
+        a, b = np.asarray(rec["body_a"]).reshape(-1), np.asarray(rec["body_b"]).reshape(-1)
+        if k and (a.min() < 0 or a.max() >= n_bodies):
+            raise LogReadError(path, f"{where}: body_a holds {int(a[(a < 0) | (a >= n_bodies)][0])}, "
+                               f"expected a body index 0..{n_bodies - 1}")
+        if k and (b.min() < STATIC_BODY or b.max() >= n_bodies):
+            bad = int(b[(b < STATIC_BODY) | (b >= n_bodies)][0])
+            raise LogReadError(path, f"{where}: body_b holds {bad}, expected a body index "
+                               f"0..{n_bodies - 1} or -1 (static geometry)")
+        kind = np.asarray(rec["kind"]).reshape(-1)
+        if not np.isin(kind, (CONTACT_RESTING, CONTACT_IMPACT)).all():
+            bad = int(kind[~np.isin(kind, (CONTACT_RESTING, CONTACT_IMPACT))][0])
+            raise LogReadError(path, f"{where}: kind holds {bad}, expected 0 (resting) or 1 "
+                               "(impact)")
+
+
+def trajectory(path: str, traj: Trajectory, channel: str) -> None:
+    """The assembled run: every contact row belongs to a logged sample's step. Rows past the last
+    sample of a log cut short (their sample was lost with the tail) are dropped with a warning;
+    anywhere else a row without its sample is an error."""
+    c = traj.contacts
+    if not len(c):
+        return
+    orphan = ~np.isin(c.step, traj.step)
+    if not orphan.any():
+        return
+    last = traj.step[-1] if traj.n_samples else np.iinfo(np.int64).min
+    if traj.truncated and (c.step[orphan] > last).all():
+        traj.contacts = c.select(~orphan)
+        traj.warnings.append(f"dropped {int(orphan.sum())} contact row(s) of steps after the last "
+                             "sample (their samples were cut off)")
+        return
+    s = int(c.step[orphan][0])
+    raise LogReadError(path, f"{channel}: a contact row of step {s} matches no sample's step "
+                       "(expected rows only at logged steps)")
+
+
+@contextmanager
+def decoding(path: str, channel: str):
+    """Messages of ``channel`` decoded inside: a payload its schema cannot parse is a
+    LogReadError naming the channel (protobuf's DecodeError otherwise escapes the reader)."""
+    from google.protobuf.message import DecodeError
+
+    try:
+        yield
+    except DecodeError as e:
+        raise LogReadError(path, f"{channel}: a message is not a valid protobuf of its schema "
+                           f"({e})") from None
