@@ -99,7 +99,10 @@ def print_live_report(audit, as_json: bool, paths=()) -> bool:
         click.echo(f"  withdrawn at the end ({lf.analyzer}, step {lf.finding.step}): "
                    f"{lf.finding.message}")
     if traj is not None:
+        from rblog.analyze.contents import log_contents
+
         print_report({"log": ", ".join(paths) or "(run)", "truncated": bool(audit.failed),
+                      "contents": log_contents(traj),
                       "status": "flagged" if flagged else "clean",
                        "samples": traj.n_samples, "bodies": traj.n_bodies,
                        "t_end_s": float(traj.t[-1]) if traj.n_samples else 0.0,
@@ -117,6 +120,10 @@ def print_report(entry):
     flag = " (truncated)" if entry["truncated"] else ""
     click.echo(f"{entry['log']}: {entry['samples']} samples x {entry['bodies']} bodies, "
                f"t = 0..{entry['t_end_s']:g} s{flag}")
+    if entry.get("contents"):
+        from rblog.analyze.contents import contents_line
+
+        click.echo(f"  contents: {contents_line(entry['contents'])}")
     for r in entry["results"]:
         verdict = {"skip": "skip", "not judged": "----", "FAIL": "FAIL"}.get(r["verdict"], "pass")
         click.echo(f"  {verdict:<4} {r['analyzer']:<12} {_worst_text(r)}")

@@ -110,7 +110,9 @@ def check_log(path: str, only=None, skip=None, tolerances: dict | None = None) -
         status = "not judged"
     elif not flagged and traj.truncated:
         status = "truncated"
-    return {"log": path, "status": status,
+    from rblog.analyze.contents import log_contents
+
+    return {"log": path, "status": status, "contents": log_contents(traj),
             "samples": traj.n_samples, "bodies": traj.n_bodies, "truncated": traj.truncated,
             "t_end_s": float(traj.t[-1]) if traj.n_samples else 0.0,
             "warnings": warns,

@@ -274,3 +274,22 @@ def test_one_percent_energy_gain_in_a_passive_tree_is_caught(tmp_path):
     assert sorted(f.bodies) == [0, 1]
     assert "tree" in f.message and "grows" in f.message
     assert f.t >= 1.5 - 1e-9
+
+
+def test_check_prints_what_the_log_holds(tmp_path):
+    """The report's contents line: the pendulum's two bodies on two hinges, two capsules, the
+    contact impulses logged and the joints' missing (so momentum's "not judged" has its cause
+    on the page)."""
+    from click.testing import CliRunner
+
+    from rblog_cli.main import main
+
+    path, _ = record_double_pendulum(tmp_path / "pendulum.mcap", steps=500)
+    out = CliRunner().invoke(main, ["check", str(path)]).output
+    line = next(x for x in out.splitlines() if x.strip().startswith("contents:"))
+    assert "2 bodies (joints 2)" in line
+    assert "2 joints (hinge 2)" in line
+    assert "2 geoms (capsule 2)" in line
+    assert "impulses logged: contact" in line
+    assert "loads of unknown size: joint (2 bodies)" in line
+    assert "0 contact rows" in line
