@@ -534,29 +534,42 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
         quat_wxyz = _arr(quat_xyzw, "quat_xyzw", (T, n, 4))[..., [3, 0, 1, 2]]
     if quat_wxyz is None and rotation is None:
         raise RecordError("orientation: give quat_wxyz, quat_xyzw or rotation")
-    if rotation is None:
-        quat_wxyz = _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
-        rotation = quat_wxyz_to_matrix(quat_wxyz)
-    else:
-        rotation = _arr(rotation, "rotation", (T, n, 3, 3))
-        quat_wxyz = matrix_to_quat(rotation) if quat_wxyz is None else _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
-    mass = np.asarray(model.body_mass, np.float64)
     if velocity is None and linear_momentum is None:
         raise RecordError("linear state: give velocity or linear_momentum")
-    if velocity is not None:
-        velocity = _arr(velocity, "velocity", (T, n, 3))
-    p = mass[None, :, None] * velocity if linear_momentum is None else \
-        _arr(linear_momentum, "linear_momentum", (T, n, 3))
     if angular_velocity is None and angular_momentum is None:
         raise RecordError("angular state: give angular_velocity (world frame) or angular_momentum")
-    if angular_velocity is not None:
-        angular_velocity = _arr(angular_velocity, "angular_velocity", (T, n, 3))
-    if angular_momentum is None:
-        inertia = np.asarray(model.body_inertia_diag, np.float64)
-        w_body = (np.swapaxes(rotation, -1, -2) @ angular_velocity[..., None])[..., 0]
-        lw = (rotation @ (inertia[None] * w_body)[..., None])[..., 0]
+    mass = np.asarray(model.body_mass, np.float64)
+    if rotation is None and linear_momentum is None and angular_momentum is None:
+        # the usual case (q, v, w): R, P and L in one compiled pass
+        from rblog.contract.derive import state_from_velocities
+
+        c = np.ascontiguousarray
+        quat_wxyz = c(_arr(quat_wxyz, "quat_wxyz", (T, n, 4)))
+        velocity = c(_arr(velocity, "velocity", (T, n, 3)))
+        angular_velocity = c(_arr(angular_velocity, "angular_velocity", (T, n, 3)))
+        rotation, p, lw = np.empty((T, n, 3, 3)), np.empty((T, n, 3)), np.empty((T, n, 3))
+        state_from_velocities(c(mass), c(model.body_inertia_diag, dtype=np.float64), quat_wxyz,
+                              velocity, angular_velocity, rotation, p, lw)
     else:
-        lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
+        if rotation is None:
+            quat_wxyz = _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
+            rotation = quat_wxyz_to_matrix(quat_wxyz)
+        else:
+            rotation = _arr(rotation, "rotation", (T, n, 3, 3))
+            quat_wxyz = matrix_to_quat(rotation) if quat_wxyz is None else \
+                _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
+        if velocity is not None:
+            velocity = _arr(velocity, "velocity", (T, n, 3))
+        p = mass[None, :, None] * velocity if linear_momentum is None else \
+            _arr(linear_momentum, "linear_momentum", (T, n, 3))
+        if angular_velocity is not None:
+            angular_velocity = _arr(angular_velocity, "angular_velocity", (T, n, 3))
+        if angular_momentum is None:
+            inertia = np.asarray(model.body_inertia_diag, np.float64)
+            w_body = (np.swapaxes(rotation, -1, -2) @ angular_velocity[..., None])[..., 0]
+            lw = (rotation @ (inertia[None] * w_body)[..., None])[..., 0]
+        else:
+            lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
     if isinstance(contacts, dict):
         unknown = sorted(set(contacts) - set(_CONTACT_FIELDS))
         missing = [k for k in _CONTACT_REQUIRED if k not in contacts]

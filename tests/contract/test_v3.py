@@ -295,3 +295,24 @@ def test_bad_interval_channels_are_one_line_errors():
 def test_interval_channels_table():
     assert list(INTERVAL_CHANNELS)[:2] == ["impulse_contact_linear", "impulse_contact_angular"]
     assert len(INTERVAL_CHANNELS) == 13
+
+
+def test_state_kernel_matches_the_numpy_formulas():
+    # the compiled q, v, w -> R, P, L of build_block against orientation.quat_wxyz_to_matrix and
+    # numpy's products (unnormalized quaternions included)
+    from rblog.contract.derive import state_from_velocities
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    rng = np.random.default_rng(11)
+    T, n = 5, 7
+    q = rng.normal(size=(T, n, 4)) * 3.0
+    v, w = rng.normal(size=(T, n, 3)), rng.normal(size=(T, n, 3))
+    mass, inertia = rng.uniform(0.1, 5, n), rng.uniform(0.01, 2, (n, 3))
+    r, p, lw = np.empty((T, n, 3, 3)), np.empty((T, n, 3)), np.empty((T, n, 3))
+    state_from_velocities(mass, inertia, q, v, w, r, p, lw)
+    r_np = quat_wxyz_to_matrix(q)
+    l_np = (r_np @ (inertia[None] * (np.swapaxes(r_np, -1, -2) @ w[..., None])[..., 0])[..., None])[..., 0]
+    # measured: R identical, L 1.2e-16 relative; P bit-identical
+    assert np.abs(r - r_np).max() <= 1e-15
+    assert np.abs(lw - l_np).max() <= 4e-15 * np.abs(l_np).max()
+    assert np.array_equal(p, mass[None, :, None] * v)
