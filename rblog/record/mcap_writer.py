@@ -229,8 +229,8 @@ class McapRecorder:
         for k, v in C.info_to_fields(info).items():
             setattr(msg, k, v)
         for k, v in C.model_to_arrays(model).items():
-            if k == "ground":
-                msg.ground = bool(v[0])
+            if k in ("ground", "collide_parent"):
+                setattr(msg, k, bool(v[0]))
             elif k in ("ground_offset", "ground_restitution", "ground_friction"):
                 setattr(msg, k, float(v[0]))
             elif k == "collide_rule":

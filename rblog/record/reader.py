@@ -416,7 +416,8 @@ def _run_of(msg) -> tuple[dict, dict]:
             model[name] = str(v)
         elif kind == "s":
             model[name] = list(v)
-        elif name in ("ground", "ground_offset", "ground_restitution", "ground_friction"):
+        elif name in ("ground", "ground_offset", "ground_restitution", "ground_friction",
+                      "collide_parent"):
             model[name] = np.array([v])
         else:
             model[name] = np.array(v, np.int64 if kind == "i" else bool if kind == "b"

@@ -57,7 +57,8 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
                static_box_half_extents=None, static_box_restitution=None,
                static_box_friction=None, kind=None, parent=None, geoms=None, joints=None,
                collide_rule: str = "and", impulses=(), work=(), impulses_none=(),
-               work_none=(), impulses_missing=(), work_missing=()) -> Model:
+               work_none=(), impulses_missing=(), work_missing=(),
+               collide_parent: bool = False) -> Model:
     """A :class:`Model` (body table and world) from per-body lists.
 
     Args:
@@ -85,8 +86,11 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
         joints: dict of J-row arrays: ``body`` (the child), ``type`` (``"hinge"``, ``"slide"``,
             ``"ball"``, ``"fixed"``, ``"planar"`` or JOINT_* codes), ``anchor_body``,
             ``anchor_parent`` (J, 3); ``axis_body``, ``axis_parent`` (J, 3; not for ball and
-            fixed); optional ``range`` (J, 2, NaN = none), ``name``.
+            fixed); optional ``range`` (J, 2, NaN = none), ``quat_parent`` (J, 4: the body's
+            frame in the parent's at the joint's zero position, wxyz; NaN = not stated),
+            ``name``.
         collide_rule: ``"and"`` (Bullet, rblog) or ``"or"`` (MuJoCo) (COLLIDE_RULES).
+        collide_parent: the engine lets a body touch its parent body (default: never).
         impulses: the per-interval impulse kinds this writer logs for every body (a subset of
             IMPULSE_KINDS), or an (N, 5) array of SUPPLIED_* codes (or bools: logged or
             missing) per body.  work: likewise of WORK_KINDS, or (N, 3).
@@ -186,7 +190,8 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
             body_torque_world=arr(torque_world, (n, 3), "torque_world"),
             body_restitution=arr(restitution, (n,), "restitution", 0.5),
             body_friction=arr(friction, (n,), "friction", 0.5), body_group=_group(group, n),
-            gravity=arr(gravity, (3,), "gravity"), collide_rule=collide_rule, **world, **v3)
+            gravity=arr(gravity, (3,), "gravity"), collide_rule=collide_rule,
+            collide_parent=bool(collide_parent), **world, **v3)
     mcount = 0 if static_box_position is None else len(static_box_position)
     return Model(
         body_name=[str(x) for x in name], body_shape=codes, body_size=sz, body_mass=m,
@@ -204,7 +209,7 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
         static_box_half_extents=arr(static_box_half_extents, (mcount, 3), "static_box_half_extents"),
         static_box_restitution=arr(static_box_restitution, (mcount,), "static_box_restitution", 0.5),
         static_box_friction=arr(static_box_friction, (mcount,), "static_box_friction", 0.5),
-        collide_rule=collide_rule, **v3,
+        collide_rule=collide_rule, collide_parent=bool(collide_parent), **v3,
     )
 
 
@@ -262,7 +267,7 @@ def _supplied(v, none, missing, n: int, kinds: tuple, default: tuple, what: str)
 _GEOM_KEYS = ("body", "type", "size", "pos_body", "quat_wxyz_body", "friction", "restitution",
               "collide_group", "collide_mask", "name", "mesh_vert")
 _JOINT_KEYS = ("body", "type", "anchor_body", "anchor_parent", "axis_body", "axis_parent",
-               "range", "name")
+               "range", "quat_parent", "name")
 
 
 def _rows(table: dict, keys: tuple, required: tuple, what: str) -> int:
@@ -360,7 +365,14 @@ def _joint_table(joints: dict, n: int) -> dict:
            "joint_anchor_parent": _col(joints, "anchor_parent", "joints", J, (3,)),
            "joint_axis_body": _col(joints, "axis_body", "joints", J, (3,), 0.0),
            "joint_axis_parent": _col(joints, "axis_parent", "joints", J, (3,), 0.0),
-           "joint_range": _col(joints, "range", "joints", J, (2,), np.nan)}
+           "joint_range": _col(joints, "range", "joints", J, (2,), np.nan),
+           "joint_quat_parent": _col(joints, "quat_parent", "joints", J, (4,), np.nan)}
+    qn = np.linalg.norm(out["joint_quat_parent"], axis=1)
+    bad = np.flatnonzero(np.isfinite(qn) & (np.abs(qn - 1.0) > 1e-6))
+    if len(bad):
+        j = int(bad[0])
+        raise RecordError(f"body_table: joints.quat_parent[{j}] has norm {qn[j]:.6g}, expected a "
+                          "unit quaternion (w, x, y, z) or NaN (not stated)")
     for key in ("axis_body", "axis_parent"):
         norm = np.linalg.norm(out[f"joint_{key}"], axis=1)
         bad = np.flatnonzero(~axisless & (np.abs(norm - 1.0) > 1e-6))
