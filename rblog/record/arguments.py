@@ -77,9 +77,9 @@ def path_or_none(v, what: str):
 
 def recorder(*, model, rrd, mcap, dt, writer, integrator, log_every, duration_s, engine_settings,
              scene_path, scene_toml, scene_resolved, seed, keep, info, mcap_compression, writers,
-             fail_fast) -> None:
-    """Every argument of ``Recorder(...)`` but ``check`` (LiveAudit checks its own options) and
-    the combine rules (checked against their names in recorder.py)."""
+             fail_fast, combine_friction, combine_restitution) -> None:
+    """Every argument of ``Recorder(...)`` but ``check`` (LiveAudit checks its own options); the
+    combine rules' names are checked in recorder.py, their type here."""
     if model is not None and not isinstance(model, Model):
         raise _error(f"Recorder: model is a {type(model).__name__}, expected a Model "
                      "(rblog.body_table) or None")
@@ -91,7 +91,8 @@ def recorder(*, model, rrd, mcap, dt, writer, integrator, log_every, duration_s,
     integer(log_every, "Recorder: log_every", lo=1)
     number(duration_s, "Recorder: duration_s", nonneg=True)
     for v, what in ((writer, "writer"), (integrator, "integrator"), (scene_toml, "scene_toml"),
-                    (mcap_compression, "mcap_compression")):
+                    (mcap_compression, "mcap_compression"), (combine_friction, "combine_friction"),
+                    (combine_restitution, "combine_restitution")):
         text(v, f"Recorder: {what}")
     if not isinstance(scene_path, (str, os.PathLike)):
         raise _error(f"Recorder: scene_path = {_short(scene_path)}, expected a path (str or Path)")

@@ -539,13 +539,18 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     declares (``body_impulse_supplied`` / ``body_work_supplied``); a body's values where it does
     not supply that kind are logged as NaN.
     """
-    t = np.asarray(t, np.float64).reshape(-1)
+    t = _float_array(t, "t", "write").reshape(-1)
+    if not np.isfinite(t).all():
+        raise RecordError(f"write: t = {_short(t)}, expected finite times (s)")
     T, n = len(t), model.n_bodies
     if step is None:
         if not info.dt:
             raise RecordError("step: not given and the run's dt is unknown (give step or dt)")
         step = np.rint(t / info.dt).astype(np.int64)
-    step = np.asarray(step, np.int64).reshape(-1)
+    try:
+        step = np.asarray(step, np.int64).reshape(-1)
+    except (TypeError, ValueError, OverflowError):
+        raise RecordError(f"write: step = {_short(step)}, expected integer step indices") from None
     if len(step) != T:
         raise RecordError(f"step: {len(step)} values, expected {T} (one per sample)")
     position = _arr(position, "position", (T, n, 3))
@@ -686,7 +691,8 @@ class Recorder:
                            engine_settings=engine_settings, scene_path=scene_path,
                            scene_toml=scene_toml, scene_resolved=scene_resolved, seed=seed,
                            keep=keep, info=info, mcap_compression=mcap_compression,
-                           writers=writers, fail_fast=fail_fast)
+                           writers=writers, fail_fast=fail_fast, combine_friction=combine_friction,
+                           combine_restitution=combine_restitution)
         for rule, what in ((combine_friction, "combine_friction"),
                            (combine_restitution, "combine_restitution")):
             if rule not in C.COMBINE_RULES:

@@ -49,6 +49,8 @@ def test_body_table_argument_of_wrong_type_or_value(arg, value):
     ("scene_toml", b"x"), ("scene_resolved", "x"), ("seed", "x"), ("seed", 1.5), ("keep", "x"),
     ("info", "x"), ("mcap_compression", None), ("writers", "x"), ("fail_fast", "x"),
     ("rrd", 3), ("mcap", 3.5), ("combine_friction", "x"),
+    # found by the writer fuzz target: `np.zeros(0) not in (...)` raised numpy's ValueError
+    ("combine_friction", np.zeros(0)), ("combine_restitution", np.ones(2)),
 ])
 def test_recorder_argument_of_wrong_type_or_value(arg, value):
     model = rblog.body_table(**GOOD)
@@ -90,3 +92,18 @@ def test_unknown_materials_round_trip_and_are_not_judged(tmp_path):
             rec.write(t=t, position=x, quat_wxyz=q, velocity=v, angular_velocity=np.zeros_like(v))
         back = rblog.load(tmp_path / p)
         assert np.isnan(back.model.body_restitution).all() and np.isnan(back.model.body_friction).all()
+
+
+@pytest.mark.parametrize("arg, value", [("t", ["a", "b", "c"]), ("t", None), ("step", ["x"] * 3),
+                                        ("step", [2**70] * 3)])
+def test_write_argument_of_wrong_type(arg, value):
+    """Found by the writer fuzz target: t = ['a', ...] raised numpy's ValueError in build_block."""
+    model = rblog.body_table(**GOOD)
+    arrays = dict(t=np.arange(3) * 0.01, position=np.zeros((3, 1, 3)),
+                  quat_wxyz=np.tile([1.0, 0, 0, 0], (3, 1, 1)), velocity=np.zeros((3, 1, 3)),
+                  angular_velocity=np.zeros((3, 1, 3)))
+    arrays[arg] = value
+    with pytest.raises(rblog.RecordError) as err:
+        with rblog.Recorder(model, dt=0.01) as rec:
+            rec.write(**arrays)
+    _one_line(err, arg)
