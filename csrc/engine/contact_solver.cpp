@@ -352,11 +352,11 @@ void prepare_contacts(const StepContext& cx, const ContactConstraints& c, const 
             c.pf(p, PF_DB + 1) = anchor_rate * (dx * t2x + dy * t2y + dz * t2z) / h;
             // gap velocity now (after the force kick), and before the kick
             double wxrax, wxray, wxraz, wxrbx, wxrby, wxrbz;
-            cross(bp.wax, bp.way, bp.waz, rax, ray, raz, wxrax, wxray, wxraz);
-            cross(bp.wbx, bp.wby, bp.wbz, rbx, rby, rbz, wxrbx, wxrby, wxrbz);
-            double vn = (nx * (bp.vax + wxrax - bp.vbx - wxrbx) +
-                         ny * (bp.vay + wxray - bp.vby - wxrby) +
-                         nz * (bp.vaz + wxraz - bp.vbz - wxrbz));
+            cross(bp.wa[0], bp.wa[1], bp.wa[2], rax, ray, raz, wxrax, wxray, wxraz);
+            cross(bp.wb[0], bp.wb[1], bp.wb[2], rbx, rby, rbz, wxrbx, wxrby, wxrbz);
+            double vn = (nx * (bp.va[0] + wxrax - bp.vb[0] - wxrbx) +
+                         ny * (bp.va[1] + wxray - bp.vb[1] - wxrby) +
+                         nz * (bp.va[2] + wxraz - bp.vb[2] - wxrbz));
             c.pf(p, PF_W0) = vn - acc * h;
             c.pf(p, PF_LP) = 0.0;
             c.pf(p, PF_IMPACT) = 0.0;

@@ -13,6 +13,7 @@
 #include <cstddef>  // size_t, which common/array.hpp uses
 
 #include "common/array.hpp"
+#include "engine/constraint_row.hpp"
 #include "engine/step_context.hpp"
 
 namespace rb {
@@ -22,49 +23,15 @@ struct SolverLanes;
 
 // ---- the one place an impulse acts on a pair ---------------------------------------------------
 
-// +P on body a at anchor r_a, -P on body b at r_b: velocity changes m^-1 P and I_world^-1 (r x P),
-// so the pair's linear momentum and its angular momentum about any point are unchanged to
-// round-off. ma/mb inverse masses (0 for the static dummy), a6/b6 world inverse inertias (xx, yy,
-// zz, xy, xz, yz), r_a/r_b anchors and p the impulse (world, N s); the bodies' velocities are
-// updated in place (callers keep them in locals, i.e. registers).
-inline void apply_impulse(double ma, const double* a6, double mb, const double* b6, double rax,
-                          double ray, double raz, double rbx, double rby, double rbz, double px,
-                          double py, double pz, double& vax, double& vay, double& vaz,
-                          double& wax, double& way, double& waz, double& vbx, double& vby,
-                          double& vbz, double& wbx, double& wby, double& wbz) {
-    double cx = ray * pz - raz * py, cy = raz * px - rax * pz, cz = rax * py - ray * px;
-    double ex = a6[0] * cx + a6[3] * cy + a6[4] * cz;
-    double ey = a6[3] * cx + a6[1] * cy + a6[5] * cz;
-    double ez = a6[4] * cx + a6[5] * cy + a6[2] * cz;
-    vax = vax + ma * px;
-    vay = vay + ma * py;
-    vaz = vaz + ma * pz;
-    wax = wax + ex;
-    way = way + ey;
-    waz = waz + ez;
-    cx = rby * pz - rbz * py;
-    cy = rbz * px - rbx * pz;
-    cz = rbx * py - rby * px;
-    ex = b6[0] * cx + b6[3] * cy + b6[4] * cz;
-    ey = b6[3] * cx + b6[1] * cy + b6[5] * cz;
-    ez = b6[4] * cx + b6[5] * cy + b6[2] * cz;
-    vbx = vbx - mb * px;
-    vby = vby - mb * py;
-    vbz = vbz - mb * pz;
-    wbx = wbx - ex;
-    wby = wby - ey;
-    wbz = wbz - ez;
-}
-
 // A manifold's two bodies while a stage applies impulses to them, held in locals (registers):
 // rows ia, ib of the solver's bodies, their inverse masses, world inverse inertias (xx, yy, zz,
-// xy, xz, yz) and velocities. apply() is apply_impulse on them; store() writes the velocities
-// back.
+// xy, xz, yz) and velocities. apply() is constraint_row.hpp's impulse_row on them (the velocity
+// solve's lanes run the same template); store() writes the velocities back.
 struct BodyPair {
     i64 ia, ib;
     double ma, mb;
     double a6[6], b6[6];
-    double vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz;
+    double va[3], wa[3], vb[3], wb[3];
 
     BodyPair(const SolverBodies& b, i64 ia_, i64 ib_) : ia(ia_), ib(ib_) {
         ma = b.inv_mass[ia];
@@ -73,29 +40,34 @@ struct BodyPair {
             a6[k] = b.inv_inertia(ia, k);
             b6[k] = b.inv_inertia(ib, k);
         }
-        vax = b.v(ia, 0); vay = b.v(ia, 1); vaz = b.v(ia, 2);
-        wax = b.w(ia, 0); way = b.w(ia, 1); waz = b.w(ia, 2);
-        vbx = b.v(ib, 0); vby = b.v(ib, 1); vbz = b.v(ib, 2);
-        wbx = b.w(ib, 0); wby = b.w(ib, 1); wbz = b.w(ib, 2);
+        for (int k = 0; k < 3; ++k) {
+            va[k] = b.v(ia, k);
+            wa[k] = b.w(ia, k);
+            vb[k] = b.v(ib, k);
+            wb[k] = b.w(ib, k);
+        }
     }
+    // +P at anchor r_a on a, -P at r_b on b (world, N s)
     void apply(double rax, double ray, double raz, double rbx, double rby, double rbz, double px,
                double py, double pz) {
-        apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, px, py, pz, vax, vay, vaz,
-                      wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+        const double ra[3] = {rax, ray, raz}, rb[3] = {rbx, rby, rbz};
+        impulse_row<double, ScalarLane>(
+            true, ma, [this](int k) { return a6[k]; }, mb, [this](int k) { return b6[k]; }, ra,
+            rb, px, py, pz, va, wa, vb, wb);
     }
-    // the velocity of a's material point at a + r_a relative to b's at b + r_b:
-    // v_a + w_a x r_a - v_b - w_b x r_b
+    // the velocity of a's material point at a + r_a relative to b's at b + r_b
     void relative_velocity(double rax, double ray, double raz, double rbx, double rby, double rbz,
                            double& dvx, double& dvy, double& dvz) const {
-        dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-        dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-        dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+        const double ra[3] = {rax, ray, raz}, rb[3] = {rbx, rby, rbz};
+        gap_velocity<double, ScalarLane>(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
     }
     void store(const SolverBodies& b) const {
-        b.v(ia, 0) = vax; b.v(ia, 1) = vay; b.v(ia, 2) = vaz;
-        b.w(ia, 0) = wax; b.w(ia, 1) = way; b.w(ia, 2) = waz;
-        b.v(ib, 0) = vbx; b.v(ib, 1) = vby; b.v(ib, 2) = vbz;
-        b.w(ib, 0) = wbx; b.w(ib, 1) = wby; b.w(ib, 2) = wbz;
+        for (int k = 0; k < 3; ++k) {
+            b.v(ia, k) = va[k];
+            b.w(ia, k) = wa[k];
+            b.v(ib, k) = vb[k];
+            b.w(ib, k) = wb[k];
+        }
     }
 };
 

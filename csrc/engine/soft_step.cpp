@@ -217,9 +217,9 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                         sb[k] += x[i] * q[PF_RB + k];
                     }
                 }
-                apply_moments(bp.ma, bp.a6, bp.mb, bp.b6, sa, sb, dsum, nx, ny, nz, bp.vax, bp.vay,
-                              bp.vaz, bp.wax, bp.way, bp.waz, bp.vbx, bp.vby, bp.vbz, bp.wbx,
-                              bp.wby, bp.wbz);
+                apply_moments(bp.ma, bp.a6, bp.mb, bp.b6, sa, sb, dsum, nx, ny, nz, bp.va[0],
+                              bp.va[1], bp.va[2], bp.wa[0], bp.wa[1], bp.wa[2], bp.vb[0],
+                              bp.vb[1], bp.vb[2], bp.wb[0], bp.wb[1], bp.wb[2]);
             }
         }
         if (!block) {
