@@ -82,4 +82,31 @@ inline void gap_velocity(const T* va, const T* wa, const T* vb, const T* wb, con
     dvz = va[2] + wa[0] * ra[1] - wa[1] * ra[0] - vb[2] - wb[0] * rb[1] + wb[1] * rb[0];
 }
 
+// Solve K x = b in place for a manifold's normal block (x: np values, row i used where pt[i];
+// prepare_contacts' factor_block made the factors): piv(c) the row exchanged with row c
+// (MF_PIV), lu(k) the 4 x 4 row-major factors (MF_LU: the multipliers below the diagonal, U on
+// and above). Each step acts in the lanes that have its rows.
+template <class T, class Lw, class Lu, class Piv>
+inline void lu_solve_rows(int np, const typename Lw::M* pt, const Lu& lu, const Piv& piv, T* x) {
+    typedef typename Lw::M M;
+    for (int c = 0; c < np; ++c) {
+        M cm = pt[c];
+        T pc = piv(c);
+        T xc = x[c];
+        T nc = xc;
+        for (int r = c + 1; r < np; ++r) {
+            M sw = Lw::mand(cm, pc == Lw::splat((double)r));
+            nc = Lw::sel(sw, x[r], nc);
+            x[r] = Lw::sel(sw, xc, x[r]);
+        }
+        x[c] = nc;
+        for (int r = c + 1; r < np; ++r) x[r] = Lw::sel(pt[r], x[r] - lu(4 * r + c) * x[c], x[r]);
+    }
+    for (int c = np - 1; c >= 0; --c) {
+        T v = x[c];
+        for (int k = c + 1; k < np; ++k) v = Lw::sel(pt[k], v - lu(4 * c + k) * x[k], v);
+        x[c] = Lw::sel(pt[c], v / lu(5 * c), x[c]);
+    }
+}
+
 }  // namespace rb

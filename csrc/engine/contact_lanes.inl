@@ -193,27 +193,9 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             T vn = dvx * nv[0] + dvy * nv[1] + dvz * nv[2];
             rhs[i] = w::ld(gr.target[i], l) - vn;
         }
-        // lu_solve: the row exchanges and the elimination, each step in the lanes that have it
-        for (int c = 0; c < np; ++c) {
-            M cm = pt[c];
-            T piv = w::ld(gr.piv[c], l);
-            T rc = rhs[c];
-            T nc = rc;
-            for (int r = c + 1; r < np; ++r) {
-                M sw = w::mand(cm, piv == w::splat((double)r));
-                nc = w::sel(sw, rhs[r], nc);
-                rhs[r] = w::sel(sw, rc, rhs[r]);
-            }
-            rhs[c] = nc;
-            for (int r = c + 1; r < np; ++r)
-                rhs[r] = w::sel(pt[r], rhs[r] - w::ld(gr.lu[4 * r + c], l) * rhs[c], rhs[r]);
-        }
-        for (int c = np - 1; c >= 0; --c) {
-            T x = rhs[c];
-            for (int k = c + 1; k < np; ++k)
-                x = w::sel(pt[k], x - w::ld(gr.lu[4 * c + k], l) * rhs[k], x);
-            rhs[c] = w::sel(pt[c], x / w::ld(gr.lu[5 * c], l), rhs[c]);
-        }
+        lu_solve_rows<T, w>(
+            np, pt, [&](int k) { return w::ld(gr.lu[k], l); },
+            [&](int c) { return w::ld(gr.piv[c], l); }, rhs);
         M ok = block;
         for (int i = 0; i < np; ++i)
             ok = w::mand(ok, w::mnot(w::mand(pt[i], w::ld(gr.ln[i], l) + om * rhs[i] < zero)));

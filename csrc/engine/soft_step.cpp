@@ -93,20 +93,10 @@ thread_local SoftWork g_work;
 // Solve K x = b in place (b: x, n <= 4) with manifold f's factors from prepare_contacts'
 // factor_block: the row exchanges MF_PIV, the multipliers below MF_LU's diagonal, U on and above.
 inline void lu_solve(const double* f, i64 n, double* x) {
-    for (i64 c = 0; c < n; ++c) {
-        i64 piv = (i64)f[MF_PIV + c];
-        if (piv != c) {
-            double t = x[c];
-            x[c] = x[piv];
-            x[piv] = t;
-        }
-        for (i64 r = c + 1; r < n; ++r) x[r] -= f[MF_LU + 4 * r + c] * x[c];
-    }
-    for (i64 c = n - 1; c >= 0; --c) {
-        double v = x[c];
-        for (i64 k = c + 1; k < n; ++k) v -= f[MF_LU + 4 * c + k] * x[k];
-        x[c] = v / f[MF_LU + 5 * c];
-    }
+    const bool pt[4] = {true, true, true, true};
+    lu_solve_rows<double, ScalarLane>(
+        (int)n, pt, [f](int k) { return f[MF_LU + k]; }, [f](int c) { return f[MF_PIV + c]; },
+        x);
 }
 
 // The impulses x_i n at anchors r_a,i / r_b,i of one manifold at once: D = sum x_i, sa = sum x_i
