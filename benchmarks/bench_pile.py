@@ -176,8 +176,22 @@ def rapier_world(model, state, dt, stiff=False):
     return world, handles
 
 
-def rapier_chunks(model, state, dt, n_steps, chunk, stiff=False):
-    """Rapier at its defaults, or with RAPIER_STIFF; the state read back per body (f32 to f64)."""
+#: Rapier's stage timers (its pipeline's counters, wall ms of the last step) summed by --profile
+RAPIER_STAGES = (("broad phase", "cd", "broad_phase_time_ms"),
+                 ("narrow phase", "cd", "narrow_phase_time_ms"),
+                 ("islands", "stages", "island_construction_time_ms"),
+                 ("constraints collection", "stages", "island_constraints_collection_time_ms"),
+                 ("solver: assembly", "solver", "velocity_assembly_time_ms"),
+                 ("solver: resolution", "solver", "velocity_resolution_time_ms"),
+                 ("solver: update", "solver", "velocity_update_time_ms"),
+                 ("solver (all)", "stages", "solver_time_ms"),
+                 ("step", None, "step_time_ms"))
+
+
+def rapier_chunks(model, state, dt, n_steps, chunk, stiff=False, profile=None):
+    """Rapier at its defaults, or with RAPIER_STIFF; the state read back per body (f32 to f64).
+    ``profile``: a dict that receives its stage timers summed over the run (s) and its contact
+    counts per step (the counters are read after every step, inside the timed loop)."""
     import rapier3d as r
 
     world, handles = rapier_world(model, state, dt, stiff)
@@ -191,6 +205,13 @@ def rapier_chunks(model, state, dt, n_steps, chunk, stiff=False):
         t0, c0 = time.perf_counter(), time.process_time()
         for _ in range(k):
             step()
+            if profile is not None:
+                cn = world.physics_pipeline.counters
+                for name, part, attr in RAPIER_STAGES:
+                    src = cn if part is None else getattr(cn, part)
+                    profile[name] = profile.get(name, 0.0) + 1e-3 * getattr(src, attr)
+                profile["contacts"] = profile.get("contacts", 0) + cn.solver.ncontacts
+                profile["steps"] = profile.get("steps", 0) + 1
         cpu, w = time.process_time() - c0, time.perf_counter() - t0
         done += k
         for j, h in enumerate(handles):
@@ -359,17 +380,23 @@ def main(argv=None):
     ap.add_argument("--boxes", default="10,100,500", help="comma-separated pile sizes")
     ap.add_argument("--duration", type=float, default=2.0, help="simulated seconds")
     ap.add_argument("--dt", type=float, default=1e-3)
-    ap.add_argument("--chunk", type=int, default=10,
+    ap.add_argument("--chunk", "--sample-every", dest="chunk", type=int, default=10,
                     help="steps an engine advances before the next takes its turn; the poses "
                          "are measured after each")
     ap.add_argument("--engines", default="rblog,mujoco,rapier,rapier-stiff,pybullet",
                     help="comma-separated: rblog, mujoco, rapier, rapier-stiff, pybullet "
                          "(those not installed are skipped)")
+    ap.add_argument("--no-peers", action="store_true", help="rblog only")
+    ap.add_argument("--no-pybullet", action="store_true", help="every engine but pybullet")
     ap.add_argument("--mujoco-config", default="default", help=f"one of {sorted(MUJOCO_CONFIGS)}")
     ap.add_argument("--threads", default="1", help="comma-separated rblog thread counts")
     ap.add_argument("--profile", action="store_true", help="print rblog's per-stage profile")
     ap.add_argument("--solver", default="pgs", help="ContactParams.solver: pgs or soft_step")
     ap.add_argument("--substeps", type=int, default=4, help="the soft step's substeps")
+    ap.add_argument("--contact-hertz", type=float, default=None,
+                    help="the soft step's contact_hertz (default: the substeps' cap)")
+    ap.add_argument("--no-anchors", dest="anchors", action="store_false",
+                    help="rblog with [contact] static_friction_anchors = false (on by default)")
     ap.add_argument("--settle-window", type=float, default=0.2, help="s at the end of the run")
     ap.add_argument("--moving", type=float, default=1e-4,
                     help="m: a box that moves farther in the settle window is still moving")
@@ -380,6 +407,10 @@ def main(argv=None):
     n_steps = int(round(args.duration / args.dt))
     thread_counts = [int(t) for t in args.threads.split(",")]
     wanted = args.engines.split(",")
+    if args.no_peers:
+        wanted = ["rblog"]
+    elif args.no_pybullet:
+        wanted = [e for e in wanted if e != "pybullet"]
     have = {"mujoco": importlib.util.find_spec("mujoco") is not None,
             "rapier": importlib.util.find_spec("rapier3d") is not None,
             "pybullet": importlib.util.find_spec("pybullet") is not None}
@@ -389,7 +420,8 @@ def main(argv=None):
     print(f"loose pile: dt {args.dt:g} s, {n_steps} steps ({args.duration:g} s), chunks of "
           f"{args.chunk} steps interleaved, CPU time; load {os.getloadavg()[0]:.1f}; "
           f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}")
-    contact = dict(solver=args.solver, substeps=args.substeps)
+    contact = dict(solver=args.solver, substeps=args.substeps, contact_hertz=args.contact_hertz,
+                   static_friction_anchors=args.anchors)
     wm, ws = loose_pile(10)
     for _ in rblog_chunks(wm, ws, args.dt, 20, 10):  # compile / load the kernels
         pass
@@ -408,8 +440,10 @@ def main(argv=None):
                 engines.append(("mujoco", mujoco_chunks(model, state, args.dt, n_steps,
                                                         args.chunk, args.mujoco_config)))
             elif e in ("rapier", "rapier-stiff") and have["rapier"]:
+                profiles[e] = {} if args.profile else None
                 engines.append((e, rapier_chunks(model, state, args.dt, n_steps, args.chunk,
-                                                 stiff=e == "rapier-stiff")))
+                                                 stiff=e == "rapier-stiff",
+                                                 profile=profiles[e])))
             elif e == "pybullet" and have["pybullet"]:
                 engines.append(("pybullet", pybullet_chunks(model, state, args.dt, n_steps,
                                                             args.chunk)))
@@ -427,11 +461,20 @@ def main(argv=None):
                   f"{1e3 * s['box_end']:.3f} / {1e3 * s['ground_end']:.3f} mm; {s['moving']}")
             if info["detail"]:
                 print(f"    {info['detail']}")
-        for nt, prof in profiles.items():
-            if prof is not None:
-                print(f"  rblog {nt} thread(s), per stage:")
-                for name, sec, share in prof.table():
-                    print(f"      {name:<36} {sec:8.3f} s  {100 * share:5.1f} %")
+        for key, prof in profiles.items():
+            if prof is None:
+                continue
+            if isinstance(prof, dict):  # Rapier's counters (wall time)
+                total = prof.get("step", 0.0)
+                print(f"  {key}, per stage (its counters, wall), "
+                      f"{prof.get('contacts', 0) / max(prof.get('steps', 1), 1):.0f} contacts a step:")
+                for name, _, _ in RAPIER_STAGES:
+                    print(f"      {name:<36} {prof.get(name, 0.0):8.3f} s  "
+                          f"{100 * prof.get(name, 0.0) / max(total, 1e-12):5.1f} %")
+                continue
+            print(f"  rblog {key} thread(s), per stage (wall):")
+            for name, sec, share in prof.table():
+                print(f"      {name:<36} {sec:8.3f} s  {100 * share:5.1f} %")
         for name, sps in cpu_of.items():
             if name.startswith("rblog"):
                 print(f"  {name}: " + "   ".join(f"/ {o} {sps / v:.2f}x" for o, v in cpu_of.items()

@@ -239,7 +239,7 @@ void bind_contact(nb::module_& m) {
         return std::make_tuple(copy_out(log_i), copy_out(log_f), n_log);
     });
 
-    // ---- solver.py, relax.py, restitution.py, project.py -------------------------------------
+    // ---- the solver's stages (contact_solver.hpp) and project.py ------------------------------
     m.def("load_bodies", [](nb::handle mi, i64 n_man, i64 n_dyn, bool iso_shortcut, nb::handle iso,
                             nb::handle inv_mass, nb::handle inv_inertia, nb::handle rotation,
                             nb::handle lm, nb::handle am, nb::handle in_contact, nb::handle bm,

@@ -1,5 +1,3 @@
-// rblog/engine/contact/solver.py's stages in C++ (the same formulas in the same order).
-//
 // Contact solver: sequential impulses (projected Gauss-Seidel) with accumulated-impulse clamping.
 //
 // Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
@@ -54,9 +52,9 @@
 // `git log -p benchmarks/RESULTS.md`), and a box resting on two single-point contacts can still turn about
 // the line through them (no friction row sees that motion).
 //
-// Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.
+// Position correction by split impulses (stage 8) is in relax.cpp.
 //
-// Restitution (the bounce after positions moved) is in :mod:`rblog.engine.contact.restitution`.
+// Restitution (the bounce after positions moved) is in restitution.cpp.
 #include <cmath>
 #include <vector>
 

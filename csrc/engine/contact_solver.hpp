@@ -1,8 +1,7 @@
 // The contact solver's stages (contact_solver.cpp, relax.cpp, restitution.cpp, project.cpp), in
 // the order the world step calls them; the derivations are in contact_solver.cpp's header
-// comment. Python calls each through rblog/engine/contact/solver.py, relax.py, restitution.py
-// (for tests); the tolerances they read reach them in the Settings (their one home stays
-// constants.py).
+// comment. The tests call each from Python (bind_contact.cpp); the tolerances they read reach
+// them in the Settings (their one home stays constants.py).
 //
 // Shapes: mi (M, MI_COLS) int64, mf (M, MF_COLS), pf (K, PF_COLS) (manifold.hpp's columns);
 // per-body solver arrays have N+1 rows, row N the static dummy (zero inverse mass): bm (N+1,),
@@ -71,7 +70,7 @@ struct BodyPair {
     }
 };
 
-// ---- solver.py -----------------------------------------------------------------------------
+// ---- contact_solver.cpp ---------------------------------------------------------------------
 // Each stage reads the step's context (h, 1/h, the settings: step_context.hpp), the contact
 // constraints and the solver's bodies, whose velocities it updates in place.
 
@@ -104,14 +103,14 @@ void anchor_friction(const StepContext& ctx, const ContactConstraints& c, const 
 // settings: friction_anchor_slide_frac
 void store_impulses(const StepContext& ctx, const ContactConstraints& c);
 
-// ---- relax.py ------------------------------------------------------------------------------
+// ---- relax.cpp -----------------------------------------------------------------------------
 
 // pseudo: the solver's bodies with the pseudo velocities (pv, pw) for v and w. settings:
 // position_iterations, allowed_penetration, position_correction_rate, max_correction_speed
 void relax_positions(const StepContext& ctx, const ContactConstraints& c,
                      const SolverBodies& pseudo);
 
-// ---- restitution.py ------------------------------------------------------------------------
+// ---- restitution.cpp -----------------------------------------------------------------------
 
 // pv, pw: (N+1, 3) the relax stage's pseudo velocities; dx: (N+1, 3) each body's displacement
 // this step; the bounces go into linear_momentum, angular_momentum (N, 3). settings:

@@ -1,5 +1,3 @@
-// rblog/engine/contact/relax.py in C++ (the same formulas in the same order).
-//
 // Stage 8 of the contact step: split-impulse position correction (relax).
 //
 // Position correction by split impulses (Catto 2006; Bullet's split impulse): a second Gauss-Seidel

@@ -1,5 +1,3 @@
-// rblog/engine/contact/restitution.py in C++ (the same formulas in the same order).
-//
 // Stage 10 of the contact step: restitution, the bounce of impact points after positions moved.
 //
 // Restitution (Box2D v3): after positions are integrated, points that were hit (solve impulse > 0)

@@ -7,19 +7,19 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     2  broadphase       swept AABBs, sort-and-sweep, ground pairs  (broadphase.py)
     3  wake             sleeping islands an awake body may touch   (island.py)
     4  collide          narrowphase table -> manifolds, warm-start matching, sleeping carried
-    5  prepare          effective masses, pre-solve gap velocities (solver.py)
+    5  prepare          effective masses, pre-solve gap velocities (contact_solver.cpp)
     6  warm start       apply last step's impulses
     7  solve            sequential impulses, Coulomb friction, speculative targets; then one
                         sweep of the friction rows toward their anchors (solver.anchor_friction, when
                         ContactParams.static_friction_anchors is on)
-    8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
+    8  relax            split-impulse position correction on pseudo velocities (relax.cpp; the shift's
                         orbital angular momentum h v' x P is handed back to the spin)
     9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
                         from the solver's velocity changes; every other body flies exactly under
                         its constant force, x += h v - h^2 a / 2 (v after the kick). Rotation by
                         integrators.drift_rotation with the run's integrator (the body's L and its
                         current R, so gyroscopic motion is the integrator's own)
-    10 restitution      bounce impact points (energy-consistent rule, restitution.py), P += J,
+    10 restitution      bounce impact points (energy-consistent rule, restitution.cpp), P += J,
                         L += r x J
     11 store impulses   friction as world vectors for the next step
     12 project          narrowphase again at the end-of-step poses; points deeper than
@@ -49,7 +49,7 @@ of the step as s + h w (w the solved gap rate):
   relative on samples/mixed.toml; both schemes alone keep it exactly).
 
 The restitution stage measures and sets bounce speeds with the exact flight's energy
-(restitution.py), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
+(restitution.cpp), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
 kicks, as before.
 
 Samples follow free.advance_free: after every ``stride``-th step and after the last step when

@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rblog.engine import _core
 from rblog.engine.constants import ContactParams
-from rblog.engine.contact import solver as SV
 from rblog.engine.contact import step as S
 from rblog.engine.contact.manifold import (MF_N, MI_A, MI_B, MI_COUNT, MI_START, PF_LN, PF_RA,
                                            PF_RB, PF_S)
@@ -95,11 +95,12 @@ def test_solved_contacts_meet_the_complementarity_conditions():
     mi, mf, pf = cache.mi1, cache.mf1, cache.pf1
     S.prepare(bd, cfg, x, scr, mi, mf, pf, n_man, H)
     bm, bI, bv, bw = scr.bm.reshape(-1), scr.bI, scr.bv, scr.bw
-    SV.warm_start(mi, mf, pf, n_man, bm, bI, bv, bw)
+    _core.warm_start(mi, mf, pf, n_man, bm, bI, bv, bw)
     assert scr.in_contact.reshape(-1)[0] == 2  # box1 touches the ground and box6: over-relaxed
-    SV.solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, 1.0 / H, cfg.velocity_iterations,
-                        cfg.max_velocity_iterations, cfg.velocity_tolerance,
-                        scr.hot.reshape(-1), scr.in_contact.reshape(-1), cfg.over_relaxation)
+    _core.solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, 1.0 / H, cfg.velocity_iterations,
+                           cfg.max_velocity_iterations, cfg.velocity_tolerance,
+                           scr.hot.reshape(-1), scr.in_contact.reshape(-1), cfg.over_relaxation,
+                           cfg.friction_newton_iters, cfg.friction_newton_tol)
     deepest = None
     for m in range(n_man):
         a, b = mi[m, MI_A], mi[m, MI_B]
