@@ -278,19 +278,32 @@ Softness make_soft(double hertz, double zeta, double h) {
     return Softness{omega / a1, a2 * a3, a3};
 }
 
-i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_contact,
-               V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> pv,
-               V2<double> pw, V2<double> accel, V2<double> torque, bool do_kick, double h,
-               const SoftSettings& ss) {
-    const i64 n_sub = ss.substeps;
+i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const SolverBodies& b,
+               V2<double> pv, V2<double> pw, V1<i64> in_contact, V2<double> accel,
+               V2<double> torque, bool do_kick) {
+    const V2<i64> mi = c.mi;
+    const V2<double> mf = c.mf, pf = c.pf;
+    const i64 n_man = c.n_man;
+    const V1<double> bm = b.inv_mass;
+    const V2<double> bI = b.inv_inertia, bv = b.v, bw = b.w;
+    const Settings& cfg = ctx.settings;
+    const double h = ctx.h;
+    // the sweeps' switches: the soft bias capped at max_correction_speed, the friction rows aimed
+    // at the anchors' slip rate (PF_DB) with static_friction_anchors, a manifold's normal rows
+    // solved together (its factored block K)
+    const double push_max = cfg.max_correction_speed;
+    const bool anchors = cfg.static_friction_anchors, block = true;
+    const i64 newton_iters = cfg.friction_newton_iters;
+    const double newton_tol = cfg.friction_newton_tol;
+    const i64 n_sub = cfg.substeps;
     const double hs = h / double(n_sub);
     const double inv_hs = 1.0 / hs;
     const i64 n_rows = bm.n0;  // N + 1: row N the static dummy
     const i64 n_dyn = n_rows - 1;
-    double hz = ss.hertz;
+    double hz = cfg.contact_hertz;
     if (hz > 0.25 * inv_hs) hz = 0.25 * inv_hs;
-    const Softness soft = make_soft(hz, ss.zeta, hs);
-    const Softness soft_static = make_soft(2.0 * hz, ss.zeta, hs);
+    const Softness soft = make_soft(hz, cfg.contact_damping_ratio, hs);
+    const Softness soft_static = make_soft(2.0 * hz, cfg.contact_damping_ratio, hs);
 
     i64 n_pts = 0;
     for (i64 m = 0; m < n_man; ++m) {
@@ -348,11 +361,10 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
             }
         }
         // warm start: this substep begins with the last one's impulses applied
-        apply_stored_impulses(ContactConstraints{mi, mf, pf, n_man}, SolverBodies{bm, bI, bv, bw},
-                              lam, 3);
+        apply_stored_impulses(c, b, lam, 3);
         // solve, with the soft bias
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, true, soft, soft_static,
-              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol, nullptr);
+              push_max, anchors, block, newton_iters, newton_tol, nullptr);
         // integrate positions (into the displacements; the static dummy's stay zero)
         for (i64 i = 0; i < n_dyn; ++i) {
             if (!in_contact[i]) continue;
@@ -363,7 +375,7 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
         }
         // relax, rigid
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, false, soft, soft_static,
-              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol, sum);
+              push_max, anchors, block, newton_iters, newton_tol, sum);
     }
     // the step's impulses, and the pseudo velocities that carry the substeps' displacement
     for (i64 m = 0; m < n_man; ++m) {

@@ -466,11 +466,10 @@ i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scrat
                 V1<i64> awake, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, int method,
                 int ortho, double h, const FlowAnchors& an, V1<i64> prof, i64& t) {
     bool do_prof = prof.n0 > 0;
-    SoftSettings ss{cfg.substeps, cfg.contact_hertz, cfg.contact_damping_ratio, cfg.max_correction_speed,
-                    cfg.static_friction_anchors, true, cfg.friction_newton_iters, cfg.friction_newton_tol};
-    i64 sweeps = soft_solve(mi, mf, pf, n_man, col(sc.in_contact), col(sc.bm), sc.bI.view(),
-                            sc.bv.view(), sc.bw.view(), sc.pv.view(), sc.pw.view(), bd.accel,
-                            bd.torque, cfg.do_kick, h, ss);
+    i64 sweeps = soft_solve(StepContext{h, 1.0 / h, cfg}, ContactConstraints{mi, mf, pf, n_man},
+                            SolverBodies{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()},
+                            sc.pv.view(), sc.pw.view(), col(sc.in_contact), bd.accel, bd.torque,
+                            cfg.do_kick);
     if (do_prof) t = lap(prof, P_SOLVE, t);
     mark_pushed(mi, pf, n_man, x.position.n0, sc);
     if (cfg.do_kick)
