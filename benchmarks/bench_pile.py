@@ -73,6 +73,19 @@ def unit(q):
 
 # ---- the engines: generators of Chunks; their return value (``yield from``) describes the run --
 
+def chunked(n_steps, chunk, advance, read):
+    """An engine's run as Chunks: advance(k) steps it k steps (timed, CPU and wall), read() gives
+    its state after them (position, quat_wxyz, velocity, omega; copies)."""
+    done = 0
+    while done < n_steps:
+        k = min(chunk, n_steps - done)
+        t0, c0 = time.perf_counter(), time.process_time()
+        advance(k)
+        cpu, w = time.process_time() - c0, time.perf_counter() - t0
+        done += k
+        yield Chunk(k, cpu, w, *read())
+
+
 def rblog_chunks(model, state, dt, n_steps, chunk, threads=1, profile=None, **contact):
     """rblog's ContactWorld; ``contact``: ContactParams fields."""
     world = ContactWorld(model, ContactParams(**contact), rot.METHOD_SPLITTING,
@@ -84,24 +97,26 @@ def rblog_chunks(model, state, dt, n_steps, chunk, threads=1, profile=None, **co
     outs = [np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros((1, n, 4)), np.zeros((1, n, 3, 3)),
             np.zeros((1, n, 3))]
     inv_m = 1.0 / np.asarray(model.body_mass, float)
-    done, wall = 0, 0.0
-    while done < n_steps:
-        k = min(chunk, n_steps - done)
+    inv_i = np.asarray(world._bodies.inv_inertia)
+
+    def advance(k):
         _core.set_threads(threads)
-        t0, c0 = time.perf_counter(), time.process_time()
         _, bad, _, _ = world.advance(dt, k, k, False, s.position, s.linear_momentum, s.quat_wxyz,
                                      s.rotation, s.angular_momentum_world, *outs)
-        cpu, w = time.process_time() - c0, time.perf_counter() - t0
-        wall += w
         if bad >= 0:
-            raise RuntimeError(f"rblog diverged at step {done + bad}")
-        done += k
+            raise RuntimeError(f"rblog diverged {bad} steps into a chunk")
+
+    def read():
         # w = R I^-1 R^T L
-        inv_i = np.asarray(world._bodies.inv_inertia)
         lb = np.einsum("nji,nj->ni", s.rotation, s.angular_momentum_world)
         omega = np.einsum("nij,nj->ni", s.rotation, inv_i * lb)
-        yield Chunk(k, cpu, w, s.position.copy(), s.quat_wxyz.copy(),
-                    s.linear_momentum * inv_m[:, None], omega)
+        return (s.position.copy(), s.quat_wxyz.copy(), s.linear_momentum * inv_m[:, None],
+                omega)
+
+    wall = 0.0
+    for c in chunked(n_steps, chunk, advance, read):
+        wall += c.wall
+        yield c
     if profile is not None:
         profile.wall = wall
     st = world.stats
@@ -122,17 +137,14 @@ def mujoco_chunks(model, state, dt, n_steps, chunk, config="default"):
     m = mujoco.MjModel.from_xml_string(mujoco_model_xml(model, state, dt, config))
     d = mujoco.MjData(m)
     n = model.n_bodies
-    done = 0
-    while done < n_steps:
-        k = min(chunk, n_steps - done)
-        t0, c0 = time.perf_counter(), time.process_time()
-        mujoco.mj_step(m, d, nstep=k)
-        cpu, w = time.process_time() - c0, time.perf_counter() - t0
-        done += k
+
+    def read():
         qpos, qvel = d.qpos.reshape(n, 7), d.qvel.reshape(n, 6)
         q = unit(qpos[:, 3:7])
         omega = np.einsum("nij,nj->ni", quat_to_matrix_np(q), qvel[:, 3:6])
-        yield Chunk(k, cpu, w, qpos[:, :3].copy(), q, qvel[:, :3].copy(), omega)
+        return qpos[:, :3].copy(), q, qvel[:, :3].copy(), omega
+
+    yield from chunked(n_steps, chunk, lambda k: mujoco.mj_step(m, d, nstep=k), read)
     return dict(version=f"MuJoCo {mujoco.__version__} ({name})", detail="",
                 settings=dict(xml_option=config.option, xml_flag=config.flag,
                               xml_default=config.default),
@@ -197,12 +209,9 @@ def rapier_chunks(model, state, dt, n_steps, chunk, stiff=False, profile=None):
     world, handles = rapier_world(model, state, dt, stiff)
     bodies = world.rigid_bodies
     n = model.n_bodies
-    pos, quat, vel, omega = np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, 3)), np.zeros((n, 3))
-    done = 0
     step = world.step
-    while done < n_steps:
-        k = min(chunk, n_steps - done)
-        t0, c0 = time.perf_counter(), time.process_time()
+
+    def advance(k):
         for _ in range(k):
             step()
             if profile is not None:
@@ -212,8 +221,10 @@ def rapier_chunks(model, state, dt, n_steps, chunk, stiff=False, profile=None):
                     profile[name] = profile.get(name, 0.0) + 1e-3 * getattr(src, attr)
                 profile["contacts"] = profile.get("contacts", 0) + cn.solver.ncontacts
                 profile["steps"] = profile.get("steps", 0) + 1
-        cpu, w = time.process_time() - c0, time.perf_counter() - t0
-        done += k
+
+    def read():
+        pos, quat, vel, omega = (np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, 3)),
+                                 np.zeros((n, 3)))
         for j, h in enumerate(handles):
             b = bodies[h]
             pos[j] = tuple(b.translation)
@@ -221,7 +232,9 @@ def rapier_chunks(model, state, dt, n_steps, chunk, stiff=False, profile=None):
             quat[j] = (rq.w, rq.i, rq.j, rq.k)
             vel[j] = tuple(b.linvel)
             omega[j] = tuple(b.angvel)
-        yield Chunk(k, cpu, w, pos.copy(), unit(quat), vel.copy(), omega.copy())
+        return pos, unit(quat), vel, omega
+
+    yield from chunked(n_steps, chunk, advance, read)
     p = world.integration_parameters
     settings = dict(length_unit=p.length_unit,
                     normalized_prediction_distance=p.normalized_prediction_distance,
@@ -262,22 +275,22 @@ def pybullet_chunks(model, state, dt, n_steps, chunk):
                               angularDamping=0.0, physicsClientId=cid)
             ids.append(bid)
         n = model.n_bodies
-        pos, quat, vel, omega = (np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, 3)),
-                                 np.zeros((n, 3)))
-        done = 0
         step = pb.stepSimulation
-        while done < n_steps:
-            k = min(chunk, n_steps - done)
-            t0, c0 = time.perf_counter(), time.process_time()
+
+        def advance(k):
             for _ in range(k):
                 step(physicsClientId=cid)
-            cpu, w = time.process_time() - c0, time.perf_counter() - t0
-            done += k
+
+        def read():
+            pos, quat, vel, omega = (np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, 3)),
+                                     np.zeros((n, 3)))
             for j, bid in enumerate(ids):
                 p, q = pb.getBasePositionAndOrientation(bid, physicsClientId=cid)
                 v, om = pb.getBaseVelocity(bid, physicsClientId=cid)
                 pos[j], quat[j], vel[j], omega[j] = p, (q[3], q[0], q[1], q[2]), v, om
-            yield Chunk(k, cpu, w, pos.copy(), unit(quat), vel.copy(), omega.copy())
+            return pos, unit(quat), vel, omega
+
+        yield from chunked(n_steps, chunk, advance, read)
         return dict(version=f"pybullet (API {pb.getAPIVersion()}, maximal)", detail="",
                     settings={}, combine=("product", "product"))
     finally:
@@ -313,7 +326,8 @@ class Judge:
         sep = separations(self.probe, np.ascontiguousarray(c.position), np.ascontiguousarray(R))
         self.box.append(max(0.0, -sep.min()) if len(sep) else 0.0)
         if self.goff is not None:
-            low = c.position @ self.gn - (np.abs(np.einsum("i,nik->nk", self.gn, R)) * self.half).sum(1)
+            reach = (np.abs(np.einsum("i,nik->nk", self.gn, R)) * self.half).sum(1)
+            low = c.position @ self.gn - reach
             self.ground.append(max(0.0, float(self.goff - low.min())))
         if self.done >= self.window_step:
             if self.x_window is None:
@@ -466,8 +480,8 @@ def main(argv=None):
                 continue
             if isinstance(prof, dict):  # Rapier's counters (wall time)
                 total = prof.get("step", 0.0)
-                print(f"  {key}, per stage (its counters, wall), "
-                      f"{prof.get('contacts', 0) / max(prof.get('steps', 1), 1):.0f} contacts a step:")
+                per_step = prof.get("contacts", 0) / max(prof.get("steps", 1), 1)
+                print(f"  {key}, per stage (its counters, wall), {per_step:.0f} contacts a step:")
                 for name, _, _ in RAPIER_STAGES:
                     print(f"      {name:<36} {prof.get(name, 0.0):8.3f} s  "
                           f"{100 * prof.get(name, 0.0) / max(total, 1e-12):5.1f} %")
