@@ -47,6 +47,18 @@ CONTACT_DISTANCE_M = 1e-3
 #: across) rests on its lowest edge. Only where the witness lies depends on it, not a separation.
 WITNESS_BAND_M = 1e-4
 
+#: GJK stops when the distance between two convex cores is known to within this (m; the gap
+#: between its upper bound |v| and lower bound v.w/|v|, csrc/audit/convex.cpp). For polytope
+#: cores (point, segment, box, mesh) GJK ends on the exact closest feature before reaching it;
+#: for cylinders and ellipsoids it is the error. 1e-10 m: five orders below the 1e-5 m scale of
+#: a contact finding, reached in ~20-60 iterations on curved pairs.
+GJK_TOL_M = 1e-10
+#: EPA stops when the penetration depth is known to within this (m; the gain of the support along
+#: the nearest face's normal): exact faces for polytopes, the error for curved cores.
+EPA_TOL_M = 1e-10
+#: Iteration cap of GJK and of EPA each (a pair that hits it is reported "not converged").
+CONVEX_MAX_ITER = 256
+
 #: Most findings kept per analyzer (the worst first); the count of all is in stats.
 MAX_FINDINGS = 200
 #: Most events (impacts, resting intervals) listed per analyzer; all are counted in stats.
