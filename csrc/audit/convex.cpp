@@ -210,9 +210,16 @@ bool closest_on_simplex(SV* s, int& n, double* lam, Vec& v) {
 }
 
 // --- EPA -------------------------------------------------------------------------------------
+// The polytope is a closed triangle mesh with its adjacency: edge e of face f runs from
+// v[e] to v[(e + 1) % 3] (counter-clockwise seen from outside) and is shared with face
+// adj_f[e], where it is that face's edge adj_e[e]. The faces that see a new point w are found by
+// a depth-first walk from the nearest face over this adjacency (van den Bergen's silhouette), so
+// that they form one connected patch whose boundary (the horizon) is one loop even when rounding
+// makes nearly coplanar faces disagree: the mesh stays closed.
 struct Face {
-    int i, j, k;
-    Vec u;     // outward unit normal
+    int v[3];
+    int adj_f[3], adj_e[3];
+    Vec u;     // unit normal from the winding (outward)
     double d;  // distance of the face's plane from the origin along u
     bool alive;
 };
@@ -220,20 +227,47 @@ struct Face {
 struct Polytope {
     std::vector<SV> v;
     std::vector<Face> f;
-    Vec centre;  // a point inside (the first tetrahedron's centroid)
+    std::vector<std::pair<int, int>> horizon;  // (face, edge) of the alive side, in loop order
 
-    bool add_face(int i, int j, int k) {
+    int add_face(int i, int j, int k) {
+        Face q{};
+        q.v[0] = i;
+        q.v[1] = j;
+        q.v[2] = k;
         Vec p = v[i].w;
         Vec nr = cross(v[j].w - p, v[k].w - p);
         double len = norm(nr);
-        if (!(len > 0)) return false;
-        Vec u = (1.0 / len) * nr;
-        if (dot(u, p - centre) < 0) {
-            std::swap(j, k);
-            u = -u;
+        if (len > 0) {
+            q.u = (1.0 / len) * nr;
+            q.d = dot(q.u, p);
+        } else {  // degenerate: never the nearest, seen by any point
+            q.u = {0, 0, 0};
+            q.d = kInf;
         }
-        f.push_back({i, j, k, u, dot(u, p), true});
-        return true;
+        q.alive = true;
+        f.push_back(q);
+        return (int)f.size() - 1;
+    }
+    void link(int fa, int ea, int fb, int eb) {
+        f[fa].adj_f[ea] = fb;
+        f[fa].adj_e[ea] = eb;
+        f[fb].adj_f[eb] = fa;
+        f[fb].adj_e[eb] = ea;
+    }
+    bool sees(int fi, Vec w) const {
+        const Face& q = f[fi];
+        return q.d == kInf || dot(q.u, w) - q.d > 0;
+    }
+    // walk from face fi, entered across its edge e
+    void silhouette(int fi, int e, Vec w) {
+        if (!f[fi].alive) return;
+        if (!sees(fi, w)) {
+            horizon.push_back({fi, e});
+            return;
+        }
+        f[fi].alive = false;
+        silhouette(f[fi].adj_f[(e + 1) % 3], f[fi].adj_e[(e + 1) % 3], w);
+        silhouette(f[fi].adj_f[(e + 2) % 3], f[fi].adj_e[(e + 2) % 3], w);
     }
 };
 
@@ -362,16 +396,24 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
     }
     Polytope P;
     P.v.assign(s, s + 4);
-    P.centre = 0.25 * (s[0].w + s[1].w + s[2].w + s[3].w);
-    P.f.reserve(256);
-    P.add_face(0, 1, 2);
-    P.add_face(0, 1, 3);
-    P.add_face(0, 2, 3);
-    P.add_face(1, 2, 3);
+    P.f.reserve(4 + 8 * tol.max_iter);
+    {
+        // wind the tetrahedron's faces outward: vertex 3 must lie below face (0, 1, 2)
+        Vec nr = cross(P.v[1].w - P.v[0].w, P.v[2].w - P.v[0].w);
+        if (dot(nr, P.v[3].w - P.v[0].w) > 0) std::swap(P.v[1], P.v[2]);
+        // faces (0 1 2), (0 3 1), (1 3 2), (2 3 0) with edges shared pairwise
+        int f0 = P.add_face(0, 1, 2), f1 = P.add_face(0, 3, 1), f2 = P.add_face(1, 3, 2),
+            f3 = P.add_face(2, 3, 0);
+        P.link(f0, 0, f1, 2);  // 0-1
+        P.link(f0, 1, f2, 2);  // 1-2
+        P.link(f0, 2, f3, 2);  // 2-0
+        P.link(f1, 0, f3, 1);  // 0-3
+        P.link(f1, 1, f2, 0);  // 3-1
+        P.link(f2, 1, f3, 0);  // 3-2
+    }
     int best = -1;
     bool epa_conv = false;
     i64 e_it = 0;
-    std::vector<std::pair<int, int>> edges;
     for (; e_it < tol.max_iter; ++e_it) {
         best = -1;
         double bd = kInf;
@@ -389,24 +431,20 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
         }
         int wi = (int)P.v.size();
         P.v.push_back(w);
-        edges.clear();
-        int seen = 0;
-        for (auto& f : P.f) {
-            if (!f.alive || dot(f.u, w.w - P.v[f.i].w) <= 0) continue;
-            f.alive = false;
-            ++seen;
-            int e[3][2] = {{f.i, f.j}, {f.j, f.k}, {f.k, f.i}};
-            for (auto& ed : e) {
-                auto rev = std::find(edges.begin(), edges.end(), std::make_pair(ed[1], ed[0]));
-                if (rev != edges.end()) edges.erase(rev);
-                else edges.push_back({ed[0], ed[1]});
-            }
+        P.horizon.clear();
+        P.f[best].alive = false;
+        for (int e = 0; e < 3; ++e) P.silhouette(fb.adj_f[e], fb.adj_e[e], w.w);
+        // the cone from w over the horizon: face k on horizon edge (b, a) of the alive face,
+        // wound (a, b, w); its edge 0 borders that face, edges 1 and 2 the next and last faces
+        const int h_n = (int)P.horizon.size();
+        const int first = (int)P.f.size();
+        for (int k = 0; k < h_n; ++k) {
+            auto [af, ae] = P.horizon[k];
+            int a = P.f[af].v[(ae + 1) % 3], b = P.f[af].v[ae];
+            int nf = P.add_face(a, b, wi);
+            P.link(nf, 0, af, ae);
         }
-        if (seen == 0) {
-            epa_conv = true;
-            break;
-        }
-        for (auto& ed : edges) P.add_face(ed.first, ed.second, wi);
+        for (int k = 0; k < h_n; ++k) P.link(first + k, 1, first + (k + 1) % h_n, 2);
     }
     if (best < 0) {
         out.sep = 0;
@@ -418,7 +456,7 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
     const Face& f = P.f[best];
     // barycentric coordinates of the origin's projection d u in the face
     Vec p = f.d * f.u;
-    Vec a = P.v[f.i].w, b = P.v[f.j].w, c = P.v[f.k].w;
+    Vec a = P.v[f.v[0]].w, b = P.v[f.v[1]].w, c = P.v[f.v[2]].w;
     Vec v0 = b - a, v1 = c - a, v2 = p - a;
     double d00 = dot(v0, v0), d01 = dot(v0, v1), d11 = dot(v1, v1), d20 = dot(v2, v0),
            d21 = dot(v2, v1);
@@ -426,8 +464,8 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
     double lb = den != 0 ? (d11 * d20 - d01 * d21) / den : 0.0;
     double lc = den != 0 ? (d00 * d21 - d01 * d20) / den : 0.0;
     double la = 1.0 - lb - lc;
-    out.pa = la * P.v[f.i].a + lb * P.v[f.j].a + lc * P.v[f.k].a;
-    out.pb = la * P.v[f.i].b + lb * P.v[f.j].b + lc * P.v[f.k].b;
+    out.pa = la * P.v[f.v[0]].a + lb * P.v[f.v[1]].a + lc * P.v[f.v[2]].a;
+    out.pb = la * P.v[f.v[0]].b + lb * P.v[f.v[1]].b + lc * P.v[f.v[2]].b;
     // a moves along -u to separate: the normal from b into a is -u
     out.sep = -f.d;
     out.n = -f.u;
