@@ -64,6 +64,16 @@ MAX_FINDINGS = 200
 #: Most events (impacts, resting intervals) listed per analyzer; all are counted in stats.
 MAX_EVENTS = 500
 
+# --- joints ----------------------------------------------------------------------------------
+#: Round-off allowed in a joint's anchor separation and axis angle, in units of the log's float
+#: precision (eps of the position dtype) times the size of the numbers in the transform (m; 1 for
+#: angles): a pose is a product of a few rotations and sums per level of a kinematic chain, each
+#: good to a few ulps, and the reader rebuilds R from the logged quaternion (~4 ulps). 64 ulps:
+#: a MuJoCo chain of 4 hinges measures <= 3 ulps (tests/analyze/test_joints.py); a joint that
+#: a maximal-coordinates engine holds at the velocity level is ~1e6 ulps apart. The step term of
+#: the tolerance (rblog/analyze/joints.py) is derived, not set here.
+JOINTS_ROUNDOFF_ULPS = 64.0
+
 # --- drift (rigidity) -------------------------------------------------------------------------
 #: ||R^T R - I||_F, recomputed from the logged rotation (dimensionless).
 DRIFT_ORTHO_ERROR = 1e-6
