@@ -27,7 +27,8 @@ Tolerance, per joint and sample, from what a correct recording cannot avoid:
 
 A joint past tolerance is reported with its onset (first sample past tolerance), its worst
 value and its growth after the onset (the better of a line and an exponential, as the drift
-analyzer describes it). A log without joints is "not judged".
+analyzer describes it). A log whose bodies move on joints but that has no joint table is "not
+judged"; a log of free, kinematic and static bodies only has nothing to check (skip).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ import numpy as np
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
 from rblog.analyze.drift import _fit, _growth, _residuals
-from rblog.contract.model import (JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_NAMES,
+from rblog.contract.model import (BODY_JOINTED, JOINT_FIXED, JOINT_HINGE, JOINT_NAMES,
                                   JOINT_PLANAR, JOINT_SLIDE)
 
 _AXIAL = (JOINT_HINGE, JOINT_SLIDE, JOINT_PLANAR)
@@ -132,7 +133,14 @@ class JointsAnalyzer(Analyzer):
         tr = ctx.traj
         model = tr.model
         if model.n_joints == 0:
-            return self.not_judged("the log has no joints (joint_* tables of contract v3)")
+            jointed = np.flatnonzero(np.asarray(model.body_kind) == BODY_JOINTED)
+            if len(jointed):
+                names = ", ".join(repr(model.body_name[i]) for i in jointed[:3])
+                more = f" +{len(jointed) - 3} more" if len(jointed) > 3 else ""
+                return self.not_judged(
+                    f"{len(jointed)} bodies move on joints ({names}{more}) but the log has no "
+                    "joint table (joint_* of contract v3)")
+            return self.skip("no joints: every body is free, kinematic or static")
         err = joint_errors(tr)
         s = self.tol["tol_scale"]
         t = tr.t

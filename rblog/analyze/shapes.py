@@ -176,3 +176,75 @@ def broadphase(geoms: Geoms, position, rotation, pad: float):
         if cnt <= cap:
             return tuple(o[:cnt] for o in out)
         cap = cnt
+
+
+# --- the log's geoms (contract v3 geom_* tables) -----------------------------------------------
+def _contract_codes() -> np.ndarray:
+    from rblog.contract import model as M
+
+    table = np.full(max(M.GEOM_NAMES) + 1, -1, np.int64)
+    for code, name in M.GEOM_NAMES.items():
+        table[code] = GEOM_TYPES[name]
+    return table
+
+
+def model_geoms(model) -> Geoms:
+    """The log's geoms (G,) in the audit's codes, with their bodies (-1: static)."""
+    codes = _contract_codes()[np.asarray(model.geom_type, np.int64)]
+    verts = np.asarray(model.mesh_vert, float).reshape(-1, 3) if model.mesh_vert is not None \
+        else np.zeros((0, 3))
+    return Geoms(codes, np.asarray(model.geom_size, float).reshape(-1, 3),
+                 np.asarray(model.geom_vert_adr, np.int64), np.asarray(model.geom_vert_num, np.int64),
+                 verts, np.asarray(model.geom_body, np.int64))
+
+
+def geom_poses(model, position: np.ndarray, rotation: np.ndarray):
+    """World frames of every geom at every sample: (T, G, 3) centres, (T, G, 3, 3) geom->world,
+    from the bodies' logged poses (T, N, 3), (T, N, 3, 3) and each geom's frame in its body's
+    frame (a static geom's is its world frame)."""
+    from rblog.analyze.geometry import quat_to_matrix
+
+    body = np.asarray(model.geom_body, np.int64)
+    gp = np.asarray(model.geom_pos_body, float).reshape(-1, 3)
+    gr = quat_to_matrix(np.asarray(model.geom_quat_wxyz_body, float).reshape(-1, 4)) \
+        if len(body) else np.zeros((0, 3, 3))
+    t_n = len(position)
+    pos = np.broadcast_to(gp, (t_n,) + gp.shape).copy()
+    rot = np.broadcast_to(gr, (t_n,) + gr.shape).copy()
+    m = body >= 0
+    if m.any():
+        rb = rotation[:, body[m]]
+        pos[:, m] = position[:, body[m]] + np.einsum("tgij,gj->tgi", rb, gp[m])
+        rot[:, m] = np.einsum("tgij,gjk->tgik", rb, gr[m])
+    return pos, rot
+
+
+def collide_mask(model, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """(P,) whether geoms i and j may touch by the model's filter: the collide_rule on their
+    group/mask bits, never two geoms of one body, and never a body and its parent body (the
+    bodies a joint links: MuJoCo's default filterparent, Bullet's default between linked links;
+    a body on the world still touches static geoms)."""
+    g = np.asarray(model.geom_collide_group, np.int64)
+    m = np.asarray(model.geom_collide_mask, np.int64)
+    a = (g[i] & m[j]) != 0
+    b = (g[j] & m[i]) != 0
+    ok = (a | b) if model.collide_rule == "or" else (a & b)
+    body = np.asarray(model.geom_body, np.int64)
+    parent = np.asarray(model.body_parent, np.int64)
+    bi, bj = body[i], body[j]
+    pi_ = np.where(bi >= 0, parent[np.maximum(bi, 0)], -2)
+    pj = np.where(bj >= 0, parent[np.maximum(bj, 0)], -2)
+    linked = (bi >= 0) & (bj >= 0) & ((pi_ == bj) | (pj == bi))
+    return ok & (bi != bj) & ~linked
+
+
+def inner_half_extent(geoms: Geoms) -> np.ndarray:
+    """(G,) each geom's smallest half-extent (m): a sphere's or capsule's radius, a box's or
+    ellipsoid's smallest semi-axis, min(radius, half-length) of a cylinder; inf for meshes and
+    planes (no fraction of them caps a depth tolerance)."""
+    t, s = geoms.type, geoms.size
+    out = np.full(len(t), np.inf)
+    out = np.where((t == GEOM_TYPES["sphere"]) | (t == GEOM_TYPES["capsule"]), s[:, 0], out)
+    out = np.where((t == GEOM_TYPES["box"]) | (t == GEOM_TYPES["ellipsoid"]), s.min(axis=1), out)
+    out = np.where(t == GEOM_TYPES["cylinder"], np.minimum(s[:, 0], s[:, 1]), out)
+    return out

@@ -217,4 +217,11 @@ def compare(ta, tb, p, seed):
     xb = np.array([c[6] for c in cases])
     ref_sep, ref_normal = again(xa, xb)
     return dict(ours=ours, ref_sep=ref_sep, ref_normal=ref_normal, ref=ref, again=again, xa=xa,
-                xb=xb)
+                xb=xb, cases=cases)
+
+
+def mujoco_second_opinion(ta, tb, cases, rows):
+    """MuJoCo's separations of ``rows`` of ``cases`` (compare's), for pairs without a mesh."""
+    mj = MujocoPair(ta, tb)
+    return np.array([mj.distance(cases[q][0], cases[q][2], cases[q][3], cases[q][4],
+                                 cases[q][6], cases[q][7])[0] for q in rows])

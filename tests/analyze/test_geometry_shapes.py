@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from shape_reference import PAIRS, compare, reference_of
+from shape_reference import PAIRS, compare, mujoco_second_opinion, reference_of
 
 from rblog.analyze import shapes
 
@@ -54,6 +54,15 @@ def _check(ta, tb, p, seed):
     away = np.where(near, 0.0, err)
     k = int(np.argmax(away))
     if r["ref"] == "coal":
+        # coal's GJK stalls in a few touching box-box poses (2.0e-7 m where the audit, MuJoCo
+        # and a vertex-to-box check give 0: 1 of 20,000): those get MuJoCo's second opinion
+        off = np.nonzero(away > tol_sep)[0]
+        assert len(off) <= 1e-3 * len(away) and (not len(off) or "mesh" not in (ta, tb))
+        if len(off):
+            second = mujoco_second_opinion(ta, tb, r["cases"], off)
+            assert np.abs(o["sep"][off] - second).max() <= tol_sep, (ta, tb, off)
+            away[off] = 0.0
+            k = int(np.argmax(away))
         assert err[k] <= tol_sep, (ta, tb, k, o["sep"][k], r["ref_sep"][k])
     else:
         # MuJoCo's EPA stops short in a few deep poses of nearly round shapes (a sphere 0.44 m
@@ -78,7 +87,7 @@ def _check(ta, tb, p, seed):
     xa = r["xa"] + np.where(deep, 1e-6 - o["sep"], 0.0)[:, None] * o["normal"]
     moved, _ = r["again"](xa, r["xb"])
     assert np.abs(moved[deep] - 1e-6).max() <= (1e-9 if r["ref"] == "coal" else 1e-7), (ta, tb)
-    return err.max(), nerr.max() if len(nerr) else 0.0, int(nc.sum()), int((~valid).sum())
+    return away.max(), nerr.max() if len(nerr) else 0.0, int(nc.sum()), int((~valid).sum())
 
 
 @pytest.mark.parametrize("ta,tb", PAIRS, ids=[f"{a}-{b}" for a, b in PAIRS])

@@ -5,7 +5,7 @@
   that link's joint only, at 0.5 s, with 5 mm;
 * pybullet in maximal coordinates (free rigid bodies held by Bullet's constraints) lets its
   joints drift: flagged;
-* a log without joints is not judged.
+* a log whose bodies move on joints without a joint table is not judged.
 
 The joint tables are built here from each engine's own data at the initial pose (MuJoCo's
 xanchor / xaxis, the constraints pybullet was given), in the body frames of the contract (centre of mass,
@@ -100,6 +100,7 @@ def mujoco_chain(seconds=1.0):
     for s in range(steps + 1):
         if s:
             mujoco.mj_step(m, d)
+            mujoco.mj_forward(m, d)  # (mj_step leaves xipos, ximat at the pose before it)
         t[s] = d.time
         for i in range(n):
             out["position"][s, i] = d.xipos[i + 1]
@@ -148,14 +149,18 @@ def test_pulled_anchor_is_flagged_on_its_joint():
     assert f"past tolerance from t = {arrays['t'][k0]:.6g} s" in f.message
 
 
-def test_no_joints_not_judged():
-    model = rblog.body_table(name=["b"], mass=[1.0], inertia_diag=[[1, 1, 1]],
-                             geoms=dict(body=[0], type=["sphere"], size=[[0.1, 0, 0]]))
+def test_no_joint_table_not_judged():
+    """Bodies on joints without a joint table: not judged, saying so; free bodies only: skip."""
     arrays = dict(t=np.arange(3) * 0.01, step=np.arange(3), position=np.zeros((3, 1, 3)),
                   quat_wxyz=np.tile([1.0, 0, 0, 0], (3, 1, 1)), velocity=np.zeros((3, 1, 3)),
                   angular_velocity=np.zeros((3, 1, 3)))
-    res = _joints(_traj(model, arrays, 0.01, "test"))
-    assert not res.judged and "no joints" in res.reason
+    for kind, judged in (("joints", False), ("free", True)):
+        model = rblog.body_table(name=["b"], mass=[1.0], inertia_diag=[[1, 1, 1]], kind=[kind],
+                                 geoms=dict(body=[0], type=["sphere"], size=[[0.1, 0, 0]]))
+        res = _joints(_traj(model, arrays, 0.01, "test"))
+        assert res.judged is judged
+        assert ("no joint table" in res.reason) if not judged else \
+            (res.skipped and "no joints" in res.reason)
 
 
 pybullet = pytest.importorskip("pybullet")
