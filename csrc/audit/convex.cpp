@@ -359,7 +359,11 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
             converged = true;
             break;
         }
-        if (dot(nv, nv) >= vv) {  // no progress: rounding; the previous simplex is the answer
+        if (dot(nv, nv) >= vv) {
+            // no progress: rounding in the simplex's closest point, the previous simplex is the
+            // answer. (Within ~1e-6 m of touching a curved core stops here before the bounds
+            // meet: the closest point of a nearly flat simplex loses eps |w|^2 / |v|; measured
+            // up to 1.8e-7 m off MuJoCo's value, tests/analyze/test_geometry_shapes.py.)
             n = pn;
             for (int q = 0; q < n; ++q) {
                 s[q] = prev[q];
