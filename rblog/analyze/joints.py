@@ -43,6 +43,9 @@ from rblog.contract.model import (BODY_JOINTED, JOINT_FIXED, JOINT_HINGE, JOINT_
 
 _AXIAL = (JOINT_HINGE, JOINT_SLIDE, JOINT_PLANAR)
 _RIGID = (JOINT_FIXED, JOINT_SLIDE)
+#: what the angle metric measures, per joint type (else the axis misalignment)
+_ANGLE_LABEL = {JOINT_FIXED: "relative rotation",
+                JOINT_SLIDE: "rotation (axis misalignment or relative turn)"}
 
 
 def joint_label(model, j: int) -> str:
@@ -174,9 +177,10 @@ class JointsAnalyzer(Analyzer):
                         < _residuals(t, y, w_, slope)) & (rate > 0)
                 growth = _growth(float(slope[0]), float(rate[0]), bool(expo[0])) \
                     if k0 < len(t) - 1 else "at the last sample"
+                label = what if key == "gap" else _ANGLE_LABEL.get(int(model.joint_type[j]), what)
                 findings.append(Finding(
                     self.name,
-                    f"{joint_label(model, int(j))} comes apart: {what} reaches {v[kw, j]:.3g} "
+                    f"{joint_label(model, int(j))} comes apart: {label} reaches {v[kw, j]:.3g} "
                     f"{unit} (tol {tol[kw, j]:.3g} {unit}) at t = {t[kw]:.6g} s; past tolerance "
                     f"from t = {t[k0]:.6g} s, {growth}",
                     float(v[kw, j]), float(tol[kw, j]), unit, int(tr.step[kw]), float(t[kw]),

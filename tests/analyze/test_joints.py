@@ -244,3 +244,65 @@ def test_pybullet_maximal_coordinates_drift_is_flagged():
     assert {f.bodies[0] for f in gaps} == set(range(5))
     assert err["gap"].max() > 2e-3
     assert all(f.value > f.tolerance for f in res.findings)
+
+
+@pytest.mark.parametrize("jtype,allowed,forbidden,what,size", [
+    # slide along z: moving along the axis is the joint's motion; 1 mm across it is not
+    ("slide", [0.0, 0.0, 0.1], [0.001, 0.0, 0.1], "anchor separation", 0.001),
+    # planar with normal z: any motion in the plane; 2 mm along the normal is not
+    ("planar", [0.05, -0.03, 0.0], [0.05, -0.03, 0.002], "anchor separation", 0.002),
+    # hinge about z: the anchor stays; 3 mm off is not
+    ("hinge", [0.0, 0.0, 0.0], [0.0, 0.003, 0.0], "anchor separation", 0.003),
+])
+def test_each_joint_type_allows_its_motion_only(jtype, allowed, forbidden, what, size):
+    """Two bodies at rest, the child on a joint of the parent (anchor 0.1 m above the parent's
+    centre, 0.1 m below the child's); from t = 0.05 s the child is displaced by ``allowed``
+    (the joint's own motion: passes) or ``forbidden`` (flagged with its size)."""
+    t = np.arange(11) * 0.01
+    for shift, flagged in ((allowed, False), (forbidden, True)):
+        pos = np.zeros((11, 2, 3))
+        pos[:, 1] = [0.0, 0.0, 0.2]
+        pos[5:, 1] += shift
+        arrays = dict(t=t, step=np.arange(11), position=pos,
+                      quat_wxyz=np.tile([1.0, 0, 0, 0], (11, 2, 1)), velocity=np.zeros((11, 2, 3)),
+                      angular_velocity=np.zeros((11, 2, 3)))
+        model = rblog.body_table(
+            name=["base", "child"], mass=[1.0, 1.0], inertia_diag=[[1, 1, 1]] * 2,
+            kind=["free", "joints"], parent=[-1, 0],
+            geoms=dict(body=[0, 1], type=["sphere", "sphere"], size=[[0.05, 0, 0]] * 2),
+            joints=dict(body=[1], type=[jtype], anchor_body=[[0, 0, -0.1]],
+                        anchor_parent=[[0, 0, 0.1]], axis_body=[[0, 0, 1]],
+                        axis_parent=[[0, 0, 1]], name=["j"]))
+        res = _joints(_traj(model, arrays, 0.01, "test"))
+        assert res.passed is not flagged, res.reason
+        if flagged:
+            f = res.findings[0]
+            assert what in f.message and abs(f.value - size) < 1e-12
+            assert "past tolerance from t = 0.05 s" in f.message
+
+
+def test_fixed_joint_turned_is_flagged():
+    """A fixed joint whose child turns 0.01 rad about its anchor from t = 0.05 s: the anchors
+    stay together, the relative rotation is flagged with 0.01 rad."""
+    t = np.arange(11) * 0.01
+    ang = 0.01
+    q = np.tile([1.0, 0, 0, 0], (11, 2, 1))
+    q[5:, 1] = [np.cos(ang / 2), np.sin(ang / 2), 0, 0]  # about x through the child's centre
+    pos = np.zeros((11, 2, 3))
+    pos[:, 1] = [0.0, 0.0, 0.2]
+    # keep the anchor (0.1 m below the child's centre) in place: move the centre with the turn
+    r = np.array([[1, 0, 0], [0, np.cos(ang), -np.sin(ang)], [0, np.sin(ang), np.cos(ang)]])
+    pos[5:, 1] = [0.0, 0.0, 0.1] - r @ [0, 0, -0.1]
+    arrays = dict(t=t, step=np.arange(11), position=pos, quat_wxyz=q,
+                  velocity=np.zeros((11, 2, 3)), angular_velocity=np.zeros((11, 2, 3)))
+    model = rblog.body_table(
+        name=["base", "child"], mass=[1.0, 1.0], inertia_diag=[[1, 1, 1]] * 2,
+        kind=["free", "joints"], parent=[-1, 0],
+        geoms=dict(body=[0, 1], type=["sphere", "sphere"], size=[[0.05, 0, 0]] * 2),
+        joints=dict(body=[1], type=["fixed"], anchor_body=[[0, 0, -0.1]],
+                    anchor_parent=[[0, 0, 0.1]], axis_body=[[0, 0, 0]], axis_parent=[[0, 0, 0]],
+                    name=["weld"]))
+    res = _joints(_traj(model, arrays, 0.01, "test"))
+    assert [f.message.split(":")[1].split(" reaches")[0].strip() for f in res.findings] == \
+        ["relative rotation"]
+    assert abs(res.findings[0].value - ang) < 1e-12
