@@ -32,7 +32,7 @@ def test_readme_mujoco_example_runs(tmp_path, monkeypatch, capsys):
     verdict = dict(lines)
     # README: penetration fails (the corner digs 17.7 mm at the impact), the rest pass (a free
     # crate has no joints: skip)
-    assert verdict.pop("joints") == "skip"
+    assert verdict.pop("joints") == "SKIP"
     assert verdict.pop("penetration") == "FAIL" and set(verdict.values()) == {"pass"}, out
     quoted = re.search(r"```\n(penetration FAIL .*)\n```", README).group(1)
     assert quoted in out
