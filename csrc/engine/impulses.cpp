@@ -21,7 +21,7 @@ namespace rb {
 
 IntervalImpulses IntervalImpulses::from_py(nanobind::handle r) {
     IntervalImpulses im;
-    if (r.is_none()) return im;
+    if (!nanobind::hasattr(r, "acc")) return im;  // off (step.py passes () for None)
     im.acc = f2<double>(r, "acc");
     im.start = f2<double>(r, "start");
     im.kicked = f1<i64>(r, "kicked");

@@ -22,7 +22,7 @@ struct IntervalImpulses {
     V1<i64> kicked;
     V3<double> out;
     bool on() const { return acc.n0 > 0; }
-    static IntervalImpulses from_py(nanobind::handle r);  // None: off
+    static IntervalImpulses from_py(nanobind::handle r);  // no `acc` attribute: off
 };
 
 namespace step {

@@ -38,8 +38,8 @@ from rblog._threads import default_threads
 from rblog.engine import _core
 from rblog.errors import RunInterrupted, SceneError, SimulationDiverged
 from rblog.engine.free import advance_free
-from rblog.contract.model import (IMPULSE_KINDS, SUPPLIED_LOGGED, SUPPLIED_MISSING,
-                                  SUPPLIED_NONE, WORK_KINDS, Model)
+from rblog.contract.model import (IMPULSE_KINDS, SUPPLIED_LOGGED, SUPPLIED_NONE, WORK_KINDS,
+                                  Model)
 from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES
 from rblog.engine.scene import Scene
 from rblog.engine.pipeline import BlockPipeline
@@ -550,15 +550,14 @@ def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
 def engine_model(model: Model, contacts: bool) -> Model:
     """``model`` as rblog's engine logs it (contract v3): it logs the contact impulses of every
     interval when bodies can touch (else they are none), the applied ones when a body has a
-    constant force or torque (else none); it has no passive forces, actuators or joints (none);
-    the applied loads' work it does not log (missing; none without loads)."""
+    constant force or torque (else none); it has no passive forces, actuators or joints (none),
+    and no applied work besides its constant loads' (none: F . dx follows from the poses)."""
     n = model.n_bodies
     loads = bool(np.any(model.body_force_world) or np.any(model.body_torque_world))
     imp = np.full((n, len(IMPULSE_KINDS)), SUPPLIED_NONE, np.int64)
     imp[:, IMPULSE_KINDS.index("contact")] = SUPPLIED_LOGGED if contacts else SUPPLIED_NONE
     imp[:, IMPULSE_KINDS.index("applied")] = SUPPLIED_LOGGED if loads else SUPPLIED_NONE
     work = np.full((n, len(WORK_KINDS)), SUPPLIED_NONE, np.int64)
-    work[:, WORK_KINDS.index("applied")] = SUPPLIED_MISSING if loads else SUPPLIED_NONE
     return dataclasses.replace(model, body_impulse_supplied=imp, body_work_supplied=work)
 
 

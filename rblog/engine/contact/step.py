@@ -258,4 +258,4 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
     """
     return _core.world_advance(bd, st, cfg, int(method), int(ortho), float(dt), int(n_steps),
                                int(stride), bool(sample_last), x, out, sl, c, stats, prof, an,
-                               impulses)
+                               () if impulses is None else impulses)
