@@ -836,6 +836,37 @@ def recorder(m, d=None, **options) -> MujocoRecorder:
     return MujocoRecorder(m, d, **options)
 
 
+#: dm_control suite models whose XML needs its module's own builder (as its tasks load them)
+_SUITE_BUILDERS = {"stacker": ("stacker", dict(n_boxes=4)),
+                   "manipulator": ("manipulator", dict(use_peg=False, insert=False)),
+                   "quadruped": ("quadruped", dict(floor_size=10))}
+
+
+def suite_model(name: str):
+    """The ``mujoco.MjModel`` of dm_control's suite model ``name`` as shipped (the MJCF files and
+    assets inside the dm_control package: ``humanoid``, ``cartpole``, ``walker``, ...;
+    ``stacker`` with its 4 boxes, ``manipulator`` as in ``bring_ball``); needs the ``models``
+    extra (dm-control)."""
+    import importlib
+    import warnings
+
+    mj = _mj()
+    require("dm_control", extra="models")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # GLFW: no display
+        module, kwargs = _SUITE_BUILDERS.get(name, (name, None))
+        try:
+            mod = importlib.import_module(f"dm_control.suite.{module}")
+        except ImportError:
+            raise AdapterError(f"suite_model: dm_control.suite has no model {name!r}") from None
+        got = mod.make_model(**kwargs) if kwargs is not None else mod.get_model_and_assets()
+    if isinstance(got, (str, bytes)):  # quadruped's builder returns the XML alone
+        from dm_control.suite import common
+
+        got = (got, common.ASSETS)
+    return mj.MjModel.from_xml_string(*got)
+
+
 def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batch: int = 0,
                    spec=None, restitution=None, writer: str | None = None,
                    keep: bool | None = None, **recorder_options):
@@ -887,4 +918,4 @@ def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batc
 
 __all__ = ["BLOCK_STEPS", "CONTACT_ROWS", "Kinematics", "Layout", "MujocoRecorder", "StepImpulses",
            "capture_contacts", "contacts", "decode_contacts", "gravity_of", "inspect", "record_rollout",
-           "recorder", "settings", "state_offsets", "unsupported"]
+           "recorder", "settings", "state_offsets", "suite_model", "unsupported"]
