@@ -374,20 +374,71 @@ def inspect(m, d=None, *, restitution=None):
 _EFC_WIDTH = 10
 
 
-def capture_contacts(d, step: int):
+#: the mjContact fields the rows need
+_CONTACT_FIELDS = ("dist", "pos", "frame", "friction", "dim", "geom", "exclude", "efc_address")
+
+
+class _ContactArray:
+    """A numpy view of MuJoCo's contact array (mjContact structs at the start of ``d``'s
+    arena, which stays where it is) as a structured array of the fields the rows need, with
+    their offsets and the struct's size read off the bindings' own views of one contact."""
+
+    def __init__(self, m, d):
+        import ctypes
+
+        con = d.contact
+        views = {f: getattr(con, f) for f in _CONTACT_FIELDS}
+        base = views["dist"].__array_interface__["data"][0]
+        stride = views["dist"].strides[0]
+        fields = {}
+        for f, v in views.items():
+            off = v.__array_interface__["data"][0] - base
+            if not 0 <= off < stride or v.strides[0] != stride:
+                raise ValueError(f"mjContact.{f} at {off}, stride {v.strides[0]}")
+            fields[f] = (np.dtype((v.dtype, v.shape[1:])) if v.ndim > 1 else v.dtype, off)
+        self.dtype = np.dtype({"names": list(fields), "formats": [t for t, _ in fields.values()],
+                               "offsets": [o for _, o in fields.values()], "itemsize": stride})
+        count = max(1, int(m.narena) // stride)
+        self.count = count
+        self.base = base
+        buf = (ctypes.c_char * (count * stride)).from_address(base)
+        self.view = np.frombuffer(buf, dtype=self.dtype, count=count)
+
+
+def capture_contacts(d, step: int, array: "_ContactArray | None" = None):
     """The raw contact data of ``d`` right after ``mj_step`` (copies; decoded later, a block at a
-    time, by :func:`decode_contacts`), or None when there are none."""
+    time, by :func:`decode_contacts`), or None when there are none. With ``array`` (a
+    :class:`_ContactArray` of ``d``) the structs are copied in one piece."""
     k = int(d.ncon)
     if k == 0:
         return None
-    con = d.contact
-    adr = con.efc_address[:k].copy()
     ef = d.efc_force
-    idx = np.clip(adr[:, None] + np.arange(_EFC_WIDTH), 0, max(len(ef) - 1, 0))
-    return dict(step=np.full(k, int(step), np.int64), geom=con.geom[:k].copy(), adr=adr,
-                dim=con.dim[:k].copy(), mu=con.friction[:k, :2].copy(), exclude=con.exclude[:k].copy(),
-                frame=con.frame[:k].copy(), dist=con.dist[:k].copy(), pos=con.pos[:k].copy(),
-                efc=ef[idx] if len(ef) else np.zeros((k, _EFC_WIDTH)))
+    if array is not None and k <= array.count:
+        return (int(step), array.view[:k].copy(), ef.copy())
+    con = d.contact
+    raw = np.empty(k, _contact_dtype(con))
+    for f in _CONTACT_FIELDS:
+        raw[f] = getattr(con, f)[:k]
+    return (int(step), raw, ef.copy())
+
+
+def _contact_dtype(con):
+    v = {f: getattr(con, f) for f in _CONTACT_FIELDS}
+    return np.dtype([(f, a.dtype, a.shape[1:]) for f, a in v.items()])
+
+
+def _contact_dict(raws):
+    """The raw captures of several steps as one dict of arrays (K rows)."""
+    steps = np.concatenate([np.full(len(r), s, np.int64) for s, r, _ in raws])
+    offsets = np.cumsum([0] + [len(e) for _, _, e in raws[:-1]])
+    efc_all = np.concatenate([e for _, _, e in raws]) if any(len(e) for _, _, e in raws) else np.zeros(1)
+    adr = np.concatenate([r["efc_address"] for _, r, _ in raws]).astype(np.int64)
+    base = np.concatenate([np.full(len(r), o, np.int64) for (_, r, _), o in zip(raws, offsets)])
+    idx = np.clip(np.where(adr >= 0, adr + base, 0)[:, None] + np.arange(_EFC_WIDTH), 0, len(efc_all) - 1)
+    cat = lambda f: np.concatenate([r[f] for _, r, _ in raws])  # noqa: E731
+    return dict(step=steps, geom=cat("geom"), adr=adr, dim=cat("dim"), mu=cat("friction")[:, :2],
+                exclude=cat("exclude"), frame=cat("frame"), dist=cat("dist"), pos=cat("pos"),
+                efc=efc_all[idx])
 
 
 def decode_contacts(m, layout: Layout, raws):
@@ -396,7 +447,7 @@ def decode_contacts(m, layout: Layout, raws):
     raws = [r for r in raws if r is not None]
     if not raws:
         return None
-    raw = {key: np.concatenate([r[key] for r in raws]) for key in raws[0]}
+    raw = _contact_dict(raws)
     k = len(raw["step"])
     adr, dim, mu, f = raw["adr"], raw["dim"], raw["mu"], raw["efc"]
     local = np.zeros((k, 3))  # (normal, tangent 1, tangent 2) force on geom2, contact frame
@@ -529,52 +580,133 @@ def _cross(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
+#: the arrays of mjData a step's row holds (after the step: Euler and implicit keep the step's
+#: start in all but qpos, qvel); the span is one contiguous piece of mjData's buffer
+ROW_FIELDS = ("qpos", "qvel", "qfrc_applied", "xfrc_applied", "xipos", "ximat", "xanchor",
+              "subtree_com", "cdof", "cvel", "qfrc_passive", "qfrc_actuator", "cfrc_int",
+              "cfrc_ext")
+#: two fields of mjData are copied as one span when the bytes between them are fewer than this
+#: (a copy's own cost, ~1 us, is about that many bytes at this machine's ~4 GB/s)
+SPAN_GAP_BYTES = 4096
+#: bytes of gathered rows per block (the block shrinks for large models)
+BLOCK_BYTES = 16 << 20
+
+
+class Rows:
+    """Where ``ROW_FIELDS`` are in one flat float64 row, and how a row is filled from an
+    ``MjData``: the fields lie in mjData's one buffer, so a row is a few copies of contiguous
+    pieces of it (fields closer than SPAN_GAP_BYTES share a piece), each into its slice of the
+    row. Fields that are not float64 and 8-byte aligned are copied one by one."""
+
+    def __init__(self, d):
+        import ctypes
+
+        arrs = {f: getattr(d, f) for f in ROW_FIELDS}
+        self.shape = {f: a.shape for f, a in arrs.items()}
+        addr = {f: a.__array_interface__["data"][0] for f, a in arrs.items() if a.size}
+        fields = sorted(addr, key=addr.get)
+        ok = all(arrs[f].dtype == np.float64 and arrs[f].flags.c_contiguous and addr[f] % 8 == 0
+                 for f in fields)
+        self.d, self.views, self.offset = d, arrs, {}
+        pieces, pos = [], 0  # (source view, start in the row)
+        if ok:
+            groups = []
+            for f in fields:
+                end = addr[f] + arrs[f].nbytes
+                if groups and addr[f] - groups[-1][1] <= SPAN_GAP_BYTES:
+                    groups[-1][1] = max(groups[-1][1], end)
+                    groups[-1][2].append(f)
+                else:
+                    groups.append([addr[f], end, [f]])
+            for lo, hi, fs in groups:
+                raw = np.ctypeslib.as_array((ctypes.c_double * ((hi - lo) // 8)).from_address(lo))
+                for f in fs:
+                    self.offset[f] = pos + (addr[f] - lo) // 8
+                pieces.append((raw, pos))
+                pos += len(raw)
+            ok = all(np.array_equal(pieces[0][0][:0], pieces[0][0][:0]) for _ in [0]) and all(
+                np.array_equal(self._read(pieces, f, arrs[f].size), arrs[f].ravel()) for f in fields)
+        if not ok:
+            pieces, pos = [], 0
+            for f in fields:
+                self.offset[f] = pos
+                pieces.append((arrs[f].reshape(-1), pos))
+                pos += arrs[f].size
+        for f in ROW_FIELDS:
+            self.offset.setdefault(f, 0)
+        self.pieces = [(src, row0, row0 + len(src)) for src, row0 in pieces]
+        self.width = pos
+
+    def _read(self, pieces, f, size):
+        o = self.offset[f]
+        for src, row0 in pieces:
+            if row0 <= o < row0 + len(src):
+                return src[o - row0:o - row0 + size]
+        return None
+
+    def fill(self, row) -> None:
+        """Copy the fields of the bound MjData into ``row`` (width,)."""
+        for src, a, b in self.pieces:
+            np.copyto(row[a:b], src)
+
+    def field(self, rows, f):
+        """(K, *shape) the field ``f`` of ``rows`` (K, width)."""
+        o, shape = self.offset[f], self.shape[f]
+        size = int(np.prod(shape))
+        return rows[:, o:o + size].reshape(len(rows), *shape)
+
+
 class StepImpulses:
-    """The per-step hook: the raw numbers of each ``mj_step`` (after the step), gathered for a
-    block of steps and turned into impulses and work per body in one vectorized pass
-    (:meth:`resolve`; the derivation is in the module docstring).
+    """The per-step hook: after each ``mj_step`` it runs ``mj_rnePostConstraint`` at the step's
+    start (``mj_forward`` first on a private MjData under RK4) and copies one row of mjData
+    (:class:`Rows`) and ``qvel`` into preallocated (capacity, ...) buffers; :meth:`resolve` turns
+    the gathered rows into impulses and work per body, vectorized (the derivation is in the
+    module docstring)."""
 
-    Per step it runs ``mj_rnePostConstraint`` (``mj_forward`` first on a private MjData under
-    RK4) and copies 12 fixed-size arrays into preallocated (BLOCK_STEPS, ...) buffers: no
-    Python objects per step beyond the numpy views of ``d``'s arrays."""
-
-    FIELDS = ("cfrc_ext", "cfrc_int", "xfrc_applied", "subtree_com", "xipos", "cdof",
-              "xanchor", "cvel", "qfrc_applied", "qfrc_passive", "qfrc_actuator")
-
-    def __init__(self, m, layout: Layout, d, block: int = BLOCK_STEPS):
+    def __init__(self, m, layout: Layout, d):
         mj = _mj()
         self.mj, self.m, self.lay = mj, m, layout
         self.h = float(m.opt.timestep)
         self.rk4 = int(m.opt.integrator) == int(mj.mjtIntegrator.mjINT_RK4)
-        # damping MuJoCo integrates implicitly (Euler: unless mjDSBL_EULERDAMP; implicit(fast))
+        # damping MuJoCo integrates implicitly (Euler unless mjDSBL_EULERDAMP; implicit(fast))
         eulerdamp = int(m.opt.disableflags) & (int(mj.mjtDisableBit.mjDSBL_EULERDAMP) |
                                                int(mj.mjtDisableBit.mjDSBL_DAMPER))
         self.implicit_damping = (not self.rk4) and not eulerdamp
-        self.cap = int(block)
-        self.buf = {f: np.empty((self.cap, *np.shape(getattr(d, f)))) for f in self.FIELDS}
-        self.v0 = np.array(d.qvel, np.float64)
-        self.v1 = np.empty((self.cap, m.nv))
-        self.dv = np.empty((self.cap, m.nv))
-        self._qacc = np.empty(m.nv)
-        self.k = 0
         self.scratch = mj.MjData(m) if self.rk4 else None
         self.q0 = np.array(d.qpos, np.float64)
         self.act0 = np.array(d.act, np.float64)
-        self.views = None
+        self.v0 = np.array(d.qvel, np.float64)
+        self._v = np.empty(m.nv)
+        self._qacc = np.empty(m.nv)
+        self.bind(d)
+        self.cap = int(max(8, min(BLOCK_STEPS, BLOCK_BYTES // (8 * max(self.rows_of.width, 1)))))
+        self.rows = np.empty((self.cap, self.rows_of.width))
+        self.v1 = np.empty((self.cap, m.nv))
+        self.v_start = self.v0.copy()  # v0 of the block's first row
+        self._gap_v0 = {}  # row -> its v0 after steps not seen
+        self.k = 0
+
+    def bind(self, d) -> None:
+        """Take the numpy views of ``d`` (the arrays of an MjData stay where they are)."""
+        self.d = d
+        self.qvel, self.qacc = d.qvel, d.qacc
+        self.rows_of = Rows(self.scratch if self.rk4 else d)
 
     def restart(self, d) -> None:
-        """Take ``d`` as the start of the next step (after a gap)."""
+        """Take ``d`` as the start of the next step (after steps not seen)."""
         np.copyto(self.v0, d.qvel)
+        self._gap_v0[self.k] = self.v0.copy()  # the next row's v0 is not the previous row's v1
         if self.rk4:
             np.copyto(self.q0, d.qpos)
             np.copyto(self.act0, d.act)
 
     def __call__(self, d) -> None:
         """Gather the step that just ended in ``d``."""
+        if d is not self.d:
+            self.bind(d)
         mj, m, k = self.mj, self.m, self.k
-        v1, dv = self.v1[k], self.dv[k]
-        np.copyto(v1, d.qvel)
-        np.subtract(v1, self.v0, out=dv)
+        v1 = self.v1[k]
+        np.copyto(v1, self.qvel)
         if self.rk4:
             src = self.scratch
             src.qpos[:] = self.q0
@@ -589,21 +721,21 @@ class StepImpulses:
                 src.mocap_quat[:] = d.mocap_quat
             src.qacc_warmstart[:] = d.qacc_warmstart
             mj.mj_forward(m, src)
-            np.multiply(dv, 1.0 / self.h, out=src.qacc)
+            np.subtract(v1, self.v0, out=src.qacc)
+            src.qacc *= 1.0 / self.h
             mj.mj_rnePostConstraint(m, src)
             np.copyto(self.q0, d.qpos)
             np.copyto(self.act0, d.act)
         else:
-            src = d
-            qvel, qacc = d.qvel, d.qacc
+            qvel, qacc = self.qvel, self.qacc
             np.copyto(self._qacc, qacc)
             np.copyto(qvel, self.v0)
-            np.multiply(dv, 1.0 / self.h, out=qacc)
+            np.subtract(v1, self.v0, out=qacc)
+            qacc *= 1.0 / self.h
             mj.mj_rnePostConstraint(m, d)
             np.copyto(qvel, v1)
             np.copyto(qacc, self._qacc)
-        for f, b in self.buf.items():
-            np.copyto(b[k], getattr(src, f))
+        self.rows_of.fill(self.rows[k])
         np.copyto(self.v0, v1)
         self.k = k + 1
 
@@ -613,39 +745,54 @@ class StepImpulses:
 
     def resolve(self):
         """The gathered steps as (impulses (K, 5, nbody, 6) [angular about the COM; linear], N s
-        and N m s, in IMPULSE_KINDS order; work (K, 3, nbody) J, WORK_KINDS order), and reset."""
+        and N m s, in IMPULSE_KINDS order; work (K, 3, nbody) J, WORK_KINDS order). The rows
+        stay until :meth:`reset`."""
         k, lay, h = self.k, self.lay, self.h
-        self.k = 0
-        B = {f: b[:k] for f, b in self.buf.items()}
-        c = B["subtree_com"][:, lay.root]                       # (K, nb, 3) each body's c
-        r = B["xipos"] - c                                      # c -> centre of mass
-        xf = B["xfrc_applied"]                                  # [force; torque] at the COM
+        R = self.rows[:k]
+        F = lambda f: self.rows_of.field(R, f)  # noqa: E731
+        v1 = self.v1[:k]
+        v0 = np.concatenate([self.v_start[None], v1[:-1]])
+        for row, v in self._gap_v0.items():
+            if row < k:
+                v0[row] = v
+        c = F("subtree_com")[:, lay.root]                       # (K, nb, 3) each body's c
+        r = F("xipos") - c                                      # c -> centre of mass
+        xf = F("xfrc_applied")                                  # [force; torque] at the COM
         xf_c = np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
-        contact = B["cfrc_ext"] - xf_c
+        contact = F("cfrc_ext") - xf_c
         # S (K, nv, 6): the unit wrench of each dof, about c
-        cdof = B["cdof"]
+        cdof = F("cdof")
         S = np.zeros_like(cdof)
         rot, tr = ~lay.dof_trans, lay.dof_trans
         S[:, rot, :3] = cdof[:, rot, :3]
         u = cdof[:, tr, 3:]
-        anchor = B["xanchor"][:, lay.dof_jnt[tr]]
+        anchor = F("xanchor")[:, lay.dof_jnt[tr]]
         S[:, tr, :3] = _cross(anchor - c[:, lay.dof_body[tr]], u)
         S[:, tr, 3:] = u
-        passive = B["qfrc_passive"]
+        passive = F("qfrc_passive")
         if self.implicit_damping:
-            passive = passive - lay.damping * self.dv[:k]
-        tau = np.stack([B["qfrc_applied"], passive, B["qfrc_actuator"]], axis=1)  # (K, 3, nv)
+            passive = passive - lay.damping * (v1 - v0)
+        tau = np.stack([F("qfrc_applied"), passive, F("qfrc_actuator")], axis=1)  # (K, 3, nv)
         gen = lay.pair @ (tau[..., None] * S[:, None])          # (K, 3, nb, 6)
-        joint = lay.net @ B["cfrc_int"] - gen.sum(axis=1)
+        joint = lay.net @ F("cfrc_int") - gen.sum(axis=1)
         W = np.stack([contact, xf_c + gen[:, 0], gen[:, 1], gen[:, 2], joint], axis=1)
         W[..., :3] -= _cross(r[:, None], W[..., 3:])            # torques about the COM
         W *= h
-        cv = B["cvel"]
+        cv = F("cvel")
         v_com = cv[..., 3:] + _cross(cv[..., :3], r)
-        work = (tau * self.v1[:k, None]) @ lay.own.T * h        # (K, 3, nb)
+        work = (tau * v1[:, None]) @ lay.own.T * h              # (K, 3, nb)
         work[:, 0] += h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
                            np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
         return W, work
+
+    def reset(self) -> None:
+        """Drop the gathered rows; the next row's v0 is the last one's v1 (or a restart's)."""
+        if self.k in self._gap_v0:
+            np.copyto(self.v_start, self._gap_v0[self.k])
+        elif self.k:
+            np.copyto(self.v_start, self.v1[self.k - 1])
+        self.k = 0
+        self._gap_v0 = {}
 
 
 class MujocoRecorder:
@@ -660,15 +807,18 @@ class MujocoRecorder:
         restitution: the geoms' restitution to log (default NaN: MuJoCo states none).
         writer: the program name logged (default ``"mujoco <version> via rblog.adapters"``).
         keep: keep the run in memory as well (default: when there is no output path).
-        block: steps gathered before they are resolved and written (BLOCK_STEPS).
         **recorder_options: further :class:`rblog.Recorder` arguments (``check``, ...).
+
+    A sample's state is MuJoCo's kinematics at its ``qpos``/``qvel``: under Euler and the
+    implicit integrators without mocap bodies they are the next step's start (``xipos``,
+    ``ximat``, ``cvel`` in that step's row), at no cost; otherwise (RK4, mocap bodies, the
+    last sample) from :class:`Kinematics`.
 
     Attributes: ``model`` (the log's model), ``layout`` (:class:`Layout`), ``recorder``.
     """
 
     def __init__(self, m, d=None, *, rrd=None, mcap=None, every: int = 1, restitution=None,
-                 writer: str | None = None, keep: bool | None = None, block: int | None = None,
-                 **recorder_options):
+                 writer: str | None = None, keep: bool | None = None, **recorder_options):
         from rblog.record.recorder import Recorder
 
         mj = _mj()
@@ -688,59 +838,65 @@ class MujocoRecorder:
                                  combine_friction="max", combine_restitution="max",
                                  engine_settings=engine, keep=keep, **recorder_options)
         self.recorder.open()
-        cap = BLOCK_STEPS if block is None else max(1, int(block))
         self.kin = Kinematics(m, self.layout)
-        self.hook = StepImpulses(m, self.layout, d, block=cap)
+        self.hook = StepImpulses(m, self.layout, d)
+        self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
+        cap = self.hook.cap + 1
         n = len(self.layout)
         self._ids = self.layout.body_id
-        self._cap = cap
-        # samples waiting for their interval's impulses: state rows and the step they close
-        self._x = np.empty((cap + 1, n, 3))
-        self._r = np.empty((cap + 1, n, 3, 3))
-        self._v = np.empty((cap + 1, n, 3))
-        self._w = np.empty((cap + 1, n, 3))
-        self._steps = np.empty(cap + 1, np.int64)
+        # samples waiting for their interval's impulses (and, deferred, their kinematics)
+        self._x, self._r = np.empty((cap, n, 3)), np.empty((cap, n, 3, 3))
+        self._v, self._w = np.empty((cap, n, 3)), np.empty((cap, n, 3))
+        self._steps = np.empty(cap, np.int64)
+        self._row = np.full(cap, -1, np.int64)  # the hook row of the sample's own step, -1: state known
+        self._gap = np.zeros(cap, bool)
         self._ns = 0
         self._raw = []
-        self._hook_steps = np.empty(cap, np.int64)  # the step each gathered row ended
-        self._gap = np.zeros(cap + 1, bool)
+        self._hook_steps = np.empty(self.hook.cap, np.int64)  # the step each gathered row ended
         self._carry_W = np.zeros((len(IMPULSE_KINDS), m.nbody, 6))
         self._carry_work = np.zeros((len(WORK_KINDS), m.nbody))
         self._carry_gap = False
-        self._rows_W, self._rows_work = [], []
+        self._carray, self._carray_d = None, None  # the raw view of d's contacts, once there are some
         self.step = int(round(float(d.time) / self.dt))
-        self._sample(d, contacts=False)
+        self._add_sample(d, row=-1, contacts=False)
 
-    def _sample(self, d, contacts: bool = True) -> None:
+    def _add_sample(self, d, row: int, contacts: bool = True) -> None:
         i = self._ns
-        self.kin(d.qpos, d.qvel, d.mocap_pos, d.mocap_quat,
-                 out=(self._x[i], self._r[i], self._v[i], self._w[i]))
         self._steps[i] = self.step
+        self._row[i] = row
+        if row < 0:
+            self.kin(d.qpos, d.qvel, d.mocap_pos, d.mocap_quat,
+                     out=(self._x[i], self._r[i], self._v[i], self._w[i]))
         self._ns = i + 1
-        if contacts:
-            self._raw.append(capture_contacts(d, self.step))
+        if contacts and d.ncon:
+            if self._carray is None or self._carray_d is not d:
+                try:
+                    self._carray, self._carray_d = _ContactArray(self.m, d), d
+                except ValueError:  # an mjContact the view cannot describe: field by field
+                    self._carray, self._carray_d = False, d
+            self._raw.append(capture_contacts(d, self.step, self._carray or None))
 
     def __call__(self, d) -> None:
         """Log the step that just ended in ``d`` (call after every ``mj_step``)."""
         step = int(round(float(d.time) / self.dt))
+        row = -1
         if step != self.step + 1:
             if step <= self.step:
-                from rblog.adapters import AdapterError as _E
-
-                raise _E(f"rblog.adapters.mujoco: d.time = {float(d.time)!r} is step {step}, "
-                         f"not after the last logged step {self.step} (was d reset?)")
+                raise AdapterError(f"rblog.adapters.mujoco: d.time = {float(d.time)!r} is step "
+                                   f"{step}, not after the last logged step {self.step} (was d reset?)")
             self._carry_gap = True  # steps not seen: this interval's impulses are unknown
             self.hook.restart(d)
         else:
-            self._hook_steps[self.hook.k] = step
+            row = self.hook.k
+            self._hook_steps[row] = step
             self.hook(d)
         self.step = step
         if step % self.every == 0:
             self._gap[self._ns] = self._carry_gap
-            self._sample(d)
+            self._add_sample(d, row if self.deferred and row >= 0 else -1)
             self._carry_gap = False
-        if self.hook.full or self._ns > self._cap:
-            self.flush(partial=True)
+        if self.hook.full or self._ns >= len(self._steps):
+            self.flush()
 
     record = __call__
 
@@ -751,45 +907,67 @@ class MujocoRecorder:
             mj.mj_step(self.m, d)
             self(d)
 
-    def _resolve(self) -> None:
-        """Turn the gathered steps into the waiting samples' interval impulses."""
+    def _states(self, ns: int) -> None:
+        """Fill the deferred samples' states: from the row of the step after theirs (its start
+        is their state), or from Kinematics at their row's qpos/qvel when that is not here."""
+        hook, lay = self.hook, self.layout
+        rows_of, R = hook.rows_of, hook.rows[:hook.k]
+        pend = np.flatnonzero(self._row[:ns] >= 0)
+        if not len(pend):
+            return
+        nxt = self._row[pend] + 1
+        have = nxt < hook.k
+        if self.deferred and have.any():
+            i, rr = pend[have], nxt[have]
+            ids = self._ids
+            x = rows_of.field(R, "xipos")[rr][:, ids]
+            self._x[i] = x
+            self._r[i] = rows_of.field(R, "ximat")[rr].reshape(len(rr), -1, 3, 3)[:, ids]
+            cv = rows_of.field(R, "cvel")[rr][:, ids]
+            c = rows_of.field(R, "subtree_com")[rr][:, lay.root[ids]]
+            self._w[i] = cv[..., :3]
+            self._v[i] = cv[..., 3:] + _cross(cv[..., :3], x - c)
+        for i in pend[~have]:
+            row = R[self._row[i]][None]
+            self.kin(rows_of.field(row, "qpos")[0], rows_of.field(row, "qvel")[0],
+                     out=(self._x[i], self._r[i], self._v[i], self._w[i]))
+        self._row[pend] = -1
+
+    def _impulses(self, ns: int):
+        """(W (ns, 5, nbody, 6), work (ns, 3, nbody)) of each waiting sample's interval: the
+        steps in (step[i-1], step[i]]; the steps after the last sample carry over."""
         k = self.hook.k
-        steps = self._hook_steps[:k].copy()
         W, work = self.hook.resolve() if k else (None, None)
-        ns = self._ns
+        steps = self._hook_steps[:k]
+        pos = np.searchsorted(steps, self._steps[:ns], side="right")  # rows before sample i's end
+        starts = np.concatenate([[0], pos[:-1]])
         rows_W = np.zeros((ns, *self._carry_W.shape))
         rows_work = np.zeros((ns, *self._carry_work.shape))
-        done = 0
-        lo = 0
-        s_steps = self._steps[:ns]
-        # each sample i (but an already closed sample 0) sums the steps in (step[i-1], step[i]]
-        pos = np.searchsorted(steps, s_steps, side="right") if k else np.zeros(ns, np.int64)
-        for i in range(ns):
-            hi = int(pos[i])
-            acc_W, acc_work = self._carry_W, self._carry_work
-            if hi > lo:
-                acc_W = acc_W + W[lo:hi].sum(axis=0)
-                acc_work = acc_work + work[lo:hi].sum(axis=0)
-            rows_W[i], rows_work[i] = acc_W, acc_work
+        last = int(pos[-1]) if ns else 0
+        if k and last:
+            nonempty = pos > starts  # reduceat sums [start_i, start_i+1), the last to `last`
+            rows_W[nonempty] = np.add.reduceat(W[:last], starts[nonempty], axis=0)
+            rows_work[nonempty] = np.add.reduceat(work[:last], starts[nonempty], axis=0)
+        if ns:
+            rows_W[0] += self._carry_W
+            rows_work[0] += self._carry_work
             self._carry_W = np.zeros_like(self._carry_W)
             self._carry_work = np.zeros_like(self._carry_work)
-            lo = hi
-            done = i + 1
-        if k and lo < k:
-            self._carry_W = self._carry_W + W[lo:].sum(axis=0)
-            self._carry_work = self._carry_work + work[lo:].sum(axis=0)
-        self._rows = (rows_W[:done], rows_work[:done])
+        if k and last < k:
+            self._carry_W = self._carry_W + W[last:].sum(axis=0)
+            self._carry_work = self._carry_work + work[last:].sum(axis=0)
+        return rows_W, rows_work
 
-    def flush(self, partial: bool = False) -> None:
+    def flush(self) -> None:
         """Write the samples gathered so far (each with its interval's impulses)."""
-        self._resolve()
         ns = self._ns
+        self._states(ns)
+        W, work = self._impulses(ns)
+        self.hook.reset()
         if not ns:
             return
-        W, work = self._rows
         ids = self._ids
-        W = W[:, :, ids]
-        work = work[:, :, ids]
+        W, work = W[:, :, ids], work[:, :, ids]
         gap = self._gap[:ns]
         if gap.any():
             W[gap] = np.nan
@@ -916,6 +1094,6 @@ def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batc
     return rec.trajectory if rec.keep else None
 
 
-__all__ = ["BLOCK_STEPS", "CONTACT_ROWS", "Kinematics", "Layout", "MujocoRecorder", "StepImpulses",
+__all__ = ["BLOCK_STEPS", "CONTACT_ROWS", "Kinematics", "Layout", "MujocoRecorder", "ROW_FIELDS", "Rows", "StepImpulses",
            "capture_contacts", "contacts", "decode_contacts", "gravity_of", "inspect", "record_rollout",
            "recorder", "settings", "state_offsets", "suite_model", "unsupported"]
