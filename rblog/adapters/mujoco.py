@@ -582,7 +582,7 @@ def _cross(a, b):
 
 #: the arrays of mjData a step's row holds (after the step: Euler and implicit keep the step's
 #: start in all but qpos, qvel); the span is one contiguous piece of mjData's buffer
-ROW_FIELDS = ("qpos", "qvel", "qfrc_applied", "xfrc_applied", "xipos", "ximat", "xanchor",
+ROW_FIELDS = ("qpos", "qvel", "qfrc_applied", "xfrc_applied", "xquat", "xipos", "ximat", "xanchor",
               "subtree_com", "cdof", "cvel", "qfrc_passive", "qfrc_actuator", "cfrc_int",
               "cfrc_ext")
 #: two fields of mjData are copied as one span when the bytes between them are fewer than this
@@ -663,7 +663,7 @@ class StepImpulses:
     the gathered rows into impulses and work per body, vectorized (the derivation is in the
     module docstring)."""
 
-    def __init__(self, m, layout: Layout, d):
+    def __init__(self, m, layout: Layout, d, block: int | None = None):
         mj = _mj()
         self.mj, self.m, self.lay = mj, m, layout
         self.h = float(m.opt.timestep)
@@ -679,7 +679,8 @@ class StepImpulses:
         self._v = np.empty(m.nv)
         self._qacc = np.empty(m.nv)
         self.bind(d)
-        self.cap = int(max(8, min(BLOCK_STEPS, BLOCK_BYTES // (8 * max(self.rows_of.width, 1)))))
+        fit = int(max(8, min(BLOCK_STEPS, BLOCK_BYTES // (8 * max(self.rows_of.width, 1)))))
+        self.cap = fit if block is None else max(1, int(block))
         self.rows = np.empty((self.cap, self.rows_of.width))
         self.v1 = np.empty((self.cap, m.nv))
         self.v_start = self.v0.copy()  # v0 of the block's first row
@@ -758,31 +759,44 @@ class StepImpulses:
         c = F("subtree_com")[:, lay.root]                       # (K, nb, 3) each body's c
         r = F("xipos") - c                                      # c -> centre of mass
         xf = F("xfrc_applied")                                  # [force; torque] at the COM
-        xf_c = np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
-        contact = F("cfrc_ext") - xf_c
+        pushed = bool(xf.any())
+        nb = len(lay.root)
+        W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
+        if pushed:
+            xf_c = np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
+            np.subtract(F("cfrc_ext"), xf_c, out=W[:, 0])
+        else:
+            W[:, 0] = F("cfrc_ext")
         # S (K, nv, 6): the unit wrench of each dof, about c
         cdof = F("cdof")
         S = np.zeros_like(cdof)
         rot, tr = ~lay.dof_trans, lay.dof_trans
         S[:, rot, :3] = cdof[:, rot, :3]
-        u = cdof[:, tr, 3:]
-        anchor = F("xanchor")[:, lay.dof_jnt[tr]]
-        S[:, tr, :3] = _cross(anchor - c[:, lay.dof_body[tr]], u)
-        S[:, tr, 3:] = u
-        passive = F("qfrc_passive")
+        if tr.any():
+            u = cdof[:, tr, 3:]
+            anchor = F("xanchor")[:, lay.dof_jnt[tr]]
+            S[:, tr, :3] = _cross(anchor - c[:, lay.dof_body[tr]], u)
+            S[:, tr, 3:] = u
+        tau = np.empty((k, 3, self.m.nv))                       # applied, passive, actuator
+        tau[:, 0] = F("qfrc_applied")
+        tau[:, 1] = F("qfrc_passive")
         if self.implicit_damping:
-            passive = passive - lay.damping * (v1 - v0)
-        tau = np.stack([F("qfrc_applied"), passive, F("qfrc_actuator")], axis=1)  # (K, 3, nv)
+            tau[:, 1] -= lay.damping * (v1 - v0)
+        tau[:, 2] = F("qfrc_actuator")
         gen = lay.pair @ (tau[..., None] * S[:, None])          # (K, 3, nb, 6)
-        joint = lay.net @ F("cfrc_int") - gen.sum(axis=1)
-        W = np.stack([contact, xf_c + gen[:, 0], gen[:, 1], gen[:, 2], joint], axis=1)
+        W[:, 1:4] = gen
+        if pushed:
+            W[:, 1] += xf_c
+        np.matmul(lay.net, F("cfrc_int"), out=W[:, 4])
+        W[:, 4] -= gen.sum(axis=1)
         W[..., :3] -= _cross(r[:, None], W[..., 3:])            # torques about the COM
         W *= h
-        cv = F("cvel")
-        v_com = cv[..., 3:] + _cross(cv[..., :3], r)
         work = (tau * v1[:, None]) @ lay.own.T * h              # (K, 3, nb)
-        work[:, 0] += h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
-                           np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
+        if pushed:
+            cv = F("cvel")
+            v_com = cv[..., 3:] + _cross(cv[..., :3], r)
+            work[:, 0] += h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
+                               np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
         return W, work
 
     def reset(self) -> None:
@@ -807,6 +821,8 @@ class MujocoRecorder:
         restitution: the geoms' restitution to log (default NaN: MuJoCo states none).
         writer: the program name logged (default ``"mujoco <version> via rblog.adapters"``).
         keep: keep the run in memory as well (default: when there is no output path).
+        block: steps gathered before they are resolved and written (default BLOCK_STEPS, fewer
+            for large models: BLOCK_BYTES of rows).
         **recorder_options: further :class:`rblog.Recorder` arguments (``check``, ...).
 
     A sample's state is MuJoCo's kinematics at its ``qpos``/``qvel``: under Euler and the
@@ -818,7 +834,8 @@ class MujocoRecorder:
     """
 
     def __init__(self, m, d=None, *, rrd=None, mcap=None, every: int = 1, restitution=None,
-                 writer: str | None = None, keep: bool | None = None, **recorder_options):
+                 writer: str | None = None, keep: bool | None = None, block: int | None = None,
+                 **recorder_options):
         from rblog.record.recorder import Recorder
 
         mj = _mj()
@@ -839,13 +856,14 @@ class MujocoRecorder:
                                  engine_settings=engine, keep=keep, **recorder_options)
         self.recorder.open()
         self.kin = Kinematics(m, self.layout)
-        self.hook = StepImpulses(m, self.layout, d)
+        self.hook = StepImpulses(m, self.layout, d, block=block)
         self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
         cap = self.hook.cap + 1
         n = len(self.layout)
         self._ids = self.layout.body_id
         # samples waiting for their interval's impulses (and, deferred, their kinematics)
         self._x, self._r = np.empty((cap, n, 3)), np.empty((cap, n, 3, 3))
+        self._q = np.empty((cap, n, 4))
         self._v, self._w = np.empty((cap, n, 3)), np.empty((cap, n, 3))
         self._steps = np.empty(cap, np.int64)
         self._row = np.full(cap, -1, np.int64)  # the hook row of the sample's own step, -1: state known
@@ -867,6 +885,7 @@ class MujocoRecorder:
         if row < 0:
             self.kin(d.qpos, d.qvel, d.mocap_pos, d.mocap_quat,
                      out=(self._x[i], self._r[i], self._v[i], self._w[i]))
+            self._q[i] = self.kin.quat_wxyz()
         self._ns = i + 1
         if contacts and d.ncon:
             if self._carray is None or self._carray_d is not d:
@@ -923,6 +942,9 @@ class MujocoRecorder:
             x = rows_of.field(R, "xipos")[rr][:, ids]
             self._x[i] = x
             self._r[i] = rows_of.field(R, "ximat")[rr].reshape(len(rr), -1, 3, 3)[:, ids]
+            from rblog.adapters._common import quat_mul
+
+            self._q[i] = quat_mul(rows_of.field(R, "xquat")[rr][:, ids], self.kin.iquat)
             cv = rows_of.field(R, "cvel")[rr][:, ids]
             c = rows_of.field(R, "subtree_com")[rr][:, lay.root[ids]]
             self._w[i] = cv[..., :3]
@@ -931,6 +953,7 @@ class MujocoRecorder:
             row = R[self._row[i]][None]
             self.kin(rows_of.field(row, "qpos")[0], rows_of.field(row, "qvel")[0],
                      out=(self._x[i], self._r[i], self._v[i], self._w[i]))
+            self._q[i] = self.kin.quat_wxyz()
         self._row[pend] = -1
 
     def _impulses(self, ns: int):
@@ -974,7 +997,8 @@ class MujocoRecorder:
             work[gap] = np.nan
         steps = self._steps[:ns].copy()
         arrays = dict(t=steps * self.dt, step=steps, position=self._x[:ns].copy(),
-                      rotation=self._r[:ns].copy(), velocity=self._v[:ns].copy(),
+                      rotation=self._r[:ns].copy(), quat_wxyz=self._q[:ns].copy(),
+                      velocity=self._v[:ns].copy(),
                       angular_velocity=self._w[:ns].copy())
         for a, kind in enumerate(IMPULSE_KINDS):
             arrays[f"impulse_{kind}_angular"] = W[:, a, :, :3]
@@ -1082,15 +1106,18 @@ def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batc
     kin = Kinematics(m, layout)
     T, n = len(rows), len(layout)
     x, r, v, w = np.empty((T, n, 3)), np.empty((T, n, 3, 3)), np.empty((T, n, 3)), np.empty((T, n, 3))
+    q = np.empty((T, n, 4))
     for i in range(T):
         kin(rows[i, iq:iq + m.nq], rows[i, iv:iv + m.nv], out=(x[i], r[i], v[i], w[i]))
+        q[i] = kin.quat_wxyz()
     step = np.rint(rows[:, it] / dt).astype(np.int64)
     rec = Recorder(model, rrd=rrd, mcap=mcap, dt=dt, writer=writer or f"mujoco {mj.__version__} "
                    "rollout via rblog.adapters", integrator=engine["integrator"],
                    combine_friction="max", combine_restitution="max", engine_settings=engine,
                    keep=keep, **recorder_options)
     with rec:
-        rec.write(t=step * dt, step=step, position=x, rotation=r, velocity=v, angular_velocity=w)
+        rec.write(t=step * dt, step=step, position=x, rotation=r, quat_wxyz=q, velocity=v,
+                  angular_velocity=w)
     return rec.trajectory if rec.keep else None
 
 
