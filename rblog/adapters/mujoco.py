@@ -429,15 +429,16 @@ def _contact_dtype(con):
 
 def _contact_dict(raws):
     """The raw captures of several steps as one dict of arrays (K rows)."""
-    steps = np.concatenate([np.full(len(r), s, np.int64) for s, r, _ in raws])
-    offsets = np.cumsum([0] + [len(e) for _, _, e in raws[:-1]])
-    efc_all = np.concatenate([e for _, _, e in raws]) if any(len(e) for _, _, e in raws) else np.zeros(1)
-    adr = np.concatenate([r["efc_address"] for _, r, _ in raws]).astype(np.int64)
-    base = np.concatenate([np.full(len(r), o, np.int64) for (_, r, _), o in zip(raws, offsets)])
+    counts = np.array([len(r) for _, r, _ in raws])
+    steps = np.repeat(np.array([st for st, _, _ in raws], np.int64), counts)
+    raw = np.concatenate([r for _, r, _ in raws])
+    sizes = np.array([len(e) for _, _, e in raws])
+    efc_all = np.concatenate([e for _, _, e in raws] + [np.zeros(1)])
+    base = np.repeat(np.cumsum(sizes) - sizes, counts)
+    adr = raw["efc_address"].astype(np.int64)
     idx = np.clip(np.where(adr >= 0, adr + base, 0)[:, None] + np.arange(_EFC_WIDTH), 0, len(efc_all) - 1)
-    cat = lambda f: np.concatenate([r[f] for _, r, _ in raws])  # noqa: E731
-    return dict(step=steps, geom=cat("geom"), adr=adr, dim=cat("dim"), mu=cat("friction")[:, :2],
-                exclude=cat("exclude"), frame=cat("frame"), dist=cat("dist"), pos=cat("pos"),
+    return dict(step=steps, geom=raw["geom"], adr=adr, dim=raw["dim"], mu=raw["friction"][:, :2],
+                exclude=raw["exclude"], frame=raw["frame"], dist=raw["dist"], pos=raw["pos"],
                 efc=efc_all[idx])
 
 
