@@ -63,7 +63,9 @@ Per-interval impulses (N s, N m s about each body's centre of mass, world frame)
   rotational dof (``cdof[j, :3]``) or the force along a translational one through the joint's
   anchor: ``S_j . cdof_j = 1``, so the pair does the work ``f_j qvel_j``. joint = the net of
   ``cfrc_int`` (the body's own minus its children's) minus the generalized forces mapped to
-  the body: the constraint reactions, limits, frictionloss, tendon equalities.
+  the body: the constraint reactions, limits, frictionloss, tendon equalities (and, under
+  implicitfast / implicit, the part of ``h D a`` that is not ``dof_damping``: actuator and
+  tendon velocity derivatives).
 * work (J) per step: ``h f_j v1_j`` of each dof's force, attributed to the dof's body (the
   displacement the semi-implicit step makes is ``h v1``); for ``xfrc_applied`` ``h (f . v +
   tau . w)`` at the step's start.
@@ -89,6 +91,14 @@ the forces of the first stage; ``a = (v1 - v0) / h`` is RK4's weighted mean of t
 so the joint impulses (the Newton-Euler residual) close each body's balance as above, and the
 other kinds are the first stage's: a free body's balance then misses ``h sum_i b_i (F_i - F_1)
 = O(h^2) dF/dt``, which a log cannot carry.
+
+**Cost** per step (``rec(d)``): ``mj_rnePostConstraint`` (~1 us) with ``qvel``/``qacc`` swapped
+in and back, and a few copies of contiguous pieces of mjData into a preallocated row
+(:class:`Rows`); per sample the contacts' raw ``mjContact`` structs and ``efc_force``. A
+sample's state is the next step's row (its start is the sample's state) under Euler and the
+implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
+the rows are resolved into impulses, vectorized, and written as one block. Measured with
+benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
 """
 
 from __future__ import annotations
