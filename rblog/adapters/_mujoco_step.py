@@ -62,11 +62,26 @@ def _cross(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
+def _actuators_depend_on_velocity(m) -> bool:
+    """Whether an actuator's force depends on velocity (affine gain or bias with a velocity
+    term: MuJoCo's velocity servos and position servos with kv; muscles)."""
+    dyn_gain = np.asarray(m.actuator_gaintype) != 0
+    gain_v = np.asarray(m.actuator_gainprm)[:, 2] != 0
+    bias_v = (np.asarray(m.actuator_biastype) != 0) & (np.asarray(m.actuator_biasprm)[:, 2] != 0)
+    return bool(np.any((dyn_gain & gain_v) | bias_v | (np.asarray(m.actuator_gaintype) == 2)))
+
+
+def _passive_depends_on_velocity(m) -> bool:
+    """Whether passive forces beyond dof damping depend on velocity: tendon damping, fluid."""
+    fluid = float(m.opt.density) > 0 or float(m.opt.viscosity) > 0
+    return bool(np.any(np.asarray(m.tendon_damping) != 0) or fluid)
+
+
 #: the arrays of mjData a step's row holds (after the step: Euler and implicit keep the step's
 #: start in all but qpos, qvel); the span is one contiguous piece of mjData's buffer
 ROW_FIELDS = ("qpos", "qvel", "qfrc_applied", "xfrc_applied", "xquat", "xipos", "ximat", "xanchor",
-              "subtree_com", "cdof", "cvel", "qfrc_passive", "qfrc_actuator", "cfrc_int",
-              "cfrc_ext")
+              "subtree_com", "cdof", "cvel", "qfrc_passive", "qfrc_actuator", "qfrc_smooth",
+              "qfrc_constraint", "cfrc_int", "cfrc_ext")
 #: two fields of mjData are copied as one span when the bytes between them are fewer than this
 #: (a copy's own cost, ~1 us, is about that many bytes at this machine's ~4 GB/s)
 SPAN_GAP_BYTES = 4096
@@ -154,6 +169,14 @@ class StepImpulses:
         eulerdamp = int(m.opt.disableflags) & (int(mj.mjtDisableBit.mjDSBL_EULERDAMP) |
                                                int(mj.mjtDisableBit.mjDSBL_DAMPER))
         self.implicit_damping = (not self.rk4) and not eulerdamp
+        # implicit, implicitfast: (M - h D) a = f, D = d(passive + actuator)/dv (implicit: and the
+        # bias); the integrated force is M a = f + h D a. The hook logs M a (mj_mulM) and puts
+        # h D a beyond the dof damping into the passive kind, or into the actuator kind when
+        # only actuators depend on velocity (ACTUATOR_VELOCITY_TERMS)
+        self.implicit = int(m.opt.integrator) in (int(mj.mjtIntegrator.mjINT_IMPLICIT),
+                                                  int(mj.mjtIntegrator.mjINT_IMPLICITFAST))
+        self.correction_kind = 2 if (self.implicit and _actuators_depend_on_velocity(m)
+                                     and not _passive_depends_on_velocity(m)) else 1
         self.scratch = mj.MjData(m) if self.rk4 else None
         self.q0 = np.array(d.qpos, np.float64)
         self.act0 = np.array(d.act, np.float64)
@@ -165,6 +188,7 @@ class StepImpulses:
         self.cap = fit if block is None else max(1, int(block))
         self.rows = np.empty((self.cap, self.rows_of.width))
         self.v1 = np.empty((self.cap, m.nv))
+        self.Ma = np.empty((self.cap, m.nv)) if self.implicit else None
         self.v_start = self.v0.copy()  # v0 of the block's first row
         self._gap_v0 = {}  # row -> its v0 after steps not seen
         self.k = 0
@@ -216,6 +240,8 @@ class StepImpulses:
             np.subtract(v1, self.v0, out=qacc)
             qacc *= 1.0 / self.h
             mj.mj_rnePostConstraint(m, d)
+            if self.Ma is not None:
+                mj.mj_mulM(m, d, self.Ma[k], qacc)
             np.copyto(qvel, v1)
             np.copyto(qacc, self._qacc)
         self.rows_of.fill(self.rows[k])
@@ -265,6 +291,9 @@ class StepImpulses:
         if self.implicit_damping:
             tau[:, 1] -= lay.damping * (v1 - v0)
         tau[:, 2] = F("qfrc_actuator")
+        if self.Ma is not None:  # h D a beyond the dof damping: M a - f - (-B dv)
+            extra = self.Ma[:k] - F("qfrc_smooth") - F("qfrc_constraint") + lay.damping * (v1 - v0)
+            tau[:, self.correction_kind] += extra
         gen = lay.pair @ (tau[..., None] * S[:, None])          # (K, 3, nb, 6)
         W[:, 1:4] = gen
         if pushed:

@@ -63,9 +63,12 @@ Per-interval impulses (N s, N m s about each body's centre of mass, world frame)
   rotational dof (``cdof[j, :3]``) or the force along a translational one through the joint's
   anchor: ``S_j . cdof_j = 1``, so the pair does the work ``f_j qvel_j``. joint = the net of
   ``cfrc_int`` (the body's own minus its children's) minus the generalized forces mapped to
-  the body: the constraint reactions, limits, frictionloss, tendon equalities (and, under
-  implicitfast / implicit, the part of ``h D a`` that is not ``dof_damping``: actuator and
-  tendon velocity derivatives).
+  the body: the constraint reactions, limits, frictionloss, tendon equalities.
+* implicit, implicitfast: MuJoCo solves ``(M - h D) a = f`` with ``D`` the velocity derivative
+  of the passive and actuator forces (implicit: and of the bias), so the force it integrates is
+  ``M a = f + h D a``. The hook computes ``M a`` (``mj_mulM``) and logs ``h D a`` with the passive
+  kind (its dof-damping part is ``- B (v1 - v0)``, as under Euler), or with the actuator kind
+  when only actuators depend on velocity: a tree's joint impulses still cancel.
 * work (J) per step: ``h f_j v1_j`` of each dof's force, attributed to the dof's body (the
   displacement the semi-implicit step makes is ``h v1``); for ``xfrc_applied`` ``h (f . v +
   tau . w)`` at the step's start.

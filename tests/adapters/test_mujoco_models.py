@@ -109,11 +109,14 @@ def free_body_K(m, b, qpos, qvel):
     return m.body_mass[b] * (np.cross(w[1:], arm[1:] - arm[:-1]) - h * np.cross(w[:-1], np.cross(w[:-1], arm[:-1])))
 
 
-@pytest.mark.parametrize("every", [1, 10])
-@pytest.mark.parametrize("name", MODELS)
-def test_model_as_shipped(name, every):
+CASES = [(name, every, None) for name in MODELS for every in (1, 10)] + \
+    [(name, every, "implicitfast") for name in ("humanoid", "stacker", "fish") for every in (1, 10)]
+
+
+@pytest.mark.parametrize("name, every, integrator", CASES, ids=lambda v: str(v))
+def test_model_as_shipped(name, every, integrator):
     ctrl = "random" if every == 1 else "zero"
-    m, traj, qpos, qvel = record(name, every=every, ctrl=ctrl)
+    m, traj, qpos, qvel = record(name, every=every, ctrl=ctrl, integrator=integrator)
     tm = traj.model
     steps = traj.step
     assert steps.tolist() == list(range(0, STEPS + 1, every))
