@@ -109,13 +109,16 @@ def free_body_K(m, b, qpos, qvel):
     return m.body_mass[b] * (np.cross(w[1:], arm[1:] - arm[:-1]) - h * np.cross(w[:-1], np.cross(w[:-1], arm[:-1])))
 
 
-CASES = [(name, every, None) for name in MODELS for every in (1, 10)] + \
-    [(name, every, "implicitfast") for name in ("humanoid", "stacker", "fish") for every in (1, 10)]
+#: (model, stride, controls, integrator): every model at both strides (random controls at every
+#: step, zero at every 10th), the other pairings marked slow; implicitfast on the free-body models
+CASES = [(name, 1, "random", None) for name in MODELS] + [(name, 10, "zero", None) for name in MODELS] + \
+    [pytest.param(name, every, ctrl, None, marks=pytest.mark.slow)
+     for name in MODELS for every, ctrl in ((1, "zero"), (10, "random"))] + \
+    [(name, every, "random", "implicitfast") for name in ("humanoid", "stacker", "fish") for every in (1, 10)]
 
 
-@pytest.mark.parametrize("name, every, integrator", CASES, ids=lambda v: str(v))
-def test_model_as_shipped(name, every, integrator):
-    ctrl = "random" if every == 1 else "zero"
+@pytest.mark.parametrize("name, every, ctrl, integrator", CASES, ids=lambda v: str(v))
+def test_model_as_shipped(name, every, ctrl, integrator):
     m, traj, qpos, qvel = record(name, every=every, ctrl=ctrl, integrator=integrator)
     tm = traj.model
     steps = traj.step
@@ -367,3 +370,48 @@ def test_free_body_angular_momentum_on_contact():
     # contact)
     assert np.abs(dl - ang - drift).max() <= BALANCE_REL * np.abs(dl).max()
     assert np.abs(drift).max() > 1e3 * np.abs(dl - ang - drift).max()  # the drift is real
+
+
+def test_mesh_and_mocap_bodies():
+    """A convex mesh (a tetrahedron, MuJoCo collides with its hull) on a free body, pushed by a
+    mocap paddle the user moves: the mesh's vertices in the log, placed by the body's pose, are
+    MuJoCo's own vertices in the world; the paddle is a kinematic body whose pose follows
+    mocap_pos and whose impulses are marked missing (not judged)."""
+    xml = ('<mujoco><option timestep="0.002"/><asset><mesh name="tet" vertex="0 0 0  0.2 0 0  0 0.15 0  0 0 0.1"/>'
+           '</asset><worldbody><geom type="plane" size="2 2 0.1"/>'
+           '<body name="tet" pos="0 0 0.2" euler="10 20 30"><freejoint/><geom type="mesh" mesh="tet" mass="1"/></body>'
+           '<body name="paddle" mocap="true" pos="-0.3 0 0.05"><geom type="box" size="0.02 0.2 0.05"/></body>'
+           '</worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    rec = adapter.recorder(m, d, every=5)
+    qpos, mocap = [d.qpos.copy()], [d.mocap_pos.copy()]
+    for k in range(300):
+        d.mocap_pos[0, 0] = -0.3 + 0.001 * k
+        mujoco.mj_step(m, d)
+        rec(d)
+        qpos.append(d.qpos.copy())
+        mocap.append(d.mocap_pos.copy())
+    rec.close()
+    traj, tm = rec.trajectory, rec.trajectory.model
+    assert tm.body_name == ["tet", "paddle"] and tm.body_kind.tolist() == [BODY_FREE, 2]
+    assert tm.body_impulse_supplied.tolist() == [[True] * 5, [False] * 5]
+    g = int(np.flatnonzero(tm.geom_type == GEOM_MESH)[0])
+    mesh = int(m.geom_dataid[1])
+    local = tm.geom_vertices(g)
+    a, n = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+    np.testing.assert_array_equal(local, m.mesh_vert[a:a + n])
+    dd = mujoco.MjData(m)
+    q = tm.geom_quat_wxyz_body[g]
+    rg = quat_wxyz_to_matrix(q / np.linalg.norm(q))
+    for i, s in enumerate(traj.step):
+        dd.qpos[:], dd.mocap_pos[:] = qpos[s], mocap[s]
+        mujoco.mj_kinematics(m, dd)
+        world_mj = dd.geom_xpos[1] + local @ dd.geom_xmat[1].reshape(3, 3).T      # MuJoCo's
+        r = traj.rotation[i, 0]
+        world_log = traj.position[i, 0] + (tm.geom_pos_body[g] + local @ rg.T) @ r.T  # the log's
+        np.testing.assert_allclose(world_log, world_mj, rtol=0, atol=POSE_TOL)
+        np.testing.assert_allclose(traj.position[i, 1], dd.xipos[2], rtol=0, atol=POSE_TOL)
+    assert np.isnan(traj.impulse("contact")[0][:, 1]).all()
+    assert len(traj.contacts.step) > 0 and 1 in set(traj.contacts.body_a.tolist()) | set(traj.contacts.body_b.tolist())
