@@ -243,7 +243,8 @@ class MujocoRecorder:
         if not len(pend):
             return
         nxt = self._row[pend] + 1
-        have = nxt < hook.k
+        have = nxt < hook.k  # and that row is the very next step (not one after steps not seen)
+        have[have] = self._hook_steps[nxt[have]] == self._steps[pend[have]] + 1
         if self.deferred and have.any():
             i, rr = pend[have], nxt[have]
             ids = self._ids

@@ -292,16 +292,48 @@ def test_skipped_steps_are_unknown_not_wrong():
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     rec = adapter.recorder(m, d)
+    states = {}
     for k in range(1, 51):
         mujoco.mj_step(m, d)
         if k % 10 == 0:
             rec(d)
+        if k in (9, 10, 11):
+            states[k] = (d.qpos.copy(), d.qvel.copy())
     rec.close()
     traj = rec.trajectory
     assert traj.step.tolist() == [0, 10, 20, 30, 40, 50]
     lin = traj.impulse("contact")[0]
     dyn = traj.model.body_kind == BODY_JOINTED
     assert np.isnan(lin[1:, dyn]).all() and not np.isnan(lin[0, dyn]).any()
+    # the states are MuJoCo's at those steps, not the next seen step's start
+    mj = mujoco_state(m, [states[10][0]], [states[10][1]])
+    np.testing.assert_allclose(traj.position[1], mj["x"][0], rtol=0, atol=POSE_TOL)
+    np.testing.assert_allclose(traj.linear_momentum[1], mj["p"][0], rtol=0, atol=1e-12)
+
+
+def test_sample_before_a_gap_keeps_its_own_state():
+    """Steps 1-5 seen (a sample at 5), 6 and 7 not, then 8, 9, 10: sample 5's state is MuJoCo's
+    at step 5 (not the start of step 9, the next row gathered), and interval (5, 10] is NaN."""
+    m = adapter.suite_model("stacker")
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    rec = adapter.recorder(m, d, every=5)
+    rng = np.random.default_rng(3)
+    seen = {}
+    for k in range(1, 11):
+        d.ctrl[:] = rng.uniform(-1.0, 1.0, m.nu)
+        mujoco.mj_step(m, d)
+        seen[k] = (d.qpos.copy(), d.qvel.copy())
+        if k not in (6, 7):
+            rec(d)
+    rec.close()
+    traj = rec.trajectory
+    assert traj.step.tolist() == [0, 5, 10]
+    mj = mujoco_state(m, [seen[5][0], seen[10][0]], [seen[5][1], seen[10][1]])
+    np.testing.assert_allclose(traj.position[1:], mj["x"], rtol=0, atol=POSE_TOL)
+    np.testing.assert_allclose(traj.linear_momentum[1:], mj["p"], rtol=0, atol=1e-12)
+    lin = traj.impulse("joint")[0][:, traj.model.body_kind == BODY_JOINTED]
+    assert not np.isnan(lin[1]).any() and np.isnan(lin[2]).all()
 
 
 def test_what_cannot_be_recorded_is_one_line():
