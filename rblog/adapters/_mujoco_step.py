@@ -62,6 +62,31 @@ def _cross(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
+_FUNCTIONS = []
+
+
+def _mujoco_functions():
+    """(address of mj_rnePostConstraint, of mj_mulM) in the libmujoco the bindings loaded, or
+    None when it is not found."""
+    if not _FUNCTIONS:
+        import ctypes
+        import glob
+        import os
+
+        mj = _mj()
+        found = None
+        for path in sorted(glob.glob(os.path.join(os.path.dirname(mj.__file__), "libmujoco*"))):
+            try:
+                lib = ctypes.CDLL(path)
+                found = tuple(ctypes.cast(getattr(lib, f), ctypes.c_void_p).value
+                              for f in ("mj_rnePostConstraint", "mj_mulM"))
+                break
+            except (OSError, AttributeError):
+                continue
+        _FUNCTIONS.append(found)
+    return _FUNCTIONS[0]
+
+
 def _actuators_depend_on_velocity(m) -> bool:
     """Whether an actuator's force depends on velocity (affine gain or bias with a velocity
     term: MuJoCo's velocity servos and position servos with kv; muscles)."""
@@ -105,6 +130,7 @@ class Rows:
         ok = all(arrs[f].dtype == np.float64 and arrs[f].flags.c_contiguous and addr[f] % 8 == 0
                  for f in fields)
         self.d, self.views, self.offset = d, arrs, {}
+        self.addresses = []  # (address, doubles, start in the row) of each piece: the C++ hook's
         pieces, pos = [], 0  # (source view, start in the row)
         if ok:
             groups = []
@@ -117,6 +143,7 @@ class Rows:
                     groups.append([addr[f], end, [f]])
             for lo, hi, fs in groups:
                 raw = np.ctypeslib.as_array((ctypes.c_double * ((hi - lo) // 8)).from_address(lo))
+                self.addresses.append((lo, (hi - lo) // 8, pos))
                 for f in fs:
                     self.offset[f] = pos + (addr[f] - lo) // 8
                 pieces.append((raw, pos))
@@ -124,7 +151,7 @@ class Rows:
             ok = all(np.array_equal(pieces[0][0][:0], pieces[0][0][:0]) for _ in [0]) and all(
                 np.array_equal(self._read(pieces, f, arrs[f].size), arrs[f].ravel()) for f in fields)
         if not ok:
-            pieces, pos = [], 0
+            pieces, pos, self.addresses = [], 0, []
             for f in fields:
                 self.offset[f] = pos
                 pieces.append((arrs[f].reshape(-1), pos))
@@ -190,6 +217,7 @@ class StepImpulses:
         self.v1 = np.empty((self.cap, m.nv))
         self.Ma = np.empty((self.cap, m.nv)) if self.implicit else None
         self.v_start = self.v0.copy()  # v0 of the block's first row
+        self._compile()
         self._gap_v0 = {}  # row -> its v0 after steps not seen
         self.k = 0
 
@@ -198,6 +226,29 @@ class StepImpulses:
         self.d = d
         self.qvel, self.qacc = d.qvel, d.qacc
         self.rows_of = Rows(self.scratch if self.rk4 else d)
+        if getattr(self, "rows", None) is not None:
+            self._compile()
+
+    def _compile(self) -> None:
+        """The compiled hook (rblog.adapters._hook) over ``d`` and these buffers, when the
+        build has it and libmujoco's functions are found; else the numpy one is used."""
+        self.compiled = None
+        if self.rk4 or not self.rows_of.addresses or self.rows.shape[1] != self.rows_of.width:
+            return
+        fns = _mujoco_functions()
+        if fns is None:
+            return
+        try:
+            from rblog.adapters._hook import StepHook
+        except ImportError:
+            return
+        addr = lambda a: a.__array_interface__["data"][0]  # noqa: E731
+        d = self.d
+        self.compiled = StepHook(fns[0], fns[1] if self.Ma is not None else 0, self.m._address,
+                                 d._address, addr(self.qvel), addr(self.qacc), int(self.m.nv),
+                                 self.h, addr(self.rows), int(self.rows.shape[1]), addr(self.v1),
+                                 addr(self.v0), addr(self.Ma) if self.Ma is not None else 0,
+                                 int(self.cap), list(self.rows_of.addresses))
 
     def restart(self, d) -> None:
         """Take ``d`` as the start of the next step (after steps not seen)."""
@@ -211,6 +262,9 @@ class StepImpulses:
         """Gather the step that just ended in ``d``."""
         if d is not self.d:
             self.bind(d)
+        if self.compiled is not None:
+            self.k = self.compiled.step(self.k)
+            return
         mj, m, k = self.mj, self.m, self.k
         v1 = self.v1[k]
         np.copyto(v1, self.qvel)

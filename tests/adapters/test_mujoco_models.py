@@ -447,3 +447,34 @@ def test_mesh_and_mocap_bodies():
         np.testing.assert_allclose(traj.position[i, 1], dd.xipos[2], rtol=0, atol=POSE_TOL)
     assert np.isnan(traj.impulse("contact")[0][:, 1]).all()
     assert len(traj.contacts.step) > 0 and 1 in set(traj.contacts.body_a.tolist()) | set(traj.contacts.body_b.tolist())
+
+
+@pytest.mark.parametrize("integrator", [None, "implicitfast"])
+def test_compiled_hook_equals_numpy(integrator):
+    """The per-step hook in C++ (rblog.adapters._hook, when built) logs the same bits as the
+    numpy one."""
+    pytest.importorskip("rblog.adapters._hook")
+    logs = []
+    for compiled in (True, False):
+        m = adapter.suite_model("humanoid")
+        if integrator:
+            m.opt.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + integrator.upper())
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        rec = adapter.recorder(m, d)
+        assert rec.hook.compiled is not None
+        if not compiled:
+            rec.hook.compiled = None
+        rng = np.random.default_rng(1)
+        for _ in range(300):
+            d.ctrl[:] = rng.uniform(-1.0, 1.0, m.nu)
+            mujoco.mj_step(m, d)
+            rec(d)
+        rec.close()
+        logs.append(rec.trajectory)
+    a, b = logs
+    for kind in IMPULSE_KINDS:
+        for x, y in zip(a.impulse(kind), b.impulse(kind)):
+            np.testing.assert_array_equal(x, y, err_msg=kind)
+    np.testing.assert_array_equal(a.position, b.position)
+    np.testing.assert_array_equal(a.work_passive, b.work_passive)
