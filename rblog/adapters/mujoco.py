@@ -95,8 +95,9 @@ so the joint impulses (the Newton-Euler residual) close each body's balance as a
 other kinds are the first stage's: a free body's balance then misses ``h sum_i b_i (F_i - F_1)
 = O(h^2) dF/dt``, which a log cannot carry.
 
-**Cost** per step (``rec(d)``): ``mj_rnePostConstraint`` (~1 us) with ``qvel``/``qacc`` swapped
-in and back, and a few copies of contiguous pieces of mjData into a preallocated row
+**Cost** per step (``rec(d)``): one call of the compiled hook (``rblog.adapters._hook``, the
+numpy :class:`StepImpulses` without it): ``mj_rnePostConstraint`` (~1 us) with ``qvel``/``qacc``
+swapped in and back, and a few copies of contiguous pieces of mjData into a preallocated row
 (:class:`Rows`); per sample the contacts' raw ``mjContact`` structs and ``efc_force``. A
 sample's state is the next step's row (its start is the sample's state) under Euler and the
 implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
