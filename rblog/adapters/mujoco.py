@@ -278,9 +278,13 @@ class MujocoRecorder:
         rows_work = np.zeros((ns, *self._carry_work.shape))
         last = int(pos[-1]) if ns else 0
         if k and last:
-            nonempty = pos > starts  # reduceat sums [start_i, start_i+1), the last to `last`
-            rows_W[nonempty] = np.add.reduceat(W[:last], starts[nonempty], axis=0)
-            rows_work[nonempty] = np.add.reduceat(work[:last], starts[nonempty], axis=0)
+            nonempty = pos > starts
+            if np.all(pos - starts <= 1):  # one step per interval (a sample every step): a gather
+                rows_W[nonempty] = W[starts[nonempty]]
+                rows_work[nonempty] = work[starts[nonempty]]
+            else:  # reduceat sums [start_i, start_i+1), the last to `last`
+                rows_W[nonempty] = np.add.reduceat(W[:last], starts[nonempty], axis=0)
+                rows_work[nonempty] = np.add.reduceat(work[:last], starts[nonempty], axis=0)
         if ns:
             rows_W[0] += self._carry_W
             rows_work[0] += self._carry_work
