@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from rblog.contract.model import Model
+from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS, Model
 
 CONTACT_RESTING = 0
 CONTACT_IMPACT = 1
@@ -56,7 +56,7 @@ class RunInfo:
     combine_friction: str = "geometric"
     combine_restitution: str = "max"
     engine_settings: dict = field(default_factory=dict)
-    log_format: int = 2
+    log_format: int = 3
 
 
 @dataclass
@@ -132,6 +132,16 @@ TOTAL_CHANNELS = {
     "total_angular_momentum": (3,),
     "total_energy": (),
 }
+#: per-interval, per-body channels (contract v3), optional: name -> trailing shape. Sample i
+#: holds what acted over the steps s with step[i-1] < s <= step[i] (sample 0: the steps since
+#: the recording began), world frame: impulses in N s (linear) and N m s (angular, about the
+#: body's centre of mass), work in J. A body that does not supply a kind
+#: (Model.body_impulse_supplied / body_work_supplied) has NaN there; a channel no body supplies
+#: is None on the Trajectory and absent from the log.
+INTERVAL_CHANNELS = {
+    **{f"impulse_{k}_{part}": (3,) for k in IMPULSE_KINDS for part in ("linear", "angular")},
+    **{f"work_{k}": () for k in WORK_KINDS},
+}
 
 
 @dataclass
@@ -152,6 +162,8 @@ class Trajectory:
         ortho_error: (T, N) ||R^T R - I||_F.  quat_norm_error: (T, N) |q| - 1.
         total_linear_momentum: (T, 3).  total_angular_momentum: (T, 3) about the world origin
             (sum of x cross P + L).  total_energy: (T,) J.
+        impulse_<kind>_linear, impulse_<kind>_angular: (T, N, 3) or None, kind in
+            IMPULSE_KINDS; work_<kind>: (T, N) or None, kind in WORK_KINDS (INTERVAL_CHANNELS).
         contacts: contacts at the logged steps.
         truncated: True when the log ended early (interrupted or diverged run, cut file).
         failed: why the recording failed ('' when it did not): a write that raised (bad arrays,
@@ -184,6 +196,30 @@ class Trajectory:
     truncated: bool = False
     warnings: list[str] = field(default_factory=list)
     failed: str = ""
+    impulse_contact_linear: np.ndarray | None = None
+    impulse_contact_angular: np.ndarray | None = None
+    impulse_applied_linear: np.ndarray | None = None
+    impulse_applied_angular: np.ndarray | None = None
+    impulse_passive_linear: np.ndarray | None = None
+    impulse_passive_angular: np.ndarray | None = None
+    impulse_actuator_linear: np.ndarray | None = None
+    impulse_actuator_angular: np.ndarray | None = None
+    impulse_joint_linear: np.ndarray | None = None
+    impulse_joint_angular: np.ndarray | None = None
+    work_applied: np.ndarray | None = None
+    work_passive: np.ndarray | None = None
+    work_actuator: np.ndarray | None = None
+
+    def impulse(self, kind: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """(linear (T, N, 3), angular (T, N, 3)) of impulse ``kind`` (IMPULSE_KINDS), or None
+        when the log holds it for no body."""
+        lin = getattr(self, f"impulse_{kind}_linear")
+        return None if lin is None else (lin, getattr(self, f"impulse_{kind}_angular"))
+
+    @property
+    def interval_channels(self) -> list[str]:
+        """The names of the INTERVAL_CHANNELS this trajectory holds."""
+        return [k for k in INTERVAL_CHANNELS if getattr(self, k) is not None]
 
     @property
     def n_samples(self) -> int:
@@ -205,7 +241,8 @@ class Trajectory:
 
     def slice(self, sl: slice) -> "Trajectory":
         """The samples ``sl`` (time axis) of this trajectory, with the contacts of those steps."""
-        kw = {name: getattr(self, name)[sl] for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS)}
+        kw = {name: getattr(self, name)[sl]
+              for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS, *self.interval_channels)}
         steps = kw["step"]
         c = self.contacts
         if len(steps):
@@ -223,6 +260,13 @@ class Trajectory:
             name: np.concatenate([getattr(p, name) for p in parts])
             for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS)
         }
+        for name in INTERVAL_CHANNELS:
+            got = [getattr(p, name) for p in parts]
+            if any(g is not None for g in got):
+                trail = INTERVAL_CHANNELS[name]
+                kw[name] = np.concatenate([
+                    g if g is not None else np.full((p.n_samples, p.n_bodies, *trail), np.nan)
+                    for g, p in zip(got, parts)])
         return Trajectory(
             first.model, first.info, contacts=Contacts.concat([p.contacts for p in parts]),
             truncated=any(p.truncated for p in parts),
