@@ -18,8 +18,8 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
   name, the base's name or ``getJointInfo``'s link name; a robot name used by several bodies gets
   the body id, ``robot#3/link``). The base of a multibody is free (``BODY_FREE``); its links move
   on their joints (``BODY_JOINTED``, ``body_parent`` the parent link). A base of mass 0 (a fixed
-  base: pybullet reports mass 0 for ``useFixedBase`` too) is static: a ``BODY_STATIC`` row when
-  links hang on it, else its shapes are world geoms (``geom_body = -1``).
+  base: pybullet reports mass 0 for ``useFixedBase`` too) is welded to the world: its shapes are
+  world geoms (``geom_body = -1``) and its links' parent is the world (-1).
 * **frames**: a row's pose is pybullet's inertial frame of the link (the centre of mass and the
   principal axes of ``localInertiaDiagonal``); ``getCollisionShapeData``'s local frames are in it.
 * **joints** (``getJointInfo``): revolute -> hinge, prismatic -> slide, spherical -> ball, planar,
@@ -265,32 +265,31 @@ def inspect(client: int = 0, *, damping=None, joint_sensors: bool = True,
             kd = (0.0, 0.0)
         else:
             kd = damping.get(bid, (DAMPING_DEFAULT, DAMPING_DEFAULT))
-        if mass <= 0.0 and nj == 0:  # static geometry of the world
+        base_pose = (np.array(pos, np.float64), _wxyz(orn))
+        if mass <= 0.0:  # a fixed base: static geometry of the world, its links hang on it
             if body_type != 2:
                 w.missing.setdefault("geoms", []).append(label)
                 continue
-            _geoms(call, pb, w, bid, -1, -1, label, (np.array(pos, float), _wxyz(orn)))
-            continue
-        base_row = w.n
-        w.rows.append((bid, -1))
-        w.name.append(label)
-        w.kind.append("static" if mass <= 0.0 else "free")
-        w.parent.append(-1)
-        w.mass.append(max(mass, 0.0))
-        w.inertia.append(np.array(info[2], np.float64))
-        w.damping.append(kd)
-        static = mass <= 0.0
-        supplied = {"contact": not static, "applied": applied and not static,
-                    "passive": not static, "actuator": not static,
-                    "joint": not static and (nj == 0 or joint_sensors)}
-        if body_type != 2:
-            supplied.update(contact=False, joint=False)
-            w.missing.setdefault("contact", []).append(label)
-            w.missing.setdefault("joint", []).append(label)
-            w.missing.setdefault("geoms", []).append(label)
+            _geoms(call, pb, w, bid, -1, -1, label, base_pose)
+            base_row = -1
         else:
-            _geoms(call, pb, w, bid, -1, base_row, label)
-        w.supplied.append([supplied[k] for k in IMPULSE_KINDS])
+            base_row = w.n
+            w.rows.append((bid, -1))
+            w.name.append(label)
+            w.kind.append("free")
+            w.parent.append(-1)
+            w.mass.append(mass)
+            w.inertia.append(np.array(info[2], np.float64))
+            w.damping.append(kd)
+            supplied = {"contact": True, "applied": applied, "passive": True, "actuator": True,
+                        "joint": nj == 0 or joint_sensors}
+            if body_type != 2:
+                supplied.update(contact=False, joint=False)
+                for k in ("contact", "joint", "geoms"):
+                    w.missing.setdefault(k, []).append(label)
+            else:
+                _geoms(call, pb, w, bid, -1, base_row, label)
+            w.supplied.append([supplied[k] for k in IMPULSE_KINDS])
         rows = [base_row]
         for j in range(nj):
             ji = call("getJointInfo", bid, j, what=f"{label}: joint {j}")
@@ -328,12 +327,16 @@ def inspect(client: int = 0, *, damping=None, joint_sensors: bool = True,
             jt["body"].append(row)
             jt["type"].append(JOINT_TYPES[jtype])
             jt["anchor_body"].append(-r_in.T @ np.array(li[3], np.float64))
-            jt["anchor_parent"].append(np.array(ji[14], np.float64))
+            anchor_p, axis_p = np.array(ji[14], np.float64), r_pj @ a
+            if parent < 0:  # on the fixed base: the parent frame is the world's
+                r_base = quat_wxyz_to_matrix(base_pose[1])
+                anchor_p, axis_p = base_pose[0] + r_base @ anchor_p, r_base @ axis_p
+            jt["anchor_parent"].append(anchor_p)
             jt["axis_body"].append(r_in.T @ a)
-            jt["axis_parent"].append(r_pj @ a)
+            jt["axis_parent"].append(axis_p)
             jt["range"].append([lo, hi] if lo <= hi and jtype in (0, 1) else [np.nan, np.nan])
             _geoms(call, pb, w, bid, j, row, link)
-        w.multibodies.append((bid, list(range(nj)), rows))
+        w.multibodies.append((bid, list(range(nj)), rows))  # rows[0] = -1: a fixed base
     if maximal:
         w.notes["maximal_coordinates"] = (
             f"{', '.join(maximal)}: loaded with useMaximalCoordinates; pybullet exposes only the "
@@ -371,7 +374,7 @@ class Stepper:
         self.row_of = np.full((max(ids) + 1, width), -1, np.int64)
         for r, (b, l) in enumerate(world.rows):
             self.row_of[b, l + 1] = r
-        self.calls = [(b, links) for b, links, _ in world.multibodies]
+        self.calls = [(b, links, rows[0] >= 0) for b, links, rows in world.multibodies]
         self.acc = {k: np.zeros((n, 3)) for k in ("contact_linear", "contact_angular",
                                                   "passive_linear", "passive_angular",
                                                   "joint_linear", "joint_angular",
@@ -383,10 +386,11 @@ class Stepper:
     def read(self):
         pb, c = self.pb, self.client
         out = []
-        for bid, links in self.calls:
-            p, o = pb.getBasePositionAndOrientation(bid, physicsClientId=c)
-            lv, av = pb.getBaseVelocity(bid, physicsClientId=c)
-            out.append(p + o + lv + av)
+        for bid, links, base in self.calls:
+            if base:
+                p, o = pb.getBasePositionAndOrientation(bid, physicsClientId=c)
+                lv, av = pb.getBaseVelocity(bid, physicsClientId=c)
+                out.append(p + o + lv + av)
             if links:
                 out += [s[0] + s[1] + s[6] + s[7] for s in
                         pb.getLinkStates(bid, links, computeLinkVelocity=1, physicsClientId=c)]
@@ -477,7 +481,7 @@ class Stepper:
     def _joints(self, x, r, n, dt):
         pb, c = self.pb, self.client
         react = []
-        for bid, links in self.calls:
+        for bid, links, _ in self.calls:
             if links:
                 react += [s[2] for s in pb.getJointStates(bid, links, physicsClientId=c)]
         rf = np.array(react, np.float64).reshape(len(react), 6)
