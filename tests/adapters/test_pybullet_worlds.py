@@ -49,7 +49,7 @@ def _pose(cid, bid, link):
     if link < 0:
         p, q = pb.getBasePositionAndOrientation(bid, physicsClientId=cid)
     else:
-        s = pb.getLinkState(bid, link, physicsClientId=cid)
+        s = pb.getLinkState(bid, link, computeForwardKinematics=1, physicsClientId=cid)
         p, q = s[0], s[1]
     return np.array(p), _mat(q)
 
@@ -57,7 +57,8 @@ def _pose(cid, bid, link):
 def _velocity(cid, bid, link):
     if link < 0:
         return np.array(pb.getBaseVelocity(bid, physicsClientId=cid)[0])
-    return np.array(pb.getLinkState(bid, link, computeLinkVelocity=1, physicsClientId=cid)[6])
+    return np.array(pb.getLinkState(bid, link, computeLinkVelocity=1, computeForwardKinematics=1,
+                                    physicsClientId=cid)[6])
 
 
 def record(name, stride):
