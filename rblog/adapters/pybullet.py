@@ -70,7 +70,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rblog.adapters import AdapterError, require
+from rblog.adapters import AdapterError, _gather, require
 from rblog.adapters._common import quat_mul
 from rblog.contract.orientation import quat_wxyz_to_matrix
 
@@ -82,8 +82,6 @@ JOINT_TYPES = {0: "hinge", 1: "slide", 2: "ball", 3: "planar", 4: "fixed"}
 FILTER_DYNAMIC = (1, -1)
 FILTER_STATIC = (2, -1 ^ 2)
 #: the contact columns read from each getContactPoints row (indices into pybullet's tuple)
-_SCALAR_COLS = (1, 2, 3, 4, 8, 9, 10, 12)  # bodyA, bodyB, linkA, linkB, distance, normal, lat 1, 2
-_VECTOR_COLS = (5, 6, 7, 11, 13)         # positionOnA, positionOnB, normalOnB, dir 1, dir 2
 IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint")
 
 CONTACT_ROWS = {
@@ -374,7 +372,8 @@ class Stepper:
         self.mass = np.array(world.mass, np.float64).reshape(n)
         self.inertia = np.array(world.inertia, np.float64).reshape(n, 3)
         kd = np.array(world.damping, np.float64).reshape(n, 2)
-        self.k_lin, self.k_ang = kd[:, 0], kd[:, 1]
+        self.c_lin = self.mass * kd[:, 0] * self.dt  # the damping impulse / (v (1 + |v|))
+        self.c_ang = kd[:, 1] * self.dt
         self.parent = np.array(world.parent, np.int64).reshape(n)
         jointed = np.array([k == "joints" for k in world.kind], bool).reshape(n)
         self.jointed = np.flatnonzero(jointed)
@@ -392,7 +391,8 @@ class Stepper:
                                                   "joint_linear", "joint_angular",
                                                   "applied_linear", "applied_angular")}
         self.pending = (np.zeros((n, 3)), np.zeros((n, 3)))  # applied before the next step
-        self.rows = None  # the last step's contact columns (for the logged contact rows)
+        self.pending_any = False
+        self.points, self.points_dt = (), self.dt  # the last step's getContactPoints()
         self.state = self.read()
 
     def read(self):
@@ -418,24 +418,22 @@ class Stepper:
         if self.use_joints:
             b = np.array(cached, np.float64).reshape(len(cached), 7)
             self.cached = (b[:, 0:3], b[:, 3:7])
-        return a[:, 0:3], a[:, 3:7], a[:, 7:10], a[:, 10:13]
+        return tuple(np.ascontiguousarray(a[:, k:k + m]) for k, m in ((0, 3), (3, 4), (7, 3), (10, 3)))
 
     def after_step(self) -> None:
         """Account for the step just taken (call once after every stepSimulation)."""
         x0, q0, v0, w0 = self.state
         dt, acc, n = self.dt, self.acc, self.world.n
-        # passive: Bullet's multibody damping at the step's initial velocities
-        r0 = _mat_xyzw(q0)
-        sv, sw = np.linalg.norm(v0, axis=1), np.linalg.norm(w0, axis=1)
-        acc["passive_linear"] -= ((self.mass * self.k_lin * (1.0 + sv) * dt)[:, None]) * v0
-        w_body = np.einsum("nji,nj->ni", r0, w0)
-        acc["passive_angular"] -= np.einsum("nij,nj->ni", r0, self.inertia * w_body) * \
-            (self.k_ang * (1.0 + sw) * dt)[:, None]
-        fl, fa = self.pending
-        acc["applied_linear"] += fl
-        acc["applied_angular"] += fa
-        fl[:] = 0.0
-        fa[:] = 0.0
+        # passive: Bullet's multibody damping at the step's initial velocities (compiled)
+        _gather.pybullet_damping(q0, v0, w0, self.inertia, self.c_lin, self.c_ang,
+                                 acc["passive_linear"], acc["passive_angular"])
+        if self.pending_any:
+            fl, fa = self.pending
+            acc["applied_linear"] += fl
+            acc["applied_angular"] += fa
+            fl[:] = 0.0
+            fa[:] = 0.0
+            self.pending_any = False
         if self.use_contacts:
             self._contacts(x0, n, dt)
         self.state = self.read()
@@ -447,55 +445,28 @@ class Stepper:
             self._joints(x, _mat_xyzw(q), n, dt)
 
     def _contacts(self, x0, n, dt):
-        pts = self.pb.getContactPoints(physicsClientId=self.client)
-        if not pts:
-            self.rows = None
-            return
-        cols = list(zip(*pts))
-        flat = [cols[k] for k in _SCALAR_COLS]
-        for k in _VECTOR_COLS:
-            flat += zip(*cols[k])
-        a = np.array(flat, np.float64)  # (8 + 15, P)
-        ids = a[:4].astype(np.int64)
-        ia = self._lookup(ids[0], ids[2])
-        ib = self._lookup(ids[1], ids[3])
-        dist, fn, f1, f2 = a[4], a[5], a[6], a[7]
-        pa, pbp, nrm, d1, d2 = a[8:11].T, a[11:14].T, a[14:17].T, a[17:20].T, a[20:23].T
-        f = (fn[:, None] * nrm + f1[:, None] * d1 + f2[:, None] * d2) * dt  # on A, N s
-        lin, ang = self.acc["contact_linear"], self.acc["contact_angular"]
-        for idx, p, s in ((ia, pa, 1.0), (ib, pbp, -1.0)):
-            ok = idx >= 0
-            if not ok.any():
-                continue
-            i = idx[ok]
-            fi = s * f[ok]
-            ti = np.cross(p[ok] - x0[i], fi)
-            for k in range(3):
-                lin[:, k] += np.bincount(i, fi[:, k], minlength=n)
-                ang[:, k] += np.bincount(i, ti[:, k], minlength=n)
-        self.rows = (ia, ib, pa, pbp, nrm, dist, fn, f, dt)
+        # compiled: one pass over pybullet's tuples, no Python object per number
+        self.points = self.pb.getContactPoints(physicsClientId=self.client)
+        self.points_dt = dt
+        _gather.pybullet_contacts_accumulate(self.points, self.row_of, x0, dt,
+                                             self.acc["contact_linear"], self.acc["contact_angular"])
 
     def contact_rows(self, step: int):
         """The last step's contact rows in the contract's convention (dict for Recorder.write, or
         None): body_b = -1 for static geometry (A and B swapped so that body_a is a row, signs
         flipped); speculative points (no force, positive distance) dropped."""
-        if self.rows is None:
+        pts = self.points
+        if not pts:
             return None
-        ia, ib, pa, pbp, nrm, dist, fn, f, dt = self.rows
-        fric = f / dt - fn[:, None] * nrm  # the lateral part, on A
-        a, b = ia.copy(), ib.copy()
-        normal, fric = nrm.copy(), fric.copy()
-        flip = a < 0
-        a[flip], b[flip] = b[flip], a[flip]
-        normal[flip] *= -1.0
-        fric[flip] *= -1.0
-        keep = (a >= 0) & ~((fn <= 0.0) & (dist > 0.0))
-        k = int(keep.sum())
+        out = np.empty((len(pts), 14))
+        k = _gather.pybullet_contacts_rows(pts, self.row_of, self.points_dt, out)
         if k == 0:
             return None
-        return dict(step=np.full(k, int(step), np.int64), body_a=a[keep], body_b=b[keep],
-                    point=0.5 * (pa + pbp)[keep], normal=normal[keep], separation=dist[keep],
-                    normal_impulse=fn[keep] * dt, friction_impulse=fric[keep] * dt)
+        out = out[:k]
+        ids = out[:, 0:2].astype(np.int64)
+        return dict(step=np.full(k, int(step), np.int64), body_a=ids[:, 0], body_b=ids[:, 1],
+                    point=out[:, 2:5], normal=out[:, 5:8], separation=out[:, 8],
+                    normal_impulse=out[:, 9], friction_impulse=out[:, 11:14])
 
     def _lookup(self, body, link):
         ok = (body >= 0) & (body < self.row_of.shape[0]) & (link + 1 < self.row_of.shape[1])
@@ -669,6 +640,7 @@ class PybulletRecorder:
         fl, fa = self.stepper.pending
         fl[r] += f * self.dt
         fa[r] += np.cross(arm, f) * self.dt
+        self.stepper.pending_any = True
 
     def apply_external_torque(self, body: int, link: int, torque, flags=None) -> None:
         """``pybullet.applyExternalTorque`` (next step), logged as an applied angular impulse."""
@@ -681,6 +653,7 @@ class PybulletRecorder:
         if flags == pb.LINK_FRAME:
             t = _mat_xyzw(self.stepper.state[1][r]) @ t
         self.stepper.pending[1][r] += t * self.dt
+        self.stepper.pending_any = True
 
     # -- stepping --------------------------------------------------------------------------------
     def __call__(self) -> None:
