@@ -135,9 +135,10 @@ TOTAL_CHANNELS = {
 #: per-interval, per-body channels (contract v3), optional: name -> trailing shape. Sample i
 #: holds what acted over the steps s with step[i-1] < s <= step[i] (sample 0: the steps since
 #: the recording began), world frame: impulses in N s (linear) and N m s (angular, about the
-#: body's centre of mass), work in J. A body that does not supply a kind
-#: (Model.body_impulse_supplied / body_work_supplied) has NaN there; a channel no body supplies
-#: is None on the Trajectory and absent from the log.
+#: body's centre of mass), work in J. A body that does not log a kind
+#: (Model.body_impulse_supplied / body_work_supplied) has NaN there; a channel no body logs is
+#: None on the Trajectory and absent from the log. Read them through Trajectory.impulse(kind) /
+#: work(kind), which also fill the zeros of forces an engine does not have.
 INTERVAL_CHANNELS = {
     **{f"impulse_{k}_{part}": (3,) for k in IMPULSE_KINDS for part in ("linear", "angular")},
     **{f"work_{k}": () for k in WORK_KINDS},
@@ -211,10 +212,40 @@ class Trajectory:
     work_actuator: np.ndarray | None = None
 
     def impulse(self, kind: str) -> tuple[np.ndarray, np.ndarray] | None:
-        """(linear (T, N, 3), angular (T, N, 3)) of impulse ``kind`` (IMPULSE_KINDS), or None
-        when the log holds it for no body."""
+        """(linear (T, N, 3), angular (T, N, 3)) of impulse ``kind`` (IMPULSE_KINDS): the
+        logged values, 0 for bodies whose engine has no such force (SUPPLIED_NONE), NaN for
+        bodies that miss it; None when no body's is known."""
+        from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_NONE
+
+        status = self.model.body_impulse_supplied[:, IMPULSE_KINDS.index(kind)]
         lin = getattr(self, f"impulse_{kind}_linear")
-        return None if lin is None else (lin, getattr(self, f"impulse_{kind}_angular"))
+        if lin is None and not np.any(status == SUPPLIED_NONE):
+            return None
+        ang = getattr(self, f"impulse_{kind}_angular")
+        if np.all(status == SUPPLIED_LOGGED):
+            return lin, ang
+        shape = (self.n_samples, self.n_bodies, 3)
+        out = []
+        for a in (lin, ang):
+            a = np.full(shape, np.nan) if a is None else a.copy()
+            a[:, status == SUPPLIED_NONE] = 0.0
+            out.append(a)
+        return out[0], out[1]
+
+    def work(self, kind: str) -> np.ndarray | None:
+        """(T, N) work ``kind`` (WORK_KINDS), filled as :meth:`impulse`; None when no body's is
+        known."""
+        from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_NONE
+
+        status = self.model.body_work_supplied[:, WORK_KINDS.index(kind)]
+        w = getattr(self, f"work_{kind}")
+        if w is None and not np.any(status == SUPPLIED_NONE):
+            return None
+        if np.all(status == SUPPLIED_LOGGED):
+            return w
+        w = np.full((self.n_samples, self.n_bodies), np.nan) if w is None else w.copy()
+        w[:, status == SUPPLIED_NONE] = 0.0
+        return w
 
     @property
     def interval_channels(self) -> list[str]:

@@ -50,8 +50,8 @@ MODEL_FIELDS: dict[str, tuple[str, tuple[int, ...] | None]] = {
     # v3: bodies' kinds and parents, which impulses / works are supplied, joints, geoms
     "body_kind": ("i", ()),
     "body_parent": ("i", ()),
-    "body_impulse_supplied": ("b", (len(IMPULSE_KINDS),)),
-    "body_work_supplied": ("b", (len(WORK_KINDS),)),
+    "body_impulse_supplied": ("i", (len(IMPULSE_KINDS),)),
+    "body_work_supplied": ("i", (len(WORK_KINDS),)),
     **{name: ("s" if name.endswith("_name") else "i" if name in INT_FIELDS else "f", trail)
        for name, trail in {**JOINT_FIELDS, **GEOM_FIELDS}.items()},
     "mesh_vert": ("f", (3,)),
@@ -257,8 +257,8 @@ def expected_width(name: str, n: int) -> int:
 
 def run_interval_channels(model: Model) -> tuple[str, ...]:
     """The INTERVAL_CHANNELS a run of ``model`` logs: the kinds some body supplies."""
-    imp = np.asarray(model.body_impulse_supplied, bool).any(axis=0)
-    work = np.asarray(model.body_work_supplied, bool).any(axis=0)
+    imp = (np.asarray(model.body_impulse_supplied) == 1).any(axis=0)  # SUPPLIED_LOGGED
+    work = (np.asarray(model.body_work_supplied) == 1).any(axis=0)
     out = [f"impulse_{k}_{part}" for k, on in zip(IMPULSE_KINDS, imp) if on
            for part in ("linear", "angular")]
     out += [f"work_{k}" for k, on in zip(WORK_KINDS, work) if on]

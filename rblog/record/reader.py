@@ -87,7 +87,7 @@ class _Collector:
             v = m.get(key)
             if v is None or not n or np.size(v) != n * len(kinds):
                 continue
-            on = np.asarray(v, bool).reshape(n, len(kinds)).any(axis=0)
+            on = (np.asarray(v).reshape(n, len(kinds)) == 1).any(axis=0)  # SUPPLIED_LOGGED
             out += [c for k, chans in zip(on, names) if k for c in chans]
         return tuple(out)
 

@@ -33,6 +33,7 @@ import numpy as np
 
 from rblog import __version__
 from rblog.contract.model import (BODY_FREE, BODY_KIND_CODES, COLLIDE_ALL, COLLIDE_RULES,
+                                  DEFAULT_IMPULSE_SUPPLIED, DEFAULT_WORK_SUPPLIED,
                                   GEOM_CODES, GEOM_MESH, IMPULSE_KINDS, JOINT_BALL, JOINT_CODES,
                                   JOINT_FIXED, LOG_SHAPE_CODES, SHAPE_BOX, SHAPE_NONE,
                                   SHAPE_SPHERE, WORK_KINDS, Model, v2_from_geoms)
@@ -54,7 +55,8 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
                ground_friction: float = 0.5, static_box_position=None, static_box_quat_wxyz=None,
                static_box_half_extents=None, static_box_restitution=None,
                static_box_friction=None, kind=None, parent=None, geoms=None, joints=None,
-               collide_rule: str = "and", impulses=(), work=()) -> Model:
+               collide_rule: str = "and", impulses=(), work=(), impulses_none=(),
+               work_none=(), impulses_missing=(), work_missing=()) -> Model:
     """A :class:`Model` (body table and world) from per-body lists.
 
     Args:
@@ -85,8 +87,14 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
             fixed); optional ``range`` (J, 2, NaN = none), ``name``.
         collide_rule: ``"and"`` (Bullet, rblog) or ``"or"`` (MuJoCo) (COLLIDE_RULES).
         impulses: the per-interval impulse kinds this writer logs for every body (a subset of
-            IMPULSE_KINDS), or an (N, 5) bool array per body.  work: likewise of WORK_KINDS,
-            or (N, 3).
+            IMPULSE_KINDS), or an (N, 5) array of SUPPLIED_* codes (or bools: logged or
+            missing) per body.  work: likewise of WORK_KINDS, or (N, 3).
+        impulses_none, work_none: kinds the engine does not have at all: known to be zero for
+            every body, not stored.  impulses_missing, work_missing: kinds acting that the
+            writer cannot supply (what needs them is not judged). A kind named nowhere has the
+            meaning of a log that states nothing (DEFAULT_IMPULSE_SUPPLIED: contact missing, the
+            others none: no force besides gravity, contacts and the constant force_world /
+            torque_world; work none).
     """
     n = len(name)
 
@@ -165,8 +173,10 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
     if collide_rule not in COLLIDE_RULES:
         raise RecordError(f"body_table: collide_rule = {collide_rule!r}, expected one of "
                           f"{', '.join(map(repr, COLLIDE_RULES))}")
-    v3["body_impulse_supplied"] = _supplied(impulses, n, IMPULSE_KINDS, "impulses")
-    v3["body_work_supplied"] = _supplied(work, n, WORK_KINDS, "work")
+    v3["body_impulse_supplied"] = _supplied(impulses, impulses_none, impulses_missing, n,
+                                            IMPULSE_KINDS, DEFAULT_IMPULSE_SUPPLIED, "impulses")
+    v3["body_work_supplied"] = _supplied(work, work_none, work_missing, n, WORK_KINDS,
+                                         DEFAULT_WORK_SUPPLIED, "work")
     if geoms is not None:
         world = {k: v for k, v in derived.items() if k.startswith(("ground", "static_box"))}
         return Model(
@@ -215,22 +225,36 @@ def _codes(v, count: int, names: dict, what: str, valid) -> np.ndarray:
     return out
 
 
-def _supplied(v, n: int, kinds: tuple, what: str) -> np.ndarray:
-    """``impulses`` / ``work``: kind names for every body, or an (N, len(kinds)) bool array."""
-    if isinstance(v, str):
-        v = (v,)
+def _supplied(v, none, missing, n: int, kinds: tuple, default: tuple, what: str) -> np.ndarray:
+    """``impulses`` / ``work`` (kind names logged for every body, or an (N, len(kinds)) array of
+    SUPPLIED_* codes or bools), ``*_none`` and ``*_missing`` (kind names) -> (N, len(kinds))
+    int64 codes; a kind named nowhere gets its ``default`` code."""
+    from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE
+
+    v, none, missing = ((x,) if isinstance(x, str) else x for x in (v, none, missing))
     a = np.asarray(v)
-    if a.dtype == bool or (a.ndim == 2 and a.dtype.kind in "iu"):
-        if a.shape != (n, len(kinds)):
-            raise RecordError(f"body_table: {what} has shape {a.shape}, expected ({n}, "
-                              f"{len(kinds)}) (columns {', '.join(kinds)})")
-        return a.astype(bool)
-    out = np.zeros((n, len(kinds)), bool)
-    for k in v:
-        if k not in kinds:
-            raise RecordError(f"body_table: {what} holds {k!r}, expected some of "
-                              f"{', '.join(map(repr, kinds))}")
-        out[:, kinds.index(k)] = True
+    if a.ndim == 2 or a.dtype == bool:
+        if a.shape != (n, len(kinds)) or a.dtype.kind not in "biu" or (
+                a.size and (a.min() < 0 or a.max() > SUPPLIED_NONE)):
+            raise RecordError(f"body_table: {what} has shape {a.shape} and values {_short(v)}, "
+                              f"expected ({n}, {len(kinds)}) codes 0 (missing), 1 (logged), "
+                              f"2 (none) (columns {', '.join(kinds)})")
+        if len(none) or len(missing):
+            raise RecordError(f"body_table: {what} given as an array of codes; give "
+                              f"{what}_none / {what}_missing only with kind names")
+        return a.astype(np.int64)
+    out = np.tile(np.array(default, np.int64), (n, 1))
+    named: dict[str, str] = {}
+    for arg, names, code in ((what, v, SUPPLIED_LOGGED), (f"{what}_none", none, SUPPLIED_NONE),
+                             (f"{what}_missing", missing, SUPPLIED_MISSING)):
+        for k in names:
+            if k not in kinds:
+                raise RecordError(f"body_table: {arg} holds {k!r}, expected some of "
+                                  f"{', '.join(map(repr, kinds))}")
+            if k in named:
+                raise RecordError(f"body_table: {k!r} is in both {named[k]} and {arg}")
+            named[k] = arg
+            out[:, kinds.index(k)] = code
     return out
 
 
@@ -405,6 +429,7 @@ def _check_contact_rows(settings) -> None:
 
 
 _CONTACT_FIELDS = [f.name for f in fields(Contacts)]
+_CONTACT_VECTORS = ("point", "normal", "friction_impulse")
 _CONTACT_REQUIRED = ("step", "body_a", "body_b", "point", "normal", "separation", "normal_impulse")
 #: the values of contacts.kind (docs/log-format.md): 0 resting (or not classified), 1 impact
 KIND_VALUES = (0, 1)
@@ -579,7 +604,7 @@ def _interval_channels(model: Model, given: dict, T: int, n: int) -> dict:
         a = np.array(_arr(given[name], name, (T, n, *trail)), np.float64)
         kind = name.split("_")[1]
         sup = (model.body_impulse_supplied[:, IMPULSE_KINDS.index(kind)] if name.startswith("impulse")
-               else model.body_work_supplied[:, WORK_KINDS.index(kind)])
+               else model.body_work_supplied[:, WORK_KINDS.index(kind)]) == 1  # SUPPLIED_LOGGED
         if not sup.all():
             a[:, ~sup] = np.nan
         out[name] = a
@@ -662,6 +687,7 @@ class Recorder:
                     self.audit.attach_rerun(w)
             self.writers.append(self.audit)
         self.blocks: list[Trajectory] = []
+        self._sample_blocks: list[SampleBlock] = []
         self._opened: list = []
         self._open = False
         self._closed = False
@@ -727,9 +753,30 @@ class Recorder:
         self.samples_written += block.n_samples
         return block
 
+    def sample_block(self, capacity: int = 256,
+                     fields=("position", "quat_wxyz", "velocity", "angular_velocity")) -> "SampleBlock":
+        """A :class:`SampleBlock` of ``capacity`` preallocated sample rows that writes itself to
+        this recorder when full (and on :meth:`close`): the per-sample fast path. ``fields``:
+        the state arrays the writer fills (any that :func:`build_block` takes: ``rotation``
+        as well as ``quat_wxyz`` skips the conversion, ``linear_momentum`` /
+        ``angular_momentum`` instead of the velocities skip the products)."""
+        if self.model is None:
+            raise RecordError("no body table: give Recorder(model, ...) before sample_block()")
+        blk = SampleBlock(self, int(capacity), tuple(fields))
+        self._sample_blocks.append(blk)
+        return blk
+
     def close(self, truncated: bool = False, reason: str | None = None) -> None:
         if self._closed:
             return
+        if not self.failed:
+            for blk in self._sample_blocks:
+                try:
+                    blk.flush()
+                except BaseException:  # noqa: BLE001 - recorded in self.failed; close the logs
+                    truncated = True
+                    reason = reason or self.failed
+                    break
         self._closed = True
         self._truncated = truncated
         err = None
@@ -761,6 +808,105 @@ class Recorder:
         return traj
 
 
+#: the state arrays build_block takes, with their trailing shapes per body
+_STATE_TRAILS = {"position": (3,), "quat_wxyz": (4,), "quat_xyzw": (4,), "rotation": (3, 3),
+                 "velocity": (3,), "linear_momentum": (3,), "angular_velocity": (3,),
+                 "angular_momentum": (3,)}
+
+
+class SampleBlock:
+    """Preallocated rows for recording one sample at a time at the cost of a copy.
+
+    Arrays (C = capacity rows, N bodies; world frame, the units of :func:`build_block`):
+    ``t`` (C,), ``step`` (C,) int64, the state ``fields`` (default ``position`` (C, N, 3),
+    ``quat_wxyz`` (C, N, 4), ``velocity`` (C, N, 3), ``angular_velocity`` (C, N, 3); also
+    ``rotation`` (C, N, 3, 3), ``linear_momentum``, ``angular_momentum``), and one array per per-interval
+    channel the body table declares (``impulse_contact_linear`` (C, N, 3), ``work_actuator``
+    (C, N), ...), zero in a fresh row so that a writer can accumulate into it step by step.
+
+    Per sample::
+
+        r = blk.row()                          # the next free row
+        blk.t[r] = d.time; blk.step[r] = k
+        np.copyto(blk.position[r], x)          # or an engine call with out=blk.position[r]
+        ...                                    # quat_wxyz, velocity, angular_velocity, intervals
+        blk.add_contacts(body_a=..., ...)      # optional: this sample's contact rows
+        blk.commit()                           # when the block is full: one Recorder.write
+
+    Everything per block (the derived channels, the encoding, the writers) is compiled or
+    vectorized and runs once per ``capacity`` samples; each flush hands fresh arrays to the
+    recorder (no copy: a kept block stays valid). :meth:`flush` writes a partial block;
+    :meth:`Recorder.close` flushes every block it handed out."""
+
+    def __init__(self, rec: "Recorder", capacity: int,
+                 fields=("position", "quat_wxyz", "velocity", "angular_velocity")):
+        if capacity < 1:
+            raise RecordError(f"sample_block: capacity = {capacity}, expected >= 1")
+        bad = sorted(set(fields) - set(_STATE_TRAILS))
+        if bad or "position" not in fields:
+            raise RecordError(f"sample_block: fields {list(fields)}, expected position and some of "
+                              f"{', '.join(k for k in _STATE_TRAILS if k != 'position')}")
+        from rblog.record._common import run_interval_channels
+
+        self._fields = tuple(fields)
+        self._rec = rec
+        self.capacity = capacity
+        self._n_bodies = rec.model.n_bodies
+        self._interval = run_interval_channels(rec.model)
+        self.n = 0
+        self._new()
+
+    def _new(self):
+        c, n = self.capacity, self._n_bodies
+        self.t = np.zeros(c)
+        self.step = np.zeros(c, np.int64)
+        for name in self._fields:
+            setattr(self, name, np.zeros((c, n, *_STATE_TRAILS[name])))
+        for name in self._interval:
+            setattr(self, name, np.zeros((c, n, *INTERVAL_CHANNELS[name])))
+        self._contacts: list[dict] = []
+
+    def row(self) -> int:
+        """Index of the row the next sample goes in (flushes first if the block is full)."""
+        if self.n >= self.capacity:
+            self.flush()
+        return self.n
+
+    def add_contacts(self, **rows) -> None:
+        """Contact rows of the sample being filled (the fields of :func:`make_contacts`;
+        ``step`` defaults to that sample's ``step``)."""
+        if "step" not in rows:
+            k = len(np.atleast_1d(np.asarray(rows.get("body_a", ()))))
+            rows["step"] = np.full(k, self.step[self.n], np.int64)
+        self._contacts.append(rows)
+
+    def commit(self) -> None:
+        """The row :meth:`row` returned is filled: count it, and write the block when full."""
+        self.n += 1
+        if self.n >= self.capacity:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the filled rows (if any) through the recorder and start a fresh block."""
+        k = self.n
+        if not k:
+            return
+        arrays = dict(t=self.t[:k], step=self.step[:k])
+        for name in (*self._fields, *self._interval):
+            arrays[name] = getattr(self, name)[:k]
+        if self._contacts:
+            keys = set(self._contacts[0])
+            if any(set(c) != keys for c in self._contacts):
+                raise RecordError("sample_block.add_contacts: every call of a block must give the "
+                                  f"same fields (first: {', '.join(sorted(keys))})")
+            arrays["contacts"] = {key: np.concatenate([
+                np.asarray(c[key]).reshape((-1, 3) if key in _CONTACT_VECTORS else (-1,))
+                for c in self._contacts]) for key in keys}
+        self.n = 0
+        self._new()
+        self._rec.write(**arrays)
+
+
 def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
                            combine_friction: str = "geometric", combine_restitution: str = "max",
                            **arrays) -> Trajectory:
@@ -780,5 +926,6 @@ def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
 #: scalar-first quaternions -> body->world matrices (re-exported for writers)
 quat_to_matrix = quat_wxyz_to_matrix
 
-__all__ = ["CONTACT_ROWS_SEPARATION", "KIND_VALUES", "Recorder", "RecordError", "body_table", "build_block", "make_contacts",
+__all__ = ["CONTACT_ROWS_SEPARATION", "KIND_VALUES", "Recorder", "RecordError", "SampleBlock",
+           "body_table", "build_block", "make_contacts",
            "trajectory_from_arrays", "matrix_to_quat", "quat_to_matrix"]
