@@ -59,9 +59,11 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
     link frame, about its centre of mass); a row's net joint impulse is its own minus those of
     its children moved onto it. Joint motors (pybullet's default velocity motors included) act
     across the joint and are inside it: ``impulse_actuator`` is 0.
-  - missing (``body_impulse_supplied`` False, named in ``engine_settings["missing"]``): contacts,
-    joints and damping of maximal-coordinates bodies (pybullet exposes only their base, and
-    reports the contacts of their hidden links on it); joints without ``joint_sensors``.
+  - ``body_impulse_supplied``: logged as above; none for the actuator (the motors act inside
+    the joints), the joint of a body without joints and the damping of a maximal-coordinates body
+    (measured: no damping); missing (named in ``engine_settings["missing"]``): contacts and joints
+    of a maximal-coordinates body (pybullet exposes only its base and reports the contacts of its
+    hidden links on it), joints without ``joint_sensors``, applied loads with ``applied=False``.
 * **substeps**: with ``numSubSteps`` > 1 pybullet reports the last substep's contact forces only:
   contacts are marked missing and no rows are logged.
 """
@@ -72,6 +74,7 @@ import numpy as np
 
 from rblog.adapters import AdapterError, _gather, require
 from rblog.adapters._common import quat_mul
+from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE
 from rblog.contract.orientation import quat_wxyz_to_matrix
 
 #: pybullet's default linear and angular damping of a multibody (btMultiBody: 0.04f, a float32)
@@ -83,6 +86,8 @@ FILTER_DYNAMIC = (1, -1)
 FILTER_STATIC = (2, -1 ^ 2)
 #: the contact columns read from each getContactPoints row (indices into pybullet's tuple)
 IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint")
+#: body_impulse_supplied codes
+MISSING, LOGGED, NONE = SUPPLIED_MISSING, SUPPLIED_LOGGED, SUPPLIED_NONE
 
 CONTACT_ROWS = {
     "separation": "before the step (contactDistance: the manifold refreshed at its start)",
@@ -144,7 +149,7 @@ class World:
         self.mass: list[float] = []
         self.inertia: list = []
         self.damping: list[tuple[float, float]] = []
-        self.supplied: list[list[bool]] = []
+        self.supplied: list[list[int]] = []    # SUPPLIED_* codes in IMPULSE_KINDS order
         self.joints = {k: [] for k in ("name", "body", "type", "anchor_body", "anchor_parent",
                                        "axis_body", "axis_parent", "range")}
         self.geoms = {k: [] for k in ("name", "body", "type", "size", "pos_body", "quat_wxyz_body",
@@ -289,10 +294,11 @@ def inspect(client: int = 0, *, damping=None, joint_sensors: bool = True,
             w.mass.append(mass)
             w.inertia.append(np.array(info[2], np.float64))
             w.damping.append(kd)
-            supplied = {"contact": True, "applied": applied, "passive": True, "actuator": True,
-                        "joint": nj == 0 or joint_sensors}
-            if body_type != 2:
-                supplied.update(contact=False, joint=False)
+            supplied = {"contact": LOGGED, "applied": LOGGED if applied else MISSING,
+                        "passive": LOGGED, "actuator": NONE,
+                        "joint": NONE if nj == 0 else LOGGED if joint_sensors else MISSING}
+            if body_type != 2:  # hidden links: their contacts and joints act on it unseen
+                supplied.update(contact=MISSING, joint=MISSING, passive=NONE)
                 for k in ("contact", "joint", "geoms"):
                     w.missing.setdefault(k, []).append(label)
             else:
@@ -317,7 +323,8 @@ def inspect(client: int = 0, *, damping=None, joint_sensors: bool = True,
             w.mass.append(lmass)
             w.inertia.append(np.array(li[2], np.float64))
             w.damping.append(kd)
-            w.supplied.append([True, applied, True, True, bool(joint_sensors)])
+            w.supplied.append([LOGGED, LOGGED if applied else MISSING, LOGGED, NONE,
+                               LOGGED if joint_sensors else MISSING])
             rows.append(row)
             if joint_sensors:
                 call("enableJointForceTorqueSensor", bid, j, True, what=f"{link}: joint sensor")
@@ -539,7 +546,7 @@ def body_table(world: World, gravity, impulses=None):
                       axis_parent=np.array(jt["axis_parent"]), range=np.array(jt["range"]),
                       name=jt["name"])
     n = world.n
-    supplied = np.array(world.supplied, bool).reshape(n, len(IMPULSE_KINDS)) if impulses is None \
+    supplied = np.array(world.supplied, np.int64).reshape(n, len(IMPULSE_KINDS)) if impulses is None \
         else impulses
     return table(name=list(world.name), mass=np.array(world.mass, float).reshape(n),
                  inertia_diag=np.array(world.inertia, float).reshape(n, 3), kind=list(world.kind),
@@ -582,12 +589,13 @@ class PybulletRecorder:
         engine = settings(self.client)
         self.dt = float(engine.get("fixedTimeStep", 1.0 / 240.0))
         substeps = int(engine.get("numSubSteps", 0) or 0)
-        sup = np.array(world.supplied, bool).reshape(world.n, len(IMPULSE_KINDS))
+        sup = np.array(world.supplied, np.int64).reshape(world.n, len(IMPULSE_KINDS))
         if substeps > 1:
             # pybullet reports the last substep's contact forces and joint reactions only, and
             # damping acts at every substep's velocities, which it does not report
             for k in ("contact", "passive", "joint"):
-                sup[:, IMPULSE_KINDS.index(k)] = False
+                col = sup[:, IMPULSE_KINDS.index(k)]
+                col[col == LOGGED] = MISSING
                 world.missing.setdefault(k, []).extend(world.name)
             engine["contact_rows"] = {"separation": f"no rows logged: numSubSteps {substeps} > 1, "
                                                     "pybullet reports the last substep's forces only"}
@@ -600,7 +608,7 @@ class PybulletRecorder:
         params = self.pb.getPhysicsEngineParameters(physicsClientId=self.client)
         gravity = [params.get(f"gravityAcceleration{c}", 0.0) for c in "XYZ"]
         self.model = body_table(world, gravity, sup)
-        self.kinds = [k for j, k in enumerate(IMPULSE_KINDS) if sup[:, j].any()]
+        self.kinds = [k for j, k in enumerate(IMPULSE_KINDS) if (sup[:, j] == LOGGED).any()]
         self.recorder = Recorder(self.model, rrd=rrd, mcap=mcap, dt=self.dt,
                                  writer=writer or f"pybullet {engine['version']} via rblog.adapters",
                                  integrator="default", log_every=self.log_every,

@@ -1,5 +1,5 @@
-"""rblog.adapters.pybullet on worlds built by hand: a bouncing ball and a sliding box (rblog.check's
-verdicts against numpy on pybullet's states), every shape pybullet makes, Bullet's damping against
+"""rblog.adapters.pybullet on worlds built by hand: a bouncing ball and a sliding box (against
+numpy on pybullet's states and Coulomb's law), every shape pybullet makes, Bullet's damping against
 its closed form, applied loads, joints against the URDF and their own invariants, strides, and the
 one-line errors."""
 
@@ -10,8 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-import rblog
 
 pb = pytest.importorskip("pybullet")
 pybullet_data = pytest.importorskip("pybullet_data")
@@ -136,6 +134,11 @@ def test_damping_is_bullets_closed_form(client):
     want_a = -np.einsum("tij,tj->ti", r[:-1], inertia * w_body) * \
         (k + k * np.linalg.norm(w[:-1], axis=1))[:, None] * DT
     np.testing.assert_allclose(ang[1:, 0], want_a, rtol=1e-12, atol=1e-18)
+    # what is left is Bullet's free-flight drift (its explicit gyroscopic term): measured
+    # 2.3e-6 |L| per step, against the damping's 1.9e-4 |L| per step
+    drift = np.abs(np.diff(lmom, axis=0) - ang[1:, 0]).max() / np.abs(lmom).max()
+    assert drift < 1e-5
+    assert np.abs(np.diff(lmom, axis=0)).max() / np.abs(lmom).max() > 1e-4
 
 
 def test_user_damping_is_declared(client):
@@ -181,7 +184,7 @@ def test_applied_loads(client):
     assert np.abs(res[:10]).max() < BALANCE_NS
     np.testing.assert_allclose(res[10:], np.tile(force * DT, (10, 1)), rtol=1e-9)
     rec = PybulletRecorder(client, applied=False)
-    assert not rec.model.body_impulse_supplied[:, 1].any()
+    assert (rec.model.body_impulse_supplied[:, 1] == 0).all()  # applied: missing
     rec.close()
 
 
@@ -321,8 +324,8 @@ def test_maximal_coordinates_recorded_and_missing_named():
     assert es["missing"] == {"contact": ["body1/base_link"], "geoms": ["body1/base_link"],
                              "joint": ["body1/base_link"]}
     assert "useMaximalCoordinates" in es["maximal_coordinates"]
-    sup = rec.model.body_impulse_supplied[0]
-    assert sup.tolist() == [False, True, True, True, False]
+    # contact missing, applied logged, passive none (no damping), actuator none, joint missing
+    assert rec.model.body_impulse_supplied[0].tolist() == [0, 1, 2, 2, 0]
 
 
 def test_unsupported_shape_is_one_line(client):
@@ -345,16 +348,3 @@ def test_only_static_geometry_is_one_line(client):
 def test_bad_client_is_one_line():
     with pytest.raises(AdapterError, match="rblog.adapters.pybullet"):
         PybulletRecorder(12345)
-
-
-def test_check_passes_a_resting_jenga_tower():
-    cid = pb.connect(pb.DIRECT)
-    try:
-        load_shipped("jenga", cid)
-        rec = PybulletRecorder(cid, keep=True, log_every=10)
-        rec.step(240)
-        rec.close()
-    finally:
-        pb.disconnect(physicsClientId=cid)
-    res = rblog.check(rec.trajectory, only=["momentum"])
-    assert all(r.passed for r in res), [r.reason for r in res]
