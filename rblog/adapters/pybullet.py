@@ -2,13 +2,13 @@
 
 Two lines::
 
-    rec = rblog.adapters.pybullet.PybulletRecorder(client, mcap="run.mcap", log_every=10)
+    rec = rblog.adapters.pybullet.PybulletRecorder(client, mcap="run.mcap", every=10)
     for _ in range(n): p.stepSimulation(physicsClientId=client); rec()   # or: rec.step()
     rec.close()                                      # or `with`; rblog.check(rblog.load(...))
 
 ``rec()`` must follow every ``stepSimulation``: pybullet has no hook into its step, so the
 recorder reads the state and the contacts after each step, accumulates that step's impulses and
-writes a sample every ``log_every`` calls (``rec.step(k)`` steps the client and does the same).
+writes a sample every ``every`` calls (``rec.step(k)`` steps the client and does the same).
 Nothing between samples is lost: each sample carries the impulses of every step of its interval.
 
 pybullet's conventions and how they become the contract's (docs/log-format.md):
@@ -561,7 +561,7 @@ class PybulletRecorder:
     Args:
         client: the physicsClientId (0 for the first ``connect``).
         rrd, mcap, keep: where the log goes (as :class:`rblog.Recorder`).
-        log_every: write a sample every this many steps (each carries its interval's impulses).
+        every: write a sample every this many steps (each carries its interval's impulses).
         damping: {body id: (linear, angular)} where ``changeDynamics`` changed them.
         joint_sensors: enable joint force/torque sensors (joint impulses logged).
         applied: True if every applied load goes through :meth:`apply_external_force` /
@@ -571,16 +571,16 @@ class PybulletRecorder:
     The state now is sample 0 (step ``start_step``)."""
 
     def __init__(self, client: int = 0, *, rrd=None, mcap=None, writer: str | None = None,
-                 keep: bool | None = None, log_every: int = 1, start_step: int = 0,
+                 keep: bool | None = None, every: int = 1, start_step: int = 0,
                  damping=None, joint_sensors: bool = True, applied: bool = True,
                  block: int = 256, **recorder_options):
         from rblog.record.recorder import Recorder
 
         self.pb, self.client = _pb(), int(client)
-        if int(log_every) < 1:
-            raise AdapterError(f"rblog.adapters.pybullet: log_every={log_every!r}, expected an "
+        if int(every) < 1:
+            raise AdapterError(f"rblog.adapters.pybullet: every={every!r}, expected an "
                                "integer >= 1")
-        self.log_every = int(log_every)
+        self.every = int(every)
         self.world = world = inspect(self.client, damping=damping, joint_sensors=joint_sensors,
                                      applied=applied)
         if world.n == 0:
@@ -611,7 +611,7 @@ class PybulletRecorder:
         self.kinds = [k for j, k in enumerate(IMPULSE_KINDS) if (sup[:, j] == LOGGED).any()]
         self.recorder = Recorder(self.model, rrd=rrd, mcap=mcap, dt=self.dt,
                                  writer=writer or f"pybullet {engine['version']} via rblog.adapters",
-                                 integrator="default", log_every=self.log_every,
+                                 integrator="default", log_every=self.every,
                                  combine_friction="product", combine_restitution="product",
                                  engine_settings=engine, keep=keep, **recorder_options)
         self.recorder.open()
@@ -665,11 +665,11 @@ class PybulletRecorder:
 
     # -- stepping --------------------------------------------------------------------------------
     def __call__(self) -> None:
-        """Account for the ``stepSimulation`` just taken; a sample every ``log_every`` calls."""
+        """Account for the ``stepSimulation`` just taken; a sample every ``every`` calls."""
         self.stepper.after_step()
         self.step_count += 1
         self._since += 1
-        if self._since >= self.log_every:
+        if self._since >= self.every:
             self._sample(self.stepper.contact_rows(self.step_count))
 
     record = __call__

@@ -296,7 +296,7 @@ def test_stride_sums_the_steps():
         cid = pb.connect(pb.DIRECT)
         try:
             load_shipped("domino", cid)
-            rec = PybulletRecorder(cid, keep=True, log_every=stride)
+            rec = PybulletRecorder(cid, keep=True, every=stride)
             rec.step(60)
             rec.close()
             out.append(rec.trajectory)

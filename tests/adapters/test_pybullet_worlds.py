@@ -66,7 +66,7 @@ def record(name, stride):
     cid = pb.connect(pb.DIRECT)
     try:
         load_shipped(name, cid)
-        rec = PybulletRecorder(cid, keep=True, log_every=stride)          # line 1
+        rec = PybulletRecorder(cid, keep=True, every=stride)          # line 1
         rows = list(rec.world.rows)
         own = {"pose": [], "v": []}
 
