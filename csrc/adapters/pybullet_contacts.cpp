@@ -70,9 +70,10 @@ i64 row_of(const V2<i64>& table, i64 body, i64 link) {
 
 }  // namespace
 
-// Adds every point's impulse into lin, ang (N, 3): returns the number of points.
+// Adds every point's impulse into lin, ang (N, 3). With rows_out (P, 14) given (not None), the
+// same pass writes the contract's contact rows (see rows below) and returns how many; else -1.
 static i64 accumulate(nb::handle points, nb::handle row_table, nb::handle x0_h, double dt,
-                      nb::handle lin_h, nb::handle ang_h) {
+                      nb::handle lin_h, nb::handle ang_h, nb::handle rows_out) {
     V2<i64> table = v2<i64>(row_table, "row_of");
     V2<double> x0 = v2<double>(x0_h, "x0");
     V2<double> lin = v2<double>(lin_h, "lin");
@@ -81,6 +82,14 @@ static i64 accumulate(nb::handle points, nb::handle row_table, nb::handle x0_h, 
         throw nb::type_error("accumulate: x0, lin, ang must be (N, 3) alike");
     Seq pts(points);
     const Py_ssize_t n = pts.size();
+    const bool with_rows = !rows_out.is_none();
+    V2<double> out;
+    if (with_rows) {
+        out = v2<double>(rows_out, "rows_out");
+        if (out.n0 < n || out.n1 != 14)
+            throw nb::type_error(("rows_out must be (>= " + std::to_string(n) + ", 14)").c_str());
+    }
+    i64 k = 0;
     for (Py_ssize_t i = 0; i < n; ++i) {
         PyObject* p = point_at(pts.fast, i);
         const i64 a = row_of(table, (i64)num(p, 1, i), (i64)num(p, 3, i));
@@ -108,8 +117,24 @@ static i64 accumulate(nb::handle points, nb::handle row_table, nb::handle x0_h, 
             ang(b, 1) -= r[2] * f[0] - r[0] * f[2];
             ang(b, 2) -= r[0] * f[1] - r[1] * f[0];
         }
+        if (with_rows) {
+            const double dist = num(p, 8, i);
+            if (fn <= 0.0 && dist > 0.0) continue;  // speculative
+            const double s = a >= 0 ? 1.0 : -1.0;  // B becomes body_a: normal and friction flip
+            double* r = out.row(k++);
+            r[0] = (double)(a >= 0 ? a : b);
+            r[1] = (double)(a >= 0 ? b : -1);
+            for (int c = 0; c < 3; ++c) {
+                r[2 + c] = 0.5 * (pa[c] + pb[c]);
+                r[5 + c] = s * nrm[c];
+                r[11 + c] = s * (f1 * d1[c] + f2 * d2[c]) * dt;
+            }
+            r[8] = dist;
+            r[9] = fn * dt;
+            r[10] = 0.0;
+        }
     }
-    return (i64)n;
+    return with_rows ? k : -1;
 }
 
 // The points as rows (P, 23): bodyA, bodyB, linkA, linkB, distance, normal force, lateral 1,
@@ -129,64 +154,21 @@ static void columns(nb::handle points, nb::handle out_h) {
     }
 }
 
-// The contract's contact rows of the points (out (P, 14), rows [0, k) filled, k returned):
-// body_a, body_b (rows; -1 = static geometry), point (3, the midpoint of positionOnA and
-// positionOnB), normal (3, from B into A), separation (contactDistance), normal impulse, friction
-// impulse (3, on A), all N s = force x dt. A point whose A is not recorded is swapped (B becomes
-// body_a, the normal and friction flip); points with neither recorded, and speculative ones
-// (no normal force, positive distance), are dropped.
-static i64 rows(nb::handle points, nb::handle row_table, double dt, nb::handle out_h) {
-    V2<i64> table = v2<i64>(row_table, "row_of");
-    V2<double> out = v2<double>(out_h, "out");
-    Seq pts(points);
-    const Py_ssize_t n = pts.size();
-    if (out.n0 < n || out.n1 != 14)
-        throw nb::type_error(("rows: out must be (>= " + std::to_string(n) + ", 14)").c_str());
-    i64 k = 0;
-    for (Py_ssize_t i = 0; i < n; ++i) {
-        PyObject* p = point_at(pts.fast, i);
-        i64 a = row_of(table, (i64)num(p, 1, i), (i64)num(p, 3, i));
-        i64 b = row_of(table, (i64)num(p, 2, i), (i64)num(p, 4, i));
-        const double dist = num(p, 8, i), fn = num(p, 9, i);
-        if ((a < 0 && b < 0) || (fn <= 0.0 && dist > 0.0)) continue;
-        double pa[3], pb[3], nrm[3], d1[3], d2[3];
-        vec(p, 5, i, pa);
-        vec(p, 6, i, pb);
-        vec(p, 7, i, nrm);
-        vec(p, 11, i, d1);
-        vec(p, 13, i, d2);
-        const double f1 = num(p, 10, i), f2 = num(p, 12, i);
-        double s = 1.0;
-        if (a < 0) {
-            a = b;
-            b = -1;
-            s = -1.0;
-        }
-        double* r = out.row(k++);
-        r[0] = (double)a;
-        r[1] = (double)b;
-        for (int c = 0; c < 3; ++c) {
-            r[2 + c] = 0.5 * (pa[c] + pb[c]);
-            r[5 + c] = s * nrm[c];
-            r[11 + c] = s * (f1 * d1[c] + f2 * d2[c]) * dt;
-        }
-        r[8] = dist;
-        r[9] = fn * dt;
-        r[10] = 0.0;
-    }
-    return k;
-}
+// The contract's contact rows (accumulate's rows_out, P x 14): body_a, body_b (rows; -1 =
+// static geometry), point (3, the midpoint of positionOnA and positionOnB), normal (3, from B
+// into A), separation (contactDistance), normal impulse, 0, friction impulse (3, on A), all
+// N s = force x dt. A point whose A is not recorded is swapped (B becomes body_a, the normal and
+// friction flip); points with neither recorded, and speculative ones (no normal force, positive
+// distance), get no row.
 
 void bind_pybullet_contacts(nb::module_& m) {
-    m.def("pybullet_contacts_rows", &rows, nb::arg("points"), nb::arg("row_of"), nb::arg("dt"),
-          nb::arg("out"), "The contract's contact rows of the points into out (P, 14): "
-          "body_a, body_b, point (3), normal (3), separation, normal impulse, 0, friction "
-          "impulse (3); returns how many rows (see pybullet_contacts.cpp).");
     m.def("pybullet_contacts_accumulate", &accumulate, nb::arg("points"), nb::arg("row_of"),
           nb::arg("x0"), nb::arg("dt"), nb::arg("lin"), nb::arg("ang"),
+          nb::arg("rows_out").none() = nb::none(),
           "Add each getContactPoints() point's impulse (N s) and its moment about the row's "
           "centre of mass x0 (N m s) into lin, ang (N, 3); row_of (B, W) int64 maps (body, "
-          "link + 1) to a row, -1 = not recorded. Returns the number of points.");
+          "link + 1) to a row, -1 = not recorded. With rows_out (P, 14) float64, also the "
+          "contract's contact rows: returns their number (else -1).");
     m.def("pybullet_contacts_columns", &columns, nb::arg("points"), nb::arg("out"),
           "Fill out (P, 23) float64 with the points' numbers (see pybullet_contacts.cpp).");
 }

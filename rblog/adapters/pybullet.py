@@ -399,7 +399,7 @@ class Stepper:
                                                   "applied_linear", "applied_angular")}
         self.pending = (np.zeros((n, 3)), np.zeros((n, 3)))  # applied before the next step
         self.pending_any = False
-        self.points, self.points_dt = (), self.dt  # the last step's getContactPoints()
+        self.rows_out = None  # the last logged step's contact rows (P, 14)
         self.state = self.read()
 
     def read(self):
@@ -427,8 +427,9 @@ class Stepper:
             self.cached = (b[:, 0:3], b[:, 3:7])
         return tuple(np.ascontiguousarray(a[:, k:k + m]) for k, m in ((0, 3), (3, 4), (7, 3), (10, 3)))
 
-    def after_step(self) -> None:
-        """Account for the step just taken (call once after every stepSimulation)."""
+    def after_step(self, rows: bool = True) -> None:
+        """Account for the step just taken (call once after every stepSimulation); ``rows``:
+        keep its contact rows for :meth:`contact_rows`."""
         x0, q0, v0, w0 = self.state
         dt, acc, n = self.dt, self.acc, self.world.n
         # passive: Bullet's multibody damping at the step's initial velocities (compiled)
@@ -441,8 +442,9 @@ class Stepper:
             fl[:] = 0.0
             fa[:] = 0.0
             self.pending_any = False
+        self.rows_out = None
         if self.use_contacts:
-            self._contacts(x0, n, dt)
+            self._contacts(x0, n, dt, rows)
         self.state = self.read()
         if self.use_joints:
             # the reactions are in the child's frame of Bullet's cached link transforms at the
@@ -451,25 +453,24 @@ class Stepper:
             x, q = self.cached
             self._joints(x, _mat_xyzw(q), n, dt)
 
-    def _contacts(self, x0, n, dt):
-        # compiled: one pass over pybullet's tuples, no Python object per number
-        self.points = self.pb.getContactPoints(physicsClientId=self.client)
-        self.points_dt = dt
-        _gather.pybullet_contacts_accumulate(self.points, self.row_of, x0, dt,
-                                             self.acc["contact_linear"], self.acc["contact_angular"])
+    def _contacts(self, x0, n, dt, rows: bool):
+        # compiled: one pass over pybullet's tuples (no Python object per number), the contact
+        # rows in the same pass when the step is logged
+        pts = self.pb.getContactPoints(physicsClientId=self.client)
+        out = np.empty((len(pts), 14)) if rows else None
+        k = _gather.pybullet_contacts_accumulate(pts, self.row_of, x0, dt, self.acc["contact_linear"],
+                                                 self.acc["contact_angular"], out)
+        self.rows_out = out[:k] if rows and k > 0 else None
 
     def contact_rows(self, step: int):
-        """The last step's contact rows in the contract's convention (dict for Recorder.write, or
-        None): body_b = -1 for static geometry (A and B swapped so that body_a is a row, signs
-        flipped); speculative points (no force, positive distance) dropped."""
-        pts = self.points
-        if not pts:
+        """The contact rows of the last step taken with ``after_step(rows=True)``, in the
+        contract's convention (dict for Recorder.write, or None): body_b = -1 for static geometry
+        (A and B swapped so that body_a is a row, signs flipped); speculative points (no force,
+        positive distance) dropped."""
+        out = self.rows_out
+        if out is None:
             return None
-        out = np.empty((len(pts), 14))
-        k = _gather.pybullet_contacts_rows(pts, self.row_of, self.points_dt, out)
-        if k == 0:
-            return None
-        out = out[:k]
+        k = len(out)
         ids = out[:, 0:2].astype(np.int64)
         return dict(step=np.full(k, int(step), np.int64), body_a=ids[:, 0], body_b=ids[:, 1],
                     point=out[:, 2:5], normal=out[:, 5:8], separation=out[:, 8],
@@ -666,10 +667,11 @@ class PybulletRecorder:
     # -- stepping --------------------------------------------------------------------------------
     def __call__(self) -> None:
         """Account for the ``stepSimulation`` just taken; a sample every ``every`` calls."""
-        self.stepper.after_step()
-        self.step_count += 1
         self._since += 1
-        if self._since >= self.every:
+        sample = self._since >= self.every
+        self.stepper.after_step(rows=sample)
+        self.step_count += 1
+        if sample:
             self._sample(self.stepper.contact_rows(self.step_count))
 
     record = __call__

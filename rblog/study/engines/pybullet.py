@@ -212,7 +212,7 @@ class PybulletRun:
         the step's impulses (contact, passive, applied) to those of the interval."""
         pb, cid = self.pb, self.cid
         model, st = self.scene.model, self.stepper
-        for _ in range(int(k)):
+        for j in range(int(k)):
             for i in self.loaded:
                 bid = self.ids[i]
                 f = model.body_force_world[i]
@@ -224,7 +224,7 @@ class PybulletRun:
                 st.pending[1][i] += model.body_torque_world[i] * self.dt
                 st.pending_any = True
             pb.stepSimulation(physicsClientId=cid)
-            st.after_step()
+            st.after_step(rows=j == int(k) - 1)  # the contact rows of the logged step
 
     def state(self):
         """(position, quat_wxyz, velocity, angular velocity), world frame, as the adapter reads
