@@ -348,3 +348,25 @@ def test_only_static_geometry_is_one_line(client):
 def test_bad_client_is_one_line():
     with pytest.raises(AdapterError, match="rblog.adapters.pybullet"):
         PybulletRecorder(12345)
+
+
+@pytest.mark.parametrize("every", [1, 10])
+def test_rblog_run_engine_pybullet_logs_the_impulses(every):
+    """``rblog run --engine pybullet`` reads Bullet through the adapter: each interval's logged
+    contact + applied + passive impulses and m g dt make each body's momentum change (pybullet's
+    velocities, logged), on the box_stack sample."""
+    from rblog.engine.scene import load_scene
+    from rblog.study.engines import run_engine
+    from tests.conftest import SAMPLES_DIR
+
+    scene = load_scene(SAMPLES_DIR / "box_stack.toml")
+    _, tr = run_engine(scene, "pybullet", duration=0.5, log_every=every, keep=True)
+    m = tr.model
+    assert (m.body_impulse_supplied == np.array([1, 1, 1, 2, 2])).all()
+    mass = m.body_mass[None, :, None]
+    dp = np.diff(mass * tr.velocity, axis=0) - mass * m.gravity * np.diff(tr.t)[:, None, None]
+    total = sum(tr.impulse(k)[0][1:] for k in ("contact", "applied", "passive"))
+    scale = np.abs(mass * tr.velocity).max() + np.abs(total).max()
+    # measured: 1.4e-15 relative at every step, 1.5e-15 at every 10th (Bullet's own numbers)
+    assert np.abs(dp - total).max() / scale < 1e-12
+    assert np.abs(tr.impulse("contact")[0]).max() > 0

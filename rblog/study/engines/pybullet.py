@@ -190,6 +190,9 @@ class PybulletRun:
                 raise EngineUnsupported("pybullet", "the scene's bodies as Bullet rows (the "
                                         "adapter read them in another order)")
             self.stepper = Stepper(world, cid, dt)
+            # per body: contact, applied (the scene's constant loads) and passive (damping 0 here,
+            # still logged) logged, actuator and joint none
+            self.impulse_supplied = np.tile(np.array([1, 1, 1, 2, 2], np.int64), (n, 1))
         except BaseException:
             pb.disconnect(physicsClientId=cid)
             raise
@@ -238,8 +241,8 @@ class PybulletRun:
 
     def impulses(self) -> dict:
         """The impulses (N s, N m s; world frame, about each centre of mass) summed over the steps
-        since the last call: {"impulse_contact_linear": (N, 3), ...} for contact, passive and
-        applied (every body supplies them: Bullet has no other load on a free body here)."""
+        since the last call: {"impulse_contact_linear": (N, 3), ...} for the kinds
+        ``impulse_supplied`` logs (contact, applied, passive)."""
         return {f"impulse_{k}": v for k, v in self.stepper.take().items()
                 if not k.startswith("joint")}
 
