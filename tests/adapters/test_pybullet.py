@@ -328,14 +328,16 @@ def test_maximal_coordinates_recorded_and_missing_named():
     assert rec.model.body_impulse_supplied[0].tolist() == [0, 1, 2, 2, 0]
 
 
-def test_unsupported_shape_is_one_line(client):
-    field = pb.createCollisionShape(pb.GEOM_HEIGHTFIELD, meshScale=[0.1, 0.1, 1],
-                                    heightfieldData=[0.0, 0.1] * 8, numHeightfieldRows=4,
-                                    numHeightfieldColumns=4, physicsClientId=client)
-    pb.createMultiBody(0, field, physicsClientId=client)
+def test_unsupported_shapes_are_one_line_naming_each(client):
+    for k in range(2):
+        field = pb.createCollisionShape(pb.GEOM_HEIGHTFIELD, meshScale=[0.1, 0.1, 1],
+                                        heightfieldData=[0.0, 0.1] * 8, numHeightfieldRows=4,
+                                        numHeightfieldColumns=4, physicsClientId=client)
+        pb.createMultiBody(0, field, basePosition=[k, 0, 0], physicsClientId=client)
     body(client, pb.GEOM_SPHERE, 1.0, [0, 0, 1], 0.5, 0.5, radius=0.1)
-    with pytest.raises(AdapterError, match=r"^rblog\.adapters\.pybullet: body1/\w+: pybullet "
-                                           r"reports no collision shape data") as e:
+    with pytest.raises(AdapterError, match=r"^rblog\.adapters\.pybullet: the contract has no place "
+                                           r"for 2 element\(s\) of client \d+: body1/\w+: no "
+                                           r"collision shape data .*; body2/\w+: no collision") as e:
         PybulletRecorder(client)
     assert "\n" not in str(e.value)
 
