@@ -613,8 +613,8 @@ class PybulletRecorder:
                 col = sup[:, IMPULSE_KINDS.index(k)]
                 col[col == LOGGED] = MISSING
                 world.missing.setdefault(k, []).extend(world.name)
-            engine["contact_rows"] = {"separation": f"no rows logged: numSubSteps {substeps} > 1, "
-                                                    "pybullet reports the last substep's forces only"}
+            engine["contact_rows"] = {**CONTACT_ROWS, "logged": f"none: numSubSteps {substeps} > 1, "
+                                      "pybullet reports the last substep's forces only"}
         self.supplied = sup
         engine.update(missing={k: sorted(set(v)) for k, v in world.missing.items()},
                       collision_filter="Bullet's defaults (pybullet reports neither "

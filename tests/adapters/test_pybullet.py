@@ -372,3 +372,59 @@ def test_rblog_run_engine_pybullet_logs_the_impulses(every):
     # measured: 1.4e-15 relative at every step, 1.5e-15 at every 10th (Bullet's own numbers)
     assert np.abs(dp - total).max() / scale < 1e-12
     assert np.abs(tr.impulse("contact")[0]).max() > 0
+
+
+def test_contact_rows_carry_the_contact_impulse():
+    """At every step the logged contact rows (impulses on body_a, minus on body_b) sum per body
+    to the interval's contact impulse; speculative points (no force, apart) have no row."""
+    cid = pb.connect(pb.DIRECT)
+    try:
+        load_shipped("tray", cid)
+        rec = PybulletRecorder(cid, keep=True)
+        rec.step(150)
+        rec.close()
+    finally:
+        pb.disconnect(physicsClientId=cid)
+    tr = rec.trajectory
+    c = tr.contacts
+    j = c.normal_impulse[:, None] * c.normal + c.friction_impulse
+    want = np.zeros_like(tr.impulse("contact")[0])
+    np.add.at(want, (c.step, c.body_a), j)
+    keep = c.body_b >= 0
+    np.add.at(want, (c.step[keep], c.body_b[keep]), -j[keep])
+    # measured: 2.2e-19 N s (the rows and the channel sum the same products)
+    assert np.abs(want - tr.impulse("contact")[0]).max() < 1e-15
+    assert not ((c.normal_impulse == 0) & (c.separation > 0)).any()
+    assert len(c.step) > 100
+
+
+def test_substeps_mark_contacts_missing(client):
+    """With numSubSteps > 1 pybullet reports the last substep's forces only: contacts, damping
+    and joints are missing, and no contact rows are logged."""
+    pb.setPhysicsEngineParameter(numSubSteps=4, physicsClientId=client)
+    body(client, pb.GEOM_SPHERE, 1.0, [0, 0, 0.3], 0.5, 0.5, radius=0.05)
+    traj, _ = run(client, 300)
+    assert traj.contacts is None or len(traj.contacts.step) == 0
+    assert traj.model.body_impulse_supplied[0].tolist() == [0, 1, 0, 2, 2]
+    assert "numSubSteps 4" in traj.info.engine_settings["contact_rows"]["logged"]
+    assert traj.position[:, 0, 2].min() < 0.06  # it did touch the floor
+
+
+def test_applied_in_the_link_frame(client):
+    """LINK_FRAME: force and point in the body's frame, turned by its orientation."""
+    cube = body(client, pb.GEOM_BOX, 2.0, [0, 0, 5], 0.0, 0.5, halfExtents=[0.1, 0.2, 0.3])
+    q = pb.getQuaternionFromEuler([0.3, -0.2, 1.0])
+    pb.resetBasePositionAndOrientation(cube, [0, 0, 5], q, physicsClientId=client)
+    rec = PybulletRecorder(client, keep=True, damping={cube: (0.0, 0.0)})
+    v0 = np.array(pb.getBaseVelocity(cube, physicsClientId=client)[0])
+    rec.apply_external_force(cube, -1, [0.0, 0.0, 10.0], [0.1, 0.0, 0.0], pb.LINK_FRAME)
+    rec.step()
+    rec.close()
+    v1 = np.array(pb.getBaseVelocity(cube, physicsClientId=client)[0])
+    lin, ang = rec.trajectory.impulse("applied")
+    # pybullet's own response: m dv - m g dt is the applied impulse (no contact in flight)
+    np.testing.assert_allclose(lin[1, 0], 2.0 * (v1 - v0) - 2.0 * np.array([0, 0, -G]) * DT,
+                               rtol=1e-9, atol=1e-15)
+    r = np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3)
+    np.testing.assert_allclose(ang[1, 0], np.cross(r @ [0.1, 0, 0], r @ [0, 0, 10.0]) * DT,
+                               rtol=1e-12, atol=1e-18)
