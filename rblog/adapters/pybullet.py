@@ -445,6 +445,13 @@ class Stepper:
     def after_step(self, rows: bool = True) -> None:
         """Account for the step just taken (call once after every stepSimulation); ``rows``:
         keep its contact rows for :meth:`contact_rows`."""
+        try:
+            self._after_step(rows)
+        except self.pb.error as e:
+            raise AdapterError(f"rblog.adapters.pybullet: client {self.client} after a step: "
+                               f"pybullet: {e} (a body removed, or the client disconnected?)") from None
+
+    def _after_step(self, rows: bool) -> None:
         x0, q0, v0, w0 = self.state
         dt, acc, n = self.dt, self.acc, self.world.n
         # passive: Bullet's multibody damping at the step's initial velocities (compiled)

@@ -428,3 +428,13 @@ def test_applied_in_the_link_frame(client):
     r = np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3)
     np.testing.assert_allclose(ang[1, 0], np.cross(r @ [0.1, 0, 0], r @ [0, 0, 10.0]) * DT,
                                rtol=1e-12, atol=1e-18)
+
+
+def test_a_removed_body_is_one_line(client):
+    ball = body(client, pb.GEOM_SPHERE, 1.0, [0, 0, 1], 0.5, 0.5, radius=0.1)
+    rec = PybulletRecorder(client)
+    pb.removeBody(ball, physicsClientId=client)
+    pb.stepSimulation(physicsClientId=client)
+    with pytest.raises(AdapterError, match=r"client \d+ after a step: pybullet: .*a body removed"):
+        rec()
+    rec.close(truncated=True)
