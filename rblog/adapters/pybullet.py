@@ -631,7 +631,6 @@ class PybulletRecorder:
         params = self.pb.getPhysicsEngineParameters(physicsClientId=self.client)
         gravity = [params.get(f"gravityAcceleration{c}", 0.0) for c in "XYZ"]
         self.model = body_table(world, gravity, sup)
-        self.kinds = [k for j, k in enumerate(IMPULSE_KINDS) if (sup[:, j] == LOGGED).any()]
         self.recorder = Recorder(self.model, rrd=rrd, mcap=mcap, dt=self.dt,
                                  writer=writer or f"pybullet {engine['version']} via rblog.adapters",
                                  integrator="default", log_every=self.every,
@@ -640,7 +639,10 @@ class PybulletRecorder:
         self.recorder.open()
         self.stepper = Stepper(world, self.client, self.dt, contacts=substeps <= 1,
                                joints=joint_sensors and substeps <= 1)
-        self.block = _Block(world.n, self.kinds, int(block))
+        self.block = self.recorder.sample_block(capacity=int(block))
+        # (channel, accumulator) for every channel the body table logs (actuator: none)
+        self.channels = [(name, name[len("impulse_"):]) for name in vars(self.block)
+                         if name.startswith("impulse_")]
         self.step_count = int(start_step)
         self._since = 0
         self._sample(None)
@@ -705,10 +707,13 @@ class PybulletRecorder:
             self()
 
     def _sample(self, contacts) -> None:
+        """This step's state, its interval's impulses (then zeroed) and its contact rows into
+        the next row of the recorder's sample block (one Recorder.write per block)."""
         self._since = 0
         blk = self.block
         r = blk.row()
         x, q, v, w = self.stepper.state
+        blk.t[r] = self.step_count * self.dt
         blk.step[r] = self.step_count
         blk.position[r] = x
         blk.quat_wxyz[r, :, 0] = q[:, 3]
@@ -716,21 +721,17 @@ class PybulletRecorder:
         blk.velocity[r] = v
         blk.angular_velocity[r] = w
         acc = self.stepper.acc
-        for kind in self.kinds:
-            if kind == "actuator":
-                continue  # motors act through the joints (see the module docstring)
-            for part in ("linear", "angular"):
-                np.copyto(blk.channels[f"impulse_{kind}_{part}"][r], acc[f"{kind}_{part}"])
-                acc[f"{kind}_{part}"][:] = 0.0
+        for name, key in self.channels:
+            np.copyto(getattr(blk, name)[r], acc[key])
+        for a in acc.values():
+            a[:] = 0.0
         if contacts is not None:
-            blk.contacts.append(contacts)
-        if blk.full():
-            self.flush()
+            blk.add_contacts(**contacts)
+        blk.commit()
 
     def flush(self) -> None:
-        arrays = self.block.take(self.dt)
-        if arrays is not None:
-            self.recorder.write(**arrays)
+        """Write the samples gathered so far."""
+        self.block.flush()
 
     def close(self, truncated: bool = False, reason: str | None = None) -> None:
         try:
@@ -749,46 +750,6 @@ class PybulletRecorder:
     def trajectory(self):
         self.flush()
         return self.recorder.trajectory
-
-
-class _Block:
-    """Preallocated sample arrays (C samples) for one Recorder.write per block."""
-
-    def __init__(self, n: int, kinds, capacity: int):
-        self.capacity, self.n = capacity, 0
-        self.step = np.zeros(capacity, np.int64)
-        self.position = np.zeros((capacity, n, 3))
-        self.quat_wxyz = np.zeros((capacity, n, 4))
-        self.velocity = np.zeros((capacity, n, 3))
-        self.angular_velocity = np.zeros((capacity, n, 3))
-        self.channels = {f"impulse_{k}_{p}": np.zeros((capacity, n, 3))
-                         for k in kinds for p in ("linear", "angular")}
-        self.contacts: list[dict] = []
-
-    def row(self) -> int:
-        r = self.n
-        self.n += 1
-        for a in self.channels.values():
-            a[r] = 0.0
-        return r
-
-    def full(self) -> bool:
-        return self.n >= self.capacity
-
-    def take(self, dt: float):
-        k = self.n
-        if k == 0:
-            return None
-        out = dict(t=self.step[:k] * dt, step=self.step[:k].copy(), position=self.position[:k].copy(),
-                   quat_wxyz=self.quat_wxyz[:k].copy(), velocity=self.velocity[:k].copy(),
-                   angular_velocity=self.angular_velocity[:k].copy(),
-                   **{name: a[:k].copy() for name, a in self.channels.items()})
-        if self.contacts:
-            out["contacts"] = {key: np.concatenate([c[key] for c in self.contacts])
-                               for key in self.contacts[0]}
-        self.contacts = []
-        self.n = 0
-        return out
 
 
 #: pybullet_data worlds as shipped (the URDFs unchanged, pybullet's default damping left on)
