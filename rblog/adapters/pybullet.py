@@ -69,6 +69,8 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
     (measured: no damping); missing (named in ``engine_settings["missing"]``): contacts and joints
     of a maximal-coordinates body (pybullet exposes only its base and reports the contacts of its
     hidden links on it), joints without ``joint_sensors``, applied loads with ``applied=False``.
+* **sleeping** (``URDF_ENABLE_SLEEPING``, off by default): Bullet zeroes the velocities of a body
+  that falls asleep, with no impulse pybullet reports; such a log shows that change unexplained.
 * **substeps**: with ``numSubSteps`` > 1 pybullet reports the last substep's contact forces only:
   contacts are marked missing and no rows are logged.
 
