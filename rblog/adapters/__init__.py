@@ -8,7 +8,10 @@
   joint: ``mj_rnePostConstraint``) and every ``every``-th step logs a sample with the contacts.
   :func:`~rblog.adapters.mujoco.record_rollout` records the output of ``mujoco.rollout`` (no
   contacts, impulses marked missing).
-* ``pybullet``: :class:`~rblog.adapters.pybullet.PybulletRecorder`, the bodies of a client.
+* ``pybullet``: :class:`~rblog.adapters.pybullet.PybulletRecorder` records every base and link of
+  a client's bodies (multibodies on their joints; maximal coordinates as far as pybullet shows
+  them), every collision shape, and per step the contact, damping, applied and joint impulses;
+  ``rec()`` after each ``stepSimulation``, a sample every ``every`` steps.
 
 Geoms the contract has no shape for (capsules, cylinders, meshes, several geoms on one body) are
 recorded with ``body_shape = SHAPE_NONE`` (-1) and their inertia; restitution the engine does not

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -153,8 +153,11 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
     stride = resolve_log_every(dt, log_every, log_rate)
     n_total = max(1, int(round(duration / dt)))
     eng = Run(scene, dt, options)
+    # an engine that accounts for every step's impulses (PybulletRun) logs them per interval
+    supplied = getattr(eng, "impulse_supplied", None)
+    model = scene.model if supplied is None else replace(scene.model, body_impulse_supplied=supplied)
     try:
-        rec = Recorder(scene.model, rrd=rrd, mcap=mcap, dt=dt, writer=f"{engine} {eng.version}",
+        rec = Recorder(model, rrd=rrd, mcap=mcap, dt=dt, writer=f"{engine} {eng.version}",
                        integrator=eng.settings.get("integrator", ""), log_every=stride,
                        duration_s=n_total * dt, combine_friction="geometric",
                        combine_restitution="max", engine_settings=eng.settings,
@@ -170,7 +173,7 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
         n_contacts = 0
         with rec:
             buf = SampleStream(rec, block=per_block)  # writes a block every per_block samples
-            buf.add(0, *eng.state(), None)
+            buf.add(0, *eng.state(), None, None if supplied is None else eng.impulses())
             done = 0
             while done < n_total:
                 k = min(stride, n_total - done)
@@ -180,7 +183,7 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
                 done += k
                 c = eng.contacts(done)
                 n_contacts += 0 if c is None else len(c["step"])
-                buf.add(done, *eng.state(), c)
+                buf.add(done, *eng.state(), c, None if supplied is None else eng.impulses())
             buf.flush(dt)
         wall = time.perf_counter() - t_wall
     finally:
