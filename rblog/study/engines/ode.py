@@ -27,7 +27,9 @@ Translation (common part: rblog/study/engines/__init__.py):
 * stepping: ``dWorldStep`` (the default, ``stepper=world``: a direct LCP solve per island, its
   cost cubic in the island's constraint rows) or ``dWorldQuickStep`` (``stepper=quick``: SOR
   iterations, ``iterations``, ``w``); ``erp`` and ``cfm`` are the world's (ODE's defaults unless
-  given); the contact joints are emptied after each step.
+  given); the contact joints are emptied after each step. ``dWorldQuickStep`` shuffles its
+  constraint order with ODE's global ``dRand``, seeded with the scene's seed (0 without one) when
+  the run starts.
 * state and contacts: read by :mod:`rblog.adapters.ode` (``read_state``, ``ContactFeedback``),
   the one translation of ODE's conventions. The logged step's contact joints carry a
   ``dJointFeedback``: ``f1 x dt`` is the impulse on the joint's first body; separation is
@@ -108,6 +110,10 @@ class OdeRun:
         self.bounce_vel = (_number("bounce_vel", opts.pop("bounce_vel")) if "bounce_vel" in opts
                            else ContactParams().restitution_threshold_at(self.dt, accel))
         ode.dInitODE2(0)
+        # dWorldQuickStep reorders its constraints with ODE's one global generator: seeded per run,
+        # a scene's run is the same in any process whatever ran before it
+        self.rand_seed = int(scene.sim.seed or 0)
+        ode.dRandSetSeed(self.rand_seed)
         self.world = ode.dWorldCreate()
         self.space = ode.dHashSpaceCreate(None)
         self.group = ode.dJointGroupCreate(0)
@@ -177,7 +183,7 @@ class OdeRun:
                             "limit mu * normal force)",
             "gyroscopic": "on (ODE's default: explicit, inertia at the step's start)",
             "rotation_update": "infinitesimal (ODE's default: q += dt/2 (0, w) q, normalized)",
-            "space": "dHashSpace", "combine_native": "none (surface parameters per contact)",
+            "space": "dHashSpace", "rand_seed": self.rand_seed, "combine_native": "none (surface parameters per contact)",
             "material_translation": {"friction": "sqrt(mu_a mu_b) per contact",
                                      "restitution": "max(e_a, e_b) per contact"},
             "ignored_scene_tables": ["contact"] if scene.contact else [],
