@@ -13,8 +13,9 @@ ODE's conventions and how they become the contract's (docs/log-format.md):
 
 * **bodies**: ODE's API has no list of a world's bodies, so the recorder finds them through the
   geoms of ``space`` (nested spaces included): every body that owns a geom there is one rigid body
-  of the table, in the order of the space's geoms when the recorder is made (``bodies=`` gives the
-  list and order explicitly). Kinematic bodies and bodies on joints other than contacts are refused
+  of the table. ODE's spaces put a new geom at the front of their list, so the recorder reads the
+  list backwards: before the first ``dSpaceCollide`` (which moves geoms that moved to the front)
+  that is the order the geoms were created in. ``bodies=`` gives the list and order explicitly. Kinematic bodies and bodies on joints other than contacts are refused
   (:class:`~rblog.adapters.AdapterError`, naming the joint type): the contract holds free rigid
   bodies and static geometry only.
 * **frames and mass**: an ODE body's position (``dBodyGetPosition``) is its centre of mass (ODE
@@ -43,7 +44,7 @@ ODE's conventions and how they become the contract's (docs/log-format.md):
   normal, negated when ``g1`` is static), ``separation = -depth`` (before the step), impulse =
   ``f1 x dt`` split into its normal and tangential parts. With ``dWorldStep`` and
   ``dWorldQuickStep`` the velocity update is ``v += dt M^-1 (f_ext + sum f)``, so each body's
-  rows sum to its momentum change minus (m g + F) dt to round-off (tests/adapters/test_ode.py).
+  rows sum to its momentum change minus (m g + F) dt to round-off (tests/adapters/test_ode_adapter.py).
 * **materials**: ODE has none per geom: the near callback sets each contact's ``dSurfaceParameters``
   (``mu``, ``bounce``). The recorder logs the per-body friction and restitution the caller
   states (``friction=``, ``restitution=``, ``ground_friction=`` ...), NaN (unknown, not judged)
@@ -130,10 +131,11 @@ def principal(mass) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _space_geoms(space) -> list:
-    """Every geom of ``space`` and of the spaces nested in it, in their list order."""
+    """Every geom of ``space`` and of the spaces nested in it, the list read backwards (ODE adds
+    a geom at the front: in the order of creation until a collision pass reorders them)."""
     ode = _ode()
     out = []
-    for k in range(ode.dSpaceGetNumGeoms(space)):
+    for k in reversed(range(ode.dSpaceGetNumGeoms(space))):
         g = ode.dSpaceGetGeom(space, k)
         if ode.dGeomIsSpace(g):
             out += _space_geoms(ctypes.cast(g, ode.dSpaceID))

@@ -102,9 +102,11 @@ def momentum_residuals(traj):
         w0, w1 = traj.angular_velocity[k0], traj.angular_velocity[k1]
         dl = np.einsum("nij,nj->ni", i_w, w1 - w0) - dt * (gyroscopic_torque(i_w, w0, dt)
                                                            + model.body_torque_world)
-        lin_scale = scale + m * np.linalg.norm(traj.velocity[k1], axis=1)
-        ang_scale = scale * np.max(model.body_size, axis=1) * 2 + np.einsum(
-            "nij,nj->n", np.abs(i_w), np.abs(w1))
+        # round-off scale: the impulses and the momenta either side (the larger of the two)
+        lin_scale = scale + m * np.maximum(np.linalg.norm(traj.velocity[k0], axis=1),
+                                           np.linalg.norm(traj.velocity[k1], axis=1))
+        ang_scale = scale * np.max(model.body_size, axis=1) * 2 + np.maximum(
+            np.einsum("nij,nj->n", np.abs(i_w), np.abs(w0)), np.einsum("nij,nj->n", np.abs(i_w), np.abs(w1)))
         if touched.any():
             worst_lin = max(worst_lin, float(np.max(np.linalg.norm(dp - lin, axis=1)[touched]
                                                     / lin_scale[touched])))
@@ -170,17 +172,17 @@ def test_bounce_from_the_logged_velocities(tmp_path):
     assert res["momentum"].passed, res["momentum"].reason  # ODE's e is the scene's
 
 
-def _dcollide_depths(traj):
-    """The box's penetration of the ground plane at every logged pose, by dCollide (m)."""
+def dcollide_depths(traj, body=0):
+    """Box ``body``'s penetration of the ground plane at every logged pose, by dCollide (m)."""
     ode.dInitODE2(0)
     space = ode.dSimpleSpaceCreate(None)
-    half = traj.model.body_size[0]
+    half = traj.model.body_size[body]
     box = ode.dCreateBox(space, *(2 * half))
     nrm = traj.model.ground_normal
     plane = ode.dCreatePlane(space, *map(float, nrm), float(traj.model.ground_offset))
     buf = (ode.dContactGeom * 8)()
     out = []
-    for x, q in zip(traj.position[:, 0], traj.quat_wxyz[:, 0]):
+    for x, q in zip(traj.position[:, body], traj.quat_wxyz[:, body]):
         ode.dGeomSetPosition(box, *map(float, x))
         ode.dGeomSetQuaternion(box, (ode.dQuaternion)(*map(float, q)))
         k = ode.dCollide(box, plane, 8, buf, ctypes.sizeof(ode.dContactGeom))
@@ -193,7 +195,7 @@ def _dcollide_depths(traj):
 def test_resting_depth_is_dcollides(stepper, tmp_path):
     _, _, traj, _, mcap = _run("resting_box", tmp_path, duration=1.0, log_every=1,
                                options=[f"stepper={stepper}"])
-    depth = _dcollide_depths(traj)
+    depth = dcollide_depths(traj)
     res = {r.analyzer: r for r in check(load(mcap))}
     pen = res["penetration"]
     assert pen.passed, pen.reason
