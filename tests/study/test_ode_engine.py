@@ -235,3 +235,19 @@ def test_every_sample_full(name, tmp_path):
     s, summary, traj, rrd, mcap = _run(name, tmp_path, options=opts)
     got = load(mcap)
     assert not got.truncated and check(got)[0].passed
+
+
+def test_peer_free_fall_is_symplectic_euler():
+    """``rblog bench``'s ODE rows: ODE moves a body by ``v += g dt; x += v dt``, so after n steps a
+    tossed body is ``g dt t / 2`` below the parabola (t = n dt): the bench's position error."""
+    from rblog.study.peers import OdePeer
+    from rblog.study.reference import free_fall
+
+    peer, p = OdePeer(), free_fall()
+    for integ in peer.integrators:
+        for dt in (0.02, 0.005):
+            samples, steps = peer.run(p, integ, dt)
+            err = p.evaluate(samples)["position_m"]
+            g = np.linalg.norm(p.gravity)
+            # measured: the closed form to 1.8e-14 m (round-off of 400 steps)
+            assert abs(err - g * dt * p.duration / 2) < 1e-12, (integ, dt, err)
