@@ -246,8 +246,8 @@ i64 broadphase(const Bodies& bd, const Statics& st, double margin, V1<i64> awake
 i64 wake(const Bodies& bd, const Statics& st, const Settings& cfg, const SleepState& sl,
          const BodyState& x, double h, Scratch& sc, V2<i64> pairs, i64 n_pairs) {
     return wake_touched(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, sl.awake,
-                        sl.timer, sl.island_of, x.position, x.rotation, col(sc.reach), cfg.margin,
-                        cfg.slop, st.pos, st.rot, st.ext, st.gn, st.goff, x.linear_momentum,
+                        sl.timer, sl.island_of, x.position, x.rotation, col(sc.reach), cfg.speculative_distance,
+                        cfg.allowed_penetration, st.pos, st.rot, st.ext, st.gn, st.goff, x.linear_momentum,
                         x.angular_momentum, bd.force, bd.torque, h, cfg.do_kick, sc.cb,
                         bd.inv_mass, bd.accel, bd.radius, bd.inv_inertia);
 }
@@ -261,11 +261,11 @@ CollideCount collide(const Bodies& bd, const Statics& st, const Settings& cfg, V
     grow_manifolds(c.mi1, c.mf1, 2 * n_pairs);
     grow_points(c.pf1, c.pid1, 8 * n_pairs);
     return collide_pairs(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, awake,
-                         x.position, x.rotation, col(sc.reach), cfg.margin, bd.restitution,
+                         x.position, x.rotation, col(sc.reach), cfg.speculative_distance, bd.restitution,
                          bd.friction, bd.accel, st.pos, st.rot, st.ext, st.e, st.mu, st.gn,
                          st.goff, st.g_e, st.g_mu, c.mi0.view(), c.mf0.view(), c.pf0.view(),
                          col(c.pid0), col(c.keys0), col(c.idx0), c.n_man0, c.mi1.view(),
-                         c.mf1.view(), c.pf1.view(), col(c.pid1), cfg.warm, cfg.anchor, sc.cb);
+                         c.mf1.view(), c.pf1.view(), col(c.pid1), cfg.warm_starting, cfg.friction_anchor_distance, sc.cb);
 }
 
 // 5 prepare: load the bodies in contact into the solver arrays; effective masses and pre-solve
@@ -280,7 +280,7 @@ void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch&
     // manifolds on the pool (pf stays whole: a manifold's MI_START indexes it)
     par_ranges(n_man, MANIFOLDS_PER_BLOCK, [&](i64 m0, i64 m1) {
         prepare_contacts(rows(mi, m0, m1), rows(mf, m0, m1), pf, m1 - m0, col(sc.bm),
-                         sc.bI.view(), sc.bv.view(), sc.bw.view(), h, cfg.anchor_rate,
+                         sc.bI.view(), sc.bv.view(), sc.bw.view(), h, cfg.friction_anchor_rate,
                          cfg.block_reg);
     });
 }
@@ -429,8 +429,8 @@ i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Se
     i64 n_deep = project_positions(
         pairs, n_pairs, n, st.n_static, bd.geom, bd.size, bd.inv_mass, bd.inv_inertia, bd.iso,
         cfg.iso_shortcut, awake, x.position, x.rotation, st.pos, st.rot, st.ext, st.gn, st.goff,
-        cfg.proj_depth, cfg.n_proj, sc.proj_rows, sc.proj_ids, sc.cb, sc.proj_dx.view(),
-        sc.proj_dth.view(), cfg.proj_rings, sc.ring, sc.done);
+        cfg.projection_depth, cfg.projection_iterations, sc.proj_rows, sc.proj_ids, sc.cb, sc.proj_dx.view(),
+        sc.proj_dth.view(), cfg.projection_rings, sc.ring, sc.done);
     if (n_deep > 0)
         apply_projection(n_deep, sc.proj_ids.view(), sc.proj_dx.view(), sc.proj_dth.view(), n,
                          method, ortho, bd, cfg.iso_shortcut, x.position, x.rotation, x.quat_wxyz,
@@ -465,8 +465,8 @@ i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scrat
                 V1<i64> awake, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, int method,
                 int ortho, double h, const FlowAnchors& an, V1<i64> prof, i64& t) {
     bool do_prof = prof.n0 > 0;
-    SoftSettings ss{cfg.substeps, cfg.soft_hertz, cfg.soft_zeta, cfg.max_speed,
-                    cfg.anchors_on, true, cfg.newton_iters, cfg.newton_tol};
+    SoftSettings ss{cfg.substeps, cfg.contact_hertz, cfg.contact_damping_ratio, cfg.max_correction_speed,
+                    cfg.static_friction_anchors, true, cfg.friction_newton_iters, cfg.friction_newton_tol};
     i64 sweeps = soft_solve(mi, mf, pf, n_man, col(sc.in_contact), col(sc.bm), sc.bI.view(),
                             sc.bv.view(), sc.bw.view(), sc.pv.view(), sc.pw.view(), bd.accel,
                             bd.torque, cfg.do_kick, h, ss);
@@ -605,7 +605,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = ticks();
             if (cfg.do_kick) kick(bd, sl.awake, x, h);                                     // 1
             if (do_prof) t = lap(prof, P_KICK, t);
-            i64 n_pairs = broadphase(bd, st, cfg.margin, sl.awake, x, h, sc, c.pairs);     // 2
+            i64 n_pairs = broadphase(bd, st, cfg.speculative_distance, sl.awake, x, h, sc, c.pairs);     // 2
             V2<i64> pairs = c.pairs.view();
             stats[ST_PAIRS] += n_pairs;
             if (do_prof) t = lap(prof, P_BROADPHASE, t);
@@ -623,22 +623,22 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             V1<double> bm = col(sc.bm);
             V2<double> bI = sc.bI.view(), bv = sc.bv.view(), bw = sc.bw.view();
             prepare(bd, cfg, x, sc, mi1, mf1, pf1, n_man, h);                               // 5
-            if (cfg.soft) {  // 6-9 as Box2D v3's substeps (soft_step.cpp)
+            if (cfg.soft_step) {  // 6-9 as Box2D v3's substeps (soft_step.cpp)
                 stats[ST_SWEEPS] += soft_stages(bd, cfg, x, sc, sl.awake, mi1, mf1, pf1, n_man,
                                                 method, ortho, h, an, prof, t);
             } else {
-            if (cfg.warm) warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw);                // 6
+            if (cfg.warm_starting) warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw);                // 6
             stats[ST_SWEEPS] += solve_velocities(                                           // 7
-                mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h, cfg.n_vel, cfg.max_vel, cfg.vel_tol,
-                col(sc.hot), col(sc.in_contact), cfg.sor, cfg.newton_iters, cfg.newton_tol,
+                mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h, cfg.velocity_iterations, cfg.max_velocity_iterations, cfg.velocity_tolerance,
+                col(sc.hot), col(sc.in_contact), cfg.over_relaxation, cfg.friction_newton_iters, cfg.friction_newton_tol,
                 sc.graph, sc.lanes);
-            if (cfg.anchors_on)                                                             // 7b
-                anchor_friction(mi1, mf1, pf1, n_man, bm, bI, bv, bw, cfg.newton_iters,
-                                cfg.newton_tol);
+            if (cfg.static_friction_anchors)                                                             // 7b
+                anchor_friction(mi1, mf1, pf1, n_man, bm, bI, bv, bw, cfg.friction_newton_iters,
+                                cfg.friction_newton_tol);
             if (do_prof) t = lap(prof, P_SOLVE, t);
-            if (cfg.n_pos > 0)                                                              // 8
+            if (cfg.position_iterations > 0)                                                              // 8
                 relax_positions(mi1, mf1, pf1, n_man, bm, bI, sc.pv.view(), sc.pw.view(), inv_h,
-                                cfg.n_pos, cfg.slop, cfg.beta, cfg.max_speed);
+                                cfg.position_iterations, cfg.allowed_penetration, cfg.position_correction_rate, cfg.max_correction_speed);
             mark_pushed(mi1, pf1, n_man, n, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
@@ -646,9 +646,9 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             }
             stats[ST_IMPACTS] += restitution(                                               // 10
                 mi1, mf1, pf1, n_man, bm, bI, bv, bw, sc.pv.view(), sc.pw.view(), h,
-                cfg.e_threshold, cfg.n_vel, sc.dx_step.view(), x.linear_momentum,
+                cfg.restitution_threshold, cfg.velocity_iterations, sc.dx_step.view(), x.linear_momentum,
                 x.angular_momentum);
-            store_impulses(mi1, mf1, pf1, n_man, cfg.slide_frac);                           // 11
+            store_impulses(mi1, mf1, pf1, n_man, cfg.friction_anchor_slide_frac);                           // 11
             // this step's manifolds become "previous"
             c.keys0.grow(std::max<i64>(n_man, 1));
             c.idx0.grow(std::max<i64>(n_man, 1));
@@ -659,7 +659,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             std::swap(c.pid0, c.pid1);
             c.n_man0 = n_man;
             if (do_prof) t = lap(prof, P_RESTITUTION, t);
-            if (cfg.n_proj > 0)                                                             // 12
+            if (cfg.projection_iterations > 0)                                                             // 12
                 stats[ST_PROJECTED] += project(method, ortho, bd, st, cfg, sl.awake, x, sc, pairs,
                                                n_pairs, an);
             if (do_prof) t = lap(prof, P_PROJECT, t);

@@ -76,29 +76,35 @@ Bodies = namedtuple("Bodies", "geom size radius inv_mass inertia inv_inertia iso
                               "accel restitution friction group")
 #: static geometry: static boxes (their AABBs precomputed) and the ground plane
 Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff g_e g_mu")
-#: stage switches and solver settings (see rblog.engine.constants.ContactParams), then the
-#: module-level solver tolerances of rblog.engine.constants the C++ stages read (newton_iters:
-#: FRICTION_NEWTON_ITERS, newton_tol: FRICTION_NEWTON_TOL, block_reg: BLOCK_REG, anchor_rate:
-#: FRICTION_ANCHOR_RATE, slide_frac: FRICTION_ANCHOR_SLIDE_FRAC, proj_rings: PROJECTION_RINGS;
-#: :func:`solver_constants`), so that C++ holds no second copy of them; last the soft step's
-#: switch (ContactParams.solver == "soft_step") and its substeps, contact_hertz (Hz) and
-#: contact_damping_ratio
-Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol sor n_pos slop "
-                                  "beta max_speed "
-                                  "margin e_threshold anchor sleep_speed sleep_time warm "
-                                  "n_proj proj_depth anchors_on "
-                                  "newton_iters newton_tol block_reg anchor_rate slide_frac "
-                                  "proj_rings soft substeps soft_hertz soft_zeta")
+#: stage switches, then the solver settings spelled as rblog.engine.constants.ContactParams's
+#: fields (resolved for the run: ``max_velocity_iterations`` at least ``velocity_iterations``,
+#: ``restitution_threshold`` the step's value (ContactParams.restitution_threshold_at),
+#: ``substeps`` the step's (ContactParams.substeps_at), ``contact_hertz`` inf for None,
+#: ``soft_step``: ContactParams.solver == "soft_step"), then the module-level solver tolerances
+#: of rblog.engine.constants the C++ stages read, spelled as the constants in lower case
+#: (:func:`solver_constants`), so that C++ holds no second copy of them
+Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut velocity_iterations "
+                                  "max_velocity_iterations velocity_tolerance over_relaxation "
+                                  "position_iterations allowed_penetration "
+                                  "position_correction_rate max_correction_speed "
+                                  "speculative_distance restitution_threshold "
+                                  "friction_anchor_distance sleep_speed sleep_time warm_starting "
+                                  "projection_iterations projection_depth static_friction_anchors "
+                                  "friction_newton_iters friction_newton_tol block_reg "
+                                  "friction_anchor_rate friction_anchor_slide_frac "
+                                  "projection_rings soft_step substeps contact_hertz "
+                                  "contact_damping_ratio")
 
 
 def solver_constants() -> dict:
     """The Settings fields that come from rblog.engine.constants (read when called, so a test
     that patches a constant sees it in the next world it builds)."""
     c = _constants
-    return dict(newton_iters=int(c.FRICTION_NEWTON_ITERS), newton_tol=float(c.FRICTION_NEWTON_TOL),
-                block_reg=float(c.BLOCK_REG), anchor_rate=float(c.FRICTION_ANCHOR_RATE),
-                slide_frac=float(c.FRICTION_ANCHOR_SLIDE_FRAC),
-                proj_rings=int(c.PROJECTION_RINGS))
+    return dict(friction_newton_iters=int(c.FRICTION_NEWTON_ITERS),
+                friction_newton_tol=float(c.FRICTION_NEWTON_TOL), block_reg=float(c.BLOCK_REG),
+                friction_anchor_rate=float(c.FRICTION_ANCHOR_RATE),
+                friction_anchor_slide_frac=float(c.FRICTION_ANCHOR_SLIDE_FRAC),
+                projection_rings=int(c.PROJECTION_RINGS))
 
 
 #: the changing state of the bodies, world frame (rblog.engine.state.State's arrays): position

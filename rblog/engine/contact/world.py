@@ -126,18 +126,26 @@ class ContactWorld:
             float(model.ground_offset), float(model.ground_restitution),
             float(model.ground_friction))
         self._settings = Settings(
-            self.do_kick, self.do_sleep, iso_shortcut, int(p.velocity_iterations),
-            int(max(p.max_velocity_iterations, p.velocity_iterations)),
-            float(p.velocity_tolerance), float(p.over_relaxation), int(p.position_iterations),
-            float(p.allowed_penetration),
-            float(p.position_correction_rate), float(p.max_correction_speed),
-            float(p.speculative_distance), -1.0,  # e_threshold: set per dt by advance()
-            float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
-            bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth),
-            bool(p.static_friction_anchors), **solver_constants(),
-            soft=p.solver == "soft_step", substeps=int(p.substeps),
-            soft_hertz=float("inf") if p.contact_hertz is None else float(p.contact_hertz),
-            soft_zeta=float(p.contact_damping_ratio))
+            do_kick=self.do_kick, do_sleep=self.do_sleep, iso_shortcut=iso_shortcut,
+            velocity_iterations=int(p.velocity_iterations),
+            max_velocity_iterations=int(max(p.max_velocity_iterations, p.velocity_iterations)),
+            velocity_tolerance=float(p.velocity_tolerance),
+            over_relaxation=float(p.over_relaxation),
+            position_iterations=int(p.position_iterations),
+            allowed_penetration=float(p.allowed_penetration),
+            position_correction_rate=float(p.position_correction_rate),
+            max_correction_speed=float(p.max_correction_speed),
+            speculative_distance=float(p.speculative_distance),
+            restitution_threshold=-1.0,  # set per dt by settings_at
+            friction_anchor_distance=float(p.friction_anchor_distance),
+            sleep_speed=float(p.sleep_speed), sleep_time=float(p.sleep_time),
+            warm_starting=bool(p.warm_starting),
+            projection_iterations=int(p.projection_iterations),
+            projection_depth=float(p.projection_depth),
+            static_friction_anchors=bool(p.static_friction_anchors), **solver_constants(),
+            soft_step=p.solver == "soft_step", substeps=int(p.substeps),
+            contact_hertz=float("inf") if p.contact_hertz is None else float(p.contact_hertz),
+            contact_damping_ratio=float(p.contact_damping_ratio))
         # the free-body kernel's inputs, for scenes where nothing can touch
         self._inv_mass = 1.0 / mass
         self._inv_inertia = inv_inertia
@@ -352,8 +360,8 @@ class ContactWorld:
         """The Settings record for steps of ``dt`` (s): the restitution threshold depends on it,
         and the soft step's substeps (ContactParams.substeps_at)."""
         threshold = self.restitution_threshold(dt)
-        if self._settings.e_threshold != threshold:
-            self._settings = self._settings._replace(e_threshold=threshold)
+        if self._settings.restitution_threshold != threshold:
+            self._settings = self._settings._replace(restitution_threshold=threshold)
         sub = self.params.substeps_at(float(dt))
         if self._settings.substeps != sub:
             self._settings = self._settings._replace(substeps=sub)
