@@ -32,9 +32,12 @@ from dataclasses import fields
 import numpy as np
 
 from rblog import __version__
-from rblog.contract.model import LOG_SHAPE_CODES, SHAPE_NONE, SHAPE_SPHERE, Model
+from rblog.contract.model import (BODY_FREE, BODY_KIND_CODES, COLLIDE_ALL, COLLIDE_RULES,
+                                  GEOM_CODES, GEOM_MESH, IMPULSE_KINDS, JOINT_BALL, JOINT_CODES,
+                                  JOINT_FIXED, LOG_SHAPE_CODES, SHAPE_BOX, SHAPE_NONE,
+                                  SHAPE_SPHERE, WORK_KINDS, Model, v2_from_geoms)
 from rblog.contract.orientation import matrix_to_quat, quat_wxyz_to_matrix
-from rblog.contract.trajectory import Contacts, RunInfo, Trajectory, derive
+from rblog.contract.trajectory import INTERVAL_CHANNELS, Contacts, RunInfo, Trajectory, derive
 from rblog.errors import RblogError
 from rblog.record import _common as C
 
@@ -44,27 +47,49 @@ class RecordError(RblogError):
     message naming the argument, its shape and what was expected)."""
 
 
-def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, friction=0.5,
-               group=0, force_world=None, torque_world=None, gravity=(0.0, 0.0, -9.81),
-               ground: bool = False, ground_normal=(0.0, 0.0, 1.0), ground_offset: float = 0.0,
-               ground_restitution: float = 0.5, ground_friction: float = 0.5,
-               static_box_position=None, static_box_quat_wxyz=None, static_box_half_extents=None,
-               static_box_restitution=None, static_box_friction=None) -> Model:
+def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitution=None,
+               friction=None, group=0, force_world=None, torque_world=None,
+               gravity=(0.0, 0.0, -9.81), ground: bool = False, ground_normal=(0.0, 0.0, 1.0),
+               ground_offset: float = 0.0, ground_restitution: float = 0.5,
+               ground_friction: float = 0.5, static_box_position=None, static_box_quat_wxyz=None,
+               static_box_half_extents=None, static_box_restitution=None,
+               static_box_friction=None, kind=None, parent=None, geoms=None, joints=None,
+               collide_rule: str = "and", impulses=(), work=(), impulses_none=(),
+               work_none=()) -> Model:
     """A :class:`Model` (body table and world) from per-body lists.
 
     Args:
         name: N names.  shape: N of ``"sphere"``, ``"box"`` or ``"none"`` (or 0, 1, -1; one value
-            for all bodies); ``"none"``: a geometry the contract does not describe (another
-            engine's capsule, cylinder, mesh), logged with zero size and the given inertia.
+            for all bodies); ``"none"``: a geometry the v2 fields do not describe, logged with
+            zero size and the given inertia. Not with ``geoms`` (then derived from them).
         size: (N, 3): sphere radius in [:, 0]; box half extents (m, body frame). A sphere may
             also be given as a scalar radius per body, (N,).
-        mass: (N,) kg.  inertia_diag: (N, 3) principal moments about the centre of mass in the
-            body frame (kg m^2); default: a solid sphere's 2/5 m r^2, a solid box's m/3 (b^2 + c^2).
+        mass: (N,) kg, > 0.  inertia_diag: (N, 3) principal moments about the centre of mass in
+            the body frame (kg m^2); default: a solid sphere's 2/5 m r^2, a solid box's
+            m/3 (b^2 + c^2).
         restitution, friction: scalars or (N,); NaN = not stated by the engine (unknown).
+            Default 0.5, or with ``geoms`` each body's first geom's.
         group: collision group(s).
         force_world, torque_world: (N, 3) constant applied loads besides gravity.
         gravity: (3,) m/s^2.  ground...: the plane ``dot(normal, x) = offset`` if ``ground``.
-        static_box_*: (M, ...) static boxes.
+        static_box_*: (M, ...) static boxes. Not with ``geoms`` (world geoms instead).
+        kind: N of ``"free"``, ``"joints"``, ``"kinematic"``, ``"static"`` (or BODY_* codes; one
+            value for all); default free.  parent: (N,) parent body indices, -1 = world.
+        geoms: dict of G-row arrays (docs/log-format.md, "Geoms"): ``body`` (-1 = world),
+            ``type`` (names or GEOM_* codes), ``size`` (G, 3); optional ``pos_body`` (G, 3, default
+            0), ``quat_wxyz_body`` (G, 4, identity), ``friction``, ``restitution`` (NaN),
+            ``collide_group`` (1), ``collide_mask`` (-1, every bit), ``name`` (""),
+            ``mesh_vert`` (G entries: a (V, 3) array in the geom frame for a mesh, else None).
+        joints: dict of J-row arrays: ``body`` (the child), ``type`` (``"hinge"``, ``"slide"``,
+            ``"ball"``, ``"fixed"``, ``"planar"`` or JOINT_* codes), ``anchor_body``,
+            ``anchor_parent`` (J, 3); ``axis_body``, ``axis_parent`` (J, 3; not for ball and
+            fixed); optional ``range`` (J, 2, NaN = none), ``name``.
+        collide_rule: ``"and"`` (Bullet, rblog) or ``"or"`` (MuJoCo) (COLLIDE_RULES).
+        impulses: the per-interval impulse kinds this writer logs for every body (a subset of
+            IMPULSE_KINDS), or an (N, 5) array of SUPPLIED_* codes (or bools: logged or
+            missing) per body.  work: likewise of WORK_KINDS, or (N, 3).
+        impulses_none, work_none: the kinds the engine does not have at all (rblog: no
+            passive forces, actuators, joints): known to be zero for every body, not stored.
     """
     n = len(name)
 
@@ -78,16 +103,35 @@ def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, f
 
     if isinstance(name, str):
         raise RecordError(f"body_table: name is the string {name!r}, expected a list of N names")
-    codes = _shape_codes([shape] * n if isinstance(shape, (str, int, np.integer)) else shape, n)
-    sz = _float_array(size, "size")
-    if sz.ndim == 1 and len(sz) == n:
-        sz = np.stack([sz, np.zeros(n), np.zeros(n)], axis=1)
-    sz = arr(sz, (n, 3), "size")
-    none = codes == SHAPE_NONE
-    if np.any(sz[none] != 0):
-        i = int(np.flatnonzero(none & np.any(sz != 0, axis=1))[0])
-        raise RecordError(f"body_table: size[{i}] = {sz[i].tolist()} for body {name[i]!r} of shape "
-                          "'none', expected [0, 0, 0] (a body without a shape has no size)")
+    v3 = {}
+    if geoms is not None:
+        for what, v in (("shape", shape), ("size", size), ("static_box_position", static_box_position)):
+            if v is not None:
+                raise RecordError(f"body_table: {what} given with geoms; give the geometry once "
+                                  "(geoms: the v2 fields are derived from them)")
+        if ground:
+            raise RecordError("body_table: ground=True given with geoms; give the ground as a "
+                              "world plane geom (body -1, type 'plane')")
+        v3.update(_geom_table(geoms, n, name))
+        derived = v2_from_geoms(n, v3["geom_body"], v3["geom_type"], v3["geom_pos_body"],
+                                v3["geom_quat_wxyz_body"], v3["geom_size"], v3["geom_friction"],
+                                v3["geom_restitution"], arr(gravity, (3,), "gravity"))
+        codes, sz = derived["body_shape"], derived["body_size"]
+        restitution = derived["body_restitution"] if restitution is None else restitution
+        friction = derived["body_friction"] if friction is None else friction
+    else:
+        if shape is None or size is None:
+            raise RecordError("body_table: give shape and size (v2), or geoms")
+        codes = _shape_codes([shape] * n if isinstance(shape, (str, int, np.integer)) else shape, n)
+        sz = _float_array(size, "size")
+        if sz.ndim == 1 and len(sz) == n:
+            sz = np.stack([sz, np.zeros(n), np.zeros(n)], axis=1)
+        sz = arr(sz, (n, 3), "size")
+        none = codes == SHAPE_NONE
+        if np.any(sz[none] != 0):
+            i = int(np.flatnonzero(none & np.any(sz != 0, axis=1))[0])
+            raise RecordError(f"body_table: size[{i}] = {sz[i].tolist()} for body {name[i]!r} of "
+                              "shape 'none', expected [0, 0, 0] (a body without a shape has no size)")
     m = arr(mass, (n,), "mass")
     if np.any(~(m > 0)):
         i = int(np.flatnonzero(~(m > 0))[0])
@@ -100,19 +144,48 @@ def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, f
                 inertia[i] = 0.4 * m[i] * sz[i, 0] ** 2
             elif codes[i] == SHAPE_NONE:
                 raise RecordError(f"body_table: inertia_diag not given, and body {name[i]!r} has "
-                                  "no shape to compute it from: give inertia_diag (N, 3)")
+                                  "no sphere or box to compute it from: give inertia_diag (N, 3)")
             else:
                 a2, b2, c2 = sz[i] ** 2
                 inertia[i] = m[i] / 3.0 * np.array([b2 + c2, a2 + c2, a2 + b2])
     else:
         inertia = arr(inertia_diag, (n, 3), "inertia_diag")
+        if np.any(~(inertia > 0)):
+            i = int(np.flatnonzero(np.any(~(inertia > 0), axis=1))[0])
+            raise RecordError(f"body_table: inertia_diag[{i}] = {inertia[i].tolist()} for body "
+                              f"{name[i]!r}, expected three positive moments (kg m^2)")
+    if kind is not None:
+        v3["body_kind"] = _codes(kind, n, BODY_KIND_CODES, "kind", range(4))
+    if parent is not None:
+        par = np.asarray(parent)
+        if par.dtype.kind not in "iu" or par.shape != (n,) or len(par) and (
+                par.min() < -1 or par.max() >= n or np.any(par == np.arange(n))):
+            raise RecordError(f"body_table: parent = {_short(parent)}, expected ({n},) body "
+                              "indices (-1 = world; never the body itself)")
+        v3["body_parent"] = par.astype(np.int64)
+    if joints is not None:
+        v3.update(_joint_table(joints, n))
+    if collide_rule not in COLLIDE_RULES:
+        raise RecordError(f"body_table: collide_rule = {collide_rule!r}, expected one of "
+                          f"{', '.join(map(repr, COLLIDE_RULES))}")
+    v3["body_impulse_supplied"] = _supplied(impulses, impulses_none, n, IMPULSE_KINDS, "impulses")
+    v3["body_work_supplied"] = _supplied(work, work_none, n, WORK_KINDS, "work")
+    if geoms is not None:
+        world = {k: v for k, v in derived.items() if k.startswith(("ground", "static_box"))}
+        return Model(
+            body_name=[str(x) for x in name], body_shape=codes, body_size=sz, body_mass=m,
+            body_inertia_diag=inertia, body_force_world=arr(force_world, (n, 3), "force_world"),
+            body_torque_world=arr(torque_world, (n, 3), "torque_world"),
+            body_restitution=arr(restitution, (n,), "restitution", 0.5),
+            body_friction=arr(friction, (n,), "friction", 0.5), body_group=_group(group, n),
+            gravity=arr(gravity, (3,), "gravity"), collide_rule=collide_rule, **world, **v3)
     mcount = 0 if static_box_position is None else len(static_box_position)
     return Model(
         body_name=[str(x) for x in name], body_shape=codes, body_size=sz, body_mass=m,
         body_inertia_diag=inertia, body_force_world=arr(force_world, (n, 3), "force_world"),
         body_torque_world=arr(torque_world, (n, 3), "torque_world"),
-        body_restitution=arr(restitution, (n,), "restitution"),
-        body_friction=arr(friction, (n,), "friction"),
+        body_restitution=arr(restitution, (n,), "restitution", 0.5),
+        body_friction=arr(friction, (n,), "friction", 0.5),
         body_group=_group(group, n),
         gravity=arr(gravity, (3,), "gravity"), ground=bool(ground),
         ground_normal=arr(ground_normal, (3,), "ground_normal"), ground_offset=float(ground_offset),
@@ -123,7 +196,174 @@ def body_table(*, name, shape, size, mass, inertia_diag=None, restitution=0.5, f
         static_box_half_extents=arr(static_box_half_extents, (mcount, 3), "static_box_half_extents"),
         static_box_restitution=arr(static_box_restitution, (mcount,), "static_box_restitution", 0.5),
         static_box_friction=arr(static_box_friction, (mcount,), "static_box_friction", 0.5),
+        collide_rule=collide_rule, **v3,
     )
+
+
+def _codes(v, count: int, names: dict, what: str, valid) -> np.ndarray:
+    """Names or integer codes (one for all, or ``count``) -> (count,) int64; a one-line
+    RecordError naming ``what`` for anything else."""
+    vals = [v] * count if isinstance(v, (str, int, np.integer)) else list(v)
+    if len(vals) != count:
+        raise RecordError(f"body_table: {what} has {len(vals)} entries, expected {count}")
+    out = np.empty(count, np.int64)
+    valid = set(valid)
+    for i, x in enumerate(vals):
+        code = names.get(x) if isinstance(x, str) else \
+            (int(x) if isinstance(x, (int, np.integer)) and int(x) in valid else None)
+        if code is None:
+            raise RecordError(f"body_table: {what}[{i}] = {x!r}, expected one of "
+                              f"{', '.join(map(repr, names))} (or codes {sorted(valid)})")
+        out[i] = code
+    return out
+
+
+def _supplied(v, none, n: int, kinds: tuple, what: str) -> np.ndarray:
+    """``impulses`` / ``work`` (kind names for every body, or an (N, len(kinds)) array of
+    SUPPLIED_* codes or bools) and ``*_none`` (kind names) -> (N, len(kinds)) int64 codes."""
+    from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_NONE
+
+    if isinstance(v, str):
+        v = (v,)
+    if isinstance(none, str):
+        none = (none,)
+    a = np.asarray(v)
+    if a.ndim == 2 or a.dtype == bool:
+        if a.shape != (n, len(kinds)) or a.dtype.kind not in "biu" or (
+                a.size and (a.min() < 0 or a.max() > SUPPLIED_NONE)):
+            raise RecordError(f"body_table: {what} has shape {a.shape} and values {_short(v)}, "
+                              f"expected ({n}, {len(kinds)}) codes 0 (missing), 1 (logged), "
+                              f"2 (none) (columns {', '.join(kinds)})")
+        out = a.astype(np.int64)
+    else:
+        out = np.zeros((n, len(kinds)), np.int64)
+        for k in v:
+            if k not in kinds:
+                raise RecordError(f"body_table: {what} holds {k!r}, expected some of "
+                                  f"{', '.join(map(repr, kinds))}")
+            out[:, kinds.index(k)] = SUPPLIED_LOGGED
+    for k in none:
+        if k not in kinds:
+            raise RecordError(f"body_table: {what}_none holds {k!r}, expected some of "
+                              f"{', '.join(map(repr, kinds))}")
+        if np.any(out[:, kinds.index(k)] == SUPPLIED_LOGGED):
+            raise RecordError(f"body_table: {k!r} is in both {what} and {what}_none")
+        out[:, kinds.index(k)] = SUPPLIED_NONE
+    return out
+
+
+_GEOM_KEYS = ("body", "type", "size", "pos_body", "quat_wxyz_body", "friction", "restitution",
+              "collide_group", "collide_mask", "name", "mesh_vert")
+_JOINT_KEYS = ("body", "type", "anchor_body", "anchor_parent", "axis_body", "axis_parent",
+               "range", "name")
+
+
+def _rows(table: dict, keys: tuple, required: tuple, what: str) -> int:
+    if not isinstance(table, dict):
+        raise RecordError(f"body_table: {what} is a {type(table).__name__}, expected a dict of "
+                          f"arrays ({', '.join(keys)})")
+    unknown = sorted(set(table) - set(keys))
+    missing = [k for k in required if k not in table]
+    if unknown or missing:
+        bad = f"unknown field {unknown[0]!r}" if unknown else f"field {missing[0]!r} missing"
+        raise RecordError(f"body_table: {what}: {bad}; the fields are {', '.join(keys)} "
+                          f"({', '.join(required)} required)")
+    return len(np.atleast_1d(np.asarray(table[required[0]])))
+
+
+def _col(table, key, what, rows, trail=(), default=None, dtype=np.float64):
+    """Column ``key`` of ``table`` as (rows, *trail) ``dtype`` (``default`` broadcast when
+    absent), or a one-line RecordError naming ``what.key``, its shape and the expected one."""
+    given = table.get(key) is not None
+    v = table[key] if given else default
+    try:
+        a = np.asarray(v, dtype)
+    except (TypeError, ValueError):
+        raise RecordError(f"body_table: {what}.{key} = {_short(v)}, expected numbers") from None
+    want = (rows, *trail)
+    if not given:
+        return np.broadcast_to(a, want).copy()
+    if a.size == int(np.prod(want)) and (a.ndim <= 1 or a.shape[0] == rows):
+        return a.reshape(want).copy()
+    raise RecordError(f"body_table: {what}.{key}: shape {a.shape}, expected {want} ({rows} rows)")
+
+
+def _geom_table(geoms: dict, n: int, body_names) -> dict:
+    G = _rows(geoms, _GEOM_KEYS, ("body", "type", "size"), "geoms")
+    gb = np.asarray(geoms["body"])
+    if gb.dtype.kind not in "iu" or gb.shape != (G,) or G and (gb.min() < -1 or gb.max() >= n):
+        raise RecordError(f"body_table: geoms.body = {_short(geoms['body'])}, expected ({G},) "
+                          f"body indices 0..{n - 1} or -1 (world)")
+    gt = _codes(geoms["type"], G, GEOM_CODES, "geoms.type", GEOM_CODES.values())
+    out = {"geom_body": gb.astype(np.int64), "geom_type": gt,
+           "geom_size": _col(geoms, "size", "geoms", G, (3,)),
+           "geom_pos_body": _col(geoms, "pos_body", "geoms", G, (3,), 0.0),
+           "geom_quat_wxyz_body": _col(geoms, "quat_wxyz_body", "geoms", G, (4,), [1.0, 0, 0, 0]),
+           "geom_friction": _col(geoms, "friction", "geoms", G, (), np.nan),
+           "geom_restitution": _col(geoms, "restitution", "geoms", G, (), np.nan),
+           "geom_collide_group": _col(geoms, "collide_group", "geoms", G, (), 1, np.int64),
+           "geom_collide_mask": _col(geoms, "collide_mask", "geoms", G, (), COLLIDE_ALL, np.int64)}
+    qn = np.linalg.norm(out["geom_quat_wxyz_body"], axis=1)
+    if G and np.any(np.abs(qn - 1.0) > 1e-6):
+        g = int(np.flatnonzero(np.abs(qn - 1.0) > 1e-6)[0])
+        raise RecordError(f"body_table: geoms.quat_wxyz_body[{g}] has norm {qn[g]:.6g}, expected "
+                          "a unit quaternion (w, x, y, z)")
+    if np.any(out["geom_size"] < 0) or not np.all(np.isfinite(out["geom_size"])):
+        g = int(np.flatnonzero(~np.all(out["geom_size"] >= 0, axis=1))[0])
+        raise RecordError(f"body_table: geoms.size[{g}] = {out['geom_size'][g].tolist()}, "
+                          "expected finite sizes >= 0 (m)")
+    names = geoms.get("name")
+    out["geom_name"] = [""] * G if names is None else [str(x) for x in names]
+    if len(out["geom_name"]) != G:
+        raise RecordError(f"body_table: geoms.name has {len(out['geom_name'])} entries, expected {G}")
+    verts = geoms.get("mesh_vert")
+    if verts is not None and len(verts) != G:
+        raise RecordError(f"body_table: geoms.mesh_vert has {len(verts)} entries, expected {G} "
+                          "(a (V, 3) array for each mesh, None for the others)")
+    adr, num, parts = np.zeros(G, np.int64), np.zeros(G, np.int64), []
+    k = 0
+    for g in range(G):
+        v = None if verts is None else verts[g]
+        if gt[g] == GEOM_MESH:
+            a = np.asarray(v if v is not None else np.zeros((0, 3)), np.float64)
+            if a.ndim != 2 or a.shape[1] != 3 or len(a) < 4:
+                raise RecordError(f"body_table: geoms.mesh_vert[{g}] has shape {a.shape}, expected "
+                                  "(V, 3) with V >= 4 vertices (the mesh's, geom frame, m)")
+            adr[g], num[g] = k, len(a)
+            k += len(a)
+            parts.append(a)
+        elif v is not None:
+            raise RecordError(f"body_table: geoms.mesh_vert[{g}] given for a geom of type "
+                              f"{int(gt[g])}, expected None (vertices are for meshes only)")
+    out.update(geom_vert_adr=adr, geom_vert_num=num,
+               mesh_vert=np.concatenate(parts) if parts else np.zeros((0, 3)))
+    return out
+
+
+def _joint_table(joints: dict, n: int) -> dict:
+    J = _rows(joints, _JOINT_KEYS, ("body", "type", "anchor_body", "anchor_parent"), "joints")
+    jb = np.asarray(joints["body"])
+    if jb.dtype.kind not in "iu" or jb.shape != (J,) or J and (jb.min() < 0 or jb.max() >= n):
+        raise RecordError(f"body_table: joints.body = {_short(joints['body'])}, expected ({J},) "
+                          f"body indices 0..{n - 1} (the body each joint moves)")
+    jt = _codes(joints["type"], J, JOINT_CODES, "joints.type", JOINT_CODES.values())
+    axisless = np.isin(jt, (JOINT_BALL, JOINT_FIXED))
+    out = {"joint_body": jb.astype(np.int64), "joint_type": jt,
+           "joint_anchor_body": _col(joints, "anchor_body", "joints", J, (3,)),
+           "joint_anchor_parent": _col(joints, "anchor_parent", "joints", J, (3,)),
+           "joint_axis_body": _col(joints, "axis_body", "joints", J, (3,), 0.0),
+           "joint_axis_parent": _col(joints, "axis_parent", "joints", J, (3,), 0.0),
+           "joint_range": _col(joints, "range", "joints", J, (2,), np.nan)}
+    for key in ("axis_body", "axis_parent"):
+        norm = np.linalg.norm(out[f"joint_{key}"], axis=1)
+        bad = np.flatnonzero(~axisless & (np.abs(norm - 1.0) > 1e-6))
+        if len(bad):
+            j = int(bad[0])
+            raise RecordError(f"body_table: joints.{key}[{j}] has norm {norm[j]:.6g}, expected a "
+                              "unit axis for a hinge, slide or planar joint")
+    names = joints.get("name")
+    out["joint_name"] = [""] * J if names is None else [str(x) for x in names]
+    return out
 
 
 def _float_array(v, what: str, where: str = "body_table") -> np.ndarray:
@@ -183,6 +423,7 @@ def _check_contact_rows(settings) -> None:
 
 
 _CONTACT_FIELDS = [f.name for f in fields(Contacts)]
+_CONTACT_VECTORS = ("point", "normal", "friction_impulse")
 _CONTACT_REQUIRED = ("step", "body_a", "body_b", "point", "normal", "separation", "normal_impulse")
 #: the values of contacts.kind (docs/log-format.md): 0 resting (or not classified), 1 impact
 KIND_VALUES = (0, 1)
@@ -254,7 +495,8 @@ def _arr(v, name, shape):
 
 def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxyz=None,
                 quat_xyzw=None, rotation=None, velocity=None, linear_momentum=None,
-                angular_velocity=None, angular_momentum=None, contacts=None) -> Trajectory:
+                angular_velocity=None, angular_momentum=None, contacts=None,
+                **interval) -> Trajectory:
     """One block of the contract from the state an engine holds (T samples, N bodies, world frame).
 
     Give the orientation as ``quat_wxyz`` (or ``quat_xyzw``) and/or ``rotation`` (T, N, 3, 3)
@@ -264,6 +506,11 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     ``p = m v``, ``L = R diag(I_body) R^T w``; then every derived channel
     (:func:`rblog.contract.trajectory.derive`). Channels given twice are logged as given, so that
     a disagreement shows in the consistency checks rather than being overwritten.
+
+    ``interval``: the per-interval channels (INTERVAL_CHANNELS: ``impulse_<kind>_linear`` /
+    ``_angular`` (T, N, 3), ``work_<kind>`` (T, N)), exactly those of the kinds the model
+    declares (``body_impulse_supplied`` / ``body_work_supplied``); a body's values where it does
+    not supply that kind are logged as NaN.
     """
     t = np.asarray(t, np.float64).reshape(-1)
     T, n = len(t), model.n_bodies
@@ -316,12 +563,46 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     elif contacts is not None and not isinstance(contacts, Contacts):
         raise RecordError(f"contacts: a {type(contacts).__name__}, expected a dict of arrays "
                           "(see make_contacts) or an rblog.Contacts")
+    chans = _interval_channels(model, interval, T, n)
     block = derive(model, info, step, t, position, p, quat_wxyz, rotation, lw, contacts=contacts)
+    for name, a in chans.items():
+        setattr(block, name, a)
     if velocity is not None and linear_momentum is not None:
         block.velocity = np.ascontiguousarray(velocity)
     if angular_velocity is not None and angular_momentum is not None:
         block.angular_velocity = np.ascontiguousarray(angular_velocity)
     return block
+
+
+def _interval_channels(model: Model, given: dict, T: int, n: int) -> dict:
+    """The block's per-interval channels, checked against what the model declares."""
+    from rblog.record._common import run_interval_channels
+
+    want = run_interval_channels(model)
+    unknown = sorted(set(given) - set(INTERVAL_CHANNELS))
+    if unknown:
+        raise RecordError(f"write: unknown argument {unknown[0]!r}; the per-interval channels "
+                          f"are {', '.join(INTERVAL_CHANNELS)}")
+    for name in INTERVAL_CHANNELS:
+        if (name in want) != (given.get(name) is not None):
+            kind = name.split("_")[1]
+            decl = "impulses" if name.startswith("impulse") else "work"
+            if name in want:
+                raise RecordError(f"write: {name} missing; the body table declares {decl} "
+                                  f"{kind!r} (body_table({decl}=...)), so every block carries it")
+            raise RecordError(f"write: {name} given, but the body table does not declare {decl} "
+                              f"{kind!r}: add it to body_table({decl}=...)")
+    out = {}
+    for name in want:
+        trail = INTERVAL_CHANNELS[name]
+        a = np.array(_arr(given[name], name, (T, n, *trail)), np.float64)
+        kind = name.split("_")[1]
+        sup = (model.body_impulse_supplied[:, IMPULSE_KINDS.index(kind)] if name.startswith("impulse")
+               else model.body_work_supplied[:, WORK_KINDS.index(kind)]) == 1  # SUPPLIED_LOGGED
+        if not sup.all():
+            a[:, ~sup] = np.nan
+        out[name] = a
+    return out
 
 
 class Recorder:
@@ -400,6 +681,7 @@ class Recorder:
                     self.audit.attach_rerun(w)
             self.writers.append(self.audit)
         self.blocks: list[Trajectory] = []
+        self._sample_blocks: list[SampleBlock] = []
         self._opened: list = []
         self._open = False
         self._closed = False
@@ -465,9 +747,26 @@ class Recorder:
         self.samples_written += block.n_samples
         return block
 
+    def sample_block(self, capacity: int = 256) -> "SampleBlock":
+        """A :class:`SampleBlock` of ``capacity`` preallocated sample rows that writes itself to
+        this recorder when full (and on :meth:`close`): the per-sample fast path."""
+        if self.model is None:
+            raise RecordError("no body table: give Recorder(model, ...) before sample_block()")
+        blk = SampleBlock(self, int(capacity))
+        self._sample_blocks.append(blk)
+        return blk
+
     def close(self, truncated: bool = False, reason: str | None = None) -> None:
         if self._closed:
             return
+        if not self.failed:
+            for blk in self._sample_blocks:
+                try:
+                    blk.flush()
+                except BaseException:  # noqa: BLE001 - recorded in self.failed; close the logs
+                    truncated = True
+                    reason = reason or self.failed
+                    break
         self._closed = True
         self._truncated = truncated
         err = None
@@ -499,6 +798,96 @@ class Recorder:
         return traj
 
 
+class SampleBlock:
+    """Preallocated rows for recording one sample at a time at the cost of a copy.
+
+    Arrays (C = capacity rows, N bodies; world frame, the units of :func:`build_block`):
+    ``t`` (C,), ``step`` (C,) int64, ``position`` (C, N, 3), ``quat_wxyz`` (C, N, 4),
+    ``velocity`` (C, N, 3), ``angular_velocity`` (C, N, 3), and one array per per-interval
+    channel the body table declares (``impulse_contact_linear`` (C, N, 3), ``work_actuator``
+    (C, N), ...), zero in a fresh row so that a writer can accumulate into it step by step.
+
+    Per sample::
+
+        r = blk.row()                          # the next free row
+        blk.t[r] = d.time; blk.step[r] = k
+        np.copyto(blk.position[r], x)          # or an engine call with out=blk.position[r]
+        ...                                    # quat_wxyz, velocity, angular_velocity, intervals
+        blk.add_contacts(body_a=..., ...)      # optional: this sample's contact rows
+        blk.commit()                           # when the block is full: one Recorder.write
+
+    Everything per block (the derived channels, the encoding, the writers) is compiled or
+    vectorized and runs once per ``capacity`` samples; each flush hands fresh arrays to the
+    recorder (no copy: a kept block stays valid). :meth:`flush` writes a partial block;
+    :meth:`Recorder.close` flushes every block it handed out."""
+
+    def __init__(self, rec: "Recorder", capacity: int):
+        if capacity < 1:
+            raise RecordError(f"sample_block: capacity = {capacity}, expected >= 1")
+        from rblog.record._common import run_interval_channels
+
+        self._rec = rec
+        self.capacity = capacity
+        self._n_bodies = rec.model.n_bodies
+        self._interval = run_interval_channels(rec.model)
+        self.n = 0
+        self._new()
+
+    def _new(self):
+        c, n = self.capacity, self._n_bodies
+        self.t = np.zeros(c)
+        self.step = np.zeros(c, np.int64)
+        self.position = np.zeros((c, n, 3))
+        self.quat_wxyz = np.zeros((c, n, 4))
+        self.velocity = np.zeros((c, n, 3))
+        self.angular_velocity = np.zeros((c, n, 3))
+        for name in self._interval:
+            setattr(self, name, np.zeros((c, n, *INTERVAL_CHANNELS[name])))
+        self._contacts: list[dict] = []
+
+    def row(self) -> int:
+        """Index of the row the next sample goes in (flushes first if the block is full)."""
+        if self.n >= self.capacity:
+            self.flush()
+        return self.n
+
+    def add_contacts(self, **rows) -> None:
+        """Contact rows of the sample being filled (the fields of :func:`make_contacts`;
+        ``step`` defaults to that sample's ``step``)."""
+        if "step" not in rows:
+            k = len(np.atleast_1d(np.asarray(rows.get("body_a", ()))))
+            rows["step"] = np.full(k, self.step[self.n], np.int64)
+        self._contacts.append(rows)
+
+    def commit(self) -> None:
+        """The row :meth:`row` returned is filled: count it, and write the block when full."""
+        self.n += 1
+        if self.n >= self.capacity:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the filled rows (if any) through the recorder and start a fresh block."""
+        k = self.n
+        if not k:
+            return
+        arrays = dict(t=self.t[:k], step=self.step[:k], position=self.position[:k],
+                      quat_wxyz=self.quat_wxyz[:k], velocity=self.velocity[:k],
+                      angular_velocity=self.angular_velocity[:k])
+        for name in self._interval:
+            arrays[name] = getattr(self, name)[:k]
+        if self._contacts:
+            keys = set(self._contacts[0])
+            if any(set(c) != keys for c in self._contacts):
+                raise RecordError("sample_block.add_contacts: every call of a block must give the "
+                                  f"same fields (first: {', '.join(sorted(keys))})")
+            arrays["contacts"] = {key: np.concatenate([
+                np.asarray(c[key]).reshape((-1, 3) if key in _CONTACT_VECTORS else (-1,))
+                for c in self._contacts]) for key in keys}
+        self.n = 0
+        self._new()
+        self._rec.write(**arrays)
+
+
 def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
                            combine_friction: str = "geometric", combine_restitution: str = "max",
                            **arrays) -> Trajectory:
@@ -518,5 +907,6 @@ def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
 #: scalar-first quaternions -> body->world matrices (re-exported for writers)
 quat_to_matrix = quat_wxyz_to_matrix
 
-__all__ = ["CONTACT_ROWS_SEPARATION", "KIND_VALUES", "Recorder", "RecordError", "body_table", "build_block", "make_contacts",
+__all__ = ["CONTACT_ROWS_SEPARATION", "KIND_VALUES", "Recorder", "RecordError", "SampleBlock",
+           "body_table", "build_block", "make_contacts",
            "trajectory_from_arrays", "matrix_to_quat", "quat_to_matrix"]

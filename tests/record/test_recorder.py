@@ -87,7 +87,7 @@ def test_files_round_trip_and_audit_matches_in_memory(tmp_path):
     for path in (rrd, mcap):
         got = rblog.load(path)
         assert got.info.writer == "hand 1.0" and got.info.combine_friction == "max"
-        assert got.info.engine_settings == {"k": 1} and got.info.log_format == 2
+        assert got.info.engine_settings == {"k": 1} and got.info.log_format == 3
         for name in ("t", "position", "quat_wxyz", "rotation", "velocity", "angular_velocity",
                      "angular_momentum", "total_energy", "total_angular_momentum"):
             np.testing.assert_array_equal(getattr(got, name), getattr(mem, name), err_msg=name)
