@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ctypes
 import json
+import re
 import types
 
 import numpy as np
@@ -20,7 +21,8 @@ import rblog
 ode = pytest.importorskip("odepy", reason="ODE: apt-get install libode8; pip install ode-python")
 from rblog.adapters import AdapterError  # noqa: E402
 from rblog.adapters.ode import OdeRecorder  # noqa: E402
-from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE  # noqa: E402
+from rblog.contract.model import BODY_JOINTED, JOINT_HINGE, SHAPE_BOX, SHAPE_SPHERE  # noqa: E402
+from rblog.contract.trajectory import INTERVAL_CHANNELS  # noqa: E402
 from rblog.record.recorder import Recorder  # noqa: E402
 from tests.study.test_ode_engine import dcollide_depths, momentum_residuals  # noqa: E402
 
@@ -73,6 +75,8 @@ class Demo:
 
     def _near(self, data, o1, o2):
         b1, b2 = ode.dGeomGetBody(o1), ode.dGeomGetBody(o2)
+        if b1 and b2 and ode.dAreConnectedExcluding(b1, b2, ode.dJointTypeContact):
+            return  # bodies on a joint do not collide (ODE's demos)
         contact = (ode.dContact * self.MAX_CONTACTS)()
         for c in contact:
             c.surface.mode = ode.dContactBounce | ode.dContactApprox1
@@ -208,7 +212,8 @@ def test_a_box_sunk_5_mm_is_caught(boxes, tmp_path):
                   velocity=traj.velocity, angular_velocity=traj.angular_velocity,
                   contacts={k: getattr(traj.contacts, k) for k in
                             ("step", "body_a", "body_b", "point", "normal", "separation",
-                             "normal_impulse", "friction_impulse")})
+                             "normal_impulse", "friction_impulse")},
+                  **{k: getattr(traj, k) for k in INTERVAL_CHANNELS if getattr(traj, k) is not None})
     clean = {r.analyzer: r for r in rblog.check(rblog.load(mcap))}
     sunk = {r.analyzer: r for r in rblog.check(rblog.load(bad))}
     assert clean["penetration"].passed
@@ -235,8 +240,95 @@ def test_a_ball_and_materials_as_stated(tmp_path):
     k = int(np.nonzero((vz[:-1] < 0) & (vz[1:] > 0))[0][0])
     # dContactBounce: rebound -e v_n, then gravity for the rest of the step
     assert -vz[k + 1] / vz[k] == pytest.approx(BOUNCE, abs=2 * 9.81 * DT / abs(vz[k]))
-    mom = {r.analyzer: r for r in rblog.check(rblog.load(mcap))}["momentum"]
-    assert mom.passed, mom.reason
+    res = {r.analyzer: r for r in rblog.check(rblog.load(mcap))}
+    assert res["momentum"].passed and res["penetration"].passed
+
+
+def chain(w, n=5, length=0.2, height=2.0):
+    """ODE's demo_chain with hinges: n boxes end to end along x, the first hinged to the world at
+    x = 0, each to the next at their shared end, axes along y: released level, it swings down."""
+    prev, joints = None, []
+    for i in range(n):
+        b = w.box(0.5, (length, 0.05, 0.05), (length / 2 + i * length, 0.0, height))
+        j = ode.dJointCreateHinge(w.world, None)
+        ode.dJointAttach(j, prev, b)
+        ode.dJointSetHingeAnchor(j, i * length, 0.0, height)
+        ode.dJointSetHingeAxis(j, 0.0, 1.0, 0.0)
+        joints.append(j)
+        prev = b
+    return joints
+
+
+def hinge_gap(j) -> float:
+    """|anchor on body 1 - anchor on body 2| of an ODE hinge now (m): ODE's joint error."""
+    a1, a2 = (ode.dVector3)(), (ode.dVector3)()
+    ode.dJointGetHingeAnchor(j, a1)
+    ode.dJointGetHingeAnchor2(j, a2)
+    return float(np.linalg.norm(np.array(a1[:3]) - np.array(a2[:3])))
+
+
+def test_a_chain_on_hinges(tmp_path):
+    w = Demo()
+    try:
+        joints = chain(w)
+        traj, _, mcap = record(w, 1000, tmp_path, applied_forces=False)
+        gaps = [hinge_gap(j) for j in joints]
+        got = rblog.load(mcap)
+    finally:
+        w.close()
+    m = got.model
+    assert list(m.body_kind) == [BODY_JOINTED] * 5 and list(m.body_parent) == [-1, 0, 1, 2, 3]
+    assert list(m.joint_type) == [JOINT_HINGE] * 5 and list(m.joint_body) == [0, 1, 2, 3, 4]
+    # each box's hinge is at its -x end; the parent's at its +x end (the world's at the origin)
+    np.testing.assert_allclose(m.joint_anchor_body, [[-0.1, 0, 0]] * 5, atol=1e-15)
+    np.testing.assert_allclose(m.joint_anchor_parent, [[0, 0, 2.0]] + [[0.1, 0, 0]] * 4, atol=1e-15)
+    np.testing.assert_allclose(m.joint_axis_body, [[0, 1, 0]] * 5, atol=1e-15)
+    # each anchor carried with its child and with its parent: their gap is ODE's own joint error
+    # (dJointGetHingeAnchor vs ...Anchor2) at the end, and small all along (ERP 0.2 pulls it back
+    # each step; measured up to 2.7e-4 m at the joints down the chain)
+    x, r = got.position, got.rotation
+    for k in range(5):
+        c, p = int(m.joint_body[k]), int(m.body_parent[m.joint_body[k]])
+        on_child = x[:, c] + np.einsum("tij,j->ti", r[:, c], m.joint_anchor_body[k])
+        on_parent = (np.broadcast_to(m.joint_anchor_parent[k], on_child.shape) if p < 0 else
+                     x[:, p] + np.einsum("tij,j->ti", r[:, p], m.joint_anchor_parent[k]))
+        gap = np.linalg.norm(on_child - on_parent, axis=1)
+        assert gap[-1] == pytest.approx(gaps[k], rel=1e-6, abs=1e-14), (k, gap[-1], gaps[k])
+        assert gap.max() < 1e-3
+    # the chain swings down (the last box 0.79 m at 0.4 s) and back up
+    assert got.position[:, 4, 2].min() < 2.0 - 0.5
+    # the balance the contract v3 states, per body and step, from the log alone: the hinges'
+    # impulses are all that act besides gravity (measured 2.2e-16 N s; ODE applies what its
+    # dJointFeedback reports)
+    dp = got.linear_momentum[1:] - got.linear_momentum[:-1]
+    jl = got.impulse_joint_linear[1:]
+    g = m.body_mass[None, :, None] * m.gravity * DT
+    assert np.max(np.abs(dp - jl - g)) < 1e-12
+    assert np.all(got.impulse_contact_linear == 0)  # connected bodies do not collide
+    results = {r.analyzer: r for r in rblog.check(got)}
+    assert results["consistency"].passed and results["drift"].passed
+    # the boxes' ends overlap where they hinge (ODE does not collide jointed bodies): every
+    # penetration finding is a box and its parent
+    pen = results["penetration"]
+    assert pen.findings
+    for f in pen.findings:
+        a, b = sorted({int(k) for k in re.findall(r"body (\d+) \(", f.message)})
+        assert m.body_parent[b] == a, f.message
+
+
+@pytest.mark.xfail(strict=True, reason="the analyzers do not read contract v3's joints (body_kind, "
+                   "body_parent, impulse_joint_*) yet: momentum judges the hinged chain as free "
+                   "bodies colliding and flags the world hinge's impulse; penetration flags the "
+                   "overlap of hinged boxes' ends, which ODE does not collide")
+def test_check_judges_the_chain(tmp_path):
+    w = Demo()
+    try:
+        chain(w)
+        _, _, mcap = record(w, 1000, tmp_path, applied_forces=False)
+    finally:
+        w.close()
+    res = {r.analyzer: r for r in rblog.check(rblog.load(mcap))}
+    assert res["momentum"].passed and res["penetration"].passed
 
 
 def test_what_the_recorder_refuses(tmp_path):
@@ -244,9 +336,9 @@ def test_what_the_recorder_refuses(tmp_path):
     try:
         a = w.box(1.0, (0.1, 0.1, 0.1), (0, 0, 1))
         b = w.box(1.0, (0.1, 0.1, 0.1), (0, 0, 1.2))
-        j = ode.dJointCreateHinge(w.world, None)
+        j = ode.dJointCreateHinge2(w.world, None)
         ode.dJointAttach(j, a, b)
-        with pytest.raises(AdapterError, match="body 0 is on a hinge joint"):
+        with pytest.raises(AdapterError, match="body 0 is on a hinge2 joint"):
             OdeRecorder(w.world, w.space, dt=DT)
         with pytest.raises(AdapterError, match="dt = 0"):
             OdeRecorder(w.world, w.space, dt=0)

@@ -32,6 +32,7 @@ from click.testing import CliRunner
 from rblog.analyze import check
 from rblog.analyze.consistency import inspect
 from rblog.engine.scene import load_scene
+from rblog.record._common import LOG_FORMAT_VERSION
 from rblog.record.reader import load
 from rblog.study.engines import EngineUnsupported, run_engine
 from tests.conftest import SAMPLES_DIR
@@ -121,7 +122,7 @@ def test_every_sample_short(name, tmp_path):
     assert summary.steps == round(0.3 / s.sim.dt)
     for got in (load(rrd), load(mcap)):
         assert not got.truncated and got.warnings == []
-        assert got.info.engine_settings["engine"] == "ode" and got.info.log_format == 2
+        assert got.info.engine_settings["engine"] == "ode" and got.info.log_format == LOG_FORMAT_VERSION
         assert got.info.combine_friction == "geometric" and got.info.combine_restitution == "max"
         np.testing.assert_array_equal(got.position, traj.position)
         np.testing.assert_array_equal(got.contacts.normal_impulse, traj.contacts.normal_impulse)
