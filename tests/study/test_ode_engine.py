@@ -229,26 +229,76 @@ def test_options_and_what_ode_cannot_take(tmp_path):
     assert "Traceback" not in res.output
 
 
+#: name -> {finding kind (tests/analyze/test_engine_samples.kind): worst value}: what ``rblog
+#: check`` finds in ODE's full run of each sample (dWorldStep; the pile dWorldQuickStep), measured
+#: 2026-12-01 (ODE 0.16.2, ode-python 0.1.0). Each kind is a real fault of ODE, confirmed below
+#: from the logged state itself:
+#: * ``flight angular`` / ``flight energy``: ODE's implicit gyroscopic torque (see the module
+#:   docstring) does not conserve a tumbling body's L or energy in free flight;
+#: * ``cone``: rows outside Coulomb's cone: dContactApprox1 bounds the two friction directions by
+#:   mu fn during the LCP solve (a pyramid), and box_stack's dWorldStep at dt 10 ms hits "LCP
+#:   internal error" and returns friction with no normal force (relative excess 1);
+#: * ``collision angular``: the same gyroscopic step while bodies touch;
+#: * ``sink``, ``resting sink``, ``creep``: the stack at dt 10 ms sinks 9 mm where the LCP fails;
+#:   ODE's contacts slip 0.2-0.6 mm (friction pyramid, ERP-corrected penetration).
+KNOWN = {
+    "bouncing_ball": {},
+    "box_stack": {"momentum: cone": 1.0, "penetration: sink": 0.00921,
+                  "penetration: resting sink": 0.00167},
+    "free_fall": {"momentum: flight angular": 0.00195},
+    "mixed": {"momentum: flight angular": 0.00733, "momentum: cone": 1.0,
+              "momentum: collision angular": 0.000642, "penetration: creep": 0.000647},
+    "newton_pair": {},
+    "pile": {"momentum: cone": 1.0, "penetration: creep": 0.000223, "penetration: sink": 0.00633},
+    "resting_box": {},
+    "spinning_bodies": {"momentum: flight angular": 0.0486, "energy: flight energy": 0.0647},
+    "tumbling_box": {"momentum: flight angular": 0.00365, "energy: flight energy": 0.00734},
+}
+
+
+def _free_flight_l_drift(traj) -> float:
+    """Largest relative change of a body's L = R I R^T w over the run, among bodies with no
+    contact rows (ballistic the whole run: the samples without contacts)."""
+    touched = set(traj.contacts.body_a.tolist()) | set(traj.contacts.body_b.tolist())
+    worst = 0.0
+    for i in range(traj.model.n_bodies):
+        if i in touched:
+            continue
+        r = traj.rotation[:, i]
+        lw = np.einsum("tij,j,tkj,tk->ti", r, traj.model.body_inertia_diag[i], r, traj.angular_velocity[:, i])
+        lw = lw - np.outer(traj.t, traj.model.body_torque_world[i])
+        worst = max(worst, float(np.max(np.linalg.norm(lw - lw[0], axis=1)) / np.max(np.linalg.norm(lw, axis=1))))
+    return worst
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", SAMPLES)
 def test_every_sample_full(name, tmp_path):
+    """ODE's full runs: ``rblog check`` finds exactly the KNOWN kinds, each within a factor 2 of its
+    measured worst value, and each is confirmed from the log (~2 min in all here; the pile 45 s)."""
+    from tests.analyze.test_engine_samples import kind
+
     opts = ["stepper=quick"] if name in HEAVY else []
     s, summary, traj, rrd, mcap = _run(name, tmp_path, options=opts)
     got = load(mcap)
-    assert not got.truncated and check(got)[0].passed
-
-
-def test_peer_free_fall_is_symplectic_euler():
-    """``rblog bench``'s ODE rows: ODE moves a body by ``v += g dt; x += v dt``, so after n steps a
-    tossed body is ``g dt t / 2`` below the parabola (t = n dt): the bench's position error."""
-    from rblog.study.peers import OdePeer
-    from rblog.study.reference import free_fall
-
-    peer, p = OdePeer(), free_fall()
-    for integ in peer.integrators:
-        for dt in (0.02, 0.005):
-            samples, steps = peer.run(p, integ, dt)
-            err = p.evaluate(samples)["position_m"]
-            g = np.linalg.norm(p.gravity)
-            # measured: the closed form to 1.8e-14 m (round-off of 400 steps)
-            assert abs(err - g * dt * p.duration / 2) < 1e-12, (integ, dt, err)
+    assert not got.truncated
+    results = check(got)
+    assert results[0].passed
+    worst = {}
+    for r in results:
+        for f in r.findings:
+            k = f"{r.analyzer}: {kind(r.analyzer, f.message)}"
+            worst[k] = max(worst.get(k, 0.0), abs(f.value))
+    want = KNOWN[name]
+    assert set(worst) == set(want), worst
+    for k, v in want.items():
+        assert v / 2 <= worst[k] <= 2 * v, (k, worst[k], v)
+    mom = next(r for r in results if r.analyzer == "momentum")
+    if "momentum: flight angular" in want and name != "mixed":  # every body flies free there
+        assert _free_flight_l_drift(got) > mom.tolerance
+    if "momentum: cone" in want:
+        c = got.contacts
+        mu = np.sqrt(np.outer(got.model.body_friction, np.append(got.model.body_friction, got.model.ground_friction)))
+        fric = np.linalg.norm(c.friction_impulse, axis=1)
+        lim = np.array([mu[a, b] for a, b in zip(c.body_a, np.where(c.body_b < 0, got.model.n_bodies, c.body_b))])
+        assert np.any(fric > lim * c.normal_impulse * (1 + 1e-3) + 1e-12)
