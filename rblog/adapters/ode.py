@@ -73,6 +73,11 @@ ODE's conventions and how they become the contract's (docs/log-format.md):
   other static geoms are listed in ``engine_settings["static_geoms_not_in_the_table"]`` (their
   contacts are still logged, with ``body_b = -1``). ODE has no time step of its own: ``dt`` is
   the caller's, and a wrapped step with another dt is an error.
+
+Why this module is long: it is the one translation of ODE's conventions (the body table, the joint
+tree, the state, contact and joint feedback, and the wrappers that see the user's contact joints
+and steps), and they share ODE's pointer bookkeeping; ``rblog run --engine ode``
+(rblog/study/engines/ode.py) uses the same pieces.
 """
 
 from __future__ import annotations
