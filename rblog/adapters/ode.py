@@ -106,7 +106,13 @@ COM_TOL = 1e-9
 
 
 def _ode():
-    return require("odepy", extra="ode")
+    try:
+        return require("odepy", extra="ode")
+    except AdapterError:
+        raise
+    except Exception as e:  # noqa: BLE001 - odepy loads libode on import (OdePyError without it)
+        raise AdapterError(f"rblog.adapters.ode: odepy could not load libode ({type(e).__name__}: "
+                           f"{e}): apt-get install libode8") from None
 
 
 def _addr(p) -> int:
