@@ -109,6 +109,10 @@ class OdeRun:
             np.linalg.norm(model.body_force_world, axis=1) / model.body_mass, initial=0.0))
         self.bounce_vel = (_number("bounce_vel", opts.pop("bounce_vel")) if "bounce_vel" in opts
                            else ContactParams().restitution_threshold_at(self.dt, accel))
+        world_opts = {k: _number(k, opts.pop(k)) for k in ("erp", "cfm", "surface_layer",
+                                                          "max_correcting_vel", "w") if k in opts}
+        if "iterations" in opts:
+            world_opts["iterations"] = _number("iterations", opts.pop("iterations"), int)
         ode.dInitODE2(0)
         # dWorldQuickStep reorders its constraints with ODE's one global generator: seeded per run,
         # a scene's run is the same in any process whatever ran before it
@@ -121,14 +125,10 @@ class OdeRun:
         ode.dWorldSetGravity(w, *map(float, model.gravity))
         setters = {"erp": ode.dWorldSetERP, "cfm": ode.dWorldSetCFM,
                    "surface_layer": ode.dWorldSetContactSurfaceLayer,
-                   "max_correcting_vel": ode.dWorldSetContactMaxCorrectingVel}
-        for k, f in setters.items():
-            if k in opts:
-                f(w, _number(k, opts.pop(k)))
-        if "iterations" in opts:
-            ode.dWorldSetQuickStepNumIterations(w, _number("iterations", opts.pop("iterations"), int))
-        if "w" in opts:
-            ode.dWorldSetQuickStepW(w, _number("w", opts.pop("w")))
+                   "max_correcting_vel": ode.dWorldSetContactMaxCorrectingVel,
+                   "iterations": ode.dWorldSetQuickStepNumIterations, "w": ode.dWorldSetQuickStepW}
+        for k, v in world_opts.items():
+            setters[k](w, v)
         # prototypes of the calls made per contact (odepy's dJointAttach builds one per call)
         self._attach = loadOde("dJointAttach", None, ode.dJointID, ode.dBodyID, ode.dBodyID)
         self._collide = ode.dCollide
