@@ -7,8 +7,10 @@ Translation (common part: rblog/study/engines/__init__.py):
   body origin as ODE requires, the principal moments on the diagonal: the body frame is the
   contract frame), one ``dCreateSphere`` or ``dCreateBox`` geom on it with no offset, position,
   quaternion (w, x, y, z), velocity and the world-frame angular velocity ODE keeps. ODE's
-  defaults otherwise: gyroscopic term on (explicit, with the step's start inertia), infinitesimal
-  rotation update (``q += dt/2 (0, w) q``, normalized), no damping, no auto-disable. Constant
+  defaults otherwise: the gyroscopic torque on, taken semi-implicitly (Lacoursiere 2006, ODE's
+  step.cpp: ``(I (I - dt [L]x)^-1 - 1) L / dt`` with ``L = I w`` and the inertia at the step's
+  start), infinitesimal rotation update (``q += dt/2 (0, w) q``, normalized), no damping, no
+  auto-disable. Constant
   force and torque: ``dBodyAddForce`` / ``dBodyAddTorque`` before every step (ODE clears them).
   The ground: ``dCreatePlane(n, offset)``; static boxes: box geoms without a body. All geoms in
   one ``dHashSpace``.
@@ -181,9 +183,11 @@ class OdeRun:
             "timestep": self.dt, "max_contacts": self.max_contacts, "bounce_vel": self.bounce_vel,
             "surface_mode": "dContactApprox1 | dContactBounce (friction pyramid on two tangents, "
                             "limit mu * normal force)",
-            "gyroscopic": "on (ODE's default: explicit, inertia at the step's start)",
+            "gyroscopic": "on (ODE's default: semi-implicit, (I (I - dt [L]x)^-1 - 1) L / dt, "
+                          "inertia at the step's start)",
             "rotation_update": "infinitesimal (ODE's default: q += dt/2 (0, w) q, normalized)",
-            "space": "dHashSpace", "rand_seed": self.rand_seed, "combine_native": "none (surface parameters per contact)",
+            "space": "dHashSpace", "rand_seed": self.rand_seed,
+            "combine_native": "none (surface parameters per contact)",
             "material_translation": {"friction": "sqrt(mu_a mu_b) per contact",
                                      "restitution": "max(e_a, e_b) per contact"},
             "ignored_scene_tables": ["contact"] if scene.contact else [],
