@@ -105,9 +105,16 @@ DIAGONAL_REL = 1e-12
 COM_TOL = 1e-9
 
 
+_ODEPY = []
+
+
 def _ode():
+    """The odepy module (imported once)."""
+    if _ODEPY:
+        return _ODEPY[0]
     try:
-        return require("odepy", extra="ode")
+        _ODEPY.append(require("odepy", extra="ode"))
+        return _ODEPY[0]
     except AdapterError:
         raise
     except Exception as e:  # noqa: BLE001 - odepy loads libode on import (OdePyError without it)

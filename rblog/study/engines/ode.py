@@ -165,15 +165,19 @@ class OdeRun:
             ode.dGeomSetQuaternion(g, (ode.dQuaternion)(*map(float, q)))
             geoms.append(g)
         _, self.e_eff, self.mu_eff, self.can = pair_materials(model)
-        self.feature = {ctypes.cast(g, ctypes.c_void_p).value: k for k, g in enumerate(geoms)}
+        for k, g in enumerate(geoms):  # each geom's feature index + 1 in its user data
+            ode.dGeomSetData(g, ctypes.c_void_p(k + 1))
+        self._data = ode.dGeomGetData
         self.body_of = [self.bodies[k] if k < n else None for k in range(len(geoms))]
         self.n = n
         self.loaded = [(self.bodies[i], tuple(map(float, model.body_force_world[i])),
                         tuple(map(float, model.body_torque_world[i]))) for i in range(n)
                        if np.any(model.body_force_world[i] != 0) or np.any(model.body_torque_world[i] != 0)]
-        self.buf = (ode.dContactGeom * self.max_contacts)()
-        self.geom_size = ctypes.sizeof(ode.dContactGeom)
-        self.contact = ode.dContact()
+        self._contact_buf = (ode.dContact * self.max_contacts)()
+        self._cptr = [ctypes.byref(c) for c in self._contact_buf]
+        self._geom0 = ctypes.byref(self._contact_buf[0].geom)
+        self._stride = ctypes.sizeof(ode.dContact)
+        self._surface_of = None
         self.feedback = ContactFeedback()
         self.recording = False
         self._near = ode.dNearCallback(self._near_callback)
@@ -194,28 +198,29 @@ class OdeRun:
         }
 
     def _near_callback(self, _data, g1, g2) -> None:
-        i = self.feature[ctypes.cast(g1, ctypes.c_void_p).value]
-        j = self.feature[ctypes.cast(g2, ctypes.c_void_p).value]
+        i, j = self._data(g1) - 1, self._data(g2) - 1
         if not self.can[i, j]:
             return
-        k = self._collide(g1, g2, self.max_contacts, self.buf, self.geom_size)
+        # dCollide writes the points straight into the dContact array (stride sizeof(dContact)),
+        # whose surfaces are rewritten only when the pair's material differs from the last one's
+        k = self._collide(g1, g2, self.max_contacts, self._geom0, self._stride)
         if k <= 0:
             return
-        c = self.contact
-        mu, e = float(self.mu_eff[i, j]), float(self.e_eff[i, j])
-        c.surface.mode = self.ode.dContactApprox1 | (self.ode.dContactBounce if e > 0 else 0)
-        c.surface.mu = mu
-        c.surface.bounce = e
-        c.surface.bounce_vel = self.bounce_vel
+        mat = (float(self.mu_eff[i, j]), float(self.e_eff[i, j]))
+        if mat != self._surface_of:
+            mode = self.ode.dContactApprox1 | (self.ode.dContactBounce if mat[1] > 0 else 0)
+            for c in self._contact_buf:
+                c.surface.mode, c.surface.mu, c.surface.bounce = mode, mat[0], mat[1]
+                c.surface.bounce_vel = self.bounce_vel
+            self._surface_of = mat
         b1, b2 = self.body_of[i], self.body_of[j]
-        r1, r2 = (i if i < self.n else -1), (j if j < self.n else -1)
         for p in range(k):
-            cg = self.buf[p]
-            c.geom = cg
-            jt = self._create(self.world, self.group, ctypes.byref(c))
+            jt = self._create(self.world, self.group, self._cptr[p])
             self._attach(jt, b1, b2)
             if self.recording:
-                self.feedback.add(jt, cg.pos, cg.normal, cg.depth, r1, r2)
+                g = self._contact_buf[p].geom
+                self.feedback.add(jt, g.pos, g.normal, g.depth, i if i < self.n else -1,
+                                  j if j < self.n else -1)
 
     def step(self, k: int) -> None:
         ode = self.ode
