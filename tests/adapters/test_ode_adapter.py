@@ -21,7 +21,8 @@ import rblog
 ode = pytest.importorskip("odepy", reason="ODE: apt-get install libode8; pip install ode-python")
 from rblog.adapters import AdapterError  # noqa: E402
 from rblog.adapters.ode import OdeRecorder  # noqa: E402
-from rblog.contract.model import BODY_JOINTED, JOINT_HINGE, SHAPE_BOX, SHAPE_SPHERE  # noqa: E402
+from rblog.contract.model import BODY_JOINTED, JOINT_HINGE, SHAPE_BOX, SHAPE_SPHERE, SUPPLIED_LOGGED, \
+    SUPPLIED_MISSING, SUPPLIED_NONE  # noqa: E402
 from rblog.contract.trajectory import INTERVAL_CHANNELS  # noqa: E402
 from rblog.record.recorder import Recorder  # noqa: E402
 from tests.study.test_ode_engine import dcollide_depths, momentum_residuals  # noqa: E402
@@ -118,6 +119,7 @@ def boxes():
 def record(w, n, tmp_path, **kw):
     """The user's two lines around the demo's loop; returns (trajectory, ODE's states)."""
     mcap = tmp_path / "ode.mcap"
+    kw.setdefault("applied_forces", False)  # the demo's loop adds no force or torque
     rec = OdeRecorder(w.world, w.space, dt=DT, mcap=str(mcap), keep=True,     # line 1
                       friction=MU, restitution=BOUNCE, **kw)
     states = []
@@ -271,7 +273,7 @@ def test_a_chain_on_hinges(tmp_path):
     w = Demo()
     try:
         joints = chain(w)
-        traj, _, mcap = record(w, 1000, tmp_path, applied_forces=False)
+        traj, _, mcap = record(w, 1000, tmp_path)
         gaps = [hinge_gap(j) for j in joints]
         got = rblog.load(mcap)
     finally:
@@ -279,6 +281,10 @@ def test_a_chain_on_hinges(tmp_path):
     m = got.model
     assert list(m.body_kind) == [BODY_JOINTED] * 5 and list(m.body_parent) == [-1, 0, 1, 2, 3]
     assert list(m.joint_type) == [JOINT_HINGE] * 5 and list(m.joint_body) == [0, 1, 2, 3, 4]
+    # per body, IMPULSE_KINDS (contact, applied, passive, actuator, joint): contacts and joints
+    # logged; no applied load (the loop adds none), no damping, no motors
+    assert m.body_impulse_supplied.tolist() == [[SUPPLIED_LOGGED, SUPPLIED_NONE, SUPPLIED_NONE,
+                                                 SUPPLIED_NONE, SUPPLIED_LOGGED]] * 5
     # each box's hinge is at its -x end; the parent's at its +x end (the world's at the origin)
     np.testing.assert_allclose(m.joint_anchor_body, [[-0.1, 0, 0]] * 5, atol=1e-15)
     np.testing.assert_allclose(m.joint_anchor_parent, [[0, 0, 2.0]] + [[0.1, 0, 0]] * 4, atol=1e-15)
@@ -324,7 +330,7 @@ def test_check_judges_the_chain(tmp_path):
     w = Demo()
     try:
         chain(w)
-        _, _, mcap = record(w, 1000, tmp_path, applied_forces=False)
+        _, _, mcap = record(w, 1000, tmp_path)
     finally:
         w.close()
     res = {r.analyzer: r for r in rblog.check(rblog.load(mcap))}
@@ -348,6 +354,8 @@ def test_what_the_recorder_refuses(tmp_path):
     try:
         w.box(1.0, (0.1, 0.1, 0.1), (0, 0, 1))
         rec = OdeRecorder(w.world, w.space, dt=DT)
+        # by default the recorder cannot know the loop's dBodyAddForce: applied is missing
+        assert rec.model.body_impulse_supplied[0, 1] == SUPPLIED_MISSING
         with pytest.raises(AdapterError, match="stepped by 0.002 s"):
             ode.dWorldStep(w.world, 0.002)
         rec.close()
