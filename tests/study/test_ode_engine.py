@@ -275,7 +275,7 @@ def _free_flight_l_drift(traj) -> float:
 @pytest.mark.parametrize("name", SAMPLES)
 def test_every_sample_full(name, tmp_path):
     """ODE's full runs: ``rblog check`` finds exactly the KNOWN kinds, each within a factor 2 of its
-    measured worst value, and each is confirmed from the log (~2 min in all here; the pile 45 s)."""
+    measured worst value, and each is confirmed from the log (188 s for the nine here)."""
     from tests.analyze.test_engine_samples import kind
 
     opts = ["stepper=quick"] if name in HEAVY else []
