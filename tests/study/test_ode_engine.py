@@ -302,3 +302,21 @@ def test_every_sample_full(name, tmp_path):
         fric = np.linalg.norm(c.friction_impulse, axis=1)
         lim = np.array([mu[a, b] for a, b in zip(c.body_a, np.where(c.body_b < 0, got.model.n_bodies, c.body_b))])
         assert np.any(fric > lim * c.normal_impulse * (1 + 1e-3) + 1e-12)
+
+
+def test_cli_bench_and_run_print_ode(tmp_path):
+    """``rblog bench --quick --peer ode`` prints ODE's rows; ``rblog run --engine ode --check``
+    audits the run as it goes."""
+    from rblog_cli.main import main
+
+    res = CliRunner().invoke(main, ["bench", "--quick", "--peer", "ode", "--problem", "bouncing-ball",
+                                    "--integrator", "rk4", "--dt", "0.01", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    rows = [ln for ln in res.output.splitlines() if ln.startswith("ode/")]
+    assert {ln.split()[0] for ln in rows} == {"ode/dWorldStep", "ode/dWorldQuickStep"}, res.output
+    doc = json.loads((tmp_path / "bench.json").read_text())
+    assert doc["settings"]["peers"]["ode"].startswith("ode-python")
+    res = CliRunner().invoke(main, ["run", str(SAMPLES_DIR / "bouncing_ball.toml"), "--engine", "ode",
+                                    "--check", "--no-log", "--duration", "1.5"])
+    assert res.exit_code == 0, res.output
+    assert "pass momentum" in res.output and "integrator dWorldStep" in res.output
