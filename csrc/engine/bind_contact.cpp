@@ -130,7 +130,8 @@ void bind_contact(nb::module_& m) {
         "world_advance",
         [](nb::handle bd_, nb::handle st_, nb::handle cfg_, int method, int ortho, double dt,
            i64 n_steps, i64 stride, bool sample_last, nb::handle x_, nb::handle out_,
-           nb::handle sl_, ContactCache& c, nb::handle stats_, nb::handle prof_, nb::handle an_) {
+           nb::handle sl_, ContactCache& c, nb::handle stats_, nb::handle prof_, nb::handle an_,
+           nb::handle im_) {
             Bodies bd = Bodies::from_py(bd_);
             Statics st = Statics::from_py(st_);
             Settings cfg = Settings::from_py(cfg_);
@@ -138,14 +139,22 @@ void bind_contact(nb::module_& m) {
             SampleState out = SampleState::from_py(out_);
             SleepState sl = SleepState::from_py(sl_);
             FlowAnchors an = FlowAnchors::from_py(an_);
+            IntervalImpulses im = IntervalImpulses::from_py(im_);
             V1<i64> stats = v1<i64>(stats_, "stats");
             V1<i64> prof = v1<i64>(prof_, "prof");
             check_advance(bd, x, out, sl, an, stats, prof, n_steps, stride, sample_last);
+            if (im.on()) {
+                i64 n = x.position.n0;
+                check(im.acc.n0 == n && im.acc.n1 == 6 && im.start.n0 == n && im.start.n1 == 6 &&
+                          im.kicked.n0 == n && im.out.n0 == out.position.n0 && im.out.n1 == n &&
+                          im.out.n2 == 6,
+                      "impulses: acc and start (N, 6), kicked (N,), out (S, N, 6) expected");
+            }
             AdvanceResult r;
             {
                 nb::gil_scoped_release release;
                 r = world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x,
-                                  out, sl, c, stats, prof, an);
+                                  out, sl, c, stats, prof, an, im);
             }
             std::vector<i64> li(c.log_i.data.begin(), c.log_i.data.begin() + r.n_log * LOG_I_COLS);
             std::vector<double> lf(c.log_f.data.begin(),
@@ -155,7 +164,8 @@ void bind_contact(nb::module_& m) {
                                    to_numpy<double>(std::move(lf), {(size_t)r.n_log, (size_t)LOG_F_COLS}));
         },
         "world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x, out, sl, "
-        "cache, stats, prof, an) -> (n_samples, bad_step, bad_body, log_i, log_f) (step.py).");
+        "cache, stats, prof, an, impulses) -> (n_samples, bad_step, bad_body, log_i, log_f) "
+        "(step.py).");
 
     // ---- the stages on their own (step.py wraps them under their names) ----------------------
     m.def("make_scratch", [](i64 n, nb::handle st_) {

@@ -31,6 +31,8 @@
 //                         and orientations (project.py); the shift's orbital angular momentum
 //                         dx x P is handed back to the spin, as in 8
 //     13 sleep            rest timers, islands, put resting islands to sleep (island.py)
+//     1b/14 impulses      the contact stages' momentum change per body, summed per sample
+//                         interval (impulses.cpp; the log's impulse_contact_*)
 //
 // With ContactParams.solver = "soft_step", stages 6-8 are Box2D v3's substeps instead
 // (soft_step.cpp: per substep a share of the kick, warm start, soft solve, positions, relax;
@@ -75,6 +77,7 @@
 
 #include "common/task_pool.hpp"
 #include "engine/contact_solver.hpp"
+#include "engine/impulses.hpp"
 #include "engine/integrators.hpp"
 #include "engine/profile.hpp"
 #include "engine/project.hpp"
@@ -572,7 +575,8 @@ i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
 AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings& cfg, int method,
                             int ortho, double dt, i64 n_steps, i64 stride, bool sample_last,
                             const BodyState& x, const SampleState& out, const SleepState& sl,
-                            ContactCache& c, V1<i64> stats, V1<i64> prof, const FlowAnchors& an) {
+                            ContactCache& c, V1<i64> stats, V1<i64> prof, const FlowAnchors& an,
+                            const IntervalImpulses& im) {
     using namespace step;
     i64 n = x.position.n0;
     double h = dt;
@@ -604,6 +608,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             }
             if (do_prof) t = ticks();
             if (cfg.do_kick) kick(bd, sl.awake, x, h);                                     // 1
+            if (im.on()) impulses_begin(sl.awake, x, im);                                  // 1b
             if (do_prof) t = lap(prof, P_KICK, t);
             i64 n_pairs = broadphase(bd, st, cfg.speculative_distance, sl.awake, x, h, sc, c.pairs);     // 2
             V2<i64> pairs = c.pairs.view();
@@ -674,12 +679,14 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_SLEEP, t);
             if (bad >= 0) return AdvanceResult{n_samples, s, bad, n_log};
         }
+        if (im.on()) impulses_end(bd, x, h, n_awake > 0, im);                              // 14
         if (s % stride == 0 || (sample_last && s == n_steps)) {
             if (do_prof) t = ticks();
             for (i64 i = 0; i < n; ++i)
                 write_sample(method, n_samples, i, x.position, x.linear_momentum, x.quat_wxyz,
                              x.rotation, x.angular_momentum, out.position, out.linear_momentum,
                              out.quat_wxyz, out.rotation, out.angular_momentum);
+            if (im.on()) impulses_sample(im, n_samples);
             n_samples += 1;
             n_log = record_contacts(s, c.mi0.view(), c.mf0.view(), c.pf0.view(), c.n_man0,
                                     x.position, x.rotation, c.pose0.view(), c.log_i, c.log_f,

@@ -98,6 +98,13 @@ WORK_KINDS = ("applied", "passive", "actuator")
 SUPPLIED_MISSING = 0   # the writer does not know it: what needs it is not judged
 SUPPLIED_LOGGED = 1    # in the log's impulse_<kind>_* / work_<kind> channels
 SUPPLIED_NONE = 2      # the engine has no such force on the body: zero, not stored
+#: what a log that states nothing (v1, v2, a writer that declares nothing) means, per kind: its
+#: contacts are not in the interval channels (missing), and no force acts besides gravity, the
+#: contacts and the model's constant body_force_world / body_torque_world (applied "none" means
+#: no load besides those constant ones; "logged" includes them), so every other kind is none
+DEFAULT_IMPULSE_SUPPLIED = (SUPPLIED_MISSING, SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE,
+                            SUPPLIED_NONE)
+DEFAULT_WORK_SUPPLIED = (SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE)
 
 #: geom fields: name -> trailing shape per geom (dtype int64 for the int ones, str for names)
 GEOM_FIELDS = {"geom_name": (), "geom_body": (), "geom_type": (), "geom_pos_body": (3,),
@@ -138,8 +145,9 @@ class Model:
         body_kind: (N,) int BODY_* (default BODY_FREE).  body_parent: (N,) int, -1 = world.
         body_impulse_supplied: (N, 5) int, columns IMPULSE_KINDS, SUPPLIED_* codes: the log
             holds that impulse of that body (1), the engine has no such force on it (2: zero,
-            not stored), or it is missing (0: not to be judged).  body_work_supplied: (N, 3),
-            columns WORK_KINDS, likewise.
+            not stored), or it is missing (0: not to be judged); default
+            DEFAULT_IMPULSE_SUPPLIED.  body_work_supplied: (N, 3), columns WORK_KINDS,
+            likewise (default DEFAULT_WORK_SUPPLIED).
         joint_name (J,), joint_type (J,) JOINT_*, joint_body (J,) the child body,
             joint_anchor_body (J, 3) m in the child's body frame, joint_anchor_parent (J, 3) the
             same point in the parent's frame at the joint's zero position, joint_axis_body /
@@ -208,9 +216,9 @@ class Model:
         if self.body_parent is None:
             self.body_parent = np.full(n, -1, np.int64)
         if self.body_impulse_supplied is None:
-            self.body_impulse_supplied = np.zeros((n, len(IMPULSE_KINDS)), np.int64)
+            self.body_impulse_supplied = np.tile(np.array(DEFAULT_IMPULSE_SUPPLIED, np.int64), (n, 1))
         if self.body_work_supplied is None:
-            self.body_work_supplied = np.zeros((n, len(WORK_KINDS)), np.int64)
+            self.body_work_supplied = np.tile(np.array(DEFAULT_WORK_SUPPLIED, np.int64), (n, 1))
         if self.joint_type is None:
             for name, trail in JOINT_FIELDS.items():
                 if getattr(self, name) is None:

@@ -14,6 +14,7 @@ figures. The threads that log beside the stepping are rblog.engine.pipeline's.
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import threading
 import time
@@ -37,7 +38,8 @@ from rblog._threads import default_threads
 from rblog.engine import _core
 from rblog.errors import RunInterrupted, SceneError, SimulationDiverged
 from rblog.engine.free import advance_free
-from rblog.contract.model import Model
+from rblog.contract.model import (IMPULSE_KINDS, SUPPLIED_LOGGED, SUPPLIED_NONE, WORK_KINDS,
+                                  Model)
 from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES
 from rblog.engine.scene import Scene
 from rblog.engine.pipeline import BlockPipeline
@@ -278,11 +280,11 @@ def run(
         log_every, log_rate = sim.log_every, sim.log_rate
     stride = resolve_log_every(dt, log_every, log_rate)
     n_total = max(1, int(round(duration / dt)))
-    model = scene.model
-    n_bodies = model.n_bodies
     method, ortho_code = METHOD_CODES[integrator], ORTHO_CODES[ortho]
 
     plan = plan_stages(scene, duration, force_contacts=force_contacts)
+    model = engine_model(scene.model, plan.contacts)
+    n_bodies = model.n_bodies
     info = RunInfo(
         integrator=integrator, orthonormalize=ortho, dt=dt, log_every=stride,
         duration_s=n_total * dt, rblog_version=__version__, scene_path=scene.path,
@@ -303,7 +305,8 @@ def run(
         recorders as is (no copy), and a recorder may keep it."""
         s = s + 1
         return (np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 4)),
-                np.empty((s, n_bodies, 3, 3)), np.empty((s, n_bodies, 3)))
+                np.empty((s, n_bodies, 3, 3)), np.empty((s, n_bodies, 3)),
+                np.empty((s, n_bodies, 6)))  # the contact impulses of each interval
 
     stop = _StopFlag()
     drift = _Drift(model, _measure_world(scene, method, ortho_code) if plan.contacts else None)
@@ -332,7 +335,8 @@ def run(
             writer = BlockPipeline(model, info, drift, opened)
             writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
                           st.quat_wxyz[None].copy(), st.rotation[None].copy(),
-                          st.angular_momentum_world[None].copy(), None)
+                          st.angular_momentum_world[None].copy(), None,
+                          np.zeros((1, n_bodies, 6)))  # the initial state: no interval
             n_samples += 1
             # Each compiled call is sized so that it takes about CALL_WALL_BUDGET_S of wall
             # time (measured on the previous call), which bounds how late a signal is seen and
@@ -383,7 +387,8 @@ def run(
                         if bad_step >= 0:
                             contacts = contacts.select(contacts.step < done + bad_step)
                     t_log = time.perf_counter()
-                    writer.submit(done + local, *(b[:keep] for b in bufs), contacts)
+                    writer.submit(done + local, *(b[:keep] for b in bufs[:5]), contacts,
+                                  impulses=bufs[5][:keep])
                     if profile is not None:
                         profile.add("logging", time.perf_counter() - t_log)
                     n_samples += keep
@@ -542,6 +547,20 @@ def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
             f"{MAX_ROTATION_PER_STEP_RAD:g} rad")
 
 
+def engine_model(model: Model, contacts: bool) -> Model:
+    """``model`` as rblog's engine logs it (contract v3): it logs the contact impulses of every
+    interval when bodies can touch (else they are none), the applied ones when a body has a
+    constant force or torque (else none); it has no passive forces, actuators or joints (none),
+    and no applied work besides its constant loads' (none: F . dx follows from the poses)."""
+    n = model.n_bodies
+    loads = bool(np.any(model.body_force_world) or np.any(model.body_torque_world))
+    imp = np.full((n, len(IMPULSE_KINDS)), SUPPLIED_NONE, np.int64)
+    imp[:, IMPULSE_KINDS.index("contact")] = SUPPLIED_LOGGED if contacts else SUPPLIED_NONE
+    imp[:, IMPULSE_KINDS.index("applied")] = SUPPLIED_LOGGED if loads else SUPPLIED_NONE
+    work = np.full((n, len(WORK_KINDS)), SUPPLIED_NONE, np.int64)
+    return dataclasses.replace(model, body_impulse_supplied=imp, body_work_supplied=work)
+
+
 def _measure_world(scene: Scene, method: int, ortho_code: int):
     """A ContactWorld of ``scene`` for measuring overlaps at the logged samples (on the writer
     thread; the stepping world is not shared with it)."""
@@ -560,8 +579,8 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profil
 
         def advance(dt, n, stride, sample_last, st, bufs):
             return world.advance(dt, n, stride, sample_last, st.position, st.linear_momentum,
-                                 st.quat_wxyz, st.rotation, st.angular_momentum_world, *bufs,
-                                 anchors=st.anchors)
+                                 st.quat_wxyz, st.rotation, st.angular_momentum_world, *bufs[:5],
+                                 anchors=st.anchors, out_impulses=bufs[5])
 
         return advance
 
@@ -575,7 +594,8 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profil
         ns, bad_step, bad_body = advance_free(
             method, ortho_code, dt, n, stride, sample_last, inv_mass, inv_inertia, force, torque,
             st.position, st.linear_momentum, st.quat_wxyz, st.rotation, st.angular_momentum_world,
-            *bufs, anchors=st.anchors)
+            *bufs[:5], anchors=st.anchors)
+        bufs[5][...] = 0.0  # nothing can touch
         if profile is not None:
             profile.add("free kernel (integrate + sample)", time.perf_counter() - t0)
         return ns, bad_step, bad_body, None

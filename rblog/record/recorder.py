@@ -33,6 +33,7 @@ import numpy as np
 
 from rblog import __version__
 from rblog.contract.model import (BODY_FREE, BODY_KIND_CODES, COLLIDE_ALL, COLLIDE_RULES,
+                                  DEFAULT_IMPULSE_SUPPLIED, DEFAULT_WORK_SUPPLIED,
                                   GEOM_CODES, GEOM_MESH, IMPULSE_KINDS, JOINT_BALL, JOINT_CODES,
                                   JOINT_FIXED, LOG_SHAPE_CODES, SHAPE_BOX, SHAPE_NONE,
                                   SHAPE_SPHERE, WORK_KINDS, Model, v2_from_geoms)
@@ -55,7 +56,7 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
                static_box_half_extents=None, static_box_restitution=None,
                static_box_friction=None, kind=None, parent=None, geoms=None, joints=None,
                collide_rule: str = "and", impulses=(), work=(), impulses_none=(),
-               work_none=()) -> Model:
+               work_none=(), impulses_missing=(), work_missing=()) -> Model:
     """A :class:`Model` (body table and world) from per-body lists.
 
     Args:
@@ -88,8 +89,12 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
         impulses: the per-interval impulse kinds this writer logs for every body (a subset of
             IMPULSE_KINDS), or an (N, 5) array of SUPPLIED_* codes (or bools: logged or
             missing) per body.  work: likewise of WORK_KINDS, or (N, 3).
-        impulses_none, work_none: the kinds the engine does not have at all (rblog: no
-            passive forces, actuators, joints): known to be zero for every body, not stored.
+        impulses_none, work_none: kinds the engine does not have at all: known to be zero for
+            every body, not stored.  impulses_missing, work_missing: kinds acting that the
+            writer cannot supply (what needs them is not judged). A kind named nowhere has the
+            meaning of a log that states nothing (DEFAULT_IMPULSE_SUPPLIED: contact missing, the
+            others none: no force besides gravity, contacts and the constant force_world /
+            torque_world; work none).
     """
     n = len(name)
 
@@ -168,8 +173,10 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
     if collide_rule not in COLLIDE_RULES:
         raise RecordError(f"body_table: collide_rule = {collide_rule!r}, expected one of "
                           f"{', '.join(map(repr, COLLIDE_RULES))}")
-    v3["body_impulse_supplied"] = _supplied(impulses, impulses_none, n, IMPULSE_KINDS, "impulses")
-    v3["body_work_supplied"] = _supplied(work, work_none, n, WORK_KINDS, "work")
+    v3["body_impulse_supplied"] = _supplied(impulses, impulses_none, impulses_missing, n,
+                                            IMPULSE_KINDS, DEFAULT_IMPULSE_SUPPLIED, "impulses")
+    v3["body_work_supplied"] = _supplied(work, work_none, work_missing, n, WORK_KINDS,
+                                         DEFAULT_WORK_SUPPLIED, "work")
     if geoms is not None:
         world = {k: v for k, v in derived.items() if k.startswith(("ground", "static_box"))}
         return Model(
@@ -218,15 +225,13 @@ def _codes(v, count: int, names: dict, what: str, valid) -> np.ndarray:
     return out
 
 
-def _supplied(v, none, n: int, kinds: tuple, what: str) -> np.ndarray:
-    """``impulses`` / ``work`` (kind names for every body, or an (N, len(kinds)) array of
-    SUPPLIED_* codes or bools) and ``*_none`` (kind names) -> (N, len(kinds)) int64 codes."""
-    from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_NONE
+def _supplied(v, none, missing, n: int, kinds: tuple, default: tuple, what: str) -> np.ndarray:
+    """``impulses`` / ``work`` (kind names logged for every body, or an (N, len(kinds)) array of
+    SUPPLIED_* codes or bools), ``*_none`` and ``*_missing`` (kind names) -> (N, len(kinds))
+    int64 codes; a kind named nowhere gets its ``default`` code."""
+    from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE
 
-    if isinstance(v, str):
-        v = (v,)
-    if isinstance(none, str):
-        none = (none,)
+    v, none, missing = ((x,) if isinstance(x, str) else x for x in (v, none, missing))
     a = np.asarray(v)
     if a.ndim == 2 or a.dtype == bool:
         if a.shape != (n, len(kinds)) or a.dtype.kind not in "biu" or (
@@ -234,21 +239,22 @@ def _supplied(v, none, n: int, kinds: tuple, what: str) -> np.ndarray:
             raise RecordError(f"body_table: {what} has shape {a.shape} and values {_short(v)}, "
                               f"expected ({n}, {len(kinds)}) codes 0 (missing), 1 (logged), "
                               f"2 (none) (columns {', '.join(kinds)})")
-        out = a.astype(np.int64)
-    else:
-        out = np.zeros((n, len(kinds)), np.int64)
-        for k in v:
+        if len(none) or len(missing):
+            raise RecordError(f"body_table: {what} given as an array of codes; give "
+                              f"{what}_none / {what}_missing only with kind names")
+        return a.astype(np.int64)
+    out = np.tile(np.array(default, np.int64), (n, 1))
+    named: dict[str, str] = {}
+    for arg, names, code in ((what, v, SUPPLIED_LOGGED), (f"{what}_none", none, SUPPLIED_NONE),
+                             (f"{what}_missing", missing, SUPPLIED_MISSING)):
+        for k in names:
             if k not in kinds:
-                raise RecordError(f"body_table: {what} holds {k!r}, expected some of "
+                raise RecordError(f"body_table: {arg} holds {k!r}, expected some of "
                                   f"{', '.join(map(repr, kinds))}")
-            out[:, kinds.index(k)] = SUPPLIED_LOGGED
-    for k in none:
-        if k not in kinds:
-            raise RecordError(f"body_table: {what}_none holds {k!r}, expected some of "
-                              f"{', '.join(map(repr, kinds))}")
-        if np.any(out[:, kinds.index(k)] == SUPPLIED_LOGGED):
-            raise RecordError(f"body_table: {k!r} is in both {what} and {what}_none")
-        out[:, kinds.index(k)] = SUPPLIED_NONE
+            if k in named:
+                raise RecordError(f"body_table: {k!r} is in both {named[k]} and {arg}")
+            named[k] = arg
+            out[:, kinds.index(k)] = code
     return out
 
 
@@ -528,29 +534,42 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
         quat_wxyz = _arr(quat_xyzw, "quat_xyzw", (T, n, 4))[..., [3, 0, 1, 2]]
     if quat_wxyz is None and rotation is None:
         raise RecordError("orientation: give quat_wxyz, quat_xyzw or rotation")
-    if rotation is None:
-        quat_wxyz = _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
-        rotation = quat_wxyz_to_matrix(quat_wxyz)
-    else:
-        rotation = _arr(rotation, "rotation", (T, n, 3, 3))
-        quat_wxyz = matrix_to_quat(rotation) if quat_wxyz is None else _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
-    mass = np.asarray(model.body_mass, np.float64)
     if velocity is None and linear_momentum is None:
         raise RecordError("linear state: give velocity or linear_momentum")
-    if velocity is not None:
-        velocity = _arr(velocity, "velocity", (T, n, 3))
-    p = mass[None, :, None] * velocity if linear_momentum is None else \
-        _arr(linear_momentum, "linear_momentum", (T, n, 3))
     if angular_velocity is None and angular_momentum is None:
         raise RecordError("angular state: give angular_velocity (world frame) or angular_momentum")
-    if angular_velocity is not None:
-        angular_velocity = _arr(angular_velocity, "angular_velocity", (T, n, 3))
-    if angular_momentum is None:
-        inertia = np.asarray(model.body_inertia_diag, np.float64)
-        w_body = (np.swapaxes(rotation, -1, -2) @ angular_velocity[..., None])[..., 0]
-        lw = (rotation @ (inertia[None] * w_body)[..., None])[..., 0]
+    mass = np.asarray(model.body_mass, np.float64)
+    if rotation is None and linear_momentum is None and angular_momentum is None:
+        # the usual case (q, v, w): R, P and L in one compiled pass
+        from rblog.contract.derive import state_from_velocities
+
+        c = np.ascontiguousarray
+        quat_wxyz = c(_arr(quat_wxyz, "quat_wxyz", (T, n, 4)))
+        velocity = c(_arr(velocity, "velocity", (T, n, 3)))
+        angular_velocity = c(_arr(angular_velocity, "angular_velocity", (T, n, 3)))
+        rotation, p, lw = np.empty((T, n, 3, 3)), np.empty((T, n, 3)), np.empty((T, n, 3))
+        state_from_velocities(c(mass), c(model.body_inertia_diag, dtype=np.float64), quat_wxyz,
+                              velocity, angular_velocity, rotation, p, lw)
     else:
-        lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
+        if rotation is None:
+            quat_wxyz = _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
+            rotation = quat_wxyz_to_matrix(quat_wxyz)
+        else:
+            rotation = _arr(rotation, "rotation", (T, n, 3, 3))
+            quat_wxyz = matrix_to_quat(rotation) if quat_wxyz is None else \
+                _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
+        if velocity is not None:
+            velocity = _arr(velocity, "velocity", (T, n, 3))
+        p = mass[None, :, None] * velocity if linear_momentum is None else \
+            _arr(linear_momentum, "linear_momentum", (T, n, 3))
+        if angular_velocity is not None:
+            angular_velocity = _arr(angular_velocity, "angular_velocity", (T, n, 3))
+        if angular_momentum is None:
+            inertia = np.asarray(model.body_inertia_diag, np.float64)
+            w_body = (np.swapaxes(rotation, -1, -2) @ angular_velocity[..., None])[..., 0]
+            lw = (rotation @ (inertia[None] * w_body)[..., None])[..., 0]
+        else:
+            lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
     if isinstance(contacts, dict):
         unknown = sorted(set(contacts) - set(_CONTACT_FIELDS))
         missing = [k for k in _CONTACT_REQUIRED if k not in contacts]
@@ -747,12 +766,16 @@ class Recorder:
         self.samples_written += block.n_samples
         return block
 
-    def sample_block(self, capacity: int = 256) -> "SampleBlock":
+    def sample_block(self, capacity: int = 256,
+                     fields=("position", "quat_wxyz", "velocity", "angular_velocity")) -> "SampleBlock":
         """A :class:`SampleBlock` of ``capacity`` preallocated sample rows that writes itself to
-        this recorder when full (and on :meth:`close`): the per-sample fast path."""
+        this recorder when full (and on :meth:`close`): the per-sample fast path. ``fields``:
+        the state arrays the writer fills (any that :func:`build_block` takes: ``rotation``
+        as well as ``quat_wxyz`` skips the conversion, ``linear_momentum`` /
+        ``angular_momentum`` instead of the velocities skip the products)."""
         if self.model is None:
             raise RecordError("no body table: give Recorder(model, ...) before sample_block()")
-        blk = SampleBlock(self, int(capacity))
+        blk = SampleBlock(self, int(capacity), tuple(fields))
         self._sample_blocks.append(blk)
         return blk
 
@@ -798,12 +821,19 @@ class Recorder:
         return traj
 
 
+#: the state arrays build_block takes, with their trailing shapes per body
+_STATE_TRAILS = {"position": (3,), "quat_wxyz": (4,), "quat_xyzw": (4,), "rotation": (3, 3),
+                 "velocity": (3,), "linear_momentum": (3,), "angular_velocity": (3,),
+                 "angular_momentum": (3,)}
+
+
 class SampleBlock:
     """Preallocated rows for recording one sample at a time at the cost of a copy.
 
     Arrays (C = capacity rows, N bodies; world frame, the units of :func:`build_block`):
-    ``t`` (C,), ``step`` (C,) int64, ``position`` (C, N, 3), ``quat_wxyz`` (C, N, 4),
-    ``velocity`` (C, N, 3), ``angular_velocity`` (C, N, 3), and one array per per-interval
+    ``t`` (C,), ``step`` (C,) int64, the state ``fields`` (default ``position`` (C, N, 3),
+    ``quat_wxyz`` (C, N, 4), ``velocity`` (C, N, 3), ``angular_velocity`` (C, N, 3); also
+    ``rotation`` (C, N, 3, 3), ``linear_momentum``, ``angular_momentum``), and one array per per-interval
     channel the body table declares (``impulse_contact_linear`` (C, N, 3), ``work_actuator``
     (C, N), ...), zero in a fresh row so that a writer can accumulate into it step by step.
 
@@ -821,11 +851,17 @@ class SampleBlock:
     recorder (no copy: a kept block stays valid). :meth:`flush` writes a partial block;
     :meth:`Recorder.close` flushes every block it handed out."""
 
-    def __init__(self, rec: "Recorder", capacity: int):
+    def __init__(self, rec: "Recorder", capacity: int,
+                 fields=("position", "quat_wxyz", "velocity", "angular_velocity")):
         if capacity < 1:
             raise RecordError(f"sample_block: capacity = {capacity}, expected >= 1")
+        bad = sorted(set(fields) - set(_STATE_TRAILS))
+        if bad or "position" not in fields:
+            raise RecordError(f"sample_block: fields {list(fields)}, expected position and some of "
+                              f"{', '.join(k for k in _STATE_TRAILS if k != 'position')}")
         from rblog.record._common import run_interval_channels
 
+        self._fields = tuple(fields)
         self._rec = rec
         self.capacity = capacity
         self._n_bodies = rec.model.n_bodies
@@ -837,10 +873,8 @@ class SampleBlock:
         c, n = self.capacity, self._n_bodies
         self.t = np.zeros(c)
         self.step = np.zeros(c, np.int64)
-        self.position = np.zeros((c, n, 3))
-        self.quat_wxyz = np.zeros((c, n, 4))
-        self.velocity = np.zeros((c, n, 3))
-        self.angular_velocity = np.zeros((c, n, 3))
+        for name in self._fields:
+            setattr(self, name, np.zeros((c, n, *_STATE_TRAILS[name])))
         for name in self._interval:
             setattr(self, name, np.zeros((c, n, *INTERVAL_CHANNELS[name])))
         self._contacts: list[dict] = []
@@ -870,10 +904,8 @@ class SampleBlock:
         k = self.n
         if not k:
             return
-        arrays = dict(t=self.t[:k], step=self.step[:k], position=self.position[:k],
-                      quat_wxyz=self.quat_wxyz[:k], velocity=self.velocity[:k],
-                      angular_velocity=self.angular_velocity[:k])
-        for name in self._interval:
+        arrays = dict(t=self.t[:k], step=self.step[:k])
+        for name in (*self._fields, *self._interval):
             arrays[name] = getattr(self, name)[:k]
         if self._contacts:
             keys = set(self._contacts[0])

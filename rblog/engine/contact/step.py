@@ -239,7 +239,7 @@ def record_contacts(s, mi, mf, pf, n_man, position, rotation, pose0, log_i, log_
 # ---- the step ---------------------------------------------------------------------------------
 
 def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x, out, sl, c,
-                  stats, prof, an):
+                  stats, prof, an, impulses=None):
     """Advance ``n_steps`` steps of ``dt`` with contacts; write samples and contact rows (C++,
     the GIL released for the whole call).
 
@@ -253,10 +253,15 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
         stats: (N_STATS,) int64 counters, added to.
         prof: (profile.N_PROF,) int64 cycle counts per stage, added to; empty: not profiled.
         an: rblog.engine.state.FlowAnchors, updated in place (the exact integrators' anchors).
+        impulses: the per-interval contact impulses (an object with ``acc`` (N, 6), ``start``
+            (N, 6), ``kicked`` (N,) int64, kept across calls, and ``out`` (S, N, 6): linear and
+            angular (about the COM) world contact impulse summed over each sample's interval;
+            csrc/engine/impulses.cpp), or None.
 
     Returns (n_samples, bad_step, bad_body, log_i, log_f): bad_step is the first local step
     (1-based) at which some body's state became non-finite (-1 if none); log_i (K, LOG_I_COLS)
     int64 and log_f (K, LOG_F_COLS) float64 are the call's contact rows (manifold.LOG_*).
     """
     return _core.world_advance(bd, st, cfg, int(method), int(ortho), float(dt), int(n_steps),
-                               int(stride), bool(sample_last), x, out, sl, c, stats, prof, an)
+                               int(stride), bool(sample_last), x, out, sl, c, stats, prof, an,
+                               () if impulses is None else impulses)

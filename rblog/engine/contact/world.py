@@ -24,6 +24,8 @@ starting) and the sleep state. Stages a scene does not need are chosen away once
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from rblog.engine.constants import ISOTROPIC_RTOL, RESTITUTION_THRESHOLD_KICKS
@@ -44,6 +46,13 @@ from rblog.engine.contact.step import (
     N_STATS, Bodies, BodyState, ContactCache, Settings, SleepState, Statics, solver_constants,
     world_advance,
 )
+
+
+class _Impulses(NamedTuple):
+    acc: np.ndarray     # (N, 6) contact impulse since the last sample (linear, angular)
+    start: np.ndarray   # (N, 6) momenta after the step's kick
+    kicked: np.ndarray  # (N,) int64 awake at the kick
+    out: np.ndarray     # (S, N, 6) the call's sample buffer
 
 
 class ContactWorld:
@@ -161,6 +170,9 @@ class ContactWorld:
         #: manifolds, points, awake body-steps, impact points, islands woken, bodies put to sleep,
         #: velocity sweeps, points pushed out by the project stage
         self.stats = np.zeros(N_STATS, np.int64)
+        # the per-interval contact impulses' running sums (impulses.cpp), kept across calls
+        self._impulses = _Impulses(acc=np.zeros((n, 6)), start=np.zeros((n, 6)),
+                                   kicked=np.zeros(n, np.int64), out=np.zeros((0, n, 6)))
         #: cycle counts per stage (profile.STAGES) when profiled (profile.Profile.ticks handed
         #: in by the run loop), else empty: the step then reads no clock
         self.profile_ticks = np.zeros(0, np.int64)
@@ -298,7 +310,7 @@ class ContactWorld:
     def advance(self, dt, n_steps, stride, sample_last,
                 position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                out_angular_momentum, anchors=None):
+                out_angular_momentum, anchors=None, out_impulses=None):
         """Advance ``n_steps`` steps; same arguments and sampling rule as free.advance_free.
 
         Args:
@@ -309,6 +321,10 @@ class ContactWorld:
             out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
             anchors: the exact integrators' flow anchors (rblog.engine.state.FlowAnchors,
                 updated in place; the run's State.anchors), None: for this call only.
+            out_impulses: (S, N, 6) sample buffer of the per-interval contact impulses (linear
+                N s, angular about the COM N m s, world; the log's impulse_contact_*): what the
+                contact stages gave each body over the steps since the previous sample (of this
+                world: the sum runs on across calls; csrc/engine/impulses.cpp), or None.
 
         Returns (n_samples, bad_step, bad_body, contacts). bad_step is the first local step
         (1-based) at which a body's state became non-finite (the call stops there), else -1.
@@ -325,6 +341,8 @@ class ContactWorld:
         sleep state from one call to the next."""
         if anchors is None:
             anchors = new_anchors(position.shape[0])
+        if out_impulses is not None and not self.use_contacts:
+            out_impulses[...] = 0.0  # nothing can touch
         if not self.use_contacts:
             ns, bad_step, bad_body = advance_free(
                 self.method, self.ortho, float(dt), int(n_steps), int(stride), bool(sample_last),
@@ -339,7 +357,8 @@ class ContactWorld:
             BodyState(position, linear_momentum, quat_wxyz, rotation, angular_momentum),
             BodyState(out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                       out_angular_momentum),
-            self._sleep, self._cache, self.stats, self.profile_ticks, anchors)
+            self._sleep, self._cache, self.stats, self.profile_ticks, anchors,
+            None if out_impulses is None else self._impulses._replace(out=out_impulses))
         n_samples, bad_step, bad_body, li, lf = res
         n_log = li.shape[0]
         contacts = Contacts(
