@@ -20,6 +20,7 @@
 #include "common/array.hpp"
 #include "common/py.hpp"
 #include "engine/collision.hpp"
+#include "engine/step_context.hpp"
 
 namespace rb {
 
@@ -55,36 +56,6 @@ struct Statics {
     V1<double> gn;    // (3,) unit ground normal
     double goff = 0.0, g_e = 0.0, g_mu = 0.0;
     static Statics from_py(nanobind::handle r);
-};
-
-// Stage switches, then the solver settings spelled as rblog.engine.constants.ContactParams's
-// fields (resolved for the run: step.py's Settings says how), then the module-level solver
-// tolerances of rblog.engine.constants, spelled as the constants in lower case, so that the C++
-// stages hold no second copy of them.
-struct Settings {
-    bool do_kick = false, do_sleep = false, iso_shortcut = false;
-    i64 velocity_iterations = 0, max_velocity_iterations = 0;
-    double velocity_tolerance = 0.0, over_relaxation = 1.0;
-    i64 position_iterations = 0;
-    double allowed_penetration = 0.0, position_correction_rate = 0.0, max_correction_speed = 0.0;
-    double speculative_distance = 0.0, restitution_threshold = 0.0;
-    double friction_anchor_distance = 0.0, sleep_speed = 0.0, sleep_time = 0.0;
-    bool warm_starting = false;
-    i64 projection_iterations = 0;
-    double projection_depth = 0.0;
-    bool static_friction_anchors = false;
-    i64 friction_newton_iters = 0;          // FRICTION_NEWTON_ITERS
-    double friction_newton_tol = 0.0;       // FRICTION_NEWTON_TOL
-    double block_reg = 0.0;                 // BLOCK_REG
-    double friction_anchor_rate = 0.0;      // FRICTION_ANCHOR_RATE
-    double friction_anchor_slide_frac = 0.0;  // FRICTION_ANCHOR_SLIDE_FRAC
-    i64 projection_rings = 0;               // PROJECTION_RINGS
-    // ContactParams.solver == "soft_step" (soft_step.cpp), its substeps, contact_hertz (Hz, inf
-    // for None) and contact_damping_ratio
-    bool soft_step = false;
-    i64 substeps = 1;
-    double contact_hertz = 0.0, contact_damping_ratio = 0.0;
-    static Settings from_py(nanobind::handle r);
 };
 
 // The changing state of the bodies, world frame (rblog.engine.state.State's arrays).

@@ -281,10 +281,11 @@ void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch&
                 sc.bw0.view(), sc.pv.view(), sc.pw.view(), sc.p0.view(), sc.l0.view());
     // a manifold's preparation writes only its own rows (mf, its points' pf): blocks of
     // manifolds on the pool (pf stays whole: a manifold's MI_START indexes it)
+    const StepContext ctx{h, 1.0 / h, cfg};
+    const SolverBodies b{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()};
     par_ranges(n_man, MANIFOLDS_PER_BLOCK, [&](i64 m0, i64 m1) {
-        prepare_contacts(rows(mi, m0, m1), rows(mf, m0, m1), pf, m1 - m0, col(sc.bm),
-                         sc.bI.view(), sc.bv.view(), sc.bw.view(), h, cfg.friction_anchor_rate,
-                         cfg.block_reg);
+        prepare_contacts(ctx, ContactConstraints{rows(mi, m0, m1), rows(mf, m0, m1), pf, m1 - m0},
+                         b);
     });
 }
 
@@ -580,7 +581,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
     using namespace step;
     i64 n = x.position.n0;
     double h = dt;
-    double inv_h = 1.0 / dt;
+    const StepContext ctx{h, 1.0 / dt, cfg};
     Scratch& sc = c.sc;
     sc.make(n, st);
     if (c.pose0.rows != n || c.pose0.cols != 12) c.pose0 = Buf2<double>(n, 12);
@@ -625,35 +626,29 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_COLOUR, t);
             V2<i64> mi1 = c.mi1.view();
             V2<double> mf1 = c.mf1.view(), pf1 = c.pf1.view();
-            V1<double> bm = col(sc.bm);
-            V2<double> bI = sc.bI.view(), bv = sc.bv.view(), bw = sc.bw.view();
+            const ContactConstraints cons{mi1, mf1, pf1, n_man};
+            const SolverBodies bodies{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()};
+            const SolverBodies pseudo{col(sc.bm), sc.bI.view(), sc.pv.view(), sc.pw.view()};
             prepare(bd, cfg, x, sc, mi1, mf1, pf1, n_man, h);                               // 5
             if (cfg.soft_step) {  // 6-9 as Box2D v3's substeps (soft_step.cpp)
                 stats[ST_SWEEPS] += soft_stages(bd, cfg, x, sc, sl.awake, mi1, mf1, pf1, n_man,
                                                 method, ortho, h, an, prof, t);
             } else {
-            if (cfg.warm_starting) warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw);                // 6
-            stats[ST_SWEEPS] += solve_velocities(                                           // 7
-                mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h, cfg.velocity_iterations, cfg.max_velocity_iterations, cfg.velocity_tolerance,
-                col(sc.hot), col(sc.in_contact), cfg.over_relaxation, cfg.friction_newton_iters, cfg.friction_newton_tol,
-                sc.graph, sc.lanes);
-            if (cfg.static_friction_anchors)                                                             // 7b
-                anchor_friction(mi1, mf1, pf1, n_man, bm, bI, bv, bw, cfg.friction_newton_iters,
-                                cfg.friction_newton_tol);
+            if (cfg.warm_starting) warm_start(cons, bodies);                               // 6
+            stats[ST_SWEEPS] += solve_velocities(ctx, cons, bodies, col(sc.hot),           // 7
+                                                 col(sc.in_contact), sc.graph, sc.lanes);
+            if (cfg.static_friction_anchors) anchor_friction(ctx, cons, bodies);           // 7b
             if (do_prof) t = lap(prof, P_SOLVE, t);
-            if (cfg.position_iterations > 0)                                                              // 8
-                relax_positions(mi1, mf1, pf1, n_man, bm, bI, sc.pv.view(), sc.pw.view(), inv_h,
-                                cfg.position_iterations, cfg.allowed_penetration, cfg.position_correction_rate, cfg.max_correction_speed);
+            if (cfg.position_iterations > 0) relax_positions(ctx, cons, pseudo);           // 8
             mark_pushed(mi1, pf1, n_man, n, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
             if (do_prof) t = lap(prof, P_INTEGRATE, t);
             }
-            stats[ST_IMPACTS] += restitution(                                               // 10
-                mi1, mf1, pf1, n_man, bm, bI, bv, bw, sc.pv.view(), sc.pw.view(), h,
-                cfg.restitution_threshold, cfg.velocity_iterations, sc.dx_step.view(), x.linear_momentum,
-                x.angular_momentum);
-            store_impulses(mi1, mf1, pf1, n_man, cfg.friction_anchor_slide_frac);                           // 11
+            stats[ST_IMPACTS] += restitution(ctx, cons, bodies, sc.pv.view(), sc.pw.view(), // 10
+                                             sc.dx_step.view(), x.linear_momentum,
+                                             x.angular_momentum);
+            store_impulses(ctx, cons);                                                      // 11
             // this step's manifolds become "previous"
             c.keys0.grow(std::max<i64>(n_man, 1));
             c.idx0.grow(std::max<i64>(n_man, 1));
