@@ -205,7 +205,8 @@ CONTACT_JOINT = 4
 
 def inspect(world, space, *, bodies=None, names=None, friction=np.nan, restitution=np.nan,
             ground_friction=None, ground_restitution=None):
-    """The body table of an ODE world: (Model, bodies (list of dBodyID), q_frame (N, 4), notes).
+    """The body table of an ODE world: (Model, bodies (list of dBodyID), q_frame (N, 4), notes);
+    its joints are :func:`joint_tree`'s.
 
     ``friction``/``restitution``: scalar or per recorded body (ODE states none per body);
     ``ground_*``: the ground's and the static boxes' (default: the bodies' first value)."""
@@ -300,8 +301,7 @@ def inspect(world, space, *, bodies=None, names=None, friction=np.nan, restituti
         static_box_half_extents=np.array(sb_half).reshape(nsb, 3),
         static_box_restitution=np.full(nsb, g_e), static_box_friction=np.full(nsb, g_mu),
         **tree.model_fields())
-    return model, list(bodies), q_frames, {"static_geoms_not_in_the_table": other,
-                                           "joints": tree.joints}
+    return model, list(bodies), q_frames, {"static_geoms_not_in_the_table": other}
 
 
 #: ODE joint types the contract has (dJointType -> JOINT_* code)
