@@ -1,10 +1,11 @@
 """CPU cost of recording one sample at a time: Recorder.write per sample vs Recorder.sample_block
 (rows filled in place, one write per block), into an .mcap file and in memory.
 
-    python benchmarks/bench_sample_block.py [--bodies 16] [--samples 5000] [--pairs 3]
+    python benchmarks/bench_sample_block.py [--bodies 16] [--samples 5000] [--pairs 3] [--contacts 4]
 
 Reports CPU time (process_time, all threads) per sample, median over interleaved pairs; the
-state is random, with the contact and joint impulses a MuJoCo recording logs.
+state is random, with the contact and joint impulses a MuJoCo recording logs, and ``--contacts``
+contact rows per sample (as a resting stack has).
 """
 
 from __future__ import annotations
@@ -33,7 +34,14 @@ def _state(n: int, seed: int = 0):
                 impulse=rng.normal(size=(n, 3)))
 
 
-def per_write(model, st, samples: int, **out) -> float:
+def _rows(k: int, contacts: int) -> dict:
+    return dict(step=np.full(contacts, k), body_a=np.zeros(contacts, np.int64),
+                body_b=-np.ones(contacts, np.int64), point=np.zeros((contacts, 3)),
+                normal=np.tile([0.0, 0.0, 1.0], (contacts, 1)), separation=np.zeros(contacts),
+                normal_impulse=np.ones(contacts))
+
+
+def per_write(model, st, samples: int, contacts: int = 0, **out) -> float:
     J = st["impulse"][None]
     with rblog.Recorder(model, dt=1e-3, **out) as rec:
         t0 = time.process_time()
@@ -41,12 +49,13 @@ def per_write(model, st, samples: int, **out) -> float:
             rec.write(t=[k * 1e-3], step=[k], position=st["position"][None],
                       quat_wxyz=st["quat_wxyz"][None], velocity=st["velocity"][None],
                       angular_velocity=st["angular_velocity"][None], impulse_contact_linear=J,
-                      impulse_contact_angular=J, impulse_joint_linear=J, impulse_joint_angular=J)
+                      impulse_contact_angular=J, impulse_joint_linear=J, impulse_joint_angular=J,
+                      contacts=_rows(k, contacts) if contacts else None)
         rec.close()
         return (time.process_time() - t0) / samples
 
 
-def per_row(model, st, samples: int, **out) -> float:
+def per_row(model, st, samples: int, contacts: int = 0, **out) -> float:
     J = st["impulse"]
     with rblog.Recorder(model, dt=1e-3, **out) as rec:
         blk = rec.sample_block(256)
@@ -61,6 +70,11 @@ def per_row(model, st, samples: int, **out) -> float:
             for name in ("impulse_contact_linear", "impulse_contact_angular",
                          "impulse_joint_linear", "impulse_joint_angular"):
                 getattr(blk, name)[r] += J
+            if contacts:  # the rows filled in place, as an adapter copies an engine's arrays
+                c = blk.contact_rows(contacts)
+                c.normal[:, 2] = 1.0
+                c.body_b[:] = -1
+                c.normal_impulse[:] = 1.0
             blk.commit()
         rec.close()
         return (time.process_time() - t0) / samples
@@ -71,6 +85,7 @@ def main():
     ap.add_argument("--bodies", type=int, default=16)
     ap.add_argument("--samples", type=int, default=5000)
     ap.add_argument("--pairs", type=int, default=3)
+    ap.add_argument("--contacts", type=int, default=0)
     a = ap.parse_args()
     model, st = _model(a.bodies), _state(a.bodies)
     with tempfile.TemporaryDirectory() as tmp:
@@ -82,9 +97,10 @@ def main():
         times = {k: [] for k in runs}
         for _ in range(a.pairs):
             for k, (fn, out) in runs.items():
-                times[k].append(fn(model, st, a.samples, **out))
+                times[k].append(fn(model, st, a.samples, a.contacts, **out))
     for k, v in times.items():
-        print(f"{k:30s} {statistics.median(v) * 1e6:8.1f} us CPU per sample ({a.bodies} bodies)")
+        print(f"{k:30s} {statistics.median(v) * 1e6:8.1f} us CPU per sample ({a.bodies} bodies, "
+              f"{a.contacts} contact rows)")
 
 
 if __name__ == "__main__":

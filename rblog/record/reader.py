@@ -160,7 +160,7 @@ class _Collector:
                          f"{C.LOG_FORMAT_VERSION}; channels it does not know are ignored")
         traj = Trajectory(model=model, info=info, contacts=self._contacts(), truncated=truncated,
                           warnings=warns, **kw)
-        from rblog.analyze.consistency import consistency_warnings  # checks on read (contract v2)
+        from rblog.analyze.consistency import consistency_warnings  # the checks on read
 
         traj.warnings.extend(consistency_warnings(traj))
         return traj

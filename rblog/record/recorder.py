@@ -28,6 +28,7 @@ arguments with one-line errors naming the argument, its shape and what was expec
 from __future__ import annotations
 
 from dataclasses import fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -821,6 +822,19 @@ class Recorder:
         return traj
 
 
+class ContactRows(NamedTuple):
+    """Views of k contact rows of a :class:`SampleBlock` (see :func:`make_contacts`)."""
+
+    body_a: np.ndarray            # (k,) int64
+    body_b: np.ndarray            # (k,) int64, -1 = static geometry
+    point: np.ndarray             # (k, 3) m, world
+    normal: np.ndarray            # (k, 3) unit, from body_b into body_a
+    separation: np.ndarray        # (k,) m, < 0 = penetration
+    normal_impulse: np.ndarray    # (k,) N s on body_a
+    friction_impulse: np.ndarray  # (k, 3) N s on body_a, world
+    kind: np.ndarray              # (k,) int64, 0 resting (or not classified), 1 impact
+
+
 #: the state arrays build_block takes, with their trailing shapes per body
 _STATE_TRAILS = {"position": (3,), "quat_wxyz": (4,), "quat_xyzw": (4,), "rotation": (3, 3),
                  "velocity": (3,), "linear_momentum": (3,), "angular_velocity": (3,),
@@ -843,7 +857,8 @@ class SampleBlock:
         blk.t[r] = d.time; blk.step[r] = k
         np.copyto(blk.position[r], x)          # or an engine call with out=blk.position[r]
         ...                                    # quat_wxyz, velocity, angular_velocity, intervals
-        blk.add_contacts(body_a=..., ...)      # optional: this sample's contact rows
+        c = blk.contact_rows(k)                # optional: this sample's k contact rows, views
+        c.normal[:] = ...                      #   to fill in place (or blk.add_contacts(...))
         blk.commit()                           # when the block is full: one Recorder.write
 
     Everything per block (the derived channels, the encoding, the writers) is compiled or
@@ -877,7 +892,13 @@ class SampleBlock:
             setattr(self, name, np.zeros((c, n, *_STATE_TRAILS[name])))
         for name in self._interval:
             setattr(self, name, np.zeros((c, n, *INTERVAL_CHANNELS[name])))
-        self._contacts: list[dict] = []
+        # contact rows of the block (grown as needed): step, then ContactRows' fields
+        self._nc = 0
+        self._c_step = np.zeros(0, np.int64)
+        self._c_a, self._c_b = np.zeros(0, np.int64), np.zeros(0, np.int64)
+        self._c_point, self._c_normal = np.zeros((0, 3)), np.zeros((0, 3))
+        self._c_sep, self._c_ln = np.zeros(0), np.zeros(0)
+        self._c_fric, self._c_kind = np.zeros((0, 3)), np.zeros(0, np.int64)
 
     def row(self) -> int:
         """Index of the row the next sample goes in (flushes first if the block is full)."""
@@ -885,13 +906,47 @@ class SampleBlock:
             self.flush()
         return self.n
 
+    def contact_rows(self, k: int) -> "ContactRows":
+        """``k`` contact rows for the sample being filled, as views into the block's
+        preallocated contact arrays (fields of :class:`ContactRows`, zero, ``step`` set to the
+        sample's): fill them in place (``rows.normal[:] = ...``) before the next call."""
+        k = int(k)
+        c0 = self._nc
+        if c0 + k > len(self._c_step):
+            self._grow_contacts(c0 + k)
+        self._nc = c0 + k
+        self._c_step[c0:c0 + k] = self.step[self.n]
+        return ContactRows(*(a[c0:c0 + k] for a in self._c_arrays()))
+
     def add_contacts(self, **rows) -> None:
-        """Contact rows of the sample being filled (the fields of :func:`make_contacts`;
-        ``step`` defaults to that sample's ``step``)."""
-        if "step" not in rows:
-            k = len(np.atleast_1d(np.asarray(rows.get("body_a", ()))))
-            rows["step"] = np.full(k, self.step[self.n], np.int64)
-        self._contacts.append(rows)
+        """Contact rows of the sample being filled, from arrays (the fields of
+        :func:`make_contacts` but ``step`` and ``t``: the sample's)."""
+        unknown = sorted(set(rows) - set(ContactRows._fields))
+        if unknown:
+            raise RecordError(f"sample_block.add_contacts: unknown field {unknown[0]!r}; the "
+                              f"fields are {', '.join(ContactRows._fields)}")
+        k = len(np.atleast_1d(np.asarray(rows.get("body_a", ()))))
+        out = self.contact_rows(k)
+        for name, v in rows.items():
+            dst = getattr(out, name)
+            try:
+                dst[...] = np.asarray(v).reshape(dst.shape)
+            except ValueError:
+                raise RecordError(f"sample_block.add_contacts: {name} has shape "
+                                  f"{np.shape(v)}, expected {dst.shape} ({k} rows)") from None
+
+    def _c_arrays(self):
+        return (self._c_a, self._c_b, self._c_point, self._c_normal, self._c_sep, self._c_ln,
+                self._c_fric, self._c_kind)
+
+    def _grow_contacts(self, need: int):
+        cap = max(need, 2 * len(self._c_step), 64)
+        old = (self._c_step, *self._c_arrays())
+        new = [np.zeros((cap, *a.shape[1:]), a.dtype) for a in old]
+        for a, b in zip(old, new):
+            b[:self._nc] = a[:self._nc]
+        (self._c_step, self._c_a, self._c_b, self._c_point, self._c_normal, self._c_sep,
+         self._c_ln, self._c_fric, self._c_kind) = new
 
     def commit(self) -> None:
         """The row :meth:`row` returned is filled: count it, and write the block when full."""
@@ -907,14 +962,10 @@ class SampleBlock:
         arrays = dict(t=self.t[:k], step=self.step[:k])
         for name in (*self._fields, *self._interval):
             arrays[name] = getattr(self, name)[:k]
-        if self._contacts:
-            keys = set(self._contacts[0])
-            if any(set(c) != keys for c in self._contacts):
-                raise RecordError("sample_block.add_contacts: every call of a block must give the "
-                                  f"same fields (first: {', '.join(sorted(keys))})")
-            arrays["contacts"] = {key: np.concatenate([
-                np.asarray(c[key]).reshape((-1, 3) if key in _CONTACT_VECTORS else (-1,))
-                for c in self._contacts]) for key in keys}
+        if self._nc:
+            c = self._nc
+            arrays["contacts"] = dict(zip(("step", *ContactRows._fields),
+                                          (a[:c] for a in (self._c_step, *self._c_arrays()))))
         self.n = 0
         self._new()
         self._rec.write(**arrays)
@@ -939,6 +990,7 @@ def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
 #: scalar-first quaternions -> body->world matrices (re-exported for writers)
 quat_to_matrix = quat_wxyz_to_matrix
 
-__all__ = ["CONTACT_ROWS_SEPARATION", "KIND_VALUES", "Recorder", "RecordError", "SampleBlock",
+__all__ = ["CONTACT_ROWS_SEPARATION", "ContactRows", "KIND_VALUES", "Recorder", "RecordError",
+           "SampleBlock",
            "body_table", "build_block", "make_contacts",
            "trajectory_from_arrays", "matrix_to_quat", "quat_to_matrix"]
