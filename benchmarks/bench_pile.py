@@ -18,7 +18,12 @@ Engines, each stepping the same initial state at the same dt on one thread:
   and prediction distance are multiples of it), ``normalized_prediction_distance`` 0.1 and a
   contact natural frequency of 480 Hz (``contact_softness``; ``static_contact_softness`` 960 Hz,
   twice it, as Rapier's defaults are 30 and 60 Hz);
-* ``pybullet``: maximal coordinates (Bullet's rigid-body pipeline), default solver.
+* ``pybullet``: maximal coordinates (Bullet's rigid-body pipeline), default solver;
+* ``ode``: ODE through ``rblog run --engine ode``'s translation (rblog.study.engines.ode.OdeRun):
+  ``dWorldQuickStep`` at ODE's defaults (20 iterations, SOR w 1.3, ERP 0.2, CFM 1e-10), up to 8
+  ``dCollide`` points per pair, friction pyramid (dContactApprox1); ``ode-world``: ``dWorldStep``
+  (a direct LCP per island, cubic in its rows: small piles only). Its time includes the Python
+  near callback of ``dSpaceCollide`` (ctypes; every candidate pair, every contact joint).
 
 The engines advance ``--chunk`` steps each in turn in this one process (interleaved: whatever
 else the machine runs slows all alike) and are timed by CPU time (``time.process_time``) around
@@ -297,6 +302,33 @@ def pybullet_chunks(model, state, dt, n_steps, chunk):
         pb.disconnect(physicsClientId=cid)
 
 
+def ode_chunks(model, state, dt, n_steps, chunk, stepper="quick"):
+    """ODE by OdeRun (the pile as a scene of its model and state), the state read back per body."""
+    from types import SimpleNamespace
+
+    from rblog.study.engines.ode import OdeRun
+
+    scene = SimpleNamespace(model=model, state=state, sim=SimpleNamespace(seed=0), contact=None)
+    run = OdeRun(scene, dt, [f"stepper={stepper}"])
+    try:
+        done = 0
+        while done < n_steps:
+            k = min(chunk, n_steps - done)
+            t0, c0 = time.perf_counter(), time.process_time()
+            run.step(k)
+            cpu, w = time.process_time() - c0, time.perf_counter() - t0
+            done += k
+            pos, quat, vel, omega = run.state()
+            yield Chunk(k, cpu, w, pos, unit(quat), vel, omega)
+        st = run.settings
+        keys = ("integrator", "quickstep_iterations", "quickstep_w", "erp", "cfm", "max_contacts")
+        return dict(version=f"ODE {run.version} {stepper}", settings={k: st[k] for k in keys if k in st},
+                    detail=", ".join(f"{k} {st[k]}" for k in keys if k in st),
+                    combine=("geometric", "max"))
+    finally:
+        run.close()
+
+
 # ---- one measuring code for every engine --------------------------------------------------------
 
 class Judge:
@@ -397,8 +429,8 @@ def main(argv=None):
     ap.add_argument("--chunk", "--sample-every", dest="chunk", type=int, default=10,
                     help="steps an engine advances before the next takes its turn; the poses "
                          "are measured after each")
-    ap.add_argument("--engines", default="rblog,mujoco,rapier,rapier-stiff,pybullet",
-                    help="comma-separated: rblog, mujoco, rapier, rapier-stiff, pybullet "
+    ap.add_argument("--engines", default="rblog,mujoco,rapier,rapier-stiff,pybullet,ode",
+                    help="comma-separated: rblog, mujoco, rapier, rapier-stiff, pybullet, ode, ode-world "
                          "(those not installed are skipped)")
     ap.add_argument("--no-peers", action="store_true", help="rblog only")
     ap.add_argument("--no-pybullet", action="store_true", help="every engine but pybullet")
@@ -427,7 +459,8 @@ def main(argv=None):
         wanted = [e for e in wanted if e != "pybullet"]
     have = {"mujoco": importlib.util.find_spec("mujoco") is not None,
             "rapier": importlib.util.find_spec("rapier3d") is not None,
-            "pybullet": importlib.util.find_spec("pybullet") is not None}
+            "pybullet": importlib.util.find_spec("pybullet") is not None,
+            "ode": importlib.util.find_spec("odepy") is not None}
     for e in wanted:
         if e.split("-")[0] in have and not have[e.split("-")[0]]:
             print(f"{e}: not installed, skipped")
@@ -461,6 +494,9 @@ def main(argv=None):
             elif e == "pybullet" and have["pybullet"]:
                 engines.append(("pybullet", pybullet_chunks(model, state, args.dt, n_steps,
                                                             args.chunk)))
+            elif e in ("ode", "ode-world") and have["ode"]:
+                engines.append((e, ode_chunks(model, state, args.dt, n_steps, args.chunk,
+                                              "world" if e == "ode-world" else "quick")))
         # from a scratch directory: MuJoCo appends its warnings to MUJOCO_LOG.TXT in the cwd
         res = in_scratch_dir(run_interleaved, engines, model, args.dt, n_steps, args.chunk, args)
         print(f"\n{nb} boxes\n  {'engine':<46} {'steps/s CPU':>11} {'wall':>9}   deepest "

@@ -137,7 +137,8 @@ class EngineUnsupported(RblogError):
 class EngineMissing(RblogError):
     """The engine asked for with ``--engine`` is not installed (the ``engines`` extra)."""
 
-    def __init__(self, engine: str, err: Exception):
+    def __init__(self, engine: str, err: Exception,
+                 install: str = 'pip install -e ".[engines]" in a checkout (or pip install '
+                                '"rblog[engines]")'):
         super().__init__(f"--engine {engine}: not installed ({type(err).__name__}: {err}); "
-                         'pip install -e ".[engines]" in a checkout (or pip install '
-                         '"rblog[engines]")')
+                         f"{install}")

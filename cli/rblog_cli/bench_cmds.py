@@ -47,7 +47,7 @@ def _command() -> str:
               help="Run only this integrator, NAME or NAME/ORTHONORMALIZE (repeatable).")
 @click.option("--dt", "dts", multiple=True, type=click.FloatRange(min=0, min_open=True),
               help="Time step to run (s, repeatable); overrides the default range.")
-@click.option("--peer", "peers", multiple=True, type=click.Choice(["mujoco", "pybullet"]),
+@click.option("--peer", "peers", multiple=True, type=click.Choice(["mujoco", "pybullet", "ode"]),
               help="Run only these peers (default: every one installed).")
 @click.option("--no-peers", is_flag=True, help="Run rblog only.")
 @click.option("--progress/--no-progress", default=None,

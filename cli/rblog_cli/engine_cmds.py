@@ -1,4 +1,4 @@
-"""``rblog run SCENE --engine mujoco|pybullet``: run a scene in another engine and record it
+"""``rblog run SCENE --engine mujoco|pybullet|ode``: run a scene in another engine and record it
 (:mod:`rblog.study.engines`). Called from main.py's ``run``; prints through report.py."""
 
 from __future__ import annotations

@@ -115,9 +115,10 @@ def validate(scene):
 @click.option("--run", "run_too", is_flag=True, help="With --explain: run the scene afterwards.")
 @click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
-@click.option("--engine", type=click.Choice(["rblog", "mujoco", "pybullet"]), default="rblog",
+@click.option("--engine", type=click.Choice(["rblog", "mujoco", "pybullet", "ode"]), default="rblog",
               show_default=True,
-              help='Engine to run the scene in (mujoco/pybullet: pip install -e ".[engines]").')
+              help='Engine to run the scene in (mujoco/pybullet: pip install -e ".[engines]"; ode: '
+                   'libode8 and pip install -e ".[ode]").')
 @click.option("--engine-option", "engine_options", multiple=True, metavar="KEY=VALUE",
               help="A setting of the --engine, e.g. integrator=RK4 (repeatable).")
 @click.option("--profile", "profile", is_flag=True, help="Print the time spent in each stage.")
@@ -139,7 +140,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
     live_check = live_check or fail_fast
     if engine != "rblog" or engine_options:
         if engine == "rblog" or spawn or connect_url or explain or all_stages or profile:
-            _fail(RblogError("--engine-option needs --engine mujoco|pybullet, which takes no "
+            _fail(RblogError("--engine-option needs --engine mujoco|pybullet|ode, which takes no "
                              "--spawn/--connect/--explain/--all-stages/--profile"))
         if log_every is not None and log_rate is not None:
             _fail(RblogError("give --log-every or --log-rate, not both"))

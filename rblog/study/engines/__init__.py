@@ -1,7 +1,7 @@
 """Run a scene (TOML) in another engine and record it into rblog's log contract.
 
-``rblog run SCENE --engine mujoco|pybullet`` (optional extra ``engines``: ``pip install -e
-".[engines]"``). Each engine module
+``rblog run SCENE --engine mujoco|pybullet|ode`` (optional extras ``engines``: ``pip install -e
+".[engines]"``; ``ode``: Debian's ``libode8`` and ``pip install -e ".[ode]"``). Each engine module
 translates the scene's :class:`~rblog.contract.model.Model` and initial state into the engine's
 model (spheres, boxes, ground plane, static boxes, masses, principal inertias, gravity, constant
 force/torque, collision groups), translates materials with the engine's own combine rule so that
@@ -24,7 +24,7 @@ import numpy as np
 
 from rblog.errors import RblogError, EngineUnsupported, EngineMissing
 
-ENGINE_NAMES = ("mujoco", "pybullet")
+ENGINE_NAMES = ("mujoco", "pybullet", "ode")
 
 
 def parse_options(engine: str, items, known: dict[str, str]) -> dict[str, str]:
@@ -141,6 +141,8 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
         raise RblogError(f"--engine: unknown engine {engine!r} (expected one of: {', '.join(ENGINE_NAMES)})")
     if engine == "mujoco":
         from rblog.study.engines.mujoco import MujocoRun as Run
+    elif engine == "ode":
+        from rblog.study.engines.ode import OdeRun as Run
     else:
         from rblog.study.engines.pybullet import PybulletRun as Run
     sim = scene.sim
