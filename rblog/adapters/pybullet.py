@@ -75,7 +75,7 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
   contacts are marked missing and no rows are logged.
 
 The per-step reading of contacts and damping is compiled (``rblog.adapters._gather``,
-csrc/adapters/): pybullet returns each contact point as a tuple of tuples, and one pass in C++
+csrc/adapters/pybullet/): pybullet returns each contact point as a tuple of tuples, and one pass in C++
 reads them without a Python object per number.
 
 Why this module is long: it is the one translation of Bullet's conventions. The model
