@@ -113,7 +113,7 @@ GEOM_FIELDS = {"geom_name": (), "geom_body": (), "geom_type": (), "geom_pos_body
                "geom_collide_group": (), "geom_collide_mask": ()}
 JOINT_FIELDS = {"joint_name": (), "joint_type": (), "joint_body": (), "joint_anchor_body": (3,),
                 "joint_anchor_parent": (3,), "joint_axis_body": (3,), "joint_axis_parent": (3,),
-                "joint_range": (2,)}
+                "joint_range": (2,), "joint_quat_parent": (4,)}
 INT_FIELDS = {"geom_body", "geom_type", "geom_vert_adr", "geom_vert_num", "geom_collide_group",
               "geom_collide_mask", "joint_type", "joint_body", "body_kind", "body_parent"}
 
@@ -152,12 +152,15 @@ class Model:
             joint_anchor_body (J, 3) m in the child's body frame, joint_anchor_parent (J, 3) the
             same point in the parent's frame at the joint's zero position, joint_axis_body /
             joint_axis_parent (J, 3) unit (zeros for ball and fixed), joint_range (J, 2) lower,
-            upper (rad or m; NaN = none).
+            upper (rad or m; NaN = none), joint_quat_parent (J, 4) the child's body frame in the
+            parent's at the joint's zero position (wxyz; NaN = not stated).
         geom_name (G,), geom_body (G,) (-1 = world), geom_type (G,) GEOM_*, geom_pos_body (G, 3)
             m, geom_quat_wxyz_body (G, 4) geom -> body, geom_size (G, 3) (see GEOM_*),
             geom_vert_adr / geom_vert_num (G,) rows of mesh_vert (V, 3) (geom frame, m),
             geom_friction, geom_restitution (G,) (NaN = unknown), geom_collide_group,
             geom_collide_mask (G,) int64 bit masks combined by collide_rule.
+        collide_parent: True when the engine lets a body's geoms touch its parent body's (by
+            default MuJoCo and Bullet do not: a body never touches its parent).
     """
 
     body_name: list[str]
@@ -194,6 +197,7 @@ class Model:
     joint_axis_body: np.ndarray | None = None
     joint_axis_parent: np.ndarray | None = None
     joint_range: np.ndarray | None = None
+    joint_quat_parent: np.ndarray | None = None
     geom_name: list[str] | None = None
     geom_body: np.ndarray | None = None
     geom_type: np.ndarray | None = None
@@ -208,6 +212,7 @@ class Model:
     geom_collide_mask: np.ndarray | None = None
     mesh_vert: np.ndarray | None = None
     collide_rule: str = "and"
+    collide_parent: bool = False
 
     def __post_init__(self):
         n = len(self.body_name)
@@ -219,11 +224,12 @@ class Model:
             self.body_impulse_supplied = np.tile(np.array(DEFAULT_IMPULSE_SUPPLIED, np.int64), (n, 1))
         if self.body_work_supplied is None:
             self.body_work_supplied = np.tile(np.array(DEFAULT_WORK_SUPPLIED, np.int64), (n, 1))
-        if self.joint_type is None:
-            for name, trail in JOINT_FIELDS.items():
-                if getattr(self, name) is None:
-                    setattr(self, name, [] if name == "joint_name" else
-                            np.zeros((0, *trail), np.int64 if name in INT_FIELDS else np.float64))
+        n_j = 0 if self.joint_type is None else len(self.joint_type)
+        for name, trail in JOINT_FIELDS.items():
+            if getattr(self, name) is None:  # an empty table, or a field not stated (NaN)
+                setattr(self, name, [""] * n_j if name == "joint_name" else
+                        np.zeros((n_j, *trail), np.int64) if name in INT_FIELDS else
+                        np.full((n_j, *trail), np.nan if n_j else 0.0))
         if self.geom_type is None:
             for name, v in geoms_from_v2(self).items():
                 if getattr(self, name) is None:

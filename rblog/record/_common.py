@@ -56,9 +56,10 @@ MODEL_FIELDS: dict[str, tuple[str, tuple[int, ...] | None]] = {
        for name, trail in {**JOINT_FIELDS, **GEOM_FIELDS}.items()},
     "mesh_vert": ("f", (3,)),
     "collide_rule": ("s", None),
+    "collide_parent": ("b", None),
 }
 _SCALAR_MODEL_FIELDS = ("ground", "ground_offset", "ground_restitution", "ground_friction",
-                        "collide_rule")
+                        "collide_rule", "collide_parent")
 #: Model fields a v1/v2 log lacks (the Model derives them: rblog.contract.model)
 V3_MODEL_FIELDS = tuple(list(MODEL_FIELDS)[list(MODEL_FIELDS).index("body_kind"):])
 

@@ -229,8 +229,8 @@ class McapRecorder:
         for k, v in C.info_to_fields(info).items():
             setattr(msg, k, v)
         for k, v in C.model_to_arrays(model).items():
-            if k == "ground":
-                msg.ground = bool(v[0])
+            if k in ("ground", "collide_parent"):
+                setattr(msg, k, bool(v[0]))
             elif k in ("ground_offset", "ground_restitution", "ground_friction"):
                 setattr(msg, k, float(v[0]))
             elif k == "collide_rule":
@@ -290,13 +290,17 @@ class McapRecorder:
     def _write_contacts(self, c: Contacts):
         if not len(c):
             return
-        msgs, step0, t0 = encode_contacts(c)
-        ns = C.time_ns(t0).tolist()
-        ch = self._ch[TOPIC_CONTACTS]
-        add = self._w.add_message
-        for m, ti in zip(msgs, ns):
-            add(ch, ti, m, ti)
-        self._last_ns = max(self._last_ns, ns[-1])
+        if self._chunks is not None:  # a block's messages at once (one index update, not M)
+            buf, ends, step0, t0 = encode_contacts_buffer(c)
+            ns = C.time_ns(t0)
+            self._chunks.add_messages(self._ch[TOPIC_CONTACTS], ns, buf, ends)
+        else:
+            msgs, step0, t0 = encode_contacts(c)
+            ns = C.time_ns(t0)
+            add, ch = self._w.add_message, self._ch[TOPIC_CONTACTS]
+            for m, ti in zip(msgs, ns.tolist()):
+                add(ch, ti, m, ti)
+        self._last_ns = max(self._last_ns, int(ns[-1]))
 
     def _flush(self, force: bool = False):
         now = time.monotonic()
@@ -319,6 +323,15 @@ def encode_contacts(c: Contacts) -> tuple[list, np.ndarray, np.ndarray]:
     are in number order and repeated fields packed, as protobuf's serializer writes them, except
     that step and t are written even when zero (parsers read both forms alike). The whole block
     is encoded in one compiled call."""
+    buf, ends, step, t = encode_contacts_buffer(c)
+    mv = memoryview(buf)
+    e = ends.tolist()
+    return [mv[e[i]:e[i + 1]] for i in range(len(e) - 1)], step, t
+
+
+def encode_contacts_buffer(c: Contacts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`encode_contacts` as (buffer: the M messages back to back, ends (M + 1,): message
+    i is buffer[ends[i]:ends[i + 1]], step (M,), t (M,))."""
     step = np.ascontiguousarray(c.step, np.int64)
     t = np.ascontiguousarray(c.t, np.float64)
     cut = np.flatnonzero((step[1:] != step[:-1]) | (t[1:] != t[:-1])) + 1
@@ -337,10 +350,8 @@ def encode_contacts(c: Contacts) -> tuple[list, np.ndarray, np.ndarray]:
                      f3[0].reshape(-1).view(np.uint8), f3[1].reshape(-1).view(np.uint8),
                      f1[0].view(np.uint8), f1[1].view(np.uint8),
                      f3[2].reshape(-1).view(np.uint8), i32[2].view(np.uint8), out, ends)
-    mv = memoryview(out)
-    e = ends.tolist()
     first = bounds[:-1]
-    return [mv[e[i]:e[i + 1]] for i in range(m)], step[first], t[first]
+    return out[:ends[-1]], ends, step[first], t[first]
 
 
 def _add_primitive(ent, model: Model, g: int, color: Color) -> None:
@@ -633,6 +644,55 @@ class _BlockChunkBuilder:
             r = r1
             if self._count > self._chunk_size:
                 self._w.flush()  # closes the chunk (compressed, CRC, message indexes)
+
+    def add_messages(self, channel: int, ns: np.ndarray, buf: np.ndarray, ends: np.ndarray):
+        """MCAP Message records on ``channel`` of the M messages ``buf[ends[i]:ends[i + 1]]``
+        at log times ``ns`` (M,), built with numpy and added to the chunk a run at a time
+        (closing chunks as the Writer would: after the record that takes the chunk past its
+        size); updates the Writer's statistics. The same bytes and index as adding them one by
+        one with the Writer's ``add_message``."""
+        ns = np.asarray(ns, np.int64)
+        ends = np.asarray(ends, np.int64)
+        m = len(ns)
+        if not m:
+            return
+        st = self._stats
+        t_lo, t_hi = int(ns.min()), int(ns.max())
+        st.message_start_time = t_lo if st.message_count == 0 else min(st.message_start_time, t_lo)
+        st.message_end_time = max(st.message_end_time, t_hi)
+        st.message_count += m
+        st.channel_message_counts[channel] += m
+        size = np.diff(ends)
+        rec_size = size + _MESSAGE_HEAD
+        head = np.zeros((m, _MESSAGE_HEAD), np.uint8)
+        head[:, 0] = int(Opcode.MESSAGE)
+        head[:, 1:9] = (rec_size - 9).astype("<u8").view(np.uint8).reshape(m, 8)
+        head[:, 9:11] = np.frombuffer(np.uint16(channel).astype("<u2").tobytes(), np.uint8)
+        tb = ns.astype("<u8").view(np.uint8).reshape(m, 8)
+        head[:, 15:23] = tb
+        head[:, 23:31] = tb
+        data = np.frombuffer(buf, np.uint8)
+        j = 0
+        while j < m:
+            # the run of records up to the one that takes the chunk past its size
+            past = np.flatnonzero(self._count + np.cumsum(rec_size[j:]) > self._chunk_size)
+            j1 = j + int(past[0]) + 1 if len(past) else m
+            start = self._count + np.concatenate([[0], np.cumsum(rec_size[j:j1 - 1])])
+            total = int(rec_size[j:j1].sum())
+            if self._count + total > len(self._buf):
+                self._grow(self._count + total)
+            out = self._buf
+            out[(start[:, None] + np.arange(_MESSAGE_HEAD)).reshape(-1)] = head[j:j1].reshape(-1)
+            lo, hi = int(ends[j]), int(ends[j1])
+            # payload byte b of message i lands at its record's start + head + (b - ends[i])
+            out[np.repeat(start + _MESSAGE_HEAD - ends[j:j1], size[j:j1]) + np.arange(lo, hi)] = \
+                data[lo:hi]
+            self._count += total
+            self._index(np.full(j1 - j, channel), ns[j:j1].astype(np.uint64),
+                        start.astype(np.uint64))
+            j = j1
+            if self._count > self._chunk_size:
+                self._w.flush()
 
     def _index_samples(self, channels3, ns, r0: int, r1: int, offsets):
         """Index the per-sample records r0..r1 - 1 (record r: channel ``channels3[r % 3]``,

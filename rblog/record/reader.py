@@ -160,7 +160,7 @@ class _Collector:
                          f"{C.LOG_FORMAT_VERSION}; channels it does not know are ignored")
         traj = Trajectory(model=model, info=info, contacts=self._contacts(), truncated=truncated,
                           warnings=warns, **kw)
-        from rblog.analyze.consistency import consistency_warnings  # checks on read (contract v2)
+        from rblog.analyze.consistency import consistency_warnings  # the checks on read
 
         traj.warnings.extend(consistency_warnings(traj))
         return traj
@@ -416,7 +416,8 @@ def _run_of(msg) -> tuple[dict, dict]:
             model[name] = str(v)
         elif kind == "s":
             model[name] = list(v)
-        elif name in ("ground", "ground_offset", "ground_restitution", "ground_friction"):
+        elif name in ("ground", "ground_offset", "ground_restitution", "ground_friction",
+                      "collide_parent"):
             model[name] = np.array([v])
         else:
             model[name] = np.array(v, np.int64 if kind == "i" else bool if kind == "b"

@@ -28,6 +28,7 @@ arguments with one-line errors naming the argument, its shape and what was expec
 from __future__ import annotations
 
 from dataclasses import fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -56,7 +57,8 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
                static_box_half_extents=None, static_box_restitution=None,
                static_box_friction=None, kind=None, parent=None, geoms=None, joints=None,
                collide_rule: str = "and", impulses=(), work=(), impulses_none=(),
-               work_none=(), impulses_missing=(), work_missing=()) -> Model:
+               work_none=(), impulses_missing=(), work_missing=(),
+               collide_parent: bool = False) -> Model:
     """A :class:`Model` (body table and world) from per-body lists.
 
     Args:
@@ -84,8 +86,11 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
         joints: dict of J-row arrays: ``body`` (the child), ``type`` (``"hinge"``, ``"slide"``,
             ``"ball"``, ``"fixed"``, ``"planar"`` or JOINT_* codes), ``anchor_body``,
             ``anchor_parent`` (J, 3); ``axis_body``, ``axis_parent`` (J, 3; not for ball and
-            fixed); optional ``range`` (J, 2, NaN = none), ``name``.
+            fixed); optional ``range`` (J, 2, NaN = none), ``quat_parent`` (J, 4: the body's
+            frame in the parent's at the joint's zero position, wxyz; NaN = not stated),
+            ``name``.
         collide_rule: ``"and"`` (Bullet, rblog) or ``"or"`` (MuJoCo) (COLLIDE_RULES).
+        collide_parent: the engine lets a body touch its parent body (default: never).
         impulses: the per-interval impulse kinds this writer logs for every body (a subset of
             IMPULSE_KINDS), or an (N, 5) array of SUPPLIED_* codes (or bools: logged or
             missing) per body.  work: likewise of WORK_KINDS, or (N, 3).
@@ -185,7 +190,8 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
             body_torque_world=arr(torque_world, (n, 3), "torque_world"),
             body_restitution=arr(restitution, (n,), "restitution", 0.5),
             body_friction=arr(friction, (n,), "friction", 0.5), body_group=_group(group, n),
-            gravity=arr(gravity, (3,), "gravity"), collide_rule=collide_rule, **world, **v3)
+            gravity=arr(gravity, (3,), "gravity"), collide_rule=collide_rule,
+            collide_parent=bool(collide_parent), **world, **v3)
     mcount = 0 if static_box_position is None else len(static_box_position)
     return Model(
         body_name=[str(x) for x in name], body_shape=codes, body_size=sz, body_mass=m,
@@ -203,7 +209,7 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
         static_box_half_extents=arr(static_box_half_extents, (mcount, 3), "static_box_half_extents"),
         static_box_restitution=arr(static_box_restitution, (mcount,), "static_box_restitution", 0.5),
         static_box_friction=arr(static_box_friction, (mcount,), "static_box_friction", 0.5),
-        collide_rule=collide_rule, **v3,
+        collide_rule=collide_rule, collide_parent=bool(collide_parent), **v3,
     )
 
 
@@ -261,7 +267,7 @@ def _supplied(v, none, missing, n: int, kinds: tuple, default: tuple, what: str)
 _GEOM_KEYS = ("body", "type", "size", "pos_body", "quat_wxyz_body", "friction", "restitution",
               "collide_group", "collide_mask", "name", "mesh_vert")
 _JOINT_KEYS = ("body", "type", "anchor_body", "anchor_parent", "axis_body", "axis_parent",
-               "range", "name")
+               "range", "quat_parent", "name")
 
 
 def _rows(table: dict, keys: tuple, required: tuple, what: str) -> int:
@@ -359,7 +365,14 @@ def _joint_table(joints: dict, n: int) -> dict:
            "joint_anchor_parent": _col(joints, "anchor_parent", "joints", J, (3,)),
            "joint_axis_body": _col(joints, "axis_body", "joints", J, (3,), 0.0),
            "joint_axis_parent": _col(joints, "axis_parent", "joints", J, (3,), 0.0),
-           "joint_range": _col(joints, "range", "joints", J, (2,), np.nan)}
+           "joint_range": _col(joints, "range", "joints", J, (2,), np.nan),
+           "joint_quat_parent": _col(joints, "quat_parent", "joints", J, (4,), np.nan)}
+    qn = np.linalg.norm(out["joint_quat_parent"], axis=1)
+    bad = np.flatnonzero(np.isfinite(qn) & (np.abs(qn - 1.0) > 1e-6))
+    if len(bad):
+        j = int(bad[0])
+        raise RecordError(f"body_table: joints.quat_parent[{j}] has norm {qn[j]:.6g}, expected a "
+                          "unit quaternion (w, x, y, z) or NaN (not stated)")
     for key in ("axis_body", "axis_parent"):
         norm = np.linalg.norm(out[f"joint_{key}"], axis=1)
         bad = np.flatnonzero(~axisless & (np.abs(norm - 1.0) > 1e-6))
@@ -534,29 +547,42 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
         quat_wxyz = _arr(quat_xyzw, "quat_xyzw", (T, n, 4))[..., [3, 0, 1, 2]]
     if quat_wxyz is None and rotation is None:
         raise RecordError("orientation: give quat_wxyz, quat_xyzw or rotation")
-    if rotation is None:
-        quat_wxyz = _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
-        rotation = quat_wxyz_to_matrix(quat_wxyz)
-    else:
-        rotation = _arr(rotation, "rotation", (T, n, 3, 3))
-        quat_wxyz = matrix_to_quat(rotation) if quat_wxyz is None else _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
-    mass = np.asarray(model.body_mass, np.float64)
     if velocity is None and linear_momentum is None:
         raise RecordError("linear state: give velocity or linear_momentum")
-    if velocity is not None:
-        velocity = _arr(velocity, "velocity", (T, n, 3))
-    p = mass[None, :, None] * velocity if linear_momentum is None else \
-        _arr(linear_momentum, "linear_momentum", (T, n, 3))
     if angular_velocity is None and angular_momentum is None:
         raise RecordError("angular state: give angular_velocity (world frame) or angular_momentum")
-    if angular_velocity is not None:
-        angular_velocity = _arr(angular_velocity, "angular_velocity", (T, n, 3))
-    if angular_momentum is None:
-        inertia = np.asarray(model.body_inertia_diag, np.float64)
-        w_body = (np.swapaxes(rotation, -1, -2) @ angular_velocity[..., None])[..., 0]
-        lw = (rotation @ (inertia[None] * w_body)[..., None])[..., 0]
+    mass = np.asarray(model.body_mass, np.float64)
+    if rotation is None and linear_momentum is None and angular_momentum is None:
+        # the usual case (q, v, w): R, P and L in one compiled pass
+        from rblog.contract.derive import state_from_velocities
+
+        c = np.ascontiguousarray
+        quat_wxyz = c(_arr(quat_wxyz, "quat_wxyz", (T, n, 4)))
+        velocity = c(_arr(velocity, "velocity", (T, n, 3)))
+        angular_velocity = c(_arr(angular_velocity, "angular_velocity", (T, n, 3)))
+        rotation, p, lw = np.empty((T, n, 3, 3)), np.empty((T, n, 3)), np.empty((T, n, 3))
+        state_from_velocities(c(mass), c(model.body_inertia_diag, dtype=np.float64), quat_wxyz,
+                              velocity, angular_velocity, rotation, p, lw)
     else:
-        lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
+        if rotation is None:
+            quat_wxyz = _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
+            rotation = quat_wxyz_to_matrix(quat_wxyz)
+        else:
+            rotation = _arr(rotation, "rotation", (T, n, 3, 3))
+            quat_wxyz = matrix_to_quat(rotation) if quat_wxyz is None else \
+                _arr(quat_wxyz, "quat_wxyz", (T, n, 4))
+        if velocity is not None:
+            velocity = _arr(velocity, "velocity", (T, n, 3))
+        p = mass[None, :, None] * velocity if linear_momentum is None else \
+            _arr(linear_momentum, "linear_momentum", (T, n, 3))
+        if angular_velocity is not None:
+            angular_velocity = _arr(angular_velocity, "angular_velocity", (T, n, 3))
+        if angular_momentum is None:
+            inertia = np.asarray(model.body_inertia_diag, np.float64)
+            w_body = (np.swapaxes(rotation, -1, -2) @ angular_velocity[..., None])[..., 0]
+            lw = (rotation @ (inertia[None] * w_body)[..., None])[..., 0]
+        else:
+            lw = _arr(angular_momentum, "angular_momentum", (T, n, 3))
     if isinstance(contacts, dict):
         unknown = sorted(set(contacts) - set(_CONTACT_FIELDS))
         missing = [k for k in _CONTACT_REQUIRED if k not in contacts]
@@ -808,6 +834,19 @@ class Recorder:
         return traj
 
 
+class ContactRows(NamedTuple):
+    """Views of k contact rows of a :class:`SampleBlock` (see :func:`make_contacts`)."""
+
+    body_a: np.ndarray            # (k,) int64
+    body_b: np.ndarray            # (k,) int64, -1 = static geometry
+    point: np.ndarray             # (k, 3) m, world
+    normal: np.ndarray            # (k, 3) unit, from body_b into body_a
+    separation: np.ndarray        # (k,) m, < 0 = penetration
+    normal_impulse: np.ndarray    # (k,) N s on body_a
+    friction_impulse: np.ndarray  # (k, 3) N s on body_a, world
+    kind: np.ndarray              # (k,) int64, 0 resting (or not classified), 1 impact
+
+
 #: the state arrays build_block takes, with their trailing shapes per body
 _STATE_TRAILS = {"position": (3,), "quat_wxyz": (4,), "quat_xyzw": (4,), "rotation": (3, 3),
                  "velocity": (3,), "linear_momentum": (3,), "angular_velocity": (3,),
@@ -830,7 +869,8 @@ class SampleBlock:
         blk.t[r] = d.time; blk.step[r] = k
         np.copyto(blk.position[r], x)          # or an engine call with out=blk.position[r]
         ...                                    # quat_wxyz, velocity, angular_velocity, intervals
-        blk.add_contacts(body_a=..., ...)      # optional: this sample's contact rows
+        c = blk.contact_rows(k)                # optional: this sample's k contact rows, views
+        c.normal[:] = ...                      #   to fill in place (or blk.add_contacts(...))
         blk.commit()                           # when the block is full: one Recorder.write
 
     Everything per block (the derived channels, the encoding, the writers) is compiled or
@@ -864,7 +904,13 @@ class SampleBlock:
             setattr(self, name, np.zeros((c, n, *_STATE_TRAILS[name])))
         for name in self._interval:
             setattr(self, name, np.zeros((c, n, *INTERVAL_CHANNELS[name])))
-        self._contacts: list[dict] = []
+        # contact rows of the block (grown as needed): step, then ContactRows' fields
+        self._nc = 0
+        self._c_step = np.zeros(0, np.int64)
+        self._c_a, self._c_b = np.zeros(0, np.int64), np.zeros(0, np.int64)
+        self._c_point, self._c_normal = np.zeros((0, 3)), np.zeros((0, 3))
+        self._c_sep, self._c_ln = np.zeros(0), np.zeros(0)
+        self._c_fric, self._c_kind = np.zeros((0, 3)), np.zeros(0, np.int64)
 
     def row(self) -> int:
         """Index of the row the next sample goes in (flushes first if the block is full)."""
@@ -872,13 +918,47 @@ class SampleBlock:
             self.flush()
         return self.n
 
+    def contact_rows(self, k: int) -> "ContactRows":
+        """``k`` contact rows for the sample being filled, as views into the block's
+        preallocated contact arrays (fields of :class:`ContactRows`, zero, ``step`` set to the
+        sample's): fill them in place (``rows.normal[:] = ...``) before the next call."""
+        k = int(k)
+        c0 = self._nc
+        if c0 + k > len(self._c_step):
+            self._grow_contacts(c0 + k)
+        self._nc = c0 + k
+        self._c_step[c0:c0 + k] = self.step[self.n]
+        return ContactRows(*(a[c0:c0 + k] for a in self._c_arrays()))
+
     def add_contacts(self, **rows) -> None:
-        """Contact rows of the sample being filled (the fields of :func:`make_contacts`;
-        ``step`` defaults to that sample's ``step``)."""
-        if "step" not in rows:
-            k = len(np.atleast_1d(np.asarray(rows.get("body_a", ()))))
-            rows["step"] = np.full(k, self.step[self.n], np.int64)
-        self._contacts.append(rows)
+        """Contact rows of the sample being filled, from arrays (the fields of
+        :func:`make_contacts` but ``step`` and ``t``: the sample's)."""
+        unknown = sorted(set(rows) - set(ContactRows._fields))
+        if unknown:
+            raise RecordError(f"sample_block.add_contacts: unknown field {unknown[0]!r}; the "
+                              f"fields are {', '.join(ContactRows._fields)}")
+        k = len(np.atleast_1d(np.asarray(rows.get("body_a", ()))))
+        out = self.contact_rows(k)
+        for name, v in rows.items():
+            dst = getattr(out, name)
+            try:
+                dst[...] = np.asarray(v).reshape(dst.shape)
+            except ValueError:
+                raise RecordError(f"sample_block.add_contacts: {name} has shape "
+                                  f"{np.shape(v)}, expected {dst.shape} ({k} rows)") from None
+
+    def _c_arrays(self):
+        return (self._c_a, self._c_b, self._c_point, self._c_normal, self._c_sep, self._c_ln,
+                self._c_fric, self._c_kind)
+
+    def _grow_contacts(self, need: int):
+        cap = max(need, 2 * len(self._c_step), 64)
+        old = (self._c_step, *self._c_arrays())
+        new = [np.zeros((cap, *a.shape[1:]), a.dtype) for a in old]
+        for a, b in zip(old, new):
+            b[:self._nc] = a[:self._nc]
+        (self._c_step, self._c_a, self._c_b, self._c_point, self._c_normal, self._c_sep,
+         self._c_ln, self._c_fric, self._c_kind) = new
 
     def commit(self) -> None:
         """The row :meth:`row` returned is filled: count it, and write the block when full."""
@@ -894,14 +974,10 @@ class SampleBlock:
         arrays = dict(t=self.t[:k], step=self.step[:k])
         for name in (*self._fields, *self._interval):
             arrays[name] = getattr(self, name)[:k]
-        if self._contacts:
-            keys = set(self._contacts[0])
-            if any(set(c) != keys for c in self._contacts):
-                raise RecordError("sample_block.add_contacts: every call of a block must give the "
-                                  f"same fields (first: {', '.join(sorted(keys))})")
-            arrays["contacts"] = {key: np.concatenate([
-                np.asarray(c[key]).reshape((-1, 3) if key in _CONTACT_VECTORS else (-1,))
-                for c in self._contacts]) for key in keys}
+        if self._nc:
+            c = self._nc
+            arrays["contacts"] = dict(zip(("step", *ContactRows._fields),
+                                          (a[:c] for a in (self._c_step, *self._c_arrays()))))
         self.n = 0
         self._new()
         self._rec.write(**arrays)
@@ -926,6 +1002,7 @@ def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
 #: scalar-first quaternions -> body->world matrices (re-exported for writers)
 quat_to_matrix = quat_wxyz_to_matrix
 
-__all__ = ["CONTACT_ROWS_SEPARATION", "KIND_VALUES", "Recorder", "RecordError", "SampleBlock",
+__all__ = ["CONTACT_ROWS_SEPARATION", "ContactRows", "KIND_VALUES", "Recorder", "RecordError",
+           "SampleBlock",
            "body_table", "build_block", "make_contacts",
            "trajectory_from_arrays", "matrix_to_quat", "quat_to_matrix"]

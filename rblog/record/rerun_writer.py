@@ -33,13 +33,14 @@ from rblog.record import _common as C
 #: own every 200 ms or 1 MiB
 FLUSH_EVERY_S = 0.5
 #: The .rrd footer (a manifest of every chunk, for random access) is held in memory until the
-#: file is closed: ~7 KB per chunk, and a block costs at most CHUNKS_PER_BLOCK chunks. A run expected
+#: file is closed: ~7 KB per chunk, and a block costs at most chunks_per_block(model). A run expected
 #: to log more chunks than this is written without footer (still a valid .rrd; the viewer and
 #: rblog.load read it; ``rerun rrd optimize`` can add one), so that memory stays bounded.
 RRD_FOOTER_MAX_CHUNKS = 8192
-#: chunks sent per block: state, two body entities, nine plots, contacts (data and view), and one
-#: per body of a small scene (its body-frame angular velocity plot)
-CHUNKS_PER_BLOCK = 15
+#: chunks sent per block besides the geoms' entities: state, nine plots, contacts (data and
+#: view), and one per body of a small scene (its body-frame angular velocity plot; at most
+#: OMEGA_PLOT_MAX_BODIES)
+CHUNKS_PER_BLOCK = 16
 #: bodies' names are drawn in the 3D view for scenes of at most this many bodies (else on hover)
 LABELS_MAX_BODIES = 12
 #: scenes of at most this many bodies get a plot of each body's angular velocity in its own frame
@@ -486,7 +487,17 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
     if not math.isfinite(samples):
         return math.inf
     per_block = samples_per_block(model.n_bodies, int(info.log_every))
-    return math.ceil(samples / per_block) * CHUNKS_PER_BLOCK
+    return math.ceil(samples / per_block) * chunks_per_block(model)
+
+
+def chunks_per_block(model: Model) -> int:
+    """Chunks one block sends at most: CHUNKS_PER_BLOCK, one per geom type the bodies have (one
+    entity each) and one per mesh geom (an entity each)."""
+    gb, gt = np.asarray(model.geom_body), np.asarray(model.geom_type)
+    on_body = gt[gb >= 0]
+    types = {GEOM_PLANE: GEOM_BOX}  # a body's planes are drawn with its boxes
+    entities = {types.get(int(t), int(t)) for t in on_body if t != GEOM_MESH}
+    return CHUNKS_PER_BLOCK + len(entities) + int(np.sum(on_body == GEOM_MESH))
 
 
 #: the drift plot: log10 of the largest rigidity errors over the bodies, beside the tolerance

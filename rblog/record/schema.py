@@ -96,6 +96,8 @@ MESSAGES: dict[str, list[tuple[int, str, str, str]]] = {
         (64, "geom_collide_mask", "int64", "repeated"),
         (65, "mesh_vert", "double", "repeated"),
         (66, "collide_rule", "string", ""),
+        (67, "joint_quat_parent", "double", "repeated"),
+        (68, "collide_parent", "bool", ""),
     ],
     "State": [
         (1, "step", "sfixed64", ""),

@@ -53,7 +53,9 @@ def _model() -> Model:
                   anchor_parent=[[0.2, 0, 0], [0, 0, -0.15], [0, 0, -0.15]],
                   axis_body=[[0, 1, 0], [0, 0, 1], [0, 0, 0]],
                   axis_parent=[[0, 1, 0], [0, 0, 1], [0, 0, 0]],
-                  range=[[-1.5, 1.5], [-0.05, 0.05], [0, np.nan]], name=["shoulder", "wrist_slide", "wrist"])
+                  range=[[-1.5, 1.5], [-0.05, 0.05], [0, np.nan]],
+                  quat_parent=[[1, 0, 0, 0], [np.nan] * 4, [C45, 0, S45, 0]],
+                  name=["shoulder", "wrist_slide", "wrist"])
     supplied = np.zeros((6, 5), np.int64)   # SUPPLIED_*: 0 missing, 1 logged, 2 none
     supplied[:, 0] = 1               # contact: every body
     supplied[[1, 2], 4] = 1          # joint: the bodies on joints
@@ -66,6 +68,7 @@ def _model() -> Model:
                       [0.001, 0.001, 0.001], [0.004, 0.004, 0.004], [0.01, 0.01, 0.01]],
         kind=["free", "joints", "joints", "free", "free", "kinematic"],
         parent=[-1, 0, 1, -1, -1, -1], geoms=geoms, joints=joints, collide_rule="or",
+        collide_parent=True,
         impulses=supplied, work=work)
 
 
@@ -102,6 +105,7 @@ def test_geom_joint_and_body_tables():
                                     GEOM_MESH, GEOM_SPHERE, GEOM_BOX, GEOM_PLANE, GEOM_PLANE,
                                     GEOM_BOX, GEOM_CAPSULE]
     assert m.joint_type.tolist() == [JOINT_HINGE, JOINT_SLIDE, JOINT_BALL]
+    assert np.isnan(m.joint_quat_parent[1]).all() and m.collide_parent
     assert np.array_equal(m.geom_vertices(4), TETRA)
     assert m.geom_vert_num.tolist() == [0, 0, 0, 0, 4, 0, 0, 0, 0, 0, 0]
     # v2 fields from the geoms: only the ball (one centred sphere) and the kinematic box (one
@@ -162,7 +166,7 @@ def test_v2_log_still_reads(fmt):
     m = traj.model
     assert traj.info.log_format == 2 and traj.n_samples == 20 and not traj.truncated
     assert m.body_kind.tolist() == [BODY_FREE] * 2 and m.body_parent.tolist() == [-1, -1]
-    assert m.n_joints == 0 and traj.interval_channels == []
+    assert m.n_joints == 0 and traj.interval_channels == [] and not m.collide_parent
     # what a log that states nothing means: contact impulses missing, no other force (none)
     assert m.body_impulse_supplied.tolist() == [[0, 2, 2, 2, 2]] * 2
     assert m.body_work_supplied.tolist() == [[2, 2, 2]] * 2
@@ -259,6 +263,8 @@ def test_bad_tables_are_one_line_errors():
     j = dict(body=[0], type=["hinge"], anchor_body=[[0, 0, 0]], anchor_parent=[[0, 0, 0]],
              axis_body=[[0, 0, 2]], axis_parent=[[0, 0, 1]])
     _raises(lambda: bt(**ok, geoms=g, joints=j), "joints.axis_body[0]", "unit axis")
+    _raises(lambda: bt(**ok, geoms=g, joints={**j, "axis_body": [[0, 0, 1]], "quat_parent": [[2, 0, 0, 0]]}),
+            "joints.quat_parent[0]", "unit quaternion")
     _raises(lambda: bt(**ok, geoms=g, impulses=("contact", "gravity")), "'gravity'", "'passive'")
     _raises(lambda: bt(**ok, geoms=g, impulses=[[1, 1, 1, 1, 3]]), "impulses", "2 (none)")
     _raises(lambda: bt(**ok, geoms=g, impulses="joint", impulses_none="joint"), "both")
@@ -295,3 +301,24 @@ def test_bad_interval_channels_are_one_line_errors():
 def test_interval_channels_table():
     assert list(INTERVAL_CHANNELS)[:2] == ["impulse_contact_linear", "impulse_contact_angular"]
     assert len(INTERVAL_CHANNELS) == 13
+
+
+def test_state_kernel_matches_the_numpy_formulas():
+    # the compiled q, v, w -> R, P, L of build_block against orientation.quat_wxyz_to_matrix and
+    # numpy's products (unnormalized quaternions included)
+    from rblog.contract.derive import state_from_velocities
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    rng = np.random.default_rng(11)
+    T, n = 5, 7
+    q = rng.normal(size=(T, n, 4)) * 3.0
+    v, w = rng.normal(size=(T, n, 3)), rng.normal(size=(T, n, 3))
+    mass, inertia = rng.uniform(0.1, 5, n), rng.uniform(0.01, 2, (n, 3))
+    r, p, lw = np.empty((T, n, 3, 3)), np.empty((T, n, 3)), np.empty((T, n, 3))
+    state_from_velocities(mass, inertia, q, v, w, r, p, lw)
+    r_np = quat_wxyz_to_matrix(q)
+    l_np = (r_np @ (inertia[None] * (np.swapaxes(r_np, -1, -2) @ w[..., None])[..., 0])[..., None])[..., 0]
+    # measured: R identical, L 1.2e-16 relative; P bit-identical
+    assert np.abs(r - r_np).max() <= 1e-15
+    assert np.abs(lw - l_np).max() <= 4e-15 * np.abs(l_np).max()
+    assert np.array_equal(p, mass[None, :, None] * v)
