@@ -1,13 +1,11 @@
 """What recording costs through the engine adapters: the bare step loop against the same loop
 recording a sample at every step, by CPU time (``time.process_time``), interleaved.
 
-    python benchmarks/bench_adapters.py [--pairs N] [--steps N] [--case NAME ...]
+    python benchmarks/bench_adapters.py [--pairs N] [--steps N] [--every K] [--case NAME ...]
 
-(``pybullet/jenga/10`` records a sample every 10th step, its impulses summed over every step;
-each pybullet run loads its world into a fresh client, in both loops alike.)
-
-Each case is a row of ``CASES``: a function of the step count that builds its world and returns
-``(bare, recorded)``, two callables of the output mode (``"memory"``: the run kept in memory,
+Each case is a row of ``CASES``: a function of the step count and the sample stride (``every``:
+a sample every K steps, the impulses of every step summed into it) that builds its world and
+returns ``(bare, recorded)``, two callables of the output mode (``"memory"``: the run kept in memory,
 no file; ``"mcap"``: an MCAP file written) that each run the step loop once and return nothing.
 A pair is one bare run and one recorded run in alternating order (A B, B A, ...), so the load
 of a shared machine hits both alike; the table gives each pair's CPU seconds and ratio, then the
@@ -24,12 +22,12 @@ import time
 from pathlib import Path
 
 MODES = ("memory", "mcap")
-#: name -> builder(steps, tmp) -> (bare(mode), recorded(mode))
+#: name -> builder(steps, every, tmp) -> (bare(mode), recorded(mode))
 CASES: dict = {}
 
 
 def case(name: str):
-    """Register a row: ``@case("mujoco/humanoid") def build(steps, tmp): ...``."""
+    """Register a row: ``@case("mujoco/humanoid") def build(steps, every, tmp): ...``."""
     def register(fn):
         CASES[name] = fn
         return fn
@@ -37,7 +35,7 @@ def case(name: str):
 
 
 def _mujoco_case(model_name: str):
-    def build(steps: int, tmp: str):
+    def build(steps: int, every: int, tmp: str):
         import mujoco
         import numpy as np
 
@@ -61,7 +59,7 @@ def _mujoco_case(model_name: str):
         def recorded(mode):
             d = start()
             out = {"mcap": str(Path(tmp) / f"{model_name}.mcap")} if mode == "mcap" else {}
-            rec = adapter.recorder(m, d, keep=mode == "memory", **out)
+            rec = adapter.recorder(m, d, every=every, keep=mode == "memory", **out)
             for k in range(steps):
                 d.ctrl[:] = ctrl[k]
                 mujoco.mj_step(m, d)
@@ -76,13 +74,13 @@ case("mujoco/humanoid")(_mujoco_case("humanoid"))
 case("mujoco/stacker")(_mujoco_case("stacker"))
 
 
-def _pybullet_case(world: str, every: int = 1):
-    def build(steps: int, tmp: str):
+def _pybullet_case(world: str):
+    def build(steps: int, every: int, tmp: str):
         import pybullet as pb
 
         import rblog.adapters.pybullet as adapter
 
-        def run(rec_options):
+        def run(rec_options):  # each run loads the world into a fresh client, in both loops
             cid = pb.connect(pb.DIRECT)
             try:
                 adapter.load_shipped(world, cid)
@@ -108,25 +106,25 @@ def _pybullet_case(world: str, every: int = 1):
 
 
 case("pybullet/jenga")(_pybullet_case("jenga"))
-case("pybullet/jenga/10")(_pybullet_case("jenga", every=10))
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pairs", type=int, default=5)
     ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--every", type=int, default=1, help="a sample every K steps (default 1)")
     ap.add_argument("--case", action="append", choices=sorted(CASES), help="default: every case")
     ap.add_argument("--mode", action="append", choices=MODES, help="default: both")
     args = ap.parse_args(argv)
     names = args.case or list(CASES)
     modes = args.mode or list(MODES)
-    print(f"CPU seconds of {args.steps} steps, bare loop vs recording every step; "
-          f"{args.pairs} interleaved pairs")
+    print(f"CPU seconds of {args.steps} steps, bare loop vs recording (a sample every "
+          f"{args.every} steps); {args.pairs} interleaved pairs")
     print(f"  {'case':<20} {'mode':<7} {'pair':>4} {'bare s':>8} {'recorded s':>10} {'ratio':>6}")
     summary = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
-            bare, recorded = CASES[name](args.steps, tmp)
+            bare, recorded = CASES[name](args.steps, args.every, tmp)
             for mode in modes:
                 recorded(mode)  # warm: imports, first-call costs
                 bare(mode)

@@ -109,11 +109,17 @@ def free_body_K(m, b, qpos, qvel):
     return m.body_mass[b] * (np.cross(w[1:], arm[1:] - arm[:-1]) - h * np.cross(w[:-1], np.cross(w[:-1], arm[:-1])))
 
 
-@pytest.mark.parametrize("every", [1, 10])
-@pytest.mark.parametrize("name", MODELS)
-def test_model_as_shipped(name, every):
-    ctrl = "random" if every == 1 else "zero"
-    m, traj, qpos, qvel = record(name, every=every, ctrl=ctrl)
+#: (model, stride, controls, integrator): every model at both strides (random controls at every
+#: step, zero at every 10th), the other pairings marked slow; implicitfast on the free-body models
+CASES = [(name, 1, "random", None) for name in MODELS] + [(name, 10, "zero", None) for name in MODELS] + \
+    [pytest.param(name, every, ctrl, None, marks=pytest.mark.slow)
+     for name in MODELS for every, ctrl in ((1, "zero"), (10, "random"))] + \
+    [(name, every, "random", "implicitfast") for name in ("humanoid", "stacker", "fish") for every in (1, 10)]
+
+
+@pytest.mark.parametrize("name, every, ctrl, integrator", CASES, ids=lambda v: str(v))
+def test_model_as_shipped(name, every, ctrl, integrator):
+    m, traj, qpos, qvel = record(name, every=every, ctrl=ctrl, integrator=integrator)
     tm = traj.model
     steps = traj.step
     assert steps.tolist() == list(range(0, STEPS + 1, every))
@@ -286,16 +292,48 @@ def test_skipped_steps_are_unknown_not_wrong():
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     rec = adapter.recorder(m, d)
+    states = {}
     for k in range(1, 51):
         mujoco.mj_step(m, d)
         if k % 10 == 0:
             rec(d)
+        if k in (9, 10, 11):
+            states[k] = (d.qpos.copy(), d.qvel.copy())
     rec.close()
     traj = rec.trajectory
     assert traj.step.tolist() == [0, 10, 20, 30, 40, 50]
     lin = traj.impulse("contact")[0]
     dyn = traj.model.body_kind == BODY_JOINTED
     assert np.isnan(lin[1:, dyn]).all() and not np.isnan(lin[0, dyn]).any()
+    # the states are MuJoCo's at those steps, not the next seen step's start
+    mj = mujoco_state(m, [states[10][0]], [states[10][1]])
+    np.testing.assert_allclose(traj.position[1], mj["x"][0], rtol=0, atol=POSE_TOL)
+    np.testing.assert_allclose(traj.linear_momentum[1], mj["p"][0], rtol=0, atol=1e-12)
+
+
+def test_sample_before_a_gap_keeps_its_own_state():
+    """Steps 1-5 seen (a sample at 5), 6 and 7 not, then 8, 9, 10: sample 5's state is MuJoCo's
+    at step 5 (not the start of step 9, the next row gathered), and interval (5, 10] is NaN."""
+    m = adapter.suite_model("stacker")
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    rec = adapter.recorder(m, d, every=5)
+    rng = np.random.default_rng(3)
+    seen = {}
+    for k in range(1, 11):
+        d.ctrl[:] = rng.uniform(-1.0, 1.0, m.nu)
+        mujoco.mj_step(m, d)
+        seen[k] = (d.qpos.copy(), d.qvel.copy())
+        if k not in (6, 7):
+            rec(d)
+    rec.close()
+    traj = rec.trajectory
+    assert traj.step.tolist() == [0, 5, 10]
+    mj = mujoco_state(m, [seen[5][0], seen[10][0]], [seen[5][1], seen[10][1]])
+    np.testing.assert_allclose(traj.position[1:], mj["x"], rtol=0, atol=POSE_TOL)
+    np.testing.assert_allclose(traj.linear_momentum[1:], mj["p"], rtol=0, atol=1e-12)
+    lin = traj.impulse("joint")[0][:, traj.model.body_kind == BODY_JOINTED]
+    assert not np.isnan(lin[1]).any() and np.isnan(lin[2]).all()
 
 
 def test_what_cannot_be_recorded_is_one_line():
@@ -364,3 +402,79 @@ def test_free_body_angular_momentum_on_contact():
     # contact)
     assert np.abs(dl - ang - drift).max() <= BALANCE_REL * np.abs(dl).max()
     assert np.abs(drift).max() > 1e3 * np.abs(dl - ang - drift).max()  # the drift is real
+
+
+def test_mesh_and_mocap_bodies():
+    """A convex mesh (a tetrahedron, MuJoCo collides with its hull) on a free body, pushed by a
+    mocap paddle the user moves: the mesh's vertices in the log, placed by the body's pose, are
+    MuJoCo's own vertices in the world; the paddle is a kinematic body whose pose follows
+    mocap_pos and whose impulses are marked missing (not judged)."""
+    xml = ('<mujoco><option timestep="0.002"/><asset><mesh name="tet" vertex="0 0 0  0.2 0 0  0 0.15 0  0 0 0.1"/>'
+           '</asset><worldbody><geom type="plane" size="2 2 0.1"/>'
+           '<body name="tet" pos="0 0 0.2" euler="10 20 30"><freejoint/><geom type="mesh" mesh="tet" mass="1"/></body>'
+           '<body name="paddle" mocap="true" pos="-0.3 0 0.05"><geom type="box" size="0.02 0.2 0.05"/></body>'
+           '</worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    rec = adapter.recorder(m, d, every=5)
+    qpos, mocap = [d.qpos.copy()], [d.mocap_pos.copy()]
+    for k in range(300):
+        d.mocap_pos[0, 0] = -0.3 + 0.001 * k
+        mujoco.mj_step(m, d)
+        rec(d)
+        qpos.append(d.qpos.copy())
+        mocap.append(d.mocap_pos.copy())
+    rec.close()
+    traj, tm = rec.trajectory, rec.trajectory.model
+    assert tm.body_name == ["tet", "paddle"] and tm.body_kind.tolist() == [BODY_FREE, 2]
+    assert tm.body_impulse_supplied.tolist() == [[True] * 5, [False] * 5]
+    g = int(np.flatnonzero(tm.geom_type == GEOM_MESH)[0])
+    mesh = int(m.geom_dataid[1])
+    local = tm.geom_vertices(g)
+    a, n = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+    np.testing.assert_array_equal(local, m.mesh_vert[a:a + n])
+    dd = mujoco.MjData(m)
+    q = tm.geom_quat_wxyz_body[g]
+    rg = quat_wxyz_to_matrix(q / np.linalg.norm(q))
+    for i, s in enumerate(traj.step):
+        dd.qpos[:], dd.mocap_pos[:] = qpos[s], mocap[s]
+        mujoco.mj_kinematics(m, dd)
+        world_mj = dd.geom_xpos[1] + local @ dd.geom_xmat[1].reshape(3, 3).T      # MuJoCo's
+        r = traj.rotation[i, 0]
+        world_log = traj.position[i, 0] + (tm.geom_pos_body[g] + local @ rg.T) @ r.T  # the log's
+        np.testing.assert_allclose(world_log, world_mj, rtol=0, atol=POSE_TOL)
+        np.testing.assert_allclose(traj.position[i, 1], dd.xipos[2], rtol=0, atol=POSE_TOL)
+    assert np.isnan(traj.impulse("contact")[0][:, 1]).all()
+    assert len(traj.contacts.step) > 0 and 1 in set(traj.contacts.body_a.tolist()) | set(traj.contacts.body_b.tolist())
+
+
+@pytest.mark.parametrize("integrator", [None, "implicitfast"])
+def test_compiled_hook_equals_numpy(integrator):
+    """The per-step hook in C++ (rblog.adapters._hook, when built) logs the same bits as the
+    numpy one."""
+    pytest.importorskip("rblog.adapters._hook")
+    logs = []
+    for compiled in (True, False):
+        m = adapter.suite_model("humanoid")
+        if integrator:
+            m.opt.integrator = getattr(mujoco.mjtIntegrator, "mjINT_" + integrator.upper())
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        rec = adapter.recorder(m, d)
+        assert rec.hook.compiled is not None
+        if not compiled:
+            rec.hook.compiled = None
+        rng = np.random.default_rng(1)
+        for _ in range(300):
+            d.ctrl[:] = rng.uniform(-1.0, 1.0, m.nu)
+            mujoco.mj_step(m, d)
+            rec(d)
+        rec.close()
+        logs.append(rec.trajectory)
+    a, b = logs
+    for kind in IMPULSE_KINDS:
+        for x, y in zip(a.impulse(kind), b.impulse(kind)):
+            np.testing.assert_array_equal(x, y, err_msg=kind)
+    np.testing.assert_array_equal(a.position, b.position)
+    np.testing.assert_array_equal(a.work_passive, b.work_passive)
