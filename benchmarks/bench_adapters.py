@@ -3,9 +3,6 @@ recording a sample at every step, by CPU time (``time.process_time``), interleav
 
     python benchmarks/bench_adapters.py [--pairs N] [--steps N] [--every K] [--case NAME ...]
 
-(``pybullet/jenga/10`` records a sample every 10th step, its impulses summed over every step;
-each pybullet run loads its world into a fresh client, in both loops alike.)
-
 Each case is a row of ``CASES``: a function of the step count and the sample stride (``every``:
 a sample every K steps, the impulses of every step summed into it) that builds its world and
 returns ``(bare, recorded)``, two callables of the output mode (``"memory"``: the run kept in memory,
@@ -77,15 +74,13 @@ case("mujoco/humanoid")(_mujoco_case("humanoid"))
 case("mujoco/stacker")(_mujoco_case("stacker"))
 
 
-def _pybullet_case(world: str, every: int | None = None):
-    """A pybullet_data world as shipped; ``every`` fixes the sample stride (else --every's)."""
-    def build(steps: int, every_arg: int, tmp: str):
-        stride = every if every is not None else every_arg
+def _pybullet_case(world: str):
+    def build(steps: int, every: int, tmp: str):
         import pybullet as pb
 
         import rblog.adapters.pybullet as adapter
 
-        def run(rec_options):
+        def run(rec_options):  # each run loads the world into a fresh client, in both loops
             cid = pb.connect(pb.DIRECT)
             try:
                 adapter.load_shipped(world, cid)
@@ -104,14 +99,13 @@ def _pybullet_case(world: str, every: int | None = None):
 
         def recorded(mode):
             out = {"mcap": str(Path(tmp) / f"{world}.mcap")} if mode == "mcap" else {"keep": True}
-            run(dict(every=stride, **out))
+            run(dict(every=every, **out))
 
         return bare, recorded
     return build
 
 
 case("pybullet/jenga")(_pybullet_case("jenga"))
-case("pybullet/jenga/10")(_pybullet_case("jenga", every=10))
 
 
 def main(argv=None) -> int:

@@ -75,7 +75,7 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
   contacts are marked missing and no rows are logged.
 
 The per-step reading of contacts and damping is compiled (``rblog.adapters._gather``,
-csrc/adapters/): pybullet returns each contact point as a tuple of tuples, and one pass in C++
+csrc/adapters/pybullet/): pybullet returns each contact point as a tuple of tuples, and one pass in C++
 reads them without a Python object per number.
 
 Why this module is long: it is the one translation of Bullet's conventions. The model
@@ -698,7 +698,7 @@ class PybulletRecorder:
         self.stepper.after_step(rows=sample)
         self.step_count += 1
         if sample:
-            self._sample(self.stepper.contact_rows(self.step_count))
+            self._sample(self.stepper.rows_out)
 
     record = __call__
 
@@ -708,9 +708,10 @@ class PybulletRecorder:
             self.pb.stepSimulation(physicsClientId=self.client)
             self()
 
-    def _sample(self, contacts) -> None:
-        """This step's state, its interval's impulses (then zeroed) and its contact rows into
-        the next row of the recorder's sample block (one Recorder.write per block)."""
+    def _sample(self, rows) -> None:
+        """This step's state, its interval's impulses (then zeroed) and its contact rows
+        (Stepper.rows_out, (P, 14) or None) into the next row of the recorder's sample block
+        (one Recorder.write per block)."""
         self._since = 0
         blk = self.block
         r = blk.row()
@@ -727,8 +728,15 @@ class PybulletRecorder:
             np.copyto(getattr(blk, name)[r], acc[key])
         for a in acc.values():
             a[:] = 0.0
-        if contacts is not None:
-            blk.add_contacts(**contacts)
+        if rows is not None:  # into the block's own contact arrays (views)
+            c = blk.contact_rows(len(rows))
+            c.body_a[:] = rows[:, 0]
+            c.body_b[:] = rows[:, 1]
+            c.point[:] = rows[:, 2:5]
+            c.normal[:] = rows[:, 5:8]
+            c.separation[:] = rows[:, 8]
+            c.normal_impulse[:] = rows[:, 9]
+            c.friction_impulse[:] = rows[:, 11:14]
         blk.commit()
 
     def flush(self) -> None:

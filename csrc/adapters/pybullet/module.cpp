@@ -1,5 +1,5 @@
-// rblog.adapters._gather: the adapters' per-step reading of another engine's Python results into
-// arrays (pybullet's contact points: pybullet_contacts.cpp; Bullet's damping: pybullet_damping.cpp).
+// rblog.adapters._gather: the pybullet adapter's per-step reading of pybullet's Python results
+// into arrays (its contact points: contacts.cpp; Bullet's damping: damping.cpp).
 #include <nanobind/nanobind.h>
 
 #include "common/errors.hpp"

@@ -18,9 +18,6 @@ namespace nb = nanobind;
 
 namespace {
 
-//: columns of contact_columns' rows
-constexpr int N_COLS = 23;
-
 PyObject* point_at(PyObject* pts, Py_ssize_t i) {
     PyObject* p = PySequence_Fast_GET_ITEM(pts, i);
     if (!PyTuple_Check(p) || PyTuple_GET_SIZE(p) != 14)
@@ -71,7 +68,13 @@ i64 row_of(const V2<i64>& table, i64 body, i64 link) {
 }  // namespace
 
 // Adds every point's impulse into lin, ang (N, 3). With rows_out (P, 14) given (not None), the
-// same pass writes the contract's contact rows (see rows below) and returns how many; else -1.
+// same pass writes the contract's contact rows and returns how many; else -1.
+// The contract's contact rows (accumulate's rows_out, P x 14): body_a, body_b (rows; -1 =
+// static geometry), point (3, the midpoint of positionOnA and positionOnB), normal (3, from B
+// into A), separation (contactDistance), normal impulse, 0, friction impulse (3, on A), all
+// N s = force x dt. A point whose A is not recorded is swapped (B becomes body_a, the normal and
+// friction flip); points with neither recorded, and speculative ones (no normal force, positive
+// distance), get no row.
 static i64 accumulate(nb::handle points, nb::handle row_table, nb::handle x0_h, double dt,
                       nb::handle lin_h, nb::handle ang_h, nb::handle rows_out) {
     V2<i64> table = v2<i64>(row_table, "row_of");
@@ -137,30 +140,6 @@ static i64 accumulate(nb::handle points, nb::handle row_table, nb::handle x0_h, 
     return with_rows ? k : -1;
 }
 
-// The points as rows (P, 23): bodyA, bodyB, linkA, linkB, distance, normal force, lateral 1,
-// lateral 2, positionOnA (3), positionOnB (3), normalOnB (3), lateral dir 1 (3), dir 2 (3).
-static void columns(nb::handle points, nb::handle out_h) {
-    V2<double> out = v2<double>(out_h, "out");
-    Seq pts(points);
-    const Py_ssize_t n = pts.size();
-    if (out.n0 != n || out.n1 != N_COLS)
-        throw nb::type_error(("columns: out must be (" + std::to_string(n) + ", 23)").c_str());
-    static const int scalar[8] = {1, 2, 3, 4, 8, 9, 10, 12};
-    static const int vector[5] = {5, 6, 7, 11, 13};
-    for (Py_ssize_t i = 0; i < n; ++i) {
-        PyObject* p = point_at(pts.fast, i);
-        for (int k = 0; k < 8; ++k) out(i, k) = num(p, scalar[k], i);
-        for (int k = 0; k < 5; ++k) vec(p, vector[k], i, &out(i, 8 + 3 * k));
-    }
-}
-
-// The contract's contact rows (accumulate's rows_out, P x 14): body_a, body_b (rows; -1 =
-// static geometry), point (3, the midpoint of positionOnA and positionOnB), normal (3, from B
-// into A), separation (contactDistance), normal impulse, 0, friction impulse (3, on A), all
-// N s = force x dt. A point whose A is not recorded is swapped (B becomes body_a, the normal and
-// friction flip); points with neither recorded, and speculative ones (no normal force, positive
-// distance), get no row.
-
 void bind_pybullet_contacts(nb::module_& m) {
     m.def("pybullet_contacts_accumulate", &accumulate, nb::arg("points"), nb::arg("row_of"),
           nb::arg("x0"), nb::arg("dt"), nb::arg("lin"), nb::arg("ang"),
@@ -169,8 +148,6 @@ void bind_pybullet_contacts(nb::module_& m) {
           "centre of mass x0 (N m s) into lin, ang (N, 3); row_of (B, W) int64 maps (body, "
           "link + 1) to a row, -1 = not recorded. With rows_out (P, 14) float64, also the "
           "contract's contact rows: returns their number (else -1).");
-    m.def("pybullet_contacts_columns", &columns, nb::arg("points"), nb::arg("out"),
-          "Fill out (P, 23) float64 with the points' numbers (see pybullet_contacts.cpp).");
 }
 
 }  // namespace rb

@@ -49,7 +49,7 @@ void bind_pybullet_damping(nb::module_& m) {
     m.def("pybullet_damping", &damping, nb::arg("q_xyzw"), nb::arg("v"), nb::arg("w"),
           nb::arg("inertia"), nb::arg("c_lin"), nb::arg("c_ang"), nb::arg("lin"), nb::arg("ang"),
           "Subtract Bullet's multibody damping impulses from lin, ang (N, 3), world frame "
-          "(see pybullet_damping.cpp).");
+          "(see csrc/adapters/pybullet/damping.cpp).");
 }
 
 }  // namespace rb
