@@ -478,6 +478,12 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
     double la = 1.0 - lb - lc;
     out.pa = la * P.v[f.v[0]].a + lb * P.v[f.v[1]].a + lc * P.v[f.v[2]].a;
     out.pb = la * P.v[f.v[0]].b + lb * P.v[f.v[1]].b + lc * P.v[f.v[2]].b;
+    // the weights of a sliver face rebuild p only roughly: share the miss between the two
+    // witnesses, so that pa - pb = d u holds (each moves by half of it)
+    Vec back = la * a + lb * b + lc * c;
+    Vec miss = 0.5 * (p - back);
+    out.pa = out.pa + miss;
+    out.pb = out.pb - miss;
     // a moves along -u to separate: the normal from b into a is -u
     out.sep = -f.d;
     out.n = -f.u;
@@ -489,7 +495,6 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
     // most -d; D lies below the face's plane + epa_tol, so at least -d - epa_tol); else GJK's
     // upper bound.
     const double bary_eps = -1e-9;
-    Vec back = la * a + lb * b + lc * c;  // the projection rebuilt from its weights
     bool inside_face = la >= bary_eps && lb >= bary_eps && lc >= bary_eps &&
                        norm(back - p) <= tol.epa_tol;
     if (stalled && !(epa_conv && (f.d >= 0 || inside_face))) return gjk_out;
