@@ -326,6 +326,8 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
     Vec v = s[0].w;
     bool overlap = false;
     bool converged = false;
+    bool stalled = false;
+    double lower = -kInf;  // the best lower bound v.w / |v| of the distance seen
     i64 it = 0;
     // |v| below round-off of the points of D: the origin is on the simplex (touching or
     // overlapping); D's extent is |w| of its points seen so far
@@ -340,6 +342,7 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
         SV w = support(A, B, -v);
         scale = std::max(scale, norm(w.w));
         double vn = std::sqrt(vv);
+        lower = std::max(lower, dot(v, w.w) / vn);
         // |v| - v.w/|v|: the gap between the upper and the lower bound of the distance
         if (vn - dot(v, w.w) / vn <= tol.gjk_tol) {
             converged = true;
@@ -360,16 +363,18 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
             break;
         }
         if (dot(nv, nv) >= vv) {
-            // no progress: rounding in the simplex's closest point, the previous simplex is the
-            // answer. (Within ~1e-6 m of touching a curved core stops here before the bounds
-            // meet: the closest point of a nearly flat simplex loses eps |w|^2 / |v|; measured
-            // up to 1.8e-7 m off MuJoCo's value, tests/analyze/test_geometry_shapes.py.)
+            // no progress: the previous simplex is the answer. Within ~1e-6 m of touching a
+            // curved core stops here before the bounds meet (the support along -v jumps to a
+            // cap's rim, say, while the contact is inside the cap); EPA then decides below.
             n = pn;
             for (int q = 0; q < n; ++q) {
                 s[q] = prev[q];
                 lam[q] = pl[q];
             }
             converged = true;
+            // near touching with the bounds apart (the lower one <= 0: maybe overlapping):
+            // EPA decides below
+            stalled = vv - std::sqrt(vv) * lower > std::sqrt(vv) * tol.gjk_tol && lower <= 0;
             break;
         }
         v = nv;
@@ -382,12 +387,14 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
         out.n = dist > 0 ? (1.0 / dist) * v : Vec{0, 0, 1};
         out.status = converged ? DIST_OK : DIST_NOT_CONVERGED;
         out.iters = it;
-        if (dist > 1e-14 * scale) return out;
-        overlap = true;  // touching exactly: EPA gives the normal
+        if (dist > 1e-14 * scale && !stalled) return out;
+        overlap = true;  // touching exactly, or stalled near it: EPA gives the depth, normal
     }
+    const Dist gjk_out = out;
 
     // --- EPA
     if (!to_tetrahedron(A, B, s, n)) {
+        if (stalled) return gjk_out;
         // D is flat (a flat mesh, or a point in a segment): touching with depth 0 along any
         // normal; report it as such
         out.sep = 0;
@@ -451,6 +458,7 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
         for (int k = 0; k < h_n; ++k) P.link(first + k, 1, first + (k + 1) % h_n, 2);
     }
     if (best < 0) {
+        if (stalled) return gjk_out;
         out.sep = 0;
         out.status = DIST_NOT_CONVERGED;
         out.n = {0, 0, 1};
@@ -470,11 +478,26 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
     double la = 1.0 - lb - lc;
     out.pa = la * P.v[f.v[0]].a + lb * P.v[f.v[1]].a + lc * P.v[f.v[2]].a;
     out.pb = la * P.v[f.v[0]].b + lb * P.v[f.v[1]].b + lc * P.v[f.v[2]].b;
+    // the weights of a sliver face rebuild p only roughly: share the miss between the two
+    // witnesses, so that pa - pb = d u holds (each moves by half of it)
+    Vec back = la * a + lb * b + lc * c;
+    Vec miss = 0.5 * (p - back);
+    out.pa = out.pa + miss;
+    out.pb = out.pb - miss;
     // a moves along -u to separate: the normal from b into a is -u
     out.sep = -f.d;
     out.n = -f.u;
     out.status = epa_conv ? DIST_OK : DIST_NOT_CONVERGED;
     out.iters = it + e_it;
+    // A stalled GJK: EPA's answer when it converged and either the origin is inside its
+    // polytope (d >= 0: the cores overlap by d to within epa_tol) or just outside with its
+    // projection d u inside the nearest face (that triangle lies in D, so the distance is at
+    // most -d; D lies below the face's plane + epa_tol, so at least -d - epa_tol); else GJK's
+    // upper bound.
+    const double bary_eps = -1e-9;
+    bool inside_face = la >= bary_eps && lb >= bary_eps && lc >= bary_eps &&
+                       norm(back - p) <= tol.epa_tol;
+    if (stalled && !(epa_conv && (f.d >= 0 || inside_face))) return gjk_out;
     return out;
 }
 

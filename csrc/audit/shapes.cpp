@@ -12,7 +12,7 @@
 //                                       separating-axis test (15 axes)
 //   point/segment/box/mesh cores        GJK, EPA when the cores overlap     yes (polytope cores)
 //   any pair with a cylinder/ellipsoid  GJK, EPA                            to gjk_tol / epa_tol
-//                                       (within ~1e-6 m of touching: ~2e-7 m, rounding in GJK)
+//                                       (within ~1e-6 m of touching: <= 3.3e-7 m)
 //
 // * plane (centre x_p, normal u = R e_z): the shape's deepest point is p = s(-u), its core's
 //   support grown by the radius along -u; sep = u.(p - x_p), the plane's witness p - sep u.

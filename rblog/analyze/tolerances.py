@@ -73,9 +73,10 @@ MAX_EVENTS = 500
 #: precision (eps of the position dtype) times the size of the numbers in the transform (m; 1 for
 #: angles): a pose is a product of a few rotations and sums per level of a kinematic chain, each
 #: good to a few ulps, and the reader rebuilds R from the logged quaternion (~4 ulps). 64 ulps:
-#: a MuJoCo chain of 4 hinges measures <= 3 ulps (tests/analyze/test_joints.py); a joint that
-#: a maximal-coordinates engine holds at the velocity level is ~1e6 ulps apart. The step term of
-#: the tolerance (rblog/analyze/joints.py) is derived, not set here.
+#: a MuJoCo chain of 4 hinges measures <= 0.5 ulp in its anchors and 5 ulps in its axes
+#: (tests/analyze/test_joints.py); pybullet's maximal-coordinates chain there is ~6e12 ulps
+#: (2.6 mm) apart. The step term of the tolerance (rblog/analyze/joints.py) is derived, not set
+#: here.
 JOINTS_ROUNDOFF_ULPS = 64.0
 
 # --- drift (rigidity) -------------------------------------------------------------------------
