@@ -65,6 +65,14 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
                              f"{', '.join(PROBLEMS)})"))
     _check_integrators(integrators)
     _note(missing_dependencies(problems or None, what="bench.png"))
+    if not no_peers:
+        from rblog.study.bench import module_missing
+        from rblog.study.peers import PEER_NAMES
+
+        gone = [p for p in (peers or PEER_NAMES) if module_missing(p)]
+        if gone:
+            _note(f"{' and '.join(gone)} not installed: no peer runs of {', '.join(gone)}. To "
+                  'compare against them: pip install -e ".[engines]"')
     show = sys.stderr.isatty() if progress is None else progress
     _run_and_print(lambda ex: run_bench(quick=quick, problems=problems or None,
                                         integrators=integrators or None, dts=dts or None,

@@ -174,3 +174,21 @@ def test_json_always_prints_its_object_with_the_status(tmp_path):
     assert stopped.exit_code == 1 and doc["status"] == "stopped" and doc["check"]["flagged"]
     assert doc["logs"] == [str(tmp_path / "s.mcap")]
     assert rblog.load(tmp_path / "s.mcap").truncated
+
+
+def test_bench_names_the_peers_it_will_not_run(monkeypatch):
+    """`rblog bench` says before it starts which peer engines are missing, as it does for scipy
+    and matplotlib (before: MuJoCo and pybullet were skipped without a word)."""
+    import rblog.study.bench as bench
+    from rblog.errors import RblogError
+
+    real = bench.module_missing
+    monkeypatch.setattr(bench, "module_missing", lambda m: m == "pybullet" or real(m))
+
+    def stop(**kw):
+        raise RblogError("stopped by the test before running")
+
+    monkeypatch.setattr(bench, "run_bench", stop)
+    r = CliRunner().invoke(main, ["bench", "--quick"])
+    assert "rblog: note: pybullet not installed: no peer runs of pybullet" in r.output, r.output
+    assert 'pip install -e ".[engines]"' in r.output
