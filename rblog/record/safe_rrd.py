@@ -151,6 +151,17 @@ def decode_arrow_msg(payload) -> tuple[int, str, object]:
             raise RrdFormatError(f"{len(batches)} record batches, expected 1")
         batch = batches[0]
         batch.validate(full=True)
+        # the text the reader decodes: column names and the rerun:* metadata, UTF-8
+        for field in batch.schema:
+            field.name  # noqa: B018 - pyarrow decodes it here (UnicodeDecodeError)
+            for key, value in (field.metadata or {}).items():
+                if key.startswith(b"rerun:"):
+                    value.decode()
+        for key, value in (batch.schema.metadata or {}).items():
+            if key.startswith(b"rerun:"):
+                value.decode()
+    except UnicodeDecodeError:
+        raise RrdFormatError("a column name or its metadata is not UTF-8") from None
     except (pa.ArrowException, ValueError, OSError) as e:  # pyarrow's decode errors
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise RrdFormatError(first[:200]) from None
