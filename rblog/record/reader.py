@@ -461,9 +461,10 @@ def _read_rrd_into(col: _Collector, path: Path) -> None:
             state.append(comps)
         elif ent == "rblog/contacts":
             _rrd_contacts(col, comps)
-    if col.model is None:
-        return
-    n = len(col.model["body_name"])
+    names = col.model.get("body_name") if col.model else None
+    if not isinstance(names, list) or not names:
+        return  # no body table to size the samples by: build() names what is missing
+    n = len(names)
     for comps in state:
         col.add_samples(_rrd_state_columns(comps, n), n)
 

@@ -41,6 +41,13 @@ ENCODING_ARROW_IPC = 1
 #: reader allocate the machine's memory. rblog's writer sends blocks of at most ~32,768
 #: body-samples (~7 MB); 2 GiB is far past any chunk a writer sends.
 MAX_PAYLOAD_BYTES = 2**31
+#: LZ4's largest expansion: a block of n bytes decompresses to at most 255 n (+ a few bytes), so
+#: a larger stated size is a corrupted one (checked before the buffer is allocated)
+LZ4_MAX_RATIO = 255
+#: bytes each row of a chunk holds at least: its RowId (rerun.controls.RowId, 16-byte TUID), so a
+#: batch claiming more rows than its payload can hold is corrupt (a column of type null has no
+#: buffers for validate() to check its length against)
+ROW_ID_BYTES = 16
 
 
 class RrdFormatError(Exception):
@@ -138,8 +145,9 @@ def decode_arrow_msg(payload) -> tuple[int, str, object]:
         raise RrdFormatError(f"encoding {encoding}, expected 1 (Arrow IPC)")
     try:
         if compression == COMPRESSION_LZ4:
-            if not 0 < size <= MAX_PAYLOAD_BYTES:
-                raise RrdFormatError(f"uncompressed size {size} out of range")
+            if not 0 < size <= min(MAX_PAYLOAD_BYTES, LZ4_MAX_RATIO * len(body) + 64):
+                raise RrdFormatError(f"uncompressed size {size} out of range for "
+                                     f"{len(body)} compressed bytes")
             raw = pa.decompress(body, decompressed_size=size, codec="lz4_raw")
         elif compression in (COMPRESSION_NONE, 0):
             raw = body
@@ -150,7 +158,20 @@ def decode_arrow_msg(payload) -> tuple[int, str, object]:
         if len(batches) != 1:
             raise RrdFormatError(f"{len(batches)} record batches, expected 1")
         batch = batches[0]
+        if batch.num_rows * ROW_ID_BYTES > len(raw):
+            raise RrdFormatError(f"{batch.num_rows} rows in {len(raw)} bytes")
         batch.validate(full=True)
+        # the text the reader decodes: column names and the rerun:* metadata, UTF-8
+        for field in batch.schema:
+            field.name  # noqa: B018 - pyarrow decodes it here (UnicodeDecodeError)
+            for key, value in (field.metadata or {}).items():
+                if key.startswith(b"rerun:"):
+                    value.decode()
+        for key, value in (batch.schema.metadata or {}).items():
+            if key.startswith(b"rerun:"):
+                value.decode()
+    except UnicodeDecodeError:
+        raise RrdFormatError("a column name or its metadata is not UTF-8") from None
     except (pa.ArrowException, ValueError, OSError) as e:  # pyarrow's decode errors
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise RrdFormatError(first[:200]) from None
