@@ -21,11 +21,11 @@ G = np.array([0.0, 0.0, -9.81])
 #: geom poses and sizes against pybullet's link states and shape data (measured: 0 .. 2.2e-16)
 POSE_TOL = 1e-12
 #: free bodies: |dp - m g dt - sum of logged impulses| / (|m v| + |impulses| + m g dt) per
-#: interval (measured: 1.1e-14 on jenga, 2e-15 domino, 1e-15 tray and kuka's cube)
+#: interval (measured: 9.8e-15 on jenga, 5.6e-15 domino, 5.2e-15 tray, 5.3e-15 kuka's cube)
 FREE_REL = 1e-9
-#: bodies on joints, N s per step of the interval (measured on r2d2: median 7e-7 N s, up to
+#: bodies on joints, N s per step of the interval (measured on r2d2: median 1.7e-7 N s, up to
 #: 5.3e-4 N s in the 5 steps of its wheels' impact, where the joint impulses are ~0.4 N s; kuka:
-#: 2e-7 N s): the reaction sensors' frames against Featherstone's step, see the adapter docstring
+#: 2.2e-11 N s): the reaction sensors' frames against Featherstone's step (adapter docstring)
 JOINT_NS_PER_STEP = 1e-3
 #: free bodies' angular balance, N m s per step (measured: 9.4e-11 on jenga, whose angular
 #: contact impulses are ~1e-4 N m s per step; domino 2.9e-12; tray and kuka's cube 7e-19)
