@@ -258,7 +258,17 @@ def inspect(m, d=None, *, restitution=None):
                   anchor_body=np.array(ab).reshape(nj, 3), anchor_parent=np.array(ap).reshape(nj, 3),
                   axis_body=np.array(xb).reshape(nj, 3), axis_parent=np.array(xp).reshape(nj, 3),
                   range=np.array(jr, np.float64).reshape(nj, 2), name=jn)
-    supplied = np.repeat(lay.dynamic[:, None], len(IMPULSE_KINDS), axis=1)
+    from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE
+
+    supplied = np.where(np.repeat(lay.dynamic[:, None], len(IMPULSE_KINDS), axis=1),
+                        SUPPLIED_LOGGED, SUPPLIED_MISSING)
+    # a free joint exerts nothing: on a free body that carries no other body the Newton-Euler
+    # residual the hook computes is the step's integration error (round-off under Euler, RK4's
+    # stage differences under RK4), not a load. (A free body with children gets their joints'
+    # reactions.)
+    has_children = np.isin(np.arange(len(parent)), parent[parent >= 0])
+    supplied[(lay.kind == BODY_FREE) & ~has_children, IMPULSE_KINDS.index("joint")] = \
+        SUPPLIED_NONE
     work = np.repeat(lay.dynamic[:, None], len(WORK_KINDS), axis=1)
     from rblog.record.recorder import body_table
 

@@ -164,6 +164,9 @@ class MujocoRecorder:
                                  combine_friction="max", combine_restitution="max",
                                  engine_settings=engine, keep=keep, **recorder_options)
         self.recorder.open()
+        from rblog.record._common import run_interval_channels
+
+        self._channels = set(run_interval_channels(self.model))
         self.kin = Kinematics(m, self.layout)
         self.hook = StepImpulses(m, self.layout, d, block=block)
         self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
@@ -319,6 +322,10 @@ class MujocoRecorder:
             arrays[f"impulse_{kind}_linear"] = W[:, a, :, 3:]
         for a, kind in enumerate(WORK_KINDS):
             arrays[f"work_{kind}"] = work[:, a]
+        # the channels no body logs (a model of free bodies logs no joint impulse)
+        for name in [k for k in arrays if k.startswith(("impulse_", "work_"))]:
+            if name not in self._channels:
+                del arrays[name]
         rows = decode_contacts(self.m, self.layout, self._raw)
         if rows is not None:
             arrays["contacts"] = rows

@@ -542,6 +542,13 @@ class Context:
         return self._loads()["unjudged"]
 
     @property
+    def joint_impulse_logged(self) -> np.ndarray:
+        """(N,) bool: bodies whose joint constraint impulses the log carries."""
+        return self.cached("joint_logged", lambda: np.asarray(
+            self.model.body_impulse_supplied).reshape(self.traj.n_bodies, len(IMPULSE_KINDS))[
+            :, IMPULSE_KINDS.index("joint")] == SUPPLIED_LOGGED)
+
+    @property
     def ext_linear(self) -> np.ndarray | None:
         """(T, N, 3) logged non-contact impulses besides gravity and force_const over the
         interval ending at each sample (N s, world), or None when the log has none."""
@@ -570,11 +577,24 @@ class Context:
         the constant ones acts at some interval (their energy and impacts need that load's
         work and moment arm, which a free body's checks leave out)."""
         def f():
-            out = np.zeros(self.traj.n_bodies, bool)
+            # a load counts where it moves the body's momentum by more than the jump detector's
+            # resolution (MOMENTUM_JUMP_REL of m (max |v| + |a| dt), or of max |L|): an engine's
+            # round-off in a load that is zero (MuJoCo's 2e-15 N s joint impulse on a free
+            # ball) is no load
+            tr = self.traj
+            out = np.zeros(tr.n_bodies, bool)
             out[list(self.momentum_unjudged)] = True
-            for ext in (self.ext_linear, self.ext_angular):
-                if ext is not None and len(ext) > 1:
-                    out |= np.abs(ext[1:]).max(axis=(0, 2)) > 0
+            if tr.n_samples < 2:
+                return out
+            p_scale = self.mass * (self.speed.max(axis=0) + np.linalg.norm(self.accel, axis=1)
+                                   * self.dt_step + tol.MOMENTUM_SPEED_FLOOR_MPS)
+            i_max = np.asarray(self.model.body_inertia_diag, float).max(axis=1)
+            l_scale = np.linalg.norm(tr.angular_momentum, axis=2).max(axis=0) \
+                + i_max * tol.MOMENTUM_SPIN_FLOOR_RADPS
+            for ext, scale in ((self.ext_linear, p_scale), (self.ext_angular, l_scale)):
+                if ext is not None:
+                    out |= np.linalg.norm(ext[1:], axis=2).max(axis=0) > \
+                        tol.MOMENTUM_JUMP_REL * scale
             return out
         return self.cached("loaded", f)
 
