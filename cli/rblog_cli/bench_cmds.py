@@ -69,10 +69,14 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
         from rblog.study.bench import module_missing
         from rblog.study.peers import PEER_NAMES
 
-        gone = [p for p in (peers or PEER_NAMES) if module_missing(p)]
+        # the module each peer imports, and the extra that installs it
+        module = {"ode": "odepy"}
+        extra = {"ode": 'apt-get install libode8 && pip install -e ".[ode]"'}
+        gone = [p for p in (peers or PEER_NAMES) if module_missing(module.get(p, p))]
         if gone:
+            how = sorted({extra.get(p, 'pip install -e ".[engines]"') for p in gone})
             _note(f"{' and '.join(gone)} not installed: no peer runs of {', '.join(gone)}. To "
-                  'compare against them: pip install -e ".[engines]"')
+                  f"compare against them: {'; '.join(how)}")
     show = sys.stderr.isatty() if progress is None else progress
     _run_and_print(lambda ex: run_bench(quick=quick, problems=problems or None,
                                         integrators=integrators or None, dts=dts or None,

@@ -37,7 +37,7 @@ import numpy as np
 from rblog.analyze import _audit
 from rblog.analyze.tolerances import WITNESS_BAND_M
 from rblog.contract.orientation import quat_wxyz_to_matrix
-from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE, Model
+from rblog.contract.model import SHAPE_BOX, SHAPE_NONE, SHAPE_SPHERE, Model
 
 #: thickness of a box's touching feature (m; see WITNESS_BAND_M)
 _BAND = WITNESS_BAND_M
@@ -54,9 +54,32 @@ quat_to_matrix = quat_wxyz_to_matrix
 
 
 def bounding_radius(model: Model) -> np.ndarray:
-    """(N,) radius of the sphere about the centre that holds the body (m)."""
+    """(N,) radius of the sphere about the centre that holds the body (m): from its sphere or
+    box, or, for a body without one, from its geoms (contract v3: each geom's own bounding
+    radius about its centre plus its offset; planes left out)."""
     size = np.asarray(model.body_size, float)
-    return np.where(model.body_shape == SHAPE_SPHERE, size[:, 0], np.linalg.norm(size, axis=1))
+    rho = np.where(model.body_shape == SHAPE_SPHERE, size[:, 0], np.linalg.norm(size, axis=1))
+    gb = np.asarray(model.geom_body, np.int64)
+    if not len(gb):
+        return rho
+    from rblog.contract.model import (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_PLANE,
+                                      GEOM_SPHERE)
+
+    gt = np.asarray(model.geom_type, np.int64)
+    gs = np.asarray(model.geom_size, float).reshape(-1, 3)
+    r = np.linalg.norm(gs, axis=1)  # box half extents, ellipsoid semi-axes: a bound
+    r = np.where(gt == GEOM_SPHERE, gs[:, 0], r)
+    r = np.where(gt == GEOM_CAPSULE, gs[:, 0] + gs[:, 1], r)
+    r = np.where(gt == GEOM_CYLINDER, np.hypot(gs[:, 0], gs[:, 1]), r)
+    verts = np.asarray(model.mesh_vert, float).reshape(-1, 3)
+    for g in np.flatnonzero(gt == GEOM_MESH):
+        a, k = int(model.geom_vert_adr[g]), int(model.geom_vert_num[g])
+        r[g] = np.linalg.norm(verts[a:a + k], axis=1).max() if k else 0.0
+    r = r + np.linalg.norm(np.asarray(model.geom_pos_body, float).reshape(-1, 3), axis=1)
+    keep = (gb >= 0) & (gt != GEOM_PLANE)
+    from_geoms = np.zeros(len(rho))
+    np.maximum.at(from_geoms, gb[keep], r[keep])
+    return np.where(model.body_shape == SHAPE_NONE, from_geoms, rho)
 
 
 def inner_radius(model: Model) -> np.ndarray:

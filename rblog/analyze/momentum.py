@@ -275,7 +275,12 @@ class MomentumAnalyzer(Analyzer):
         g = np.cross(tr.angular_velocity[:, bodies], tr.angular_momentum[:, bodies])
         rot_allow = self.tol["dt_factor"] * ctx.dt_step * np.linalg.norm(np.diff(g, axis=0),
                                                                          axis=2)
-        lin_allow = np.zeros_like(r_lin)
+        # a logged contact impulse is known to the resolution the cone check grants it
+        # (cone_rel of its size: an iterative solver's forces, MuJoCo's efc_force at its
+        # tolerance, are not exactly the ones it integrated)
+        jl_mag, ja_mag = np.linalg.norm(jl, axis=2), np.linalg.norm(ja, axis=2)
+        lin_allow = self.tol["cone_rel"] * jl_mag
+        rot_allow = rot_allow + self.tol["cone_rel"] * (ja_mag + ctx.rho[bodies] * jl_mag)
         # Bodies whose joint impulses are logged: an engine in generalized coordinates (MuJoCo,
         # Bullet's multibodies) integrates the joints' velocities, and a body's centre of mass
         # moves by J(q) qdot, not linearly in them; its joint impulse (the Newton-Euler residual
