@@ -452,7 +452,7 @@ def check_to_rrd(log: Path, out: Path) -> tuple[list[str], str]:
     text = p.stdout + p.stderr
     if p.returncode not in (0, 1):
         raise RuntimeError(f"rblog check exited {p.returncode}:\n{text}")
-    m = re.search(r"open with: (rerun [^)]*)\)", text)
+    m = re.search(r"open with: ((?:\S*/)?rerun [^)]*)\)", text)
     if not m:
         raise RuntimeError(f"rblog check printed no command to open the findings:\n{text}")
     return m.group(1).split(), text

@@ -321,7 +321,8 @@ class RerunRecorder:
                                    (31, 119, 180)),
                                   (DRIFT_ENTITY + "/quat_norm_max", "max ||q| - 1|",
                                    (255, 127, 14))):
-            rec.log(ent, rr.SeriesLines(names=[name], colors=[colour]), static=True)
+            rec.log(ent, rr.SeriesLines(names=[name], colors=[colour], widths=[2.0]),
+                    static=True)
         rec.log(DRIFT_ENTITY + "/tolerance", rr.SeriesLines(
             names=[f"tolerance {DRIFT_TOLERANCE:g}"],
             colors=[[230, 30, 30]], widths=[2.0]), static=True)
@@ -509,11 +510,13 @@ DRIFT_ENTITY = "plots/drift"
 DRIFT_TOLERANCE = 1e-6
 #: an error of exactly 0 is drawn at this floor (log10 of it: -17), below float64 round-off
 DRIFT_FLOOR = 1e-17
-#: the drift plot's y range (log10 of the error): from the floor to an error of 10, so that
+#: the drift plot's y range (log10 of the error): from below the floor to above an error of 10, so that
 #: round-off, the tolerance (-6) and a stretched body (0) stand at their own heights with a tick
 #: every few decades, whatever the run (scaled to the data, a clean run's axis spanned a
 #: fraction of a decade and showed one tick label); the viewer still zooms
-DRIFT_AXIS_LOG10 = (math.log10(DRIFT_FLOOR), 1.0)
+#: the floor a decade above the bottom edge; above an error of 10 the axis keeps 8 decades of
+#: headroom, where the legend (three rows, ~30 % of the plot's height) stands off every trace
+DRIFT_AXIS_LOG10 = (math.log10(DRIFT_FLOOR) - 1.0, 9.0)
 #: the line colours of the energy and momentum plots (RGB): hues far apart on the colour wheel,
 #: so that no two series of one plot look alike (the viewer's own picks were blues and purples);
 #: total energy dark, x/y/z as red/green/blue for P and orange/grey/magenta for L
@@ -653,8 +656,7 @@ def _blueprint(model: Model, info: RunInfo, findings: bool = False,
                                         else VIEW_ASPECT)
         eye = rrb.EyeControls3D(position=position, look_target=target)
     legend = rrb.PlotLegend(corner="LeftTop", visible=True)
-    # the drift plot (DRIFT_AXIS_LOG10): round-off lies near the bottom, a stretch rises to the
-    # top only late in the run, so the top left corner is the one its traces leave empty
+    # the drift plot (DRIFT_AXIS_LOG10): its top keeps headroom above every trace for the legend
     drift_legend = rrb.PlotLegend(corner="LeftTop", visible=True)
     axis = _time_axis(t_end if t_end is not None else info.duration_s)
     kw = dict(plot_legend=legend, axis_x=axis) if axis is not None else dict(plot_legend=legend)
