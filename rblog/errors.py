@@ -70,3 +70,75 @@ class RunInterrupted(RblogError):
         super().__init__(message)
         self.signum = int(signum)
         self.exit_code = 128 + self.signum
+
+
+# ---- by room: what each part of rblog raises ----------------------------------------------
+
+
+class CheckOptionError(RblogError):
+    """An unknown analyzer or tolerance name, or a tolerance that is not a number."""
+
+
+class IncompatibleLogs(RblogError):
+    """The two logs do not describe the same bodies, or share no sample time."""
+
+
+class AuditFailed(RblogError):
+    """``--fail-fast``: the live audit found a problem; the run stopped there (logs closed,
+    readable, marked truncated). Exit code 1, as a failed ``rblog check``."""
+
+    exit_code = 1
+
+    def __init__(self, finding: "rblog.analyze.live.LiveFinding"):
+        self.finding = finding
+        f = finding.finding
+        super().__init__(f"live audit: {finding.analyzer} finding at t = {f.t:.6g} s (step "
+                         f"{f.step}): {f.message}; run stopped (--fail-fast), logs keep every "
+                         "sample written before it")
+
+
+class RecordError(RblogError):
+    """Arrays handed to the Recorder do not fit the body table or the contract (a one-line
+    message naming the argument, its shape and what was expected)."""
+
+
+class AdapterError(RblogError):
+    """An engine's model or data that the adapter cannot record (one line naming what and why),
+    or the engine is not installed."""
+
+
+class UnsupportedShapePair(RblogError):
+    """The scene holds two shapes that may touch but have no collider in the narrowphase table.
+    The names of the shape codes and the supported pairs are the narrowphase table's
+    (rblog.engine.contact.narrowphase sets ``names`` and ``supported`` when it loads)."""
+
+    names: dict = {}
+    supported: str = ""
+
+    def __init__(self, geom_a: int, geom_b: int, where: str):
+        na = self.names.get(geom_a, f"shape code {geom_a}")
+        nb = self.names.get(geom_b, f"shape code {geom_b}")
+        super().__init__(f"no contact generation for {na}-{nb} ({where}); supported pairs: "
+                         f"{self.supported}")
+
+
+class ClusterUnavailable(RblogError):
+    """Workers or a scheduler were asked for, but dask.distributed is not installed, or the
+    scheduler cannot be reached."""
+
+
+class EngineUnsupported(RblogError):
+    """The scene (or an option) needs something the chosen engine cannot represent."""
+
+    def __init__(self, engine: str, feature: str):
+        super().__init__(f"--engine {engine}: cannot represent {feature}")
+
+
+class EngineMissing(RblogError):
+    """The engine asked for with ``--engine`` is not installed (the ``engines`` extra)."""
+
+    def __init__(self, engine: str, err: Exception,
+                 install: str = 'pip install -e ".[engines]" in a checkout (or pip install '
+                                '"rblog[engines]")'):
+        super().__init__(f"--engine {engine}: not installed ({type(err).__name__}: {err}); "
+                         f"{install}")

@@ -47,7 +47,7 @@ def _command() -> str:
               help="Run only this integrator, NAME or NAME/ORTHONORMALIZE (repeatable).")
 @click.option("--dt", "dts", multiple=True, type=click.FloatRange(min=0, min_open=True),
               help="Time step to run (s, repeatable); overrides the default range.")
-@click.option("--peer", "peers", multiple=True, type=click.Choice(["mujoco", "pybullet"]),
+@click.option("--peer", "peers", multiple=True, type=click.Choice(["mujoco", "pybullet", "ode"]),
               help="Run only these peers (default: every one installed).")
 @click.option("--no-peers", is_flag=True, help="Run rblog only.")
 @click.option("--progress/--no-progress", default=None,
@@ -65,23 +65,20 @@ def bench(quick, out_dir, as_json, problems, integrators, dts, peers, no_peers, 
                              f"{', '.join(PROBLEMS)})"))
     _check_integrators(integrators)
     _note(missing_dependencies(problems or None, what="bench.png"))
+    if not no_peers:
+        from rblog.study.bench import module_missing
+        from rblog.study.peers import PEER_NAMES
+
+        gone = [p for p in (peers or PEER_NAMES) if module_missing(p)]
+        if gone:
+            _note(f"{' and '.join(gone)} not installed: no peer runs of {', '.join(gone)}. To "
+                  'compare against them: pip install -e ".[engines]"')
     show = sys.stderr.isatty() if progress is None else progress
-    try:
-        with _make_executor(workers, scheduler) as ex:
-            report = run_bench(quick=quick, problems=problems or None,
-                               integrators=integrators or None, dts=dts or None,
-                               peers=() if no_peers else (peers or None),
-                               progress=_progress(show), command=_command(), executor=ex)
-        write_outputs(report, out_dir)
-    except RblogError as e:
-        _fail(e)
-    if as_json:
-        click.echo(json.dumps(report.to_dict()))
-        return
-    click.echo(format_table(report))
-    click.echo("")
-    for kind, path in report.files.items():
-        click.echo(f"wrote {path}")
+    _run_and_print(lambda ex: run_bench(quick=quick, problems=problems or None,
+                                        integrators=integrators or None, dts=dts or None,
+                                        peers=() if no_peers else (peers or None),
+                                        progress=_progress(show), command=_command(), executor=ex),
+                   workers, scheduler, write_outputs, format_table, out_dir, as_json)
 
 
 @click.command()
@@ -109,10 +106,18 @@ def stress(quick, out_dir, as_json, cases, integrators, progress, workers, sched
     if module_missing(PLOT_MODULE):
         _note(f"{PLOT_MODULE} is not installed: no stress.png. To draw it: {BENCH_EXTRA}")
     show = sys.stderr.isatty() if progress is None else progress
+    _run_and_print(lambda ex: run_stress(quick=quick, cases=cases or None,
+                                         integrators=integrators or None,
+                                         progress=_progress(show), command=_command(), executor=ex),
+                   workers, scheduler, write_outputs, format_table, out_dir, as_json)
+
+
+def _run_and_print(run, workers, scheduler, write_outputs, format_table, out_dir, as_json):
+    """Run a suite (``run(executor)`` -> report) on the executor asked for, write its files, and
+    print the report (a table, or JSON with ``as_json``) and the files written."""
     try:
         with _make_executor(workers, scheduler) as ex:
-            report = run_stress(quick=quick, cases=cases or None, integrators=integrators or None,
-                                progress=_progress(show), command=_command(), executor=ex)
+            report = run(ex)
         write_outputs(report, out_dir)
     except RblogError as e:
         _fail(e)
@@ -121,7 +126,7 @@ def stress(quick, out_dir, as_json, cases, integrators, progress, workers, sched
         return
     click.echo(format_table(report))
     click.echo("")
-    for kind, path in report.files.items():
+    for path in report.files.values():
         click.echo(f"wrote {path}")
 
 

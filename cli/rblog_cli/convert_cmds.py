@@ -8,6 +8,7 @@ import sys
 import click
 
 from rblog.errors import RblogError
+from rblog_cli.report import program
 
 
 def _fail(err: RblogError):
@@ -63,6 +64,11 @@ def findings(log, out):
         n = write_checked(out, traj, results)
     except RblogError as e:
         _fail(e)
+    for r in results:
+        for f in r.findings:
+            u = "" if f.unit in ("", "1") else f" {f.unit}"
+            click.echo(f"  {r.analyzer:<12} t = {f.t:.4g} s: {f.value:.3g}{u} (tol "
+                       f"{f.tolerance:.3g}{u}): {f.message}")
     click.echo(f"{log}: the run and its {n} findings written to {out} (open with: "
-               f"{open_command(out)})")
+               f"{open_command(out, program('rerun'))})")
     sys.exit(1 if any(not r.passed and not r.skipped for r in results) else 0)

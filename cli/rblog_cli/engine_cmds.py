@@ -1,5 +1,5 @@
-"""``rblog run SCENE --engine mujoco|pybullet``: run a scene in another engine and record it
-(:mod:`rblog.study.engines`). Called from cli/main.py's ``run``."""
+"""``rblog run SCENE --engine mujoco|pybullet|ode``: run a scene in another engine and record it
+(:mod:`rblog.study.engines`). Called from main.py's ``run``; prints through report.py."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import json
 import click
 
 from rblog.errors import RblogError
+from rblog_cli.report import live_audit, live_report, next_commands, print_live_report
 
 
 def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, orthonormalize,
@@ -29,8 +30,6 @@ def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, or
         rrd, mcap = f"{stem}.rrd", f"{stem}.mcap"
     audit = None
     if live_check:
-        from rblog_cli.main import live_audit
-
         audit = live_audit([], fail_fast, as_json)
     try:
         s = load_scene(scene_path)
@@ -39,16 +38,18 @@ def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, or
                                 mcap_compression=mcap_compression, audit=audit)
     except RblogError as e:
         if audit is not None and audit.failed is not None and e is audit.failed:
-            from rblog_cli.main import print_live_report
-
-            print_live_report(audit, as_json, paths=[p for p in (rrd, mcap) if p])
+            paths = [p for p in (rrd, mcap) if p]
+            print_live_report(audit, as_json, paths=paths)
+            if as_json:  # the audit stopped the run: the object still comes, status "stopped"
+                click.echo(json.dumps({"status": "stopped", "message": str(e), "logs": paths,
+                                       "check": live_report(audit)}))
         fail(e)
     if as_json:
-        d = summary.to_dict()
+        d = {"status": "ok", **summary.to_dict()}
         if audit is not None:
-            from rblog_cli.main import live_report
-
             d["check"] = live_report(audit)
+            if d["check"]["flagged"]:
+                d["status"] = "flagged"
         click.echo(json.dumps(d))
         if audit is not None and d["check"]["flagged"]:
             raise SystemExit(1)
@@ -61,8 +62,8 @@ def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, or
                f"{summary.log_every} steps ({summary.samples} samples, {summary.contacts} contact rows)")
     for p in summary.logs:
         click.echo(f"  wrote {p}")
-    if audit is not None:
-        from rblog_cli.main import print_live_report
-
-        if print_live_report(audit, as_json, paths=summary.logs):
-            raise SystemExit(1)
+    flagged = audit is not None and print_live_report(audit, as_json, paths=summary.logs)
+    for i, cmd in enumerate(next_commands(summary.logs)):
+        click.echo(f"{'next:' if i == 0 else '':<6}{cmd}")
+    if flagged:
+        raise SystemExit(1)

@@ -15,6 +15,9 @@ from pathlib import Path
 import click
 
 from rblog.errors import RblogError
+from rblog_cli import IN_PROGRAM, LOGS_STATE
+from rblog_cli.report import (live_audit, live_report, next_commands, print_live_report,
+                              print_report, program)
 
 
 # the registry alone (pure Python): `rblog --help` loads neither numpy nor the core
@@ -27,21 +30,14 @@ def _fail(err: RblogError):
     click.echo(f"rblog: error: {err}", err=True)
     from rblog.errors import RunInterrupted
 
-    if isinstance(err, RunInterrupted) and _IN_MAIN_PROCESS:
+    if isinstance(err, RunInterrupted) and IN_PROGRAM:
         # The logs are closed and complete up to the last step; what is left is interpreter
         # teardown (the Rerun SDK's exit hooks, thread joins), measured 0.5-0.65 s on a loaded
         # machine. A signal asks the process to go now: exit without it.
-        import os
-
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(err.exit_code)
     sys.exit(err.exit_code)
-
-
-#: True when running as the `rblog` program or `python -m rblog_cli.main` (not when embedded,
-#: e.g. in a test's CliRunner, where exiting the process is not ours to do)
-_IN_MAIN_PROCESS = Path(sys.argv[0]).name == "rblog" or __name__ == "__main__"
 
 
 class _Progress:
@@ -119,9 +115,10 @@ def validate(scene):
 @click.option("--run", "run_too", is_flag=True, help="With --explain: run the scene afterwards.")
 @click.option("--all-stages", is_flag=True, help="Force every stage on (for benchmarks).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
-@click.option("--engine", type=click.Choice(["rblog", "mujoco", "pybullet"]), default="rblog",
+@click.option("--engine", type=click.Choice(["rblog", "mujoco", "pybullet", "ode"]), default="rblog",
               show_default=True,
-              help='Engine to run the scene in (mujoco/pybullet: pip install -e ".[engines]").')
+              help='Engine to run the scene in (mujoco/pybullet: pip install -e ".[engines]"; ode: '
+                   'libode8 and pip install -e ".[ode]").')
 @click.option("--engine-option", "engine_options", multiple=True, metavar="KEY=VALUE",
               help="A setting of the --engine, e.g. integrator=RK4 (repeatable).")
 @click.option("--profile", "profile", is_flag=True, help="Print the time spent in each stage.")
@@ -143,7 +140,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
     live_check = live_check or fail_fast
     if engine != "rblog" or engine_options:
         if engine == "rblog" or spawn or connect_url or explain or all_stages or profile:
-            _fail(RblogError("--engine-option needs --engine mujoco|pybullet, which takes no "
+            _fail(RblogError("--engine-option needs --engine mujoco|pybullet|ode, which takes no "
                              "--spawn/--connect/--explain/--all-stages/--profile"))
         if log_every is not None and log_rate is not None:
             _fail(RblogError("give --log-every or --log-rate, not both"))
@@ -154,6 +151,7 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
                                mcap=mcap, mcap_compression=mcap_compression, no_log=no_log,
                                log_every=log_every, log_rate=log_rate, as_json=as_json, fail=_fail,
                                live_check=live_check, fail_fast=fail_fast)
+    LOGS_STATE[0] = "no log written"  # until the run loop opens them under its own handlers
     from rblog.engine.scene import load_scene
     from rblog.engine.runner import run as run_scene
     from rblog.engine.plan import plan_stages
@@ -201,9 +199,13 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
                 warn=lambda m: click.echo(f"rblog: warning: {m}", err=True), profile=prof)
         finally:
             prog.close()
+        LOGS_STATE[0] = "logs complete"
     except RblogError as e:
         if audit is not None and audit.failed is not None and e is audit.failed:
             print_live_report(audit, as_json, paths=paths)
+            if as_json:  # the audit stopped the run: the object still comes, status "stopped"
+                click.echo(json.dumps({"status": "stopped", "message": str(e), "logs": paths,
+                                       "check": live_report(audit)}))
         _fail(e)
     d = summary.to_dict()
     d["logs"] = paths
@@ -228,6 +230,8 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
     if as_json:
         if audit is not None:
             d["check"] = live_report(audit)
+            if d["check"]["flagged"]:
+                d["status"] = "flagged"
         click.echo(json.dumps(d))
         if audit is not None:
             sys.exit(1 if d["check"]["flagged"] else 0)
@@ -253,73 +257,11 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
     click.echo(f"  max ||R^T R - I||_F     {summary.ortho_error_max:.3e}")
     for p in paths:
         click.echo(f"  wrote {p}")
+    flagged = audit is not None and print_live_report(audit, as_json, paths=paths)
+    for i, cmd in enumerate(next_commands(paths)):
+        click.echo(f"{'next:' if i == 0 else '':<6}{cmd}")
     if audit is not None:
-        flagged = print_live_report(audit, as_json, paths=paths)
         sys.exit(1 if flagged else 0)
-
-
-def live_audit(recorders, fail_fast: bool, as_json: bool):
-    """The live audit for `rblog run --check` (rblog.record.live_audit), streaming into the
-    Rerun log of ``recorders`` and printing each finding when announced (stderr with --json)."""
-    from rblog.record.live_audit import LiveAudit
-    from rblog.record.rerun_writer import RerunRecorder
-
-    rerun = [w for r in recorders for w in getattr(r, "writers", [r])
-             if isinstance(w, RerunRecorder)]
-    audit = None
-
-    def echo(lf):
-        from rblog.record.live_audit import live_text
-
-        if lf.at_end:
-            return  # the end report lists them
-        click.echo(f"live (seen at t = {lf.t_seen:.6g} s): {live_text(audit.model, lf)}",
-                   err=as_json)
-
-    audit = LiveAudit(fail_fast=fail_fast, on_finding=echo, rerun=rerun)
-    return audit
-
-
-def live_report(audit) -> dict:
-    """The live audit's verdict as JSON: ``results`` (as `rblog check --json`), ``announced``
-    (each finding with when it was announced), ``revised``, ``withdrawn``, ``flagged``."""
-    results = audit.finish()
-    model = audit.model
-    return {
-        "flagged": any(not r.passed and not r.skipped for r in results),
-        "results": [r.to_dict(model) for r in results],
-        "announced": [{**lf.finding.to_dict(), "at_end": lf.at_end, "seen_samples": lf.samples,
-                       "seen_t_s": lf.t_seen, "wall_s": lf.wall_s} for lf in audit.announced],
-        "revised": len(audit.live.revised), "withdrawn": len(audit.live.withdrawn),
-        "prefix_checks": audit.stats.checks, "audit_s": audit.stats.total_s,
-    }
-
-
-def print_live_report(audit, as_json: bool, paths=()) -> bool:
-    """Print the live audit's verdict (the report of `rblog check` on the log); returns True
-    when the run is flagged."""
-    results = audit.finish()
-    traj = audit.live.trajectory
-    flagged = any(not r.passed and not r.skipped for r in results)
-    if as_json:
-        return flagged
-    live = audit.live
-    during = sum(not lf.at_end for lf in live.announced)
-    n = sum(len(r.findings) for r in results)
-    click.echo(f"live audit: {n} finding(s), {during} announced during the run, "
-               f"{len(live.announced) - during} at its end; {live.stats.checks} prefix checks")
-    for lf, f in live.revised:
-        click.echo(f"  revised at the end ({lf.analyzer}, step {lf.finding.step} -> {f.step}): "
-                   f"{f.message}")
-    for lf in live.withdrawn:
-        click.echo(f"  withdrawn at the end ({lf.analyzer}, step {lf.finding.step}): "
-                   f"{lf.finding.message}")
-    if traj is not None:
-        _print_report({"log": ", ".join(paths) or "(run)", "truncated": bool(audit.failed),
-                       "samples": traj.n_samples, "bodies": traj.n_bodies,
-                       "t_end_s": float(traj.t[-1]) if traj.n_samples else 0.0,
-                       "results": [r.to_dict(traj.model) for r in results]})
-    return flagged
 
 
 #: `rblog check` uses local workers by default above this many logs (starting them costs ~2 s)
@@ -416,7 +358,7 @@ def check(logs, only, skip, tols, list_only, as_json, workers, scheduler, table_
         for w in e["warnings"]:
             click.echo(f"rblog: warning: {e['log']}: {w}", err=True)
         if not as_json and (not many or e["status"] != "clean"):
-            _print_report(e)
+            print_report(e)
     if as_json:
         click.echo(json.dumps(report.to_dict(), indent=1))
     elif len(paths) > 1:
@@ -454,7 +396,7 @@ def _findings_for_one_log(outs, paths, only, skip, tolerances):
         except RblogError as e:
             _fail(e)
         click.echo(f"rblog: {paths[0]} and its {n} findings written to {out} "
-                   f"(open with: {open_command(out)})", err=True)
+                   f"(open with: {open_command(out, program('rerun'))})", err=True)
 
 
 def _names(csv, known, opt):
@@ -466,33 +408,6 @@ def _names(csv, known, opt):
         _fail(RblogError(f"{opt}: unknown analyzer {bad[0]!r} (expected one of "
                          f"{', '.join(sorted(known))})"))
     return out
-
-
-def _print_report(entry):
-    """One log's verdicts from its entry (rblog.study.bulk_check.check_log)."""
-    flag = " (truncated)" if entry["truncated"] else ""
-    click.echo(f"{entry['log']}: {entry['samples']} samples x {entry['bodies']} bodies, "
-               f"t = 0..{entry['t_end_s']:g} s{flag}")
-    for r in entry["results"]:
-        verdict = {"skip": "SKIP", "not judged": "----"}.get(r.get("verdict"), None) or (
-            "SKIP" if r["skipped"] else ("pass" if r["passed"] else "FAIL"))
-        line = f"  {verdict:<4} {r['analyzer']:<14}"
-        if not r["skipped"]:
-            unit = "" if r["unit"] in ("", "1") else f" {r['unit']}"
-            worst = r["worst_value"]
-            line += (f" worst {worst:.3g}{unit}" if worst is not None else " worst -") \
-                + f" (tol {r['tolerance']:.3g}{unit})"
-            if r["worst_t"] is not None:
-                line += f" at t = {r['worst_t']:.4g} s, step {r['worst_step']}"
-            bodies = r["worst_bodies"]
-            if bodies:
-                names = r.get("worst_body_names") or [str(b) for b in bodies]
-                shown = ", ".join(n if b >= 0 else "static" for b, n in zip(bodies[:3], names))
-                more = f" +{len(bodies) - 3}" if len(bodies) > 3 else ""
-                line += f" [{shown}{more}]"
-        click.echo(line)
-        if r["reason"]:
-            click.echo(f"       {r['reason']}")
 
 
 def _recorders(scene, rrd, mcap, no_log, spawn, connect_url, mcap_compression="lz4",

@@ -3,9 +3,8 @@
 //
 // The audit recomputes what it judges from the logged poses, apart from the engine: nothing here
 // includes csrc/engine/ (an audit that shared the code it audits would inherit its bugs). Each
-// kernel is the numba kernel of the same name it replaced (rblog/analyze/*.py, before issue 28),
-// translated line by line: the same formulas in the same order, so the reports stay bit for bit
-// the same. Arrays are C-order float64 (int64 for indices, bool for masks) as Python holds them;
+// kernel keeps the formulas of its analyzer in rblog/analyze/ in their order, so a report does
+// not depend on which side computes a figure. Arrays are C-order float64 (int64 for indices, bool for masks) as Python holds them;
 // shapes are in each kernel's comment. Tolerances are arguments (their one home is
 // rblog/analyze/tolerances.py).
 #pragma once

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "audit/audit.hpp"
+#include "audit/shapes.hpp"
 #include "common/py.hpp"
 
 namespace rb {
@@ -408,6 +409,75 @@ void bind_audit(nb::module_& m) {
         auto o = v1<double>(out, "out");
         nb::gil_scoped_release r;
         chord_overlap(p, kk, aa, bb, t, o);
+    });
+
+    // --- shapes.cpp, convex.cpp, broadphase.cpp (every shape of the contract)
+    m.attr("GEOM_PLANE") = GEOM_PLANE;
+    m.attr("GEOM_SPHERE") = GEOM_SPHERE;
+    m.attr("GEOM_CAPSULE") = GEOM_CAPSULE;
+    m.attr("GEOM_ELLIPSOID") = GEOM_ELLIPSOID;
+    m.attr("GEOM_CYLINDER") = GEOM_CYLINDER;
+    m.attr("GEOM_BOX") = GEOM_BOX;
+    m.attr("GEOM_MESH") = GEOM_MESH;
+    m.attr("DIST_OK") = DIST_OK;
+    m.attr("DIST_NOT_CONVERGED") = DIST_NOT_CONVERGED;
+    m.attr("DIST_UNSUPPORTED") = DIST_UNSUPPORTED;
+    m.def("geom_pairs_kernel", [](handle k, handle i, handle j, handle position, handle rotation,
+                                  handle type, handle size, handle mesh_start, handle mesh_count,
+                                  handle verts, double gjk_tol, double epa_tol, i64 max_iter,
+                                  double band, double axis_eps, handle sep, handle n, handle pa,
+                                  handle pb, handle status, handle iters) {
+        auto k_ = in1<i64>(k, "k");
+        auto i_ = in1<i64>(i, "i");
+        auto j_ = in1<i64>(j, "j");
+        auto pos = in3<double>(position, "position");
+        auto rot = in4<double>(rotation, "rotation");
+        auto ty = in1<i64>(type, "type");
+        auto sz = in2<double>(size, "size");
+        auto ms = in1<i64>(mesh_start, "mesh_start");
+        auto mc = in1<i64>(mesh_count, "mesh_count");
+        auto vt = in2<double>(verts, "verts");
+        auto o_sep = v1<double>(sep, "sep");
+        auto o_n = v2<double>(n, "n");
+        auto o_pa = v2<double>(pa, "pa");
+        auto o_pb = v2<double>(pb, "pb");
+        auto o_st = v1<i64>(status, "status");
+        auto o_it = v1<i64>(iters, "iters");
+        const i64 g_n = pos.n1;
+        if (rot.n1 != g_n || ty.n0 != g_n || sz.n0 != g_n || ms.n0 != g_n || mc.n0 != g_n)
+            throw nb::value_error("geom_pairs_kernel: position, rotation, type, size, mesh_start "
+                                  "and mesh_count must cover the same geoms");
+        for (i64 r = 0; r < k_.n0; ++r) {
+            if (k_[r] < 0 || k_[r] >= pos.n0 || i_[r] < 0 || i_[r] >= g_n || j_[r] < 0 ||
+                j_[r] >= g_n)
+                throw nb::index_error("geom_pairs_kernel: a row's sample or geom is out of range");
+        }
+        for (i64 g = 0; g < g_n; ++g) {
+            if (ty[g] < 0 || ty[g] >= GEOM_N_TYPES)
+                throw nb::value_error("geom_pairs_kernel: unknown geom type code");
+            if (ty[g] == GEOM_MESH && (mc[g] < 1 || ms[g] < 0 || ms[g] + mc[g] > vt.n0))
+                throw nb::value_error("geom_pairs_kernel: a mesh's vertex rows are out of range");
+        }
+        nb::gil_scoped_release r;
+        geom_pairs_kernel(k_, i_, j_, pos, rot, ty, sz, ms, mc, vt, gjk_tol, epa_tol, max_iter,
+                          band, axis_eps, o_sep, o_n, o_pa, o_pb, o_st, o_it);
+    });
+    m.def("geom_broadphase", [](handle position, handle rotation, handle type, handle size,
+                                handle mesh_start, handle mesh_count, handle verts, handle body,
+                                double pad, handle out_k, handle out_i, handle out_j) {
+        auto pos = in3<double>(position, "position");
+        auto rot = in4<double>(rotation, "rotation");
+        auto ty = in1<i64>(type, "type");
+        auto sz = in2<double>(size, "size");
+        auto ms = in1<i64>(mesh_start, "mesh_start");
+        auto mc = in1<i64>(mesh_count, "mesh_count");
+        auto vt = in2<double>(verts, "verts");
+        auto bd = in1<i64>(body, "body");
+        auto ok = v1<i64>(out_k, "out_k");
+        auto oi = v1<i64>(out_i, "out_i");
+        auto oj = v1<i64>(out_j, "out_j");
+        nb::gil_scoped_release r;
+        return geom_broadphase(pos, rot, ty, sz, ms, mc, vt, bd, pad, ok, oi, oj);
     });
 }
 

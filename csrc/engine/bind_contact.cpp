@@ -130,7 +130,8 @@ void bind_contact(nb::module_& m) {
         "world_advance",
         [](nb::handle bd_, nb::handle st_, nb::handle cfg_, int method, int ortho, double dt,
            i64 n_steps, i64 stride, bool sample_last, nb::handle x_, nb::handle out_,
-           nb::handle sl_, ContactCache& c, nb::handle stats_, nb::handle prof_, nb::handle an_) {
+           nb::handle sl_, ContactCache& c, nb::handle stats_, nb::handle prof_, nb::handle an_,
+           nb::handle im_) {
             Bodies bd = Bodies::from_py(bd_);
             Statics st = Statics::from_py(st_);
             Settings cfg = Settings::from_py(cfg_);
@@ -138,14 +139,22 @@ void bind_contact(nb::module_& m) {
             SampleState out = SampleState::from_py(out_);
             SleepState sl = SleepState::from_py(sl_);
             FlowAnchors an = FlowAnchors::from_py(an_);
+            IntervalImpulses im = IntervalImpulses::from_py(im_);
             V1<i64> stats = v1<i64>(stats_, "stats");
             V1<i64> prof = v1<i64>(prof_, "prof");
             check_advance(bd, x, out, sl, an, stats, prof, n_steps, stride, sample_last);
+            if (im.on()) {
+                i64 n = x.position.n0;
+                check(im.acc.n0 == n && im.acc.n1 == 6 && im.start.n0 == n && im.start.n1 == 6 &&
+                          im.kicked.n0 == n && im.out.n0 == out.position.n0 && im.out.n1 == n &&
+                          im.out.n2 == 6,
+                      "impulses: acc and start (N, 6), kicked (N,), out (S, N, 6) expected");
+            }
             AdvanceResult r;
             {
                 nb::gil_scoped_release release;
                 r = world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x,
-                                  out, sl, c, stats, prof, an);
+                                  out, sl, c, stats, prof, an, im);
             }
             std::vector<i64> li(c.log_i.data.begin(), c.log_i.data.begin() + r.n_log * LOG_I_COLS);
             std::vector<double> lf(c.log_f.data.begin(),
@@ -155,7 +164,8 @@ void bind_contact(nb::module_& m) {
                                    to_numpy<double>(std::move(lf), {(size_t)r.n_log, (size_t)LOG_F_COLS}));
         },
         "world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x, out, sl, "
-        "cache, stats, prof, an) -> (n_samples, bad_step, bad_body, log_i, log_f) (step.py).");
+        "cache, stats, prof, an, impulses) -> (n_samples, bad_step, bad_body, log_i, log_f) "
+        "(step.py).");
 
     // ---- the stages on their own (step.py wraps them under their names) ----------------------
     m.def("make_scratch", [](i64 n, nb::handle st_) {
@@ -239,7 +249,7 @@ void bind_contact(nb::module_& m) {
         return std::make_tuple(copy_out(log_i), copy_out(log_f), n_log);
     });
 
-    // ---- solver.py, relax.py, restitution.py, project.py -------------------------------------
+    // ---- the solver's stages (contact_solver.hpp) and project.py ------------------------------
     m.def("load_bodies", [](nb::handle mi, i64 n_man, i64 n_dyn, bool iso_shortcut, nb::handle iso,
                             nb::handle inv_mass, nb::handle inv_inertia, nb::handle rotation,
                             nb::handle lm, nb::handle am, nb::handle in_contact, nb::handle bm,
@@ -255,65 +265,87 @@ void bind_contact(nb::module_& m) {
                     v2<double>(pv, "pv"), v2<double>(pw, "pw"), v2<double>(p0, "p0"),
                     v2<double>(l0, "l0"));
     });
-    m.def("prepare_contacts", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
-                                 nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
-                                 double h, double anchor_rate, double block_reg) {
-        prepare_contacts(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
-                         v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
-                         v2<double>(bw, "bw"), h, anchor_rate, block_reg);
+    // the stages one by one (the tests): the settings each reads given as arguments
+    auto cons_of = [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man) {
+        return ContactConstraints{v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"),
+                                  n_man};
+    };
+    auto bodies_of = [](nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw) {
+        return SolverBodies{v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
+                            v2<double>(bw, "bw")};
+    };
+    m.def("prepare_contacts", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                  nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
+                                  double h, double anchor_rate, double block_reg) {
+        Settings cfg;
+        cfg.friction_anchor_rate = anchor_rate;
+        cfg.block_reg = block_reg;
+        prepare_contacts(StepContext{h, 1.0 / h, cfg}, cons_of(mi, mf, pf, n_man),
+                         bodies_of(bm, bI, bv, bw));
     });
-    m.def("warm_start", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man, nb::handle bm,
-                           nb::handle bI, nb::handle bv, nb::handle bw) {
-        warm_start(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
-                   v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
-                   v2<double>(bw, "bw"));
+    m.def("warm_start", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man, nb::handle bm,
+                            nb::handle bI, nb::handle bv, nb::handle bw) {
+        warm_start(cons_of(mi, mf, pf, n_man), bodies_of(bm, bI, bv, bw));
     });
-    m.def("solve_velocities", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
-                                 nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
-                                 double inv_h, i64 min_iter, i64 max_iter, double tol,
-                                 nb::handle hot, nb::handle degree, double sor,
-                                 i64 newton_iters, double newton_tol) {
+    m.def("solve_velocities", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                  nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
+                                  double inv_h, i64 min_iter, i64 max_iter, double tol,
+                                  nb::handle hot, nb::handle degree, double sor,
+                                  i64 newton_iters, double newton_tol) {
+        Settings cfg;
+        cfg.velocity_iterations = min_iter;
+        cfg.max_velocity_iterations = max_iter;
+        cfg.velocity_tolerance = tol;
+        cfg.over_relaxation = sor;
+        cfg.friction_newton_iters = newton_iters;
+        cfg.friction_newton_tol = newton_tol;
         // the world step colours in a stage of its own; a call from Python colours here
-        V2<i64> mi_ = v2<i64>(mi, "mi");
-        V1<double> bm_ = v1<double>(bm, "bm");
+        ContactConstraints c = cons_of(mi, mf, pf, n_man);
+        SolverBodies b = bodies_of(bm, bI, bv, bw);
         ConstraintGraph g;
         SolverLanes lanes;
-        colour_manifolds(mi_, n_man, bm_.n0 - 1, g);
-        return solve_velocities(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"),
-                                n_man, v1<double>(bm, "bm"), v2<double>(bI, "bI"),
-                                v2<double>(bv, "bv"), v2<double>(bw, "bw"), inv_h, min_iter,
-                                max_iter, tol, v1<i64>(hot, "hot"),
-                                v1<i64>(degree, "degree"), sor, newton_iters, newton_tol, g, lanes);
+        colour_manifolds(c.mi, n_man, b.inv_mass.n0 - 1, g);
+        return solve_velocities(StepContext{1.0 / inv_h, inv_h, cfg}, c, b, v1<i64>(hot, "hot"),
+                                v1<i64>(degree, "degree"), g, lanes);
     });
-    m.def("anchor_friction", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
-                                nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
-                                i64 newton_iters, double newton_tol) {
-        anchor_friction(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
-                        v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
-                        v2<double>(bw, "bw"), newton_iters, newton_tol);
+    m.def("anchor_friction", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                 nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
+                                 i64 newton_iters, double newton_tol) {
+        Settings cfg;
+        cfg.friction_newton_iters = newton_iters;
+        cfg.friction_newton_tol = newton_tol;
+        anchor_friction(StepContext{0.0, 0.0, cfg}, cons_of(mi, mf, pf, n_man),
+                        bodies_of(bm, bI, bv, bw));
     });
-    m.def("store_impulses", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
-                               double slide_frac) {
-        store_impulses(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
-                       slide_frac);
+    m.def("store_impulses", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                double slide_frac) {
+        Settings cfg;
+        cfg.friction_anchor_slide_frac = slide_frac;
+        store_impulses(StepContext{0.0, 0.0, cfg}, cons_of(mi, mf, pf, n_man));
     });
-    m.def("relax_positions", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
-                                nb::handle bm, nb::handle bI, nb::handle pv, nb::handle pw,
-                                double inv_h, i64 n_iter, double slop, double beta,
-                                double max_speed) {
-        relax_positions(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
-                        v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(pv, "pv"),
-                        v2<double>(pw, "pw"), inv_h, n_iter, slop, beta, max_speed);
+    m.def("relax_positions", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                                 nb::handle bm, nb::handle bI, nb::handle pv, nb::handle pw,
+                                 double inv_h, i64 n_iter, double slop, double beta,
+                                 double max_speed) {
+        Settings cfg;
+        cfg.position_iterations = n_iter;
+        cfg.allowed_penetration = slop;
+        cfg.position_correction_rate = beta;
+        cfg.max_correction_speed = max_speed;
+        relax_positions(StepContext{1.0 / inv_h, inv_h, cfg}, cons_of(mi, mf, pf, n_man),
+                        bodies_of(bm, bI, pv, pw));
     });
-    m.def("restitution", [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man, nb::handle bm,
-                            nb::handle bI, nb::handle bv, nb::handle bw, nb::handle pv,
-                            nb::handle pw, double h, double threshold, i64 n_iter, nb::handle dx,
-                            nb::handle lm, nb::handle am) {
-        return restitution(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man,
-                           v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
-                           v2<double>(bw, "bw"), v2<double>(pv, "pv"), v2<double>(pw, "pw"), h,
-                           threshold, n_iter, v2<double>(dx, "dx"),
-                           v2<double>(lm, "linear_momentum"), v2<double>(am, "angular_momentum"));
+    m.def("restitution", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
+                             nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
+                             nb::handle pv, nb::handle pw, double h, double threshold, i64 n_iter,
+                             nb::handle dx, nb::handle lm, nb::handle am) {
+        Settings cfg;
+        cfg.restitution_threshold = threshold;
+        cfg.velocity_iterations = n_iter;
+        return restitution(StepContext{h, 1.0 / h, cfg}, cons_of(mi, mf, pf, n_man),
+                           bodies_of(bm, bI, bv, bw), v2<double>(pv, "pv"), v2<double>(pw, "pw"),
+                           v2<double>(dx, "dx"), v2<double>(lm, "linear_momentum"),
+                           v2<double>(am, "angular_momentum"));
     });
     m.def("project_positions",
           [](nb::handle pairs, i64 n_pairs, i64 n_dyn, i64 n_static, nb::handle geom,

@@ -11,7 +11,7 @@
 //   normal impulse as is (the velocity solve's, PF_LWS) and friction projected on the new
 //   tangents;
 // * the manifold keeps its friction anchor, the pose of a in b's frame when the pair started
-//   sticking (solver.py, "Friction anchor": A_R = R_b^T R_a, A_t = R_b^T (x_a - x_b), b's frame
+//   sticking (contact_solver.cpp, "Friction anchor": A_R = R_b^T R_a, A_t = R_b^T (x_a - x_b), b's frame
 //   the world for the ground), whatever its points do (a one-point contact that becomes a face
 //   keeps it), and every point gets its drift from it: with y = R_a^T (p - x_a) a's material
 //   point at the contact, the anchor pose puts it at x_b + R_b (A_R y + A_t), and

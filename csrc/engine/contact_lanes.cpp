@@ -6,6 +6,7 @@
 
 #include "engine/constraint_graph.hpp"
 #include "engine/contact_lanes.hpp"
+#include "engine/friction.hpp"
 #include "engine/manifold.hpp"
 
 namespace rb {

@@ -3,8 +3,9 @@
 // contact_lanes_avx2.cpp, so that nothing compiled with -mavx2 can be linked in place of the
 // portable code (every function here has internal linkage; only raw pointers, no views).
 //
-// The formulas and their order are contact_solver.cpp's (solve_velocities, friction.hpp's friction_impulse,
-// lu_solve, apply_impulse): read them there; here each `if` on a lane's value is a select
+// The formulas and their order are contact_solver.cpp's (solve_velocities, lu_solve; the
+// impulse and the friction update are one template for both: constraint_row.hpp's impulse_row,
+// friction.hpp's friction_update): read them there; here each `if` on a lane's value is a select
 // (W<T>::sel) and a loop with a lane-dependent length runs to the group's longest with the
 // shorter lanes masked.
 
@@ -120,112 +121,19 @@ struct W<d4> {
     }
 };
 
-// contact_solver.hpp's apply_impulse, lanes where `on` (the others keep their velocities). When
-// every lane is on (most calls: the groups of a colour hold four manifolds of one point count)
-// the selects are left out: sel(on, x, y) is x then, so the bits are the same either way.
-// (The inverse masses and inertias are read from the group where they are used, not held in
-// locals: the kernel has more live values than a processor has vector registers, and a value
-// read from memory folds into the multiply instead of being spilled and reloaded.)
+// constraint_row.hpp's impulse_row on the group's lanes. (The inverse inertias are read from the
+// group where they are used, not held in locals: the kernel has more live values than a
+// processor has vector registers, and a value read from memory folds into the multiply instead
+// of being spilled and reloaded.)
 template <class T>
 inline void lane_impulse(typename W<T>::M on, const WideGroup& gr, int l, const T* ra,
                          const T* rb, const T& px, const T& py, const T& pz, T* va, T* wa, T* vb,
                          T* wb) {
     typedef W<T> w;
     if (!w::any(on)) return;
-    auto a6 = [&](int k) { return w::ld(gr.a6[k], l); };
-    auto b6 = [&](int k) { return w::ld(gr.b6[k], l); };
-    const T ma = w::ld(gr.ma, l), mb = w::ld(gr.mb, l);
-    T cx = ra[1] * pz - ra[2] * py, cy = ra[2] * px - ra[0] * pz, cz = ra[0] * py - ra[1] * px;
-    T ex = a6(0) * cx + a6(3) * cy + a6(4) * cz;
-    T ey = a6(3) * cx + a6(1) * cy + a6(5) * cz;
-    T ez = a6(4) * cx + a6(5) * cy + a6(2) * cz;
-    T dx = rb[1] * pz - rb[2] * py, dy = rb[2] * px - rb[0] * pz, dz = rb[0] * py - rb[1] * px;
-    T fx = b6(0) * dx + b6(3) * dy + b6(4) * dz;
-    T fy = b6(3) * dx + b6(1) * dy + b6(5) * dz;
-    T fz = b6(4) * dx + b6(5) * dy + b6(2) * dz;
-    if (w::all(on)) {
-        va[0] = va[0] + ma * px;
-        va[1] = va[1] + ma * py;
-        va[2] = va[2] + ma * pz;
-        wa[0] = wa[0] + ex;
-        wa[1] = wa[1] + ey;
-        wa[2] = wa[2] + ez;
-        vb[0] = vb[0] - mb * px;
-        vb[1] = vb[1] - mb * py;
-        vb[2] = vb[2] - mb * pz;
-        wb[0] = wb[0] - fx;
-        wb[1] = wb[1] - fy;
-        wb[2] = wb[2] - fz;
-        return;
-    }
-    va[0] = w::sel(on, va[0] + ma * px, va[0]);
-    va[1] = w::sel(on, va[1] + ma * py, va[1]);
-    va[2] = w::sel(on, va[2] + ma * pz, va[2]);
-    wa[0] = w::sel(on, wa[0] + ex, wa[0]);
-    wa[1] = w::sel(on, wa[1] + ey, wa[1]);
-    wa[2] = w::sel(on, wa[2] + ez, wa[2]);
-    vb[0] = w::sel(on, vb[0] - mb * px, vb[0]);
-    vb[1] = w::sel(on, vb[1] - mb * py, vb[1]);
-    vb[2] = w::sel(on, vb[2] - mb * pz, vb[2]);
-    wb[0] = w::sel(on, wb[0] - fx, wb[0]);
-    wb[1] = w::sel(on, wb[1] - fy, wb[1]);
-    wb[2] = w::sel(on, wb[2] - fz, wb[2]);
-}
-
-// the relative velocity at the point (a minus b), contact_solver.cpp's expression
-template <class T>
-inline void gap_velocity(const T* va, const T* wa, const T* vb, const T* wb, const T* ra,
-                         const T* rb, T& dvx, T& dvy, T& dvz) {
-    dvx = va[0] + wa[1] * ra[2] - wa[2] * ra[1] - vb[0] - wb[1] * rb[2] + wb[2] * rb[1];
-    dvy = va[1] + wa[2] * ra[0] - wa[0] * ra[2] - vb[1] - wb[2] * rb[0] + wb[0] * rb[2];
-    dvz = va[2] + wa[0] * ra[1] - wa[1] * ra[0] - vb[2] - wb[0] * rb[1] + wb[1] * rb[0];
-}
-
-// contact_solver.cpp's friction_impulse, lane-wise: its early returns are selects, its Newton
-// loop runs while some lane of `on` has not met its bound (a lane that has keeps its values).
-template <class T>
-inline void lane_friction(typename W<T>::M on, const T& k11, const T& k12, const T& k22,
-                          const T& o1, const T& o2, const T& vt1, const T& vt2, const T& fmax,
-                          i64 newton_iters, double newton_tol, T& out1, T& out2) {
-    typedef W<T> w;
-    typedef typename W<T>::M M;
-    const T zero = w::splat(0.0);
-    T det0 = k11 * k22 - k12 * k12;
-    M none = w::mor(det0 <= zero, fmax <= zero);
-    T kc1 = k11 * o1 + k12 * o2 - vt1;
-    T kc2 = k12 * o1 + k22 * o2 - vt2;
-    T g = zero;
-    T l1 = (k22 * kc1 - k12 * kc2) / det0;
-    T l2 = (k11 * kc2 - k12 * kc1) / det0;
-    T nl = w::vsqrt(l1 * l1 + l2 * l2);
-    M inside = nl <= fmax;
-    M act = w::mand(on, w::mnot(w::mor(none, inside)));
-    const T one = w::splat(1.0);
-    const T bound = fmax * (one + w::splat(newton_tol));
-    for (i64 it = 0; it < newton_iters && w::any(act); ++it) {
-        T a = k11 + g;
-        T d = k22 + g;
-        T det = a * d - k12 * k12;
-        T n1 = (d * kc1 - k12 * kc2) / det;
-        T n2 = (a * kc2 - k12 * kc1) / det;
-        T nn = w::vsqrt(n1 * n1 + n2 * n2);
-        l1 = w::sel(act, n1, l1);
-        l2 = w::sel(act, n2, l2);
-        nl = w::sel(act, nn, nl);
-        act = w::mand(act, w::mnot(nn <= bound));
-        // (every lane within its bound: the step below would change no lane's g, and the loop
-        // would stop at its test; leaving now gives the same bits)
-        if (!w::any(act)) break;
-        T m1 = (d * n1 - k12 * n2) / det;
-        T m2 = (a * n2 - k12 * n1) / det;
-        T f = one / fmax - one / nn;
-        T fp = -(n1 * m1 + n2 * m2) / (nn * nn * nn);
-        g = w::sel(act, g - f / fp, g);
-    }
-    T sc = fmax / nl;
-    T s1 = l1 * sc, s2 = l2 * sc;
-    out1 = w::sel(none, zero, w::sel(inside, l1, s1));
-    out2 = w::sel(none, zero, w::sel(inside, l2, s2));
+    impulse_row<T, w>(
+        on, w::ld(gr.ma, l), [&](int k) { return w::ld(gr.a6[k], l); }, w::ld(gr.mb, l),
+        [&](int k) { return w::ld(gr.b6[k], l); }, ra, rb, px, py, pz, va, wa, vb, wb);
 }
 
 // One sweep's visit of group gr (solve_velocities' loop body for its four manifolds): lane l for
@@ -281,31 +189,13 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
                 rb[k] = w::ld(gr.rb[i][k], l);
             }
             T dvx, dvy, dvz;
-            gap_velocity(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
+            gap_velocity<T, W<T>>(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
             T vn = dvx * nv[0] + dvy * nv[1] + dvz * nv[2];
             rhs[i] = w::ld(gr.target[i], l) - vn;
         }
-        // lu_solve: the row exchanges and the elimination, each step in the lanes that have it
-        for (int c = 0; c < np; ++c) {
-            M cm = pt[c];
-            T piv = w::ld(gr.piv[c], l);
-            T rc = rhs[c];
-            T nc = rc;
-            for (int r = c + 1; r < np; ++r) {
-                M sw = w::mand(cm, piv == w::splat((double)r));
-                nc = w::sel(sw, rhs[r], nc);
-                rhs[r] = w::sel(sw, rc, rhs[r]);
-            }
-            rhs[c] = nc;
-            for (int r = c + 1; r < np; ++r)
-                rhs[r] = w::sel(pt[r], rhs[r] - w::ld(gr.lu[4 * r + c], l) * rhs[c], rhs[r]);
-        }
-        for (int c = np - 1; c >= 0; --c) {
-            T x = rhs[c];
-            for (int k = c + 1; k < np; ++k)
-                x = w::sel(pt[k], x - w::ld(gr.lu[4 * c + k], l) * rhs[k], x);
-            rhs[c] = w::sel(pt[c], x / w::ld(gr.lu[5 * c], l), rhs[c]);
-        }
+        lu_solve_rows<T, w>(
+            np, pt, [&](int k) { return w::ld(gr.lu[k], l); },
+            [&](int c) { return w::ld(gr.piv[c], l); }, rhs);
         M ok = block;
         for (int i = 0; i < np; ++i)
             ok = w::mand(ok, w::mnot(w::mand(pt[i], w::ld(gr.ln[i], l) + om * rhs[i] < zero)));
@@ -343,7 +233,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             }
             // relative normal velocity at the contact (a minus b)
             T dvx, dvy, dvz;
-            gap_velocity(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
+            gap_velocity<T, W<T>>(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
             T vn = dvx * nv[0] + dvy * nv[1] + dvz * nv[2];
             // clamp the accumulated impulse
             T old = w::ld(gr.ln[i], l);
@@ -382,14 +272,14 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
                 rb[k] = w::ld(gr.rb[i][k], l);
             }
             T dvx, dvy, dvz;
-            gap_velocity(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
+            gap_velocity<T, W<T>>(va, wa, vb, wb, ra, rb, dvx, dvy, dvz);
             T vt1 = dvx * t1[0] + dvy * t1[1] + dvz * t1[2];
             T vt2 = dvx * t2[0] + dvy * t2[1] + dvz * t2[2];
             T k11 = w::ld(gr.tk[i][0], l), k12 = w::ld(gr.tk[i][1], l), k22 = w::ld(gr.tk[i][2], l);
             T o1 = w::ld(gr.l1[i], l), o2 = w::ld(gr.l2[i], l);
             T n1, n2;
-            lane_friction<T>(on, k11, k12, k22, o1, o2, vt1, vt2, mu * w::ld(gr.ln[i], l),
-                             cx.newton_iters, cx.newton_tol, n1, n2);
+            friction_update<T, W<T>>(on, k11, k12, k22, o1, o2, vt1, vt2, mu * w::ld(gr.ln[i], l),
+                                     cx.newton_iters, cx.newton_tol, n1, n2);
             w::st(gr.l1[i], l, w::sel(on, n1, o1));
             w::st(gr.l2[i], l, w::sel(on, n2, o2));
             T d1 = n1 - o1;

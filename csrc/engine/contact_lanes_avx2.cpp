@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "engine/contact_lanes.hpp"
+#include "engine/friction.hpp"
 
 namespace rb {
 

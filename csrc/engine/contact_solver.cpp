@@ -1,5 +1,3 @@
-// rblog/engine/contact/solver.py's stages in C++ (the same formulas in the same order).
-//
 // Contact solver: sequential impulses (projected Gauss-Seidel) with accumulated-impulse clamping.
 //
 // Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
@@ -54,73 +52,29 @@
 // `git log -p benchmarks/RESULTS.md`), and a box resting on two single-point contacts can still turn about
 // the line through them (no friction row sees that motion).
 //
-// Position correction by split impulses (stage 8) is in :mod:`rblog.engine.contact.relax`.
+// Position correction by split impulses (stage 8) is in relax.cpp.
 //
-// Restitution (the bounce after positions moved) is in :mod:`rblog.engine.contact.restitution`.
-#include <atomic>
+// Restitution (the bounce after positions moved) is in restitution.cpp.
 #include <cmath>
-#include <cstdlib>
 #include <vector>
-
-#include "common/task_pool.hpp"
-#include "engine/profile.hpp"
 
 #include "engine/constraint_graph.hpp"
 #include "engine/contact_lanes.hpp"
 #include "engine/contact_solver.hpp"
 #include "engine/friction.hpp"
 #include "engine/manifold.hpp"
+#include "engine/solve_stages.hpp"
 
 namespace rb {
 
-TaskPool& pool();  // the engine's pool (threads.cpp)
-// counts of the threaded solves (threads.cpp, _core.thread_stats): stages handed to the threads,
-// whether the driver went on alone
-void thread_stats_add(i64 stages_shared, i64 worker_blocks, bool handover, i64 wait_ticks,
-                      i64 solve_ticks);
-
 namespace {
 
-// The solve goes to threads only when the colours hold this many groups (a smaller scene, the
-// 100-box pile's ~30 groups say, solves on one thread: ~1 us a group visit, and the threads
-// would mostly wait for each other), and a colour's groups only when each thread gets
-// MIN_STAGE_GROUPS_PER_THREAD to visit in the sweep (the driver's hand-off of a stage and the
-// wait for its last block cost about as much as solving a group or two). The results do not
-// depend on either, only the time.
-constexpr i64 MIN_THREADED_GROUPS = 64;
-constexpr i64 MIN_STAGE_GROUPS_PER_THREAD = 4;
-// A shared colour is cut into blocks of about this many groups, at most BLOCKS_PER_THREAD blocks
-// a thread (blocks are claimed one at a time: smaller ones even out the threads' loads, each
-// claim costs an atomic on a shared cache line).
-constexpr i64 GROUPS_PER_BLOCK = 2;
-constexpr i64 BLOCKS_PER_THREAD = 4;
-
-// The fallback for an oversubscribed machine. When, two sweeps or more into a threaded solve,
-// the driver has spent more than half of it waiting for blocks that other threads claimed (a
-// worker descheduled while it holds a block), or its own CPU time has fallen below
-// THREAD_CPU_SHARE of the wall time (it was descheduled: the cores are busy with other
-// processes, or the threads share a scheduler group's slice, Linux's autogroup, so that a
-// spinning worker takes the driver's time), it finishes the solve alone and every stage runs on
-// one thread for the next THREAD_HOLD_NS (the pool's hold_off: the workers sleep), after which
-// threads are tried again. On a quiet machine the driver keeps its core (CPU time ~ wall time)
-// and waits only for blocks in flight, so neither fires. The results do not depend on it (only
-// which thread solves which group changes).
-constexpr double THREAD_CPU_SHARE = 0.75;
-constexpr i64 THREAD_HOLD_NS = 500000000;  // 0.5 s
-// RBLOG_THREAD_HANDOVER=0 (or _core.set_thread_fallback(False)) turns the hand-over off: for
-// measurements under valgrind, which runs one thread at a time, so that every driver wait looks
-// like a descheduled worker, and for tests that must see the threads work on a loaded machine
-std::atomic<bool> g_handover_on{[] {
-    const char* e = std::getenv("RBLOG_THREAD_HANDOVER");
-    return !(e && e[0] == '0');
-}()};
-
-inline void smul(double i0, double i1, double i2, double i3, double i4, double i5, double x,
-                 double y, double z, double& ox, double& oy, double& oz) {
+inline void smul(const double* i6, double x, double y, double z, double& ox, double& oy,
+                 double& oz) {
     // symmetric 3x3 (xx, yy, zz, xy, xz, yz) times a vector
-    ox = i0 * x + i3 * y + i4 * z;
-    oy = i3 * x + i1 * y + i5 * z;
-    oz = i4 * x + i5 * y + i2 * z;
+    ox = i6[0] * x + i6[3] * y + i6[4] * z;
+    oy = i6[3] * x + i6[1] * y + i6[5] * z;
+    oz = i6[4] * x + i6[5] * y + i6[2] * z;
 }
 
 inline void cross(double ax, double ay, double az, double bx, double by, double bz, double& ox,
@@ -184,41 +138,6 @@ void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double 
 
 }  // namespace
 
-// Measured choice between the threaded and the serial solve: the cost of each (nanoseconds of
-// wall time per 1,000 manifold visits, a running mean over the solves that ran that way, 0:
-// not measured yet) and a count of the eligible solves. An eligible solve runs the way whose
-// cost is lower, and every PROBE_EVERY-th the other way, so that both stay measured as the
-// scene and the machine change. On a machine where the second thread does not pay (measured on
-// this session's 2-vCPU KVM guest: the 500-box pile's solve took 4.7-4.9 ms a step on one thread
-// and 4.9-5.5 ms on two, both threads running), the solves stay serial. Results do not depend on
-// it (RBLOG_THREAD_HANDOVER=0 or set_thread_fallback(False): always threaded).
-constexpr i64 PROBE_EVERY = 32;
-std::atomic<i64> g_cost_serial{0}, g_cost_threaded{0}, g_eligible{0};
-
-static bool choose_threaded() {
-    if (!g_handover_on.load(std::memory_order_relaxed)) return true;
-    i64 k = g_eligible.fetch_add(1, std::memory_order_relaxed);
-    i64 cs = g_cost_serial.load(std::memory_order_relaxed);
-    i64 ct = g_cost_threaded.load(std::memory_order_relaxed);
-    if (ct == 0) return true;
-    if (cs == 0) return false;
-    bool threaded = ct < cs;
-    return k % PROBE_EVERY == 0 ? !threaded : threaded;
-}
-
-static void record_cost(bool threaded, i64 wall, i64 visits) {
-    if (visits <= 0) return;
-    i64 c = wall * 1000 / visits;
-    std::atomic<i64>& m = threaded ? g_cost_threaded : g_cost_serial;
-    i64 old = m.load(std::memory_order_relaxed);
-    m.store(old == 0 ? c : (3 * old + c) / 4, std::memory_order_relaxed);
-}
-
-void set_thread_fallback(bool on) {
-    g_handover_on.store(on);
-    if (!on) pool().hold_off(0);
-}
-
 // Count the active manifolds of each body (in_contact: (N+1,), row N the static dummy) and load
 // the solver state of the bodies that have any.
 //
@@ -267,7 +186,7 @@ void load_bodies(V2<i64> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V1<i64> is
             pw(i, k) = 0.0;
         }
         double wx, wy, wz;
-        smul(b[0], b[1], b[2], b[3], b[4], b[5], l0(i, 0), l0(i, 1), l0(i, 2), wx, wy, wz);
+        smul(b, l0(i, 0), l0(i, 1), l0(i, 2), wx, wy, wz);
         bw(i, 0) = wx; bw(i, 1) = wy; bw(i, 2) = wz;
         bw0(i, 0) = wx; bw0(i, 1) = wy; bw0(i, 2) = wz;
     }
@@ -286,51 +205,46 @@ void load_bodies(V2<i64> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V1<i64> is
 }
 
 // Effective masses, and the gap velocity before the step (for restitution).
-void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                      V2<double> bI, V2<double> bv, V2<double> bw, double h, double anchor_rate,
-                      double block_reg) {
-    for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-        double ma = bm[ia], mb = bm[ib];
-        double a0 = bI(ia, 0), a1 = bI(ia, 1), a2 = bI(ia, 2), a3 = bI(ia, 3), a4 = bI(ia, 4), a5 = bI(ia, 5);
-        double b0 = bI(ib, 0), b1 = bI(ib, 1), b2 = bI(ib, 2), b3 = bI(ib, 3), b4 = bI(ib, 4), b5 = bI(ib, 5);
-        double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
-        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
-        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
-        double acc = mf(m, MF_ACC);
-        double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
-        double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
-        double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
-        double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
-        i64 start = mi(m, MI_START);
-        i64 cnt = mi(m, MI_COUNT);
+void prepare_contacts(const StepContext& cx, const ContactConstraints& c, const SolverBodies& b) {
+    const double h = cx.h, anchor_rate = cx.settings.friction_anchor_rate;
+    const double block_reg = cx.settings.block_reg;
+    for (i64 m = 0; m < c.n_man; ++m) {
+        if (!c.mi(m, MI_ACTIVE)) continue;
+        i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+        BodyPair bp(b, ia, ib);
+        const double mab = bp.ma + bp.mb;  // (the first sum of every K entry below)
+        double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
+        double t1x = c.mf(m, MF_T1), t1y = c.mf(m, MF_T1 + 1), t1z = c.mf(m, MF_T1 + 2);
+        double t2x = c.mf(m, MF_T2), t2y = c.mf(m, MF_T2 + 1), t2z = c.mf(m, MF_T2 + 2);
+        double acc = c.mf(m, MF_ACC);
+        i64 start = c.mi(m, MI_START);
+        i64 cnt = c.mi(m, MI_COUNT);
         // normal block K_ij = J_i M^-1 J_j^T of the manifold's points (r x n of each point and
         // I^-1 (r x n) once per point, then the products; a manifold has at most 4 points)
         double ca[4][3], cb[4][3], jna[4][3], jnb[4][3];
         for (i64 i = 0; i < cnt; ++i) {
             i64 p = start + i;
-            cross(pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2), nx, ny, nz, ca[i][0], ca[i][1],
-                  ca[i][2]);
-            cross(pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2), nx, ny, nz, cb[i][0], cb[i][1],
-                  cb[i][2]);
-            smul(a0, a1, a2, a3, a4, a5, ca[i][0], ca[i][1], ca[i][2], jna[i][0], jna[i][1], jna[i][2]);
-            smul(b0, b1, b2, b3, b4, b5, cb[i][0], cb[i][1], cb[i][2], jnb[i][0], jnb[i][1], jnb[i][2]);
+            cross(c.pf(p, PF_RA), c.pf(p, PF_RA + 1), c.pf(p, PF_RA + 2), nx, ny, nz, ca[i][0],
+                  ca[i][1], ca[i][2]);
+            cross(c.pf(p, PF_RB), c.pf(p, PF_RB + 1), c.pf(p, PF_RB + 2), nx, ny, nz, cb[i][0],
+                  cb[i][1], cb[i][2]);
+            smul(bp.a6, ca[i][0], ca[i][1], ca[i][2], jna[i][0], jna[i][1], jna[i][2]);
+            smul(bp.b6, cb[i][0], cb[i][1], cb[i][2], jnb[i][0], jnb[i][1], jnb[i][2]);
         }
         for (i64 i = 0; i < cnt; ++i) {
-            double* q_ = pf.row(start + i);
+            double* q_ = c.pf.row(start + i);
             for (i64 j = 0; j < cnt; ++j)
-                q_[PF_KN + j] = (ma + mb + ca[j][0] * jna[i][0] + ca[j][1] * jna[i][1] +
-                                 ca[j][2] * jna[i][2] + cb[j][0] * jnb[i][0] + cb[j][1] * jnb[i][1] +
-                                 cb[j][2] * jnb[i][2]);
+                q_[PF_KN + j] = (mab + ca[j][0] * jna[i][0] + ca[j][1] * jna[i][1] +
+                                 ca[j][2] * jna[i][2] + cb[j][0] * jnb[i][0] +
+                                 cb[j][1] * jnb[i][1] + cb[j][2] * jnb[i][2]);
         }
-        if (cnt > 1) factor_block(mf, m, pf, start, cnt, block_reg);
+        if (cnt > 1) factor_block(c.mf, m, c.pf, start, cnt, block_reg);
         for (i64 p = start; p < start + cnt; ++p) {
-            double rax = pf(p, PF_RA), ray = pf(p, PF_RA + 1), raz = pf(p, PF_RA + 2);
-            double rbx = pf(p, PF_RB), rby = pf(p, PF_RB + 1), rbz = pf(p, PF_RB + 2);
+            double rax = c.pf(p, PF_RA), ray = c.pf(p, PF_RA + 1), raz = c.pf(p, PF_RA + 2);
+            double rbx = c.pf(p, PF_RB), rby = c.pf(p, PF_RB + 1), rbz = c.pf(p, PF_RB + 2);
             // normal row: K_pp, the block's diagonal (the same products in the same order)
-            double k = pf(p, PF_KN + (p - start));
-            pf(p, PF_NMASS) = k > 0.0 ? 1.0 / k : 0.0;
+            double k = c.pf(p, PF_KN + (p - start));
+            c.pf(p, PF_NMASS) = k > 0.0 ? 1.0 / k : 0.0;
             // tangent block
             double ua1x, ua1y, ua1z, ua2x, ua2y, ua2z, ub1x, ub1y, ub1z, ub2x, ub2y, ub2z;
             cross(rax, ray, raz, t1x, t1y, t1z, ua1x, ua1y, ua1z);
@@ -338,29 +252,33 @@ void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<do
             cross(rbx, rby, rbz, t1x, t1y, t1z, ub1x, ub1y, ub1z);
             cross(rbx, rby, rbz, t2x, t2y, t2z, ub2x, ub2y, ub2z);
             double ia1x, ia1y, ia1z, ia2x, ia2y, ia2z, ib1x, ib1y, ib1z, ib2x, ib2y, ib2z;
-            smul(a0, a1, a2, a3, a4, a5, ua1x, ua1y, ua1z, ia1x, ia1y, ia1z);
-            smul(a0, a1, a2, a3, a4, a5, ua2x, ua2y, ua2z, ia2x, ia2y, ia2z);
-            smul(b0, b1, b2, b3, b4, b5, ub1x, ub1y, ub1z, ib1x, ib1y, ib1z);
-            smul(b0, b1, b2, b3, b4, b5, ub2x, ub2y, ub2z, ib2x, ib2y, ib2z);
-            double k11 = ma + mb + ua1x * ia1x + ua1y * ia1y + ua1z * ia1z + ub1x * ib1x + ub1y * ib1y + ub1z * ib1z;
-            double k22 = ma + mb + ua2x * ia2x + ua2y * ia2y + ua2z * ia2z + ub2x * ib2x + ub2y * ib2y + ub2z * ib2z;
-            double k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y + ub1z * ib2z;
-            pf(p, PF_TK) = k11;
-            pf(p, PF_TK + 1) = k12;
-            pf(p, PF_TK + 2) = k22;
+            smul(bp.a6, ua1x, ua1y, ua1z, ia1x, ia1y, ia1z);
+            smul(bp.a6, ua2x, ua2y, ua2z, ia2x, ia2y, ia2z);
+            smul(bp.b6, ub1x, ub1y, ub1z, ib1x, ib1y, ib1z);
+            smul(bp.b6, ub2x, ub2y, ub2z, ib2x, ib2y, ib2z);
+            double k11 = mab + ua1x * ia1x + ua1y * ia1y + ua1z * ia1z + ub1x * ib1x +
+                         ub1y * ib1y + ub1z * ib1z;
+            double k22 = mab + ua2x * ia2x + ua2y * ia2y + ua2z * ia2z + ub2x * ib2x +
+                         ub2y * ib2y + ub2z * ib2z;
+            double k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y +
+                         ub1z * ib2z;
+            c.pf(p, PF_TK) = k11;
+            c.pf(p, PF_TK + 1) = k12;
+            c.pf(p, PF_TK + 2) = k22;
             // friction anchor: the slip rate that takes back FRICTION_ANCHOR_RATE of the drift
-            double dx = pf(p, PF_D), dy = pf(p, PF_D + 1), dz = pf(p, PF_D + 2);
-            pf(p, PF_DB) = anchor_rate * (dx * t1x + dy * t1y + dz * t1z) / h;
-            pf(p, PF_DB + 1) = anchor_rate * (dx * t2x + dy * t2y + dz * t2z) / h;
+            double dx = c.pf(p, PF_D), dy = c.pf(p, PF_D + 1), dz = c.pf(p, PF_D + 2);
+            c.pf(p, PF_DB) = anchor_rate * (dx * t1x + dy * t1y + dz * t1z) / h;
+            c.pf(p, PF_DB + 1) = anchor_rate * (dx * t2x + dy * t2y + dz * t2z) / h;
             // gap velocity now (after the force kick), and before the kick
             double wxrax, wxray, wxraz, wxrbx, wxrby, wxrbz;
-            cross(wax, way, waz, rax, ray, raz, wxrax, wxray, wxraz);
-            cross(wbx, wby, wbz, rbx, rby, rbz, wxrbx, wxrby, wxrbz);
-            double vn = (nx * (vax + wxrax - vbx - wxrbx) + ny * (vay + wxray - vby - wxrby) +
-                         nz * (vaz + wxraz - vbz - wxrbz));
-            pf(p, PF_W0) = vn - acc * h;
-            pf(p, PF_LP) = 0.0;
-            pf(p, PF_IMPACT) = 0.0;
+            cross(bp.wa[0], bp.wa[1], bp.wa[2], rax, ray, raz, wxrax, wxray, wxraz);
+            cross(bp.wb[0], bp.wb[1], bp.wb[2], rbx, rby, rbz, wxrbx, wxrby, wxrbz);
+            double vn = (nx * (bp.va[0] + wxrax - bp.vb[0] - wxrbx) +
+                         ny * (bp.va[1] + wxray - bp.vb[1] - wxrby) +
+                         nz * (bp.va[2] + wxraz - bp.vb[2] - wxrbz));
+            c.pf(p, PF_W0) = vn - acc * h;
+            c.pf(p, PF_LP) = 0.0;
+            c.pf(p, PF_IMPACT) = 0.0;
         }
     }
 }
@@ -368,46 +286,35 @@ void prepare_contacts(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<do
 // Apply each active point's stored impulse (normal, t1, t2 components at lam + lam_stride p) to
 // its manifold's bodies: the velocity solve's warm start (the impulses carried over from the
 // previous step, pf's PF_LN, PF_L1, PF_L2) and the soft step's (the last substep's).
-void apply_stored_impulses(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                           V2<double> bI, V2<double> bv, V2<double> bw, const double* lam,
+void apply_stored_impulses(const ContactConstraints& c, const SolverBodies& b, const double* lam,
                            i64 lam_stride) {
-    for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-        double ma = bm[ia], mb = bm[ib];
-        const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
-        const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
-        double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
-        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
-        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
-        double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
-        double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
-        double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
-        double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
-        i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+    for (i64 m = 0; m < c.n_man; ++m) {
+        if (!c.mi(m, MI_ACTIVE)) continue;
+        i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+        BodyPair bp(b, ia, ib);
+        double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
+        double t1x = c.mf(m, MF_T1), t1y = c.mf(m, MF_T1 + 1), t1z = c.mf(m, MF_T1 + 2);
+        double t2x = c.mf(m, MF_T2), t2y = c.mf(m, MF_T2 + 1), t2z = c.mf(m, MF_T2 + 2);
+        i64 start = c.mi(m, MI_START);
+        for (i64 p = start; p < start + c.mi(m, MI_COUNT); ++p) {
             const double* l = lam + lam_stride * p;
             double ln = l[0], l1 = l[1], l2 = l[2];
             if (ln == 0.0 && l1 == 0.0 && l2 == 0.0) continue;
             double px = ln * nx + l1 * t1x + l2 * t2x;
             double py = ln * ny + l1 * t1y + l2 * t2y;
             double pz = ln * nz + l1 * t1z + l2 * t2z;
-            apply_impulse(ma, a6, mb, b6, pf(p, PF_RA), pf(p, PF_RA + 1), pf(p, PF_RA + 2),
-                          pf(p, PF_RB), pf(p, PF_RB + 1), pf(p, PF_RB + 2), px, py, pz, vax, vay,
-                          vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+            const double* q = c.pf.row(p);
+            bp.apply(q[PF_RA], q[PF_RA + 1], q[PF_RA + 2], q[PF_RB], q[PF_RB + 1], q[PF_RB + 2], px,
+                     py, pz);
         }
-        bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
-        bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
-        bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
-        bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+        bp.store(b);
     }
 }
 
 // Apply the impulses carried over from the previous step (PF_LN, PF_L1, PF_L2: adjacent columns).
-void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                V2<double> bI, V2<double> bv, V2<double> bw) {
+void warm_start(const ContactConstraints& c, const SolverBodies& b) {
     static_assert(PF_L1 == PF_LN + 1 && PF_L2 == PF_LN + 2, "warm start reads three adjacent columns");
-    apply_stored_impulses(mi, mf, pf, n_man, bm, bI, bv, bw, pf.p + PF_LN, pf.n1);
+    apply_stored_impulses(c, b, c.pf.p + PF_LN, c.pf.n1);
 }
 
 // Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order), the
@@ -432,215 +339,54 @@ void warm_start(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
 // Nothing in a sweep depends on the order of the manifolds inside a colour (each reads and
 // writes only its own bodies' velocities and hot marks; the largest change is a max and the
 // visits a sum), so the result is the same whichever lanes and threads solve them.
-i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                     V2<double> bI, V2<double> bv, V2<double> bw, double inv_h, i64 min_iter,
-                     i64 max_iter, double tol, V1<i64> hot, V1<i64> degree, double sor,
-                     i64 newton_iters, double newton_tol, const ConstraintGraph& g,
-                     SolverLanes& lanes) {
-    i64 it = 0;
-    i64 visits = 0;
+i64 solve_velocities(const StepContext& ctx, const ContactConstraints& c,
+                     const SolverBodies& bodies, V1<i64> hot, V1<i64> degree,
+                     const ConstraintGraph& g, SolverLanes& lanes) {
+    const Settings& cfg = ctx.settings;
+    const double inv_h = ctx.inv_h, tol = cfg.velocity_tolerance, sor = cfg.over_relaxation;
+    const i64 min_iter = cfg.velocity_iterations, max_iter = cfg.max_velocity_iterations;
+    const i64 newton_iters = cfg.friction_newton_iters;
+    const double newton_tol = cfg.friction_newton_tol;
     for (i64 k = 0; k < hot.n0; ++k) hot[k] = 0;
     i64 active = 0;
-    for (i64 m = 0; m < n_man; ++m) active += mi(m, MI_ACTIVE);
-    pack_lanes(mi, mf, pf, g, bm, bI, degree, inv_h, sor, lanes);
+    for (i64 m = 0; m < c.n_man; ++m) active += c.mi(m, MI_ACTIVE);
+    pack_lanes(c.mi, c.mf, c.pf, g, bodies.inv_mass, bodies.inv_inertia, degree, inv_h, sor,
+               lanes);
     // the velocities in the kernels' layout (contact_lanes.hpp: BodyVel) while the sweeps run
-    const i64 n_rows = bm.n0;
+    const i64 n_rows = bodies.inv_mass.n0;
     lanes.vel.resize(n_rows);
     for (i64 i = 0; i < n_rows; ++i) {
         BodyVel& b = lanes.vel[i];
         for (int k = 0; k < 3; ++k) {
-            b.v[k] = bv(i, k);
-            b.w[k] = bw(i, k);
+            b.v[k] = bodies.v(i, k);
+            b.w[k] = bodies.w(i, k);
         }
         b.v[3] = 0.0;
         b.w[3] = 0.0;
     }
-    LaneCtx cx{reinterpret_cast<double*>(lanes.vel.data()), hot.p, bm.n0 - 1, 0, min_iter, tol,
-               newton_iters, newton_tol};
+    LaneCtx cx{reinterpret_cast<double*>(lanes.vel.data()), hot.p, bodies.inv_mass.n0 - 1, 0,
+               min_iter, tol, newton_iters, newton_tol};
     WideGroup* gr = lanes.groups.data();
+    // the sweeps, on the task pool or on this thread (solve_stages.hpp): a set's groups
+    // [g0, g1) in sweep `sweep` (set 0, the overflow set, one manifold after another)
     const i64 n_sets = (i64)lanes.set_group.size() - 1;
-    const i64 n_wide = lanes.set_group[n_sets] - lanes.set_group[1];
-    const int n_threads = pool().threads();
-    bool serial = n_threads < 2 || n_wide < MIN_THREADED_GROUPS || pool().held();
-    const bool eligible = !serial;  // (the solve's cost is measured for the choice)
-    if (eligible && !choose_threaded()) serial = true;
-    const i64 solve_wall0 = eligible ? wall_ns() : 0;
-    bool converged = false;
-    if (!serial) {
-        // Box2D v3's stages (solver.c, b2SolverStage / b2ExecuteMainStage): the calling thread
-        // drives, the pool's workers follow. A stage is one set of one sweep; the driver posts it
-        // (claim word = stage << 24), every thread claims its blocks of groups from the word,
-        // and the driver waits until the stage's done count reaches its block count before it
-        // posts the next (colour c + 1 must see colour c). So a worker the system has
-        // descheduled holds the others up only while it holds a block, not by being late. The
-        // driver runs a set alone when it is too small to share (the overflow set, always: its
-        // manifolds one after another in order; a colour whose last sweep visited fewer than
-        // MIN_STAGE_GROUPS_PER_THREAD groups a thread), and it decides when the sweeps stop (the
-        // max of the blocks' changes). Which thread solves which block changes nothing: a block
-        // reads and writes only its own manifolds' bodies (constraint_graph.hpp).
-        const int nt = n_threads;
-        // blocks of each set: [set_blk[s], set_blk[s + 1]) of a sweep's n_blk
-        std::vector<i64> set_blk((size_t)n_sets + 1, 0);
-        for (i64 s = 0; s < n_sets; ++s) {
-            i64 n_g = lanes.set_group[s + 1] - lanes.set_group[s];
-            i64 nb = s == 0 ? (n_g > 0 ? 1 : 0) : (n_g + GROUPS_PER_BLOCK - 1) / GROUPS_PER_BLOCK;
-            if (nb > BLOCKS_PER_THREAD * nt) nb = BLOCKS_PER_THREAD * nt;
-            set_blk[(size_t)s + 1] = set_blk[(size_t)s] + nb;
-        }
-        const i64 n_blk = set_blk[(size_t)n_sets];
-        std::vector<double> blk_change((size_t)n_blk, 0.0);
-        std::vector<i64> blk_visits((size_t)n_blk, 0), set_visits((size_t)n_sets, 0);
-        struct alignas(64) Word {
-            std::atomic<i64> v{0};
-        };
-        Word claim, done;  // claim: (stage << 24) | next block; done: blocks finished
-        Word helped;       // blocks the workers (not the driver) solved
-        constexpr i64 FINISH = i64(1) << 38;  // the stage that ends the solve
-        auto stage_of = [&](i64 sweep, i64 s) { return (sweep - 1) * n_sets + s; };
-        // solve block j of set s in sweep `sweep` (results into the block's slots)
-        auto run_block = [&](i64 sweep, i64 s, i64 j) {
+    const SweepCount sw = run_sweeps(
+        SweepPlan{n_sets, lanes.set_group.data(), min_iter, max_iter, tol},
+        [&](i64 sweep, i64 s, i64 g0, i64 g1, double* change, i64* vis) {
             LaneCtx tc = cx;
             tc.it = sweep;
-            double change = 0.0;
-            i64 vis = 0;
-            i64 g0 = lanes.set_group[s], n_g = lanes.set_group[s + 1] - g0;
-            i64 nb = set_blk[(size_t)s + 1] - set_blk[(size_t)s];
             if (s == 0)
-                solve_groups_scalar(gr, g0, g0 + n_g, tc, &change, &vis);
+                solve_groups_scalar(gr, g0, g1, tc, change, vis);
             else
-                solve_groups_wide(gr, g0 + n_g * j / nb, g0 + n_g * (j + 1) / nb, tc, &change,
-                                  &vis);
-            blk_change[(size_t)(set_blk[(size_t)s] + j)] = change;
-            blk_visits[(size_t)(set_blk[(size_t)s] + j)] = vis;
-        };
-        // solve blocks of the posted stage until none is left (claimed, or with
-        // RBLOG_THREAD_STATIC block j on thread j % nt); then `exhausted` is the stage. False
-        // once the solve is finished.
-        const bool fixed = static_blocks();
-        auto claim_blocks = [&](i64& exhausted, int w) {
-            i64 c = claim.v.load(std::memory_order_acquire);
-            i64 stage = c >> 24;
-            if (stage >= FINISH) return false;
-            if (stage == exhausted) {
-                spin_until(
-                    [&] { return claim.v.load(std::memory_order_acquire) >> 24 != stage; });
-                return true;
-            }
-            i64 s = stage % n_sets, sweep = stage / n_sets + 1;
-            i64 nb = set_blk[(size_t)s + 1] - set_blk[(size_t)s];
-            if (fixed) {
-                for (i64 j = w; j < nb; j += nt) {
-                    run_block(sweep, s, j);
-                    if (w != 0) helped.v.fetch_add(1, std::memory_order_relaxed);
-                    done.v.fetch_add(1, std::memory_order_acq_rel);
-                }
-                exhausted = stage;
-                return true;
-            }
-            i64 j = c & 0xffffff;
-            if (j >= nb) {
-                exhausted = stage;
-                return true;
-            }
-            if (claim.v.compare_exchange_weak(c, c + 1, std::memory_order_acq_rel)) {
-                run_block(sweep, s, j);
-                if (w != 0) helped.v.fetch_add(1, std::memory_order_relaxed);
-                done.v.fetch_add(1, std::memory_order_acq_rel);
-            }
-            return true;
-        };
-        i64 waited = 0, n_posted = 0;  // the driver's ticks waiting for others' blocks; stages
-        const i64 t_start = ticks();
-        const i64 wall0 = wall_ns(), cpu0 = thread_cpu_ns();
-        bool handover = false;
-        auto drive = [&]() {
-            i64 exhausted = -1;
-            while (it < max_iter) {
-                it += 1;
-                for (i64 s = 0; s < n_sets; ++s) {
-                    i64 b0 = set_blk[(size_t)s], nb = set_blk[(size_t)s + 1] - b0;
-                    if (nb == 0) continue;
-                    // shared when every thread gets MIN_STAGE_GROUPS_PER_THREAD groups to visit
-                    // (the first min_iter sweeps visit all; later ones about what the last did)
-                    i64 n_g = lanes.set_group[s + 1] - lanes.set_group[s];
-                    i64 expect = it <= min_iter ? 4 * n_g : set_visits[(size_t)s];
-                    bool share = !handover && s > 0 && nb > 1 &&
-                                 expect >= 4 * MIN_STAGE_GROUPS_PER_THREAD * nt;
-                    if (!share) {
-                        for (i64 j = 0; j < nb; ++j) run_block(it, s, j);
-                        continue;
-                    }
-                    n_posted += 1;
-                    done.v.store(0, std::memory_order_relaxed);
-                    claim.v.store(stage_of(it, s) << 24, std::memory_order_release);
-                    while (exhausted != stage_of(it, s)) claim_blocks(exhausted, 0);
-                    if (done.v.load(std::memory_order_acquire) < nb) {
-                        i64 w0 = ticks();
-                        spin_until([&] { return done.v.load(std::memory_order_acquire) >= nb; });
-                        waited += ticks() - w0;
-                    }
-                }
-                double all = 0.0;
-                for (i64 s = 0; s < n_sets; ++s) {
-                    i64 v = 0;
-                    for (i64 b = set_blk[(size_t)s]; b < set_blk[(size_t)s + 1]; ++b) {
-                        if (blk_change[(size_t)b] > all) all = blk_change[(size_t)b];
-                        v += blk_visits[(size_t)b];
-                    }
-                    set_visits[(size_t)s] = v;
-                    visits += v;
-                }
-                if (it >= min_iter && all <= tol) {
-                    converged = true;
-                    break;
-                }
-                // more than half of the time so far waiting for blocks that others hold, or
-                // descheduled for more than 1 - THREAD_CPU_SHARE of it (past two sweeps): the
-                // threads do not run at once, the driver goes on alone
-                if (g_handover_on.load(std::memory_order_relaxed) && !handover && it >= 2 &&
-                    (2 * waited > ticks() - t_start ||
-                     double(thread_cpu_ns() - cpu0) < THREAD_CPU_SHARE * double(wall_ns() - wall0)))
-                    handover = true;
-            }
-            claim.v.store(FINISH << 24, std::memory_order_release);
-        };
-        pool().run(nt, [&](i64, int w) {
-            if (w == 0) {
-                drive();
-                return;
-            }
-            i64 exhausted = -1;
-            while (claim_blocks(exhausted, w)) {
-            }
+                solve_groups_wide(gr, g0, g1, tc, change, vis);
         });
-        converged = converged || it >= max_iter;
-        thread_stats_add(n_posted, helped.v.load(), handover, waited, ticks() - t_start);
-        // handed over: the threads did not run at once (the machine's cores are taken by other
-        // work), so every stage runs on one thread for THREAD_HOLD_NS. Either gives the same
-        // bits as the threaded sweeps.
-        if (handover) pool().hold_off(THREAD_HOLD_NS);
-    }
-    if (!converged) {
-        while (it < max_iter) {
-            it += 1;
-            cx.it = it;
-            double change = 0.0;
-            // the overflow set: one manifold after another
-            solve_groups_scalar(gr, lanes.set_group[0], lanes.set_group[1], cx, &change, &visits);
-            // the colours, one after another; a colour's groups in any order
-            for (i64 s = 1; s < n_sets; ++s)
-                solve_groups_wide(gr, lanes.set_group[s], lanes.set_group[s + 1], cx, &change,
-                                  &visits);
-            if (it >= min_iter && change <= tol) break;
-        }
-    }
-    if (eligible) record_cost(!serial, wall_ns() - solve_wall0, visits);
-    unpack_lanes(mi, pf, lanes);
+    const i64 visits = sw.visits;
+    unpack_lanes(c.mi, c.pf, lanes);
     for (i64 i = 0; i < n_rows; ++i) {
         const BodyVel& b = lanes.vel[i];
         for (int k = 0; k < 3; ++k) {
-            bv(i, k) = b.v[k];
-            bw(i, k) = b.w[k];
+            bodies.v(i, k) = b.v[k];
+            bodies.w(i, k) = b.w[k];
         }
     }
     i64 den = active > 1 ? active : 1;
@@ -653,37 +399,30 @@ i64 solve_velocities(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
 // h, clamped to the Coulomb disc; see "Friction anchor" above). It runs once per step, outside
 // the solve's convergence loop, so the bias never keeps the solve's sweeps going; the anchor
 // closes the loop over steps (what one sweep leaves of the target is still in D next step).
-void anchor_friction(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                     V2<double> bI, V2<double> bv, V2<double> bw, i64 newton_iters,
-                     double newton_tol) {
-    for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        double mu = mf(m, MF_MU);
+void anchor_friction(const StepContext& cx, const ContactConstraints& c, const SolverBodies& b) {
+    const i64 newton_iters = cx.settings.friction_newton_iters;
+    const double newton_tol = cx.settings.friction_newton_tol;
+    for (i64 m = 0; m < c.n_man; ++m) {
+        if (!c.mi(m, MI_ACTIVE)) continue;
+        double mu = c.mf(m, MF_MU);
         if (mu <= 0.0) continue;
-        i64 start = mi(m, MI_START);
-        i64 end = start + mi(m, MI_COUNT);
+        i64 start = c.mi(m, MI_START);
+        i64 end = start + c.mi(m, MI_COUNT);
         bool loaded = false;
         for (i64 p = start; p < end; ++p)
-            if (pf(p, PF_LN) > 0.0) loaded = true;
+            if (c.pf(p, PF_LN) > 0.0) loaded = true;
         if (!loaded) continue;
-        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-        double ma = bm[ia], mb = bm[ib];
-        const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
-        const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
-        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
-        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
-        double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
-        double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
-        double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
-        double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
+        i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+        BodyPair bp(b, ia, ib);
+        double t1x = c.mf(m, MF_T1), t1y = c.mf(m, MF_T1 + 1), t1z = c.mf(m, MF_T1 + 2);
+        double t2x = c.mf(m, MF_T2), t2y = c.mf(m, MF_T2 + 1), t2z = c.mf(m, MF_T2 + 2);
         for (i64 p = start; p < end; ++p) {
-            double* q = pf.row(p);
+            double* q = c.pf.row(p);
             if (q[PF_LN] <= 0.0) continue;
             double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
             double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-            double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-            double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-            double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+            double dvx, dvy, dvz;
+            bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
             // slip relative to the anchor's target rate -D rate / h
             double vt1 = dvx * t1x + dvy * t1y + dvz * t1z + q[PF_DB];
             double vt2 = dvx * t2x + dvy * t2y + dvz * t2z + q[PF_DB + 1];
@@ -699,13 +438,9 @@ void anchor_friction(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
             double px = d1 * t1x + d2 * t2x;
             double py = d1 * t1y + d2 * t2y;
             double pz = d1 * t1z + d2 * t2z;
-            apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, px, py, pz, vax, vay,
-                          vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+            bp.apply(rax, ray, raz, rbx, rby, rbz, px, py, pz);
         }
-        bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
-        bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
-        bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
-        bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+        bp.store(b);
     }
 }
 
@@ -715,18 +450,19 @@ void anchor_friction(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
 // it, and the next step's collide anchors the pair anew where it then is. (A point at its cone
 // while others stick just gives what the cone allows; a pair that slides drifts beyond
 // FRICTION_ANCHOR_MAX_DRIFT_M and collide re-anchors it.)
-void store_impulses(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, double slide_frac) {
-    for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
-        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
-        double mu = mf(m, MF_MU);
-        i64 start = mi(m, MI_START);
-        i64 cnt = mi(m, MI_COUNT);
+void store_impulses(const StepContext& cx, const ContactConstraints& c) {
+    const double slide_frac = cx.settings.friction_anchor_slide_frac;
+    for (i64 m = 0; m < c.n_man; ++m) {
+        if (!c.mi(m, MI_ACTIVE)) continue;
+        double t1x = c.mf(m, MF_T1), t1y = c.mf(m, MF_T1 + 1), t1z = c.mf(m, MF_T1 + 2);
+        double t2x = c.mf(m, MF_T2), t2y = c.mf(m, MF_T2 + 1), t2z = c.mf(m, MF_T2 + 2);
+        double mu = c.mf(m, MF_MU);
+        i64 start = c.mi(m, MI_START);
+        i64 cnt = c.mi(m, MI_COUNT);
         bool stick = false;
         bool struck = false;
         for (i64 p = start; p < start + cnt; ++p) {
-            double* q = pf.row(p);
+            double* q = c.pf.row(p);
             double l1 = q[PF_L1], l2 = q[PF_L2];
             q[PF_F] = l1 * t1x + l2 * t2x;
             q[PF_F + 1] = l1 * t1y + l2 * t2y;
@@ -739,7 +475,7 @@ void store_impulses(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, double 
                 stick = true;
             }
         }
-        if (struck || !stick) mf(m, MF_AOK) = 0.0;
+        if (struck || !stick) c.mf(m, MF_AOK) = 0.0;
     }
 }
 

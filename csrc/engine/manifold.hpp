@@ -1,9 +1,9 @@
 // Column layout of the packed contact arrays (Box2D's contact constraints, as SoA rows), and the
 // manifold reduction (manifold.cpp).
 //
-// The documented home of every constant below is rblog/engine/contact/manifold.py; this header
-// mirrors them for the C++ stages, and tests/engine/contact/test_collision_core.py checks that the
-// two agree (_core.manifold_columns() against the Python module). Change both together.
+// The documented home of every constant below; rblog/engine/contact/manifold.py reads them by
+// name from _core.collision_layout() (tests/engine/contact/test_collision_core.py checks that the
+// columns tile each array with the widths given here).
 //
 // Three arrays hold the manifolds of one step; a second set holds the previous step's, for warm
 // starting and for manifolds of sleeping bodies, which are carried over unchanged.

@@ -1,5 +1,3 @@
-// rblog/engine/contact/project.py in C++ (the same formulas in the same order).
-//
 // Project stage: a nonlinear (NGS) position pass on fresh contact geometry after the drift.
 //
 // The velocity solve works on the manifolds of the start of the step and their first-order gap

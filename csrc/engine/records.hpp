@@ -20,6 +20,7 @@
 #include "common/array.hpp"
 #include "common/py.hpp"
 #include "engine/collision.hpp"
+#include "engine/step_context.hpp"
 
 namespace rb {
 
@@ -55,34 +56,6 @@ struct Statics {
     V1<double> gn;    // (3,) unit ground normal
     double goff = 0.0, g_e = 0.0, g_mu = 0.0;
     static Statics from_py(nanobind::handle r);
-};
-
-// Stage switches and solver settings (rblog.engine.constants.ContactParams, and the module-level
-// solver tolerances of rblog.engine.constants: newton_iters .. proj_rings, so that the C++ stages
-// hold no second copy of them).
-struct Settings {
-    bool do_kick = false, do_sleep = false, iso_shortcut = false;
-    i64 n_vel = 0, max_vel = 0;
-    double vel_tol = 0.0, sor = 1.0;
-    i64 n_pos = 0;
-    double slop = 0.0, beta = 0.0, max_speed = 0.0, margin = 0.0, e_threshold = 0.0;
-    double anchor = 0.0, sleep_speed = 0.0, sleep_time = 0.0;
-    bool warm = false;
-    i64 n_proj = 0;
-    double proj_depth = 0.0;
-    bool anchors_on = false;
-    i64 newton_iters = 0;       // constants.FRICTION_NEWTON_ITERS
-    double newton_tol = 0.0;    // constants.FRICTION_NEWTON_TOL
-    double block_reg = 0.0;     // constants.BLOCK_REG
-    double anchor_rate = 0.0;   // constants.FRICTION_ANCHOR_RATE
-    double slide_frac = 0.0;    // constants.FRICTION_ANCHOR_SLIDE_FRAC
-    i64 proj_rings = 0;         // constants.PROJECTION_RINGS
-    // ContactParams.solver == "soft_step" (soft_step.cpp) and its substeps, contact_hertz,
-    // contact_damping_ratio
-    bool soft = false;
-    i64 substeps = 1;
-    double soft_hertz = 0.0, soft_zeta = 0.0;
-    static Settings from_py(nanobind::handle r);
 };
 
 // The changing state of the bodies, world frame (rblog.engine.state.State's arrays).
@@ -167,33 +140,33 @@ inline Settings Settings::from_py(nanobind::handle r) {
     c.do_kick = scalar<bool>(r, "do_kick");
     c.do_sleep = scalar<bool>(r, "do_sleep");
     c.iso_shortcut = scalar<bool>(r, "iso_shortcut");
-    c.n_vel = scalar<i64>(r, "n_vel");
-    c.max_vel = scalar<i64>(r, "max_vel");
-    c.vel_tol = scalar<double>(r, "vel_tol");
-    c.sor = scalar<double>(r, "sor");
-    c.n_pos = scalar<i64>(r, "n_pos");
-    c.slop = scalar<double>(r, "slop");
-    c.beta = scalar<double>(r, "beta");
-    c.max_speed = scalar<double>(r, "max_speed");
-    c.margin = scalar<double>(r, "margin");
-    c.e_threshold = scalar<double>(r, "e_threshold");
-    c.anchor = scalar<double>(r, "anchor");
+    c.velocity_iterations = scalar<i64>(r, "velocity_iterations");
+    c.max_velocity_iterations = scalar<i64>(r, "max_velocity_iterations");
+    c.velocity_tolerance = scalar<double>(r, "velocity_tolerance");
+    c.over_relaxation = scalar<double>(r, "over_relaxation");
+    c.position_iterations = scalar<i64>(r, "position_iterations");
+    c.allowed_penetration = scalar<double>(r, "allowed_penetration");
+    c.position_correction_rate = scalar<double>(r, "position_correction_rate");
+    c.max_correction_speed = scalar<double>(r, "max_correction_speed");
+    c.speculative_distance = scalar<double>(r, "speculative_distance");
+    c.restitution_threshold = scalar<double>(r, "restitution_threshold");
+    c.friction_anchor_distance = scalar<double>(r, "friction_anchor_distance");
     c.sleep_speed = scalar<double>(r, "sleep_speed");
     c.sleep_time = scalar<double>(r, "sleep_time");
-    c.warm = scalar<bool>(r, "warm");
-    c.n_proj = scalar<i64>(r, "n_proj");
-    c.proj_depth = scalar<double>(r, "proj_depth");
-    c.anchors_on = scalar<bool>(r, "anchors_on");
-    c.newton_iters = scalar<i64>(r, "newton_iters");
-    c.newton_tol = scalar<double>(r, "newton_tol");
+    c.warm_starting = scalar<bool>(r, "warm_starting");
+    c.projection_iterations = scalar<i64>(r, "projection_iterations");
+    c.projection_depth = scalar<double>(r, "projection_depth");
+    c.static_friction_anchors = scalar<bool>(r, "static_friction_anchors");
+    c.friction_newton_iters = scalar<i64>(r, "friction_newton_iters");
+    c.friction_newton_tol = scalar<double>(r, "friction_newton_tol");
     c.block_reg = scalar<double>(r, "block_reg");
-    c.anchor_rate = scalar<double>(r, "anchor_rate");
-    c.slide_frac = scalar<double>(r, "slide_frac");
-    c.proj_rings = scalar<i64>(r, "proj_rings");
-    c.soft = scalar<bool>(r, "soft");
+    c.friction_anchor_rate = scalar<double>(r, "friction_anchor_rate");
+    c.friction_anchor_slide_frac = scalar<double>(r, "friction_anchor_slide_frac");
+    c.projection_rings = scalar<i64>(r, "projection_rings");
+    c.soft_step = scalar<bool>(r, "soft_step");
     c.substeps = scalar<i64>(r, "substeps");
-    c.soft_hertz = scalar<double>(r, "soft_hertz");
-    c.soft_zeta = scalar<double>(r, "soft_zeta");
+    c.contact_hertz = scalar<double>(r, "contact_hertz");
+    c.contact_damping_ratio = scalar<double>(r, "contact_damping_ratio");
     return c;
 }
 

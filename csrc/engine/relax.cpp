@@ -1,5 +1,3 @@
-// rblog/engine/contact/relax.py in C++ (the same formulas in the same order).
-//
 // Stage 8 of the contact step: split-impulse position correction (relax).
 //
 // Position correction by split impulses (Catto 2006; Bullet's split impulse): a second Gauss-Seidel
@@ -33,19 +31,22 @@ namespace rb {
 //   compute every nw bitwise as last time, equal to the old value, and write back what is there.
 //   (`pushed`: for each body the count of applies when one last pushed it; `seen`: for each
 //   listed manifold the count when its last visit ended.)
-void relax_positions(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                     V2<double> bI, V2<double> pv, V2<double> pw, double inv_h, i64 n_iter,
-                     double slop, double beta, double max_speed) {
+void relax_positions(const StepContext& ctx, const ContactConstraints& c,
+                     const SolverBodies& pseudo) {
+    const double inv_h = ctx.inv_h, slop = ctx.settings.allowed_penetration;
+    const double beta = ctx.settings.position_correction_rate;
+    const double max_speed = ctx.settings.max_correction_speed;
+    const i64 n_iter = ctx.settings.position_iterations;
     if (n_iter <= 0) return;
     static thread_local std::vector<i64> deep_kept;
     std::vector<i64>& deep = deep_kept;
     deep.clear();
-    for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        const i64 start = mi(m, MI_START);
-        const i64 end = start + mi(m, MI_COUNT);
+    for (i64 m = 0; m < c.n_man; ++m) {
+        if (!c.mi(m, MI_ACTIVE)) continue;
+        const i64 start = c.mi(m, MI_START);
+        const i64 end = start + c.mi(m, MI_COUNT);
         for (i64 p = start; p < end; ++p) {
-            if (pf(p, PF_S) <= 0.0) {
+            if (c.pf(p, PF_S) <= 0.0) {
                 deep.push_back(m);
                 break;
             }
@@ -55,35 +56,28 @@ void relax_positions(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
     static thread_local std::vector<i64> pushed_kept, seen_kept;
     std::vector<i64>& pushed = pushed_kept;
     std::vector<i64>& seen = seen_kept;
-    pushed.assign((size_t)bm.n0, 0);
+    pushed.assign((size_t)pseudo.inv_mass.n0, 0);
     seen.assign((size_t)n_deep, -1);  // -1: visit (the first sweep, or the last visit applied)
     i64 applies = 0;
     for (i64 it = 0; it < n_iter; ++it) {
         for (i64 k = 0; k < n_deep; ++k) {
             const i64 m = deep[(size_t)k];
-            i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+            i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
             const i64 last = seen[(size_t)k];
             if (last >= 0 && pushed[(size_t)ia] <= last && pushed[(size_t)ib] <= last) continue;
             const i64 applies0 = applies;
-            i64 start = mi(m, MI_START);
-            i64 end = start + mi(m, MI_COUNT);
-            double ma = bm[ia], mb = bm[ib];
-            const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
-            const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
-            double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
-            double vax = pv(ia, 0), vay = pv(ia, 1), vaz = pv(ia, 2);
-            double wax = pw(ia, 0), way = pw(ia, 1), waz = pw(ia, 2);
-            double vbx = pv(ib, 0), vby = pv(ib, 1), vbz = pv(ib, 2);
-            double wbx = pw(ib, 0), wby = pw(ib, 1), wbz = pw(ib, 2);
+            i64 start = c.mi(m, MI_START);
+            i64 end = start + c.mi(m, MI_COUNT);
+            BodyPair bp(pseudo, ia, ib);
+            double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
             for (i64 p = start; p < end; ++p) {
-                double* q = pf.row(p);
+                double* q = c.pf.row(p);
                 double s = q[PF_S];
                 if (s > 0.0) continue;
                 double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
                 double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-                double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-                double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-                double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                double dvx, dvy, dvz;
+                bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 double vn = dvx * nx + dvy * ny + dvz * nz;
                 double target = -(s + slop) * beta * inv_h;
                 if (target < 0.0) {
@@ -97,17 +91,13 @@ void relax_positions(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<dou
                 q[PF_LP] = nw;
                 double d = nw - old;
                 if (d == 0.0) continue;  // (see above: applying it would change no bit)
-                apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny,
-                              d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+                bp.apply(rax, ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz);
                 applies += 1;
                 pushed[(size_t)ia] = applies;
                 pushed[(size_t)ib] = applies;
             }
             seen[(size_t)k] = applies == applies0 ? applies : -1;
-            pv(ia, 0) = vax; pv(ia, 1) = vay; pv(ia, 2) = vaz;
-            pw(ia, 0) = wax; pw(ia, 1) = way; pw(ia, 2) = waz;
-            pv(ib, 0) = vbx; pv(ib, 1) = vby; pv(ib, 2) = vbz;
-            pw(ib, 0) = wbx; pw(ib, 1) = wby; pw(ib, 2) = wbz;
+            bp.store(pseudo);
         }
     }
 }

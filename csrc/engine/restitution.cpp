@@ -1,5 +1,3 @@
-// rblog/engine/contact/restitution.py in C++ (the same formulas in the same order).
-//
 // Stage 10 of the contact step: restitution, the bounce of impact points after positions moved.
 //
 // Restitution (Box2D v3): after positions are integrated, points that were hit (solve impulse > 0)
@@ -44,24 +42,15 @@ inline double gap_rate(V2<double> v, V2<double> w, i64 ia, i64 ib, double nx, do
 }
 
 // Impulse (px, py, pz) on a at anchor r_a and its negative on b at r_b: into the solver
-// velocities (bv, bw) and straight into the momenta of dynamic bodies (P += J, L += r x J).
-void apply_pair_impulse(V2<double> bv, V2<double> bw, V2<double> linear_momentum,
-                        V2<double> angular_momentum, V1<double> bm, V2<double> bI, i64 ia, i64 ib,
-                        double rax, double ray, double raz, double rbx, double rby, double rbz,
-                        double px, double py, double pz) {
+// velocities (b.v, b.w) and straight into the momenta of dynamic bodies (P += J, L += r x J).
+void apply_pair_impulse(const SolverBodies& b, V2<double> linear_momentum,
+                        V2<double> angular_momentum, i64 ia, i64 ib, double rax, double ray,
+                        double raz, double rbx, double rby, double rbz, double px, double py,
+                        double pz) {
     i64 n_dyn = linear_momentum.n0;
-    const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
-    const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
-    double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
-    double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
-    double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
-    double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
-    apply_impulse(bm[ia], a6, bm[ib], b6, rax, ray, raz, rbx, rby, rbz, px, py, pz, vax, vay, vaz,
-                  wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
-    bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
-    bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
-    bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
-    bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+    BodyPair bp(b, ia, ib);
+    bp.apply(rax, ray, raz, rbx, rby, rbz, px, py, pz);
+    bp.store(b);
     // angular impulses r x J straight into L (the orientations have already moved on)
     const i64 body[2] = {ia, ib};
     const double sign[2] = {1.0, -1.0};
@@ -89,14 +78,15 @@ void apply_pair_impulse(V2<double> bv, V2<double> bw, V2<double> linear_momentum
 // |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the bounce,
 // so that the pair's momenta stay exactly balanced. targeted: the manifolds with a bouncing point
 // (PF_WT >= 0), in manifold order.
-void reclamp_friction(V2<i64> mi, V2<double> mf, V2<double> pf, const std::vector<i64>& targeted,
-                      V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> dx,
-                      V2<double> linear_momentum, V2<double> angular_momentum) {
+void reclamp_friction(const ContactConstraints& c, const std::vector<i64>& targeted,
+                      const SolverBodies& b, V2<double> dx, V2<double> linear_momentum,
+                      V2<double> angular_momentum) {
+    V2<i64> mi = c.mi;
+    V2<double> mf = c.mf, pf = c.pf;
     for (const i64 m : targeted) {
         double mu = mf(m, MF_MU);
         i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-        double ma = bm[ia], mb = bm[ib];
-        bool shared = ma > 0.0 && mb > 0.0;
+        bool shared = b.inv_mass[ia] > 0.0 && b.inv_mass[ib] > 0.0;
         double hx = 0.5 * (dx(ib, 0) - dx(ia, 0));
         double hy = 0.5 * (dx(ib, 1) - dx(ia, 1));
         double hz = 0.5 * (dx(ib, 2) - dx(ia, 2));
@@ -123,8 +113,8 @@ void reclamp_friction(V2<i64> mi, V2<double> mf, V2<double> pf, const std::vecto
                 rax = rax + hx; ray = ray + hy; raz = raz + hz;
                 rbx = rbx - hx; rby = rby - hy; rbz = rbz - hz;
             }
-            apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib, rax,
-                               ray, raz, rbx, rby, rbz, px, py, pz);
+            apply_pair_impulse(b, linear_momentum, angular_momentum, ia, ib, rax, ray, raz, rbx,
+                               rby, rbz, px, py, pz);
         }
     }
 }
@@ -142,14 +132,16 @@ void reclamp_friction(V2<i64> mi, V2<double> mf, V2<double> pf, const std::vecto
 // p + (dx_a + dx_b)/2, so that both anchors end at the same point: otherwise the pair's angular
 // momentum would change by h (v_a - v_b) x J. The bounce impulses go straight into the momenta
 // (P += J, L += r x J), since the orientations have already moved on.
-i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm,
-                V2<double> bI, V2<double> bv, V2<double> bw, V2<double> pv, V2<double> pw,
-                double h, double threshold, i64 n_iter, V2<double> dx,
-                V2<double> linear_momentum, V2<double> angular_momentum) {
+i64 restitution(const StepContext& ctx, const ContactConstraints& c, const SolverBodies& b,
+                V2<double> pv, V2<double> pw, V2<double> dx, V2<double> linear_momentum,
+                V2<double> angular_momentum) {
+    const double h = ctx.h, threshold = ctx.settings.restitution_threshold;
+    const i64 n_iter = ctx.settings.velocity_iterations;
     // the end-of-step gaps and the impact points: each manifold writes only its own points'
     // rows, so blocks of manifolds run on the task pool; the impacts are counted per block
     const i64 n_blocks =
-        pool().threads() > 1 ? TaskPool::blocks_for(n_man, MANIFOLDS_PER_BLOCK, MIN_MANIFOLDS) : 1;
+        pool().threads() > 1 ? TaskPool::blocks_for(c.n_man, MANIFOLDS_PER_BLOCK, MIN_MANIFOLDS)
+                             : 1;
     std::vector<i64> blk_impacts((size_t)n_blocks, 0);
     // bodies whose pseudo velocities are all zero (the relax stage pushed most bodies not at
     // all): a point between two of them has the pseudo gap rate pn = +-0 (a sum of products
@@ -163,19 +155,19 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
                            pw(i, 0) == 0.0 && pw(i, 1) == 0.0 && pw(i, 2) == 0.0;
     pool().run(n_blocks, [&](i64 blk, int) {
     i64 n_impacts = 0;
-    for (i64 m = n_man * blk / n_blocks; m < n_man * (blk + 1) / n_blocks; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-        double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
-        double e = mf(m, MF_E);
-        double acc = mf(m, MF_ACC);
+    for (i64 m = c.n_man * blk / n_blocks; m < c.n_man * (blk + 1) / n_blocks; ++m) {
+        if (!c.mi(m, MI_ACTIVE)) continue;
+        i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+        double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
+        double e = c.mf(m, MF_E);
+        double acc = c.mf(m, MF_ACC);
         const bool pair_still = still[(size_t)ia] && still[(size_t)ib];
-        i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            double* q = pf.row(p);
+        i64 start = c.mi(m, MI_START);
+        for (i64 p = start; p < start + c.mi(m, MI_COUNT); ++p) {
+            double* q = c.pf.row(p);
             double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
             double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-            double vn = gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
+            double vn = gap_rate(b.v, b.w, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
             double s0 = q[PF_S];
             double s1;
             if (pair_still && (vn != 0.0 || s0 != 0.0)) {
@@ -214,11 +206,11 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
     static thread_local std::vector<i64> kept;
     std::vector<i64>& targeted = kept;
     targeted.clear();
-    for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        const i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            if (pf(p, PF_WT) >= 0.0) {
+    for (i64 m = 0; m < c.n_man; ++m) {
+        if (!c.mi(m, MI_ACTIVE)) continue;
+        const i64 start = c.mi(m, MI_START);
+        for (i64 p = start; p < start + c.mi(m, MI_COUNT); ++p) {
+            if (c.pf(p, PF_WT) >= 0.0) {
                 targeted.push_back(m);
                 break;
             }
@@ -226,17 +218,17 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
     }
     for (i64 it = 0; it < n_iter; ++it) {
         for (const i64 m : targeted) {
-            i64 start = mi(m, MI_START);
-            i64 end = start + mi(m, MI_COUNT);
-            i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-            double ma = bm[ia], mb = bm[ib];
-            double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
+            i64 start = c.mi(m, MI_START);
+            i64 end = start + c.mi(m, MI_COUNT);
+            i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+            double ma = b.inv_mass[ia], mb = b.inv_mass[ib];
+            double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
             bool shared = ma > 0.0 && mb > 0.0;
             double hx = 0.5 * (dx(ib, 0) - dx(ia, 0));
             double hy = 0.5 * (dx(ib, 1) - dx(ia, 1));
             double hz = 0.5 * (dx(ib, 2) - dx(ia, 2));
             for (i64 p = start; p < end; ++p) {
-                double* q = pf.row(p);
+                double* q = c.pf.row(p);
                 double wt = q[PF_WT];
                 if (wt < 0.0) continue;
                 double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
@@ -245,19 +237,19 @@ i64 restitution(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> 
                     rax = rax + hx; ray = ray + hy; raz = raz + hz;
                     rbx = rbx - hx; rby = rby - hy; rbz = rbz - hz;
                 }
-                double vn = gap_rate(bv, bw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
+                double vn = gap_rate(b.v, b.w, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
                 double old = q[PF_LN];
                 double nw = old + q[PF_NMASS] * (wt - vn);
                 if (nw < 0.0) nw = 0.0;
                 q[PF_LN] = nw;
                 double d = nw - old;
-                apply_pair_impulse(bv, bw, linear_momentum, angular_momentum, bm, bI, ia, ib, rax,
-                                   ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz);
+                apply_pair_impulse(b, linear_momentum, angular_momentum, ia, ib, rax, ray, raz,
+                                   rbx, rby, rbz, d * nx, d * ny, d * nz);
             }
         }
     }
     // (only the targeted manifolds hold points with PF_WT >= 0, the ones reclamp_friction acts on)
-    reclamp_friction(mi, mf, pf, targeted, bm, bI, bv, bw, dx, linear_momentum, angular_momentum);
+    reclamp_friction(c, targeted, b, dx, linear_momentum, angular_momentum);
     return n_impacts;
 }
 

@@ -93,20 +93,10 @@ thread_local SoftWork g_work;
 // Solve K x = b in place (b: x, n <= 4) with manifold f's factors from prepare_contacts'
 // factor_block: the row exchanges MF_PIV, the multipliers below MF_LU's diagonal, U on and above.
 inline void lu_solve(const double* f, i64 n, double* x) {
-    for (i64 c = 0; c < n; ++c) {
-        i64 piv = (i64)f[MF_PIV + c];
-        if (piv != c) {
-            double t = x[c];
-            x[c] = x[piv];
-            x[piv] = t;
-        }
-        for (i64 r = c + 1; r < n; ++r) x[r] -= f[MF_LU + 4 * r + c] * x[c];
-    }
-    for (i64 c = n - 1; c >= 0; --c) {
-        double v = x[c];
-        for (i64 k = c + 1; k < n; ++k) v -= f[MF_LU + 4 * c + k] * x[k];
-        x[c] = v / f[MF_LU + 5 * c];
-    }
+    const bool pt[4] = {true, true, true, true};
+    lu_solve_rows<double, ScalarLane>(
+        (int)n, pt, [f](int k) { return f[MF_LU + k]; }, [f](int c) { return f[MF_PIV + c]; },
+        x);
 }
 
 // The impulses x_i n at anchors r_a,i / r_b,i of one manifold at once: D = sum x_i, sa = sum x_i
@@ -146,18 +136,12 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
     for (i64 m = 0; m < n_man; ++m) {
         if (!mi(m, MI_ACTIVE)) continue;
         i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-        double ma = bm[ia], mb = bm[ib];
-        const Softness& sf = (ma == 0.0 || mb == 0.0) ? soft_static : soft;
-        const double a6[6] = {bI(ia, 0), bI(ia, 1), bI(ia, 2), bI(ia, 3), bI(ia, 4), bI(ia, 5)};
-        const double b6[6] = {bI(ib, 0), bI(ib, 1), bI(ib, 2), bI(ib, 3), bI(ib, 4), bI(ib, 5)};
+        BodyPair bp(SolverBodies{bm, bI, bv, bw}, ia, ib);
+        const Softness& sf = (bp.ma == 0.0 || bp.mb == 0.0) ? soft_static : soft;
         double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
         double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
         double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
         double mu = mf(m, MF_MU);
-        double vax = bv(ia, 0), vay = bv(ia, 1), vaz = bv(ia, 2);
-        double wax = bw(ia, 0), way = bw(ia, 1), waz = bw(ia, 2);
-        double vbx = bv(ib, 0), vby = bv(ib, 1), vbz = bv(ib, 2);
-        double wbx = bw(ib, 0), wby = bw(ib, 1), wbz = bw(ib, 2);
         const double* pa = dp + 3 * ia;
         const double* qa = dth + 3 * ia;
         const double* pb = dp + 3 * ib;
@@ -200,9 +184,8 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 const double* q = pf.row(start + i);
                 double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
                 double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-                double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-                double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-                double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                double dvx, dvy, dvz;
+                bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 x[i] = -(dvx * nx + dvy * ny + dvz * nz + rhs[i]);
             }
             lu_solve(mf.row(m), cnt, x);
@@ -224,8 +207,9 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                         sb[k] += x[i] * q[PF_RB + k];
                     }
                 }
-                apply_moments(ma, a6, mb, b6, sa, sb, dsum, nx, ny, nz, vax, vay, vaz, wax, way,
-                              waz, vbx, vby, vbz, wbx, wby, wbz);
+                apply_moments(bp.ma, bp.a6, bp.mb, bp.b6, sa, sb, dsum, nx, ny, nz, bp.va[0],
+                              bp.va[1], bp.va[2], bp.wa[0], bp.wa[1], bp.wa[2], bp.vb[0],
+                              bp.vb[1], bp.vb[2], bp.wb[0], bp.wb[1], bp.wb[2]);
             }
         }
         if (!block) {
@@ -236,9 +220,8 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
                 double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
                 // relative normal velocity
-                double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-                double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-                double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                double dvx, dvy, dvz;
+                bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 double vn = dvx * nx + dvy * ny + dvz * nz;
                 // incremental impulse, clamp the accumulated one
                 double old = l[0];
@@ -247,8 +230,7 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 l[0] = nw;
                 double d = nw - old;
                 if (d == 0.0) continue;  // (a speculative point left open)
-                apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz, d * nx, d * ny,
-                              d * nz, vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+                bp.apply(rax, ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz);
             }
         }
         // friction rows: the cone of this substep's normal impulse
@@ -260,9 +242,8 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 if (l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0) continue;
                 double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
                 double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
-                double dvx = vax + way * raz - waz * ray - vbx - wby * rbz + wbz * rby;
-                double dvy = vay + waz * rax - wax * raz - vby - wbz * rbx + wbx * rbz;
-                double dvz = vaz + wax * ray - way * rax - vbz - wbx * rby + wby * rbx;
+                double dvx, dvy, dvz;
+                bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 double vt1 = dvx * t1x + dvy * t1y + dvz * t1z;
                 double vt2 = dvx * t2x + dvy * t2y + dvz * t2z;
                 if (use_bias && anchors) {  // slip relative to the anchor's target -D rate / h
@@ -276,15 +257,11 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 l[1] = n1;
                 l[2] = n2;
                 double d1 = n1 - o1, d2 = n2 - o2;
-                apply_impulse(ma, a6, mb, b6, rax, ray, raz, rbx, rby, rbz,
-                              d1 * t1x + d2 * t2x, d1 * t1y + d2 * t2y, d1 * t1z + d2 * t2z,
-                              vax, vay, vaz, wax, way, waz, vbx, vby, vbz, wbx, wby, wbz);
+                bp.apply(rax, ray, raz, rbx, rby, rbz, d1 * t1x + d2 * t2x, d1 * t1y + d2 * t2y,
+                         d1 * t1z + d2 * t2z);
             }
         }
-        bv(ia, 0) = vax; bv(ia, 1) = vay; bv(ia, 2) = vaz;
-        bw(ia, 0) = wax; bw(ia, 1) = way; bw(ia, 2) = waz;
-        bv(ib, 0) = vbx; bv(ib, 1) = vby; bv(ib, 2) = vbz;
-        bw(ib, 0) = wbx; bw(ib, 1) = wby; bw(ib, 2) = wbz;
+        bp.store(SolverBodies{bm, bI, bv, bw});
         if (sum != nullptr)  // the relax sweep: what this substep applied, into the step's sums
             for (i64 p = 3 * start; p < 3 * end; ++p) sum[p] += lam[p];
     }
@@ -301,19 +278,32 @@ Softness make_soft(double hertz, double zeta, double h) {
     return Softness{omega / a1, a2 * a3, a3};
 }
 
-i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_contact,
-               V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> pv,
-               V2<double> pw, V2<double> accel, V2<double> torque, bool do_kick, double h,
-               const SoftSettings& ss) {
-    const i64 n_sub = ss.substeps;
+i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const SolverBodies& b,
+               V2<double> pv, V2<double> pw, V1<i64> in_contact, V2<double> accel,
+               V2<double> torque, bool do_kick) {
+    const V2<i64> mi = c.mi;
+    const V2<double> mf = c.mf, pf = c.pf;
+    const i64 n_man = c.n_man;
+    const V1<double> bm = b.inv_mass;
+    const V2<double> bI = b.inv_inertia, bv = b.v, bw = b.w;
+    const Settings& cfg = ctx.settings;
+    const double h = ctx.h;
+    // the sweeps' switches: the soft bias capped at max_correction_speed, the friction rows aimed
+    // at the anchors' slip rate (PF_DB) with static_friction_anchors, a manifold's normal rows
+    // solved together (its factored block K)
+    const double push_max = cfg.max_correction_speed;
+    const bool anchors = cfg.static_friction_anchors, block = true;
+    const i64 newton_iters = cfg.friction_newton_iters;
+    const double newton_tol = cfg.friction_newton_tol;
+    const i64 n_sub = cfg.substeps;
     const double hs = h / double(n_sub);
     const double inv_hs = 1.0 / hs;
     const i64 n_rows = bm.n0;  // N + 1: row N the static dummy
     const i64 n_dyn = n_rows - 1;
-    double hz = ss.hertz;
+    double hz = cfg.contact_hertz;
     if (hz > 0.25 * inv_hs) hz = 0.25 * inv_hs;
-    const Softness soft = make_soft(hz, ss.zeta, hs);
-    const Softness soft_static = make_soft(2.0 * hz, ss.zeta, hs);
+    const Softness soft = make_soft(hz, cfg.contact_damping_ratio, hs);
+    const Softness soft_static = make_soft(2.0 * hz, cfg.contact_damping_ratio, hs);
 
     i64 n_pts = 0;
     for (i64 m = 0; m < n_man; ++m) {
@@ -371,10 +361,10 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
             }
         }
         // warm start: this substep begins with the last one's impulses applied
-        apply_stored_impulses(mi, mf, pf, n_man, bm, bI, bv, bw, lam, 3);
+        apply_stored_impulses(c, b, lam, 3);
         // solve, with the soft bias
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, true, soft, soft_static,
-              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol, nullptr);
+              push_max, anchors, block, newton_iters, newton_tol, nullptr);
         // integrate positions (into the displacements; the static dummy's stay zero)
         for (i64 i = 0; i < n_dyn; ++i) {
             if (!in_contact[i]) continue;
@@ -385,7 +375,7 @@ i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_c
         }
         // relax, rigid
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, false, soft, soft_static,
-              ss.push_max, ss.anchors, ss.block, ss.newton_iters, ss.newton_tol, sum);
+              push_max, anchors, block, newton_iters, newton_tol, sum);
     }
     // the step's impulses, and the pseudo velocities that carry the substeps' displacement
     for (i64 m = 0; m < n_man; ++m) {

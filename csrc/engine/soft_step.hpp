@@ -5,6 +5,7 @@
 #include <cstddef>  // size_t, which common/array.hpp uses
 
 #include "common/array.hpp"
+#include "engine/step_context.hpp"
 
 namespace rb {
 
@@ -16,19 +17,6 @@ struct Softness {
 };
 Softness make_soft(double hertz, double zeta, double h);
 
-// What the soft step needs beyond the velocity solve's arrays.
-struct SoftSettings {
-    i64 substeps;         // ContactParams.substeps
-    double hertz;         // ContactParams.contact_hertz (capped at a quarter of the substep rate)
-    double zeta;          // ContactParams.contact_damping_ratio
-    double push_max;      // ContactParams.max_correction_speed: cap on the push-out speed (m/s)
-    bool anchors;         // ContactParams.static_friction_anchors: the solve sweeps' friction
-                          // rows aim at the anchors' slip rate (PF_DB)
-    bool block;           // a manifold's normal rows solved together (its factored block K)
-    i64 newton_iters;     // FRICTION_NEWTON_ITERS
-    double newton_tol;    // FRICTION_NEWTON_TOL
-};
-
 // Stages 6-8 as Box2D v3's b2SolverStage loop over `substeps` substeps of h / substeps: gravity
 // (and the applied forces) are kicked per substep, and per substep the bodies' velocities are
 // warm-started, solved with the soft bias, their positions integrated (into per-body
@@ -37,13 +25,16 @@ struct SoftSettings {
 // end velocities and pv/pw the difference between the substeps' mean velocity and the end one,
 // so that stage 9's x += h (v + v') moves every pushed body by the substeps' displacement.
 //
-// in_contact: (N+1,) active manifolds per body (load_bodies); accel: (N, 3) g + F/m; torque:
-// (N, 3) applied torque (world); do_kick: the kick stage ran (its h a and h I^-1 tau are taken
-// back out of bv/bw and applied per substep). Returns the manifold sweeps made (2 a substep).
-i64 soft_solve(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<i64> in_contact,
-               V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> pv,
-               V2<double> pw, V2<double> accel, V2<double> torque, bool do_kick, double h,
-               const SoftSettings& ss);
+// settings: substeps, contact_hertz (capped at a quarter of the substep rate),
+// contact_damping_ratio, max_correction_speed (the push-out speed's cap, m/s),
+// static_friction_anchors, friction_newton_iters, friction_newton_tol. pv, pw: (N+1, 3) pseudo
+// velocities; in_contact: (N+1,) active manifolds per body (load_bodies); accel: (N, 3) g + F/m;
+// torque: (N, 3) applied torque (world); do_kick: the kick stage ran (its h a and h I^-1 tau are
+// taken back out of b.v/b.w and applied per substep). Returns the manifold sweeps made (2 a
+// substep).
+i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const SolverBodies& b,
+               V2<double> pv, V2<double> pw, V1<i64> in_contact, V2<double> accel,
+               V2<double> torque, bool do_kick);
 
 // Between mark_pushed and stage 9: the pseudo velocity of a pushed body of an island away from
 // static geometry (pushed == 1, see world_step.cpp's mark_pushed) loses the substeps' own lag

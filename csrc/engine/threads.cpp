@@ -30,7 +30,7 @@ std::atomic<i64> g_solves{0}, g_stages{0}, g_handovers{0}, g_wait{0}, g_solve_ti
 i64 g_calls0 = 0, g_wblocks0 = 0;  // pool().calls(), worker_blocks() at the last reset
 }
 
-void set_thread_fallback(bool on);  // contact_solver.cpp
+void set_thread_fallback(bool on);  // solve_stages.cpp
 
 void thread_stats_add(i64 stages_shared, i64 worker_blocks, bool handover, i64 wait_ticks,
                       i64 solve_ticks) {

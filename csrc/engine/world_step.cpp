@@ -1,5 +1,3 @@
-// rblog/engine/contact/step.py in C++: the world step with contacts, many steps per call.
-//
 // The compiled world step with contacts: many steps per call, no Python between steps.
 //
 // One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_Step`` and
@@ -11,19 +9,19 @@
 //     4  collide          narrowphase table -> manifolds, warm-start matching, sleeping carried
 //     4b colour           the constraint graph's colours: sets of manifolds that share no
 //                         dynamic body (constraint_graph.hpp), the order the solve sweeps in
-//     5  prepare          effective masses, pre-solve gap velocities (solver.py)
+//     5  prepare          effective masses, pre-solve gap velocities (contact_solver.cpp)
 //     6  warm start       apply last step's impulses
 //     7  solve            sequential impulses, Coulomb friction, speculative targets; then one
 //                         sweep of the friction rows toward their anchors (solver.anchor_friction, when
 //                         ContactParams.static_friction_anchors is on)
-//     8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
+//     8  relax            split-impulse position correction on pseudo velocities (relax.cpp; the shift's
 //                         orbital angular momentum h v' x P is handed back to the spin)
 //     9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
 //                         from the solver's velocity changes; every other body flies exactly under
 //                         its constant force, x += h v - h^2 a / 2 (v after the kick). Rotation by
 //                         integrators.drift_rotation with the run's integrator (the body's L and its
 //                         current R, so gyroscopic motion is the integrator's own)
-//     10 restitution      bounce impact points (energy-consistent rule, restitution.py), P += J,
+//     10 restitution      bounce impact points (energy-consistent rule, restitution.cpp), P += J,
 //                         L += r x J
 //     11 store impulses   friction as world vectors for the next step
 //     12 project          narrowphase again at the end-of-step poses; points deeper than
@@ -31,6 +29,8 @@
 //                         and orientations (project.py); the shift's orbital angular momentum
 //                         dx x P is handed back to the spin, as in 8
 //     13 sleep            rest timers, islands, put resting islands to sleep (island.py)
+//     1b/14 impulses      the contact stages' momentum change per body, summed per sample
+//                         interval (impulses.cpp; the log's impulse_contact_*)
 //
 // With ContactParams.solver = "soft_step", stages 6-8 are Box2D v3's substeps instead
 // (soft_step.cpp: per substep a share of the kick, warm start, soft solve, positions, relax;
@@ -58,8 +58,8 @@
 //   relative on samples/mixed.toml; both schemes alone keep it exactly).
 //
 // The restitution stage measures and sets bounce speeds with the exact flight's energy
-// (restitution.py), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
-// kicks, as before.
+// (restitution.cpp), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
+// applied as kicks.
 //
 // Samples follow free.advance_free: after every ``stride``-th step and after the last step when
 // ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.
@@ -75,6 +75,7 @@
 
 #include "common/task_pool.hpp"
 #include "engine/contact_solver.hpp"
+#include "engine/impulses.hpp"
 #include "engine/integrators.hpp"
 #include "engine/profile.hpp"
 #include "engine/project.hpp"
@@ -246,8 +247,8 @@ i64 broadphase(const Bodies& bd, const Statics& st, double margin, V1<i64> awake
 i64 wake(const Bodies& bd, const Statics& st, const Settings& cfg, const SleepState& sl,
          const BodyState& x, double h, Scratch& sc, V2<i64> pairs, i64 n_pairs) {
     return wake_touched(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, sl.awake,
-                        sl.timer, sl.island_of, x.position, x.rotation, col(sc.reach), cfg.margin,
-                        cfg.slop, st.pos, st.rot, st.ext, st.gn, st.goff, x.linear_momentum,
+                        sl.timer, sl.island_of, x.position, x.rotation, col(sc.reach), cfg.speculative_distance,
+                        cfg.allowed_penetration, st.pos, st.rot, st.ext, st.gn, st.goff, x.linear_momentum,
                         x.angular_momentum, bd.force, bd.torque, h, cfg.do_kick, sc.cb,
                         bd.inv_mass, bd.accel, bd.radius, bd.inv_inertia);
 }
@@ -261,11 +262,11 @@ CollideCount collide(const Bodies& bd, const Statics& st, const Settings& cfg, V
     grow_manifolds(c.mi1, c.mf1, 2 * n_pairs);
     grow_points(c.pf1, c.pid1, 8 * n_pairs);
     return collide_pairs(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, awake,
-                         x.position, x.rotation, col(sc.reach), cfg.margin, bd.restitution,
+                         x.position, x.rotation, col(sc.reach), cfg.speculative_distance, bd.restitution,
                          bd.friction, bd.accel, st.pos, st.rot, st.ext, st.e, st.mu, st.gn,
                          st.goff, st.g_e, st.g_mu, c.mi0.view(), c.mf0.view(), c.pf0.view(),
                          col(c.pid0), col(c.keys0), col(c.idx0), c.n_man0, c.mi1.view(),
-                         c.mf1.view(), c.pf1.view(), col(c.pid1), cfg.warm, cfg.anchor, sc.cb);
+                         c.mf1.view(), c.pf1.view(), col(c.pid1), cfg.warm_starting, cfg.friction_anchor_distance, sc.cb);
 }
 
 // 5 prepare: load the bodies in contact into the solver arrays; effective masses and pre-solve
@@ -278,10 +279,11 @@ void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch&
                 sc.bw0.view(), sc.pv.view(), sc.pw.view(), sc.p0.view(), sc.l0.view());
     // a manifold's preparation writes only its own rows (mf, its points' pf): blocks of
     // manifolds on the pool (pf stays whole: a manifold's MI_START indexes it)
+    const StepContext ctx{h, 1.0 / h, cfg};
+    const SolverBodies b{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()};
     par_ranges(n_man, MANIFOLDS_PER_BLOCK, [&](i64 m0, i64 m1) {
-        prepare_contacts(rows(mi, m0, m1), rows(mf, m0, m1), pf, m1 - m0, col(sc.bm),
-                         sc.bI.view(), sc.bv.view(), sc.bw.view(), h, cfg.anchor_rate,
-                         cfg.block_reg);
+        prepare_contacts(ctx, ContactConstraints{rows(mi, m0, m1), rows(mf, m0, m1), pf, m1 - m0},
+                         b);
     });
 }
 
@@ -429,8 +431,8 @@ i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Se
     i64 n_deep = project_positions(
         pairs, n_pairs, n, st.n_static, bd.geom, bd.size, bd.inv_mass, bd.inv_inertia, bd.iso,
         cfg.iso_shortcut, awake, x.position, x.rotation, st.pos, st.rot, st.ext, st.gn, st.goff,
-        cfg.proj_depth, cfg.n_proj, sc.proj_rows, sc.proj_ids, sc.cb, sc.proj_dx.view(),
-        sc.proj_dth.view(), cfg.proj_rings, sc.ring, sc.done);
+        cfg.projection_depth, cfg.projection_iterations, sc.proj_rows, sc.proj_ids, sc.cb, sc.proj_dx.view(),
+        sc.proj_dth.view(), cfg.projection_rings, sc.ring, sc.done);
     if (n_deep > 0)
         apply_projection(n_deep, sc.proj_ids.view(), sc.proj_dx.view(), sc.proj_dth.view(), n,
                          method, ortho, bd, cfg.iso_shortcut, x.position, x.rotation, x.quat_wxyz,
@@ -465,11 +467,10 @@ i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scrat
                 V1<i64> awake, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, int method,
                 int ortho, double h, const FlowAnchors& an, V1<i64> prof, i64& t) {
     bool do_prof = prof.n0 > 0;
-    SoftSettings ss{cfg.substeps, cfg.soft_hertz, cfg.soft_zeta, cfg.max_speed,
-                    cfg.anchors_on, true, cfg.newton_iters, cfg.newton_tol};
-    i64 sweeps = soft_solve(mi, mf, pf, n_man, col(sc.in_contact), col(sc.bm), sc.bI.view(),
-                            sc.bv.view(), sc.bw.view(), sc.pv.view(), sc.pw.view(), bd.accel,
-                            bd.torque, cfg.do_kick, h, ss);
+    i64 sweeps = soft_solve(StepContext{h, 1.0 / h, cfg}, ContactConstraints{mi, mf, pf, n_man},
+                            SolverBodies{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()},
+                            sc.pv.view(), sc.pw.view(), col(sc.in_contact), bd.accel, bd.torque,
+                            cfg.do_kick);
     if (do_prof) t = lap(prof, P_SOLVE, t);
     mark_pushed(mi, pf, n_man, x.position.n0, sc);
     if (cfg.do_kick)
@@ -572,11 +573,12 @@ i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
 AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings& cfg, int method,
                             int ortho, double dt, i64 n_steps, i64 stride, bool sample_last,
                             const BodyState& x, const SampleState& out, const SleepState& sl,
-                            ContactCache& c, V1<i64> stats, V1<i64> prof, const FlowAnchors& an) {
+                            ContactCache& c, V1<i64> stats, V1<i64> prof, const FlowAnchors& an,
+                            const IntervalImpulses& im) {
     using namespace step;
     i64 n = x.position.n0;
     double h = dt;
-    double inv_h = 1.0 / dt;
+    const StepContext ctx{h, 1.0 / dt, cfg};
     Scratch& sc = c.sc;
     sc.make(n, st);
     if (c.pose0.rows != n || c.pose0.cols != 12) c.pose0 = Buf2<double>(n, 12);
@@ -604,8 +606,9 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             }
             if (do_prof) t = ticks();
             if (cfg.do_kick) kick(bd, sl.awake, x, h);                                     // 1
+            if (im.on()) impulses_begin(sl.awake, x, im);                                  // 1b
             if (do_prof) t = lap(prof, P_KICK, t);
-            i64 n_pairs = broadphase(bd, st, cfg.margin, sl.awake, x, h, sc, c.pairs);     // 2
+            i64 n_pairs = broadphase(bd, st, cfg.speculative_distance, sl.awake, x, h, sc, c.pairs);     // 2
             V2<i64> pairs = c.pairs.view();
             stats[ST_PAIRS] += n_pairs;
             if (do_prof) t = lap(prof, P_BROADPHASE, t);
@@ -620,35 +623,29 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_COLOUR, t);
             V2<i64> mi1 = c.mi1.view();
             V2<double> mf1 = c.mf1.view(), pf1 = c.pf1.view();
-            V1<double> bm = col(sc.bm);
-            V2<double> bI = sc.bI.view(), bv = sc.bv.view(), bw = sc.bw.view();
+            const ContactConstraints cons{mi1, mf1, pf1, n_man};
+            const SolverBodies bodies{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()};
+            const SolverBodies pseudo{col(sc.bm), sc.bI.view(), sc.pv.view(), sc.pw.view()};
             prepare(bd, cfg, x, sc, mi1, mf1, pf1, n_man, h);                               // 5
-            if (cfg.soft) {  // 6-9 as Box2D v3's substeps (soft_step.cpp)
+            if (cfg.soft_step) {  // 6-9 as Box2D v3's substeps (soft_step.cpp)
                 stats[ST_SWEEPS] += soft_stages(bd, cfg, x, sc, sl.awake, mi1, mf1, pf1, n_man,
                                                 method, ortho, h, an, prof, t);
             } else {
-            if (cfg.warm) warm_start(mi1, mf1, pf1, n_man, bm, bI, bv, bw);                // 6
-            stats[ST_SWEEPS] += solve_velocities(                                           // 7
-                mi1, mf1, pf1, n_man, bm, bI, bv, bw, inv_h, cfg.n_vel, cfg.max_vel, cfg.vel_tol,
-                col(sc.hot), col(sc.in_contact), cfg.sor, cfg.newton_iters, cfg.newton_tol,
-                sc.graph, sc.lanes);
-            if (cfg.anchors_on)                                                             // 7b
-                anchor_friction(mi1, mf1, pf1, n_man, bm, bI, bv, bw, cfg.newton_iters,
-                                cfg.newton_tol);
+            if (cfg.warm_starting) warm_start(cons, bodies);                               // 6
+            stats[ST_SWEEPS] += solve_velocities(ctx, cons, bodies, col(sc.hot),           // 7
+                                                 col(sc.in_contact), sc.graph, sc.lanes);
+            if (cfg.static_friction_anchors) anchor_friction(ctx, cons, bodies);           // 7b
             if (do_prof) t = lap(prof, P_SOLVE, t);
-            if (cfg.n_pos > 0)                                                              // 8
-                relax_positions(mi1, mf1, pf1, n_man, bm, bI, sc.pv.view(), sc.pw.view(), inv_h,
-                                cfg.n_pos, cfg.slop, cfg.beta, cfg.max_speed);
+            if (cfg.position_iterations > 0) relax_positions(ctx, cons, pseudo);           // 8
             mark_pushed(mi1, pf1, n_man, n, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
             if (do_prof) t = lap(prof, P_INTEGRATE, t);
             }
-            stats[ST_IMPACTS] += restitution(                                               // 10
-                mi1, mf1, pf1, n_man, bm, bI, bv, bw, sc.pv.view(), sc.pw.view(), h,
-                cfg.e_threshold, cfg.n_vel, sc.dx_step.view(), x.linear_momentum,
-                x.angular_momentum);
-            store_impulses(mi1, mf1, pf1, n_man, cfg.slide_frac);                           // 11
+            stats[ST_IMPACTS] += restitution(ctx, cons, bodies, sc.pv.view(), sc.pw.view(), // 10
+                                             sc.dx_step.view(), x.linear_momentum,
+                                             x.angular_momentum);
+            store_impulses(ctx, cons);                                                      // 11
             // this step's manifolds become "previous"
             c.keys0.grow(std::max<i64>(n_man, 1));
             c.idx0.grow(std::max<i64>(n_man, 1));
@@ -659,7 +656,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             std::swap(c.pid0, c.pid1);
             c.n_man0 = n_man;
             if (do_prof) t = lap(prof, P_RESTITUTION, t);
-            if (cfg.n_proj > 0)                                                             // 12
+            if (cfg.projection_iterations > 0)                                                             // 12
                 stats[ST_PROJECTED] += project(method, ortho, bd, st, cfg, sl.awake, x, sc, pairs,
                                                n_pairs, an);
             if (do_prof) t = lap(prof, P_PROJECT, t);
@@ -674,12 +671,14 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_SLEEP, t);
             if (bad >= 0) return AdvanceResult{n_samples, s, bad, n_log};
         }
+        if (im.on()) impulses_end(bd, x, h, n_awake > 0, im);                              // 14
         if (s % stride == 0 || (sample_last && s == n_steps)) {
             if (do_prof) t = ticks();
             for (i64 i = 0; i < n; ++i)
                 write_sample(method, n_samples, i, x.position, x.linear_momentum, x.quat_wxyz,
                              x.rotation, x.angular_momentum, out.position, out.linear_momentum,
                              out.quat_wxyz, out.rotation, out.angular_momentum);
+            if (im.on()) impulses_sample(im, n_samples);
             n_samples += 1;
             n_log = record_contacts(s, c.mi0.view(), c.mf0.view(), c.pf0.view(), c.n_man0,
                                     x.position, x.rotation, c.pose0.view(), c.log_i, c.log_f,

@@ -10,6 +10,7 @@
 
 #include "common/array.hpp"
 #include "engine/collision.hpp"
+#include "engine/impulses.hpp"
 #include "engine/records.hpp"
 
 namespace rb {
@@ -64,6 +65,7 @@ struct AdvanceResult {
 AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings& cfg, int method,
                             int ortho, double dt, i64 n_steps, i64 stride, bool sample_last,
                             const BodyState& x, const SampleState& out, const SleepState& sl,
-                            ContactCache& c, V1<i64> stats, V1<i64> prof, const FlowAnchors& an);
+                            ContactCache& c, V1<i64> stats, V1<i64> prof, const FlowAnchors& an,
+                            const IntervalImpulses& im);
 
 }  // namespace rb

@@ -1,13 +1,17 @@
 """rblog.adapters: record a run of another engine's own model into the log contract, in two lines.
 
-* ``mujoco``: :class:`~rblog.adapters.mujoco.MujocoRecorder` takes an ``MjModel`` (and the
-  ``MjData`` the user steps), builds the body table of every free body (mass; inertia turned out of
-  MuJoCo's principal frame ``body_iquat``; box and sphere geoms; friction; the ground plane and
-  static boxes) and, called after each ``mj_step``, logs the state (centre of mass, the free
-  joint's body-frame angular velocity turned into the world frame) and the contacts as impulses in
-  the contract's signs. :func:`~rblog.adapters.mujoco.record_rollout` does the same for the output
-  of ``mujoco.rollout``.
-* ``pybullet``: :class:`~rblog.adapters.pybullet.PybulletRecorder`, the bodies of a client.
+* ``mujoco``: :func:`~rblog.adapters.mujoco.recorder` (a
+  :class:`~rblog.adapters.mujoco.MujocoRecorder`) takes an ``MjModel`` as shipped (and the
+  ``MjData`` the user steps) and writes contract v3: every body (free, on joints, mocap, static)
+  in its inertial frame, its joints, every geom (meshes with their vertices); called after each
+  ``mj_step`` it accumulates the step's impulses per body (contact, applied, passive, actuator,
+  joint: ``mj_rnePostConstraint``) and every ``every``-th step logs a sample with the contacts.
+  :func:`~rblog.adapters.mujoco.record_rollout` records the output of ``mujoco.rollout`` (no
+  contacts, impulses marked missing).
+* ``pybullet``: :class:`~rblog.adapters.pybullet.PybulletRecorder` records every base and link of
+  a client's bodies (multibodies on their joints; maximal coordinates as far as pybullet shows
+  them), every collision shape, and per step the contact, damping, applied and joint impulses;
+  ``rec()`` after each ``stepSimulation``, a sample every ``every`` steps.
 
 Geoms the contract has no shape for (capsules, cylinders, meshes, several geoms on one body) are
 recorded with ``body_shape = SHAPE_NONE`` (-1) and their inertia; restitution the engine does not
@@ -22,12 +26,7 @@ uses these adapters for its translation of the engines' conventions.
 
 from __future__ import annotations
 
-from rblog.errors import RblogError
-
-
-class AdapterError(RblogError):
-    """An engine's model or data that the adapter cannot record (one line naming what and why),
-    or the engine is not installed."""
+from rblog.errors import RblogError, AdapterError
 
 
 def require(module: str, extra: str = "engines"):

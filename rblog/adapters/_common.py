@@ -74,11 +74,16 @@ class SampleStream:
 
     def _clear(self):
         self.steps, self.x, self.q, self.v, self.w, self.c = [], [], [], [], [], []
+        self.channels: dict[str, list] = {}
 
     def __len__(self):
         return len(self.steps)
 
-    def add(self, step, x, q, v, w, contacts=None) -> None:
+    def add(self, step, x, q, v, w, contacts=None, channels=None) -> None:
+        """``channels``: per-interval arrays of this sample ({"impulse_contact_linear": (N, 3),
+        ...}; the same names at every sample)."""
+        for name, a in (channels or {}).items():
+            self.channels.setdefault(name, []).append(a)
         self.steps.append(int(step))
         self.x.append(x)
         self.q.append(q)
@@ -99,6 +104,7 @@ class SampleStream:
                       velocity=np.array(self.v), angular_velocity=np.array(self.w))
         if self.c:
             arrays["contacts"] = {k: np.concatenate([c[k] for c in self.c]) for k in self.c[0]}
+        arrays.update({name: np.array(a) for name, a in self.channels.items()})
         self._clear()
         rec.write(**arrays)
 

@@ -1,399 +1,330 @@
-"""Record a MuJoCo model the user steps (or a ``mujoco.rollout``) into the log contract.
+"""Record a MuJoCo model as shipped (every body, joint and geom) into log contract v3.
 
 Two lines::
 
-    rec = rblog.adapters.mujoco.MujocoRecorder(m, d, mcap="run.mcap")   # the body table, sample 0
-    for _ in range(n): mujoco.mj_step(m, d); rec(d)                      # state + contacts
+    rec = rblog.adapters.mujoco.recorder(m, d, mcap="run.mcap", every=1)  # the model, sample 0
+    for _ in range(n): mujoco.mj_step(m, d); rec(d)                        # after every step
     rec.close()                                    # or `with`; rblog.check(rblog.load("run.mcap"))
 
-or, for a rollout, ``record_rollout(m, initial_state, state, mcap="run.mcap")``.
+``rec(d)`` is called after **every** ``mj_step``: it accumulates that step's impulses (cheap:
+one ``mj_rnePostConstraint`` and a few array copies) and every ``every``-th step it logs a
+sample (the state, the contacts of that step, and the impulses summed over the interval since
+the previous sample). A call after several steps (``d.time`` moved by more than one
+``timestep``) logs its sample with that interval's impulses and work as NaN (unknown), so the
+analyzers leave it unjudged. For a rollout, ``record_rollout(m, initial_state, state)`` (no
+contacts, no impulses: the log says they are missing).
 
-MuJoCo's conventions and how they become the contract's (docs/log-format.md):
+MuJoCo's model, as the log holds it (docs/log-format.md):
 
-* **bodies**: every body with a free joint is one rigid body of the table, together with the
-  bodies welded to it (no joint of their own). Bodies that move on other joints (hinges, slides,
-  balls) or mocap bodies are refused (:class:`~rblog.adapters.AdapterError`): the contract holds
-  free rigid bodies and static geometry only. Bodies welded to the world are static geometry.
-* **mass and inertia**: ``body_mass``; ``body_inertia`` holds the principal moments about the
-  centre of mass in the frame ``body_iquat`` turns out of the body frame (composites of welded
-  bodies are summed about their common centre of mass and diagonalized). The contract wants
-  principal moments in *its* body frame, so each body's contract frame is chosen
-  (:func:`rblog.adapters._common.body_frame`): the frame of its one box geom when the inertia is
-  diagonal there and the box is centred on the centre of mass (it keeps the box shape), else the
-  principal frame (a sphere keeps its shape in any frame). Other geoms (capsule, cylinder,
-  ellipsoid, mesh, several collision geoms) are recorded without a shape (``"none"``).
-* **state**: the free joint's ``qpos`` is the body frame's origin and orientation (w, x, y, z);
-  ``qvel[0:3]`` is the world-frame velocity of that origin, ``qvel[3:6]`` the angular velocity
-  in the **body** frame. The contract's position is the centre of mass, ``x + R ipos``; its
-  velocity ``v + w_world x (R ipos)``; its angular velocity ``w_world = R qvel[3:6]``; its
-  quaternion ``q ⊗ q_frame``. After ``mj_step`` the ``d.xpos``/``d.xquat`` arrays still hold the
-  poses of the step's start, so everything is computed from ``qpos``/``qvel``.
-* **contacts**: after ``mj_step`` ``d.contact`` holds the contacts the step's collision detection
-  found at its start (``dist`` is the separation then) and ``efc_force`` the forces it solved.
-  ``mj_contactForce`` is, in the contact frame (rows of ``contact.frame``: normal from geom1 to
-  geom2, two tangents), the force on geom2; the adapter decodes the same numbers from
-  ``efc_force`` for all contacts at once (pyramidal or elliptic cones). The row's ``body_a`` is
-  geom2's body, ``body_b`` geom1's, ``normal`` the frame's normal (from b into a), impulses =
-  force x ``timestep``; a static geom is turned into ``body_b = -1`` with the signs flipped.
-  Torsional and rolling friction torques (condim 4 and 6) have no channel and are not logged.
-  With the Euler and implicit integrators the impulses are exactly the step's: each body's rows
-  sum to its momentum change minus ``m g dt`` (tests/adapters/); RK4 re-solves per stage.
-* **materials**: friction is ``geom_friction[:, 0]`` (sliding), combined by MuJoCo's ``max``
-  (``<pair>`` and ``priority`` overrides are not followed). MuJoCo states no restitution (a
-  bounce comes from the solref spring-damper), so it is logged as unknown (NaN) unless the caller
-  gives ``restitution=``.
-* **world**: ``opt.gravity``; the first plane geom welded to the world is the ground (its +z is
-  the normal), world box geoms are static boxes; other static geoms are listed in
-  ``engine_settings["static_geoms_not_in_the_table"]`` (their contacts are still logged, with
-  ``body_b = -1``). ``xfrc_applied`` at the recorder's start is the constant force and torque.
+* **bodies**: every MuJoCo body but the world, in MuJoCo's order (log index = body id - 1),
+  named as MuJoCo names them: a body with a free joint is ``free``; with other joints
+  ``joints`` (its parent ``body_parentid``); a body without joints welded to a moving parent is
+  ``joints`` with one ``fixed`` joint row; a mocap body ``kinematic``; a body welded to the
+  world ``static``. The log's body frame is MuJoCo's **inertial frame** (``xipos``/``ximat``:
+  centre of mass, principal axes of ``body_inertia``), so geoms and joint anchors are turned
+  out of the body frame (``xpos``/``xmat``) with ``body_ipos``/``body_iquat``.
+* **joints**: hinge, slide and ball as MuJoCo has them (``jnt_pos``, ``jnt_axis`` in the child;
+  the same point and axis in the parent's frame at ``qpos0``), ``jnt_range`` where
+  ``jnt_limited`` (a ball's range is ``[0, max angle]``). Planar bodies (slide-slide-hinge)
+  are three rows on one body, as MuJoCo has them.
+* **geoms**: every geom, with MuJoCo's shape and size (sphere, capsule ``[r, half-length]``,
+  cylinder, ellipsoid, box, plane ``[hx, hy]`` (0: infinite)), meshes with their vertices
+  (``mesh_vert`` rows ``mesh_vertadr``.. in the geom frame: MuJoCo collides with their convex
+  hull); friction ``geom_friction[:, 0]`` (MuJoCo takes the max of a pair), restitution
+  unknown (NaN: MuJoCo's bounce comes from solref) unless given, the filter
+  ``contype``/``conaffinity`` under ``collide_rule = "or"``. Heightfields, SDF geoms and flexes
+  cannot be recorded: :func:`inspect` raises one line naming every one of them.
+* **state**: from a private ``MjData`` after ``mj_kinematics``, ``mj_comPos``, ``mj_comVel`` at
+  the logged ``qpos``/``qvel``: position ``xipos``, rotation ``ximat``, angular velocity
+  ``cvel[:, :3]`` and the centre of mass's velocity ``cvel[:, 3:] + w x (xipos - c)``
+  (``cvel`` is about ``c = subtree_com[body_rootid]``, world-oriented). Mocap bodies move
+  with ``mocap_pos``/``mocap_quat`` and have zero velocity (MuJoCo's own ``cvel``).
+* **contacts**: the rows of v2 (mj_contactForce's force on geom2 x ``timestep``, decoded from
+  ``efc_force`` for all contacts at once); geoms of static bodies are the world (-1).
+
+Per-interval impulses (N s, N m s about each body's centre of mass, world frame), per step
+``s`` from MuJoCo's own numbers, then summed over the steps of each interval:
+
+* After ``mj_step`` with Euler or the implicit integrators, ``d`` holds the step's start:
+  kinematics (``xipos``, ``cdof``, ``subtree_com``), contacts and ``efc_force``, the
+  generalized forces ``qfrc_*``; ``qvel`` is the new one. The hook puts the step's start
+  velocity ``v0`` and the acceleration MuJoCo integrated, ``a = (v1 - v0) / h``, into ``d``,
+  calls ``mj_rnePostConstraint`` (``cfrc_ext``: ``xfrc_applied`` and the contacts;
+  ``cfrc_int``: the wrench each body's subtree receives from its parent, gravity included
+  through ``cacc[world] = -g``), and puts ``qvel``/``qacc`` back. MuJoCo's spatial wrenches are
+  ``[torque; force]`` about ``c`` (world orientation); a torque about the centre of mass is
+  ``tau_c - (xipos - c) x f``.
+* contact = ``cfrc_ext`` minus ``xfrc_applied``; applied = ``xfrc_applied`` (at the centre
+  of mass) plus ``qfrc_applied``; passive = ``qfrc_passive``, and under Euler/implicit(fast)
+  with ``dof_damping`` the damping MuJoCo integrates implicitly, ``- B (v1 - v0)`` (Euler
+  solves ``(M + h B) a = f``, i.e. ``M a = f - h B a``); actuator = ``qfrc_actuator``. A
+  generalized force ``f_j`` on dof ``j`` of body ``b`` is the wrench ``f_j S_j`` on ``b`` and
+  ``-f_j S_j`` on its parent (none on the world), with ``S_j`` the couple along the axis of a
+  rotational dof (``cdof[j, :3]``) or the force along a translational one through the joint's
+  anchor: ``S_j . cdof_j = 1``, so the pair does the work ``f_j qvel_j``. joint = the net of
+  ``cfrc_int`` (the body's own minus its children's) minus the generalized forces mapped to
+  the body: the constraint reactions, limits, frictionloss, tendon equalities.
+* implicit, implicitfast: MuJoCo solves ``(M - h D) a = f`` with ``D`` the velocity derivative
+  of the passive and actuator forces (implicit: and of the bias), so the force it integrates is
+  ``M a = f + h D a``. The hook computes ``M a`` (``mj_mulM``) and logs ``h D a`` with the passive
+  kind (its dof-damping part is ``- B (v1 - v0)``, as under Euler), or with the actuator kind
+  when only actuators depend on velocity: a tree's joint impulses still cancel.
+* work (J) per step: ``h f_j v1_j`` of each dof's force, attributed to the dof's body (the
+  displacement the semi-implicit step makes is ``h v1``); for ``xfrc_applied`` ``h (f . v +
+  tau . w)`` at the step's start.
+
+The balance this gives, per body and step: ``m (v_com(q1, v1) - v_com(q0, v0)) = h (sum of the
+impulses) + m g h + K``. The forces are MuJoCo's at the step's start and close Newton-Euler
+exactly there (``cfrc_int`` is its residual); ``K`` is the integration error of MuJoCo's step
+seen at the centre of mass: MuJoCo integrates generalized velocities, and ``v_com = J(q) v`` is
+not linear in them. For a free body (its free joint's origin velocity ``u`` and body-frame
+angular velocity integrate linearly; ``R1 w_b1 = R0 exp(h w_b1) w_b1 = R0 w_b1``), with
+``arm = R ipos``, ``w`` world:
+
+    K = m [ w1 x (arm1 - arm0) - h w0 x (w0 x arm0) ]            (O(h^2); 0 when ipos = 0)
+
+and the tests check the free bodies' logged impulses against it at round-off (``m g h`` +
+impulses + K = Δp to 1e-9 relative). Bodies on joints have ``K = m (J(q1) - J(q0) - h
+dJ/dt) v``-like terms, O(h^2) per step: measured in tests/adapters (and 0 to round-off for a
+body on slides whose centre of mass is on the slides, as stacker's boxes).
+
+**RK4** re-evaluates the forces at three more states inside the step and leaves ``d`` with the
+last one's, so the hook runs ``mj_forward`` at the step's start on a private ``MjData`` and logs
+the forces of the first stage; ``a = (v1 - v0) / h`` is RK4's weighted mean of the four stages,
+so the joint impulses (the Newton-Euler residual) close each body's balance as above, and the
+other kinds are the first stage's: a free body's balance then misses ``h sum_i b_i (F_i - F_1)
+= O(h^2) dF/dt``, which a log cannot carry.
+
+**Cost** per step (``rec(d)``): one call of the compiled hook (``rblog.adapters._hook``, the
+numpy :class:`StepImpulses` without it): ``mj_rnePostConstraint`` (~1 us) with ``qvel``/``qacc``
+swapped in and back, and a few copies of contiguous pieces of mjData into a preallocated row
+(:class:`Rows`); per sample the contacts' raw ``mjContact`` structs and ``efc_force``. A
+sample's state is the next step's row (its start is the sample's state) under Euler and the
+implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
+the rows are resolved into impulses, vectorized, and written as one block. Measured with
+benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from rblog.adapters import AdapterError, require
-from rblog.adapters._common import BLOCK_SAMPLES, body_frame, quat_mul
-from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE, Model
-from rblog.contract.orientation import matrix_to_quat, quat_wxyz_to_matrix
-
-#: the contract's value of engine_settings.contact_rows for MuJoCo's contacts
-CONTACT_ROWS = {
-    "separation": "before the step (contact.dist: the collision detection at its start)",
-    "impulse": "mj_contactForce (from efc_force) * timestep, on geom2's body",
-    "speculative": "dropped (no force and positive dist)",
-    "torques": "torsional and rolling (condim 4, 6) not logged",
-}
-
-
-class FreeBodies:
-    """Where each recorded body's state is in MuJoCo's arrays and how its frame is turned.
-
-    Attributes: ``body_id`` (N,) MuJoCo body ids; ``qpos_adr``, ``qvel_adr`` (N,) of their free
-    joints; ``com`` (N, 3) centre of mass in MuJoCo's body frame; ``q_frame`` (N, 4) the contract
-    frame in MuJoCo's body frame; ``geom_index`` (ngeom,) recorded body of each geom, -1 static.
-    """
-
-    def __init__(self, body_id, qpos_adr, qvel_adr, com, q_frame, geom_index):
-        self.body_id, self.qpos_adr, self.qvel_adr = body_id, qpos_adr, qvel_adr
-        self.com, self.q_frame, self.geom_index = com, q_frame, geom_index
-
-    def __len__(self):
-        return len(self.body_id)
-
-    def state(self, qpos, qvel):
-        """Contract state from ``qpos`` (..., nq) and ``qvel`` (..., nv) (any leading axes):
-        (position, quat_wxyz, velocity, angular_velocity), world frame, (..., N, 3 or 4)."""
-        qpos, qvel = np.asarray(qpos, np.float64), np.asarray(qvel, np.float64)
-        qp = qpos[..., self.qpos_adr[:, None] + np.arange(7)]
-        qv = qvel[..., self.qvel_adr[:, None] + np.arange(6)]
-        qb = qp[..., 3:7]
-        r = quat_wxyz_to_matrix(qb)
-        arm = np.einsum("...ij,...j->...i", r, self.com)          # origin -> centre of mass
-        w = np.einsum("...ij,...j->...i", r, qv[..., 3:6])       # body -> world frame
-        x = qp[..., :3] + arm
-        v = qv[..., :3] + np.cross(w, arm)
-        return x, quat_mul(qb, self.q_frame), v, w
-
-
-def _mj():
-    return require("mujoco")
-
-
-def _is_model(m) -> bool:
-    return type(m).__name__ == "MjModel"
-
-
-def inspect(m, d=None, *, restitution=None, ground_restitution=None):
-    """The body table of ``m`` and where its bodies are: (Model, FreeBodies, notes dict).
-
-    ``restitution`` (scalar or per recorded body) and ``ground_restitution`` (the ground's and
-    the static boxes') default to NaN (unknown: MuJoCo states none); when only ``restitution`` is
-    given, the static geometry gets 0, so that under the logged ``max`` rule a body's value is
-    its contacts' with the ground."""
-    mj = _mj()
-    if not _is_model(m):
-        raise AdapterError(f"rblog.adapters.mujoco: m is a {type(m).__name__}, expected a mujoco.MjModel")
-    d0 = mj.MjData(m)
-    if d is not None:
-        d0.qpos[:] = d.qpos
-        d0.mocap_pos[:] = d.mocap_pos
-        d0.mocap_quat[:] = d.mocap_quat
-    mj.mj_kinematics(m, d0)
-    name = lambda kind, i: mj.mj_id2name(m, kind, i) or f"{'body' if kind == mj.mjtObj.mjOBJ_BODY else 'geom'}{i}"  # noqa: E731
-    free_type = int(mj.mjtJoint.mjJNT_FREE)
-    weld = np.asarray(m.body_weldid)
-    free, qadr, vadr = [], [], []
-    for b in range(1, m.nbody):
-        nj = int(m.body_jntnum[b])
-        if int(m.body_mocapid[b]) >= 0:
-            raise AdapterError(f"rblog.adapters.mujoco: body {name(mj.mjtObj.mjOBJ_BODY, b)!r} is a "
-                               "mocap body: the contract records free bodies and static geometry only")
-        if nj == 0:
-            continue
-        j = int(m.body_jntadr[b])
-        if nj == 1 and int(m.jnt_type[j]) == free_type:
-            free.append(b)
-            qadr.append(int(m.jnt_qposadr[j]))
-            vadr.append(int(m.jnt_dofadr[j]))
-            continue
-        kinds = [mj.mjtJoint(int(m.jnt_type[j + k])).name.removeprefix("mjJNT_").lower() for k in range(nj)]
-        raise AdapterError(f"rblog.adapters.mujoco: body {name(mj.mjtObj.mjOBJ_BODY, b)!r} moves on "
-                           f"{'/'.join(kinds)} joints: the contract records free bodies (a free "
-                           "joint) and static geometry only")
-    index = {b: i for i, b in enumerate(free)}
-    n = len(free)
-    body_of = np.asarray(m.geom_bodyid)
-    geom_index = np.array([index.get(int(weld[body_of[g]]), -1) for g in range(m.ngeom)], np.int64)
-    collides = (np.asarray(m.geom_contype) | np.asarray(m.geom_conaffinity)) != 0
-    gtype = np.asarray(m.geom_type)
-    shapes, sizes, inertias, q_frames, coms, masses, frictions, names = [], [], [], [], [], [], [], []
-    for i, b in enumerate(free):
-        rb, xb = d0.xmat[b].reshape(3, 3), d0.xpos[b]
-        members = [c for c in range(m.nbody) if int(weld[c]) == b]
-        masses_c = np.array([float(m.body_mass[c]) for c in members])
-        mass = float(masses_c.sum())
-        if not mass > 0:
-            raise AdapterError(f"rblog.adapters.mujoco: body {name(mj.mjtObj.mjOBJ_BODY, b)!r} has "
-                               "no mass: a free body needs a positive mass")
-        if len(members) == 1:
-            com = np.array(m.body_ipos[b], np.float64)
-            moments = np.array(m.body_inertia[b], np.float64)
-            q_in = np.array(m.body_iquat[b], np.float64)
-        else:  # welded bodies: one rigid body, summed about the common centre of mass
-            com_c = np.array([rb.T @ (d0.xipos[c] - xb) for c in members])
-            com = (masses_c[:, None] * com_c).sum(axis=0) / mass
-            tensor = np.zeros((3, 3))
-            for k, c in enumerate(members):
-                rc = rb.T @ d0.ximat[c].reshape(3, 3)
-                dvec = com_c[k] - com
-                tensor += rc @ np.diag(m.body_inertia[c]) @ rc.T
-                tensor += masses_c[k] * (dvec @ dvec * np.eye(3) - np.outer(dvec, dvec))
-            moments, axes = np.linalg.eigh(tensor)
-            if np.linalg.det(axes) < 0:
-                axes[:, 2] *= -1.0
-            q_in = matrix_to_quat(axes)
-        geoms = [g for g in range(m.ngeom) if geom_index[g] == i and collides[g]]
-        geom = None
-        if len(geoms) == 1:
-            g = geoms[0]
-            code = {int(mj.mjtGeom.mjGEOM_SPHERE): SHAPE_SPHERE,
-                    int(mj.mjtGeom.mjGEOM_BOX): SHAPE_BOX}.get(int(gtype[g]))
-            if code is not None:
-                centre = rb.T @ (d0.geom_xpos[g] - xb)
-                q_geom = matrix_to_quat(rb.T @ d0.geom_xmat[g].reshape(3, 3))
-                geom = (code, np.array(m.geom_size[g], np.float64), centre, q_geom, com)
-        shape, size, inertia, q_frame = body_frame(moments, q_in, geom)
-        shapes.append(shape)
-        sizes.append(size)
-        inertias.append(inertia)
-        q_frames.append(q_frame)
-        coms.append(com)
-        masses.append(mass)
-        fr = [float(m.geom_friction[g, 0]) for g in geoms]
-        frictions.append(max(fr) if fr else 0.0)
-        names.append(name(mj.mjtObj.mjOBJ_BODY, b))
-    # static geometry: the ground (first plane), static boxes; the rest is listed
-    ground, g_normal, g_offset, g_friction = False, np.array([0.0, 0.0, 1.0]), 0.0, 0.5
-    sb_pos, sb_quat, sb_half, sb_fric, other = [], [], [], [], []
-    for g in range(m.ngeom):
-        if geom_index[g] >= 0 or not collides[g]:
-            continue
-        xm = d0.geom_xmat[g].reshape(3, 3)
-        if int(gtype[g]) == int(mj.mjtGeom.mjGEOM_PLANE) and not ground:
-            ground, g_normal = True, xm[:, 2].copy()
-            g_offset = float(g_normal @ d0.geom_xpos[g])
-            g_friction = float(m.geom_friction[g, 0])
-        elif int(gtype[g]) == int(mj.mjtGeom.mjGEOM_BOX):
-            sb_pos.append(d0.geom_xpos[g].copy())
-            sb_quat.append(matrix_to_quat(xm))
-            sb_half.append(np.array(m.geom_size[g], np.float64))
-            sb_fric.append(float(m.geom_friction[g, 0]))
-        else:
-            other.append(f"{name(mj.mjtObj.mjOBJ_GEOM, g)} ({mj.mjtGeom(int(gtype[g])).name.removeprefix('mjGEOM_').lower()})")
-    nan = float("nan")
-    if ground_restitution is None and restitution is not None:
-        ground_restitution = 0.0  # the bodies' values are the pairs' under the max rule
-    rest = np.broadcast_to(np.asarray(nan if restitution is None else restitution, np.float64), (n,)).copy()
-    xfrc = np.zeros((n, 6)) if d is None else np.array([d.xfrc_applied[b] for b in free]).reshape(n, 6)
-    nsb = len(sb_pos)
-    model = Model(
-        body_name=names, body_shape=np.array(shapes, np.int64).reshape(n),
-        body_size=np.array(sizes).reshape(n, 3), body_mass=np.array(masses, np.float64).reshape(n),
-        body_inertia_diag=np.array(inertias).reshape(n, 3), body_force_world=xfrc[:, :3].copy(),
-        body_torque_world=xfrc[:, 3:].copy(), body_restitution=rest,
-        body_friction=np.array(frictions, np.float64).reshape(n), body_group=np.zeros(n, np.int64),
-        gravity=np.array(m.opt.gravity, np.float64), ground=ground, ground_normal=g_normal,
-        ground_offset=g_offset, ground_restitution=nan if ground_restitution is None else float(ground_restitution),
-        ground_friction=g_friction,
-        static_box_position=np.array(sb_pos).reshape(nsb, 3), static_box_quat_wxyz=np.array(sb_quat).reshape(nsb, 4),
-        static_box_half_extents=np.array(sb_half).reshape(nsb, 3),
-        static_box_restitution=np.full(nsb, nan if ground_restitution is None else float(ground_restitution)),
-        static_box_friction=np.array(sb_fric, np.float64).reshape(nsb))
-    layout = FreeBodies(np.array(free, np.int64), np.array(qadr, np.int64), np.array(vadr, np.int64),
-                        np.array(coms).reshape(n, 3), np.array(q_frames).reshape(n, 4), geom_index)
-    notes = {"static_geoms_not_in_the_table": other,
-             "restitution": ("not stated by MuJoCo (solref spring-damper): unknown (NaN)"
-                             if restitution is None else "given by the caller")}
-    return model, layout, notes
-
-
-def settings(m) -> dict:
-    """MuJoCo's solver settings for RunInfo.engine_settings."""
-    mj = _mj()
-    o = m.opt
-    return {
-        "engine": "mujoco", "version": mj.__version__,
-        "integrator": mj.mjtIntegrator(o.integrator).name.removeprefix("mjINT_"),
-        "solver": mj.mjtSolver(o.solver).name.removeprefix("mjSOL_"),
-        "cone": mj.mjtCone(o.cone).name.removeprefix("mjCONE_"),
-        "iterations": int(o.iterations), "ls_iterations": int(o.ls_iterations),
-        "tolerance": float(o.tolerance), "noslip_iterations": int(o.noslip_iterations),
-        "impratio": float(o.impratio), "timestep": float(o.timestep),
-        "contact_model": "soft (solref, solimp per geom or pair)",
-        "combine_native": {"friction": "max", "solref": "solmix-weighted mean"},
-        "contact_rows": dict(CONTACT_ROWS),
-    }
-
-
-#: efc rows gathered per contact: a pyramidal condim-6 contact has 10 (2 per tangent direction)
-_EFC_WIDTH = 10
-
-
-def capture_contacts(d, step: int):
-    """The raw contact data of ``d`` right after ``mj_step`` (copies; decoded later, a block at a
-    time, by :func:`decode_contacts`), or None when there are none."""
-    k = int(d.ncon)
-    if k == 0:
-        return None
-    con = d.contact
-    adr = con.efc_address[:k].copy()
-    ef = d.efc_force
-    idx = np.clip(adr[:, None] + np.arange(_EFC_WIDTH), 0, max(len(ef) - 1, 0))
-    return dict(step=np.full(k, int(step), np.int64), geom=con.geom[:k].copy(), adr=adr,
-                dim=con.dim[:k].copy(), mu=con.friction[:k, :2].copy(), exclude=con.exclude[:k].copy(),
-                frame=con.frame[:k].copy(), dist=con.dist[:k].copy(), pos=con.pos[:k].copy(),
-                efc=ef[idx] if len(ef) else np.zeros((k, _EFC_WIDTH)))
-
-
-def decode_contacts(m, layout: FreeBodies, raws):
-    """Contact rows in the contract's convention (dict for Recorder.write, or None) from the
-    :func:`capture_contacts` of one or more steps."""
-    raws = [r for r in raws if r is not None]
-    if not raws:
-        return None
-    raw = {key: np.concatenate([r[key] for r in raws]) for key in raws[0]}
-    k = len(raw["step"])
-    adr, dim, mu, f = raw["adr"], raw["dim"], raw["mu"], raw["efc"]
-    local = np.zeros((k, 3))  # (normal, tangent 1, tangent 2) force on geom2, contact frame
-    ok = (adr >= 0) & (raw["exclude"] == 0)
-    pyramidal = int(m.opt.cone) == int(_mj().mjtCone.mjCONE_PYRAMIDAL)
-    one = ok & (dim == 1)
-    local[one, 0] = f[one, 0]
-    many = ok & (dim > 1)
-    if many.any():
-        if pyramidal:  # 2 (dim - 1) edges: normal = their sum, tangent j = mu_j (f_2j - f_2j+1)
-            width = 2 * (dim[many] - 1)
-            e = np.where(np.arange(_EFC_WIDTH) < width[:, None], f[many], 0.0)
-            local[many, 0] = e.sum(axis=1)
-            local[many, 1] = mu[many, 0] * (e[:, 0] - e[:, 1])
-            local[many, 2] = mu[many, 1] * (e[:, 2] - e[:, 3])
-        else:  # elliptic: normal, then the tangents (then torques), contact frame
-            local[many] = f[many, :3]
-    frame = raw["frame"].reshape(k, 3, 3)
-    normal = frame[:, 0].copy()
-    fric = local[:, 1:2] * frame[:, 1] + local[:, 2:3] * frame[:, 2]
-    geom = raw["geom"]
-    body_a = layout.geom_index[geom[:, 1]].copy()
-    body_b = layout.geom_index[geom[:, 0]].copy()
-    flip = body_a < 0  # the static geometry is body_b in the contract
-    body_a[flip], body_b[flip] = body_b[flip], body_a[flip]
-    normal[flip] *= -1.0
-    fric[flip] *= -1.0
-    dist = raw["dist"]
-    keep = ok & (body_a >= 0) & ~((local[:, 0] <= 0.0) & (dist > 0.0))
-    if not keep.any():
-        return None
-    dt = float(m.opt.timestep)
-    return dict(step=raw["step"][keep], body_a=body_a[keep], body_b=body_b[keep],
-                point=raw["pos"][keep], normal=normal[keep], separation=dist[keep],
-                normal_impulse=local[keep, 0] * dt, friction_impulse=fric[keep] * dt)
-
-
-def contacts(m, d, layout: FreeBodies, step: int):
-    """The contact rows of the step that ended at ``step`` (``d`` right after ``mj_step``), in the
-    contract's convention, as a dict for Recorder.write; None when there are none."""
-    return decode_contacts(m, layout, [capture_contacts(d, step)])
+from rblog.adapters import AdapterError
+from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _ContactArray, _is_model,
+                                          _mj, capture_contacts, contacts, decode_contacts,
+                                          gravity_of, inspect, settings, state_offsets, suite_model,
+                                          unsupported)
+from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross)
+from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
 
 
 class MujocoRecorder:
     """Record a MuJoCo model the caller steps: ``rec = MujocoRecorder(m, d, mcap=...)``, then
-    ``rec(d)`` after each ``mj_step`` (or every few: only the state and contacts at the calls are
-    logged), ``rec.close()`` (or ``with``).
+    ``rec(d)`` after every ``mj_step`` (a sample every ``every`` steps), ``rec.close()`` (or
+    ``with``). See the module docstring for what is logged and how.
 
     Args:
         m, d: the model and the data the caller steps; the state in ``d`` now is sample 0.
         rrd, mcap: output paths (either, both, or neither: kept in memory, ``rec.trajectory``).
-        restitution, ground_restitution: what to log as the materials' restitution (MuJoCo
-            states none: NaN, unknown, by default; see :func:`inspect`).
+        every: steps between samples (the impulses of every step are summed into the next).
+        restitution: the geoms' restitution to log (default NaN: MuJoCo states none).
         writer: the program name logged (default ``"mujoco <version> via rblog.adapters"``).
         keep: keep the run in memory as well (default: when there is no output path).
-        **recorder_options: further :class:`rblog.Recorder` arguments (``log_every``, ...).
+        block: steps gathered before they are resolved and written (default BLOCK_STEPS, fewer
+            for large models: BLOCK_BYTES of rows).
+        **recorder_options: further :class:`rblog.Recorder` arguments (``check``, ...).
 
-    Attributes: ``model`` (the body table), ``layout`` (:class:`FreeBodies`), ``recorder``.
+    A sample's state is MuJoCo's kinematics at its ``qpos``/``qvel``: under Euler and the
+    implicit integrators without mocap bodies they are the next step's start (``xipos``,
+    ``ximat``, ``cvel`` in that step's row), at no cost; otherwise (RK4, mocap bodies, the
+    last sample) from :class:`Kinematics`.
+
+    Attributes: ``model`` (the log's model), ``layout`` (:class:`Layout`), ``recorder``.
     """
 
-    def __init__(self, m, d=None, *, rrd=None, mcap=None, restitution=None, ground_restitution=None,
+    def __init__(self, m, d=None, *, rrd=None, mcap=None, every: int = 1, restitution=None,
                  writer: str | None = None, keep: bool | None = None, block: int | None = None,
                  **recorder_options):
         from rblog.record.recorder import Recorder
 
         mj = _mj()
-        self.m = m
-        self.model, self.layout, notes = inspect(m, d, restitution=restitution,
-                                                 ground_restitution=ground_restitution)
+        if not _is_model(m):
+            raise AdapterError(f"rblog.adapters.mujoco: m is a {type(m).__name__}, expected a "
+                               "mujoco.MjModel")
+        self.m, self.every = m, max(1, int(every))
+        if d is None:
+            d = mj.MjData(m)
+            mj.mj_forward(m, d)
+        self.model, self.layout, notes = inspect(m, d, restitution=restitution)
         self.dt = float(m.opt.timestep)
-        engine = {**settings(m), **notes}
+        engine = {**settings(m), **notes, "sample_every": self.every}
         self.recorder = Recorder(self.model, rrd=rrd, mcap=mcap, dt=self.dt,
                                  writer=writer or f"mujoco {mj.__version__} via rblog.adapters",
-                                 integrator=engine["integrator"], combine_friction="max",
-                                 combine_restitution="max", engine_settings=engine, keep=keep,
-                                 **recorder_options)
+                                 integrator=engine["integrator"], log_every=self.every,
+                                 combine_friction="max", combine_restitution="max",
+                                 engine_settings=engine, keep=keep, **recorder_options)
         self.recorder.open()
-        self.block = BLOCK_SAMPLES if block is None else int(block)
-        self._steps, self._qpos, self._qvel, self._raw = [], [], [], []
-        if d is not None:
-            self._add(d, contacts=False)
+        self.kin = Kinematics(m, self.layout)
+        self.hook = StepImpulses(m, self.layout, d, block=block)
+        self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
+        cap = self.hook.cap + 1
+        n = len(self.layout)
+        self._ids = self.layout.body_id
+        # samples waiting for their interval's impulses (and, deferred, their kinematics)
+        self._x, self._r = np.empty((cap, n, 3)), np.empty((cap, n, 3, 3))
+        self._q = np.empty((cap, n, 4))
+        self._v, self._w = np.empty((cap, n, 3)), np.empty((cap, n, 3))
+        self._steps = np.empty(cap, np.int64)
+        self._row = np.full(cap, -1, np.int64)  # the hook row of the sample's own step, -1: state known
+        self._gap = np.zeros(cap, bool)
+        self._ns = 0
+        self._raw = []
+        self._hook_steps = np.empty(self.hook.cap, np.int64)  # the step each gathered row ended
+        self._carry_W = np.zeros((len(IMPULSE_KINDS), m.nbody, 6))
+        self._carry_work = np.zeros((len(WORK_KINDS), m.nbody))
+        self._carry_gap = False
+        self._carray, self._carray_d = None, None  # the raw view of d's contacts, once there are some
+        self.step = int(round(float(d.time) / self.dt))
+        self._add_sample(d, row=-1, contacts=False)
 
-    def _add(self, d, contacts: bool = True) -> None:
-        step = int(round(float(d.time) / self.dt))
-        self._steps.append(step)
-        self._qpos.append(d.qpos.copy())
-        self._qvel.append(d.qvel.copy())
-        if contacts:
-            self._raw.append(capture_contacts(d, step))
-        if len(self._steps) >= self.block:
-            self.flush()
+    def _add_sample(self, d, row: int, contacts: bool = True) -> None:
+        i = self._ns
+        self._steps[i] = self.step
+        self._row[i] = row
+        if row < 0:
+            self.kin(d.qpos, d.qvel, d.mocap_pos, d.mocap_quat,
+                     out=(self._x[i], self._r[i], self._v[i], self._w[i]))
+            self._q[i] = self.kin.quat_wxyz()
+        self._ns = i + 1
+        if contacts and d.ncon:
+            if self._carray is None or self._carray_d is not d:
+                try:
+                    self._carray, self._carray_d = _ContactArray(self.m, d), d
+                except ValueError:  # an mjContact the view cannot describe: field by field
+                    self._carray, self._carray_d = False, d
+            self._raw.append(capture_contacts(d, self.step, self._carray or None))
 
     def __call__(self, d) -> None:
-        """Log ``d`` right after ``mj_step``: its state and the contacts of the step just taken
-        (copied now, turned into the contract's frames a block at a time)."""
-        self._add(d)
+        """Log the step that just ended in ``d`` (call after every ``mj_step``)."""
+        step = int(round(float(d.time) / self.dt))
+        row = -1
+        if step != self.step + 1:
+            if step <= self.step:
+                raise AdapterError(f"rblog.adapters.mujoco: d.time = {float(d.time)!r} is step "
+                                   f"{step}, not after the last logged step {self.step} (was d reset?)")
+            self._carry_gap = True  # steps not seen: this interval's impulses are unknown
+            self.hook.restart(d)
+        else:
+            row = self.hook.k
+            self._hook_steps[row] = step
+            self.hook(d)
+        self.step = step
+        if step % self.every == 0:
+            self._gap[self._ns] = self._carry_gap
+            self._add_sample(d, row if self.deferred and row >= 0 else -1)
+            self._carry_gap = False
+        if self.hook.full or self._ns >= len(self._steps):
+            self.flush()
 
     record = __call__
 
-    def flush(self) -> None:
-        """Write the samples gathered so far."""
-        if not self._steps:
+    def step_and_record(self, d, nstep: int = 1) -> None:
+        """``mj_step`` ``nstep`` times, logging each."""
+        mj = _mj()
+        for _ in range(int(nstep)):
+            mj.mj_step(self.m, d)
+            self(d)
+
+    def _states(self, ns: int) -> None:
+        """Fill the deferred samples' states: from the row of the step after theirs (its start
+        is their state), or from Kinematics at their row's qpos/qvel when that is not here."""
+        hook, lay = self.hook, self.layout
+        rows_of, R = hook.rows_of, hook.rows[:hook.k]
+        pend = np.flatnonzero(self._row[:ns] >= 0)
+        if not len(pend):
             return
-        steps = np.array(self._steps, np.int64)
-        x, q, v, w = self.layout.state(np.array(self._qpos), np.array(self._qvel))
+        nxt = self._row[pend] + 1
+        have = nxt < hook.k  # and that row is the very next step (not one after steps not seen)
+        have[have] = self._hook_steps[nxt[have]] == self._steps[pend[have]] + 1
+        if self.deferred and have.any():
+            i, rr = pend[have], nxt[have]
+            ids = self._ids
+            x = rows_of.field(R, "xipos")[rr][:, ids]
+            self._x[i] = x
+            self._r[i] = rows_of.field(R, "ximat")[rr].reshape(len(rr), -1, 3, 3)[:, ids]
+            from rblog.adapters._common import quat_mul
+
+            self._q[i] = quat_mul(rows_of.field(R, "xquat")[rr][:, ids], self.kin.iquat)
+            cv = rows_of.field(R, "cvel")[rr][:, ids]
+            c = rows_of.field(R, "subtree_com")[rr][:, lay.root[ids]]
+            self._w[i] = cv[..., :3]
+            self._v[i] = cv[..., 3:] + _cross(cv[..., :3], x - c)
+        for i in pend[~have]:
+            row = R[self._row[i]][None]
+            self.kin(rows_of.field(row, "qpos")[0], rows_of.field(row, "qvel")[0],
+                     out=(self._x[i], self._r[i], self._v[i], self._w[i]))
+            self._q[i] = self.kin.quat_wxyz()
+        self._row[pend] = -1
+
+    def _impulses(self, ns: int):
+        """(W (ns, 5, nbody, 6), work (ns, 3, nbody)) of each waiting sample's interval: the
+        steps in (step[i-1], step[i]]; the steps after the last sample carry over."""
+        k = self.hook.k
+        W, work = self.hook.resolve() if k else (None, None)
+        steps = self._hook_steps[:k]
+        pos = np.searchsorted(steps, self._steps[:ns], side="right")  # rows before sample i's end
+        starts = np.concatenate([[0], pos[:-1]])
+        rows_W = np.zeros((ns, *self._carry_W.shape))
+        rows_work = np.zeros((ns, *self._carry_work.shape))
+        last = int(pos[-1]) if ns else 0
+        if k and last:
+            nonempty = pos > starts
+            if np.all(pos - starts <= 1):  # one step per interval (a sample every step): a gather
+                rows_W[nonempty] = W[starts[nonempty]]
+                rows_work[nonempty] = work[starts[nonempty]]
+            else:  # reduceat sums [start_i, start_i+1), the last to `last`
+                rows_W[nonempty] = np.add.reduceat(W[:last], starts[nonempty], axis=0)
+                rows_work[nonempty] = np.add.reduceat(work[:last], starts[nonempty], axis=0)
+        if ns:
+            rows_W[0] += self._carry_W
+            rows_work[0] += self._carry_work
+            self._carry_W = np.zeros_like(self._carry_W)
+            self._carry_work = np.zeros_like(self._carry_work)
+        if k and last < k:
+            self._carry_W = self._carry_W + W[last:].sum(axis=0)
+            self._carry_work = self._carry_work + work[last:].sum(axis=0)
+        return rows_W, rows_work
+
+    def flush(self) -> None:
+        """Write the samples gathered so far (each with its interval's impulses)."""
+        ns = self._ns
+        self._states(ns)
+        W, work = self._impulses(ns)
+        self.hook.reset()
+        if not ns:
+            return
+        ids = self._ids
+        W, work = W[:, :, ids], work[:, :, ids]
+        gap = self._gap[:ns]
+        if gap.any():
+            W[gap] = np.nan
+            work[gap] = np.nan
+        steps = self._steps[:ns].copy()
+        arrays = dict(t=steps * self.dt, step=steps, position=self._x[:ns].copy(),
+                      rotation=self._r[:ns].copy(), quat_wxyz=self._q[:ns].copy(),
+                      velocity=self._v[:ns].copy(),
+                      angular_velocity=self._w[:ns].copy())
+        for a, kind in enumerate(IMPULSE_KINDS):
+            arrays[f"impulse_{kind}_angular"] = W[:, a, :, :3]
+            arrays[f"impulse_{kind}_linear"] = W[:, a, :, 3:]
+        for a, kind in enumerate(WORK_KINDS):
+            arrays[f"work_{kind}"] = work[:, a]
         rows = decode_contacts(self.m, self.layout, self._raw)
-        self._steps, self._qpos, self._qvel, self._raw = [], [], [], []
-        arrays = dict(t=steps * self.dt, step=steps, position=x, quat_wxyz=q, velocity=v,
-                      angular_velocity=w)
         if rows is not None:
             arrays["contacts"] = rows
+        self._raw = []
+        self._ns = 0
+        self._gap[:] = False
         self.recorder.write(**arrays)
 
     def close(self, truncated: bool = False, reason: str | None = None) -> None:
@@ -416,33 +347,23 @@ class MujocoRecorder:
         return self.recorder.trajectory
 
 
-def state_offsets(m, spec=None) -> tuple[int, int, int]:
-    """Offsets of time, qpos and qvel in a state vector of ``spec`` (default
-    ``mjSTATE_FULLPHYSICS``, what ``mujoco.rollout`` returns)."""
-    mj = _mj()
-    s = mj.mjtState
-    spec = int(s.mjSTATE_FULLPHYSICS if spec is None else spec)
-    need = (int(s.mjSTATE_TIME), int(s.mjSTATE_QPOS), int(s.mjSTATE_QVEL))
-    if any(not spec & bit for bit in need):
-        raise AdapterError("record_rollout: the state spec must hold time, qpos and qvel "
-                           "(mjSTATE_FULLPHYSICS, as mujoco.rollout returns)")
-    offsets, pos = {}, 0
-    for bit in range(int(s.mjNSTATE)):
-        if spec & (1 << bit):
-            offsets[1 << bit] = pos
-            pos += int(mj.mj_stateSize(m, 1 << bit))
-    return tuple(offsets[b] for b in need)
+def recorder(m, d=None, **options) -> MujocoRecorder:
+    """``MujocoRecorder(m, d, **options)``: the first of the two lines."""
+    return MujocoRecorder(m, d, **options)
 
 
 def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batch: int = 0,
-                   spec=None, restitution=None, ground_restitution=None, writer: str | None = None,
+                   spec=None, restitution=None, writer: str | None = None,
                    keep: bool | None = None, **recorder_options):
     """Record the output of ``mujoco.rollout.rollout(m, d, initial_state, ...)``: ``state``
     (nbatch, nstep, nstate) or (nstep, nstate), the state after each step, and the
-    ``initial_state`` it started from (sample 0). A rollout returns no contacts: the log has none
-    (the analyzers then infer contacts from the motion). ``batch`` picks one rollout of a batch.
+    ``initial_state`` it started from (sample 0). A rollout returns neither contacts nor forces:
+    the log has no contact rows, and its model says that every body's impulses and work are
+    missing (``body_impulse_supplied`` all False). ``batch`` picks one rollout of a batch.
 
     Returns the Trajectory when kept (default: when there is no output path), else None."""
+    from dataclasses import replace
+
     from rblog.record.recorder import Recorder
 
     mj = _mj()
@@ -458,21 +379,32 @@ def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batc
                            f"{x0.shape}, expected (nstep, {nstate}) and ({nstate},) (mj_stateSize)")
     it, iq, iv = state_offsets(m, spec)
     rows = np.concatenate([x0[None], state])
-    model, layout, notes = inspect(m, d, restitution=restitution, ground_restitution=ground_restitution)
+    model, layout, notes = inspect(m, d, restitution=restitution)
+    model = replace(model, body_impulse_supplied=np.zeros_like(model.body_impulse_supplied),
+                    body_work_supplied=np.zeros_like(model.body_work_supplied))
     dt = float(m.opt.timestep)
     engine = {**settings(m), **notes, "contact_rows": {"separation": "before the step (none logged: "
-                                                       "mujoco.rollout returns no contacts)"}}
-    x, q, v, w = layout.state(rows[:, iq:iq + m.nq], rows[:, iv:iv + m.nv])
+                                                       "mujoco.rollout returns no contacts)"},
+              "impulses": "none (mujoco.rollout returns no forces)"}
+    kin = Kinematics(m, layout)
+    T, n = len(rows), len(layout)
+    x, r, v, w = np.empty((T, n, 3)), np.empty((T, n, 3, 3)), np.empty((T, n, 3)), np.empty((T, n, 3))
+    q = np.empty((T, n, 4))
+    for i in range(T):
+        kin(rows[i, iq:iq + m.nq], rows[i, iv:iv + m.nv], out=(x[i], r[i], v[i], w[i]))
+        q[i] = kin.quat_wxyz()
     step = np.rint(rows[:, it] / dt).astype(np.int64)
     rec = Recorder(model, rrd=rrd, mcap=mcap, dt=dt, writer=writer or f"mujoco {mj.__version__} "
                    "rollout via rblog.adapters", integrator=engine["integrator"],
                    combine_friction="max", combine_restitution="max", engine_settings=engine,
                    keep=keep, **recorder_options)
     with rec:
-        rec.write(t=step * dt, step=step, position=x, quat_wxyz=q, velocity=v, angular_velocity=w)
+        rec.write(t=step * dt, step=step, position=x, rotation=r, quat_wxyz=q, velocity=v,
+                  angular_velocity=w)
     return rec.trajectory if rec.keep else None
 
 
-__all__ = ["CONTACT_ROWS", "FreeBodies", "MujocoRecorder", "capture_contacts", "contacts",
-           "decode_contacts", "inspect", "record_rollout",
-           "settings", "state_offsets"]
+__all__ = ["BLOCK_STEPS", "CONTACT_ROWS", "Kinematics", "Layout", "MujocoRecorder", "ROW_FIELDS",
+           "Rows", "StepImpulses", "capture_contacts", "contacts", "decode_contacts", "gravity_of",
+           "inspect", "record_rollout", "recorder", "settings", "state_offsets", "suite_model",
+           "unsupported"]

@@ -34,15 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from rblog.errors import RblogError
-from rblog.contract.model import SHAPE_NONE, Model
+from rblog.errors import RblogError, CheckOptionError
+from rblog.contract.model import (BODY_KINEMATIC, BODY_STATIC, IMPULSE_KINDS, SHAPE_NONE,
+                                  SUPPLIED_LOGGED, SUPPLIED_MISSING, Model)
 from rblog.contract.trajectory import STATIC_BODY, Trajectory
 from rblog.analyze import _audit, geometry
 from rblog.analyze import tolerances as tol
-
-
-class CheckOptionError(RblogError):
-    """An unknown analyzer or tolerance name, or a tolerance that is not a number."""
 
 
 def _json_float(x):
@@ -77,6 +74,9 @@ class Finding:
         value, tolerance, unit: the measured value against its tolerance.
         step, t: when (step index and simulated time of the sample where it shows).
         bodies: which bodies (indices; names via model.body_name).
+        onset_step, onset_t: where a finding that grows began (the first sample past its
+            tolerance, e.g. the drift's onset), when that is earlier than ``step``; else None.
+            The viewers place the finding there.
     """
 
     analyzer: str
@@ -87,6 +87,8 @@ class Finding:
     step: int
     t: float
     bodies: list[int]
+    onset_step: int | None = None
+    onset_t: float | None = None
 
     def to_dict(self) -> dict:
         return _json(asdict(self))
@@ -130,6 +132,9 @@ class Result:
     events: list[dict] = field(default_factory=list)
     judged: bool = True
     not_judged: list[str] = field(default_factory=list)
+    #: what ``worst_value`` measures, in words ("resting penetration depth"): the tolerance is
+    #: that quantity's own
+    worst_what: str = ""
 
     def leave_out(self, lines: list[str]) -> "Result":
         """Add ``lines`` to ``not_judged`` and say them in the reason (the verdict is about the
@@ -281,6 +286,7 @@ class Analyzer:
             tolerance=worst.tolerance, unit=worst.unit, worst_step=worst.step, worst_t=worst.t,
             worst_bodies=worst.bodies, reason=reason, findings=findings[: tol.MAX_FINDINGS],
             stats={k: float(v) for k, v in stats.items()}, events=events[: tol.MAX_EVENTS],
+            worst_what=worst.what if worst.step is not None else "",
         )
 
 
@@ -303,9 +309,13 @@ def shapeless(model: Model) -> np.ndarray:
     return np.asarray(model.body_shape) == SHAPE_NONE
 
 
-def shapeless_note(model: Model, what: str) -> list[str]:
-    """``not_judged`` line for the bodies without a shape ([] when there are none)."""
-    idx = np.flatnonzero(shapeless(model))
+def shapeless_note(model: Model, what: str, known: np.ndarray | None = None) -> list[str]:
+    """``not_judged`` line for the bodies without a shape ([] when there are none), leaving out
+    the ``known`` ones ((N,) bool: e.g. those whose logged contact impulses say when they touch)."""
+    mask = shapeless(model)
+    if known is not None:
+        mask = mask & ~known
+    idx = np.flatnonzero(mask)
     if not len(idx):
         return []
     names = ", ".join(repr(model.body_name[i]) for i in idx[:3])
@@ -472,16 +482,142 @@ class Context:
     def mass(self) -> np.ndarray:
         return np.asarray(self.model.body_mass, float)
 
+    # --- the forces besides contacts ----------------------------------------------------------
+    # A body's momentum changes by gravity, its contacts and the other loads of
+    # Model.body_impulse_supplied's kinds (applied, passive, actuator, joint). Constant loads
+    # (m g, and the model's body_force_world / body_torque_world where the applied impulse is
+    # not logged) are handled in closed form (force_const, torque_const); the logged per-interval
+    # impulses of the other kinds are summed into ext_linear / ext_angular. p_eff / l_eff are the
+    # momenta with those logged impulses taken out (cumulatively from the first sample), so that
+    # a body under any logged load reads as a body under its constant loads and contacts only:
+    # every check written for free bodies (jumps, free flights, inferred contact impulses)
+    # applies to it unchanged. A body with a load of unknown size (a kind SUPPLIED_MISSING) or
+    # without dynamics (kinematic, static) is in momentum_unjudged, with the reason.
+    def _loads(self):
+        def f():
+            model, tr = self.model, self.traj
+            n = tr.n_bodies
+            sup = np.asarray(model.body_impulse_supplied, np.int64).reshape(n, len(IMPULSE_KINDS))
+            kind = np.asarray(model.body_kind, np.int64).reshape(n)
+            applied_logged = sup[:, IMPULSE_KINDS.index("applied")] == SUPPLIED_LOGGED
+            force = np.where(applied_logged[:, None], 0.0,
+                             np.asarray(model.body_force_world, float))
+            torque = np.where(applied_logged[:, None], 0.0,
+                              np.asarray(model.body_torque_world, float))
+            unjudged: dict[int, str] = {}
+            for i in np.flatnonzero(kind == BODY_KINEMATIC):
+                unjudged[int(i)] = "moves as its writer drives it (kinematic)"
+            for i in np.flatnonzero(kind == BODY_STATIC):
+                unjudged[int(i)] = "is static"
+            lin = ang = None
+            for kk in IMPULSE_KINDS[1:]:
+                col = sup[:, IMPULSE_KINDS.index(kk)]
+                for i in np.flatnonzero(col == SUPPLIED_MISSING):
+                    unjudged.setdefault(int(i), f"its {kk} impulses are not in the log")
+                if not (col == SUPPLIED_LOGGED).any():
+                    continue
+                got = tr.impulse(kk)
+                if got is None:
+                    continue
+                a, b = (np.nan_to_num(x, nan=0.0) for x in got)
+                lin = a.copy() if lin is None else lin + a
+                ang = b.copy() if ang is None else ang + b
+            return dict(force=force, torque=torque, unjudged=unjudged, ext_lin=lin, ext_ang=ang)
+        return self.cached("loads", f)
+
+    @property
+    def force_const(self) -> np.ndarray:
+        """(N, 3) constant applied force besides gravity (N): body_force_world, or 0 where the
+        log carries the applied impulses (they include it)."""
+        return self._loads()["force"]
+
+    @property
+    def torque_const(self) -> np.ndarray:
+        """(N, 3) constant applied torque (N m), likewise."""
+        return self._loads()["torque"]
+
+    @property
+    def momentum_unjudged(self) -> dict[int, str]:
+        """Bodies whose momentum cannot be judged: body index -> the reason."""
+        return self._loads()["unjudged"]
+
+    @property
+    def ext_linear(self) -> np.ndarray | None:
+        """(T, N, 3) logged non-contact impulses besides gravity and force_const over the
+        interval ending at each sample (N s, world), or None when the log has none."""
+        return self._loads()["ext_lin"]
+
+    @property
+    def ext_angular(self) -> np.ndarray | None:
+        """(T, N, 3) their angular part about each body's centre of mass (N m s), or None."""
+        return self._loads()["ext_ang"]
+
+    def _eff(self, name):
+        def f():
+            raw = getattr(self.traj, name)
+            ext = self.ext_linear if name == "linear_momentum" else self.ext_angular
+            if ext is None:
+                return raw
+            cum = np.cumsum(ext[1:], axis=0)
+            out = np.array(raw, float, copy=True)
+            out[1:] -= cum
+            return out
+        return self.cached(("eff", name), f)
+
+    @property
+    def loaded(self) -> np.ndarray:
+        """(N,) bool: bodies that are not judged, or on which a logged non-contact load besides
+        the constant ones acts at some interval (their energy and impacts need that load's
+        work and moment arm, which a free body's checks leave out)."""
+        def f():
+            out = np.zeros(self.traj.n_bodies, bool)
+            out[list(self.momentum_unjudged)] = True
+            for ext in (self.ext_linear, self.ext_angular):
+                if ext is not None and len(ext) > 1:
+                    out |= np.abs(ext[1:]).max(axis=(0, 2)) > 0
+            return out
+        return self.cached("loaded", f)
+
+    def groups_with(self, grp: "Groups", bodies: np.ndarray) -> np.ndarray:
+        """(C,) bool: the groups of ``grp`` with a member among ``bodies`` ((N,) bool)."""
+        if not len(grp):
+            return np.zeros(0, bool)
+        return np.bincount(grp.mem_group, weights=bodies[grp.mem_i].astype(float),
+                           minlength=len(grp)) > 0
+
+    @property
+    def p_eff(self) -> np.ndarray:
+        """(T, N, 3) linear momentum less the logged non-contact impulses since the first sample."""
+        return self._eff("linear_momentum")
+
+    @property
+    def l_eff(self) -> np.ndarray:
+        """(T, N, 3) angular momentum (about each centre of mass) less the logged non-contact
+        angular impulses since the first sample."""
+        return self._eff("angular_momentum")
+
     @property
     def accel(self) -> np.ndarray:
-        """(N, 3) acceleration of a free body: g + F/m (m/s^2)."""
+        """(N, 3) acceleration of a body under its constant loads: g + force_const/m (m/s^2)."""
         return self.cached("accel", lambda: np.asarray(self.model.gravity, float)[None, :]
-                           + np.asarray(self.model.body_force_world, float) / self.mass[:, None])
+                           + self.force_const / self.mass[:, None])
 
     @property
     def has_torque(self) -> np.ndarray:
-        return self.cached("torque", lambda: np.abs(
-            np.asarray(self.model.body_torque_world, float)).max(axis=1) > 0)
+        return self.cached("torque", lambda: np.abs(self.torque_const).max(axis=1) > 0)
+
+    def contact_impulse_known(self) -> np.ndarray:
+        """(N,) bool: bodies whose contact impulses the log carries at every interval (so when
+        they touch anything is known, whatever their shapes)."""
+        logged = self.logged_contact_impulse()
+        if logged is None or self.traj.n_samples < 2:
+            return np.zeros(self.traj.n_bodies, bool)
+        return ~np.isnan(logged[0][1:]).any(axis=(0, 2))
+
+    def logged_contact_impulse(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(linear, angular) (T, N, 3) logged per-interval contact impulses, NaN for bodies
+        that do not log them; None when the log has none."""
+        return self.cached("contact_impulse", lambda: self.traj.impulse("contact"))
 
     def _kin(self):
         def f():
@@ -492,16 +628,24 @@ class Context:
             jump = np.empty((kn, n), np.bool_)
             sweep = np.empty((kn, n))
             c = np.ascontiguousarray
-            _audit.kinematics(c(tr.t, dtype=np.float64), c(tr.position, dtype=np.float64),
-                              c(tr.velocity, dtype=np.float64),
-                              c(tr.linear_momentum, dtype=np.float64),
-                              c(tr.angular_momentum, dtype=np.float64),
-                              c(tr.angular_velocity, dtype=np.float64), c(self.mass),
-                              c(self.mass[:, None] * self.accel, dtype=np.float64),
-                              c(self.model.body_torque_world, dtype=np.float64),
-                              c(self.rho, dtype=np.float64),
-                              c(np.asarray(self.model.body_inertia_diag, float).max(axis=1)),
-                              float(tol.MOMENTUM_JUMP_REL), *out, jump, sweep)
+
+            def kernel(p, l, out, jump, sweep):
+                _audit.kinematics(c(tr.t, dtype=np.float64), c(tr.position, dtype=np.float64),
+                                  c(tr.velocity, dtype=np.float64), c(p, dtype=np.float64),
+                                  c(l, dtype=np.float64),
+                                  c(tr.angular_velocity, dtype=np.float64), c(self.mass),
+                                  c(self.mass[:, None] * self.accel, dtype=np.float64),
+                                  c(self.torque_const, dtype=np.float64),
+                                  c(self.rho, dtype=np.float64),
+                                  c(np.asarray(self.model.body_inertia_diag, float).max(axis=1)),
+                                  float(tol.MOMENTUM_JUMP_REL), *out, jump, sweep)
+
+            # energies and speeds from the logged momenta; jumps from the effective ones (the
+            # logged non-contact impulses taken out), in a second pass only when they differ
+            kernel(tr.linear_momentum, tr.angular_momentum, out, jump, sweep)
+            if self.ext_linear is not None:
+                scratch = [np.empty((t_n, n)) for _ in range(4)]
+                kernel(self.p_eff, self.l_eff, scratch, jump, np.empty((kn, n)))
             return dict(speed=out[0], spin=out[1], ke=out[2], u=out[3], jump=jump, sweep=sweep)
         return self.cached("kin", f)
 
@@ -520,12 +664,12 @@ class Context:
         return self.cached("rho", lambda: geometry.bounding_radius(self.model))
 
     def impulse(self, k: np.ndarray, i: np.ndarray) -> np.ndarray:
-        """(P, 3) contact impulse of bodies i over intervals k (N s):
-        ``J = P(k+1) - P(k) - (m g + F) dt``. Constant forces change momentum exactly in every
-        integrator, so a free body has J = 0 to round-off."""
+        """(P, 3) contact impulse of bodies i over intervals k (N s), inferred from the momenta:
+        ``J = P_eff(k+1) - P_eff(k) - (m g + F) dt``. Constant forces change momentum exactly in
+        every integrator, so a free body has J = 0 to round-off."""
         out = np.empty((len(k), 3))
         c = np.ascontiguousarray
-        _audit.impulse_kernel(c(self.traj.linear_momentum, dtype=np.float64),
+        _audit.impulse_kernel(c(self.p_eff, dtype=np.float64),
                               c(self.dts, dtype=np.float64), c(self.mass, dtype=np.float64),
                               c(self.accel, dtype=np.float64), c(k, dtype=np.int64),
                               c(i, dtype=np.int64), out)
@@ -604,6 +748,9 @@ class Context:
                     key = np.unique((dk * n + da) * n + db)
                     dk, da, db = key // (n * n), (key // n) % n, key % n
             none = shapeless(self.model)
+            logged = self.logged_contact_impulse()
+            # a body whose contact impulses are logged touches nothing where they are zero
+            none &= ~self.contact_impulse_known()
             if none.any() and not len(c) and kn:
                 # a body without a shape in a log without contact rows: its contacts cannot be
                 # found from the poses. It may touch an unknown static feature at any interval
@@ -622,6 +769,18 @@ class Context:
                 if len(dk):
                     key = np.unique((dk * n + da) * n + db)
                     dk, da, db = key // (n * n), (key // n) % n, key % n
+            if logged is not None and kn:
+                # a body whose logged contact impulse over an interval is not zero touched
+                # something in it, seen by the poses and contact rows or not (a contact between
+                # two samples): where nothing else is in reach, an unknown static feature
+                lin, ang = logged
+                hit = (np.abs(np.nan_to_num(lin[1:])).max(axis=2) > 0) | \
+                    (np.abs(np.nan_to_num(ang[1:])).max(axis=2) > 0)
+                add = hit & (n_static == 0)
+                add[dk, da] = False
+                add[dk, db] = False
+                n_static = np.where(add, 1, n_static)
+                static_id = np.where(add, -3, static_id)
             anyt = n_static > 0
             anyt[dk, da] = True
             anyt[dk, db] = True

@@ -24,14 +24,10 @@ import numpy as np
 
 from rblog.analyze import tolerances as T
 from rblog.contract.trajectory import Trajectory
-from rblog.errors import RblogError
+from rblog.errors import RblogError, IncompatibleLogs
 
 #: relative difference of sizes, masses and inertias still counted as the same body table
 SAME_BODY_REL = 1e-9
-
-
-class IncompatibleLogs(RblogError):
-    """The two logs do not describe the same bodies, or share no sample time."""
 
 
 @dataclass

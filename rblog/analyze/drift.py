@@ -178,7 +178,7 @@ class DriftAnalyzer(Analyzer):
                     f"(tol {self.tol[tkey]:.3g}) at t = {t[kmax]:.6g} s; past tolerance from "
                     f"t = {t[k0]:.6g} s, {_growth(slope[j], log_rate[j], exponential[j])}",
                     float(v[kmax]), self.tol[tkey], "1", int(tr.step[kmax]), float(t[kmax]),
-                    [int(b)],
+                    [int(b)], onset_step=int(tr.step[k0]), onset_t=float(t[k0]),
                 ))
             jw = int(np.argmax(per_body_ratio[flagged]))
             stats["onset_t"] = float(t[int(onset.min())])

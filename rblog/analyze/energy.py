@@ -40,6 +40,88 @@ from rblog.analyze.events import configured_restitution, impact_events
 _TINY = 1e-300
 
 
+def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
+    """The energy columns of the drift check with the bodies under logged loads joined into
+    articulated trees (``body_parent`` links; a body and its descendants down to free bodies),
+    or None when no body is under a logged load (every column a body, as before).
+
+    A tree's column: touching nothing when none of its members does; its energy is the sum of
+    its members' less the logged work of their loads since the first sample (``work_applied``,
+    ``work_passive``, ``work_actuator``); its mass, speed and acceleration the sum, the largest
+    and the largest of its members'. Ideal joints (no friction in them, no limit violated) pass
+    energy between a tree's bodies and do no net work on it, so this sum is conserved up to
+    the integrator's error, the same dt allowance as a free body's. A tree with a member whose
+    load has no logged work (its impulse kind logged or missing, its work missing) is not
+    judged, and ``not_judged`` says which.
+
+    Returns (free, e, ke, u, sp, m, amag, labels, members) over the columns.
+    """
+    from rblog.contract.model import (BODY_KINEMATIC, BODY_STATIC, IMPULSE_KINDS, SUPPLIED_NONE,
+                                      WORK_KINDS)
+
+    tr, model = ctx.traj, ctx.model
+    loaded = ctx.loaded
+    if not loaded.any():
+        return None
+    n = tr.n_bodies
+    parent = np.asarray(model.body_parent, np.int64).reshape(n)
+    kind = np.asarray(model.body_kind, np.int64).reshape(n)
+    root = np.arange(n)
+    for _ in range(n):  # follow parents up to a body on the world (depth <= n)
+        up = parent[root]
+        step_up = (up >= 0) & (kind[np.maximum(up, 0)] != BODY_STATIC)
+        if not step_up.any():
+            break
+        root = np.where(step_up, up, root)
+    # the work of each load kind, where its impulse acts: a kind whose impulse is logged or
+    # unknown must have its work logged (or be known absent)
+    isup = np.asarray(model.body_impulse_supplied, np.int64).reshape(n, len(IMPULSE_KINDS))
+    wsup = np.asarray(model.body_work_supplied, np.int64).reshape(n, len(WORK_KINDS))
+    work_known = np.ones(n, bool)
+    work = np.zeros((tr.n_samples, n))
+    for j, kk in enumerate(WORK_KINDS):
+        acts = isup[:, IMPULSE_KINDS.index(kk)] != SUPPLIED_NONE
+        w = tr.work(kk)
+        known = wsup[:, j] == SUPPLIED_NONE
+        if w is not None:
+            known |= ~np.isnan(w[1:]).any(axis=0)
+            work += np.nan_to_num(w)
+        work_known &= ~acts | known
+    cum = np.concatenate([np.zeros((1, n)), np.cumsum(work[1:], axis=0)])
+    e = e - cum
+    rigid = (kind == BODY_KINEMATIC) | (kind == BODY_STATIC)
+    roots = np.unique(root[~rigid])
+    cols = []
+    for r in roots:
+        mem = np.flatnonzero((root == r) & ~rigid)
+        cols.append(mem)
+    bad = [c for c in cols if not work_known[c].all()]
+    ok = [c for c in cols if work_known[c].all()]
+    if bad:
+        names = ", ".join(repr(model.body_name[c[0]]) for c in bad[:3])
+        more = f" +{len(bad) - 3} more" if len(bad) > 3 else ""
+        not_judged.append(f"energy of {len(bad)} bod{'ies' if len(bad) > 1 else 'y'} or tree(s) "
+                          f"({names}{more}) not judged: the work of a load on them is not in "
+                          "the log")
+    c_n = len(ok)
+    kn = free.shape[0]
+    f_free = np.zeros((kn, c_n), bool)
+    f_e, f_ke, f_u, f_sp = (np.zeros((tr.n_samples, c_n)) for _ in range(4))
+    f_m, f_a = np.zeros(c_n), np.zeros(c_n)
+    labels = []
+    for j, c in enumerate(ok):
+        f_free[:, j] = free[:, c].all(axis=1)
+        f_e[:, j] = e[:, c].sum(axis=1)
+        f_ke[:, j] = ke[:, c].sum(axis=1)
+        f_u[:, j] = u[:, c].sum(axis=1)
+        f_sp[:, j] = sp[:, c].max(axis=1)
+        f_m[j] = m[c].sum()
+        f_a[j] = amag[c].max()
+        lab = body_label(model, int(c[0]))
+        labels.append(lab if len(c) == 1 else f"the tree of {lab} ({len(c)} bodies)")
+    return f_free, f_e, f_ke, f_u, f_sp, f_m, f_a, labels, [list(map(int, c)) for c in ok]
+
+
 class EnergyAnalyzer(Analyzer):
     name = "energy"
     description = ("energy drift of free bodies under conservative forces, and energy gain "
@@ -74,9 +156,19 @@ class EnergyAnalyzer(Analyzer):
         amag = np.linalg.norm(ctx.accel, axis=1)
         sp = ctx.speed
         tch = ctx.touches(cd)
+        not_judged: list[str] = []
 
-        # ---- drift over contact-free stretches
-        free = np.ascontiguousarray(~tch["any"] & ~ctx.has_torque[None, :])  # (T-1, N)
+        # ---- drift over contact-free stretches: free bodies under their constant loads one by
+        # one; bodies under logged loads (joints, actuators, damping, pushes) as whole
+        # articulated trees, whose energy less the logged work of those loads is conserved
+        # (ideal joints do no net work on a tree; rblog.analyze.energy.trees)
+        free = ~tch["any"] & ~ctx.has_torque[None, :]  # (T-1, N)
+        tr_cols = trees(ctx, free, e, ke, u, sp, m, amag, not_judged)
+        if tr_cols is not None:
+            free, e, ke, u, sp, m, amag, labels, _ = tr_cols
+        else:
+            labels = [body_label(model, b) for b in range(n)]
+        free = np.ascontiguousarray(free)
         cap = 1024
         while True:
             segs = np.empty((cap, 4), np.int64)  # body, first sample, last sample, worst sample
@@ -94,24 +186,28 @@ class EnergyAnalyzer(Analyzer):
             cap = cnt
         segs, vals = segs[:cnt], vals[:cnt]
         stats["free_stretches"] = float(cnt)
+        members = (lambda c: [c]) if tr_cols is None else (lambda c: tr_cols[-1][c])
         if cnt:
             j = int(np.argmax(vals[:, 0]))
             b, k = int(segs[j, 0]), int(segs[j, 3])
-            worst.offer(vals[j, 0], vals[j, 1], vals[j, 2], "1", step[k], t[k], [b],
+            worst.offer(vals[j, 0], vals[j, 1], vals[j, 2], "1", step[k], t[k], members(b),
                         "relative energy drift in a contact-free stretch")
             bad = np.nonzero(vals[:, 0] > 1.0)[0]
             n_found += len(bad)
             for s_ in bad[np.argsort(-vals[bad, 0])][: T.MAX_FINDINGS]:
                 b, k0, k = int(segs[s_, 0]), int(segs[s_, 1]), int(segs[s_, 3])
                 ratio, rel, tol_rel, scale, rate = vals[s_]
+                where = ("in free flight" if tr_cols is None or len(members(b)) == 1
+                         and not ctx.loaded[members(b)[0]] else
+                         "less the logged work of its loads, touching nothing,")
                 findings.append(Finding(
                     self.name,
-                    f"{body_label(model, b)}: energy {'grows' if e[k, b] > e[k0, b] else 'drops'}"
-                    f" by {abs(e[k, b] - e[k0, b]):.3g} J in free flight between t = {t[k0]:.6g} "
+                    f"{labels[b]}: energy {'grows' if e[k, b] > e[k0, b] else 'drops'}"
+                    f" by {abs(e[k, b] - e[k0, b]):.3g} J {where} between t = {t[k0]:.6g} "
                     f"and {t[k]:.6g} s: {rel:.3g} of the flight's energy scale {scale:.3g} J "
                     f"(its largest kinetic energy or potential-energy range; independent of the "
                     f"potential's zero), limit {tol_rel:.3g} (rate {rate:+.3g}/s)",
-                    float(rel), float(tol_rel), "1", int(step[k]), float(t[k]), [b]))
+                    float(rel), float(tol_rel), "1", int(step[k]), float(t[k]), members(b)))
 
         # ---- gain across contact events (rblog.analyze.events: consecutive intervals of one
         # contact joined, so a soft contact that stores and gives back energy is judged once)
@@ -121,6 +217,13 @@ class EnergyAnalyzer(Analyzer):
             rest = configured_restitution(ev, model, tr.info.combine_restitution)
             torque_free = grp.sum(ctx.has_torque[grp.mem_i].astype(float))[ev.first] == 0
             check = (rest <= 1.0) & torque_free
+            loaded = ctx.groups_with(grp, ctx.loaded)[ev.first]
+            if (check & loaded).any():
+                not_judged.append(
+                    f"the energy across {int((check & loaded).sum())} contact event(s) of bodies "
+                    "under logged loads (joints, actuators, damping): their work over the event "
+                    "is not separated from the contact's")
+            check &= ~loaded
             kscale = np.maximum(ev.ke_before, ev.ke_after)
             # + the elastic energy a compliant contact may hold at the event's first sample
             # (rblog.analyze.events.stored_energy): given back after it, it is no gain
@@ -158,6 +261,7 @@ class EnergyAnalyzer(Analyzer):
         if ctx.has_torque.any():
             stats["bodies_with_torque_skipped"] = float(ctx.has_torque.sum())
         res = self.result(worst, findings, stats, n_findings=n_found)
+        res.leave_out(not_judged)
         return res.leave_out([] if len(tr.contacts) else shapeless_note(
             tr.model, "their free-flight energy (the log has no contact rows, and their contacts "
-                      "cannot be told from the poses)"))
+                      "cannot be told from the poses)", known=ctx.contact_impulse_known()))

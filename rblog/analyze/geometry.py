@@ -36,6 +36,7 @@ import numpy as np
 
 from rblog.analyze import _audit
 from rblog.analyze.tolerances import WITNESS_BAND_M
+from rblog.contract.orientation import quat_wxyz_to_matrix
 from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE, Model
 
 #: thickness of a box's touching feature (m; see WITNESS_BAND_M)
@@ -47,21 +48,9 @@ _AXIS_EPS = 1e-6
 assert (_audit.SHAPE_SPHERE, _audit.SHAPE_BOX) == (SHAPE_SPHERE, SHAPE_BOX)
 
 
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(..., 4) wxyz quaternions (normalized here) -> (..., 3, 3) body->world matrices."""
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    r = np.empty(q.shape[:-1] + (3, 3))
-    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    r[..., 0, 1] = 2 * (x * y - w * z)
-    r[..., 0, 2] = 2 * (x * z + w * y)
-    r[..., 1, 0] = 2 * (x * y + w * z)
-    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    r[..., 1, 2] = 2 * (y * z - w * x)
-    r[..., 2, 0] = 2 * (x * z - w * y)
-    r[..., 2, 1] = 2 * (y * z + w * x)
-    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return r
+#: (..., 4) wxyz quaternions (normalized) -> (..., 3, 3) body->world matrices: the contract's own
+#: conversion (rblog.contract.orientation), the same one every reader of a log uses
+quat_to_matrix = quat_wxyz_to_matrix
 
 
 def bounding_radius(model: Model) -> np.ndarray:

@@ -51,7 +51,7 @@ from rblog.analyze import tolerances as T
 from rblog.analyze.base import Finding, Result
 from rblog.analyze.suite import check as check_suite
 from rblog.contract.trajectory import Trajectory
-from rblog.errors import RblogError
+from rblog.errors import RblogError, AuditFailed
 
 #: analyzers whose findings are final as soon as they appear on a prefix (module docstring)
 FINAL_AT_ONCE = frozenset({"drift", "tunneling"})
@@ -67,20 +67,6 @@ HOLD_SAMPLES = 25
 #: the run 1.21-1.30x as long as with the logs alone; at 0.1, 4-5 prefix checks, wall 0.99-1.18x,
 #: process CPU 1.17-1.28x (docs/live-audit.md)
 BUDGET_FRACTION = 0.1
-
-
-class AuditFailed(RblogError):
-    """``--fail-fast``: the live audit found a problem; the run stopped there (logs closed,
-    readable, marked truncated). Exit code 1, as a failed ``rblog check``."""
-
-    exit_code = 1
-
-    def __init__(self, finding: "LiveFinding"):
-        self.finding = finding
-        f = finding.finding
-        super().__init__(f"live audit: {finding.analyzer} finding at t = {f.t:.6g} s (step "
-                         f"{f.step}): {f.message}; run stopped (--fail-fast), logs keep every "
-                         "sample written before it")
 
 
 def finding_key(analyzer: str, f: Finding) -> tuple:

@@ -79,6 +79,20 @@ from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_
 _TINY = 1e-300
 
 
+def _unjudged_line(model, unjudged: dict[int, str]) -> str:
+    """One not-judged line for the bodies of Context.momentum_unjudged, grouped by reason."""
+    by_reason: dict[str, list[int]] = {}
+    for b, why in unjudged.items():
+        by_reason.setdefault(why, []).append(b)
+    parts = []
+    for why, bodies in by_reason.items():
+        names = ", ".join(repr(model.body_name[b]) for b in bodies[:3])
+        more = f" +{len(bodies) - 3} more" if len(bodies) > 3 else ""
+        parts.append(f"{len(bodies)} bod{'ies' if len(bodies) > 1 else 'y'} ({names}{more}): "
+                     f"{why.replace('its ', 'their ') if len(bodies) > 1 else why}")
+    return "momentum not judged for " + "; ".join(parts)
+
+
 def static_feature_of_points(model, point, normal):
     """For logged contacts with static geometry: the feature nearest the point (-1 ground, m
     static box m)."""
@@ -170,24 +184,34 @@ class MomentumAnalyzer(Analyzer):
         # the impact events first: the energy analyzer shares them, and when the analyzers run
         # in threads it would otherwise wait for them until the end of this analysis
         impact_events(ctx, cd, self.tol["dt_factor"])
-        self._ctx, self._grp, self._tr, self._model = ctx, grp, tr, tr.model
         self._not_judged: list[str] = []
+        unjudged = ctx.momentum_unjudged
+        if unjudged:
+            bad = np.zeros(tr.n_bodies, bool)
+            bad[list(unjudged)] = True
+            grp = grp.subset(~ctx.groups_with(grp, bad))
+            self._not_judged.append(_unjudged_line(tr.model, unjudged))
+        self._ctx, self._grp, self._tr, self._model = ctx, grp, tr, tr.model
         self._worst = Worst("1", self.tol["linear_rel"])
         self._findings: list[Finding] = []
         self._n_found = 0
         stats: dict[str, float] = {"groups": float(len(grp))}
+        self._balance(stats)
         self._closed(stats)
         self._flights(stats)
         self._single_static(stats)
         events = self._events(stats)
         self._logged_cone(stats)
         ok_reason = "no contacts or momentum jumps found" if not len(grp) else ""
+        if stats.get("balance_intervals"):
+            ok_reason = ""
         res = self.result(self._worst, self._findings, stats, events, ok_reason=ok_reason,
                           n_findings=self._n_found)
         res.leave_out(self._not_judged)
         return res.leave_out([] if len(tr.contacts) else shapeless_note(
             tr.model, "their free flights and collisions (the log has no contact rows, and "
-                      "their contacts cannot be told from the poses)"))
+                      "their contacts cannot be told from the poses)",
+            known=ctx.contact_impulse_known()))
 
     # --- pieces -----------------------------------------------------------------------------
     def _add(self, flag, ratio, make):
@@ -202,6 +226,70 @@ class MomentumAnalyzer(Analyzer):
         model = self._model
         return " and ".join(body_label(model, i) for i in bodies[:3]) + (
             " ..." if len(bodies) > 3 else "")
+
+    def _balance(self, stats):
+        """Bodies whose log carries their contact impulses: over every interval, the momentum
+        change must equal the logged impulses plus the constant loads,
+        ``P(k+1) - P(k) = (m g + F) dt + J_contact + J_other`` and ``L(k+1) - L(k) = tau dt +
+        J_contact,ang + J_other,ang`` (J_other: the logged applied, passive, actuator and joint
+        impulses, taken out in Context.p_eff / l_eff), at any stride and for any integrator
+        whose writer sums the impulses over every step of the interval. Relative to the
+        interval's scale m (max |v| + |a| dt) + |J_contact| (angular: max |L| + |J_contact,ang|),
+        floored as the flights' are. One finding per body: its worst interval."""
+        ctx, tr, model = self._ctx, self._tr, self._model
+        logged = ctx.logged_contact_impulse()
+        if logged is None or tr.n_samples < 2:
+            return
+        jl, ja = logged
+        judged = ~np.isnan(jl[1:]).any(axis=(0, 2))
+        if ctx.momentum_unjudged:
+            judged[list(ctx.momentum_unjudged)] = False
+        bodies = np.flatnonzero(judged)
+        if not len(bodies):
+            return
+        t, step = tr.t, tr.step
+        dts = ctx.dts[:, None, None]
+        m = ctx.mass[bodies]
+        p, l_ = ctx.p_eff[:, bodies], ctx.l_eff[:, bodies]
+        jl, ja = jl[1:, bodies], ja[1:, bodies]
+        force = m[:, None] * ctx.accel[bodies]
+        r_lin = np.linalg.norm(np.diff(p, axis=0) - dts * force[None] - jl, axis=2)
+        r_ang = np.linalg.norm(np.diff(l_, axis=0) - dts * ctx.torque_const[bodies][None] - ja,
+                               axis=2)
+        sp = ctx.speed[:, bodies]
+        amag = np.linalg.norm(ctx.accel[bodies], axis=1)
+        s_lin = m * (np.maximum(sp[:-1], sp[1:]) + amag * ctx.dt_step
+                     + T.MOMENTUM_SPEED_FLOOR_MPS) + np.linalg.norm(jl, axis=2)
+        lmag = np.linalg.norm(tr.angular_momentum[:, bodies], axis=2)
+        i_max = np.asarray(model.body_inertia_diag, float)[bodies].max(axis=1)
+        s_ang = np.maximum(lmag[:-1], lmag[1:]) + i_max * T.MOMENTUM_SPIN_FLOOR_RADPS \
+            + np.linalg.norm(ja, axis=2)
+        stats["balance_bodies"] = float(len(bodies))
+        stats["balance_intervals"] = float(r_lin.size)
+        for what, res, scale, unit in (("linear", r_lin, s_lin, "kg m/s"),
+                                       ("angular", r_ang, s_ang, "kg m^2/s")):
+            tl = self.tol[f"{what}_rel"]
+            rel = res / scale
+            stats[f"balance_{what}_rel_max"] = float(rel.max())
+            k_w = np.argmax(rel, axis=0)  # each body's worst interval
+            rel_w = rel[k_w, np.arange(len(bodies))]
+            n_bad = (rel > tl).sum(axis=0)
+            self._worst.offer_array(rel_w, tl, "1", step[k_w + 1], t[k_w + 1], bodies,
+                                    f"relative {what} momentum balance residual")
+
+            def make(j, what=what, res=res, scale=scale, rel_w=rel_w, k_w=k_w, n_bad=n_bad,
+                     unit=unit, tl=tl):
+                b, k = int(bodies[j]), int(k_w[j])
+                return Finding(
+                    self.name,
+                    f"{body_label(model, b)}: {what} momentum change between t = {t[k]:.6g} and "
+                    f"{t[k + 1]:.6g} s differs from its logged impulses (contacts and every "
+                    f"other load) plus gravity by {res[k, j]:.3g} {unit}, {rel_w[j]:.3g} of the "
+                    f"interval's scale {scale[k, j]:.3g} {unit} (tol {tl:.3g}; "
+                    f"{int(n_bad[j])} interval{'s' if n_bad[j] != 1 else ''} over it)",
+                    float(rel_w[j]), tl, "1", int(step[k + 1]), float(t[k + 1]), [b])
+
+            self._add(rel_w > tl, rel_w / max(tl, _TINY), make)
 
     def _closed(self, stats):
         """Linear and angular momentum of closed groups (no static geometry in reach)."""
@@ -218,6 +306,7 @@ class MomentumAnalyzer(Analyzer):
         x0, x1 = tr.position[mk, mi], tr.position[mk + 1, mi]
         p0, p1 = tr.linear_momentum[mk, mi], tr.linear_momentum[mk + 1, mi]
         l0, l1 = tr.angular_momentum[mk, mi], tr.angular_momentum[mk + 1, mi]
+        ext_l, ext_a = ctx.ext_linear, ctx.ext_angular
         amag = np.linalg.norm(ctx.accel, axis=1)[mi]
         sp = np.maximum(ctx.speed[mk, mi], ctx.speed[mk + 1, mi])
         lin_res = np.linalg.norm(sub.sum(ctx.impulse(mk, mi)), axis=1)
@@ -229,9 +318,13 @@ class MomentumAnalyzer(Analyzer):
         c0 = sub.sum(m[:, None] * x0) / mtot[:, None]
         c1 = sub.sum(m[:, None] * x1) / mtot[:, None]
         r0, r1 = x0 - c0[g], x1 - c1[g]
-        force = np.asarray(model.body_force_world, float)[mi]
-        tau = np.asarray(model.body_torque_world, float)[mi]
+        force = ctx.force_const[mi]
+        tau = ctx.torque_const[mi]
         ext = dtm[:, None] * (tau + 0.5 * (np.cross(r0, force) + np.cross(r1, force)))
+        if ext_l is not None:
+            # logged loads over the interval, their moment taken at the interval's mid-point
+            # lever (as the constant force's: exact to first order in the interval)
+            ext = ext + 0.5 * np.cross(r0 + r1, ext_l[mk + 1, mi]) + ext_a[mk + 1, mi]
         ang = sub.sum(np.cross(r1, p1) + l1 - np.cross(r0, p0) - l0 - ext)
         ang_res = np.linalg.norm(ang, axis=1)
         i_max = np.asarray(model.body_inertia_diag, float).max(axis=1)[mi]
@@ -315,12 +408,15 @@ class MomentumAnalyzer(Analyzer):
         ctx, tr, model = self._ctx, self._tr, self._model
         t, step = tr.t, tr.step
         cd = self.tol["contact_distance_m"]
-        free = np.ascontiguousarray(~ctx.touches(cd)["any"])
+        free = ~ctx.touches(cd)["any"]
+        if ctx.momentum_unjudged:
+            free[:, list(ctx.momentum_unjudged)] = False
+        free = np.ascontiguousarray(free)
         if not free.any():
             stats["free_flights"] = 0.0
             return
         force = ctx.mass[:, None] * ctx.accel
-        tau = np.asarray(model.body_torque_world, float)
+        tau = ctx.torque_const
         i_max = np.asarray(model.body_inertia_diag, float).max(axis=1)
         p_floor = ctx.mass * (np.linalg.norm(ctx.accel, axis=1) * ctx.dt_step
                               + T.MOMENTUM_SPEED_FLOOR_MPS)
@@ -331,8 +427,8 @@ class MomentumAnalyzer(Analyzer):
             vals = np.empty((cap, 6))  # linear rel, scale, drift; angular rel, scale, drift
             c = np.ascontiguousarray
             cnt = _audit.flight_drift(c(free, dtype=np.bool_), c(tr.t, dtype=np.float64),
-                                      c(tr.linear_momentum, dtype=np.float64),
-                                      c(tr.angular_momentum, dtype=np.float64),
+                                      c(ctx.p_eff, dtype=np.float64),
+                                      c(ctx.l_eff, dtype=np.float64),
                                       c(ctx.speed, dtype=np.float64),
                                       c(ctx.mass, dtype=np.float64), c(force, dtype=np.float64),
                                       c(tau, dtype=np.float64), c(p_floor, dtype=np.float64),
@@ -478,6 +574,17 @@ class MomentumAnalyzer(Analyzer):
         # three or more): an impact when two or more bodies meet and one arrives faster than the
         # impact speed
         impact = ev.impact(self.tol["impact_speed_mps"])
+        if ctx.loaded.any():
+            # a member under a logged load (joints, actuators, damping): its approach and
+            # rebound are not free arcs, and the load does work across the event
+            loaded = ctx.groups_with(ev.groups, ctx.loaded)[ev.first] & impact
+            if loaded.any():
+                stats["impacts_under_load_not_judged"] = float(loaded.sum())
+                self._not_judged.append(
+                    f"{int(loaded.sum())} impact{'s' if loaded.sum() > 1 else ''} of bodies under "
+                    "logged loads (joints, actuators, damping) not judged for restitution and "
+                    "energy: their arcs are not free flights")
+            impact = impact & ~loaded
         stats["impacts"] = float(impact.sum())
         fast = approach >= self.tol["restitution_min_speed_mps"]
         # restitution the engine did not state (NaN in the body table: MuJoCo's soft contacts):
@@ -530,6 +637,8 @@ class MomentumAnalyzer(Analyzer):
         lost = ev.sphere & fast & ~ev.separated & ((ka < tr.n_samples - 1) | outlasts) \
             & (e_cfg * approach >= self.tol["lost_bounce_mps"]) & np.isfinite(approach)
         lost &= ~(ev.v_plus > 0)
+        if ctx.loaded.any():
+            lost &= ~ctx.groups_with(ev.groups, ctx.loaded)[ev.first]
         self._add(lost, e_cfg * approach, lambda j: Finding(
             self.name,
             f"{self._who(ev.members(j))}: bounce lost at the impact {when(j)}: arrives at "

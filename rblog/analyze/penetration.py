@@ -83,7 +83,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rblog.analyze import _audit, geometry
+from rblog.analyze import _audit
+from rblog.analyze import geometry, shapes
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
                                 combine_friction, shapeless, shapeless_note, static_material)
@@ -697,6 +698,65 @@ class PenetrationAnalyzer(Analyzer):
                     else float(speed_settled[r]),
                     "creep_m": None if np.isnan(creep[r]) else float(creep[r]),
                 })
-        ok = "" if nr or nrow else "no contacts found"
+        # ---- bodies the v2 shapes leave out: depth per geom pair, at every sample
+        g_find, g_rows = self.geom_depths(ctx, worst, stats)
+        findings += g_find
+        n_found += len(g_find)
+        ok = "" if nr or nrow or g_rows else "no contacts found"
         res = self.result(worst, findings, stats, events, ok_reason=ok, n_findings=n_found)
-        return res.leave_out(shapeless_note(model, "depth, jitter and creep of their contacts"))
+        what = "jitter and creep of their contacts (their depth is judged per geom pair)" \
+            if g_rows is not None else "depth, jitter and creep of their contacts"
+        return res.leave_out(shapeless_note(model, what))
+
+    def geom_depths(self, ctx: Context, worst: Worst, stats: dict):
+        """Penetration depth per geom pair at every sample for the bodies without a v2 shape
+        (rblog.analyze.shapes: every shape of the contract, the log's collision filter,
+        rblog.analyze.shapes.collide_mask). A pair deeper than min(transient_depth_m,
+        transient_frac x the thinner geom's smallest half-extent) at some sample is a finding
+        at its deepest sample. Returns (findings, number of pair-samples in contact, or None when
+        no body needs it)."""
+        tr = ctx.traj
+        model = tr.model
+        none = shapeless(model)
+        if not none.any() or not len(model.geom_type):
+            return [], None
+        geoms = shapes.model_geoms(model)
+        pos, rot = shapes.geom_poses(model, tr.position, tr.rotation)
+        k, i, j = shapes.broadphase(geoms, pos, rot, 0.0)
+        body = geoms.body
+        mine = (none[np.maximum(body[i], 0)] & (body[i] >= 0)) | \
+            (none[np.maximum(body[j], 0)] & (body[j] >= 0))
+        keep = mine & shapes.collide_mask(model, i, j)
+        k, i, j = k[keep], i[keep], j[keep]
+        d = shapes.pair_distance(geoms, pos, rot, k, i, j, with_points=False)
+        depth = np.maximum(-d["sep"], 0.0)
+        touching = depth > 0
+        stats["geom_pairs_touching"] = float(len(np.unique(i[touching] * len(body) + j[touching])))
+        stats["geom_depth_max_m"] = float(depth.max()) if len(depth) else 0.0
+        if not len(depth):
+            return [], 0
+        inner = shapes.inner_half_extent(geoms)
+        tol_ = np.minimum(self.tol["transient_depth_m"],
+                          self.tol["transient_frac"] * np.minimum(inner[i], inner[j]))
+        bodies = np.stack([body[i], body[j]], 1)
+        worst.offer_array(depth, tol_, "m", tr.step[k], tr.t[k], bodies,
+                          "penetration depth of a geom pair")
+        names = model.geom_name if model.geom_name is not None else [""] * len(body)
+        findings = []
+        over = np.nonzero(depth > tol_)[0]
+        pair = i[over] * len(body) + j[over]
+        for p_ in np.unique(pair):
+            rows = over[pair == p_]
+            r = rows[np.argmax(depth[rows])]
+            ga, gb = int(i[r]), int(j[r])
+            if body[ga] < 0:  # the moving geom first
+                ga, gb = gb, ga
+            label = lambda g: (f"geom {g} ({names[g]!r}) of "
+                               f"{body_label(model, int(body[g])) if body[g] >= 0 else 'the world'}")
+            findings.append(Finding(
+                self.name,
+                f"{label(ga)} is {depth[r] * 1e3:.3g} mm into {label(gb)} at t = "
+                f"{tr.t[k[r]]:.6g} s (tol {tol_[r] * 1e3:.3g} mm; {len(rows)} samples past it)",
+                float(depth[r]), float(tol_[r]), "m", int(tr.step[k[r]]), float(tr.t[k[r]]),
+                [int(b) for b in (body[ga], body[gb]) if b >= 0]))
+        return findings, int(touching.sum())

@@ -13,6 +13,7 @@ from rblog.analyze.base import Analyzer, CheckOptionError, Context, Finding, Res
 from rblog.analyze.consistency import ConsistencyAnalyzer
 from rblog.analyze.drift import DriftAnalyzer
 from rblog.analyze.energy import EnergyAnalyzer
+from rblog.analyze.joints import JointsAnalyzer
 from rblog.analyze.momentum import MomentumAnalyzer
 from rblog.analyze.penetration import PenetrationAnalyzer
 from rblog.analyze.tunneling import TunnelingAnalyzer
@@ -21,7 +22,7 @@ from rblog.analyze.tunneling import TunnelingAnalyzer
 ANALYZERS: dict[str, type[Analyzer]] = {
     cls.name: cls
     for cls in (ConsistencyAnalyzer, DriftAnalyzer, MomentumAnalyzer, PenetrationAnalyzer, EnergyAnalyzer,
-                TunnelingAnalyzer)
+                TunnelingAnalyzer, JointsAnalyzer)
 }
 
 
@@ -51,7 +52,7 @@ def default_tolerances() -> dict[str, float]:
 #: the order analyzers start in when they run in threads: the costliest first, so that the last to
 #: finish is a short one (bench_check.py), but consistency (which needs nothing shared) before
 #: penetration, which would wait for the proximity table momentum is computing
-_COST_ORDER = ("momentum", "consistency", "penetration", "energy", "drift", "tunneling")
+_COST_ORDER = ("momentum", "consistency", "penetration", "energy", "drift", "tunneling", "joints")
 
 _POOLS: dict[int, ThreadPoolExecutor] = {}
 _POOLS_LOCK = threading.Lock()

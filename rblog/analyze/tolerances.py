@@ -47,10 +47,37 @@ CONTACT_DISTANCE_M = 1e-3
 #: across) rests on its lowest edge. Only where the witness lies depends on it, not a separation.
 WITNESS_BAND_M = 1e-4
 
+#: GJK stops when the distance between two convex cores is known to within this (m; the gap
+#: between its upper bound |v| and lower bound v.w/|v|, csrc/audit/convex.cpp). For polytope
+#: cores (point, segment, box, mesh) GJK ends on the exact closest feature before reaching it;
+#: for cylinders and ellipsoids it is the error. 1e-10 m: five orders below the 1e-5 m scale of
+#: a contact finding, reached in ~20-60 iterations on curved pairs.
+GJK_TOL_M = 1e-10
+#: EPA stops when the penetration depth is known to within this (m; the gain of the support along
+#: the nearest face's normal): exact faces for polytopes, the error for curved cores.
+EPA_TOL_M = 1e-10
+#: Iteration cap of GJK and of EPA each (a pair that hits it is reported "not converged").
+#: EPA on a curved core converges slowest where the nearest boundary point is on a flat part of
+#: it (the depth error of a face of spacing s is s^2 / 2 R_curvature): of 10,000 deep
+#: sphere-ellipsoid poses 25 needed more than 256 iterations for EPA_TOL_M; polytope pairs end in
+#: <= 30.
+CONVEX_MAX_ITER = 1000
+
 #: Most findings kept per analyzer (the worst first); the count of all is in stats.
 MAX_FINDINGS = 200
 #: Most events (impacts, resting intervals) listed per analyzer; all are counted in stats.
 MAX_EVENTS = 500
+
+# --- joints ----------------------------------------------------------------------------------
+#: Round-off allowed in a joint's anchor separation and axis angle, in units of the log's float
+#: precision (eps of the position dtype) times the size of the numbers in the transform (m; 1 for
+#: angles): a pose is a product of a few rotations and sums per level of a kinematic chain, each
+#: good to a few ulps, and the reader rebuilds R from the logged quaternion (~4 ulps). 64 ulps:
+#: a MuJoCo chain of 4 hinges measures <= 0.5 ulp in its anchors and 5 ulps in its axes
+#: (tests/analyze/test_joints.py); pybullet's maximal-coordinates chain there is ~6e12 ulps
+#: (2.6 mm) apart. The step term of the tolerance (rblog/analyze/joints.py) is derived, not set
+#: here.
+JOINTS_ROUNDOFF_ULPS = 64.0
 
 # --- drift (rigidity) -------------------------------------------------------------------------
 #: ||R^T R - I||_F, recomputed from the logged rotation (dimensionless).

@@ -29,3 +29,14 @@ def derive_channels(mass, inv_inertia, gravity, position, linear_momentum, quat_
     _derive.derive_channels(mass, inv_inertia, gravity, position, linear_momentum, quat_wxyz,
                             rotation, angular_momentum, velocity, omega, e_trans, e_rot, e_pot,
                             ortho, qnorm, total_p, total_l, total_e, bool(stretched))
+
+
+def state_from_velocities(mass, inertia, quat_wxyz, velocity, omega, rotation, linear_momentum,
+                          angular_momentum):
+    """The logged state from a writer's: rotation (T, N, 3, 3) of the normalized quaternions
+    (T, N, 4; scalar first), linear_momentum = m v, angular_momentum = R (I * (R^T omega))
+    (world, about the centre of mass), written into the preallocated outputs. Inputs: mass (N,),
+    inertia (N, 3) principal moments, velocity and omega (T, N, 3) world; float64 C-contiguous.
+    C++ (csrc/contract/state.cpp), the GIL released."""
+    _derive.state_from_velocities(mass, inertia, quat_wxyz, velocity, omega, rotation,
+                                  linear_momentum, angular_momentum)

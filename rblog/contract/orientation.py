@@ -69,3 +69,16 @@ def rotvec_of_matrix(r: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["quat_wxyz_to_matrix", "matrix_to_quat", "rotvec_of_matrix"]
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a * b of (..., 4) scalar-first quaternions (broadcast): the rotation b
+    then a (for a body -> world and b geom -> body: geom -> world)."""
+    a = np.asarray(a, np.float64)
+    b = np.asarray(b, np.float64)
+    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
+                     aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from rblog.contract.model import Model
+from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS, Model
 
 CONTACT_RESTING = 0
 CONTACT_IMPACT = 1
@@ -56,7 +56,7 @@ class RunInfo:
     combine_friction: str = "geometric"
     combine_restitution: str = "max"
     engine_settings: dict = field(default_factory=dict)
-    log_format: int = 2
+    log_format: int = 3
 
 
 @dataclass
@@ -132,6 +132,17 @@ TOTAL_CHANNELS = {
     "total_angular_momentum": (3,),
     "total_energy": (),
 }
+#: per-interval, per-body channels (contract v3), optional: name -> trailing shape. Sample i
+#: holds what acted over the steps s with step[i-1] < s <= step[i] (sample 0: the steps since
+#: the recording began), world frame: impulses in N s (linear) and N m s (angular, about the
+#: body's centre of mass), work in J. A body that does not log a kind
+#: (Model.body_impulse_supplied / body_work_supplied) has NaN there; a channel no body logs is
+#: None on the Trajectory and absent from the log. Read them through Trajectory.impulse(kind) /
+#: work(kind), which also fill the zeros of forces an engine does not have.
+INTERVAL_CHANNELS = {
+    **{f"impulse_{k}_{part}": (3,) for k in IMPULSE_KINDS for part in ("linear", "angular")},
+    **{f"work_{k}": () for k in WORK_KINDS},
+}
 
 
 @dataclass
@@ -152,6 +163,8 @@ class Trajectory:
         ortho_error: (T, N) ||R^T R - I||_F.  quat_norm_error: (T, N) |q| - 1.
         total_linear_momentum: (T, 3).  total_angular_momentum: (T, 3) about the world origin
             (sum of x cross P + L).  total_energy: (T,) J.
+        impulse_<kind>_linear, impulse_<kind>_angular: (T, N, 3) or None, kind in
+            IMPULSE_KINDS; work_<kind>: (T, N) or None, kind in WORK_KINDS (INTERVAL_CHANNELS).
         contacts: contacts at the logged steps.
         truncated: True when the log ended early (interrupted or diverged run, cut file).
         failed: why the recording failed ('' when it did not): a write that raised (bad arrays,
@@ -184,6 +197,60 @@ class Trajectory:
     truncated: bool = False
     warnings: list[str] = field(default_factory=list)
     failed: str = ""
+    impulse_contact_linear: np.ndarray | None = None
+    impulse_contact_angular: np.ndarray | None = None
+    impulse_applied_linear: np.ndarray | None = None
+    impulse_applied_angular: np.ndarray | None = None
+    impulse_passive_linear: np.ndarray | None = None
+    impulse_passive_angular: np.ndarray | None = None
+    impulse_actuator_linear: np.ndarray | None = None
+    impulse_actuator_angular: np.ndarray | None = None
+    impulse_joint_linear: np.ndarray | None = None
+    impulse_joint_angular: np.ndarray | None = None
+    work_applied: np.ndarray | None = None
+    work_passive: np.ndarray | None = None
+    work_actuator: np.ndarray | None = None
+
+    def impulse(self, kind: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """(linear (T, N, 3), angular (T, N, 3)) of impulse ``kind`` (IMPULSE_KINDS): the
+        logged values, 0 for bodies whose engine has no such force (SUPPLIED_NONE), NaN for
+        bodies that miss it; None when no body's is known."""
+        from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_NONE
+
+        status = self.model.body_impulse_supplied[:, IMPULSE_KINDS.index(kind)]
+        lin = getattr(self, f"impulse_{kind}_linear")
+        if lin is None and not np.any(status == SUPPLIED_NONE):
+            return None
+        ang = getattr(self, f"impulse_{kind}_angular")
+        if np.all(status == SUPPLIED_LOGGED):
+            return lin, ang
+        shape = (self.n_samples, self.n_bodies, 3)
+        out = []
+        for a in (lin, ang):
+            a = np.full(shape, np.nan) if a is None else a.copy()
+            a[:, status == SUPPLIED_NONE] = 0.0
+            out.append(a)
+        return out[0], out[1]
+
+    def work(self, kind: str) -> np.ndarray | None:
+        """(T, N) work ``kind`` (WORK_KINDS), filled as :meth:`impulse`; None when no body's is
+        known."""
+        from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_NONE
+
+        status = self.model.body_work_supplied[:, WORK_KINDS.index(kind)]
+        w = getattr(self, f"work_{kind}")
+        if w is None and not np.any(status == SUPPLIED_NONE):
+            return None
+        if np.all(status == SUPPLIED_LOGGED):
+            return w
+        w = np.full((self.n_samples, self.n_bodies), np.nan) if w is None else w.copy()
+        w[:, status == SUPPLIED_NONE] = 0.0
+        return w
+
+    @property
+    def interval_channels(self) -> list[str]:
+        """The names of the INTERVAL_CHANNELS this trajectory holds."""
+        return [k for k in INTERVAL_CHANNELS if getattr(self, k) is not None]
 
     @property
     def n_samples(self) -> int:
@@ -205,7 +272,8 @@ class Trajectory:
 
     def slice(self, sl: slice) -> "Trajectory":
         """The samples ``sl`` (time axis) of this trajectory, with the contacts of those steps."""
-        kw = {name: getattr(self, name)[sl] for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS)}
+        kw = {name: getattr(self, name)[sl]
+              for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS, *self.interval_channels)}
         steps = kw["step"]
         c = self.contacts
         if len(steps):
@@ -223,6 +291,13 @@ class Trajectory:
             name: np.concatenate([getattr(p, name) for p in parts])
             for name in ("step", "t", *BODY_CHANNELS, *TOTAL_CHANNELS)
         }
+        for name in INTERVAL_CHANNELS:
+            got = [getattr(p, name) for p in parts]
+            if any(g is not None for g in got):
+                trail = INTERVAL_CHANNELS[name]
+                kw[name] = np.concatenate([
+                    g if g is not None else np.full((p.n_samples, p.n_bodies, *trail), np.nan)
+                    for g, p in zip(got, parts)])
         return Trajectory(
             first.model, first.info, contacts=Contacts.concat([p.contacts for p in parts]),
             truncated=any(p.truncated for p in parts),

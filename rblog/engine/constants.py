@@ -149,7 +149,7 @@ FRICTION_NEWTON_TOL = 1e-12
 #: rank-3 block (one self-equilibrated load pattern costs nothing); the regularised solve picks
 #: the smallest impulses, which keeps symmetric loads symmetric.
 BLOCK_REG = 1e-9
-# Static-friction anchor (solver.py, "Friction anchor"; ContactParams.static_friction_anchors).
+# Static-friction anchor (csrc/engine/contact_solver.cpp, "Friction anchor"; ContactParams.static_friction_anchors).
 # A pair whose friction stays strictly inside the Coulomb cone sticks, and static friction then
 # forbids any net slip; a velocity solve stopped after a finite number of sweeps leaves a
 # residual slip e (m/s) that, steady, adds up step after step (a twisting support at 7.5e-4 m/s
@@ -186,7 +186,7 @@ PROJECTION_RINGS = 2
 # solve what the solver leaves unconverged, at most ``velocity_tolerance`` (m/s). Resting contact
 # must never count as an impact (each "bounce" off a kick would make the body chatter), so the
 # threshold must exceed |a| h + velocity_tolerance; the restitution stage measures the approach
-# speed from the step's flight energy, u^2 = w0^2 - 2 a_n s0 (restitution.py), which for a
+# speed from the step's flight energy, u^2 = w0^2 - 2 a_n s0 (csrc/engine/restitution.cpp), which for a
 # resting point (s0 <= 0, w0 the leftover) is at most the leftover, and for a point hovering a
 # distance d above its contact is the real free-fall speed sqrt(2 |a| d). The margin of a second
 # kick: an impact at u = 2 |a| h with e <= 1 flies for 2 e u / |a| <= 4 h, a bounce of a few steps
@@ -284,7 +284,7 @@ class ContactParams:
         sleep_time: s. How long an island must stay below ``sleep_speed`` before it sleeps.
         warm_starting: start each step's solve from the previous step's impulses (matched by
             feature id). Turning it off is only useful to demonstrate why it exists.
-        static_friction_anchors: run the anchor pass after the velocity solve (solver.py,
+        static_friction_anchors: run the anchor pass after the velocity solve (contact_solver.cpp,
             "Friction anchor"): a sticking pair keeps the pose it stuck at, and its points' friction
             rows take back half their drift from it per step. On by default: the
             velocity solve stops at ``velocity_tolerance`` (1e-4 m/s), and a sticking contact's

@@ -28,7 +28,7 @@ squared), so omega = I_world^-1 L = R^-T I_b^-1 R^-1 L = |q|^-4 Q I_b^-1 Q^T L
 (rotation.hpp, omega_world_stretched): a body that grows while L is conserved
 turns slower, as a skater opening her arms, and its energy L.omega/2 falls as |q|^-4. (The
 shortcut I_world^-1 = R I_b^-1 R^T holds only for an orthonormal R; applied to R = |q|^2 Q it
-gave omega |q|^4 times too fast, a feedback that sped the stretch up: issue 19.) The rotation
+would give omega |q|^4 times too fast, a feedback that speeds the stretch up.) The rotation
 rate of the body is still omega, since q' = 1/2 (0, omega) q turns q v q* at omega whatever |q|.
 Only the stretch is unphysical for a rigid body; given the stretch, the rest is consistent.
 
@@ -43,7 +43,7 @@ McLachlan 1997).
 RK4 (``rk4``): classical RK4 on Euler's equations for the body momentum Lb = R^T L, the attitude by
 the fourth-order commutator-free Lie group method (CF4) driven by the stage angular velocities,
 then q turned about an axis normal to L so that R^T L points along the RK4 Lb (see
-csrc/engine/integrators.hpp, drift_rk4; until issue 17 it was RK4 on q alone with omega = R(q) I^-1 R(q)^T L, 7-40x
+csrc/engine/integrators.hpp, drift_rk4; RK4 on q alone, with omega = R(q) I^-1 R(q)^T L, is 7-40x
 less accurate at equal dt).
 
 Exact (``exact``): the closed-form torque-free flow (:mod:`rblog.engine.exact`: Jacobi elliptic

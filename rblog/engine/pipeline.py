@@ -50,7 +50,7 @@ import time
 
 import numpy as np
 
-from rblog.contract.model import Model
+from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, Model
 from rblog.contract.trajectory import Contacts, RunInfo, derive
 
 #: blocks each queue holds (the run loop's to the derive thread, and each lane's)
@@ -78,6 +78,7 @@ class BlockPipeline:
 
     def __init__(self, model: Model, info: RunInfo, drift, recorders):
         self.model, self.info, self.drift, self.recorders = model, info, drift, list(recorders)
+        self._last_step: int | None = None  # the last derived sample's step (applied impulses)
         self.queue: queue.Queue = queue.Queue(maxsize=QUEUE_BLOCKS)
         self.error: BaseException | None = None
         self.lanes: list[tuple[queue.Queue, threading.Thread]] = []
@@ -101,11 +102,13 @@ class BlockPipeline:
 
     # --- the run loop's side ------------------------------------------------------------------
     def submit(self, steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-               contacts: Contacts | None):
+               contacts: Contacts | None, impulses=None):
         """Queue one call's samples: steps (T,) global step indices; position (T, N, 3),
         linear_momentum (T, N, 3), quat_wxyz (T, N, 4), rotation (T, N, 3, 3),
         angular_momentum (T, N, 3) world frame (owned by the pipeline from now on); contacts
-        with global steps, or None. Waits while the queue is full; raises a recorder's error."""
+        with global steps, or None; impulses (T, N, 6): each sample's contact impulse over its
+        interval (linear, angular; world), or None. Waits while the queue is full; raises a
+        recorder's error."""
         if self.lockstep:
             with self._cond:
                 self._cond.wait_for(lambda: min(self._handled) >= self._submitted
@@ -114,7 +117,7 @@ class BlockPipeline:
             raise self.error
         self._submitted += 1
         self.queue.put((steps, position, linear_momentum, quat_wxyz, rotation, angular_momentum,
-                        contacts))
+                        contacts, impulses))
 
     def _mark(self, lanes, n: int = 1):
         """Lockstep: recorders ``lanes`` handled ``n`` more submitted items (written, failed or
@@ -170,15 +173,39 @@ class BlockPipeline:
     def _derive(self, items):
         """One derived block from the raw samples of ``items`` (joined along time)."""
         if len(items) == 1:
-            steps, x, p, q, r, lw, contacts = items[0]
+            steps, x, p, q, r, lw, contacts, imp = items[0]
         else:
             steps, x, p, q, r, lw = (np.concatenate([it[k] for it in items]) for k in range(6))
             parts = [it[6] for it in items if it[6] is not None]
             contacts = Contacts.concat(parts) if parts else None
+            imp = None if any(it[7] is None for it in items) else \
+                np.concatenate([it[7] for it in items])
         dt = self.info.dt
         if contacts is not None:
             contacts.t = contacts.step * dt
-        return derive(self.model, self.info, steps, steps * dt, x, p, q, r, lw, contacts=contacts)
+        block = derive(self.model, self.info, steps, steps * dt, x, p, q, r, lw, contacts=contacts)
+        self._intervals(block, imp)
+        return block
+
+    def _intervals(self, block, imp):
+        """The block's per-interval channels that the run's model logs (SUPPLIED_LOGGED):
+        contact impulses from the step (``imp`` (T, N, 6)), applied ones from the constant
+        loads, n dt (F, tau) over the interval's n steps (the first sample's interval: the steps
+        since step 0)."""
+        m = self.model
+        logged = np.asarray(m.body_impulse_supplied) == SUPPLIED_LOGGED
+        steps = np.asarray(block.step, np.int64)
+        if logged[:, IMPULSE_KINDS.index("contact")].any() and imp is not None:
+            block.impulse_contact_linear = np.ascontiguousarray(imp[..., :3])
+            block.impulse_contact_angular = np.ascontiguousarray(imp[..., 3:])
+        if logged[:, IMPULSE_KINDS.index("applied")].any():
+            prev = np.concatenate([[self._last_step if self._last_step is not None else steps[0]],
+                                   steps[:-1]]) if len(steps) else steps
+            span = ((steps - prev) * self.info.dt)[:, None, None]
+            block.impulse_applied_linear = span * np.asarray(m.body_force_world, np.float64)[None]
+            block.impulse_applied_angular = span * np.asarray(m.body_torque_world, np.float64)[None]
+        if len(steps):
+            self._last_step = int(steps[-1])
 
     def _loop(self):
         broken = False  # deriving failed: nothing more can be written

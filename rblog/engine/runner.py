@@ -5,15 +5,17 @@ Python runs once per block (see :func:`samples_per_block`),
 never per step. A diverging, interrupted or failing run closes every recorder with what was
 written so far, so logs stay readable up to the last good sample.
 
-Why this module is long: the run loop and everything that must hold while it runs live together,
-because they share its state: the wall-time sizing of compiled calls (sampling stays on global
-multiples of the stride whatever the split), the signal flag checked between calls (SIGINT and
-SIGTERM answered within a call's budget, logs closed "interrupted"), and the running summary
-figures. The threads that log beside the stepping are rblog.engine.pipeline's.
+:func:`run` reads as its sequence: check the options, choose the stages, then ``_Loop``'s
+open (the logs and their first sample), step_all (compiled calls sized to CALL_WALL_BUDGET_S of
+wall time, samples on global multiples of the stride whatever the split), close; ``_Loop.abort``
+is the one way out of a run that does not get there. SIGINT and SIGTERM set a flag checked
+between calls (``_StopFlag``) and end the run as RunInterrupted with the logs closed
+"interrupted". The threads that log beside the stepping are rblog.engine.pipeline's.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import threading
 import time
@@ -37,7 +39,8 @@ from rblog._threads import default_threads
 from rblog.engine import _core
 from rblog.errors import RunInterrupted, SceneError, SimulationDiverged
 from rblog.engine.free import advance_free
-from rblog.contract.model import Model
+from rblog.contract.model import (IMPULSE_KINDS, SUPPLIED_LOGGED, SUPPLIED_NONE, WORK_KINDS,
+                                  Model)
 from rblog.engine.integrators import METHOD_CODES, ORTHO_ALLOWED, ORTHO_CODES
 from rblog.engine.scene import Scene
 from rblog.engine.pipeline import BlockPipeline
@@ -278,11 +281,11 @@ def run(
         log_every, log_rate = sim.log_every, sim.log_rate
     stride = resolve_log_every(dt, log_every, log_rate)
     n_total = max(1, int(round(duration / dt)))
-    model = scene.model
-    n_bodies = model.n_bodies
     method, ortho_code = METHOD_CODES[integrator], ORTHO_CODES[ortho]
 
     plan = plan_stages(scene, duration, force_contacts=force_contacts)
+    model = engine_model(scene.model, plan.contacts)
+    n_bodies = model.n_bodies
     info = RunInfo(
         integrator=integrator, orthonormalize=ortho, dt=dt, log_every=stride,
         duration_s=n_total * dt, rblog_version=__version__, scene_path=scene.path,
@@ -295,152 +298,190 @@ def run(
         for w in plan.warnings:
             warn(w)
 
-    samples_in_block = samples_per_block(n_bodies, stride)
-    steps_per_block = samples_in_block * stride  # the most steps one compiled call may take
-
-    def new_buffers(s):
-        """Sample buffers for ``s`` samples. Fresh ones each call: the block is handed to the
-        recorders as is (no copy), and a recorder may keep it."""
-        s = s + 1
-        return (np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 3)), np.empty((s, n_bodies, 4)),
-                np.empty((s, n_bodies, 3, 3)), np.empty((s, n_bodies, 3)))
-
-    stop = _StopFlag()
     drift = _Drift(model, _measure_world(scene, method, ortho_code) if plan.contacts else None)
-    opened: list[Recorder] = []
-    writer: BlockPipeline | None = None
-    done = 0
-    n_samples = 0
-    status, message = "ok", ""
-    t_start = time.perf_counter()
-    try:
-        with stop:
-            # a first call of zero steps and the first derived channels before the clock starts
-            # (nothing compiles: the core was built at install). A signal here interrupts at
-            # once (Python code).
-            stop.raise_now = True
-            advance(dt, 0, stride, False, st.copy(), new_buffers(samples_in_block))
-            derive(model, info, np.array([0]), np.array([0.0]), st.position[None],
-                   st.linear_momentum[None], st.quat_wxyz[None], st.rotation[None],
-                   st.angular_momentum_world[None])
-            for r in recorders:
-                r.open(model, info)
-                opened.append(r)
-            stop.raise_now = False
-            stop.check()
-            t_start = time.perf_counter()  # the run's wall time: stepping and writing
-            writer = BlockPipeline(model, info, drift, opened)
-            writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
-                          st.quat_wxyz[None].copy(), st.rotation[None].copy(),
-                          st.angular_momentum_world[None].copy(), None)
-            n_samples += 1
-            # Each compiled call is sized so that it takes about CALL_WALL_BUDGET_S of wall
-            # time (measured on the previous call), which bounds how late a signal is seen and
-            # how much a killed run loses. Samples stay at global multiples of the stride (and
-            # the last step), whatever the call boundaries, and the kernels carry their whole
-            # state across calls, so the result does not depend on the split.
-            sec_per_step = None
-            last_n = 1
-            while done < n_total:
-                stop.check()
-                remaining = n_total - done
-                if sec_per_step is None:
-                    budget = min(stride, remaining)
-                else:
-                    budget = int(CALL_WALL_BUDGET_S / max(sec_per_step, 1e-12))
-                    budget = max(1, min(budget, int(CALL_GROWTH_MAX * last_n) + 1))
-                budget = min(budget, steps_per_block, remaining)
-                to_boundary = stride - done % stride
-                if done % stride == 0 and budget >= stride:
-                    # whole strides (or the run's tail): sample at the call's own stride
-                    n = remaining if budget == remaining else (budget // stride) * stride
-                    call_stride = stride
-                    sample_last = (done + n == n_total) and (n % stride != 0)
-                else:
-                    # inside one stride interval: at most one sample, at the call's end
-                    n = min(budget, to_boundary)
-                    if n == to_boundary:
-                        call_stride, sample_last = n, False
-                    else:
-                        call_stride, sample_last = n + 1, done + n == n_total
-                first = (done // stride + 1) * stride
-                glob = np.arange(first, done + n + 1, stride, dtype=np.int64)
-                if done + n == n_total and n_total % stride != 0:
-                    glob = np.append(glob, n_total)
-                local = glob - done
-                bufs = new_buffers(len(local))
-                t_call = time.perf_counter()
-                _, bad_step, bad_body, contacts = advance(dt, n, call_stride, sample_last, st, bufs)
-                wall = time.perf_counter() - t_call
-                if bad_step < 0:
-                    sec_per_step = wall / n
-                    last_n = n
-                keep = len(local) if bad_step < 0 else int(np.searchsorted(local, bad_step))
-                local = local[:keep]
-                if keep:
-                    if contacts is not None:
-                        contacts.step = contacts.step + done
-                        if bad_step >= 0:
-                            contacts = contacts.select(contacts.step < done + bad_step)
-                    t_log = time.perf_counter()
-                    writer.submit(done + local, *(b[:keep] for b in bufs), contacts)
-                    if profile is not None:
-                        profile.add("logging", time.perf_counter() - t_log)
-                    n_samples += keep
-                if bad_step >= 0:
-                    bad_global = done + bad_step
-                    done = bad_global - 1
-                    raise SimulationDiverged(bad_global, bad_global * dt, int(bad_body),
-                                             model.body_name[bad_body],
-                                             _divergence_reason(model, st, int(bad_body), dt))
-                done += n
-                if progress is not None:
-                    progress(done, n_total)
-            t_log = time.perf_counter()
-            writer.finish(close=True)  # the lanes close their logs, side by side
-            if profile is not None:
-                profile.add("logging", time.perf_counter() - t_log)
-    except (KeyboardInterrupt, _Stopped) as e:
-        signum = e.signum if isinstance(e, _Stopped) else signal.SIGINT
-        name = signal.Signals(signum).name
-        status, message = "interrupted", f"interrupted ({name}) at step {done}"
-        _finish_quietly(writer)
-        _close_all_quietly(opened, True, message)
-        raise RunInterrupted(
-            f"run interrupted at step {done} (t = {done * dt:.6g} s) by {name}; logs keep every "
-            "sample written before it", signum=signum) from None
-    except SimulationDiverged as e:
-        _finish_quietly(writer)
-        _close_all(opened, True, str(e))
-        raise
-    except SystemError as e:
-        # a signal handler's exception surfacing out of a compiled call
-        if isinstance(e.__cause__ or e.__context__, KeyboardInterrupt):
-            _finish_quietly(writer)
-            _close_all_quietly(opened, True, f"interrupted (SIGINT) at step {done}")
-            raise RunInterrupted(f"run interrupted at step {done} (t = {done * dt:.6g} s) by "
-                                 "SIGINT; logs keep every sample written before it") from None
-        _finish_quietly(writer)
-        _close_all(opened, True, f"run failed: {e}")
-        raise
-    except BaseException as e:
-        _finish_quietly(writer)
-        _close_all(opened, True, f"run failed: {e}")
-        raise
-    _close_all([r for r in opened if not writer.has_closed(r)], False, None)
-    wall = time.perf_counter() - t_start
+    loop = _Loop(model, info, st, advance, drift, n_total, profile)
+    stop = _StopFlag()
+    with stop:
+        try:
+            loop.open(recorders, stop)
+            loop.step_all(stop, progress)
+            loop.close()
+        except BaseException as e:
+            err = loop.abort(e)
+            if err is e:
+                raise
+            raise err from None
+    if stop.signum is not None:  # arrived while the logs were being closed: they are complete
+        name = signal.Signals(stop.signum).name
+        raise RunInterrupted(f"run interrupted by {name} after its last step (t = "
+                             f"{loop.done * dt:.6g} s); logs complete", signum=stop.signum)
+    wall = time.perf_counter() - loop.t_start
     if profile is not None:
         profile.wall = wall
+    done = loop.done
     return RunSummary(
-        status=status, steps=done, bodies=n_bodies, samples=n_samples, sim_time_s=done * dt,
+        status="ok", steps=done, bodies=n_bodies, samples=loop.n_samples, sim_time_s=done * dt,
         wall_time_s=wall, steps_per_s=done / wall if wall > 0 else float("inf"),
         body_steps_per_s=done * n_bodies / wall if wall > 0 else float("inf"),
         energy_drift_rel=drift.energy, angular_momentum_drift_rel=drift.spin,
         ortho_error_max=drift.ortho, quat_norm_error_max=drift.qnorm, integrator=integrator,
         orthonormalize=ortho, dt=dt, log_every=stride, stages=[s for s, _ in plan.stages],
-        message=message, not_applicable=drift_not_applicable(model, plan.contacts),
+        not_applicable=drift_not_applicable(model, plan.contacts),
         contact_penetration_max_m=drift.penetration if plan.contacts else None,
     )
+
+
+class _Loop:
+    """One run's moving parts, in the order :func:`run` calls them: :meth:`open` (the logs and
+    their first sample), :meth:`step_all` (compiled calls, each block of samples handed to the
+    writers), :meth:`close` (the logs complete); :meth:`abort` is the one way out of a run that
+    did not get there."""
+
+    def __init__(self, model: Model, info: RunInfo, st, advance, drift, n_total: int, profile):
+        self.model, self.info, self.st, self.advance = model, info, st, advance
+        self.drift, self.n_total, self.profile = drift, n_total, profile
+        self.dt, self.stride = info.dt, info.log_every
+        self.samples_in_block = samples_per_block(model.n_bodies, self.stride)
+        self.opened: list[Recorder] = []
+        self.writer: BlockPipeline | None = None
+        self.done = 0  # steps taken
+        self.n_samples = 0  # samples handed to the writers
+        self.t_start = time.perf_counter()
+
+    def buffers(self, s: int):
+        """Sample buffers for ``s`` samples (+1 spare), each (s+1, N, ...). Fresh ones each call:
+        the block is handed to the recorders as is (no copy), and a recorder may keep it."""
+        n = self.model.n_bodies
+        s = s + 1
+        return (np.empty((s, n, 3)), np.empty((s, n, 3)), np.empty((s, n, 4)),
+                np.empty((s, n, 3, 3)), np.empty((s, n, 3)),
+                np.empty((s, n, 6)))  # the contact impulses of each interval
+
+    def open(self, recorders, stop: "_StopFlag"):
+        """A first call of zero steps and the first derived channels (no file open yet: a signal
+        raises at once), then the logs with their first sample (a signal waits until they hold
+        it, so that an interrupted run leaves logs that read)."""
+        st, m = self.st, self.model
+        stop.raise_now = True
+        self.advance(self.dt, 0, self.stride, False, st.copy(), self.buffers(self.samples_in_block))
+        derive(m, self.info, np.array([0]), np.array([0.0]), st.position[None],
+               st.linear_momentum[None], st.quat_wxyz[None], st.rotation[None],
+               st.angular_momentum_world[None])
+        stop.raise_now = False
+        stop.check()
+        for r in recorders:
+            self.opened.append(r)  # closed on the way out even if its open fails midway
+            r.open(m, self.info)
+        self.t_start = time.perf_counter()  # the run's wall time: stepping and writing
+        self.writer = BlockPipeline(m, self.info, self.drift, self.opened)
+        self.writer.submit(np.array([0]), st.position[None].copy(), st.linear_momentum[None].copy(),
+                           st.quat_wxyz[None].copy(), st.rotation[None].copy(),
+                           st.angular_momentum_world[None].copy(), None,
+                           np.zeros((1, m.n_bodies, 6)))  # the initial state: no interval
+        self.n_samples = 1
+        stop.check()
+
+    def step_all(self, stop: "_StopFlag", progress):
+        """Step to the end in compiled calls of about CALL_WALL_BUDGET_S of wall time each
+        (measured on the previous call), which bounds how late a signal is seen and how much a
+        killed run loses. Samples stay at global multiples of the stride (and the last step),
+        whatever the call boundaries, and the kernels carry their whole state across calls, so
+        the result does not depend on the split."""
+        dt, stride, n_total, st = self.dt, self.stride, self.n_total, self.st
+        steps_per_block = self.samples_in_block * stride  # the most steps one call may take
+        sec_per_step = None
+        last_n = 1
+        while self.done < n_total:
+            stop.check()
+            done = self.done
+            remaining = n_total - done
+            if sec_per_step is None:
+                budget = min(stride, remaining)
+            else:
+                budget = int(CALL_WALL_BUDGET_S / max(sec_per_step, 1e-12))
+                budget = max(1, min(budget, int(CALL_GROWTH_MAX * last_n) + 1))
+            budget = min(budget, steps_per_block, remaining)
+            to_boundary = stride - done % stride
+            if done % stride == 0 and budget >= stride:
+                # whole strides (or the run's tail): sample at the call's own stride
+                n = remaining if budget == remaining else (budget // stride) * stride
+                call_stride = stride
+                sample_last = (done + n == n_total) and (n % stride != 0)
+            else:
+                # inside one stride interval: at most one sample, at the call's end
+                n = min(budget, to_boundary)
+                if n == to_boundary:
+                    call_stride, sample_last = n, False
+                else:
+                    call_stride, sample_last = n + 1, done + n == n_total
+            first = (done // stride + 1) * stride
+            glob = np.arange(first, done + n + 1, stride, dtype=np.int64)
+            if done + n == n_total and n_total % stride != 0:
+                glob = np.append(glob, n_total)
+            local = glob - done
+            bufs = self.buffers(len(local))
+            t_call = time.perf_counter()
+            _, bad_step, bad_body, contacts = self.advance(dt, n, call_stride, sample_last, st, bufs)
+            wall = time.perf_counter() - t_call
+            if bad_step < 0:
+                sec_per_step = wall / n
+                last_n = n
+            keep = len(local) if bad_step < 0 else int(np.searchsorted(local, bad_step))
+            local = local[:keep]
+            if keep:
+                if contacts is not None:
+                    contacts.step = contacts.step + done
+                    if bad_step >= 0:
+                        contacts = contacts.select(contacts.step < done + bad_step)
+                self._timed_logging(self.writer.submit, done + local,
+                                    *(b[:keep] for b in bufs[:5]), contacts,
+                                    impulses=bufs[5][:keep])
+                self.n_samples += keep
+            if bad_step >= 0:
+                bad_global = done + bad_step
+                self.done = bad_global - 1
+                raise SimulationDiverged(bad_global, bad_global * dt, int(bad_body),
+                                         self.model.body_name[bad_body],
+                                         _divergence_reason(self.model, st, int(bad_body), dt))
+            self.done = done + n
+            if progress is not None:
+                progress(self.done, n_total)
+
+    def close(self):
+        """Write what is queued and close every log complete (the lanes close theirs side by
+        side)."""
+        self._timed_logging(self.writer.finish, close=True)
+        _close_all([r for r in self.opened if not self.writer.has_closed(r)], False, None)
+
+    def abort(self, e: BaseException) -> BaseException:
+        """Write the queued (good) samples, close every opened log marked truncated with the
+        reason, and return the exception to raise: RunInterrupted for a signal, else ``e``."""
+        if isinstance(e, SystemError) and isinstance(e.__cause__ or e.__context__, KeyboardInterrupt):
+            e = KeyboardInterrupt()  # a signal handler's exception out of a compiled call
+        signum = e.signum if isinstance(e, _Stopped) else (
+            signal.SIGINT if isinstance(e, KeyboardInterrupt) else None)
+        if signum is None:
+            reason, err = (str(e) if isinstance(e, SimulationDiverged) else f"run failed: {e}"), e
+        else:
+            name = signal.Signals(signum).name
+            reason = f"interrupted ({name}) at step {self.done}"
+            kept = "logs keep every sample written before it" if self.opened else "no log written"
+            err = RunInterrupted(f"run interrupted at step {self.done} (t = "
+                                 f"{self.done * self.dt:.6g} s) by {name}; {kept}", signum=signum)
+        if self.writer is not None:
+            self.writer.finish_quietly()
+        try:
+            _close_all(self.opened, True, reason)
+        except Exception:
+            if signum is None:  # a log that cannot be closed is news; after a signal it is not
+                raise
+        return err
+
+    def _timed_logging(self, fn, *args, **kwargs):
+        t0 = time.perf_counter()
+        fn(*args, **kwargs)
+        if self.profile is not None:
+            self.profile.add("logging", time.perf_counter() - t0)
 
 
 def simulate(scene: Scene, **kwargs) -> tuple[Trajectory, RunSummary]:
@@ -449,20 +490,6 @@ def simulate(scene: Scene, **kwargs) -> tuple[Trajectory, RunSummary]:
     recorders = [col, *kwargs.pop("recorders", ())]
     summary = run(scene, recorders=recorders, **kwargs)
     return col.trajectory, summary
-
-
-def _finish_quietly(writer: BlockPipeline | None):
-    """On the way out of a failed run: write what was queued (good samples), swallow errors."""
-    if writer is not None:
-        writer.finish_quietly()
-
-
-def _close_all_quietly(recorders, truncated, reason):
-    """Close every log on the way out of an interrupted run; a close error is not the news."""
-    try:
-        _close_all(recorders, truncated, reason)
-    except Exception:
-        pass
 
 
 class _Stopped(Exception):
@@ -542,6 +569,20 @@ def _divergence_reason(model: Model, st, i: int, dt: float) -> str:
             f"{MAX_ROTATION_PER_STEP_RAD:g} rad")
 
 
+def engine_model(model: Model, contacts: bool) -> Model:
+    """``model`` as rblog's engine logs it (contract v3): it logs the contact impulses of every
+    interval when bodies can touch (else they are none), the applied ones when a body has a
+    constant force or torque (else none); it has no passive forces, actuators or joints (none),
+    and no applied work besides its constant loads' (none: F . dx follows from the poses)."""
+    n = model.n_bodies
+    loads = bool(np.any(model.body_force_world) or np.any(model.body_torque_world))
+    imp = np.full((n, len(IMPULSE_KINDS)), SUPPLIED_NONE, np.int64)
+    imp[:, IMPULSE_KINDS.index("contact")] = SUPPLIED_LOGGED if contacts else SUPPLIED_NONE
+    imp[:, IMPULSE_KINDS.index("applied")] = SUPPLIED_LOGGED if loads else SUPPLIED_NONE
+    work = np.full((n, len(WORK_KINDS)), SUPPLIED_NONE, np.int64)
+    return dataclasses.replace(model, body_impulse_supplied=imp, body_work_supplied=work)
+
+
 def _measure_world(scene: Scene, method: int, ortho_code: int):
     """A ContactWorld of ``scene`` for measuring overlaps at the logged samples (on the writer
     thread; the stepping world is not shared with it)."""
@@ -560,8 +601,8 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profil
 
         def advance(dt, n, stride, sample_last, st, bufs):
             return world.advance(dt, n, stride, sample_last, st.position, st.linear_momentum,
-                                 st.quat_wxyz, st.rotation, st.angular_momentum_world, *bufs,
-                                 anchors=st.anchors)
+                                 st.quat_wxyz, st.rotation, st.angular_momentum_world, *bufs[:5],
+                                 anchors=st.anchors, out_impulses=bufs[5])
 
         return advance
 
@@ -575,7 +616,8 @@ def _make_advance(plan: Plan, model: Model, method: int, ortho_code: int, profil
         ns, bad_step, bad_body = advance_free(
             method, ortho_code, dt, n, stride, sample_last, inv_mass, inv_inertia, force, torque,
             st.position, st.linear_momentum, st.quat_wxyz, st.rotation, st.angular_momentum_world,
-            *bufs, anchors=st.anchors)
+            *bufs[:5], anchors=st.anchors)
+        bufs[5][...] = 0.0  # nothing can touch
         if profile is not None:
             profile.add("free kernel (integrate + sample)", time.perf_counter() - t0)
         return ns, bad_step, bad_body, None

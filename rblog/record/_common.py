@@ -8,11 +8,12 @@ import re
 
 import numpy as np
 
-from rblog.contract.model import Model
-from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, RunInfo
+from rblog.contract.model import (GEOM_FIELDS, IMPULSE_KINDS, INT_FIELDS, JOINT_FIELDS,
+                                  WORK_KINDS, Model, quat_z_to)
+from rblog.contract.trajectory import BODY_CHANNELS, INTERVAL_CHANNELS, TOTAL_CHANNELS, RunInfo
 
 #: version of the log contract (docs/log-format.md) this module writes and reads
-LOG_FORMAT_VERSION = 2
+LOG_FORMAT_VERSION = 3
 #: oldest contract version the reader accepts
 LOG_FORMAT_OLDEST = 1
 #: material combine rules a log may declare (RunInfo.combine_friction / combine_restitution)
@@ -46,8 +47,21 @@ MODEL_FIELDS: dict[str, tuple[str, tuple[int, ...] | None]] = {
     "static_box_half_extents": ("f", (3,)),
     "static_box_restitution": ("f", ()),
     "static_box_friction": ("f", ()),
+    # v3: bodies' kinds and parents, which impulses / works are supplied, joints, geoms
+    "body_kind": ("i", ()),
+    "body_parent": ("i", ()),
+    "body_impulse_supplied": ("i", (len(IMPULSE_KINDS),)),
+    "body_work_supplied": ("i", (len(WORK_KINDS),)),
+    **{name: ("s" if name.endswith("_name") else "i" if name in INT_FIELDS else "f", trail)
+       for name, trail in {**JOINT_FIELDS, **GEOM_FIELDS}.items()},
+    "mesh_vert": ("f", (3,)),
+    "collide_rule": ("s", None),
+    "collide_parent": ("b", None),
 }
-_SCALAR_MODEL_FIELDS = ("ground", "ground_offset", "ground_restitution", "ground_friction")
+_SCALAR_MODEL_FIELDS = ("ground", "ground_offset", "ground_restitution", "ground_friction",
+                        "collide_rule", "collide_parent")
+#: Model fields a v1/v2 log lacks (the Model derives them: rblog.contract.model)
+V3_MODEL_FIELDS = tuple(list(MODEL_FIELDS)[list(MODEL_FIELDS).index("body_kind"):])
 
 #: RunInfo fields as logged: name -> kind ("s", "f", "i"); scene_resolved travels as JSON text
 INFO_FIELDS: dict[str, str] = {
@@ -68,17 +82,22 @@ INFO_FIELDS: dict[str, str] = {
 }
 
 STATE_CHANNELS = {**BODY_CHANNELS, **TOTAL_CHANNELS}
+#: every per-sample channel a log may hold: the required state channels, then the optional
+#: per-interval ones (contract v3)
+SAMPLE_CHANNELS = {**STATE_CHANNELS, **INTERVAL_CHANNELS}
 
 
 def model_to_arrays(model: Model) -> dict[str, object]:
     """Every Model field as a flat array (list of str for names; 1-element arrays for scalars)."""
     out: dict[str, object] = {}
-    for name, (kind, _) in MODEL_FIELDS.items():
+    for name, (kind, shape) in MODEL_FIELDS.items():
         v = getattr(model, name)
-        if kind == "s":
+        if name == "collide_rule":
+            out[name] = str(v)
+        elif kind == "s":
             out[name] = [str(x) for x in v]
         elif kind == "b":
-            out[name] = np.array([bool(v)])
+            out[name] = np.array([bool(v)]) if shape is None else np.asarray(v, bool).reshape(-1)
         elif kind == "i":
             out[name] = np.asarray(v, np.int64).reshape(-1)
         else:
@@ -87,7 +106,8 @@ def model_to_arrays(model: Model) -> dict[str, object]:
 
 
 def model_from_arrays(d: dict[str, object]) -> Model:
-    """Rebuild a Model from flat arrays (missing static-box fields mean no static boxes)."""
+    """Rebuild a Model from flat arrays (missing static-box fields mean no static boxes;
+    missing v3 fields are derived by the Model: a v1/v2 log)."""
     names = [str(x) for x in d["body_name"]]
     n = len(names)
     kw: dict[str, object] = {"body_name": names}
@@ -95,13 +115,21 @@ def model_from_arrays(d: dict[str, object]) -> Model:
         if name == "body_name":
             continue
         v = d.get(name)
+        if name in V3_MODEL_FIELDS and v is None:
+            continue
+        if name == "collide_rule":
+            kw[name] = str(v[0] if isinstance(v, (list, tuple, np.ndarray)) else v)
+            continue
         if name in _SCALAR_MODEL_FIELDS:
             if v is None:
                 continue
             a = np.asarray(v).reshape(-1)
             kw[name] = bool(a[0]) if kind == "b" else float(a[0])
             continue
-        dtype = np.int64 if kind == "i" else np.float64
+        if kind == "s":
+            kw[name] = [str(x) for x in v]
+            continue
+        dtype = np.int64 if kind == "i" else bool if kind == "b" else np.float64
         if shape is None:  # gravity, ground_normal
             if v is not None:
                 kw[name] = np.asarray(v, dtype).reshape(3)
@@ -202,14 +230,19 @@ def time_ns(t: np.ndarray) -> np.ndarray:
     return np.clip(ns, 0, 2**62).astype(np.int64)
 
 
-def block_arrays(block, n: int) -> dict[str, np.ndarray]:
-    """The block's state channels as contiguous float64 (T, k) arrays, k values per sample.
+def block_arrays(block, n: int, interval: tuple = ()) -> dict[str, np.ndarray]:
+    """The block's state channels, then its ``interval`` channels (the run's, in
+    INTERVAL_CHANNELS order; NaN where the block lacks one), as contiguous float64 (T, k)
+    arrays, k values per sample.
 
     Raises ValueError when a channel does not hold the values ``n`` bodies need."""
     T = len(block.t)
     out = {}
-    for name in STATE_CHANNELS:
-        a = np.ascontiguousarray(getattr(block, name), np.float64).reshape(T, -1)
+    for name in (*STATE_CHANNELS, *interval):
+        v = getattr(block, name)
+        if v is None:
+            v = np.full((T, expected_width(name, n)), np.nan)
+        a = np.ascontiguousarray(v, np.float64).reshape(T, -1)
         if a.shape[1] != expected_width(name, n):
             raise ValueError(f"{name}: {a.shape[1]} values per sample, expected "
                              f"{expected_width(name, n)} for {n} bodies")
@@ -218,9 +251,19 @@ def block_arrays(block, n: int) -> dict[str, np.ndarray]:
 
 
 def expected_width(name: str, n: int) -> int:
-    shape = STATE_CHANNELS[name]
+    shape = SAMPLE_CHANNELS[name]
     k = int(np.prod(shape)) if shape else 1
-    return k * n if name in BODY_CHANNELS else k
+    return k if name in TOTAL_CHANNELS else k * n
+
+
+def run_interval_channels(model: Model) -> tuple[str, ...]:
+    """The INTERVAL_CHANNELS a run of ``model`` logs: the kinds some body supplies."""
+    imp = (np.asarray(model.body_impulse_supplied) == 1).any(axis=0)  # SUPPLIED_LOGGED
+    work = (np.asarray(model.body_work_supplied) == 1).any(axis=0)
+    out = [f"impulse_{k}_{part}" for k, on in zip(IMPULSE_KINDS, imp) if on
+           for part in ("linear", "angular")]
+    out += [f"work_{k}" for k, on in zip(WORK_KINDS, work) if on]
+    return tuple(out)
 
 
 #: half thickness of the box drawn for the ground plane in the viewers (m)
@@ -235,18 +278,57 @@ def ground_box(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     n = np.asarray(model.ground_normal, np.float64)
     n = n / (np.linalg.norm(n) or 1.0)
-    reach = 10.0
-    if len(model.static_box_position):
-        reach = max(reach, float(np.max(np.abs(model.static_box_position)
-                                        + np.linalg.norm(model.static_box_half_extents, axis=1)[:, None])))
     center = n * (float(model.ground_offset) - GROUND_HALF_THICKNESS)
-    z = np.array([0.0, 0.0, 1.0])
-    axis = np.cross(z, n)
-    s = np.linalg.norm(axis)
-    c = float(np.dot(z, n))
-    if s < 1e-12:
-        q = np.array([1.0, 0.0, 0.0, 0.0]) if c > 0 else np.array([0.0, 1.0, 0.0, 0.0])
-    else:
-        angle = np.arctan2(s, c)
-        q = np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis / s])
-    return center, q, np.array([reach, reach, GROUND_HALF_THICKNESS])
+    reach = scene_reach(model)
+    return center, quat_z_to(n), np.array([reach, reach, GROUND_HALF_THICKNESS])
+
+
+def scene_reach(model: Model) -> float:
+    """Half width of the viewers' drawing of an infinite plane (m): 10 m, or enough to hold the
+    world's finite geoms."""
+    reach = 10.0
+    world = (np.asarray(model.geom_body) < 0) & (np.asarray(model.geom_type) != 6)
+    if world.any():
+        reach = max(reach, float(np.max(np.abs(model.geom_pos_body[world])
+                                        + np.linalg.norm(model.geom_size[world], axis=1)[:, None])))
+    return reach
+
+
+def plane_box(model: Model, g: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A thin box (centre, quat_wxyz, half extents) in the geom's body frame whose top face is
+    plane geom ``g`` (its size's half extents, or scene_reach for an infinite side)."""
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    q = np.asarray(model.geom_quat_wxyz_body[g], np.float64)
+    nrm = quat_wxyz_to_matrix(q)[:, 2]
+    center = np.asarray(model.geom_pos_body[g], np.float64) - GROUND_HALF_THICKNESS * nrm
+    hx, hy = (float(v) for v in model.geom_size[g, :2])
+    reach = scene_reach(model)
+    return center, q, np.array([hx or reach, hy or reach, GROUND_HALF_THICKNESS])
+
+
+def hull_triangles(vert: np.ndarray) -> np.ndarray | None:
+    """(K, 3) int32 vertex indices of the convex hull's triangles of ``vert`` (V, 3), outward
+    wound (scipy.spatial.ConvexHull); None without scipy or for a degenerate point set."""
+    try:
+        from scipy.spatial import ConvexHull, QhullError
+    except ImportError:
+        return None
+    v = np.asarray(vert, np.float64)
+    if len(v) < 4:
+        return None
+    try:
+        hull = ConvexHull(v)
+    except (QhullError, ValueError):
+        return None
+    tri = hull.simplices.astype(np.int32)
+    centre = v.mean(axis=0)
+    n = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+    flip = np.einsum("ij,ij->i", n, v[tri[:, 0]] - centre) < 0
+    tri[flip] = tri[flip][:, [0, 2, 1]]
+    return tri
+
+
+def geom_view_names(model: Model) -> list[str]:
+    """Unique ``[A-Za-z0-9_-]`` names of the geoms (their names, else ``geom_<g>``)."""
+    return view_names([n or f"geom_{g}" for g, n in enumerate(model.geom_name)])

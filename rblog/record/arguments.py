@@ -23,7 +23,7 @@ UNKNOWN_MATERIAL = math.nan
 
 
 def _error(message: str) -> RblogError:
-    from rblog.record.recorder import RecordError
+    from rblog.errors import RecordError
 
     return RecordError(message)
 
@@ -117,8 +117,8 @@ def body_table(*, name, shape, ground, ground_offset, ground_restitution, ground
         raise _error(f"body_table: name holds {_short(bad)}, expected N strings")
     if len(name) == 0:
         raise _error("body_table: name = [], expected at least one body")
-    if not isinstance(shape, (str, Integral, np.integer, list, tuple, np.ndarray)) \
-            or isinstance(shape, bool):
+    if shape is not None and (not isinstance(shape, (str, Integral, np.integer, list, tuple,
+                                                     np.ndarray)) or isinstance(shape, bool)):
         raise _error(f"body_table: shape = {_short(shape)}, expected 'sphere', 'box', 'none' "
                      "(or 0, 1, -1), or a list of them (one per name)")
     flag(ground, "body_table: ground")

@@ -7,8 +7,8 @@ format the checked log was, and the findings are added to the same recording.
 
 In Rerun (:func:`log_findings`):
 
-* ``findings/<analyzer>`` (``TextLog``): one row per finding at its time on ``sim_time`` and
-  ``step``, text ``ANALYZER | BODIES | value V vs limit L UNIT | message``; the findings table of
+* ``findings/<analyzer>`` (``TextLog``): one row per finding at its onset (Finding.onset_t: where
+  a growing problem began; else the finding's time) on ``sim_time`` and ``step``, text ``ANALYZER | BODIES | value V vs limit L UNIT | message``; the findings table of
   the layout shows the time and that text. Nothing is logged static on these
   entities: a static row would hide every temporal one. A clean check logs one INFO row saying so.
   The expanded time panel marks the findings' times on the ``findings`` row.
@@ -85,7 +85,9 @@ def finding_rows(traj: Trajectory, results) -> list[Row]:
         for f in r.findings:
             names = [str(model.body_name[b]) if 0 <= b < model.n_bodies else "static"
                      for b in f.bodies]
-            rows.append(Row(r.analyzer, float(f.t), int(f.step), list(f.bodies),
+            # placed at its onset: scrubbing to the row shows where the problem began
+            t, step = (f.t, f.step) if f.onset_t is None else (f.onset_t, f.onset_step)
+            rows.append(Row(r.analyzer, float(t), int(step), list(f.bodies),
                             ", ".join(names) or "-", float(f.value), float(f.tolerance),
                             str(f.unit), f.message))
     rows.sort(key=lambda w: (w.t, w.analyzer))
@@ -340,11 +342,12 @@ def write_checked(path: str, traj: Trajectory, results) -> int:
     raise RblogError(f"{p}: the findings file must end in .rrd or .mcap")
 
 
-def open_command(path: str) -> str:
-    """What a user types to open the file :func:`write_checked` wrote."""
+def open_command(path: str, rerun: str = "rerun") -> str:
+    """What a user types to open the file :func:`write_checked` wrote (``rerun``: how the Rerun
+    viewer is called from here, e.g. ``.venv/bin/rerun``)."""
     if str(path).endswith(".mcap"):
         return f"open {path} in Foxglove (app.foxglove.dev: Open local file)"
-    return f"rerun {path}"
+    return f"{rerun} {path}"
 
 
 def write_findings_mcap(path: str, traj: Trajectory, results) -> int:

@@ -27,12 +27,15 @@ import time
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
+from foxglove_schemas_protobuf.CylinderPrimitive_pb2 import CylinderPrimitive
+from foxglove_schemas_protobuf.Point3_pb2 import Point3
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.KeyValuePair_pb2 import KeyValuePair
 from foxglove_schemas_protobuf.Pose_pb2 import Pose
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
+from foxglove_schemas_protobuf.TriangleListPrimitive_pb2 import TriangleListPrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
@@ -41,7 +44,8 @@ from mcap_protobuf.schema import build_file_descriptor_set
 
 from rblog import __version__
 from rblog.errors import LogWriteError
-from rblog.contract.model import SHAPE_SPHERE, Model
+from rblog.contract.model import (GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID,
+                                  GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, Model)
 from rblog.contract.trajectory import Contacts, RunInfo, Trajectory
 from rblog.record import _common as C
 from rblog.record import _encode
@@ -122,8 +126,10 @@ class McapRecorder:
             self._write_scene(model)
             self._w.add_metadata("rblog", {k: str(v) for k, v in C.info_to_fields(info).items()
                                            if k not in ("scene_toml", "scene_resolved_json")})
+            self._interval = C.run_interval_channels(model)
             self._records = _SampleRecords(self._names, [self._ch[TOPIC_STATE],
-                                                         self._ch[TOPIC_METRICS], self._ch[TOPIC_TF]])
+                                                         self._ch[TOPIC_METRICS], self._ch[TOPIC_TF]],
+                                           self._interval)
             # exercise the encoder once now (argument checks), not mid-run
             self._records.warm_up()
             encode_contacts(_ONE_CONTACT)
@@ -223,48 +229,47 @@ class McapRecorder:
         for k, v in C.info_to_fields(info).items():
             setattr(msg, k, v)
         for k, v in C.model_to_arrays(model).items():
-            if k == "ground":
-                msg.ground = bool(v[0])
+            if k in ("ground", "collide_parent"):
+                setattr(msg, k, bool(v[0]))
             elif k in ("ground_offset", "ground_restitution", "ground_friction"):
                 setattr(msg, k, float(v[0]))
+            elif k == "collide_rule":
+                msg.collide_rule = v
             else:
                 getattr(msg, k).extend(v.tolist() if isinstance(v, np.ndarray) else v)
         self._w.add_message(self._ch[TOPIC_RUN], 0, msg.SerializeToString(), 0)
 
     def _write_scene(self, model: Model):
+        """One SceneEntity per body (its frame, frame-locked: every geom of the body as a
+        primitive posed in the body's frame) and one per world geom (frame ``world``, id the
+        geom's view name: ``ground``, ``static_box_<j>`` for a v2 model's)."""
         upd = SceneUpdate()
+        gb = np.asarray(model.geom_body)
+        ents = []
         for i, name in enumerate(self._names):
             ent = upd.entities.add(frame_id=name, id=f"body/{name}", frame_locked=True)
             ent.metadata.append(KeyValuePair(key="name", value=str(model.body_name[i])))
-            size = np.asarray(model.body_size[i], np.float64)
-            if int(model.body_shape[i]) == SHAPE_SPHERE:
-                d = 2.0 * float(size[0])
-                ent.spheres.append(SpherePrimitive(pose=_pose(), size=Vector3(x=d, y=d, z=d),
-                                                   color=_color(i, 0.9)))
+            ents.append(ent)
+        gnames = C.geom_view_names(model)
+        for g in range(len(gb)):
+            b = int(gb[g])
+            if b >= 0:
+                _add_primitive(ents[b], model, g, _color(b, 0.9))
             else:
-                ent.cubes.append(CubePrimitive(pose=_pose(), size=_vec(2.0 * size),
-                                               color=_color(i, 0.9)))
-        if model.ground:
-            center, quat_wxyz, half = C.ground_box(model)
-            ent = upd.entities.add(frame_id="world", id="ground", frame_locked=True)
-            ent.cubes.append(CubePrimitive(pose=_pose(center, quat_wxyz), size=_vec(2.0 * half),
-                                           color=Color(r=0.5, g=0.5, b=0.5, a=0.6)))
-        for j in range(len(model.static_box_position)):
-            ent = upd.entities.add(frame_id="world", id=f"static_box_{j}", frame_locked=True)
-            ent.cubes.append(CubePrimitive(
-                pose=_pose(model.static_box_position[j], model.static_box_quat_wxyz[j]),
-                size=_vec(2.0 * np.asarray(model.static_box_half_extents[j])),
-                color=Color(r=0.6, g=0.6, b=0.65, a=0.8)))
+                ent = upd.entities.add(frame_id="world", id=gnames[g], frame_locked=True)
+                ent.metadata.append(KeyValuePair(key="name", value=str(model.geom_name[g])))
+                grey = Color(r=0.5, g=0.5, b=0.5, a=0.6) if int(model.geom_type[g]) == GEOM_PLANE \
+                    else Color(r=0.6, g=0.6, b=0.65, a=0.8)
+                _add_primitive(ent, model, g, grey)
         self._w.add_message(self._ch[TOPIC_SCENE], 0, upd.SerializeToString(), 0)
 
     def _write_samples(self, block: Trajectory):
         T, n = len(block.t), self._n
-        a = C.block_arrays(block, n)
+        a = C.block_arrays(block, n, self._interval)
         step = np.ascontiguousarray(block.step, np.int64)
         t = np.ascontiguousarray(block.t, np.float64)
         ns = C.time_ns(t)
-        state = [step, t, *(a[name] for _, name, _, _ in S.MESSAGES["State"][2:-1]),
-                 a["total_energy"]]
+        state = [step, t, *(a[name] for _, name, _, _ in self._records.state_fields[2:])]
         metrics = [step, t, a["total_energy"], a["energy_translational"].sum(axis=1),
                    a["energy_rotational"].sum(axis=1), a["energy_potential"].sum(axis=1),
                    a["total_linear_momentum"], a["total_angular_momentum"],
@@ -285,13 +290,17 @@ class McapRecorder:
     def _write_contacts(self, c: Contacts):
         if not len(c):
             return
-        msgs, step0, t0 = encode_contacts(c)
-        ns = C.time_ns(t0).tolist()
-        ch = self._ch[TOPIC_CONTACTS]
-        add = self._w.add_message
-        for m, ti in zip(msgs, ns):
-            add(ch, ti, m, ti)
-        self._last_ns = max(self._last_ns, ns[-1])
+        if self._chunks is not None:  # a block's messages at once (one index update, not M)
+            buf, ends, step0, t0 = encode_contacts_buffer(c)
+            ns = C.time_ns(t0)
+            self._chunks.add_messages(self._ch[TOPIC_CONTACTS], ns, buf, ends)
+        else:
+            msgs, step0, t0 = encode_contacts(c)
+            ns = C.time_ns(t0)
+            add, ch = self._w.add_message, self._ch[TOPIC_CONTACTS]
+            for m, ti in zip(msgs, ns.tolist()):
+                add(ch, ti, m, ti)
+        self._last_ns = max(self._last_ns, int(ns[-1]))
 
     def _flush(self, force: bool = False):
         now = time.monotonic()
@@ -314,6 +323,15 @@ def encode_contacts(c: Contacts) -> tuple[list, np.ndarray, np.ndarray]:
     are in number order and repeated fields packed, as protobuf's serializer writes them, except
     that step and t are written even when zero (parsers read both forms alike). The whole block
     is encoded in one compiled call."""
+    buf, ends, step, t = encode_contacts_buffer(c)
+    mv = memoryview(buf)
+    e = ends.tolist()
+    return [mv[e[i]:e[i + 1]] for i in range(len(e) - 1)], step, t
+
+
+def encode_contacts_buffer(c: Contacts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`encode_contacts` as (buffer: the M messages back to back, ends (M + 1,): message
+    i is buffer[ends[i]:ends[i + 1]], step (M,), t (M,))."""
     step = np.ascontiguousarray(c.step, np.int64)
     t = np.ascontiguousarray(c.t, np.float64)
     cut = np.flatnonzero((step[1:] != step[:-1]) | (t[1:] != t[:-1])) + 1
@@ -332,10 +350,58 @@ def encode_contacts(c: Contacts) -> tuple[list, np.ndarray, np.ndarray]:
                      f3[0].reshape(-1).view(np.uint8), f3[1].reshape(-1).view(np.uint8),
                      f1[0].view(np.uint8), f1[1].view(np.uint8),
                      f3[2].reshape(-1).view(np.uint8), i32[2].view(np.uint8), out, ends)
-    mv = memoryview(out)
-    e = ends.tolist()
     first = bounds[:-1]
-    return [mv[e[i]:e[i + 1]] for i in range(m)], step[first], t[first]
+    return out[:ends[-1]], ends, step[first], t[first]
+
+
+def _add_primitive(ent, model: Model, g: int, color: Color) -> None:
+    """Geom ``g`` as Foxglove primitives of ``ent`` (posed in the frame of the geom's body):
+    cube (box; a plane as a thin one), sphere (sphere, ellipsoid: its 3 diameters), cylinder,
+    capsule (a cylinder and two spheres), mesh (its convex hull as a triangle list; its
+    bounding box without scipy)."""
+    t = int(model.geom_type[g])
+    pos = np.asarray(model.geom_pos_body[g], np.float64)
+    q = np.asarray(model.geom_quat_wxyz_body[g], np.float64)
+    size = np.asarray(model.geom_size[g], np.float64)
+    if t == GEOM_BOX:
+        ent.cubes.append(CubePrimitive(pose=_pose(pos, q), size=_vec(2.0 * size), color=color))
+    elif t == GEOM_PLANE:
+        center, qp, half = C.plane_box(model, g)
+        ent.cubes.append(CubePrimitive(pose=_pose(center, qp), size=_vec(2.0 * half), color=color))
+    elif t in (GEOM_SPHERE, GEOM_ELLIPSOID):
+        d = 2.0 * (np.repeat(size[:1], 3) if t == GEOM_SPHERE else size)
+        ent.spheres.append(SpherePrimitive(pose=_pose(pos, q), size=_vec(d), color=color))
+    elif t in (GEOM_CYLINDER, GEOM_CAPSULE):
+        r, h = float(size[0]), float(size[1])
+        ent.cylinders.append(CylinderPrimitive(pose=_pose(pos, q),
+                                               size=Vector3(x=2 * r, y=2 * r, z=2 * h),
+                                               bottom_scale=1.0, top_scale=1.0, color=color))
+        if t == GEOM_CAPSULE:
+            from rblog.contract.orientation import quat_wxyz_to_matrix
+
+            z = quat_wxyz_to_matrix(q)[:, 2]
+            for sign in (-1.0, 1.0):
+                ent.spheres.append(SpherePrimitive(pose=_pose(pos + sign * h * z, q),
+                                                   size=Vector3(x=2 * r, y=2 * r, z=2 * r),
+                                                   color=color))
+    elif t == GEOM_MESH:
+        vert = model.geom_vertices(g)
+        tri = C.hull_triangles(vert)
+        if tri is None:
+            lo, hi = (vert.min(axis=0), vert.max(axis=0)) if len(vert) else (np.zeros(3),) * 2
+            ent.cubes.append(CubePrimitive(pose=_pose(pos + q_rotate(q, (lo + hi) / 2), q),
+                                           size=_vec(hi - lo), color=color))
+        else:
+            pts = vert[tri.reshape(-1)]
+            ent.triangles.append(TriangleListPrimitive(
+                pose=_pose(pos, q), color=color,
+                points=[Point3(x=float(a), y=float(b), z=float(c)) for a, b, c in pts]))
+
+
+def q_rotate(quat_wxyz, v) -> np.ndarray:
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    return quat_wxyz_to_matrix(np.asarray(quat_wxyz, np.float64)) @ np.asarray(v, np.float64)
 
 
 def _max0(a: np.ndarray) -> np.ndarray:
@@ -375,21 +441,22 @@ class _SampleRecords:
     (fields in number order, repeated fields packed), except that the singular scalars of State
     and Metrics are written even when zero, as docs/log-format.md allows.
 
-    ``channels``: the three channel ids in record order."""
+    ``channels``: the three channel ids in record order. ``interval``: the run's per-interval
+    channels (C.run_interval_channels), State fields 18+ of every sample."""
 
-    def __init__(self, names: list[str], channels: list[int]):
+    def __init__(self, names: list[str], channels: list[int], interval: tuple = ()):
         self.n = len(names)
         self.channels = np.asarray(channels, np.int64)
         self.tf = _TfEncoder(names)
         n = self.n
+        #: the State fields this run writes, in number order: (number, name, type, label)
+        self.state_fields = [f for f in S.MESSAGES["State"] if f[0] <= 17 or f[1] in interval]
         self.state_hdr, self.state_off = _headers(
-            [S.tag(1, 1), S.tag(2, 1)]
-            + [S.tag(num, 2) + S.varint(8 * C.expected_width(name, n))
-               for num, name, _, _ in S.MESSAGES["State"][2:-1]]
-            + [S.tag(17, 1)])
+            [S.tag(num, 1) if label == "" else S.tag(num, 2) + S.varint(8 * C.expected_width(name, n))
+             for num, name, _, label in self.state_fields])
         self.state_len = int(self.state_off[-1]) + 8 * sum(
-            1 if i in (0, 1, 16) else C.expected_width(name, n)
-            for i, (_, name, _, _) in enumerate(S.MESSAGES["State"]))
+            1 if label == "" else C.expected_width(name, n)
+            for _, name, _, label in self.state_fields)
         self.metrics_hdr, self.metrics_off = _headers(
             [S.tag(k, 1) for k in range(1, 7)]
             + [S.tag(7, 2) + S.varint(24), S.tag(8, 2) + S.varint(24)]
@@ -422,8 +489,8 @@ class _SampleRecords:
         n = self.n
         z = [np.zeros(1, np.int64), np.zeros(1)]
         self.encode(np.zeros(1, np.int64),
-                    z + [np.zeros((1, C.expected_width(name, n)))
-                         for _, name, _, _ in S.MESSAGES["State"][2:-1]] + [np.zeros(1)],
+                    z + [np.zeros((1, 1 if label == "" else C.expected_width(name, n)))
+                         for _, name, _, label in self.state_fields[2:]],
                     z + [np.zeros(1)] * 4 + [np.zeros((1, 3))] * 2 + [np.zeros(1)] * 2,
                     np.zeros((1, n, 3)), np.zeros((1, n, 4)))
 
@@ -556,7 +623,7 @@ class _BlockChunkBuilder:
         st.message_start_time = t_lo if st.message_count == 0 else min(st.message_start_time, t_lo)
         st.message_end_time = max(st.message_end_time, t_hi)
         st.message_count += m
-        for ch in sorted(records.channels.tolist()):  # in np.unique's order (as before)
+        for ch in sorted(records.channels.tolist()):  # ascending channel id, np.unique's order
             st.channel_message_counts[int(ch)] += T
         st_cols, mt_cols = _byte_rows(state, T), _byte_rows(metrics, T)
         position = np.ascontiguousarray(position, np.float64)
@@ -577,6 +644,55 @@ class _BlockChunkBuilder:
             r = r1
             if self._count > self._chunk_size:
                 self._w.flush()  # closes the chunk (compressed, CRC, message indexes)
+
+    def add_messages(self, channel: int, ns: np.ndarray, buf: np.ndarray, ends: np.ndarray):
+        """MCAP Message records on ``channel`` of the M messages ``buf[ends[i]:ends[i + 1]]``
+        at log times ``ns`` (M,), built with numpy and added to the chunk a run at a time
+        (closing chunks as the Writer would: after the record that takes the chunk past its
+        size); updates the Writer's statistics. The same bytes and index as adding them one by
+        one with the Writer's ``add_message``."""
+        ns = np.asarray(ns, np.int64)
+        ends = np.asarray(ends, np.int64)
+        m = len(ns)
+        if not m:
+            return
+        st = self._stats
+        t_lo, t_hi = int(ns.min()), int(ns.max())
+        st.message_start_time = t_lo if st.message_count == 0 else min(st.message_start_time, t_lo)
+        st.message_end_time = max(st.message_end_time, t_hi)
+        st.message_count += m
+        st.channel_message_counts[channel] += m
+        size = np.diff(ends)
+        rec_size = size + _MESSAGE_HEAD
+        head = np.zeros((m, _MESSAGE_HEAD), np.uint8)
+        head[:, 0] = int(Opcode.MESSAGE)
+        head[:, 1:9] = (rec_size - 9).astype("<u8").view(np.uint8).reshape(m, 8)
+        head[:, 9:11] = np.frombuffer(np.uint16(channel).astype("<u2").tobytes(), np.uint8)
+        tb = ns.astype("<u8").view(np.uint8).reshape(m, 8)
+        head[:, 15:23] = tb
+        head[:, 23:31] = tb
+        data = np.frombuffer(buf, np.uint8)
+        j = 0
+        while j < m:
+            # the run of records up to the one that takes the chunk past its size
+            past = np.flatnonzero(self._count + np.cumsum(rec_size[j:]) > self._chunk_size)
+            j1 = j + int(past[0]) + 1 if len(past) else m
+            start = self._count + np.concatenate([[0], np.cumsum(rec_size[j:j1 - 1])])
+            total = int(rec_size[j:j1].sum())
+            if self._count + total > len(self._buf):
+                self._grow(self._count + total)
+            out = self._buf
+            out[(start[:, None] + np.arange(_MESSAGE_HEAD)).reshape(-1)] = head[j:j1].reshape(-1)
+            lo, hi = int(ends[j]), int(ends[j1])
+            # payload byte b of message i lands at its record's start + head + (b - ends[i])
+            out[np.repeat(start + _MESSAGE_HEAD - ends[j:j1], size[j:j1]) + np.arange(lo, hi)] = \
+                data[lo:hi]
+            self._count += total
+            self._index(np.full(j1 - j, channel), ns[j:j1].astype(np.uint64),
+                        start.astype(np.uint64))
+            j = j1
+            if self._count > self._chunk_size:
+                self._w.flush()
 
     def _index_samples(self, channels3, ns, r0: int, r1: int, offsets):
         """Index the per-sample records r0..r1 - 1 (record r: channel ``channels3[r % 3]``,

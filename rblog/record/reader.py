@@ -18,7 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from rblog.errors import LogReadError
-from rblog.contract.trajectory import BODY_CHANNELS, TOTAL_CHANNELS, Contacts, Trajectory
+from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
+from rblog.contract.trajectory import (BODY_CHANNELS, INTERVAL_CHANNELS, TOTAL_CHANNELS, Contacts,
+                                       Trajectory)
 from rblog.record import _common as C
 from rblog.record import safe_rrd, validate
 
@@ -66,18 +68,35 @@ class _Collector:
         self.run: dict[str, object] | None = None
         self.model: dict[str, object] | None = None
         self.status: dict[str, object] | None = None
-        self.samples: dict[str, list[np.ndarray]] = {k: [] for k in ("step", "t", *C.STATE_CHANNELS)}
+        self.samples: dict[str, list[np.ndarray]] = {k: [] for k in ("step", "t", *C.SAMPLE_CHANNELS)}
         self.contacts: list[dict[str, np.ndarray]] = []
         self.cut: str | None = None  # why reading stopped early, if it did
         self.warnings: list[str] = []
 
+    def interval(self) -> tuple[str, ...]:
+        """The per-interval channels the run record says the log holds (v3; () before)."""
+        m = self.model or {}
+        n = len(m.get("body_name", ()))
+        out = []
+        for key, kinds, names in (
+                ("body_impulse_supplied", IMPULSE_KINDS,
+                 [(f"impulse_{k}_linear", f"impulse_{k}_angular") for k in IMPULSE_KINDS]),
+                ("body_work_supplied", WORK_KINDS, [(f"work_{k}",) for k in WORK_KINDS])):
+            v = m.get(key)
+            if v is None or not n or np.size(v) != n * len(kinds):
+                continue
+            on = (np.asarray(v).reshape(n, len(kinds)) == 1).any(axis=0)  # SUPPLIED_LOGGED
+            out += [c for k, chans in zip(on, names) if k for c in chans]
+        return tuple(out)
+
     def add_samples(self, cols: dict[str, np.ndarray], n: int) -> None:
-        """cols: 'step' (R,), 't' (R,), and each state channel (R, k) for R samples."""
+        """cols: 'step' (R,), 't' (R,), each state channel (R, k) for R samples, and the run's
+        per-interval channels (R, k)."""
         R = len(cols["step"])
         good = np.ones(R, bool)
         if np.shape(cols.get("t")) != (R,):
             good[:] = False
-        for name in C.STATE_CHANNELS:
+        for name in (*C.STATE_CHANNELS, *self.interval()):
             a = cols.get(name)
             if a is None or a.shape != (R, C.expected_width(name, n)):
                 good[:] = False
@@ -86,7 +105,7 @@ class _Collector:
                                  "mis-sized channels")
             if not good.any():
                 return
-        for k in self.samples:
+        for k in ("step", "t", *C.STATE_CHANNELS, *self.interval()):
             self.samples[k].append(np.asarray(cols[k])[good])
 
     def build(self) -> Trajectory:
@@ -102,11 +121,13 @@ class _Collector:
         except (KeyError, ValueError, TypeError) as e:
             raise LogReadError(where, f"malformed run record ({e})") from None
         n = model.n_bodies
+        interval = self.interval()
         if self.samples["step"]:
-            cat = {k: np.concatenate(v) for k, v in self.samples.items()}
+            cat = {k: np.concatenate(v) for k, v in self.samples.items() if v}
         else:
             cat = {"step": np.zeros(0, np.int64), "t": np.zeros(0)}
-            cat.update({k: np.zeros((0, C.expected_width(k, n))) for k in C.STATE_CHANNELS})
+            cat.update({k: np.zeros((0, C.expected_width(k, n)))
+                        for k in (*C.STATE_CHANNELS, *interval)})
         order = np.argsort(cat["step"], kind="stable")
         T = len(order)
         kw = {"step": cat["step"][order].astype(np.int64), "t": cat["t"][order].astype(np.float64)}
@@ -114,6 +135,9 @@ class _Collector:
             kw[name] = cat[name][order].astype(np.float64, copy=False).reshape(T, n, *shape)
         for name, shape in TOTAL_CHANNELS.items():
             kw[name] = cat[name][order].astype(np.float64, copy=False).reshape(T, *shape)
+        for name in interval:
+            kw[name] = cat[name][order].astype(np.float64, copy=False).reshape(
+                T, n, *INTERVAL_CHANNELS[name])
         truncated = False
         warns = list(self.warnings)
         if self.status is None:
@@ -137,7 +161,7 @@ class _Collector:
         traj = Trajectory(model=model, info=info, contacts=self._contacts(), truncated=truncated,
                           warnings=warns, **kw)
         validate.trajectory(where, traj, "contacts (rblog/contacts, /rblog/contacts)")
-        from rblog.analyze.consistency import consistency_warnings  # checks on read (contract v2)
+        from rblog.analyze.consistency import consistency_warnings  # the checks on read
 
         traj.warnings.extend(consistency_warnings(traj))
         return traj
@@ -252,7 +276,7 @@ def _decode_states(datas: list[bytes], cls) -> dict[str, np.ndarray]:
     order = np.argsort(np.concatenate([p[0] for p in parts]), kind="stable")
     out = {}
     for name in parts[0][1]:
-        pieces = [p[1][name] for p in parts]
+        pieces = [p[1].get(name, np.zeros((len(p[0]), 0))) for p in parts]
         if len({x.shape[1:] for x in pieces}) != 1:  # ragged across groups
             out[name] = np.zeros((len(order), 0))
         else:
@@ -278,6 +302,7 @@ def _fast_states(group: list[bytes], fields_by_number: dict[int, str]) -> dict |
     needed = ("step", "t", *C.STATE_CHANNELS)
     if any(n not in found for n in needed):
         return None
+    needed = (*needed, *(k for k in INTERVAL_CHANNELS if k in found))
     arr = np.frombuffer(b"".join(group), np.uint8).reshape(len(group), L)
     if not (arr[:, structure] == arr[0, structure]).all():
         return None
@@ -291,7 +316,7 @@ def _fast_states(group: list[bytes], fields_by_number: dict[int, str]) -> dict |
         cols[name] = block.view(dtype).reshape(len(group), size // 8)
     cols["step"] = cols["step"].reshape(-1).astype(np.int64)
     cols["t"] = cols["t"].reshape(-1).astype(np.float64)
-    for name in C.STATE_CHANNELS:
+    for name in needed[2:]:
         cols[name] = cols[name].astype(np.float64)
     return cols
 
@@ -345,11 +370,14 @@ def _state_columns(rows: list) -> dict[str, np.ndarray]:
         "t": np.array([m.t for m in rows], np.float64),
         "total_energy": np.array([m.total_energy for m in rows], np.float64).reshape(-1, 1),
     }
-    for name in C.STATE_CHANNELS:
-        if name == "total_energy":
+    known = set(rows[0].DESCRIPTOR.fields_by_name) if rows else set()
+    for name in C.SAMPLE_CHANNELS:
+        if name == "total_energy" or name not in known:
             continue
         lists = [getattr(m, name) for m in rows]
         width = len(lists[0])
+        if name in INTERVAL_CHANNELS and not any(len(x) for x in lists):
+            continue  # not in this log
         if all(len(x) == width for x in lists):
             cols[name] = np.array(lists, np.float64).reshape(len(rows), width)
         else:  # ragged: let add_samples drop the whole batch with a warning
@@ -380,14 +408,22 @@ def _run_of(msg) -> tuple[dict, dict]:
         else:
             run[name] = getattr(msg, name, "")  # fields newer than the log's schema: absent
     model: dict[str, object] = {}
+    known = set(msg.DESCRIPTOR.fields_by_name)
+    v3 = int(msg.rblog_log_format) >= 3
     for name, (kind, _) in C.MODEL_FIELDS.items():
+        if name not in known or (name in C.V3_MODEL_FIELDS and not v3):
+            continue  # a v1/v2 log: the Model derives it
         v = getattr(msg, name)
-        if kind == "s":
+        if name == "collide_rule":
+            model[name] = str(v)
+        elif kind == "s":
             model[name] = list(v)
-        elif name in ("ground", "ground_offset", "ground_restitution", "ground_friction"):
+        elif name in ("ground", "ground_offset", "ground_restitution", "ground_friction",
+                      "collide_parent"):
             model[name] = np.array([v])
         else:
-            model[name] = np.array(v, np.int64 if kind == "i" else np.float64)
+            model[name] = np.array(v, np.int64 if kind == "i" else bool if kind == "b"
+                                   else np.float64)
     return run, model
 
 
@@ -482,7 +518,9 @@ def _rrd_state_columns(comps: dict[str, object], n: int) -> dict[str, np.ndarray
     step = comps.get("step")
     R = 0 if step is None else len(step)
     cols: dict[str, np.ndarray] = {"step": step if step is not None else np.zeros(0, np.int64)}
-    for name in ("t", *C.STATE_CHANNELS):
+    for name in ("t", *C.SAMPLE_CHANNELS):
+        if name in INTERVAL_CHANNELS and name not in comps:
+            continue
         width = 1 if name == "t" else C.expected_width(name, n)
         got = comps.get(name)
         ok = got is not None

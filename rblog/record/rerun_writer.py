@@ -23,7 +23,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from rblog.errors import LogWriteError
-from rblog.contract.model import SHAPE_SPHERE, Model
+from rblog.contract.model import (GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID,
+                                  GEOM_MESH, GEOM_PLANE, GEOM_SPHERE, Model)
+from rblog.contract.orientation import quat_mul
 from rblog.contract.trajectory import Contacts, RunInfo, Trajectory
 from rblog.record import _common as C
 
@@ -31,22 +33,30 @@ from rblog.record import _common as C
 #: own every 200 ms or 1 MiB
 FLUSH_EVERY_S = 0.5
 #: The .rrd footer (a manifest of every chunk, for random access) is held in memory until the
-#: file is closed: ~7 KB per chunk, and a block costs at most CHUNKS_PER_BLOCK chunks. A run expected
+#: file is closed: ~7 KB per chunk, and a block costs at most chunks_per_block(model). A run expected
 #: to log more chunks than this is written without footer (still a valid .rrd; the viewer and
 #: rblog.load read it; ``rerun rrd optimize`` can add one), so that memory stays bounded.
 RRD_FOOTER_MAX_CHUNKS = 8192
-#: chunks sent per block: state, two body entities, nine plots, contacts (data and view), and one
-#: per body of a small scene (its body-frame angular velocity plot)
-CHUNKS_PER_BLOCK = 15
+#: chunks sent per block besides the geoms' entities: state, nine plots, contacts (data and
+#: view), and one per body of a small scene (its body-frame angular velocity plot; at most
+#: OMEGA_PLOT_MAX_BODIES)
+CHUNKS_PER_BLOCK = 16
 #: bodies' names are drawn in the 3D view for scenes of at most this many bodies (else on hover)
 LABELS_MAX_BODIES = 12
 #: scenes of at most this many bodies get a plot of each body's angular velocity in its own frame
 #: (3 lines a body), where a flip about the intermediate axis shows as a component changing sign
 OMEGA_PLOT_MAX_BODIES = 4
-#: view entities of the bodies: every box is an instance of one Boxes3D, every sphere of one
-#: Ellipsoids3D, in body order, posed per sample by the instances' centers and quaternions
+#: view entities of the bodies' geoms: every box geom is an instance of one Boxes3D, every
+#: sphere of one Ellipsoids3D, ... (one entity per geom type, instances in geom order), posed per
+#: sample by the instances' centers (capsules: translations, one end) and quaternions; a mesh
+#: geom is a Mesh3D entity of its own (its convex hull) under MESHES_ENTITY, posed by a
+#: Transform3D per sample
 BOXES_ENTITY = "world/bodies/boxes"
 SPHERES_ENTITY = "world/bodies/spheres"
+ELLIPSOIDS_ENTITY = "world/bodies/ellipsoids"
+CAPSULES_ENTITY = "world/bodies/capsules"
+CYLINDERS_ENTITY = "world/bodies/cylinders"
+MESHES_ENTITY = "world/bodies/meshes"
 #: default gRPC address of a viewer started with ``spawn=True``
 SPAWN_PORT = 9876
 
@@ -235,21 +245,38 @@ class RerunRecorder:
 
     def _init_descriptors(self):
         z3, z4 = np.zeros((1, 3)), np.array([[0.0, 0.0, 0.0, 1.0]])
-        # bodies are drawn as instances of one entity per shape kind (one send per block, not
-        # one per body): entity -> (body indices, archetype, centers and quaternions descriptors)
-        shape = np.asarray(self._model.body_shape)
+        # the bodies' geoms are drawn as instances of one entity per geom type (one send per
+        # block, not one per body): entity -> (geoms, archetype, position and quaternion
+        # descriptors, offsets (k, 3) and quaternions (k, 4) of the drawn primitive in its
+        # body's frame); meshes: an entity each
+        m = self._model
+        gb, gt = np.asarray(m.geom_body), np.asarray(m.geom_type)
         self._body_groups = {}
-        for ent, arch, sel in ((BOXES_ENTITY, rr.Boxes3D, shape != SHAPE_SPHERE),
-                               (SPHERES_ENTITY, rr.Ellipsoids3D, shape == SHAPE_SPHERE)):
-            members = np.flatnonzero(sel)
-            if len(members):
-                d = _descriptors(arch.columns(centers=z3, quaternions=z4))
-                self._body_groups[ent] = (members, arch, d["centers"], d["quaternions"])
+        on_body = gb >= 0
+        for ent, arch, types, pos_name in (
+                (BOXES_ENTITY, rr.Boxes3D, (GEOM_BOX, GEOM_PLANE), "centers"),
+                (SPHERES_ENTITY, rr.Ellipsoids3D, (GEOM_SPHERE,), "centers"),
+                (ELLIPSOIDS_ENTITY, rr.Ellipsoids3D, (GEOM_ELLIPSOID,), "centers"),
+                (CAPSULES_ENTITY, rr.Capsules3D, (GEOM_CAPSULE,), "translations"),
+                (CYLINDERS_ENTITY, rr.Cylinders3D, (GEOM_CYLINDER,), "centers")):
+            members = np.flatnonzero(on_body & np.isin(gt, types))
+            if not len(members):
+                continue
+            d = _descriptors(arch.columns(**{pos_name: z3}, quaternions=z4))
+            off, quat = _drawn_poses(m, members)
+            self._body_groups[ent] = (members, arch, d[pos_name], d["quaternions"], off, quat)
+        self._meshes = {}
+        names = C.geom_view_names(m)
+        for g in np.flatnonzero(on_body & (gt == GEOM_MESH)):
+            d = _descriptors(rr.Transform3D.columns(translation=z3, quaternion=z4))
+            self._meshes[f"{MESHES_ENTITY}/{names[g]}"] = (int(g), d["translation"],
+                                                           d["quaternion"])
         self._d_scalar = _descriptors(rr.Scalars.columns(scalars=[0.0]))["scalars"]
         self._omega_bodies = list(range(self._n)) if self._n <= OMEGA_PLOT_MAX_BODIES else []
         self._d_pts = _descriptors(rr.Points3D.columns(positions=z3))["positions"]
         self._d_arrows = _descriptors(rr.Arrows3D.columns(vectors=z3, origins=z3))
         self._d_any = {}
+        self._interval = C.run_interval_channels(m)
 
     def _any(self, name: str) -> rr.ComponentDescriptor:
         d = self._d_any.get(name)
@@ -269,38 +296,27 @@ class RerunRecorder:
         rec.log("rblog/model", rr.AnyValues(**C.model_to_arrays(model)), static=True)
 
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        if model.ground:
-            center, q, half = C.ground_box(model)
-            rec.log("world/ground", rr.Boxes3D(centers=[center], half_sizes=[half],
-                                               quaternions=[rr.Quaternion(xyzw=[*q[1:], q[0]])],
-                                               colors=[[128, 128, 128, 160]], fill_mode="solid"),
-                    static=True)
-        for j in range(len(model.static_box_position)):
-            q = model.static_box_quat_wxyz[j]
-            rec.log(f"world/statics/{j}", rr.Boxes3D(
-                centers=[model.static_box_position[j]], half_sizes=[model.static_box_half_extents[j]],
-                quaternions=[rr.Quaternion(xyzw=[*q[1:], q[0]])], colors=[[150, 150, 165, 200]],
-                fill_mode="solid"), static=True)
-        show_labels = self._n <= LABELS_MAX_BODIES
-        for ent, (members, arch, _, _) in self._body_groups.items():
-            size = np.asarray(model.body_size, np.float64)[members]
-            kw = dict(colors=_PALETTE[members % len(_PALETTE)],
-                      labels=[str(model.body_name[i]) for i in members], show_labels=show_labels,
-                      fill_mode="solid")
-            if arch is rr.Ellipsoids3D:
-                geom = rr.Ellipsoids3D(half_sizes=np.repeat(size[:, :1], 3, axis=1), **kw)
-            else:
-                geom = rr.Boxes3D(half_sizes=size, **kw)
+        for ent, geom in _world_geoms(model):
             rec.log(ent, geom, static=True)
+        show_labels = self._n <= LABELS_MAX_BODIES
+        for ent, (members, arch, _, _, _, _) in self._body_groups.items():
+            bodies = np.asarray(model.geom_body)[members]
+            kw = dict(colors=_PALETTE[bodies % len(_PALETTE)],
+                      labels=[str(model.body_name[i]) for i in bodies], show_labels=show_labels,
+                      fill_mode="solid")
+            rec.log(ent, _primitives(model, members, arch, kw), static=True)
+        for ent, (g, _, _) in self._meshes.items():
+            b = int(model.geom_body[g])
+            rec.log(ent, _mesh(model, g, _PALETTE[b % len(_PALETTE)]), static=True)
         for ent, names in (("plots/momentum/linear", ["P_x (N s)", "P_y (N s)", "P_z (N s)"]),
                            ("plots/momentum/angular", ["L_x (N m s)", "L_y (N m s)", "L_z (N m s)"])):
-            rec.log(ent, rr.SeriesLines(names=names), static=True)
+            rec.log(ent, rr.SeriesLines(names=names, colors=SERIES_COLOURS[ent]), static=True)
         for ent, name in (("plots/energy/total", "total"),
                           ("plots/energy/translational", "translational"),
                           ("plots/energy/rotational", "rotational"),
                           ("plots/energy/potential", "potential"),
                           ):
-            rec.log(ent, rr.SeriesLines(names=[name]), static=True)
+            rec.log(ent, rr.SeriesLines(names=[name], colors=SERIES_COLOURS[ent]), static=True)
         for ent, name, colour in ((DRIFT_ENTITY + "/ortho_max", "max |R^T R - I|",
                                    (31, 119, 180)),
                                   (DRIFT_ENTITY + "/quat_norm_max", "max ||q| - 1|",
@@ -326,7 +342,7 @@ class RerunRecorder:
 
     def _write_samples(self, block: Trajectory):
         T, n = len(block.t), self._n
-        a = C.block_arrays(block, n)
+        a = C.block_arrays(block, n, self._interval)
         step = np.asarray(block.step, np.int64)
         t = np.ascontiguousarray(block.t, np.float64)
         idx = [rr.TimeColumn("step", sequence=step),
@@ -346,16 +362,27 @@ class RerunRecorder:
         if len(last):  # the closing blueprint frames where the bodies end
             self._bounds = last.copy()
         q = a["quat_wxyz"].reshape(T, n, 4)
-        for ent, (members, _, d_c, d_q) in self._body_groups.items():
+        rot = a["rotation"].reshape(T, n, 3, 3)
+        gb = np.asarray(self._model.geom_body)
+        for ent, (members, _, d_c, d_q, off, gq) in self._body_groups.items():
             k = len(members)
-            whole = k == n
-            p_e = pos if whole else pos[:, members]
-            q_e = q if whole else q[:, members]
+            b = gb[members]
+            # the primitive's world pose: x + R off, q_body * q_geom
+            p_e = pos[:, b] + np.einsum("tkij,kj->tki", rot[:, b], off)
+            q_e = quat_mul(q[:, b], gq[None])
             xyzw = np.empty((T, k, 4), np.float32)
             xyzw[..., :3] = q_e[..., 1:]
             xyzw[..., 3] = q_e[..., 0]
             self._send(ent, idx, [_Column(d_c, _fixed(p_e, 3), rows * k),
                                   _Column(d_q, _fixed(xyzw, 4), rows * k)])
+        m = self._model
+        for ent, (g, d_t, d_q) in self._meshes.items():
+            b = int(gb[g])
+            p_e = pos[:, b] + rot[:, b] @ np.asarray(m.geom_pos_body[g], np.float64)
+            q_e = quat_mul(q[:, b], np.asarray(m.geom_quat_wxyz_body[g], np.float64))
+            xyzw = np.concatenate([q_e[:, 1:], q_e[:, :1]], axis=1)
+            self._send(ent, idx, [_Column(d_t, _fixed(p_e, 3), rows),
+                                  _Column(d_q, _fixed(xyzw, 4), rows)])
 
         # plots
         def scalars(entity, values):
@@ -460,18 +487,44 @@ def _expected_chunks(model: Model, info: RunInfo) -> float:
     if not math.isfinite(samples):
         return math.inf
     per_block = samples_per_block(model.n_bodies, int(info.log_every))
-    return math.ceil(samples / per_block) * CHUNKS_PER_BLOCK
+    return math.ceil(samples / per_block) * chunks_per_block(model)
+
+
+def chunks_per_block(model: Model) -> int:
+    """Chunks one block sends at most: CHUNKS_PER_BLOCK, one per geom type the bodies have (one
+    entity each) and one per mesh geom (an entity each)."""
+    gb, gt = np.asarray(model.geom_body), np.asarray(model.geom_type)
+    on_body = gt[gb >= 0]
+    types = {GEOM_PLANE: GEOM_BOX}  # a body's planes are drawn with its boxes
+    entities = {types.get(int(t), int(t)) for t in on_body if t != GEOM_MESH}
+    return CHUNKS_PER_BLOCK + len(entities) + int(np.sum(on_body == GEOM_MESH))
 
 
 #: the drift plot: log10 of the largest rigidity errors over the bodies, beside the tolerance
 #: rblog check judges them by (a line), so that round-off (1e-16 .. 1e-12), the tolerance and a
-#: body stretched to an error of 1 all read on one axis; the axis scales to the data
+#: body stretched to an error of 1 all read on one axis (DRIFT_AXIS_LOG10)
 DRIFT_ENTITY = "plots/drift"
 #: the rigidity tolerance drawn as a line: rblog.analyze.tolerances.DRIFT_ORTHO_ERROR (the record
 #: room does not import the audit; tests/record/test_record.py checks the two agree)
 DRIFT_TOLERANCE = 1e-6
 #: an error of exactly 0 is drawn at this floor (log10 of it: -17), below float64 round-off
 DRIFT_FLOOR = 1e-17
+#: the drift plot's y range (log10 of the error): from the floor to an error of 10, so that
+#: round-off, the tolerance (-6) and a stretched body (0) stand at their own heights with a tick
+#: every few decades, whatever the run (scaled to the data, a clean run's axis spanned a
+#: fraction of a decade and showed one tick label); the viewer still zooms
+DRIFT_AXIS_LOG10 = (math.log10(DRIFT_FLOOR), 1.0)
+#: the line colours of the energy and momentum plots (RGB): hues far apart on the colour wheel,
+#: so that no two series of one plot look alike (the viewer's own picks were blues and purples);
+#: total energy dark, x/y/z as red/green/blue for P and orange/grey/magenta for L
+SERIES_COLOURS = {
+    "plots/energy/total": [(40, 40, 40)],
+    "plots/energy/translational": [(31, 119, 180)],
+    "plots/energy/rotational": [(255, 127, 14)],
+    "plots/energy/potential": [(44, 160, 44)],
+    "plots/momentum/linear": [(214, 39, 40), (44, 160, 44), (31, 119, 180)],
+    "plots/momentum/angular": [(255, 160, 0), (70, 70, 70), (227, 119, 194)],
+}
 #: per-body angular velocity (body frame) of small scenes: OMEGA_ENTITY/<body view name>
 OMEGA_ENTITY = "plots/omega_body"
 #: x, y, z line colours of each body's angular velocity (reds, greens, blues; lighter per body)
@@ -580,7 +633,7 @@ def _blueprint(model: Model, info: RunInfo, findings: bool = False,
     plots (energy, momentum, drift, and for small scenes each body's angular velocity in its own
     frame, else linear and angular momentum apart), each plot with its legend and a time axis a
     little wider than the run (``t_end``, else the scene's duration) so that its end labels are
-    whole; the drift plot scales to its data and draws the tolerance as a line. With
+    whole; the drift plot spans DRIFT_AXIS_LOG10 and draws the tolerance as a line. With
     ``findings``, the findings table (the ``findings`` text log of rblog.record.findings) spans
     the width below, and the time panel is expanded so that its ``findings`` row marks when
     they are. The camera frames ``bounds``: the bodies' positions (k, 3) at the end of the run,
@@ -600,12 +653,14 @@ def _blueprint(model: Model, info: RunInfo, findings: bool = False,
                                         else VIEW_ASPECT)
         eye = rrb.EyeControls3D(position=position, look_target=target)
     legend = rrb.PlotLegend(corner="LeftTop", visible=True)
-    # the drift plot: the largest error rises to the top, so its legend sits at the bottom
-    drift_legend = rrb.PlotLegend(corner="LeftBottom", visible=True)
+    # the drift plot (DRIFT_AXIS_LOG10): round-off lies near the bottom, a stretch rises to the
+    # top only late in the run, so the top left corner is the one its traces leave empty
+    drift_legend = rrb.PlotLegend(corner="LeftTop", visible=True)
     axis = _time_axis(t_end if t_end is not None else info.duration_s)
     kw = dict(plot_legend=legend, axis_x=axis) if axis is not None else dict(plot_legend=legend)
     world = rrb.Spatial3DView(origin="world", name="bodies", eye_controls=eye)
     drift = rrb.TimeSeriesView(origin=DRIFT_ENTITY, name="rigidity drift (log10 of the error)",
+                               axis_y=rrb.ScalarAxis(range=DRIFT_AXIS_LOG10),
                                **{**kw, "plot_legend": drift_legend})
     if 0 < model.n_bodies <= OMEGA_PLOT_MAX_BODIES:
         plots = [rrb.TimeSeriesView(origin="plots/energy", name="energy (J)", **kw),
@@ -676,3 +731,107 @@ def _viewer_executable() -> str | None:
         return found
     beside = Path(sys.executable).with_name("rerun")
     return str(beside) if beside.exists() else None
+
+
+def _drawn_poses(model: Model, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(k, 3) offsets and (k, 4) quaternions (wxyz), in their bodies' frames, of the primitives
+    drawing geoms ``members``: the geom's pose, a capsule's moved to its lower end (Rerun's
+    Capsules3D starts at its translation and runs along +z), a plane's to its thin box."""
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    off = np.asarray(model.geom_pos_body, np.float64)[members].copy()
+    quat = np.asarray(model.geom_quat_wxyz_body, np.float64)[members].copy()
+    for j, g in enumerate(members):
+        t = int(model.geom_type[g])
+        if t == GEOM_CAPSULE:
+            off[j] -= quat_wxyz_to_matrix(quat[j])[:, 2] * float(model.geom_size[g, 1])
+        elif t == GEOM_PLANE:
+            off[j], quat[j], _ = C.plane_box(model, int(g))
+    return off, quat
+
+
+def _primitives(model: Model, members: np.ndarray, arch, kw: dict):
+    """The static part (sizes, colours, labels) of the instances drawing geoms ``members``."""
+    size = np.asarray(model.geom_size, np.float64)[members]
+    types = np.asarray(model.geom_type)[members]
+    if arch is rr.Boxes3D:
+        half = size.copy()
+        for j, g in enumerate(members):
+            if types[j] == GEOM_PLANE:
+                half[j] = C.plane_box(model, int(g))[2]
+        return rr.Boxes3D(half_sizes=half, **kw)
+    if arch is rr.Ellipsoids3D:
+        half = np.where((types == GEOM_SPHERE)[:, None], size[:, :1], size)
+        return rr.Ellipsoids3D(half_sizes=half, **kw)
+    if arch is rr.Capsules3D:
+        return rr.Capsules3D(lengths=2.0 * size[:, 1], radii=size[:, 0], **kw)
+    return rr.Cylinders3D(lengths=2.0 * size[:, 1], radii=size[:, 0], **kw)
+
+
+def _mesh(model: Model, g: int, colour) -> rr.Mesh3D | rr.Points3D:
+    """Mesh geom ``g`` in its own frame: the convex hull of its vertices (its points alone when
+    the hull cannot be built)."""
+    vert = model.geom_vertices(g)
+    tri = C.hull_triangles(vert)
+    if tri is None:
+        return rr.Points3D(vert, colors=[colour], radii=[0.005])
+    return rr.Mesh3D(vertex_positions=vert, triangle_indices=tri, albedo_factor=[*colour, 255])
+
+
+def _world_geoms(model: Model) -> list:
+    """(entity, archetype) of every world geom (static): the ground plane at ``world/ground``,
+    other planes at ``world/planes/<name>`` (thin boxes), every other geom at
+    ``world/statics/<j>`` (j counting them in geom order) as what it is."""
+    out = []
+    gb, gt = np.asarray(model.geom_body), np.asarray(model.geom_type)
+    names = C.geom_view_names(model)
+    ground_seen = False
+    j = 0
+    for g in np.flatnonzero(gb < 0):
+        g = int(g)
+        t = int(gt[g])
+        q = np.asarray(model.geom_quat_wxyz_body[g], np.float64)
+        p = np.asarray(model.geom_pos_body[g], np.float64)
+        size = np.asarray(model.geom_size[g], np.float64)
+        xyzw = [rr.Quaternion(xyzw=[*q[1:], q[0]])]
+        solid = dict(colors=[[150, 150, 165, 200]], fill_mode="solid")
+        if t == GEOM_PLANE:
+            center, qp, half = C.plane_box(model, g)
+            nrm = _normal(q)
+            is_ground = (not ground_seen and model.ground
+                         and np.allclose(nrm, model.ground_normal, rtol=0.0, atol=1e-12)
+                         and abs(float(nrm @ p) - float(model.ground_offset)) <= 1e-12)
+            ent = "world/ground" if is_ground else f"world/planes/{names[g]}"
+            ground_seen = ground_seen or is_ground
+            out.append((ent, rr.Boxes3D(centers=[center], half_sizes=[half],
+                                        quaternions=[rr.Quaternion(xyzw=[*qp[1:], qp[0]])],
+                                        colors=[[128, 128, 128, 160]], fill_mode="solid")))
+            continue
+        ent = f"world/statics/{j}"
+        j += 1
+        if t == GEOM_BOX:
+            arch = rr.Boxes3D(centers=[p], half_sizes=[size], quaternions=xyzw, **solid)
+        elif t in (GEOM_SPHERE, GEOM_ELLIPSOID):
+            half = [size[0]] * 3 if t == GEOM_SPHERE else size
+            arch = rr.Ellipsoids3D(centers=[p], half_sizes=[half], quaternions=xyzw, **solid)
+        elif t == GEOM_CAPSULE:
+            from rblog.contract.orientation import quat_wxyz_to_matrix
+
+            end = p - quat_wxyz_to_matrix(q)[:, 2] * size[1]
+            arch = rr.Capsules3D(translations=[end], lengths=[2 * size[1]], radii=[size[0]],
+                                 quaternions=xyzw, **solid)
+        elif t == GEOM_CYLINDER:
+            arch = rr.Cylinders3D(centers=[p], lengths=[2 * size[1]], radii=[size[0]],
+                                  quaternions=xyzw, **solid)
+        else:  # a mesh: its hull placed by its own transform
+            out.append((ent, rr.Transform3D(translation=p, quaternion=xyzw[0])))
+            out.append((ent + "/mesh", _mesh(model, g, [150, 150, 165])))
+            continue
+        out.append((ent, arch))
+    return out
+
+
+def _normal(quat_wxyz) -> np.ndarray:
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    return quat_wxyz_to_matrix(np.asarray(quat_wxyz, np.float64))[:, 2]

@@ -27,9 +27,13 @@ from rblog.record import _common as C
 #: model fields whose values must be finite numbers (materials may be NaN: unknown)
 _FINITE_MODEL = ("body_size", "body_mass", "body_inertia_diag", "body_force_world",
                  "body_torque_world", "gravity", "ground_normal", "ground_offset",
-                 "static_box_position", "static_box_quat_wxyz", "static_box_half_extents")
+                 "static_box_position", "static_box_quat_wxyz", "static_box_half_extents",
+                 "joint_anchor_body", "joint_anchor_parent", "joint_axis_body",
+                 "joint_axis_parent", "geom_pos_body", "geom_quat_wxyz_body", "geom_size",
+                 "mesh_vert")
 _MATERIALS = ("body_restitution", "body_friction", "ground_restitution", "ground_friction",
-              "static_box_restitution", "static_box_friction")
+              "static_box_restitution", "static_box_friction", "geom_friction",
+              "geom_restitution")
 #: contact row fields: values per contact (1 or 3)
 _CONTACT_WIDTH = {"step": 1, "t": 1, "body_a": 1, "body_b": 1, "kind": 1, "separation": 1,
                   "normal_impulse": 1, "point": 3, "normal": 3, "friction_impulse": 3}
@@ -47,6 +51,51 @@ def _numeric(path: str, where: str, v, integer: bool) -> np.ndarray:
     return a.reshape(-1)
 
 
+#: integer model fields with a range: name -> (lowest, highest as f(N, table rows), what)
+_CODES = {
+    "body_kind": (0, lambda n, c: 3, "a body kind"),
+    "body_parent": (-1, lambda n, c: n - 1, "a body index or -1 (world)"),
+    "body_impulse_supplied": (0, lambda n, c: 2, "a supplied code"),
+    "body_work_supplied": (0, lambda n, c: 2, "a supplied code"),
+    "joint_type": (0, lambda n, c: 5, "a joint type"),
+    "joint_body": (0, lambda n, c: n - 1, "a body index"),
+    "geom_type": (0, lambda n, c: 6, "a geom type"),
+    "geom_body": (-1, lambda n, c: n - 1, "a body index or -1 (world)"),
+    "geom_vert_adr": (0, lambda n, c: max(c.get("mesh_vert", 0), 0), "a row of mesh_vert"),
+    "geom_vert_num": (0, lambda n, c: c.get("mesh_vert", 0), "a count of mesh_vert rows"),
+}
+
+
+def _short_repr(v) -> str:
+    r = repr(v)
+    return r if len(r) <= 60 else r[:57] + "..."
+
+
+def _table_of(name: str) -> str:
+    """The table a model field's rows belong to: body, static_box, joint, geom or mesh_vert."""
+    for prefix in ("body_", "static_box_", "joint_", "geom_"):
+        if name.startswith(prefix):
+            return prefix[:-1]
+    return name
+
+
+def _rows(path, where, name, table, size, width, counts, n):
+    """``size`` values of ``width`` each: N for a body field; for another table the same row
+    count as that table's other fields."""
+    if table == "body":
+        if size != n * width:
+            raise LogReadError(path, f"{where}: {name} holds {size} values, expected "
+                               f"{n * width} ({width} for each of {n} bodies)")
+        return
+    count, rest = divmod(size, width)
+    known = counts.get(table)
+    if rest or (known is not None and count != known):
+        raise LogReadError(path, f"{where}: {name} holds {size} values, expected {width} per "
+                           f"{table.replace('_', ' ')} row"
+                           + (f" for {known} rows" if known is not None else ""))
+    counts[table] = count
+
+
 def model_record(path: str, model: dict) -> None:
     """The run record's body table as flat arrays (what ``_common.model_from_arrays`` takes):
     every field present that the contract requires, of its kind, N (or M) entries of its width,
@@ -58,14 +107,24 @@ def model_record(path: str, model: dict) -> None:
     if not all(isinstance(x, str) for x in names):
         raise LogReadError(path, f"{where}: body_name holds non-text values, expected N names")
     n = len(names)
-    m_count: int | None = None
+    counts: dict[str, int] = {}  # rows of each table beside the bodies': static_box, joint, geom
+    coded: dict[str, np.ndarray] = {}  # the fields of _CODES, checked once every count is known
     for name, (kind, shape) in C.MODEL_FIELDS.items():
         if name == "body_name":
             continue
         v = model.get(name)
         if v is None:
-            if name.startswith("body_"):
+            if name.startswith("body_") and name not in C.V3_MODEL_FIELDS:
                 raise LogReadError(path, f"{where}: {name} missing, expected {n} values")
+            continue
+        table = _table_of(name)
+        if kind == "s":
+            texts = [v] if isinstance(v, (str, bytes)) else list(np.asarray(v, object).reshape(-1))
+            if not all(isinstance(x, str) for x in texts) or (shape is None and len(texts) != 1):
+                raise LogReadError(path, f"{where}: {name} holds {_short_repr(v)}, expected "
+                                   + ("one text" if shape is None else "a text per row"))
+            if shape is not None:
+                _rows(path, where, name, table, len(texts), 1, counts, n)
             continue
         a = _numeric(path, f"{where}: {name}", v, integer=kind in "ib")
         if shape is None:
@@ -73,18 +132,7 @@ def model_record(path: str, model: dict) -> None:
             if a.size != want:
                 raise LogReadError(path, f"{where}: {name} holds {a.size} values, expected {want}")
         else:
-            width = int(np.prod(shape)) if shape else 1
-            if name.startswith("body_"):
-                if a.size != n * width:
-                    raise LogReadError(path, f"{where}: {name} holds {a.size} values, expected "
-                                       f"{n * width} ({width} for each of {n} bodies)")
-            else:
-                count, rest = divmod(a.size, width)
-                if rest or (m_count is not None and count != m_count):
-                    raise LogReadError(path, f"{where}: {name} holds {a.size} values, expected "
-                                       f"{width} per static box"
-                                       + (f" for {m_count} boxes" if m_count is not None else ""))
-                m_count = count
+            _rows(path, where, name, table, a.size, int(np.prod(shape)) if shape else 1, counts, n)
         if name in _FINITE_MODEL and not np.isfinite(a).all():
             raise LogReadError(path, f"{where}: {name} holds {_first_bad(a)}, expected finite "
                                "numbers")
@@ -97,11 +145,26 @@ def model_record(path: str, model: dict) -> None:
         if name == "body_inertia_diag" and (a < 0).any():
             raise LogReadError(path, f"{where}: body_inertia_diag holds {_first_bad(a, a < 0)}, "
                                "expected moments >= 0 (kg m^2)")
+        if name in _CODES:
+            coded[name] = a
         if name == "body_shape" and not np.isin(a, list(LOG_SHAPE_CODES.values())).all():
             bad = a[~np.isin(a, list(LOG_SHAPE_CODES.values()))][0]
             raise LogReadError(path, f"{where}: body_shape holds {int(bad)}, expected 0 (sphere), "
                                "1 (box) or -1 (none)")
 
+    for name, a in coded.items():
+        lo, hi_of, what = _CODES[name]
+        hi = hi_of(n, counts)
+        if a.size and (a.min() < lo or a.max() > hi):
+            bad = a[(a < lo) | (a > hi)][0]
+            raise LogReadError(path, f"{where}: {name} holds {int(bad)}, expected {what} "
+                               f"({lo}..{hi})")
+    adr, num = coded.get("geom_vert_adr"), coded.get("geom_vert_num")
+    if adr is not None and num is not None and adr.size == num.size and adr.size and \
+            (adr + num).max() > counts.get("mesh_vert", 0):
+        raise LogReadError(path, f"{where}: geom_vert_adr + geom_vert_num reach row "
+                           f"{int((adr + num).max())}, past the {counts.get('mesh_vert', 0)} rows "
+                           "of mesh_vert")
 
 def _first_bad(a: np.ndarray, mask: np.ndarray | None = None) -> str:
     mask = ~np.isfinite(a) if mask is None else (mask | np.isinf(a))

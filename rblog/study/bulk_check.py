@@ -9,15 +9,17 @@ code that produces them, and the executor returns them in input order.
 
 An entry (JSON-able)::
 
-    {"log": path, "status": "clean" | "flagged" | "unreadable" | "failed",
+    {"log": path, "status": "clean" | "truncated" | "flagged" | "not judged" | "unreadable" | "failed",
      "samples", "bodies", "truncated", "t_end_s", "warnings": [...],
      "results": [Result.to_dict(model), ...]}          # readable logs
     {"log": path, "status": "unreadable" | "failed", "error": one line}   # the others
 
-``failed``: the worker process died under the log twice (see rblog.study.cluster).
+``truncated``: nothing flagged, but the log stops before the run's end (an interrupted or
+stopped run): clean only up to there, so never counted as clean. ``failed``: the worker process
+died under the log twice (see rblog.study.cluster).
 
-Exit code of a batch (:func:`exit_code`): the worst over its logs, 0 clean < 1 flagged <
-2 unreadable or failed.
+Exit code of a batch (:func:`exit_code`): the worst over its logs, 0 clean or truncated <
+1 flagged < 2 unreadable or failed < 4 not judged.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ LOG_SUFFIXES = (".rrd", ".mcap")
 #: paths are relative to the list file's directory)
 LIST_SUFFIXES = (".txt", ".list", ".lst")
 #: exit code of each status; a batch exits with the largest
-STATUS_EXIT = {"clean": 0, "flagged": 1, "unreadable": 2, "failed": 2, "not judged": 4}
+STATUS_EXIT = {"clean": 0, "truncated": 0, "flagged": 1, "unreadable": 2, "failed": 2, "not judged": 4}
 #: the fewest samples an audit can judge (drifts and rates need two); a shorter log is
 #: "not judged" (exit 4), never "clean"
 MIN_SAMPLES_TO_JUDGE = 2
@@ -106,7 +108,11 @@ def check_log(path: str, only=None, skip=None, tolerances: dict | None = None) -
                      f"{MIN_SAMPLES_TO_JUDGE}")
     elif not flagged and any(r.verdict == "not judged" for r in results):
         status = "not judged"
-    return {"log": path, "status": status,
+    elif not flagged and traj.truncated:
+        status = "truncated"
+    from rblog.analyze.contents import log_contents
+
+    return {"log": path, "status": status, "contents": log_contents(traj),
             "samples": traj.n_samples, "bodies": traj.n_bodies, "truncated": traj.truncated,
             "t_end_s": float(traj.t[-1]) if traj.n_samples else 0.0,
             "warnings": warns,
@@ -256,6 +262,8 @@ def format_summary(report: BulkReport) -> str:
     n = len(report.entries)
     lines = [f"{n} logs: {s['logs']['clean']} clean, {s['logs']['flagged']} flagged, "
              f"{s['logs']['unreadable']} unreadable"
+             + (f", {s['logs']['truncated']} truncated (clean up to where the log stops)"
+                if s["logs"]["truncated"] else "")
              + (f", {s['logs']['failed']} failed (worker died)" if s["logs"]["failed"] else "")
              + (f", {s['logs']['not judged']} not judged" if s["logs"]["not judged"] else "")
              + f"  [{report.executor}, {report.wall_s:.2f} s]"]

@@ -49,7 +49,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
-from rblog.errors import RblogError
+from rblog.errors import RblogError, ClusterUnavailable
 
 #: what to install for workers
 INSTALL_HINT = 'the optional extra "cluster" (pip install -e ".[cluster]", or pip install "rblog[cluster]")'
@@ -71,11 +71,6 @@ LOCAL_DIAGNOSTICS_OFF = {"distributed.worker.profile.enabled": False,
 RETRIES_AFTER_WORKER_DEATH = 1
 #: seconds to wait for a running scheduler to answer / for its workers to appear
 CONNECT_TIMEOUT_S = 30.0
-
-
-class ClusterUnavailable(RblogError):
-    """Workers or a scheduler were asked for, but dask.distributed is not installed, or the
-    scheduler cannot be reached."""
 
 
 @dataclass

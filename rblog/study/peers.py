@@ -1,8 +1,10 @@
-"""Optional peers: the reference problems of :mod:`rblog.study.reference` run in MuJoCo and pybullet,
-reduced to the same :class:`~rblog.study.reference.Samples` and scored by the same code as rblog.
+"""Optional peers: the reference problems of :mod:`rblog.study.reference` run in MuJoCo, pybullet
+and ODE, reduced to the same :class:`~rblog.study.reference.Samples` and scored by the same code
+as rblog.
 
-Both are optional (``pip install -e ".[engines]"`` in a checkout); :func:`available_peers` returns
-the installed ones. What each engine is given:
+All are optional (``pip install -e ".[engines]"`` in a checkout; ODE: Debian's ``libode8`` and
+``pip install -e ".[ode]"``); :func:`available_peers` returns the installed ones. What each
+engine is given:
 
 * MuJoCo: one body per rblog body with a free joint and an explicit ``<inertial>`` (mass and
   principal moments, like rblog's ``inertia_diag``); its integrators ``Euler`` (the default,
@@ -18,8 +20,17 @@ the installed ones. What each engine is given:
   damping (0.04) set to 0. Bullet multiplies the two restitutions (and frictions) of a contact, so
   the static ground gets restitution 1 and the body e. Its one integrator is named ``default``.
 
+* ODE: the problem's scene (``Problem.scene_toml``) translated by ``rblog run --engine ode``'s own
+  code (:class:`rblog.study.engines.ode.OdeRun`: masses and principal moments, world-frame angular
+  velocity, rblog's combine rules set per contact, dContactApprox1 friction, bounce above rblog's
+  restitution threshold, ODE's default ERP 0.2 and CFM 1e-10); its two steppers ``dWorldStep``
+  and ``dWorldQuickStep`` (20 iterations). A constant torque is ``dBodyAddTorque`` every step.
+
 Timing (:meth:`time`): MuJoCo runs ``mj_step(nstep=N)`` in one call; pybullet has no multi-step
-call, so its time includes one Python call per step (~1 us of its ~10-30 us per step).
+call, so its time includes one Python call per step (~1 us of its ~10-30 us per step); ODE has
+none either and its collision pass calls a Python near callback for every candidate pair, so its
+time is per step ``dSpaceCollide`` + the callback + ``dWorldStep`` + ``dJointGroupEmpty``
+through ctypes, mostly Python for these one-body problems (2-10 us per step here).
 """
 
 from __future__ import annotations
@@ -31,7 +42,7 @@ import numpy as np
 
 from rblog.study.reference import Problem, Samples, quat_to_matrix
 
-PEER_NAMES = ("mujoco", "pybullet")
+PEER_NAMES = ("mujoco", "pybullet", "ode")
 #: problems whose contacts are impacts with a restitution (MuJoCo gets the solref mapping)
 IMPACT_KINDS = ("bounce", "two_sphere")
 #: omega dt of MuJoCo's contact spring in impact problems (explicit stepping is unstable near 2;
@@ -240,7 +251,60 @@ class PybulletPeer:
             pb.disconnect(physicsClientId=cid)
 
 
-_PEERS = {"mujoco": MujocoPeer, "pybullet": PybulletPeer}
+class OdePeer:
+    name = "ode"
+    #: ODE's steppers, named by their calls
+    integrators = ("dWorldStep", "dWorldQuickStep")
+    STEPPER = {"dWorldStep": "world", "dWorldQuickStep": "quick"}
+
+    def __init__(self):
+        from rblog.study.engines.ode import OdeRun  # raises EngineMissing without odepy/libode
+
+        import odepy  # noqa: F401
+        from rblog.adapters.ode import version
+
+        self.Run = OdeRun
+        self.version = version()
+
+    def supports(self, problem: Problem) -> str:
+        return ""
+
+    def _setup(self, problem: Problem, integrator: str, dt: float, duration: float | None = None):
+        from rblog.engine.scene import parse_scene
+
+        scene = parse_scene(problem.scene_toml(dt, duration), path=f"<{problem.name}>")
+        return self.Run(scene, dt, [f"stepper={self.STEPPER[integrator]}"])
+
+    def run(self, problem: Problem, integrator: str, dt: float):
+        run = self._setup(problem, integrator, dt)
+        try:
+            n_total = max(1, int(round(problem.duration / dt)))
+            stride = problem.log_every(dt)
+            ts, st = [0.0], [run.state()]
+            done = 0
+            while done < n_total:
+                k = min(stride, n_total - done)
+                run.step(k)
+                done += k
+                ts.append(done * dt)
+                st.append(run.state())
+        finally:
+            run.close()
+        arr = lambda k: np.array([x[k] for x in st], float)  # noqa: E731
+        return Samples(np.array(ts), arr(0), arr(1), arr(2), arr(3)), n_total
+
+    def time(self, problem: Problem, integrator: str, dt: float, duration: float):
+        run = self._setup(problem, integrator, dt, duration)
+        try:
+            n = max(1, int(round(duration / dt)))
+            t0 = time.perf_counter()
+            run.step(n)
+            return time.perf_counter() - t0, n
+        finally:
+            run.close()
+
+
+_PEERS = {"mujoco": MujocoPeer, "pybullet": PybulletPeer, "ode": OdePeer}
 
 
 def unavailable_reason(name: str) -> str:
@@ -249,8 +313,10 @@ def unavailable_reason(name: str) -> str:
     try:
         _PEERS[name]()
     except Exception as e:
-        return (f"not installed ({type(e).__name__}: {e}); pip install -e \".[engines]\" in a "
-                "checkout (or pip install \"rblog[engines]\")")
+        extra = "ode" if name == "ode" else "engines"
+        return (f"not installed ({type(e).__name__}: {e}); pip install -e \".[{extra}]\" in a "
+                f"checkout (or pip install \"rblog[{extra}]\")" + ("; ODE: apt-get install libode8"
+                                                                  if name == "ode" else ""))
     return ""
 
 
@@ -267,4 +333,4 @@ def available_peers(names=None) -> list:
     return out
 
 
-__all__ = ["MujocoPeer", "PybulletPeer", "available_peers", "unavailable_reason", "PEER_NAMES"]
+__all__ = ["MujocoPeer", "OdePeer", "PybulletPeer", "available_peers", "unavailable_reason", "PEER_NAMES"]

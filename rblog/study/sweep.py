@@ -126,7 +126,7 @@ class _Tee:
     (the collector: list appends) and writes it (MCAP). Given two recorders, the run would start a
     thread per recorder and pass every block through two more queues; for a variant of ~2,000
     samples those hand-offs cost more than the overlap gains, most of all on a worker that shares
-    its core with another (measured in benchmarks/RESULTS.md, issue 20)."""
+    its core with another."""
 
     def __init__(self, *recorders):
         self.recorders = recorders

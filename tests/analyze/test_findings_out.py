@@ -66,7 +66,9 @@ def test_check_rrd_writes_one_recording_with_the_run_and_its_findings(logs, kind
     out = d / f"checked-from{kind.replace('.', '-')}.rrd"
     res = _cli("check", paths[kind], "--rrd", out)
     assert res.exit_code == 1, res.output
-    assert f"(open with: rerun {out})" in res.output, res.output
+    from rblog_cli.report import program
+
+    assert f"(open with: {program('rerun')} {out})" in res.output, res.output
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         import rerun as rr

@@ -315,17 +315,17 @@ def test_mujoco_adapter_models_live_equals_post(tmp_path):
 
 
 def test_readme_mujoco_example_live_equals_post(tmp_path, monkeypatch):
-    """README's "Audit your MuJoCo model", with `check=True`: the crate's sink is announced while
+    """docs/recording.md's "Audit your MuJoCo or pybullet model", with `check=True`: the crate's sink is announced while
     it runs and the final verdict is `rblog check`'s."""
     pytest.importorskip("mujoco")
-    text = (REPO / "README.md").read_text()
-    code = text.split("### Audit your MuJoCo model", 1)[1].split("```python", 1)[1].split("```", 1)[0]
+    text = (REPO / "docs" / "recording.md").read_text()
+    code = text.split("## Audit your MuJoCo or pybullet model", 1)[1].split("```python", 1)[1].split("```", 1)[0]
     assert 'MujocoRecorder(m, d, mcap="crate.mcap")' in code
     code = code.replace('MujocoRecorder(m, d, mcap="crate.mcap")',
                         'MujocoRecorder(m, d, mcap="crate.mcap", check={"budget": None}, block=50)')
     monkeypatch.chdir(tmp_path)
     ns: dict = {}
-    exec(compile(code, "README.md", "exec"), ns)
+    exec(compile(code, "docs/recording.md", "exec"), ns)
     audit = ns["rec"].recorder.audit
     post = assert_live_equals_post(audit, load("crate.mcap"))
     assert any(not r.passed for r in post)

@@ -47,7 +47,7 @@ def test_failed_first_write_is_not_judged():
     traj = rec.trajectory
     assert traj.failed.startswith("write of block 1 raised RecordError") and traj.truncated
     res = rblog.check(traj)
-    assert len(res) == 6
+    assert len(res) == 7
     for r in res:
         assert not r.passed and not r.judged and r.verdict == "not judged", r
         assert r.reason.startswith("not judged: the recording failed"), r.reason

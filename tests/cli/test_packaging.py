@@ -17,6 +17,9 @@ from conftest import REPO
 
 PYPROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())
 README = (REPO / "README.md").read_text()
+#: README and the pages of docs/, where the topics README links to live
+DOCS = {p.relative_to(REPO).as_posix(): p.read_text(encoding="utf-8")
+        for p in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]}
 
 
 def test_license_is_an_spdx_string():
@@ -32,24 +35,31 @@ def test_package_data_globs_match_files():
             assert list(root.glob(g)), f"package-data {pkg}: {g!r} matches no file"
 
 
-def test_readme_scene_example_loads_with_its_commented_settings():
-    """The first ```toml block of README, with each ``# key = value`` line of [sim] uncommented
-    (what a user does to try them), is a valid scene."""
-    block = re.search(r"```toml\n(.*?)```", README, re.S).group(1)
+def test_scene_example_loads_with_its_commented_settings():
+    """The first ```toml block of docs/scenes.md, with each ``# key = value`` line of [sim]
+    uncommented (what a user does to try them), is a valid scene."""
+    block = re.search(r"```toml\n(.*?)```", DOCS["docs/scenes.md"], re.S).group(1)
     lines = []
     for ln in block.splitlines():
         m = re.match(r"#\s*(\w+\s*=\s*\S.*)$", ln.strip())
         lines.append(m.group(1) if m else ln)
-    scene = parse_scene("\n".join(lines), "README.md")
+    scene = parse_scene("\n".join(lines), "docs/scenes.md")
     assert scene.sim.orthonormalize in (None, "normalize")
 
 
-def test_readme_paths_exist():
-    """Every repository path README quotes in backticks (a/b/ or a/b.ext) exists."""
-    for p in re.findall(r"`((?:[\w.-]+/)+[\w.-]*)`", README):
-        if p.startswith(("http", ".venv", "/")) or "*" in p:
+@pytest.mark.parametrize("page", ["README.md", "docs/scenes.md", "docs/integrators.md",
+                                  "docs/contacts.md", "docs/recording.md", "docs/cli.md"])
+def test_doc_paths_exist(page):
+    """Every repository path README or a topic page quotes in backticks (a/b/ or a/b.ext), and
+    every page README links to, exists. (Other pages also quote entity paths of the logs.)"""
+    text = DOCS[page]
+    for p in re.findall(r"`((?:[\w.-]+/)+[\w.-]*)`", text):
+        if p.startswith(("http", ".venv", "/", "findings/", "rblog/status")) or "*" in p:
             continue
-        assert (REPO / p).exists(), f"README names {p!r}, which the repository does not have"
+        assert (REPO / p).exists(), f"{page} names {p!r}, which the repository does not have"
+    if page == "README.md":
+        for p in re.findall(r"\]\(((?:docs|benchmarks)/[\w./-]+)\)", text):
+            assert (REPO / p).exists(), f"README links to {p!r}, which does not exist"
 
 
 def _bench_contact():
@@ -93,12 +103,14 @@ def test_benchmark_mujoco_leaves_no_log_in_cwd(tmp_path, monkeypatch):
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
 
 
-def test_readme_documents_every_command():
-    """Every command `rblog --help` lists has its own mention (`rblog NAME`) in README."""
+def test_docs_document_every_command():
+    """Every command `rblog --help` lists has its own mention (`rblog NAME`) in docs/cli.md or
+    docs/recording.md (README links both)."""
     from rblog_cli.main import main
 
-    missing = [name for name in main.commands if not re.search(rf"\brblog {name}\b", README)]
-    assert not missing, f"README does not document: {', '.join(missing)}"
+    text = DOCS["docs/cli.md"] + DOCS["docs/recording.md"]
+    missing = [name for name in main.commands if not re.search(rf"\brblog {name}\b", text)]
+    assert not missing, f"docs/cli.md does not document: {', '.join(missing)}"
 
 
 def test_readme_is_a_guide_of_today():

@@ -87,7 +87,7 @@ def test_files_round_trip_and_audit_matches_in_memory(tmp_path):
     for path in (rrd, mcap):
         got = rblog.load(path)
         assert got.info.writer == "hand 1.0" and got.info.combine_friction == "max"
-        assert got.info.engine_settings == {"k": 1} and got.info.log_format == 2
+        assert got.info.engine_settings == {"k": 1} and got.info.log_format == 3
         for name in ("t", "position", "quat_wxyz", "rotation", "velocity", "angular_velocity",
                      "angular_momentum", "total_energy", "total_angular_momentum"):
             np.testing.assert_array_equal(getattr(got, name), getattr(mem, name), err_msg=name)
@@ -180,7 +180,7 @@ def test_v1_log_still_readable(tmp_path, monkeypatch):
 
 
 def _readme_example() -> str:
-    text = (REPO / "README.md").read_text(encoding="utf-8")
+    text = (REPO / "docs" / "recording.md").read_text(encoding="utf-8")
     sec = text.split("## Record your own engine", 1)[1]
     return re.search(r"```python\n(.*?)```", sec, re.S).group(1)
 
@@ -188,7 +188,7 @@ def _readme_example() -> str:
 def test_readme_example_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     ns: dict = {}
-    exec(compile(_readme_example(), "README.md", "exec"), ns)  # noqa: S102 - the repo's own README
+    exec(compile(_readme_example(), "docs/recording.md", "exec"), ns)  # noqa: S102 - the repo's docs
     assert Path("ball.mcap").exists()
     results = ns["results"]
     assert [r.analyzer for r in results][0] == "consistency"

@@ -142,15 +142,15 @@ def test_docs_list_the_fixed_values():
 
 
 def test_docs_show_contacts_in_recorder_write():
-    """README shows contact rows handed to Recorder.write, and the example runs."""
+    """docs/recording.md shows contact rows handed to Recorder.write, and the example runs."""
     import re
 
-    text = (REPO / "README.md").read_text(encoding="utf-8")
+    text = (REPO / "docs" / "recording.md").read_text(encoding="utf-8")
     blocks = [b for b in re.findall(r"```python\n(.*?)```", text, re.S)
               if "contacts=rows" in b and "rblog.Recorder" in b]
-    assert blocks, "README has no Recorder.write example with contacts"
+    assert blocks, "docs/recording.md has no Recorder.write example with contacts"
     ns: dict = {}
-    exec(compile(blocks[0], "README.md", "exec"), ns)  # noqa: S102 - the repo's own README
+    exec(compile(blocks[0], "docs/recording.md", "exec"), ns)  # noqa: S102 - the repo's docs
     traj, results = ns["rec"].trajectory, ns["results"]
     assert len(traj.contacts.step) == 20 and traj.warnings == []
     assert all(r.passed or r.skipped for r in results), [r.reason for r in results if not r.passed]

@@ -44,7 +44,7 @@ def _end_to_end(name, engine, tmp_path, duration):
         assert not got.truncated and got.warnings == []
         assert got.info.writer.startswith(engine) and got.info.engine_settings["engine"] == engine
         assert got.info.engine_settings["version"] == summary.version
-        assert got.info.log_format == 2
+        assert got.info.log_format == 3
         assert got.info.combine_friction == "geometric" and got.info.combine_restitution == "max"
         # what was recorded is what was read back, bit for bit
         np.testing.assert_array_equal(got.position, traj.position)

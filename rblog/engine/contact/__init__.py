@@ -9,8 +9,9 @@ rblog.engine.constants):
 * ``narrowphase``: the shape-pair collider table and the simple colliders; ``box_box``: the
   separating-axis box-box collider; ``manifold``: the packed contact arrays' layout.
 * ``collide``: manifolds and warm-start matching (stage 4).
-* ``solver``: prepare, warm start, velocity solve with friction, store (5-7, 11), and the one
-  ``apply_impulse``; ``relax``: split impulses (8); ``restitution``: the bounce (10).
+* the solver's stages are C++ only (csrc/engine/contact_solver.cpp: prepare, warm start,
+  velocity solve with friction, store (5-7, 11); relax.cpp: split impulses (8); restitution.cpp:
+  the bounce (10)), called one by one from Python through ``rblog.engine._core`` in the tests.
 * ``project``: nonlinear position projection of deep points (12); ``island``: sleeping (3, 13).
 * ``measure``: penetration audits with the engine's own geometry (benchmarks, tests).
 """

@@ -9,7 +9,7 @@ For each candidate pair (lower shape id a, higher id b):
   point with the same feature id (or, failing that, the nearest one within
   ``anchor_distance``), normal impulse as is and friction projected on the new tangents;
 * the manifold keeps its friction anchor, the pose of a in b's frame when the pair started
-  sticking (solver.py, "Friction anchor"), whatever its points do (a one-point contact that
+  sticking (contact_solver.cpp, "Friction anchor"), whatever its points do (a one-point contact that
   becomes a face keeps it), and every point gets its drift from it: where a's material point at
   the contact is now, minus where the anchor pose puts it (a sphere's pair, which rolls, has
   none).

@@ -35,7 +35,7 @@ from rblog.engine.constants import (
     AXIS_ABS_TOL, EDGE_PARALLEL_TOL, EDGE_REL_TOL, FACE_REL_TOL, FRICTION_ANCHOR_MAX_DRIFT_M,
     MANIFOLD_TOUCH_BAND_M,
 )
-from rblog.errors import RblogError
+from rblog.errors import RblogError, UnsupportedShapePair
 
 GEOM_SPHERE = 0
 GEOM_BOX = 1
@@ -63,22 +63,16 @@ NARROWPHASE_TABLE = {
 COLLIDE_TABLE = np.full((3, 3), COLLIDE_NONE, np.int64)
 for (_lo, _hi), (_code, _name) in NARROWPHASE_TABLE.items():
     COLLIDE_TABLE[_lo, _hi] = _code
+# the error's words come from this table, their one home
+UnsupportedShapePair.names = GEOM_NAMES
+UnsupportedShapePair.supported = ", ".join(f"{GEOM_NAMES[a]}-{GEOM_NAMES[b]}"
+                                           for a, b in NARROWPHASE_TABLE)
 
 # the collision tolerances reach the C++ core once, from their one home (constants.py)
 _core.set_collision_constants(
     manifold_touch_band_m=MANIFOLD_TOUCH_BAND_M, edge_rel_tol=EDGE_REL_TOL,
     face_rel_tol=FACE_REL_TOL, axis_abs_tol=AXIS_ABS_TOL, edge_parallel_tol=EDGE_PARALLEL_TOL,
     friction_anchor_max_drift_m=FRICTION_ANCHOR_MAX_DRIFT_M, static_body=STATIC_BODY)
-
-
-class UnsupportedShapePair(RblogError):
-    """The scene holds two shapes that may touch but have no collider in the narrowphase table."""
-
-    def __init__(self, geom_a: int, geom_b: int, where: str):
-        na = GEOM_NAMES.get(geom_a, f"shape code {geom_a}")
-        nb = GEOM_NAMES.get(geom_b, f"shape code {geom_b}")
-        supported = ", ".join(f"{GEOM_NAMES[a]}-{GEOM_NAMES[b]}" for a, b in NARROWPHASE_TABLE)
-        super().__init__(f"no contact generation for {na}-{nb} ({where}); supported pairs: {supported}")
 
 
 def collider_for(geom_a: int, geom_b: int) -> tuple[int, str]:

@@ -7,19 +7,19 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     2  broadphase       swept AABBs, sort-and-sweep, ground pairs  (broadphase.py)
     3  wake             sleeping islands an awake body may touch   (island.py)
     4  collide          narrowphase table -> manifolds, warm-start matching, sleeping carried
-    5  prepare          effective masses, pre-solve gap velocities (solver.py)
+    5  prepare          effective masses, pre-solve gap velocities (contact_solver.cpp)
     6  warm start       apply last step's impulses
     7  solve            sequential impulses, Coulomb friction, speculative targets; then one
                         sweep of the friction rows toward their anchors (solver.anchor_friction, when
                         ContactParams.static_friction_anchors is on)
-    8  relax            split-impulse position correction on pseudo velocities (relax.py; the shift's
+    8  relax            split-impulse position correction on pseudo velocities (relax.cpp; the shift's
                         orbital angular momentum h v' x P is handed back to the spin)
     9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
                         from the solver's velocity changes; every other body flies exactly under
                         its constant force, x += h v - h^2 a / 2 (v after the kick). Rotation by
                         integrators.drift_rotation with the run's integrator (the body's L and its
                         current R, so gyroscopic motion is the integrator's own)
-    10 restitution      bounce impact points (energy-consistent rule, restitution.py), P += J,
+    10 restitution      bounce impact points (energy-consistent rule, restitution.cpp), P += J,
                         L += r x J
     11 store impulses   friction as world vectors for the next step
     12 project          narrowphase again at the end-of-step poses; points deeper than
@@ -49,8 +49,8 @@ of the step as s + h w (w the solved gap rate):
   relative on samples/mixed.toml; both schemes alone keep it exactly).
 
 The restitution stage measures and sets bounce speeds with the exact flight's energy
-(restitution.py), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
-kicks, as before.
+(restitution.cpp), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
+applied as kicks.
 
 Samples follow free.advance_free: after every ``stride``-th step and after the last step when
 ``sample_last``; a non-finite state stops the call and reports the first bad local step and body.
@@ -76,29 +76,35 @@ Bodies = namedtuple("Bodies", "geom size radius inv_mass inertia inv_inertia iso
                               "accel restitution friction group")
 #: static geometry: static boxes (their AABBs precomputed) and the ground plane
 Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff g_e g_mu")
-#: stage switches and solver settings (see rblog.engine.constants.ContactParams), then the
-#: module-level solver tolerances of rblog.engine.constants the C++ stages read (newton_iters:
-#: FRICTION_NEWTON_ITERS, newton_tol: FRICTION_NEWTON_TOL, block_reg: BLOCK_REG, anchor_rate:
-#: FRICTION_ANCHOR_RATE, slide_frac: FRICTION_ANCHOR_SLIDE_FRAC, proj_rings: PROJECTION_RINGS;
-#: :func:`solver_constants`), so that C++ holds no second copy of them; last the soft step's
-#: switch (ContactParams.solver == "soft_step") and its substeps, contact_hertz (Hz) and
-#: contact_damping_ratio
-Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut n_vel max_vel vel_tol sor n_pos slop "
-                                  "beta max_speed "
-                                  "margin e_threshold anchor sleep_speed sleep_time warm "
-                                  "n_proj proj_depth anchors_on "
-                                  "newton_iters newton_tol block_reg anchor_rate slide_frac "
-                                  "proj_rings soft substeps soft_hertz soft_zeta")
+#: stage switches, then the solver settings spelled as rblog.engine.constants.ContactParams's
+#: fields (resolved for the run: ``max_velocity_iterations`` at least ``velocity_iterations``,
+#: ``restitution_threshold`` the step's value (ContactParams.restitution_threshold_at),
+#: ``substeps`` the step's (ContactParams.substeps_at), ``contact_hertz`` inf for None,
+#: ``soft_step``: ContactParams.solver == "soft_step"), then the module-level solver tolerances
+#: of rblog.engine.constants the C++ stages read, spelled as the constants in lower case
+#: (:func:`solver_constants`), so that C++ holds no second copy of them
+Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut velocity_iterations "
+                                  "max_velocity_iterations velocity_tolerance over_relaxation "
+                                  "position_iterations allowed_penetration "
+                                  "position_correction_rate max_correction_speed "
+                                  "speculative_distance restitution_threshold "
+                                  "friction_anchor_distance sleep_speed sleep_time warm_starting "
+                                  "projection_iterations projection_depth static_friction_anchors "
+                                  "friction_newton_iters friction_newton_tol block_reg "
+                                  "friction_anchor_rate friction_anchor_slide_frac "
+                                  "projection_rings soft_step substeps contact_hertz "
+                                  "contact_damping_ratio")
 
 
 def solver_constants() -> dict:
     """The Settings fields that come from rblog.engine.constants (read when called, so a test
     that patches a constant sees it in the next world it builds)."""
     c = _constants
-    return dict(newton_iters=int(c.FRICTION_NEWTON_ITERS), newton_tol=float(c.FRICTION_NEWTON_TOL),
-                block_reg=float(c.BLOCK_REG), anchor_rate=float(c.FRICTION_ANCHOR_RATE),
-                slide_frac=float(c.FRICTION_ANCHOR_SLIDE_FRAC),
-                proj_rings=int(c.PROJECTION_RINGS))
+    return dict(friction_newton_iters=int(c.FRICTION_NEWTON_ITERS),
+                friction_newton_tol=float(c.FRICTION_NEWTON_TOL), block_reg=float(c.BLOCK_REG),
+                friction_anchor_rate=float(c.FRICTION_ANCHOR_RATE),
+                friction_anchor_slide_frac=float(c.FRICTION_ANCHOR_SLIDE_FRAC),
+                projection_rings=int(c.PROJECTION_RINGS))
 
 
 #: the changing state of the bodies, world frame (rblog.engine.state.State's arrays): position
@@ -151,12 +157,6 @@ def broadphase(bd, st, margin, awake, x, h, sc, pairs):
     return _core.stage_broadphase(bd, st, float(margin), awake, x, float(h), sc, pairs)
 
 
-def wake(bd, st, cfg, sl, x, h, sc, pairs, n_pairs):
-    """3 wake: sleeping islands that an awake body may touch within the step. Returns islands
-    woken."""
-    return _core.stage_wake(bd, st, cfg, sl, x, float(h), sc, pairs, int(n_pairs))
-
-
 def collide(bd, st, cfg, awake, x, sc, pairs, n_pairs, c):
     """4 collide: the narrowphase table over the candidate pairs into this step's buffers (c.mi1,
     ...), matching last step's manifolds (c.mi0, ...) for warm starting. Returns (n_man, n_pts);
@@ -170,23 +170,11 @@ def prepare(bd, cfg, x, sc, mi, mf, pf, n_man, h):
     _core.stage_prepare(bd, cfg, x, sc, mi, mf, pf, int(n_man), float(h))
 
 
-def mark_pushed(mi, pf, n_man, n, sc):
-    """Sort the awake bodies by how they move this step (``sc.pushed``, read by stage 9):
-
-    * 0: no contact pushed it (no manifold, or manifolds whose accumulated normal, friction and
-      pseudo impulses all ended at zero): it flies exactly;
-    * 1: pushed, within a group of bodies that pushing contacts connect (an island of this
-      step) that touches no static geometry: it moves by the solver's velocity plus the same
-      exact-flight term as a free body, so that every body away from static geometry flies
-      alike (one scheme inside any group of bodies that only push each other);
-    * 2: pushed, in an island that some static contact pushes: symplectic Euler (resting
-      contact).
-    """
-    _core.stage_mark_pushed(mi, pf, int(n_man), int(n), sc)
-
-
 def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h, an):
-    """9 integrate: move every awake body over the step (how: ``sc.pushed``, see mark_pushed).
+    """9 integrate: move every awake body over the step, as ``sc.pushed`` says (set by the
+    compiled step: 0, no contact pushed it (no manifold, or manifolds whose impulses all ended
+    at zero); 1, pushed, in an island of this step that touches no static geometry; 2, pushed, in
+    an island that some static contact pushes).
     A body that a contact pushed (solve or relax) moves with the solver's velocity,
     x += h (v + v'), its momenta rebuilt from the solver's velocity changes, and when its island
     touches no static geometry, by - h^2 a / 2 more (the exact flight's term); every other body
@@ -199,21 +187,6 @@ def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h, an):
     _core.stage_integrate_positions(int(method), int(ortho), bd, cfg, awake, x, sc, float(h), an)
 
 
-def project(method, ortho, bd, st, cfg, awake, x, sc, pairs, n_pairs, an):
-    """12 project: narrowphase again at the end-of-step poses; points deeper than
-    projection_depth are pushed out (project.py) and the bodies moved (a moved body's flow
-    anchor is dropped: its attitude changed other than by the flow). Returns n_deep."""
-    return _core.stage_project(int(method), int(ortho), bd, st, cfg, awake, x, sc, pairs,
-                               int(n_pairs), an)
-
-
-def sleep_stage(bd, cfg, sl, x, sc, mi, mf, pf, n_man, h, n_awake):
-    """13 sleep: wake what this step pushed on (when some bodies slept at the step's start,
-    ``n_awake`` < N), advance rest timers, put resting islands to sleep. Returns (islands woken,
-    bodies put to sleep)."""
-    return _core.stage_sleep(bd, cfg, sl, x, sc, mi, mf, pf, int(n_man), float(h), int(n_awake))
-
-
 def first_diverged(awake, x, inv_inertia, h):
     """The first awake body whose state is not finite or that turns more than
     MAX_ROTATION_PER_STEP_RAD in a step of h (integrators.turn_within_bound), or -1: the run has
@@ -221,19 +194,10 @@ def first_diverged(awake, x, inv_inertia, h):
     return _core.stage_first_diverged(awake, x, inv_inertia, float(h))
 
 
-def record_contacts(s, mi, mf, pf, n_man, position, rotation, pose0, log_i, log_f, n_log):
-    """The contact rows of step s: every point that pushed or touches (trajectory.Contacts),
-    with its separation at the end-of-step poses ``position`` (N, 3), ``rotation`` (N, 3, 3),
-    its anchors carried there from the step's start poses ``pose0`` (N, 12: position, row-major
-    rotation). Returns (log_i, log_f, n_log) (new arrays, grown as needed)."""
-    return _core.stage_record_contacts(int(s), mi, mf, pf, int(n_man), position, rotation,
-                                       pose0, log_i, log_f, int(n_log))
-
-
 # ---- the step ---------------------------------------------------------------------------------
 
 def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, x, out, sl, c,
-                  stats, prof, an):
+                  stats, prof, an, impulses=None):
     """Advance ``n_steps`` steps of ``dt`` with contacts; write samples and contact rows (C++,
     the GIL released for the whole call).
 
@@ -247,10 +211,15 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
         stats: (N_STATS,) int64 counters, added to.
         prof: (profile.N_PROF,) int64 cycle counts per stage, added to; empty: not profiled.
         an: rblog.engine.state.FlowAnchors, updated in place (the exact integrators' anchors).
+        impulses: the per-interval contact impulses (an object with ``acc`` (N, 6), ``start``
+            (N, 6), ``kicked`` (N,) int64, kept across calls, and ``out`` (S, N, 6): linear and
+            angular (about the COM) world contact impulse summed over each sample's interval;
+            csrc/engine/impulses.cpp), or None.
 
     Returns (n_samples, bad_step, bad_body, log_i, log_f): bad_step is the first local step
     (1-based) at which some body's state became non-finite (-1 if none); log_i (K, LOG_I_COLS)
     int64 and log_f (K, LOG_F_COLS) float64 are the call's contact rows (manifold.LOG_*).
     """
     return _core.world_advance(bd, st, cfg, int(method), int(ortho), float(dt), int(n_steps),
-                               int(stride), bool(sample_last), x, out, sl, c, stats, prof, an)
+                               int(stride), bool(sample_last), x, out, sl, c, stats, prof, an,
+                               () if impulses is None else impulses)

@@ -24,6 +24,8 @@ starting) and the sleep state. Stages a scene does not need are chosen away once
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from rblog.engine.constants import ISOTROPIC_RTOL, RESTITUTION_THRESHOLD_KICKS
@@ -44,6 +46,13 @@ from rblog.engine.contact.step import (
     N_STATS, Bodies, BodyState, ContactCache, Settings, SleepState, Statics, solver_constants,
     world_advance,
 )
+
+
+class _Impulses(NamedTuple):
+    acc: np.ndarray     # (N, 6) contact impulse since the last sample (linear, angular)
+    start: np.ndarray   # (N, 6) momenta after the step's kick
+    kicked: np.ndarray  # (N,) int64 awake at the kick
+    out: np.ndarray     # (S, N, 6) the call's sample buffer
 
 
 class ContactWorld:
@@ -126,18 +135,26 @@ class ContactWorld:
             float(model.ground_offset), float(model.ground_restitution),
             float(model.ground_friction))
         self._settings = Settings(
-            self.do_kick, self.do_sleep, iso_shortcut, int(p.velocity_iterations),
-            int(max(p.max_velocity_iterations, p.velocity_iterations)),
-            float(p.velocity_tolerance), float(p.over_relaxation), int(p.position_iterations),
-            float(p.allowed_penetration),
-            float(p.position_correction_rate), float(p.max_correction_speed),
-            float(p.speculative_distance), -1.0,  # e_threshold: set per dt by advance()
-            float(p.friction_anchor_distance), float(p.sleep_speed), float(p.sleep_time),
-            bool(p.warm_starting), int(p.projection_iterations), float(p.projection_depth),
-            bool(p.static_friction_anchors), **solver_constants(),
-            soft=p.solver == "soft_step", substeps=int(p.substeps),
-            soft_hertz=float("inf") if p.contact_hertz is None else float(p.contact_hertz),
-            soft_zeta=float(p.contact_damping_ratio))
+            do_kick=self.do_kick, do_sleep=self.do_sleep, iso_shortcut=iso_shortcut,
+            velocity_iterations=int(p.velocity_iterations),
+            max_velocity_iterations=int(max(p.max_velocity_iterations, p.velocity_iterations)),
+            velocity_tolerance=float(p.velocity_tolerance),
+            over_relaxation=float(p.over_relaxation),
+            position_iterations=int(p.position_iterations),
+            allowed_penetration=float(p.allowed_penetration),
+            position_correction_rate=float(p.position_correction_rate),
+            max_correction_speed=float(p.max_correction_speed),
+            speculative_distance=float(p.speculative_distance),
+            restitution_threshold=-1.0,  # set per dt by settings_at
+            friction_anchor_distance=float(p.friction_anchor_distance),
+            sleep_speed=float(p.sleep_speed), sleep_time=float(p.sleep_time),
+            warm_starting=bool(p.warm_starting),
+            projection_iterations=int(p.projection_iterations),
+            projection_depth=float(p.projection_depth),
+            static_friction_anchors=bool(p.static_friction_anchors), **solver_constants(),
+            soft_step=p.solver == "soft_step", substeps=int(p.substeps),
+            contact_hertz=float("inf") if p.contact_hertz is None else float(p.contact_hertz),
+            contact_damping_ratio=float(p.contact_damping_ratio))
         # the free-body kernel's inputs, for scenes where nothing can touch
         self._inv_mass = 1.0 / mass
         self._inv_inertia = inv_inertia
@@ -153,6 +170,9 @@ class ContactWorld:
         #: manifolds, points, awake body-steps, impact points, islands woken, bodies put to sleep,
         #: velocity sweeps, points pushed out by the project stage
         self.stats = np.zeros(N_STATS, np.int64)
+        # the per-interval contact impulses' running sums (impulses.cpp), kept across calls
+        self._impulses = _Impulses(acc=np.zeros((n, 6)), start=np.zeros((n, 6)),
+                                   kicked=np.zeros(n, np.int64), out=np.zeros((0, n, 6)))
         #: cycle counts per stage (profile.STAGES) when profiled (profile.Profile.ticks handed
         #: in by the run loop), else empty: the step then reads no clock
         self.profile_ticks = np.zeros(0, np.int64)
@@ -290,7 +310,7 @@ class ContactWorld:
     def advance(self, dt, n_steps, stride, sample_last,
                 position, linear_momentum, quat_wxyz, rotation, angular_momentum,
                 out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
-                out_angular_momentum, anchors=None):
+                out_angular_momentum, anchors=None, out_impulses=None):
         """Advance ``n_steps`` steps; same arguments and sampling rule as free.advance_free.
 
         Args:
@@ -301,6 +321,10 @@ class ContactWorld:
             out_*: (S, N, ...) sample buffers, S >= n_steps // stride + sample_last.
             anchors: the exact integrators' flow anchors (rblog.engine.state.FlowAnchors,
                 updated in place; the run's State.anchors), None: for this call only.
+            out_impulses: (S, N, 6) sample buffer of the per-interval contact impulses (linear
+                N s, angular about the COM N m s, world; the log's impulse_contact_*): what the
+                contact stages gave each body over the steps since the previous sample (of this
+                world: the sum runs on across calls; csrc/engine/impulses.cpp), or None.
 
         Returns (n_samples, bad_step, bad_body, contacts). bad_step is the first local step
         (1-based) at which a body's state became non-finite (the call stops there), else -1.
@@ -317,6 +341,8 @@ class ContactWorld:
         sleep state from one call to the next."""
         if anchors is None:
             anchors = new_anchors(position.shape[0])
+        if out_impulses is not None and not self.use_contacts:
+            out_impulses[...] = 0.0  # nothing can touch
         if not self.use_contacts:
             ns, bad_step, bad_body = advance_free(
                 self.method, self.ortho, float(dt), int(n_steps), int(stride), bool(sample_last),
@@ -331,7 +357,8 @@ class ContactWorld:
             BodyState(position, linear_momentum, quat_wxyz, rotation, angular_momentum),
             BodyState(out_position, out_linear_momentum, out_quat_wxyz, out_rotation,
                       out_angular_momentum),
-            self._sleep, self._cache, self.stats, self.profile_ticks, anchors)
+            self._sleep, self._cache, self.stats, self.profile_ticks, anchors,
+            None if out_impulses is None else self._impulses._replace(out=out_impulses))
         n_samples, bad_step, bad_body, li, lf = res
         n_log = li.shape[0]
         contacts = Contacts(
@@ -352,8 +379,8 @@ class ContactWorld:
         """The Settings record for steps of ``dt`` (s): the restitution threshold depends on it,
         and the soft step's substeps (ContactParams.substeps_at)."""
         threshold = self.restitution_threshold(dt)
-        if self._settings.e_threshold != threshold:
-            self._settings = self._settings._replace(e_threshold=threshold)
+        if self._settings.restitution_threshold != threshold:
+            self._settings = self._settings._replace(restitution_threshold=threshold)
         sub = self.params.substeps_at(float(dt))
         if self._settings.substeps != sub:
             self._settings = self._settings._replace(substeps=sub)

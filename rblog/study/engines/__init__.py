@@ -1,7 +1,7 @@
 """Run a scene (TOML) in another engine and record it into rblog's log contract.
 
-``rblog run SCENE --engine mujoco|pybullet`` (optional extra ``engines``: ``pip install -e
-".[engines]"``). Each engine module
+``rblog run SCENE --engine mujoco|pybullet|ode`` (optional extras ``engines``: ``pip install -e
+".[engines]"``; ``ode``: Debian's ``libode8`` and ``pip install -e ".[ode]"``). Each engine module
 translates the scene's :class:`~rblog.contract.model.Model` and initial state into the engine's
 model (spheres, boxes, ground plane, static boxes, masses, principal inertias, gravity, constant
 force/torque, collision groups), translates materials with the engine's own combine rule so that
@@ -18,27 +18,13 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from rblog.errors import RblogError
+from rblog.errors import RblogError, EngineUnsupported, EngineMissing
 
-ENGINE_NAMES = ("mujoco", "pybullet")
-
-
-class EngineUnsupported(RblogError):
-    """The scene (or an option) needs something the chosen engine cannot represent."""
-
-    def __init__(self, engine: str, feature: str):
-        super().__init__(f"--engine {engine}: cannot represent {feature}")
-
-
-class EngineMissing(RblogError):
-    def __init__(self, engine: str, err: Exception):
-        super().__init__(f"--engine {engine}: not installed ({type(err).__name__}: {err}); "
-                         'pip install -e ".[engines]" in a checkout (or pip install '
-                         '"rblog[engines]")')
+ENGINE_NAMES = ("mujoco", "pybullet", "ode")
 
 
 def parse_options(engine: str, items, known: dict[str, str]) -> dict[str, str]:
@@ -155,6 +141,8 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
         raise RblogError(f"--engine: unknown engine {engine!r} (expected one of: {', '.join(ENGINE_NAMES)})")
     if engine == "mujoco":
         from rblog.study.engines.mujoco import MujocoRun as Run
+    elif engine == "ode":
+        from rblog.study.engines.ode import OdeRun as Run
     else:
         from rblog.study.engines.pybullet import PybulletRun as Run
     sim = scene.sim
@@ -167,8 +155,11 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
     stride = resolve_log_every(dt, log_every, log_rate)
     n_total = max(1, int(round(duration / dt)))
     eng = Run(scene, dt, options)
+    # an engine that accounts for every step's impulses (PybulletRun) logs them per interval
+    supplied = getattr(eng, "impulse_supplied", None)
+    model = scene.model if supplied is None else replace(scene.model, body_impulse_supplied=supplied)
     try:
-        rec = Recorder(scene.model, rrd=rrd, mcap=mcap, dt=dt, writer=f"{engine} {eng.version}",
+        rec = Recorder(model, rrd=rrd, mcap=mcap, dt=dt, writer=f"{engine} {eng.version}",
                        integrator=eng.settings.get("integrator", ""), log_every=stride,
                        duration_s=n_total * dt, combine_friction="geometric",
                        combine_restitution="max", engine_settings=eng.settings,
@@ -184,7 +175,7 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
         n_contacts = 0
         with rec:
             buf = SampleStream(rec, block=per_block)  # writes a block every per_block samples
-            buf.add(0, *eng.state(), None)
+            buf.add(0, *eng.state(), None, None if supplied is None else eng.impulses())
             done = 0
             while done < n_total:
                 k = min(stride, n_total - done)
@@ -194,7 +185,7 @@ def run_engine(scene, engine: str, *, options=(), dt=None, duration=None, log_ev
                 done += k
                 c = eng.contacts(done)
                 n_contacts += 0 if c is None else len(c["step"])
-                buf.add(done, *eng.state(), c)
+                buf.add(done, *eng.state(), c, None if supplied is None else eng.impulses())
             buf.flush(dt)
         wall = time.perf_counter() - t_wall
     finally:

@@ -104,10 +104,12 @@ class MujocoRun:
         self.d.xfrc_applied[1:n + 1, :3] = model.body_force_world
         self.d.xfrc_applied[1:n + 1, 3:] = model.body_torque_world
         mujoco.mj_forward(self.m, self.d)
-        from rblog.adapters.mujoco import inspect, settings
+        from rblog.adapters.mujoco import Kinematics, inspect, settings
 
-        # where each body's state is and how its frame turns: the adapters' one translation
+        # where each body is and its state: the adapter's one translation (each body's
+        # inertial frame is its body frame here: <inertial pos="0 0 0" diaginertia=...>)
         self.layout = inspect(self.m, self.d)[1]
+        self.kinematics = Kinematics(self.m, self.layout)
         # MuJoCo's solver settings as the adapters read them, and what this translation of the
         # scene sets on top
         self.settings = {
@@ -206,10 +208,10 @@ class MujocoRun:
         self.mj.mj_step(self.m, self.d, nstep=int(k))
 
     def state(self):
-        """(position (N,3), quat_wxyz (N,4), velocity (N,3), angular velocity (N,3)), world frame:
-        the translation of rblog.adapters.mujoco (free joint's body-frame angular velocity turned
-        into the world frame, centre of mass, contract frame)."""
-        return self.layout.state(self.d.qpos, self.d.qvel)
+        """(position (N,3), quat_wxyz (N,4), velocity (N,3), angular velocity (N,3)), world frame,
+        centre of mass: rblog.adapters.mujoco.Kinematics (xipos, ximat, cvel) at qpos/qvel."""
+        x, _, v, w = self.kinematics(self.d.qpos, self.d.qvel)
+        return x, self.kinematics.quat_wxyz(), v, w
 
     def contacts(self, step: int):
         """The contacts of the step that ended at ``step``, in the contract's convention

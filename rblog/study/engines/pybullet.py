@@ -14,8 +14,9 @@ Translation (common part: rblog/study/engines/__init__.py):
   Restitution: per-feature values r with ``r_a r_b = max(e_a, e_b)`` for every pair that can touch
   are solved in log space (least squares); if no such values exist within RESTITUTION_REL, the run
   exits 2 naming the pair (Bullet has no per-pair restitution).
-* state and contacts: read by :mod:`rblog.adapters.pybullet` (``read_state``, ``read_contacts``), the
-  one translation of Bullet's conventions. After each logged step ``getContactPoints()`` lists the manifold points of that step:
+* state, contacts and impulses: read after every step by :class:`rblog.adapters.pybullet.Stepper`,
+  the one translation of Bullet's conventions (``impulses()`` gives each interval's sums). After
+  each step ``getContactPoints()`` lists the manifold points of that step:
   Bullet refreshes the manifolds by collision detection at the start of the step, so
   ``contactDistance`` is the separation before the step's solve and integration; ``normalForce``
   and the two lateral frictions are the applied impulses over the step divided by dt. Bullet also
@@ -180,6 +181,18 @@ class PybulletRun:
             self.loaded = [i for i in range(n) if np.any(model.body_force_world[i] != 0)
                            or np.any(model.body_torque_world[i] != 0)]
             eng = pb.getPhysicsEngineParameters(physicsClientId=cid)
+            # the adapter's reading of Bullet: its rows are the scene's bodies (created first, in
+            # order; the static ground and boxes are world geometry), damping 0 as set above
+            from rblog.adapters.pybullet import Stepper, inspect
+
+            world = inspect(cid, damping={b: (0.0, 0.0) for b in self.ids})
+            if [b for b, _ in world.rows] != self.ids:
+                raise EngineUnsupported("pybullet", "the scene's bodies as Bullet rows (the "
+                                        "adapter read them in another order)")
+            self.stepper = Stepper(world, cid, dt)
+            # per body: contact, applied (the scene's constant loads) and passive (damping 0 here,
+            # still logged) logged, actuator and joint none
+            self.impulse_supplied = np.tile(np.array([1, 1, 1, 2, 2], np.int64), (n, 1))
         except BaseException:
             pb.disconnect(physicsClientId=cid)
             raise
@@ -198,30 +211,40 @@ class PybulletRun:
         }
 
     def step(self, k: int) -> None:
+        """k steps; after each, the adapter's Stepper reads the state and the contacts and adds
+        the step's impulses (contact, passive, applied) to those of the interval."""
         pb, cid = self.pb, self.cid
-        model = self.scene.model
-        for _ in range(int(k)):
+        model, st = self.scene.model, self.stepper
+        for j in range(int(k)):
             for i in self.loaded:
                 bid = self.ids[i]
-                pos, _ = pb.getBasePositionAndOrientation(bid, physicsClientId=cid)
-                pb.applyExternalForce(bid, -1, [float(x) for x in model.body_force_world[i]], pos,
+                f = model.body_force_world[i]
+                pb.applyExternalForce(bid, -1, [float(x) for x in f], [float(x) for x in st.state[0][i]],
                                       pb.WORLD_FRAME, physicsClientId=cid)
                 pb.applyExternalTorque(bid, -1, [float(x) for x in model.body_torque_world[i]],
                                        pb.WORLD_FRAME, physicsClientId=cid)
+                st.pending[0][i] += f * self.dt  # at the centre of mass: no moment
+                st.pending[1][i] += model.body_torque_world[i] * self.dt
+                st.pending_any = True
             pb.stepSimulation(physicsClientId=cid)
+            st.after_step(rows=j == int(k) - 1)  # the contact rows of the logged step
 
     def state(self):
-        """(position, quat_wxyz, velocity, angular velocity), world frame: the translation of
-        rblog.adapters.pybullet (the bodies' base frames are their contract frames here)."""
-        from rblog.adapters.pybullet import read_state
-
-        return read_state(self.cid, self.ids)
+        """(position, quat_wxyz, velocity, angular velocity), world frame, as the adapter reads
+        them (the bodies' base frames are their contract frames here)."""
+        x, q, v, w = self.stepper.state
+        return x, q[:, [3, 0, 1, 2]], v, w
 
     def contacts(self, step: int):
         """The contacts of the step that ended at ``step`` (rblog.adapters.pybullet's rows)."""
-        from rblog.adapters.pybullet import read_contacts
+        return self.stepper.contact_rows(step)
 
-        return read_contacts(self.cid, self.index, self.dt, step)
+    def impulses(self) -> dict:
+        """The impulses (N s, N m s; world frame, about each centre of mass) summed over the steps
+        since the last call: {"impulse_contact_linear": (N, 3), ...} for the kinds
+        ``impulse_supplied`` logs (contact, applied, passive)."""
+        return {f"impulse_{k}": v for k, v in self.stepper.take().items()
+                if not k.startswith("joint")}
 
     def close(self):
         try:

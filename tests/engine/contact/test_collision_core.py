@@ -1,6 +1,6 @@
 """The C++ collision core (csrc/engine/{manifold,narrowphase,box_box,broad_phase,collide,island,
-measure}.cpp) against its Python homes: the packed columns mirrored in manifold.hpp equal
-manifold.py's, the geometry codes and the narrowphase table's keys agree, and the tolerances C++
+measure}.cpp) against its Python homes: the packed columns of manifold.hpp tile their arrays
+(manifold.py reads them from the core), the geometry codes and the narrowphase table's keys agree, and the tolerances C++
 holds are constants.py's. (Before the numba kernels were removed, every stage was checked bitwise
 equal to them on a mixed scene in flight, at impact, at rest and asleep, and on 3000 random
 collider calls: commit 7ae5b2e.)"""
@@ -15,18 +15,45 @@ from rblog.engine import _core, constants
 from rblog.engine.contact import manifold, narrowphase
 
 
-def test_columns_agree_with_manifold_py():
+#: each column group's width, as manifold.hpp documents it (vectors 3, the LU block 16 ...)
+WIDTHS = {
+    "MI": dict(MI_KEY=1, MI_A=1, MI_B=1, MI_REC_A=1, MI_REC_B=1, MI_START=1, MI_COUNT=1,
+               MI_ACTIVE=1),
+    "MF": dict(MF_N=3, MF_T1=3, MF_T2=3, MF_MU=1, MF_E=1, MF_ACC=1, MF_LU=16, MF_PIV=4,
+               MF_LUOK=1, MF_AR=9, MF_AT=3, MF_AOK=1),
+    "PF": dict(PF_P=3, PF_RA=3, PF_RB=3, PF_S=1, PF_NMASS=1, PF_TK=3, PF_LN=1, PF_L1=1, PF_L2=1,
+               PF_LP=1, PF_LWS=1, PF_W0=1, PF_F=3, PF_SEND=1, PF_IMPACT=1, PF_WT=1, PF_KN=4,
+               PF_D=3, PF_DB=2),
+    "LOG_I": dict(LOG_STEP=1, LOG_A=1, LOG_B=1, LOG_KIND=1),
+    "LOG_F": dict(LOG_P=3, LOG_N=3, LOG_S=1, LOG_LN=1, LOG_F=3),
+}
+
+
+def _tiling_error(layout, widths, cols):
+    """'' when the groups of ``widths`` at ``layout``'s offsets cover columns 0..cols-1 once
+    each, in order, else what is wrong."""
+    at = 0
+    for name, w in sorted(widths.items(), key=lambda kv: layout[kv[0]]):
+        if layout[name] != at:
+            return f"{name} at {layout[name]}, expected {at}"
+        at += w
+    return "" if at == cols else f"the groups end at {at}, the array has {cols} columns"
+
+
+def test_columns_tile_the_packed_arrays():
+    """manifold.hpp's columns (read by manifold.py from the core): each array's groups, at the
+    widths the header documents, cover its columns exactly once, no gap, no overlap."""
     layout = _core.collision_layout()
-    names = [k for k in layout if k.isupper() and k != "NARROWPHASE_TABLE"]
-    names = [k for k in names if not k.startswith("GEOM_")]
-    assert len(names) >= 50
-    for name in names:
-        assert getattr(manifold, name) == layout[name], name
+    for group, widths in WIDTHS.items():
+        cols = layout[f"{group}_COLS"]
+        assert _tiling_error(layout, widths, cols) == "", group
+        for name in widths:
+            assert getattr(manifold, name) == layout[name], name
+    # both directions: an overlap planted into the layout is caught
+    planted = dict(layout, PF_TK=layout["PF_TK"] - 1)
+    assert "PF_TK" in _tiling_error(planted, WIDTHS["PF"], layout["PF_COLS"])
     assert manifold._AREA_EPS == layout["_AREA_EPS"]
-    # and every column constant of manifold.py is mirrored
-    py_names = {k for k in vars(manifold) if k.split("_")[0] in ("MI", "MF", "PF", "LOG")
-                or k.startswith("MAX_")}
-    assert py_names <= set(layout), sorted(py_names - set(layout))
+    assert (manifold.MAX_CLIP_POINTS, manifold.MAX_MANIFOLD_POINTS) == (12, 4)
 
 
 def test_geometry_codes_and_table_agree():

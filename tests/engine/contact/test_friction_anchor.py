@@ -1,4 +1,4 @@
-"""Static friction holds: friction anchors (rblog/engine/contact/solver.py, "Friction anchor")."""
+"""Static friction holds: friction anchors (csrc/engine/contact_solver.cpp, "Friction anchor")."""
 
 from __future__ import annotations
 
@@ -100,7 +100,8 @@ def _one_point_on_static(d_world, ln, mu=0.5, h=1e-3):
     from rblog.engine.contact.manifold import (
         MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_D, PF_LN, PF_RA,
         empty_manifolds)
-    from rblog.engine.contact.solver import prepare_contacts
+    from rblog.engine import _core
+    from rblog.engine.constants import BLOCK_REG, FRICTION_ANCHOR_RATE
     mi, mf, pf, _ = empty_manifolds(1, 1)
     mi[0, MI_A], mi[0, MI_B], mi[0, MI_START], mi[0, MI_COUNT], mi[0, MI_ACTIVE] = 0, 1, 0, 1, 1
     mf[0, MF_N:MF_N + 3] = (0.0, 0.0, 1.0)
@@ -115,18 +116,26 @@ def _one_point_on_static(d_world, ln, mu=0.5, h=1e-3):
     bI = np.zeros((2, 6))
     bI[0, :3] = 1.0 / inertia
     bv, bw = np.zeros((2, 3)), np.zeros((2, 3))
-    prepare_contacts(mi, mf, pf, 1, bm, bI, bv, bw, h)
+    _core.prepare_contacts(mi, mf, pf, 1, bm, bI, bv, bw, h, FRICTION_ANCHOR_RATE, BLOCK_REG)
     return mi, mf, pf, bm, bI, bv, bw
 
 
 def test_anchor_pass_takes_back_the_drift_and_a_slide_drops_it():
-    """The anchor pass on a lone point (solver.anchor_friction, store_impulses): inside the cone
+    """The anchor pass on a lone point (contact_solver.cpp's anchor_friction, store_impulses): inside the cone
     the point's slip rate becomes exactly -FRICTION_ANCHOR_RATE D / h and the manifold keeps its
     anchor; when the cone cannot give that impulse the point slides at the cone and the manifold
     drops its anchor (collide anchors it anew next step)."""
-    from rblog.engine.constants import FRICTION_ANCHOR_RATE
+    from rblog.engine import _core
+    from rblog.engine.constants import (FRICTION_ANCHOR_RATE, FRICTION_ANCHOR_SLIDE_FRAC,
+                                        FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL)
     from rblog.engine.contact.manifold import MF_AOK, PF_L1, PF_L2
-    from rblog.engine.contact.solver import anchor_friction, store_impulses
+
+    def anchor_friction(mi, mf, pf, n, bm, bI, bv, bw):
+        _core.anchor_friction(mi, mf, pf, n, bm, bI, bv, bw, FRICTION_NEWTON_ITERS,
+                              FRICTION_NEWTON_TOL)
+
+    def store_impulses(mi, mf, pf, n):
+        _core.store_impulses(mi, mf, pf, n, FRICTION_ANCHOR_SLIDE_FRAC)
     h, d0 = 1e-3, np.array([2e-6, -1e-6, 0.0])
     # loaded: the weight's impulse m g h, cone mu m g h = 4.9e-4 N s >> the ~1e-4 N s needed
     mi, mf, pf, bm, bI, bv, bw = _one_point_on_static(d0, 0.1 * G * h)

@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rblog.engine import _core
 from rblog.engine.constants import ContactParams
-from rblog.engine.contact import solver as SV
 from rblog.engine.contact import step as S
 from rblog.engine.contact.manifold import (MF_N, MI_A, MI_B, MI_COUNT, MI_START, PF_LN, PF_RA,
                                            PF_RB, PF_S)
@@ -90,15 +90,17 @@ def test_solved_contacts_meet_the_complementarity_conditions():
     cache = world._cache
     scr = S.make_scratch(sc.model.n_bodies, st)
     S.kick(bd, world.awake, x, H)
-    pairs, n_pairs = S.broadphase(bd, st, cfg.margin, world.awake, x, H, scr, cache.pairs)
+    pairs, n_pairs = S.broadphase(bd, st, cfg.speculative_distance, world.awake, x, H, scr, cache.pairs)
     n_man, _ = S.collide(bd, st, cfg, world.awake, x, scr, pairs, n_pairs, cache)
     mi, mf, pf = cache.mi1, cache.mf1, cache.pf1
     S.prepare(bd, cfg, x, scr, mi, mf, pf, n_man, H)
     bm, bI, bv, bw = scr.bm.reshape(-1), scr.bI, scr.bv, scr.bw
-    SV.warm_start(mi, mf, pf, n_man, bm, bI, bv, bw)
+    _core.warm_start(mi, mf, pf, n_man, bm, bI, bv, bw)
     assert scr.in_contact.reshape(-1)[0] == 2  # box1 touches the ground and box6: over-relaxed
-    SV.solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, 1.0 / H, cfg.n_vel, cfg.max_vel,
-                        cfg.vel_tol, scr.hot.reshape(-1), scr.in_contact.reshape(-1), cfg.sor)
+    _core.solve_velocities(mi, mf, pf, n_man, bm, bI, bv, bw, 1.0 / H, cfg.velocity_iterations,
+                           cfg.max_velocity_iterations, cfg.velocity_tolerance,
+                           scr.hot.reshape(-1), scr.in_contact.reshape(-1), cfg.over_relaxation,
+                           cfg.friction_newton_iters, cfg.friction_newton_tol)
     deepest = None
     for m in range(n_man):
         a, b = mi[m, MI_A], mi[m, MI_B]
@@ -113,9 +115,9 @@ def test_solved_contacts_meet_the_complementarity_conditions():
             # loaded point are both 1.5e-5 m/s; the solve stops when no sweep changes a velocity
             # by more than velocity_tolerance = 1e-4 m/s, the bound used here
             assert lam >= 0.0
-            assert vn >= target - cfg.vel_tol, (m, p, vn, target, lam)
+            assert vn >= target - cfg.velocity_tolerance, (m, p, vn, target, lam)
             if lam > 0.0:
-                assert abs(vn - target) <= cfg.vel_tol, (m, p, vn, target, lam)
+                assert abs(vn - target) <= cfg.velocity_tolerance, (m, p, vn, target, lam)
             if deepest is None or sep < deepest[0]:
                 deepest = (sep, lam)
     # the corner the bug left unloaded: 0.2 mm deep, and it carries the load now

@@ -45,7 +45,7 @@ def test_broadphase_pairs_exactly_the_overlapping_boxes_and_the_ground():
     bd, st, cfg = world.records
     state = make_state(model, [[0, 0, 0.1], [0.15, 0, 0.1], [3, 0, 2]])
     sc = S.make_scratch(3, st)
-    pairs, n = S.broadphase(bd, st, cfg.margin, np.ones(3, np.int64), _x(state), 1e-3, sc,
+    pairs, n = S.broadphase(bd, st, cfg.speculative_distance, np.ones(3, np.int64), _x(state), 1e-3, sc,
                             np.zeros((4, 2), np.int64))
     got = {tuple(p) for p in pairs[:n]}
     ground = 3 + st.n_static  # the ground's id follows the bodies and static boxes

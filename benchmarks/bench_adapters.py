@@ -1,0 +1,151 @@
+"""What recording costs through the engine adapters: the bare step loop against the same loop
+recording a sample at every step, by CPU time (``time.process_time``), interleaved.
+
+    python benchmarks/bench_adapters.py [--pairs N] [--steps N] [--every K] [--case NAME ...]
+
+Each case is a row of ``CASES``: a function of the step count and the sample stride (``every``:
+a sample every K steps, the impulses of every step summed into it) that builds its world and
+returns ``(bare, recorded)``, two callables of the output mode (``"memory"``: the run kept in memory,
+no file; ``"mcap"``: an MCAP file written) that each run the step loop once and return nothing.
+A pair is one bare run and one recorded run in alternating order (A B, B A, ...), so the load
+of a shared machine hits both alike; the table gives each pair's CPU seconds and ratio, then the
+median ratio per case and mode. Add a row with ``@case("engine/world")``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+MODES = ("memory", "mcap")
+#: name -> builder(steps, every, tmp) -> (bare(mode), recorded(mode))
+CASES: dict = {}
+
+
+def case(name: str):
+    """Register a row: ``@case("mujoco/humanoid") def build(steps, every, tmp): ...``."""
+    def register(fn):
+        CASES[name] = fn
+        return fn
+    return register
+
+
+def _mujoco_case(model_name: str):
+    def build(steps: int, every: int, tmp: str):
+        import mujoco
+        import numpy as np
+
+        import rblog.adapters.mujoco as adapter
+
+        m = adapter.suite_model(model_name)
+        rng = np.random.default_rng(0)
+        ctrl = rng.uniform(-1.0, 1.0, (steps, m.nu))  # the same random controls in both loops
+
+        def start():
+            d = mujoco.MjData(m)
+            mujoco.mj_forward(m, d)
+            return d
+
+        def bare(mode):
+            d = start()
+            for k in range(steps):
+                d.ctrl[:] = ctrl[k]
+                mujoco.mj_step(m, d)
+
+        def recorded(mode):
+            d = start()
+            out = {"mcap": str(Path(tmp) / f"{model_name}.mcap")} if mode == "mcap" else {}
+            rec = adapter.recorder(m, d, every=every, keep=mode == "memory", **out)
+            for k in range(steps):
+                d.ctrl[:] = ctrl[k]
+                mujoco.mj_step(m, d)
+                rec(d)
+            rec.close()
+
+        return bare, recorded
+    return build
+
+
+case("mujoco/humanoid")(_mujoco_case("humanoid"))
+case("mujoco/stacker")(_mujoco_case("stacker"))
+
+
+def _pybullet_case(world: str):
+    def build(steps: int, every: int, tmp: str):
+        import pybullet as pb
+
+        import rblog.adapters.pybullet as adapter
+
+        def run(rec_options):  # each run loads the world into a fresh client, in both loops
+            cid = pb.connect(pb.DIRECT)
+            try:
+                adapter.load_shipped(world, cid)
+                rec = None if rec_options is None else adapter.PybulletRecorder(cid, **rec_options)
+                for _ in range(steps):
+                    pb.stepSimulation(physicsClientId=cid)
+                    if rec is not None:
+                        rec()
+                if rec is not None:
+                    rec.close()
+            finally:
+                pb.disconnect(physicsClientId=cid)
+
+        def bare(mode):
+            run(None)
+
+        def recorded(mode):
+            out = {"mcap": str(Path(tmp) / f"{world}.mcap")} if mode == "mcap" else {"keep": True}
+            run(dict(every=every, **out))
+
+        return bare, recorded
+    return build
+
+
+case("pybullet/jenga")(_pybullet_case("jenga"))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--pairs", type=int, default=5)
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--every", type=int, default=1, help="a sample every K steps (default 1)")
+    ap.add_argument("--case", action="append", choices=sorted(CASES), help="default: every case")
+    ap.add_argument("--mode", action="append", choices=MODES, help="default: both")
+    args = ap.parse_args(argv)
+    names = args.case or list(CASES)
+    modes = args.mode or list(MODES)
+    print(f"CPU seconds of {args.steps} steps, bare loop vs recording (a sample every "
+          f"{args.every} steps); {args.pairs} interleaved pairs")
+    print(f"  {'case':<20} {'mode':<7} {'pair':>4} {'bare s':>8} {'recorded s':>10} {'ratio':>6}")
+    summary = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            bare, recorded = CASES[name](args.steps, args.every, tmp)
+            for mode in modes:
+                recorded(mode)  # warm: imports, first-call costs
+                bare(mode)
+                ratios = []
+                for k in range(args.pairs):
+                    order = (bare, recorded) if k % 2 == 0 else (recorded, bare)
+                    cpu = {}
+                    for fn in order:
+                        c0 = time.process_time()
+                        fn(mode)
+                        cpu[fn] = time.process_time() - c0
+                    ratios.append(cpu[recorded] / cpu[bare])
+                    print(f"  {name:<20} {mode:<7} {k:>4} {cpu[bare]:>8.3f} {cpu[recorded]:>10.3f} "
+                          f"{ratios[-1]:>6.2f}")
+                    sys.stdout.flush()
+                summary.append((name, mode, statistics.median(ratios), min(ratios), max(ratios)))
+    print("median ratio (recorded / bare CPU), [min, max]:")
+    for name, mode, med, lo, hi in summary:
+        print(f"  {name:<20} {mode:<7} {med:.2f}x  [{lo:.2f}, {hi:.2f}]")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,96 @@
+// rblog.adapters._hook: the per-step hook of rblog.adapters.mujoco in one call (the Python
+// version is StepImpulses.__call__ in rblog/adapters/_mujoco_step.py; the derivation is in
+// rblog/adapters/mujoco.py). After mj_step, with Euler or the implicit integrators, mjData holds
+// the step's start in everything but qpos and qvel; the hook
+//   1. puts the step's start velocity v0 and the acceleration MuJoCo integrated, a = (v1 - v0)/h,
+//      into d->qvel and d->qacc, calls mj_rnePostConstraint (and mj_mulM(a) for the implicit
+//      integrators), and puts qvel and qacc back;
+//   2. copies the pieces of mjData's buffer that hold the row's fields into row k (Rows in
+//      Python decides the pieces), and v1 into its row; v0 = v1.
+// It holds raw addresses: of d's arrays (mjData's buffer stays where it is for d's life), of the
+// Python-owned buffers (never reallocated while the hook lives), and of MuJoCo's two functions
+// (looked up by ctypes in the libmujoco the bindings loaded). No MuJoCo header is needed.
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/vector.h>
+#include <nanobind/stl/tuple.h>
+
+#include <cstdint>
+#include <cstring>
+#include <stdexcept>
+#include <tuple>
+#include <vector>
+
+namespace nb = nanobind;
+
+namespace {
+
+using RneFn = void (*)(const void*, void*);
+using MulMFn = void (*)(const void*, void*, double*, const double*);
+
+struct StepHook {
+    RneFn rne;
+    MulMFn mulm;  // null: not an implicit integrator
+    const void* m;
+    void* d;
+    double* qvel;
+    double* qacc;
+    int nv;
+    double inv_h;
+    double* rows;  // (cap, width)
+    long width;
+    double* v1;  // (cap, nv)
+    double* v0;  // (nv,)
+    double* ma;  // (cap, nv) or null
+    int cap;
+    std::vector<std::tuple<double*, long, long>> pieces;  // source, length, offset in the row
+    std::vector<double> qacc_save;
+
+    StepHook(std::uintptr_t rne_fn, std::uintptr_t mulm_fn, std::uintptr_t m_, std::uintptr_t d_,
+             std::uintptr_t qvel_, std::uintptr_t qacc_, int nv_, double h,
+             std::uintptr_t rows_, long width_, std::uintptr_t v1_, std::uintptr_t v0_,
+             std::uintptr_t ma_, int cap_, std::vector<std::tuple<std::uintptr_t, long, long>> p)
+        : rne(reinterpret_cast<RneFn>(rne_fn)), mulm(reinterpret_cast<MulMFn>(mulm_fn)),
+          m(reinterpret_cast<const void*>(m_)), d(reinterpret_cast<void*>(d_)),
+          qvel(reinterpret_cast<double*>(qvel_)), qacc(reinterpret_cast<double*>(qacc_)), nv(nv_),
+          inv_h(1.0 / h), rows(reinterpret_cast<double*>(rows_)), width(width_),
+          v1(reinterpret_cast<double*>(v1_)), v0(reinterpret_cast<double*>(v0_)),
+          ma(reinterpret_cast<double*>(ma_)), cap(cap_), qacc_save(nv_ > 0 ? nv_ : 1) {
+        for (auto& [src, n, off] : p) {
+            if (off < 0 || n < 0 || off + n > width) throw std::invalid_argument("piece outside the row");
+            pieces.emplace_back(reinterpret_cast<double*>(src), n, off);
+        }
+        if (!rne || !m || !d) throw std::invalid_argument("null function or model");
+    }
+
+    // gather the step that just ended into row k; returns k + 1
+    int step(int k) {
+        if (k < 0 || k >= cap) throw std::out_of_range("row index outside the block");
+        double* v1k = v1 + (long)k * nv;
+        std::memcpy(v1k, qvel, sizeof(double) * nv);
+        std::memcpy(qacc_save.data(), qacc, sizeof(double) * nv);
+        for (int i = 0; i < nv; ++i) {
+            qacc[i] = (v1k[i] - v0[i]) * inv_h;
+            qvel[i] = v0[i];
+        }
+        rne(m, d);
+        if (mulm && ma) mulm(m, d, ma + (long)k * nv, qacc);
+        std::memcpy(qvel, v1k, sizeof(double) * nv);
+        std::memcpy(qacc, qacc_save.data(), sizeof(double) * nv);
+        double* row = rows + (long)k * width;
+        for (auto& [src, n, off] : pieces) std::memcpy(row + off, src, sizeof(double) * n);
+        std::memcpy(v0, v1k, sizeof(double) * nv);
+        return k + 1;
+    }
+};
+
+}  // namespace
+
+NB_MODULE(_hook, mod) {
+    mod.doc() = "rblog.adapters.mujoco's per-step hook in one call (C++, nanobind)";
+    nb::class_<StepHook>(mod, "StepHook")
+        .def(nb::init<std::uintptr_t, std::uintptr_t, std::uintptr_t, std::uintptr_t, std::uintptr_t,
+                      std::uintptr_t, int, double, std::uintptr_t, long, std::uintptr_t,
+                      std::uintptr_t, std::uintptr_t, int,
+                      std::vector<std::tuple<std::uintptr_t, long, long>>>())
+        .def("step", &StepHook::step, "Gather the step that just ended into row k; returns k + 1.");
+}

@@ -1,0 +1,471 @@
+"""MuJoCo's model in log contract v3: the bodies, joints and geoms of an ``MjModel`` (the
+frames and conventions are in :mod:`rblog.adapters.mujoco`'s docstring), MuJoCo's settings, the
+contact rows, and dm_control's suite models as shipped."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rblog.adapters import AdapterError, require
+from rblog.contract.model import (BODY_FREE, BODY_JOINTED, BODY_KINEMATIC, BODY_STATIC, GEOM_BOX,
+                                  GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH,
+                                  GEOM_PLANE, GEOM_SPHERE, IMPULSE_KINDS, JOINT_BALL, JOINT_FIXED,
+                                  JOINT_HINGE, JOINT_SLIDE, WORK_KINDS)
+
+#: the contract's value of engine_settings.contact_rows for MuJoCo's contacts
+CONTACT_ROWS = {
+    "separation": "before the step (contact.dist: the collision detection at its start)",
+    "impulse": "mj_contactForce (from efc_force) * timestep, on geom2's body",
+    "speculative": "dropped (no force and positive dist)",
+    "torques": "torsional and rolling (condim 4, 6) not logged",
+}
+
+#: steps whose raw arrays are gathered before they are turned into impulses, vectorized
+BLOCK_STEPS = 256
+
+#: MuJoCo geom type (mjtGeom) -> the contract's GEOM_* code; hfield (1) and sdf (8) have none
+_GEOM = {0: GEOM_PLANE, 2: GEOM_SPHERE, 3: GEOM_CAPSULE, 4: GEOM_ELLIPSOID, 5: GEOM_CYLINDER,
+         6: GEOM_BOX, 7: GEOM_MESH}
+#: MuJoCo joint type (mjtJoint) -> JOINT_* (free joints are a body kind, not a row)
+_JOINT = {1: JOINT_BALL, 2: JOINT_SLIDE, 3: JOINT_HINGE}
+
+
+def _mj():
+    return require("mujoco")
+
+
+def _is_model(m) -> bool:
+    return type(m).__name__ == "MjModel"
+
+
+def _quat_conj(q):
+    q = np.asarray(q, np.float64)
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _quat_mat(q) -> np.ndarray:
+    """(3, 3) rotation matrix of a unit quaternion (w, x, y, z)."""
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    q = np.asarray(q, np.float64)
+    return quat_wxyz_to_matrix(q / np.linalg.norm(q))
+
+
+def gravity_of(m) -> np.ndarray:
+    """(3,) the gravity MuJoCo applies: ``opt.gravity``, zero when disabled (mjDSBL_GRAVITY)."""
+    mj = _mj()
+    off = int(m.opt.disableflags) & int(mj.mjtDisableBit.mjDSBL_GRAVITY)
+    return np.zeros(3) if off else np.array(m.opt.gravity, np.float64)
+
+
+class Layout:
+    """Where each logged body is in MuJoCo's arrays, and the fixed maps of the per-step hook.
+
+    Attributes: ``body_id`` (N,) MuJoCo body ids (1..nbody-1); ``kind`` (N,) BODY_*;
+    ``geom_index`` (ngeom,) the log body of each geom in contact rows (-1: world or a static
+    body); ``root`` (nbody,) ``body_rootid``; ``dof_body`` (nv,); ``dof_jnt`` (nv,);
+    ``dof_trans`` (nv,) bool, translational dofs (slide, a free joint's first three);
+    ``pair`` (nbody, nv): +1 at (dof's body, dof), -1 at (its parent, dof) unless the world;
+    ``own`` (nbody, nv): +1 at (dof's body, dof); ``net`` (nbody, nbody): ``cfrc_int`` ->
+    the body's own minus its children's; ``damping`` (nv,) ``dof_damping``.
+    """
+
+    def __init__(self, m):
+        nb, nv = int(m.nbody), int(m.nv)
+        self.body_id = np.arange(1, nb, dtype=np.int64)
+        self.root = np.asarray(m.body_rootid, np.int64)
+        parent = np.asarray(m.body_parentid, np.int64)
+        self.dof_body = np.asarray(m.dof_bodyid, np.int64)
+        self.dof_jnt = np.asarray(m.dof_jntid, np.int64)
+        jtype = np.asarray(m.jnt_type, np.int64)[self.dof_jnt] if nv else np.zeros(0, np.int64)
+        first = np.asarray(m.jnt_dofadr, np.int64)[self.dof_jnt] if nv else np.zeros(0, np.int64)
+        self.dof_trans = (jtype == 2) | ((jtype == 0) & (np.arange(nv) - first < 3))
+        self.pair = np.zeros((nb, nv))
+        self.own = np.zeros((nb, nv))
+        self.pair[self.dof_body, np.arange(nv)] = 1.0
+        self.own[self.dof_body, np.arange(nv)] = 1.0
+        p = parent[self.dof_body]
+        sel = p > 0
+        self.pair[p[sel], np.arange(nv)[sel]] -= 1.0
+        self.net = np.eye(nb)
+        for b in range(1, nb):
+            if parent[b] > 0:
+                self.net[parent[b], b] -= 1.0
+        self.net[0] = 0.0
+        self.damping = np.array(m.dof_damping, np.float64)
+        self.kind = np.full(nb - 1, BODY_FREE, np.int64)
+        weld = np.asarray(m.body_weldid)
+        for b in range(1, nb):
+            nj = int(m.body_jntnum[b])
+            if int(m.body_mocapid[b]) >= 0:
+                self.kind[b - 1] = BODY_KINEMATIC
+            elif int(weld[b]) == 0:
+                self.kind[b - 1] = BODY_STATIC
+            elif nj == 1 and int(m.jnt_type[m.body_jntadr[b]]) == 0:
+                self.kind[b - 1] = BODY_FREE
+            else:
+                self.kind[b - 1] = BODY_JOINTED
+        body_of = np.asarray(m.geom_bodyid, np.int64)
+        moving = np.concatenate([[False], self.kind != BODY_STATIC])
+        self.geom_index = np.where(moving[body_of], body_of - 1, -1).astype(np.int64)
+        self.dynamic = (self.kind == BODY_FREE) | (self.kind == BODY_JOINTED)
+
+    def __len__(self):
+        return len(self.body_id)
+
+
+def _name(mj, m, kind, i, prefix):
+    return mj.mj_id2name(m, kind, i) or f"{prefix}{i}"
+
+
+def unsupported(m) -> list[str]:
+    """The elements of ``m`` the log cannot hold: colliding heightfield and SDF geoms, flexes."""
+    mj = _mj()
+    bad = []
+    for g in range(int(m.ngeom)):
+        t = int(m.geom_type[g])
+        if t not in _GEOM and (int(m.geom_contype[g]) or int(m.geom_conaffinity[g])):
+            kind = mj.mjtGeom(t).name.removeprefix("mjGEOM_").lower()
+            bad.append(f"geom {_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')!r} ({kind})")
+    for f in range(int(getattr(m, "nflex", 0))):
+        bad.append(f"flex {_name(mj, m, mj.mjtObj.mjOBJ_FLEX, f, 'flex')!r}")
+    return bad
+
+
+def inspect(m, d=None, *, restitution=None):
+    """The log's model of ``m``: (Model, Layout, notes dict).
+
+    ``restitution``: a scalar or one value per geom to log as the geoms' restitution (default
+    NaN, unknown: MuJoCo states none). ``d``: the data whose mocap poses start the run (default
+    the model's). Raises :class:`AdapterError` naming every element that cannot be recorded."""
+    mj = _mj()
+    if not _is_model(m):
+        raise AdapterError(f"rblog.adapters.mujoco: m is a {type(m).__name__}, expected a mujoco.MjModel")
+    bad = unsupported(m)
+    if bad:
+        raise AdapterError(f"rblog.adapters.mujoco: the log cannot hold {', '.join(bad)} "
+                           "(heightfields, SDF geoms and flexes have no geom type in contract v3)")
+    lay = Layout(m)
+    n = len(lay)
+    d0 = mj.MjData(m)  # qpos0: the joints' zero position
+    if d is not None:
+        d0.mocap_pos[:] = d.mocap_pos
+        d0.mocap_quat[:] = d.mocap_quat
+    mj.mj_kinematics(m, d0)
+    body_name = [_name(mj, m, mj.mjtObj.mjOBJ_BODY, b, "body") for b in range(1, m.nbody)]
+    mass = np.array(m.body_mass[1:], np.float64)
+    inertia = np.array(m.body_inertia[1:], np.float64)
+    parent = np.asarray(m.body_parentid[1:], np.int64) - 1
+    parent[lay.kind != BODY_JOINTED] = -1
+    # frames: MuJoCo body frame -> the log's (inertial) frame
+    ipos = np.asarray(m.body_ipos, np.float64)
+    iquat = np.asarray(m.body_iquat, np.float64)
+    ri = [_quat_mat(q) for q in iquat]
+
+    def to_inertial(b, p):  # a point in MuJoCo body b's frame -> its inertial frame
+        return ri[b].T @ (np.asarray(p, np.float64) - ipos[b]) if b else np.asarray(p, np.float64)
+
+    def world_to_inertial(b, p):  # a world point at qpos0 -> body b's inertial frame
+        if b == 0:
+            return np.asarray(p, np.float64).copy()
+        return d0.ximat[b].reshape(3, 3).T @ (np.asarray(p, np.float64) - d0.xipos[b])
+
+    def world_dir_to_inertial(b, v):
+        return np.asarray(v, np.float64).copy() if b == 0 else d0.ximat[b].reshape(3, 3).T @ v
+
+    # joints
+    jn, jt, jb, ab, ap, xb, xp, jr = [], [], [], [], [], [], [], []
+    for b in range(1, m.nbody):
+        if lay.kind[b - 1] != BODY_JOINTED:
+            continue
+        pb = int(m.body_parentid[b])
+        nj = int(m.body_jntnum[b])
+        if nj == 0:  # welded to a moving parent: a fixed joint at the centre of mass
+            jn.append(f"{body_name[b - 1]} (welded)")
+            jt.append(JOINT_FIXED)
+            jb.append(b - 1)
+            ab.append(np.zeros(3))
+            ap.append(world_to_inertial(pb, d0.xipos[b]))
+            xb.append(np.zeros(3))
+            xp.append(np.zeros(3))
+            jr.append([np.nan, np.nan])
+            continue
+        for j in range(int(m.body_jntadr[b]), int(m.body_jntadr[b]) + nj):
+            t = _JOINT[int(m.jnt_type[j])]
+            jn.append(_name(mj, m, mj.mjtObj.mjOBJ_JOINT, j, "joint"))
+            jt.append(t)
+            jb.append(b - 1)
+            ab.append(to_inertial(b, m.jnt_pos[j]))
+            ap.append(world_to_inertial(pb, d0.xanchor[j]))
+            if t == JOINT_BALL:
+                xb.append(np.zeros(3))
+                xp.append(np.zeros(3))
+            else:
+                xb.append(ri[b].T @ np.asarray(m.jnt_axis[j], np.float64))
+                xp.append(world_dir_to_inertial(pb, d0.xaxis[j]))
+            lo, hi = (float(v) for v in m.jnt_range[j])
+            if not int(m.jnt_limited[j]):
+                jr.append([np.nan, np.nan])
+            elif t == JOINT_BALL:
+                jr.append([0.0, max(lo, hi)])
+            else:
+                jr.append([lo, hi])
+    # geoms
+    gtype = np.asarray(m.geom_type, np.int64)
+    keep = [g for g in range(m.ngeom) if int(gtype[g]) in _GEOM]
+    skipped = [f"{_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')} "
+               f"({mj.mjtGeom(int(gtype[g])).name.removeprefix('mjGEOM_').lower()}, no collision)"
+               for g in range(m.ngeom) if int(gtype[g]) not in _GEOM]
+    g_body, g_type, g_pos, g_quat, g_size, g_vert, g_name = [], [], [], [], [], [], []
+    for g in keep:
+        b = int(m.geom_bodyid[g])
+        code = _GEOM[int(gtype[g])]
+        g_body.append(b - 1)
+        g_type.append(code)
+        g_name.append(mj.mj_id2name(m, mj.mjtObj.mjOBJ_GEOM, g) or "")
+        g_pos.append(to_inertial(b, m.geom_pos[g]))
+        from rblog.adapters._common import quat_mul
+
+        q = np.asarray(m.geom_quat[g], np.float64)
+        g_quat.append(quat_mul(_quat_conj(iquat[b]), q) if b else q.copy())
+        s = np.array(m.geom_size[g], np.float64)
+        if code == GEOM_SPHERE:
+            s[1:] = 0.0
+        elif code in (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_PLANE):
+            s[2] = 0.0
+        elif code == GEOM_MESH:
+            s[:] = 0.0
+        g_size.append(s)
+        if code == GEOM_MESH:
+            mesh = int(m.geom_dataid[g])
+            a, k = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+            g_vert.append(np.array(m.mesh_vert[a:a + k], np.float64))
+        else:
+            g_vert.append(None)
+    ng = len(keep)
+    nan = float("nan")
+    rest = np.broadcast_to(np.asarray(nan if restitution is None else restitution, np.float64), (ng,))
+    geoms = dict(body=np.array(g_body, np.int64).reshape(ng), type=np.array(g_type, np.int64).reshape(ng),
+                 size=np.array(g_size).reshape(ng, 3), pos_body=np.array(g_pos).reshape(ng, 3),
+                 quat_wxyz_body=np.array(g_quat).reshape(ng, 4),
+                 friction=np.array([float(m.geom_friction[g, 0]) for g in keep]).reshape(ng),
+                 restitution=rest.copy(),
+                 collide_group=np.array([int(m.geom_contype[g]) for g in keep], np.int64).reshape(ng),
+                 collide_mask=np.array([int(m.geom_conaffinity[g]) for g in keep], np.int64).reshape(ng),
+                 name=g_name, mesh_vert=g_vert)
+    nj = len(jt)
+    joints = dict(body=np.array(jb, np.int64).reshape(nj), type=np.array(jt, np.int64).reshape(nj),
+                  anchor_body=np.array(ab).reshape(nj, 3), anchor_parent=np.array(ap).reshape(nj, 3),
+                  axis_body=np.array(xb).reshape(nj, 3), axis_parent=np.array(xp).reshape(nj, 3),
+                  range=np.array(jr, np.float64).reshape(nj, 2), name=jn)
+    supplied = np.repeat(lay.dynamic[:, None], len(IMPULSE_KINDS), axis=1)
+    work = np.repeat(lay.dynamic[:, None], len(WORK_KINDS), axis=1)
+    from rblog.record.recorder import body_table
+
+    # kinematic and static bodies may be massless in MuJoCo; the table needs positive numbers
+    # there too (their momenta are not judged)
+    mass_t = np.where(lay.dynamic | (mass > 0), mass, 1.0)
+    inertia_t = np.where((lay.dynamic | np.all(inertia > 0, axis=1))[:, None], inertia, 1.0)
+    model = body_table(name=body_name, mass=mass_t, inertia_diag=inertia_t, kind=lay.kind,
+                       parent=parent, geoms=geoms, joints=joints, collide_rule="or",
+                       impulses=supplied, work=work, gravity=gravity_of(m))
+    notes = {"geoms_not_recorded": skipped,
+             "restitution": ("not stated by MuJoCo (solref spring-damper): unknown (NaN)"
+                             if restitution is None else "given by the caller"),
+             "collision_filter": "contype/conaffinity ('or'); MuJoCo also skips parent-child "
+                                 "pairs (filterparent) and <exclude> pairs, and <pair> overrides",
+             "impulses": "per step from mj_rnePostConstraint at the step's start "
+                         "(rblog.adapters.mujoco); RK4: the first stage's forces",
+             "massless_bodies_logged_with_unit_mass": [body_name[i] for i in range(n)
+                                                       if not lay.dynamic[i] and not mass[i] > 0]}
+    return model, lay, notes
+
+
+#: efc rows gathered per contact: a pyramidal condim-6 contact has 10 (2 per tangent direction)
+_EFC_WIDTH = 10
+
+
+#: the mjContact fields the rows need
+_CONTACT_FIELDS = ("dist", "pos", "frame", "friction", "dim", "geom", "exclude", "efc_address")
+
+
+class _ContactArray:
+    """A numpy view of MuJoCo's contact array (mjContact structs at the start of ``d``'s
+    arena, which stays where it is) as a structured array of the fields the rows need, with
+    their offsets and the struct's size read off the bindings' own views of one contact."""
+
+    def __init__(self, m, d):
+        import ctypes
+
+        con = d.contact
+        views = {f: getattr(con, f) for f in _CONTACT_FIELDS}
+        base = views["dist"].__array_interface__["data"][0]
+        stride = views["dist"].strides[0]
+        fields = {}
+        for f, v in views.items():
+            off = v.__array_interface__["data"][0] - base
+            if not 0 <= off < stride or v.strides[0] != stride:
+                raise ValueError(f"mjContact.{f} at {off}, stride {v.strides[0]}")
+            fields[f] = (np.dtype((v.dtype, v.shape[1:])) if v.ndim > 1 else v.dtype, off)
+        self.dtype = np.dtype({"names": list(fields), "formats": [t for t, _ in fields.values()],
+                               "offsets": [o for _, o in fields.values()], "itemsize": stride})
+        count = max(1, int(m.narena) // stride)
+        self.count = count
+        self.base = base
+        buf = (ctypes.c_char * (count * stride)).from_address(base)
+        self.view = np.frombuffer(buf, dtype=self.dtype, count=count)
+
+
+def capture_contacts(d, step: int, array: "_ContactArray | None" = None):
+    """The raw contact data of ``d`` right after ``mj_step`` (copies; decoded later, a block at a
+    time, by :func:`decode_contacts`), or None when there are none. With ``array`` (a
+    :class:`_ContactArray` of ``d``) the structs are copied in one piece."""
+    k = int(d.ncon)
+    if k == 0:
+        return None
+    ef = d.efc_force
+    if array is not None and k <= array.count:
+        return (int(step), array.view[:k].copy(), ef.copy())
+    con = d.contact
+    raw = np.empty(k, _contact_dtype(con))
+    for f in _CONTACT_FIELDS:
+        raw[f] = getattr(con, f)[:k]
+    return (int(step), raw, ef.copy())
+
+
+def _contact_dtype(con):
+    v = {f: getattr(con, f) for f in _CONTACT_FIELDS}
+    return np.dtype([(f, a.dtype, a.shape[1:]) for f, a in v.items()])
+
+
+def _contact_dict(raws):
+    """The raw captures of several steps as one dict of arrays (K rows)."""
+    counts = np.array([len(r) for _, r, _ in raws])
+    steps = np.repeat(np.array([st for st, _, _ in raws], np.int64), counts)
+    raw = np.concatenate([r for _, r, _ in raws])
+    sizes = np.array([len(e) for _, _, e in raws])
+    efc_all = np.concatenate([e for _, _, e in raws] + [np.zeros(1)])
+    base = np.repeat(np.cumsum(sizes) - sizes, counts)
+    adr = raw["efc_address"].astype(np.int64)
+    idx = np.clip(np.where(adr >= 0, adr + base, 0)[:, None] + np.arange(_EFC_WIDTH), 0, len(efc_all) - 1)
+    return dict(step=steps, geom=raw["geom"], adr=adr, dim=raw["dim"], mu=raw["friction"][:, :2],
+                exclude=raw["exclude"], frame=raw["frame"], dist=raw["dist"], pos=raw["pos"],
+                efc=efc_all[idx])
+
+
+def decode_contacts(m, layout: Layout, raws):
+    """Contact rows in the contract's convention (dict for Recorder.write, or None) from the
+    :func:`capture_contacts` of one or more steps."""
+    raws = [r for r in raws if r is not None]
+    if not raws:
+        return None
+    raw = _contact_dict(raws)
+    k = len(raw["step"])
+    adr, dim, mu, f = raw["adr"], raw["dim"], raw["mu"], raw["efc"]
+    local = np.zeros((k, 3))  # (normal, tangent 1, tangent 2) force on geom2, contact frame
+    ok = (adr >= 0) & (raw["exclude"] == 0)
+    pyramidal = int(m.opt.cone) == int(_mj().mjtCone.mjCONE_PYRAMIDAL)
+    one = ok & (dim == 1)
+    local[one, 0] = f[one, 0]
+    many = ok & (dim > 1)
+    if many.any():
+        if pyramidal:  # 2 (dim - 1) edges: normal = their sum, tangent j = mu_j (f_2j - f_2j+1)
+            width = 2 * (dim[many] - 1)
+            e = np.where(np.arange(_EFC_WIDTH) < width[:, None], f[many], 0.0)
+            local[many, 0] = e.sum(axis=1)
+            local[many, 1] = mu[many, 0] * (e[:, 0] - e[:, 1])
+            local[many, 2] = mu[many, 1] * (e[:, 2] - e[:, 3])
+        else:  # elliptic: normal, then the tangents (then torques), contact frame
+            local[many] = f[many, :3]
+    frame = raw["frame"].reshape(k, 3, 3)
+    normal = frame[:, 0].copy()
+    fric = local[:, 1:2] * frame[:, 1] + local[:, 2:3] * frame[:, 2]
+    geom = raw["geom"]
+    body_a = layout.geom_index[geom[:, 1]].copy()
+    body_b = layout.geom_index[geom[:, 0]].copy()
+    flip = body_a < 0  # the static geometry is body_b in the contract
+    body_a[flip], body_b[flip] = body_b[flip], body_a[flip]
+    normal[flip] *= -1.0
+    fric[flip] *= -1.0
+    dist = raw["dist"]
+    keep = ok & (body_a >= 0) & ~((local[:, 0] <= 0.0) & (dist > 0.0))
+    if not keep.any():
+        return None
+    dt = float(m.opt.timestep)
+    return dict(step=raw["step"][keep], body_a=body_a[keep], body_b=body_b[keep],
+                point=raw["pos"][keep], normal=normal[keep], separation=dist[keep],
+                normal_impulse=local[keep, 0] * dt, friction_impulse=fric[keep] * dt)
+
+
+def contacts(m, d, layout: Layout, step: int):
+    """The contact rows of the step that ended at ``step`` (``d`` right after ``mj_step``), in the
+    contract's convention, as a dict for Recorder.write; None when there are none."""
+    return decode_contacts(m, layout, [capture_contacts(d, step)])
+
+
+def state_offsets(m, spec=None) -> tuple[int, int, int]:
+    """Offsets of time, qpos and qvel in a state vector of ``spec`` (default
+    ``mjSTATE_FULLPHYSICS``, what ``mujoco.rollout`` returns)."""
+    mj = _mj()
+    s = mj.mjtState
+    spec = int(s.mjSTATE_FULLPHYSICS if spec is None else spec)
+    need = (int(s.mjSTATE_TIME), int(s.mjSTATE_QPOS), int(s.mjSTATE_QVEL))
+    if any(not spec & bit for bit in need):
+        raise AdapterError("record_rollout: the state spec must hold time, qpos and qvel "
+                           "(mjSTATE_FULLPHYSICS, as mujoco.rollout returns)")
+    offsets, pos = {}, 0
+    for bit in range(int(s.mjNSTATE)):
+        if spec & (1 << bit):
+            offsets[1 << bit] = pos
+            pos += int(mj.mj_stateSize(m, 1 << bit))
+    return tuple(offsets[b] for b in need)
+
+
+def settings(m) -> dict:
+    """MuJoCo's solver settings for RunInfo.engine_settings."""
+    mj = _mj()
+    o = m.opt
+    return {
+        "engine": "mujoco", "version": mj.__version__,
+        "integrator": mj.mjtIntegrator(o.integrator).name.removeprefix("mjINT_"),
+        "solver": mj.mjtSolver(o.solver).name.removeprefix("mjSOL_"),
+        "cone": mj.mjtCone(o.cone).name.removeprefix("mjCONE_"),
+        "iterations": int(o.iterations), "ls_iterations": int(o.ls_iterations),
+        "tolerance": float(o.tolerance), "noslip_iterations": int(o.noslip_iterations),
+        "impratio": float(o.impratio), "timestep": float(o.timestep),
+        "disableflags": int(o.disableflags), "enableflags": int(o.enableflags),
+        "contact_model": "soft (solref, solimp per geom or pair)",
+        "combine_native": {"friction": "max", "solref": "solmix-weighted mean"},
+        "contact_rows": dict(CONTACT_ROWS),
+    }
+
+
+#: dm_control suite models whose XML needs its module's own builder (as its tasks load them)
+_SUITE_BUILDERS = {"stacker": ("stacker", dict(n_boxes=4)),
+                   "manipulator": ("manipulator", dict(use_peg=False, insert=False)),
+                   "quadruped": ("quadruped", dict(floor_size=10))}
+
+
+def suite_model(name: str):
+    """The ``mujoco.MjModel`` of dm_control's suite model ``name`` as shipped (the MJCF files and
+    assets inside the dm_control package: ``humanoid``, ``cartpole``, ``walker``, ...;
+    ``stacker`` with its 4 boxes, ``manipulator`` as in ``bring_ball``); needs the ``models``
+    extra (dm-control)."""
+    import importlib
+    import warnings
+
+    mj = _mj()
+    require("dm_control", extra="models")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # GLFW: no display
+        module, kwargs = _SUITE_BUILDERS.get(name, (name, None))
+        try:
+            mod = importlib.import_module(f"dm_control.suite.{module}")
+        except ImportError:
+            raise AdapterError(f"suite_model: dm_control.suite has no model {name!r}") from None
+        got = mod.make_model(**kwargs) if kwargs is not None else mod.get_model_and_assets()
+    if isinstance(got, (str, bytes)):  # quadruped's builder returns the XML alone
+        from dm_control.suite import common
+
+        got = (got, common.ASSETS)
+    return mj.MjModel.from_xml_string(*got)

@@ -1,0 +1,374 @@
+"""The per-step hook of :mod:`rblog.adapters.mujoco`: each logged body's state from MuJoCo's
+kinematics (:class:`Kinematics`), one row of mjData per step (:class:`Rows`), and the rows of a
+block turned into impulses and work per body (:class:`StepImpulses`; the derivation is in
+:mod:`rblog.adapters.mujoco`'s docstring)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rblog.adapters._mujoco_model import BLOCK_STEPS, Layout, _mj
+from rblog.contract.model import IMPULSE_KINDS
+
+class Kinematics:
+    """The logged state of every body at given ``qpos``/``qvel`` (and mocap poses), from a
+    private ``MjData``: ``mj_kinematics``, ``mj_comPos``, ``mj_comVel``."""
+
+    def __init__(self, m, layout: Layout):
+        mj = _mj()
+        self.mj, self.m, self.d = mj, m, mj.MjData(m)
+        self.ids = layout.body_id
+        self.c_of = layout.root[layout.body_id]
+        self.iquat = np.array(m.body_iquat, np.float64)[layout.body_id]
+
+    def quat_wxyz(self) -> np.ndarray:
+        """(N, 4) the inertial frames' orientation at the last call: ``xquat`` x ``body_iquat``
+        (exactly ``xquat`` where the inertial frame is the body frame)."""
+        from rblog.adapters._common import quat_mul
+
+        return quat_mul(self.d.xquat[self.ids], self.iquat)
+
+    def __call__(self, qpos, qvel, mocap_pos=None, mocap_quat=None, out=None):
+        """(position (N, 3), rotation (N, 3, 3), velocity (N, 3), angular velocity (N, 3)),
+        world frame, centre of mass and principal axes; written into ``out`` when given."""
+        d, m, mj = self.d, self.m, self.mj
+        d.qpos[:] = qpos
+        d.qvel[:] = qvel
+        if mocap_pos is not None and m.nmocap:
+            d.mocap_pos[:] = mocap_pos
+            d.mocap_quat[:] = mocap_quat
+        mj.mj_kinematics(m, d)
+        mj.mj_comPos(m, d)
+        mj.mj_comVel(m, d)
+        x, ids = d.xipos, self.ids
+        if out is None:
+            out = (np.empty((len(ids), 3)), np.empty((len(ids), 3, 3)), np.empty((len(ids), 3)),
+                   np.empty((len(ids), 3)))
+        px, pr, pv, pw = out
+        np.take(x, ids, axis=0, out=px)
+        np.take(d.ximat.reshape(-1, 3, 3), ids, axis=0, out=pr)
+        cvel = d.cvel
+        np.take(cvel[:, :3], ids, axis=0, out=pw)
+        arm = px - d.subtree_com[self.c_of]
+        np.take(cvel[:, 3:], ids, axis=0, out=pv)
+        pv += np.cross(pw, arm)
+        return out
+
+
+def _cross(a, b):
+    """a x b over the last axis of (..., 3) arrays (numpy's cross, without its checks)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+_FUNCTIONS = []
+
+
+def _mujoco_functions():
+    """(address of mj_rnePostConstraint, of mj_mulM) in the libmujoco the bindings loaded, or
+    None when it is not found."""
+    if not _FUNCTIONS:
+        import ctypes
+        import glob
+        import os
+
+        mj = _mj()
+        found = None
+        for path in sorted(glob.glob(os.path.join(os.path.dirname(mj.__file__), "libmujoco*"))):
+            try:
+                lib = ctypes.CDLL(path)
+                found = tuple(ctypes.cast(getattr(lib, f), ctypes.c_void_p).value
+                              for f in ("mj_rnePostConstraint", "mj_mulM"))
+                break
+            except (OSError, AttributeError):
+                continue
+        _FUNCTIONS.append(found)
+    return _FUNCTIONS[0]
+
+
+def _actuators_depend_on_velocity(m) -> bool:
+    """Whether an actuator's force depends on velocity (affine gain or bias with a velocity
+    term: MuJoCo's velocity servos and position servos with kv; muscles)."""
+    dyn_gain = np.asarray(m.actuator_gaintype) != 0
+    gain_v = np.asarray(m.actuator_gainprm)[:, 2] != 0
+    bias_v = (np.asarray(m.actuator_biastype) != 0) & (np.asarray(m.actuator_biasprm)[:, 2] != 0)
+    return bool(np.any((dyn_gain & gain_v) | bias_v | (np.asarray(m.actuator_gaintype) == 2)))
+
+
+def _passive_depends_on_velocity(m) -> bool:
+    """Whether passive forces beyond dof damping depend on velocity: tendon damping, fluid."""
+    fluid = float(m.opt.density) > 0 or float(m.opt.viscosity) > 0
+    return bool(np.any(np.asarray(m.tendon_damping) != 0) or fluid)
+
+
+#: the arrays of mjData a step's row holds (after the step: Euler and implicit keep the step's
+#: start in all but qpos, qvel); the span is one contiguous piece of mjData's buffer
+ROW_FIELDS = ("qpos", "qvel", "qfrc_applied", "xfrc_applied", "xquat", "xipos", "ximat", "xanchor",
+              "subtree_com", "cdof", "cvel", "qfrc_passive", "qfrc_actuator", "qfrc_smooth",
+              "qfrc_constraint", "cfrc_int", "cfrc_ext")
+#: two fields of mjData are copied as one span when the bytes between them are fewer than this
+#: (a copy's own cost, ~1 us, is about that many bytes at this machine's ~4 GB/s)
+SPAN_GAP_BYTES = 4096
+#: bytes of gathered rows per block (the block shrinks for large models)
+BLOCK_BYTES = 16 << 20
+
+
+class Rows:
+    """Where ``ROW_FIELDS`` are in one flat float64 row, and how a row is filled from an
+    ``MjData``: the fields lie in mjData's one buffer, so a row is a few copies of contiguous
+    pieces of it (fields closer than SPAN_GAP_BYTES share a piece), each into its slice of the
+    row. Fields that are not float64 and 8-byte aligned are copied one by one."""
+
+    def __init__(self, d):
+        import ctypes
+
+        arrs = {f: getattr(d, f) for f in ROW_FIELDS}
+        self.shape = {f: a.shape for f, a in arrs.items()}
+        addr = {f: a.__array_interface__["data"][0] for f, a in arrs.items() if a.size}
+        fields = sorted(addr, key=addr.get)
+        ok = all(arrs[f].dtype == np.float64 and arrs[f].flags.c_contiguous and addr[f] % 8 == 0
+                 for f in fields)
+        self.d, self.views, self.offset = d, arrs, {}
+        self.addresses = []  # (address, doubles, start in the row) of each piece: the C++ hook's
+        pieces, pos = [], 0  # (source view, start in the row)
+        if ok:
+            groups = []
+            for f in fields:
+                end = addr[f] + arrs[f].nbytes
+                if groups and addr[f] - groups[-1][1] <= SPAN_GAP_BYTES:
+                    groups[-1][1] = max(groups[-1][1], end)
+                    groups[-1][2].append(f)
+                else:
+                    groups.append([addr[f], end, [f]])
+            for lo, hi, fs in groups:
+                raw = np.ctypeslib.as_array((ctypes.c_double * ((hi - lo) // 8)).from_address(lo))
+                self.addresses.append((lo, (hi - lo) // 8, pos))
+                for f in fs:
+                    self.offset[f] = pos + (addr[f] - lo) // 8
+                pieces.append((raw, pos))
+                pos += len(raw)
+            ok = all(np.array_equal(pieces[0][0][:0], pieces[0][0][:0]) for _ in [0]) and all(
+                np.array_equal(self._read(pieces, f, arrs[f].size), arrs[f].ravel()) for f in fields)
+        if not ok:
+            pieces, pos, self.addresses = [], 0, []
+            for f in fields:
+                self.offset[f] = pos
+                pieces.append((arrs[f].reshape(-1), pos))
+                pos += arrs[f].size
+        for f in ROW_FIELDS:
+            self.offset.setdefault(f, 0)
+        self.pieces = [(src, row0, row0 + len(src)) for src, row0 in pieces]
+        self.width = pos
+
+    def _read(self, pieces, f, size):
+        o = self.offset[f]
+        for src, row0 in pieces:
+            if row0 <= o < row0 + len(src):
+                return src[o - row0:o - row0 + size]
+        return None
+
+    def fill(self, row) -> None:
+        """Copy the fields of the bound MjData into ``row`` (width,)."""
+        for src, a, b in self.pieces:
+            np.copyto(row[a:b], src)
+
+    def field(self, rows, f):
+        """(K, *shape) the field ``f`` of ``rows`` (K, width)."""
+        o, shape = self.offset[f], self.shape[f]
+        size = int(np.prod(shape))
+        return rows[:, o:o + size].reshape(len(rows), *shape)
+
+
+class StepImpulses:
+    """The per-step hook: after each ``mj_step`` it runs ``mj_rnePostConstraint`` at the step's
+    start (``mj_forward`` first on a private MjData under RK4) and copies one row of mjData
+    (:class:`Rows`) and ``qvel`` into preallocated (capacity, ...) buffers; :meth:`resolve` turns
+    the gathered rows into impulses and work per body, vectorized (the derivation is in the
+    module docstring)."""
+
+    def __init__(self, m, layout: Layout, d, block: int | None = None):
+        mj = _mj()
+        self.mj, self.m, self.lay = mj, m, layout
+        self.h = float(m.opt.timestep)
+        self.rk4 = int(m.opt.integrator) == int(mj.mjtIntegrator.mjINT_RK4)
+        # damping MuJoCo integrates implicitly (Euler unless mjDSBL_EULERDAMP; implicit(fast))
+        eulerdamp = int(m.opt.disableflags) & (int(mj.mjtDisableBit.mjDSBL_EULERDAMP) |
+                                               int(mj.mjtDisableBit.mjDSBL_DAMPER))
+        self.implicit_damping = (not self.rk4) and not eulerdamp
+        # implicit, implicitfast: (M - h D) a = f, D = d(passive + actuator)/dv (implicit: and the
+        # bias); the integrated force is M a = f + h D a. The hook logs M a (mj_mulM) and puts
+        # h D a beyond the dof damping into the passive kind, or into the actuator kind when
+        # only actuators depend on velocity (ACTUATOR_VELOCITY_TERMS)
+        self.implicit = int(m.opt.integrator) in (int(mj.mjtIntegrator.mjINT_IMPLICIT),
+                                                  int(mj.mjtIntegrator.mjINT_IMPLICITFAST))
+        self.correction_kind = 2 if (self.implicit and _actuators_depend_on_velocity(m)
+                                     and not _passive_depends_on_velocity(m)) else 1
+        self.scratch = mj.MjData(m) if self.rk4 else None
+        self.q0 = np.array(d.qpos, np.float64)
+        self.act0 = np.array(d.act, np.float64)
+        self.v0 = np.array(d.qvel, np.float64)
+        self._v = np.empty(m.nv)
+        self._qacc = np.empty(m.nv)
+        self.bind(d)
+        fit = int(max(8, min(BLOCK_STEPS, BLOCK_BYTES // (8 * max(self.rows_of.width, 1)))))
+        self.cap = fit if block is None else max(1, int(block))
+        self.rows = np.empty((self.cap, self.rows_of.width))
+        self.v1 = np.empty((self.cap, m.nv))
+        self.Ma = np.empty((self.cap, m.nv)) if self.implicit else None
+        self.v_start = self.v0.copy()  # v0 of the block's first row
+        self._compile()
+        self._gap_v0 = {}  # row -> its v0 after steps not seen
+        self.k = 0
+
+    def bind(self, d) -> None:
+        """Take the numpy views of ``d`` (the arrays of an MjData stay where they are)."""
+        self.d = d
+        self.qvel, self.qacc = d.qvel, d.qacc
+        self.rows_of = Rows(self.scratch if self.rk4 else d)
+        if getattr(self, "rows", None) is not None:
+            self._compile()
+
+    def _compile(self) -> None:
+        """The compiled hook (rblog.adapters._hook) over ``d`` and these buffers, when the
+        build has it and libmujoco's functions are found; else the numpy one is used."""
+        self.compiled = None
+        if self.rk4 or not self.rows_of.addresses or self.rows.shape[1] != self.rows_of.width:
+            return
+        fns = _mujoco_functions()
+        if fns is None:
+            return
+        try:
+            from rblog.adapters._hook import StepHook
+        except ImportError:
+            return
+        addr = lambda a: a.__array_interface__["data"][0]  # noqa: E731
+        d = self.d
+        self.compiled = StepHook(fns[0], fns[1] if self.Ma is not None else 0, self.m._address,
+                                 d._address, addr(self.qvel), addr(self.qacc), int(self.m.nv),
+                                 self.h, addr(self.rows), int(self.rows.shape[1]), addr(self.v1),
+                                 addr(self.v0), addr(self.Ma) if self.Ma is not None else 0,
+                                 int(self.cap), list(self.rows_of.addresses))
+
+    def restart(self, d) -> None:
+        """Take ``d`` as the start of the next step (after steps not seen)."""
+        np.copyto(self.v0, d.qvel)
+        self._gap_v0[self.k] = self.v0.copy()  # the next row's v0 is not the previous row's v1
+        if self.rk4:
+            np.copyto(self.q0, d.qpos)
+            np.copyto(self.act0, d.act)
+
+    def __call__(self, d) -> None:
+        """Gather the step that just ended in ``d``."""
+        if d is not self.d:
+            self.bind(d)
+        if self.compiled is not None:
+            self.k = self.compiled.step(self.k)
+            return
+        mj, m, k = self.mj, self.m, self.k
+        v1 = self.v1[k]
+        np.copyto(v1, self.qvel)
+        if self.rk4:
+            src = self.scratch
+            src.qpos[:] = self.q0
+            src.qvel[:] = self.v0
+            src.act[:] = self.act0
+            src.ctrl[:] = d.ctrl
+            src.time = d.time - self.h
+            src.qfrc_applied[:] = d.qfrc_applied
+            src.xfrc_applied[:] = d.xfrc_applied
+            if m.nmocap:
+                src.mocap_pos[:] = d.mocap_pos
+                src.mocap_quat[:] = d.mocap_quat
+            src.qacc_warmstart[:] = d.qacc_warmstart
+            mj.mj_forward(m, src)
+            np.subtract(v1, self.v0, out=src.qacc)
+            src.qacc *= 1.0 / self.h
+            mj.mj_rnePostConstraint(m, src)
+            np.copyto(self.q0, d.qpos)
+            np.copyto(self.act0, d.act)
+        else:
+            qvel, qacc = self.qvel, self.qacc
+            np.copyto(self._qacc, qacc)
+            np.copyto(qvel, self.v0)
+            np.subtract(v1, self.v0, out=qacc)
+            qacc *= 1.0 / self.h
+            mj.mj_rnePostConstraint(m, d)
+            if self.Ma is not None:
+                mj.mj_mulM(m, d, self.Ma[k], qacc)
+            np.copyto(qvel, v1)
+            np.copyto(qacc, self._qacc)
+        self.rows_of.fill(self.rows[k])
+        np.copyto(self.v0, v1)
+        self.k = k + 1
+
+    @property
+    def full(self) -> bool:
+        return self.k >= self.cap
+
+    def resolve(self):
+        """The gathered steps as (impulses (K, 5, nbody, 6) [angular about the COM; linear], N s
+        and N m s, in IMPULSE_KINDS order; work (K, 3, nbody) J, WORK_KINDS order). The rows
+        stay until :meth:`reset`."""
+        k, lay, h = self.k, self.lay, self.h
+        R = self.rows[:k]
+        F = lambda f: self.rows_of.field(R, f)  # noqa: E731
+        v1 = self.v1[:k]
+        v0 = np.concatenate([self.v_start[None], v1[:-1]])
+        for row, v in self._gap_v0.items():
+            if row < k:
+                v0[row] = v
+        c = F("subtree_com")[:, lay.root]                       # (K, nb, 3) each body's c
+        r = F("xipos") - c                                      # c -> centre of mass
+        xf = F("xfrc_applied")                                  # [force; torque] at the COM
+        pushed = bool(xf.any())
+        nb = len(lay.root)
+        W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
+        if pushed:
+            xf_c = np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
+            np.subtract(F("cfrc_ext"), xf_c, out=W[:, 0])
+        else:
+            W[:, 0] = F("cfrc_ext")
+        # S (K, nv, 6): the unit wrench of each dof, about c
+        cdof = F("cdof")
+        S = np.zeros_like(cdof)
+        rot, tr = ~lay.dof_trans, lay.dof_trans
+        S[:, rot, :3] = cdof[:, rot, :3]
+        if tr.any():
+            u = cdof[:, tr, 3:]
+            anchor = F("xanchor")[:, lay.dof_jnt[tr]]
+            S[:, tr, :3] = _cross(anchor - c[:, lay.dof_body[tr]], u)
+            S[:, tr, 3:] = u
+        tau = np.empty((k, 3, self.m.nv))                       # applied, passive, actuator
+        tau[:, 0] = F("qfrc_applied")
+        tau[:, 1] = F("qfrc_passive")
+        if self.implicit_damping:
+            tau[:, 1] -= lay.damping * (v1 - v0)
+        tau[:, 2] = F("qfrc_actuator")
+        if self.Ma is not None:  # h D a beyond the dof damping: M a - f - (-B dv)
+            extra = self.Ma[:k] - F("qfrc_smooth") - F("qfrc_constraint") + lay.damping * (v1 - v0)
+            tau[:, self.correction_kind] += extra
+        gen = lay.pair @ (tau[..., None] * S[:, None])          # (K, 3, nb, 6)
+        W[:, 1:4] = gen
+        if pushed:
+            W[:, 1] += xf_c
+        np.matmul(lay.net, F("cfrc_int"), out=W[:, 4])
+        W[:, 4] -= gen.sum(axis=1)
+        W[..., :3] -= _cross(r[:, None], W[..., 3:])            # torques about the COM
+        W *= h
+        work = (tau * v1[:, None]) @ lay.own.T * h              # (K, 3, nb)
+        if pushed:
+            cv = F("cvel")
+            v_com = cv[..., 3:] + _cross(cv[..., :3], r)
+            work[:, 0] += h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
+                               np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
+        return W, work
+
+    def reset(self) -> None:
+        """Drop the gathered rows; the next row's v0 is the last one's v1 (or a restart's)."""
+        if self.k in self._gap_v0:
+            np.copyto(self.v_start, self._gap_v0[self.k])
+        elif self.k:
+            np.copyto(self.v_start, self.v1[self.k - 1])
+        self.k = 0
+        self._gap_v0 = {}

@@ -1,0 +1,250 @@
+"""Signed distances between geoms of every shape, recomputed from the logged poses.
+
+The audit's own geometry (csrc/audit/shapes.hpp, shapes.cpp, convex.cpp, broadphase.cpp), apart
+from every engine's narrowphase: sphere, capsule, ellipsoid, cylinder, box, convex mesh (the hull
+of its vertices) and plane (a half-space). Conventions, for every pair (a, b):
+
+* ``sep`` (P,): signed distance between the surfaces (m), > 0 apart, < 0 the penetration depth.
+* ``normal`` (P, 3): unit world vector from b into a.
+* ``pa``, ``pb`` (P, 3): witness points on a's and b's surface (world, m), ``pa - pb = sep n``.
+* ``status`` (P,): ``OK``, ``NOT_CONVERGED`` (GJK/EPA hit their iteration cap), or
+  ``UNSUPPORTED`` (plane-plane: sep is NaN).
+
+A geom's frame: ``position`` (.., 3) its centre in the world, ``rotation`` (.., 3, 3) geom->world
+(columns are its axes in the world frame). ``size`` (3,) per type:
+
+==========  ===========  ===========  ===========  =====================================
+type        size[0]      size[1]      size[2]      in the geom frame
+==========  ===========  ===========  ===========  =====================================
+plane       -            -            -            the half-space z <= 0 (normal +z)
+sphere      radius       -            -            |p| <= r
+capsule     radius       half-length  -            the z segment [-h, h] grown by r
+ellipsoid   semi-axis x  semi-axis y  semi-axis z  sum (p_i / a_i)^2 <= 1
+cylinder    radius       half-length  -            x^2 + y^2 <= r^2, |z| <= h
+box         half x       half y       half z       |p_i| <= h_i
+mesh        -            -            -            hull of its vertices (V, 3)
+==========  ===========  ===========  ===========  =====================================
+
+Which pairs are exact and which are within the GJK/EPA tolerances (rblog/analyze/tolerances.py)
+is the table at the top of csrc/audit/shapes.cpp.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rblog.analyze import _audit
+from rblog.analyze.tolerances import CONVEX_MAX_ITER, EPA_TOL_M, GJK_TOL_M, WITNESS_BAND_M
+
+#: geom type names -> the compiled module's codes (csrc/audit/shapes.hpp)
+GEOM_TYPES = {
+    "plane": _audit.GEOM_PLANE,
+    "sphere": _audit.GEOM_SPHERE,
+    "capsule": _audit.GEOM_CAPSULE,
+    "ellipsoid": _audit.GEOM_ELLIPSOID,
+    "cylinder": _audit.GEOM_CYLINDER,
+    "box": _audit.GEOM_BOX,
+    "mesh": _audit.GEOM_MESH,
+}
+assert sorted(GEOM_TYPES.values()) == list(range(len(GEOM_TYPES)))
+OK, NOT_CONVERGED, UNSUPPORTED = _audit.DIST_OK, _audit.DIST_NOT_CONVERGED, _audit.DIST_UNSUPPORTED
+#: edge cross products shorter than this are parallel edges in the box-box axis test
+_AXIS_EPS = 1e-6
+
+
+@dataclass
+class Geoms:
+    """G geoms' fixed data.
+
+    Attributes:
+        type: (G,) int64 codes of GEOM_TYPES.
+        size: (G, 3) per type (module docstring), m.
+        mesh_start, mesh_count: (G,) rows of ``verts`` that hold each mesh's vertices (0, 0 for
+            other types).
+        verts: (V, 3) mesh vertices in their geom's frame (m).
+        body: (G,) the body each geom belongs to (pairs of one body are never tested), < 0 for
+            static geoms (pairs of two are never tested).
+    """
+
+    type: np.ndarray
+    size: np.ndarray
+    mesh_start: np.ndarray
+    mesh_count: np.ndarray
+    verts: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    body: np.ndarray | None = None
+
+    @classmethod
+    def build(cls, types, sizes, meshes=None, body=None) -> "Geoms":
+        """From type names (G,), sizes (G, 3) and, for each mesh geom, its (V_g, 3) vertices
+        (``meshes``: a dict geom index -> vertices, or a list with None for other geoms)."""
+        codes = np.array([GEOM_TYPES[t] if isinstance(t, str) else int(t) for t in types],
+                         np.int64)
+        g = len(codes)
+        start, count = np.zeros(g, np.int64), np.zeros(g, np.int64)
+        rows = []
+        items = meshes.items() if isinstance(meshes, dict) else enumerate(meshes or [])
+        n = 0
+        for i, v in items:
+            if v is None:
+                continue
+            v = np.asarray(v, float).reshape(-1, 3)
+            start[i], count[i] = n, len(v)
+            rows.append(v)
+            n += len(v)
+        verts = np.concatenate(rows) if rows else np.zeros((0, 3))
+        body = np.arange(g, dtype=np.int64) if body is None else np.asarray(body, np.int64)
+        return cls(codes, np.asarray(sizes, float).reshape(g, 3), start, count, verts, body)
+
+
+def _c(x, dtype=np.float64):
+    return np.ascontiguousarray(x, dtype=dtype)
+
+
+def pair_distance(geoms: Geoms, position, rotation, k, i, j, with_points: bool = True,
+                  gjk_tol: float = GJK_TOL_M, epa_tol: float = EPA_TOL_M,
+                  max_iter: int = CONVEX_MAX_ITER):
+    """Rows (k, i, j): geoms i and j at sample k of position (T, G, 3), rotation (T, G, 3, 3).
+
+    Returns dict of sep (R,), status (R,), iters (R,) and, with ``with_points``, normal, pa, pb
+    (R, 3) (conventions: module docstring)."""
+    r = len(k)
+    sep = np.empty(r)
+    status = np.empty(r, np.int64)
+    iters = np.empty(r, np.int64)
+    m = r if with_points else 0
+    n, pa, pb = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
+    _audit.geom_pairs_kernel(_c(k, np.int64), _c(i, np.int64), _c(j, np.int64), _c(position),
+                             _c(rotation), _c(geoms.type, np.int64), _c(geoms.size),
+                             _c(geoms.mesh_start, np.int64), _c(geoms.mesh_count, np.int64),
+                             _c(geoms.verts).reshape(-1, 3), float(gjk_tol), float(epa_tol),
+                             int(max_iter), WITNESS_BAND_M, _AXIS_EPS, sep, n, pa, pb, status,
+                             iters)
+    out = dict(sep=sep, status=status, iters=iters)
+    if with_points:
+        out.update(normal=n, pa=pa, pb=pb)
+    return out
+
+
+def distance(type_a, xa, ra, sa, type_b, xb, rb, sb, verts_a=None, verts_b=None, **kw):
+    """P explicit pairs: geom a of ``type_a`` (a name) at xa (P, 3), ra (P, 3, 3), size sa (3,)
+    or (P, 3) against geom b likewise; ``verts_*`` (V, 3) for a mesh. Returns pair_distance's
+    dict."""
+    xa, xb = np.asarray(xa, float).reshape(-1, 3), np.asarray(xb, float).reshape(-1, 3)
+    p = len(xa)
+    sa = np.broadcast_to(np.asarray(sa, float), (p, 3))
+    sb = np.broadcast_to(np.asarray(sb, float), (p, 3))
+    # one mesh's vertices, shared by its P copies
+    geoms = _shared_meshes([type_a] * p + [type_b] * p, np.concatenate([sa, sb]), p, verts_a,
+                           verts_b)
+    pos = np.concatenate([xa, xb])[None]
+    rot = np.concatenate([np.broadcast_to(ra, (p, 3, 3)), np.broadcast_to(rb, (p, 3, 3))])[None]
+    return pair_distance(geoms, pos, rot, np.zeros(p, np.int64), np.arange(p),
+                         np.arange(p, 2 * p), **kw)
+
+
+def _shared_meshes(types, sizes, p, verts_a, verts_b) -> Geoms:
+    g = Geoms.build(types, sizes)
+    rows = []
+    n = 0
+    for half, v in ((0, verts_a), (1, verts_b)):
+        if v is None:
+            continue
+        v = np.asarray(v, float).reshape(-1, 3)
+        sl = slice(half * p, (half + 1) * p)
+        g.mesh_start[sl], g.mesh_count[sl] = n, len(v)
+        rows.append(v)
+        n += len(v)
+    if rows:
+        g.verts = np.concatenate(rows)
+    return g
+
+
+def broadphase(geoms: Geoms, position, rotation, pad: float):
+    """Candidate pairs (k, i < j) whose tight world AABBs grown by ``pad`` (m) overlap at sample k
+    (a plane: whose geom reaches within ``pad`` of it), by sort-and-sweep
+    (csrc/audit/broadphase.cpp); pairs of one body or of two static geoms are left out."""
+    t_n, g_n = np.shape(position)[:2]
+    cap = max(1024, 8 * g_n * t_n)
+    args = (_c(position), _c(rotation), _c(geoms.type, np.int64), _c(geoms.size),
+            _c(geoms.mesh_start, np.int64), _c(geoms.mesh_count, np.int64),
+            _c(geoms.verts).reshape(-1, 3), _c(geoms.body, np.int64), float(pad))
+    while True:
+        out = [np.empty(cap, np.int64) for _ in range(3)]
+        cnt = _audit.geom_broadphase(*args, *out)
+        if cnt <= cap:
+            return tuple(o[:cnt] for o in out)
+        cap = cnt
+
+
+# --- the log's geoms (contract v3 geom_* tables) -----------------------------------------------
+def _contract_codes() -> np.ndarray:
+    from rblog.contract import model as M
+
+    table = np.full(max(M.GEOM_NAMES) + 1, -1, np.int64)
+    for code, name in M.GEOM_NAMES.items():
+        table[code] = GEOM_TYPES[name]
+    return table
+
+
+def model_geoms(model) -> Geoms:
+    """The log's geoms (G,) in the audit's codes, with their bodies (-1: static)."""
+    codes = _contract_codes()[np.asarray(model.geom_type, np.int64)]
+    verts = np.asarray(model.mesh_vert, float).reshape(-1, 3) if model.mesh_vert is not None \
+        else np.zeros((0, 3))
+    return Geoms(codes, np.asarray(model.geom_size, float).reshape(-1, 3),
+                 np.asarray(model.geom_vert_adr, np.int64), np.asarray(model.geom_vert_num, np.int64),
+                 verts, np.asarray(model.geom_body, np.int64))
+
+
+def geom_poses(model, position: np.ndarray, rotation: np.ndarray):
+    """World frames of every geom at every sample: (T, G, 3) centres, (T, G, 3, 3) geom->world,
+    from the bodies' logged poses (T, N, 3), (T, N, 3, 3) and each geom's frame in its body's
+    frame (a static geom's is its world frame)."""
+    from rblog.analyze.geometry import quat_to_matrix
+
+    body = np.asarray(model.geom_body, np.int64)
+    gp = np.asarray(model.geom_pos_body, float).reshape(-1, 3)
+    gr = quat_to_matrix(np.asarray(model.geom_quat_wxyz_body, float).reshape(-1, 4)) \
+        if len(body) else np.zeros((0, 3, 3))
+    t_n = len(position)
+    pos = np.broadcast_to(gp, (t_n,) + gp.shape).copy()
+    rot = np.broadcast_to(gr, (t_n,) + gr.shape).copy()
+    m = body >= 0
+    if m.any():
+        rb = rotation[:, body[m]]
+        pos[:, m] = position[:, body[m]] + np.einsum("tgij,gj->tgi", rb, gp[m])
+        rot[:, m] = np.einsum("tgij,gjk->tgik", rb, gr[m])
+    return pos, rot
+
+
+def collide_mask(model, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """(P,) whether geoms i and j may touch by the model's filter: the collide_rule on their
+    group/mask bits, never two geoms of one body, and never a body and its parent body (the
+    bodies a joint links: MuJoCo's default filterparent, Bullet's default between linked links;
+    a body on the world still touches static geoms)."""
+    g = np.asarray(model.geom_collide_group, np.int64)
+    m = np.asarray(model.geom_collide_mask, np.int64)
+    a = (g[i] & m[j]) != 0
+    b = (g[j] & m[i]) != 0
+    ok = (a | b) if model.collide_rule == "or" else (a & b)
+    body = np.asarray(model.geom_body, np.int64)
+    parent = np.asarray(model.body_parent, np.int64)
+    bi, bj = body[i], body[j]
+    pi_ = np.where(bi >= 0, parent[np.maximum(bi, 0)], -2)
+    pj = np.where(bj >= 0, parent[np.maximum(bj, 0)], -2)
+    linked = (bi >= 0) & (bj >= 0) & ((pi_ == bj) | (pj == bi))
+    return ok & (bi != bj) & ~linked
+
+
+def inner_half_extent(geoms: Geoms) -> np.ndarray:
+    """(G,) each geom's smallest half-extent (m): a sphere's or capsule's radius, a box's or
+    ellipsoid's smallest semi-axis, min(radius, half-length) of a cylinder; inf for meshes and
+    planes (no fraction of them caps a depth tolerance)."""
+    t, s = geoms.type, geoms.size
+    out = np.full(len(t), np.inf)
+    out = np.where((t == GEOM_TYPES["sphere"]) | (t == GEOM_TYPES["capsule"]), s[:, 0], out)
+    out = np.where((t == GEOM_TYPES["box"]) | (t == GEOM_TYPES["ellipsoid"]), s.min(axis=1), out)
+    out = np.where(t == GEOM_TYPES["cylinder"], np.minimum(s[:, 0], s[:, 1]), out)
+    return out
