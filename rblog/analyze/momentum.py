@@ -300,12 +300,11 @@ class MomentumAnalyzer(Analyzer):
                                   self.tol["dt_factor"] * 0.5 * ctx.dt_step * near, 0.0)
         stats["balance_bodies"] = float(len(bodies))
         stats["balance_intervals"] = float(r_lin.size)
-        for what, res, scale, unit in (("linear", np.maximum(r_lin - lin_allow, 0.0), s_lin,
-                                        "kg m/s"),
-                                       ("angular", np.maximum(r_ang - rot_allow, 0.0), s_ang,
-                                        "kg m^2/s")):
+        for what, res, allow, scale, unit in (("linear", r_lin, lin_allow, s_lin, "kg m/s"),
+                                              ("angular", r_ang, rot_allow, s_ang, "kg m^2/s")):
             tl = self.tol[f"{what}_rel"]
-            rel = res / scale
+            # the residual beyond the step's own error, relative to the interval's scale
+            rel = np.maximum(res - allow, 0.0) / scale
             stats[f"balance_{what}_rel_max"] = float(rel.max())
             k_w = np.argmax(rel, axis=0)  # each body's worst interval
             rel_w = rel[k_w, np.arange(len(bodies))]
@@ -313,14 +312,15 @@ class MomentumAnalyzer(Analyzer):
             self._worst.offer_array(rel_w, tl, "1", step[k_w + 1], t[k_w + 1], bodies,
                                     f"relative {what} momentum balance residual")
 
-            def make(j, what=what, res=res, scale=scale, rel_w=rel_w, k_w=k_w, n_bad=n_bad,
-                     unit=unit, tl=tl):
+            def make(j, what=what, res=res, allow=allow, scale=scale, rel_w=rel_w, k_w=k_w,
+                     n_bad=n_bad, unit=unit, tl=tl):
                 b, k = int(bodies[j]), int(k_w[j])
                 return Finding(
                     self.name,
                     f"{body_label(model, b)}: {what} momentum change between t = {t[k]:.6g} and "
                     f"{t[k + 1]:.6g} s differs from its logged impulses (contacts and every "
-                    f"other load) plus gravity by {res[k, j]:.3g} {unit}, {rel_w[j]:.3g} of the "
+                    f"other load) plus gravity by {res[k, j]:.3g} {unit}; beyond the step's own "
+                    f"error ({allow[k, j]:.2g} {unit}) that is {rel_w[j]:.3g} of the "
                     f"interval's scale {scale[k, j]:.3g} {unit} (tol {tl:.3g}; "
                     f"{int(n_bad[j])} interval{'s' if n_bad[j] != 1 else ''} over it)",
                     float(rel_w[j]), tl, "1", int(step[k + 1]), float(t[k + 1]), [b])
