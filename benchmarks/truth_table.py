@@ -317,6 +317,12 @@ def main(argv=None):
         if row[5] != "agree" or row[1] == "penetration":
             lines.append(f"| {row[0]} | {row[1]} | {row[2]} | {row[3]} | {row[4]} | {row[5]} |")
     summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
+    outcomes = sorted(counts)
+    per = ["| analyzer | " + " | ".join(outcomes) + " |", "|---" * (len(outcomes) + 1) + "|"]
+    for a in ANALYZERS:
+        c = [sum(1 for r in rows if r[1] == a and r[5] == o) for o in outcomes]
+        per.append(f"| {a} | " + " | ".join(str(x) for x in c) + " |")
+    lines = per + [""] + lines
     print("\n".join(lines))
     print(f"\n{len(rows)} verdicts: {summary}; CPU {time.process_time() - t0:.0f} s")
     if args.verbose:
