@@ -145,7 +145,8 @@ def record_pybullet(name, every, ctrl, steps):
     for k in range(pb.getNumBodies(physicsClientId=cid)):
         b = pb.getBodyUniqueId(k, physicsClientId=cid)
         for j in range(pb.getNumJoints(b, physicsClientId=cid)):
-            if pb.getJointInfo(b, j, physicsClientId=cid)[2] in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC):
+            kind = pb.getJointInfo(b, j, physicsClientId=cid)[2]
+            if kind in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC):
                 motors.append((b, j))
     depth = {}
     sample_steps = []
@@ -178,7 +179,8 @@ def record_pybullet(name, every, ctrl, steps):
     for k in range(steps):
         if ctrl == "random" and motors:
             for b, j in motors:
-                pb.setJointMotorControl2(b, j, pb.VELOCITY_CONTROL, targetVelocity=rng.uniform(-5, 5),
+                pb.setJointMotorControl2(b, j, pb.VELOCITY_CONTROL,
+                                         targetVelocity=rng.uniform(-5, 5),
                                          force=50.0, physicsClientId=cid)
         pb.stepSimulation(physicsClientId=cid)
         rec()
@@ -201,7 +203,8 @@ def row_truths(engine, traj, results, depth, energy, passive):
     worst = max(depth.items(), key=lambda kv: kv[1][0]) if depth else ("-", (0.0, 0))
     d = worst[1][0]
     if d > tol_tr * (1 + MARGIN):
-        out["penetration"] = ("FAIL", f"{d * 1e3:.2f} mm {worst[0]} @{worst[1][1]}", "beyond the transient tolerance")
+        out["penetration"] = ("FAIL", f"{d * 1e3:.2f} mm {worst[0]} @{worst[1][1]}",
+                              "beyond the transient tolerance")
     elif d > tol_rest * (1 + MARGIN):
         out["penetration"] = ("either", f"{d * 1e3:.2f} mm {worst[0]} @{worst[1][1]}",
                               "beyond the resting tolerance: a fault only if the pair rests")
@@ -279,7 +282,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     cases = [("mujoco", n, c, e) for n in MJ_MODELS for c in ("zero", "random") for e in (1, 10)]
     cases += [("pybullet", n, c, e) for n in PB_WORLDS
-              for c in (("zero", "random") if n in ("r2d2", "r2d2_maximal", "kuka_cube") else ("zero",))
+              for c in (("zero", "random") if n in ("r2d2", "r2d2_maximal", "kuka_cube")
+                        else ("zero",))
               for e in (1, 10)]
     if args.only:
         cases = [c for c in cases if c[1] in args.only]
@@ -312,7 +316,8 @@ def main(argv=None):
     counts = {}
     for row in rows:
         counts[row[5]] = counts.get(row[5], 0) + 1
-    lines = ["| run | analyzer | verdict | truth | engine's figure | outcome |", "|---|---|---|---|---|---|"]
+    lines = ["| run | analyzer | verdict | truth | engine's figure | outcome |",
+             "|---|---|---|---|---|---|"]
     for row in rows:
         if row[5] != "agree" or row[1] == "penetration":
             lines.append(f"| {row[0]} | {row[1]} | {row[2]} | {row[3]} | {row[4]} | {row[5]} |")

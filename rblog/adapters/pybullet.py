@@ -37,8 +37,8 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
   Bullet's product. Collision filter: Bullet's defaults (dynamic: group 1, mask all; static:
   group 2, mask all but 2; rule "and"); links of one multibody do not collide unless loaded with
   ``URDF_USE_SELF_COLLISION`` (its geoms share a bit of their own in the group, absent from the
-  mask: SELF_FILTER_FIRST_BIT, also where its base is static, part of the world); pybullet reports neither a later ``setCollisionFilterGroupMask``
-  nor self collision (``engine_settings["collision_filter"]`` says so).
+  mask: SELF_FILTER_FIRST_BIT, also where its base is static, part of the world); pybullet
+  reports neither a later ``setCollisionFilterGroupMask`` nor self collision (``engine_settings["collision_filter"]`` says so).
 * **impulses** per step, summed over each interval (world frame; angular about the row's centre
   of mass at the start of the step, where Bullet's solver applies them):
 

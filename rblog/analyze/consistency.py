@@ -326,7 +326,8 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=(), ctx: Context |
                 if ext is None:
                     masks.append(np.zeros((len(step) - 1, n), bool))
                     continue
-                size = np.maximum(np.linalg.norm(mom_[:-1], axis=-1), np.linalg.norm(mom_[1:], axis=-1))
+                size = np.maximum(np.linalg.norm(mom_[:-1], axis=-1),
+                                  np.linalg.norm(mom_[1:], axis=-1))
                 driven = (np.linalg.norm(ext[1:], axis=-1) > SMOOTH_FRAC * size).any(axis=0)
                 masks.append(strided & driven[None, :])
             over_w, over_v = masks
@@ -338,7 +339,8 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=(), ctx: Context |
             count = np.where(drop, count_l, count)
             med_v = np.where(drop, med_vl, med_v)
             cnt = np.where(drop, cnt_l, cnt)
-            gone = np.flatnonzero(drop & ((bad_w & (count < min_count)) | (bad_v & (cnt < min_count))))
+            gone = np.flatnonzero(drop & ((bad_w & (count < min_count))
+                                          | (bad_v & (cnt < min_count))))
             if len(gone):
                 out.append(Issue(
                     "not judged", "kinematics",

@@ -236,17 +236,20 @@ def test_loads_between_samples_not_judged_faults_still_caught():
     """Sampled every 10th step, the arm's torques change 10 times between two samples: its
     orientation's mean rate over an interval is not the mean of the end rates (median mismatch
     0.55 measured, past 0.1). Those intervals are left out and the arm is named not judged,
-    not flagged; the free box in the same log is still judged, and its w with the sign flipped in the
-    log is caught; at every step the arm is judged, and the same fault on it caught."""
+    not flagged; the free box in the same log is still judged, and its w with the sign flipped
+    in the log is caught; at every step the arm is judged, and the same fault on it caught."""
     traj = _driven(10)
     res = ConsistencyAnalyzer().run(traj)
     assert res.passed, res.reason
-    assert any("'upper', 'lower'" in x and "not judged" in x for x in res.not_judged), res.not_judged
+    assert any("'upper', 'lower'" in x and "not judged" in x for x in res.not_judged), \
+        res.not_judged
     box = traj.model.body_name.index("box")
     bad = ConsistencyAnalyzer().run(_w_sign_flipped(_driven(10), box))
     assert not bad.passed
-    assert {b for f in bad.findings for b in f.bodies} == {box}, [f.message for f in bad.findings]
+    assert {b for f in bad.findings for b in f.bodies} == {box}, \
+        [f.message for f in bad.findings]
     assert ConsistencyAnalyzer().run(_driven(1)).not_judged == []
     upper = traj.model.body_name.index("upper")
     bad1 = ConsistencyAnalyzer().run(_w_sign_flipped(_driven(1), upper))
-    assert {b for f in bad1.findings for b in f.bodies} == {upper}, [f.message for f in bad1.findings]
+    assert {b for f in bad1.findings for b in f.bodies} == {upper}, \
+        [f.message for f in bad1.findings]
