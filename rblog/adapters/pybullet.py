@@ -36,8 +36,9 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
   geom's +z. Materials per link (``getDynamicsInfo``): lateral friction and restitution, combined by
   Bullet's product. Collision filter: Bullet's defaults (dynamic: group 1, mask all; static:
   group 2, mask all but 2; rule "and"); links of one multibody do not collide unless loaded with
-  ``URDF_USE_SELF_COLLISION``; pybullet reports neither a later ``setCollisionFilterGroupMask``
-  nor self collision (``engine_settings["collision_filter"]`` says so).
+  ``URDF_USE_SELF_COLLISION`` (its geoms share a bit of their own in the group, absent from the
+  mask: SELF_FILTER_FIRST_BIT, also where its base is static, part of the world); pybullet
+  reports neither a later ``setCollisionFilterGroupMask`` nor self collision (``engine_settings["collision_filter"]`` says so).
 * **impulses** per step, summed over each interval (world frame; angular about the row's centre
   of mass at the start of the step, where Bullet's solver applies them):
 
@@ -99,6 +100,13 @@ JOINT_TYPES = {0: "hinge", 1: "slide", 2: "ball", 3: "planar", 4: "fixed"}
 #: Bullet's default collision filter (btBroadphaseProxy::DefaultFilter / StaticFilter / AllFilter)
 FILTER_DYNAMIC = (1, -1)
 FILTER_STATIC = (2, -1 ^ 2)
+#: the first of the bits that keep the links of one multibody from colliding with each other
+#: (Bullet's default without URDF_USE_SELF_COLLISION): multibody k has bit B = 1 << (FIRST + k);
+#: its moving links' geoms have group B and mask all but B, its static base's group 2 | B and
+#: mask all but 2 and B, so under rule "and" no two of them pass while every other pair passes
+#: as under Bullet's defaults; beyond bit 62 multibodies have no bit (their self-pairs then stay
+#: in the contract's filter)
+SELF_FILTER_FIRST_BIT = 2
 #: body_impulse_supplied codes
 MISSING, LOGGED, NONE = SUPPLIED_MISSING, SUPPLIED_LOGGED, SUPPLIED_NONE
 
@@ -173,6 +181,7 @@ class World:
         self.missing: dict[str, list[str]] = {}
         self.notes: dict[str, object] = {}
         self.problems: list[str] = []             # elements the contract cannot hold
+        self.self_bit: dict[int, int] = {}         # multibody id -> its self-filter bit
 
     @property
     def n(self) -> int:
@@ -204,6 +213,12 @@ def _geoms(call, pb, world: World, bid: int, link: int, row: int, label: str, po
     info = call("getDynamicsInfo", bid, link, what=f"{label}: dynamics")
     mu, e = float(info[1]), float(info[5])
     group, mask = FILTER_STATIC if row < 0 else FILTER_DYNAMIC
+    if bid not in world.self_bit and call("getNumJoints", bid, what=f"{label}: joints") > 0:
+        k_bit = SELF_FILTER_FIRST_BIT + len(world.self_bit)
+        world.self_bit[bid] = 1 << k_bit if k_bit <= 62 else 0
+    bit = world.self_bit.get(bid, 0)
+    if bit:  # a moving link's group is its multibody's bit alone, so "and" keeps the pair out
+        group, mask = (group | bit) if row < 0 else bit, mask & ~bit
     for k, sd in enumerate(shapes):
         gtype, dims = int(sd[2]), np.array(sd[3], np.float64)
         pos, q = np.array(sd[5], np.float64), _wxyz(sd[6])

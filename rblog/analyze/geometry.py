@@ -317,6 +317,14 @@ def proximity(model: Model, position: np.ndarray, rotation: np.ndarray, pad: flo
     if sweep is not None and t_n > 1:
         grow = grow + sweep
     k, a, b = sweep_pairs(model, position, grow, pad)
+    body_pair = b < n  # two bodies: their geoms' filter (a static box is the world's)
+    if body_pair.any():
+        from rblog.analyze.shapes import bodies_may_touch
+
+        keep = ~body_pair
+        keep[body_pair] = bodies_may_touch(model, a[body_pair], b[body_pair])
+        if not keep.all():
+            k, a, b = k[keep], a[keep], b[keep]
 
     # separations of every candidate at both ends of its interval
     k1 = k + 1 if t_n > 1 else k

@@ -25,6 +25,16 @@ Tolerance, per joint and sample, from what a correct recording cannot avoid:
   anchor's distance from the child's centre; the axes likewise ``theta^2 / 2`` rad. Less than
   that cannot be asked of one step; more is drift the engine let through.
 
+A body with several joint rows (MuJoCo's humanoid hip: three hinges; a planar slide-slide-hinge
+body; contract v3 lists them in the order the engine applies them, parent side first) is one
+compound joint: each row's axis and anchor are fixed in the frame *between* its neighbours'
+motions, which the log does not carry, so a row's own check would flag the others' motion. The
+compound is judged for what all its rows together forbid, where that is known from the rows
+alone (rule table ``_compound_rule``): rows that only turn (hinge, ball) about one anchor point
+keep that point together (its separation judged once, on the first row); their axes are not
+judged. Any other compound (a slide among them, or turns about different points) is not judged,
+and the result says which bodies.
+
 A joint past tolerance is reported with its onset (first sample past tolerance), its worst
 value and its growth after the onset (the better of a line and an exponential, as the drift
 analyzer describes it). A log whose bodies move on joints but that has no joint table is "not
@@ -38,7 +48,7 @@ import numpy as np
 from rblog.analyze import tolerances as T
 from rblog.analyze.base import Analyzer, Context, Finding, Result, Worst, body_label
 from rblog.analyze.drift import _fit, _growth, _residuals
-from rblog.contract.model import (BODY_JOINTED, JOINT_FIXED, JOINT_HINGE, JOINT_NAMES,
+from rblog.contract.model import (BODY_JOINTED, JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_NAMES,
                                   JOINT_PLANAR, JOINT_SLIDE)
 
 _AXIAL = (JOINT_HINGE, JOINT_SLIDE, JOINT_PLANAR)
@@ -70,9 +80,47 @@ def _poses(tr, body: np.ndarray):
     return x, r, w
 
 
+#: rows of one body within this of each other (m, relative to 1 + |anchor|) name one point
+_SAME_ANCHOR_REL = 1e-9
+
+
+def _compound_rule(model) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Which rows keep their own checks, for bodies with several joint rows (module docstring).
+
+    Returns (gap_judged (J,) bool, angle_judged (J,) bool, notes): one note per compound body
+    left out, naming it and why."""
+    jt = np.asarray(model.joint_type, np.int64)
+    child = np.asarray(model.joint_body, np.int64)
+    ab = np.asarray(model.joint_anchor_body, float).reshape(-1, 3)
+    ap = np.asarray(model.joint_anchor_parent, float).reshape(-1, 3)
+    gap_ok = np.ones(len(jt), bool)
+    angle_ok = np.ones(len(jt), bool)
+    left_out = []
+    for b in np.unique(child):
+        rows = np.flatnonzero(child == b)
+        if len(rows) < 2:
+            continue
+        angle_ok[rows] = False
+        gap_ok[rows[1:]] = False
+        turns = np.isin(jt[rows], (JOINT_HINGE, JOINT_BALL)).all()
+        same = all(np.linalg.norm(a[rows] - a[rows[0]], axis=-1).max()
+                   <= _SAME_ANCHOR_REL * (1.0 + np.linalg.norm(a[rows[0]])) for a in (ab, ap))
+        if not (turns and same):
+            gap_ok[rows[0]] = False
+            left_out.append(body_label(model, int(b)))
+    notes = []
+    if left_out:
+        more = f" +{len(left_out) - 3} more" if len(left_out) > 3 else ""
+        notes.append(f"{len(left_out)} bodies on compound joints with a slide or turns about "
+                     f"different points ({', '.join(left_out[:3])}{more}): not judged (their "
+                     "rows' intermediate frames are not in the log)")
+    return gap_ok, angle_ok, notes
+
+
 def joint_errors(tr) -> dict[str, np.ndarray]:
     """Per sample and joint (T, J): ``gap`` (m) and ``gap_tol``, ``angle`` (rad) and
-    ``angle_tol`` (module docstring; angle 0 and its tolerance inf for ball joints)."""
+    ``angle_tol`` (module docstring; angle 0 and its tolerance inf for ball joints and for the
+    rows of a compound joint that are not judged), and ``notes``: the compound joints left out."""
     model = tr.model
     jt = np.asarray(model.joint_type, np.int64)
     child = np.asarray(model.joint_body, np.int64)
@@ -121,7 +169,10 @@ def joint_errors(tr) -> dict[str, np.ndarray]:
     r_anchor = np.linalg.norm(ab, axis=-1)[None]
     gap_tol = ulps * eps * size + 0.5 * r_anchor * theta ** 2
     angle_tol = np.where((axial | rigid)[None], ulps * eps + 0.5 * theta ** 2, np.inf)
-    return dict(gap=gap, gap_tol=gap_tol, angle=angle, angle_tol=angle_tol)
+    gap_ok, angle_ok, notes = _compound_rule(model)
+    gap_tol = np.where(gap_ok[None], gap_tol, np.inf)
+    angle_tol = np.where(angle_ok[None], angle_tol, np.inf)
+    return dict(gap=gap, gap_tol=gap_tol, angle=angle, angle_tol=angle_tol, notes=notes)
 
 
 class JointsAnalyzer(Analyzer):
@@ -148,7 +199,10 @@ class JointsAnalyzer(Analyzer):
         s = self.tol["tol_scale"]
         t = tr.t
         findings: list[Finding] = []
-        worst = Worst("m", float(s * err["gap_tol"].max()))
+        finite = err["gap_tol"][np.isfinite(err["gap_tol"])]
+        if not finite.size and not np.isfinite(err["angle_tol"]).any():
+            return self.not_judged("; ".join(err["notes"]))
+        worst = Worst("m", float(s * finite.max()) if finite.size else np.inf)
         stats: dict[str, float] = {"joints": float(model.n_joints)}
         bodies = np.asarray(model.joint_body, np.int64)
         for key, tkey, unit, what in (("gap", "gap_tol", "m", "anchor separation"),
@@ -186,4 +240,4 @@ class JointsAnalyzer(Analyzer):
                     float(v[kw, j]), float(tol[kw, j]), unit, int(tr.step[kw]), float(t[kw]),
                     [int(bodies[j])]))
         stats["joints_flagged"] = float(len({f.bodies[0] for f in findings}))
-        return self.result(worst, findings, stats)
+        return self.result(worst, findings, stats).leave_out(err["notes"])

@@ -238,6 +238,38 @@ def collide_mask(model, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     return ok & (bi != bj) & ~linked
 
 
+def bodies_may_touch(model, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(P,) whether bodies a and b (indices < N) may touch: some geom of a and some geom of b
+    pass :func:`collide_mask` (Bullet's links of one multibody, MuJoCo's parent and child: no).
+    Bodies without geoms (a log before contract v3) may touch anything, as their shapes say."""
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    out = np.ones(len(a), bool)
+    if not getattr(model, "n_geoms", 0) or model.geom_collide_group is None or not len(a):
+        return out
+    body = np.asarray(model.geom_body, np.int64)
+    n = int(max(a.max(), b.max())) + 1
+    key = a * n + b
+    uniq, inv = np.unique(key, return_inverse=True)
+    ua, ub = uniq // n, uniq % n
+    order = np.argsort(body, kind="stable")
+    lo = np.searchsorted(body[order], np.arange(n), "left")
+    hi = np.searchsorted(body[order], np.arange(n), "right")
+    na, nb = hi[ua] - lo[ua], hi[ub] - lo[ub]
+    has = (na > 0) & (nb > 0)
+    ok = np.ones(len(uniq), bool)
+    u = np.flatnonzero(has)
+    if len(u):
+        cnt = na[u] * nb[u]
+        pair = np.repeat(np.arange(len(u)), cnt)
+        r = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        gi = order[lo[ua[u]][pair] + r // nb[u][pair]]
+        gj = order[lo[ub[u]][pair] + r % nb[u][pair]]
+        any_ = np.zeros(len(u), bool)
+        np.logical_or.at(any_, pair, collide_mask(model, gi, gj))
+        ok[u] = any_
+    return ok[inv]
+
+
 def inner_half_extent(geoms: Geoms) -> np.ndarray:
     """(G,) each geom's smallest half-extent (m): a sphere's or capsule's radius, a box's or
     ellipsoid's smallest semi-axis, min(radius, half-length) of a cylinder; inf for meshes and

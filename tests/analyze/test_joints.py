@@ -307,3 +307,62 @@ def test_fixed_joint_turned_is_flagged():
     assert [f.message.split(":")[1].split(" reaches")[0].strip() for f in res.findings] == \
         ["relative rotation"]
     assert abs(res.findings[0].value - ang) < 1e-12
+
+
+# a universal joint (two hinges about one point, as MuJoCo's humanoid hip) swinging under
+# gravity, and a planar body (slide x, slide z, hinge y, as dm_control's stacker boxes) falling
+COMPOUND_XML = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="arm" pos="0 0 2">
+      <joint name="ux" type="hinge" axis="1 0 0"/>
+      <joint name="uy" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0.1 -0.2" size="0.03"/>
+    </body>
+    <body name="slab" pos="1 0 1">
+      <joint name="px" type="slide" axis="1 0 0"/>
+      <joint name="pz" type="slide" axis="0 0 1"/>
+      <joint name="py" type="hinge" axis="0 1 0"/>
+      <geom type="box" size="0.1 0.05 0.02" pos="0.05 0 0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _compound(pull=None):
+    from rblog.adapters import mujoco as adapter
+
+    m = mujoco.MjModel.from_xml_string(COMPOUND_XML)
+    d = mujoco.MjData(m)
+    d.qvel[:] = [2.0, -3.0, 0.5, 0.4, 5.0]  # both hinges and the planar body all move
+    mujoco.mj_forward(m, d)
+    rec = adapter.recorder(m, d)
+    for _ in range(300):
+        mujoco.mj_step(m, d)
+        rec(d)
+    rec.close()
+    traj = rec.trajectory
+    if pull is not None:
+        pos = traj.position.copy()
+        pos[pull:, 0] += [0.0, 0.0, 0.005]  # the arm, 5 mm up, in the log only
+        traj.position = pos
+    return traj
+
+
+def test_compound_joints_judged_for_what_they_forbid():
+    """A universal joint's two rows each turn the other's axis (row by row: 1.97 and 1.18 rad
+    "misaligned", the slab's rows 1.7 m "apart", measured): judged as one fixed point (its
+    anchors 2.2e-16 m apart, measured), it passes; the planar body's rows
+    cannot be judged one by one and are left out by name; a planted 5 mm pull of the arm is
+    still caught on its joint, at its time, with its size."""
+    res = _joints(_compound())
+    assert res.judged and res.passed, res.reason
+    assert any("'slab'" in x and "compound" in x for x in res.not_judged), res.not_judged
+    pulled = _joints(_compound(pull=150))
+    assert {f.bodies[0] for f in pulled.findings} == {0}
+    f = pulled.findings[0]
+    assert "'ux'" in f.message and "anchor separation" in f.message
+    assert abs(f.value - 0.005) < 1e-9
+    assert f.step == 150

@@ -1,0 +1,343 @@
+"""Verdicts on real models: every analyzer's verdict against a truth computed from the engine's
+own data (issue 37, "Done when" item 2).
+
+The models are the recording issue's, as shipped: dm_control's suite (MuJoCo, its own
+integrator: cartpole RK4, the rest Euler) and pybullet_data's worlds (pybullet's default damping,
+r2d2 as a multibody and in maximal coordinates), each with zero and random controls (pybullet:
+random velocity targets on the motors of r2d2 and kuka; its free-body worlds have no controls),
+recorded by the adapters at every step and at every 10th, and audited with ``rblog.check``.
+
+The truth, never from the log or from rblog's code:
+
+* penetration: MuJoCo's ``contact.dist`` after ``mj_forward`` at each logged qpos (a separate
+  MjData), pybullet's ``getClosestPoints`` between every two bodies at each sample (links of
+  one multibody left out: pybullet does not collide them): the deepest penetration of any
+  geom pair. A fault when it exceeds the analyzer's transient tolerance by MARGIN; between the
+  resting and the transient tolerance either verdict agrees (a fault only if the pair rests);
+  below, clean. A pybullet result whose findings are all creep is held against pybullet's own
+  base poses: how far one block's centre moves in its partner's frame over the run.
+* energy (MuJoCo): ``mj_energyPos + mj_energyVel`` at each logged state less the work of every
+  force but gravity (``qfrc_actuator + qfrc_passive + qfrc_constraint`` at each step's mean
+  velocity; Euler's implicit damping at the step's end velocity): a fault past ENERGY_REL of
+  the largest kinetic energy. Runs with contacts: not judged by this truth (an impact inside a
+  step does work the step's forces do not show). pybullet: no independent energy.
+* momentum: Newton holds inside either engine: each body's momentum change equals its impulses
+  + m g dt, measured from qvel / getBaseVelocity to 1e-9 relative by
+  tests/adapters/test_mujoco_models.py and test_pybullet_worlds.py; the truth is clean.
+* consistency, drift, joints, tunneling: both engines state poses and velocities from one
+  state (unit quaternions; MuJoCo's joints exact in generalized coordinates, pybullet's
+  multibody joints too): clean. r2d2 in maximal coordinates: not judged (the adapter logs its
+  links as free bodies, without their joint constraints).
+
+Outcomes: agree; false alarm (FAIL on a clean truth); miss (pass on a fault); not judged (the
+analyzer's own "not judged"/"skip" where there is something to judge); "not judged (truth)" and
+"unverified FAIL" where this truth has no figure.
+
+Run: ``nice .venv/bin/python benchmarks/truth_table.py [--steps N] [--only NAME ...]``; writes
+the table to stdout (and ``--md`` to a file).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import time
+
+import numpy as np
+
+import rblog
+
+#: a truth depth beyond the analyzer's tolerance by more than this fraction of it is a fault the
+#: analyzer must find; within the tolerance, a finding is a false alarm; between, either verdict
+#: agrees (the engine's contact solve and the audit's geometry differ by ~1e-6 m, issue 37)
+MARGIN = 0.1
+
+#: the engine's energy balance E - E0 - W (MuJoCo's energy less the work of every force but
+#: gravity, integrated here at each step's mean velocity) beyond this fraction of the run's
+#: largest kinetic energy is an energy fault; below it, clean (the integrator's own error)
+ENERGY_REL = 0.05
+
+MJ_MODELS = ["humanoid", "stacker", "manipulator", "cartpole", "walker", "ball_in_cup", "finger",
+             "fish"]
+PB_WORLDS = ["r2d2", "r2d2_maximal", "kuka_cube", "jenga", "domino", "tray"]
+ANALYZERS = ["consistency", "drift", "momentum", "penetration", "energy", "tunneling", "joints"]
+
+
+def record_mujoco(name, every, ctrl, steps):
+    import mujoco
+
+    from rblog.adapters import mujoco as adapter
+
+    m = adapter.suite_model(name)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    rng = np.random.default_rng(7)
+    qpos, qvel, work = [d.qpos.copy()], [d.qvel.copy()], [0.0]
+    rec = adapter.recorder(m, d, every=every)
+    h = m.opt.timestep
+    for _ in range(steps):
+        if ctrl == "random":
+            d.ctrl[:] = rng.uniform(-1.0, 1.0, m.nu)
+        mujoco.mj_step(m, d)
+        rec(d)
+        # the work of every force but gravity over the step (actuators, passive, constraints:
+        # MuJoCo's own generalized forces of the step, at its mean velocity)
+        f = d.qfrc_actuator + d.qfrc_passive + d.qfrc_constraint
+        if m.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER:
+            # Euler integrates joint damping implicitly: the step applies -D v(end), not the
+            # -D v(start) that qfrc_passive holds
+            f = f + m.dof_damping * (qvel[-1] - d.qvel)
+        work.append(work[-1] + h * float(f @ (0.5 * (qvel[-1] + d.qvel))))
+        qpos.append(d.qpos.copy())
+        qvel.append(d.qvel.copy())
+    rec.close()
+    return m, rec.trajectory, np.array(qpos), np.array(qvel), np.array(work)
+
+
+def mujoco_truth(m, traj, qpos, qvel, work, ctrl):
+    """The engine's own numbers at the logged samples: deepest penetration per geom pair, energy."""
+    import mujoco
+
+    d = mujoco.MjData(m)
+    m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    depth = {}
+    energy, kinetic = [], []
+    ncon = 0
+    for k, s in enumerate(traj.step):
+        d.qpos[:], d.qvel[:] = qpos[s], qvel[s]
+        mujoco.mj_forward(m, d)
+        ncon += d.ncon
+        for c in d.contact[:d.ncon]:
+            pair = tuple(sorted((int(c.geom[0]), int(c.geom[1]))))
+            if -c.dist > depth.get(pair, (0.0, 0))[0]:
+                depth[pair] = (float(-c.dist), int(s))
+        energy.append(d.energy[0] + d.energy[1] - work[s])
+        kinetic.append(d.energy[1])
+    passive = []
+    if ctrl == "random" and m.nu:
+        passive.append("actuators driven")
+    if np.any(m.dof_damping > 0):
+        passive.append("joint damping")
+    if np.any(m.dof_frictionloss > 0):
+        passive.append("friction loss")
+    if m.ntendon:
+        passive.append("tendons")
+    if ncon:
+        passive.append("contacts")
+    if np.any(m.body_gravcomp > 0):
+        passive.append("gravity compensation")
+    name = lambda g: mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom{g}"
+    depth = {f"{name(a)}/{name(b)}": v for (a, b), v in depth.items()}
+    return depth, (np.array(energy), np.array(kinetic)), passive
+
+
+def record_pybullet(name, every, ctrl, steps):
+    import pybullet as pb
+
+    from rblog.adapters.pybullet import PybulletRecorder, load_shipped
+
+    cid = pb.connect(pb.DIRECT)
+    load_shipped(name, cid)
+    rec = PybulletRecorder(cid, keep=True, every=every)
+    rng = np.random.default_rng(7)
+    motors = []
+    for k in range(pb.getNumBodies(physicsClientId=cid)):
+        b = pb.getBodyUniqueId(k, physicsClientId=cid)
+        for j in range(pb.getNumJoints(b, physicsClientId=cid)):
+            kind = pb.getJointInfo(b, j, physicsClientId=cid)[2]
+            if kind in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC):
+                motors.append((b, j))
+    depth = {}
+    sample_steps = []
+
+    def closest(step):
+        n = pb.getNumBodies(physicsClientId=cid)
+        ids = [pb.getBodyUniqueId(k, physicsClientId=cid) for k in range(n)]
+        for i, a in enumerate(ids):
+            for b in ids[i:]:
+                pts = pb.getClosestPoints(a, b, 0.0, physicsClientId=cid)
+                for p in pts:
+                    if a == b:
+                        continue  # links of one multibody: no self collision (pybullet's default)
+                    key = f"{a}:{p[3]}/{b}:{p[4]}"
+                    if -p[8] > depth.get(key, (0.0, 0))[0]:
+                        depth[key] = (float(-p[8]), step)
+
+    poses = []
+
+    def pose():  # pybullet's own base poses of every body: (position, rotation) by body id
+        out = {}
+        for k in range(pb.getNumBodies(physicsClientId=cid)):
+            b = pb.getBodyUniqueId(k, physicsClientId=cid)
+            x, q = pb.getBasePositionAndOrientation(b, physicsClientId=cid)
+            out[b] = (np.array(x), np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3))
+        poses.append(out)
+
+    closest(0)
+    pose()
+    for k in range(steps):
+        if ctrl == "random" and motors:
+            for b, j in motors:
+                pb.setJointMotorControl2(b, j, pb.VELOCITY_CONTROL,
+                                         targetVelocity=rng.uniform(-5, 5),
+                                         force=50.0, physicsClientId=cid)
+        pb.stepSimulation(physicsClientId=cid)
+        rec()
+        if (k + 1) % every == 0:
+            closest(k + 1)
+            pose()
+    rec.close()
+    traj = rec.trajectory
+    rows = list(rec.world.rows)
+    pb.disconnect(physicsClientId=cid)
+    return traj, depth, (poses, rows)
+
+
+def row_truths(engine, traj, results, depth, energy, passive):
+    """{analyzer: (truth verdict, truth figure, why)} for one run."""
+    from rblog.analyze import tolerances as T
+
+    out = {}
+    tol_rest, tol_tr = T.PENETRATION_DEPTH_M, T.PENETRATION_TRANSIENT_DEPTH_M
+    worst = max(depth.items(), key=lambda kv: kv[1][0]) if depth else ("-", (0.0, 0))
+    d = worst[1][0]
+    if d > tol_tr * (1 + MARGIN):
+        out["penetration"] = ("FAIL", f"{d * 1e3:.2f} mm {worst[0]} @{worst[1][1]}",
+                              "beyond the transient tolerance")
+    elif d > tol_rest * (1 + MARGIN):
+        out["penetration"] = ("either", f"{d * 1e3:.2f} mm {worst[0]} @{worst[1][1]}",
+                              "beyond the resting tolerance: a fault only if the pair rests")
+    else:
+        out["penetration"] = ("pass", f"{d * 1e3:.2f} mm {worst[0]}", "")
+    if energy is None:
+        out["energy"] = ("n/a", "", "no independent energy from pybullet")
+    elif "contacts" in passive:
+        out["energy"] = ("n/a", "", "contacts: their work is not closed by this truth (impacts "
+                         "inside a step)")
+    else:
+        e, ke = energy
+        scale = max(float(ke.max()), 1e-12)
+        bal = np.abs(e - e[0]).max()
+        verdict = "FAIL" if bal > ENERGY_REL * scale else "pass"
+        out["energy"] = (verdict, f"|E - E0 - W| {bal:.3g} J = {bal / scale:.2g} of max KE",
+                         ", ".join(passive) or "passive")
+    for a in ("consistency", "drift", "momentum", "tunneling", "joints"):
+        out[a] = ("pass", "", "engine's own state")
+    out["momentum"] = ("pass", "", "Newton holds in the engine: each body's momentum change "
+                       "equals its impulses + m g dt, measured from qvel / getBaseVelocity to "
+                       "1e-9 relative (tests/adapters/test_mujoco_models.py, "
+                       "test_pybullet_worlds.py)")
+    return out
+
+
+def creep_truth(results, truths, traj, poses, rows):
+    """A penetration result whose findings are all creep ("creeps resting on"): the truth is
+    pybullet's own poses, the largest move of one body's centre in the other's frame, normal
+    to the contact (world z between stacked blocks: the tangential part) over the run."""
+    pen = next(r for r in results if r.analyzer == "penetration")
+    creeps = [f for f in pen.findings if " creeps " in f.message]
+    if not creeps or len(creeps) != len(pen.findings) or truths["penetration"][0] != "pass":
+        return
+    worst = 0.0
+    for f in creeps:
+        partner = re.search(r"resting on body (\d+)", f.message)
+        if partner is None:  # on the ground or a static body: the partner's frame is the world's
+            a, b = rows[f.bodies[0]][0], None
+        else:
+            a, b = rows[f.bodies[0]][0], rows[int(partner.group(1))][0]
+        if b is None:
+            rel = np.array([pz[a][0] for pz in poses])
+        else:
+            rel = np.array([pz[b][1].T @ (pz[a][0] - pz[b][0]) for pz in poses])
+        tang = rel[:, :2] - rel[0, :2]
+        worst = max(worst, float(np.linalg.norm(tang, axis=1).max()))
+    tol = creeps[0].tolerance
+    truths["penetration"] = ("FAIL" if worst > tol else "pass",
+                             f"creep: a centre moves {worst * 1e3:.3g} mm in its partner's frame "
+                             f"(pybullet's poses), depth {truths['penetration'][1]}", "creep")
+
+
+def judge(verdict, truth):
+    t = truth[0]
+    if verdict == "skip" and t == "pass":
+        return "agree"  # nothing of the kind in the model (no joints)
+    if verdict in ("not judged", "skip"):
+        return "not judged"
+    if t == "n/a":
+        return "not judged (truth)" if verdict == "pass" else "unverified FAIL"
+    if t == "either":
+        return "agree"
+    if verdict == t:
+        return "agree"
+    return "false alarm" if verdict == "FAIL" else "miss"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--steps", type=int, default=500)
+    ap.add_argument("--only", nargs="*")
+    ap.add_argument("--md")
+    ap.add_argument("--verbose", action="store_true")
+    args = ap.parse_args(argv)
+    cases = [("mujoco", n, c, e) for n in MJ_MODELS for c in ("zero", "random") for e in (1, 10)]
+    cases += [("pybullet", n, c, e) for n in PB_WORLDS
+              for c in (("zero", "random") if n in ("r2d2", "r2d2_maximal", "kuka_cube")
+                        else ("zero",))
+              for e in (1, 10)]
+    if args.only:
+        cases = [c for c in cases if c[1] in args.only]
+    rows = []
+    t0 = time.process_time()
+    for engine, name, ctrl, every in cases:
+        steps = args.steps
+        if engine == "mujoco":
+            m, traj, qpos, qvel, work = record_mujoco(name, every, ctrl, steps)
+            depth, energy, passive = mujoco_truth(m, traj, qpos, qvel, work, ctrl)
+        else:
+            traj, depth, own = record_pybullet(name, every, ctrl, steps)
+            energy, passive = None, []
+        results = rblog.check(traj, threads=1)
+        truths = row_truths(engine, traj, results, depth, energy, passive)
+        if engine == "pybullet":
+            creep_truth(results, truths, traj, *own)
+        if name == "r2d2_maximal":
+            truths["joints"] = ("n/a", "", "the adapter logs a maximal-coordinates body's links "
+                                "as free bodies, without their joint constraints")
+        for r in results:
+            truth = truths[r.analyzer]
+            rows.append((f"{name} {ctrl} /{every}", r.analyzer, r.verdict, truth[0], truth[1],
+                         judge(r.verdict, truth), r.reason if r.verdict != "pass" else ""))
+            if args.verbose and r.verdict == "FAIL":
+                for f in r.findings[:3]:
+                    print("   ", r.analyzer, f.message, file=sys.stderr)
+        print(f"{name} {ctrl} /{every}: " + ", ".join(f"{r.analyzer}={r.verdict}" for r in results)
+              + f"  [{time.process_time() - t0:.0f} s]", file=sys.stderr)
+    counts = {}
+    for row in rows:
+        counts[row[5]] = counts.get(row[5], 0) + 1
+    lines = ["| run | analyzer | verdict | truth | engine's figure | outcome |",
+             "|---|---|---|---|---|---|"]
+    for row in rows:
+        if row[5] != "agree" or row[1] == "penetration":
+            lines.append(f"| {row[0]} | {row[1]} | {row[2]} | {row[3]} | {row[4]} | {row[5]} |")
+    summary = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
+    outcomes = sorted(counts)
+    per = ["| analyzer | " + " | ".join(outcomes) + " |", "|---" * (len(outcomes) + 1) + "|"]
+    for a in ANALYZERS:
+        c = [sum(1 for r in rows if r[1] == a and r[5] == o) for o in outcomes]
+        per.append(f"| {a} | " + " | ".join(str(x) for x in c) + " |")
+    lines = per + [""] + lines
+    print("\n".join(lines))
+    print(f"\n{len(rows)} verdicts: {summary}; CPU {time.process_time() - t0:.0f} s")
+    if args.verbose:
+        for row in rows:
+            if row[5] not in ("agree",):
+                print(row, file=sys.stderr)
+    if args.md:
+        with open(args.md, "w") as f:
+            f.write("\n".join(lines) + f"\n\n{len(rows)} verdicts: {summary}\n")
+
+
+if __name__ == "__main__":
+    main()
