@@ -37,7 +37,6 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from rblog.analyze import tolerances as T
 from rblog_cli.main import main
 
 REPO = Path(__file__).resolve().parents[2]
