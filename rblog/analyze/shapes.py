@@ -202,7 +202,7 @@ def geom_poses(model, position: np.ndarray, rotation: np.ndarray):
     """World frames of every geom at every sample: (T, G, 3) centres, (T, G, 3, 3) geom->world,
     from the bodies' logged poses (T, N, 3), (T, N, 3, 3) and each geom's frame in its body's
     frame (a static geom's is its world frame)."""
-    from rblog.analyze.geometry import quat_to_matrix
+    from rblog.contract.orientation import quat_wxyz_to_matrix as quat_to_matrix
 
     body = np.asarray(model.geom_body, np.int64)
     gp = np.asarray(model.geom_pos_body, float).reshape(-1, 3)
