@@ -328,17 +328,17 @@ def _wire_layout(data: bytes) -> list[tuple[int, int, int, int]] | None:
     pos, end = 0, len(data)
     try:
         while pos < end:
-            key, pos = _read_varint(data, pos)
+            key, pos = safe_rrd.varint(data, pos)
             number, wire_type = key >> 3, key & 7
             if wire_type == 0:
                 start = pos
-                _, pos = _read_varint(data, pos)
+                _, pos = safe_rrd.varint(data, pos)
                 out.append((number, 0, start, pos - start))
             elif wire_type == 1:
                 out.append((number, 1, pos, 8))
                 pos += 8
             elif wire_type == 2:
-                size, pos = _read_varint(data, pos)
+                size, pos = safe_rrd.varint(data, pos)
                 out.append((number, 2, pos, size))
                 pos += size
             elif wire_type == 5:
@@ -346,22 +346,9 @@ def _wire_layout(data: bytes) -> list[tuple[int, int, int, int]] | None:
                 pos += 4
             else:
                 return None
-    except IndexError:
+    except (IndexError, safe_rrd.RrdFormatError):
         return None
     return out if pos == end else None
-
-
-def _read_varint(data: bytes, pos: int) -> tuple[int, int]:
-    result = shift = 0
-    while True:
-        b = data[pos]
-        pos += 1
-        result |= (b & 0x7F) << shift
-        if not b & 0x80:
-            return result, pos
-        shift += 7
-        if shift > 63:
-            raise IndexError("varint too long")
 
 
 def _state_columns(rows: list) -> dict[str, np.ndarray]:

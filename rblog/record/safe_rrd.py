@@ -63,7 +63,9 @@ class Chunk:
     application_id: str
 
 
-def _varint(data: bytes, pos: int) -> tuple[int, int]:
+def varint(data: bytes, pos: int) -> tuple[int, int]:
+    """A protobuf varint at ``pos``: (value, next position); RrdFormatError past the end or
+    over 10 bytes (the MCAP reader's State fast path uses it too)."""
     result = shift = 0
     while True:
         if pos >= len(data):
@@ -84,12 +86,12 @@ def _fields(data: bytes) -> dict[int, object]:
     out: dict[int, object] = {}
     pos, end = 0, len(data)
     while pos < end:
-        key, pos = _varint(data, pos)
+        key, pos = varint(data, pos)
         number, wire = key >> 3, key & 7
         if wire == 0:
-            out[number], pos = _varint(data, pos)
+            out[number], pos = varint(data, pos)
         elif wire == 2:
-            size, pos = _varint(data, pos)
+            size, pos = varint(data, pos)
             if pos + size > end:
                 raise RrdFormatError(f"field {number} of {size} bytes runs past the message end")
             out[number] = data[pos:pos + size]
