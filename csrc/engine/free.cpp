@@ -221,7 +221,6 @@ inline void finish_lanes(const FreeArgs& a, i64 i, i64 s, i64 j, const bool ok[W
 template <class V, class M = mask_of<V>>
 inline void seed_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
     constexpr int W = lanes_of<V>();
-    const V zero = splat_v<V>(0.0);
     const double dt = a.dt;
     const int ortho = a.ortho;
     V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum;
@@ -243,8 +242,6 @@ inline void seed_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
     const V kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
     const double lim = free_constants.max_rotation_per_step_rad;
     const double lim2 = lim * lim;
-    const int max_iter = free_constants.polar_max_iter;
-    const double tol = free_constants.polar_tol;
     V x = ld(pos, 0), y = ld(pos, 1), z = ld(pos, 2);
     V px = ld(mom, 0), py = ld(mom, 1), pz = ld(mom, 2);
     V lx = ld(L, 0), ly = ld(L, 1), lz = ld(L, 2);
@@ -286,50 +283,11 @@ inline void seed_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
            a12 = m12 + h * (oz * m02 - ox * m22),
            a20 = m20 + h * (-oy * m00 + ox * m10), a21 = m21 + h * (-oy * m01 + ox * m11),
            a22 = m22 + h * (-oy * m02 + ox * m12);
-        if (ortho == ORTHO_POLAR) {
-            // rotation.hpp polar, a lane stops (keeps its iterate) once its update is <= tol
-            M active = zero == zero;
-            for (int it = 0; it < max_iter; ++it) {
-                const V c00 = a11 * a22 - a12 * a21;
-                const V c01 = a12 * a20 - a10 * a22;
-                const V c02 = a10 * a21 - a11 * a20;
-                const V c10 = a02 * a21 - a01 * a22;
-                const V c11 = a00 * a22 - a02 * a20;
-                const V c12 = a01 * a20 - a00 * a21;
-                const V c20 = a01 * a12 - a02 * a11;
-                const V c21 = a02 * a10 - a00 * a12;
-                const V c22 = a00 * a11 - a01 * a10;
-                const V det = a00 * c00 + a01 * c01 + a02 * c02;
-                const V f = 0.5 / det;
-                const V n00 = 0.5 * a00 + f * c00;
-                const V n01 = 0.5 * a01 + f * c01;
-                const V n02 = 0.5 * a02 + f * c02;
-                const V n10 = 0.5 * a10 + f * c10;
-                const V n11 = 0.5 * a11 + f * c11;
-                const V n12 = 0.5 * a12 + f * c12;
-                const V n20 = 0.5 * a20 + f * c20;
-                const V n21 = 0.5 * a21 + f * c21;
-                const V n22 = 0.5 * a22 + f * c22;
-                V d = vabs(n00 - a00);
-                d = vpymax(d, vabs(n01 - a01));
-                d = vpymax(d, vabs(n02 - a02));
-                d = vpymax(d, vabs(n10 - a10));
-                d = vpymax(d, vabs(n11 - a11));
-                d = vpymax(d, vabs(n12 - a12));
-                d = vpymax(d, vabs(n20 - a20));
-                d = vpymax(d, vabs(n21 - a21));
-                d = vpymax(d, vabs(n22 - a22));
-                if (all_set(active)) {  // the common case: no lane has stopped yet
-                    a00 = n00; a01 = n01; a02 = n02; a10 = n10; a11 = n11; a12 = n12;
-                    a20 = n20; a21 = n21; a22 = n22;
-                } else {
-                    a00 = active ? n00 : a00; a01 = active ? n01 : a01; a02 = active ? n02 : a02;
-                    a10 = active ? n10 : a10; a11 = active ? n11 : a11; a12 = active ? n12 : a12;
-                    a20 = active ? n20 : a20; a21 = active ? n21 : a21; a22 = active ? n22 : a22;
-                }
-                active = active & ~(d <= tol);
-                if (!any(active)) break;
-            }
+        if (ortho == ORTHO_POLAR) {  // rotation.hpp polar, lane-wise
+            const std::array<V, 9> p = polar(std::array<V, 9>{a00, a01, a02, a10, a11, a12,
+                                                               a20, a21, a22});
+            a00 = p[0]; a01 = p[1]; a02 = p[2]; a10 = p[3]; a11 = p[4]; a12 = p[5];
+            a20 = p[6]; a21 = p[7]; a22 = p[8];
         }
         m[0] = a00; m[1] = a01; m[2] = a02; m[3] = a10; m[4] = a11; m[5] = a12;
         m[6] = a20; m[7] = a21; m[8] = a22;

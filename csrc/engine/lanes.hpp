@@ -52,17 +52,32 @@ inline V vabs(V a) {
     for (int l = 0; l < lanes_of<V>(); ++l) r[l] = std::fabs(a[l]);
     return r;
 }
+// one body (T = double, its mask bool): the same helpers, so a template serves both
+inline double vabs(double a) { return std::fabs(a); }
+inline bool any(bool m) { return m; }
+inline bool all_set(bool m) { return m; }
+// a and not b, lane-wise; every lane set
+inline bool and_not(bool a, bool b) { return a && !b; }
+template <class M>
+inline M and_not(M a, M b) { return a & ~b; }
+template <class T>
+inline mask_of<T> all_lanes() {
+    const T z = T{};
+    return z == z;
+}
 // Python's max(a, b) lane-wise: a unless b > a (rotation.hpp py_max)
 template <class V>
 inline V vpymax(V a, V b) { return b > a ? b : a; }
 template <class M>
 inline bool any(M m) {
+    static_assert(sizeof(M) >= 16, "a lane mask (a bool goes to the overload above)");
     long long r = 0;
     for (int l = 0; l < static_cast<int>(sizeof(M) / sizeof(long long)); ++l) r |= m[l];
     return r != 0;
 }
 template <class M>
 inline bool all_set(M m) {  // every lane set
+    static_assert(sizeof(M) >= 16, "a lane mask (a bool goes to the overload above)");
     long long r = -1;
     for (int l = 0; l < static_cast<int>(sizeof(M) / sizeof(long long)); ++l) r &= m[l];
     return r != 0;

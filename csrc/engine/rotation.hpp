@@ -14,6 +14,7 @@
 
 #include "common/array.hpp"
 #include "engine/free_constants.hpp"
+#include "engine/lanes.hpp"
 
 namespace rb {
 
@@ -117,46 +118,58 @@ inline double py_max(double a, double b) { return b > a ? b : a; }
 
 // Nearest rotation to m (orthogonal polar factor) by Newton's iteration R <- (R + R^-T)/2, at
 // most POLAR_MAX_ITER iterations, stopping when the largest entry of the update is <= POLAR_TOL
-// (quadratic convergence: the new iterate is then within ~d^2 of the limit).
-inline Mat3 polar(const Mat3& m) {
-    double a00 = m[0], a01 = m[1], a02 = m[2], a10 = m[3], a11 = m[4], a12 = m[5], a20 = m[6],
-           a21 = m[7], a22 = m[8];
+// (quadratic convergence: the new iterate is then within ~d^2 of the limit). T = double for one
+// matrix, or a lane vector of lanes.hpp for W matrices (free.cpp seed_lanes): a lane stops
+// (keeps its iterate) once its own update is <= tol, so each lane gets the one-matrix bits.
+template <class T>
+inline std::array<T, 9> polar(const std::array<T, 9>& m) {
+    using M = mask_of<T>;
+    T a00 = m[0], a01 = m[1], a02 = m[2], a10 = m[3], a11 = m[4], a12 = m[5], a20 = m[6],
+      a21 = m[7], a22 = m[8];
     const int max_iter = free_constants.polar_max_iter;
     const double tol = free_constants.polar_tol;
+    M active = all_lanes<T>();
     for (int it = 0; it < max_iter; ++it) {
         // cofactors: R^-T = cof(R) / det(R)
-        const double c00 = a11 * a22 - a12 * a21;
-        const double c01 = a12 * a20 - a10 * a22;
-        const double c02 = a10 * a21 - a11 * a20;
-        const double c10 = a02 * a21 - a01 * a22;
-        const double c11 = a00 * a22 - a02 * a20;
-        const double c12 = a01 * a20 - a00 * a21;
-        const double c20 = a01 * a12 - a02 * a11;
-        const double c21 = a02 * a10 - a00 * a12;
-        const double c22 = a00 * a11 - a01 * a10;
-        const double det = a00 * c00 + a01 * c01 + a02 * c02;
-        const double f = 0.5 / det;
-        const double n00 = 0.5 * a00 + f * c00;
-        const double n01 = 0.5 * a01 + f * c01;
-        const double n02 = 0.5 * a02 + f * c02;
-        const double n10 = 0.5 * a10 + f * c10;
-        const double n11 = 0.5 * a11 + f * c11;
-        const double n12 = 0.5 * a12 + f * c12;
-        const double n20 = 0.5 * a20 + f * c20;
-        const double n21 = 0.5 * a21 + f * c21;
-        const double n22 = 0.5 * a22 + f * c22;
-        double d = std::fabs(n00 - a00);
-        d = py_max(d, std::fabs(n01 - a01));
-        d = py_max(d, std::fabs(n02 - a02));
-        d = py_max(d, std::fabs(n10 - a10));
-        d = py_max(d, std::fabs(n11 - a11));
-        d = py_max(d, std::fabs(n12 - a12));
-        d = py_max(d, std::fabs(n20 - a20));
-        d = py_max(d, std::fabs(n21 - a21));
-        d = py_max(d, std::fabs(n22 - a22));
-        a00 = n00; a01 = n01; a02 = n02; a10 = n10; a11 = n11; a12 = n12; a20 = n20; a21 = n21;
-        a22 = n22;
-        if (d <= tol) break;
+        const T c00 = a11 * a22 - a12 * a21;
+        const T c01 = a12 * a20 - a10 * a22;
+        const T c02 = a10 * a21 - a11 * a20;
+        const T c10 = a02 * a21 - a01 * a22;
+        const T c11 = a00 * a22 - a02 * a20;
+        const T c12 = a01 * a20 - a00 * a21;
+        const T c20 = a01 * a12 - a02 * a11;
+        const T c21 = a02 * a10 - a00 * a12;
+        const T c22 = a00 * a11 - a01 * a10;
+        const T det = a00 * c00 + a01 * c01 + a02 * c02;
+        const T f = 0.5 / det;
+        const T n00 = 0.5 * a00 + f * c00;
+        const T n01 = 0.5 * a01 + f * c01;
+        const T n02 = 0.5 * a02 + f * c02;
+        const T n10 = 0.5 * a10 + f * c10;
+        const T n11 = 0.5 * a11 + f * c11;
+        const T n12 = 0.5 * a12 + f * c12;
+        const T n20 = 0.5 * a20 + f * c20;
+        const T n21 = 0.5 * a21 + f * c21;
+        const T n22 = 0.5 * a22 + f * c22;
+        T d = vabs(n00 - a00);
+        d = vpymax(d, vabs(n01 - a01));
+        d = vpymax(d, vabs(n02 - a02));
+        d = vpymax(d, vabs(n10 - a10));
+        d = vpymax(d, vabs(n11 - a11));
+        d = vpymax(d, vabs(n12 - a12));
+        d = vpymax(d, vabs(n20 - a20));
+        d = vpymax(d, vabs(n21 - a21));
+        d = vpymax(d, vabs(n22 - a22));
+        if (all_set(active)) {  // the common case: no lane has stopped yet
+            a00 = n00; a01 = n01; a02 = n02; a10 = n10; a11 = n11; a12 = n12;
+            a20 = n20; a21 = n21; a22 = n22;
+        } else {
+            a00 = active ? n00 : a00; a01 = active ? n01 : a01; a02 = active ? n02 : a02;
+            a10 = active ? n10 : a10; a11 = active ? n11 : a11; a12 = active ? n12 : a12;
+            a20 = active ? n20 : a20; a21 = active ? n21 : a21; a22 = active ? n22 : a22;
+        }
+        active = and_not(active, d <= tol);
+        if (!any(active)) break;
     }
     return {a00, a01, a02, a10, a11, a12, a20, a21, a22};
 }
