@@ -158,6 +158,9 @@ class MujocoRecorder(EngineRecorder):
             mj.mj_forward(m, d)
         self.model, self.layout, notes = inspect(m, d, restitution=restitution)
         self.dt = float(m.opt.timestep)
+        if not (np.isfinite(self.dt) and self.dt > 0):  # the samples' steps are time / dt
+            raise AdapterError(f"rblog.adapters.mujoco: the model's option timestep is "
+                               f"{self.dt!r}, expected a finite time step > 0 s")
         engine = {**settings(m), **notes, "sample_every": self.every}
         self.recorder = Recorder(self.model, rrd=rrd, mcap=mcap, dt=self.dt,
                                  writer=writer or f"mujoco {mj.__version__} via rblog.adapters",
