@@ -324,6 +324,7 @@ class StepImpulses:
         pushed = bool(xf.any())
         nb = len(lay.root)
         W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
+        W[:, IMPULSE_KINDS.index("integration")] = 0.0  # per interval: MujocoRecorder._integration
         if pushed:
             xf_c = np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
             np.subtract(F("cfrc_ext"), xf_c, out=W[:, 0])

@@ -308,6 +308,9 @@ class MujocoRecorder:
             return
         ids = self._ids
         W, work = W[:, :, ids], work[:, :, ids]
+        W[:, IMPULSE_KINDS.index("integration")] = self._integration(W, steps=self._steps[:ns],
+                                                                     v=self._v[:ns], r=self._r[:ns],
+                                                                     w=self._w[:ns])
         gap = self._gap[:ns]
         if gap.any():
             W[gap] = np.nan
@@ -333,6 +336,35 @@ class MujocoRecorder:
         self._ns = 0
         self._gap[:] = False
         self.recorder.write(**arrays)
+
+    def _integration(self, W, steps, v, r, w) -> np.ndarray:
+        """(ns, N, 6) [angular; linear] the integration kind of each sample's interval: the
+        momentum change MuJoCo's steps gave each body, ``P = m v``, ``L = R diag(I) R^T w`` of the
+        engine's state at the interval's ends, less the other kinds' impulses ``W`` (ns, kinds,
+        N, 6) and ``m g dt`` (docs/recording.md, "The integration kind"). The first sample of the
+        run has no interval: 0. Keeps the last sample's momenta for the next block."""
+        model = self.model
+        m = np.asarray(model.body_mass, np.float64)
+        inertia = np.asarray(model.body_inertia_diag, np.float64)
+        p = m[None, :, None] * v
+        w_body = np.einsum("snji,snj->sni", r, w)
+        L = np.einsum("snij,snj->sni", r, inertia[None] * w_body)
+        prev = getattr(self, "_prev_momenta", None)
+        if prev is None:
+            prev = (steps[0], p[0], L[0])
+        step0 = np.concatenate([[prev[0]], steps[:-1]])
+        dt = (steps - step0) * self.dt
+        dp = p - np.concatenate([prev[1][None], p[:-1]])
+        dl = L - np.concatenate([prev[2][None], L[:-1]])
+        known = [a for a, kind in enumerate(IMPULSE_KINDS) if kind != "integration"]
+        out = np.empty((len(steps), len(m), 6))
+        out[..., 3:] = dp - m[None, :, None] * np.asarray(model.gravity, np.float64) * dt[:, None,
+                                                                                           None]
+        out[..., 3:] -= W[:, known, :, 3:].sum(axis=1)
+        out[..., :3] = dl - W[:, known, :, :3].sum(axis=1)
+        out[~self.layout.dynamic[None].repeat(len(steps), 0)] = 0.0
+        self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())
+        return out
 
     def close(self, truncated: bool = False, reason: str | None = None) -> None:
         try:

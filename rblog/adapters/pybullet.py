@@ -324,7 +324,8 @@ def inspect(client: int = 0, *, damping=None, joint_sensors: bool = True,
             w.damping.append(kd)
             supplied = {"contact": LOGGED, "applied": LOGGED if applied else MISSING,
                         "passive": LOGGED, "actuator": NONE,
-                        "joint": NONE if nj == 0 else LOGGED if joint_sensors else MISSING}
+                        "joint": NONE if nj == 0 else LOGGED if joint_sensors else MISSING,
+                        "integration": NONE}
             if body_type != 2:  # hidden links: their contacts and joints act on it unseen
                 supplied.update(contact=MISSING, joint=MISSING, passive=NONE)
                 for k in ("contact", "joint", "geoms"):
@@ -352,7 +353,7 @@ def inspect(client: int = 0, *, damping=None, joint_sensors: bool = True,
             w.inertia.append(np.array(li[2], np.float64))
             w.damping.append(kd)
             w.supplied.append([LOGGED, LOGGED if applied else MISSING, LOGGED, NONE,
-                               LOGGED if joint_sensors else MISSING])
+                               LOGGED if joint_sensors else MISSING, NONE])
             rows.append(row)
             if joint_sensors:
                 call("enableJointForceTorqueSensor", bid, j, True, what=f"{link}: joint sensor")

@@ -92,7 +92,10 @@ COLLIDE_ALL = -1
 
 #: the per-interval impulse kinds (columns of body_impulse_supplied; trajectory channels
 #: impulse_<kind>_linear / _angular) and work kinds (body_work_supplied; work_<kind>)
-IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint")
+IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint", "integration")
+#: the columns of body_impulse_supplied in a log written before the "integration" kind: its
+#: readers take such a table with integration "none" (the balance as that log meant it)
+IMPULSE_KINDS_LEGACY = 5
 WORK_KINDS = ("applied", "passive", "actuator")
 #: body_impulse_supplied / body_work_supplied codes, per body and kind
 SUPPLIED_MISSING = 0   # the writer does not know it: what needs it is not judged
@@ -103,8 +106,22 @@ SUPPLIED_NONE = 2      # the engine has no such force on the body: zero, not sto
 #: contacts and the model's constant body_force_world / body_torque_world (applied "none" means
 #: no load besides those constant ones; "logged" includes them), so every other kind is none
 DEFAULT_IMPULSE_SUPPLIED = (SUPPLIED_MISSING, SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE,
-                            SUPPLIED_NONE)
+                            SUPPLIED_NONE, SUPPLIED_NONE)
 DEFAULT_WORK_SUPPLIED = (SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE)
+
+
+
+def impulse_supplied_columns(sup, n: int) -> np.ndarray:
+    """(N, len(IMPULSE_KINDS)) int64 from ``sup``, N rows of IMPULSE_KINDS codes or of the
+    IMPULSE_KINDS_LEGACY first ones (integration "none" appended); anything else unchanged, for
+    the validation to name."""
+    a = np.asarray(sup)
+    if a.size == n * IMPULSE_KINDS_LEGACY and n and a.size != n * len(IMPULSE_KINDS):
+        a = np.concatenate([a.reshape(n, IMPULSE_KINDS_LEGACY),
+                            np.full((n, len(IMPULSE_KINDS) - IMPULSE_KINDS_LEGACY), SUPPLIED_NONE,
+                                    a.dtype)], axis=1)
+    return a
+
 
 #: geom fields: name -> trailing shape per geom (dtype int64 for the int ones, str for names)
 GEOM_FIELDS = {"geom_name": (), "geom_body": (), "geom_type": (), "geom_pos_body": (3,),
@@ -143,7 +160,7 @@ class Model:
         static_box_position: (M, 3), static_box_quat_wxyz: (M, 4), static_box_half_extents: (M, 3),
         static_box_restitution, static_box_friction: (M,) static boxes (walls, ramps).
         body_kind: (N,) int BODY_* (default BODY_FREE).  body_parent: (N,) int, -1 = world.
-        body_impulse_supplied: (N, 5) int, columns IMPULSE_KINDS, SUPPLIED_* codes: the log
+        body_impulse_supplied: (N, 6) int, columns IMPULSE_KINDS, SUPPLIED_* codes: the log
             holds that impulse of that body (1), the engine has no such force on it (2: zero,
             not stored), or it is missing (0: not to be judged); default
             DEFAULT_IMPULSE_SUPPLIED.  body_work_supplied: (N, 3), columns WORK_KINDS,
@@ -222,6 +239,8 @@ class Model:
             self.body_parent = np.full(n, -1, np.int64)
         if self.body_impulse_supplied is None:
             self.body_impulse_supplied = np.tile(np.array(DEFAULT_IMPULSE_SUPPLIED, np.int64), (n, 1))
+        else:
+            self.body_impulse_supplied = impulse_supplied_columns(self.body_impulse_supplied, n)
         if self.body_work_supplied is None:
             self.body_work_supplied = np.tile(np.array(DEFAULT_WORK_SUPPLIED, np.int64), (n, 1))
         n_j = 0 if self.joint_type is None else len(self.joint_type)

@@ -207,6 +207,8 @@ class Trajectory:
     impulse_actuator_angular: np.ndarray | None = None
     impulse_joint_linear: np.ndarray | None = None
     impulse_joint_angular: np.ndarray | None = None
+    impulse_integration_linear: np.ndarray | None = None
+    impulse_integration_angular: np.ndarray | None = None
     work_applied: np.ndarray | None = None
     work_passive: np.ndarray | None = None
     work_actuator: np.ndarray | None = None

@@ -91,9 +91,14 @@ def mujoco_state(m, qpos, qvel):
     return {k: np.array(v) for k, v in out.items()}
 
 
+#: the kinds of MuJoCo's forces at each step's start (the integration kind is the rest)
+FORCE_KINDS = tuple(k for k in IMPULSE_KINDS if k != "integration")
+
+
 def impulse_sum(traj):
-    lin = sum(traj.impulse(k)[0] for k in IMPULSE_KINDS)
-    ang = sum(traj.impulse(k)[1] for k in IMPULSE_KINDS)
+    """(linear, angular) (T, N, 3): the logged impulses of MuJoCo's forces, FORCE_KINDS."""
+    lin = sum(traj.impulse(k)[0] for k in FORCE_KINDS)
+    ang = sum(traj.impulse(k)[1] for k in FORCE_KINDS)
     return lin, ang
 
 
@@ -153,11 +158,29 @@ def test_model_as_shipped(name, every, ctrl, integrator):
     dt = np.diff(traj.t)[:, None, None]
     res = np.diff(mj["p"], axis=0) - lin[1:] - tm.body_mass[None, :, None] * tm.gravity * dt
     scale = np.abs(np.diff(mj["p"], axis=0)).max(axis=(0, 2)) + 1e-300
+    integ_l, integ_a = traj.impulse("integration")
     for i in np.flatnonzero(tm.body_kind == BODY_FREE):
         b = i + 1
         K = free_body_K(m, b, qpos, qvel)  # per step; summed over each interval
         K_int = np.add.reduceat(K, steps[:-1], axis=0) if every > 1 else K
         assert np.abs(res[:, i] - K_int).max() <= BALANCE_REL * scale[i], tm.body_name[i]
+        # the integration kind is that K
+        assert np.abs(integ_l[1:, i] - K_int).max() <= BALANCE_REL * scale[i], tm.body_name[i]
+    # every moving body: the integration kind closes the balance of MuJoCo's own momenta
+    # (mj_objectVelocity at the logged states), linear and angular
+    dyn = np.flatnonzero((tm.body_kind == BODY_FREE) | (tm.body_kind == BODY_JOINTED))
+    # relative to the balance's largest term (each kind's, m g dt); measured: 4e-16 absolute
+    # where nothing moves (cartpole at rest), ~1e-15 of the terms elsewhere
+    big_l = max(scale[dyn].max(), float((tm.body_mass[dyn] * np.linalg.norm(tm.gravity)).max()
+                                        * dt.max()),
+                max(np.nanmax(np.abs(traj.impulse(k)[0][:, dyn])) for k in FORCE_KINDS))
+    np.testing.assert_allclose(res[:, dyn] - integ_l[1:, dyn], 0.0, rtol=0,
+                               atol=BALANCE_REL * big_l)
+    dl = np.diff(mj["L"], axis=0) - ang[1:]
+    big = max(np.abs(np.diff(mj["L"], axis=0)[:, dyn]).max(),
+              max(np.nanmax(np.abs(traj.impulse(k)[1][:, dyn])) for k in FORCE_KINDS))
+    np.testing.assert_allclose(dl[:, dyn] - integ_a[1:, dyn], 0.0, rtol=0,
+                               atol=BALANCE_REL * big)
     boxes = [i for i, n in enumerate(tm.body_name) if n.startswith("box")]
     for i in boxes:  # stacker's boxes: slide x, slide z, hinge y, centre of mass on the slides
         assert np.abs(res[:, i]).max() <= BALANCE_REL * scale[i], tm.body_name[i]
@@ -245,6 +268,50 @@ def test_joint_bodies_err_at_second_order():
         worst.append(np.abs(res).max())
     # measured: 1.41e-2, 3.54e-3 N s: ratio 3.98
     assert 3.5 < worst[0] / worst[1] < 4.5, worst
+
+
+PENDULUM_XML = """
+<mujoco>
+  <option timestep="0.002" integrator="Euler"/>
+  <worldbody>
+    <body name="rod" pos="0 0 1">
+      <joint name="pin" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("every", [1, 10])
+def test_integration_kind_of_a_pendulum_is_its_closed_form(every):
+    """A rod on a hinge (axis y through the world point p, centre of mass at r(theta) from it):
+    v_com = w y x r with w = qvel, and the forces at a step's start give m h a_com = m h (wdot
+    y x r0 - w0^2 r0), wdot = (w1 - w0) / h. So MuJoCo's step (theta1 = theta0 + h w1) moves the
+    momentum by that plus K = m [w1 y x (r1 - r0) + h w0^2 r0] (O(h^2)); y is a principal axis
+    of the rod, L = I_yy w y, and the angular K is 0. The integration kind logged is K, summed
+    over each interval, from qpos/qvel alone."""
+    m = mujoco.MjModel.from_xml_string(PENDULUM_XML)
+    d = mujoco.MjData(m)
+    d.qpos[0] = 0.3
+    d.qvel[0] = 4.0
+    mujoco.mj_forward(m, d)
+    _, traj, qpos, qvel = record(None, every=every, ctrl="zero", steps=400, model=m)
+    h, mass = m.opt.timestep, m.body_mass[1]
+    th, w = qpos[:, 0], qvel[:, 0]
+    # the rod's axis is body x, turned about y by theta: r = 0.25 (cos th, 0, -sin th)
+    r = 0.25 * np.stack([np.cos(th), np.zeros_like(th), -np.sin(th)], axis=1)
+    y = np.array([0.0, 1.0, 0.0])
+    K = mass * (w[1:, None] * np.cross(y, r[1:] - r[:-1]) + h * (w[:-1] ** 2)[:, None] * r[:-1])
+    K_int = np.add.reduceat(K, traj.step[:-1], axis=0) if every > 1 else K
+    lin, ang = traj.impulse("integration")
+    # to the round-off of a momentum difference: relative to the momentum m |v_com| (measured
+    # 1.0e-15 N s at m |v_com| = 1.9 kg m/s); K itself reaches 2.7e-4 N s a step, 2.7e-3 over
+    # ten (its two terms cancel to first order: K ~ m h (w0^2 - w1^2) r0)
+    p_scale = mass * 0.25 * np.abs(w).max()
+    np.testing.assert_allclose(lin[1:, 0], K_int, rtol=0, atol=1e-12 * p_scale)
+    assert np.abs(K_int).max() > 1e-4  # a term the balance cannot do without
+    np.testing.assert_allclose(ang[1:, 0], 0.0, rtol=0, atol=1e-12 * p_scale * 0.25)
 
 
 def test_passive_is_the_damping_mujoco_integrates():
@@ -430,7 +497,7 @@ def test_mesh_and_mocap_bodies():
     assert tm.body_name == ["tet", "paddle"] and tm.body_kind.tolist() == [BODY_FREE, 2]
     # body 0, free and carrying no other body: every kind logged but the joint kind, none (a
     # free joint exerts nothing); body 1, the mocap paddle (kinematic): every kind missing
-    assert tm.body_impulse_supplied.tolist() == [[1, 1, 1, 1, 2], [0] * 5]
+    assert tm.body_impulse_supplied.tolist() == [[1, 1, 1, 1, 2, 1], [0] * 6]
     g = int(np.flatnonzero(tm.geom_type == GEOM_MESH)[0])
     mesh = int(m.geom_dataid[1])
     local = tm.geom_vertices(g)
