@@ -164,23 +164,23 @@ def test_model_as_shipped(name, every, ctrl, integrator):
         K = free_body_K(m, b, qpos, qvel)  # per step; summed over each interval
         K_int = np.add.reduceat(K, steps[:-1], axis=0) if every > 1 else K
         assert np.abs(res[:, i] - K_int).max() <= BALANCE_REL * scale[i], tm.body_name[i]
-        # the integration kind is that K
-        assert np.abs(integ_l[1:, i] - K_int).max() <= BALANCE_REL * scale[i], tm.body_name[i]
-    # every moving body: the integration kind closes the balance of MuJoCo's own momenta
-    # (mj_objectVelocity at the logged states), linear and angular
-    dyn = np.flatnonzero((tm.body_kind == BODY_FREE) | (tm.body_kind == BODY_JOINTED))
-    # relative to the balance's largest term (each kind's, m g dt); measured: 4e-16 absolute
-    # where nothing moves (cartpole at rest), ~1e-15 of the terms elsewhere
-    big_l = max(scale[dyn].max(), float((tm.body_mass[dyn] * np.linalg.norm(tm.gravity)).max()
-                                        * dt.max()),
-                max(np.nanmax(np.abs(traj.impulse(k)[0][:, dyn])) for k in FORCE_KINDS))
-    np.testing.assert_allclose(res[:, dyn] - integ_l[1:, dyn], 0.0, rtol=0,
-                               atol=BALANCE_REL * big_l)
-    dl = np.diff(mj["L"], axis=0) - ang[1:]
-    big = max(np.abs(np.diff(mj["L"], axis=0)[:, dyn]).max(),
-              max(np.nanmax(np.abs(traj.impulse(k)[1][:, dyn])) for k in FORCE_KINDS))
-    np.testing.assert_allclose(dl[:, dyn] - integ_a[1:, dyn], 0.0, rtol=0,
-                               atol=BALANCE_REL * big)
+    # every body on joints: the integration kind closes the balance of MuJoCo's own momenta
+    # (mj_objectVelocity at the logged states), linear and angular; free bodies log none
+    assert (tm.body_impulse_supplied[tm.body_kind == BODY_FREE, -1] == 2).all()
+    dyn = np.flatnonzero(tm.body_kind == BODY_JOINTED)
+    if len(dyn):
+        # relative to the balance's largest term (each kind's, m g dt); measured: 4e-16 absolute
+        # where nothing moves (cartpole at rest), ~1e-15 of the terms elsewhere
+        big_l = max(scale[dyn].max(), float((tm.body_mass[dyn] * np.linalg.norm(tm.gravity)).max()
+                                            * dt.max()),
+                    max(np.nanmax(np.abs(traj.impulse(k)[0][:, dyn])) for k in FORCE_KINDS))
+        np.testing.assert_allclose(res[:, dyn] - integ_l[1:, dyn], 0.0, rtol=0,
+                                   atol=BALANCE_REL * big_l)
+        dl = np.diff(mj["L"], axis=0) - ang[1:]
+        big = max(np.abs(np.diff(mj["L"], axis=0)[:, dyn]).max(),
+                  max(np.nanmax(np.abs(traj.impulse(k)[1][:, dyn])) for k in FORCE_KINDS))
+        np.testing.assert_allclose(dl[:, dyn] - integ_a[1:, dyn], 0.0, rtol=0,
+                                   atol=BALANCE_REL * big)
     boxes = [i for i, n in enumerate(tm.body_name) if n.startswith("box")]
     for i in boxes:  # stacker's boxes: slide x, slide z, hinge y, centre of mass on the slides
         assert np.abs(res[:, i]).max() <= BALANCE_REL * scale[i], tm.body_name[i]
@@ -496,8 +496,9 @@ def test_mesh_and_mocap_bodies():
     traj, tm = rec.trajectory, rec.trajectory.model
     assert tm.body_name == ["tet", "paddle"] and tm.body_kind.tolist() == [BODY_FREE, 2]
     # body 0, free and carrying no other body: every kind logged but the joint kind, none (a
-    # free joint exerts nothing); body 1, the mocap paddle (kinematic): every kind missing
-    assert tm.body_impulse_supplied.tolist() == [[1, 1, 1, 1, 2, 1], [0] * 6]
+    # free joint exerts nothing), and the integration kind, none (a free body's); body 1, the
+    # mocap paddle (kinematic): every kind missing
+    assert tm.body_impulse_supplied.tolist() == [[1, 1, 1, 1, 2, 2], [0] * 6]
     g = int(np.flatnonzero(tm.geom_type == GEOM_MESH)[0])
     mesh = int(m.geom_dataid[1])
     local = tm.geom_vertices(g)
