@@ -269,11 +269,15 @@ def inspect(m, d=None, *, restitution=None):
     has_children = np.isin(np.arange(len(parent)), parent[parent >= 0])
     supplied[(lay.kind == BODY_FREE) & ~has_children, IMPULSE_KINDS.index("joint")] = \
         SUPPLIED_NONE
-    # the integration kind (MujocoRecorder._integration) of the bodies on joints: MuJoCo moves
-    # their centres of mass by J(q) qdot, not by their forces. A free body's balance keeps its
-    # step's error in the open: MuJoCo's Euler turns a free body with an explicit gyroscopic
-    # term, a drift of angular momentum the momentum analyzer reports
-    supplied[lay.kind == BODY_FREE, IMPULSE_KINDS.index("integration")] = SUPPLIED_NONE
+    # the integration kind (MujocoRecorder._integration) where the joint kind is logged (bodies
+    # on joints, free bodies that carry others): their joint impulse is MuJoCo's Newton-Euler
+    # residual at the step's start, and the integration kind the rest of the step (MuJoCo moves
+    # a centre of mass by J(q) qdot, not by its forces). A lone free body's balance keeps its
+    # step's error in the open: MuJoCo's Euler turns it with an explicit gyroscopic term, a
+    # drift of angular momentum the momentum analyzer reports
+    supplied[:, IMPULSE_KINDS.index("integration")] = np.where(
+        supplied[:, IMPULSE_KINDS.index("joint")] == SUPPLIED_NONE, SUPPLIED_NONE,
+        supplied[:, IMPULSE_KINDS.index("integration")])
     work = np.repeat(lay.dynamic[:, None], len(WORK_KINDS), axis=1)
     from rblog.record.recorder import body_table
 

@@ -115,7 +115,7 @@ from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _Co
                                           gravity_of, inspect, settings, state_offsets, suite_model,
                                           unsupported)
 from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross)
-from rblog.contract.model import BODY_JOINTED, IMPULSE_KINDS, WORK_KINDS
+from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, WORK_KINDS
 
 
 class MujocoRecorder:
@@ -338,8 +338,8 @@ class MujocoRecorder:
         self.recorder.write(**arrays)
 
     def _integration(self, W, steps, v, r, w) -> np.ndarray:
-        """(ns, N, 6) [angular; linear] the integration kind of each sample's interval (bodies on
-        joints; 0 elsewhere): the momentum change MuJoCo's steps gave each body, ``P = m v``, ``L = R diag(I) R^T w`` of the
+        """(ns, N, 6) [angular; linear] the integration kind of each sample's interval (the bodies
+        whose joint kind is logged; 0 elsewhere): the momentum change MuJoCo's steps gave each body, ``P = m v``, ``L = R diag(I) R^T w`` of the
         engine's state at the interval's ends, less the other kinds' impulses ``W`` (ns, kinds,
         N, 6) and ``m g dt`` (docs/recording.md, "The integration kind"). The first sample of the
         run has no interval: 0. Keeps the last sample's momenta for the next block."""
@@ -362,7 +362,8 @@ class MujocoRecorder:
                                                                                            None]
         out[..., 3:] -= W[:, known, :, 3:].sum(axis=1)
         out[..., :3] = dl - W[:, known, :, :3].sum(axis=1)
-        out[:, self.layout.kind != BODY_JOINTED] = 0.0  # none (the Model's table)
+        logged = np.asarray(model.body_impulse_supplied)[:, IMPULSE_KINDS.index("integration")]
+        out[:, logged != SUPPLIED_LOGGED] = 0.0  # none or missing (the Model's table)
         self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())
         return out
 
