@@ -216,6 +216,9 @@ class StepImpulses:
         self.rows = np.empty((self.cap, self.rows_of.width))
         self.v1 = np.empty((self.cap, m.nv))
         self.Ma = np.empty((self.cap, m.nv)) if self.implicit else None
+        # RK4: each step's displacement (q1 - q0) / h (mj_differentiatePos), the velocity its
+        # forces' work is taken at (the semi-implicit integrators displace by h v1)
+        self.v_disp = np.empty((self.cap, m.nv)) if self.rk4 else None
         self.v_start = self.v0.copy()  # v0 of the block's first row
         self._compile()
         self._gap_v0 = {}  # row -> its v0 after steps not seen
@@ -285,6 +288,7 @@ class StepImpulses:
             np.subtract(v1, self.v0, out=src.qacc)
             src.qacc *= 1.0 / self.h
             mj.mj_rnePostConstraint(m, src)
+            mj.mj_differentiatePos(m, self.v_disp[k], self.h, self.q0, d.qpos)
             np.copyto(self.q0, d.qpos)
             np.copyto(self.act0, d.act)
         else:
@@ -357,7 +361,8 @@ class StepImpulses:
         W[:, 4] -= gen.sum(axis=1)
         W[..., :3] -= _cross(r[:, None], W[..., 3:])            # torques about the COM
         W *= h
-        work = (tau * v1[:, None]) @ lay.own.T * h              # (K, 3, nb)
+        v_work = v1 if self.v_disp is None else self.v_disp[:k]  # the step's displacement / h
+        work = (tau * v_work[:, None]) @ lay.own.T * h          # (K, 3, nb)
         if pushed:
             cv = F("cvel")
             v_com = cv[..., 3:] + _cross(cv[..., :3], r)
