@@ -92,6 +92,13 @@ class Layout:
             if parent[b] > 0:
                 self.net[parent[b], b] -= 1.0
         self.net[0] = 0.0
+        # subtree (nbody, nbody): 1 at (a, b) where b is a or a descendant of a
+        self.subtree = np.eye(nb)
+        for b in range(1, nb):
+            a = parent[b]
+            while a > 0:
+                self.subtree[a, b] = 1.0
+                a = parent[a]
         self.damping = np.array(m.dof_damping, np.float64)
         self.kind = np.full(nb - 1, BODY_FREE, np.int64)
         weld = np.asarray(m.body_weldid)
@@ -278,7 +285,13 @@ def inspect(m, d=None, *, restitution=None):
     supplied[:, IMPULSE_KINDS.index("integration")] = np.where(
         supplied[:, IMPULSE_KINDS.index("joint")] == SUPPLIED_NONE, SUPPLIED_NONE,
         supplied[:, IMPULSE_KINDS.index("integration")])
-    work = np.repeat(lay.dynamic[:, None], len(WORK_KINDS), axis=1)
+    work = np.where(np.repeat(lay.dynamic[:, None], len(WORK_KINDS), axis=1), SUPPLIED_LOGGED,
+                    SUPPLIED_MISSING)
+    # the joint work (StepImpulses.resolve: limits, friction loss, equalities) where the joint
+    # kind is: none on a lone free body
+    work[:, WORK_KINDS.index("joint")] = np.where(
+        supplied[:, IMPULSE_KINDS.index("joint")] == SUPPLIED_NONE, SUPPLIED_NONE,
+        work[:, WORK_KINDS.index("joint")])
     from rblog.record.recorder import body_table
 
     # kinematic and static bodies may be massless in MuJoCo; the table needs positive numbers

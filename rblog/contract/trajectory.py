@@ -212,6 +212,7 @@ class Trajectory:
     work_applied: np.ndarray | None = None
     work_passive: np.ndarray | None = None
     work_actuator: np.ndarray | None = None
+    work_joint: np.ndarray | None = None
 
     def impulse(self, kind: str) -> tuple[np.ndarray, np.ndarray] | None:
         """(linear (T, N, 3), angular (T, N, 3)) of impulse ``kind`` (IMPULSE_KINDS): the

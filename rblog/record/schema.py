@@ -117,8 +117,8 @@ MESSAGES: dict[str, list[tuple[int, str, str, str]]] = {
         (15, "total_linear_momentum", "double", "repeated"),
         (16, "total_angular_momentum", "double", "repeated"),
         (17, "total_energy", "double", ""),
-        # v3: the per-interval channels (INTERVAL_CHANNELS; integration after the works, the
-        # kind added last), present when supplied
+        # v3: the per-interval channels (INTERVAL_CHANNELS; the kinds added last, integration
+        # and joint work, after the others), present when supplied
         (18, "impulse_contact_linear", "double", "repeated"),
         (19, "impulse_contact_angular", "double", "repeated"),
         (20, "impulse_applied_linear", "double", "repeated"),
@@ -134,6 +134,7 @@ MESSAGES: dict[str, list[tuple[int, str, str, str]]] = {
         (30, "work_actuator", "double", "repeated"),
         (31, "impulse_integration_linear", "double", "repeated"),
         (32, "impulse_integration_angular", "double", "repeated"),
+        (33, "work_joint", "double", "repeated"),
     ],
     "Contacts": [
         (1, "step", "sfixed64", ""),
