@@ -69,9 +69,13 @@ Per-interval impulses (N s, N m s about each body's centre of mass, world frame)
   ``M a = f + h D a``. The hook computes ``M a`` (``mj_mulM``) and logs ``h D a`` with the passive
   kind (its dof-damping part is ``- B (v1 - v0)``, as under Euler), or with the actuator kind
   when only actuators depend on velocity: a tree's joint impulses still cancel.
-* work (J) per step: ``h f_j v1_j`` of each dof's force, attributed to the dof's body (the
-  displacement the semi-implicit step makes is ``h v1``); for ``xfrc_applied`` ``h (f . v +
-  tau . w)`` at the step's start.
+* work (J) per step: ``h f_j (v0_j + v1_j)/2`` of each dof's force, attributed to the dof's body
+  (the change of the states' kinetic energy under a semi-implicit step; RK4: at its displacement
+  ``(q1 - q0) / h``); joint work: that of ``qfrc_constraint`` less the contacts' part (limits,
+  friction loss, equalities); for ``xfrc_applied`` ``h (f . v + tau . w)`` at the step's start.
+* integration (bodies whose joint kind is logged): per interval, the engine's momentum change
+  ``m v``, ``L = R I R^T w`` between the two samples less the other kinds and ``m g dt``: the
+  ``K`` below (docs/log-format.md, "The integration kind").
 
 The balance this gives, per body and step: ``m (v_com(q1, v1) - v_com(q0, v0)) = h (sum of the
 impulses) + m g h + K``. The forces are MuJoCo's at the step's start and close Newton-Euler
@@ -85,8 +89,8 @@ angular velocity integrate linearly; ``R1 w_b1 = R0 exp(h w_b1) w_b1 = R0 w_b1``
 
 and the tests check the free bodies' logged impulses against it at round-off (``m g h`` +
 impulses + K = Δp to 1e-9 relative). Bodies on joints have ``K = m (J(q1) - J(q0) - h
-dJ/dt) v``-like terms, O(h^2) per step: measured in tests/adapters (and 0 to round-off for a
-body on slides whose centre of mass is on the slides, as stacker's boxes).
+dJ/dt) v``-like terms, O(h^2) per step: logged as the integration kind (and 0 to round-off for
+a body on slides whose centre of mass is on the slides, as stacker's boxes).
 
 **RK4** re-evaluates the forces at three more states inside the step and leaves ``d`` with the
 last one's, so the hook runs ``mj_forward`` at the step's start on a private ``MjData`` and logs
