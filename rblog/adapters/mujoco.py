@@ -114,6 +114,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.adapters import AdapterError
+from rblog.adapters._common import EngineRecorder
 from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _ContactArray, _is_model,
                                           _mj, capture_contacts, contacts, decode_contacts,
                                           gravity_of, inspect, settings, state_offsets, suite_model,
@@ -122,7 +123,7 @@ from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpul
 from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, WORK_KINDS
 
 
-class MujocoRecorder:
+class MujocoRecorder(EngineRecorder):
     """Record a MuJoCo model the caller steps: ``rec = MujocoRecorder(m, d, mcap=...)``, then
     ``rec(d)`` after every ``mj_step`` (a sample every ``every`` steps), ``rec.close()`` (or
     ``with``). See the module docstring for what is logged and how.
@@ -343,9 +344,10 @@ class MujocoRecorder:
 
     def _integration(self, W, steps, v, r, w) -> np.ndarray:
         """(ns, N, 6) [angular; linear] the integration kind of each sample's interval (the bodies
-        whose joint kind is logged; 0 elsewhere): the momentum change MuJoCo's steps gave each body, ``P = m v``, ``L = R diag(I) R^T w`` of the
-        engine's state at the interval's ends, less the other kinds' impulses ``W`` (ns, kinds,
-        N, 6) and ``m g dt`` (docs/recording.md, "The integration kind"). The first sample of the
+        whose joint kind is logged; 0 elsewhere): the momentum change MuJoCo's steps gave each
+        body, ``P = m v``, ``L = R diag(I) R^T w`` of the engine's state at the interval's ends,
+        less the other kinds' impulses ``W`` (ns, kinds, N, 6) and ``m g dt`` (docs/log-format.md,
+        "The integration kind"). The first sample of the
         run has no interval: 0. Keeps the last sample's momenta for the next block."""
         model = self.model
         m = np.asarray(model.body_mass, np.float64)
@@ -370,25 +372,6 @@ class MujocoRecorder:
         out[:, logged != SUPPLIED_LOGGED] = 0.0  # none or missing (the Model's table)
         self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())
         return out
-
-    def close(self, truncated: bool = False, reason: str | None = None) -> None:
-        try:
-            if not truncated:
-                self.flush()
-        finally:
-            self.recorder.close(truncated=truncated, reason=reason)
-
-    def __enter__(self) -> "MujocoRecorder":
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
-
-    @property
-    def trajectory(self):
-        """The run so far (needs ``keep``, the default without an output path)."""
-        self.flush()
-        return self.recorder.trajectory
 
 
 def recorder(m, d=None, **options) -> MujocoRecorder:
