@@ -362,12 +362,12 @@ class MujocoRecorder(EngineRecorder):
         dt = (steps - step0) * self.dt
         dp = p - np.concatenate([prev[1][None], p[:-1]])
         dl = L - np.concatenate([prev[2][None], L[:-1]])
-        known = [a for a, kind in enumerate(IMPULSE_KINDS) if kind != "integration"]
+        forces = W[:, :IMPULSE_KINDS.index("integration")].sum(axis=1)  # the kinds before it
         out = np.empty((len(steps), len(m), 6))
         out[..., 3:] = dp - m[None, :, None] * np.asarray(model.gravity, np.float64) * dt[:, None,
                                                                                            None]
-        out[..., 3:] -= W[:, known, :, 3:].sum(axis=1)
-        out[..., :3] = dl - W[:, known, :, :3].sum(axis=1)
+        out[..., 3:] -= forces[..., 3:]
+        out[..., :3] = dl - forces[..., :3]
         logged = np.asarray(model.body_impulse_supplied)[:, IMPULSE_KINDS.index("integration")]
         out[:, logged != SUPPLIED_LOGGED] = 0.0  # none or missing (the Model's table)
         self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())

@@ -93,6 +93,7 @@ COLLIDE_ALL = -1
 #: the per-interval impulse kinds (columns of body_impulse_supplied; trajectory channels
 #: impulse_<kind>_linear / _angular) and work kinds (body_work_supplied; work_<kind>)
 IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint", "integration")
+# (integration last: what the other kinds' sum leaves of a balance)
 #: the columns of body_impulse_supplied in a log written before the "integration" kind: its
 #: readers take such a table with integration "none" (the balance as that log meant it)
 IMPULSE_KINDS_LEGACY = 5
