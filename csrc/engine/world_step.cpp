@@ -149,6 +149,59 @@ inline void store_momenta(i64 i, const Bodies& bd, V3<double> rotation,
     angular_momentum(i, 2) = l0(i, 2) + lz;
 }
 
+// Orthonormal rows basis[0 .. 3 count) of a span in R^3 (count <= 3): add v when its part off the
+// span is longer than SPAN_RTOL scale (Gram-Schmidt). SPAN_RTOL is a geometric epsilon of the
+// test, not an engine tolerance: a sphere's r x n is round-off (~1e-17 r) and adds nothing, two
+// contact normals 1e-9 rad apart count as one (the part dropped then is 1e-9 of the correction).
+constexpr double SPAN_RTOL = 1e-9;
+inline void span_add(double* basis, double& count, const double* v, double scale) {
+    int c = int(count);
+    if (c >= 3) return;
+    double u[3] = {v[0], v[1], v[2]};
+    for (int j = 0; j < c; ++j) {
+        const double* e = basis + 3 * j;
+        double d = u[0] * e[0] + u[1] * e[1] + u[2] * e[2];
+        for (int k = 0; k < 3; ++k) u[k] -= d * e[k];
+    }
+    double l = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    if (!(l > SPAN_RTOL * scale)) return;
+    for (int k = 0; k < 3; ++k) basis[3 * c + k] = u[k] / l;
+    count = double(c + 1);
+}
+
+// v minus its part in the span of basis[0 .. 3 count) (orthonormal rows): 0 when it spans R^3.
+inline void off_span(const double* basis, double count, double* v) {
+    int c = int(count);
+    if (c >= 3) {
+        v[0] = v[1] = v[2] = 0.0;
+        return;
+    }
+    for (int j = 0; j < c; ++j) {
+        const double* e = basis + 3 * j;
+        double d = v[0] * e[0] + v[1] * e[1] + v[2] * e[2];
+        for (int k = 0; k < 3; ++k) v[k] -= d * e[k];
+    }
+}
+
+// A symmetric 3x3 (xx, yy, zz, xy, xz, yz) times (x, y, z).
+inline void smul6(const double* s, double x, double y, double z, double& ox, double& oy,
+                  double& oz) {
+    ox = s[0] * x + s[3] * y + s[4] * z;
+    oy = s[3] * x + s[1] * y + s[5] * z;
+    oz = s[4] * x + s[5] * y + s[2] * z;
+}
+
+// Manifold m pushed this step: one of its accumulated normal, friction or pseudo impulses ended
+// nonzero.
+inline bool manifold_pushed(V2<i64> mi, V2<double> pf, i64 m) {
+    i64 start = mi(m, MI_START);
+    for (i64 p = start; p < start + mi(m, MI_COUNT); ++p)
+        if (pf(p, PF_LN) != 0.0 || pf(p, PF_L1) != 0.0 || pf(p, PF_L2) != 0.0 ||
+            pf(p, PF_LP) != 0.0)
+            return true;
+    return false;
+}
+
 // One sum that is non-finite when any of the body's state is (position, momenta, R).
 inline double state_sum(i64 i, V2<double> position, V2<double> linear_momentum,
                         V2<double> angular_momentum, V3<double> rotation) {
@@ -196,6 +249,7 @@ void Scratch::make(i64 n_bodies, const Statics& st) {
     zeroed(proj_dth, n1, 3);
     zeroed(pushed, n1, 1);
     zeroed(push_root, n1, 1);
+    zeroed(support, n1, SUP_COLS);
     if (flow_c.rows != n || flow_c.cols != N_FLOW) flow_c = Buf2<double>(n, N_FLOW);
     flow_ok.resize(n);
     zeroed(ring, n1, 1);
@@ -303,17 +357,7 @@ void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
         root[i] = i;
     }
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 start = mi(m, MI_START);
-        bool push = false;
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            if (pf(p, PF_LN) != 0.0 || pf(p, PF_L1) != 0.0 || pf(p, PF_L2) != 0.0 ||
-                pf(p, PF_LP) != 0.0) {
-                push = true;
-                break;
-            }
-        }
-        if (!push) continue;
+        if (!mi(m, MI_ACTIVE) || !manifold_pushed(mi, pf, m)) continue;
         i64 a = mi(m, MI_A), b = mi(m, MI_B);
         pushed[a] = 1;
         pushed[b] = 1;
@@ -329,6 +373,146 @@ void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
     // an island that holds the static dummy touches static geometry
     for (i64 i = 0; i < n; ++i)
         if (pushed[i] && find_root(root, i) == find_root(root, n)) pushed[i] = 2;
+}
+
+// After mark_pushed (default solver): what stage 9 needs of the contacts that pushed each body
+// (sc.support, records.hpp's SUP_* columns), from this step's pushing manifolds: the span of
+// their normals and the span of r x n over their points (the directions in which a move of the
+// body changes a gap, to first order), whether a point slid at the step's start (tangential slip
+// above cfg.slide_start_speed, from the velocities before the kick), and the velocity change
+// that a whole step of sliding would give: sum over the points of (lambda_n n + f) / m, with
+// f = -mu lambda_n u_t / |u_t| at a sliding point (u_t its start slip) and the solve's friction
+// impulse at the others. Serial over manifolds (a body gathers from several). A manifold whose
+// pair slid into the step beyond velocity_tolerance drops its friction anchor (MF_AOK).
+void gather_supports(const Bodies& bd, const Settings& cfg, V2<i64> mi, V2<double> mf,
+                     V2<double> pf, i64 n_man, i64 n, double h, Scratch& sc) {
+    V2<double> sup = sc.support.view();
+    V2<double> bv0 = sc.bv0.view(), bw0 = sc.bw0.view(), bI = sc.bI.view();
+    V1<double> bm = col(sc.bm);
+    const double kh = cfg.do_kick ? h : 0.0;
+    for (i64 i = 0; i < n + 1; ++i) std::fill(sup.row(i), sup.row(i) + SUP_COLS, 0.0);
+    // u: the velocity of solver body i's material point at anchor r at the step's start (before
+    // the kick: v0 - h a, w0 - h I^-1 tau); 0 for the static dummy
+    auto start_velocity = [&](i64 i, const double* r, double* u) {
+        if (i >= n) {
+            u[0] = u[1] = u[2] = 0.0;
+            return;
+        }
+        double dwx, dwy, dwz;
+        smul6(bI.row(i), kh * bd.torque(i, 0), kh * bd.torque(i, 1), kh * bd.torque(i, 2), dwx,
+              dwy, dwz);
+        double wx = bw0(i, 0) - dwx, wy = bw0(i, 1) - dwy, wz = bw0(i, 2) - dwz;
+        u[0] = bv0(i, 0) - kh * bd.accel(i, 0) + (wy * r[2] - wz * r[1]);
+        u[1] = bv0(i, 1) - kh * bd.accel(i, 1) + (wz * r[0] - wx * r[2]);
+        u[2] = bv0(i, 2) - kh * bd.accel(i, 2) + (wx * r[1] - wy * r[0]);
+    };
+    auto rxn = [](const double* r, const double* nv, double* o) {
+        o[0] = r[1] * nv[2] - r[2] * nv[1];
+        o[1] = r[2] * nv[0] - r[0] * nv[2];
+        o[2] = r[0] * nv[1] - r[1] * nv[0];
+    };
+    auto norm3 = [](const double* v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); };
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE) || !manifold_pushed(mi, pf, m)) continue;
+        i64 a = mi(m, MI_A), b = mi(m, MI_B);
+        const double* nv = mf.row(m) + MF_N;
+        double mu = mf(m, MF_MU);
+        if (a < n) {
+            span_add(sup.row(a) + SUP_NB, sup(a, SUP_NN), nv, 1.0);
+            sup(a, SUP_ON) = 1.0;
+        }
+        if (b < n) {
+            span_add(sup.row(b) + SUP_NB, sup(b, SUP_NN), nv, 1.0);
+            sup(b, SUP_ON) = 1.0;
+        }
+        i64 start = mi(m, MI_START);
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+            const double* ra = pf.row(p) + PF_RA;
+            const double* rb = pf.row(p) + PF_RB;
+            double t[3];
+            if (a < n) {
+                rxn(ra, nv, t);
+                span_add(sup.row(a) + SUP_RB, sup(a, SUP_RN), t, norm3(ra));
+            }
+            if (b < n) {
+                rxn(rb, nv, t);
+                span_add(sup.row(b) + SUP_RB, sup(b, SUP_RN), t, norm3(rb));
+            }
+            // start slip u_t: the relative velocity of a's point past b's, off the normal
+            double ua[3], ub[3], u[3];
+            start_velocity(a, ra, ua);
+            start_velocity(b, rb, ub);
+            for (int k = 0; k < 3; ++k) u[k] = ua[k] - ub[k];
+            double un = u[0] * nv[0] + u[1] * nv[1] + u[2] * nv[2];
+            for (int k = 0; k < 3; ++k) u[k] -= un * nv[k];
+            double slip = norm3(u);
+            double ln = pf(p, PF_LN), j[3];  // the impulse on a over a whole step of sliding
+            if (slip > cfg.slide_start_speed) {
+                for (int k = 0; k < 3; ++k) j[k] = ln * nv[k] - mu * ln * u[k] / slip;
+                if (a < n) sup(a, SUP_SLID) = 1.0;
+                if (b < n) sup(b, SUP_SLID) = 1.0;
+                // a pair that slid into the step sticks, if at all, only from inside it: its
+                // friction anchor (taken at the step's start pose) would pull it back by the rest
+                // of the slide, so the next collide anchors it where the step ends (a leftover
+                // slip of the solve, <= velocity_tolerance, moves it < h velocity_tolerance)
+                if (slip > cfg.velocity_tolerance) mf(m, MF_AOK) = 0.0;
+            } else {  // the solve's friction impulse (PF_F is written at stage 11)
+                double l1 = pf(p, PF_L1), l2 = pf(p, PF_L2);
+                for (int k = 0; k < 3; ++k)
+                    j[k] = ln * nv[k] + l1 * mf(m, MF_T1 + k) + l2 * mf(m, MF_T2 + k);
+            }
+            for (int k = 0; k < 3; ++k) {
+                if (a < n) sup(a, SUP_SLIDE + k) += bm[a] * j[k];
+                if (b < n) sup(b, SUP_SLIDE + k) -= bm[b] * j[k];
+            }
+        }
+    }
+}
+
+// The position and spin corrections of stage 9 for a pushed body on static support (su: its
+// sc.support row; lm, p0: its momenta after the solve and at its start, after the kick; w, w0: its
+// solver spin then; a: g + F/m; inv_i: its world inverse inertia (xx, yy, zz, xy, xz, yz); tau:
+// its torque; kh: h when the step kicks, else 0). With dv = v_new - v_start and dw = w_new -
+// w_start the step's velocity and spin changes (v_start = v0 - h a, w_start = w0 - h I^-1 tau:
+// before the kick), and P, Q the projections off the spans of the contacts' normals and of their
+// r x n:
+//
+//     cx = - phi h P dv / 2,   cw = - phi Q dw / 2
+//
+// so x += h v_new + cx is h (v_start + v_new) / 2 off the normals (phi = 1: exact for constant
+// acceleration) and h v_new along them, the end-of-step gap the velocity solve predicts,
+// s + h w_n; the turn is h (w_new + cw), h (w_start + w_new) / 2 about the axes that move no
+// contact (exact for a constant spin-up about a fixed axis: a rolling sphere's). phi = t_stop / h when a point slid at the start and the
+// body stopped inside the step: the velocity runs linearly from v_start to v_new by t_stop, then
+// holds, so x += h v_new + t_stop (v_start - v_new) / 2; t_stop comes from the velocity change a
+// whole step of sliding would give, s = h a + su[SUP_SLIDE]: dv = (t_stop / h) s, solved in least
+// squares off the normals, phi = |P dv|^2 / (P dv . P s), and 1 when that is not below 1 (the
+// body slid through the step).
+inline void support_correction(const double* su, const double* lm, const double* p0,
+                               const double* w, const double* w0, const double* a,
+                               const double* inv_i, const double* tau, double im, double kh,
+                               double h, double* cx, double* cw) {
+    double dv[3], dw[3];
+    smul6(inv_i, kh * tau[0], kh * tau[1], kh * tau[2], dw[0], dw[1], dw[2]);
+    for (int k = 0; k < 3; ++k) {
+        dv[k] = (lm[k] - p0[k]) * im + kh * a[k];
+        dw[k] += w[k] - w0[k];
+    }
+    off_span(su + SUP_NB, su[SUP_NN], dv);
+    off_span(su + SUP_RB, su[SUP_RN], dw);
+    double phi = 1.0;
+    if (su[SUP_SLID] != 0.0) {
+        double s[3];
+        for (int k = 0; k < 3; ++k) s[k] = kh * a[k] + su[SUP_SLIDE + k];
+        off_span(su + SUP_NB, su[SUP_NN], s);
+        double num = dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2];
+        double den = dv[0] * s[0] + dv[1] * s[1] + dv[2] * s[2];
+        if (den > num) phi = num / den;
+    }
+    for (int k = 0; k < 3; ++k) {
+        cx[k] = -0.5 * phi * h * dv[k];
+        cw[k] = -0.5 * phi * dw[k];
+    }
 }
 
 // 9 integrate: move every awake body over the step (how: sc.pushed, see mark_pushed). A body
@@ -351,6 +535,8 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
     V2<double> p0 = sc.p0.view(), l0 = sc.l0.view();
     V1<i64> in_contact = col(sc.in_contact), pushed_of = col(sc.pushed);
     V2<double> lm = x.linear_momentum, am = x.angular_momentum, pos = x.position;
+    V2<double> sup = sc.support.view();
+    const double kh = cfg.do_kick ? h : 0.0;
     // each body reads and writes only its own rows: blocks of bodies on the pool
     par_ranges(n, BODIES_PER_BLOCK, [&](i64 i0, i64 i1) {
     for (i64 i = i0; i < i1; ++i) {
@@ -362,10 +548,26 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
             store_momenta(i, bd, x.rotation, lm, am, bv, bw, bv0, bw0, p0, l0, cfg.iso_shortcut);
             // the exact-flight term, for islands away from static geometry
             double fly = pushed_of[i] == 1 ? 0.5 * h : 0.0;
+            // on static support: the constant-acceleration term off the contacts' gaps
+            double cx[3] = {0.0, 0.0, 0.0}, cw[3] = {0.0, 0.0, 0.0};
+            if (pushed_of[i] == 2 && !cfg.soft_step && sup(i, SUP_ON) != 0.0)
+                support_correction(sup.row(i), lm.row(i), p0.row(i), bw.row(i), bw0.row(i),
+                                   bd.accel.row(i), sc.bI.view().row(i), bd.torque.row(i), im,
+                                   kh, h, cx, cw);
             for (int k = 0; k < 3; ++k) {
-                dx_step(i, k) = h * (lm(i, k) * im + pv(i, k) - fly * bd.accel(i, k));
+                dx_step(i, k) = h * (lm(i, k) * im + pv(i, k) - fly * bd.accel(i, k)) + cx[k];
                 pos(i, k) += dx_step(i, k);
                 l_drift(i, k) = am(i, k);
+            }
+            if (cw[0] != 0.0 || cw[1] != 0.0 || cw[2] != 0.0) {
+                // drift with the spin w_new + cw: L + I_world cw
+                Vec3 j = (cfg.iso_shortcut && bd.iso[i])
+                             ? Vec3{bd.inertia(i, 0) * cw[0], bd.inertia(i, 0) * cw[1],
+                                    bd.inertia(i, 0) * cw[2]}
+                             : omega_world(load_mat(x.rotation, i), bd.inertia(i, 0),
+                                           bd.inertia(i, 1), bd.inertia(i, 2), cw[0], cw[1],
+                                           cw[2]);
+                for (int k = 0; k < 3; ++k) l_drift(i, k) += j[k];
             }
             if (pw(i, 0) != 0.0 || pw(i, 1) != 0.0 || pw(i, 2) != 0.0) {
                 // rotate by L + I_world w' so the pseudo spin goes through the integrator
@@ -638,6 +840,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_SOLVE, t);
             if (cfg.position_iterations > 0) relax_positions(ctx, cons, pseudo);           // 8
             mark_pushed(mi1, pf1, n_man, n, sc);
+            gather_supports(bd, cfg, mi1, mf1, pf1, n_man, n, h, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
             if (do_prof) t = lap(prof, P_INTEGRATE, t);

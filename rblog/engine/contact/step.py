@@ -92,7 +92,8 @@ Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut velocity_iterat
                                   "projection_iterations projection_depth static_friction_anchors "
                                   "friction_newton_iters friction_newton_tol block_reg "
                                   "friction_anchor_rate friction_anchor_slide_frac "
-                                  "projection_rings soft_step substeps contact_hertz "
+                                  "projection_rings slide_start_speed soft_step substeps "
+                                  "contact_hertz "
                                   "contact_damping_ratio")
 
 
@@ -104,7 +105,8 @@ def solver_constants() -> dict:
                 friction_newton_tol=float(c.FRICTION_NEWTON_TOL), block_reg=float(c.BLOCK_REG),
                 friction_anchor_rate=float(c.FRICTION_ANCHOR_RATE),
                 friction_anchor_slide_frac=float(c.FRICTION_ANCHOR_SLIDE_FRAC),
-                projection_rings=int(c.PROJECTION_RINGS))
+                projection_rings=int(c.PROJECTION_RINGS),
+                slide_start_speed=float(c.SLIDE_START_SPEED))
 
 
 #: the changing state of the bodies, world frame (rblog.engine.state.State's arrays): position
