@@ -16,7 +16,9 @@
 //                         ContactParams.static_friction_anchors is on)
 //     8  relax            split-impulse position correction on pseudo velocities (relax.cpp; the shift's
 //                         orbital angular momentum h v' x P is handed back to the spin)
-//     9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
+//     9  integrate        a body the solve and relax pushed: x += h (v + v') along its contact
+//                         normals, as under constant acceleration off them (see Translation
+//                         below), momenta P, L rebuilt
 //                         from the solver's velocity changes; every other body flies exactly under
 //                         its constant force, x += h v - h^2 a / 2 (v after the kick). Rotation by
 //                         integrators.drift_rotation with the run's integrator (the body's L and its
@@ -47,9 +49,16 @@
 // of the step as s + h w (w the solved gap rate):
 //
 // * in an island of pushing contacts that touches static geometry (the ground, a static box, a
-//   sleeping body), by symplectic Euler, exactly that: a body resting on a contact must move by h
-//   times its velocity so that v = 0 means still (the exact flight's term would lift it by
-//   |g| h^2 / 2 each step, and the solver would answer with a downward velocity |g| h / 2 at rest);
+//   sleeping body), exactly that along its contact normals, so that the solver's gaps hold and
+//   v = 0 means still (the exact flight's term would lift a resting body by |g| h^2 / 2 each step,
+//   and the solver would answer with a downward velocity |g| h / 2 at rest), and off them as under
+//   a constant acceleration: x += h (v + v') - phi h P (v - v_start) / 2, P the projection off the
+//   span of the body's pushing contact normals, v_start its velocity before the kick, phi = 1
+//   (h (v_start + v) / 2 off the normals: a sliding box's or a rolling ball's motion to round-off),
+//   or t_stop / h when a point slid at the step's start and the body stopped inside the step (the
+//   closed form of a stop: decelerating until t_stop, then still). Its turn likewise, by
+//   h (w - phi Q (w - w_start) / 2), Q off the span of r x n over its points (gather_supports,
+//   support_correction);
 // * in an island away from static geometry (bodies colliding in the air), by that plus the exact
 //   flight's - h^2 a / 2, the same term a free body gets: under uniform gravity it moves the whole
 //   island alike, so the gaps the solver predicted inside it hold, and every body of a group that
@@ -150,11 +159,11 @@ inline void store_momenta(i64 i, const Bodies& bd, V3<double> rotation,
 }
 
 // Orthonormal rows basis[0 .. 3 count) of a span in R^3 (count <= 3): add v when its part off the
-// span is longer than SPAN_RTOL scale (Gram-Schmidt). SPAN_RTOL is a geometric epsilon of the
+// span is longer than SPAN_RTOL sqrt(scale2) (Gram-Schmidt). SPAN_RTOL is a geometric epsilon of the
 // test, not an engine tolerance: a sphere's r x n is round-off (~1e-17 r) and adds nothing, two
 // contact normals 1e-9 rad apart count as one (the part dropped then is 1e-9 of the correction).
 constexpr double SPAN_RTOL = 1e-9;
-inline void span_add(double* basis, double& count, const double* v, double scale) {
+inline void span_add(double* basis, double& count, const double* v, double scale2) {
     int c = int(count);
     if (c >= 3) return;
     double u[3] = {v[0], v[1], v[2]};
@@ -163,8 +172,9 @@ inline void span_add(double* basis, double& count, const double* v, double scale
         double d = u[0] * e[0] + u[1] * e[1] + u[2] * e[2];
         for (int k = 0; k < 3; ++k) u[k] -= d * e[k];
     }
-    double l = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-    if (!(l > SPAN_RTOL * scale)) return;
+    double l2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    if (!(l2 > SPAN_RTOL * SPAN_RTOL * scale2)) return;
+    double l = std::sqrt(l2);
     for (int k = 0; k < 3; ++k) basis[3 * c + k] = u[k] / l;
     count = double(c + 1);
 }
@@ -398,9 +408,10 @@ void gather_supports(const Bodies& bd, const Settings& cfg, V2<i64> mi, V2<doubl
             u[0] = u[1] = u[2] = 0.0;
             return;
         }
-        double dwx, dwy, dwz;
-        smul6(bI.row(i), kh * bd.torque(i, 0), kh * bd.torque(i, 1), kh * bd.torque(i, 2), dwx,
-              dwy, dwz);
+        double dwx = 0.0, dwy = 0.0, dwz = 0.0;
+        if (bd.torque(i, 0) != 0.0 || bd.torque(i, 1) != 0.0 || bd.torque(i, 2) != 0.0)
+            smul6(bI.row(i), kh * bd.torque(i, 0), kh * bd.torque(i, 1), kh * bd.torque(i, 2),
+                  dwx, dwy, dwz);
         double wx = bw0(i, 0) - dwx, wy = bw0(i, 1) - dwy, wz = bw0(i, 2) - dwz;
         u[0] = bv0(i, 0) - kh * bd.accel(i, 0) + (wy * r[2] - wz * r[1]);
         u[1] = bv0(i, 1) - kh * bd.accel(i, 1) + (wz * r[0] - wx * r[2]);
@@ -411,7 +422,7 @@ void gather_supports(const Bodies& bd, const Settings& cfg, V2<i64> mi, V2<doubl
         o[1] = r[2] * nv[0] - r[0] * nv[2];
         o[2] = r[0] * nv[1] - r[1] * nv[0];
     };
-    auto norm3 = [](const double* v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); };
+    auto dot3 = [](const double* u, const double* v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
     for (i64 m = 0; m < n_man; ++m) {
         if (!mi(m, MI_ACTIVE) || !manifold_pushed(mi, pf, m)) continue;
         i64 a = mi(m, MI_A), b = mi(m, MI_B);
@@ -430,13 +441,13 @@ void gather_supports(const Bodies& bd, const Settings& cfg, V2<i64> mi, V2<doubl
             const double* ra = pf.row(p) + PF_RA;
             const double* rb = pf.row(p) + PF_RB;
             double t[3];
-            if (a < n) {
+            if (a < n && sup(a, SUP_RN) < 3.0) {
                 rxn(ra, nv, t);
-                span_add(sup.row(a) + SUP_RB, sup(a, SUP_RN), t, norm3(ra));
+                span_add(sup.row(a) + SUP_RB, sup(a, SUP_RN), t, dot3(ra, ra));
             }
-            if (b < n) {
+            if (b < n && sup(b, SUP_RN) < 3.0) {
                 rxn(rb, nv, t);
-                span_add(sup.row(b) + SUP_RB, sup(b, SUP_RN), t, norm3(rb));
+                span_add(sup.row(b) + SUP_RB, sup(b, SUP_RN), t, dot3(rb, rb));
             }
             // start slip u_t: the relative velocity of a's point past b's, off the normal
             double ua[3], ub[3], u[3];
@@ -445,7 +456,7 @@ void gather_supports(const Bodies& bd, const Settings& cfg, V2<i64> mi, V2<doubl
             for (int k = 0; k < 3; ++k) u[k] = ua[k] - ub[k];
             double un = u[0] * nv[0] + u[1] * nv[1] + u[2] * nv[2];
             for (int k = 0; k < 3; ++k) u[k] -= un * nv[k];
-            double slip = norm3(u);
+            double slip = std::sqrt(dot3(u, u));
             double ln = pf(p, PF_LN), j[3];  // the impulse on a over a whole step of sliding
             if (slip > cfg.slide_start_speed) {
                 for (int k = 0; k < 3; ++k) j[k] = ln * nv[k] - mu * ln * u[k] / slip;
@@ -518,7 +529,9 @@ inline void support_correction(const double* su, const double* lm, const double*
 // 9 integrate: move every awake body over the step (how: sc.pushed, see mark_pushed). A body
 // that a contact pushed (solve or relax) moves with the solver's velocity, x += h (v + v'), its
 // momenta rebuilt from the solver's velocity changes, and when its island touches no static
-// geometry, by - h^2 a / 2 more (the exact flight's term); every other body flies exactly under
+// geometry, by - h^2 a / 2 more (the exact flight's term), when it does, as under constant
+// acceleration off its contact normals (support_correction, from sc.support; left out when
+// gather_supports did not run this step or with soft_step); every other body flies exactly under
 // its constant acceleration a, x += h v - h^2 a / 2 with v after the kick (a body whose
 // manifolds all ended without impulse gets its start-of-solve momenta back bitwise: warm
 // starting applies and withdraws impulses, which leaves round-off). Rotation by the run's
@@ -840,8 +853,8 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_SOLVE, t);
             if (cfg.position_iterations > 0) relax_positions(ctx, cons, pseudo);           // 8
             mark_pushed(mi1, pf1, n_man, n, sc);
-            gather_supports(bd, cfg, mi1, mf1, pf1, n_man, n, h, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
+            gather_supports(bd, cfg, mi1, mf1, pf1, n_man, n, h, sc);                       // 9
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
             if (do_prof) t = lap(prof, P_INTEGRATE, t);
             }
