@@ -208,9 +208,11 @@ void bind_contact(nb::module_& m) {
         step::mark_pushed(v2<i64>(mi, "mi"), v2<double>(pf, "pf"), n_man, n, sc);
     });
     m.def("stage_gather_supports", [](nb::handle bd, nb::handle cfg, nb::handle mi, nb::handle mf,
-                                      nb::handle pf, i64 n_man, i64 n, double h, Scratch& sc) {
+                                      nb::handle pf, i64 n_man, i64 n, double h,
+                                      nb::handle rotation, Scratch& sc) {
         step::gather_supports(Bodies::from_py(bd), Settings::from_py(cfg), v2<i64>(mi, "mi"),
-                              v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man, n, h, sc);
+                              v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man, n, h,
+                              v3<double>(rotation, "rotation"), sc);
     });
     m.def("stage_integrate_positions",
           [](int method, int ortho, nb::handle bd, nb::handle cfg, nb::handle awake, nb::handle x,

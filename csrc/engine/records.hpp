@@ -239,7 +239,9 @@ constexpr i64 SUP_SLIDE = 20;  // (3) the contacts' velocity change over a whole
                                // m/s: sum over its points of (lambda_n n + f_slide) / m
 constexpr i64 SUP_SLID = 23;   // 1.0: one of its points slid at the start of the step
 constexpr i64 SUP_ON = 24;     // 1.0: gathered this step
-constexpr i64 SUP_COLS = 25;
+constexpr i64 SUP_CX = 25;     // (3) stage 9's position correction, m (support_correction)
+constexpr i64 SUP_CW = 28;     // (3) ... and spin correction, rad/s
+constexpr i64 SUP_COLS = 31;
 
 // The stages' work arrays (step.py's Scratch; make_scratch). Rows N..N+S-1 of lo/hi: the static
 // boxes; row N of the solver arrays: the static dummy with zero inverse mass. All zero after

@@ -389,6 +389,52 @@ void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
         if (pushed[i] && find_root(root, i) == find_root(root, n)) pushed[i] = 2;
 }
 
+// The position and spin corrections of stage 9 for a pushed body on static support (su: its
+// sc.support row; v, v0, w, w0: its solver velocity and spin after the solve and at its start,
+// after the kick; a: g + F/m; inv_i: its world inverse inertia (xx, yy, zz, xy, xz, yz); tau:
+// its torque; kh: h when the step kicks, else 0). With dv = v_new - v_start and dw = w_new -
+// w_start the step's velocity and spin changes (v_start = v0 - h a, w_start = w0 - h I^-1 tau:
+// before the kick), and P, Q the projections off the spans of the contacts' normals and of their
+// r x n:
+//
+//     cx = - phi h P dv / 2,   cw = - phi Q dw / 2
+//
+// so x += h v_new + cx is h (v_start + v_new) / 2 off the normals (phi = 1: exact for constant
+// acceleration) and h v_new along them, the end-of-step gap the velocity solve predicts,
+// s + h w_n; the turn is h (w_new + cw), h (w_start + w_new) / 2 about the axes that move no
+// contact (exact for a constant spin-up about a fixed axis: a rolling sphere's). phi = t_stop / h
+// when a point slid at the start and the body stopped inside the step: the velocity runs linearly from v_start to v_new by t_stop, then
+// holds, so x += h v_new + t_stop (v_start - v_new) / 2; t_stop comes from the velocity change a
+// whole step of sliding would give, s = h a + su[SUP_SLIDE]: dv = (t_stop / h) s, solved in least
+// squares off the normals, phi = |P dv|^2 / (P dv . P s), and 1 when that is not below 1 (the
+// body slid through the step).
+inline void support_correction(const double* su, const double* v, const double* v0,
+                               const double* w, const double* w0, const double* a,
+                               const double* inv_i, const double* tau, double kh, double h,
+                               double* cx, double* cw) {
+    double dv[3], dw[3];
+    smul6(inv_i, kh * tau[0], kh * tau[1], kh * tau[2], dw[0], dw[1], dw[2]);
+    for (int k = 0; k < 3; ++k) {
+        dv[k] = v[k] - v0[k] + kh * a[k];
+        dw[k] += w[k] - w0[k];
+    }
+    off_span(su + SUP_NB, su[SUP_NN], dv);
+    off_span(su + SUP_RB, su[SUP_RN], dw);
+    double phi = 1.0;
+    if (su[SUP_SLID] != 0.0) {
+        double s[3];
+        for (int k = 0; k < 3; ++k) s[k] = kh * a[k] + su[SUP_SLIDE + k];
+        off_span(su + SUP_NB, su[SUP_NN], s);
+        double num = dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2];
+        double den = dv[0] * s[0] + dv[1] * s[1] + dv[2] * s[2];
+        if (den > num) phi = num / den;
+    }
+    for (int k = 0; k < 3; ++k) {
+        cx[k] = -0.5 * phi * h * dv[k];
+        cw[k] = -0.5 * phi * dw[k];
+    }
+}
+
 // After mark_pushed (default solver): what stage 9 needs of the contacts that pushed each body
 // (sc.support, records.hpp's SUP_* columns), from this step's pushing manifolds: the span of
 // their normals and the span of r x n over their points (the directions in which a move of the
@@ -396,10 +442,13 @@ void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
 // above cfg.slide_start_speed, from the velocities before the kick), and the velocity change
 // that a whole step of sliding would give: sum over the points of (lambda_n n + f) / m, with
 // f = -mu lambda_n u_t / |u_t| at a sliding point (u_t its start slip) and the solve's friction
-// impulse at the others. Serial over manifolds (a body gathers from several). A manifold whose
-// pair slid into the step beyond velocity_tolerance on a fresh friction anchor drops it (MF_AOK).
+// impulse at the others (serial over manifolds: a body gathers from several). Then each such
+// body's corrections (support_correction, into SUP_CX, SUP_CW), and the friction anchor of a
+// pair that slid into the step on a fresh anchor takes their slide. rotation: (N, 3, 3) the
+// bodies' R at the step's start.
 void gather_supports(const Bodies& bd, const Settings& cfg, V2<i64> mi, V2<double> mf,
-                     V2<double> pf, i64 n_man, i64 n, double h, Scratch& sc) {
+                     V2<double> pf, i64 n_man, i64 n, double h, V3<double> rotation,
+                     Scratch& sc) {
     V2<double> sup = sc.support.view();
     V2<double> bv0 = sc.bv0.view(), bw0 = sc.bw0.view(), bI = sc.bI.view();
     V1<double> bm = col(sc.bm);
@@ -482,56 +531,41 @@ void gather_supports(const Bodies& bd, const Settings& cfg, V2<i64> mi, V2<doubl
         }
         // a pair that slid into the step (beyond the solve's leftover, velocity_tolerance) on an
         // anchor taken at this step's start (it slid in the last step: drift D still round-off)
-        // sticks, if at all, only from inside the step: that anchor would pull it back by the
-        // rest of the slide (1.4e-6 m for the test's box), so the next collide anchors it where
-        // the step ends. A carried anchor (a resting pair, D the solve's leftover drift) stays.
-        if (slid_in && fresh) mf(m, MF_AOK) = 0.0;
+        // sticks, if at all, only from inside the step: marked (MF_AOK = -1 until the end of
+        // this stage) for its anchor to take the corrections' slide below
+        if (slid_in && fresh && mf(m, MF_AOK) > 0.0) mf(m, MF_AOK) = -1.0;
     }
-}
-
-// The position and spin corrections of stage 9 for a pushed body on static support (su: its
-// sc.support row; lm, p0: its momenta after the solve and at its start, after the kick; w, w0: its
-// solver spin then; a: g + F/m; inv_i: its world inverse inertia (xx, yy, zz, xy, xz, yz); tau:
-// its torque; kh: h when the step kicks, else 0). With dv = v_new - v_start and dw = w_new -
-// w_start the step's velocity and spin changes (v_start = v0 - h a, w_start = w0 - h I^-1 tau:
-// before the kick), and P, Q the projections off the spans of the contacts' normals and of their
-// r x n:
-//
-//     cx = - phi h P dv / 2,   cw = - phi Q dw / 2
-//
-// so x += h v_new + cx is h (v_start + v_new) / 2 off the normals (phi = 1: exact for constant
-// acceleration) and h v_new along them, the end-of-step gap the velocity solve predicts,
-// s + h w_n; the turn is h (w_new + cw), h (w_start + w_new) / 2 about the axes that move no
-// contact (exact for a constant spin-up about a fixed axis: a rolling sphere's). phi = t_stop / h when a point slid at the start and the
-// body stopped inside the step: the velocity runs linearly from v_start to v_new by t_stop, then
-// holds, so x += h v_new + t_stop (v_start - v_new) / 2; t_stop comes from the velocity change a
-// whole step of sliding would give, s = h a + su[SUP_SLIDE]: dv = (t_stop / h) s, solved in least
-// squares off the normals, phi = |P dv|^2 / (P dv . P s), and 1 when that is not below 1 (the
-// body slid through the step).
-inline void support_correction(const double* su, const double* lm, const double* p0,
-                               const double* w, const double* w0, const double* a,
-                               const double* inv_i, const double* tau, double im, double kh,
-                               double h, double* cx, double* cw) {
-    double dv[3], dw[3];
-    smul6(inv_i, kh * tau[0], kh * tau[1], kh * tau[2], dw[0], dw[1], dw[2]);
-    for (int k = 0; k < 3; ++k) {
-        dv[k] = (lm[k] - p0[k]) * im + kh * a[k];
-        dw[k] += w[k] - w0[k];
-    }
-    off_span(su + SUP_NB, su[SUP_NN], dv);
-    off_span(su + SUP_RB, su[SUP_RN], dw);
-    double phi = 1.0;
-    if (su[SUP_SLID] != 0.0) {
-        double s[3];
-        for (int k = 0; k < 3; ++k) s[k] = kh * a[k] + su[SUP_SLIDE + k];
-        off_span(su + SUP_NB, su[SUP_NN], s);
-        double num = dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2];
-        double den = dv[0] * s[0] + dv[1] * s[1] + dv[2] * s[2];
-        if (den > num) phi = num / den;
-    }
-    for (int k = 0; k < 3; ++k) {
-        cx[k] = -0.5 * phi * h * dv[k];
-        cw[k] = -0.5 * phi * dw[k];
+    // the corrections of the bodies on static support (each body its own row)
+    V1<i64> pushed_of = col(sc.pushed);
+    V2<double> bv = sc.bv.view(), bw = sc.bw.view();
+    par_ranges(n, BODIES_PER_BLOCK, [&](i64 i0, i64 i1) {
+        for (i64 i = i0; i < i1; ++i)
+            if (pushed_of[i] == 2 && sup(i, SUP_ON) != 0.0)
+                support_correction(sup.row(i), bv.row(i), bv0.row(i), bw.row(i), bw0.row(i),
+                                   bd.accel.row(i), bI.row(i), bd.torque.row(i), kh, h,
+                                   sup.row(i) + SUP_CX, sup.row(i) + SUP_CW);
+    });
+    // a marked pair's anchor pose moves with the corrections' relative shift, so that it holds
+    // the pose where the slide ends (it would pull the pair back by the rest of the slide, 1.4e-6
+    // m for the test's stopping box; the turn's correction, second order in a stop, is not
+    // taken): A_t = R_b^T (x_a - x_b) += R_b^T (cx_a - cx_b), R_b^T = A_R R_a^T (the anchor
+    // was taken at this step's start, R_a unchanged since). The next step's D then holds the
+    // solve's own slip, so the anchor is carried (not fresh) and keeps its memory.
+    for (i64 m = 0; m < n_man; ++m) {
+        if (mf(m, MF_AOK) != -1.0) continue;
+        mf(m, MF_AOK) = 1.0;
+        i64 a = mi(m, MI_A), b = mi(m, MI_B), ra = mi(m, MI_REC_A);
+        double d[3];
+        for (int k = 0; k < 3; ++k)
+            d[k] = (a < n ? sup(a, SUP_CX + k) : 0.0) - (b < n ? sup(b, SUP_CX + k) : 0.0);
+        if (d[0] == 0.0 && d[1] == 0.0 && d[2] == 0.0) continue;
+        double u[3];  // R_a^T d
+        for (int k = 0; k < 3; ++k)
+            u[k] = rotation(ra, 0, k) * d[0] + rotation(ra, 1, k) * d[1] +
+                   rotation(ra, 2, k) * d[2];
+        for (int r = 0; r < 3; ++r)
+            mf(m, MF_AT + r) += mf(m, MF_AR + 3 * r) * u[0] + mf(m, MF_AR + 3 * r + 1) * u[1] +
+                                mf(m, MF_AR + 3 * r + 2) * u[2];
     }
 }
 
@@ -558,7 +592,6 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
     V1<i64> in_contact = col(sc.in_contact), pushed_of = col(sc.pushed);
     V2<double> lm = x.linear_momentum, am = x.angular_momentum, pos = x.position;
     V2<double> sup = sc.support.view();
-    const double kh = cfg.do_kick ? h : 0.0;
     // each body reads and writes only its own rows: blocks of bodies on the pool
     par_ranges(n, BODIES_PER_BLOCK, [&](i64 i0, i64 i1) {
     for (i64 i = i0; i < i1; ++i) {
@@ -571,11 +604,10 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
             // the exact-flight term, for islands away from static geometry
             double fly = pushed_of[i] == 1 ? 0.5 * h : 0.0;
             // on static support: the constant-acceleration term off the contacts' gaps
-            double cx[3] = {0.0, 0.0, 0.0}, cw[3] = {0.0, 0.0, 0.0};
-            if (pushed_of[i] == 2 && !cfg.soft_step && sup(i, SUP_ON) != 0.0)
-                support_correction(sup.row(i), lm.row(i), p0.row(i), bw.row(i), bw0.row(i),
-                                   bd.accel.row(i), sc.bI.view().row(i), bd.torque.row(i), im,
-                                   kh, h, cx, cw);
+            const double zero[3] = {0.0, 0.0, 0.0};
+            const bool on = pushed_of[i] == 2 && !cfg.soft_step && sup(i, SUP_ON) != 0.0;
+            const double* cx = on ? sup.row(i) + SUP_CX : zero;
+            const double* cw = on ? sup.row(i) + SUP_CW : zero;
             for (int k = 0; k < 3; ++k) {
                 dx_step(i, k) = h * (lm(i, k) * im + pv(i, k) - fly * bd.accel(i, k)) + cx[k];
                 pos(i, k) += dx_step(i, k);
@@ -863,7 +895,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (cfg.position_iterations > 0) relax_positions(ctx, cons, pseudo);           // 8
             mark_pushed(mi1, pf1, n_man, n, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
-            gather_supports(bd, cfg, mi1, mf1, pf1, n_man, n, h, sc);                       // 9
+            gather_supports(bd, cfg, mi1, mf1, pf1, n_man, n, h, x.rotation, sc);                     // 9
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
             if (do_prof) t = lap(prof, P_INTEGRATE, t);
             }
