@@ -241,7 +241,10 @@ constexpr i64 SUP_SLID = 23;   // 1.0: one of its points slid at the start of th
 constexpr i64 SUP_ON = 24;     // 1.0: gathered this step
 constexpr i64 SUP_CX = 25;     // (3) stage 9's position correction, m (support_correction)
 constexpr i64 SUP_CW = 28;     // (3) ... and spin correction, rad/s
-constexpr i64 SUP_COLS = 31;
+constexpr i64 SUP_SKIP = 31;   // 1.0: no corrections (it touches another dynamic body, or a
+                               // pushing pair holds it on a carried friction anchor)
+constexpr i64 SUP_STOP = 32;   // 1.0: it stopped inside the step (phi < 1)
+constexpr i64 SUP_COLS = 33;
 
 // The stages' work arrays (step.py's Scratch; make_scratch). Rows N..N+S-1 of lo/hi: the static
 // boxes; row N of the solver arrays: the static dummy with zero inverse mass. All zero after

@@ -49,7 +49,8 @@ of the step as s + h w (w the solved gap rate):
   or t_stop / h when a point slid at the step's start and the body stopped inside the step (the
   closed form of a stop: decelerating until t_stop, then still). Its turn likewise, by
   h (w - phi Q (w - w_start) / 2), Q off the span of r x n over its points (gather_supports,
-  support_correction);
+  support_correction); a body that touches another dynamic body or that a pair holds on a
+  carried friction anchor moves by symplectic Euler only;
 * in an island away from static geometry (bodies colliding in the air), by that plus the exact
   flight's - h^2 a / 2, the same term a free body gets: under uniform gravity it moves the whole
   island alike, so the gaps the solver predicted inside it hold, and every body of a group that
