@@ -87,8 +87,8 @@ import ctypes
 import numpy as np
 
 from rblog.adapters import AdapterError, require
-from rblog.adapters._common import SampleStream, body_frame, quat_mul
-from rblog.contract.model import BODY_JOINTED, JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_SLIDE, \
+from rblog.adapters._common import EngineRecorder, SampleStream, body_frame, quat_mul
+from rblog.contract.model import IMPULSE_KINDS, BODY_JOINTED, JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_SLIDE, \
     SHAPE_BOX, SHAPE_SPHERE, SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE, Model
 from rblog.contract.orientation import matrix_to_quat
 
@@ -644,7 +644,7 @@ class _IntervalStream(SampleStream):
         rec.write(**arrays)
 
 
-class OdeRecorder:
+class OdeRecorder(EngineRecorder):
     """Record an ODE world: ``rec = OdeRecorder(world, space, dt=..., mcap=...)``, then ``rec()``
     after each ``dWorldStep`` / ``dWorldQuickStep``, ``rec.close()``.
 
@@ -696,7 +696,9 @@ class OdeRecorder:
         jointed[self.tree.second[self.tree.second >= 0]] = True
         damped = any(_ode().dBodyGetLinearDamping(b) or _ode().dBodyGetAngularDamping(b)
                      for b in self.bodies)
-        sup = np.zeros((n, 5), np.int64)  # IMPULSE_KINDS: contact, applied, passive, actuator, joint
+        # IMPULSE_KINDS: contact, applied, passive, actuator, joint, integration (none: ODE's
+        # maximal coordinates move each body by its forces)
+        sup = np.full((n, len(IMPULSE_KINDS)), SUPPLIED_NONE, np.int64)
         sup[:, 0] = SUPPLIED_LOGGED
         sup[:, 1] = SUPPLIED_MISSING if applied_forces else SUPPLIED_NONE
         sup[:, 2] = SUPPLIED_MISSING if damped else SUPPLIED_NONE
@@ -785,26 +787,16 @@ class OdeRecorder:
 
     record = __call__
 
+    def flush(self) -> None:
+        """Write the samples gathered so far."""
+        self.stream.flush()
+
     def close(self, truncated: bool = False, reason: str | None = None) -> None:
-        if self._wrap is not None:
+        if self._wrap is not None:  # the world's step no longer records
             self._wrap.undo()
             self._wrap = None
-        try:
-            if not truncated:
-                self.stream.flush()
-        finally:
-            self.recorder.close(truncated=truncated, reason=reason)
+        super().close(truncated=truncated, reason=reason)
 
-    def __enter__(self) -> "OdeRecorder":
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
-
-    @property
-    def trajectory(self):
-        self.stream.flush()
-        return self.recorder.trajectory
 
 
 __all__ = ["CONTACT_ROWS", "ContactFeedback", "OdeRecorder", "inspect", "principal", "read_state",

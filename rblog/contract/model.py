@@ -92,8 +92,15 @@ COLLIDE_ALL = -1
 
 #: the per-interval impulse kinds (columns of body_impulse_supplied; trajectory channels
 #: impulse_<kind>_linear / _angular) and work kinds (body_work_supplied; work_<kind>)
-IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint")
-WORK_KINDS = ("applied", "passive", "actuator")
+IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint", "integration")
+# (integration last: what the other kinds' sum leaves of a balance)
+#: the columns of body_impulse_supplied in a log written before the "integration" kind: its
+#: readers take such a table with integration "none" (the balance as that log meant it)
+IMPULSE_KINDS_LEGACY = 5
+WORK_KINDS = ("applied", "passive", "actuator", "joint")
+#: the columns of body_work_supplied in a log written before the "joint" work kind (its
+#: readers take it with joint work "none": ideal joints, what that log meant)
+WORK_KINDS_LEGACY = 3
 #: body_impulse_supplied / body_work_supplied codes, per body and kind
 SUPPLIED_MISSING = 0   # the writer does not know it: what needs it is not judged
 SUPPLIED_LOGGED = 1    # in the log's impulse_<kind>_* / work_<kind> channels
@@ -103,8 +110,27 @@ SUPPLIED_NONE = 2      # the engine has no such force on the body: zero, not sto
 #: contacts and the model's constant body_force_world / body_torque_world (applied "none" means
 #: no load besides those constant ones; "logged" includes them), so every other kind is none
 DEFAULT_IMPULSE_SUPPLIED = (SUPPLIED_MISSING, SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE,
-                            SUPPLIED_NONE)
-DEFAULT_WORK_SUPPLIED = (SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE)
+                            SUPPLIED_NONE, SUPPLIED_NONE)
+DEFAULT_WORK_SUPPLIED = (SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE)
+
+
+
+def impulse_supplied_columns(sup, n: int, kinds: tuple = IMPULSE_KINDS,
+                             legacy: int = IMPULSE_KINDS_LEGACY) -> np.ndarray:
+    """(N, len(kinds)) from ``sup``, N rows of ``kinds`` codes or of the ``legacy`` first ones
+    (the later kinds "none" appended: IMPULSE_KINDS' integration, WORK_KINDS' joint); anything
+    else unchanged, for the validation to name."""
+    a = np.asarray(sup)
+    if a.size == n * legacy and n and a.size != n * len(kinds):
+        a = np.concatenate([a.reshape(n, legacy),
+                            np.full((n, len(kinds) - legacy), SUPPLIED_NONE, a.dtype)], axis=1)
+    return a
+
+
+def work_supplied_columns(sup, n: int) -> np.ndarray:
+    """body_work_supplied as (N, len(WORK_KINDS)), as impulse_supplied_columns."""
+    return impulse_supplied_columns(sup, n, WORK_KINDS, WORK_KINDS_LEGACY)
+
 
 #: geom fields: name -> trailing shape per geom (dtype int64 for the int ones, str for names)
 GEOM_FIELDS = {"geom_name": (), "geom_body": (), "geom_type": (), "geom_pos_body": (3,),
@@ -143,10 +169,10 @@ class Model:
         static_box_position: (M, 3), static_box_quat_wxyz: (M, 4), static_box_half_extents: (M, 3),
         static_box_restitution, static_box_friction: (M,) static boxes (walls, ramps).
         body_kind: (N,) int BODY_* (default BODY_FREE).  body_parent: (N,) int, -1 = world.
-        body_impulse_supplied: (N, 5) int, columns IMPULSE_KINDS, SUPPLIED_* codes: the log
+        body_impulse_supplied: (N, 6) int, columns IMPULSE_KINDS, SUPPLIED_* codes: the log
             holds that impulse of that body (1), the engine has no such force on it (2: zero,
             not stored), or it is missing (0: not to be judged); default
-            DEFAULT_IMPULSE_SUPPLIED.  body_work_supplied: (N, 3), columns WORK_KINDS,
+            DEFAULT_IMPULSE_SUPPLIED.  body_work_supplied: (N, 4), columns WORK_KINDS,
             likewise (default DEFAULT_WORK_SUPPLIED).
         joint_name (J,), joint_type (J,) JOINT_*, joint_body (J,) the child body,
             joint_anchor_body (J, 3) m in the child's body frame, joint_anchor_parent (J, 3) the
@@ -222,8 +248,12 @@ class Model:
             self.body_parent = np.full(n, -1, np.int64)
         if self.body_impulse_supplied is None:
             self.body_impulse_supplied = np.tile(np.array(DEFAULT_IMPULSE_SUPPLIED, np.int64), (n, 1))
+        else:
+            self.body_impulse_supplied = impulse_supplied_columns(self.body_impulse_supplied, n)
         if self.body_work_supplied is None:
             self.body_work_supplied = np.tile(np.array(DEFAULT_WORK_SUPPLIED, np.int64), (n, 1))
+        else:
+            self.body_work_supplied = work_supplied_columns(self.body_work_supplied, n)
         n_j = 0 if self.joint_type is None else len(self.joint_type)
         for name, trail in JOINT_FIELDS.items():
             if getattr(self, name) is None:  # an empty table, or a field not stated (NaN)
