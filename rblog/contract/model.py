@@ -290,9 +290,19 @@ class Model:
     @property
     def body_bounding_radius(self) -> np.ndarray:
         """(N,) radius of each body's bounding sphere about its centre of mass (m): the sphere's
-        radius, or a box's half diagonal |half extents|; 0 for a body without a shape."""
-        return np.where(self.body_shape == SHAPE_SPHERE, self.body_size[:, 0],
-                        np.linalg.norm(self.body_size, axis=1))
+        radius, or a box's half diagonal |half extents|; a SHAPE_NONE body's from its geoms
+        (the largest |geom position| + the geom's own bounding radius: capsule r + h, cylinder
+        sqrt(r^2 + h^2), mesh its farthest vertex); 0 for a body without geoms."""
+        out = np.where(self.body_shape == SHAPE_SPHERE, self.body_size[:, 0],
+                       np.linalg.norm(self.body_size, axis=1))
+        none = np.asarray(self.body_shape) == SHAPE_NONE
+        if np.any(none) and self.n_geoms:
+            for g in np.flatnonzero(np.isin(self.geom_body, np.flatnonzero(none))):
+                b = int(self.geom_body[g])
+                out[b] = max(out[b], float(np.linalg.norm(self.geom_pos_body[g]))
+                             + geom_bounding_radius(int(self.geom_type[g]), self.geom_size[g],
+                                                    self.geom_vertices(g)))
+        return out
 
     def geom_vertices(self, g: int) -> np.ndarray:
         """(V_g, 3) vertices of mesh geom ``g`` in its geom frame (m)."""
@@ -307,6 +317,26 @@ class Model:
     def work_supplied(self, kind: str) -> np.ndarray:
         """(N,) bool: the bodies whose work ``kind`` is known (logged, or none)."""
         return self.body_work_supplied[:, WORK_KINDS.index(kind)] != SUPPLIED_MISSING
+
+
+def geom_bounding_radius(geom_type: int, size, vertices=None) -> float:
+    """Radius (m) of the sphere about a geom's origin that holds it (GEOM_* sizes above; a
+    plane: inf; a mesh: its farthest vertex of ``vertices`` (V, 3))."""
+    s = np.asarray(size, np.float64)
+    if geom_type == GEOM_SPHERE:
+        return float(s[0])
+    if geom_type == GEOM_CAPSULE:
+        return float(s[0] + s[1])
+    if geom_type == GEOM_CYLINDER:
+        return float(np.hypot(s[0], s[1]))
+    if geom_type == GEOM_MESH:
+        v = np.asarray(vertices, np.float64).reshape(-1, 3)
+        return float(np.linalg.norm(v, axis=1).max()) if len(v) else 0.0
+    if geom_type == GEOM_PLANE:
+        return float("inf")
+    if geom_type == GEOM_ELLIPSOID:
+        return float(s.max())
+    return float(np.linalg.norm(s))  # box
 
 
 def quat_z_to(normal) -> np.ndarray:
