@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.adapters._mujoco_model import BLOCK_STEPS, Layout, _mj
-from rblog.contract.model import IMPULSE_KINDS
+from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
 
 class Kinematics:
     """The logged state of every body at given ``qpos``/``qvel`` (and mocap poses), from a
@@ -216,6 +216,9 @@ class StepImpulses:
         self.rows = np.empty((self.cap, self.rows_of.width))
         self.v1 = np.empty((self.cap, m.nv))
         self.Ma = np.empty((self.cap, m.nv)) if self.implicit else None
+        # RK4: each step's displacement (q1 - q0) / h (mj_differentiatePos), the velocity its
+        # forces' work is taken at (the semi-implicit integrators displace by h v1)
+        self.v_disp = np.empty((self.cap, m.nv)) if self.rk4 else None
         self.v_start = self.v0.copy()  # v0 of the block's first row
         self._compile()
         self._gap_v0 = {}  # row -> its v0 after steps not seen
@@ -285,6 +288,7 @@ class StepImpulses:
             np.subtract(v1, self.v0, out=src.qacc)
             src.qacc *= 1.0 / self.h
             mj.mj_rnePostConstraint(m, src)
+            mj.mj_differentiatePos(m, self.v_disp[k], self.h, self.q0, d.qpos)
             np.copyto(self.q0, d.qpos)
             np.copyto(self.act0, d.act)
         else:
@@ -307,8 +311,9 @@ class StepImpulses:
         return self.k >= self.cap
 
     def resolve(self):
-        """The gathered steps as (impulses (K, 5, nbody, 6) [angular about the COM; linear], N s
-        and N m s, in IMPULSE_KINDS order; work (K, 3, nbody) J, WORK_KINDS order). The rows
+        """The gathered steps as (impulses (K, 6, nbody, 6) [angular about the COM; linear], N s
+        and N m s, in IMPULSE_KINDS order, integration 0 (per interval, MujocoRecorder); work
+        (K, 4, nbody) J, WORK_KINDS order). The rows
         stay until :meth:`reset`."""
         k, lay, h = self.k, self.lay, self.h
         R = self.rows[:k]
@@ -324,11 +329,13 @@ class StepImpulses:
         pushed = bool(xf.any())
         nb = len(lay.root)
         W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
+        W[:, IMPULSE_KINDS.index("integration")] = 0.0  # per interval: MujocoRecorder._integration
         if pushed:
             xf_c = np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
             np.subtract(F("cfrc_ext"), xf_c, out=W[:, 0])
         else:
             W[:, 0] = F("cfrc_ext")
+        q_joint = self._joint_forces(F, W[:, 0])
         # S (K, nv, 6): the unit wrench of each dof, about c
         cdof = F("cdof")
         S = np.zeros_like(cdof)
@@ -356,13 +363,28 @@ class StepImpulses:
         W[:, 4] -= gen.sum(axis=1)
         W[..., :3] -= _cross(r[:, None], W[..., 3:])            # torques about the COM
         W *= h
-        work = (tau * v1[:, None]) @ lay.own.T * h              # (K, 3, nb)
+        # the velocity a step's forces work at: the mean of its ends for the semi-implicit
+        # integrators (the states' kinetic energy changes by (v0 + v1)/2 . M (v1 - v0) = h f .
+        # (v0 + v1)/2), RK4's displacement (q1 - q0) / h
+        v_work = 0.5 * (v0 + v1) if self.v_disp is None else self.v_disp[:k]
+        work = np.empty((k, len(WORK_KINDS), nb))
+        work[:, :3] = (tau * v_work[:, None]) @ lay.own.T * h    # applied, passive, actuator
+        work[:, 3] = (q_joint * v_work) @ lay.own.T * h          # joint
         if pushed:
             cv = F("cvel")
             v_com = cv[..., 3:] + _cross(cv[..., :3], r)
             work[:, 0] += h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
                                np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
         return W, work
+
+    def _joint_forces(self, F, contact_c):
+        """(K, nv) the generalized force of the joints' non-ideal constraints (limits, friction
+        loss, equalities, tendon limits): ``qfrc_constraint`` less the contacts' part, that of
+        the contact wrenches ``contact_c`` (K, nbody, 6) [torque; force] about c on every body
+        of a dof's subtree, paired with the dof's motion ``cdof`` (J^T f = sum_b cdof . f_b)."""
+        lay = self.lay
+        below = np.matmul(lay.subtree, contact_c)[:, lay.dof_body]   # (K, nv, 6)
+        return F("qfrc_constraint") - np.einsum("kjs,kjs->kj", F("cdof"), below)
 
     def reset(self) -> None:
         """Drop the gathered rows; the next row's v0 is the last one's v1 (or a restart's)."""
