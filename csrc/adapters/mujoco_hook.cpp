@@ -22,6 +22,10 @@
 
 namespace nb = nanobind;
 
+namespace rb {
+void bind_resolve(nb::module_& m);  // mujoco_resolve.cpp
+}
+
 namespace {
 
 using RneFn = void (*)(const void*, void*);
@@ -93,4 +97,5 @@ NB_MODULE(_hook, mod) {
                       std::uintptr_t, std::uintptr_t, int,
                       std::vector<std::tuple<std::uintptr_t, long, long>>>())
         .def("step", &StepHook::step, "Gather the step that just ended into row k; returns k + 1.");
+    rb::bind_resolve(mod);
 }

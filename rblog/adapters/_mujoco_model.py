@@ -352,7 +352,12 @@ def _contact_dict(raws):
     """The raw captures of several steps as one dict of arrays (K rows)."""
     counts = np.array([len(r) for _, r, _ in raws])
     steps = np.repeat(np.array([st for st, _, _ in raws], np.int64), counts)
-    raw = np.concatenate([r for _, r, _ in raws])
+    dtypes = {r.dtype for _, r, _ in raws}
+    if len(dtypes) == 1:  # as raw bytes: concatenating structured arrays is ~100x slower
+        dt = dtypes.pop()
+        raw = np.concatenate([r.view(np.dtype((np.void, dt.itemsize))) for _, r, _ in raws]).view(dt)
+    else:
+        raw = np.concatenate([r for _, r, _ in raws])
     sizes = np.array([len(e) for _, _, e in raws])
     efc_all = np.concatenate([e for _, _, e in raws] + [np.zeros(1)])
     base = np.repeat(np.cumsum(sizes) - sizes, counts)

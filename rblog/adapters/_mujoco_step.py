@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.adapters._mujoco_model import BLOCK_STEPS, Layout, _mj
-from rblog.contract.model import IMPULSE_KINDS
+from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
 
 class Kinematics:
     """The logged state of every body at given ``qpos``/``qvel`` (and mocap poses), from a
@@ -60,6 +60,12 @@ def _cross(a, b):
     return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
                      a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def _dot(a, b):
+    """a . b over the last axis of (..., 3) arrays, summed in order (einsum's order depends on
+    the layout; the compiled resolve sums x, y, z in order)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
 _FUNCTIONS = []
@@ -219,6 +225,7 @@ class StepImpulses:
         self.v_start = self.v0.copy()  # v0 of the block's first row
         self._compile()
         self._gap_v0 = {}  # row -> its v0 after steps not seen
+        self._fixed = None  # the compiled resolve's fixed arrays (row offsets, layout maps)
         self.k = 0
 
     def bind(self, d) -> None:
@@ -226,6 +233,7 @@ class StepImpulses:
         self.d = d
         self.qvel, self.qacc = d.qvel, d.qacc
         self.rows_of = Rows(self.scratch if self.rk4 else d)
+        self._fixed = None  # the row offsets may differ in another MjData
         if getattr(self, "rows", None) is not None:
             self._compile()
 
@@ -306,18 +314,48 @@ class StepImpulses:
     def full(self) -> bool:
         return self.k >= self.cap
 
-    def resolve(self):
-        """The gathered steps as (impulses (K, 5, nbody, 6) [angular about the COM; linear], N s
-        and N m s, in IMPULSE_KINDS order; work (K, 3, nbody) J, WORK_KINDS order). The rows
-        stay until :meth:`reset`."""
-        k, lay, h = self.k, self.lay, self.h
-        R = self.rows[:k]
-        F = lambda f: self.rows_of.field(R, f)  # noqa: E731
-        v1 = self.v1[:k]
+    def _v0(self):
+        """(K, nv) each gathered step's start velocity: the previous row's v1 (or a restart's)."""
+        k, v1 = self.k, self.v1[:self.k]
         v0 = np.concatenate([self.v_start[None], v1[:-1]])
         for row, v in self._gap_v0.items():
             if row < k:
                 v0[row] = v
+        return v0
+
+    def resolve(self):
+        """The gathered steps as (impulses (K, 5, nbody, 6) [angular about the COM; linear], N s
+        and N m s, in IMPULSE_KINDS order; work (K, 3, nbody) J, WORK_KINDS order). The rows
+        stay until :meth:`reset`. Compiled (``rblog.adapters._hook.resolve``: the formulas of
+        :meth:`resolve_numpy` in the same order) when the build has it."""
+        try:
+            from rblog.adapters._hook import resolve
+        except ImportError:
+            return self.resolve_numpy()
+        k, lay, m = self.k, self.lay, self.m
+        if self._fixed is None:
+            i64 = lambda a: np.ascontiguousarray(a, np.int64)  # noqa: E731
+            self._fixed = (np.array([self.rows_of.offset[f] for f in ROW_FIELDS], np.int64),
+                           i64(lay.root), i64(m.body_parentid), i64(lay.dof_body),
+                           i64(lay.dof_jnt), i64(lay.dof_trans),
+                           np.ascontiguousarray(lay.damping, np.float64))
+        off, root, parent, dof_body, dof_jnt, dof_trans, damping = self._fixed
+        nb, nv = len(lay.root), int(m.nv)
+        W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
+        work = np.empty((k, len(WORK_KINDS), nb))
+        ma = self.Ma[:k] if self.Ma is not None else np.empty((0, nv))
+        resolve(self.rows[:k], off, self.v1[:k], self._v0(), ma, root, parent, dof_body,
+                dof_jnt, dof_trans, damping, self.h, bool(self.implicit_damping),
+                int(self.correction_kind), W, work)
+        return W, work
+
+    def resolve_numpy(self):
+        """:meth:`resolve` in numpy (the reference of the compiled one)."""
+        k, lay, h = self.k, self.lay, self.h
+        R = self.rows[:k]
+        F = lambda f: self.rows_of.field(R, f)  # noqa: E731
+        v1 = self.v1[:k]
+        v0 = self._v0()
         c = F("subtree_com")[:, lay.root]                       # (K, nb, 3) each body's c
         r = F("xipos") - c                                      # c -> centre of mass
         xf = F("xfrc_applied")                                  # [force; torque] at the COM
@@ -360,8 +398,7 @@ class StepImpulses:
         if pushed:
             cv = F("cvel")
             v_com = cv[..., 3:] + _cross(cv[..., :3], r)
-            work[:, 0] += h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
-                               np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
+            work[:, 0] += h * (_dot(xf[..., :3], v_com) + _dot(xf[..., 3:], cv[..., :3]))
         return W, work
 
     def reset(self) -> None:
