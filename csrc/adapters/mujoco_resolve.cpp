@@ -13,6 +13,7 @@
 //   then the torques about the centre of mass (tau -= r x f), times h;
 //   work_a[b]     (sum over b's dofs of tau_a,j v1_j) h, plus h (f . v_com + tau . w) for xfrc.
 // Sums run over dofs (and children) in ascending order, as numpy's matmul does.
+// states() reads the logged states of samples out of the same rows (below).
 #include <nanobind/nanobind.h>
 
 #include <vector>
@@ -202,9 +203,76 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
     }
 }
 
+// The logged states of samples whose state is the start of a gathered step (row rr[m]), as
+// MujocoRecorder._states_numpy: for sample slot i[m] and logged body n (MuJoCo body ids[n]),
+//   x = xipos, R = ximat, q = xquat (x) iquat[n] (Hamilton, scalar first), w = cvel(:3),
+//   v = cvel(3:) + w x (x - subtree_com[root])   (cvel is about the root's subtree com).
+void states(nb::handle rows_h, nb::handle offsets_h, nb::handle rr_h, nb::handle slot_h,
+            nb::handle ids_h, nb::handle root_h, nb::handle iquat_h, nb::handle x_h,
+            nb::handle r_h, nb::handle q_h, nb::handle v_h, nb::handle w_h) {
+    V2<double> rows = v2<double>(rows_h, "rows");
+    V1<i64> off = v1<i64>(offsets_h, "offsets"), rr = v1<i64>(rr_h, "rr");
+    V1<i64> slot = v1<i64>(slot_h, "slot"), ids = v1<i64>(ids_h, "ids");
+    V1<i64> root = v1<i64>(root_h, "root");
+    V2<double> iquat = v2<double>(iquat_h, "iquat");
+    V3<double> X = v3<double>(x_h, "x"), Q = v3<double>(q_h, "q"), V = v3<double>(v_h, "v");
+    V3<double> Wv = v3<double>(w_h, "w");
+    V4<double> R = v4<double>(r_h, "r");
+    const i64 M = rr.n0, N = ids.n0, nb_ = root.n0;
+    if (off.n0 != N_ROW_FIELDS || slot.n0 != M || iquat.n0 != N || iquat.n1 != 4)
+        throw nb::value_error("states: offsets (17,), slot (M,), iquat (N, 4) disagree");
+    const i64 cap = X.n0;
+    if (X.n1 != N || X.n2 != 3 || R.n0 != cap || R.n1 != N || R.n2 != 3 || R.n3 != 3 ||
+        Q.n0 != cap || Q.n1 != N || Q.n2 != 4 || V.n0 != cap || V.n1 != N || V.n2 != 3 ||
+        Wv.n0 != cap || Wv.n1 != N || Wv.n2 != 3)
+        throw nb::value_error("states: x, v, w (C, N, 3), r (C, N, 3, 3), q (C, N, 4) disagree");
+    for (i64 n = 0; n < N; ++n)
+        if (ids(n) < 0 || ids(n) >= nb_) throw nb::value_error("states: ids out of range");
+    for (i64 b = 0; b < nb_; ++b)
+        if (root(b) < 0 || root(b) >= nb_) throw nb::value_error("states: root out of range");
+    for (i64 m = 0; m < M; ++m) {
+        if (rr(m) < 0 || rr(m) >= rows.n0 || slot(m) < 0 || slot(m) >= cap)
+            throw nb::value_error("states: row or slot out of range");
+        const double* row = &rows(rr(m), 0);
+        const double* xipos = row + off(F_XIPOS);
+        const double* ximat = row + off(F_XIMAT);
+        const double* xquat = row + off(F_XQUAT);
+        const double* cvel = row + off(F_CVEL);
+        const double* com = row + off(F_SUBTREE_COM);
+        const i64 i = slot(m);
+        for (i64 n = 0; n < N; ++n) {
+            const i64 b = ids(n);
+            double* x = &X(i, n, 0);
+            for (int c = 0; c < 3; ++c) x[c] = xipos[3 * b + c];
+            for (int c = 0; c < 9; ++c) (&R(i, n, 0, 0))[c] = ximat[9 * b + c];
+            const double* a = xquat + 4 * b;
+            const double* e = &iquat(n, 0);
+            double* q = &Q(i, n, 0);
+            q[0] = a[0] * e[0] - a[1] * e[1] - a[2] * e[2] - a[3] * e[3];
+            q[1] = a[0] * e[1] + a[1] * e[0] + a[2] * e[3] - a[3] * e[2];
+            q[2] = a[0] * e[2] - a[1] * e[3] + a[2] * e[0] + a[3] * e[1];
+            q[3] = a[0] * e[3] + a[1] * e[2] - a[2] * e[1] + a[3] * e[0];
+            const double* cv = cvel + 6 * b;
+            const double* c0 = com + 3 * root(b);
+            const double arm[3] = {x[0] - c0[0], x[1] - c0[1], x[2] - c0[2]};
+            double wa[3];
+            cross(cv, arm, wa);
+            double* w = &Wv(i, n, 0);
+            double* v = &V(i, n, 0);
+            for (int c = 0; c < 3; ++c) {
+                w[c] = cv[c];
+                v[c] = cv[3 + c] + wa[c];
+            }
+        }
+    }
+}
+
 }  // namespace
 
 void bind_resolve(nb::module_& m) {
+    m.def("states", &states,
+          "states(rows, offsets, rr, slot, ids, root, iquat, x, r, q, v, w): the states of the "
+          "samples in slots `slot` from the rows `rr` (csrc/adapters/mujoco_resolve.cpp)");
     m.def("resolve", &resolve,
           "resolve(rows, offsets, v1, v0, Ma, root, parent, dof_body, dof_jnt, dof_trans, damping, "
           "h, implicit_damping, correction_kind, W, work): a block's impulses W (K, 5, nbody, 6) "

@@ -323,6 +323,19 @@ class StepImpulses:
                 v0[row] = v
         return v0
 
+    def fixed(self):
+        """The compiled kernels' fixed arrays: the row's field offsets (ROW_FIELDS order),
+        ``root``, ``body_parentid``, ``dof_body``, ``dof_jnt``, ``dof_trans`` (int64),
+        ``damping``."""
+        if self._fixed is None:
+            lay, m = self.lay, self.m
+            i64 = lambda a: np.ascontiguousarray(a, np.int64)  # noqa: E731
+            self._fixed = (np.array([self.rows_of.offset[f] for f in ROW_FIELDS], np.int64),
+                           i64(lay.root), i64(m.body_parentid), i64(lay.dof_body),
+                           i64(lay.dof_jnt), i64(lay.dof_trans),
+                           np.ascontiguousarray(lay.damping, np.float64))
+        return self._fixed
+
     def resolve(self):
         """The gathered steps as (impulses (K, 5, nbody, 6) [angular about the COM; linear], N s
         and N m s, in IMPULSE_KINDS order; work (K, 3, nbody) J, WORK_KINDS order). The rows
@@ -333,13 +346,7 @@ class StepImpulses:
         except ImportError:
             return self.resolve_numpy()
         k, lay, m = self.k, self.lay, self.m
-        if self._fixed is None:
-            i64 = lambda a: np.ascontiguousarray(a, np.int64)  # noqa: E731
-            self._fixed = (np.array([self.rows_of.offset[f] for f in ROW_FIELDS], np.int64),
-                           i64(lay.root), i64(m.body_parentid), i64(lay.dof_body),
-                           i64(lay.dof_jnt), i64(lay.dof_trans),
-                           np.ascontiguousarray(lay.damping, np.float64))
-        off, root, parent, dof_body, dof_jnt, dof_trans, damping = self._fixed
+        off, root, parent, dof_body, dof_jnt, dof_trans, damping = self.fixed()
         nb, nv = len(lay.root), int(m.nv)
         W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
         work = np.empty((k, len(WORK_KINDS), nb))
