@@ -244,17 +244,19 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
                f"dt {summary.dt:g} s, logged every {summary.log_every} steps ({summary.samples} samples)")
     na = summary.not_applicable
     e_why, l_why = na.get("energy_drift_rel"), na.get("angular_momentum_drift_rel")
+    # the engine's self-report (rblog.engine.summary.Drift), told apart from the audit
+    click.echo("  the engine's own figures at the logged samples (the audit: rblog check LOG)")
     if e_why and e_why == l_why:
-        click.echo(f"  energy, |L| drift       not shown: {e_why}")
+        click.echo(f"    energy, |L| drift     not shown: {e_why}")
     else:
-        click.echo("  energy drift (rel)      " + (f"not shown: {e_why}" if e_why else
+        click.echo("    energy drift (rel)    " + (f"not shown: {e_why}" if e_why else
                                                   f"{summary.energy_drift_rel:.3e}"))
-        click.echo("  |L| drift (rel)         " + (f"not shown: {l_why}" if l_why else
+        click.echo("    |L| drift (rel)       " + (f"not shown: {l_why}" if l_why else
                                                   f"{summary.angular_momentum_drift_rel:.3e}"))
     if summary.contact_penetration_max_m is not None:
-        click.echo(f"  deepest penetration     {1e3 * summary.contact_penetration_max_m:.3f} mm "
-                   "(at the logged samples; rblog check LOG judges each contact)")
-    click.echo(f"  max ||R^T R - I||_F     {summary.ortho_error_max:.3e}")
+        click.echo(f"    deepest penetration   {1e3 * summary.contact_penetration_max_m:.3f} mm "
+                   "(the engine's narrowphase on the logged poses)")
+    click.echo(f"    max ||R^T R - I||_F   {summary.ortho_error_max:.3e}")
     for p in paths:
         click.echo(f"  wrote {p}")
     flagged = audit is not None and print_live_report(audit, as_json, paths=paths)

@@ -64,6 +64,38 @@ def body_frame(inertia_principal, q_inertial, geom=None):
     return SHAPE_NONE, np.zeros(3), moments.copy(), qi
 
 
+class EngineRecorder:
+    """What every engine adapter's recorder shares: ``close`` (write what is gathered, then close
+    the :class:`rblog.record.Recorder` in ``self.recorder``, marked truncated when asked), use
+    as a context manager (an exception closes the log truncated, with its message as the
+    reason) and ``trajectory``. A subclass implements :meth:`flush`."""
+
+    recorder = None
+
+    def flush(self) -> None:
+        """Write the samples gathered so far."""
+        raise NotImplementedError
+
+    def close(self, truncated: bool = False, reason: str | None = None) -> None:
+        try:
+            if not truncated:
+                self.flush()
+        finally:
+            self.recorder.close(truncated=truncated, reason=reason)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
+
+    @property
+    def trajectory(self):
+        """The run so far (needs ``keep``, the default without an output path)."""
+        self.flush()
+        return self.recorder.trajectory
+
+
 class SampleStream:
     """Samples (step, t, position, quat_wxyz, velocity, world angular velocity, contact rows)
     gathered and written to an :class:`rblog.record.Recorder` a block at a time."""

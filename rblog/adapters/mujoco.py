@@ -110,6 +110,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.adapters import AdapterError
+from rblog.adapters._common import EngineRecorder
 from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _ContactArray, _is_model,
                                           _mj, _packed_contact_dict, capture_contacts, contacts,
                                           decode_contacts, gravity_of, inspect, settings,
@@ -118,7 +119,7 @@ from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpul
 from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
 
 
-class MujocoRecorder:
+class MujocoRecorder(EngineRecorder):
     """Record a MuJoCo model the caller steps: ``rec = MujocoRecorder(m, d, mcap=...)``, then
     ``rec(d)`` after every ``mj_step`` (a sample every ``every`` steps), ``rec.close()`` (or
     ``with``). See the module docstring for what is logged and how.
@@ -363,25 +364,6 @@ class MujocoRecorder:
         if not len(steps):
             return None
         return _packed_contact_dict(steps, ncon, raw.view(self._capture_dtype), nefc, efc)
-
-    def close(self, truncated: bool = False, reason: str | None = None) -> None:
-        try:
-            if not truncated:
-                self.flush()
-        finally:
-            self.recorder.close(truncated=truncated, reason=reason)
-
-    def __enter__(self) -> "MujocoRecorder":
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
-
-    @property
-    def trajectory(self):
-        """The run so far (needs ``keep``, the default without an output path)."""
-        self.flush()
-        return self.recorder.trajectory
 
 
 def _states_kernel() -> bool:

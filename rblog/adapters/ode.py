@@ -87,7 +87,7 @@ import ctypes
 import numpy as np
 
 from rblog.adapters import AdapterError, require
-from rblog.adapters._common import SampleStream, body_frame, quat_mul
+from rblog.adapters._common import EngineRecorder, SampleStream, body_frame, quat_mul
 from rblog.contract.model import BODY_JOINTED, JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_SLIDE, \
     SHAPE_BOX, SHAPE_SPHERE, SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE, Model
 from rblog.contract.orientation import matrix_to_quat
@@ -644,7 +644,7 @@ class _IntervalStream(SampleStream):
         rec.write(**arrays)
 
 
-class OdeRecorder:
+class OdeRecorder(EngineRecorder):
     """Record an ODE world: ``rec = OdeRecorder(world, space, dt=..., mcap=...)``, then ``rec()``
     after each ``dWorldStep`` / ``dWorldQuickStep``, ``rec.close()``.
 
@@ -785,26 +785,16 @@ class OdeRecorder:
 
     record = __call__
 
+    def flush(self) -> None:
+        """Write the samples gathered so far."""
+        self.stream.flush()
+
     def close(self, truncated: bool = False, reason: str | None = None) -> None:
-        if self._wrap is not None:
+        if self._wrap is not None:  # the world's step no longer records
             self._wrap.undo()
             self._wrap = None
-        try:
-            if not truncated:
-                self.stream.flush()
-        finally:
-            self.recorder.close(truncated=truncated, reason=reason)
+        super().close(truncated=truncated, reason=reason)
 
-    def __enter__(self) -> "OdeRecorder":
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
-
-    @property
-    def trajectory(self):
-        self.stream.flush()
-        return self.recorder.trajectory
 
 
 __all__ = ["CONTACT_ROWS", "ContactFeedback", "OdeRecorder", "inspect", "principal", "read_state",

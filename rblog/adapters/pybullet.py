@@ -89,7 +89,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.adapters import AdapterError, _gather, require
-from rblog.adapters._common import quat_mul
+from rblog.adapters._common import EngineRecorder, quat_mul
 from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE
 from rblog.contract.orientation import quat_wxyz_to_matrix
 
@@ -594,7 +594,7 @@ def body_table(world: World, gravity, impulses=None):
                  impulses=supplied, work=(), gravity=tuple(float(x) for x in gravity))
 
 
-class PybulletRecorder:
+class PybulletRecorder(EngineRecorder):
     """Record every body of a pybullet client: ``rec = PybulletRecorder(client, mcap=...)``, then
     ``rec()`` after each ``stepSimulation`` (or ``rec.step(k)`` to step and record), ``rec.close()``.
 
@@ -758,23 +758,6 @@ class PybulletRecorder:
         """Write the samples gathered so far."""
         self.block.flush()
 
-    def close(self, truncated: bool = False, reason: str | None = None) -> None:
-        try:
-            if not truncated:
-                self.flush()
-        finally:
-            self.recorder.close(truncated=truncated, reason=reason)
-
-    def __enter__(self) -> "PybulletRecorder":
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        self.close(truncated=exc_type is not None, reason=None if exc is None else str(exc))
-
-    @property
-    def trajectory(self):
-        self.flush()
-        return self.recorder.trajectory
 
 
 #: pybullet_data worlds as shipped (the URDFs unchanged, pybullet's default damping left on)

@@ -202,15 +202,14 @@ class Worst:
 
 
 class Analyzer:
-    """Base class. Subclasses set ``name``, ``description``, ``defaults`` and ``units``
-    (tolerance name -> default value / unit) and implement :meth:`analyze`."""
+    """Base class. Subclasses set ``name``, ``description`` and ``defaults`` (tolerance name ->
+    default value, rblog.analyze.tolerances.options; the name ends in its unit) and implement
+    :meth:`analyze`."""
 
     name: str = ""
     description: str = ""
     #: tolerance name -> default value
     defaults: dict[str, float] = {}
-    #: tolerance name -> unit ("1" when not listed: a ratio)
-    units: dict[str, str] = {}
 
     def __init__(self, **tolerances):
         self.tol = dict(self.defaults)
@@ -230,7 +229,7 @@ class Analyzer:
     @classmethod
     def tolerance_table(cls) -> list[tuple[str, float, str]]:
         """(``analyzer.name``, default, unit) of every tolerance, for listings (``--list``)."""
-        return [(f"{cls.name}.{k}", v, cls.units.get(k, "1")) for k, v in cls.defaults.items()]
+        return [(f"{cls.name}.{k}", v, tol.unit_of(k)) for k, v in cls.defaults.items()]
 
     def run(self, traj: Trajectory, ctx: "Context | None" = None) -> Result:
         """Analyze ``traj`` (``ctx`` shares work between analyzers of one trajectory).

@@ -418,15 +418,8 @@ class ConsistencyAnalyzer(Analyzer):
     name = "consistency"
     description = ("channels agree with each other: quaternion vs matrix, p = m v, L = I_world w, "
                    "orientation turning at the world angular velocity, finite values, time order")
-    defaults = {
-        "quat_matrix": T.CONSISTENCY_QUAT_MATRIX,
-        "momentum_rel": T.CONSISTENCY_MOMENTUM_REL,
-        "angular_momentum_rel": T.CONSISTENCY_ANGULAR_MOMENTUM_REL,
-        "kinematic_rel": T.CONSISTENCY_KINEMATIC_REL,
-        "min_angle_rad": T.CONSISTENCY_MIN_ANGLE_RAD,
-        "min_intervals_samples": T.CONSISTENCY_MIN_INTERVALS_SAMPLES,
-    }
-    units = {"min_angle_rad": "rad", "min_intervals_samples": "samples"}
+    defaults = T.options("consistency", "quat_matrix", "momentum_rel", "angular_momentum_rel",
+                         "kinematic_rel", "min_angle_rad", "min_intervals_samples")
 
     def analyze(self, ctx: Context) -> Result:
         # the samples before the first non-finite one (drift reports that one; load's warnings

@@ -82,13 +82,7 @@ class DriftAnalyzer(Analyzer):
     name = "drift"
     description = ("rigidity: ||R^T R - I||, det R - 1, |q| - 1 and body-fixed distances from the "
                    "logged rotation; onset time and growth rate")
-    defaults = {
-        "ortho_error": T.DRIFT_ORTHO_ERROR,
-        "det_error": T.DRIFT_DET_ERROR,
-        "quat_norm_error": T.DRIFT_QUAT_NORM_ERROR,
-        "distance_rel": T.DRIFT_DISTANCE_REL,
-    }
-    units = {k: "1" for k in defaults}
+    defaults = T.options("drift", "ortho_error", "det_error", "quat_norm_error", "distance_rel")
 
     def metrics(self, ctx: Context) -> dict[str, np.ndarray]:
         """Each metric (T, N), recomputed from the logged rotation and quaternion."""

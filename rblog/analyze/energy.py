@@ -126,15 +126,8 @@ class EnergyAnalyzer(Analyzer):
     name = "energy"
     description = ("energy drift of free bodies under conservative forces, and energy gain "
                    "across contacts")
-    defaults = {
-        "drift_rel": T.ENERGY_DRIFT_REL,
-        "contact_gain_rel": T.ENERGY_CONTACT_GAIN_REL,
-        "position_correction_m": T.ENERGY_POSITION_CORRECTION_M,
-        "dt_factor": T.ENERGY_DT_FACTOR,
-        "floor_j_per_kg": T.ENERGY_FLOOR_J_PER_KG,
-        "contact_distance_m": T.CONTACT_DISTANCE_M,
-    }
-    units = {"position_correction_m": "m", "floor_j_per_kg": "J/kg", "contact_distance_m": "m"}
+    defaults = T.options("energy", "drift_rel", "contact_gain_rel", "position_correction_m",
+                         "dt_factor", "floor_j_per_kg", contact_distance_m=T.CONTACT_DISTANCE_M)
 
     def analyze(self, ctx: Context) -> Result:
         tr = ctx.traj

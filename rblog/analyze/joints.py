@@ -181,7 +181,6 @@ class JointsAnalyzer(Analyzer):
                    "growth of any drift")
     #: the tolerances are derived per joint and sample (module docstring); these scale them
     defaults = {"tol_scale": 1.0}
-    units = {"tol_scale": "1"}
 
     def analyze(self, ctx: Context) -> Result:
         tr = ctx.traj

@@ -156,24 +156,11 @@ class MomentumAnalyzer(Analyzer):
     name = "momentum"
     description = ("collision momentum: conservation across body-body collisions, impulses in the "
                    "friction cone at static contacts, restitution and energy at impacts")
-    defaults = {
-        "linear_rel": T.MOMENTUM_LINEAR_REL,
-        "angular_rel": T.MOMENTUM_ANGULAR_REL,
-        "cone_rel": T.MOMENTUM_CONE_REL,
-        "impact_speed_mps": T.MOMENTUM_IMPACT_SPEED_MPS,
-        "restitution_rel": T.MOMENTUM_RESTITUTION_REL,
-        "elastic_energy_rel": T.MOMENTUM_ELASTIC_ENERGY_REL,
-        "cone_floor_ns": T.MOMENTUM_CONE_FLOOR_NS,
-        "lost_bounce_mps": T.MOMENTUM_LOST_BOUNCE_MPS,
-        "restitution_min_speed_mps": T.MOMENTUM_RESTITUTION_MIN_SPEED_MPS,
-        "energy_rel": T.MOMENTUM_ENERGY_REL,
-        "position_correction_m": T.ENERGY_POSITION_CORRECTION_M,
-        "dt_factor": T.ENERGY_DT_FACTOR,
-        "contact_distance_m": T.CONTACT_DISTANCE_M,
-    }
-    units = {"impact_speed_mps": "m/s", "restitution_min_speed_mps": "m/s", "cone_floor_ns": "N s",
-             "lost_bounce_mps": "m/s",
-             "position_correction_m": "m", "contact_distance_m": "m"}
+    defaults = T.options("momentum", "linear_rel", "angular_rel", "cone_rel", "impact_speed_mps",
+                         "restitution_rel", "elastic_energy_rel", "cone_floor_ns",
+                         "lost_bounce_mps", "restitution_min_speed_mps", "energy_rel",
+                         position_correction_m=T.ENERGY_POSITION_CORRECTION_M,
+                         dt_factor=T.ENERGY_DT_FACTOR, contact_distance_m=T.CONTACT_DISTANCE_M)
 
     def analyze(self, ctx: Context) -> Result:
         tr = ctx.traj

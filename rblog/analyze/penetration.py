@@ -197,26 +197,11 @@ class PenetrationAnalyzer(Analyzer):
     name = "penetration"
     description = ("resting contact: depth recomputed from the poses, duration, jitter and creep; "
                    "and the deepest penetration at any time")
-    defaults = {
-        "depth_m": T.PENETRATION_DEPTH_M,
-        "depth_frac": T.PENETRATION_DEPTH_FRAC,
-        "transient_depth_m": T.PENETRATION_TRANSIENT_DEPTH_M,
-        "transient_frac": T.PENETRATION_TRANSIENT_FRAC,
-        "rest_speed_mps": T.PENETRATION_REST_SPEED_MPS,
-        "rest_min_samples": T.PENETRATION_REST_MIN_SAMPLES,
-        "settle_s": T.PENETRATION_SETTLE_S,
-        "jitter_mps": T.PENETRATION_JITTER_MPS,
-        "jitter_persist_samples": T.PENETRATION_JITTER_PERSIST_SAMPLES,
-        "creep_m": T.PENETRATION_CREEP_M,
-        "creep_speed_mps": T.PENETRATION_CREEP_SPEED_MPS,
-        "slide_cone_frac": T.PENETRATION_SLIDE_CONE_FRAC,
-        "slide_floor_ns": T.MOMENTUM_CONE_FLOOR_NS,
-        "contact_distance_m": T.CONTACT_DISTANCE_M,
-    }
-    units = {"depth_m": "m", "transient_depth_m": "m", "rest_speed_mps": "m/s",
-             "rest_min_samples": "samples", "settle_s": "s", "jitter_mps": "m/s",
-             "jitter_persist_samples": "samples", "creep_m": "m",
-             "creep_speed_mps": "m/s", "slide_floor_ns": "N s", "contact_distance_m": "m"}
+    defaults = T.options("penetration", "depth_m", "depth_frac", "transient_depth_m",
+                         "transient_frac", "rest_speed_mps", "rest_min_samples", "settle_s",
+                         "jitter_mps", "jitter_persist_samples", "creep_m", "creep_speed_mps",
+                         "slide_cone_frac", slide_floor_ns=T.MOMENTUM_CONE_FLOOR_NS,
+                         contact_distance_m=T.CONTACT_DISTANCE_M)
 
     def supports(self, ctx: Context):
         """The primary support of each body at each sample where it touches something (within

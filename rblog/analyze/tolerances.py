@@ -29,6 +29,25 @@ How they were chosen (numbers for the engine's defaults, dt = 1e-3 .. 1e-2 s, lo
 
 from __future__ import annotations
 
+#: name endings -> unit, longest first (an option's name carries its unit; "1" where none does)
+_UNIT_SUFFIXES = (("_j_per_kg", "J/kg"), ("_samples", "samples"), ("_mps", "m/s"),
+                  ("_ns", "N s"), ("_rad", "rad"), ("_m", "m"), ("_s", "s"))
+
+
+def unit_of(name: str) -> str:
+    """The unit an option's name ends in: ``depth_m`` is in m, ``cone_floor_ns`` in N s."""
+    return next((u for suffix, u in _UNIT_SUFFIXES if name.endswith(suffix)), "1")
+
+
+def options(analyzer: str, *names: str, **shared: float) -> dict[str, float]:
+    """An analyzer's options (name -> default): each of ``names`` is this module's constant
+    ``<ANALYZER>_<NAME>`` (``options("drift", "ortho_error")`` reads DRIFT_ORTHO_ERROR);
+    ``shared`` names defaults kept under another constant (``contact_distance_m=
+    CONTACT_DISTANCE_M``)."""
+    g = globals()
+    return {**{n: g[f"{analyzer.upper()}_{n.upper()}"] for n in names}, **shared}
+
+
 # --- shared geometry --------------------------------------------------------------------------
 #: Two surfaces closer than this (m) are "in contact" (resting detection, contact intervals).
 #: Engines keep resting contacts within ~0.1 mm (speculative margin) of touching; 1 mm also

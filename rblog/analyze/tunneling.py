@@ -37,12 +37,8 @@ from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_
 class TunnelingAnalyzer(Analyzer):
     name = "tunneling"
     description = "bodies passing through the ground, static boxes or each other between samples"
-    defaults = {
-        "crossing_m": T.TUNNELING_CROSSING_M,
-        "pass_frac": T.TUNNELING_PASS_FRAC,
-        "contact_distance_m": T.CONTACT_DISTANCE_M,
-    }
-    units = {"crossing_m": "m", "contact_distance_m": "m"}
+    defaults = T.options("tunneling", "crossing_m", "pass_frac",
+                         contact_distance_m=T.CONTACT_DISTANCE_M)
 
     def analyze(self, ctx: Context) -> Result:
         tr = ctx.traj

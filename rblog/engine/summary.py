@@ -1,8 +1,10 @@
 """What a run reports about itself, and how its engine logs it.
 
 :class:`RunSummary` is the run's figures (steps, throughput, the drifts over the logged samples);
-:class:`Drift` measures those drifts from each block handed to the recorders (the summary
-`rblog run` prints; ``rblog check`` is the audit). :func:`engine_model` is the body table as
+:class:`Drift` measures those drifts from each block handed to the recorders: the engine's
+self-report that `rblog run` prints under "the engine's own figures", one whole-scene number
+each, the penetration by the engine's own narrowphase. It is not the audit: ``rblog check``'s
+analyzers (rblog.analyze) judge each body and contact of the log with their own tolerances. :func:`engine_model` is the body table as
 rblog's engine logs it (contract v3: which per-interval impulses it carries).
 """
 

@@ -30,6 +30,8 @@ match, i.e. for a run recorded to .rrd).
 
 from __future__ import annotations
 
+import textwrap
+
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,6 +55,9 @@ FINDINGS_ENTITY = "findings"
 #: MCAP topics of the findings: ``foxglove.Log`` (Foxglove lists them in its Log panel and marks
 #: them on the timeline, at the run's own time base) and ``foxglove.SceneUpdate`` markers
 FINDINGS_TOPIC = "/rblog/findings"
+#: longest line of a finding in the Rerun findings table (characters): the table spans the
+#: 1600 px layout, ~7.3 px per character of the viewer's font, less the time column
+FINDINGS_WRAP_CHARS = 190
 MARKERS_TOPIC = "/rblog/findings/markers"
 
 
@@ -75,6 +80,14 @@ class Row:
         u = "" if self.unit in ("", "1") else f" {self.unit}"
         return (f"{self.analyzer} | {self.body_names} | value {self.value:.4g}{u} vs limit "
                 f"{self.tolerance:.4g}{u} | {self.message}")
+
+    @property
+    def lines(self) -> list[str]:
+        """:attr:`text` broken into lines of at most FINDINGS_WRAP_CHARS, continuation lines
+        indented: the Rerun findings table shows each as a row of its own (a row holds one line
+        of text; a longer one is cut at the panel's edge)."""
+        return textwrap.wrap(self.text, FINDINGS_WRAP_CHARS, subsequent_indent="    ",
+                             break_on_hyphens=False)
 
 
 def finding_rows(traj: Trajectory, results) -> list[Row]:
@@ -150,7 +163,8 @@ def log_findings(rec: rr.RecordingStream, traj: Trajectory, results) -> int:
     rows = finding_rows(traj, results)
     for w in rows:
         _time(rec, w.step, w.t)
-        rec.log(f"{FINDINGS_ENTITY}/{w.analyzer}", rr.TextLog(w.text, level="ERROR"))
+        for line in w.lines:  # one row per line, all at the finding's onset
+            rec.log(f"{FINDINGS_ENTITY}/{w.analyzer}", rr.TextLog(line, level="ERROR"))
     if not rows and len(t):
         ran = ", ".join(r.analyzer for r in results if not r.skipped) or "none"
         _time(rec, int(step[0]), float(t[0]))

@@ -519,14 +519,15 @@ DRIFT_FLOOR = 1e-17
 DRIFT_AXIS_LOG10 = (math.log10(DRIFT_FLOOR) - 1.0, 9.0)
 #: the line colours of the energy and momentum plots (RGB): hues far apart on the colour wheel,
 #: so that no two series of one plot look alike (the viewer's own picks were blues and purples);
-#: total energy dark, x/y/z as red/green/blue for P and orange/grey/magenta for L
+#: total energy white, x/y/z as red/green/blue for P and orange/white/magenta for L; each
+#: at a contrast of 3 or more to the viewer's dark plot background (13, 13, 13)
 SERIES_COLOURS = {
-    "plots/energy/total": [(40, 40, 40)],
+    "plots/energy/total": [(235, 235, 235)],
     "plots/energy/translational": [(31, 119, 180)],
     "plots/energy/rotational": [(255, 127, 14)],
     "plots/energy/potential": [(44, 160, 44)],
     "plots/momentum/linear": [(214, 39, 40), (44, 160, 44), (31, 119, 180)],
-    "plots/momentum/angular": [(255, 160, 0), (70, 70, 70), (227, 119, 194)],
+    "plots/momentum/angular": [(255, 160, 0), (235, 235, 235), (227, 119, 194)],
 }
 #: per-body angular velocity (body frame) of small scenes: OMEGA_ENTITY/<body view name>
 OMEGA_ENTITY = "plots/omega_body"

@@ -80,11 +80,15 @@ def test_check_rrd_writes_one_recording_with_the_run_and_its_findings(logs, kind
     # the run itself reads back from the file, sample for sample
     back = load(out)
     np.testing.assert_array_equal(back.position, traj.position)
-    # one temporal text-log row per finding, and nothing static on the findings entities: a
-    # static row (the old header) hides every temporal row of its entity in the viewer
+    # one temporal text-log row per line of each finding's wrapped text, and nothing static on
+    # the findings entities: a static row hides every temporal row of its entity in the viewer
+    from rblog.record.findings import finding_rows
+
     text = [c for c in chunks if c.entity_path.startswith("/findings")]
     assert not [c for c in text if c.is_static], [c.entity_path for c in text]
-    assert sum(c.num_rows for c in text) == n_findings
+    rows = finding_rows(traj, check(traj))
+    assert len(rows) == n_findings
+    assert sum(c.num_rows for c in text) == sum(len(w.lines) for w in rows)
 
 
 def test_findings_rows_name_analyzer_body_value_limit_and_message(logs):
@@ -101,6 +105,22 @@ def test_findings_rows_name_analyzer_body_value_limit_and_message(logs):
         assert value.startswith("value ") and " vs limit " in value, w.text
         assert message == next(f.message for r in results for f in r.findings
                                if r.analyzer == w.analyzer and f.t == w.t)
+
+
+def test_a_long_finding_wraps_into_rows_that_fit_the_table():
+    """The Rerun findings table shows one line of text per row and cuts a longer one at the
+    panel's edge: a finding's text is wrapped into lines of at most FINDINGS_WRAP_CHARS, every
+    word kept, in order."""
+    from rblog.record.findings import FINDINGS_WRAP_CHARS, Row
+
+    message = " ".join(f"word{k}" for k in range(120))  # ~900 characters
+    w = Row("energy", 20.0, 2000, [0], "box", 0.0086, 0.001, "1", message)
+    assert len(w.lines) >= len(w.text) // FINDINGS_WRAP_CHARS
+    assert all(len(line) <= FINDINGS_WRAP_CHARS for line in w.lines), w.lines
+    assert " ".join(line.strip() for line in w.lines) == w.text
+    assert all(line.startswith("    ") for line in w.lines[1:])  # continuations indented
+    assert Row("drift", 0.0, 0, [0], "box", 1.0, 1e-6, "1", "short").lines == [
+        "drift | box | value 1 vs limit 1e-06 | short"]
 
 
 def test_check_mcap_writes_the_run_with_foxglove_logs_and_markers(logs):

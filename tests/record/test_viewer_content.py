@@ -25,6 +25,20 @@ from conftest import SAMPLES_DIR
 #: the least distance (RGB, 0-255 each) between two series of one plot: the distance from pure
 #: red to orange (255, 127, 0) is 127; two blues the viewer picks differ by ~40
 MIN_RGB_DISTANCE = 90
+#: the Rerun viewer's plot background in its dark theme (read off a screenshot: (13, 13, 13))
+VIEWER_BACKGROUND_RGB = (13, 13, 13)
+#: WCAG's contrast ratio for graphics (lines) against their background
+MIN_CONTRAST = 3.0
+
+
+def _contrast(a, b) -> float:
+    """WCAG 2 contrast ratio of two sRGB colours (0-255): (L1 + 0.05) / (L2 + 0.05)."""
+    def lum(c):
+        c = np.asarray(c, float) / 255.0
+        lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+        return float(lin @ [0.2126, 0.7152, 0.0722])
+    la, lb = sorted((lum(a), lum(b)), reverse=True)
+    return (la + 0.05) / (lb + 0.05)
 
 
 def _chunks(path, entity):
@@ -83,6 +97,10 @@ def test_plot_series_have_distinct_colours(tmp_path):
         assert len(colours) == (4 if plot == "energy" else 6)
         for a, b in itertools.combinations(colours, 2):
             assert np.linalg.norm(a - b) >= MIN_RGB_DISTANCE, (plot, a, b)
+        # every line stands out from the dark background (total energy was (40, 40, 40) and
+        # L_y (70, 70, 70): contrasts 1.3 and 2.0, near invisible in the screenshot of `mixed`)
+        for c in colours:
+            assert _contrast(c, VIEWER_BACKGROUND_RGB) >= MIN_CONTRAST, (plot, c)
     assert set(W.SERIES_COLOURS) == {f"plots/energy/{e}" for e in
                                      ("total", "translational", "rotational", "potential")} | {
         "plots/momentum/linear", "plots/momentum/angular"}
