@@ -352,12 +352,10 @@ def _contact_dict(raws):
     """The raw captures of several steps as one dict of arrays (K rows)."""
     counts = np.array([len(r) for _, r, _ in raws])
     steps = np.array([st for st, _, _ in raws], np.int64)
-    dtypes = {r.dtype for _, r, _ in raws}
-    if len(dtypes) == 1:  # as raw bytes: concatenating structured arrays is ~100x slower
-        dt = dtypes.pop()
-        raw = np.concatenate([r.view(np.dtype((np.void, dt.itemsize))) for _, r, _ in raws]).view(dt)
-    else:
-        raw = np.concatenate([r for _, r, _ in raws])
+    dt = raws[0][1].dtype  # as raw bytes: concatenating structured arrays is ~100x slower
+    one = all(r.dtype == dt for _, r, _ in raws)
+    raw = np.concatenate([r.view(np.dtype((np.void, dt.itemsize))) if one else r for _, r, _ in raws])
+    raw = raw.view(dt) if one else raw
     sizes = np.array([len(e) for _, _, e in raws])
     return _packed_contact_dict(steps, counts, raw, sizes, np.concatenate([e for _, _, e in raws]))
 
@@ -390,8 +388,6 @@ def decode_contacts(m, layout: Layout, raws, packed=None):
     elif raws:
         raw = _contact_dict(raws)
     else:
-        return None
-    if not len(raw["step"]):
         return None
     k = len(raw["step"])
     adr, dim, mu, f = raw["adr"], raw["dim"], raw["mu"], raw["efc"]
