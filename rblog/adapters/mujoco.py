@@ -101,7 +101,9 @@ swapped in and back, and a few copies of contiguous pieces of mjData into a prea
 (:class:`Rows`); per sample the contacts' raw ``mjContact`` structs and ``efc_force``. A
 sample's state is the next step's row (its start is the sample's state) under Euler and the
 implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
-the rows are resolved into impulses, vectorized, and written as one block. Measured with
+the rows are resolved into impulses and the samples' states (compiled:
+``_hook.resolve``, ``_hook.states``; numpy without them), the contacts copied at each logged step
+(``_hook.ContactCapture``) decoded, and all written as one block. Measured with
 benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
 """
 
