@@ -16,10 +16,11 @@ The truth, never from the log or from rblog's code:
   resting and the transient tolerance either verdict agrees (a fault only if the pair rests);
   below, clean. A pybullet result whose findings are all creep is held against pybullet's own
   base poses: how far one block's centre moves in its partner's frame over the run.
-* energy (MuJoCo): ``mj_energyPos + mj_energyVel`` at each logged state less the work of every
-  force but gravity (``qfrc_actuator + qfrc_passive + qfrc_constraint`` at each step's mean
-  velocity; Euler's implicit damping at the step's end velocity): a fault past ENERGY_REL of
-  the largest kinetic energy. Runs with contacts: not judged by this truth (an impact inside a
+* energy (MuJoCo): ``mj_energyPos + mj_energyVel`` at each logged state (springs' potential
+  included) less the work of every force but gravity and the springs (``qfrc_actuator +
+  qfrc_passive - qfrc_spring + qfrc_constraint`` at each step's mean velocity; Euler's
+  implicit damping at the step's end velocity): a fault past ENERGY_REL of the largest kinetic
+  energy. Runs with contacts: not judged by this truth (an impact inside a
   step does work the step's forces do not show). pybullet: no independent energy.
 * momentum: Newton holds inside either engine: each body's momentum change equals its impulses
   + m g dt, measured from qvel / getBaseVelocity to 1e-9 relative by
@@ -81,9 +82,10 @@ def record_mujoco(name, every, ctrl, steps):
             d.ctrl[:] = rng.uniform(-1.0, 1.0, m.nu)
         mujoco.mj_step(m, d)
         rec(d)
-        # the work of every force but gravity over the step (actuators, passive, constraints:
-        # MuJoCo's own generalized forces of the step, at its mean velocity)
-        f = d.qfrc_actuator + d.qfrc_passive + d.qfrc_constraint
+        # the work of every force but gravity and the springs over the step (actuators, passive,
+        # constraints: MuJoCo's own generalized forces of the step, at its mean velocity); the
+        # springs' potential is in mj_energyPos, so their force (qfrc_spring) does no work here
+        f = d.qfrc_actuator + d.qfrc_passive - d.qfrc_spring + d.qfrc_constraint
         if m.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER:
             # Euler integrates joint damping implicitly: the step applies -D v(end), not the
             # -D v(start) that qfrc_passive holds

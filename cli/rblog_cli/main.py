@@ -91,6 +91,7 @@ def validate(scene):
         click.echo(f"rblog: warning: {w}", err=True)
     click.echo(f"{scene}: ok ({s.model.n_bodies} bodies, {s.sim.n_steps} steps of "
                f"{s.sim.dt:g} s, integrator {s.sim.integrator})")
+    click.echo("  shapes: " + ", ".join(f"{k} {v}" for k, v in s.shape_counts().items()))
 
 
 @main.command()

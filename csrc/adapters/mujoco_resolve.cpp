@@ -10,8 +10,11 @@
 //   gen_a[b]      sum_j pair[b, j] tau_a,j S_j (pair: +1 on the dof's body, -1 on its parent);
 //   W[0] contact  cfrc_ext - xfrc_c (xfrc_c = [tau + r x f; f], about c), W[1..3] = gen
 //                 (+ xfrc_c on applied), W[4] joint = cfrc_int[b] - sum_children cfrc_int - sum_a gen_a;
-//   then the torques about the centre of mass (tau -= r x f), times h;
-//   work_a[b]     (sum over b's dofs of tau_a,j v1_j) h, plus h (f . v_com + tau . w) for xfrc.
+//   then the torques about the centre of mass (tau -= r x f), times h; W[5] integration = 0
+//                 (per interval: MujocoRecorder._integration);
+//   work_a[b]     (sum over b's dofs of tau_a,j u_j) h (xfrc_applied's work is added in numpy,
+//                 _mujoco_step._xfrc_work: einsum's order), and work_joint[b] = (sum over b's dofs of q_joint_j u_j) h, with u = v_work
+//                 and q_joint (K, nv) from numpy (StepImpulses._v_work, _joint_forces).
 // Sums run over dofs (and children) in ascending order, as numpy's matmul does.
 // states() reads the logged states of samples out of the same rows (below).
 #include <nanobind/nanobind.h>
@@ -38,16 +41,20 @@ inline void cross(const double* a, const double* b, double* out) {
     out[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-constexpr int N_KINDS = 5;  // IMPULSE_KINDS: contact, applied, passive, actuator, joint
+// IMPULSE_KINDS: contact, applied, passive, actuator, joint, integration
+constexpr int N_KINDS = 6;
+constexpr int N_WORK = 4;   // WORK_KINDS: applied, passive, actuator, joint
 
 void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handle v0_h,
              nb::handle ma_h, nb::handle root_h, nb::handle parent_h, nb::handle dof_body_h,
              nb::handle dof_jnt_h, nb::handle dof_trans_h, nb::handle damping_h, double h,
-             bool implicit_damping, int correction_kind, nb::handle w_h, nb::handle work_h) {
+             bool implicit_damping, int correction_kind, nb::handle q_joint_h,
+             nb::handle v_work_h, nb::handle w_h, nb::handle work_h) {
     V2<double> rows = v2<double>(rows_h, "rows");
     V1<i64> off = v1<i64>(offsets_h, "offsets");
     V2<double> v1m = v2<double>(v1_h, "v1"), v0m = v2<double>(v0_h, "v0");
     V2<double> ma = v2<double>(ma_h, "Ma");
+    V2<double> qj = v2<double>(q_joint_h, "q_joint"), vw = v2<double>(v_work_h, "v_work");
     V1<i64> root = v1<i64>(root_h, "root"), parent = v1<i64>(parent_h, "parent");
     V1<i64> dof_body = v1<i64>(dof_body_h, "dof_body"), dof_jnt = v1<i64>(dof_jnt_h, "dof_jnt");
     V1<i64> dof_trans = v1<i64>(dof_trans_h, "dof_trans");
@@ -57,11 +64,13 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
     const i64 K = rows.n0, nb_ = root.n0, nv = v1m.n1;
     if (off.n0 != N_ROW_FIELDS) throw nb::value_error("resolve: offsets must hold 17 fields");
     if (v1m.n0 != K || v0m.n0 != K || v0m.n1 != nv || parent.n0 != nb_ || dof_body.n0 != nv ||
-        dof_jnt.n0 != nv || dof_trans.n0 != nv || damping.n0 != nv)
-        throw nb::value_error("resolve: v1, v0 (K, nv), parent (nbody,), dof_* (nv,) disagree");
+        dof_jnt.n0 != nv || dof_trans.n0 != nv || damping.n0 != nv || qj.n0 != K ||
+        qj.n1 != nv || vw.n0 != K || vw.n1 != nv)
+        throw nb::value_error(
+            "resolve: v1, v0, q_joint, v_work (K, nv), parent (nbody,), dof_* (nv,) disagree");
     if (W.n0 != K || W.n1 != N_KINDS || W.n2 != nb_ || W.n3 != 6 || work.n0 != K ||
-        work.n1 != 3 || work.n2 != nb_)
-        throw nb::value_error("resolve: W must be (K, 5, nbody, 6) and work (K, 3, nbody)");
+        work.n1 != N_WORK || work.n2 != nb_)
+        throw nb::value_error("resolve: W must be (K, 6, nbody, 6) and work (K, 4, nbody)");
     const bool with_ma = ma.n0 > 0;
     if (with_ma && (ma.n0 < K || ma.n1 != nv)) throw nb::value_error("resolve: Ma must be (K, nv)");
     for (i64 f = 0; f < N_ROW_FIELDS; ++f)
@@ -92,7 +101,9 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
         const double* cfrc_int = row + off(F_CFRC_INT);
         const double* v1 = &v1m(k, 0);
         const double* v0 = &v0m(k, 0);
-        double* Wk = &W(k, 0, 0, 0);  // (5, nbody, 6)
+        const double* u = &vw(k, 0);
+        const double* qjk = &qj(k, 0);
+        double* Wk = &W(k, 0, 0, 0);  // (6, nbody, 6)
         for (i64 b = 0; b < nb_; ++b)
             for (int c = 0; c < 3; ++c) r[3 * b + c] = xipos[3 * b + c] - com[3 * root(b) + c];
         // contact
@@ -172,8 +183,9 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
         }
         for (i64 i = 0; i < 6 * nb_; ++i)
             Wj[i] -= gen[i] + gen[nb_ * 6 + i] + gen[2 * nb_ * 6 + i];
-        // torques about the centre of mass, then impulses
-        for (int a = 0; a < N_KINDS; ++a)
+        // torques about the centre of mass, then impulses; the integration kind 0
+        for (i64 i = 0; i < 6 * nb_; ++i) Wk[5 * nb_ * 6 + i] = 0.0;
+        for (int a = 0; a < 5; ++a)
             for (i64 b = 0; b < nb_; ++b) {
                 double* w = Wk + (a * nb_ + b) * 6;
                 double rf[3];
@@ -181,25 +193,13 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
                 for (int c = 0; c < 3; ++c) w[c] -= rf[c];
                 for (int c = 0; c < 6; ++c) w[c] *= h;
             }
-        // work (3, nbody)
+        // work (4, nbody)
         double* wk = &work(k, 0, 0);
-        for (i64 i = 0; i < 3 * nb_; ++i) wk[i] = 0.0;
+        for (i64 i = 0; i < N_WORK * nb_; ++i) wk[i] = 0.0;
         for (int a = 0; a < 3; ++a)
-            for (i64 j = 0; j < nv; ++j) wk[a * nb_ + dof_body(j)] += tau[a * nv + j] * v1[j];
-        for (i64 i = 0; i < 3 * nb_; ++i) wk[i] *= h;
-        if (pushed) {
-            const double* cv = row + off(F_CVEL);
-            for (i64 b = 0; b < nb_; ++b) {
-                const double* cvb = cv + 6 * b;
-                double wr[3];
-                cross(cvb, &r[3 * b], wr);
-                const double vc[3] = {cvb[3] + wr[0], cvb[4] + wr[1], cvb[5] + wr[2]};
-                const double* f = xf + 6 * b;
-                const double fv = f[0] * vc[0] + f[1] * vc[1] + f[2] * vc[2];
-                const double tw = f[3] * cvb[0] + f[4] * cvb[1] + f[5] * cvb[2];
-                wk[b] += h * (fv + tw);
-            }
-        }
+            for (i64 j = 0; j < nv; ++j) wk[a * nb_ + dof_body(j)] += tau[a * nv + j] * u[j];
+        for (i64 j = 0; j < nv; ++j) wk[3 * nb_ + dof_body(j)] += qjk[j] * u[j];
+        for (i64 i = 0; i < N_WORK * nb_; ++i) wk[i] *= h;
     }
 }
 
@@ -275,8 +275,9 @@ void bind_resolve(nb::module_& m) {
           "samples in slots `slot` from the rows `rr` (csrc/adapters/mujoco_resolve.cpp)");
     m.def("resolve", &resolve,
           "resolve(rows, offsets, v1, v0, Ma, root, parent, dof_body, dof_jnt, dof_trans, damping, "
-          "h, implicit_damping, correction_kind, W, work): a block's impulses W (K, 5, nbody, 6) "
-          "and work (K, 3, nbody), written into W and work (csrc/adapters/mujoco_resolve.cpp)");
+          "h, implicit_damping, correction_kind, q_joint, v_work, W, work): a block's impulses W "
+          "(K, 6, nbody, 6) and work (K, 4, nbody), written into W and work "
+          "(csrc/adapters/mujoco_resolve.cpp)");
 }
 
 }  // namespace rb

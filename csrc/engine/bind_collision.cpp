@@ -49,7 +49,8 @@ nb::dict collision_layout() {
     RB_PUT(LOG_STEP); RB_PUT(LOG_A); RB_PUT(LOG_B); RB_PUT(LOG_KIND); RB_PUT(LOG_I_COLS);
     RB_PUT(LOG_P); RB_PUT(LOG_N); RB_PUT(LOG_S); RB_PUT(LOG_LN); RB_PUT(LOG_F); RB_PUT(LOG_F_COLS);
     RB_PUT(MAX_CLIP_POINTS); RB_PUT(MAX_MANIFOLD_POINTS);
-    RB_PUT(GEOM_SPHERE); RB_PUT(GEOM_BOX); RB_PUT(GEOM_PLANE);
+    RB_PUT(GEOM_SPHERE); RB_PUT(GEOM_BOX); RB_PUT(GEOM_CAPSULE); RB_PUT(GEOM_CYLINDER);
+    RB_PUT(GEOM_PLANE);
 #undef RB_PUT
     d["_AREA_EPS"] = AREA_EPS;
     nb::list table;  // (lower code, higher code) pairs that have a collider

@@ -100,7 +100,7 @@ void bind_contact(nb::module_& m) {
         RB_FIELD2(pw) RB_FIELD2(p0) RB_FIELD2(l0) RB_FIELD2(l_drift) RB_FIELD1(parent)
         RB_FIELD1(isl_time) RB_FIELD1(isl_sup) RB_FIELD1(hot)
         RB_FIELD2(dx_step) RB_FIELD2(proj_dx) RB_FIELD2(proj_dth) RB_FIELD1(pushed)
-        RB_FIELD1(push_root) RB_FIELD2(flow_c);
+        RB_FIELD1(push_root) RB_FIELD2(support) RB_FIELD2(flow_c);
 #undef RB_FIELD1
 #undef RB_FIELD2
 
@@ -206,6 +206,13 @@ void bind_contact(nb::module_& m) {
     });
     m.def("stage_mark_pushed", [](nb::handle mi, nb::handle pf, i64 n_man, i64 n, Scratch& sc) {
         step::mark_pushed(v2<i64>(mi, "mi"), v2<double>(pf, "pf"), n_man, n, sc);
+    });
+    m.def("stage_gather_supports", [](nb::handle bd, nb::handle cfg, nb::handle mi, nb::handle mf,
+                                      nb::handle pf, i64 n_man, i64 n, double h,
+                                      nb::handle rotation, Scratch& sc) {
+        step::gather_supports(Bodies::from_py(bd), Settings::from_py(cfg), v2<i64>(mi, "mi"),
+                              v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man, n, h,
+                              v3<double>(rotation, "rotation"), sc);
     });
     m.def("stage_integrate_positions",
           [](int method, int ortho, nb::handle bd, nb::handle cfg, nb::handle awake, nb::handle x,

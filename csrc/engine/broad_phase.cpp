@@ -52,6 +52,20 @@ void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv
         double ex, ey, ez;
         if (geom[i] == GEOM_SPHERE) {
             ex = ey = ez = size(i, 0);
+        } else if (geom[i] == GEOM_CAPSULE || geom[i] == GEOM_CYLINDER) {
+            // the axis z_w = R e_z: a capsule's segment +-h z_w grown by r; a cylinder's two
+            // discs of radius r normal to z_w, whose extent along e_k is r sqrt(1 - z_k^2)
+            M3 r = rotation.row(i);
+            const double rr = size(i, 0), hh = size(i, 1);
+            const bool cap = geom[i] == GEOM_CAPSULE;
+            double e3[3];
+            for (int k = 0; k < 3; ++k) {
+                const double zk = r(k, 2);
+                e3[k] = std::fabs(zk) * hh + (cap ? rr : rr * std::sqrt(std::max(0.0, 1.0 - zk * zk)));
+            }
+            ex = e3[0];
+            ey = e3[1];
+            ez = e3[2];
         } else {
             M3 r = rotation.row(i);
             double e0 = size(i, 0), e1 = size(i, 1), e2 = size(i, 2);

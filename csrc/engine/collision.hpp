@@ -39,10 +39,15 @@
 namespace rb {
 
 // ---- geometry codes (narrowphase.py GEOM_*; the test checks they agree) ---------------------
+// size rows: sphere [r, 0, 0]; box half extents; capsule [r, h, 0] (the segment |z| <= h of the
+// body's z axis grown by r); cylinder [r, h, 0] (radius r, |z| <= h). The plane is the highest
+// code, so it is always shape b.
 constexpr i64 GEOM_SPHERE = 0;
 constexpr i64 GEOM_BOX = 1;
-constexpr i64 GEOM_PLANE = 2;
-constexpr i64 N_GEOM = 3;
+constexpr i64 GEOM_CAPSULE = 2;
+constexpr i64 GEOM_CYLINDER = 3;
+constexpr i64 GEOM_PLANE = 4;
+constexpr i64 N_GEOM = 5;
 
 // ---- constants from Python (set once at import) ---------------------------------------------
 struct CollisionConstants {
@@ -94,6 +99,18 @@ i64 collide_sphere_plane(const double* ca, double ra, const double* pn, double p
                          double* nrm, Pts pts, double* sep, i64* fid);
 i64 collide_box_plane(const double* ca, M3 rota, const double* ea, const double* pn, double poff,
                       double spec, double* nrm, Pts pts, double* sep, i64* fid);
+// capsule.cpp (a: the capsule, but sphere - capsule: the sphere)
+i64 collide_capsule_plane(const double* ca, M3 rota, const double* sa, const double* pn,
+                          double poff, double spec, double* nrm, Pts pts, double* sep, i64* fid);
+i64 collide_sphere_capsule(const double* ca, double ra, const double* cb, M3 rotb,
+                           const double* sb, double spec, double* nrm, Pts pts, double* sep,
+                           i64* fid);
+i64 collide_capsule_capsule(const double* ca, M3 rota, const double* sa, const double* cb,
+                            M3 rotb, const double* sb, double spec, double* nrm, Pts pts,
+                            double* sep, i64* fid);
+i64 collide_capsule_box(const double* ca, M3 rota, const double* sa, const double* cb, M3 rotb,
+                        const double* eb, double spec, double* nrm, Pts pts, double* sep,
+                        i64* fid);
 // Returns n1 + 8 n2 (a second, face manifold of n2 points in rows 4.., normal nrm[3:6]).
 i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* cb, M3 rotb,
                     const double* eb, double spec, double* nrm, Pts pts, double* sep, i64* fid,

@@ -13,12 +13,13 @@
 // * fid is a feature id (which vertex, edge or clip produced the point) used to carry the
 //   solver's impulses from one step to the next (warm starting).
 //
-// Dispatch: geometry codes GEOM_SPHERE, GEOM_BOX (dynamic or static boxes), GEOM_PLANE (the
-// ground). NARROWPHASE_TABLE[lower code][higher code] is the collider; the pair is swapped (and
+// Dispatch: geometry codes GEOM_SPHERE, GEOM_BOX (dynamic or static boxes), GEOM_CAPSULE,
+// GEOM_CYLINDER, GEOM_PLANE (the ground). NARROWPHASE_TABLE[lower code][higher code] is the collider; the pair is swapped (and
 // the normal negated) when the lower code is on body b. A pair with no entry is refused when the
 // world is built (UnsupportedShapePair, Python), never silently skipped; collide() returns -1.
 //
-// Box-box lives in box_box.cpp (separating axes, clipping, reduction).
+// Box-box lives in box_box.cpp (separating axes, clipping, reduction), the capsule pairs in
+// capsule.cpp.
 #include <algorithm>
 #include <cmath>
 
@@ -224,12 +225,39 @@ static i64 entry_box_plane(const double* ca, M3 rota, const double* sa, const do
     return collide_box_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
 }
 
+static i64 entry_sphere_capsule(const double* ca, M3, const double* sa, const double* cb,
+                                M3 rotb, const double* sb, const double*, double, double spec,
+                                ColliderBuffers& b) {
+    return collide_sphere_capsule(ca, sa[0], cb, rotb, sb, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+// box a, capsule b: the capsule's collider as (capsule, box), its normal negated
+static i64 entry_box_capsule(const double* ca, M3 rota, const double* sa, const double* cb,
+                             M3 rotb, const double* sb, const double*, double, double spec,
+                             ColliderBuffers& b) {
+    i64 n = collide_capsule_box(cb, rotb, sb, ca, rota, sa, spec, b.nrm, b.pts, b.sep, b.fid);
+    for (int k = 0; k < 3; ++k) b.nrm[k] = -b.nrm[k];
+    return n;
+}
+static i64 entry_capsule_capsule(const double* ca, M3 rota, const double* sa, const double* cb,
+                                 M3 rotb, const double* sb, const double*, double, double spec,
+                                 ColliderBuffers& b) {
+    return collide_capsule_capsule(ca, rota, sa, cb, rotb, sb, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+static i64 entry_capsule_plane(const double* ca, M3 rota, const double* sa, const double*, M3,
+                               const double*, const double* pn, double poff, double spec,
+                               ColliderBuffers& b) {
+    return collide_capsule_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+
 // NARROWPHASE_TABLE: [lower geometry code][higher code] (narrowphase.py's NARROWPHASE_TABLE has
 // the same keys; tests/engine/contact/test_collision_core.py checks it)
 static const ColliderFn NARROWPHASE_TABLE[N_GEOM][N_GEOM] = {
-    /* sphere */ {entry_sphere_sphere, entry_sphere_box, entry_sphere_plane},
-    /* box    */ {nullptr, entry_box_box, entry_box_plane},
-    /* plane  */ {nullptr, nullptr, nullptr},
+    //             sphere               box             capsule                cylinder  plane
+    /* sphere   */ {entry_sphere_sphere, entry_sphere_box, entry_sphere_capsule, nullptr, entry_sphere_plane},
+    /* box      */ {nullptr, entry_box_box, entry_box_capsule, nullptr, entry_box_plane},
+    /* capsule  */ {nullptr, nullptr, entry_capsule_capsule, nullptr, entry_capsule_plane},
+    /* cylinder */ {nullptr, nullptr, nullptr, nullptr, nullptr},
+    /* plane    */ {nullptr, nullptr, nullptr, nullptr, nullptr},
 };
 
 ColliderFn narrowphase_fn(i64 geom_lo, i64 geom_hi) {

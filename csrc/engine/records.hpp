@@ -163,6 +163,7 @@ inline Settings Settings::from_py(nanobind::handle r) {
     c.friction_anchor_rate = scalar<double>(r, "friction_anchor_rate");
     c.friction_anchor_slide_frac = scalar<double>(r, "friction_anchor_slide_frac");
     c.projection_rings = scalar<i64>(r, "projection_rings");
+    c.slide_start_speed = scalar<double>(r, "slide_start_speed");
     c.soft_step = scalar<bool>(r, "soft_step");
     c.substeps = scalar<i64>(r, "substeps");
     c.contact_hertz = scalar<double>(r, "contact_hertz");
@@ -228,6 +229,23 @@ struct BoolBuf {
     V1<bool> view() { return V1<bool>{p.get(), n}; }
 };
 
+// Columns of Scratch::support, (N+1, SUP_COLS) per body: what stage 9 needs of the contacts that
+// pushed the body this step (step::gather_supports; world_step.cpp's "Translation").
+constexpr i64 SUP_NB = 0;      // orthonormal basis (3 rows of 3) of the span of its contact normals
+constexpr i64 SUP_NN = 9;      // ... its dimension (0..3)
+constexpr i64 SUP_RB = 10;     // orthonormal basis of the span of r x n over its points (3 x 3)
+constexpr i64 SUP_RN = 19;     // ... its dimension
+constexpr i64 SUP_SLIDE = 20;  // (3) the contacts' velocity change over a whole step of sliding,
+                               // m/s: sum over its points of (lambda_n n + f_slide) / m
+constexpr i64 SUP_SLID = 23;   // 1.0: one of its points slid at the start of the step
+constexpr i64 SUP_ON = 24;     // 1.0: gathered this step
+constexpr i64 SUP_CX = 25;     // (3) stage 9's position correction, m (support_correction)
+constexpr i64 SUP_CW = 28;     // (3) ... and spin correction, rad/s
+constexpr i64 SUP_SKIP = 31;   // 1.0: no corrections (it touches another dynamic body, or a
+                               // pushing pair holds it on a carried friction anchor)
+constexpr i64 SUP_STOP = 32;   // 1.0: it stopped inside the step (phi < 1)
+constexpr i64 SUP_COLS = 33;
+
 // The stages' work arrays (step.py's Scratch; make_scratch). Rows N..N+S-1 of lo/hi: the static
 // boxes; row N of the solver arrays: the static dummy with zero inverse mass. All zero after
 // reset() but flow_c (filled before read); lo/hi rows of the static boxes copied from Statics.
@@ -246,6 +264,7 @@ struct Scratch {
     Buf2<i64> hot;                                    // (N+1,)
     Buf2<double> dx_step, proj_dx, proj_dth;          // (N+1, 3)
     Buf2<i64> pushed, push_root;                      // (N+1,)
+    Buf2<double> support;                             // (N+1, SUP_COLS)
     Buf2<double> flow_c;                              // (N, N_FLOW)
     BoolBuf flow_ok;                                  // (N,)
     // the project stage's own work arrays (project.py allocated them per call)

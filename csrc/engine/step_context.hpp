@@ -38,6 +38,7 @@ struct Settings {
     double friction_anchor_rate = 0.0;      // FRICTION_ANCHOR_RATE
     double friction_anchor_slide_frac = 0.0;  // FRICTION_ANCHOR_SLIDE_FRAC
     i64 projection_rings = 0;               // PROJECTION_RINGS
+    double slide_start_speed = 0.0;         // SLIDE_START_SPEED
     // ContactParams.solver == "soft_step" (soft_step.cpp), its substeps, contact_hertz (Hz, inf
     // for None) and contact_damping_ratio
     bool soft_step = false;

@@ -39,6 +39,9 @@ CollideCount collide(const Bodies& bd, const Statics& st, const Settings& cfg, V
 void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc, V2<i64> mi,
              V2<double> mf, V2<double> pf, i64 n_man, double h);
 void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc);
+void gather_supports(const Bodies& bd, const Settings& cfg, V2<i64> mi, V2<double> mf,
+                     V2<double> pf, i64 n_man, i64 n, double h, V3<double> rotation,
+                     Scratch& sc);
 void integrate_positions(int method, int ortho, const Bodies& bd, const Settings& cfg,
                          V1<i64> awake, const BodyState& x, Scratch& sc, double h,
                          const FlowAnchors& an);

@@ -67,7 +67,8 @@ class Layout:
     ``dof_trans`` (nv,) bool, translational dofs (slide, a free joint's first three);
     ``pair`` (nbody, nv): +1 at (dof's body, dof), -1 at (its parent, dof) unless the world;
     ``own`` (nbody, nv): +1 at (dof's body, dof); ``net`` (nbody, nbody): ``cfrc_int`` ->
-    the body's own minus its children's; ``damping`` (nv,) ``dof_damping``.
+    the body's own minus its children's; ``subtree`` (nbody, nbody): 1 where b is a or below a;
+    ``damping`` (nv,) ``dof_damping``.
     """
 
     def __init__(self, m):
@@ -92,6 +93,11 @@ class Layout:
             if parent[b] > 0:
                 self.net[parent[b], b] -= 1.0
         self.net[0] = 0.0
+        self.subtree = np.eye(nb)  # (nbody, nbody): 1 at (a, b), b a or a descendant of a
+        for b in range(1, nb):
+            a = parent[b]
+            while a > 0:
+                self.subtree[a, b], a = 1.0, parent[a]
         self.damping = np.array(m.dof_damping, np.float64)
         self.kind = np.full(nb - 1, BODY_FREE, np.int64)
         weld = np.asarray(m.body_weldid)
@@ -269,7 +275,16 @@ def inspect(m, d=None, *, restitution=None):
     has_children = np.isin(np.arange(len(parent)), parent[parent >= 0])
     supplied[(lay.kind == BODY_FREE) & ~has_children, IMPULSE_KINDS.index("joint")] = \
         SUPPLIED_NONE
-    work = np.repeat(lay.dynamic[:, None], len(WORK_KINDS), axis=1)
+    # the integration kind (MujocoRecorder._integration) and the joint work (limits, friction
+    # loss, equalities) where the joint kind is logged: a joint impulse is MuJoCo's Newton-Euler
+    # residual at the step's start, the integration kind the rest of the step (a centre of mass
+    # moves by J(q) qdot). A lone free body has neither: its step's error (Euler's explicit
+    # gyroscopic term) stays in its balance, for the momentum analyzer to report
+    lone = supplied[:, IMPULSE_KINDS.index("joint")] == SUPPLIED_NONE
+    supplied[lone, IMPULSE_KINDS.index("integration")] = SUPPLIED_NONE
+    work = np.where(np.repeat(lay.dynamic[:, None], len(WORK_KINDS), axis=1), SUPPLIED_LOGGED,
+                    SUPPLIED_MISSING)
+    work[lone, WORK_KINDS.index("joint")] = SUPPLIED_NONE
     from rblog.record.recorder import body_table
 
     # kinematic and static bodies may be massless in MuJoCo; the table needs positive numbers

@@ -62,10 +62,20 @@ def _cross(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
-def _dot(a, b):
-    """a . b over the last axis of (..., 3) arrays, summed in order (einsum's order depends on
-    the layout; the compiled resolve sums x, y, z in order)."""
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+def _xfrc_about_c(xf, r):
+    """(..., 6) [torque; force] about c of ``xfrc_applied`` rows ``xf`` (..., 6) [force; torque]
+    at the centre of mass, ``r`` (..., 3) c -> centre of mass."""
+    return np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
+
+
+def _xfrc_work(F, xf, r, h):
+    """(K, nbody) J the work of ``xfrc_applied`` ``xf`` (K, nbody, 6) [force; torque] at the
+    centre of mass over each step: h (f . v_com + torque . w), from the rows' ``cvel`` (about c)
+    and ``r`` (K, nbody, 3) c -> centre of mass."""
+    cv = F("cvel")
+    v_com = cv[..., 3:] + _cross(cv[..., :3], r)
+    return h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
+                np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
 
 
 _FUNCTIONS = []
@@ -222,6 +232,9 @@ class StepImpulses:
         self.rows = np.empty((self.cap, self.rows_of.width))
         self.v1 = np.empty((self.cap, m.nv))
         self.Ma = np.empty((self.cap, m.nv)) if self.implicit else None
+        # RK4: each step's displacement (q1 - q0) / h (mj_differentiatePos), the velocity its
+        # forces' work is taken at (the semi-implicit integrators displace by h v1)
+        self.v_disp = np.empty((self.cap, m.nv)) if self.rk4 else None
         self.v_start = self.v0.copy()  # v0 of the block's first row
         self._compile()
         self._gap_v0 = {}  # row -> its v0 after steps not seen
@@ -293,6 +306,7 @@ class StepImpulses:
             np.subtract(v1, self.v0, out=src.qacc)
             src.qacc *= 1.0 / self.h
             mj.mj_rnePostConstraint(m, src)
+            mj.mj_differentiatePos(m, self.v_disp[k], self.h, self.q0, d.qpos)
             np.copyto(self.q0, d.qpos)
             np.copyto(self.act0, d.act)
         else:
@@ -337,10 +351,13 @@ class StepImpulses:
         return self._fixed
 
     def resolve(self):
-        """The gathered steps as (impulses (K, 5, nbody, 6) [angular about the COM; linear], N s
-        and N m s, in IMPULSE_KINDS order; work (K, 3, nbody) J, WORK_KINDS order). The rows
-        stay until :meth:`reset`. Compiled (``rblog.adapters._hook.resolve``: the formulas of
-        :meth:`resolve_numpy` in the same order) when the build has it."""
+        """The gathered steps as (impulses (K, 6, nbody, 6) [angular about the COM; linear], N s
+        and N m s, in IMPULSE_KINDS order, integration 0 (per interval, MujocoRecorder); work
+        (K, 4, nbody) J, WORK_KINDS order). The rows stay until :meth:`reset`. Compiled
+        (``rblog.adapters._hook.resolve``: the formulas of :meth:`resolve_numpy` in the same
+        order) when the build has it; the joints' constraint forces (:meth:`_joint_forces`) and
+        the velocity the work is taken at (:meth:`_v_work`) and the work of ``xfrc_applied``
+        (:func:`_xfrc_work`) come from numpy either way (einsum's sums, not the kernel's)."""
         try:
             from rblog.adapters._hook import resolve
         except ImportError:
@@ -348,13 +365,32 @@ class StepImpulses:
         k, lay, m = self.k, self.lay, self.m
         off, root, parent, dof_body, dof_jnt, dof_trans, damping = self.fixed()
         nb, nv = len(lay.root), int(m.nv)
+        R = self.rows[:k]
+        F = lambda f: self.rows_of.field(R, f)  # noqa: E731
+        v1, v0 = self.v1[:k], self._v0()
+        xf = F("xfrc_applied")
+        contact_c = F("cfrc_ext")
+        pushed = bool(xf.any())
+        if pushed:
+            r = F("xipos") - F("subtree_com")[:, lay.root]
+            contact_c = contact_c - _xfrc_about_c(xf, r)
+        q_joint = np.ascontiguousarray(self._joint_forces(F, contact_c))
+        v_work = np.ascontiguousarray(self._v_work(v0, v1))
         W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
         work = np.empty((k, len(WORK_KINDS), nb))
         ma = self.Ma[:k] if self.Ma is not None else np.empty((0, nv))
-        resolve(self.rows[:k], off, self.v1[:k], self._v0(), ma, root, parent, dof_body,
-                dof_jnt, dof_trans, damping, self.h, bool(self.implicit_damping),
-                int(self.correction_kind), W, work)
+        resolve(R, off, v1, v0, ma, root, parent, dof_body, dof_jnt, dof_trans, damping,
+                self.h, bool(self.implicit_damping), int(self.correction_kind), q_joint, v_work,
+                W, work)
+        if pushed:
+            work[:, 0] += _xfrc_work(F, xf, r, self.h)
         return W, work
+
+    def _v_work(self, v0, v1):
+        """(K, nv) the velocity a step's forces work at: the mean of its ends for the
+        semi-implicit integrators (the states' kinetic energy changes by (v0 + v1)/2 . M (v1 -
+        v0) = h f . (v0 + v1)/2), RK4's displacement (q1 - q0) / h."""
+        return 0.5 * (v0 + v1) if self.v_disp is None else self.v_disp[:self.k]
 
     def resolve_numpy(self):
         """:meth:`resolve` in numpy (the reference of the compiled one)."""
@@ -369,11 +405,13 @@ class StepImpulses:
         pushed = bool(xf.any())
         nb = len(lay.root)
         W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
+        W[:, IMPULSE_KINDS.index("integration")] = 0.0  # per interval: MujocoRecorder._integration
         if pushed:
-            xf_c = np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
+            xf_c = _xfrc_about_c(xf, r)
             np.subtract(F("cfrc_ext"), xf_c, out=W[:, 0])
         else:
             W[:, 0] = F("cfrc_ext")
+        q_joint = self._joint_forces(F, W[:, 0])
         # S (K, nv, 6): the unit wrench of each dof, about c
         cdof = F("cdof")
         S = np.zeros_like(cdof)
@@ -401,12 +439,22 @@ class StepImpulses:
         W[:, 4] -= gen.sum(axis=1)
         W[..., :3] -= _cross(r[:, None], W[..., 3:])            # torques about the COM
         W *= h
-        work = (tau * v1[:, None]) @ lay.own.T * h              # (K, 3, nb)
+        v_work = self._v_work(v0, v1)
+        work = np.empty((k, len(WORK_KINDS), nb))
+        work[:, :3] = (tau * v_work[:, None]) @ lay.own.T * h    # applied, passive, actuator
+        work[:, 3] = (q_joint * v_work) @ lay.own.T * h          # joint
         if pushed:
-            cv = F("cvel")
-            v_com = cv[..., 3:] + _cross(cv[..., :3], r)
-            work[:, 0] += h * (_dot(xf[..., :3], v_com) + _dot(xf[..., 3:], cv[..., :3]))
+            work[:, 0] += _xfrc_work(F, xf, r, h)
         return W, work
+
+    def _joint_forces(self, F, contact_c):
+        """(K, nv) the generalized force of the joints' non-ideal constraints (limits, friction
+        loss, equalities, tendon limits): ``qfrc_constraint`` less the contacts' part, that of
+        the contact wrenches ``contact_c`` (K, nbody, 6) [torque; force] about c on every body
+        of a dof's subtree, paired with the dof's motion ``cdof`` (J^T f = sum_b cdof . f_b)."""
+        lay = self.lay
+        below = np.matmul(lay.subtree, contact_c)[:, lay.dof_body]   # (K, nv, 6)
+        return F("qfrc_constraint") - np.einsum("kjs,kjs->kj", F("cdof"), below)
 
     def reset(self) -> None:
         """Drop the gathered rows; the next row's v0 is the last one's v1 (or a restart's)."""

@@ -69,9 +69,13 @@ Per-interval impulses (N s, N m s about each body's centre of mass, world frame)
   ``M a = f + h D a``. The hook computes ``M a`` (``mj_mulM``) and logs ``h D a`` with the passive
   kind (its dof-damping part is ``- B (v1 - v0)``, as under Euler), or with the actuator kind
   when only actuators depend on velocity: a tree's joint impulses still cancel.
-* work (J) per step: ``h f_j v1_j`` of each dof's force, attributed to the dof's body (the
-  displacement the semi-implicit step makes is ``h v1``); for ``xfrc_applied`` ``h (f . v +
-  tau . w)`` at the step's start.
+* work (J) per step: ``h f_j (v0_j + v1_j)/2`` of each dof's force, attributed to the dof's body
+  (the change of the states' kinetic energy under a semi-implicit step; RK4: at its displacement
+  ``(q1 - q0) / h``); joint work: that of ``qfrc_constraint`` less the contacts' part (limits,
+  friction loss, equalities); for ``xfrc_applied`` ``h (f . v + tau . w)`` at the step's start.
+* integration (bodies whose joint kind is logged): per interval, the engine's momentum change
+  ``m v``, ``L = R I R^T w`` between the two samples less the other kinds and ``m g dt``: the
+  ``K`` below (docs/log-format.md, "The integration kind").
 
 The balance this gives, per body and step: ``m (v_com(q1, v1) - v_com(q0, v0)) = h (sum of the
 impulses) + m g h + K``. The forces are MuJoCo's at the step's start and close Newton-Euler
@@ -85,8 +89,8 @@ angular velocity integrate linearly; ``R1 w_b1 = R0 exp(h w_b1) w_b1 = R0 w_b1``
 
 and the tests check the free bodies' logged impulses against it at round-off (``m g h`` +
 impulses + K = Δp to 1e-9 relative). Bodies on joints have ``K = m (J(q1) - J(q0) - h
-dJ/dt) v``-like terms, O(h^2) per step: measured in tests/adapters (and 0 to round-off for a
-body on slides whose centre of mass is on the slides, as stacker's boxes).
+dJ/dt) v``-like terms, O(h^2) per step: logged as the integration kind (and 0 to round-off for
+a body on slides whose centre of mass is on the slides, as stacker's boxes).
 
 **RK4** re-evaluates the forces at three more states inside the step and leaves ``d`` with the
 last one's, so the hook runs ``mj_forward`` at the step's start on a private ``MjData`` and logs
@@ -101,8 +105,9 @@ swapped in and back, and a few copies of contiguous pieces of mjData into a prea
 (:class:`Rows`); per sample the contacts' raw ``mjContact`` structs and ``efc_force``. A
 sample's state is the next step's row (its start is the sample's state) under Euler and the
 implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
-the rows are resolved into impulses and the samples' states (compiled:
-``_hook.resolve``, ``_hook.states``; numpy without them), the contacts copied at each logged step
+the rows are resolved into impulses and the samples' states (compiled: ``_hook.resolve``, with
+the joints' constraint forces, the work's velocity and xfrc_applied's work from numpy;
+``_hook.states``; numpy without them), the contacts copied at each logged step
 (``_hook.ContactCapture``) decoded, and all written as one block. Measured with
 benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
 """
@@ -118,7 +123,7 @@ from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _Co
                                           decode_contacts, gravity_of, inspect, settings,
                                           state_offsets, suite_model, unsupported)
 from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross)
-from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
+from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, WORK_KINDS
 
 
 class MujocoRecorder(EngineRecorder):
@@ -160,6 +165,9 @@ class MujocoRecorder(EngineRecorder):
             mj.mj_forward(m, d)
         self.model, self.layout, notes = inspect(m, d, restitution=restitution)
         self.dt = float(m.opt.timestep)
+        if not (np.isfinite(self.dt) and self.dt > 0):  # the samples' steps are time / dt
+            raise AdapterError(f"rblog.adapters.mujoco: the model's option timestep is "
+                               f"{self.dt!r}, expected a finite time step > 0 s")
         engine = {**settings(m), **notes, "sample_every": self.every}
         self.recorder = Recorder(self.model, rrd=rrd, mcap=mcap, dt=self.dt,
                                  writer=writer or f"mujoco {mj.__version__} via rblog.adapters",
@@ -294,7 +302,7 @@ class MujocoRecorder(EngineRecorder):
         self._row[pend] = -1
 
     def _impulses(self, ns: int):
-        """(W (ns, 5, nbody, 6), work (ns, 3, nbody)) of each waiting sample's interval: the
+        """(W (ns, 6, nbody, 6), work (ns, 4, nbody)) of each waiting sample's interval: the
         steps in (step[i-1], step[i]]; the steps after the last sample carry over."""
         k = self.hook.k
         W, work = self.hook.resolve() if k else (None, None)
@@ -332,6 +340,9 @@ class MujocoRecorder(EngineRecorder):
             return
         ids = self._ids
         W, work = W[:, :, ids], work[:, :, ids]
+        W[:, IMPULSE_KINDS.index("integration")] = self._integration(W, steps=self._steps[:ns],
+                                                                     v=self._v[:ns], r=self._r[:ns],
+                                                                     w=self._w[:ns])
         gap = self._gap[:ns]
         if gap.any():
             W[gap] = np.nan
@@ -357,6 +368,37 @@ class MujocoRecorder(EngineRecorder):
         self._ns = 0
         self._gap[:] = False
         self.recorder.write(**arrays)
+
+    def _integration(self, W, steps, v, r, w) -> np.ndarray:
+        """(ns, N, 6) [angular; linear] the integration kind of each sample's interval (the bodies
+        whose joint kind is logged; 0 elsewhere): the momentum change MuJoCo's steps gave each
+        body, ``P = m v``, ``L = R diag(I) R^T w`` of the engine's state at the interval's ends,
+        less the other kinds' impulses ``W`` (ns, kinds, N, 6) and ``m g dt`` (docs/log-format.md,
+        "The integration kind"). The first sample of the
+        run has no interval: 0. Keeps the last sample's momenta for the next block."""
+        model = self.model
+        m = np.asarray(model.body_mass, np.float64)
+        inertia = np.asarray(model.body_inertia_diag, np.float64)
+        p = m[None, :, None] * v
+        w_body = np.einsum("snji,snj->sni", r, w)
+        L = np.einsum("snij,snj->sni", r, inertia[None] * w_body)
+        prev = getattr(self, "_prev_momenta", None)
+        if prev is None:
+            prev = (steps[0], p[0], L[0])
+        step0 = np.concatenate([[prev[0]], steps[:-1]])
+        dt = (steps - step0) * self.dt
+        dp = p - np.concatenate([prev[1][None], p[:-1]])
+        dl = L - np.concatenate([prev[2][None], L[:-1]])
+        forces = W[:, :IMPULSE_KINDS.index("integration")].sum(axis=1)  # the kinds before it
+        out = np.empty((len(steps), len(m), 6))
+        out[..., 3:] = dp - m[None, :, None] * np.asarray(model.gravity, np.float64) * dt[:, None,
+                                                                                           None]
+        out[..., 3:] -= forces[..., 3:]
+        out[..., :3] = dl - forces[..., :3]
+        logged = np.asarray(model.body_impulse_supplied)[:, IMPULSE_KINDS.index("integration")]
+        out[:, logged != SUPPLIED_LOGGED] = 0.0  # none or missing (the Model's table)
+        self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())
+        return out
 
     def _captured(self):
         """The compiled capture's steps since the last flush, as _packed_contact_dict, or None."""

@@ -88,7 +88,7 @@ import numpy as np
 
 from rblog.adapters import AdapterError, require
 from rblog.adapters._common import EngineRecorder, SampleStream, body_frame, quat_mul
-from rblog.contract.model import BODY_JOINTED, JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_SLIDE, \
+from rblog.contract.model import IMPULSE_KINDS, BODY_JOINTED, JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_SLIDE, \
     SHAPE_BOX, SHAPE_SPHERE, SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE, Model
 from rblog.contract.orientation import matrix_to_quat
 
@@ -696,7 +696,9 @@ class OdeRecorder(EngineRecorder):
         jointed[self.tree.second[self.tree.second >= 0]] = True
         damped = any(_ode().dBodyGetLinearDamping(b) or _ode().dBodyGetAngularDamping(b)
                      for b in self.bodies)
-        sup = np.zeros((n, 5), np.int64)  # IMPULSE_KINDS: contact, applied, passive, actuator, joint
+        # IMPULSE_KINDS: contact, applied, passive, actuator, joint, integration (none: ODE's
+        # maximal coordinates move each body by its forces)
+        sup = np.full((n, len(IMPULSE_KINDS)), SUPPLIED_NONE, np.int64)
         sup[:, 0] = SUPPLIED_LOGGED
         sup[:, 1] = SUPPLIED_MISSING if applied_forces else SUPPLIED_NONE
         sup[:, 2] = SUPPLIED_MISSING if damped else SUPPLIED_NONE

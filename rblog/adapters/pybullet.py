@@ -59,11 +59,13 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
   - joint: with ``joint_sensors`` (default) every joint gets ``enableJointForceTorqueSensor``
     (it does not change the motion: same bits measured). ``getJointState``'s reaction is the
     spatial force the parent applies to the child's subtree (``I^A a + p^A`` of the ABA, child
-    link frame, about its centre of mass); a row's net joint impulse is its own minus those of
+    link frame, about its centre of mass), plus the joint motor's (``appliedJointMotorTorque``:
+    Bullet's motor is a constraint, not in the ABA's reaction; a couple along a hinge's axis, a
+    force along a slide's through its anchor); a row's net joint impulse is its own minus those of
     its children moved onto it, both in the frames of Bullet's cached link transforms after the
-    step. Joint motors (pybullet's default velocity motors included) act across the joint and
-    are inside it. Measured on r2d2 (falling onto its wheels, motors on): the balance of a link
-    closes to a median 1.7e-7 N s per step, 5.3e-4 N s at most in the steps of the impact (joint
+    step. Measured on kuka holding itself up: 2.2e-13 N m s a step with the motor's impulse,
+    6.1e-5 without it. Joint limits are constraints pybullet reports nowhere. Measured on r2d2
+    (falling onto its wheels, motors on): the balance of a link closes to a median 1.7e-7 N s per step, 5.3e-4 N s at most in the steps of the impact (joint
     impulses ~0.4 N s), against ~8 N s without the joint impulses.
   - ``body_impulse_supplied``: logged as above; none for the actuator (the motors act inside
     the joints), the joint of a body without joints and the damping of a maximal-coordinates body
@@ -324,7 +326,8 @@ def inspect(client: int = 0, *, damping=None, joint_sensors: bool = True,
             w.damping.append(kd)
             supplied = {"contact": LOGGED, "applied": LOGGED if applied else MISSING,
                         "passive": LOGGED, "actuator": NONE,
-                        "joint": NONE if nj == 0 else LOGGED if joint_sensors else MISSING}
+                        "joint": NONE if nj == 0 else LOGGED if joint_sensors else MISSING,
+                        "integration": NONE}
             if body_type != 2:  # hidden links: their contacts and joints act on it unseen
                 supplied.update(contact=MISSING, joint=MISSING, passive=NONE)
                 for k in ("contact", "joint", "geoms"):
@@ -352,7 +355,7 @@ def inspect(client: int = 0, *, damping=None, joint_sensors: bool = True,
             w.inertia.append(np.array(li[2], np.float64))
             w.damping.append(kd)
             w.supplied.append([LOGGED, LOGGED if applied else MISSING, LOGGED, NONE,
-                               LOGGED if joint_sensors else MISSING])
+                               LOGGED if joint_sensors else MISSING, NONE])
             rows.append(row)
             if joint_sensors:
                 call("enableJointForceTorqueSensor", bid, j, True, what=f"{link}: joint sensor")
@@ -417,6 +420,7 @@ class Stepper:
         jointed = np.array([k == "joints" for k in world.kind], bool).reshape(n)
         self.jointed = np.flatnonzero(jointed)
         self.jointed_parent = self.parent[self.jointed]
+        self._motor_axes(world)
         self.use_contacts, self.use_joints = bool(contacts), bool(joints) and len(self.jointed) > 0
         # (body id, link + 1) -> row, -1 for static geometry and unknown ids
         ids = [b for b, _ in world.rows] + [0]
@@ -521,17 +525,40 @@ class Stepper:
         out[ok] = self.row_of[body[ok], link[ok] + 1]
         return out
 
+    def _motor_axes(self, world) -> None:
+        """Per jointed row (joint k on row jointed[k]): the joint's axis and anchor in the
+        child's inertial frame, and whether it slides (its motor a force) or turns (a couple)."""
+        jt = world.joints
+        k = len(jt["body"])
+        self.motor_axis = np.array(jt["axis_body"], np.float64).reshape(k, 3)
+        self.motor_anchor = np.array(jt["anchor_body"], np.float64).reshape(k, 3)
+        self.motor_slide = np.array([t == "slide" for t in jt["type"]], bool).reshape(k)
+        self.motor_ok = np.array_equal(np.asarray(jt["body"], np.int64).reshape(k), self.jointed)
+
     def _joints(self, x, r, n, dt):
         pb, c = self.pb, self.client
-        react = []
+        react, motor = [], []
         for bid, links, _ in self.calls:
             if links:
-                react += [s[2] for s in pb.getJointStates(bid, links, physicsClientId=c)]
+                states = pb.getJointStates(bid, links, physicsClientId=c)
+                react += [s[2] for s in states]
+                motor += [s[3] for s in states]
         rf = np.array(react, np.float64).reshape(len(react), 6)
         j, p = self.jointed, self.jointed_parent
         # the reaction: force and torque (about the child's centre of mass) in the child's frame
         f = np.einsum("nij,nj->ni", r[j], rf[:, :3]) * dt
         t = np.einsum("nij,nj->ni", r[j], rf[:, 3:]) * dt
+        if self.motor_ok and len(motor):
+            # the joint motor's impulse (appliedJointMotorTorque: Bullet's motor constraint, not
+            # in the ABA's reaction): a couple along a hinge's axis, a force along a slide's
+            # through its anchor, on the child; its parent gets the opposite below
+            tau = np.array(motor, np.float64).reshape(len(motor)) * dt
+            axis_w = np.einsum("nij,nj->ni", r[j], self.motor_axis) * tau[:, None]
+            arm = np.einsum("nij,nj->ni", r[j], self.motor_anchor)
+            sl = self.motor_slide
+            f[sl] += axis_w[sl]
+            t[sl] += np.cross(arm[sl], axis_w[sl])
+            t[~sl] += axis_w[~sl]
         lin, ang = self.acc["joint_linear"], self.acc["joint_angular"]
         lin[j] += f
         ang[j] += t

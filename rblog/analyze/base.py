@@ -548,6 +548,14 @@ class Context:
             :, IMPULSE_KINDS.index("joint")] == SUPPLIED_LOGGED)
 
     @property
+    def integration_logged(self) -> np.ndarray:
+        """(N,) bool: bodies whose log carries the integration kind, the momentum change of the
+        engine's steps beyond its forces at their starts: their balance closes to round-off."""
+        return self.cached("integration_logged", lambda: np.asarray(
+            self.model.body_impulse_supplied).reshape(self.traj.n_bodies, len(IMPULSE_KINDS))[
+            :, IMPULSE_KINDS.index("integration")] == SUPPLIED_LOGGED)
+
+    @property
     def ext_linear(self) -> np.ndarray | None:
         """(T, N, 3) logged non-contact impulses besides gravity and force_const over the
         interval ending at each sample (N s, world), or None when the log has none."""

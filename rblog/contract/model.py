@@ -92,8 +92,15 @@ COLLIDE_ALL = -1
 
 #: the per-interval impulse kinds (columns of body_impulse_supplied; trajectory channels
 #: impulse_<kind>_linear / _angular) and work kinds (body_work_supplied; work_<kind>)
-IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint")
-WORK_KINDS = ("applied", "passive", "actuator")
+IMPULSE_KINDS = ("contact", "applied", "passive", "actuator", "joint", "integration")
+# (integration last: what the other kinds' sum leaves of a balance)
+#: the columns of body_impulse_supplied in a log written before the "integration" kind: its
+#: readers take such a table with integration "none" (the balance as that log meant it)
+IMPULSE_KINDS_LEGACY = 5
+WORK_KINDS = ("applied", "passive", "actuator", "joint")
+#: the columns of body_work_supplied in a log written before the "joint" work kind (its
+#: readers take it with joint work "none": ideal joints, what that log meant)
+WORK_KINDS_LEGACY = 3
 #: body_impulse_supplied / body_work_supplied codes, per body and kind
 SUPPLIED_MISSING = 0   # the writer does not know it: what needs it is not judged
 SUPPLIED_LOGGED = 1    # in the log's impulse_<kind>_* / work_<kind> channels
@@ -103,8 +110,27 @@ SUPPLIED_NONE = 2      # the engine has no such force on the body: zero, not sto
 #: contacts and the model's constant body_force_world / body_torque_world (applied "none" means
 #: no load besides those constant ones; "logged" includes them), so every other kind is none
 DEFAULT_IMPULSE_SUPPLIED = (SUPPLIED_MISSING, SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE,
-                            SUPPLIED_NONE)
-DEFAULT_WORK_SUPPLIED = (SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE)
+                            SUPPLIED_NONE, SUPPLIED_NONE)
+DEFAULT_WORK_SUPPLIED = (SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE)
+
+
+
+def impulse_supplied_columns(sup, n: int, kinds: tuple = IMPULSE_KINDS,
+                             legacy: int = IMPULSE_KINDS_LEGACY) -> np.ndarray:
+    """(N, len(kinds)) from ``sup``, N rows of ``kinds`` codes or of the ``legacy`` first ones
+    (the later kinds "none" appended: IMPULSE_KINDS' integration, WORK_KINDS' joint); anything
+    else unchanged, for the validation to name."""
+    a = np.asarray(sup)
+    if a.size == n * legacy and n and a.size != n * len(kinds):
+        a = np.concatenate([a.reshape(n, legacy),
+                            np.full((n, len(kinds) - legacy), SUPPLIED_NONE, a.dtype)], axis=1)
+    return a
+
+
+def work_supplied_columns(sup, n: int) -> np.ndarray:
+    """body_work_supplied as (N, len(WORK_KINDS)), as impulse_supplied_columns."""
+    return impulse_supplied_columns(sup, n, WORK_KINDS, WORK_KINDS_LEGACY)
+
 
 #: geom fields: name -> trailing shape per geom (dtype int64 for the int ones, str for names)
 GEOM_FIELDS = {"geom_name": (), "geom_body": (), "geom_type": (), "geom_pos_body": (3,),
@@ -143,10 +169,10 @@ class Model:
         static_box_position: (M, 3), static_box_quat_wxyz: (M, 4), static_box_half_extents: (M, 3),
         static_box_restitution, static_box_friction: (M,) static boxes (walls, ramps).
         body_kind: (N,) int BODY_* (default BODY_FREE).  body_parent: (N,) int, -1 = world.
-        body_impulse_supplied: (N, 5) int, columns IMPULSE_KINDS, SUPPLIED_* codes: the log
+        body_impulse_supplied: (N, 6) int, columns IMPULSE_KINDS, SUPPLIED_* codes: the log
             holds that impulse of that body (1), the engine has no such force on it (2: zero,
             not stored), or it is missing (0: not to be judged); default
-            DEFAULT_IMPULSE_SUPPLIED.  body_work_supplied: (N, 3), columns WORK_KINDS,
+            DEFAULT_IMPULSE_SUPPLIED.  body_work_supplied: (N, 4), columns WORK_KINDS,
             likewise (default DEFAULT_WORK_SUPPLIED).
         joint_name (J,), joint_type (J,) JOINT_*, joint_body (J,) the child body,
             joint_anchor_body (J, 3) m in the child's body frame, joint_anchor_parent (J, 3) the
@@ -222,8 +248,12 @@ class Model:
             self.body_parent = np.full(n, -1, np.int64)
         if self.body_impulse_supplied is None:
             self.body_impulse_supplied = np.tile(np.array(DEFAULT_IMPULSE_SUPPLIED, np.int64), (n, 1))
+        else:
+            self.body_impulse_supplied = impulse_supplied_columns(self.body_impulse_supplied, n)
         if self.body_work_supplied is None:
             self.body_work_supplied = np.tile(np.array(DEFAULT_WORK_SUPPLIED, np.int64), (n, 1))
+        else:
+            self.body_work_supplied = work_supplied_columns(self.body_work_supplied, n)
         n_j = 0 if self.joint_type is None else len(self.joint_type)
         for name, trail in JOINT_FIELDS.items():
             if getattr(self, name) is None:  # an empty table, or a field not stated (NaN)
@@ -260,9 +290,19 @@ class Model:
     @property
     def body_bounding_radius(self) -> np.ndarray:
         """(N,) radius of each body's bounding sphere about its centre of mass (m): the sphere's
-        radius, or a box's half diagonal |half extents|; 0 for a body without a shape."""
-        return np.where(self.body_shape == SHAPE_SPHERE, self.body_size[:, 0],
-                        np.linalg.norm(self.body_size, axis=1))
+        radius, or a box's half diagonal |half extents|; a SHAPE_NONE body's from its geoms
+        (the largest |geom position| + the geom's own bounding radius: capsule r + h, cylinder
+        sqrt(r^2 + h^2), mesh its farthest vertex); 0 for a body without geoms."""
+        out = np.where(self.body_shape == SHAPE_SPHERE, self.body_size[:, 0],
+                       np.linalg.norm(self.body_size, axis=1))
+        none = np.asarray(self.body_shape) == SHAPE_NONE
+        if np.any(none) and self.n_geoms:
+            for g in np.flatnonzero(np.isin(self.geom_body, np.flatnonzero(none))):
+                b = int(self.geom_body[g])
+                out[b] = max(out[b], float(np.linalg.norm(self.geom_pos_body[g]))
+                             + geom_bounding_radius(int(self.geom_type[g]), self.geom_size[g],
+                                                    self.geom_vertices(g)))
+        return out
 
     def geom_vertices(self, g: int) -> np.ndarray:
         """(V_g, 3) vertices of mesh geom ``g`` in its geom frame (m)."""
@@ -277,6 +317,26 @@ class Model:
     def work_supplied(self, kind: str) -> np.ndarray:
         """(N,) bool: the bodies whose work ``kind`` is known (logged, or none)."""
         return self.body_work_supplied[:, WORK_KINDS.index(kind)] != SUPPLIED_MISSING
+
+
+def geom_bounding_radius(geom_type: int, size, vertices=None) -> float:
+    """Radius (m) of the sphere about a geom's origin that holds it (GEOM_* sizes above; a
+    plane: inf; a mesh: its farthest vertex of ``vertices`` (V, 3))."""
+    s = np.asarray(size, np.float64)
+    if geom_type == GEOM_SPHERE:
+        return float(s[0])
+    if geom_type == GEOM_CAPSULE:
+        return float(s[0] + s[1])
+    if geom_type == GEOM_CYLINDER:
+        return float(np.hypot(s[0], s[1]))
+    if geom_type == GEOM_MESH:
+        v = np.asarray(vertices, np.float64).reshape(-1, 3)
+        return float(np.linalg.norm(v, axis=1).max()) if len(v) else 0.0
+    if geom_type == GEOM_PLANE:
+        return float("inf")
+    if geom_type == GEOM_ELLIPSOID:
+        return float(s.max())
+    return float(np.linalg.norm(s))  # box
 
 
 def quat_z_to(normal) -> np.ndarray:

@@ -207,9 +207,12 @@ class Trajectory:
     impulse_actuator_angular: np.ndarray | None = None
     impulse_joint_linear: np.ndarray | None = None
     impulse_joint_angular: np.ndarray | None = None
+    impulse_integration_linear: np.ndarray | None = None
+    impulse_integration_angular: np.ndarray | None = None
     work_applied: np.ndarray | None = None
     work_passive: np.ndarray | None = None
     work_actuator: np.ndarray | None = None
+    work_joint: np.ndarray | None = None
 
     def impulse(self, kind: str) -> tuple[np.ndarray, np.ndarray] | None:
         """(linear (T, N, 3), angular (T, N, 3)) of impulse ``kind`` (IMPULSE_KINDS): the

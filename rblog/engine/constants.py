@@ -177,6 +177,13 @@ ISOTROPIC_RTOL = 1e-12
 #: rings of contacts gathered around a deep point: the contacts of its bodies (1) and of their
 #: neighbours (2), which hold the bodies that the projection pushes on
 PROJECTION_RINGS = 2
+#: m/s: a contact point whose tangential slip at the start of a step is above this slid into the
+#: step, and when the solve leaves it sticking it stopped inside the step: stage 9 then moves its
+#: body by the closed form of a slide that stops (csrc/engine/world_step.cpp, "Translation").
+#: Below it the point counts as sticking from the start (a rolling sphere's slip is round-off,
+#: ~1e-16 of its speed); a stop taken for sticking errs by at most h SLIDE_START_SPEED / 2 in
+#: position, 5e-13 m at dt 1e-3.
+SLIDE_START_SPEED = 1e-9
 
 
 # --- restitution threshold ------------------------------------------------------------------

@@ -15,13 +15,15 @@ from collections import Counter
 import math
 import tomllib
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rblog.errors import SceneError
-from rblog.contract.model import SHAPE_CODES, SHAPE_BOX, SHAPE_SPHERE, Model
+from rblog.contract.model import (GEOM_CODES, SHAPE_BOX, SHAPE_CODES, SHAPE_NONE, SHAPE_SPHERE,
+                                  Model, geoms_from_v2)
 from rblog.engine.state import State
 from rblog.engine.rotation import axis_angle_to_quat_np, quat_to_matrix_np
 from rblog.engine.integrators import ORTHO_ALLOWED
@@ -29,6 +31,7 @@ from rblog.engine.constants import (
     BYTES_PER_BODY_ESTIMATE, MAX_BODIES, MAX_NESTING, MAX_RUN_STEPS, QUAT_MIN_NORM,
     QUAT_NORM_WARN_TOL,
 )
+from rblog.engine import mass_properties as mp
 from rblog.engine import scene_checks
 
 INTEGRATORS = tuple(ORTHO_ALLOWED)
@@ -39,7 +42,16 @@ SIM_KEYS = {"dt", "duration", "gravity", "integrator", "orthonormalize", "seed",
             "log_rate"}
 GROUND_KEYS = {"height", "normal", "restitution", "friction"}
 ORIENTATION_KEYS = ("quat_wxyz", "quat_xyzw", "axis_angle", "rotvec")
-BODY_KEYS = {"name", "shape", "radius", "half_extents", "mass", "density", "inertia_diag",
+#: the shapes a [[body]] can have and the size keys each takes (m): a sphere's radius; a box's
+#: half extents; a capsule's radius and half_length (the segment |z| <= half_length of the body's
+#: z axis grown by radius: total length 2 half_length + 2 radius, the contract's and MuJoCo's
+#: convention); a cylinder's radius and half_length (|z| <= half_length)
+SHAPE_KEYS = {"sphere": ("radius",), "box": ("half_extents",),
+              "capsule": ("radius", "half_length"), "cylinder": ("radius", "half_length")}
+SCENE_SHAPES = tuple(SHAPE_KEYS)
+SIZE_KEYS = {"radius", "half_extents", "half_length"}
+BODY_KEYS = {"name", "shape", "radius", "half_extents", "half_length", "mass", "density",
+             "inertia_diag",
              "position", *ORIENTATION_KEYS, "velocity", "angular_velocity",
              "angular_velocity_body", "force", "torque", "restitution", "friction", "group"}
 STATIC_BOX_KEYS = {"name", "position", *ORIENTATION_KEYS, "half_extents", "restitution",
@@ -89,6 +101,16 @@ class Scene:
     resolved: dict = field(default_factory=dict)
     #: one-line warnings about values that were accepted but are probably mistakes
     warnings: list[str] = field(default_factory=list)
+
+    def shape_counts(self) -> dict[str, int]:
+        """Bodies per shape name (the contract's geom names), in the order first seen."""
+        from rblog.contract.model import GEOM_NAMES
+
+        m = self.model
+        out: dict[str, int] = {}
+        for t in np.asarray(m.geom_type)[np.asarray(m.geom_body) >= 0].tolist():
+            out[GEOM_NAMES[t]] = out.get(GEOM_NAMES[t], 0) + 1
+        return out
 
 
 class _Ctx:
@@ -432,23 +454,26 @@ def _orientation(ctx: _Ctx, d: dict, key: str) -> np.ndarray:
 def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
     ctx.keys(b, key, BODY_KEYS)
     if "shape" not in b:
-        ctx.fail(f"{key}.shape", "missing (\"box\" or \"sphere\")")
-    shape = ctx.string(b["shape"], f"{key}.shape", tuple(SHAPE_CODES))
-    if shape == "sphere":
-        if "half_extents" in b:
-            ctx.fail(f"{key}.half_extents", "a sphere takes radius, not half_extents")
-        if "radius" not in b:
-            ctx.fail(f"{key}.radius", "missing (a positive number, m)")
-        r = ctx.num(b["radius"], f"{key}.radius", positive=True)
-        size = np.array([r, 0.0, 0.0])
-        volume = scene_checks.sphere_volume(r)
-    else:
-        if "radius" in b:
-            ctx.fail(f"{key}.radius", "a box takes half_extents, not radius")
-        if "half_extents" not in b:
-            ctx.fail(f"{key}.half_extents", "missing (a list of 3 positive numbers, m)")
+        ctx.fail(f"{key}.shape", f"missing (one of {', '.join(SCENE_SHAPES)})")
+    shape = ctx.string(b["shape"], f"{key}.shape", SCENE_SHAPES)
+    # the size keys each shape takes (the others are refused by name)
+    takes = SHAPE_KEYS[shape]
+    for k in sorted(SIZE_KEYS - set(takes)):
+        if k in b:
+            ctx.fail(f"{key}.{k}", f"a {shape} takes {' and '.join(takes)}, not {k}")
+    for k in takes:
+        if k not in b:
+            ctx.fail(f"{key}.{k}", "missing (" + ("a list of 3 positive numbers, m)"
+                                                  if k == "half_extents" else "a positive number, m)"))
+    if shape == "box":
         size = ctx.vec(b["half_extents"], f"{key}.half_extents", positive=True)
-        volume = 8.0 * math.prod(size.tolist())  # inf past 1e308: check_body names it
+        volume = mp.box_volume(size)
+    else:
+        r = ctx.num(b["radius"], f"{key}.radius", positive=True)
+        h = ctx.num(b["half_length"], f"{key}.half_length", positive=True) if "half_length" in takes else 0.0
+        size = np.array([r, h, 0.0])
+        volume = {"sphere": lambda: mp.sphere_volume(r), "capsule": lambda: mp.capsule_volume(r, h),
+                  "cylinder": lambda: mp.cylinder_volume(r, h)}[shape]()
     if ("mass" in b) == ("density" in b):
         ctx.fail(f"{key}.mass", "expected exactly one of mass (kg) or density (kg/m^3)")
     mass = (ctx.num(b["mass"], f"{key}.mass", positive=True) if "mass" in b
@@ -459,11 +484,16 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
         if i2 > i0 + i1 + 1e-12 * i2:
             ctx.fail(f"{key}.inertia_diag", "principal moments must satisfy the triangle "
                      f"inequality (each <= sum of the others), got {inertia.tolist()}")
+    elif not math.isfinite(mass):
+        inertia = np.full(3, math.inf)  # check_body names the mass
     elif shape == "sphere":
-        inertia = np.full(3, 0.4 * mass * size[0] ** 2)
+        inertia = mp.sphere_inertia(mass, size[0])
+    elif shape == "box":
+        inertia = mp.box_inertia(mass, size)
+    elif shape == "capsule":
+        inertia = mp.capsule_inertia(mass, size[0], size[1])
     else:
-        a, bb, c = size**2
-        inertia = mass / 3.0 * np.array([bb + c, a + c, a + bb])
+        inertia = mp.cylinder_inertia(mass, size[0], size[1])
     q = _orientation(ctx, b, key)
     if "angular_velocity" in b and "angular_velocity_body" in b:
         ctx.fail(f"{key}.angular_velocity_body", "give angular_velocity (world) or "
@@ -650,7 +680,8 @@ class _Bodies:
     (_OMEGA_*; zero when none was given); the rest as in :class:`Model` and :class:`State`."""
 
     name: list
-    shape: np.ndarray        # (n,) int64 shape codes
+    shape: np.ndarray        # (n,) int64 body_shape codes (SHAPE_NONE: capsule, cylinder)
+    geom_type: np.ndarray    # (n,) int64 the contract's GEOM_* code of the body's one geom
     size: np.ndarray         # (n, 3)
     mass: np.ndarray         # (n,)
     inertia: np.ndarray      # (n, 3)
@@ -683,7 +714,10 @@ class _Bodies:
             omega, frame = np.repeat(omega, repeat, axis=0), np.repeat(frame, repeat)
         return cls(
             name=[b["name"] for b in bodies] * repeat,
-            shape=np.repeat(np.array([SHAPE_CODES[b["shape"]] for b in bodies], np.int64), repeat),
+            shape=np.repeat(np.array([SHAPE_CODES.get(b["shape"], SHAPE_NONE) for b in bodies],
+                                     np.int64), repeat),
+            geom_type=np.repeat(np.array([GEOM_CODES[b["shape"]] for b in bodies], np.int64),
+                                repeat),
             size=col("size"), mass=col("mass"), inertia=col("inertia_diag"),
             position=col("position"), quat=col("quat_wxyz"), velocity=col("velocity"),
             omega=omega, omega_frame=frame, force=col("force"), torque=col("torque"),
@@ -721,10 +755,32 @@ def _build(blocks: list[_Bodies], statics, gravity, ground, g_normal, g_offset, 
     # L = R I_body R^T omega  (world frame)
     l_world = np.einsum("nij,nj->ni", rot, inertia * np.einsum("nji,nj->ni", rot, omega))
     del omega
+    shape, size = col("shape"), col("size")
+    statics_kw = dict(
+        static_box_position=np.array([s["position"] for s in statics], float).reshape(-1, 3),
+        static_box_quat_wxyz=np.array([s["quat_wxyz"] for s in statics], float).reshape(-1, 4),
+        static_box_half_extents=np.array([s["half_extents"] for s in statics], float).reshape(-1, 3),
+        static_box_restitution=np.array([s["restitution"] for s in statics], float),
+        static_box_friction=np.array([s["friction"] for s in statics], float),
+    )
+    geoms = {}
+    if np.any(shape == SHAPE_NONE):
+        # a capsule or cylinder: the v2 fields cannot say what it is (body_shape "none", size
+        # 0), the geom table does: one geom per body at its centre of mass, then the ground and
+        # the static boxes, in the order geoms_from_v2 gives a sphere-and-box scene
+        world = SimpleNamespace(
+            body_shape=np.zeros(len(shape), np.int64), body_size=size,
+            body_name=[name for b in blocks for name in b.name], body_group=col("group"),
+            body_friction=col("friction"), body_restitution=col("restitution"), ground=ground,
+            ground_normal=np.asarray(g_normal, float), ground_offset=float(g_offset),
+            ground_friction=float(g_fric), ground_restitution=float(g_rest), **statics_kw)
+        geoms = geoms_from_v2(world)
+        geoms["geom_type"][:len(shape)] = col("geom_type")
+        size = np.where((shape == SHAPE_NONE)[:, None], 0.0, size)
     model = Model(
         body_name=[name for b in blocks for name in b.name],
-        body_shape=col("shape"),
-        body_size=col("size"),
+        body_shape=shape,
+        body_size=size,
         body_mass=mass,
         body_inertia_diag=inertia,
         body_force_world=col("force"),
@@ -738,11 +794,7 @@ def _build(blocks: list[_Bodies], statics, gravity, ground, g_normal, g_offset, 
         ground_offset=float(g_offset),
         ground_restitution=float(g_rest),
         ground_friction=float(g_fric),
-        static_box_position=np.array([s["position"] for s in statics], float).reshape(-1, 3),
-        static_box_quat_wxyz=np.array([s["quat_wxyz"] for s in statics], float).reshape(-1, 4),
-        static_box_half_extents=np.array([s["half_extents"] for s in statics], float).reshape(-1, 3),
-        static_box_restitution=np.array([s["restitution"] for s in statics], float),
-        static_box_friction=np.array([s["friction"] for s in statics], float),
+        **statics_kw, **geoms,
     )
     state = State(
         position=col("position"),

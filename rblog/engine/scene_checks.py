@@ -38,14 +38,6 @@ def nesting_depth(doc, limit: int = MAX_NESTING) -> int:
     return depth
 
 
-def sphere_volume(r: float) -> float:
-    """4/3 pi r^3 (m^3); inf when it overflows a float (the mass check then names it)."""
-    try:
-        return 4.0 / 3.0 * math.pi * r**3
-    except OverflowError:
-        return math.inf
-
-
 def finite_angle(ctx, angle: float, key: str) -> None:
     """A rotation vector's length must be a finite angle (rad)."""
     if not math.isfinite(angle):

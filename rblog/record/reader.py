@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from rblog.errors import LogReadError
-from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
+from rblog.contract.model import (IMPULSE_KINDS, WORK_KINDS, impulse_supplied_columns,
+                                  work_supplied_columns)
 from rblog.contract.trajectory import (BODY_CHANNELS, INTERVAL_CHANNELS, TOTAL_CHANNELS, Contacts,
                                        Trajectory)
 from rblog.record import _common as C
@@ -72,6 +73,20 @@ class _Collector:
         self.contacts: list[dict[str, np.ndarray]] = []
         self.cut: str | None = None  # why reading stopped early, if it did
         self.warnings: list[str] = []
+
+    @property
+    def model(self) -> dict[str, object] | None:
+        """The run record's body table as flat arrays (the supplied tables of a log written
+        before the integration / joint-work kinds widened to IMPULSE_KINDS / WORK_KINDS)."""
+        return self._model
+
+    @model.setter
+    def model(self, m: dict[str, object] | None) -> None:
+        for key, widen in (("body_impulse_supplied", impulse_supplied_columns),
+                           ("body_work_supplied", work_supplied_columns)):
+            if m is not None and m.get(key) is not None:
+                m = {**m, key: widen(m[key], len(m.get("body_name", ()))).reshape(-1)}
+        self._model = m
 
     def interval(self) -> tuple[str, ...]:
         """The per-interval channels the run record says the log holds (v3; () before)."""

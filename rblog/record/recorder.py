@@ -90,8 +90,8 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
         collide_rule: ``"and"`` (Bullet, rblog) or ``"or"`` (MuJoCo) (COLLIDE_RULES).
         collide_parent: the engine lets a body touch its parent body (default: never).
         impulses: the per-interval impulse kinds this writer logs for every body (a subset of
-            IMPULSE_KINDS), or an (N, 5) array of SUPPLIED_* codes (or bools: logged or
-            missing) per body.  work: likewise of WORK_KINDS, or (N, 3).
+            IMPULSE_KINDS), or an (N, 6) array of SUPPLIED_* codes (or bools: logged or
+            missing) per body.  work: likewise of WORK_KINDS, or (N, 4).
         impulses_none, work_none: kinds the engine does not have at all: known to be zero for
             every body, not stored.  impulses_missing, work_missing: kinds acting that the
             writer cannot supply (what needs them is not judged). A kind named nowhere has the

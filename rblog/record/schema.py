@@ -117,7 +117,8 @@ MESSAGES: dict[str, list[tuple[int, str, str, str]]] = {
         (15, "total_linear_momentum", "double", "repeated"),
         (16, "total_angular_momentum", "double", "repeated"),
         (17, "total_energy", "double", ""),
-        # v3: the per-interval channels (INTERVAL_CHANNELS, in order), present when supplied
+        # v3: the per-interval channels (INTERVAL_CHANNELS; the kinds added last, integration
+        # and joint work, after the others), present when supplied
         (18, "impulse_contact_linear", "double", "repeated"),
         (19, "impulse_contact_angular", "double", "repeated"),
         (20, "impulse_applied_linear", "double", "repeated"),
@@ -131,6 +132,9 @@ MESSAGES: dict[str, list[tuple[int, str, str, str]]] = {
         (28, "work_applied", "double", "repeated"),
         (29, "work_passive", "double", "repeated"),
         (30, "work_actuator", "double", "repeated"),
+        (31, "impulse_integration_linear", "double", "repeated"),
+        (32, "impulse_integration_angular", "double", "repeated"),
+        (33, "work_joint", "double", "repeated"),
     ],
     "Contacts": [
         (1, "step", "sfixed64", ""),

@@ -27,7 +27,7 @@ from rblog.adapters import AdapterError  # noqa: E402
 from rblog.adapters import mujoco as adapter  # noqa: E402
 from rblog.contract.model import (BODY_FREE, BODY_JOINTED, GEOM_BOX, GEOM_CAPSULE,  # noqa: E402
                                   GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE,
-                                  GEOM_SPHERE, IMPULSE_KINDS)
+                                  GEOM_SPHERE, IMPULSE_KINDS, WORK_KINDS)
 from rblog.contract.orientation import quat_wxyz_to_matrix  # noqa: E402
 
 MODELS = ["humanoid", "stacker", "manipulator", "cartpole", "walker", "ball_in_cup", "finger", "fish"]
@@ -91,9 +91,14 @@ def mujoco_state(m, qpos, qvel):
     return {k: np.array(v) for k, v in out.items()}
 
 
+#: the kinds of MuJoCo's forces at each step's start (the integration kind is the rest)
+FORCE_KINDS = tuple(k for k in IMPULSE_KINDS if k != "integration")
+
+
 def impulse_sum(traj):
-    lin = sum(traj.impulse(k)[0] for k in IMPULSE_KINDS)
-    ang = sum(traj.impulse(k)[1] for k in IMPULSE_KINDS)
+    """(linear, angular) (T, N, 3): the logged impulses of MuJoCo's forces, FORCE_KINDS."""
+    lin = sum(traj.impulse(k)[0] for k in FORCE_KINDS)
+    ang = sum(traj.impulse(k)[1] for k in FORCE_KINDS)
     return lin, ang
 
 
@@ -153,11 +158,31 @@ def test_model_as_shipped(name, every, ctrl, integrator):
     dt = np.diff(traj.t)[:, None, None]
     res = np.diff(mj["p"], axis=0) - lin[1:] - tm.body_mass[None, :, None] * tm.gravity * dt
     scale = np.abs(np.diff(mj["p"], axis=0)).max(axis=(0, 2)) + 1e-300
+    integ_l, integ_a = traj.impulse("integration")
     for i in np.flatnonzero(tm.body_kind == BODY_FREE):
         b = i + 1
         K = free_body_K(m, b, qpos, qvel)  # per step; summed over each interval
         K_int = np.add.reduceat(K, steps[:-1], axis=0) if every > 1 else K
         assert np.abs(res[:, i] - K_int).max() <= BALANCE_REL * scale[i], tm.body_name[i]
+    # every body with a joint kind (on joints, or free carrying others): the integration kind
+    # closes the balance of MuJoCo's own momenta (mj_objectVelocity at the logged states),
+    # linear and angular; lone free bodies log none
+    sup = tm.body_impulse_supplied
+    assert (sup[:, IMPULSE_KINDS.index("integration")] == sup[:, IMPULSE_KINDS.index("joint")]).all()
+    dyn = np.flatnonzero(sup[:, IMPULSE_KINDS.index("integration")] == 1)
+    if len(dyn):
+        # relative to the balance's largest term (each kind's, m g dt); measured: 4e-16 absolute
+        # where nothing moves (cartpole at rest), ~1e-15 of the terms elsewhere
+        big_l = max(scale[dyn].max(), float((tm.body_mass[dyn] * np.linalg.norm(tm.gravity)).max()
+                                            * dt.max()),
+                    max(np.nanmax(np.abs(traj.impulse(k)[0][:, dyn])) for k in FORCE_KINDS))
+        np.testing.assert_allclose(res[:, dyn] - integ_l[1:, dyn], 0.0, rtol=0,
+                                   atol=BALANCE_REL * big_l)
+        dl = np.diff(mj["L"], axis=0) - ang[1:]
+        big = max(np.abs(np.diff(mj["L"], axis=0)[:, dyn]).max(),
+                  max(np.nanmax(np.abs(traj.impulse(k)[1][:, dyn])) for k in FORCE_KINDS))
+        np.testing.assert_allclose(dl[:, dyn] - integ_a[1:, dyn], 0.0, rtol=0,
+                                   atol=BALANCE_REL * big)
     boxes = [i for i, n in enumerate(tm.body_name) if n.startswith("box")]
     for i in boxes:  # stacker's boxes: slide x, slide z, hinge y, centre of mass on the slides
         assert np.abs(res[:, i]).max() <= BALANCE_REL * scale[i], tm.body_name[i]
@@ -247,10 +272,103 @@ def test_joint_bodies_err_at_second_order():
     assert 3.5 < worst[0] / worst[1] < 4.5, worst
 
 
+PENDULUM_XML = """
+<mujoco>
+  <option timestep="0.002" integrator="Euler"/>
+  <worldbody>
+    <body name="rod" pos="0 0 1">
+      <joint name="pin" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("every", [1, 10])
+def test_integration_kind_of_a_pendulum_is_its_closed_form(every):
+    """A rod on a hinge (axis y through the world point p, centre of mass at r(theta) from it):
+    v_com = w y x r with w = qvel, and the forces at a step's start give m h a_com = m h (wdot
+    y x r0 - w0^2 r0), wdot = (w1 - w0) / h. So MuJoCo's step (theta1 = theta0 + h w1) moves the
+    momentum by that plus K = m [w1 y x (r1 - r0) + h w0^2 r0] (O(h^2)); y is a principal axis
+    of the rod, L = I_yy w y, and the angular K is 0. The integration kind logged is K, summed
+    over each interval, from qpos/qvel alone."""
+    m = mujoco.MjModel.from_xml_string(PENDULUM_XML)
+    d = mujoco.MjData(m)
+    d.qpos[0] = 0.3
+    d.qvel[0] = 4.0
+    mujoco.mj_forward(m, d)
+    _, traj, qpos, qvel = record(None, every=every, ctrl="zero", steps=400, model=m)
+    h, mass = m.opt.timestep, m.body_mass[1]
+    th, w = qpos[:, 0], qvel[:, 0]
+    # the rod's axis is body x, turned about y by theta: r = 0.25 (cos th, 0, -sin th)
+    r = 0.25 * np.stack([np.cos(th), np.zeros_like(th), -np.sin(th)], axis=1)
+    y = np.array([0.0, 1.0, 0.0])
+    K = mass * (w[1:, None] * np.cross(y, r[1:] - r[:-1]) + h * (w[:-1] ** 2)[:, None] * r[:-1])
+    K_int = np.add.reduceat(K, traj.step[:-1], axis=0) if every > 1 else K
+    lin, ang = traj.impulse("integration")
+    # to the round-off of a momentum difference: relative to the momentum m |v_com| (measured
+    # 1.0e-15 N s at m |v_com| = 1.9 kg m/s); K itself reaches 2.7e-4 N s a step, 2.7e-3 over
+    # ten (its two terms cancel to first order: K ~ m h (w0^2 - w1^2) r0)
+    p_scale = mass * 0.25 * np.abs(w).max()
+    np.testing.assert_allclose(lin[1:, 0], K_int, rtol=0, atol=1e-12 * p_scale)
+    assert np.abs(K_int).max() > 1e-4  # a term the balance cannot do without
+    np.testing.assert_allclose(ang[1:, 0], 0.0, rtol=0, atol=1e-12 * p_scale * 0.25)
+
+
+LIMITED_XML = """
+<mujoco>
+  <option timestep="0.005"/>
+  <worldbody>
+    <body name="upper" pos="0 0 1">
+      <joint name="shoulder" type="hinge" axis="0 1 0" range="-40 40" damping="0.5"/>
+      <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.03" mass="1" contype="0" conaffinity="0"/>
+      <body name="lower" pos="0.4 0 0">
+        <joint name="elbow" type="hinge" axis="0 1 0" range="-30 30" frictionloss="0.05"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.025" mass="0.5" contype="0" conaffinity="0"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator><motor joint="shoulder" gear="5"/><motor joint="elbow" gear="3"/></actuator>
+</mujoco>
+"""
+
+
+def test_work_of_every_kind_closes_mujocos_energy():
+    """A two-link arm driven by random motor torques into its joint limits, with damping and
+    friction loss, touching nothing: MuJoCo's own energy (mj_energyPos + mj_energyVel at each
+    state) changes by the logged work of every kind, the joint work (limits, friction loss:
+    qfrc_constraint, no contacts) included. Euler's states change their kinetic energy by
+    (v0 + v1)/2 . M (v1 - v0) = h f . (v0 + v1)/2: the work is taken at the mean velocity."""
+    m = mujoco.MjModel.from_xml_string(LIMITED_XML)
+    _, traj, qpos, qvel = record(None, every=1, ctrl="random", steps=1000, model=m)
+    d = mujoco.MjData(m)
+    m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    energy, ke = [], []
+    for q, v in zip(qpos, qvel):
+        d.qpos[:], d.qvel[:] = q, v
+        mujoco.mj_forward(m, d)
+        energy.append(d.energy.sum())
+        ke.append(d.energy[1])
+    energy = np.array(energy)
+    cum = lambda kinds: np.concatenate([[0.0], np.cumsum(sum(
+        np.nan_to_num(traj.work(k)).sum(axis=1) for k in kinds)[1:])])
+    every = energy - energy[0] - cum(("applied", "passive", "actuator", "joint"))
+    without = energy - energy[0] - cum(("applied", "passive", "actuator"))
+    joint = np.nansum(traj.work("joint"))
+    # measured: with the joint work 0.021 of the largest kinetic energy (1.97 J; the rest is
+    # Euler's own error: M(q) and the potential change across a step); without it 2.58 (the
+    # limits and friction loss take -5.09 J)
+    assert np.abs(every).max() < 0.05 * max(ke), (np.abs(every).max(), max(ke))
+    assert np.abs(without).max() > 1.0 * max(ke)
+    assert joint < 0
+
+
 def test_passive_is_the_damping_mujoco_integrates():
     """walker's leaf bodies (the feet) hang on one damped hinge without spring: their passive
     impulse is the implicit damping couple -B v1 h along the hinge's axis at the step's start,
-    and its work -B v1^2 h (v1: MuJoCo's qvel after the step, xaxis from mj_forward)."""
+    and its work -B v1 (v0 + v1)/2 h, at the step's mean velocity (v0, v1: MuJoCo's qvel before
+    and after the step, xaxis from mj_forward)."""
     m, traj, qpos, qvel = record("walker", every=1)
     tm = traj.model
     d = mujoco.MjData(m)
@@ -268,7 +386,7 @@ def test_passive_is_the_damping_mujoco_integrates():
         got = traj.impulse("passive")[1][1:, b - 1]
         # measured: 4e-19 N m s
         np.testing.assert_allclose(got, expect, rtol=0, atol=1e-15)
-        work = -m.dof_damping[dof] * qvel[1:, dof] ** 2 * h
+        work = -m.dof_damping[dof] * qvel[1:, dof] * 0.5 * (qvel[:-1, dof] + qvel[1:, dof]) * h
         np.testing.assert_allclose(traj.work_passive[1:, b - 1], work, rtol=1e-12, atol=1e-18)
         np.testing.assert_array_equal(traj.impulse("passive")[0][1:, b - 1], 0.0)  # a couple
 
@@ -283,6 +401,23 @@ def test_rk4_cartpole():
     dp = np.diff(mj["p"], axis=0)
     res = dp - lin[1:] - traj.model.body_mass[None, :, None] * traj.model.gravity * m.opt.timestep
     assert np.abs(res[:, 0]).max() <= BALANCE_REL * np.abs(dp[:, 0]).max()
+    # the work: MuJoCo's own energy (mj_energyPos + mj_energyVel at each state) changes by the
+    # logged work of every kind. RK4 displaces the joints by h sum_i b_i v_i, not h v1: the
+    # work is taken at the step's displacement (q1 - q0) / h. Measured over the 200 steps:
+    # 8.4e-7 J (the motor's force is constant over a step; the damping's varies by stage)
+    # against a largest kinetic energy of 1.02 J; at v1, as the semi-implicit integrators
+    # displace, it would be 0.32 J
+    d = mujoco.MjData(m)
+    m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    energy = []
+    for q, v in zip(qpos, qvel):
+        d.qpos[:], d.qvel[:] = q, v
+        mujoco.mj_forward(m, d)
+        energy.append(d.energy.sum())
+    energy = np.array(energy)
+    work = sum(np.nan_to_num(traj.work(k)).sum(axis=1) for k in ("applied", "passive", "actuator"))
+    bal = energy - energy[0] - np.concatenate([[0.0], np.cumsum(work[1:])])
+    assert np.abs(bal).max() < 1e-5
 
 
 def test_skipped_steps_are_unknown_not_wrong():
@@ -429,8 +564,9 @@ def test_mesh_and_mocap_bodies():
     traj, tm = rec.trajectory, rec.trajectory.model
     assert tm.body_name == ["tet", "paddle"] and tm.body_kind.tolist() == [BODY_FREE, 2]
     # body 0, free and carrying no other body: every kind logged but the joint kind, none (a
-    # free joint exerts nothing); body 1, the mocap paddle (kinematic): every kind missing
-    assert tm.body_impulse_supplied.tolist() == [[1, 1, 1, 1, 2], [0] * 5]
+    # free joint exerts nothing), and the integration kind, none (a free body's); body 1, the
+    # mocap paddle (kinematic): every kind missing
+    assert tm.body_impulse_supplied.tolist() == [[1, 1, 1, 1, 2, 2], [0] * 6]
     g = int(np.flatnonzero(tm.geom_type == GEOM_MESH)[0])
     mesh = int(m.geom_dataid[1])
     local = tm.geom_vertices(g)
@@ -480,3 +616,25 @@ def test_compiled_hook_equals_numpy(integrator):
             np.testing.assert_array_equal(x, y, err_msg=kind)
     np.testing.assert_array_equal(a.position, b.position)
     np.testing.assert_array_equal(a.work_passive, b.work_passive)
+
+
+@pytest.mark.parametrize("name", ["humanoid", "cartpole"])  # cartpole: RK4 (work at (q1 - q0)/h)
+def test_compiled_resolve_equals_numpy(name):
+    """The block's impulses and work resolved in C++ (rblog.adapters._hook.resolve) are the bits
+    of the numpy resolve, every kind (integration 0, joint work), with xfrc_applied pushing."""
+    pytest.importorskip("rblog.adapters._hook")
+    m = adapter.suite_model(name)
+    d = mujoco.MjData(m)
+    rec = adapter.recorder(m, d, every=10 ** 6)  # one sample: the rows stay in the hook
+    rng = np.random.default_rng(2)
+    for i in range(20):
+        d.ctrl[:] = rng.uniform(-1.0, 1.0, m.nu)
+        d.xfrc_applied[1:] = rng.normal(size=(m.nbody - 1, 6)) if i >= 10 else 0.0
+        mujoco.mj_step(m, d)
+        rec(d)
+    (W, work), (W_np, work_np) = rec.hook.resolve(), rec.hook.resolve_numpy()
+    assert rec.hook.k == 20
+    assert W.shape[1] == len(IMPULSE_KINDS) and work.shape[1] == len(WORK_KINDS)
+    np.testing.assert_array_equal(W, W_np)
+    np.testing.assert_array_equal(work, work_np)
+    rec.close()

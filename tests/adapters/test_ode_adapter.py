@@ -288,10 +288,10 @@ def test_a_chain_on_hinges(tmp_path):
     m = got.model
     assert list(m.body_kind) == [BODY_JOINTED] * 5 and list(m.body_parent) == [-1, 0, 1, 2, 3]
     assert list(m.joint_type) == [JOINT_HINGE] * 5 and list(m.joint_body) == [0, 1, 2, 3, 4]
-    # per body, IMPULSE_KINDS (contact, applied, passive, actuator, joint): contacts and joints
+    # per body, IMPULSE_KINDS (contact, applied, passive, actuator, joint, integration): contacts and joints
     # logged; no applied load (the loop adds none), no damping, no motors
     assert m.body_impulse_supplied.tolist() == [[SUPPLIED_LOGGED, SUPPLIED_NONE, SUPPLIED_NONE,
-                                                 SUPPLIED_NONE, SUPPLIED_LOGGED]] * 5
+                                                 SUPPLIED_NONE, SUPPLIED_LOGGED, SUPPLIED_NONE]] * 5
     # each box's hinge is at its -x end; the parent's at its +x end (the world's at the origin)
     np.testing.assert_allclose(m.joint_anchor_body, [[-0.1, 0, 0]] * 5, atol=1e-15)
     np.testing.assert_allclose(m.joint_anchor_parent, [[0, 0, 2.0]] + [[0.1, 0, 0]] * 4, atol=1e-15)

@@ -325,7 +325,7 @@ def test_maximal_coordinates_recorded_and_missing_named():
                              "joint": ["body1/base_link"]}
     assert "useMaximalCoordinates" in es["maximal_coordinates"]
     # contact missing, applied logged, passive none (no damping), actuator none, joint missing
-    assert rec.model.body_impulse_supplied[0].tolist() == [0, 1, 2, 2, 0]
+    assert rec.model.body_impulse_supplied[0].tolist() == [0, 1, 2, 2, 0, 2]
 
 
 def test_unsupported_shapes_are_one_line_naming_each(client):
@@ -364,7 +364,7 @@ def test_rblog_run_engine_pybullet_logs_the_impulses(every):
     scene = load_scene(SAMPLES_DIR / "box_stack.toml")
     _, tr = run_engine(scene, "pybullet", duration=0.5, log_every=every, keep=True)
     m = tr.model
-    assert (m.body_impulse_supplied == np.array([1, 1, 1, 2, 2])).all()
+    assert (m.body_impulse_supplied == np.array([1, 1, 1, 2, 2, 2])).all()
     mass = m.body_mass[None, :, None]
     dp = np.diff(mass * tr.velocity, axis=0) - mass * m.gravity * np.diff(tr.t)[:, None, None]
     total = sum(tr.impulse(k)[0][1:] for k in ("contact", "applied", "passive"))
@@ -405,7 +405,7 @@ def test_substeps_mark_contacts_missing(client):
     body(client, pb.GEOM_SPHERE, 1.0, [0, 0, 0.3], 0.5, 0.5, radius=0.05)
     traj, _ = run(client, 300)
     assert traj.contacts is None or len(traj.contacts.step) == 0
-    assert traj.model.body_impulse_supplied[0].tolist() == [0, 1, 0, 2, 2]
+    assert traj.model.body_impulse_supplied[0].tolist() == [0, 1, 0, 2, 2, 2]
     assert "numSubSteps 4" in traj.info.engine_settings["contact_rows"]["logged"]
     assert traj.position[:, 0, 2].min() < 0.06  # it did touch the floor
 

@@ -30,9 +30,11 @@ JOINT_NS_PER_STEP = 1e-3
 #: free bodies' angular balance, N m s per step (measured: 9.4e-11 on jenga, whose angular
 #: contact impulses are ~1e-4 N m s per step; domino 2.9e-12; tray and kuka's cube 7e-19)
 FREE_NMS_PER_STEP = 1e-9
-#: bodies on joints' angular balance, N m s per step (measured: r2d2 2.2e-3 in its impact, kuka
-#: 6e-5)
-JOINT_NMS_PER_STEP = 5e-3
+#: bodies on joints' angular balance, N m s per step, with the joint motors' impulse in the joint
+#: kind (measured: r2d2's links 6.4e-6 in its impact, median 8e-12, its free base carrying them
+#: 7.9e-5; kuka holding itself up 2.2e-13; without the motors' impulse r2d2's links 2.2e-3 and
+#: kuka's 6.1e-5)
+JOINT_NMS_PER_STEP = 2e-4
 #: pybullet's geometry type codes -> the contract's names (pybullet's documented constants)
 PB_TYPES = {pb.GEOM_SPHERE: "sphere", pb.GEOM_BOX: "box", pb.GEOM_CAPSULE: "capsule",
             pb.GEOM_CYLINDER: "cylinder", pb.GEOM_MESH: "mesh", pb.GEOM_PLANE: "plane"}

@@ -108,7 +108,7 @@ def test_contact_impulses_close_the_momentum_balance(solver):
     traj = _run(10, solver)  # 1.2 s
     m = traj.model
     assert m.body_impulse_supplied[0].tolist() == [SUPPLIED_LOGGED, SUPPLIED_LOGGED, SUPPLIED_NONE,
-                                                   SUPPLIED_NONE, SUPPLIED_NONE]
+                                                   SUPPLIED_NONE, SUPPLIED_NONE, SUPPLIED_NONE]
     rel_p, rel_l = _balance(traj)
     # measured (120 intervals x 28 bodies; pgs / soft_step): linear <= 2.2e-14 / 2.2e-14,
     # angular <= 2.9e-15 / 2.9e-15 of the balance's largest term: the rounding of ten steps' sums

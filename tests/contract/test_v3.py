@@ -56,11 +56,13 @@ def _model() -> Model:
                   range=[[-1.5, 1.5], [-0.05, 0.05], [0, np.nan]],
                   quat_parent=[[1, 0, 0, 0], [np.nan] * 4, [C45, 0, S45, 0]],
                   name=["shoulder", "wrist_slide", "wrist"])
-    supplied = np.zeros((6, 5), np.int64)   # SUPPLIED_*: 0 missing, 1 logged, 2 none
+    supplied = np.zeros((6, 6), np.int64)   # SUPPLIED_*: 0 missing, 1 logged, 2 none
     supplied[:, 0] = 1               # contact: every body
+    supplied[:, 5] = 2               # integration: none (the balance closes without it)
     supplied[[1, 2], 4] = 1          # joint: the bodies on joints
     supplied[[0, 3, 4], 4] = 2       # ... the free bodies have none
-    work = np.zeros((6, 3), np.int64)
+    work = np.zeros((6, 4), np.int64)
+    work[:, 3] = 2                   # joint work: none (ideal joints)
     work[[1, 2], 2] = 1              # actuator work on the arm and the hand
     return rblog.body_table(
         name=["base", "arm", "hand", "rock", "ball", "mocap"], mass=[3.0, 1.0, 0.5, 0.7, 1.0, 2.0],
@@ -168,8 +170,8 @@ def test_v2_log_still_reads(fmt):
     assert m.body_kind.tolist() == [BODY_FREE] * 2 and m.body_parent.tolist() == [-1, -1]
     assert m.n_joints == 0 and traj.interval_channels == [] and not m.collide_parent
     # what a log that states nothing means: contact impulses missing, no other force (none)
-    assert m.body_impulse_supplied.tolist() == [[0, 2, 2, 2, 2]] * 2
-    assert m.body_work_supplied.tolist() == [[2, 2, 2]] * 2
+    assert m.body_impulse_supplied.tolist() == [[0, 2, 2, 2, 2, 2]] * 2
+    assert m.body_work_supplied.tolist() == [[2, 2, 2, 2]] * 2
     # geoms from the v2 fields: a body's shape at its centre, the ground plane, the static box
     assert m.geom_body.tolist() == [0, 1, -1, -1]
     assert m.geom_type.tolist() == [GEOM_SPHERE, GEOM_BOX, GEOM_PLANE, GEOM_BOX]
@@ -276,11 +278,11 @@ def test_supplied_codes_default_to_what_a_v2_log_means():
     bt = rblog.body_table
     g = dict(body=[0], type=["box"], size=[[0.1, 0.1, 0.1]])
     m = bt(name=["a"], mass=[1.0], inertia_diag=[[1, 1, 1]], geoms=g)
-    assert m.body_impulse_supplied.tolist() == [[0, 2, 2, 2, 2]]
+    assert m.body_impulse_supplied.tolist() == [[0, 2, 2, 2, 2, 2]]
     m = bt(name=["a"], mass=[1.0], inertia_diag=[[1, 1, 1]], geoms=g, impulses=("contact",),
            impulses_missing=("passive",), work=("actuator",), work_missing=("passive",))
-    assert m.body_impulse_supplied.tolist() == [[1, 2, 0, 2, 2]]
-    assert m.body_work_supplied.tolist() == [[2, 0, 1]]
+    assert m.body_impulse_supplied.tolist() == [[1, 2, 0, 2, 2, 2]]
+    assert m.body_work_supplied.tolist() == [[2, 0, 1, 2]]
 
 
 def test_bad_interval_channels_are_one_line_errors():
@@ -300,7 +302,26 @@ def test_bad_interval_channels_are_one_line_errors():
 
 def test_interval_channels_table():
     assert list(INTERVAL_CHANNELS)[:2] == ["impulse_contact_linear", "impulse_contact_angular"]
-    assert len(INTERVAL_CHANNELS) == 13
+    assert len(INTERVAL_CHANNELS) == 16
+
+
+def test_a_table_without_the_integration_kind_reads_as_integration_none():
+    """A log written before the integration kind holds (N, 5) codes: read as integration none,
+    what its balance meant (the engine's step error was not logged); likewise (N, 3) work codes
+    before the joint work kind: joint work none (ideal joints)."""
+    from rblog.contract.model import SUPPLIED_NONE, impulse_supplied_columns
+    from rblog.record.reader import _Collector
+
+    old = np.array([[1, 1, 2, 2, 1], [0, 2, 2, 2, 2]])
+    assert impulse_supplied_columns(old, 2).tolist() == [[1, 1, 2, 2, 1, SUPPLIED_NONE],
+                                                         [0, 2, 2, 2, 2, SUPPLIED_NONE]]
+    col = _Collector(None)
+    col.model = {"body_name": ["a", "b"], "body_impulse_supplied": old.reshape(-1)}
+    assert col.model["body_impulse_supplied"].tolist() == [1, 1, 2, 2, 1, 2, 0, 2, 2, 2, 2, 2]
+    assert "impulse_joint_linear" in col.interval()
+    assert "impulse_integration_linear" not in col.interval()
+    col.model = {"body_name": ["a"], "body_work_supplied": np.array([1, 2, 1])}
+    assert col.model["body_work_supplied"].tolist() == [1, 2, 1, 2]
 
 
 def test_state_kernel_matches_the_numpy_formulas():

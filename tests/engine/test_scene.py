@@ -93,7 +93,7 @@ BAD = [
     ("type-position-elem", SIM + body(position='[0.0, "up", 1.0]'), "body[0].position[1]",
      "expected a number"),
     ("type-shape", SIM + body(shape="3"), "body[0].shape", "expected a string"),
-    ("type-shape-choice", SIM + body(shape='"cylinder"'), "body[0].shape", "expected one of"),
+    ("type-shape-choice", SIM + body(shape='"cone"'), "body[0].shape", "expected one of"),
     ("type-sim-table", "sim = 3\n" + BOX, "sim", "expected a table"),
     ("type-integrator", sim(integrator='"euler"') + BOX, "sim.integrator", "expected one of"),
     ("type-ortho-for-integrator", sim(integrator='"splitting"', orthonormalize='"polar"') + BOX,

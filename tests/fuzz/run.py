@@ -51,8 +51,12 @@ def fuzz_one(target: str, args: list[str]) -> None:
     def one(data: bytes) -> None:
         fn(data)
 
+    files = [a for a in args if not a.startswith("-") and Path(a).is_file()]
+    # a replay (`run.py TARGET FILE`): libFuzzer runs the given inputs once and stops; it takes
+    # files or folders, not both, so the corpus folders go only into a fuzzing run
+    folders = [] if files else [str(work), str(HERE / "corpus" / target)]
     argv = [sys.argv[0], f"-timeout={TIMEOUT_S}", f"-rss_limit_mb={RSS_LIMIT_MB}",
-            f"-artifact_prefix={work}/", *args, str(work), str(HERE / "corpus" / target)]
+            f"-artifact_prefix={work}/", *args, *folders]
     atheris.Setup(argv, one)
     atheris.Fuzz()
 

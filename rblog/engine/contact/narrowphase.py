@@ -11,14 +11,14 @@ Conventions (the :class:`rblog.contract.trajectory.Contacts` record uses the sam
 * ``fid`` is a feature id (which vertex, edge or clip produced the point) used to carry the
   solver's impulses from one step to the next (warm starting).
 
-Dispatch: geometry types are ``GEOM_SPHERE``, ``GEOM_BOX`` (dynamic or static boxes) and
-``GEOM_PLANE`` (the ground). :data:`COLLIDE_TABLE` maps (lower type, higher type) to a collider
+Dispatch: geometry types are ``GEOM_SPHERE``, ``GEOM_BOX`` (dynamic or static boxes),
+``GEOM_CAPSULE``, ``GEOM_CYLINDER`` and ``GEOM_PLANE`` (the ground). :data:`COLLIDE_TABLE` maps (lower type, higher type) to a collider
 code; the pair is swapped (and the normal negated) when the lower type is on body b. A pair with
 no entry is an error (:class:`UnsupportedShapePair`), raised when the world is built, never a
 silent skip.
 
-The colliders are C++ (csrc/engine/narrowphase.cpp; box-box in csrc/engine/box_box.cpp, with
-its derivation), dispatched through a table of function pointers with the same keys as
+The colliders are C++ (csrc/engine/narrowphase.cpp; box-box in csrc/engine/box_box.cpp, the
+capsule pairs in csrc/engine/capsule.cpp, each with its derivation), dispatched through a table of function pointers with the same keys as
 :data:`NARROWPHASE_TABLE` (a test checks that they agree). This module keeps the registry, the
 codes and the names, and hands the narrowphase tolerances of :mod:`rblog.engine.constants` (their
 one home) to the C++ core at import.
@@ -28,6 +28,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from rblog.contract.model import GEOM_BOX as C_GEOM_BOX
+from rblog.contract.model import GEOM_CAPSULE as C_GEOM_CAPSULE
+from rblog.contract.model import GEOM_CYLINDER as C_GEOM_CYLINDER
+from rblog.contract.model import GEOM_SPHERE as C_GEOM_SPHERE
 from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.engine import _core
@@ -37,12 +41,22 @@ from rblog.engine.constants import (
 )
 from rblog.errors import RblogError, UnsupportedShapePair
 
+#: the engine's geometry types; size rows (m): sphere [r, 0, 0], box half extents, capsule
+#: [r, h, 0] (the segment |z| <= h of the body's z axis grown by r), cylinder [r, h, 0] (radius
+#: r, |z| <= h). The plane is the highest code: always shape b.
 GEOM_SPHERE = 0
 GEOM_BOX = 1
-GEOM_PLANE = 2
-GEOM_NAMES = {GEOM_SPHERE: "sphere", GEOM_BOX: "box", GEOM_PLANE: "plane"}
+GEOM_CAPSULE = 2
+GEOM_CYLINDER = 3
+GEOM_PLANE = 4
+N_GEOM = 5
+GEOM_NAMES = {GEOM_SPHERE: "sphere", GEOM_BOX: "box", GEOM_CAPSULE: "capsule",
+              GEOM_CYLINDER: "cylinder", GEOM_PLANE: "plane"}
 #: Model.body_shape -> geometry type
 SHAPE_TO_GEOM = {SHAPE_SPHERE: GEOM_SPHERE, SHAPE_BOX: GEOM_BOX}
+#: the contract's geom_type of a body's one geom -> the engine's geometry type
+CONTRACT_TO_GEOM = {C_GEOM_SPHERE: GEOM_SPHERE, C_GEOM_BOX: GEOM_BOX,
+                    C_GEOM_CAPSULE: GEOM_CAPSULE, C_GEOM_CYLINDER: GEOM_CYLINDER}
 
 COLLIDE_NONE = -1
 COLLIDE_SPHERE_SPHERE = 0
@@ -50,6 +64,10 @@ COLLIDE_SPHERE_BOX = 1
 COLLIDE_BOX_BOX = 2
 COLLIDE_SPHERE_PLANE = 3
 COLLIDE_BOX_PLANE = 4
+COLLIDE_SPHERE_CAPSULE = 5
+COLLIDE_BOX_CAPSULE = 6
+COLLIDE_CAPSULE_CAPSULE = 7
+COLLIDE_CAPSULE_PLANE = 8
 
 #: (lower geometry type, higher geometry type) -> (collider code, collider name)
 NARROWPHASE_TABLE = {
@@ -58,9 +76,13 @@ NARROWPHASE_TABLE = {
     (GEOM_BOX, GEOM_BOX): (COLLIDE_BOX_BOX, "collide_box_box"),
     (GEOM_SPHERE, GEOM_PLANE): (COLLIDE_SPHERE_PLANE, "collide_sphere_plane"),
     (GEOM_BOX, GEOM_PLANE): (COLLIDE_BOX_PLANE, "collide_box_plane"),
+    (GEOM_SPHERE, GEOM_CAPSULE): (COLLIDE_SPHERE_CAPSULE, "collide_sphere_capsule"),
+    (GEOM_BOX, GEOM_CAPSULE): (COLLIDE_BOX_CAPSULE, "collide_capsule_box"),
+    (GEOM_CAPSULE, GEOM_CAPSULE): (COLLIDE_CAPSULE_CAPSULE, "collide_capsule_capsule"),
+    (GEOM_CAPSULE, GEOM_PLANE): (COLLIDE_CAPSULE_PLANE, "collide_capsule_plane"),
 }
 #: the same table as an array: COLLIDE_TABLE[lo, hi] -> collider code or -1
-COLLIDE_TABLE = np.full((3, 3), COLLIDE_NONE, np.int64)
+COLLIDE_TABLE = np.full((N_GEOM, N_GEOM), COLLIDE_NONE, np.int64)
 for (_lo, _hi), (_code, _name) in NARROWPHASE_TABLE.items():
     COLLIDE_TABLE[_lo, _hi] = _code
 # the error's words come from this table, their one home

@@ -14,7 +14,9 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
                         ContactParams.static_friction_anchors is on)
     8  relax            split-impulse position correction on pseudo velocities (relax.cpp; the shift's
                         orbital angular momentum h v' x P is handed back to the spin)
-    9  integrate        a body the solve and relax pushed: x += h (v + v'), momenta P, L rebuilt
+    9  integrate        a body the solve and relax pushed: x += h (v + v') along its contact
+                        normals, as under constant acceleration off them (see Translation
+                        below), momenta P, L rebuilt
                         from the solver's velocity changes; every other body flies exactly under
                         its constant force, x += h v - h^2 a / 2 (v after the kick). Rotation by
                         integrators.drift_rotation with the run's integrator (the body's L and its
@@ -38,9 +40,17 @@ the free-body kernel. A body that contacts push moves with its solved velocity, 
 of the step as s + h w (w the solved gap rate):
 
 * in an island of pushing contacts that touches static geometry (the ground, a static box, a
-  sleeping body), by symplectic Euler, exactly that: a body resting on a contact must move by h
-  times its velocity so that v = 0 means still (the exact flight's term would lift it by
-  |g| h^2 / 2 each step, and the solver would answer with a downward velocity |g| h / 2 at rest);
+  sleeping body), exactly that along its contact normals, so that the solver's gaps hold and
+  v = 0 means still (the exact flight's term would lift a resting body by |g| h^2 / 2 each step,
+  and the solver would answer with a downward velocity |g| h / 2 at rest), and off them as under
+  a constant acceleration: x += h (v + v') - phi h P (v - v_start) / 2, P the projection off the
+  span of the body's pushing contact normals, v_start its velocity before the kick, phi = 1
+  (h (v_start + v) / 2 off the normals: a sliding box's or a rolling ball's motion to round-off),
+  or t_stop / h when a point slid at the step's start and the body stopped inside the step (the
+  closed form of a stop: decelerating until t_stop, then still). Its turn likewise, by
+  h (w - phi Q (w - w_start) / 2), Q off the span of r x n over its points (gather_supports,
+  support_correction); a body that touches another dynamic body or that a pair holds on a
+  carried friction anchor moves by symplectic Euler only;
 * in an island away from static geometry (bodies colliding in the air), by that plus the exact
   flight's - h^2 a / 2, the same term a free body gets: under uniform gravity it moves the whole
   island alike, so the gaps the solver predicted inside it hold, and every body of a group that
@@ -92,7 +102,8 @@ Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut velocity_iterat
                                   "projection_iterations projection_depth static_friction_anchors "
                                   "friction_newton_iters friction_newton_tol block_reg "
                                   "friction_anchor_rate friction_anchor_slide_frac "
-                                  "projection_rings soft_step substeps contact_hertz "
+                                  "projection_rings slide_start_speed soft_step substeps "
+                                  "contact_hertz "
                                   "contact_damping_ratio")
 
 
@@ -104,7 +115,8 @@ def solver_constants() -> dict:
                 friction_newton_tol=float(c.FRICTION_NEWTON_TOL), block_reg=float(c.BLOCK_REG),
                 friction_anchor_rate=float(c.FRICTION_ANCHOR_RATE),
                 friction_anchor_slide_frac=float(c.FRICTION_ANCHOR_SLIDE_FRAC),
-                projection_rings=int(c.PROJECTION_RINGS))
+                projection_rings=int(c.PROJECTION_RINGS),
+                slide_start_speed=float(c.SLIDE_START_SPEED))
 
 
 #: the changing state of the bodies, world frame (rblog.engine.state.State's arrays): position
@@ -177,7 +189,9 @@ def integrate_positions(method, ortho, bd, cfg, awake, x, sc, h, an):
     an island that some static contact pushes).
     A body that a contact pushed (solve or relax) moves with the solver's velocity,
     x += h (v + v'), its momenta rebuilt from the solver's velocity changes, and when its island
-    touches no static geometry, by - h^2 a / 2 more (the exact flight's term); every other body
+    touches no static geometry, by - h^2 a / 2 more (the exact flight's term), when it does, as
+    under constant acceleration off its contact normals (``sc.support``, gathered by the compiled
+    step; see "Translation" above; a fresh Scratch's zero rows leave it out); every other body
     flies exactly under its constant acceleration a, x += h v - h^2 a / 2 with v after the kick
     (a body whose manifolds all ended without impulse gets its start-of-solve momenta back
     bitwise: warm starting applies and withdraws impulses, which leaves round-off). Rotation by

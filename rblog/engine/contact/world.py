@@ -31,7 +31,7 @@ import numpy as np
 from rblog.engine.constants import ISOTROPIC_RTOL, RESTITUTION_THRESHOLD_KICKS
 from rblog.engine.free import advance_free
 from rblog.engine.state import new_anchors
-from rblog.contract.model import Model
+from rblog.contract.model import SHAPE_NONE, Model
 from rblog.engine.rotation import quat_to_matrix_np
 from rblog.contract.trajectory import Contacts
 from rblog.engine.contact.broadphase import static_box_aabbs
@@ -39,13 +39,39 @@ from rblog.engine.contact.manifold import (
     LOG_A, LOG_B, LOG_F, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
 )
 from rblog.engine.contact.narrowphase import (
-    GEOM_BOX, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM, UnsupportedShapePair,
+    CONTRACT_TO_GEOM, GEOM_BOX, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM,
+    UnsupportedShapePair,
 )
 from rblog.engine.constants import ContactParams
 from rblog.engine.contact.step import (
     N_STATS, Bodies, BodyState, ContactCache, Settings, SleepState, Statics, solver_constants,
     world_advance,
 )
+
+
+def engine_shapes(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """(geom (N,) int64 engine geometry types, size (N, 3) m) of the bodies: a sphere or box body
+    from body_shape / body_size; any other from its one geom (the geom table), which must sit at
+    the centre of mass with the body's axes (the engine's bodies are one shape in principal
+    axes). Raises UnsupportedShapePair for a body the engine cannot simulate."""
+    n = model.n_bodies
+    geom = np.empty(n, np.int64)
+    size = np.zeros((n, 3))
+    body_size = np.asarray(model.body_size, float).reshape(n, 3)
+    gb = np.asarray(model.geom_body, np.int64)
+    for i, shape in enumerate(np.asarray(model.body_shape).tolist()):
+        if shape in SHAPE_TO_GEOM:
+            geom[i], size[i] = SHAPE_TO_GEOM[shape], body_size[i]
+            continue
+        rows = np.flatnonzero(gb == i) if shape == SHAPE_NONE else np.zeros(0, np.int64)
+        t = int(model.geom_type[rows[0]]) if len(rows) == 1 else -1
+        centred = len(rows) == 1 and not np.any(model.geom_pos_body[rows[0]]) and \
+            abs(abs(float(model.geom_quat_wxyz_body[rows[0], 0])) - 1.0) <= 1e-12
+        if t not in CONTRACT_TO_GEOM or not centred:
+            raise UnsupportedShapePair(shape, shape, f"body {i} ({model.body_name[i]!r}: "
+                                       f"{len(rows)} geom(s), expected one at its centre of mass)")
+        geom[i], size[i] = CONTRACT_TO_GEOM[t], model.geom_size[rows[0]]
+    return geom, np.ascontiguousarray(size)
 
 
 class _Impulses(NamedTuple):
@@ -77,16 +103,11 @@ class ContactWorld:
         self.n_bodies = n
         p = self.params
 
-        geom = np.empty(n, np.int64)
-        for i, shape in enumerate(np.asarray(model.body_shape).tolist()):
-            if shape not in SHAPE_TO_GEOM:
-                raise UnsupportedShapePair(shape, shape, f"body {i} ({model.body_name[i]!r})")
-            geom[i] = SHAPE_TO_GEOM[shape]
-        size = np.ascontiguousarray(np.asarray(model.body_size, float).reshape(n, 3))
+        geom, size = engine_shapes(model)
         mass = np.asarray(model.body_mass, float).reshape(n)
         inertia = np.ascontiguousarray(np.asarray(model.body_inertia_diag, float).reshape(n, 3))
         inv_inertia = 1.0 / inertia
-        radius = model.body_bounding_radius
+        radius = np.ascontiguousarray(model.body_bounding_radius, dtype=float)
         iso = (np.abs(inertia - inertia[:, :1]) <= ISOTROPIC_RTOL * inertia[:, :1]).all(axis=1)
         gravity = np.asarray(model.gravity, float).reshape(3)
         f_ext = np.asarray(model.body_force_world, float).reshape(n, 3)

@@ -191,8 +191,8 @@ class PybulletRun:
                                         "adapter read them in another order)")
             self.stepper = Stepper(world, cid, dt)
             # per body: contact, applied (the scene's constant loads) and passive (damping 0 here,
-            # still logged) logged, actuator and joint none
-            self.impulse_supplied = np.tile(np.array([1, 1, 1, 2, 2], np.int64), (n, 1))
+            # still logged) logged, actuator, joint and integration none
+            self.impulse_supplied = np.tile(np.array([1, 1, 1, 2, 2, 2], np.int64), (n, 1))
         except BaseException:
             pb.disconnect(physicsClientId=cid)
             raise

@@ -58,7 +58,7 @@ def test_columns_tile_the_packed_arrays():
 
 def test_geometry_codes_and_table_agree():
     layout = _core.collision_layout()
-    for name in ("GEOM_SPHERE", "GEOM_BOX", "GEOM_PLANE"):
+    for name in ("GEOM_SPHERE", "GEOM_BOX", "GEOM_CAPSULE", "GEOM_CYLINDER", "GEOM_PLANE"):
         assert getattr(narrowphase, name) == layout[name], name
     assert {tuple(k) for k in layout["NARROWPHASE_TABLE"]} == set(narrowphase.NARROWPHASE_TABLE)
 
