@@ -7,12 +7,15 @@
 //      integrators), and puts qvel and qacc back;
 //   2. copies the pieces of mjData's buffer that hold the row's fields into row k (Rows in
 //      Python decides the pieces), and v1 into its row; v0 = v1.
+// ContactCapture copies the raw contacts of the logged steps (below); mujoco_resolve.cpp turns a
+// block's rows into impulses and states.
 // It holds raw addresses: of d's arrays (mjData's buffer stays where it is for d's life), of the
 // Python-owned buffers (never reallocated while the hook lives), and of MuJoCo's two functions
 // (looked up by ctypes in the libmujoco the bindings loaded). No MuJoCo header is needed.
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/vector.h>
 #include <nanobind/stl/tuple.h>
+#include <nanobind/ndarray.h>
 
 #include <cstdint>
 #include <cstring>
@@ -21,6 +24,10 @@
 #include <vector>
 
 namespace nb = nanobind;
+
+namespace rb {
+void bind_resolve(nb::module_& m);  // mujoco_resolve.cpp
+}
 
 namespace {
 
@@ -83,6 +90,52 @@ struct StepHook {
     }
 };
 
+// ContactCapture: at a logged step, the raw contacts of an MjData: its first ncon mjContact
+// structs (at `base`, `stride` bytes each: the start of mjData's arena, which stays where it is)
+// and its efc_force, appended to the block's capture; decoded a block at a time in Python
+// (rblog/adapters/_mujoco_model.py, decode_contacts).
+struct ContactCapture {
+    const std::uint8_t* con_base = nullptr;
+    long con_stride = 0, con_count = 0;
+    std::vector<std::int64_t> cap_step, cap_ncon, cap_nefc;
+    std::vector<std::uint8_t> cap_raw;
+    std::vector<double> cap_efc;
+
+    void contacts_at(std::uintptr_t base, long stride, long count) {
+        if (!base || stride <= 0 || count <= 0) throw std::invalid_argument("contacts_at: bad view");
+        con_base = reinterpret_cast<const std::uint8_t*>(base);
+        con_stride = stride;
+        con_count = count;
+    }
+
+    void capture(std::int64_t step, long ncon,
+                 nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu> efc) {
+        if (!con_base) throw std::logic_error("capture: contacts_at first");
+        if (ncon < 0 || ncon > con_count) throw std::out_of_range("capture: ncon outside the arena");
+        cap_step.push_back(step);
+        cap_ncon.push_back(ncon);
+        cap_nefc.push_back((std::int64_t)efc.shape(0));
+        cap_raw.insert(cap_raw.end(), con_base, con_base + ncon * con_stride);
+        cap_efc.insert(cap_efc.end(), efc.data(), efc.data() + efc.shape(0));
+    }
+
+    // the captures so far, as (step, ncon, nefc (S,) int64, raw bytes, efc_force), then cleared
+    nb::tuple take() {
+        auto out = nb::make_tuple(to_numpy(cap_step), to_numpy(cap_ncon), to_numpy(cap_nefc),
+                                  to_numpy(cap_raw), to_numpy(cap_efc));
+        cap_step.clear(), cap_ncon.clear(), cap_nefc.clear(), cap_raw.clear(), cap_efc.clear();
+        return out;
+    }
+
+    template <class T>
+    static nb::ndarray<nb::numpy, T> to_numpy(const std::vector<T>& v) {  // a copy numpy owns
+        auto* owned = new std::vector<T>(v);
+        nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
+        size_t shape[1] = {owned->size()};
+        return nb::ndarray<nb::numpy, T>(owned->data(), 1, shape, owner);
+    }
+};
+
 }  // namespace
 
 NB_MODULE(_hook, mod) {
@@ -93,4 +146,13 @@ NB_MODULE(_hook, mod) {
                       std::uintptr_t, std::uintptr_t, int,
                       std::vector<std::tuple<std::uintptr_t, long, long>>>())
         .def("step", &StepHook::step, "Gather the step that just ended into row k; returns k + 1.");
+    nb::class_<ContactCapture>(mod, "ContactCapture")
+        .def(nb::init<>())
+        .def("contacts_at", &ContactCapture::contacts_at,
+             "contacts_at(base, stride, count): where d's mjContact structs are")
+        .def("capture", &ContactCapture::capture,
+             "capture(step, ncon, efc_force): append the logged step's raw contacts")
+        .def("take", &ContactCapture::take,
+             "take() -> (step, ncon, nefc, raw bytes, efc_force): the captures, then cleared");
+    rb::bind_resolve(mod);
 }

@@ -62,6 +62,22 @@ def _cross(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
+def _xfrc_about_c(xf, r):
+    """(..., 6) [torque; force] about c of ``xfrc_applied`` rows ``xf`` (..., 6) [force; torque]
+    at the centre of mass, ``r`` (..., 3) c -> centre of mass."""
+    return np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
+
+
+def _xfrc_work(F, xf, r, h):
+    """(K, nbody) J the work of ``xfrc_applied`` ``xf`` (K, nbody, 6) [force; torque] at the
+    centre of mass over each step: h (f . v_com + torque . w), from the rows' ``cvel`` (about c)
+    and ``r`` (K, nbody, 3) c -> centre of mass."""
+    cv = F("cvel")
+    v_com = cv[..., 3:] + _cross(cv[..., :3], r)
+    return h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
+                np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
+
+
 _FUNCTIONS = []
 
 
@@ -222,6 +238,7 @@ class StepImpulses:
         self.v_start = self.v0.copy()  # v0 of the block's first row
         self._compile()
         self._gap_v0 = {}  # row -> its v0 after steps not seen
+        self._fixed = None  # the compiled resolve's fixed arrays (row offsets, layout maps)
         self.k = 0
 
     def bind(self, d) -> None:
@@ -229,6 +246,7 @@ class StepImpulses:
         self.d = d
         self.qvel, self.qacc = d.qvel, d.qacc
         self.rows_of = Rows(self.scratch if self.rk4 else d)
+        self._fixed = None  # the row offsets may differ in another MjData
         if getattr(self, "rows", None) is not None:
             self._compile()
 
@@ -310,19 +328,77 @@ class StepImpulses:
     def full(self) -> bool:
         return self.k >= self.cap
 
-    def resolve(self):
-        """The gathered steps as (impulses (K, 6, nbody, 6) [angular about the COM; linear], N s
-        and N m s, in IMPULSE_KINDS order, integration 0 (per interval, MujocoRecorder); work
-        (K, 4, nbody) J, WORK_KINDS order). The rows
-        stay until :meth:`reset`."""
-        k, lay, h = self.k, self.lay, self.h
-        R = self.rows[:k]
-        F = lambda f: self.rows_of.field(R, f)  # noqa: E731
-        v1 = self.v1[:k]
+    def _v0(self):
+        """(K, nv) each gathered step's start velocity: the previous row's v1 (or a restart's)."""
+        k, v1 = self.k, self.v1[:self.k]
         v0 = np.concatenate([self.v_start[None], v1[:-1]])
         for row, v in self._gap_v0.items():
             if row < k:
                 v0[row] = v
+        return v0
+
+    def fixed(self):
+        """The compiled kernels' fixed arrays: the row's field offsets (ROW_FIELDS order),
+        ``root``, ``body_parentid``, ``dof_body``, ``dof_jnt``, ``dof_trans`` (int64),
+        ``damping``."""
+        if self._fixed is None:
+            lay, m = self.lay, self.m
+            i64 = lambda a: np.ascontiguousarray(a, np.int64)  # noqa: E731
+            self._fixed = (np.array([self.rows_of.offset[f] for f in ROW_FIELDS], np.int64),
+                           i64(lay.root), i64(m.body_parentid), i64(lay.dof_body),
+                           i64(lay.dof_jnt), i64(lay.dof_trans),
+                           np.ascontiguousarray(lay.damping, np.float64))
+        return self._fixed
+
+    def resolve(self):
+        """The gathered steps as (impulses (K, 6, nbody, 6) [angular about the COM; linear], N s
+        and N m s, in IMPULSE_KINDS order, integration 0 (per interval, MujocoRecorder); work
+        (K, 4, nbody) J, WORK_KINDS order). The rows stay until :meth:`reset`. Compiled
+        (``rblog.adapters._hook.resolve``: the formulas of :meth:`resolve_numpy` in the same
+        order) when the build has it; the joints' constraint forces (:meth:`_joint_forces`) and
+        the velocity the work is taken at (:meth:`_v_work`) and the work of ``xfrc_applied``
+        (:func:`_xfrc_work`) come from numpy either way (einsum's sums, not the kernel's)."""
+        try:
+            from rblog.adapters._hook import resolve
+        except ImportError:
+            return self.resolve_numpy()
+        k, lay, m = self.k, self.lay, self.m
+        off, root, parent, dof_body, dof_jnt, dof_trans, damping = self.fixed()
+        nb, nv = len(lay.root), int(m.nv)
+        R = self.rows[:k]
+        F = lambda f: self.rows_of.field(R, f)  # noqa: E731
+        v1, v0 = self.v1[:k], self._v0()
+        xf = F("xfrc_applied")
+        contact_c = F("cfrc_ext")
+        pushed = bool(xf.any())
+        if pushed:
+            r = F("xipos") - F("subtree_com")[:, lay.root]
+            contact_c = contact_c - _xfrc_about_c(xf, r)
+        q_joint = np.ascontiguousarray(self._joint_forces(F, contact_c))
+        v_work = np.ascontiguousarray(self._v_work(v0, v1))
+        W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
+        work = np.empty((k, len(WORK_KINDS), nb))
+        ma = self.Ma[:k] if self.Ma is not None else np.empty((0, nv))
+        resolve(R, off, v1, v0, ma, root, parent, dof_body, dof_jnt, dof_trans, damping,
+                self.h, bool(self.implicit_damping), int(self.correction_kind), q_joint, v_work,
+                W, work)
+        if pushed:
+            work[:, 0] += _xfrc_work(F, xf, r, self.h)
+        return W, work
+
+    def _v_work(self, v0, v1):
+        """(K, nv) the velocity a step's forces work at: the mean of its ends for the
+        semi-implicit integrators (the states' kinetic energy changes by (v0 + v1)/2 . M (v1 -
+        v0) = h f . (v0 + v1)/2), RK4's displacement (q1 - q0) / h."""
+        return 0.5 * (v0 + v1) if self.v_disp is None else self.v_disp[:self.k]
+
+    def resolve_numpy(self):
+        """:meth:`resolve` in numpy (the reference of the compiled one)."""
+        k, lay, h = self.k, self.lay, self.h
+        R = self.rows[:k]
+        F = lambda f: self.rows_of.field(R, f)  # noqa: E731
+        v1 = self.v1[:k]
+        v0 = self._v0()
         c = F("subtree_com")[:, lay.root]                       # (K, nb, 3) each body's c
         r = F("xipos") - c                                      # c -> centre of mass
         xf = F("xfrc_applied")                                  # [force; torque] at the COM
@@ -331,7 +407,7 @@ class StepImpulses:
         W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
         W[:, IMPULSE_KINDS.index("integration")] = 0.0  # per interval: MujocoRecorder._integration
         if pushed:
-            xf_c = np.concatenate([xf[..., 3:] + _cross(r, xf[..., :3]), xf[..., :3]], axis=-1)
+            xf_c = _xfrc_about_c(xf, r)
             np.subtract(F("cfrc_ext"), xf_c, out=W[:, 0])
         else:
             W[:, 0] = F("cfrc_ext")
@@ -363,18 +439,12 @@ class StepImpulses:
         W[:, 4] -= gen.sum(axis=1)
         W[..., :3] -= _cross(r[:, None], W[..., 3:])            # torques about the COM
         W *= h
-        # the velocity a step's forces work at: the mean of its ends for the semi-implicit
-        # integrators (the states' kinetic energy changes by (v0 + v1)/2 . M (v1 - v0) = h f .
-        # (v0 + v1)/2), RK4's displacement (q1 - q0) / h
-        v_work = 0.5 * (v0 + v1) if self.v_disp is None else self.v_disp[:k]
+        v_work = self._v_work(v0, v1)
         work = np.empty((k, len(WORK_KINDS), nb))
         work[:, :3] = (tau * v_work[:, None]) @ lay.own.T * h    # applied, passive, actuator
         work[:, 3] = (q_joint * v_work) @ lay.own.T * h          # joint
         if pushed:
-            cv = F("cvel")
-            v_com = cv[..., 3:] + _cross(cv[..., :3], r)
-            work[:, 0] += h * (np.einsum("kbi,kbi->kb", xf[..., :3], v_com) +
-                               np.einsum("kbi,kbi->kb", xf[..., 3:], cv[..., :3]))
+            work[:, 0] += _xfrc_work(F, xf, r, h)
         return W, work
 
     def _joint_forces(self, F, contact_c):

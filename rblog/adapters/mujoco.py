@@ -105,7 +105,10 @@ swapped in and back, and a few copies of contiguous pieces of mjData into a prea
 (:class:`Rows`); per sample the contacts' raw ``mjContact`` structs and ``efc_force``. A
 sample's state is the next step's row (its start is the sample's state) under Euler and the
 implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
-the rows are resolved into impulses, vectorized, and written as one block. Measured with
+the rows are resolved into impulses and the samples' states (compiled: ``_hook.resolve``, with
+the joints' constraint forces, the work's velocity and xfrc_applied's work from numpy;
+``_hook.states``; numpy without them), the contacts copied at each logged step
+(``_hook.ContactCapture``) decoded, and all written as one block. Measured with
 benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
 """
 
@@ -116,9 +119,9 @@ import numpy as np
 from rblog.adapters import AdapterError
 from rblog.adapters._common import EngineRecorder
 from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _ContactArray, _is_model,
-                                          _mj, capture_contacts, contacts, decode_contacts,
-                                          gravity_of, inspect, settings, state_offsets, suite_model,
-                                          unsupported)
+                                          _mj, _packed_contact_dict, capture_contacts, contacts,
+                                          decode_contacts, gravity_of, inspect, settings,
+                                          state_offsets, suite_model, unsupported)
 from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross)
 from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, WORK_KINDS
 
@@ -176,6 +179,7 @@ class MujocoRecorder(EngineRecorder):
 
         self._channels = set(run_interval_channels(self.model))
         self.kin = Kinematics(m, self.layout)
+        self._iquat = np.ascontiguousarray(self.kin.iquat, np.float64)
         self.hook = StepImpulses(m, self.layout, d, block=block)
         self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
         cap = self.hook.cap + 1
@@ -195,6 +199,12 @@ class MujocoRecorder(EngineRecorder):
         self._carry_work = np.zeros((len(WORK_KINDS), m.nbody))
         self._carry_gap = False
         self._carray, self._carray_d = None, None  # the raw view of d's contacts, once there are some
+        try:  # the logged steps' raw contacts, copied in C++ (else capture_contacts, numpy)
+            from rblog.adapters._hook import ContactCapture
+
+            self._capture = ContactCapture()
+        except ImportError:
+            self._capture = None
         self.step = int(round(float(d.time) / self.dt))
         self._add_sample(d, row=-1, contacts=False)
 
@@ -207,13 +217,21 @@ class MujocoRecorder(EngineRecorder):
                      out=(self._x[i], self._r[i], self._v[i], self._w[i]))
             self._q[i] = self.kin.quat_wxyz()
         self._ns = i + 1
-        if contacts and d.ncon:
+        ncon = d.ncon if contacts else 0
+        if ncon:
             if self._carray is None or self._carray_d is not d:
                 try:
                     self._carray, self._carray_d = _ContactArray(self.m, d), d
                 except ValueError:  # an mjContact the view cannot describe: field by field
                     self._carray, self._carray_d = False, d
-            self._raw.append(capture_contacts(d, self.step, self._carray or None))
+                if self._carray and self._capture is not None:
+                    self._capture.contacts_at(self._carray.base, self._carray.dtype.itemsize,
+                                              self._carray.count)
+                    self._capture_dtype = self._carray.dtype
+            if self._carray and self._capture is not None:
+                self._capture.capture(self.step, ncon, d.efc_force)
+            else:
+                self._raw.append(capture_contacts(d, self.step, self._carray or None))
 
     def __call__(self, d) -> None:
         """Log the step that just ended in ``d`` (call after every ``mj_step``)."""
@@ -257,7 +275,13 @@ class MujocoRecorder(EngineRecorder):
         nxt = self._row[pend] + 1
         have = nxt < hook.k  # and that row is the very next step (not one after steps not seen)
         have[have] = self._hook_steps[nxt[have]] == self._steps[pend[have]] + 1
-        if self.deferred and have.any():
+        if self.deferred and have.any() and _states_kernel():  # compiled: the same formulas
+            from rblog.adapters._hook import states
+
+            off, root = hook.fixed()[:2]
+            states(R, off, np.ascontiguousarray(nxt[have]), np.ascontiguousarray(pend[have]),
+                   self._ids, root, self._iquat, self._x, self._r, self._q, self._v, self._w)
+        elif self.deferred and have.any():  # numpy: the same formulas
             i, rr = pend[have], nxt[have]
             ids = self._ids
             x = rows_of.field(R, "xipos")[rr][:, ids]
@@ -278,7 +302,7 @@ class MujocoRecorder(EngineRecorder):
         self._row[pend] = -1
 
     def _impulses(self, ns: int):
-        """(W (ns, 5, nbody, 6), work (ns, 3, nbody)) of each waiting sample's interval: the
+        """(W (ns, 6, nbody, 6), work (ns, 4, nbody)) of each waiting sample's interval: the
         steps in (step[i-1], step[i]]; the steps after the last sample carry over."""
         k = self.hook.k
         W, work = self.hook.resolve() if k else (None, None)
@@ -337,7 +361,7 @@ class MujocoRecorder(EngineRecorder):
         for name in [k for k in arrays if k.startswith(("impulse_", "work_"))]:
             if name not in self._channels:
                 del arrays[name]
-        rows = decode_contacts(self.m, self.layout, self._raw)
+        rows = decode_contacts(self.m, self.layout, self._raw, packed=self._captured())
         if rows is not None:
             arrays["contacts"] = rows
         self._raw = []
@@ -375,6 +399,24 @@ class MujocoRecorder(EngineRecorder):
         out[:, logged != SUPPLIED_LOGGED] = 0.0  # none or missing (the Model's table)
         self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())
         return out
+
+    def _captured(self):
+        """The compiled capture's steps since the last flush, as _packed_contact_dict, or None."""
+        if self._capture is None:
+            return None
+        steps, ncon, nefc, raw, efc = self._capture.take()
+        if not len(steps):
+            return None
+        return _packed_contact_dict(steps, ncon, raw.view(self._capture_dtype), nefc, efc)
+
+
+def _states_kernel() -> bool:
+    """Whether the build has the compiled state gather (rblog.adapters._hook.states)."""
+    try:
+        from rblog.adapters._hook import states  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def recorder(m, d=None, **options) -> MujocoRecorder:

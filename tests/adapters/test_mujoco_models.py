@@ -27,7 +27,7 @@ from rblog.adapters import AdapterError  # noqa: E402
 from rblog.adapters import mujoco as adapter  # noqa: E402
 from rblog.contract.model import (BODY_FREE, BODY_JOINTED, GEOM_BOX, GEOM_CAPSULE,  # noqa: E402
                                   GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH, GEOM_PLANE,
-                                  GEOM_SPHERE, IMPULSE_KINDS)
+                                  GEOM_SPHERE, IMPULSE_KINDS, WORK_KINDS)
 from rblog.contract.orientation import quat_wxyz_to_matrix  # noqa: E402
 
 MODELS = ["humanoid", "stacker", "manipulator", "cartpole", "walker", "ball_in_cup", "finger", "fish"]
@@ -616,3 +616,25 @@ def test_compiled_hook_equals_numpy(integrator):
             np.testing.assert_array_equal(x, y, err_msg=kind)
     np.testing.assert_array_equal(a.position, b.position)
     np.testing.assert_array_equal(a.work_passive, b.work_passive)
+
+
+@pytest.mark.parametrize("name", ["humanoid", "cartpole"])  # cartpole: RK4 (work at (q1 - q0)/h)
+def test_compiled_resolve_equals_numpy(name):
+    """The block's impulses and work resolved in C++ (rblog.adapters._hook.resolve) are the bits
+    of the numpy resolve, every kind (integration 0, joint work), with xfrc_applied pushing."""
+    pytest.importorskip("rblog.adapters._hook")
+    m = adapter.suite_model(name)
+    d = mujoco.MjData(m)
+    rec = adapter.recorder(m, d, every=10 ** 6)  # one sample: the rows stay in the hook
+    rng = np.random.default_rng(2)
+    for i in range(20):
+        d.ctrl[:] = rng.uniform(-1.0, 1.0, m.nu)
+        d.xfrc_applied[1:] = rng.normal(size=(m.nbody - 1, 6)) if i >= 10 else 0.0
+        mujoco.mj_step(m, d)
+        rec(d)
+    (W, work), (W_np, work_np) = rec.hook.resolve(), rec.hook.resolve_numpy()
+    assert rec.hook.k == 20
+    assert W.shape[1] == len(IMPULSE_KINDS) and work.shape[1] == len(WORK_KINDS)
+    np.testing.assert_array_equal(W, W_np)
+    np.testing.assert_array_equal(work, work_np)
+    rec.close()

@@ -1,0 +1,283 @@
+// rblog.adapters._hook.resolve: the gathered rows of a block of MuJoCo steps -> each step's
+// impulses and work per body, the same formulas, in the same order, as the numpy
+// StepImpulses.resolve_numpy in rblog/adapters/_mujoco_step.py (the derivation is in
+// rblog/adapters/mujoco.py's docstring). Per step k, with c = subtree_com[root[b]] and
+// r = xipos[b] - c (c -> centre of mass):
+//   S_j (6,)      the unit wrench of dof j about c: [cdof_j(:3); 0] rotational, [(anchor - c) x u;
+//                 u] translational (u = cdof_j(3:));
+//   tau (3, nv)   applied, passive (minus B (v1 - v0) when MuJoCo integrates damping implicitly),
+//                 actuator (plus M a - f + B (v1 - v0) in kind `correction_kind` under implicit);
+//   gen_a[b]      sum_j pair[b, j] tau_a,j S_j (pair: +1 on the dof's body, -1 on its parent);
+//   W[0] contact  cfrc_ext - xfrc_c (xfrc_c = [tau + r x f; f], about c), W[1..3] = gen
+//                 (+ xfrc_c on applied), W[4] joint = cfrc_int[b] - sum_children cfrc_int - sum_a gen_a;
+//   then the torques about the centre of mass (tau -= r x f), times h; W[5] integration = 0
+//                 (per interval: MujocoRecorder._integration);
+//   work_a[b]     (sum over b's dofs of tau_a,j u_j) h (xfrc_applied's work is added in numpy,
+//                 _mujoco_step._xfrc_work: einsum's order), and work_joint[b] = (sum over b's dofs of q_joint_j u_j) h, with u = v_work
+//                 and q_joint (K, nv) from numpy (StepImpulses._v_work, _joint_forces).
+// Sums run over dofs (and children) in ascending order, as numpy's matmul does.
+// states() reads the logged states of samples out of the same rows (below).
+#include <nanobind/nanobind.h>
+
+#include <vector>
+
+#include "common/py.hpp"
+
+namespace rb {
+namespace nb = nanobind;
+
+namespace {
+
+// offsets of the row's fields, in ROW_FIELDS order (rblog/adapters/_mujoco_step.py)
+enum RowField {
+    F_QPOS, F_QVEL, F_QFRC_APPLIED, F_XFRC_APPLIED, F_XQUAT, F_XIPOS, F_XIMAT, F_XANCHOR,
+    F_SUBTREE_COM, F_CDOF, F_CVEL, F_QFRC_PASSIVE, F_QFRC_ACTUATOR, F_QFRC_SMOOTH,
+    F_QFRC_CONSTRAINT, F_CFRC_INT, F_CFRC_EXT, N_ROW_FIELDS
+};
+
+inline void cross(const double* a, const double* b, double* out) {
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+// IMPULSE_KINDS: contact, applied, passive, actuator, joint, integration
+constexpr int N_KINDS = 6;
+constexpr int N_WORK = 4;   // WORK_KINDS: applied, passive, actuator, joint
+
+void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handle v0_h,
+             nb::handle ma_h, nb::handle root_h, nb::handle parent_h, nb::handle dof_body_h,
+             nb::handle dof_jnt_h, nb::handle dof_trans_h, nb::handle damping_h, double h,
+             bool implicit_damping, int correction_kind, nb::handle q_joint_h,
+             nb::handle v_work_h, nb::handle w_h, nb::handle work_h) {
+    V2<double> rows = v2<double>(rows_h, "rows");
+    V1<i64> off = v1<i64>(offsets_h, "offsets");
+    V2<double> v1m = v2<double>(v1_h, "v1"), v0m = v2<double>(v0_h, "v0");
+    V2<double> ma = v2<double>(ma_h, "Ma");
+    V2<double> qj = v2<double>(q_joint_h, "q_joint"), vw = v2<double>(v_work_h, "v_work");
+    V1<i64> root = v1<i64>(root_h, "root"), parent = v1<i64>(parent_h, "parent");
+    V1<i64> dof_body = v1<i64>(dof_body_h, "dof_body"), dof_jnt = v1<i64>(dof_jnt_h, "dof_jnt");
+    V1<i64> dof_trans = v1<i64>(dof_trans_h, "dof_trans");
+    V1<double> damping = v1<double>(damping_h, "damping");
+    V4<double> W = v4<double>(w_h, "W");
+    V3<double> work = v3<double>(work_h, "work");
+    const i64 K = rows.n0, nb_ = root.n0, nv = v1m.n1;
+    if (off.n0 != N_ROW_FIELDS) throw nb::value_error("resolve: offsets must hold 17 fields");
+    if (v1m.n0 != K || v0m.n0 != K || v0m.n1 != nv || parent.n0 != nb_ || dof_body.n0 != nv ||
+        dof_jnt.n0 != nv || dof_trans.n0 != nv || damping.n0 != nv || qj.n0 != K ||
+        qj.n1 != nv || vw.n0 != K || vw.n1 != nv)
+        throw nb::value_error(
+            "resolve: v1, v0, q_joint, v_work (K, nv), parent (nbody,), dof_* (nv,) disagree");
+    if (W.n0 != K || W.n1 != N_KINDS || W.n2 != nb_ || W.n3 != 6 || work.n0 != K ||
+        work.n1 != N_WORK || work.n2 != nb_)
+        throw nb::value_error("resolve: W must be (K, 6, nbody, 6) and work (K, 4, nbody)");
+    const bool with_ma = ma.n0 > 0;
+    if (with_ma && (ma.n0 < K || ma.n1 != nv)) throw nb::value_error("resolve: Ma must be (K, nv)");
+    for (i64 f = 0; f < N_ROW_FIELDS; ++f)
+        if (off(f) < 0 || off(f) > rows.n1) throw nb::value_error("resolve: offset outside the row");
+    for (i64 j = 0; j < nv; ++j)
+        if (dof_body(j) < 0 || dof_body(j) >= nb_ || dof_jnt(j) < 0)
+            throw nb::value_error("resolve: dof_body or dof_jnt out of range");
+    for (i64 b = 0; b < nb_; ++b)
+        if (root(b) < 0 || root(b) >= nb_ || parent(b) < 0 || parent(b) >= nb_)
+            throw nb::value_error("resolve: root or parent out of range");
+
+    // xfrc_applied anywhere in the block (numpy's `pushed`: the xfrc terms only then)
+    bool pushed = false;
+    for (i64 k = 0; k < K && !pushed; ++k) {
+        const double* xf = &rows(k, off(F_XFRC_APPLIED));
+        for (i64 i = 0; i < 6 * nb_; ++i)
+            if (xf[i] != 0.0) { pushed = true; break; }
+    }
+    std::vector<double> S(6 * nv), tau(3 * nv), gen(3 * nb_ * 6), r(3 * nb_), xfc(6 * nb_);
+    for (i64 k = 0; k < K; ++k) {
+        const double* row = &rows(k, 0);
+        const double* com = row + off(F_SUBTREE_COM);
+        const double* xipos = row + off(F_XIPOS);
+        const double* xf = row + off(F_XFRC_APPLIED);
+        const double* cdof = row + off(F_CDOF);
+        const double* xanchor = row + off(F_XANCHOR);
+        const double* cfrc_ext = row + off(F_CFRC_EXT);
+        const double* cfrc_int = row + off(F_CFRC_INT);
+        const double* v1 = &v1m(k, 0);
+        const double* v0 = &v0m(k, 0);
+        const double* u = &vw(k, 0);
+        const double* qjk = &qj(k, 0);
+        double* Wk = &W(k, 0, 0, 0);  // (6, nbody, 6)
+        for (i64 b = 0; b < nb_; ++b)
+            for (int c = 0; c < 3; ++c) r[3 * b + c] = xipos[3 * b + c] - com[3 * root(b) + c];
+        // contact
+        if (pushed) {
+            for (i64 b = 0; b < nb_; ++b) {
+                double rf[3];
+                cross(&r[3 * b], xf + 6 * b, rf);
+                for (int c = 0; c < 3; ++c) {
+                    xfc[6 * b + c] = xf[6 * b + 3 + c] + rf[c];
+                    xfc[6 * b + 3 + c] = xf[6 * b + c];
+                }
+                for (int c = 0; c < 6; ++c) Wk[6 * b + c] = cfrc_ext[6 * b + c] - xfc[6 * b + c];
+            }
+        } else {
+            for (i64 i = 0; i < 6 * nb_; ++i) Wk[i] = cfrc_ext[i];
+        }
+        // S: each dof's unit wrench about its body's c
+        for (i64 j = 0; j < nv; ++j) {
+            double* s = &S[6 * j];
+            const double* cd = cdof + 6 * j;
+            if (dof_trans(j)) {
+                const double* c = com + 3 * root(dof_body(j));
+                const double* an = xanchor + 3 * dof_jnt(j);
+                const double arm[3] = {an[0] - c[0], an[1] - c[1], an[2] - c[2]};
+                cross(arm, cd + 3, s);
+                s[3] = cd[3], s[4] = cd[4], s[5] = cd[5];
+            } else {
+                s[0] = cd[0], s[1] = cd[1], s[2] = cd[2];
+                s[3] = s[4] = s[5] = 0.0;
+            }
+        }
+        // tau (3, nv): applied, passive, actuator
+        const double* qa = row + off(F_QFRC_APPLIED);
+        const double* qp = row + off(F_QFRC_PASSIVE);
+        const double* qu = row + off(F_QFRC_ACTUATOR);
+        for (i64 j = 0; j < nv; ++j) {
+            tau[j] = qa[j];
+            tau[nv + j] = qp[j];
+            if (implicit_damping) tau[nv + j] -= damping(j) * (v1[j] - v0[j]);
+            tau[2 * nv + j] = qu[j];
+        }
+        if (with_ma) {  // h D a beyond the dof damping: M a - f - (-B dv)
+            const double* sm = row + off(F_QFRC_SMOOTH);
+            const double* cn = row + off(F_QFRC_CONSTRAINT);
+            const double* mak = &ma(k, 0);
+            for (i64 j = 0; j < nv; ++j)
+                tau[correction_kind * nv + j] +=
+                    mak[j] - sm[j] - cn[j] + damping(j) * (v1[j] - v0[j]);
+        }
+        // gen (3, nbody, 6): each dof's wrench on its body, the opposite on its parent
+        std::fill(gen.begin(), gen.end(), 0.0);
+        for (int a = 0; a < 3; ++a) {
+            double* g = &gen[a * nb_ * 6];
+            for (i64 j = 0; j < nv; ++j) {
+                const i64 b = dof_body(j), p = parent(b);
+                const double t = tau[a * nv + j];
+                for (int c = 0; c < 6; ++c) {
+                    const double ts = t * S[6 * j + c];
+                    g[6 * b + c] += ts;
+                    if (p > 0) g[6 * p + c] -= ts;
+                }
+            }
+        }
+        for (int a = 0; a < 3; ++a)
+            for (i64 i = 0; i < 6 * nb_; ++i) Wk[(1 + a) * nb_ * 6 + i] = gen[a * nb_ * 6 + i];
+        if (pushed)
+            for (i64 i = 0; i < 6 * nb_; ++i) Wk[nb_ * 6 + i] += xfc[i];
+        // joint: the net of cfrc_int (the body's own minus its children's), minus gen
+        double* Wj = Wk + 4 * nb_ * 6;
+        for (i64 i = 0; i < 6; ++i) Wj[i] = 0.0;  // the world's row of numpy's `net` is zero
+        for (i64 b = 1; b < nb_; ++b)
+            for (int c = 0; c < 6; ++c) Wj[6 * b + c] = cfrc_int[6 * b + c];
+        for (i64 b = 1; b < nb_; ++b) {
+            const i64 p = parent(b);
+            if (p > 0)
+                for (int c = 0; c < 6; ++c) Wj[6 * p + c] -= cfrc_int[6 * b + c];
+        }
+        for (i64 i = 0; i < 6 * nb_; ++i)
+            Wj[i] -= gen[i] + gen[nb_ * 6 + i] + gen[2 * nb_ * 6 + i];
+        // torques about the centre of mass, then impulses; the integration kind 0
+        for (i64 i = 0; i < 6 * nb_; ++i) Wk[5 * nb_ * 6 + i] = 0.0;
+        for (int a = 0; a < 5; ++a)
+            for (i64 b = 0; b < nb_; ++b) {
+                double* w = Wk + (a * nb_ + b) * 6;
+                double rf[3];
+                cross(&r[3 * b], w + 3, rf);
+                for (int c = 0; c < 3; ++c) w[c] -= rf[c];
+                for (int c = 0; c < 6; ++c) w[c] *= h;
+            }
+        // work (4, nbody)
+        double* wk = &work(k, 0, 0);
+        for (i64 i = 0; i < N_WORK * nb_; ++i) wk[i] = 0.0;
+        for (int a = 0; a < 3; ++a)
+            for (i64 j = 0; j < nv; ++j) wk[a * nb_ + dof_body(j)] += tau[a * nv + j] * u[j];
+        for (i64 j = 0; j < nv; ++j) wk[3 * nb_ + dof_body(j)] += qjk[j] * u[j];
+        for (i64 i = 0; i < N_WORK * nb_; ++i) wk[i] *= h;
+    }
+}
+
+// The logged states of samples whose state is the start of a gathered step (row rr[m]), as
+// MujocoRecorder._states_numpy: for sample slot i[m] and logged body n (MuJoCo body ids[n]),
+//   x = xipos, R = ximat, q = xquat (x) iquat[n] (Hamilton, scalar first), w = cvel(:3),
+//   v = cvel(3:) + w x (x - subtree_com[root])   (cvel is about the root's subtree com).
+void states(nb::handle rows_h, nb::handle offsets_h, nb::handle rr_h, nb::handle slot_h,
+            nb::handle ids_h, nb::handle root_h, nb::handle iquat_h, nb::handle x_h,
+            nb::handle r_h, nb::handle q_h, nb::handle v_h, nb::handle w_h) {
+    V2<double> rows = v2<double>(rows_h, "rows");
+    V1<i64> off = v1<i64>(offsets_h, "offsets"), rr = v1<i64>(rr_h, "rr");
+    V1<i64> slot = v1<i64>(slot_h, "slot"), ids = v1<i64>(ids_h, "ids");
+    V1<i64> root = v1<i64>(root_h, "root");
+    V2<double> iquat = v2<double>(iquat_h, "iquat");
+    V3<double> X = v3<double>(x_h, "x"), Q = v3<double>(q_h, "q"), V = v3<double>(v_h, "v");
+    V3<double> Wv = v3<double>(w_h, "w");
+    V4<double> R = v4<double>(r_h, "r");
+    const i64 M = rr.n0, N = ids.n0, nb_ = root.n0;
+    if (off.n0 != N_ROW_FIELDS || slot.n0 != M || iquat.n0 != N || iquat.n1 != 4)
+        throw nb::value_error("states: offsets (17,), slot (M,), iquat (N, 4) disagree");
+    const i64 cap = X.n0;
+    if (X.n1 != N || X.n2 != 3 || R.n0 != cap || R.n1 != N || R.n2 != 3 || R.n3 != 3 ||
+        Q.n0 != cap || Q.n1 != N || Q.n2 != 4 || V.n0 != cap || V.n1 != N || V.n2 != 3 ||
+        Wv.n0 != cap || Wv.n1 != N || Wv.n2 != 3)
+        throw nb::value_error("states: x, v, w (C, N, 3), r (C, N, 3, 3), q (C, N, 4) disagree");
+    for (i64 n = 0; n < N; ++n)
+        if (ids(n) < 0 || ids(n) >= nb_) throw nb::value_error("states: ids out of range");
+    for (i64 b = 0; b < nb_; ++b)
+        if (root(b) < 0 || root(b) >= nb_) throw nb::value_error("states: root out of range");
+    for (i64 m = 0; m < M; ++m) {
+        if (rr(m) < 0 || rr(m) >= rows.n0 || slot(m) < 0 || slot(m) >= cap)
+            throw nb::value_error("states: row or slot out of range");
+        const double* row = &rows(rr(m), 0);
+        const double* xipos = row + off(F_XIPOS);
+        const double* ximat = row + off(F_XIMAT);
+        const double* xquat = row + off(F_XQUAT);
+        const double* cvel = row + off(F_CVEL);
+        const double* com = row + off(F_SUBTREE_COM);
+        const i64 i = slot(m);
+        for (i64 n = 0; n < N; ++n) {
+            const i64 b = ids(n);
+            double* x = &X(i, n, 0);
+            for (int c = 0; c < 3; ++c) x[c] = xipos[3 * b + c];
+            for (int c = 0; c < 9; ++c) (&R(i, n, 0, 0))[c] = ximat[9 * b + c];
+            const double* a = xquat + 4 * b;
+            const double* e = &iquat(n, 0);
+            double* q = &Q(i, n, 0);
+            q[0] = a[0] * e[0] - a[1] * e[1] - a[2] * e[2] - a[3] * e[3];
+            q[1] = a[0] * e[1] + a[1] * e[0] + a[2] * e[3] - a[3] * e[2];
+            q[2] = a[0] * e[2] - a[1] * e[3] + a[2] * e[0] + a[3] * e[1];
+            q[3] = a[0] * e[3] + a[1] * e[2] - a[2] * e[1] + a[3] * e[0];
+            const double* cv = cvel + 6 * b;
+            const double* c0 = com + 3 * root(b);
+            const double arm[3] = {x[0] - c0[0], x[1] - c0[1], x[2] - c0[2]};
+            double wa[3];
+            cross(cv, arm, wa);
+            double* w = &Wv(i, n, 0);
+            double* v = &V(i, n, 0);
+            for (int c = 0; c < 3; ++c) {
+                w[c] = cv[c];
+                v[c] = cv[3 + c] + wa[c];
+            }
+        }
+    }
+}
+
+}  // namespace
+
+void bind_resolve(nb::module_& m) {
+    m.def("states", &states,
+          "states(rows, offsets, rr, slot, ids, root, iquat, x, r, q, v, w): the states of the "
+          "samples in slots `slot` from the rows `rr` (csrc/adapters/mujoco_resolve.cpp)");
+    m.def("resolve", &resolve,
+          "resolve(rows, offsets, v1, v0, Ma, root, parent, dof_body, dof_jnt, dof_trans, damping, "
+          "h, implicit_damping, correction_kind, q_joint, v_work, W, work): a block's impulses W "
+          "(K, 6, nbody, 6) and work (K, 4, nbody), written into W and work "
+          "(csrc/adapters/mujoco_resolve.cpp)");
+}
+
+}  // namespace rb
