@@ -121,7 +121,8 @@ from rblog.adapters._common import EngineRecorder
 from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _ContactArray, _is_model,
                                           _mj, _packed_contact_dict, capture_contacts, contacts,
                                           decode_contacts, gravity_of, inspect, settings,
-                                          state_offsets, suite_model, unsupported)
+                                          state_offsets, unsupported)
+from rblog.adapters._mujoco_suite import suite_model
 from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross)
 from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, WORK_KINDS
 
