@@ -87,25 +87,39 @@ inline Vec3 omega_world(const Mat3& m, double inv_i0, double inv_i1, double inv_
 
 // omega = I_world^-1 L with I_world = R I_body R^T, for an R that need not be orthonormal
 // (row-major, invertible): omega = R^-T diag(inv_i) R^-1 L.
+// The cofactor matrix C of the 3x3 matrix a (row-major; R^-1 = C^T / det R) and det a =
+// a_0j C_0j, in a's value type (double, or a lane vector of lanes.hpp).
+template <class T>
+struct Cofactors {
+    T c00, c01, c02, c10, c11, c12, c20, c21, c22, det;
+};
+
+template <class T>
+inline Cofactors<T> cofactors(T a00, T a01, T a02, T a10, T a11, T a12, T a20, T a21, T a22) {
+    Cofactors<T> c;
+    c.c00 = a11 * a22 - a12 * a21;
+    c.c01 = a12 * a20 - a10 * a22;
+    c.c02 = a10 * a21 - a11 * a20;
+    c.c10 = a02 * a21 - a01 * a22;
+    c.c11 = a00 * a22 - a02 * a20;
+    c.c12 = a01 * a20 - a00 * a21;
+    c.c20 = a01 * a12 - a02 * a11;
+    c.c21 = a02 * a10 - a00 * a12;
+    c.c22 = a00 * a11 - a01 * a10;
+    c.det = a00 * c.c00 + a01 * c.c01 + a02 * c.c02;
+    return c;
+}
+
 // With C the cofactor matrix of R (R^-1 = C^T / det R, R^-T = C / det R):
 // omega = C diag(inv_i) C^T L / det(R)^2. For an orthonormal R, C = R and det R = 1, and this is
 // omega_world; for the scaled rotation R = s Q of an unnormalised quaternion (s = |q|^2) it is
 // omega_world(Q) / s^2 (see integrators.hpp, seed-quat).
 inline Vec3 omega_world_stretched(const Mat3& m, double inv_i0, double inv_i1, double inv_i2,
                                   double lx, double ly, double lz) {
-    const double a00 = m[0], a01 = m[1], a02 = m[2], a10 = m[3], a11 = m[4], a12 = m[5],
-                 a20 = m[6], a21 = m[7], a22 = m[8];
-    const double c00 = a11 * a22 - a12 * a21;
-    const double c01 = a12 * a20 - a10 * a22;
-    const double c02 = a10 * a21 - a11 * a20;
-    const double c10 = a02 * a21 - a01 * a22;
-    const double c11 = a00 * a22 - a02 * a20;
-    const double c12 = a01 * a20 - a00 * a21;
-    const double c20 = a01 * a12 - a02 * a11;
-    const double c21 = a02 * a10 - a00 * a12;
-    const double c22 = a00 * a11 - a01 * a10;
-    const double det = a00 * c00 + a01 * c01 + a02 * c02;
-    const double f = 1.0 / (det * det);
+    const Cofactors<double> c = cofactors(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
+    const double c00 = c.c00, c01 = c.c01, c02 = c.c02, c10 = c.c10, c11 = c.c11, c12 = c.c12,
+                 c20 = c.c20, c21 = c.c21, c22 = c.c22;
+    const double f = 1.0 / (c.det * c.det);
     const double b0 = (c00 * lx + c10 * ly + c20 * lz) * inv_i0 * f;
     const double b1 = (c01 * lx + c11 * ly + c21 * lz) * inv_i1 * f;
     const double b2 = (c02 * lx + c12 * ly + c22 * lz) * inv_i2 * f;
@@ -130,27 +144,18 @@ inline std::array<T, 9> polar(const std::array<T, 9>& m) {
     const double tol = free_constants.polar_tol;
     M active = all_lanes<T>();
     for (int it = 0; it < max_iter; ++it) {
-        // cofactors: R^-T = cof(R) / det(R)
-        const T c00 = a11 * a22 - a12 * a21;
-        const T c01 = a12 * a20 - a10 * a22;
-        const T c02 = a10 * a21 - a11 * a20;
-        const T c10 = a02 * a21 - a01 * a22;
-        const T c11 = a00 * a22 - a02 * a20;
-        const T c12 = a01 * a20 - a00 * a21;
-        const T c20 = a01 * a12 - a02 * a11;
-        const T c21 = a02 * a10 - a00 * a12;
-        const T c22 = a00 * a11 - a01 * a10;
-        const T det = a00 * c00 + a01 * c01 + a02 * c02;
-        const T f = 0.5 / det;
-        const T n00 = 0.5 * a00 + f * c00;
-        const T n01 = 0.5 * a01 + f * c01;
-        const T n02 = 0.5 * a02 + f * c02;
-        const T n10 = 0.5 * a10 + f * c10;
-        const T n11 = 0.5 * a11 + f * c11;
-        const T n12 = 0.5 * a12 + f * c12;
-        const T n20 = 0.5 * a20 + f * c20;
-        const T n21 = 0.5 * a21 + f * c21;
-        const T n22 = 0.5 * a22 + f * c22;
+        // R^-T = cof(R) / det(R)
+        const Cofactors<T> c = cofactors(a00, a01, a02, a10, a11, a12, a20, a21, a22);
+        const T f = 0.5 / c.det;
+        const T n00 = 0.5 * a00 + f * c.c00;
+        const T n01 = 0.5 * a01 + f * c.c01;
+        const T n02 = 0.5 * a02 + f * c.c02;
+        const T n10 = 0.5 * a10 + f * c.c10;
+        const T n11 = 0.5 * a11 + f * c.c11;
+        const T n12 = 0.5 * a12 + f * c.c12;
+        const T n20 = 0.5 * a20 + f * c.c20;
+        const T n21 = 0.5 * a21 + f * c.c21;
+        const T n22 = 0.5 * a22 + f * c.c22;
         T d = vabs(n00 - a00);
         d = vpymax(d, vabs(n01 - a01));
         d = vpymax(d, vabs(n02 - a02));
