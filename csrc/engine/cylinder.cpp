@@ -6,11 +6,15 @@
 // CAP_VERTS rim points at angles 2 pi k / CAP_VERTS in the body frame (fixed material points, so
 // their ids persist), which lie on the rim, so every gap measured at them is a true gap.
 //
-// * cylinder - plane (closed form): for each cap (c = x -+ h z), the polygon's vertices and the
-//   cap's deepest rim point c + r u, u = -(n - (n.z) z) / |n - (n.z) z| (its gap n.c - off -
-//   r |n - (n.z) z|), the latter only when it is deeper than every vertex (a cap within round-off
-//   of level has all its rim at one height: the polygon alone, 4 fixed points after reduction).
-//   Lying on its side the two caps' deepest rim points are the line contact's ends.
+// * cylinder - plane (closed form): for each cap (c = x -+ h z), its deepest rim point c + r u,
+//   u = -(n - (n.z) z) / |n - (n.z) z| (its gap n.c - off - r |n - (n.z) z|); a level cap (its
+//   rim's heights within r |n - (n.z) z| <= MANIFOLD_TOUCH_BAND_M) also its polygon's vertices,
+//   the rim point then only when deeper than every vertex (a cap within round-off of level has
+//   all its rim at one height: the polygon alone, 4 fixed points after reduction). A tilted cap
+//   keeps only its rim point: the polygon's vertices are material points, and one rolling
+//   towards the bottom approaches the plane at omega r sin(phi), which the solve's linear gap
+//   prediction takes for an impact (a cylinder rolling on its side would be kicked at every
+//   vertex). Lying on its side the two caps' deepest rim points are the line contact's ends.
 // * sphere - cylinder (closed form): the sphere centre p in the cylinder frame clamped to the
 //   solid (rho = |p_xy| to r, p_z to [-h, h]); outside: normal (p - q) / |p - q|; inside: out
 //   through the nearer of the side (r - rho) and the cap (h - |p_z|). One point.
@@ -259,11 +263,65 @@ int clip_to_polygon(const Feature& ref, const Feature& inc, Vec* out, i64* out_i
     return m;
 }
 
+// reduce_manifold over points whose order and gaps do not depend on round-off: coincident points
+// (within 1e-9 scale) merged, the rest ordered by feature id, and the gaps the reduction compares
+// rounded to GAP_QUANTUM_M (the true gaps kept): a level face's rim points are equally deep to
+// round-off, and which four it keeps must not change from step to step (warm starting).
+constexpr double GAP_QUANTUM_M = 1e-9;
+i64 reduce_stable(const double* nrm, double (*P)[3], double* S, i64* F, i64 count, double scale) {
+    i64 m = 0;
+    const double tol2 = (1e-9 * scale) * (1e-9 * scale);
+    for (i64 k = 0; k < count; ++k) {
+        bool dup = false;
+        for (i64 j = 0; j < m && !dup; ++j) {
+            double dx = P[k][0] - P[j][0], dy = P[k][1] - P[j][1], dz = P[k][2] - P[j][2];
+            if (dx * dx + dy * dy + dz * dz <= tol2) {
+                dup = true;
+                if (S[k] < S[j]) S[j] = S[k];
+            }
+        }
+        if (!dup) {
+            if (m != k) {
+                for (int c = 0; c < 3; ++c) P[m][c] = P[k][c];
+                S[m] = S[k];
+                F[m] = F[k];
+            }
+            ++m;
+        }
+    }
+    // insertion sort by feature id
+    for (i64 k = 1; k < m; ++k)
+        for (i64 j = k; j > 0 && F[j] < F[j - 1]; --j) swap_point(P, S, F, j, j - 1);
+    if (m <= MAX_MANIFOLD_POINTS) return m;
+    double Q[MAX_PTS];
+    for (i64 k = 0; k < m; ++k) Q[k] = std::round(S[k] / GAP_QUANTUM_M) * GAP_QUANTUM_M;
+    i64 ids[MAX_PTS];
+    for (i64 k = 0; k < m; ++k) ids[k] = k;
+    double P2[MAX_PTS][3];
+    for (i64 k = 0; k < m; ++k)
+        for (int c = 0; c < 3; ++c) P2[k][c] = P[k][c];
+    const i64 n = reduce_manifold(nrm, P2, Q, ids, m);
+    double P3[MAX_MANIFOLD_POINTS][3], S3[MAX_MANIFOLD_POINTS];
+    i64 F3[MAX_MANIFOLD_POINTS];
+    for (i64 k = 0; k < n; ++k) {
+        for (int c = 0; c < 3; ++c) P3[k][c] = P[ids[k]][c];
+        S3[k] = S[ids[k]];
+        F3[k] = F[ids[k]];
+    }
+    for (i64 k = 0; k < n; ++k) {
+        for (int c = 0; c < 3; ++c) P[k][c] = P3[k][c];
+        S[k] = S3[k];
+        F[k] = F3[k];
+    }
+    return n;
+}
+
 }  // namespace
 
 i64 collide_cylinder_plane(const double* ca, M3 rota, const double* sa, const double* pn,
                            double poff, double spec, double* nrm, Pts pts, double* sep,
                            i64* fid) {
+    const CollisionConstants& cc = collision_constants();
     const double r = sa[0], h = sa[1];
     Vec c = load(ca), n = load(pn), z = col(rota, 2);
     Vec nl = to_local(rota, n);
@@ -277,7 +335,9 @@ i64 collide_cylinder_plane(const double* ca, M3 rota, const double* sa, const do
     for (int cap = 0; cap < 2; ++cap) {
         const double zc = cap == 0 ? -h : h;
         double least = INFINITY;
-        for (int k = 0; k < CAP_VERTS; ++k) {
+        // the polygon only for a level cap (module comment): a tilted one rolls on its rim
+        const bool level = r * rho <= cc.manifold_touch_band_m;
+        for (int k = 0; k < CAP_VERTS && level; ++k) {
             double cs, sn;
             cap_angle(k, cs, sn);
             const double s = hc + nl.z * zc + r * (nl.x * cs + nl.y * sn);
@@ -293,7 +353,7 @@ i64 collide_cylinder_plane(const double* ca, M3 rota, const double* sa, const do
         }
     }
     put_normal(nrm, n);
-    count = reduce_manifold(nrm, P, S, F, count);
+    count = reduce_stable(nrm, P, S, F, count, r + h);
     for (i64 k = 0; k < count; ++k) put(pts, sep, fid, k, {P[k][0], P[k][1], P[k][2]}, S[k], F[k]);
     return count;
 }
@@ -470,7 +530,7 @@ i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
         Vec pa = d.pa - rA * d.n, pb = d.pb + rB * d.n;
         put(P, S, F, count++, 0.5 * (pa + pb), s0, FID_DEEPEST);
     }
-    count = reduce_manifold(nrm, P, S, F, count);
+    count = reduce_stable(nrm, P, S, F, count, scale);
     for (i64 k = 0; k < count; ++k) put(pts, sep, fid, k, {P[k][0], P[k][1], P[k][2]}, S[k], F[k]);
     return count;
 }

@@ -179,7 +179,7 @@ def test_cylinder_on_its_end_and_side_manifolds():
                                         spec=0.01)
     assert np.allclose(nrm, [0, 0, 1], atol=1e-15) and len(sep) == 2
     assert np.allclose(sep, -1e-3, atol=1e-14)
-    assert sorted(pts[:, 0].round(12).tolist()) == [-h + 0.05, h]
+    assert np.allclose(sorted(pts[:, 0]), [-h + 0.05, h], atol=1e-15)  # the axes' overlap
 
 
 CYL = """
@@ -218,6 +218,7 @@ STACKS = {
     "cylinder_on_box": _box(0.04) + _cyl(0.08 + H),
     "box_on_cylinder_end": _cyl(H) + _box(2 * H + 0.04),
     "cylinder_on_cylinder_end": _cyl(H) + _cyl(3 * H),
+    "side_on_box": _box(0.04) + _cyl(0.08 + R, SIDE),
 }
 
 
@@ -227,8 +228,8 @@ def test_cylinder_resting_still_for_10_s(stack, sleep):
     pos, quat = _rest(CYL.format(bodies=STACKS[stack]), sleep)
     drift = np.abs(pos - pos[0]).max()
     turn = np.abs(quat - quat[0]).max()
-    # measured (sample 0 is t = 0, so the settling into allowed_penetration counts): see the
-    # report in the module's commit; the bound is the issue's 1 um
+    # measured from t = 0 (settling counts): 0 m on the ground, on a box and under a box;
+    # cylinder on cylinder end 6.3e-8 m (2.9e-8 with sleep); the issue's bound is 1 um
     assert drift <= 1e-6, drift
     assert turn <= 1e-6, turn
 
@@ -248,7 +249,7 @@ def _roll(theta_deg, dt, seconds):
 dt = {dt}
 duration = {seconds}
 [ground]
-normal = [{n[0]!r}, 0.0, {n[2]!r}]
+normal = [{float(n[0])!r}, 0.0, {float(n[2])!r}]
 friction = 0.9
 restitution = 0.0
 [[body]]
@@ -257,7 +258,7 @@ radius = {R}
 half_length = {H}
 density = 1000
 friction = 0.9
-position = [{c0[0]!r}, 0.0, {c0[2]!r}]
+position = [{float(c0[0])!r}, 0.0, {float(c0[2])!r}]
 axis_angle = {{axis = [1, 0, 0], angle_deg = 90}}
 """
     sc = parse_scene(toml)
@@ -272,24 +273,30 @@ axis_angle = {{axis = [1, 0, 0], angle_deg = 90}}
     assert bad < 0
     m = float(sc.model.body_mass[0])
     pos, mom, ang = out[0][:ns, 0], out[1][:ns, 0], out[4][:ns, 0]
-    t = dt * np.arange(ns)
-    s = (pos - pos[0]) @ down
+    t = dt * (1 + np.arange(ns))  # sample k: after step k + 1
+    s = (pos - c0) @ down
     v = (mom / m) @ down
     # spin about world y (the axis, I = m r^2 / 2 about it); rolling to +x turns about +y
     w_r = R * ang[:, 1] / (0.5 * m * R * R)
     return t, s, v, w_r
 
 
-def test_cylinder_rolls_down_a_slope_at_two_thirds_g_sin_theta():
+@pytest.mark.parametrize("dt", [1e-3, 1e-2])
+def test_cylinder_rolls_down_a_slope_at_two_thirds_g_sin_theta(dt):
     theta, g = 15.0, 9.81
-    t, s, v, w_r = _roll(theta, 1e-3, 1.0)
-    a = 2.0 / 3.0 * g * np.sin(np.radians(theta))  # rolling without slip: I = m r^2 / 2
-    # after the first 10 ms (the contact's settling)
-    k = t >= 0.01
-    rel = np.abs(s[-1] - 0.5 * a * t[-1] ** 2) / (0.5 * a * t[-1] ** 2)
-    slip = np.abs(w_r[k] - v[k]).max() / np.abs(v[k]).max()
-    # measured at dt 1e-3 over 1 s: s behind 0.5 a t^2 by 2.1e-3 relative (first order:
-    # symplectic Euler's x += h v_new, the exact motion is issue 39's other part); rolling
-    # without slip |w r - v| / v 4e-4
-    assert rel <= 5e-3, rel
-    assert slip <= 2e-3, slip
+    t, s, v, w_r = _roll(theta, dt, 1.0)
+    # rolling without slip: m a = m g sin(theta) - F, I alpha = F r, a = alpha r, I = m r^2 / 2
+    a = 2.0 / 3.0 * g * np.sin(np.radians(theta))
+    acc = np.diff(v) / dt
+    # measured at dt 1e-3 and 1e-2: every step's acceleration a to 5.7e-11 relative, v = a t to
+    # 5.7e-13 of the final v, w r = v to 1.7e-12 (the two rim points are closest points, not
+    # material ones)
+    assert np.abs(acc / a - 1.0).max() <= 2e-10
+    assert np.abs(v - a * t).max() <= 2e-12 * a * t[-1]
+    assert np.abs(w_r - v).max() <= 5e-12 * v[-1]
+    # the distance: symplectic Euler's x += h v_new over v_k = a k h gives a h^2 n (n + 1) / 2,
+    # ahead of a t^2 / 2 by h / t relative (1e-3 at dt 1e-3, 1e-2 at dt 1e-2, measured to 1e-12):
+    # first order, the position update's (issue 39's exact motion is another change); bounded
+    # from above so that an exact update passes too
+    rel = (s[-1] - 0.5 * a * t[-1] ** 2) / (0.5 * a * t[-1] ** 2)
+    assert -1e-9 <= rel <= dt / t[-1] * (1 + 1e-9), rel
