@@ -2,6 +2,8 @@
 // the shapes as a core grown by a radius, their support functions, GJK for the distance of two
 // cores and EPA for their penetration depth. One home for the algorithm; each side keeps its
 // own dispatch, tolerances and manifolds (both include this header; neither links the other).
+// Why this header is long: GJK, its simplex reduction and EPA with its polytope are one derivation
+// (below), header-only so that each extension module compiles its own copy.
 //
 //
 // Conventions, for every pair (a, b):
