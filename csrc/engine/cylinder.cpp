@@ -38,6 +38,9 @@
 //   pair's deepest point (the witnesses' midpoint) joins when no clipped point is as deep; more
 //   than four: reduce_manifold.
 //
+// Why this module is long: the five cylinder pairs share the feature, clipping and reduction
+// helpers, which belong with them (capsule.cpp's split: one file per shape).
+//
 // Feature ids: cap vertex k of cap c (0: -h, 1: +h): 16 c + k; deepest rim point 16 c + 8; side
 // line ends 32, 33; box vertex bits (1: +x, 2: +y, 4: +z) + 64 on a, + 128 on b; capsule ends
 // 256, 257; a clipped intersection mixes the ref side and the edge's ends (+ 2^20); the pair's
