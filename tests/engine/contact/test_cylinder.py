@@ -300,3 +300,40 @@ def test_cylinder_rolls_down_a_slope_at_two_thirds_g_sin_theta(dt):
     # from above so that an exact update passes too
     rel = (s[-1] - 0.5 * a * t[-1] ** 2) / (0.5 * a * t[-1] ** 2)
     assert -1e-9 <= rel <= dt / t[-1] * (1 + 1e-9), rel
+
+
+SCENE = __import__("pathlib").Path(__file__).parents[2] / "data" / "cylinders.toml"
+
+
+def test_scene_with_cylinders_validates_and_builds():
+    from click.testing import CliRunner
+
+    from rblog.engine import integrators as rot
+    from rblog.engine.contact import ContactParams, ContactWorld
+    from rblog.engine.scene import parse_scene
+    from rblog_cli.main import main
+
+    sc = parse_scene(SCENE.read_text(), str(SCENE))
+    ContactWorld(sc.model, ContactParams(), rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)  # no refusal
+    res = CliRunner().invoke(main, ["validate", str(SCENE)])
+    assert res.exit_code == 0, res.output
+    assert "shapes: cylinder 6, box 1, capsule 1, sphere 1" in res.output
+
+
+@pytest.mark.slow
+def test_scene_with_cylinders_runs_clean(tmp_path):
+    # every step logged: at a log stride of 10 the audit groups a collision's bodies by the contact
+    # rows of the logged steps only, and bodies without a contract shape (capsules, cylinders)
+    # then miss partners they touched between samples (measured on this scene: 'stand' hit by
+    # 'on_stand' at t = 0.155 s read as energy from the ground, 0.232 J; the capsule - ball impact
+    # at 0.29 s without the drum under the capsule, 0.618 N s "unbalanced"); each step logged,
+    # both read right (3 s: clean, 3.6 s run + 2.7 s check)
+    from click.testing import CliRunner
+
+    from rblog_cli.main import main
+
+    log = tmp_path / "c.mcap"
+    res = CliRunner().invoke(main, ["run", str(SCENE), "--log-every", "1", "--mcap", str(log)])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(main, ["check", str(log)])
+    assert res.exit_code == 0 and "verdict: clean" in res.output, res.output
