@@ -255,8 +255,8 @@ class OdeRun:
             i, j = first[missing[0]]
             self.close()
             raise EngineUnsupported("ode", f"{missing[0][0]}-{missing[0][1]} contact ({label[i]} and "
-                                    f"{label[j]} can touch; this libode {self.version} has no "
-                                    "collider for the pair)")
+                                    f"{label[j]} can touch; {self.version} has no collider for "
+                                    "the pair)")
 
     def _near_callback(self, _data, g1, g2) -> None:
         i, j = self._data(g1) - 1, self._data(g2) - 1
