@@ -249,7 +249,9 @@ KNOWN = {
     "mixed": {"momentum: flight angular": 0.00733, "momentum: cone": 1.0,
               "momentum: collision angular": 0.000642, "penetration: creep": 0.000647},
     "newton_pair": {},
-    "pile": {"momentum: cone": 1.0, "penetration: creep": 0.000223, "penetration: sink": 0.00633},
+    # 2026-12-02, geoms in a dSimpleSpace: the 6.33 mm sink read with dHashSpace is gone (that
+    # space stopped reporting overlapping pairs: test_engine_shapes), creep 0.320 mm
+    "pile": {"momentum: cone": 1.0, "penetration: creep": 0.000223},
     "resting_box": {},
     # measured 2026-12-02 (the capsules' first ODE runs): friction rows with no normal force, and
     # the gyroscopic step on capsules tumbling between two contacts
