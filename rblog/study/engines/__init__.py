@@ -7,8 +7,8 @@ model (spheres, boxes, capsules and cylinders (each body's one geom, :func:`body
 plane, static boxes, the scene's masses and principal inertias (never the engine's own density
 computation), gravity, constant force/torque, collision groups), translates materials with the
 engine's own combine rule so that every pair gets the scene's effective restitution ``max(e_a,
-e_b)`` and friction ``sqrt(mu_a mu_b)``, steps it at the scene's dt with the engine's integrator, and records poses,
-velocities and the engine's contacts through :class:`rblog.record.Recorder`.
+e_b)`` and friction ``sqrt(mu_a mu_b)``, steps it at the scene's dt with the engine's integrator,
+and records poses, velocities and the engine's contacts through :class:`rblog.record.Recorder`.
 
 A scene feature an engine cannot represent raises :class:`EngineUnsupported` (exit code 2) naming
 the feature (a shape by its name). Run metadata (``RunInfo.engine_settings``) names the engine,
