@@ -193,12 +193,10 @@ class MujocoRecorder(EngineRecorder):
         self._steps = np.empty(cap, np.int64)
         self._row = np.full(cap, -1, np.int64)  # the hook row of the sample's own step, -1: state known
         self._gap = np.zeros(cap, bool)
-        self._ns = 0
         self._raw = []
         self._hook_steps = np.empty(self.hook.cap, np.int64)  # the step each gathered row ended
         self._carry_W = np.zeros((len(IMPULSE_KINDS), m.nbody, 6))
         self._carry_work = np.zeros((len(WORK_KINDS), m.nbody))
-        self._carry_gap = False
         self._carray, self._carray_d = None, None  # the raw view of d's contacts, once there are some
         try:  # the logged steps' raw contacts, copied in C++ (else capture_contacts, numpy)
             from rblog.adapters._hook import ContactCapture
@@ -206,8 +204,44 @@ class MujocoRecorder(EngineRecorder):
             self._capture = ContactCapture()
         except ImportError:
             self._capture = None
+        self._fast, self._fast_d, self._efc_offset = None, None, None
         self.step = int(round(float(d.time) / self.dt))
         self._add_sample(d, row=-1, contacts=False)
+        self._arm(d)
+
+    # the per-step counters, in the hook's array the compiled call shares (StepImpulses.counters)
+    _ns = property(lambda self: int(self.hook.counters[1]),
+                   lambda self, v: self.hook.counters.__setitem__(1, v),
+                   doc="samples waiting to be written")
+    step = property(lambda self: int(self.hook.counters[2]),
+                    lambda self, v: self.hook.counters.__setitem__(2, v),
+                    doc="the last step seen")
+    _carry_gap = property(lambda self: bool(self.hook.counters[3]),
+                          lambda self, v: self.hook.counters.__setitem__(3, int(bool(v))),
+                          doc="steps not seen since the last sample")
+
+    def _arm(self, d) -> None:
+        """The compiled per-step call (rblog.adapters._hook.StepRecord) over ``d``, when the
+        build has it, the hook is compiled, the samples' states are deferred and ``d``'s field
+        offsets check out (rblog/adapters/_mjdata_offsets.py); else ``rec(d)`` stays Python."""
+        if not self.deferred or self.hook.compiled is None or self._capture is None:
+            return
+        try:
+            from rblog.adapters._hook import StepRecord
+        except ImportError:
+            return
+        from rblog.adapters._mjdata_offsets import verified
+
+        off = verified(d)
+        if off is None:
+            return
+        addr = lambda a: a.__array_interface__["data"][0]  # noqa: E731
+        self._efc_offset = off[3]
+        self._fast = StepRecord(self.hook.compiled, self._capture, int(d._address), *off, self.dt,
+                                self.every, len(self._steps), addr(self.hook.counters),
+                                addr(self._hook_steps), addr(self._steps), addr(self._row),
+                                addr(self._gap))
+        self._fast_d = d
 
     def _add_sample(self, d, row: int, contacts: bool = True) -> None:
         i = self._ns
@@ -229,6 +263,8 @@ class MujocoRecorder(EngineRecorder):
                     self._capture.contacts_at(self._carray.base, self._carray.dtype.itemsize,
                                               self._carray.count)
                     self._capture_dtype = self._carray.dtype
+                if self._fast_d is d and not (self._carray and self._efc_ok(d)):
+                    self._fast, self._fast_d = None, None  # the compiled call cannot read them
             if self._carray and self._capture is not None:
                 self._capture.capture(self.step, ncon, d.efc_force)
             else:
@@ -236,6 +272,15 @@ class MujocoRecorder(EngineRecorder):
 
     def __call__(self, d) -> None:
         """Log the step that just ended in ``d`` (call after every ``mj_step``)."""
+        if d is self._fast_d:  # one compiled call (StepRecord); 2: this call is Python's
+            r = self._fast.record()
+            if r == 0:
+                return
+            if r == 1:
+                self.flush()
+                return
+        elif self._fast is not None:  # another MjData: Python's path from here on
+            self._fast, self._fast_d = None, None
         step = int(round(float(d.time) / self.dt))
         row = -1
         if step != self.step + 1:
@@ -257,6 +302,11 @@ class MujocoRecorder(EngineRecorder):
             self.flush()
 
     record = __call__
+
+    def _efc_ok(self, d) -> bool:
+        from rblog.adapters._mjdata_offsets import efc_force_matches
+
+        return efc_force_matches(d, self._efc_offset)
 
     def step_and_record(self, d, nstep: int = 1) -> None:
         """``mj_step`` ``nstep`` times, logging each."""
