@@ -360,15 +360,22 @@ class MujocoRecorder(EngineRecorder):
         steps = self._hook_steps[:k]
         pos = np.searchsorted(steps, self._steps[:ns], side="right")  # rows before sample i's end
         starts = np.concatenate([[0], pos[:-1]])
-        rows_W = np.zeros((ns, *self._carry_W.shape))
-        rows_work = np.zeros((ns, *self._carry_work.shape))
         last = int(pos[-1]) if ns else 0
-        if k and last:
-            nonempty = pos > starts
-            if np.all(pos - starts <= 1):  # one step per interval (a sample every step): a gather
-                rows_W[nonempty] = W[starts[nonempty]]
-                rows_work[nonempty] = work[starts[nonempty]]
-            else:  # reduceat sums [start_i, start_i+1), the last to `last`
+        nonempty = pos > starts
+        one = bool(np.all(pos - starts <= 1))  # at most one step per interval
+        if k and last and one and ns == k == last and nonempty.all():
+            rows_W, rows_work = W, work  # a sample every step: row i is sample i's interval
+        else:
+            rows_W = np.zeros((ns, *self._carry_W.shape))
+            rows_work = np.zeros((ns, *self._carry_work.shape))
+            if k and last and one:  # a gather (a slice when the rows are contiguous)
+                sel = np.flatnonzero(nonempty)
+                src = starts[sel]
+                if sel[-1] - sel[0] == len(sel) - 1 and src[-1] - src[0] == len(src) - 1:
+                    sel, src = slice(sel[0], sel[-1] + 1), slice(src[0], src[-1] + 1)
+                rows_W[sel] = W[src]
+                rows_work[sel] = work[src]
+            elif k and last:  # reduceat sums [start_i, start_i+1), the last to `last`
                 rows_W[nonempty] = np.add.reduceat(W[:last], starts[nonempty], axis=0)
                 rows_work[nonempty] = np.add.reduceat(work[:last], starts[nonempty], axis=0)
         if ns:
@@ -390,7 +397,10 @@ class MujocoRecorder(EngineRecorder):
         if not ns:
             return
         ids = self._ids
-        W, work = W[:, :, ids], work[:, :, ids]
+        if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
+            W, work = W[:, :, ids[0]:ids[0] + len(ids)], work[:, :, ids[0]:ids[0] + len(ids)]
+        else:
+            W, work = W[:, :, ids], work[:, :, ids]
         W[:, IMPULSE_KINDS.index("integration")] = self._integration(W, steps=self._steps[:ns],
                                                                      v=self._v[:ns], r=self._r[:ns],
                                                                      w=self._w[:ns])
