@@ -12,11 +12,12 @@ from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
 
 class Kinematics:
     """The logged state of every body at given ``qpos``/``qvel`` (and mocap poses), from a
-    private ``MjData``: ``mj_kinematics``, ``mj_comPos``, ``mj_comVel``."""
+    private ``MjData`` (``d``, default a new one): ``mj_kinematics``, ``mj_comPos``,
+    ``mj_comVel``."""
 
-    def __init__(self, m, layout: Layout):
+    def __init__(self, m, layout: Layout, d=None):
         mj = _mj()
-        self.mj, self.m, self.d = mj, m, mj.MjData(m)
+        self.mj, self.m, self.d = mj, m, mj.MjData(m) if d is None else d
         self.ids = layout.body_id
         self.c_of = layout.root[layout.body_id]
         self.iquat = np.array(m.body_iquat, np.float64)[layout.body_id]

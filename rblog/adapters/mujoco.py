@@ -164,7 +164,8 @@ class MujocoRecorder(EngineRecorder):
         if d is None:
             d = mj.MjData(m)
             mj.mj_forward(m, d)
-        self.model, self.layout, notes = inspect(m, d, restitution=restitution)
+        scratch = mj.MjData(m)  # inspect's kinematics at qpos0, then Kinematics' own
+        self.model, self.layout, notes = inspect(m, d, restitution=restitution, scratch=scratch)
         self.dt = float(m.opt.timestep)
         if not (np.isfinite(self.dt) and self.dt > 0):  # the samples' steps are time / dt
             raise AdapterError(f"rblog.adapters.mujoco: the model's option timestep is "
@@ -179,7 +180,7 @@ class MujocoRecorder(EngineRecorder):
         from rblog.record._common import run_interval_channels
 
         self._channels = set(run_interval_channels(self.model))
-        self.kin = Kinematics(m, self.layout)
+        self.kin = Kinematics(m, self.layout, scratch)
         self._iquat = np.ascontiguousarray(self.kin.iquat, np.float64)
         self.hook = StepImpulses(m, self.layout, d, block=block)
         self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
