@@ -22,6 +22,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 namespace nb = nanobind;
@@ -126,15 +127,16 @@ struct ContactCapture {
 
     // the captures so far, as (step, ncon, nefc (S,) int64, raw bytes, efc_force), then cleared
     nb::tuple take() {
-        auto out = nb::make_tuple(to_numpy(cap_step), to_numpy(cap_ncon), to_numpy(cap_nefc),
-                                  to_numpy(cap_raw), to_numpy(cap_efc));
-        cap_step.clear(), cap_ncon.clear(), cap_nefc.clear(), cap_raw.clear(), cap_efc.clear();
-        return out;
+        return nb::make_tuple(to_numpy(cap_step), to_numpy(cap_ncon), to_numpy(cap_nefc),
+                              to_numpy(cap_raw), to_numpy(cap_efc));
     }
 
+    // v's contents, moved into an array numpy owns; v is left empty with the same capacity
     template <class T>
-    static nb::ndarray<nb::numpy, T> to_numpy(const std::vector<T>& v) {  // a copy numpy owns
-        auto* owned = new std::vector<T>(v);
+    static nb::ndarray<nb::numpy, T> to_numpy(std::vector<T>& v) {
+        auto* owned = new std::vector<T>(std::move(v));
+        v = std::vector<T>();
+        v.reserve(owned->size());
         nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
         size_t shape[1] = {owned->size()};
         return nb::ndarray<nb::numpy, T>(owned->data(), 1, shape, owner);
