@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.adapters import AdapterError, require
+from rblog.adapters._common import Fields
 from rblog.contract.model import (BODY_FREE, BODY_JOINTED, BODY_KINEMATIC, BODY_STATIC, GEOM_BOX,
                                   GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH,
                                   GEOM_PLANE, GEOM_SPHERE, IMPULSE_KINDS, JOINT_BALL, JOINT_FIXED,
@@ -36,20 +37,6 @@ def _mj():
 
 def _is_model(m) -> bool:
     return type(m).__name__ == "MjModel"
-
-
-class _Fields:
-    """An MjModel's (or MjData's) attributes, each fetched from the bindings once (every
-    access of ``m.jnt_type`` builds a new numpy view): the loops over bodies, joints and geoms
-    read these."""
-
-    def __init__(self, m):
-        self._m = m
-
-    def __getattr__(self, name):
-        value = getattr(self._m, name)
-        setattr(self, name, value)
-        return value
 
 
 def _quat_conj(q):
@@ -115,7 +102,7 @@ class Layout:
         self.damping = np.array(m.dof_damping, np.float64)
         self.kind = np.full(nb - 1, BODY_FREE, np.int64)
         weld = np.asarray(m.body_weldid)
-        m = _Fields(m)
+        m = Fields(m)
         for b in range(1, nb):
             nj = int(m.body_jntnum[b])
             if int(m.body_mocapid[b]) >= 0:
@@ -176,7 +163,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
         d0.mocap_pos[:] = d.mocap_pos
         d0.mocap_quat[:] = d.mocap_quat
     mj.mj_kinematics(m, d0)
-    d0c = _Fields(d0)
+    d0c = Fields(d0)
     body_name = [_name(mj, m, mj.mjtObj.mjOBJ_BODY, b, "body") for b in range(1, m.nbody)]
     mass = np.array(m.body_mass[1:], np.float64)
     inertia = np.array(m.body_inertia[1:], np.float64)
@@ -199,7 +186,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
         return np.asarray(v, np.float64).copy() if b == 0 else d0c.ximat[b].reshape(3, 3).T @ v
 
     # joints
-    mc = _Fields(m)  # the bindings' arrays, each fetched once
+    mc = Fields(m)  # the bindings' arrays, each fetched once
     jn, jt, jb, ab, ap, xb, xp, jr = [], [], [], [], [], [], [], []
     for b in range(1, m.nbody):
         if lay.kind[b - 1] != BODY_JOINTED:
