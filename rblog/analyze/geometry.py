@@ -330,8 +330,69 @@ def proximity(model: Model, position: np.ndarray, rotation: np.ndarray, pad: flo
     k1 = k + 1 if t_n > 1 else k
     sep0 = pair_geometry(model, position, rotation, k, a, b, with_points=False)
     sep1 = pair_geometry(model, position, rotation, k1, a, b, with_points=False)
+    shapeless_separation(model, position, rotation, k, k1, a, b, sep0, sep1)
     return Proximity(
         model=model, position=position, rotation=rotation,
         n_bodies=n, n_static=m, ground_sep=ground_sep, ground_height=ground_height,
         iv_k=k, iv_a=a, iv_b=b, iv_sep0=sep0, iv_sep1=sep1,
     )
+
+
+def shapeless_separation(model: Model, position, rotation, k0, k1, a, b, sep0, sep1) -> None:
+    """Overwrite, in place, the separations sep0 (at samples k0) and sep1 (at k1) of the rows
+    (a, b) where a body has no shape in the contract (SHAPE_NONE: its body_size says nothing, and
+    pair_geometry would take it for a point): two bodies with geoms, the least distance over
+    their geom pairs that may touch (rblog.analyze.shapes.pair_distance, GJK/EPA, exact for
+    capsules and cylinders); else a lower bound, the body's bounding sphere (radius ρ from its
+    geoms) against the other body's shape or the static box."""
+    none = np.asarray(model.body_shape) == SHAPE_NONE
+    n = len(none)
+    rows = none[a] | (none[np.minimum(b, n - 1)] & (b < n))
+    if not rows.any():
+        return
+    from dataclasses import replace
+
+    rho = bounding_radius(model)
+    size = np.asarray(model.body_size, float).copy()
+    size[none] = 0.0
+    size[none, 0] = rho[none]
+    sphere = replace(model, body_shape=np.where(none, SHAPE_SPHERE, model.body_shape),
+                     body_size=size)
+    r = np.flatnonzero(rows)
+    for ks, out in ((k0, sep0), (k1, sep1)):
+        out[r] = pair_geometry(sphere, position, rotation, ks[r], a[r], b[r], with_points=False)
+    if not getattr(model, "n_geoms", 0):
+        return
+    from rblog.analyze import shapes
+
+    body = np.asarray(model.geom_body, np.int64)
+    solid = (body >= 0) & (np.asarray(model.geom_type, np.int64) != _plane_code())
+    order = np.flatnonzero(solid)[np.argsort(body[solid], kind="stable")]
+    lo = np.searchsorted(body[order], np.arange(n), "left")
+    hi = np.searchsorted(body[order], np.arange(n), "right")
+    bb = np.minimum(b[r], n - 1)
+    na, nb = hi[a[r]] - lo[a[r]], hi[bb] - lo[bb]
+    u = np.flatnonzero((b[r] < n) & (na > 0) & (nb > 0))
+    if not len(u):
+        return
+    cnt = na[u] * nb[u]
+    pair = np.repeat(np.arange(len(u)), cnt)
+    q = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    gi = order[lo[a[r][u]][pair] + q // nb[u][pair]]
+    gj = order[lo[bb[u]][pair] + q % nb[u][pair]]
+    ok = shapes.collide_mask(model, gi, gj)
+    pair, gi, gj = pair[ok], gi[ok], gj[ok]
+    geoms = shapes.model_geoms(model)
+    gpos, grot = shapes.geom_poses(model, position, rotation)
+    for ks, out in ((k0, sep0), (k1, sep1)):
+        d = shapes.pair_distance(geoms, gpos, grot, ks[r][u][pair], gi, gj,
+                                 with_points=False)["sep"]
+        least = np.full(len(u), np.inf)
+        np.minimum.at(least, pair, d)
+        out[r[u]] = least
+
+
+def _plane_code() -> int:
+    from rblog.contract.model import GEOM_PLANE
+
+    return GEOM_PLANE
