@@ -1,0 +1,82 @@
+"""Bodies without a shape in the contract (capsules: SHAPE_NONE, their geoms in the log) meet
+between two samples: the proximity finds them from their geoms, so the hit is judged as a contact
+of the two (never as free flight), and a planted energy gain at the hit is still flagged."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import rblog
+from rblog.analyze.base import Context
+from rblog.engine.runner import simulate
+from rblog.engine.scene import load_scene
+
+# two capsules (r = 0.05 m, h = 0.1 m, along z) in zero gravity, a at 2 m/s head-on into b at
+# rest: their axes are parallel, 0.407 m apart, so the gap is 0.407 - 2 r = 0.307 m and they meet
+# at t = 0.1535 s, between the samples at 0.15 and 0.16 s (logged every 10 steps). b gains energy
+# (1.125 J for e = 0.5): judged alone, as if against static geometry, that is a false gain.
+SCENE = """
+[sim]
+dt = 1e-3
+duration = 0.3
+gravity = [0.0, 0.0, 0.0]
+log_every = 10
+[[body]]
+name = "a"
+shape = "capsule"
+radius = 0.05
+half_length = 0.1
+mass = 1.0
+position = [-0.2035, 0.0, 0.0]
+velocity = [2.0, 0.0, 0.0]
+restitution = 0.5
+[[body]]
+name = "b"
+shape = "capsule"
+radius = 0.05
+half_length = 0.1
+mass = 1.0
+position = [0.2035, 0.0, 0.0]
+velocity = [0.0, 0.0, 0.0]
+restitution = 0.5
+"""
+
+
+def _run(tmp_path):
+    p = tmp_path / "capsules.toml"
+    p.write_text(SCENE)
+    traj, _ = simulate(load_scene(p))
+    return traj
+
+
+def test_capsules_meeting_between_samples_are_a_contact(tmp_path):
+    traj = _run(tmp_path)
+    assert (traj.model.body_shape < 0).all()  # no contract shape: judged through the geoms
+    prox = Context(traj).proximity(1e-3)
+    k = int(np.searchsorted(traj.t, 0.15 - 1e-9))  # the sample before the hit
+    row = (prox.iv_k == k) & (prox.iv_a == 0) & (prox.iv_b == 1)
+    assert row.sum() == 1
+    # closed form at t = 0.15 s (free flight at 2 m/s, exact in zero gravity): the gap
+    # 0.307 - 2 * 0.15 = 0.007 m (point bodies would be 0.107 m apart)
+    np.testing.assert_allclose(prox.iv_sep0[row], 0.007, atol=1e-9)
+    res = {r.analyzer: r for r in rblog.check(traj, only=["momentum", "energy"])}
+    for name in ("momentum", "energy"):
+        assert res[name].passed and res[name].judged, (name, res[name].findings[:2])
+    # the hit was judged as a contact event of the pair
+    assert res["energy"].stats.get("contact_events", 0) >= 1
+
+
+def test_energy_planted_at_the_hit_is_flagged(tmp_path):
+    """The other direction: both capsules leave the hit 1.5x as fast as the engine says (0.75
+    and 2.25 m/s for e = 0.5's 0.5 and 1.5: kinetic energy 2.8125 J after against 2 J before):
+    flagged as energy gained across the pair's contact."""
+    traj = _run(tmp_path)
+    k = int(np.searchsorted(traj.t, 0.16 - 1e-9))  # first sample after the hit
+    m = traj.model.body_mass
+    dv = 0.5 * traj.velocity[k:].copy()
+    traj.velocity[k:] += dv
+    traj.linear_momentum[k:] += m[None, :, None] * dv
+    traj.position[k:] += dv * (traj.t[k:] - 0.1535)[:, None, None]
+    res = {r.analyzer: r for r in rblog.check(traj, only=["energy"])}
+    assert any("across a contact" in f.message and sorted(f.bodies) == [0, 1]
+               for f in res["energy"].findings), res["energy"].findings[:3]
