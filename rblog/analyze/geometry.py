@@ -310,6 +310,7 @@ def proximity(model: Model, position: np.ndarray, rotation: np.ndarray, pad: flo
     ground_sep = ground_height = None
     if model.ground:
         ground_sep, ground_height = plane_separation(model, position, rotation)
+        shapeless_ground(model, position, rotation, ground_sep)
 
     # broadphase over intervals (a single "interval" [0, 0] for a one-sample log)
     k_n = t_n - 1 if t_n > 1 else 1
@@ -396,3 +397,47 @@ def _plane_code() -> int:
     from rblog.contract.model import GEOM_PLANE
 
     return GEOM_PLANE
+
+
+def shapeless_ground(model: Model, position, rotation, sep) -> None:
+    """Overwrite, in place, the ground separations sep (T, N) of bodies without a contract shape
+    (plane_separation takes them for points) by their geoms' least height above the plane: each
+    geom's centre height less its support along the normal n (sphere r; capsule r + h |z.n|;
+    cylinder r sqrt(1 - (z.n)^2) + h |z.n|; box sum_j e_j |n.A_j|; mesh max_v -n.R v; an
+    ellipsoid its largest semi-axis, a bound). Bodies without geoms keep their centre's."""
+    none = np.asarray(model.body_shape) == SHAPE_NONE
+    if not none.any() or not getattr(model, "n_geoms", 0):
+        return
+    from rblog.analyze import shapes
+    from rblog.contract.model import (GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH,
+                                      GEOM_SPHERE)
+
+    body = np.asarray(model.geom_body, np.int64)
+    gt = np.asarray(model.geom_type, np.int64)
+    g = np.flatnonzero((body >= 0) & (gt != _plane_code()))
+    g = g[none[body[g]]]
+    if not len(g):
+        return
+    gs = np.asarray(model.geom_size, float).reshape(-1, 3)[g]
+    nrm = np.asarray(model.ground_normal, float)
+    gpos, grot = shapes.geom_poses(model, position, rotation)
+    gpos, grot = gpos[:, g], grot[:, g]  # (T, G, 3), (T, G, 3, 3)
+    na = np.abs(np.einsum("i,tgij->tgj", nrm, grot))  # |n . A_j| (T, G, 3)
+    t = gt[g]
+    sup = np.linalg.norm(gs, axis=1)[None] * np.ones(na.shape[:2])  # a bound (ellipsoid)
+    sup = np.where(t == GEOM_SPHERE, gs[:, 0], sup)
+    sup = np.where(t == GEOM_CAPSULE, gs[:, 0] + gs[:, 1] * na[..., 2], sup)
+    sup = np.where(t == GEOM_CYLINDER, gs[:, 0] * np.sqrt(np.maximum(1 - na[..., 2] ** 2, 0))
+                   + gs[:, 1] * na[..., 2], sup)
+    sup = np.where(t == GEOM_BOX, (gs[None] * na).sum(axis=2), sup)
+    verts = np.asarray(model.mesh_vert, float).reshape(-1, 3) if model.mesh_vert is not None \
+        else np.zeros((0, 3))
+    for c in np.flatnonzero(t == GEOM_MESH):
+        a, k = int(model.geom_vert_adr[g[c]]), int(model.geom_vert_num[g[c]])
+        if k:  # max over the vertices v of -n . (R v)
+            sup[:, c] = (-np.einsum("i,tij,vj->tv", nrm, grot[:, c], verts[a:a + k])).max(axis=1)
+    h = gpos @ nrm - float(model.ground_offset) - sup  # (T, G)
+    least = np.full((len(sep), len(none)), np.inf)
+    np.minimum.at(least.T, body[g], h.T)
+    has = np.isfinite(least[0])
+    sep[:, has] = least[:, has]

@@ -80,3 +80,17 @@ def test_energy_planted_at_the_hit_is_flagged(tmp_path):
     res = {r.analyzer: r for r in rblog.check(traj, only=["energy"])}
     assert any("across a contact" in f.message and sorted(f.bodies) == [0, 1]
                for f in res["energy"].findings), res["energy"].findings[:3]
+
+
+def test_a_tilted_capsule_is_as_high_as_its_lowest_end(tmp_path):
+    """The ground separation of a capsule (no contract shape) is its lowest end's: centre height
+    0.5 m, axis tilted 30 deg from the vertical: 0.5 - h cos 30 - r (a point: 0.5 m)."""
+    p = tmp_path / "tilted.toml"
+    p.write_text("[sim]\ndt = 1e-3\nduration = 0.01\n[ground]\n[[body]]\nname = \"c\"\n"
+                 "shape = \"capsule\"\nradius = 0.05\nhalf_length = 0.1\nmass = 1.0\n"
+                 "position = [0.0, 0.0, 0.5]\n"
+                 "axis_angle = { axis = [1.0, 0.0, 0.0], angle_deg = 30.0 }\n")
+    traj, _ = simulate(load_scene(p))
+    prox = Context(traj).proximity(1e-3)
+    np.testing.assert_allclose(prox.ground_sep[0, 0], 0.5 - 0.1 * np.cos(np.pi / 6) - 0.05,
+                               atol=1e-12)
