@@ -353,7 +353,12 @@ def test_jointed_bodies_balance_to_round_off_and_a_kick_on_one_is_caught():
     results = check(_with_velocity(traj, v), threads=1)
     flagged = [r for r in results if r.verdict == "FAIL"]
     assert [r.analyzer for r in flagged] == ["momentum"], [(r.analyzer, r.reason) for r in flagged]
-    (f,) = flagged[0].findings
+    # the balance finding; the leg's geoms are in reach of the floor, so the same kick, read as a
+    # ground impulse with no normal part, may also be flagged outside the friction cone (same
+    # body, same interval) and nothing else
+    (f,) = [x for x in flagged[0].findings if "differs from its logged impulses" in x.message]
+    for x in flagged[0].findings:
+        assert x.bodies == [b] and x.step == kick_at * 10, x.message
     assert f.bodies == [b] and f.step == kick_at * 10 and f.t == pytest.approx(traj.t[kick_at])
     mdv = traj.model.body_mass[b] * 0.05  # 2.78 kg x 0.05 m/s
     assert f"by {mdv:.3g} kg m/s" in f.message, f.message
