@@ -766,6 +766,16 @@ class Context:
                 st = valid & (cb == STATIC_BODY)
                 dyn = valid & (cb >= 0) & (cb < n) & (cb != ca)
                 extra = st & (n_static[ck, ca] == 0)
+                if tr.model.ground and len(ck):
+                    # a row off the ground's normal while the ground is in reach: another
+                    # static feature (a plane the contract's ground and boxes do not hold)
+                    off = np.asarray(c.normal)[ok] @ np.asarray(tr.model.ground_normal, float) \
+                        < math.cos(tol.STATIC_NORMAL_OTHER_RAD)
+                    other = st & off & ground[ck, np.clip(ca, 0, n - 1)]
+                    if other.any():
+                        key = np.unique(ck[other] * n + ca[other])
+                        n_static.reshape(-1)[key] += 1
+                        static_id.reshape(-1)[key] = -3
                 n_static[ck[extra], ca[extra]] = 1
                 static_id[ck[extra], ca[extra]] = -3  # unknown static feature
                 dk = np.concatenate([dk, ck[dyn]])

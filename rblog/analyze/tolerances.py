@@ -113,6 +113,12 @@ DRIFT_DISTANCE_REL = 1e-6
 #: A body's momentum change between two samples that differs from (m g + F) dt by more than this
 #: fraction of its momentum scale m(|v| + |a| dt) marks a contact (or a fault); only a detector.
 MOMENTUM_JUMP_REL = 1e-9
+#: A logged contact with static geometry whose normal is more than this angle (rad) off the
+#: ground's is with another static feature than the ground (a tilted plane: dm_control
+#: manipulator's wall2 at 45 deg), so the body touches two static features and its impulse is not
+#: judged against the ground's friction cone alone. 1 deg: a contact on the ground has the
+#: plane's normal exactly (MuJoCo, pybullet, rblog).
+STATIC_NORMAL_OTHER_RAD = 0.017453292519943295  # 1 deg
 #: |sum of linear impulses| of a group of colliding bodies (no static geometry involved), relative
 #: to sum_i m_i |v_i| of the group.
 MOMENTUM_LINEAR_REL = 1e-6
