@@ -367,6 +367,7 @@ class ContactParams:
     sleep_time: float = 0.5
     warm_starting: bool = True
     static_friction_anchors: bool = True
+    exact_contact_motion: bool = True
     projection_iterations: int = 4
     projection_depth: float = 2e-4
     solver: str = "pgs"

@@ -90,6 +90,7 @@ Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut velocity_iterat
                                   "speculative_distance restitution_threshold "
                                   "friction_anchor_distance sleep_speed sleep_time warm_starting "
                                   "projection_iterations projection_depth static_friction_anchors "
+                                  "exact_contact_motion "
                                   "friction_newton_iters friction_newton_tol block_reg "
                                   "friction_anchor_rate friction_anchor_slide_frac "
                                   "projection_rings soft_step substeps contact_hertz "
