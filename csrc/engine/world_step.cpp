@@ -407,9 +407,10 @@ void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i
 //   deceleration d = mu sum(lambda_n) / (m h) - a_t . u_hat (a = g + F/m), which would end the
 //   slide at t* = |u_t| / d < h, and the solve's w_t . u_hat <= |u_t| / 2 says it did (a body
 //   rolling or driven on keeps its speed along u_hat or gains): it went on from rest to w_t at
-//   a constant rate, displacement (u_t t* + w_t (h - t*)) / 2; no turn. An anchored pair is
-//   then re-anchored where it stopped (MF_AOK = 0: the next collide takes the pose then), since
-//   its anchor, taken at the step's start, would count the slide as slip.
+//   a constant rate, displacement (u_t t* + w_t (h - t*)) / 2; no turn. An anchored pair stops
+//   so only after a step of sliding (its anchor dropped), and is then re-anchored where it
+//   stopped (MF_AOK = -1: collide takes the pose of the next step's start, and that step is
+//   not a stop), since its anchor, taken at this step's start, would count the slide as slip.
 // The sums over the step telescope: where nothing between steps changes the velocity (u of a
 // step = w of the last), the trapezoid's corrections add up to h (w_first - w_last) / 2, so
 // they cannot accumulate into creep.
@@ -440,13 +441,17 @@ inline void exact_correction(i64 i, i64 m, const Bodies& bd, const Settings& cfg
     dl[0] = dl[1] = dl[2] = 0.0;
     const double mu = mf(m, MF_MU);
     const i64 start = mi(m, MI_START), end = start + mi(m, MI_COUNT);
-    // the pair's anchor held over from the last step (collide's rule: warm started from a
-    // manifold that kept its anchor): it was stuck at the step's start
-    const i64 j = cfg.warm_starting && mf(m, MF_AOK) > 0.0
-                      ? find_manifold(ex.prev_keys, ex.prev_idx, ex.prev_n, mi(m, MI_KEY))
-                      : -1;
-    const bool held = j >= 0 && ex.prev_mf(j, MF_AOK) > 0.0;
-    if (!held && uu > 0.0 && uw <= 0.5 * uu * uu) {
+    // An anchored pair (collide gives every pair but a rolling one an anchor, MF_AOK > 0) may stop
+    // in this step only if it slid over the last one (warm started from a manifold whose anchor
+    // store_impulses dropped, MF_AOK 0): not if it was held (MF_AOK > 0 then) or stopped in the
+    // last step (MF_AOK -1, below), which the anchor's position loop owns.
+    const bool anchored = cfg.static_friction_anchors && mf(m, MF_AOK) > 0.0;
+    bool may_stop = !anchored;
+    if (anchored && cfg.warm_starting) {
+        const i64 j = find_manifold(ex.prev_keys, ex.prev_idx, ex.prev_n, mi(m, MI_KEY));
+        may_stop = j >= 0 && ex.prev_mf(j, MF_AOK) == 0.0;
+    }
+    if (may_stop && uu > 0.0 && uw <= 0.5 * uu * uu) {
         double ln = 0.0;
         for (i64 p = start; p < end; ++p) ln += pf(p, PF_LN);
         const double d = mu * ln * im / h - (at[0] * ut[0] + at[1] * ut[1] + at[2] * ut[2]) / uu;
@@ -454,11 +459,11 @@ inline void exact_correction(i64 i, i64 m, const Bodies& bd, const Settings& cfg
             const double ts = uu / d;
             for (int k = 0; k < 3; ++k)
                 dx[k] = 0.5 * (ut[k] * ts + wt[k] * (h - ts)) - h * wt[k];
-            mf(m, MF_AOK) = 0.0;
+            if (anchored) mf(m, MF_AOK) = -1.0;
             return;
         }
     }
-    if (mf(m, MF_AOK) > 0.0) {
+    if (anchored) {
         for (i64 p = start; p < end; ++p)
             if (pf(p, PF_LN) > 0.0 &&
                 point_sticks(pf(p, PF_L1), pf(p, PF_L2), mu, pf(p, PF_LN),
