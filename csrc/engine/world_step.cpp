@@ -57,7 +57,7 @@
 //   would change its angular momentum about its centre of mass by O(h^2 |g| |P|) a step (5.6e-6
 //   relative on samples/mixed.toml; both schemes alone keep it exactly).
 //
-// Exact motion on one static surface (ContactParams.exact_contact_motion, on by default; the PGS
+// Exact motion on one static surface (ContactParams.exact_contact_motion, off by default; the PGS
 // solve only). Symplectic Euler's x += h v_new is first order under a constant contact force:
 // a box sliding to a stop falls short of v0^2 / (2 mu g) by about h v0 / 2, a ball rolling down
 // a slope lags s = a t^2 / 2 by a relative h / t. The trapezoid x += h (v_start + v_new) / 2 is
