@@ -23,6 +23,7 @@ from rblog.engine.contact import ContactParams, ContactWorld
 from rblog.engine.scene import parse_scene
 from rblog.study.scenes import make_model, make_state
 from tests.engine.contact.test_contact import SPLIT, simulate
+from tests.engine.contact.test_stage_threads import threads  # noqa: F401 (the fixture)
 
 G = 9.81
 # a converged velocity solve (the default stops at 1e-4 m/s, and the first steps' normal and
@@ -152,3 +153,32 @@ def test_rolling_sphere_without_the_option_lags_by_h_over_t():
     s = x[-1, 0]
     exact = 0.5 * 5.0 / 7.0 * G * math.sin(th) * t[-1] ** 2
     assert abs(s / exact - 1.0) == pytest.approx(dt / t[-1], rel=1e-6)  # measured 1.2e-12
+
+
+def test_exact_motion_gives_the_same_bytes_on_1_2_and_4_threads(threads):
+    """300 cubes sliding apart on the ground (every one on one static surface: the rule moves
+    each of them), 40 steps: the integrate stage's blocks on the pool write only their own
+    bodies' rows and their own manifold's anchor flag, so 1, 2 and 4 threads give one result."""
+    from rblog.engine import _core
+
+    rng = np.random.default_rng(3)
+    n, a = 300, 0.05
+    grid = np.stack(np.meshgrid(np.arange(20), np.arange(15), indexing="ij"), -1).reshape(-1, 2)
+    pos = np.column_stack([0.3 * grid, np.full(n, a)])
+    vel = np.column_stack([rng.uniform(-1, 1, (n, 2)), np.zeros(n)])
+    model = make_model([SHAPE_BOX] * n, [[a, a, a]] * n, [1.0] * n, restitution=0.0, friction=0.5)
+    got = {}
+    for t in (1, 2, 4):
+        threads(t)
+        world = ContactWorld(model, ContactParams(sleep=False, exact_contact_motion=True), *SPLIT)
+        state = make_state(model, pos, vel)
+        _core.thread_stats(reset=True)
+        out, _, bad, _ = simulate(world, state, 1e-3, 40)
+        assert bad == -1
+        if t > 1:  # the stages' loops (integrate among them) did run on the pool
+            assert _core.thread_stats(reset=True)["pool_calls"] >= 40, t
+        got[t] = out
+        assert (np.asarray(world._cache.scratch.exact_man)[:n] >= 0).all()
+    for t in (2, 4):
+        for k in ("position", "linear_momentum", "quat_wxyz", "rotation", "angular_momentum"):
+            assert got[t][k].tobytes() == got[1][k].tobytes(), (t, k)
