@@ -392,6 +392,8 @@ void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i
 // u, w: the body's velocity at the step's start (before the kick) and after the solve, n the
 // manifold's normal, t the tangential part (x - (x . n) n).
 //
+// * On an edge or a corner (fewer than 3 points) of a pair that does not roll (not a sphere's or a
+//   capsule's): no correction, the body tips or rocks under a varying force.
 // * Stuck (an anchored pair, MF_AOK > 0, whose loaded points stick by the anchor's rule,
 //   point_sticks) and not stopping: no correction. The anchor pass sets w_t = -rate D / h, a
 //   position loop designed for x += h w_t; a trapezoid inside it (x += h (w_prev + w_t) / 2)
@@ -441,6 +443,10 @@ inline void exact_correction(i64 i, i64 m, const Bodies& bd, const Settings& cfg
     dl[0] = dl[1] = dl[2] = 0.0;
     const double mu = mf(m, MF_MU);
     const i64 start = mi(m, MI_START), end = start + mi(m, MI_COUNT);
+    // a rolling pair (a sphere's, a capsule's: collide gives every other pair an anchor) on any
+    // points; any other on a face (3 or 4 points): on an edge or a corner a body is tipping or
+    // rocking, and its contact force varies inside the step
+    if (mf(m, MF_AOK) > 0.0 && mi(m, MI_COUNT) < 3) return;
     // An anchored pair (collide gives every pair but a rolling one an anchor, MF_AOK > 0) may stop
     // in this step only if it slid over the last one (warm started from a manifold whose anchor
     // store_impulses dropped, MF_AOK 0): not if it was held (MF_AOK > 0 then) or stopped in the
