@@ -302,7 +302,8 @@ class ContactParams:
             The 500-box pile of tests/engine/contact/test_contact.py at dt 2e-3 stays within
             0.22-0.26 mm of penetration with it on (seeds 0-2; 0.5 mm allowed).
         exact_contact_motion: move a body whose one pushing contact is static geometry (the
-            ground, a static box, a sleeping body), struck by no impact in the step, exactly
+            ground, a static box, a sleeping body) on a face, or rolling on it (a sphere, a
+            capsule), struck by no impact in the step, exactly
             under its constant contact force: tangentially by the trapezoid h (v_start + v_end)
             / 2 instead of symplectic Euler's h v_end, its turn likewise about the axes that
             move no contact point along the normal, a stop inside the step by kinetic
