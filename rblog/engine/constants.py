@@ -326,10 +326,10 @@ class ContactParams:
             sliding to rest stops about h v0 / 2 short of v0^2 / (2 mu g) (1 mm at 2 m/s, dt
             1e-3) and a ball rolling down a slope is ahead of a t^2 / 2 by h / t relative. The
             PGS solve only (``solver = "soft_step"`` moves bodies by its substeps). Off by
-            default: on, `rblog check` flags samples/pile.toml at seeds 4 (a box jittering
-            2.25 mm/s on the ground while the rule moves it, limit 2) and 7 (a box creeping
-            0.126 mm on another, limit 0.1), where the default is clean at seeds 1-12
-            (benchmarks/RESULTS.md, "Contact solver: the loose pile").
+            default: on, `rblog check` flags samples/pile.toml at 2 of seeds 1-12 (a creep of
+            0.128 mm at seed 4, limit 0.1; at seed 6 two boxes' angular velocity disagrees with
+            their orientation's rate by a median 0.142, limit 0.1), where the default is clean
+            at all 12 (benchmarks/RESULTS.md, "Contact solver: the loose pile").
         projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
             positions moved, the narrowphase runs again at the end-of-step poses and every
             point deeper than ``projection_depth`` is pushed out to that depth by moving
