@@ -9,10 +9,10 @@
 // A body's step is written once, over its value type T (double, or a lane vector): a Body<T> of
 // its state, step<METHOD, T> calling the stages of integrators.hpp, and run_bodies<METHOD, T> the
 // loop over the block, so a lane does the one body's operations in its order and the bits do not
-// depend on the width (tests/engine/test_free_lanes.py). Under exact / exact4 the kernel writes
-// the step out in its own body (advance_exact_range; the arithmetic of step_body +
-// drift_exact_anchored, operation for operation: tests/engine/test_exact_anchored.py compares the
-// two bit for bit), and exact_lanes evaluates the flow of torque-free bodies in lanes.
+// depend on the width (tests/engine/test_free_lanes.py). Under exact / exact4 the step is
+// exact_step (advance_exact_range; the arithmetic of integrators.step_body + drift_exact_anchored,
+// operation for operation: tests/engine/test_exact_anchored.py compares the two bit for bit), and
+// exact_lanes evaluates the flow of torque-free bodies in lanes.
 //
 // Samples are written after every stride-th step (and after the last step of the block when
 // sample_last), so logging costs nothing between samples.
@@ -75,7 +75,7 @@ namespace {
 
 // ---- a body's state in registers: one body (T = double) or one in each lane of a vector ------
 
-// Bodies i .. i + W - 1 (W the lanes of T) from the state arrays, q too unless with_q is false.
+// Rows i .. i + W - 1 (W the lanes of T), column c of v.
 template <class T>
 inline T gather(V2<double> v, i64 i, int c) {
     T r;
@@ -83,15 +83,20 @@ inline T gather(V2<double> v, i64 i, int c) {
     return r;
 }
 
+// columns 0, 1, 2 of v
+template <class T>
+inline void gather3(V2<double> v, i64 i, T& c0, T& c1, T& c2) {
+    c0 = gather<T>(v, i, 0); c1 = gather<T>(v, i, 1); c2 = gather<T>(v, i, 2);
+}
+
+// Bodies i .. i + W - 1 from the state arrays, q too unless with_q is false; store_body the
+// reverse.
 template <class T>
 inline Body<T> load_body(const FreeArgs& a, i64 i, bool with_q) {
     Body<T> b;
-    b.x = gather<T>(a.position, i, 0); b.y = gather<T>(a.position, i, 1);
-    b.z = gather<T>(a.position, i, 2);
-    b.px = gather<T>(a.linear_momentum, i, 0); b.py = gather<T>(a.linear_momentum, i, 1);
-    b.pz = gather<T>(a.linear_momentum, i, 2);
-    b.lx = gather<T>(a.angular_momentum, i, 0); b.ly = gather<T>(a.angular_momentum, i, 1);
-    b.lz = gather<T>(a.angular_momentum, i, 2);
+    gather3(a.position, i, b.x, b.y, b.z);
+    gather3(a.linear_momentum, i, b.px, b.py, b.pz);
+    gather3(a.angular_momentum, i, b.lx, b.ly, b.lz);
     for (int c = 0; c < 4; ++c) b.q[c] = with_q ? gather<T>(a.quat_wxyz, i, c) : T{};
     for (int c = 0; c < 9; ++c)
         for (int l = 0; l < lanes_of<T>(); ++l) set_lane(b.m[c], l, a.rotation.row(i + l)[c]);
@@ -113,16 +118,14 @@ inline void store_body(const FreeArgs& a, i64 i, const Body<T>& b, bool with_q) 
     }
 }
 
+// Their constants over the call.
 template <class T>
 inline BodyParams<T> load_params(const FreeArgs& a, i64 i) {
     BodyParams<T> p;
     for (int l = 0; l < lanes_of<T>(); ++l) set_lane(p.im, l, a.inv_mass[i + l]);
-    p.fx = gather<T>(a.force_world, i, 0); p.fy = gather<T>(a.force_world, i, 1);
-    p.fz = gather<T>(a.force_world, i, 2);
-    p.tx = gather<T>(a.torque_world, i, 0); p.ty = gather<T>(a.torque_world, i, 1);
-    p.tz = gather<T>(a.torque_world, i, 2);
-    p.k0 = gather<T>(a.inv_inertia, i, 0); p.k1 = gather<T>(a.inv_inertia, i, 1);
-    p.k2 = gather<T>(a.inv_inertia, i, 2);
+    gather3(a.force_world, i, p.fx, p.fy, p.fz);
+    gather3(a.torque_world, i, p.tx, p.ty, p.tz);
+    gather3(a.inv_inertia, i, p.k0, p.k1, p.k2);
     p.torqued = (p.tx != 0.0) | (p.ty != 0.0) | (p.tz != 0.0);
     return p;
 }
@@ -358,97 +361,101 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
     return res;
 }
 
+// A body's flow anchor (rblog.engine.state.FlowAnchors): q_a, L_a, its steps so far and its dt.
+struct Anchor {
+    double aw, ax, ay, az, l0, l1, l2;
+    i64 n;
+    double dt;
+};
+
+inline Anchor load_anchor(const FreeArgs& a, i64 i) {
+    return {a.a_q(i, 0), a.a_q(i, 1), a.a_q(i, 2), a.a_q(i, 3), a.a_l(i, 0), a.a_l(i, 1),
+            a.a_l(i, 2), a.a_n[i], a.a_dt[i]};
+}
+
+inline void store_anchor(const FreeArgs& a, i64 i, const Anchor& an) {
+    V2<double> a_q = a.a_q, a_l = a.a_l;
+    V1<i64> a_n = a.a_n;
+    V1<double> a_dt = a.a_dt;
+    a_q(i, 0) = an.aw; a_q(i, 1) = an.ax; a_q(i, 2) = an.ay; a_q(i, 3) = an.az;
+    a_l(i, 0) = an.l0; a_l(i, 1) = an.l1; a_l(i, 2) = an.l2;
+    a_n[i] = an.n;
+    a_dt[i] = an.dt;
+}
+
+// One step of a body by exact / exact4 (integrators.step_body, _strang_exact and
+// drift_exact_anchored, operation for operation): translation exact for a constant force;
+// rotation Strang kick(h/2) flow(h) kick(h/2), with torque under exact4 Yoshida's three of them
+// (weights w1, w0). The flow from the anchor, kept while L is bitwise the anchor's and the step
+// is the same; row: its flow constants, row_ok whether they are the anchor's.
+template <int METHOD>
+inline void exact_step(Body<double>& b, const BodyParams<double>& p, Anchor& an, double* row,
+                       bool& row_ok, double dt, double w1, double w0) {
+    flight_exact(dt, p.im, b.x, b.y, b.z, b.px, b.py, b.pz, p.fx, p.fy, p.fz);
+    const int n_sub = (METHOD == METHOD_EXACT4 && p.torqued) ? 3 : 1;
+    for (int sub = 0; sub < n_sub; ++sub) {
+        double h = dt;
+        if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
+        const double hk = 0.5 * h;
+        if (p.torqued) {
+            b.lx += hk * p.tx; b.ly += hk * p.ty; b.lz += hk * p.tz;
+        }
+        if (!anchor_holds(an.n, an.dt, an.l0, an.l1, an.l2, h, b.lx, b.ly, b.lz)) {
+            an = {b.q[0], b.q[1], b.q[2], b.q[3], b.lx, b.ly, b.lz, 0, h};
+            row_ok = false;
+        }
+        if (!row_ok) {
+            anchor_constants(row, an.aw, an.ax, an.ay, an.az, b.lx, b.ly, b.lz, p.k0, p.k1, p.k2, h);
+            row_ok = true;
+        }
+        const i64 n = an.n + 1;
+        double rj_c;
+        b.q = anchored_quat(row, an.aw, an.ax, an.ay, an.az, static_cast<double>(n) * std::fabs(h),
+                            b.q[0], b.q[1], b.q[2], b.q[3], rj_c);
+        if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
+        an.n = n;
+        if (p.torqued) {
+            b.lx += hk * p.tx; b.ly += hk * p.ty; b.lz += hk * p.tz;
+        }
+    }
+    b.m = quat_to_mat(b.q[0], b.q[1], b.q[2], b.q[3]);
+}
+
 // Body i of exact / exact4 alone from step s_begin on, samples from row j on (the sparse path of
 // advance_exact_range, tile 1): its state, anchor and flow-constant validity in locals for the
-// whole block (the arrays written when a sample is due and at the end), the step exactly
-// advance_exact_range's. The flow constants are recomputed from the anchor on the first step
-// (a pure function of it, so a start at s_begin > 1 continues bit for bit). Returns the samples
-// written; fail_step the step at which the state went bad (-1 if none).
+// whole block (the arrays written when a sample is due and at the end). The flow constants are
+// recomputed from the anchor on the first step (a pure function of it, so a start at s_begin > 1
+// continues bit for bit). Returns the samples written; fail_step the step at which the state
+// went bad (-1 if none).
 template <int METHOD>
 i64 exact_single(const FreeArgs& a, i64 i, double* row, i64 s_begin, i64 j, i64& fail_step) {
     const double dt = a.dt;
     const double w1 = yoshida_w1(), w0 = yoshida_w0();
-    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
-    V3<double> R = a.rotation;
-    V2<double> a_q = a.a_q, a_l = a.a_l;
-    V1<i64> a_n = a.a_n;
-    V1<double> a_dt = a.a_dt;
-    const double im = a.inv_mass[i];
-    const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
-    const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
-    const double k0 = a.inv_inertia(i, 0), k1 = a.inv_inertia(i, 1), k2 = a.inv_inertia(i, 2);
-    const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
-    const int n_sub = (METHOD == METHOD_EXACT4 && torqued) ? 3 : 1;
-    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
-    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
-    double lx = L(i, 0), ly = L(i, 1), lz = L(i, 2);
-    double qw = Q(i, 0), qx = Q(i, 1), qy = Q(i, 2), qz = Q(i, 3);
-    double aw = a_q(i, 0), ax = a_q(i, 1), ay = a_q(i, 2), az = a_q(i, 3);
-    double al0 = a_l(i, 0), al1 = a_l(i, 1), al2 = a_l(i, 2);
-    i64 an = a_n[i];
-    double adt = a_dt[i];
+    Body<double> b = load_body<double>(a, i, true);
+    const BodyParams<double> p = load_params<double>(a, i);
+    const double kmax_dt = kmax_dt_of(p, dt);
+    Anchor an = load_anchor(a, i);
     bool row_ok = false;
-    Mat3 m{};
-    bool stepped = false;
-    auto store = [&]() {
-        pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-        mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
-        L(i, 0) = lx; L(i, 1) = ly; L(i, 2) = lz;
-        Q(i, 0) = qw; Q(i, 1) = qx; Q(i, 2) = qy; Q(i, 3) = qz;
-        store_mat(R, i, m);
-    };
+    SampleClock clock(a, s_begin);
     fail_step = -1;
     for (i64 s = s_begin; s <= a.n_steps; ++s) {
-        flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
-        for (int sub = 0; sub < n_sub; ++sub) {
-            double h = dt;
-            if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
-            const double hk = 0.5 * h;
-            if (torqued) {
-                lx += hk * tx; ly += hk * ty; lz += hk * tz;
-            }
-            if (!anchor_holds(an, adt, al0, al1, al2, h, lx, ly, lz)) {
-                aw = qw; ax = qx; ay = qy; az = qz;
-                al0 = lx; al1 = ly; al2 = lz;
-                an = 0;
-                adt = h;
-                row_ok = false;
-            }
-            if (!row_ok) {
-                anchor_constants(row, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h);
-                row_ok = true;
-            }
-            const i64 n = an + 1;
-            double rj_c;
-            const Quat q = anchored_quat(row, aw, ax, ay, az, static_cast<double>(n) * std::fabs(h),
-                                         qw, qx, qy, qz, rj_c);
-            qw = q[0]; qx = q[1]; qy = q[2]; qz = q[3];
-            if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
-            an = n;
-            if (torqued) {
-                lx += hk * tx; ly += hk * ty; lz += hk * tz;
-            }
-        }
-        m = quat_to_mat(qw, qx, qy, qz);
-        stepped = true;
-        const double chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
-        if (!(std::isfinite(chk) && turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m))) {
+        exact_step<METHOD>(b, p, an, row, row_ok, dt, w1, w0);
+        bool ok[1];
+        if (!step_ok(ok, dt, b, p, kmax_dt)) {
             fail_step = s;
             break;
         }
-        if (sample_due(a, s)) {
-            store();
+        if (clock.due(s)) {
+            store_body(a, i, b, true);
             sample<METHOD>(a, j, i);
             j += 1;
         }
     }
-    if (stepped) store();
-    a_q(i, 0) = aw; a_q(i, 1) = ax; a_q(i, 2) = ay; a_q(i, 3) = az;
-    a_l(i, 0) = al0; a_l(i, 1) = al1; a_l(i, 2) = al2;
-    a_n[i] = an;
-    a_dt[i] = adt;
+    store_body(a, i, b, true);
+    store_anchor(a, i, an);
     return j;
 }
+
 
 // ---- exact / exact4, W torque-free bodies in the lanes of V ----------------------------------
 //
@@ -751,8 +758,7 @@ __attribute__((target("avx2"), flatten, noinline)) bool exact_lanes4(const FreeA
 }
 #endif
 
-// The kernel of exact / exact4: advance_range's loops with the exact step written out
-// (integrators.step_body, _strang_exact and drift_exact_anchored, operation for operation).
+// The kernel of exact / exact4: advance_range's loops with exact_step.
 // The flow constants of each body of a tile are computed from its anchor on its first step in
 // this call (a pure function of the anchor: the same in every split).
 template <int METHOD>
@@ -763,11 +769,6 @@ FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
     const double w1 = yoshida_w1(), w0 = yoshida_w0();
     std::vector<double> fc(static_cast<size_t>(tile * N_FLOW));
     std::unique_ptr<bool[]> fc_ok(new bool[static_cast<size_t>(tile)]());
-    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
-    V3<double> R = a.rotation;
-    V2<double> a_q = a.a_q, a_l = a.a_l;
-    V1<i64> a_n = a.a_n;
-    V1<double> a_dt = a.a_dt;
     if (tile == 1) {  // sparse samples: torque-free bodies W at a time, the others one by one
         auto collect = [&](i64 b, i64 j, i64 fs) {
             if (fs >= 0 && (res.bad_step < 0 || fs < res.bad_step)) {
@@ -814,63 +815,16 @@ FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
             bool ok = true;
             for (i64 i = t0; i < t1; ++i) {
                 const i64 r = i - t0;
-                double* row = fc.data() + r * N_FLOW;
-                // translation: exact for a constant force (integrators.step_body)
-                const double im = a.inv_mass[i];
-                const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
-                const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
-                double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
-                double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
-                flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
-                pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-                mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
-                // rotation: Strang kick(h/2) flow(h) kick(h/2), with torque under exact4
-                // Yoshida's three of them
-                const double k0 = a.inv_inertia(i, 0), k1 = a.inv_inertia(i, 1), k2 = a.inv_inertia(i, 2);
-                double lx = L(i, 0), ly = L(i, 1), lz = L(i, 2);
-                double qw = Q(i, 0), qx = Q(i, 1), qy = Q(i, 2), qz = Q(i, 3);
-                const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
-                const int n_sub = (METHOD == METHOD_EXACT4 && torqued) ? 3 : 1;
-                for (int sub = 0; sub < n_sub; ++sub) {
-                    double h = dt;
-                    if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
-                    const double hk = 0.5 * h;
-                    if (torqued) {
-                        lx += hk * tx; ly += hk * ty; lz += hk * tz;
-                    }
-                    // the anchor (drift_exact_anchored): kept while L is bitwise the anchor's and
-                    // the step is the same
-                    if (!anchor_holds(a_n[i], a_dt[i], a_l(i, 0), a_l(i, 1), a_l(i, 2), h, lx, ly, lz)) {
-                        a_q(i, 0) = qw; a_q(i, 1) = qx; a_q(i, 2) = qy; a_q(i, 3) = qz;
-                        a_l(i, 0) = lx; a_l(i, 1) = ly; a_l(i, 2) = lz;
-                        a_n[i] = 0;
-                        a_dt[i] = h;
-                        fc_ok[r] = false;
-                    }
-                    const double aw = a_q(i, 0), ax = a_q(i, 1), ay = a_q(i, 2), az = a_q(i, 3);
-                    if (!fc_ok[r]) {
-                        anchor_constants(row, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h);
-                        fc_ok[r] = true;
-                    }
-                    const i64 n = a_n[i] + 1;
-                    double rj_c;
-                    const Quat q = anchored_quat(row, aw, ax, ay, az,
-                                                 static_cast<double>(n) * std::fabs(h), qw, qx, qy,
-                                                 qz, rj_c);
-                    qw = q[0]; qx = q[1]; qy = q[2]; qz = q[3];
-                    if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
-                    a_n[i] = n;
-                    if (torqued) {
-                        lx += hk * tx; ly += hk * ty; lz += hk * tz;
-                    }
-                }
-                L(i, 0) = lx; L(i, 1) = ly; L(i, 2) = lz;
-                Q(i, 0) = qw; Q(i, 1) = qx; Q(i, 2) = qy; Q(i, 3) = qz;
-                const Mat3 m = quat_to_mat(qw, qx, qy, qz);
-                store_mat(R, i, m);
-                // non-finite check and turn bound (integrators.step_body)
-                const double chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
-                ok = std::isfinite(chk) && turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m);
+                Body<double> b = load_body<double>(a, i, true);
+                const BodyParams<double> p = load_params<double>(a, i);
+                Anchor an = load_anchor(a, i);
+                bool row_ok = fc_ok[r];
+                exact_step<METHOD>(b, p, an, fc.data() + r * N_FLOW, row_ok, dt, w1, w0);
+                fc_ok[r] = row_ok;
+                store_body(a, i, b, true);
+                store_anchor(a, i, an);
+                bool ok1[1];
+                ok = step_ok(ok1, dt, b, p, kmax_dt_of(p, dt));
                 if (!ok) {
                     if (res.bad_step < 0 || s < res.bad_step) {
                         res.bad_step = s;

@@ -150,12 +150,6 @@ inline void load_rotation(Body<double>& b, BodyParams<double>& p, V2<double> qua
     p.k0 = inv_inertia(i, 0); p.k1 = inv_inertia(i, 1); p.k2 = inv_inertia(i, 2);
 }
 
-inline void store_rotation(const Body<double>& b, V2<double> quat_wxyz, V3<double> rotation,
-                           i64 i) {
-    store_quat(quat_wxyz, i, b.q[0], b.q[1], b.q[2], b.q[3]);
-    store_mat(rotation, i, b.m);
-}
-
 // Exact flow of H_k = Lb_k^2 / (2 I_k) over time s about body axis AX (0, 1, 2), given
 // s_inv_i = s/I_k: rotate the body about its own axis k by theta = s Lb_k / I_k and Lb by -theta.
 // Half-angle sine/cosine for the quaternion, the full angle's from the double-angle formulas: one
@@ -386,46 +380,49 @@ inline void drift_rk4(Body<T>& b, const BodyParams<T>& p, double h) {
     b.m = quat_to_mat(b.q[0], b.q[1], b.q[2], b.q[3]);
 }
 
-// The array forms (body i of the state arrays; the contact step's drift_rotation).
-inline void drift_seed(int ortho, V2<double> quat_wxyz, V3<double> rotation,
-                       V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+// The array forms (body i of the state arrays; the contact step's drift_rotation): the drift
+// d(b, p) of body i's attitude and L, q stored too unless with_q is false (seed: from R on demand).
+template <class D>
+inline void drift_arrays(D d, bool with_q, V2<double> quat_wxyz, V3<double> rotation,
+                         V2<double> angular_momentum, V2<double> inv_inertia, i64 i) {
     Body<double> b{};
     BodyParams<double> p{};
     load_rotation(b, p, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
-    drift_seed(ortho, b, p, h);
+    d(b, p);
+    if (with_q) store_quat(quat_wxyz, i, b.q[0], b.q[1], b.q[2], b.q[3]);
     store_mat(rotation, i, b.m);
+}
+
+inline void drift_seed(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                       V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+    drift_arrays([&](Body<double>& b, BodyParams<double>& p) { drift_seed(ortho, b, p, h); },
+                 false, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
 }
 
 inline void drift_seed_quat(int ortho, V2<double> quat_wxyz, V3<double> rotation,
                             V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
-    Body<double> b{};
-    BodyParams<double> p{};
-    load_rotation(b, p, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
-    drift_seed_quat(ortho, b, p, h);
-    store_rotation(b, quat_wxyz, rotation, i);
+    drift_arrays([&](Body<double>& b, BodyParams<double>& p) { drift_seed_quat(ortho, b, p, h); },
+                 true, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
 }
 
 inline void drift_splitting(int ortho, V2<double> quat_wxyz, V3<double> rotation,
                             V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
     (void)ortho;
-    Body<double> b{};
-    BodyParams<double> p{};
-    load_rotation(b, p, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
-    drift_splitting(b, p, h);
-    store_rotation(b, quat_wxyz, rotation, i);
+    drift_arrays([&](Body<double>& b, BodyParams<double>& p) { drift_splitting(b, p, h); }, true,
+                 quat_wxyz, rotation, angular_momentum, inv_inertia, i);
 }
 
 inline void drift_rk4(int ortho, V2<double> quat_wxyz, V3<double> rotation,
                       V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h,
                       double tx = 0.0, double ty = 0.0, double tz = 0.0) {
     (void)ortho;
-    Body<double> b{};
-    BodyParams<double> p{};
-    load_rotation(b, p, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
-    p.tx = tx; p.ty = ty; p.tz = tz;
-    p.torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
-    drift_rk4(b, p, h);
-    store_rotation(b, quat_wxyz, rotation, i);
+    drift_arrays(
+        [&](Body<double>& b, BodyParams<double>& p) {
+            p.tx = tx; p.ty = ty; p.tz = tz;
+            p.torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
+            drift_rk4(b, p, h);
+        },
+        true, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
 }
 
 // The exact torque-free rotation over h (L world fixed), to round-off for any h (one-step map).
