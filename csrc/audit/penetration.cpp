@@ -23,7 +23,8 @@
 //   normal), zero at c, so the interval slides 0 (a box pivoting on one corner of its face
 //   contact, the rest of the face scraping).
 // * Both patch rules hold only where the pair's logged rows carry load at one point at most
-//   (nload <= 1 at both samples; -1, no rows, counts as one): a patch whose other points are
+//   (nload <= 1 at both samples; -1, no rows, counts as one; rows within WITNESS_BAND_M of each
+//   other are one point, penetration._distinct_points): a patch whose other points are
 //   loaded too holds them by static friction, so turning about one of them is creep.
 #include <algorithm>
 #include <cmath>

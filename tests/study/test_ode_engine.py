@@ -249,8 +249,13 @@ KNOWN = {
     "mixed": {"momentum: flight angular": 0.00733, "momentum: cone": 1.0,
               "momentum: collision angular": 0.000642, "penetration: creep": 0.000647},
     "newton_pair": {},
-    "pile": {"momentum: cone": 1.0, "penetration: creep": 0.000223, "penetration: sink": 0.00633},
+    # 2026-12-02, geoms in a dSimpleSpace: the 6.33 mm sink read with dHashSpace is gone (that
+    # space stopped reporting overlapping pairs: test_engine_shapes), creep 0.320 mm
+    "pile": {"momentum: cone": 1.0, "penetration: creep": 0.000223},
     "resting_box": {},
+    # measured 2026-12-02 (the capsules' first ODE runs): friction rows with no normal force, and
+    # the gyroscopic step on capsules tumbling between two contacts
+    "shapes": {"momentum: cone": 1.0, "momentum: flight angular": 0.0039},
     "spinning_bodies": {"momentum: flight angular": 0.0486, "energy: flight energy": 0.0647},
     "tumbling_box": {"momentum: flight angular": 0.00365, "energy: flight energy": 0.00734},
 }
@@ -294,7 +299,8 @@ def test_every_sample_full(name, tmp_path):
     for k, v in want.items():
         assert v / 2 <= worst[k] <= 2 * v, (k, worst[k], v)
     mom = next(r for r in results if r.analyzer == "momentum")
-    if "momentum: flight angular" in want and name != "mixed":  # every body flies free there
+    if "momentum: flight angular" in want and name not in ("mixed", "shapes"):  # bodies that touch
+        # nothing the whole run (in mixed and shapes every body lands)
         assert _free_flight_l_drift(got) > mom.tolerance
     if "momentum: cone" in want:
         c = got.contacts

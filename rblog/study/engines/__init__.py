@@ -3,15 +3,16 @@
 ``rblog run SCENE --engine mujoco|pybullet|ode`` (optional extras ``engines``: ``pip install -e
 ".[engines]"``; ``ode``: Debian's ``libode8`` and ``pip install -e ".[ode]"``). Each engine module
 translates the scene's :class:`~rblog.contract.model.Model` and initial state into the engine's
-model (spheres, boxes, ground plane, static boxes, masses, principal inertias, gravity, constant
-force/torque, collision groups), translates materials with the engine's own combine rule so that
-every pair gets the scene's effective restitution ``max(e_a, e_b)`` and friction
-``sqrt(mu_a mu_b)``, steps it at the scene's dt with the engine's integrator, and records poses,
-velocities and the engine's contacts through :class:`rblog.record.Recorder`.
+model (spheres, boxes, capsules and cylinders (each body's one geom, :func:`body_geoms`), ground
+plane, static boxes, the scene's masses and principal inertias (never the engine's own density
+computation), gravity, constant force/torque, collision groups), translates materials with the
+engine's own combine rule so that every pair gets the scene's effective restitution ``max(e_a,
+e_b)`` and friction ``sqrt(mu_a mu_b)``, steps it at the scene's dt with the engine's integrator,
+and records poses, velocities and the engine's contacts through :class:`rblog.record.Recorder`.
 
 A scene feature an engine cannot represent raises :class:`EngineUnsupported` (exit code 2) naming
-the feature. Run metadata (``RunInfo.engine_settings``) names the engine, its version and every
-solver setting used.
+the feature (a shape by its name). Run metadata (``RunInfo.engine_settings``) names the engine,
+its version and every solver setting used.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_NAMES, GEOM_SPHERE, \
+    SHAPE_BOX, SHAPE_SPHERE
 from rblog.errors import RblogError, EngineUnsupported, EngineMissing
 
 ENGINE_NAMES = ("mujoco", "pybullet", "ode")
@@ -71,6 +74,34 @@ def pair_materials(model):
     can &= (group[:, None] == 0) | (group[None, :] == 0) | (group[:, None] == group[None, :])
     np.fill_diagonal(can, False)
     return kinds, e_eff, mu_eff, can
+
+
+def body_geoms(model, engine: str, takes=(GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER)):
+    """Each body's one geom: a list of (GEOM_* code, size (3,) m) over the bodies.
+
+    Sizes as rblog.contract.model's GEOM_* (sphere [r, 0, 0], box half extents, capsule and
+    cylinder [r, h, 0] with h the half length along the body's z). A scene puts each body's geom
+    at its centre of mass along its principal axes (the body frame); a geom type outside
+    ``takes``, or a body with another geom layout, raises EngineUnsupported naming it."""
+    n = model.n_bodies
+    if model.geom_type is None:  # a sphere-and-box model: the v2 fields say it all
+        code = {SHAPE_SPHERE: GEOM_SPHERE, SHAPE_BOX: GEOM_BOX}
+        out = [(code.get(int(model.body_shape[i]), -1), np.asarray(model.body_size[i], float))
+               for i in range(n)]
+    else:
+        out = []
+        for i in range(n):
+            gs = np.flatnonzero(np.asarray(model.geom_body) == i)
+            if len(gs) != 1 or np.any(model.geom_pos_body[gs[0]] != 0) \
+                    or np.any(model.geom_quat_wxyz_body[gs[0]] != (1.0, 0.0, 0.0, 0.0)):
+                raise EngineUnsupported(engine, f"body {model.body_name[i]!r}: {len(gs)} geoms or a "
+                                        "geom off the body's centre of mass and principal axes")
+            out.append((int(model.geom_type[gs[0]]), np.asarray(model.geom_size[gs[0]], float)))
+    for i, (code, _) in enumerate(out):
+        if code not in takes:
+            raise EngineUnsupported(engine, f"body {model.body_name[i]!r}: shape "
+                                    f"{GEOM_NAMES.get(code, f'code {code}')!r}")
+    return out
 
 
 def initial_world_omega(scene) -> np.ndarray:

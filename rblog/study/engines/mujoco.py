@@ -3,7 +3,9 @@
 Translation (see rblog/study/engines/__init__.py for the common part):
 
 * each body: ``<body>`` with a ``<freejoint/>``, an explicit ``<inertial>`` (mass, principal
-  moments, at the body origin = centre of mass) and one sphere or box geom; the ground: a plane
+  moments, at the body origin = centre of mass: MuJoCo's own geom-density inertia is never used)
+  and one sphere, box, capsule or cylinder geom (``size="r h"``: MuJoCo's capsule and cylinder are
+  the scene's, radius and half length along the geom's z = the body's z); the ground: a plane
   geom turned so that its +z is the scene's ground normal; static boxes: box geoms of the world
   body. Constant forces/torques: ``xfrc_applied`` (world frame, at the centre of mass).
 * collision groups: group 0 touches everything (contype bit 0, conaffinity all bits), group g
@@ -30,9 +32,13 @@ import math
 
 import numpy as np
 
-from rblog.contract.model import SHAPE_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, initial_world_omega, pair_materials, \
-    parse_options, z_to
+from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_SPHERE
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, initial_world_omega, \
+    pair_materials, parse_options, z_to
+
+#: MJCF geom type and size of each body geom the translation takes (sizes: rblog.contract.model)
+MJCF_GEOM = {GEOM_SPHERE: ("sphere", lambda s: s[:1]), GEOM_BOX: ("box", lambda s: s),
+             GEOM_CAPSULE: ("capsule", lambda s: s[:2]), GEOM_CYLINDER: ("cylinder", lambda s: s[:2])}
 
 #: omega0 dt of the contact spring (explicit stepping is unstable near 2; 0.2 resolves an impact
 #: in ~15 steps; the same value rblog.study.peers uses)
@@ -165,11 +171,9 @@ class MujocoRun:
                 f'<geom name="static{j}" type="box" size="{_f(model.static_box_half_extents[j])}" '
                 f'pos="{_f(model.static_box_position[j])}" quat="{_f(model.static_box_quat_wxyz[j])}"'
                 f'{filt(0)}{self._contact_attrs(model.static_box_restitution[j], model.static_box_friction[j])}/>')
-        for i in range(n):
-            if int(model.body_shape[i]) == SHAPE_SPHERE:
-                geom = f'type="sphere" size="{float(model.body_size[i, 0])!r}"'
-            else:
-                geom = f'type="box" size="{_f(model.body_size[i])}"'
+        for i, (code, size) in enumerate(body_geoms(model, "mujoco", tuple(MJCF_GEOM))):
+            kind, sz = MJCF_GEOM[code]
+            geom = f'type="{kind}" size="{_f(sz(size))}"'
             parts.append(
                 f'<body name="b{i}"><freejoint/>'
                 f'<inertial pos="0 0 0" mass="{float(model.body_mass[i])!r}" '

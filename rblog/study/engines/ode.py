@@ -5,7 +5,10 @@ Translation (common part: rblog/study/engines/__init__.py):
 
 * each body: ``dBodyCreate`` with ``dMassSetParameters`` (the scene's mass, centre of mass at the
   body origin as ODE requires, the principal moments on the diagonal: the body frame is the
-  contract frame), one ``dCreateSphere`` or ``dCreateBox`` geom on it with no offset, position,
+  contract frame; ODE's ``dMassSetCapsule`` etc. are not used), one ``dCreateSphere``,
+  ``dCreateBox``, ``dCreateCapsule`` or ``dCreateCylinder`` geom on it with no offset (capsule
+  and cylinder: ``radius`` and ``length`` = 2 half_length, the capsule's cylinder part, along the
+  geom's z = the body's z), position,
   quaternion (w, x, y, z), velocity and the world-frame angular velocity ODE keeps. ODE's
   defaults otherwise: the gyroscopic torque on, taken semi-implicitly (Lacoursiere 2006, ODE's
   step.cpp: ``(I (I - dt [L]x)^-1 - 1) L / dt`` with ``L = I w`` and the inertia at the step's
@@ -13,11 +16,16 @@ Translation (common part: rblog/study/engines/__init__.py):
   auto-disable. Constant
   force and torque: ``dBodyAddForce`` / ``dBodyAddTorque`` before every step (ODE clears them).
   The ground: ``dCreatePlane(n, offset)``; static boxes: box geoms without a body. All geoms in
-  one ``dHashSpace``.
+  one ``dSimpleSpace`` (every pair's boxes tested, in C): libode 0.16.2's ``dHashSpace`` stops
+  reporting a pair whose boxes overlap (samples/shapes.toml: a ball falls 0.11 m into the slope,
+  a static box, at t = 0.3 s, while ``dCollide`` on the two geoms gives that depth).
 * collisions: ``dSpaceCollide`` calls a near callback (Python) for every pair of geoms whose
   boxes overlap; pairs that cannot touch (two static geoms, different non-zero groups) are
   skipped, the others get up to ``max_contacts`` points from ``dCollide`` and one contact joint
-  each, attached as ``dJointAttach(j, body(g1), body(g2))``.
+  each, attached as ``dJointAttach(j, body(g1), body(g2))``. ``dCollide`` returns no points for
+  a pair of geom classes it has no collider for (cylinder pairs need libode built with libccd):
+  every pair of shapes that can touch is probed once (:func:`missing_colliders`) and a missing
+  one exits 2 naming the two shapes.
 * materials: ODE has no per-geom material: each contact's ``dSurfaceParameters`` are set in the
   near callback, so every pair gets rblog's effective values exactly, friction ``sqrt(mu_a
   mu_b)`` and restitution ``max(e_a, e_b)`` (the combine rule lives in the callback). Mode
@@ -45,9 +53,9 @@ import math
 
 import numpy as np
 
-from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, initial_world_omega, pair_materials, \
-    parse_options
+from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_NAMES, GEOM_SPHERE
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, initial_world_omega, \
+    pair_materials, parse_options
 
 #: contact points per geom pair from dCollide (a box on a face needs 4; 8 leaves room for edges)
 DEFAULT_MAX_CONTACTS = 8
@@ -78,6 +86,37 @@ def _number(key: str, val: str, kind=float):
     return x
 
 
+#: the probe's geoms (m): each overlaps the other at PROBE_POS_A / PROBE_POS_B
+_PROBE_GEOMS = {"sphere": lambda ode, sp: ode.dCreateSphere(sp, 0.1),
+                "box": lambda ode, sp: ode.dCreateBox(sp, 0.2, 0.2, 0.2),
+                "capsule": lambda ode, sp: ode.dCreateCapsule(sp, 0.1, 0.4),
+                "cylinder": lambda ode, sp: ode.dCreateCylinder(sp, 0.1, 0.4),
+                "plane": lambda ode, sp: ode.dCreatePlane(sp, 0.0, 0.0, 1.0, 0.0)}
+PROBE_POS_A, PROBE_POS_B = (0.0, 0.0, 0.05), (0.05, 0.0, 0.1)
+
+
+def missing_colliders(ode, pairs) -> list[tuple[str, str]]:
+    """The shape pairs (names from _PROBE_GEOMS) dCollide has no collider for: two overlapping
+    geoms (at PROBE_POS_A, PROBE_POS_B; a plane stays z = 0) give no point in either order."""
+    space = ode.dSimpleSpaceCreate(None)
+    buf = (ode.dContactGeom * 8)()
+    out = []
+    try:
+        for a, b in pairs:
+            ga, gb = _PROBE_GEOMS[a](ode, space), _PROBE_GEOMS[b](ode, space)
+            for g, pos in ((ga, PROBE_POS_A), (gb, PROBE_POS_B)):
+                if ode.dGeomGetClass(g) != ode.dPlaneClass:
+                    ode.dGeomSetPosition(g, *pos)
+            if max(ode.dCollide(ga, gb, 8, buf, ctypes.sizeof(ode.dContactGeom)),
+                   ode.dCollide(gb, ga, 8, buf, ctypes.sizeof(ode.dContactGeom))) <= 0:
+                out.append((a, b))
+            ode.dGeomDestroy(ga)
+            ode.dGeomDestroy(gb)
+    finally:
+        ode.dSpaceDestroy(space)
+    return out
+
+
 class OdeRun:
     """One scene in ODE: ``step(k)``, ``state()``, ``contacts(step)``, ``close()``."""
 
@@ -103,9 +142,7 @@ class OdeRun:
             raise EngineUnsupported("ode", "options iterations/w without stepper=quick (dWorldStep has none)")
         model, st = scene.model, scene.state
         n = model.n_bodies
-        for i in range(n):
-            if int(model.body_shape[i]) not in (SHAPE_SPHERE, SHAPE_BOX):
-                raise EngineUnsupported("ode", f"body {model.body_name[i]!r}: shape code {int(model.body_shape[i])}")
+        shapes = body_geoms(model, "ode")
         self.max_contacts = int(_number("max_contacts", opts.pop("max_contacts", DEFAULT_MAX_CONTACTS), int))
         accel = float(np.linalg.norm(model.gravity)) + float(np.max(
             np.linalg.norm(model.body_force_world, axis=1) / model.body_mass, initial=0.0))
@@ -121,7 +158,7 @@ class OdeRun:
         self.rand_seed = int(scene.sim.seed or 0)
         ode.dRandSetSeed(self.rand_seed)
         self.world = ode.dWorldCreate()
-        self.space = ode.dHashSpaceCreate(None)
+        self.space = ode.dSimpleSpaceCreate(None)
         self.group = ode.dJointGroupCreate(0)
         w = self.world
         ode.dWorldSetGravity(w, *map(float, model.gravity))
@@ -143,10 +180,15 @@ class OdeRun:
             ode.dMassSetParameters(ctypes.byref(m), float(model.body_mass[i]), 0.0, 0.0, 0.0,
                                    *map(float, model.body_inertia_diag[i]), 0.0, 0.0, 0.0)
             ode.dBodySetMass(b, ctypes.byref(m))
-            if int(model.body_shape[i]) == SHAPE_SPHERE:
-                g = ode.dCreateSphere(self.space, float(model.body_size[i, 0]))
+            code, size = shapes[i]
+            if code == GEOM_SPHERE:
+                g = ode.dCreateSphere(self.space, float(size[0]))
+            elif code == GEOM_BOX:
+                g = ode.dCreateBox(self.space, *(2.0 * float(x) for x in size))
+            elif code == GEOM_CAPSULE:  # length: the cylinder part, 2 h, along the geom's z
+                g = ode.dCreateCapsule(self.space, float(size[0]), 2.0 * float(size[1]))
             else:
-                g = ode.dCreateBox(self.space, *(2.0 * float(x) for x in model.body_size[i]))
+                g = ode.dCreateCylinder(self.space, float(size[0]), 2.0 * float(size[1]))
             ode.dGeomSetBody(g, b)
             ode.dBodySetPosition(b, *map(float, st.position[i]))
             q = st.quat_wxyz[i] / np.linalg.norm(st.quat_wxyz[i])
@@ -164,7 +206,8 @@ class OdeRun:
             q = model.static_box_quat_wxyz[j] / np.linalg.norm(model.static_box_quat_wxyz[j])
             ode.dGeomSetQuaternion(g, (ode.dQuaternion)(*map(float, q)))
             geoms.append(g)
-        _, self.e_eff, self.mu_eff, self.can = pair_materials(model)
+        kinds, self.e_eff, self.mu_eff, self.can = pair_materials(model)
+        self._check_colliders(kinds, shapes)
         for k, g in enumerate(geoms):  # each geom's feature index + 1 in its user data
             ode.dGeomSetData(g, ctypes.c_void_p(k + 1))
         self._data = ode.dGeomGetData
@@ -190,12 +233,30 @@ class OdeRun:
             "gyroscopic": "on (ODE's default: semi-implicit, (I (I - dt [L]x)^-1 - 1) L / dt, "
                           "inertia at the step's start)",
             "rotation_update": "infinitesimal (ODE's default: q += dt/2 (0, w) q, normalized)",
-            "space": "dHashSpace", "rand_seed": self.rand_seed,
+            "space": "dSimpleSpace", "rand_seed": self.rand_seed,
             "combine_native": "none (surface parameters per contact)",
             "material_translation": {"friction": "sqrt(mu_a mu_b) per contact",
                                      "restitution": "max(e_a, e_b) per contact"},
             "ignored_scene_tables": ["contact"] if scene.contact else [],
         }
+
+    def _check_colliders(self, kinds, shapes) -> None:
+        """Exit 2 naming the first pair of shapes that can touch and dCollide cannot collide."""
+        model = self.scene.model
+        shape = [GEOM_NAMES[c] for c, _ in shapes] + ["plane" if k == "ground" else "box"
+                                                     for k in kinds[len(shapes):]]
+        label = [f"body {str(x)!r}" for x in model.body_name] + (["the ground"] if model.ground else []) \
+            + [f"static box {j}" for j in range(len(model.static_box_position))]
+        first = {}
+        for i, j in zip(*np.nonzero(np.triu(self.can, 1))):
+            first.setdefault(tuple(sorted((shape[i], shape[j]))), (int(i), int(j)))
+        missing = missing_colliders(self.ode, list(first))
+        if missing:
+            i, j = first[missing[0]]
+            self.close()
+            raise EngineUnsupported("ode", f"{missing[0][0]}-{missing[0][1]} contact ({label[i]} and "
+                                    f"{label[j]} can touch; {self.version} has no collider for "
+                                    "the pair)")
 
     def _near_callback(self, _data, g1, g2) -> None:
         i, j = self._data(g1) - 1, self._data(g2) - 1

@@ -2,8 +2,11 @@
 
 Translation (common part: rblog/study/engines/__init__.py):
 
-* each body: ``createMultiBody`` with a sphere or box collision shape, the scene's mass and
-  ``localInertiaDiagonal`` (principal moments, body frame), linear/angular damping 0 and
+* each body: ``createMultiBody`` with a sphere, box, capsule or cylinder collision shape
+  (``GEOM_CAPSULE`` / ``GEOM_CYLINDER``: ``radius`` and ``height`` = 2 half_length, the capsule's
+  cylinder part, along the shape's z = the body's z), the scene's mass and
+  ``localInertiaDiagonal`` (principal moments, body frame: Bullet's own from the shape is
+  replaced), linear/angular damping 0 and
   rolling/spinning friction 0; the ground: a static plane turned so its +z is the ground normal;
   static boxes: static multibodies. Constant force/torque: ``applyExternalForce`` /
   ``applyExternalTorque`` in the world frame before every step (Bullet clears them after each).
@@ -28,9 +31,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from rblog.contract.model import SHAPE_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, initial_world_omega, pair_materials, \
-    parse_options, z_to
+from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_SPHERE
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, initial_world_omega, \
+    pair_materials, parse_options, z_to
 
 #: relative mismatch of a pair's restitution product r_a r_b from max(e_a, e_b) accepted
 RESTITUTION_REL = 1e-9
@@ -110,6 +113,7 @@ class PybulletRun:
         groups = sorted({int(g) for g in model.body_group if g != 0})
         if len(groups) > MAX_GROUPS:
             raise EngineUnsupported("pybullet", f"{len(groups)} collision groups (body.group)")
+        shapes = body_geoms(model, "pybullet")
         r_fac = restitution_factors(model)
         mu_fac = np.sqrt(np.concatenate([model.body_friction,
                                          [model.ground_friction] if model.ground else [],
@@ -129,12 +133,15 @@ class PybulletRun:
             w_world = initial_world_omega(scene)
             bit = {g: 1 << (k + 1) for k, g in enumerate(groups)}
             all_bits = (1 << (len(groups) + 1)) - 1
-            for i in range(n):
-                if int(model.body_shape[i]) == SHAPE_SPHERE:
-                    col = pb.createCollisionShape(pb.GEOM_SPHERE, radius=float(model.body_size[i, 0]),
+            for i, (code, size) in enumerate(shapes):
+                if code == GEOM_SPHERE:
+                    col = pb.createCollisionShape(pb.GEOM_SPHERE, radius=float(size[0]), physicsClientId=cid)
+                elif code == GEOM_BOX:
+                    col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[float(x) for x in size],
                                                   physicsClientId=cid)
                 else:
-                    col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[float(x) for x in model.body_size[i]],
+                    col = pb.createCollisionShape(pb.GEOM_CAPSULE if code == GEOM_CAPSULE else pb.GEOM_CYLINDER,
+                                                  radius=float(size[0]), height=2.0 * float(size[1]),
                                                   physicsClientId=cid)
                 q = st.quat_wxyz[i] / np.linalg.norm(st.quat_wxyz[i])
                 bid = pb.createMultiBody(baseMass=float(model.body_mass[i]), baseCollisionShapeIndex=col,
