@@ -285,6 +285,41 @@ __attribute__((target("avx2"), flatten, noinline)) void run_lanes4(const FreeArg
 }
 #endif
 
+// The same on two bodies (SSE2) and on one: the stages inlined into the loop (flatten), their
+// vectors in registers rather than passed through memory.
+template <int METHOD>
+__attribute__((flatten, noinline)) void run_lanes2(const FreeArgs& a, i64 i, i64 j_out[2],
+                                                   i64 fail_out[2]) {
+    run_bodies<METHOD, d2>(a, i, 1, 0, j_out, fail_out);
+}
+
+template <int METHOD>
+__attribute__((flatten, noinline)) void run_one(const FreeArgs& a, i64 i, i64& j, i64& fail) {
+    run_bodies<METHOD, double>(a, i, 1, 0, &j, &fail);
+}
+
+// The tiled path: bodies t0 .. t1-1 each step in turn (their state stays in L1), samples after
+// the due steps; returns the samples written, the first bad step and its body (-1: none). Its
+// stages inlined into it (flatten), as run_lanes2.
+template <int METHOD>
+__attribute__((flatten, noinline)) i64 advance_tile(const FreeArgs& a, i64 t0, i64 t1,
+                                                    i64& bad_step, i64& bad_body) {
+    i64 j = 0;
+    for (i64 s = 1; s <= a.n_steps; ++s) {
+        for (i64 i = t0; i < t1; ++i)
+            if (!step_body<METHOD>(a, i)) {
+                bad_step = s;
+                bad_body = i;
+                return j;
+            }
+        if (sample_due(a, s)) {
+            for (i64 i = t0; i < t1; ++i) sample<METHOD>(a, j, i);
+            j += 1;
+        }
+    }
+    return j;
+}
+
 // Bodies b0 .. b1-1, n_steps steps of dt, samples written (advance_free_range's contract).
 template <int METHOD>
 FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
@@ -319,12 +354,12 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
 #endif
         for (; i + 1 < b1; i += 2) {
             i64 js[2], fs[2];
-            run_bodies<METHOD, d2>(a, i, 1, 0, js, fs);
+            run_lanes2<METHOD>(a, i, js, fs);
             collect(i, 2, js, fs);
         }
         for (; i < b1; ++i) {
             i64 js[1], fs[1];
-            run_bodies<METHOD, double>(a, i, 1, 0, js, fs);
+            run_one<METHOD>(a, i, js[0], fs[0]);
             collect(i, 1, js, fs);
         }
         return res;
@@ -335,24 +370,12 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
         i64 j = 0;
         if (tile == 1) {
             i64 fs;
-            run_bodies<METHOD, double>(a, t0, 1, 0, &j, &fs);
+            run_one<METHOD>(a, t0, j, fs);
             fail(fs, t0);
         } else {
-            for (i64 s = 1; s <= a.n_steps; ++s) {
-                bool ok = true;
-                for (i64 i = t0; i < t1; ++i) {
-                    ok = step_body<METHOD>(a, i);
-                    if (!ok) {
-                        fail(s, i);
-                        break;
-                    }
-                }
-                if (!ok) break;
-                if (sample_due(a, s)) {
-                    for (i64 i = t0; i < t1; ++i) sample<METHOD>(a, j, i);
-                    j += 1;
-                }
-            }
+            i64 bad_step = -1, bad_body = -1;
+            j = advance_tile<METHOD>(a, t0, t1, bad_step, bad_body);
+            fail(bad_step, bad_body);
         }
         if (METHOD == METHOD_SEED)  // the only integrator whose q is not current
             for (i64 i = t0; i < t1; ++i) sync_quat_seed(a.quat_wxyz, a.rotation, i);

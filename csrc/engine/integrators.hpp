@@ -157,7 +157,8 @@ inline void load_rotation(Body<double>& b, BodyParams<double>& p, V2<double> qua
 template <int AX, class T>
 inline void flow(QuatT<T>& q, T& b0, T& b1, T& b2, T s_inv_i) {
     const T th = s_inv_i * (AX == 0 ? b0 : AX == 1 ? b1 : b2);
-    const T ch = vcos(0.5 * th), sh = vsin(0.5 * th);
+    T sh, ch;
+    vsincos(0.5 * th, sh, ch);
     const T c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
     const T w = q[0], x = q[1], y = q[2], z = q[3];
     if (AX == 0) {

@@ -61,15 +61,18 @@ template <class V>
 inline V vsqrt(V a) { return per_lane(a, [](double x) { return std::sqrt(x); }); }
 template <class V>
 inline V vabs(V a) { return per_lane(a, [](double x) { return std::fabs(x); }); }
+// sine and cosine lane by lane, of each lane in one loop (one sincos call a lane)
 template <class V>
-inline V vsin(V a) { return per_lane(a, [](double x) { return std::sin(x); }); }
-template <class V>
-inline V vcos(V a) { return per_lane(a, [](double x) { return std::cos(x); }); }
+inline void vsincos(V a, V& s, V& c) {
+    for (int l = 0; l < lanes_of<V>(); ++l) {
+        const double x = lane(a, l);
+        set_lane(s, l, std::sin(x));
+        set_lane(c, l, std::cos(x));
+    }
+}
 // one body (T = double, its mask bool): the same helpers, so a template serves both
 inline double vsqrt(double a) { return std::sqrt(a); }
 inline double vabs(double a) { return std::fabs(a); }
-inline double vsin(double a) { return std::sin(a); }
-inline double vcos(double a) { return std::cos(a); }
 inline bool any(bool m) { return m; }
 inline bool all_set(bool m) { return m; }
 // a and not b, lane-wise; every lane set
