@@ -17,10 +17,12 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/ndarray.h>
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <stdexcept>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 namespace nb = nanobind;
@@ -112,27 +114,108 @@ struct ContactCapture {
                  nb::ndarray<const double, nb::ndim<1>, nb::c_contig, nb::device::cpu> efc) {
         if (!con_base) throw std::logic_error("capture: contacts_at first");
         if (ncon < 0 || ncon > con_count) throw std::out_of_range("capture: ncon outside the arena");
+        append(step, ncon, efc.data(), (long)efc.shape(0));
+    }
+
+    void append(std::int64_t step, long ncon, const double* efc, long nefc) {
         cap_step.push_back(step);
         cap_ncon.push_back(ncon);
-        cap_nefc.push_back((std::int64_t)efc.shape(0));
+        cap_nefc.push_back((std::int64_t)nefc);
         cap_raw.insert(cap_raw.end(), con_base, con_base + ncon * con_stride);
-        cap_efc.insert(cap_efc.end(), efc.data(), efc.data() + efc.shape(0));
+        if (nefc > 0) cap_efc.insert(cap_efc.end(), efc, efc + nefc);
     }
 
     // the captures so far, as (step, ncon, nefc (S,) int64, raw bytes, efc_force), then cleared
     nb::tuple take() {
-        auto out = nb::make_tuple(to_numpy(cap_step), to_numpy(cap_ncon), to_numpy(cap_nefc),
-                                  to_numpy(cap_raw), to_numpy(cap_efc));
-        cap_step.clear(), cap_ncon.clear(), cap_nefc.clear(), cap_raw.clear(), cap_efc.clear();
-        return out;
+        return nb::make_tuple(to_numpy(cap_step), to_numpy(cap_ncon), to_numpy(cap_nefc),
+                              to_numpy(cap_raw), to_numpy(cap_efc));
     }
 
+    // v's contents, moved into an array numpy owns; v is left empty with the same capacity
     template <class T>
-    static nb::ndarray<nb::numpy, T> to_numpy(const std::vector<T>& v) {  // a copy numpy owns
-        auto* owned = new std::vector<T>(v);
+    static nb::ndarray<nb::numpy, T> to_numpy(std::vector<T>& v) {
+        auto* owned = new std::vector<T>(std::move(v));
+        v = std::vector<T>();
+        v.reserve(owned->size());
         nb::capsule owner(owned, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
         size_t shape[1] = {owned->size()};
         return nb::ndarray<nb::numpy, T>(owned->data(), 1, shape, owner);
+    }
+};
+
+// StepRecord: MujocoRecorder.__call__ in one call, for the common case (the step right after the
+// last one seen, the samples' states deferred to the next step's row, rblog/adapters/mujoco.py):
+// reads d->time, ncon, nefc and efc_force at byte offsets checked in Python
+// (rblog/adapters/_mjdata_offsets.py), gathers the step (StepHook::step) and, at a logged step,
+// appends the sample (its step, hook row, gap flag) and its raw contacts (ContactCapture).
+// Anything else (a step not after the last, a step before 0, contacts not yet located, the
+// arena holding more contacts than the view): returns 2 having done nothing, and the Python
+// path handles that call. The counters are an int64 array Python shares:
+// [rows gathered k, samples waiting ns, the last step seen, the carried gap flag].
+struct StepRecord {
+    StepHook* hook;
+    ContactCapture* cap;
+    const std::uint8_t* d;
+    long off_time, off_ncon, off_nefc, off_efc;
+    double dt;
+    std::int64_t every, ns_cap;
+    std::int64_t* counters;     // (4,)
+    std::int64_t* hook_steps;   // (hook cap,) the step each gathered row ended
+    std::int64_t* steps;        // (ns_cap,) each waiting sample's step
+    std::int64_t* rows;         // (ns_cap,) the hook row of the sample's own step
+    std::uint8_t* gap;          // (ns_cap,) numpy bool
+
+    StepRecord(StepHook& h, ContactCapture& c, std::uintptr_t d_, long ot, long onc, long one,
+               long oef, double dt_, std::int64_t every_, std::int64_t ns_cap_,
+               std::uintptr_t counters_, std::uintptr_t hook_steps_, std::uintptr_t steps_,
+               std::uintptr_t rows_, std::uintptr_t gap_)
+        : hook(&h), cap(&c), d(reinterpret_cast<const std::uint8_t*>(d_)), off_time(ot),
+          off_ncon(onc), off_nefc(one), off_efc(oef), dt(dt_), every(every_), ns_cap(ns_cap_),
+          counters(reinterpret_cast<std::int64_t*>(counters_)),
+          hook_steps(reinterpret_cast<std::int64_t*>(hook_steps_)),
+          steps(reinterpret_cast<std::int64_t*>(steps_)),
+          rows(reinterpret_cast<std::int64_t*>(rows_)), gap(reinterpret_cast<std::uint8_t*>(gap_)) {
+        if (!d || !counters || !hook_steps || !steps || !rows || !gap || every < 1 || ns_cap < 1)
+            throw std::invalid_argument("StepRecord: null buffer or bad size");
+    }
+
+    // 0: done; 1: done, the block is full (flush); 2: nothing done (the Python path)
+    int record() {
+        double t;
+        std::memcpy(&t, d + off_time, sizeof t);
+        // Python's int(round(t / dt)): round half to even, as nearbyint in the default mode
+        double s = std::nearbyint(t / dt);
+        if (!(s >= 0.0 && s < 9.0e18)) return 2;
+        std::int64_t step = (std::int64_t)s;
+        if (step != counters[2] + 1) return 2;
+        bool sample = step % every == 0;
+        int ncon = 0;
+        if (sample) {
+            std::memcpy(&ncon, d + off_ncon, sizeof ncon);
+            if (ncon < 0 || (ncon > 0 && (!cap->con_base || ncon > cap->con_count))) return 2;
+            if (counters[1] >= ns_cap) return 2;
+        }
+        std::int64_t k = counters[0];
+        if (k < 0 || k >= hook->cap) return 2;
+        hook_steps[k] = step;
+        counters[0] = hook->step((int)k);
+        counters[2] = step;
+        if (sample) {
+            std::int64_t i = counters[1];
+            gap[i] = counters[3] ? 1 : 0;
+            steps[i] = step;
+            rows[i] = k;
+            counters[1] = i + 1;
+            if (ncon > 0) {
+                int nefc;
+                const double* efc;
+                std::memcpy(&nefc, d + off_nefc, sizeof nefc);
+                std::memcpy(&efc, d + off_efc, sizeof efc);
+                cap->append(step, ncon, efc, nefc > 0 ? nefc : 0);
+            }
+            counters[3] = 0;
+        }
+        return (counters[0] >= hook->cap || counters[1] >= ns_cap) ? 1 : 0;
     }
 };
 
@@ -154,5 +237,13 @@ NB_MODULE(_hook, mod) {
              "capture(step, ncon, efc_force): append the logged step's raw contacts")
         .def("take", &ContactCapture::take,
              "take() -> (step, ncon, nefc, raw bytes, efc_force): the captures, then cleared");
+    nb::class_<StepRecord>(mod, "StepRecord")
+        .def(nb::init<StepHook&, ContactCapture&, std::uintptr_t, long, long, long, long, double,
+                      std::int64_t, std::int64_t, std::uintptr_t, std::uintptr_t, std::uintptr_t,
+                      std::uintptr_t, std::uintptr_t>(),
+             nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>())
+        .def("record", &StepRecord::record,
+             "MujocoRecorder.__call__ for the step after the last: 0 done, 1 done and the block "
+             "is full, 2 nothing done (the Python path)");
     rb::bind_resolve(mod);
 }

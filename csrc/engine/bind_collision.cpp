@@ -68,7 +68,8 @@ void bind_collision(nb::module_& m) {
         "set_collision_constants",
         [](double manifold_touch_band_m, double edge_rel_tol, double face_rel_tol,
            double axis_abs_tol, double edge_parallel_tol, double friction_anchor_max_drift_m,
-           i64 static_body) {
+           i64 static_body, double convex_gjk_tol_m, double convex_epa_tol_m,
+           i64 convex_max_iter) {
             CollisionConstants& c = collision_constants();
             c.manifold_touch_band_m = manifold_touch_band_m;
             c.edge_rel_tol = edge_rel_tol;
@@ -77,11 +78,15 @@ void bind_collision(nb::module_& m) {
             c.edge_parallel_tol = edge_parallel_tol;
             c.friction_anchor_max_drift_m = friction_anchor_max_drift_m;
             c.static_body = static_body;
+            c.convex_gjk_tol_m = convex_gjk_tol_m;
+            c.convex_epa_tol_m = convex_epa_tol_m;
+            c.convex_max_iter = convex_max_iter;
             c.set = true;
         },
         nb::arg("manifold_touch_band_m"), nb::arg("edge_rel_tol"), nb::arg("face_rel_tol"),
         nb::arg("axis_abs_tol"), nb::arg("edge_parallel_tol"),
         nb::arg("friction_anchor_max_drift_m"), nb::arg("static_body"),
+        nb::arg("convex_gjk_tol_m"), nb::arg("convex_epa_tol_m"), nb::arg("convex_max_iter"),
         "The collision tolerances of rblog.engine.constants (their one home), set once at import "
         "of rblog.engine.contact.narrowphase.");
     m.def(
@@ -96,6 +101,9 @@ void bind_collision(nb::module_& m) {
             d["EDGE_PARALLEL_TOL"] = c.edge_parallel_tol;
             d["FRICTION_ANCHOR_MAX_DRIFT_M"] = c.friction_anchor_max_drift_m;
             d["STATIC_BODY"] = c.static_body;
+            d["CONVEX_GJK_TOL_M"] = c.convex_gjk_tol_m;
+            d["CONVEX_EPA_TOL_M"] = c.convex_epa_tol_m;
+            d["CONVEX_MAX_ITER"] = c.convex_max_iter;
             d["set"] = c.set;
             return d;
         },

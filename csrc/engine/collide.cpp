@@ -485,7 +485,7 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
             const i64 ga = geom[a];
             const i64 gb = b < n_dyn ? geom[b] : (b < n_dyn + n_static ? GEOM_BOX : GEOM_PLANE);
             const bool rolls = ga == GEOM_SPHERE || gb == GEOM_SPHERE || ga == GEOM_CAPSULE ||
-                               gb == GEOM_CAPSULE;
+                               gb == GEOM_CAPSULE || ga == GEOM_CYLINDER || gb == GEOM_CYLINDER;
             for (i64 part = 0; part < 2; ++part) {
                 const ManifoldPart mp = manifold_part(o.res, part);
                 if (mp.count == 0) continue;

@@ -5,6 +5,8 @@
 //   narrowphase.cpp   the colliders' dispatch table, sphere/plane colliders,
 //                     collide, the collision constants                   (contact/narrowphase.py)
 //   box_box.cpp       separating axes, clipped face manifold, edge point (contact/box_box.py)
+//   capsule.cpp       the capsule pairs (closed forms)
+//   cylinder.cpp      the cylinder pairs (closed forms; GJK + EPA, common/convex.hpp)
 //   manifold.cpp      reduce_manifold (manifold.hpp: the packed columns) (contact/manifold.py)
 //   collide.cpp       collide_pairs, warm-start matching, tangent_basis  (contact/collide.py)
 //   island.cpp        update_sleep, wake_touched, wake_pushed            (contact/island.py)
@@ -58,6 +60,9 @@ struct CollisionConstants {
     double edge_parallel_tol = 0.0;            // constants.EDGE_PARALLEL_TOL
     double friction_anchor_max_drift_m = 0.0;  // constants.FRICTION_ANCHOR_MAX_DRIFT_M
     i64 static_body = -1;                      // contract.trajectory.STATIC_BODY
+    double convex_gjk_tol_m = 0.0;             // constants.CONVEX_GJK_TOL_M
+    double convex_epa_tol_m = 0.0;             // constants.CONVEX_EPA_TOL_M
+    i64 convex_max_iter = 0;                   // constants.CONVEX_MAX_ITER
     bool set = false;                          // set_collision_constants was called
 };
 // The process's collision constants (narrowphase.cpp).
@@ -111,6 +116,17 @@ i64 collide_capsule_capsule(const double* ca, M3 rota, const double* sa, const d
 i64 collide_capsule_box(const double* ca, M3 rota, const double* sa, const double* cb, M3 rotb,
                         const double* eb, double spec, double* nrm, Pts pts, double* sep,
                         i64* fid);
+// cylinder.cpp (a: the cylinder, but sphere - cylinder: the sphere; collide_convex: any two of
+// box, capsule, cylinder, by engine geometry code)
+i64 collide_cylinder_plane(const double* ca, M3 rota, const double* sa, const double* pn,
+                           double poff, double spec, double* nrm, Pts pts, double* sep,
+                           i64* fid);
+i64 collide_sphere_cylinder(const double* ca, double ra, const double* cb, M3 rotb,
+                            const double* sb, double spec, double* nrm, Pts pts, double* sep,
+                            i64* fid);
+i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
+                   const double* cb, M3 rotb, const double* sb, double spec, double* nrm,
+                   Pts pts, double* sep, i64* fid);
 // Returns n1 + 8 n2 (a second, face manifold of n2 points in rows 4.., normal nrm[3:6]).
 i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* cb, M3 rotb,
                     const double* eb, double spec, double* nrm, Pts pts, double* sep, i64* fid,

@@ -19,7 +19,7 @@
 // world is built (UnsupportedShapePair, Python), never silently skipped; collide() returns -1.
 //
 // Box-box lives in box_box.cpp (separating axes, clipping, reduction), the capsule pairs in
-// capsule.cpp.
+// capsule.cpp, the cylinder pairs in cylinder.cpp.
 #include <algorithm>
 #include <cmath>
 
@@ -249,14 +249,43 @@ static i64 entry_capsule_plane(const double* ca, M3 rota, const double* sa, cons
     return collide_capsule_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
 }
 
+static i64 entry_sphere_cylinder(const double* ca, M3, const double* sa, const double* cb,
+                                 M3 rotb, const double* sb, const double*, double, double spec,
+                                 ColliderBuffers& b) {
+    return collide_sphere_cylinder(ca, sa[0], cb, rotb, sb, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+static i64 entry_box_cylinder(const double* ca, M3 rota, const double* sa, const double* cb,
+                              M3 rotb, const double* sb, const double*, double, double spec,
+                              ColliderBuffers& b) {
+    return collide_convex(GEOM_BOX, ca, rota, sa, GEOM_CYLINDER, cb, rotb, sb, spec, b.nrm, b.pts,
+                          b.sep, b.fid);
+}
+static i64 entry_capsule_cylinder(const double* ca, M3 rota, const double* sa, const double* cb,
+                                  M3 rotb, const double* sb, const double*, double, double spec,
+                                  ColliderBuffers& b) {
+    return collide_convex(GEOM_CAPSULE, ca, rota, sa, GEOM_CYLINDER, cb, rotb, sb, spec, b.nrm,
+                          b.pts, b.sep, b.fid);
+}
+static i64 entry_cylinder_cylinder(const double* ca, M3 rota, const double* sa, const double* cb,
+                                   M3 rotb, const double* sb, const double*, double, double spec,
+                                   ColliderBuffers& b) {
+    return collide_convex(GEOM_CYLINDER, ca, rota, sa, GEOM_CYLINDER, cb, rotb, sb, spec, b.nrm,
+                          b.pts, b.sep, b.fid);
+}
+static i64 entry_cylinder_plane(const double* ca, M3 rota, const double* sa, const double*, M3,
+                                const double*, const double* pn, double poff, double spec,
+                                ColliderBuffers& b) {
+    return collide_cylinder_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+
 // NARROWPHASE_TABLE: [lower geometry code][higher code] (narrowphase.py's NARROWPHASE_TABLE has
 // the same keys; tests/engine/contact/test_collision_core.py checks it)
 static const ColliderFn NARROWPHASE_TABLE[N_GEOM][N_GEOM] = {
-    //             sphere               box             capsule                cylinder  plane
-    /* sphere   */ {entry_sphere_sphere, entry_sphere_box, entry_sphere_capsule, nullptr, entry_sphere_plane},
-    /* box      */ {nullptr, entry_box_box, entry_box_capsule, nullptr, entry_box_plane},
-    /* capsule  */ {nullptr, nullptr, entry_capsule_capsule, nullptr, entry_capsule_plane},
-    /* cylinder */ {nullptr, nullptr, nullptr, nullptr, nullptr},
+    //             sphere               box               capsule                 cylinder                 plane
+    /* sphere   */ {entry_sphere_sphere, entry_sphere_box, entry_sphere_capsule, entry_sphere_cylinder, entry_sphere_plane},
+    /* box      */ {nullptr, entry_box_box, entry_box_capsule, entry_box_cylinder, entry_box_plane},
+    /* capsule  */ {nullptr, nullptr, entry_capsule_capsule, entry_capsule_cylinder, entry_capsule_plane},
+    /* cylinder */ {nullptr, nullptr, nullptr, entry_cylinder_cylinder, entry_cylinder_plane},
     /* plane    */ {nullptr, nullptr, nullptr, nullptr, nullptr},
 };
 

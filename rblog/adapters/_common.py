@@ -17,6 +17,20 @@ DIAGONAL_REL = 1e-9
 BLOCK_SAMPLES = 256
 
 
+class Fields:
+    """An MjModel's (or MjData's) attributes, each fetched from the bindings once (every
+    access of ``m.jnt_type`` builds a new numpy view): the loops over bodies, joints and geoms
+    read these."""
+
+    def __init__(self, m):
+        self._m = m
+
+    def __getattr__(self, name):
+        value = getattr(self._m, name)
+        setattr(self, name, value)
+        return value
+
+
 def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product a ⊗ b of (..., 4) scalar-first quaternions (rotate by b, then by a)."""
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.adapters import AdapterError, require
+from rblog.adapters._common import Fields
 from rblog.contract.model import (BODY_FREE, BODY_JOINTED, BODY_KINEMATIC, BODY_STATIC, GEOM_BOX,
                                   GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_MESH,
                                   GEOM_PLANE, GEOM_SPHERE, IMPULSE_KINDS, JOINT_BALL, JOINT_FIXED,
@@ -101,6 +102,7 @@ class Layout:
         self.damping = np.array(m.dof_damping, np.float64)
         self.kind = np.full(nb - 1, BODY_FREE, np.int64)
         weld = np.asarray(m.body_weldid)
+        m = Fields(m)
         for b in range(1, nb):
             nj = int(m.body_jntnum[b])
             if int(m.body_mocapid[b]) >= 0:
@@ -138,12 +140,15 @@ def unsupported(m) -> list[str]:
     return bad
 
 
-def inspect(m, d=None, *, restitution=None):
+def inspect(m, d=None, *, restitution=None, scratch=None):
     """The log's model of ``m``: (Model, Layout, notes dict).
 
     ``restitution``: a scalar or one value per geom to log as the geoms' restitution (default
     NaN, unknown: MuJoCo states none). ``d``: the data whose mocap poses start the run (default
-    the model's). Raises :class:`AdapterError` naming every element that cannot be recorded."""
+    the model's). ``scratch``: a fresh ``MjData(m)`` to use for the kinematics at ``qpos0``
+    (an MjData of a large model costs milliseconds; :class:`MujocoRecorder` hands over the one
+    its :class:`Kinematics` keeps). Raises :class:`AdapterError` naming every element that
+    cannot be recorded."""
     mj = _mj()
     if not _is_model(m):
         raise AdapterError(f"rblog.adapters.mujoco: m is a {type(m).__name__}, expected a mujoco.MjModel")
@@ -153,11 +158,12 @@ def inspect(m, d=None, *, restitution=None):
                            "(heightfields, SDF geoms and flexes have no geom type in contract v3)")
     lay = Layout(m)
     n = len(lay)
-    d0 = mj.MjData(m)  # qpos0: the joints' zero position
+    d0 = mj.MjData(m) if scratch is None else scratch  # qpos0: the joints' zero position
     if d is not None:
         d0.mocap_pos[:] = d.mocap_pos
         d0.mocap_quat[:] = d.mocap_quat
     mj.mj_kinematics(m, d0)
+    d0c = Fields(d0)
     body_name = [_name(mj, m, mj.mjtObj.mjOBJ_BODY, b, "body") for b in range(1, m.nbody)]
     mass = np.array(m.body_mass[1:], np.float64)
     inertia = np.array(m.body_inertia[1:], np.float64)
@@ -174,67 +180,68 @@ def inspect(m, d=None, *, restitution=None):
     def world_to_inertial(b, p):  # a world point at qpos0 -> body b's inertial frame
         if b == 0:
             return np.asarray(p, np.float64).copy()
-        return d0.ximat[b].reshape(3, 3).T @ (np.asarray(p, np.float64) - d0.xipos[b])
+        return d0c.ximat[b].reshape(3, 3).T @ (np.asarray(p, np.float64) - d0c.xipos[b])
 
     def world_dir_to_inertial(b, v):
-        return np.asarray(v, np.float64).copy() if b == 0 else d0.ximat[b].reshape(3, 3).T @ v
+        return np.asarray(v, np.float64).copy() if b == 0 else d0c.ximat[b].reshape(3, 3).T @ v
 
     # joints
+    mc = Fields(m)  # the bindings' arrays, each fetched once
     jn, jt, jb, ab, ap, xb, xp, jr = [], [], [], [], [], [], [], []
     for b in range(1, m.nbody):
         if lay.kind[b - 1] != BODY_JOINTED:
             continue
-        pb = int(m.body_parentid[b])
-        nj = int(m.body_jntnum[b])
+        pb = int(mc.body_parentid[b])
+        nj = int(mc.body_jntnum[b])
         if nj == 0:  # welded to a moving parent: a fixed joint at the centre of mass
             jn.append(f"{body_name[b - 1]} (welded)")
             jt.append(JOINT_FIXED)
             jb.append(b - 1)
             ab.append(np.zeros(3))
-            ap.append(world_to_inertial(pb, d0.xipos[b]))
+            ap.append(world_to_inertial(pb, d0c.xipos[b]))
             xb.append(np.zeros(3))
             xp.append(np.zeros(3))
             jr.append([np.nan, np.nan])
             continue
-        for j in range(int(m.body_jntadr[b]), int(m.body_jntadr[b]) + nj):
-            t = _JOINT[int(m.jnt_type[j])]
+        for j in range(int(mc.body_jntadr[b]), int(mc.body_jntadr[b]) + nj):
+            t = _JOINT[int(mc.jnt_type[j])]
             jn.append(_name(mj, m, mj.mjtObj.mjOBJ_JOINT, j, "joint"))
             jt.append(t)
             jb.append(b - 1)
-            ab.append(to_inertial(b, m.jnt_pos[j]))
-            ap.append(world_to_inertial(pb, d0.xanchor[j]))
+            ab.append(to_inertial(b, mc.jnt_pos[j]))
+            ap.append(world_to_inertial(pb, d0c.xanchor[j]))
             if t == JOINT_BALL:
                 xb.append(np.zeros(3))
                 xp.append(np.zeros(3))
             else:
-                xb.append(ri[b].T @ np.asarray(m.jnt_axis[j], np.float64))
-                xp.append(world_dir_to_inertial(pb, d0.xaxis[j]))
-            lo, hi = (float(v) for v in m.jnt_range[j])
-            if not int(m.jnt_limited[j]):
+                xb.append(ri[b].T @ np.asarray(mc.jnt_axis[j], np.float64))
+                xp.append(world_dir_to_inertial(pb, d0c.xaxis[j]))
+            lo, hi = (float(v) for v in mc.jnt_range[j])
+            if not int(mc.jnt_limited[j]):
                 jr.append([np.nan, np.nan])
             elif t == JOINT_BALL:
                 jr.append([0.0, max(lo, hi)])
             else:
                 jr.append([lo, hi])
     # geoms
-    gtype = np.asarray(m.geom_type, np.int64)
-    keep = [g for g in range(m.ngeom) if int(gtype[g]) in _GEOM]
+    gtype = np.asarray(mc.geom_type, np.int64)
+    keep = [g for g in range(mc.ngeom) if int(gtype[g]) in _GEOM]
     skipped = [f"{_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')} "
                f"({mj.mjtGeom(int(gtype[g])).name.removeprefix('mjGEOM_').lower()}, no collision)"
-               for g in range(m.ngeom) if int(gtype[g]) not in _GEOM]
+               for g in range(mc.ngeom) if int(gtype[g]) not in _GEOM]
     g_body, g_type, g_pos, g_quat, g_size, g_vert, g_name = [], [], [], [], [], [], []
     for g in keep:
-        b = int(m.geom_bodyid[g])
+        b = int(mc.geom_bodyid[g])
         code = _GEOM[int(gtype[g])]
         g_body.append(b - 1)
         g_type.append(code)
         g_name.append(mj.mj_id2name(m, mj.mjtObj.mjOBJ_GEOM, g) or "")
-        g_pos.append(to_inertial(b, m.geom_pos[g]))
+        g_pos.append(to_inertial(b, mc.geom_pos[g]))
         from rblog.adapters._common import quat_mul
 
-        q = np.asarray(m.geom_quat[g], np.float64)
+        q = np.asarray(mc.geom_quat[g], np.float64)
         g_quat.append(quat_mul(_quat_conj(iquat[b]), q) if b else q.copy())
-        s = np.array(m.geom_size[g], np.float64)
+        s = np.array(mc.geom_size[g], np.float64)
         if code == GEOM_SPHERE:
             s[1:] = 0.0
         elif code in (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_PLANE):
@@ -243,9 +250,9 @@ def inspect(m, d=None, *, restitution=None):
             s[:] = 0.0
         g_size.append(s)
         if code == GEOM_MESH:
-            mesh = int(m.geom_dataid[g])
-            a, k = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
-            g_vert.append(np.array(m.mesh_vert[a:a + k], np.float64))
+            mesh = int(mc.geom_dataid[g])
+            a, k = int(mc.mesh_vertadr[mesh]), int(mc.mesh_vertnum[mesh])
+            g_vert.append(np.array(mc.mesh_vert[a:a + k], np.float64))
         else:
             g_vert.append(None)
     ng = len(keep)
@@ -254,10 +261,10 @@ def inspect(m, d=None, *, restitution=None):
     geoms = dict(body=np.array(g_body, np.int64).reshape(ng), type=np.array(g_type, np.int64).reshape(ng),
                  size=np.array(g_size).reshape(ng, 3), pos_body=np.array(g_pos).reshape(ng, 3),
                  quat_wxyz_body=np.array(g_quat).reshape(ng, 4),
-                 friction=np.array([float(m.geom_friction[g, 0]) for g in keep]).reshape(ng),
+                 friction=np.array([float(mc.geom_friction[g, 0]) for g in keep]).reshape(ng),
                  restitution=rest.copy(),
-                 collide_group=np.array([int(m.geom_contype[g]) for g in keep], np.int64).reshape(ng),
-                 collide_mask=np.array([int(m.geom_conaffinity[g]) for g in keep], np.int64).reshape(ng),
+                 collide_group=np.array([int(mc.geom_contype[g]) for g in keep], np.int64).reshape(ng),
+                 collide_mask=np.array([int(mc.geom_conaffinity[g]) for g in keep], np.int64).reshape(ng),
                  name=g_name, mesh_vert=g_vert)
     nj = len(jt)
     joints = dict(body=np.array(jb, np.int64).reshape(nj), type=np.array(jt, np.int64).reshape(nj),

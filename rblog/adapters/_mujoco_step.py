@@ -12,11 +12,12 @@ from rblog.contract.model import IMPULSE_KINDS, WORK_KINDS
 
 class Kinematics:
     """The logged state of every body at given ``qpos``/``qvel`` (and mocap poses), from a
-    private ``MjData``: ``mj_kinematics``, ``mj_comPos``, ``mj_comVel``."""
+    private ``MjData`` (``d``, default a new one): ``mj_kinematics``, ``mj_comPos``,
+    ``mj_comVel``."""
 
-    def __init__(self, m, layout: Layout):
+    def __init__(self, m, layout: Layout, d=None):
         mj = _mj()
-        self.mj, self.m, self.d = mj, m, mj.MjData(m)
+        self.mj, self.m, self.d = mj, m, mj.MjData(m) if d is None else d
         self.ids = layout.body_id
         self.c_of = layout.root[layout.body_id]
         self.iquat = np.array(m.body_iquat, np.float64)[layout.body_id]
@@ -221,6 +222,9 @@ class StepImpulses:
         self.correction_kind = 2 if (self.implicit and _actuators_depend_on_velocity(m)
                                      and not _passive_depends_on_velocity(m)) else 1
         self.scratch = mj.MjData(m) if self.rk4 else None
+        # [rows gathered k, and MujocoRecorder's samples waiting, last step seen, carried gap]:
+        # shared with the compiled per-step call (rblog.adapters._hook.StepRecord)
+        self.counters = np.zeros(4, np.int64)
         self.q0 = np.array(d.qpos, np.float64)
         self.act0 = np.array(d.act, np.float64)
         self.v0 = np.array(d.qvel, np.float64)
@@ -323,6 +327,15 @@ class StepImpulses:
         self.rows_of.fill(self.rows[k])
         np.copyto(self.v0, v1)
         self.k = k + 1
+
+    @property
+    def k(self) -> int:
+        """The rows gathered in this block."""
+        return int(self.counters[0])
+
+    @k.setter
+    def k(self, value: int) -> None:
+        self.counters[0] = value
 
     @property
     def full(self) -> bool:

@@ -99,10 +99,13 @@ so the joint impulses (the Newton-Euler residual) close each body's balance as a
 other kinds are the first stage's: a free body's balance then misses ``h sum_i b_i (F_i - F_1)
 = O(h^2) dF/dt``, which a log cannot carry.
 
-**Cost** per step (``rec(d)``): one call of the compiled hook (``rblog.adapters._hook``, the
-numpy :class:`StepImpulses` without it): ``mj_rnePostConstraint`` (~1 us) with ``qvel``/``qacc``
-swapped in and back, and a few copies of contiguous pieces of mjData into a preallocated row
-(:class:`Rows`); per sample the contacts' raw ``mjContact`` structs and ``efc_force``. A
+**Cost** per step (``rec(d)``): one compiled call (``rblog.adapters._hook.StepRecord``, which
+reads ``d->time``, ``ncon``, ``nefc``, ``efc_force`` at the offsets of
+``rblog/adapters/_mjdata_offsets.py``; Python's own path for RK4, mocap bodies, a step not right
+after the last one, another ``MjData``, and the numpy :class:`StepImpulses` without the build):
+the hook, ``mj_rnePostConstraint`` (~1 us) with ``qvel``/``qacc`` swapped in and back, a few
+copies of contiguous pieces of mjData into a preallocated row (:class:`Rows`), the sample's
+bookkeeping and, per sample, the contacts' raw ``mjContact`` structs and ``efc_force``. A
 sample's state is the next step's row (its start is the sample's state) under Euler and the
 implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
 the rows are resolved into impulses and the samples' states (compiled: ``_hook.resolve``, with
@@ -122,6 +125,7 @@ from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _Co
                                           _mj, _packed_contact_dict, capture_contacts, contacts,
                                           decode_contacts, gravity_of, inspect, settings,
                                           state_offsets, unsupported)
+from rblog.adapters._mujoco_rollout import record_rollout
 from rblog.adapters._mujoco_suite import suite_model
 from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross)
 from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, WORK_KINDS
@@ -164,7 +168,8 @@ class MujocoRecorder(EngineRecorder):
         if d is None:
             d = mj.MjData(m)
             mj.mj_forward(m, d)
-        self.model, self.layout, notes = inspect(m, d, restitution=restitution)
+        scratch = mj.MjData(m)  # inspect's kinematics at qpos0, then Kinematics' own
+        self.model, self.layout, notes = inspect(m, d, restitution=restitution, scratch=scratch)
         self.dt = float(m.opt.timestep)
         if not (np.isfinite(self.dt) and self.dt > 0):  # the samples' steps are time / dt
             raise AdapterError(f"rblog.adapters.mujoco: the model's option timestep is "
@@ -179,7 +184,7 @@ class MujocoRecorder(EngineRecorder):
         from rblog.record._common import run_interval_channels
 
         self._channels = set(run_interval_channels(self.model))
-        self.kin = Kinematics(m, self.layout)
+        self.kin = Kinematics(m, self.layout, scratch)
         self._iquat = np.ascontiguousarray(self.kin.iquat, np.float64)
         self.hook = StepImpulses(m, self.layout, d, block=block)
         self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
@@ -193,12 +198,10 @@ class MujocoRecorder(EngineRecorder):
         self._steps = np.empty(cap, np.int64)
         self._row = np.full(cap, -1, np.int64)  # the hook row of the sample's own step, -1: state known
         self._gap = np.zeros(cap, bool)
-        self._ns = 0
         self._raw = []
         self._hook_steps = np.empty(self.hook.cap, np.int64)  # the step each gathered row ended
         self._carry_W = np.zeros((len(IMPULSE_KINDS), m.nbody, 6))
         self._carry_work = np.zeros((len(WORK_KINDS), m.nbody))
-        self._carry_gap = False
         self._carray, self._carray_d = None, None  # the raw view of d's contacts, once there are some
         try:  # the logged steps' raw contacts, copied in C++ (else capture_contacts, numpy)
             from rblog.adapters._hook import ContactCapture
@@ -206,8 +209,44 @@ class MujocoRecorder(EngineRecorder):
             self._capture = ContactCapture()
         except ImportError:
             self._capture = None
+        self._fast, self._fast_d, self._efc_offset = None, None, None
         self.step = int(round(float(d.time) / self.dt))
         self._add_sample(d, row=-1, contacts=False)
+        self._arm(d)
+
+    # the per-step counters, in the hook's array the compiled call shares (StepImpulses.counters)
+    _ns = property(lambda self: int(self.hook.counters[1]),
+                   lambda self, v: self.hook.counters.__setitem__(1, v),
+                   doc="samples waiting to be written")
+    step = property(lambda self: int(self.hook.counters[2]),
+                    lambda self, v: self.hook.counters.__setitem__(2, v),
+                    doc="the last step seen")
+    _carry_gap = property(lambda self: bool(self.hook.counters[3]),
+                          lambda self, v: self.hook.counters.__setitem__(3, int(bool(v))),
+                          doc="steps not seen since the last sample")
+
+    def _arm(self, d) -> None:
+        """The compiled per-step call (rblog.adapters._hook.StepRecord) over ``d``, when the
+        build has it, the hook is compiled, the samples' states are deferred and ``d``'s field
+        offsets check out (rblog/adapters/_mjdata_offsets.py); else ``rec(d)`` stays Python."""
+        if not self.deferred or self.hook.compiled is None or self._capture is None:
+            return
+        try:
+            from rblog.adapters._hook import StepRecord
+        except ImportError:
+            return
+        from rblog.adapters._mjdata_offsets import verified
+
+        off = verified(d)
+        if off is None:
+            return
+        addr = lambda a: a.__array_interface__["data"][0]  # noqa: E731
+        self._efc_offset = off[3]
+        self._fast = StepRecord(self.hook.compiled, self._capture, int(d._address), *off, self.dt,
+                                self.every, len(self._steps), addr(self.hook.counters),
+                                addr(self._hook_steps), addr(self._steps), addr(self._row),
+                                addr(self._gap))
+        self._fast_d = d
 
     def _add_sample(self, d, row: int, contacts: bool = True) -> None:
         i = self._ns
@@ -229,6 +268,8 @@ class MujocoRecorder(EngineRecorder):
                     self._capture.contacts_at(self._carray.base, self._carray.dtype.itemsize,
                                               self._carray.count)
                     self._capture_dtype = self._carray.dtype
+                if self._fast_d is d and not (self._carray and self._efc_ok(d)):
+                    self._fast, self._fast_d = None, None  # the compiled call cannot read them
             if self._carray and self._capture is not None:
                 self._capture.capture(self.step, ncon, d.efc_force)
             else:
@@ -236,6 +277,15 @@ class MujocoRecorder(EngineRecorder):
 
     def __call__(self, d) -> None:
         """Log the step that just ended in ``d`` (call after every ``mj_step``)."""
+        if d is self._fast_d:  # one compiled call (StepRecord); 2: this call is Python's
+            r = self._fast.record()
+            if r == 0:
+                return
+            if r == 1:
+                self.flush()
+                return
+        elif self._fast is not None:  # another MjData: Python's path from here on
+            self._fast, self._fast_d = None, None
         step = int(round(float(d.time) / self.dt))
         row = -1
         if step != self.step + 1:
@@ -257,6 +307,11 @@ class MujocoRecorder(EngineRecorder):
             self.flush()
 
     record = __call__
+
+    def _efc_ok(self, d) -> bool:
+        from rblog.adapters._mjdata_offsets import efc_force_matches
+
+        return efc_force_matches(d, self._efc_offset)
 
     def step_and_record(self, d, nstep: int = 1) -> None:
         """``mj_step`` ``nstep`` times, logging each."""
@@ -310,15 +365,22 @@ class MujocoRecorder(EngineRecorder):
         steps = self._hook_steps[:k]
         pos = np.searchsorted(steps, self._steps[:ns], side="right")  # rows before sample i's end
         starts = np.concatenate([[0], pos[:-1]])
-        rows_W = np.zeros((ns, *self._carry_W.shape))
-        rows_work = np.zeros((ns, *self._carry_work.shape))
         last = int(pos[-1]) if ns else 0
-        if k and last:
-            nonempty = pos > starts
-            if np.all(pos - starts <= 1):  # one step per interval (a sample every step): a gather
-                rows_W[nonempty] = W[starts[nonempty]]
-                rows_work[nonempty] = work[starts[nonempty]]
-            else:  # reduceat sums [start_i, start_i+1), the last to `last`
+        nonempty = pos > starts
+        one = bool(np.all(pos - starts <= 1))  # at most one step per interval
+        if k and last and one and ns == k == last and nonempty.all():
+            rows_W, rows_work = W, work  # a sample every step: row i is sample i's interval
+        else:
+            rows_W = np.zeros((ns, *self._carry_W.shape))
+            rows_work = np.zeros((ns, *self._carry_work.shape))
+            if k and last and one:  # a gather (a slice when the rows are contiguous)
+                sel = np.flatnonzero(nonempty)
+                src = starts[sel]
+                if sel[-1] - sel[0] == len(sel) - 1 and src[-1] - src[0] == len(src) - 1:
+                    sel, src = slice(sel[0], sel[-1] + 1), slice(src[0], src[-1] + 1)
+                rows_W[sel] = W[src]
+                rows_work[sel] = work[src]
+            elif k and last:  # reduceat sums [start_i, start_i+1), the last to `last`
                 rows_W[nonempty] = np.add.reduceat(W[:last], starts[nonempty], axis=0)
                 rows_work[nonempty] = np.add.reduceat(work[:last], starts[nonempty], axis=0)
         if ns:
@@ -340,7 +402,10 @@ class MujocoRecorder(EngineRecorder):
         if not ns:
             return
         ids = self._ids
-        W, work = W[:, :, ids], work[:, :, ids]
+        if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
+            W, work = W[:, :, ids[0]:ids[0] + len(ids)], work[:, :, ids[0]:ids[0] + len(ids)]
+        else:
+            W, work = W[:, :, ids], work[:, :, ids]
         W[:, IMPULSE_KINDS.index("integration")] = self._integration(W, steps=self._steps[:ns],
                                                                      v=self._v[:ns], r=self._r[:ns],
                                                                      w=self._w[:ns])
@@ -423,58 +488,6 @@ def _states_kernel() -> bool:
 def recorder(m, d=None, **options) -> MujocoRecorder:
     """``MujocoRecorder(m, d, **options)``: the first of the two lines."""
     return MujocoRecorder(m, d, **options)
-
-
-def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batch: int = 0,
-                   spec=None, restitution=None, writer: str | None = None,
-                   keep: bool | None = None, **recorder_options):
-    """Record the output of ``mujoco.rollout.rollout(m, d, initial_state, ...)``: ``state``
-    (nbatch, nstep, nstate) or (nstep, nstate), the state after each step, and the
-    ``initial_state`` it started from (sample 0). A rollout returns neither contacts nor forces:
-    the log has no contact rows, and its model says that every body's impulses and work are
-    missing (``body_impulse_supplied`` all False). ``batch`` picks one rollout of a batch.
-
-    Returns the Trajectory when kept (default: when there is no output path), else None."""
-    from dataclasses import replace
-
-    from rblog.record.recorder import Recorder
-
-    mj = _mj()
-    state = np.asarray(state, np.float64)
-    x0 = np.asarray(initial_state, np.float64)
-    if state.ndim == 3:
-        state = state[batch]
-    if x0.ndim == 2:
-        x0 = x0[batch if len(x0) > 1 else 0]
-    nstate = int(mj.mj_stateSize(m, int(mj.mjtState.mjSTATE_FULLPHYSICS if spec is None else spec)))
-    if state.ndim != 2 or state.shape[1] != nstate or x0.shape != (nstate,):
-        raise AdapterError(f"record_rollout: state has shape {state.shape} and initial_state "
-                           f"{x0.shape}, expected (nstep, {nstate}) and ({nstate},) (mj_stateSize)")
-    it, iq, iv = state_offsets(m, spec)
-    rows = np.concatenate([x0[None], state])
-    model, layout, notes = inspect(m, d, restitution=restitution)
-    model = replace(model, body_impulse_supplied=np.zeros_like(model.body_impulse_supplied),
-                    body_work_supplied=np.zeros_like(model.body_work_supplied))
-    dt = float(m.opt.timestep)
-    engine = {**settings(m), **notes, "contact_rows": {"separation": "before the step (none logged: "
-                                                       "mujoco.rollout returns no contacts)"},
-              "impulses": "none (mujoco.rollout returns no forces)"}
-    kin = Kinematics(m, layout)
-    T, n = len(rows), len(layout)
-    x, r, v, w = np.empty((T, n, 3)), np.empty((T, n, 3, 3)), np.empty((T, n, 3)), np.empty((T, n, 3))
-    q = np.empty((T, n, 4))
-    for i in range(T):
-        kin(rows[i, iq:iq + m.nq], rows[i, iv:iv + m.nv], out=(x[i], r[i], v[i], w[i]))
-        q[i] = kin.quat_wxyz()
-    step = np.rint(rows[:, it] / dt).astype(np.int64)
-    rec = Recorder(model, rrd=rrd, mcap=mcap, dt=dt, writer=writer or f"mujoco {mj.__version__} "
-                   "rollout via rblog.adapters", integrator=engine["integrator"],
-                   combine_friction="max", combine_restitution="max", engine_settings=engine,
-                   keep=keep, **recorder_options)
-    with rec:
-        rec.write(t=step * dt, step=step, position=x, rotation=r, quat_wxyz=q, velocity=v,
-                  angular_velocity=w)
-    return rec.trajectory if rec.keep else None
 
 
 __all__ = ["BLOCK_STEPS", "CONTACT_ROWS", "Kinematics", "Layout", "MujocoRecorder", "ROW_FIELDS",

@@ -139,6 +139,20 @@ AXIS_ABS_TOL = 1e-5  # m
 #: parallel edges are covered by the face axes.
 EDGE_PARALLEL_TOL = 1e-6
 
+# --- narrowphase (cylinder pairs: GJK + EPA, csrc/common/convex.hpp) -------------------------
+#: m. GJK stops when the distance of two convex cores is known to within this (the gap between
+#: its upper bound |v| and lower bound v.w/|v|); EPA when the depth is (the gain of the support
+#: along the nearest face's normal). A cylinder's curved side makes both the error (a polytope
+#: pair ends on its exact feature). csrc/engine/cylinder.cpp then takes the separating axis of
+#: largest gap among GJK/EPA's normal and the pair's face and axis-cross directions, exact along
+#: each, so a face contact's gap and normal are exact and a curved one is GJK/EPA's to ~this.
+#: 1e-10 m: five orders below the contact's resolution (allowed_penetration 5e-5 m).
+CONVEX_GJK_TOL_M = 1e-10
+CONVEX_EPA_TOL_M = 1e-10
+#: iteration cap of GJK and of EPA each; a pair that hits it keeps the best bound found (the
+#: separating-axis pass above then makes its gap a lower bound, never deeper than the truth).
+CONVEX_MAX_ITER = 200
+
 
 # --- contact solver internals ----------------------------------------------------------------
 #: Newton iterations of the sliding-friction impulse (converges from below in 3-5)

@@ -18,7 +18,8 @@ no entry is an error (:class:`UnsupportedShapePair`), raised when the world is b
 silent skip.
 
 The colliders are C++ (csrc/engine/narrowphase.cpp; box-box in csrc/engine/box_box.cpp, the
-capsule pairs in csrc/engine/capsule.cpp, each with its derivation), dispatched through a table of function pointers with the same keys as
+capsule pairs in csrc/engine/capsule.cpp, the cylinder pairs in csrc/engine/cylinder.cpp, each with
+its derivation), dispatched through a table of function pointers with the same keys as
 :data:`NARROWPHASE_TABLE` (a test checks that they agree). This module keeps the registry, the
 codes and the names, and hands the narrowphase tolerances of :mod:`rblog.engine.constants` (their
 one home) to the C++ core at import.
@@ -36,8 +37,8 @@ from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.engine import _core
 from rblog.engine.constants import (
-    AXIS_ABS_TOL, EDGE_PARALLEL_TOL, EDGE_REL_TOL, FACE_REL_TOL, FRICTION_ANCHOR_MAX_DRIFT_M,
-    MANIFOLD_TOUCH_BAND_M,
+    AXIS_ABS_TOL, CONVEX_EPA_TOL_M, CONVEX_GJK_TOL_M, CONVEX_MAX_ITER, EDGE_PARALLEL_TOL,
+    EDGE_REL_TOL, FACE_REL_TOL, FRICTION_ANCHOR_MAX_DRIFT_M, MANIFOLD_TOUCH_BAND_M,
 )
 from rblog.errors import RblogError, UnsupportedShapePair
 
@@ -68,6 +69,11 @@ COLLIDE_SPHERE_CAPSULE = 5
 COLLIDE_BOX_CAPSULE = 6
 COLLIDE_CAPSULE_CAPSULE = 7
 COLLIDE_CAPSULE_PLANE = 8
+COLLIDE_SPHERE_CYLINDER = 9
+COLLIDE_BOX_CYLINDER = 10
+COLLIDE_CAPSULE_CYLINDER = 11
+COLLIDE_CYLINDER_CYLINDER = 12
+COLLIDE_CYLINDER_PLANE = 13
 
 #: (lower geometry type, higher geometry type) -> (collider code, collider name)
 NARROWPHASE_TABLE = {
@@ -80,6 +86,11 @@ NARROWPHASE_TABLE = {
     (GEOM_BOX, GEOM_CAPSULE): (COLLIDE_BOX_CAPSULE, "collide_capsule_box"),
     (GEOM_CAPSULE, GEOM_CAPSULE): (COLLIDE_CAPSULE_CAPSULE, "collide_capsule_capsule"),
     (GEOM_CAPSULE, GEOM_PLANE): (COLLIDE_CAPSULE_PLANE, "collide_capsule_plane"),
+    (GEOM_SPHERE, GEOM_CYLINDER): (COLLIDE_SPHERE_CYLINDER, "collide_sphere_cylinder"),
+    (GEOM_BOX, GEOM_CYLINDER): (COLLIDE_BOX_CYLINDER, "collide_convex"),
+    (GEOM_CAPSULE, GEOM_CYLINDER): (COLLIDE_CAPSULE_CYLINDER, "collide_convex"),
+    (GEOM_CYLINDER, GEOM_CYLINDER): (COLLIDE_CYLINDER_CYLINDER, "collide_convex"),
+    (GEOM_CYLINDER, GEOM_PLANE): (COLLIDE_CYLINDER_PLANE, "collide_cylinder_plane"),
 }
 #: the same table as an array: COLLIDE_TABLE[lo, hi] -> collider code or -1
 COLLIDE_TABLE = np.full((N_GEOM, N_GEOM), COLLIDE_NONE, np.int64)
@@ -94,7 +105,9 @@ UnsupportedShapePair.supported = ", ".join(f"{GEOM_NAMES[a]}-{GEOM_NAMES[b]}"
 _core.set_collision_constants(
     manifold_touch_band_m=MANIFOLD_TOUCH_BAND_M, edge_rel_tol=EDGE_REL_TOL,
     face_rel_tol=FACE_REL_TOL, axis_abs_tol=AXIS_ABS_TOL, edge_parallel_tol=EDGE_PARALLEL_TOL,
-    friction_anchor_max_drift_m=FRICTION_ANCHOR_MAX_DRIFT_M, static_body=STATIC_BODY)
+    friction_anchor_max_drift_m=FRICTION_ANCHOR_MAX_DRIFT_M, static_body=STATIC_BODY,
+    convex_gjk_tol_m=CONVEX_GJK_TOL_M, convex_epa_tol_m=CONVEX_EPA_TOL_M,
+    convex_max_iter=CONVEX_MAX_ITER)
 
 
 def collider_for(geom_a: int, geom_b: int) -> tuple[int, str]:

@@ -67,7 +67,8 @@ def test_tolerances_come_from_constants_py():
     c = _core.collision_constants()
     assert c["set"]
     for name in ("MANIFOLD_TOUCH_BAND_M", "EDGE_REL_TOL", "FACE_REL_TOL", "AXIS_ABS_TOL",
-                 "EDGE_PARALLEL_TOL", "FRICTION_ANCHOR_MAX_DRIFT_M"):
+                 "EDGE_PARALLEL_TOL", "FRICTION_ANCHOR_MAX_DRIFT_M", "CONVEX_GJK_TOL_M",
+                 "CONVEX_EPA_TOL_M", "CONVEX_MAX_ITER"):
         assert c[name] == getattr(constants, name), name
     assert c["STATIC_BODY"] == STATIC_BODY
 

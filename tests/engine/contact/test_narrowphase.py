@@ -24,9 +24,12 @@ def rot(axis, angle):
 
 
 def test_table_covers_every_pair_but_plane_plane():
+    from rblog.engine.contact.narrowphase import GEOM_CAPSULE, GEOM_CYLINDER
+
     keys = set(NARROWPHASE_TABLE)
-    for a in (GEOM_SPHERE, GEOM_BOX, GEOM_PLANE):
-        for b in (GEOM_SPHERE, GEOM_BOX, GEOM_PLANE):
+    every = (GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_PLANE)
+    for a in every:
+        for b in every:
             key = (min(a, b), max(a, b))
             assert (key in keys) == (key != (GEOM_PLANE, GEOM_PLANE))
     with pytest.raises(UnsupportedShapePair):

@@ -1,3 +1,38 @@
+// Convex geometry shared by the engine (csrc/engine/cylinder.cpp) and the audit (csrc/audit/):
+// the shapes as a core grown by a radius, their support functions, GJK for the distance of two
+// cores and EPA for their penetration depth. One home for the algorithm; each side keeps its
+// own dispatch, tolerances and manifolds (both include this header; neither links the other).
+// Why this header is long: GJK, its simplex reduction and EPA with its polytope are one derivation
+// (below), header-only so that each extension module compiles its own copy.
+//
+//
+// Conventions, for every pair (a, b):
+//
+// * sep: signed distance between the two surfaces (m): > 0 apart, < 0 penetration depth (the
+//   length of the shortest translation that separates them).
+// * n: unit world vector from b into a (the direction in which a moves to separate or to stay
+//   apart).
+// * pa, pb: witness points on a's and on b's surface (world, m), with pa - pb = sep n: apart,
+//   the closest points; penetrating, the deepest points of each inside the other along n.
+//
+// A geom is its type, world centre x, body->world rotation r (row-major 9 entries,
+// r[3 i + j] = R_ij, columns are the geom's axes in the world frame), size s and, for a convex
+// mesh, its vertices in the geom frame (the hull of the vertex set is the shape):
+//
+//   type       s[0]        s[1]          s[2]         shape in the geom frame
+//   PLANE      -           -             -            half-space z <= 0 (its normal is +z)
+//   SPHERE     radius      -             -            |p| <= s0
+//   CAPSULE    radius      half-length   -            segment z in [-s1, s1] grown by s0
+//   ELLIPSOID  semi-axis x semi-axis y   semi-axis z  sum (p_i / s_i)^2 <= 1
+//   CYLINDER   radius      half-length   -            x^2 + y^2 <= s0^2, |z| <= s1
+//   BOX        half x      half y        half z       |p_i| <= s_i
+//   MESH       -           -             -            hull of the vertices
+//
+// Each shape is a core grown by a radius (sphere: a point, capsule: a segment, both grown by
+// s0; every other shape its own core, radius 0). Distances between cores are what GJK and EPA
+// compute; the radii are subtracted after (exact: the Minkowski sum with a ball of radius r moves
+// every boundary point by r along its normal).
+//
 // Support functions of every core, GJK for the distance of two cores and EPA for their
 // penetration depth (the method of libccd, coal/FCL and MuJoCo's engine_collision_gjk.c).
 //
@@ -25,22 +60,109 @@
 //   within epa_tol for curved cores.
 // * Witness points: v (or the face's nearest point d u) in barycentric coordinates of its
 //   simplex (face) is the same combination of the A and B support points that made it.
+#pragma once
+
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <initializer_list>
 #include <limits>
+#include <utility>
 #include <vector>
 
-#include "audit/shapes.hpp"
+#include "common/array.hpp"
 
 namespace rb {
-namespace audit {
+namespace convex {
+// Geom type codes of the convex shapes (the audit's: rblog/analyze/shapes.py maps the contract's
+// shape names onto these and checks them at import; the engine maps its own codes onto them).
+constexpr i64 GEOM_PLANE = 0;
+constexpr i64 GEOM_SPHERE = 1;
+constexpr i64 GEOM_CAPSULE = 2;
+constexpr i64 GEOM_ELLIPSOID = 3;
+constexpr i64 GEOM_CYLINDER = 4;
+constexpr i64 GEOM_BOX = 5;
+constexpr i64 GEOM_MESH = 6;
+constexpr i64 GEOM_N_TYPES = 7;
 
-namespace {
+// Status of one pair's result.
+constexpr i64 DIST_OK = 0;           // converged (closed form, or GJK/EPA within tolerance)
+constexpr i64 DIST_NOT_CONVERGED = 1;  // iteration cap hit: the value is the best bound found
+constexpr i64 DIST_UNSUPPORTED = 2;  // plane-plane: no finite distance; sep is NaN
+
+struct Vec {
+    double x, y, z;
+};
+inline Vec operator+(Vec a, Vec b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline Vec operator-(Vec a, Vec b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline Vec operator-(Vec a) { return {-a.x, -a.y, -a.z}; }
+inline Vec operator*(double s, Vec a) { return {s * a.x, s * a.y, s * a.z}; }
+inline double dot(Vec a, Vec b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Vec cross(Vec a, Vec b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline double norm(Vec a) { return std::sqrt(dot(a, a)); }
+
+struct Geom {
+    i64 type;
+    Vec x;
+    const double* r;     // 9 entries, row-major
+    const double* s;     // 3 entries
+    const double* vert;  // (nv, 3) geom-frame vertices of a mesh, else null
+    i64 nv;
+    // m: GJK/EPA see the core grown by a ball of this radius too (0: the core itself). For convex
+    // sets sd(A, B + ball(e)) = sd(A, B) - e with the same normal, apart or overlapping, so a
+    // caller can move a touching pair (where GJK's simplex passes through the origin and its
+    // normal is ill-conditioned) to a depth of e.
+    double grow = 0.0;
+};
+
+// R^T d (a world direction in the geom frame) and x + R p (a geom-frame point in the world).
+inline Vec to_local(const Geom& g, Vec d) {
+    const double* r = g.r;
+    return {r[0] * d.x + r[3] * d.y + r[6] * d.z, r[1] * d.x + r[4] * d.y + r[7] * d.z,
+            r[2] * d.x + r[5] * d.y + r[8] * d.z};
+}
+inline Vec to_world(const Geom& g, Vec p) {
+    const double* r = g.r;
+    return {g.x.x + r[0] * p.x + r[1] * p.y + r[2] * p.z,
+            g.x.y + r[3] * p.x + r[4] * p.y + r[5] * p.z,
+            g.x.z + r[6] * p.x + r[7] * p.y + r[8] * p.z};
+}
+inline Vec axis(const Geom& g, int j) { return {g.r[j], g.r[3 + j], g.r[6 + j]}; }
+
+// Radius by which the core is grown (sphere, capsule: s0; else 0).
+inline double core_radius(const Geom& g) {
+    return (g.type == GEOM_SPHERE || g.type == GEOM_CAPSULE) ? g.s[0] : 0.0;
+}
+
+
+// World point of the core farthest along the world direction d (any length; ties broken
+// towards +).
+inline Vec core_support(const Geom& g, Vec d);
+
+struct Dist {
+    double sep;
+    Vec n, pa, pb;
+    i64 status;
+    i64 iters;  // GJK + EPA iterations (0 for a closed form)
+};
+
+// Iteration settings of GJK and EPA (tolerances from rblog/analyze/tolerances.py).
+struct ConvexTol {
+    double gjk_tol;   // m: GJK stops when the distance is known to within this
+    double epa_tol;   // m: EPA stops when the depth is known to within this
+    i64 max_iter;     // per stage
+};
+
+namespace detail {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 inline double sgn(double v) { return v >= 0 ? 1.0 : -1.0; }
-}  // namespace
+}  // namespace detail
 
-Vec core_support(const Geom& g, Vec d) {
+inline Vec core_support(const Geom& g, Vec d) {
+    using detail::kInf;
+    using detail::sgn;
     switch (g.type) {
         case GEOM_SPHERE:
             return g.x;
@@ -86,25 +208,32 @@ Vec core_support(const Geom& g, Vec d) {
     }
 }
 
-namespace {
+namespace detail {
 
 // A point of D with the A and B support points that made it.
 struct SV {
     Vec w, a, b;
 };
 
-SV support(const Geom& A, const Geom& B, Vec d) {
+inline SV support(const Geom& A, const Geom& B, Vec d) {
     Vec a = core_support(A, d);
     Vec b = core_support(B, -d);
+    if (A.grow != 0.0 || B.grow != 0.0) {
+        const double dn = norm(d);
+        if (dn > 0) {
+            a = a + (A.grow / dn) * d;
+            b = b - (B.grow / dn) * d;
+        }
+    }
     return {a - b, a, b};
 }
 
 // Closest point of the simplex s[0..n) to the origin; s is reduced to the vertices of the
 // feature that holds it and lam to their barycentric weights. Returns false when the origin is
 // inside the tetrahedron (n == 4 kept).
-bool closest_on_simplex(SV* s, int& n, double* lam, Vec& v);
+inline bool closest_on_simplex(SV* s, int& n, double* lam, Vec& v);
 
-void keep(SV* s, int& n, double* lam, std::initializer_list<int> idx,
+inline void keep(SV* s, int& n, double* lam, std::initializer_list<int> idx,
           std::initializer_list<double> w) {
     SV t[4];
     int m = 0;
@@ -116,7 +245,7 @@ void keep(SV* s, int& n, double* lam, std::initializer_list<int> idx,
 }
 
 // Ericson 5.1.5 with p = origin: Voronoi regions of triangle abc.
-void closest_on_triangle(SV* s, int& n, double* lam) {
+inline void closest_on_triangle(SV* s, int& n, double* lam) {
     Vec a = s[0].w, b = s[1].w, c = s[2].w;
     Vec ab = b - a, ac = c - a, ap = -a;
     double d1 = dot(ab, ap), d2 = dot(ac, ap);
@@ -147,13 +276,13 @@ void closest_on_triangle(SV* s, int& n, double* lam) {
     return keep(s, n, lam, {0, 1, 2}, {1 - v_ - w_, v_, w_});
 }
 
-Vec combine(const SV* s, int n, const double* lam, int which) {
+inline Vec combine(const SV* s, int n, const double* lam, int which) {
     Vec r{0, 0, 0};
     for (int i = 0; i < n; ++i) r = r + lam[i] * (which == 0 ? s[i].w : which == 1 ? s[i].a : s[i].b);
     return r;
 }
 
-bool closest_on_simplex(SV* s, int& n, double* lam, Vec& v) {
+inline bool closest_on_simplex(SV* s, int& n, double* lam, Vec& v) {
     if (n == 1) {
         lam[0] = 1.0;
     } else if (n == 2) {
@@ -272,7 +401,7 @@ struct Polytope {
 };
 
 // Blow a GJK simplex that holds the origin on its boundary (n < 4) up to a tetrahedron of D.
-bool to_tetrahedron(const Geom& A, const Geom& B, SV* s, int& n) {
+inline bool to_tetrahedron(const Geom& A, const Geom& B, SV* s, int& n) {
     static const Vec dirs[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
     auto far_from = [](Vec p, Vec q) { return norm(p - q) > 1e-12 * (1.0 + norm(p) + norm(q)); };
     if (n == 1) {
@@ -313,9 +442,12 @@ bool to_tetrahedron(const Geom& A, const Geom& B, SV* s, int& n) {
     return true;
 }
 
-}  // namespace
+}  // namespace detail
 
-Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
+// GJK distance between the cores of a and b; when the cores overlap, EPA's penetration depth.
+// The radii are not subtracted here.
+inline Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
+    using namespace detail;
     Dist out{};
     SV s[4];
     int n = 1;
@@ -501,5 +633,5 @@ Dist convex_distance(const Geom& A, const Geom& B, const ConvexTol& tol) {
     return out;
 }
 
-}  // namespace audit
+}  // namespace convex
 }  // namespace rb
