@@ -100,7 +100,7 @@ void bind_contact(nb::module_& m) {
         RB_FIELD2(pw) RB_FIELD2(p0) RB_FIELD2(l0) RB_FIELD2(l_drift) RB_FIELD1(parent)
         RB_FIELD1(isl_time) RB_FIELD1(isl_sup) RB_FIELD1(hot)
         RB_FIELD2(dx_step) RB_FIELD2(proj_dx) RB_FIELD2(proj_dth) RB_FIELD1(pushed)
-        RB_FIELD1(push_root) RB_FIELD2(flow_c);
+        RB_FIELD1(push_root) RB_FIELD1(exact_man) RB_FIELD2(flow_c);
 #undef RB_FIELD1
 #undef RB_FIELD2
 

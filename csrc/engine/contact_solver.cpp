@@ -467,11 +467,9 @@ void store_impulses(const StepContext& cx, const ContactConstraints& c) {
             q[PF_F] = l1 * t1x + l2 * t2x;
             q[PF_F + 1] = l1 * t1y + l2 * t2y;
             q[PF_F + 2] = l1 * t1z + l2 * t2z;
-            double fmax = mu * q[PF_LN];
-            double lim = (1.0 - slide_frac) * fmax;
             if (q[PF_IMPACT] != 0.0) {
                 struck = true;
-            } else if (fmax > 0.0 && l1 * l1 + l2 * l2 < lim * lim) {
+            } else if (point_sticks(l1, l2, mu, q[PF_LN], slide_frac)) {
                 stick = true;
             }
         }

@@ -110,7 +110,25 @@ void store_impulses(const StepContext& ctx, const ContactConstraints& c);
 void relax_positions(const StepContext& ctx, const ContactConstraints& c,
                      const SolverBodies& pseudo);
 
+// Whether a loaded point's friction (l1, l2 along the tangents) sticks: strictly inside the
+// Coulomb disc shrunk by slide_frac (FRICTION_ANCHOR_SLIDE_FRAC), the anchor's rule
+// (store_impulses).
+inline bool point_sticks(double l1, double l2, double mu, double ln, double slide_frac) {
+    const double fmax = mu * ln;
+    const double lim = (1.0 - slide_frac) * fmax;
+    return fmax > 0.0 && l1 * l1 + l2 * l2 < lim * lim;
+}
+
 // ---- restitution.cpp -----------------------------------------------------------------------
+
+// Whether a point was struck this step (restitution's PF_IMPACT, known once the solve ended):
+// its solve impulse ln is positive, its gap was closing at the start (w0 = PF_W0 < 0) and the
+// approach speed at contact from the flight's energy, u^2 = w0^2 - 2 acc s0 (acc = MF_ACC,
+// s0 = PF_S), exceeds the threshold.
+inline bool struck(double w0, double ln, double acc, double s0, double threshold) {
+    if (w0 >= 0.0 || ln <= 0.0) return false;
+    return w0 * w0 - 2.0 * acc * s0 > threshold * threshold;
+}
 
 // pv, pw: (N+1, 3) the relax stage's pseudo velocities; dx: (N+1, 3) each body's displacement
 // this step; the bounces go into linear_momentum, angular_momentum (N, 3). settings:

@@ -5,14 +5,14 @@
 // inside a tile: the tile's state stays in L1 for the whole block, and samples are written for
 // consecutive bodies. When samples are SPARSE_STRIDE or more steps apart, bodies are stepped
 // several at a time with their whole state in registers for the block: four (AVX2, chosen at
-// run time) or two (SSE2) per vector, one body in each lane (lanes.hpp; seed_lanes, rk4_lanes,
-// quat_lanes, and exact_lanes for torque-free bodies under exact / exact4), every lane doing the
-// scalar step's operations in its order, so the bits do not depend on the width
-// (tests/engine/test_free_lanes.py); the rest one body at a time. Each body's step is its
-// integrator's step_body below (the stages in integrators.hpp), except under exact / exact4,
-// whose kernel writes the same step out in its own body (advance_exact_range; the arithmetic of
-// step_body + drift_exact_anchored, operation for operation: tests/engine/test_exact_anchored.py
-// compares the two bit for bit).
+// run time) or two (SSE2) per vector, one body in each lane (lanes.hpp), the rest one at a time.
+// A body's step is written once, over its value type T (double, or a lane vector): a Body<T> of
+// its state, step<METHOD, T> calling the stages of integrators.hpp, and run_bodies<METHOD, T> the
+// loop over the block, so a lane does the one body's operations in its order and the bits do not
+// depend on the width (tests/engine/test_free_lanes.py). Under exact / exact4 the step is
+// exact_step (advance_exact_range; the arithmetic of integrators.step_body + drift_exact_anchored,
+// operation for operation: tests/engine/test_exact_anchored.py compares the two bit for bit), and
+// exact_lanes evaluates the flow of torque-free bodies in lanes.
 //
 // Samples are written after every stride-th step (and after the last step of the block when
 // sample_last), so logging costs nothing between samples.
@@ -73,49 +73,126 @@ void set_free_lanes(int lanes) {
 
 namespace {
 
-// One step of free body i by integrator METHOD (not the exact ones): orientation and L in place,
-// position (x, y, z) and momentum (px, py, pz) in registers. Translation: seed / seed-quat
-// symplectic Euler, splitting kick-drift-kick and rk4 the exact constant-force step (the same map
-// x += h v + h^2 a / 2, v += h a). Returns false if the state became non-finite or the body
-// turned more than MAX_ROTATION_PER_STEP_RAD in the step (integrators.step_body).
-template <int METHOD>
-inline bool step_body(const FreeArgs& a, i64 i, double& x, double& y, double& z, double& px,
-                      double& py, double& pz) {
-    const double dt = a.dt;
-    const int ortho = a.ortho;
-    V2<double> L = a.angular_momentum;
-    const double im = a.inv_mass[i];
-    const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
-    const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
+// ---- a body's state in registers: one body (T = double) or one in each lane of a vector ------
+
+// Rows i .. i + W - 1 (W the lanes of T), column c of v.
+template <class T>
+inline T gather(V2<double> v, i64 i, int c) {
+    T r;
+    for (int l = 0; l < lanes_of<T>(); ++l) set_lane(r, l, v(i + l, c));
+    return r;
+}
+
+// columns 0, 1, 2 of v
+template <class T>
+inline void gather3(V2<double> v, i64 i, T& c0, T& c1, T& c2) {
+    c0 = gather<T>(v, i, 0); c1 = gather<T>(v, i, 1); c2 = gather<T>(v, i, 2);
+}
+
+// Bodies i .. i + W - 1 from the state arrays, q too unless with_q is false; store_body the
+// reverse.
+template <class T>
+inline Body<T> load_body(const FreeArgs& a, i64 i, bool with_q) {
+    Body<T> b;
+    gather3(a.position, i, b.x, b.y, b.z);
+    gather3(a.linear_momentum, i, b.px, b.py, b.pz);
+    gather3(a.angular_momentum, i, b.lx, b.ly, b.lz);
+    for (int c = 0; c < 4; ++c) b.q[c] = with_q ? gather<T>(a.quat_wxyz, i, c) : T{};
+    for (int c = 0; c < 9; ++c)
+        for (int l = 0; l < lanes_of<T>(); ++l) set_lane(b.m[c], l, a.rotation.row(i + l)[c]);
+    return b;
+}
+
+template <class T>
+inline void store_body(const FreeArgs& a, i64 i, const Body<T>& b, bool with_q) {
+    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
+    for (int l = 0; l < lanes_of<T>(); ++l) {
+        const i64 k = i + l;
+        pos(k, 0) = lane(b.x, l); pos(k, 1) = lane(b.y, l); pos(k, 2) = lane(b.z, l);
+        mom(k, 0) = lane(b.px, l); mom(k, 1) = lane(b.py, l); mom(k, 2) = lane(b.pz, l);
+        L(k, 0) = lane(b.lx, l); L(k, 1) = lane(b.ly, l); L(k, 2) = lane(b.lz, l);
+        if (with_q)
+            for (int c = 0; c < 4; ++c) Q(k, c) = lane(b.q[c], l);
+        double* r = a.rotation.row(k);
+        for (int c = 0; c < 9; ++c) r[c] = lane(b.m[c], l);
+    }
+}
+
+// Their constants over the call.
+template <class T>
+inline BodyParams<T> load_params(const FreeArgs& a, i64 i) {
+    BodyParams<T> p;
+    for (int l = 0; l < lanes_of<T>(); ++l) set_lane(p.im, l, a.inv_mass[i + l]);
+    gather3(a.force_world, i, p.fx, p.fy, p.fz);
+    gather3(a.torque_world, i, p.tx, p.ty, p.tz);
+    gather3(a.inv_inertia, i, p.k0, p.k1, p.k2);
+    p.torqued = (p.tx != 0.0) | (p.ty != 0.0) | (p.tz != 0.0);
+    return p;
+}
+
+// One step of a body (of each lane's) by integrator METHOD (not the exact ones). Translation:
+// seed / seed-quat symplectic Euler, splitting kick-drift-kick and rk4 the exact constant-force
+// step (the same map x += h v + h^2 a / 2, v += h a) (integrators.step_body).
+template <int METHOD, class T>
+inline void step(int ortho, Body<T>& b, const BodyParams<T>& p, double dt) {
     if (METHOD == METHOD_SPLITTING) {
         // kick half, drift, kick half
         const double hh = 0.5 * dt;
-        px += hh * fx; py += hh * fy; pz += hh * fz;
-        L(i, 0) += hh * tx; L(i, 1) += hh * ty; L(i, 2) += hh * tz;
-        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
-        drift_splitting(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
-        px += hh * fx; py += hh * fy; pz += hh * fz;
-        L(i, 0) += hh * tx; L(i, 1) += hh * ty; L(i, 2) += hh * tz;
+        b.px += hh * p.fx; b.py += hh * p.fy; b.pz += hh * p.fz;
+        b.lx += hh * p.tx; b.ly += hh * p.ty; b.lz += hh * p.tz;
+        b.x += dt * b.px * p.im; b.y += dt * b.py * p.im; b.z += dt * b.pz * p.im;
+        drift_splitting(b, p, dt);
+        b.px += hh * p.fx; b.py += hh * p.fy; b.pz += hh * p.fz;
+        b.lx += hh * p.tx; b.ly += hh * p.ty; b.lz += hh * p.tz;
     } else if (METHOD == METHOD_RK4) {
         // translation: exact for a constant force; rotation: RK4 with L(t) = L + t tau
-        flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
-        drift_rk4(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt, tx, ty, tz);
-        L(i, 0) += dt * tx; L(i, 1) += dt * ty; L(i, 2) += dt * tz;
+        flight_exact(dt, p.im, b.x, b.y, b.z, b.px, b.py, b.pz, p.fx, p.fy, p.fz);
+        drift_rk4(b, p, dt);
+        b.lx += dt * p.tx; b.ly += dt * p.ty; b.lz += dt * p.tz;
     } else {
         // the notes: forward Euler on P and L, then x and R from the new values
-        px += dt * fx; py += dt * fy; pz += dt * fz;
-        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
-        L(i, 0) += dt * tx; L(i, 1) += dt * ty; L(i, 2) += dt * tz;
+        b.px += dt * p.fx; b.py += dt * p.fy; b.pz += dt * p.fz;
+        b.x += dt * b.px * p.im; b.y += dt * b.py * p.im; b.z += dt * b.pz * p.im;
+        b.lx += dt * p.tx; b.ly += dt * p.ty; b.lz += dt * p.tz;
         if (METHOD == METHOD_SEED)
-            drift_seed(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
+            drift_seed(ortho, b, p, dt);
         else
-            drift_seed_quat(ortho, a.quat_wxyz, a.rotation, L, a.inv_inertia, i, dt);
+            drift_seed_quat(ortho, b, p, dt);
     }
-    // non-finite check: one sum covers position, momenta and part of the rotation
-    const double* r = a.rotation.row(i);
-    const double chk = x + y + z + px + py + pz + L(i, 0) + L(i, 1) + L(i, 2) + r[0] + r[4] + r[8]
-                       + r[1];
-    return std::isfinite(chk) && turn_within_bound(dt, i, a.inv_inertia, a.rotation, L);
+}
+
+// After a step: whether each body's state is finite and it turned at most
+// MAX_ROTATION_PER_STEP_RAD (turn_within_bound_m, its cheap bound first), ok[l] per lane (set
+// only when some lane is not; the common case decided by two lane-wise tests: x - x is 0 exactly
+// when x is finite, NaN otherwise). One sum covers position, momenta and part of the rotation.
+template <class T>
+inline bool step_ok(bool ok[], double dt, const Body<T>& b, const BodyParams<T>& p,
+                    const T& kmax_dt) {
+    const T chk = b.x + b.y + b.z + b.px + b.py + b.pz + b.lx + b.ly + b.lz + b.m[0] + b.m[4]
+                  + b.m[8] + b.m[1];
+    const double lim = free_constants.max_rotation_per_step_rad;
+    const double lim2 = lim * lim;
+    const mask_of<T> cheap = (b.lx * b.lx + b.ly * b.ly + b.lz * b.lz) * (kmax_dt * kmax_dt) <= lim2;
+    const mask_of<T> fine = cheap & ((chk - chk) == T{});
+    if (all_set(fine)) return true;
+    bool all = true;
+    for (int l = 0; l < lanes_of<T>(); ++l) {
+        ok[l] = std::isfinite(lane(chk, l));
+        if (ok[l] && !lane(cheap, l)) {
+            Mat3 ml;
+            for (int c = 0; c < 9; ++c) ml[c] = lane(b.m[c], l);
+            ok[l] = turn_within_bound_m(dt, lane(p.k0, l), lane(p.k1, l), lane(p.k2, l),
+                                        lane(b.lx, l), lane(b.ly, l), lane(b.lz, l), ml);
+        }
+        all = all && ok[l];
+    }
+    return all;
+}
+
+// The cheap turn bound's max(k) dt, a constant of the body.
+template <class T>
+inline T kmax_dt_of(const BodyParams<T>& p, double dt) {
+    return vpymax(p.k0, vpymax(p.k1, p.k2)) * dt;
 }
 
 template <int METHOD>
@@ -129,12 +206,13 @@ inline bool sample_due(const FreeArgs& a, i64 s) {
     return s % a.stride == 0 || (a.sample_last && s == a.n_steps);
 }
 
-// sample_due for the steps s = 1, 2, ... in turn, without an integer division per step (the lane
-// kernels' loops): due at the next multiple of stride, and at the last step when sample_last.
+// sample_due for the steps s = s_begin, s_begin + 1, ... in turn, without an integer division per
+// step: due at the next multiple of stride, and at the last step when sample_last.
 struct SampleClock {
     i64 next, stride, last;
-    explicit SampleClock(const FreeArgs& a)
-        : next(a.stride), stride(a.stride), last(a.sample_last ? a.n_steps : -1) {}
+    SampleClock(const FreeArgs& a, i64 s_begin)
+        : next((s_begin + a.stride - 1) / a.stride * a.stride), stride(a.stride),
+          last(a.sample_last ? a.n_steps : -1) {}
     bool due(i64 s) {
         if (s == next) {
             next += stride;
@@ -144,558 +222,109 @@ struct SampleClock {
     }
 };
 
-// Body i alone from step s_begin on (its position and momentum in registers), samples from row
-// j on: the sparse path of advance_range. Returns the samples written; fail_step the step at
-// which the body's state went bad (-1 if none).
-template <int METHOD>
-i64 single_body(const FreeArgs& a, i64 i, i64 s_begin, i64 j, i64& fail_step) {
-    V2<double> pos = a.position, mom = a.linear_momentum;
-    fail_step = -1;
-    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
-    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
-    for (i64 s = s_begin; s <= a.n_steps; ++s) {
-        if (!step_body<METHOD>(a, i, x, y, z, px, py, pz)) {
-            fail_step = s;
-            break;
-        }
-        if (sample_due(a, s)) {
-            pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-            mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
-            sample<METHOD>(a, j, i);
-            j += 1;
-        }
-    }
-    pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-    mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
-    return j;
-}
-
-// The end of a lane-wise step_body: the non-finite check (``chk``, the sum of the step's state,
-// lane by lane) and turn_within_bound_m, its cheap bound first, per lane; ok[l] set per lane
-// unless every lane is ok, which is returned (the common case decided by two lane-wise tests:
-// x - x is 0 exactly when x is finite, NaN otherwise). Shared by the lane kernels below.
-template <class V, class M = mask_of<V>>
-inline bool lanes_ok(bool ok[], double dt, const V& chk, const V m[9], const V& lx,
-                     const V& ly, const V& lz, const V& k0, const V& k1, const V& k2,
-                     const V& kmax_dt, double lim2) {
-    const M cheap = (lx * lx + ly * ly + lz * lz) * (kmax_dt * kmax_dt) <= lim2;
-    if (all_set(cheap & ((chk - chk) == V{}))) return true;
-    bool all = true;
-    for (int l = 0; l < lanes_of<V>(); ++l) {
-        ok[l] = std::isfinite(chk[l]);
-        if (ok[l] && !cheap[l]) {
-            const Mat3 ml = {m[0][l], m[1][l], m[2][l], m[3][l], m[4][l], m[5][l], m[6][l],
-                             m[7][l], m[8][l]};
-            ok[l] = turn_within_bound_m(dt, k0[l], k1[l], k2[l], lx[l], ly[l], lz[l], ml);
-        }
-        all = all && ok[l];
-    }
-    return all;
-}
-
-// After a lane kernel's loop stopped at step s with j samples (its state stored): every lane ran
-// to the end, or a lane went bad at s (its bad step), or another lane did and this one goes on
-// alone (single_body) from s + 1.
-template <int METHOD, int W>
-inline void finish_lanes(const FreeArgs& a, i64 i, i64 s, i64 j, const bool ok[W], i64 j_out[W],
-                         i64 fail_out[W]) {
-    for (int l = 0; l < W; ++l) {
-        const i64 b = i + l;
-        if (s > a.n_steps) {
-            j_out[l] = j;
-            fail_out[l] = -1;
-        } else if (!ok[l]) {
-            j_out[l] = j;
-            fail_out[l] = s;
-        } else {
-            j_out[l] = single_body<METHOD>(a, b, s + 1, j, fail_out[l]);
-        }
-    }
-}
-
-// Bodies i .. i + W - 1 of seed (ortho polar or none) in the W lanes of V (lanes.hpp), state in
-// registers: step_body<METHOD_SEED> and drift_seed / polar / turn_within_bound_m lane by lane,
-// operation for operation. When a lane's state goes bad at step s, every lane has taken step s
-// (as the scalar loop would); the others then go on alone (single_body) from s + 1.
-// Returns the samples of each body in j_out, their bad steps in fail_out.
-template <class V, class M = mask_of<V>>
-inline void seed_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
-    constexpr int W = lanes_of<V>();
+// Bodies i .. i + W - 1 by METHOD, one in each of the W lanes of T (T = double: body i alone),
+// from step s_begin on, samples from row j on, the whole state in registers for the block (the
+// arrays written when a sample is due and at the end): the sparse path of advance_range. When a
+// lane's state goes bad at step s, every lane has taken step s (as the tiled loop would); the
+// others then go on alone from s + 1. The samples of each body in j_out, their bad steps
+// (-1: none) in fail_out.
+template <int METHOD, class T>
+inline void run_bodies(const FreeArgs& a, i64 i, i64 s_begin, i64 j, i64 j_out[],
+                       i64 fail_out[]) {
+    constexpr int W = lanes_of<T>();
+    constexpr bool with_q = METHOD != METHOD_SEED;  // (seed's q is derived from R when logged)
     const double dt = a.dt;
-    const int ortho = a.ortho;
-    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum;
-    V3<double> R = a.rotation;
-    auto ld = [i](V2<double> v, int c) {
-        V r;
-        for (int l = 0; l < W; ++l) r[l] = v(i + l, c);
-        return r;
-    };
-    V im;
-    for (int l = 0; l < W; ++l) im[l] = a.inv_mass[i + l];
-    const V fx = ld(a.force_world, 0), fy = ld(a.force_world, 1),
-             fz = ld(a.force_world, 2);
-    const V tx = ld(a.torque_world, 0), ty = ld(a.torque_world, 1),
-             tz = ld(a.torque_world, 2);
-    const V k0 = ld(a.inv_inertia, 0), k1 = ld(a.inv_inertia, 1),
-             k2 = ld(a.inv_inertia, 2);
-    // turn_within_bound_m's cheap bound, a constant of the body
-    const V kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
-    const double lim = free_constants.max_rotation_per_step_rad;
-    const double lim2 = lim * lim;
-    V x = ld(pos, 0), y = ld(pos, 1), z = ld(pos, 2);
-    V px = ld(mom, 0), py = ld(mom, 1), pz = ld(mom, 2);
-    V lx = ld(L, 0), ly = ld(L, 1), lz = ld(L, 2);
-    V m[9];
-    for (int c = 0; c < 9; ++c)
-        for (int l = 0; l < W; ++l) m[c][l] = R.row(i + l)[c];
-    auto store = [&]() {
-        for (int l = 0; l < W; ++l) {
-            const i64 b = i + l;
-            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
-            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
-            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
-            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
-        }
-    };
-    i64 j = 0;
+    Body<T> b = load_body<T>(a, i, with_q);
+    const BodyParams<T> p = load_params<T>(a, i);
+    const T kmax_dt = kmax_dt_of(p, dt);
     bool ok[W];
     for (int l = 0; l < W; ++l) ok[l] = true;
-    SampleClock clock(a);
-    i64 s = 1;
+    SampleClock clock(a, s_begin);
+    i64 s = s_begin;
     for (; s <= a.n_steps; ++s) {
-        // the notes: forward Euler on P and L, then x and R from the new values
-        px += dt * fx; py += dt * fy; pz += dt * fz;
-        x += dt * px * im; y += dt * py * im; z += dt * pz * im;
-        lx += dt * tx; ly += dt * ty; lz += dt * tz;
-        // drift_seed: omega = R I^-1 R^T L (omega_world), R <- R + h [omega]x R
-        const V m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5],
-                 m20 = m[6], m21 = m[7], m22 = m[8];
-        const V b0 = (m00 * lx + m10 * ly + m20 * lz) * k0;
-        const V b1 = (m01 * lx + m11 * ly + m21 * lz) * k1;
-        const V b2 = (m02 * lx + m12 * ly + m22 * lz) * k2;
-        const V ox = m00 * b0 + m01 * b1 + m02 * b2;
-        const V oy = m10 * b0 + m11 * b1 + m12 * b2;
-        const V oz = m20 * b0 + m21 * b1 + m22 * b2;
-        const double h = dt;
-        V a00 = m00 + h * (-oz * m10 + oy * m20), a01 = m01 + h * (-oz * m11 + oy * m21),
-           a02 = m02 + h * (-oz * m12 + oy * m22),
-           a10 = m10 + h * (oz * m00 - ox * m20), a11 = m11 + h * (oz * m01 - ox * m21),
-           a12 = m12 + h * (oz * m02 - ox * m22),
-           a20 = m20 + h * (-oy * m00 + ox * m10), a21 = m21 + h * (-oy * m01 + ox * m11),
-           a22 = m22 + h * (-oy * m02 + ox * m12);
-        if (ortho == ORTHO_POLAR) {  // rotation.hpp polar, lane-wise
-            const std::array<V, 9> p = polar(std::array<V, 9>{a00, a01, a02, a10, a11, a12,
-                                                               a20, a21, a22});
-            a00 = p[0]; a01 = p[1]; a02 = p[2]; a10 = p[3]; a11 = p[4]; a12 = p[5];
-            a20 = p[6]; a21 = p[7]; a22 = p[8];
-        }
-        m[0] = a00; m[1] = a01; m[2] = a02; m[3] = a10; m[4] = a11; m[5] = a12;
-        m[6] = a20; m[7] = a21; m[8] = a22;
-        // non-finite check and turn bound (step_body, turn_within_bound_m)
-        if (!lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
-                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2))
-            break;
+        step<METHOD>(a.ortho, b, p, dt);
+        if (!step_ok(ok, dt, b, p, kmax_dt)) break;
         if (clock.due(s)) {
-            store();
-            for (int l = 0; l < W; ++l) sample<METHOD_SEED>(a, j, i + l);
-            j += 1;
-        }
-    }
-    store();
-    finish_lanes<METHOD_SEED, W>(a, i, s, j, ok, j_out, fail_out);
-}
-
-// ---- rk4, W bodies in the lanes of V (integrators.hpp drift_rk4, lane by lane) -------------
-
-template <class V>
-struct QV {
-    V w, x, y, z;
-};
-
-template <class V>
-inline QV<V> qmul2(V aw, V ax, V ay, V az, V bw, V bx, V by, V bz) {
-    return {aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw};
-}
-
-template <class V>
-inline QV<V> normalize2(V w, V x, V y, V z) {
-    const V n = 1.0 / vsqrt(w * w + x * x + y * y + z * z);
-    return {w * n, x * n, y * n, z * n};
-}
-
-template <class V>
-inline void mat2(const QV<V>& q, V m[9]) {
-    const V w = q.w, x = q.x, y = q.y, z = q.z;
-    m[0] = w * w + x * x - y * y - z * z; m[1] = 2.0 * (x * y - w * z); m[2] = 2.0 * (x * z + w * y);
-    m[3] = 2.0 * (x * y + w * z); m[4] = w * w - x * x + y * y - z * z; m[5] = 2.0 * (y * z - w * x);
-    m[6] = 2.0 * (x * z - w * y); m[7] = 2.0 * (y * z + w * x); m[8] = w * w - x * x - y * y + z * z;
-}
-
-// mul_exp's coefficients (cos |v|/2, sin(|v|/2) / |v|, or the small-angle series) of two
-// vectors u and v lane-wise, the scalar branch per lane; the four sine-cosine calls back to back,
-// so that the state live across them is spilled and reloaded once per step, not per call.
-template <class V>
-inline void exp_coefs2(V ux, V uy, V uz, V vx, V vy, V vz, V& cu, V& su, V& cv,
-                       V& sv) {
-    constexpr int W = lanes_of<V>();
-    const V a2u = ux * ux + uy * uy + uz * uz;
-    const V a2v = vx * vx + vy * vy + vz * vz;
-    double cc[2 * W], ss[2 * W], s2s[2 * W];
-    for (int l = 0; l < W; ++l) {
-        s2s[l] = a2u[l];
-        s2s[W + l] = a2v[l];
-    }
-    for (int l = 0; l < 2 * W; ++l) {
-        const double s2 = s2s[l];
-        if (s2 < 1e-8) {
-            cc[l] = 1.0 - s2 / 8.0 + s2 * s2 / 384.0;
-            ss[l] = 0.5 - s2 / 48.0 + s2 * s2 / 3840.0;
-        } else {
-            const double an = std::sqrt(s2);
-            cc[l] = std::cos(0.5 * an);
-            ss[l] = std::sin(0.5 * an) / an;
-        }
-    }
-    for (int l = 0; l < W; ++l) {
-        cu[l] = cc[l]; su[l] = ss[l];
-        cv[l] = cc[W + l]; sv[l] = ss[W + l];
-    }
-}
-
-// R(q)^T tau lane-wise (torque_body)
-template <class V>
-inline void torque_body2(const QV<V>& q, V tx, V ty, V tz, V& e0, V& e1, V& e2) {
-    V m[9];
-    mat2(q, m);
-    e0 = m[0] * tx + m[3] * ty + m[6] * tz;
-    e1 = m[1] * tx + m[4] * ty + m[7] * tz;
-    e2 = m[2] * tx + m[5] * ty + m[8] * tz;
-}
-
-// Bodies i .. i + W - 1 of rk4 in the lanes of V, state (position, momentum, L, q, R) in
-// registers: step_body<METHOD_RK4> (flight_exact, drift_rk4, the torque kick, the checks) lane by
-// lane, operation for operation; lane-dependent branches (torque, the small-angle series, the
-// final turn) by per-lane selection of the scalar branch's values. As seed_lanes otherwise.
-template <class V, class M = mask_of<V>>
-inline void rk4_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
-    constexpr int W = lanes_of<V>();
-    const double dt = a.dt;
-    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
-    V3<double> R = a.rotation;
-    auto ld = [i](V2<double> v, int c) {
-        V r;
-        for (int l = 0; l < W; ++l) r[l] = v(i + l, c);
-        return r;
-    };
-    V im;
-    for (int l = 0; l < W; ++l) im[l] = a.inv_mass[i + l];
-    const V fx = ld(a.force_world, 0), fy = ld(a.force_world, 1),
-             fz = ld(a.force_world, 2);
-    const V tx = ld(a.torque_world, 0), ty = ld(a.torque_world, 1),
-             tz = ld(a.torque_world, 2);
-    const V k0 = ld(a.inv_inertia, 0), k1 = ld(a.inv_inertia, 1),
-             k2 = ld(a.inv_inertia, 2);
-    const M torqued = (tx != 0.0) | (ty != 0.0) | (tz != 0.0);
-    const bool any_torqued = any(torqued);
-    const V kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
-    const double lim = free_constants.max_rotation_per_step_rad;
-    const double lim2 = lim * lim;
-    const V zero = splat_v<V>(0.0);
-    V x = ld(pos, 0), y = ld(pos, 1), z = ld(pos, 2);
-    V px = ld(mom, 0), py = ld(mom, 1), pz = ld(mom, 2);
-    V lx = ld(L, 0), ly = ld(L, 1), lz = ld(L, 2);
-    QV<V> q = {ld(Q, 0), ld(Q, 1), ld(Q, 2), ld(Q, 3)};
-    V m[9];
-    for (int c = 0; c < 9; ++c)
-        for (int l = 0; l < W; ++l) m[c][l] = R.row(i + l)[c];
-    auto store = [&]() {
-        for (int l = 0; l < W; ++l) {
-            const i64 b = i + l;
-            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
-            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
-            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
-            Q(b, 0) = q.w[l]; Q(b, 1) = q.x[l]; Q(b, 2) = q.y[l]; Q(b, 3) = q.z[l];
-            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
-        }
-    };
-    const double h = dt, hh = 0.5 * h;
-    const double hh_flight = 0.5 * dt * dt;
-    const double g = h / 6.0;
-    const double c1 = 1.0 / 4.0, c2 = 1.0 / 6.0, c3 = -1.0 / 12.0;
-    i64 j = 0;
-    bool ok[W];
-    for (int l = 0; l < W; ++l) ok[l] = true;
-    SampleClock clock(a);
-    i64 s = 1;
-    for (; s <= a.n_steps; ++s) {
-        // translation: exact for a constant force (flight_exact)
-        const V hf = hh_flight * im;
-        x = x + (dt * px * im + hf * fx);
-        y = y + (dt * py * im + hf * fy);
-        z = z + (dt * pz * im + hf * fz);
-        px = px + dt * fx; py = py + dt * fy; pz = pz + dt * fz;
-        // drift_rk4
-        const V a0 = m[0] * lx + m[3] * ly + m[6] * lz;
-        const V a1 = m[1] * lx + m[4] * ly + m[7] * lz;
-        const V a2 = m[2] * lx + m[5] * ly + m[8] * lz;
-        V e0 = zero, e1 = zero, e2 = zero;
-        if (any_torqued) {
-            e0 = torqued ? m[0] * tx + m[3] * ty + m[6] * tz : zero;
-            e1 = torqued ? m[1] * tx + m[4] * ty + m[7] * tz : zero;
-            e2 = torqued ? m[2] * tx + m[5] * ty + m[8] * tz : zero;
-        }
-        // stage 1 (euler_rhs)
-        V w0 = k0 * a0, w1 = k1 * a1, w2 = k2 * a2;
-        const V d10 = a1 * w2 - a2 * w1 + e0, d11 = a2 * w0 - a0 * w2 + e1, d12 = a0 * w1 - a1 * w0 + e2;
-        const V w10 = k0 * a0, w11 = k1 * a1, w12 = k2 * a2;
-        // stage 2
-        V b0 = a0 + hh * d10, b1 = a1 + hh * d11, b2 = a2 + hh * d12;
-        QV<V> q2 = q, q3 = q;
-        if (any_torqued) {
-            const QV<V> k1q = qmul2(q.w, q.x, q.y, q.z, zero, 0.5 * w10, 0.5 * w11, 0.5 * w12);
-            q2 = normalize2(q.w + hh * k1q.w, q.x + hh * k1q.x, q.y + hh * k1q.y, q.z + hh * k1q.z);
-            V f0, f1, f2;
-            torque_body2(q2, tx, ty, tz, f0, f1, f2);
-            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
-        }
-        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
-        const V d20 = b1 * w2 - b2 * w1 + e0, d21 = b2 * w0 - b0 * w2 + e1, d22 = b0 * w1 - b1 * w0 + e2;
-        const V w20 = k0 * b0, w21 = k1 * b1, w22 = k2 * b2;
-        // stage 3
-        b0 = a0 + hh * d20; b1 = a1 + hh * d21; b2 = a2 + hh * d22;
-        if (any_torqued) {
-            const QV<V> k2q = qmul2(q2.w, q2.x, q2.y, q2.z, zero, 0.5 * w20, 0.5 * w21, 0.5 * w22);
-            q3 = normalize2(q.w + hh * k2q.w, q.x + hh * k2q.x, q.y + hh * k2q.y, q.z + hh * k2q.z);
-            V f0, f1, f2;
-            torque_body2(q3, tx, ty, tz, f0, f1, f2);
-            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
-        }
-        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
-        const V d30 = b1 * w2 - b2 * w1 + e0, d31 = b2 * w0 - b0 * w2 + e1, d32 = b0 * w1 - b1 * w0 + e2;
-        const V w30 = k0 * b0, w31 = k1 * b1, w32 = k2 * b2;
-        // stage 4
-        b0 = a0 + h * d30; b1 = a1 + h * d31; b2 = a2 + h * d32;
-        if (any_torqued) {
-            const QV<V> k3q = qmul2(q3.w, q3.x, q3.y, q3.z, zero, 0.5 * w30, 0.5 * w31, 0.5 * w32);
-            const QV<V> q4 = normalize2(q.w + h * k3q.w, q.x + h * k3q.x, q.y + h * k3q.y, q.z + h * k3q.z);
-            V f0, f1, f2;
-            torque_body2(q4, tx, ty, tz, f0, f1, f2);
-            e0 = torqued ? f0 : e0; e1 = torqued ? f1 : e1; e2 = torqued ? f2 : e2;
-        }
-        w0 = k0 * b0; w1 = k1 * b1; w2 = k2 * b2;
-        const V d40 = b1 * w2 - b2 * w1 + e0, d41 = b2 * w0 - b0 * w2 + e1, d42 = b0 * w1 - b1 * w0 + e2;
-        const V w40 = k0 * b0, w41 = k1 * b1, w42 = k2 * b2;
-        const V n0 = a0 + g * (d10 + 2.0 * d20 + 2.0 * d30 + d40);
-        const V n1 = a1 + g * (d11 + 2.0 * d21 + 2.0 * d31 + d41);
-        const V n2 = a2 + g * (d12 + 2.0 * d22 + 2.0 * d32 + d42);
-        // attitude: CF4
-        // r = mul_exp(mul_exp(q, u), v): both exponents depend on the stages only, so their
-        // coefficients come first (exp_coefs2), then the two products
-        const V ux = h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
-                 uy = h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
-                 uz = h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42);
-        const V vx = h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
-                 vy = h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
-                 vz = h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42);
-        V cu, su, cv, sv;
-        exp_coefs2(ux, uy, uz, vx, vy, vz, cu, su, cv, sv);
-        QV<V> r = qmul2(q.w, q.x, q.y, q.z, cu, su * ux, su * uy, su * uz);
-        r = qmul2(r.w, r.x, r.y, r.z, cv, sv * vx, sv * vy, sv * vz);
-        r = normalize2(r.w, r.x, r.y, r.z);
-        // turn q so that R^T L_end is along Lb'
-        const V ex = lx + h * tx, ey = ly + h * ty, ez = lz + h * tz;
-        mat2(r, m);
-        V u0 = m[0] * ex + m[3] * ey + m[6] * ez;
-        V u1 = m[1] * ex + m[4] * ey + m[7] * ez;
-        V u2 = m[2] * ex + m[5] * ey + m[8] * ez;
-        const V nu = vsqrt(u0 * u0 + u1 * u1 + u2 * u2);
-        const V nv = vsqrt(n0 * n0 + n1 * n1 + n2 * n2);
-        const M turn = (nu > 0.0) & (nv > 0.0);
-        if (any(turn)) {
-            const V iu = 1.0 / nu, iv = 1.0 / nv;
-            u0 = u0 * iu; u1 = u1 * iu; u2 = u2 * iu;
-            const V v0 = n0 * iv, v1 = n1 * iv, v2 = n2 * iv;
-            const V cw = 1.0 + u0 * v0 + u1 * v1 + u2 * v2;
-            const V cx = u1 * v2 - u2 * v1, cy = u2 * v0 - u0 * v2, cz = u0 * v1 - u1 * v0;
-            const QV<V> t = qmul2(r.w, r.x, r.y, r.z, cw, -cx, -cy, -cz);
-            r.w = turn ? t.w : r.w; r.x = turn ? t.x : r.x;
-            r.y = turn ? t.y : r.y; r.z = turn ? t.z : r.z;
-        }
-        q = normalize2(r.w, r.x, r.y, r.z);
-        mat2(q, m);
-        // the torque kick
-        lx += dt * tx; ly += dt * ty; lz += dt * tz;
-        // non-finite check and turn bound
-        if (!lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
-                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2))
-            break;
-        if (clock.due(s)) {
-            store();
-            for (int l = 0; l < W; ++l) sample<METHOD_RK4>(a, j, i + l);
-            j += 1;
-        }
-    }
-    store();
-    finish_lanes<METHOD_RK4, W>(a, i, s, j, ok, j_out, fail_out);
-}
-
-// ---- seed-quat (normalized) and splitting, two bodies in the lanes of V --------------------
-
-// One lane-wise sub-flow of the splitting (integrators.hpp flow_x / flow_y / flow_z): axis `ax`,
-// s_inv_i = s / I_k per lane; the half-angle sine and cosine per lane (scalar calls).
-template <int AX, class V>
-inline void flow2(QV<V>& q, V& b0, V& b1, V& b2, V s_inv_i) {
-    const V th = s_inv_i * (AX == 0 ? b0 : AX == 1 ? b1 : b2);
-    V ch, sh;
-    for (int l = 0; l < lanes_of<V>(); ++l) {
-        ch[l] = std::cos(0.5 * th[l]);
-        sh[l] = std::sin(0.5 * th[l]);
-    }
-    const V c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
-    const V w = q.w, x = q.x, y = q.y, z = q.z;
-    if (AX == 0) {
-        q = {ch * w - sh * x, ch * x + sh * w, ch * y + sh * z, ch * z - sh * y};
-        const V n1 = c * b1 + sn * b2, n2 = c * b2 - sn * b1;
-        b1 = n1; b2 = n2;
-    } else if (AX == 1) {
-        q = {ch * w - sh * y, ch * x - sh * z, ch * y + sh * w, ch * z + sh * x};
-        const V n0 = c * b0 - sn * b2, n2 = c * b2 + sn * b0;
-        b0 = n0; b2 = n2;
-    } else {
-        q = {ch * w - sh * z, ch * x + sh * y, ch * y - sh * x, ch * z + sh * w};
-        const V n0 = c * b0 + sn * b1, n1 = c * b1 - sn * b0;
-        b0 = n0; b1 = n1;
-    }
-}
-
-// Bodies i .. i + W - 1 of seed-quat (ortho normalize) or splitting in the lanes of V, state in
-// registers: step_body<METHOD> with drift_seed_quat / drift_splitting lane by lane, operation for
-// operation. As seed_lanes otherwise.
-template <int METHOD, class V, class M = mask_of<V>>
-inline void quat_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
-    constexpr int W = lanes_of<V>();
-    const double dt = a.dt;
-    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
-    V3<double> R = a.rotation;
-    auto ld = [i](V2<double> v, int c) {
-        V r;
-        for (int l = 0; l < W; ++l) r[l] = v(i + l, c);
-        return r;
-    };
-    V im;
-    for (int l = 0; l < W; ++l) im[l] = a.inv_mass[i + l];
-    const V fx = ld(a.force_world, 0), fy = ld(a.force_world, 1),
-             fz = ld(a.force_world, 2);
-    const V tx = ld(a.torque_world, 0), ty = ld(a.torque_world, 1),
-             tz = ld(a.torque_world, 2);
-    const V k0 = ld(a.inv_inertia, 0), k1 = ld(a.inv_inertia, 1),
-             k2 = ld(a.inv_inertia, 2);
-    const V kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
-    const double lim = free_constants.max_rotation_per_step_rad;
-    const double lim2 = lim * lim;
-    V x = ld(pos, 0), y = ld(pos, 1), z = ld(pos, 2);
-    V px = ld(mom, 0), py = ld(mom, 1), pz = ld(mom, 2);
-    V lx = ld(L, 0), ly = ld(L, 1), lz = ld(L, 2);
-    QV<V> q = {ld(Q, 0), ld(Q, 1), ld(Q, 2), ld(Q, 3)};
-    V m[9];
-    for (int c = 0; c < 9; ++c)
-        for (int l = 0; l < W; ++l) m[c][l] = R.row(i + l)[c];
-    auto store = [&]() {
-        for (int l = 0; l < W; ++l) {
-            const i64 b = i + l;
-            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
-            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
-            L(b, 0) = lx[l]; L(b, 1) = ly[l]; L(b, 2) = lz[l];
-            Q(b, 0) = q.w[l]; Q(b, 1) = q.x[l]; Q(b, 2) = q.y[l]; Q(b, 3) = q.z[l];
-            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
-        }
-    };
-    const double h = dt, hh = 0.5 * dt;
-    const V zero = splat_v<V>(0.0);
-    i64 j = 0;
-    bool ok[W];
-    for (int l = 0; l < W; ++l) ok[l] = true;
-    SampleClock clock(a);
-    i64 s = 1;
-    for (; s <= a.n_steps; ++s) {
-        if (METHOD == METHOD_SPLITTING) {
-            // kick half, drift, kick half
-            px += hh * fx; py += hh * fy; pz += hh * fz;
-            lx += hh * tx; ly += hh * ty; lz += hh * tz;
-            x += dt * px * im; y += dt * py * im; z += dt * pz * im;
-            // drift_splitting: Lb = R^T L, 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2), normalized
-            V b0 = m[0] * lx + m[3] * ly + m[6] * lz;
-            V b1 = m[1] * lx + m[4] * ly + m[7] * lz;
-            V b2 = m[2] * lx + m[5] * ly + m[8] * lz;
-            flow2<0>(q, b0, b1, b2, hh * k0);
-            flow2<1>(q, b0, b1, b2, hh * k1);
-            flow2<2>(q, b0, b1, b2, h * k2);
-            flow2<1>(q, b0, b1, b2, hh * k1);
-            flow2<0>(q, b0, b1, b2, hh * k0);
-            q = normalize2(q.w, q.x, q.y, q.z);
-            mat2(q, m);
-            px += hh * fx; py += hh * fy; pz += hh * fz;
-            lx += hh * tx; ly += hh * ty; lz += hh * tz;
-        } else {
-            // the notes: forward Euler on P and L, then x and q from the new values
-            px += dt * fx; py += dt * fy; pz += dt * fz;
-            x += dt * px * im; y += dt * py * im; z += dt * pz * im;
-            lx += dt * tx; ly += dt * ty; lz += dt * tz;
-            // drift_seed_quat (normalized): omega_world, q += h/2 (0, omega) (x) q
-            const V b0 = (m[0] * lx + m[3] * ly + m[6] * lz) * k0;
-            const V b1 = (m[1] * lx + m[4] * ly + m[7] * lz) * k1;
-            const V b2 = (m[2] * lx + m[5] * ly + m[8] * lz) * k2;
-            const V ox = m[0] * b0 + m[1] * b1 + m[2] * b2;
-            const V oy = m[3] * b0 + m[4] * b1 + m[5] * b2;
-            const V oz = m[6] * b0 + m[7] * b1 + m[8] * b2;
-            const QV<V> d = qmul2(zero, ox, oy, oz, q.w, q.x, q.y, q.z);
-            q = normalize2(q.w + 0.5 * h * d.w, q.x + 0.5 * h * d.x, q.y + 0.5 * h * d.y,
-                           q.z + 0.5 * h * d.z);
-            mat2(q, m);
-        }
-        if (!lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
-                 lx, ly, lz, k0, k1, k2, kmax_dt, lim2))
-            break;
-        if (clock.due(s)) {
-            store();
+            store_body(a, i, b, with_q);
             for (int l = 0; l < W; ++l) sample<METHOD>(a, j, i + l);
             j += 1;
         }
     }
-    store();
-    finish_lanes<METHOD, W>(a, i, s, j, ok, j_out, fail_out);
+    store_body(a, i, b, with_q);
+    for (int l = 0; l < W; ++l) {
+        j_out[l] = j;
+        fail_out[l] = s > a.n_steps ? -1 : s;
+        if constexpr (W > 1)
+            if (s <= a.n_steps && ok[l]) run_bodies<METHOD, double>(a, i + l, s + 1, j, j_out + l,
+                                                                    fail_out + l);
+    }
 }
 
-// W bodies from i by METHOD's lane kernel.
-template <int METHOD, class V>
-inline void run_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
-    if (METHOD == METHOD_SEED)
-        seed_lanes<V>(a, i, j_out, fail_out);
-    else if (METHOD == METHOD_RK4)
-        rk4_lanes<V>(a, i, j_out, fail_out);
-    else
-        quat_lanes<METHOD, V>(a, i, j_out, fail_out);
+// One step of free body i of the state arrays by METHOD (the tiled path of advance_range);
+// false if its state became non-finite or it turned too far (integrators.step_body).
+template <int METHOD>
+inline bool step_body(const FreeArgs& a, i64 i) {
+    constexpr bool with_q = METHOD != METHOD_SEED;
+    Body<double> b = load_body<double>(a, i, with_q);
+    const BodyParams<double> p = load_params<double>(a, i);
+    step<METHOD>(a.ortho, b, p, a.dt);
+    store_body(a, i, b, with_q);
+    bool ok[1];
+    return step_ok(ok, a.dt, b, p, kmax_dt_of(p, a.dt));
 }
 
 #if RB_FREE_AVX2
-// run_lanes on four bodies, compiled for AVX2 (without FMA): everything it calls is inlined into
+// run_bodies on four bodies, compiled for AVX2 (without FMA): everything it calls is inlined into
 // it (flatten), so the whole kernel, its one-body tail included, is built for that target. Called
 // only when the CPU has AVX2 (free_lanes() == 4).
 template <int METHOD>
 __attribute__((target("avx2"), flatten, noinline)) void run_lanes4(const FreeArgs& a, i64 i,
                                                                    i64 j_out[4],
                                                                    i64 fail_out[4]) {
-    run_lanes<METHOD, d4>(a, i, j_out, fail_out);
+    run_bodies<METHOD, d4>(a, i, 1, 0, j_out, fail_out);
 }
 #endif
+
+// The same on two bodies (SSE2) and on one: the stages inlined into the loop (flatten), their
+// vectors in registers rather than passed through memory.
+template <int METHOD>
+__attribute__((flatten, noinline)) void run_lanes2(const FreeArgs& a, i64 i, i64 j_out[2],
+                                                   i64 fail_out[2]) {
+    run_bodies<METHOD, d2>(a, i, 1, 0, j_out, fail_out);
+}
+
+template <int METHOD>
+__attribute__((flatten, noinline)) void run_one(const FreeArgs& a, i64 i, i64& j, i64& fail) {
+    run_bodies<METHOD, double>(a, i, 1, 0, &j, &fail);
+}
+
+// The tiled path: bodies t0 .. t1-1 each step in turn (their state stays in L1), samples after
+// the due steps; returns the samples written, the first bad step and its body (-1: none). Its
+// stages inlined into it (flatten), as run_lanes2.
+template <int METHOD>
+__attribute__((flatten, noinline)) i64 advance_tile(const FreeArgs& a, i64 t0, i64 t1,
+                                                    i64& bad_step, i64& bad_body) {
+    i64 j = 0;
+    for (i64 s = 1; s <= a.n_steps; ++s) {
+        for (i64 i = t0; i < t1; ++i)
+            if (!step_body<METHOD>(a, i)) {
+                bad_step = s;
+                bad_body = i;
+                return j;
+            }
+        if (sample_due(a, s)) {
+            for (i64 i = t0; i < t1; ++i) sample<METHOD>(a, j, i);
+            j += 1;
+        }
+    }
+    return j;
+}
 
 // Bodies b0 .. b1-1, n_steps steps of dt, samples written (advance_free_range's contract).
 template <int METHOD>
 FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
     FreeResult res;
     const i64 tile = a.tile;
-    V2<double> pos = a.position, mom = a.linear_momentum;
     auto fail = [&](i64 s, i64 i) {
         if (s >= 0 && (res.bad_step < 0 || s < res.bad_step)) {
             res.bad_step = s;
@@ -703,9 +332,7 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
         }
     };
 #ifndef RB_FREE_NO_LANES  // (defined: the scalar path only, to compare the lanes against it)
-    if (tile == 1 && ((METHOD == METHOD_SEED && (a.ortho == ORTHO_POLAR || a.ortho == ORTHO_NONE))
-                      || (METHOD == METHOD_SEED_QUAT && a.ortho != ORTHO_NONE)
-                      || METHOD == METHOD_SPLITTING || METHOD == METHOD_RK4)) {
+    if (tile == 1) {
         // sparse samples: bodies four (AVX2) or two at a time in the lanes of a vector, then
         // two, then the odd one (a body's bits do not depend on the lanes it ran in)
         i64 i = b0;
@@ -727,15 +354,13 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
 #endif
         for (; i + 1 < b1; i += 2) {
             i64 js[2], fs[2];
-            run_lanes<METHOD, d2>(a, i, js, fs);
+            run_lanes2<METHOD>(a, i, js, fs);
             collect(i, 2, js, fs);
         }
         for (; i < b1; ++i) {
-            i64 fs;
-            const i64 j = single_body<METHOD>(a, i, 1, 0, fs);
-            fail(fs, i);
-            if (METHOD == METHOD_SEED) sync_quat_seed(a.quat_wxyz, a.rotation, i);
-            if (j > res.n_samples) res.n_samples = j;
+            i64 js[1], fs[1];
+            run_one<METHOD>(a, i, js[0], fs[0]);
+            collect(i, 1, js, fs);
         }
         return res;
     }
@@ -745,28 +370,12 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
         i64 j = 0;
         if (tile == 1) {
             i64 fs;
-            j = single_body<METHOD>(a, t0, 1, 0, fs);
+            run_one<METHOD>(a, t0, j, fs);
             fail(fs, t0);
         } else {
-            for (i64 s = 1; s <= a.n_steps; ++s) {
-                bool ok = true;
-                for (i64 i = t0; i < t1; ++i) {
-                    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
-                    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
-                    ok = step_body<METHOD>(a, i, x, y, z, px, py, pz);
-                    pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-                    mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
-                    if (!ok) {
-                        fail(s, i);
-                        break;
-                    }
-                }
-                if (!ok) break;
-                if (sample_due(a, s)) {
-                    for (i64 i = t0; i < t1; ++i) sample<METHOD>(a, j, i);
-                    j += 1;
-                }
-            }
+            i64 bad_step = -1, bad_body = -1;
+            j = advance_tile<METHOD>(a, t0, t1, bad_step, bad_body);
+            fail(bad_step, bad_body);
         }
         if (METHOD == METHOD_SEED)  // the only integrator whose q is not current
             for (i64 i = t0; i < t1; ++i) sync_quat_seed(a.quat_wxyz, a.rotation, i);
@@ -775,97 +384,101 @@ FreeResult advance_range(const FreeArgs& a, i64 b0, i64 b1) {
     return res;
 }
 
+// A body's flow anchor (rblog.engine.state.FlowAnchors): q_a, L_a, its steps so far and its dt.
+struct Anchor {
+    double aw, ax, ay, az, l0, l1, l2;
+    i64 n;
+    double dt;
+};
+
+inline Anchor load_anchor(const FreeArgs& a, i64 i) {
+    return {a.a_q(i, 0), a.a_q(i, 1), a.a_q(i, 2), a.a_q(i, 3), a.a_l(i, 0), a.a_l(i, 1),
+            a.a_l(i, 2), a.a_n[i], a.a_dt[i]};
+}
+
+inline void store_anchor(const FreeArgs& a, i64 i, const Anchor& an) {
+    V2<double> a_q = a.a_q, a_l = a.a_l;
+    V1<i64> a_n = a.a_n;
+    V1<double> a_dt = a.a_dt;
+    a_q(i, 0) = an.aw; a_q(i, 1) = an.ax; a_q(i, 2) = an.ay; a_q(i, 3) = an.az;
+    a_l(i, 0) = an.l0; a_l(i, 1) = an.l1; a_l(i, 2) = an.l2;
+    a_n[i] = an.n;
+    a_dt[i] = an.dt;
+}
+
+// One step of a body by exact / exact4 (integrators.step_body, _strang_exact and
+// drift_exact_anchored, operation for operation): translation exact for a constant force;
+// rotation Strang kick(h/2) flow(h) kick(h/2), with torque under exact4 Yoshida's three of them
+// (weights w1, w0). The flow from the anchor, kept while L is bitwise the anchor's and the step
+// is the same; row: its flow constants, row_ok whether they are the anchor's.
+template <int METHOD>
+inline void exact_step(Body<double>& b, const BodyParams<double>& p, Anchor& an, double* row,
+                       bool& row_ok, double dt, double w1, double w0) {
+    flight_exact(dt, p.im, b.x, b.y, b.z, b.px, b.py, b.pz, p.fx, p.fy, p.fz);
+    const int n_sub = (METHOD == METHOD_EXACT4 && p.torqued) ? 3 : 1;
+    for (int sub = 0; sub < n_sub; ++sub) {
+        double h = dt;
+        if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
+        const double hk = 0.5 * h;
+        if (p.torqued) {
+            b.lx += hk * p.tx; b.ly += hk * p.ty; b.lz += hk * p.tz;
+        }
+        if (!anchor_holds(an.n, an.dt, an.l0, an.l1, an.l2, h, b.lx, b.ly, b.lz)) {
+            an = {b.q[0], b.q[1], b.q[2], b.q[3], b.lx, b.ly, b.lz, 0, h};
+            row_ok = false;
+        }
+        if (!row_ok) {
+            anchor_constants(row, an.aw, an.ax, an.ay, an.az, b.lx, b.ly, b.lz, p.k0, p.k1, p.k2, h);
+            row_ok = true;
+        }
+        const i64 n = an.n + 1;
+        double rj_c;
+        b.q = anchored_quat(row, an.aw, an.ax, an.ay, an.az, static_cast<double>(n) * std::fabs(h),
+                            b.q[0], b.q[1], b.q[2], b.q[3], rj_c);
+        if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
+        an.n = n;
+        if (p.torqued) {
+            b.lx += hk * p.tx; b.ly += hk * p.ty; b.lz += hk * p.tz;
+        }
+    }
+    b.m = quat_to_mat(b.q[0], b.q[1], b.q[2], b.q[3]);
+}
+
 // Body i of exact / exact4 alone from step s_begin on, samples from row j on (the sparse path of
 // advance_exact_range, tile 1): its state, anchor and flow-constant validity in locals for the
-// whole block (the arrays written when a sample is due and at the end), the step exactly
-// advance_exact_range's. The flow constants are recomputed from the anchor on the first step
-// (a pure function of it, so a start at s_begin > 1 continues bit for bit). Returns the samples
-// written; fail_step the step at which the state went bad (-1 if none).
+// whole block (the arrays written when a sample is due and at the end). The flow constants are
+// recomputed from the anchor on the first step (a pure function of it, so a start at s_begin > 1
+// continues bit for bit). Returns the samples written; fail_step the step at which the state
+// went bad (-1 if none).
 template <int METHOD>
 i64 exact_single(const FreeArgs& a, i64 i, double* row, i64 s_begin, i64 j, i64& fail_step) {
     const double dt = a.dt;
     const double w1 = yoshida_w1(), w0 = yoshida_w0();
-    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
-    V3<double> R = a.rotation;
-    V2<double> a_q = a.a_q, a_l = a.a_l;
-    V1<i64> a_n = a.a_n;
-    V1<double> a_dt = a.a_dt;
-    const double im = a.inv_mass[i];
-    const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
-    const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
-    const double k0 = a.inv_inertia(i, 0), k1 = a.inv_inertia(i, 1), k2 = a.inv_inertia(i, 2);
-    const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
-    const int n_sub = (METHOD == METHOD_EXACT4 && torqued) ? 3 : 1;
-    double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
-    double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
-    double lx = L(i, 0), ly = L(i, 1), lz = L(i, 2);
-    double qw = Q(i, 0), qx = Q(i, 1), qy = Q(i, 2), qz = Q(i, 3);
-    double aw = a_q(i, 0), ax = a_q(i, 1), ay = a_q(i, 2), az = a_q(i, 3);
-    double al0 = a_l(i, 0), al1 = a_l(i, 1), al2 = a_l(i, 2);
-    i64 an = a_n[i];
-    double adt = a_dt[i];
+    Body<double> b = load_body<double>(a, i, true);
+    const BodyParams<double> p = load_params<double>(a, i);
+    const double kmax_dt = kmax_dt_of(p, dt);
+    Anchor an = load_anchor(a, i);
     bool row_ok = false;
-    Mat3 m{};
-    bool stepped = false;
-    auto store = [&]() {
-        pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-        mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
-        L(i, 0) = lx; L(i, 1) = ly; L(i, 2) = lz;
-        Q(i, 0) = qw; Q(i, 1) = qx; Q(i, 2) = qy; Q(i, 3) = qz;
-        store_mat(R, i, m);
-    };
+    SampleClock clock(a, s_begin);
     fail_step = -1;
     for (i64 s = s_begin; s <= a.n_steps; ++s) {
-        flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
-        for (int sub = 0; sub < n_sub; ++sub) {
-            double h = dt;
-            if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
-            const double hk = 0.5 * h;
-            if (torqued) {
-                lx += hk * tx; ly += hk * ty; lz += hk * tz;
-            }
-            if (!anchor_holds(an, adt, al0, al1, al2, h, lx, ly, lz)) {
-                aw = qw; ax = qx; ay = qy; az = qz;
-                al0 = lx; al1 = ly; al2 = lz;
-                an = 0;
-                adt = h;
-                row_ok = false;
-            }
-            if (!row_ok) {
-                anchor_constants(row, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h);
-                row_ok = true;
-            }
-            const i64 n = an + 1;
-            double rj_c;
-            const Quat q = anchored_quat(row, aw, ax, ay, az, static_cast<double>(n) * std::fabs(h),
-                                         qw, qx, qy, qz, rj_c);
-            qw = q[0]; qx = q[1]; qy = q[2]; qz = q[3];
-            if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
-            an = n;
-            if (torqued) {
-                lx += hk * tx; ly += hk * ty; lz += hk * tz;
-            }
-        }
-        m = quat_to_mat(qw, qx, qy, qz);
-        stepped = true;
-        const double chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
-        if (!(std::isfinite(chk) && turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m))) {
+        exact_step<METHOD>(b, p, an, row, row_ok, dt, w1, w0);
+        bool ok[1];
+        if (!step_ok(ok, dt, b, p, kmax_dt)) {
             fail_step = s;
             break;
         }
-        if (sample_due(a, s)) {
-            store();
+        if (clock.due(s)) {
+            store_body(a, i, b, true);
             sample<METHOD>(a, j, i);
             j += 1;
         }
     }
-    if (stepped) store();
-    a_q(i, 0) = aw; a_q(i, 1) = ax; a_q(i, 2) = ay; a_q(i, 3) = az;
-    a_l(i, 0) = al0; a_l(i, 1) = al1; a_l(i, 2) = al2;
-    a_n[i] = an;
-    a_dt[i] = adt;
+    store_body(a, i, b, true);
+    store_anchor(a, i, an);
     return j;
 }
+
 
 // ---- exact / exact4, W torque-free bodies in the lanes of V ----------------------------------
 //
@@ -1075,16 +688,10 @@ template <int METHOD, class V, class M = mask_of<V>>
 inline bool exact_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
     constexpr int W = lanes_of<V>();
     const double dt = a.dt, h = dt;
-    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
-    V3<double> R = a.rotation;
+    V2<double> L = a.angular_momentum, Q = a.quat_wxyz;
     V2<double> a_q = a.a_q, a_l = a.a_l;
     V1<i64> a_n = a.a_n;
     V1<double> a_dt = a.a_dt;
-    auto ld = [i](V2<double> v, int c) {
-        V r;
-        for (int l = 0; l < W; ++l) r[l] = v(i + l, c);
-        return r;
-    };
     if (a.n_steps < 1) return false;
     // the first step's anchor of each lane (exact_single's, kept for the call) and its constants
     double rows[W][N_FLOW];
@@ -1115,58 +722,34 @@ inline bool exact_lanes(const FreeArgs& a, i64 i, i64 j_out[], i64 fail_out[]) {
     gather_flow(f, rows);
     double rjc[W];
     for (int l = 0; l < W; ++l) rjc[l] = rows[l][FC_RJC];
-    V im;
-    for (int l = 0; l < W; ++l) im[l] = a.inv_mass[i + l];
-    const V fx = ld(a.force_world, 0), fy = ld(a.force_world, 1), fz = ld(a.force_world, 2);
-    const V k0 = ld(a.inv_inertia, 0), k1 = ld(a.inv_inertia, 1), k2 = ld(a.inv_inertia, 2);
-    const V kmax_dt = vpymax(k0, vpymax(k1, k2)) * dt;
-    const double lim = free_constants.max_rotation_per_step_rad;
-    const double lim2 = lim * lim;
+    Body<V> b = load_body<V>(a, i, true);
+    const BodyParams<V> p = load_params<V>(a, i);
+    const V kmax_dt = kmax_dt_of(p, dt);
     const double habs = std::fabs(h);
-    const double hh_flight = 0.5 * dt * dt;
-    V x = ld(pos, 0), y = ld(pos, 1), z = ld(pos, 2);
-    V px = ld(mom, 0), py = ld(mom, 1), pz = ld(mom, 2);
-    const V lx = ld(L, 0), ly = ld(L, 1), lz = ld(L, 2);
-    QV<V> q = {ld(Q, 0), ld(Q, 1), ld(Q, 2), ld(Q, 3)};
-    V m[9];
     auto store = [&]() {
+        store_body(a, i, b, true);
         for (int l = 0; l < W; ++l) {
-            const i64 b = i + l;
-            pos(b, 0) = x[l]; pos(b, 1) = y[l]; pos(b, 2) = z[l];
-            mom(b, 0) = px[l]; mom(b, 1) = py[l]; mom(b, 2) = pz[l];
-            Q(b, 0) = q.w[l]; Q(b, 1) = q.x[l]; Q(b, 2) = q.y[l]; Q(b, 3) = q.z[l];
-            for (int c = 0; c < 9; ++c) R.row(b)[c] = m[c][l];
-            a_q(b, 0) = aw[l]; a_q(b, 1) = ax[l]; a_q(b, 2) = ay[l]; a_q(b, 3) = az[l];
-            a_l(b, 0) = al[l][0]; a_l(b, 1) = al[l][1]; a_l(b, 2) = al[l][2];
-            a_n[b] = static_cast<i64>(nf[l]);
-            a_dt[b] = adt[l];
+            const i64 k = i + l;
+            a_q(k, 0) = aw[l]; a_q(k, 1) = ax[l]; a_q(k, 2) = ay[l]; a_q(k, 3) = az[l];
+            a_l(k, 0) = al[l][0]; a_l(k, 1) = al[l][1]; a_l(k, 2) = al[l][2];
+            a_n[k] = static_cast<i64>(nf[l]);
+            a_dt[k] = adt[l];
         }
     };
     i64 j = 0;
     bool ok[W];
     for (int l = 0; l < W; ++l) ok[l] = true;
-    SampleClock clock(a);
+    SampleClock clock(a, 1);
     i64 s = 1;
     for (; s <= a.n_steps; ++s) {
-        // flight_exact
-        const V hf = hh_flight * im;
-        x = x + (dt * px * im + hf * fx);
-        y = y + (dt * py * im + hf * fy);
-        z = z + (dt * pz * im + hf * fz);
-        px = px + dt * fx; py = py + dt * fy; pz = pz + dt * fz;
+        flight_exact(dt, p.im, b.x, b.y, b.z, b.px, b.py, b.pz, p.fx, p.fy, p.fz);
         // anchored_quat at n |h|
         nf = nf + 1.0;
         V cw, c0, c1, c2;
         flow_eval_lanes(f, rows, rjc, nf * habs, cw, c0, c1, c2);
-        const QV<V> r = qmul2(aw, ax, ay, az, cw, c0, c1, c2);
-        V sc = 1.0 / vsqrt(r.w * r.w + r.x * r.x + r.y * r.y + r.z * r.z);
-        const M flip = r.w * q.w + r.x * q.x + r.y * q.y + r.z * q.z < 0.0;
-        sc = flip ? -sc : sc;
-        q = {r.w * sc, r.x * sc, r.y * sc, r.z * sc};
-        mat2(q, m);
-        if (!lanes_ok(ok, dt, x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1], m,
-                      lx, ly, lz, k0, k1, k2, kmax_dt, lim2))
-            break;
+        b.q = anchored_turn(aw, ax, ay, az, cw, c0, c1, c2, b.q);
+        b.m = quat_to_mat(b.q[0], b.q[1], b.q[2], b.q[3]);
+        if (!step_ok(ok, dt, b, p, kmax_dt)) break;
         if (clock.due(s)) {
             store();
             for (int l = 0; l < W; ++l) sample<METHOD>(a, j, i + l);
@@ -1198,8 +781,7 @@ __attribute__((target("avx2"), flatten, noinline)) bool exact_lanes4(const FreeA
 }
 #endif
 
-// The kernel of exact / exact4: advance_range's loops with the exact step written out
-// (integrators.step_body, _strang_exact and drift_exact_anchored, operation for operation).
+// The kernel of exact / exact4: advance_range's loops with exact_step.
 // The flow constants of each body of a tile are computed from its anchor on its first step in
 // this call (a pure function of the anchor: the same in every split).
 template <int METHOD>
@@ -1210,11 +792,6 @@ FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
     const double w1 = yoshida_w1(), w0 = yoshida_w0();
     std::vector<double> fc(static_cast<size_t>(tile * N_FLOW));
     std::unique_ptr<bool[]> fc_ok(new bool[static_cast<size_t>(tile)]());
-    V2<double> pos = a.position, mom = a.linear_momentum, L = a.angular_momentum, Q = a.quat_wxyz;
-    V3<double> R = a.rotation;
-    V2<double> a_q = a.a_q, a_l = a.a_l;
-    V1<i64> a_n = a.a_n;
-    V1<double> a_dt = a.a_dt;
     if (tile == 1) {  // sparse samples: torque-free bodies W at a time, the others one by one
         auto collect = [&](i64 b, i64 j, i64 fs) {
             if (fs >= 0 && (res.bad_step < 0 || fs < res.bad_step)) {
@@ -1261,63 +838,16 @@ FreeResult advance_exact_range(const FreeArgs& a, i64 b0, i64 b1) {
             bool ok = true;
             for (i64 i = t0; i < t1; ++i) {
                 const i64 r = i - t0;
-                double* row = fc.data() + r * N_FLOW;
-                // translation: exact for a constant force (integrators.step_body)
-                const double im = a.inv_mass[i];
-                const double fx = a.force_world(i, 0), fy = a.force_world(i, 1), fz = a.force_world(i, 2);
-                const double tx = a.torque_world(i, 0), ty = a.torque_world(i, 1), tz = a.torque_world(i, 2);
-                double x = pos(i, 0), y = pos(i, 1), z = pos(i, 2);
-                double px = mom(i, 0), py = mom(i, 1), pz = mom(i, 2);
-                flight_exact(dt, im, x, y, z, px, py, pz, fx, fy, fz);
-                pos(i, 0) = x; pos(i, 1) = y; pos(i, 2) = z;
-                mom(i, 0) = px; mom(i, 1) = py; mom(i, 2) = pz;
-                // rotation: Strang kick(h/2) flow(h) kick(h/2), with torque under exact4
-                // Yoshida's three of them
-                const double k0 = a.inv_inertia(i, 0), k1 = a.inv_inertia(i, 1), k2 = a.inv_inertia(i, 2);
-                double lx = L(i, 0), ly = L(i, 1), lz = L(i, 2);
-                double qw = Q(i, 0), qx = Q(i, 1), qy = Q(i, 2), qz = Q(i, 3);
-                const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
-                const int n_sub = (METHOD == METHOD_EXACT4 && torqued) ? 3 : 1;
-                for (int sub = 0; sub < n_sub; ++sub) {
-                    double h = dt;
-                    if (n_sub == 3) h = sub == 1 ? w0 * dt : w1 * dt;
-                    const double hk = 0.5 * h;
-                    if (torqued) {
-                        lx += hk * tx; ly += hk * ty; lz += hk * tz;
-                    }
-                    // the anchor (drift_exact_anchored): kept while L is bitwise the anchor's and
-                    // the step is the same
-                    if (!anchor_holds(a_n[i], a_dt[i], a_l(i, 0), a_l(i, 1), a_l(i, 2), h, lx, ly, lz)) {
-                        a_q(i, 0) = qw; a_q(i, 1) = qx; a_q(i, 2) = qy; a_q(i, 3) = qz;
-                        a_l(i, 0) = lx; a_l(i, 1) = ly; a_l(i, 2) = lz;
-                        a_n[i] = 0;
-                        a_dt[i] = h;
-                        fc_ok[r] = false;
-                    }
-                    const double aw = a_q(i, 0), ax = a_q(i, 1), ay = a_q(i, 2), az = a_q(i, 3);
-                    if (!fc_ok[r]) {
-                        anchor_constants(row, aw, ax, ay, az, lx, ly, lz, k0, k1, k2, h);
-                        fc_ok[r] = true;
-                    }
-                    const i64 n = a_n[i] + 1;
-                    double rj_c;
-                    const Quat q = anchored_quat(row, aw, ax, ay, az,
-                                                 static_cast<double>(n) * std::fabs(h), qw, qx, qy,
-                                                 qz, rj_c);
-                    qw = q[0]; qx = q[1]; qy = q[2]; qz = q[3];
-                    if (rj_c >= 0.0 && row[FC_RJC] < 0.0) row[FC_RJC] = rj_c;
-                    a_n[i] = n;
-                    if (torqued) {
-                        lx += hk * tx; ly += hk * ty; lz += hk * tz;
-                    }
-                }
-                L(i, 0) = lx; L(i, 1) = ly; L(i, 2) = lz;
-                Q(i, 0) = qw; Q(i, 1) = qx; Q(i, 2) = qy; Q(i, 3) = qz;
-                const Mat3 m = quat_to_mat(qw, qx, qy, qz);
-                store_mat(R, i, m);
-                // non-finite check and turn bound (integrators.step_body)
-                const double chk = x + y + z + px + py + pz + lx + ly + lz + m[0] + m[4] + m[8] + m[1];
-                ok = std::isfinite(chk) && turn_within_bound_m(dt, k0, k1, k2, lx, ly, lz, m);
+                Body<double> b = load_body<double>(a, i, true);
+                const BodyParams<double> p = load_params<double>(a, i);
+                Anchor an = load_anchor(a, i);
+                bool row_ok = fc_ok[r];
+                exact_step<METHOD>(b, p, an, fc.data() + r * N_FLOW, row_ok, dt, w1, w0);
+                fc_ok[r] = row_ok;
+                store_body(a, i, b, true);
+                store_anchor(a, i, an);
+                bool ok1[1];
+                ok = step_ok(ok1, dt, b, p, kmax_dt_of(p, dt));
                 if (!ok) {
                     if (res.bad_step < 0 || s < res.bad_step) {
                         res.bad_step = s;

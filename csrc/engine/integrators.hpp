@@ -5,9 +5,9 @@
 // frame; inv_inertia is the diagonal of I_body^-1 (principal axes). Drift functions update
 // quat_wxyz[i] and rotation[i] of the state arrays in place and keep the two consistent (except
 // under the notes' own schemes with orthonormalization off, where the integrator's R is the point
-// of interest). Every integrator's stages are written out here, inline, so that the free-body
-// kernel (free.cpp, templated on the integrator) and the contact step compile them into their
-// loops; the non-inline entry points the contact step calls (drift_rotation,
+// of interest). Every integrator's stages are written out here, inline, once over the value type
+// (a Body<T>, T = double or a lane vector of lanes.hpp), so that the free-body kernel (free.cpp,
+// templated on the integrator and T) and the contact step compile them into their loops; the non-inline entry points the contact step calls (drift_rotation,
 // drift_exact_anchored, sync_quat, turn_within_bound, write_sample) are in integrators.cpp.
 //
 // Derivations
@@ -115,135 +115,179 @@ inline void store_quat(V2<double> quat_wxyz, i64 i, double w, double x, double y
     q[0] = w; q[1] = x; q[2] = y; q[3] = z;
 }
 
-// Exact flows of H_k = Lb_k^2 / (2 I_k) over time s, given s/I_k: rotate the body about its own
-// axis k by theta = s Lb_k / I_k and Lb by -theta. Half-angle sine/cosine for the quaternion, the
-// full angle's from the double-angle formulas: one sin/cos pair per sub-step.
-inline void flow_x(double& w, double& x, double& y, double& z, double& b0, double& b1, double& b2,
-                   double s_inv_i) {
-    const double th = s_inv_i * b0;
-    const double ch = std::cos(0.5 * th), sh = std::sin(0.5 * th);
-    const double c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
-    const double nw = ch * w - sh * x, nx = ch * x + sh * w, ny = ch * y + sh * z, nz = ch * z - sh * y;
-    const double n1 = c * b1 + sn * b2, n2 = c * b2 - sn * b1;
-    w = nw; x = nx; y = ny; z = nz; b1 = n1; b2 = n2;
+// ---- the stages over one body's state in registers -------------------------------------------
+//
+// T = double for one body, or a lane vector of lanes.hpp (d2, d4) for a body in each lane. Every
+// stage is written once, over T: a lane does the one body's operations in its order, so its bits
+// are the one body's whatever the width. A branch on a per-body condition is written
+// `if (any(c)) { ...; v = c ? new : v; }`: for double a plain branch (the select folds away), for
+// a vector the branch's values taken in the lanes where c holds.
+
+// A body's changing state: position and linear momentum, angular momentum L (world), q (wxyz)
+// and R (row-major). Under seed q is not current (sync_quat_seed derives it from R).
+template <class T>
+struct Body {
+    T x, y, z, px, py, pz, lx, ly, lz;
+    QuatT<T> q;
+    Mat3T<T> m;
+};
+
+// A body's constants over a call: inverse mass, world force and torque, inverse principal
+// moments k = 1/I_body; torqued: some torque component is nonzero.
+template <class T>
+struct BodyParams {
+    T im, fx, fy, fz, tx, ty, tz, k0, k1, k2;
+    mask_of<T> torqued;
+};
+
+// Body i's attitude and L (and its inverse moments) from the state arrays; the rest zero.
+inline void load_rotation(Body<double>& b, BodyParams<double>& p, V2<double> quat_wxyz,
+                          V3<double> rotation, V2<double> angular_momentum,
+                          V2<double> inv_inertia, i64 i) {
+    b.lx = angular_momentum(i, 0); b.ly = angular_momentum(i, 1); b.lz = angular_momentum(i, 2);
+    b.q = {quat_wxyz(i, 0), quat_wxyz(i, 1), quat_wxyz(i, 2), quat_wxyz(i, 3)};
+    b.m = load_mat(rotation, i);
+    p.k0 = inv_inertia(i, 0); p.k1 = inv_inertia(i, 1); p.k2 = inv_inertia(i, 2);
 }
 
-inline void flow_y(double& w, double& x, double& y, double& z, double& b0, double& b1, double& b2,
-                   double s_inv_i) {
-    const double th = s_inv_i * b1;
-    const double ch = std::cos(0.5 * th), sh = std::sin(0.5 * th);
-    const double c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
-    const double nw = ch * w - sh * y, nx = ch * x - sh * z, ny = ch * y + sh * w, nz = ch * z + sh * x;
-    const double n0 = c * b0 - sn * b2, n2 = c * b2 + sn * b0;
-    w = nw; x = nx; y = ny; z = nz; b0 = n0; b2 = n2;
-}
-
-inline void flow_z(double& w, double& x, double& y, double& z, double& b0, double& b1, double& b2,
-                   double s_inv_i) {
-    const double th = s_inv_i * b2;
-    const double ch = std::cos(0.5 * th), sh = std::sin(0.5 * th);
-    const double c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
-    const double nw = ch * w - sh * z, nx = ch * x + sh * y, ny = ch * y - sh * x, nz = ch * z + sh * w;
-    const double n0 = c * b0 + sn * b1, n1 = c * b1 - sn * b0;
-    w = nw; x = nx; y = ny; z = nz; b0 = n0; b1 = n1;
+// Exact flow of H_k = Lb_k^2 / (2 I_k) over time s about body axis AX (0, 1, 2), given
+// s_inv_i = s/I_k: rotate the body about its own axis k by theta = s Lb_k / I_k and Lb by -theta.
+// Half-angle sine/cosine for the quaternion, the full angle's from the double-angle formulas: one
+// sin/cos pair per sub-step.
+template <int AX, class T>
+inline void flow(QuatT<T>& q, T& b0, T& b1, T& b2, T s_inv_i) {
+    const T th = s_inv_i * (AX == 0 ? b0 : AX == 1 ? b1 : b2);
+    T sh, ch;
+    vsincos(0.5 * th, sh, ch);
+    const T c = ch * ch - sh * sh, sn = 2.0 * ch * sh;
+    const T w = q[0], x = q[1], y = q[2], z = q[3];
+    if (AX == 0) {
+        q = {ch * w - sh * x, ch * x + sh * w, ch * y + sh * z, ch * z - sh * y};
+        const T n1 = c * b1 + sn * b2, n2 = c * b2 - sn * b1;
+        b1 = n1; b2 = n2;
+    } else if (AX == 1) {
+        q = {ch * w - sh * y, ch * x - sh * z, ch * y + sh * w, ch * z + sh * x};
+        const T n0 = c * b0 - sn * b2, n2 = c * b2 + sn * b0;
+        b0 = n0; b2 = n2;
+    } else {
+        q = {ch * w - sh * z, ch * x + sh * y, ch * y - sh * x, ch * z + sh * w};
+        const T n0 = c * b0 + sn * b1, n1 = c * b1 - sn * b0;
+        b0 = n0; b1 = n1;
+    }
 }
 
 // The notes' drift: R += h [omega]x R with omega = R I^-1 R^T L, then orthonormalize.
 // (The quaternion is derived from R only when logged: sync_quat.)
-inline void drift_seed(int ortho, V2<double> quat_wxyz, V3<double> rotation,
-                       V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
-    (void)quat_wxyz;
-    const double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
-    const double* ii = inv_inertia.row(i);
-    const Mat3 m = load_mat(rotation, i);
-    const Vec3 o = omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz);
-    const double ox = o[0], oy = o[1], oz = o[2];
-    const double m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5],
-                 m20 = m[6], m21 = m[7], m22 = m[8];
+template <class T>
+inline void drift_seed(int ortho, Body<T>& b, const BodyParams<T>& p, double h) {
+    const Vec3T<T> o = omega_world(b.m, p.k0, p.k1, p.k2, b.lx, b.ly, b.lz);
+    const T ox = o[0], oy = o[1], oz = o[2];
+    const T m00 = b.m[0], m01 = b.m[1], m02 = b.m[2], m10 = b.m[3], m11 = b.m[4], m12 = b.m[5],
+            m20 = b.m[6], m21 = b.m[7], m22 = b.m[8];
     // R <- R + h [omega]x R
-    Mat3 n = {m00 + h * (-oz * m10 + oy * m20), m01 + h * (-oz * m11 + oy * m21),
-              m02 + h * (-oz * m12 + oy * m22),
-              m10 + h * (oz * m00 - ox * m20), m11 + h * (oz * m01 - ox * m21),
-              m12 + h * (oz * m02 - ox * m22),
-              m20 + h * (-oy * m00 + ox * m10), m21 + h * (-oy * m01 + ox * m11),
-              m22 + h * (-oy * m02 + ox * m12)};
+    Mat3T<T> n = {m00 + h * (-oz * m10 + oy * m20), m01 + h * (-oz * m11 + oy * m21),
+                  m02 + h * (-oz * m12 + oy * m22),
+                  m10 + h * (oz * m00 - ox * m20), m11 + h * (oz * m01 - ox * m21),
+                  m12 + h * (oz * m02 - ox * m22),
+                  m20 + h * (-oy * m00 + ox * m10), m21 + h * (-oy * m01 + ox * m11),
+                  m22 + h * (-oy * m02 + ox * m12)};
     if (ortho == ORTHO_POLAR)
         n = polar(n);
     else if (ortho == ORTHO_GRAM_SCHMIDT)
         n = gram_schmidt(n);
-    store_mat(rotation, i, n);
+    b.m = n;
 }
 
 // The notes' drift on the quaternion: q += h/2 (0, omega) (x) q, normalized unless ortho is none.
 // Without normalization R = |q|^2 Q and omega = (R I_body R^T)^-1 L (header comment).
-inline void drift_seed_quat(int ortho, V2<double> quat_wxyz, V3<double> rotation,
-                            V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
-    const double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
-    const double* ii = inv_inertia.row(i);
-    double w = quat_wxyz(i, 0), x = quat_wxyz(i, 1), y = quat_wxyz(i, 2), z = quat_wxyz(i, 3);
-    const Mat3 m = load_mat(rotation, i);
-    const Vec3 o = ortho == ORTHO_NONE ? omega_world_stretched(m, ii[0], ii[1], ii[2], lx, ly, lz)
-                                       : omega_world(m, ii[0], ii[1], ii[2], lx, ly, lz);
-    const Quat d = quat_mul(0.0, o[0], o[1], o[2], w, x, y, z);
+template <class T>
+inline void drift_seed_quat(int ortho, Body<T>& b, const BodyParams<T>& p, double h) {
+    T w = b.q[0], x = b.q[1], y = b.q[2], z = b.q[3];
+    const Vec3T<T> o = ortho == ORTHO_NONE
+                           ? omega_world_stretched(b.m, p.k0, p.k1, p.k2, b.lx, b.ly, b.lz)
+                           : omega_world(b.m, p.k0, p.k1, p.k2, b.lx, b.ly, b.lz);
+    const QuatT<T> d = quat_mul(splat_v<T>(0.0), o[0], o[1], o[2], w, x, y, z);
     w = w + 0.5 * h * d[0]; x = x + 0.5 * h * d[1]; y = y + 0.5 * h * d[2]; z = z + 0.5 * h * d[3];
-    if (ortho != ORTHO_NONE) {
-        const Quat q = normalize4(w, x, y, z);
-        w = q[0]; x = q[1]; y = q[2]; z = q[3];
-    }
-    store_quat(quat_wxyz, i, w, x, y, z);
-    store_mat(rotation, i, quat_to_mat(w, x, y, z));
+    b.q = ortho != ORTHO_NONE ? normalize4(w, x, y, z) : QuatT<T>{w, x, y, z};
+    b.m = quat_to_mat(b.q[0], b.q[1], b.q[2], b.q[3]);
 }
 
 // Strang splitting 1(h/2) 2(h/2) 3(h) 2(h/2) 1(h/2) of the free rotation into exact axis rotations.
-inline void drift_splitting(int ortho, V2<double> quat_wxyz, V3<double> rotation,
-                            V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
-    (void)ortho;
-    const double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
-    const double* ii = inv_inertia.row(i);
-    double w = quat_wxyz(i, 0), x = quat_wxyz(i, 1), y = quat_wxyz(i, 2), z = quat_wxyz(i, 3);
-    const Mat3 m = load_mat(rotation, i);
+template <class T>
+inline void drift_splitting(Body<T>& b, const BodyParams<T>& p, double h) {
+    const Mat3T<T>& m = b.m;
     // body-frame angular momentum Lb = R^T L
-    double b0 = m[0] * lx + m[3] * ly + m[6] * lz;
-    double b1 = m[1] * lx + m[4] * ly + m[7] * lz;
-    double b2 = m[2] * lx + m[5] * ly + m[8] * lz;
+    T b0 = m[0] * b.lx + m[3] * b.ly + m[6] * b.lz;
+    T b1 = m[1] * b.lx + m[4] * b.ly + m[7] * b.lz;
+    T b2 = m[2] * b.lx + m[5] * b.ly + m[8] * b.lz;
     const double hh = 0.5 * h;
-    flow_x(w, x, y, z, b0, b1, b2, hh * ii[0]);
-    flow_y(w, x, y, z, b0, b1, b2, hh * ii[1]);
-    flow_z(w, x, y, z, b0, b1, b2, h * ii[2]);
-    flow_y(w, x, y, z, b0, b1, b2, hh * ii[1]);
-    flow_x(w, x, y, z, b0, b1, b2, hh * ii[0]);
-    const Quat q = normalize4(w, x, y, z);
-    store_quat(quat_wxyz, i, q[0], q[1], q[2], q[3]);
-    store_mat(rotation, i, quat_to_mat(q[0], q[1], q[2], q[3]));
+    QuatT<T> q = b.q;
+    flow<0>(q, b0, b1, b2, hh * p.k0);
+    flow<1>(q, b0, b1, b2, hh * p.k1);
+    flow<2>(q, b0, b1, b2, h * p.k2);
+    flow<1>(q, b0, b1, b2, hh * p.k1);
+    flow<0>(q, b0, b1, b2, hh * p.k0);
+    b.q = normalize4(q[0], q[1], q[2], q[3]);
+    b.m = quat_to_mat(b.q[0], b.q[1], b.q[2], b.q[3]);
 }
 
-// q (x) exp(v): q followed by the body-frame rotation by |v| about v (series below 1e-4 rad).
-inline Quat mul_exp(double w, double x, double y, double z, double vx, double vy, double vz) {
-    const double a2 = vx * vx + vy * vy + vz * vz;
-    double c, sf;
-    if (a2 < 1e-8) {
-        c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0;
-        sf = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0;  // sin(a/2) / a
-    } else {
-        const double a = std::sqrt(a2);
-        c = std::cos(0.5 * a);
-        sf = std::sin(0.5 * a) / a;
+// The coefficients of exp(u) and exp(v), the body-frame rotations by |u| about u and |v| about v:
+// c = cos(|u|/2), s = sin(|u|/2) / |u| (the series below 1e-4 rad), so q (x) exp(u) =
+// q (x) (c, s u). Both pairs first, each lane's branch apart, the sine-cosine calls back to back
+// (the lanes' state live across them is spilled and reloaded once, not per call).
+template <class T>
+inline void exp_coefs(const Vec3T<T>& u, const Vec3T<T>& v, T& cu, T& su, T& cv, T& sv) {
+    constexpr int W = lanes_of<T>();
+    const T a2u = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    const T a2v = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    double cc[2 * W], ss[2 * W], s2s[2 * W];
+    for (int l = 0; l < W; ++l) {
+        s2s[l] = lane(a2u, l);
+        s2s[W + l] = lane(a2v, l);
     }
-    return quat_mul(w, x, y, z, c, sf * vx, sf * vy, sf * vz);
+    for (int l = 0; l < 2 * W; ++l) {
+        const double a2 = s2s[l];
+        if (a2 < 1e-8) {
+            cc[l] = 1.0 - a2 / 8.0 + a2 * a2 / 384.0;
+            ss[l] = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0;  // sin(a/2) / a
+        } else {
+            const double a = std::sqrt(a2);
+            cc[l] = std::cos(0.5 * a);
+            ss[l] = std::sin(0.5 * a) / a;
+        }
+    }
+    for (int l = 0; l < W; ++l) {
+        set_lane(cu, l, cc[l]); set_lane(su, l, ss[l]);
+        set_lane(cv, l, cc[W + l]); set_lane(sv, l, ss[W + l]);
+    }
 }
 
 // R(q)^T tau for a unit q.
-inline Vec3 torque_body(double w, double x, double y, double z, double tx, double ty, double tz) {
-    const Mat3 m = quat_to_mat(w, x, y, z);
+template <class T>
+inline Vec3T<T> torque_body(const QuatT<T>& q, T tx, T ty, T tz) {
+    const Mat3T<T> m = quat_to_mat(q[0], q[1], q[2], q[3]);
     return {m[0] * tx + m[3] * ty + m[6] * tz, m[1] * tx + m[4] * ty + m[7] * tz,
             m[2] * tx + m[5] * ty + m[8] * tz};
 }
 
 // dLb/dt = Lb x omega + tau_body, omega = I^-1 Lb (Euler's equations, body frame).
-inline Vec3 euler_rhs(double b0, double b1, double b2, double k0, double k1, double k2, double t0,
-                      double t1, double t2) {
-    const double w0 = k0 * b0, w1 = k1 * b1, w2 = k2 * b2;
+template <class T>
+inline Vec3T<T> euler_rhs(T b0, T b1, T b2, T k0, T k1, T k2, T t0, T t1, T t2) {
+    const T w0 = k0 * b0, w1 = k1 * b1, w2 = k2 * b2;
     return {b1 * w2 - b2 * w1 + t0, b2 * w0 - b0 * w2 + t1, b0 * w1 - b1 * w0 + t2};
+}
+
+// One classical RK4 stage attitude q + c (q_s (x) (0, w/2)) for the torque (the torqued lanes'),
+// the torque in the body frame e at it taken in those lanes.
+template <class T>
+inline QuatT<T> stage_attitude(const QuatT<T>& q, const QuatT<T>& q_s, T w0, T w1, T w2, double c,
+                               const BodyParams<T>& p, T& e0, T& e1, T& e2) {
+    const QuatT<T> k = quat_mul(q_s[0], q_s[1], q_s[2], q_s[3], splat_v<T>(0.0), 0.5 * w0,
+                                0.5 * w1, 0.5 * w2);
+    const QuatT<T> r = normalize4(q[0] + c * k[0], q[1] + c * k[1], q[2] + c * k[2], q[3] + c * k[3]);
+    const Vec3T<T> e = torque_body(r, p.tx, p.ty, p.tz);
+    e0 = p.torqued ? e[0] : e0; e1 = p.torqued ? e[1] : e1; e2 = p.torqued ? e[2] : e2;
+    return r;
 }
 
 // Classical RK4 on Euler's equations for the body momentum Lb, the attitude by the fourth-order
@@ -259,91 +303,127 @@ inline Vec3 euler_rhs(double b0, double b1, double b2, double k0, double k1, dou
 //     q' = q exp(h B1) exp(h B2),  B1 = w1/4 + (w2 + w3)/6 - w4/12,  B2 = -w1/12 + (w2 + w3)/6 + w4/4
 // (Celledoni, Marthinsen & Owren, FGCS 19 (2003), CF4 for q' = q w(t)), then the turn taking
 // R(q')^T (L + h tau) to the direction of Lb'. The stage attitudes q_i only serve the torque.
+template <class T>
+inline void drift_rk4(Body<T>& b, const BodyParams<T>& p, double h) {
+    const T k0 = p.k0, k1 = p.k1, k2 = p.k2;
+    const QuatT<T> q = b.q;
+    Mat3T<T> m = b.m;
+    const T a0 = m[0] * b.lx + m[3] * b.ly + m[6] * b.lz;
+    const T a1 = m[1] * b.lx + m[4] * b.ly + m[7] * b.lz;
+    const T a2 = m[2] * b.lx + m[5] * b.ly + m[8] * b.lz;
+    const bool any_torqued = any(p.torqued);
+    const double hh = 0.5 * h;
+    // stage 1
+    const T zero = splat_v<T>(0.0);
+    T e0 = zero, e1 = zero, e2 = zero;
+    if (any_torqued) {
+        e0 = p.torqued ? m[0] * p.tx + m[3] * p.ty + m[6] * p.tz : zero;
+        e1 = p.torqued ? m[1] * p.tx + m[4] * p.ty + m[7] * p.tz : zero;
+        e2 = p.torqued ? m[2] * p.tx + m[5] * p.ty + m[8] * p.tz : zero;
+    }
+    const Vec3T<T> d1 = euler_rhs(a0, a1, a2, k0, k1, k2, e0, e1, e2);
+    const T w10 = k0 * a0, w11 = k1 * a1, w12 = k2 * a2;
+    // stage 2
+    T b0 = a0 + hh * d1[0], b1 = a1 + hh * d1[1], b2 = a2 + hh * d1[2];
+    QuatT<T> q2 = q, q3 = q;
+    if (any_torqued)  // classical stage attitude q2 = q + h/2 q'(q, w1)
+        q2 = stage_attitude(q, q, w10, w11, w12, hh, p, e0, e1, e2);
+    const Vec3T<T> d2 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
+    const T w20 = k0 * b0, w21 = k1 * b1, w22 = k2 * b2;
+    // stage 3
+    b0 = a0 + hh * d2[0]; b1 = a1 + hh * d2[1]; b2 = a2 + hh * d2[2];
+    if (any_torqued)  // q3 = q + h/2 q'(q2, w2)
+        q3 = stage_attitude(q, q2, w20, w21, w22, hh, p, e0, e1, e2);
+    const Vec3T<T> d3 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
+    const T w30 = k0 * b0, w31 = k1 * b1, w32 = k2 * b2;
+    // stage 4
+    b0 = a0 + h * d3[0]; b1 = a1 + h * d3[1]; b2 = a2 + h * d3[2];
+    if (any_torqued)  // q4 = q + h q'(q3, w3)
+        stage_attitude(q, q3, w30, w31, w32, h, p, e0, e1, e2);
+    const Vec3T<T> d4 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
+    const T w40 = k0 * b0, w41 = k1 * b1, w42 = k2 * b2;
+    const double g = h / 6.0;
+    const T n0 = a0 + g * (d1[0] + 2.0 * d2[0] + 2.0 * d3[0] + d4[0]);
+    const T n1 = a1 + g * (d1[1] + 2.0 * d2[1] + 2.0 * d3[1] + d4[1]);
+    const T n2 = a2 + g * (d1[2] + 2.0 * d2[2] + 2.0 * d3[2] + d4[2]);
+    // attitude: CF4, r = q (x) exp(u) (x) exp(v)
+    const double c1 = 1.0 / 4.0, c2 = 1.0 / 6.0, c3 = -1.0 / 12.0;
+    const Vec3T<T> u = {h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
+                        h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
+                        h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42)};
+    const Vec3T<T> v = {h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
+                        h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
+                        h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42)};
+    T cu, su, cv, sv;
+    exp_coefs(u, v, cu, su, cv, sv);
+    QuatT<T> r = quat_mul(q[0], q[1], q[2], q[3], cu, su * u[0], su * u[1], su * u[2]);
+    r = quat_mul(r[0], r[1], r[2], r[3], cv, sv * v[0], sv * v[1], sv * v[2]);
+    r = normalize4(r[0], r[1], r[2], r[3]);
+    // turn r so that R^T L_end is along Lb': the rotation c with c u = v (u, v unit), r <- r c^-1
+    const T ex = b.lx + h * p.tx, ey = b.ly + h * p.ty, ez = b.lz + h * p.tz;
+    m = quat_to_mat(r[0], r[1], r[2], r[3]);
+    T u0 = m[0] * ex + m[3] * ey + m[6] * ez;
+    T u1 = m[1] * ex + m[4] * ey + m[7] * ez;
+    T u2 = m[2] * ex + m[5] * ey + m[8] * ez;
+    const T nu = vsqrt(u0 * u0 + u1 * u1 + u2 * u2);
+    const T nv = vsqrt(n0 * n0 + n1 * n1 + n2 * n2);
+    const mask_of<T> turn = (nu > 0.0) & (nv > 0.0);
+    if (any(turn)) {
+        const T iu = 1.0 / nu, iv = 1.0 / nv;
+        u0 = u0 * iu; u1 = u1 * iu; u2 = u2 * iu;
+        const T v0 = n0 * iv, v1 = n1 * iv, v2 = n2 * iv;
+        const T cw = 1.0 + u0 * v0 + u1 * v1 + u2 * v2;
+        const T cx = u1 * v2 - u2 * v1, cy = u2 * v0 - u0 * v2, cz = u0 * v1 - u1 * v0;
+        const QuatT<T> t = quat_mul(r[0], r[1], r[2], r[3], cw, -cx, -cy, -cz);
+        for (int k = 0; k < 4; ++k) r[k] = turn ? t[k] : r[k];
+    }
+    b.q = normalize4(r[0], r[1], r[2], r[3]);
+    b.m = quat_to_mat(b.q[0], b.q[1], b.q[2], b.q[3]);
+}
+
+// The array forms (body i of the state arrays; the contact step's drift_rotation): the drift
+// d(b, p) of body i's attitude and L, q stored too unless with_q is false (seed: from R on demand).
+template <class D>
+inline void drift_arrays(D d, bool with_q, V2<double> quat_wxyz, V3<double> rotation,
+                         V2<double> angular_momentum, V2<double> inv_inertia, i64 i) {
+    Body<double> b{};
+    BodyParams<double> p{};
+    load_rotation(b, p, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
+    d(b, p);
+    if (with_q) store_quat(quat_wxyz, i, b.q[0], b.q[1], b.q[2], b.q[3]);
+    store_mat(rotation, i, b.m);
+}
+
+inline void drift_seed(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                       V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+    drift_arrays([&](Body<double>& b, BodyParams<double>& p) { drift_seed(ortho, b, p, h); },
+                 false, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
+}
+
+inline void drift_seed_quat(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                            V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+    drift_arrays([&](Body<double>& b, BodyParams<double>& p) { drift_seed_quat(ortho, b, p, h); },
+                 true, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
+}
+
+inline void drift_splitting(int ortho, V2<double> quat_wxyz, V3<double> rotation,
+                            V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h) {
+    (void)ortho;
+    drift_arrays([&](Body<double>& b, BodyParams<double>& p) { drift_splitting(b, p, h); }, true,
+                 quat_wxyz, rotation, angular_momentum, inv_inertia, i);
+}
+
 inline void drift_rk4(int ortho, V2<double> quat_wxyz, V3<double> rotation,
                       V2<double> angular_momentum, V2<double> inv_inertia, i64 i, double h,
                       double tx = 0.0, double ty = 0.0, double tz = 0.0) {
     (void)ortho;
-    const double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1), lz = angular_momentum(i, 2);
-    const double k0 = inv_inertia(i, 0), k1 = inv_inertia(i, 1), k2 = inv_inertia(i, 2);
-    double w = quat_wxyz(i, 0), x = quat_wxyz(i, 1), y = quat_wxyz(i, 2), z = quat_wxyz(i, 3);
-    Mat3 m = load_mat(rotation, i);
-    const double a0 = m[0] * lx + m[3] * ly + m[6] * lz;
-    const double a1 = m[1] * lx + m[4] * ly + m[7] * lz;
-    const double a2 = m[2] * lx + m[5] * ly + m[8] * lz;
-    const bool torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
-    const double hh = 0.5 * h;
-    // stage 1
-    double e0 = 0.0, e1 = 0.0, e2 = 0.0;
-    if (torqued) {
-        e0 = m[0] * tx + m[3] * ty + m[6] * tz;
-        e1 = m[1] * tx + m[4] * ty + m[7] * tz;
-        e2 = m[2] * tx + m[5] * ty + m[8] * tz;
-    }
-    const Vec3 d1 = euler_rhs(a0, a1, a2, k0, k1, k2, e0, e1, e2);
-    const double w10 = k0 * a0, w11 = k1 * a1, w12 = k2 * a2;
-    // stage 2
-    double b0 = a0 + hh * d1[0], b1 = a1 + hh * d1[1], b2 = a2 + hh * d1[2];
-    Quat q2{}, q3{};
-    if (torqued) {  // classical stage attitude q2 = q + h/2 q'(q, w1)
-        const Quat k1q = quat_mul(w, x, y, z, 0.0, 0.5 * w10, 0.5 * w11, 0.5 * w12);
-        q2 = normalize4(w + hh * k1q[0], x + hh * k1q[1], y + hh * k1q[2], z + hh * k1q[3]);
-        const Vec3 e = torque_body(q2[0], q2[1], q2[2], q2[3], tx, ty, tz);
-        e0 = e[0]; e1 = e[1]; e2 = e[2];
-    }
-    const Vec3 d2 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
-    const double w20 = k0 * b0, w21 = k1 * b1, w22 = k2 * b2;
-    // stage 3
-    b0 = a0 + hh * d2[0]; b1 = a1 + hh * d2[1]; b2 = a2 + hh * d2[2];
-    if (torqued) {  // q3 = q + h/2 q'(q2, w2)
-        const Quat k2q = quat_mul(q2[0], q2[1], q2[2], q2[3], 0.0, 0.5 * w20, 0.5 * w21, 0.5 * w22);
-        q3 = normalize4(w + hh * k2q[0], x + hh * k2q[1], y + hh * k2q[2], z + hh * k2q[3]);
-        const Vec3 e = torque_body(q3[0], q3[1], q3[2], q3[3], tx, ty, tz);
-        e0 = e[0]; e1 = e[1]; e2 = e[2];
-    }
-    const Vec3 d3 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
-    const double w30 = k0 * b0, w31 = k1 * b1, w32 = k2 * b2;
-    // stage 4
-    b0 = a0 + h * d3[0]; b1 = a1 + h * d3[1]; b2 = a2 + h * d3[2];
-    if (torqued) {  // q4 = q + h q'(q3, w3)
-        const Quat k3q = quat_mul(q3[0], q3[1], q3[2], q3[3], 0.0, 0.5 * w30, 0.5 * w31, 0.5 * w32);
-        const Quat q4 = normalize4(w + h * k3q[0], x + h * k3q[1], y + h * k3q[2], z + h * k3q[3]);
-        const Vec3 e = torque_body(q4[0], q4[1], q4[2], q4[3], tx, ty, tz);
-        e0 = e[0]; e1 = e[1]; e2 = e[2];
-    }
-    const Vec3 d4 = euler_rhs(b0, b1, b2, k0, k1, k2, e0, e1, e2);
-    const double w40 = k0 * b0, w41 = k1 * b1, w42 = k2 * b2;
-    const double g = h / 6.0;
-    const double n0 = a0 + g * (d1[0] + 2.0 * d2[0] + 2.0 * d3[0] + d4[0]);
-    const double n1 = a1 + g * (d1[1] + 2.0 * d2[1] + 2.0 * d3[1] + d4[1]);
-    const double n2 = a2 + g * (d1[2] + 2.0 * d2[2] + 2.0 * d3[2] + d4[2]);
-    // attitude: CF4
-    const double c1 = 1.0 / 4.0, c2 = 1.0 / 6.0, c3 = -1.0 / 12.0;
-    Quat q = mul_exp(w, x, y, z, h * (c1 * w10 + c2 * (w20 + w30) + c3 * w40),
-                     h * (c1 * w11 + c2 * (w21 + w31) + c3 * w41),
-                     h * (c1 * w12 + c2 * (w22 + w32) + c3 * w42));
-    q = mul_exp(q[0], q[1], q[2], q[3], h * (c3 * w10 + c2 * (w20 + w30) + c1 * w40),
-                h * (c3 * w11 + c2 * (w21 + w31) + c1 * w41),
-                h * (c3 * w12 + c2 * (w22 + w32) + c1 * w42));
-    q = normalize4(q[0], q[1], q[2], q[3]);
-    // turn q so that R^T L_end is along Lb': the rotation c with c u = v (u, v unit), q <- q c^-1
-    const double ex = lx + h * tx, ey = ly + h * ty, ez = lz + h * tz;
-    m = quat_to_mat(q[0], q[1], q[2], q[3]);
-    double u0 = m[0] * ex + m[3] * ey + m[6] * ez;
-    double u1 = m[1] * ex + m[4] * ey + m[7] * ez;
-    double u2 = m[2] * ex + m[5] * ey + m[8] * ez;
-    const double nu = std::sqrt(u0 * u0 + u1 * u1 + u2 * u2);
-    const double nv = std::sqrt(n0 * n0 + n1 * n1 + n2 * n2);
-    if (nu > 0.0 && nv > 0.0) {
-        const double iu = 1.0 / nu, iv = 1.0 / nv;
-        u0 = u0 * iu; u1 = u1 * iu; u2 = u2 * iu;
-        const double v0 = n0 * iv, v1 = n1 * iv, v2 = n2 * iv;
-        const double cw = 1.0 + u0 * v0 + u1 * v1 + u2 * v2;
-        const double cx = u1 * v2 - u2 * v1, cy = u2 * v0 - u0 * v2, cz = u0 * v1 - u1 * v0;
-        q = quat_mul(q[0], q[1], q[2], q[3], cw, -cx, -cy, -cz);
-    }
-    q = normalize4(q[0], q[1], q[2], q[3]);
-    store_quat(quat_wxyz, i, q[0], q[1], q[2], q[3]);
-    store_mat(rotation, i, quat_to_mat(q[0], q[1], q[2], q[3]));
+    drift_arrays(
+        [&](Body<double>& b, BodyParams<double>& p) {
+            p.tx = tx; p.ty = ty; p.tz = tz;
+            p.torqued = tx != 0.0 || ty != 0.0 || tz != 0.0;
+            drift_rk4(b, p, h);
+        },
+        true, quat_wxyz, rotation, angular_momentum, inv_inertia, i);
 }
 
 // The exact torque-free rotation over h (L world fixed), to round-off for any h (one-step map).
@@ -374,15 +454,22 @@ inline void anchor_constants(double* row, double aw, double ax, double ay, doubl
 // constants are the row c, with the sign that keeps it nearest the previous q (pw, px, py, pz):
 // the logged q stays continuous. rj_c: the row's FC_RJC as flow_eval returns it (the caller
 // stores it).
+// q_a (x) c, normalized, with the sign nearest prev (lane-wise for a vector T).
+template <class T>
+inline QuatT<T> anchored_turn(T aw, T ax, T ay, T az, T cw, T c0, T c1, T c2,
+                              const QuatT<T>& prev) {
+    const QuatT<T> q = quat_mul(aw, ax, ay, az, cw, c0, c1, c2);
+    const T w = q[0], x = q[1], y = q[2], z = q[3];
+    T s = 1.0 / vsqrt(w * w + x * x + y * y + z * z);
+    s = w * prev[0] + x * prev[1] + y * prev[2] + z * prev[3] < 0.0 ? -s : s;
+    return {w * s, x * s, y * s, z * s};
+}
+
 inline Quat anchored_quat(const double* c, double aw, double ax, double ay, double az, double t,
                           double pw, double px, double py, double pz, double& rj_c) {
     const FlowOut f = flow_eval(c, t);
     rj_c = f.rj_c;
-    const Quat q = quat_mul(aw, ax, ay, az, f.cw, f.c0, f.c1, f.c2);
-    const double w = q[0], x = q[1], y = q[2], z = q[3];
-    double s = 1.0 / std::sqrt(w * w + x * x + y * y + z * z);
-    if (w * pw + x * px + y * py + z * pz < 0.0) s = -s;
-    return {w * s, x * s, y * s, z * s};
+    return anchored_turn(aw, ax, ay, az, f.cw, f.c0, f.c1, f.c2, Quat{pw, px, py, pz});
 }
 
 // Whether a body's flow anchor still serves a step of h with world momentum L: set, the same
@@ -410,9 +497,9 @@ inline bool turn_within_bound_m(double dt, double k0, double k1, double k2, doub
 
 // Position and momentum after dt under the constant force f (inverse mass im): the exact map
 // x += h v + h^2 a / 2, v += h a (kick-drift-kick is the same map).
-inline void flight_exact(double dt, double im, double& x, double& y, double& z, double& px,
-                         double& py, double& pz, double fx, double fy, double fz) {
-    const double hh = 0.5 * dt * dt * im;
+template <class T>
+inline void flight_exact(double dt, T im, T& x, T& y, T& z, T& px, T& py, T& pz, T fx, T fy, T fz) {
+    const T hh = 0.5 * dt * dt * im;
     x = x + (dt * px * im + hh * fx);
     y = y + (dt * py * im + hh * fy);
     z = z + (dt * pz * im + hh * fz);

@@ -7,8 +7,9 @@
 // the bodies' dependency chains overlaps. (One exception, of no consequence: the NaNs of a body
 // whose state has gone bad may differ in their sign bit, which IEEE leaves open and the compiler
 // may change by rewriting (-a) * b as -(a * b); the run stops at that body's bad step and keeps
-// only the samples before it.) Used by the free kernel's sparse path (free.cpp): seed,
-// seed-quat, splitting and rk4 (sin and cos called per lane). free.cpp built with
+// only the samples before it.) Used by the free kernel's sparse path (free.cpp): the stages of
+// integrators.hpp are templates over double and these vectors (sin, cos and the per-body branches
+// of the small-angle series per lane), so one text serves both. free.cpp built with
 // -DRB_FREE_NO_LANES runs the scalar path only, to compare the two; _core.set_free_lanes(2)
 // forces the two-lane path on an AVX2 machine (tests/engine/test_threads.py compares them).
 #pragma once
@@ -32,27 +33,45 @@ constexpr int lanes_of() { return static_cast<int>(sizeof(V) / sizeof(double)); 
 template <class V>
 using mask_of = decltype(V{} < V{});
 
+// Lane l of a value (a vector's lane, or the double itself: one body is one lane), read and set.
+template <class V>
+inline double lane(const V& v, int l) { return v[l]; }
+inline double lane(double v, int) { return v; }
+inline bool lane(bool m, int) { return m; }
+template <class V>
+inline void set_lane(V& v, int l, double x) { v[l] = x; }
+inline void set_lane(double& v, int, double x) { v = x; }
+
 template <class V>
 inline V splat_v(double v) {
     V r;
-    for (int l = 0; l < lanes_of<V>(); ++l) r[l] = v;
+    for (int l = 0; l < lanes_of<V>(); ++l) set_lane(r, l, v);
     return r;
 }
 inline d2 splat(double v) { return splat_v<d2>(v); }
 
-template <class V>
-inline V vsqrt(V a) {
+// f (a function of a double) lane by lane
+template <class V, class F>
+inline V per_lane(V a, F f) {
     V r;
-    for (int l = 0; l < lanes_of<V>(); ++l) r[l] = std::sqrt(a[l]);
+    for (int l = 0; l < lanes_of<V>(); ++l) set_lane(r, l, f(lane(a, l)));
     return r;
 }
 template <class V>
-inline V vabs(V a) {
-    V r;
-    for (int l = 0; l < lanes_of<V>(); ++l) r[l] = std::fabs(a[l]);
-    return r;
+inline V vsqrt(V a) { return per_lane(a, [](double x) { return std::sqrt(x); }); }
+template <class V>
+inline V vabs(V a) { return per_lane(a, [](double x) { return std::fabs(x); }); }
+// sine and cosine lane by lane, of each lane in one loop (one sincos call a lane)
+template <class V>
+inline void vsincos(V a, V& s, V& c) {
+    for (int l = 0; l < lanes_of<V>(); ++l) {
+        const double x = lane(a, l);
+        set_lane(s, l, std::sin(x));
+        set_lane(c, l, std::cos(x));
+    }
 }
 // one body (T = double, its mask bool): the same helpers, so a template serves both
+inline double vsqrt(double a) { return std::sqrt(a); }
 inline double vabs(double a) { return std::fabs(a); }
 inline bool any(bool m) { return m; }
 inline bool all_set(bool m) { return m; }

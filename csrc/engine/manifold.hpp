@@ -55,7 +55,8 @@ constexpr i64 MF_AR = 33;    // friction anchor: pose of a in b's frame when the
 constexpr i64 MF_AT = 42;    // ... and R_b^T (x_a - x_b) (3), m (b's frame: the world for the
                              // ground)
 constexpr i64 MF_AOK = 45;   // 1.0: the anchor pose holds (collide sets it, store_impulses drops
-                             // it), else 0.0
+                             // it), else 0.0; -1.0: dropped by stage 9's exact motion, the pair
+                             // stopped inside the step (world_step.cpp, exact_correction)
 constexpr i64 MF_COLS = 46;
 
 // ---- per point, float64 ----

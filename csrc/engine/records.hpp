@@ -157,6 +157,7 @@ inline Settings Settings::from_py(nanobind::handle r) {
     c.projection_iterations = scalar<i64>(r, "projection_iterations");
     c.projection_depth = scalar<double>(r, "projection_depth");
     c.static_friction_anchors = scalar<bool>(r, "static_friction_anchors");
+    c.exact_contact_motion = scalar<bool>(r, "exact_contact_motion");
     c.friction_newton_iters = scalar<i64>(r, "friction_newton_iters");
     c.friction_newton_tol = scalar<double>(r, "friction_newton_tol");
     c.block_reg = scalar<double>(r, "block_reg");
@@ -246,6 +247,7 @@ struct Scratch {
     Buf2<i64> hot;                                    // (N+1,)
     Buf2<double> dx_step, proj_dx, proj_dth;          // (N+1, 3)
     Buf2<i64> pushed, push_root;                      // (N+1,)
+    Buf2<i64> exact_man;                              // (N+1,) mark_exact
     Buf2<double> flow_c;                              // (N, N_FLOW)
     BoolBuf flow_ok;                                  // (N,)
     // the project stage's own work arrays (project.py allocated them per call)

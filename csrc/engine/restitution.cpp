@@ -180,10 +180,9 @@ i64 restitution(const StepContext& ctx, const ContactConstraints& c, const Solve
             q[PF_LWS] = q[PF_LN];
             q[PF_WT] = -1.0;
             double w0 = q[PF_W0];
-            if (w0 >= 0.0 || q[PF_LN] <= 0.0) continue;
             // approach speed at contact from the flight's energy (see the header comment)
+            if (!struck(w0, q[PF_LN], acc, s0, threshold)) continue;
             double u2 = w0 * w0 - 2.0 * acc * s0;
-            if (u2 <= threshold * threshold) continue;
             q[PF_IMPACT] = 1.0;
             n_impacts += 1;
             if (e <= 0.0) continue;

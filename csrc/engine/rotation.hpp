@@ -18,20 +18,29 @@
 
 namespace rb {
 
-using Mat3 = std::array<double, 9>;  // row-major: m00 m01 m02 m10 ... m22
-using Quat = std::array<double, 4>;  // w x y z
-using Vec3 = std::array<double, 3>;
+// In T = double (one body) or a lane vector of lanes.hpp (a body per lane: the same operations in
+// the same order, so each lane gets the one body's bits).
+template <class T>
+using Mat3T = std::array<T, 9>;  // row-major: m00 m01 m02 m10 ... m22
+template <class T>
+using QuatT = std::array<T, 4>;  // w x y z
+template <class T>
+using Vec3T = std::array<T, 3>;
+using Mat3 = Mat3T<double>;
+using Quat = QuatT<double>;
+using Vec3 = Vec3T<double>;
 
 // Hamilton product a (x) b.
-inline Quat quat_mul(double aw, double ax, double ay, double az, double bw, double bx, double by,
-                     double bz) {
+template <class T>
+inline QuatT<T> quat_mul(T aw, T ax, T ay, T az, T bw, T bx, T by, T bz) {
     return {aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
             aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw};
 }
 
 // Rotation matrix (row-major) of q. For |q| != 1 it returns |q|^2 times a rotation (the
 // homogeneous form), so an unnormalized quaternion shows up as a scaled R.
-inline Mat3 quat_to_mat(double w, double x, double y, double z) {
+template <class T>
+inline Mat3T<T> quat_to_mat(T w, T x, T y, T z) {
     return {w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z),         2.0 * (x * z + w * y),
             2.0 * (x * y + w * z),         w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x),
             2.0 * (x * z - w * y),         2.0 * (y * z + w * x),         w * w - x * x - y * y + z * z};
@@ -74,13 +83,13 @@ inline Quat mat_to_quat(const Mat3& m) {
 }
 
 // omega = R diag(inv_i) R^T L for R given row-major.
-inline Vec3 omega_world(const Mat3& m, double inv_i0, double inv_i1, double inv_i2, double lx,
-                        double ly, double lz) {
-    const double m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5],
-                 m20 = m[6], m21 = m[7], m22 = m[8];
-    const double b0 = (m00 * lx + m10 * ly + m20 * lz) * inv_i0;
-    const double b1 = (m01 * lx + m11 * ly + m21 * lz) * inv_i1;
-    const double b2 = (m02 * lx + m12 * ly + m22 * lz) * inv_i2;
+template <class T>
+inline Vec3T<T> omega_world(const Mat3T<T>& m, T inv_i0, T inv_i1, T inv_i2, T lx, T ly, T lz) {
+    const T m00 = m[0], m01 = m[1], m02 = m[2], m10 = m[3], m11 = m[4], m12 = m[5], m20 = m[6],
+            m21 = m[7], m22 = m[8];
+    const T b0 = (m00 * lx + m10 * ly + m20 * lz) * inv_i0;
+    const T b1 = (m01 * lx + m11 * ly + m21 * lz) * inv_i1;
+    const T b2 = (m02 * lx + m12 * ly + m22 * lz) * inv_i2;
     return {m00 * b0 + m01 * b1 + m02 * b2, m10 * b0 + m11 * b1 + m12 * b2,
             m20 * b0 + m21 * b1 + m22 * b2};
 }
@@ -114,15 +123,16 @@ inline Cofactors<T> cofactors(T a00, T a01, T a02, T a10, T a11, T a12, T a20, T
 // omega = C diag(inv_i) C^T L / det(R)^2. For an orthonormal R, C = R and det R = 1, and this is
 // omega_world; for the scaled rotation R = s Q of an unnormalised quaternion (s = |q|^2) it is
 // omega_world(Q) / s^2 (see integrators.hpp, seed-quat).
-inline Vec3 omega_world_stretched(const Mat3& m, double inv_i0, double inv_i1, double inv_i2,
-                                  double lx, double ly, double lz) {
-    const Cofactors<double> c = cofactors(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
-    const double c00 = c.c00, c01 = c.c01, c02 = c.c02, c10 = c.c10, c11 = c.c11, c12 = c.c12,
-                 c20 = c.c20, c21 = c.c21, c22 = c.c22;
-    const double f = 1.0 / (c.det * c.det);
-    const double b0 = (c00 * lx + c10 * ly + c20 * lz) * inv_i0 * f;
-    const double b1 = (c01 * lx + c11 * ly + c21 * lz) * inv_i1 * f;
-    const double b2 = (c02 * lx + c12 * ly + c22 * lz) * inv_i2 * f;
+template <class T>
+inline Vec3T<T> omega_world_stretched(const Mat3T<T>& m, T inv_i0, T inv_i1, T inv_i2, T lx, T ly,
+                                      T lz) {
+    const Cofactors<T> c = cofactors(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
+    const T c00 = c.c00, c01 = c.c01, c02 = c.c02, c10 = c.c10, c11 = c.c11, c12 = c.c12,
+            c20 = c.c20, c21 = c.c21, c22 = c.c22;
+    const T f = 1.0 / (c.det * c.det);
+    const T b0 = (c00 * lx + c10 * ly + c20 * lz) * inv_i0 * f;
+    const T b1 = (c01 * lx + c11 * ly + c21 * lz) * inv_i1 * f;
+    const T b2 = (c02 * lx + c12 * ly + c22 * lz) * inv_i2 * f;
     return {c00 * b0 + c01 * b1 + c02 * b2, c10 * b0 + c11 * b1 + c12 * b2,
             c20 * b0 + c21 * b1 + c22 * b2};
 }
@@ -133,7 +143,7 @@ inline double py_max(double a, double b) { return b > a ? b : a; }
 // Nearest rotation to m (orthogonal polar factor) by Newton's iteration R <- (R + R^-T)/2, at
 // most POLAR_MAX_ITER iterations, stopping when the largest entry of the update is <= POLAR_TOL
 // (quadratic convergence: the new iterate is then within ~d^2 of the limit). T = double for one
-// matrix, or a lane vector of lanes.hpp for W matrices (free.cpp seed_lanes): a lane stops
+// matrix, or a lane vector of lanes.hpp for W matrices (drift_seed over lanes): a lane stops
 // (keeps its iterate) once its own update is <= tol, so each lane gets the one-matrix bits.
 template <class T>
 inline std::array<T, 9> polar(const std::array<T, 9>& m) {
@@ -180,20 +190,22 @@ inline std::array<T, 9> polar(const std::array<T, 9>& m) {
 }
 
 // Orthonormalize the columns of m in order (x axis kept, y made orthogonal, z = x cross y).
-inline Mat3 gram_schmidt(const Mat3& m) {
-    const double m00 = m[0], m01 = m[1], m10 = m[3], m11 = m[4], m20 = m[6], m21 = m[7];
-    double n = std::sqrt(m00 * m00 + m10 * m10 + m20 * m20);
-    const double x0 = m00 / n, x1 = m10 / n, x2 = m20 / n;
-    const double d = x0 * m01 + x1 * m11 + x2 * m21;
-    double y0 = m01 - d * x0, y1 = m11 - d * x1, y2 = m21 - d * x2;
-    n = std::sqrt(y0 * y0 + y1 * y1 + y2 * y2);
+template <class T>
+inline Mat3T<T> gram_schmidt(const Mat3T<T>& m) {
+    const T m00 = m[0], m01 = m[1], m10 = m[3], m11 = m[4], m20 = m[6], m21 = m[7];
+    T n = vsqrt(m00 * m00 + m10 * m10 + m20 * m20);
+    const T x0 = m00 / n, x1 = m10 / n, x2 = m20 / n;
+    const T d = x0 * m01 + x1 * m11 + x2 * m21;
+    T y0 = m01 - d * x0, y1 = m11 - d * x1, y2 = m21 - d * x2;
+    n = vsqrt(y0 * y0 + y1 * y1 + y2 * y2);
     y0 = y0 / n; y1 = y1 / n; y2 = y2 / n;
-    const double z0 = x1 * y2 - x2 * y1, z1 = x2 * y0 - x0 * y2, z2 = x0 * y1 - x1 * y0;
+    const T z0 = x1 * y2 - x2 * y1, z1 = x2 * y0 - x0 * y2, z2 = x0 * y1 - x1 * y0;
     return {x0, y0, z0, x1, y1, z1, x2, y2, z2};
 }
 
-inline Quat normalize4(double w, double x, double y, double z) {
-    const double n = 1.0 / std::sqrt(w * w + x * x + y * y + z * z);
+template <class T>
+inline QuatT<T> normalize4(T w, T x, T y, T z) {
+    const T n = 1.0 / vsqrt(w * w + x * x + y * y + z * z);
     return {w * n, x * n, y * n, z * n};
 }
 

@@ -32,6 +32,7 @@ struct Settings {
     i64 projection_iterations = 0;
     double projection_depth = 0.0;
     bool static_friction_anchors = false;
+    bool exact_contact_motion = false;     // stage 9's exact motion on one static surface
     i64 friction_newton_iters = 0;          // FRICTION_NEWTON_ITERS
     double friction_newton_tol = 0.0;       // FRICTION_NEWTON_TOL
     double block_reg = 0.0;                 // BLOCK_REG

@@ -57,6 +57,21 @@
 //   would change its angular momentum about its centre of mass by O(h^2 |g| |P|) a step (5.6e-6
 //   relative on samples/mixed.toml; both schemes alone keep it exactly).
 //
+// Exact motion on one static surface (ContactParams.exact_contact_motion, off by default; the PGS
+// solve only). Symplectic Euler's x += h v_new is first order under a constant contact force:
+// a box sliding to a stop falls short of v0^2 / (2 mu g) by about h v0 / 2, a ball rolling down
+// a slope lags s = a t^2 / 2 by a relative h / t. The trapezoid x += h (v_start + v_new) / 2 is
+// exact for constant acceleration, and it is applied where the force is constant over the step
+// and the gaps the solve predicted stay as predicted: a body whose one pushing manifold is
+// against static geometry, with no point struck this step (mark_exact; an impact's impulse is
+// not spread over the step, and bodies pushing each other keep the one-scheme rule above). There
+// it is applied to the tangential displacement only (the normal one stays h w_n, the solve's
+// s + h w_n) and to the part of the turn that moves no contact point along the normal; a stop or
+// reversal of the tangential velocity inside the step gets the kinetic-friction closed form
+// (exact_correction). The log's velocities stay the solver's: the step's mean velocity is their
+// average, which the consistency analyzer's interval test accepts (it lies on the segment
+// between the sampled velocities).
+//
 // The restitution stage measures and sets bounce speeds with the exact flight's energy
 // (restitution.cpp), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
 // applied as kicks.
@@ -196,6 +211,7 @@ void Scratch::make(i64 n_bodies, const Statics& st) {
     zeroed(proj_dth, n1, 3);
     zeroed(pushed, n1, 1);
     zeroed(push_root, n1, 1);
+    zeroed(exact_man, n1, 1);
     if (flow_c.rows != n || flow_c.cols != N_FLOW) flow_c = Buf2<double>(n, N_FLOW);
     flow_ok.resize(n);
     zeroed(ring, n1, 1);
@@ -331,6 +347,177 @@ void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
         if (pushed[i] && find_root(root, i) == find_root(root, n)) pushed[i] = 2;
 }
 
+// Whether manifold m pushed in this step's solve or relax (any accumulated normal, friction or
+// pseudo impulse).
+inline bool manifold_pushes(V2<i64> mi, V2<double> pf, i64 m) {
+    i64 start = mi(m, MI_START);
+    for (i64 p = start; p < start + mi(m, MI_COUNT); ++p)
+        if (pf(p, PF_LN) != 0.0 || pf(p, PF_L1) != 0.0 || pf(p, PF_L2) != 0.0 ||
+            pf(p, PF_LP) != 0.0)
+            return true;
+    return false;
+}
+
+// The bodies that move exactly under their contact force (sc.exact_man, read by stage 9, with
+// ContactParams.exact_contact_motion): a body whose one pushing manifold is against static
+// geometry (the ground, a static box, a sleeping body: the solver's static dummy, row n) and
+// none of whose points was struck (restitution's rule, struck()) gets that manifold's index;
+// a body pushed by several manifolds, by another awake body or at an impact gets -2; every
+// other body -1. See "Exact motion on one static surface" in the header comment.
+void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, i64 n,
+                Scratch& sc) {
+    V1<i64> ex = col(sc.exact_man);
+    for (i64 i = 0; i < n + 1; ++i) ex[i] = -1;
+    for (i64 m = 0; m < n_man; ++m) {
+        if (!mi(m, MI_ACTIVE) || !manifold_pushes(mi, pf, m)) continue;
+        i64 a = mi(m, MI_A), b = mi(m, MI_B);
+        if (a != n && b != n) {
+            ex[a] = -2;
+            ex[b] = -2;
+            continue;
+        }
+        bool hit = false;
+        i64 start = mi(m, MI_START);
+        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p)
+            hit = hit || struck(pf(p, PF_W0), pf(p, PF_LN), mf(m, MF_ACC), pf(p, PF_S),
+                                cfg.restitution_threshold);
+        i64 k = a == n ? b : a;
+        ex[k] = ex[k] == -1 && !hit ? m : -2;
+    }
+}
+
+// The exact motion's corrections to symplectic Euler for body i on its one static manifold m
+// (mark_exact; header comment, "Exact motion on one static surface"): dx (3) the displacement
+// to add to h (v + v'), dl (3) the angular momentum to add to the L the rotation drifts with.
+// u, w: the body's velocity at the step's start (before the kick) and after the solve, n the
+// manifold's normal, t the tangential part (x - (x . n) n).
+//
+// * On an edge or a corner (fewer than 3 points) of a pair that does not roll (not a sphere's or a
+//   capsule's): no correction, the body tips or rocks under a varying force.
+// * Stuck (an anchored pair, MF_AOK > 0, whose loaded points stick by the anchor's rule,
+//   point_sticks) and not stopping: no correction. The anchor pass sets w_t = -rate D / h, a
+//   position loop designed for x += h w_t; a trapezoid inside it (x += h (w_prev + w_t) / 2)
+//   turns its decay into a damped oscillation (roots of z^2 - (1 - rate/2) z + rate/2: |z| =
+//   0.5 at rate 0.5, complex), jitter on every resting box.
+// * Sliding or rolling on (u_t . w_t > 0, or starting from u_t = 0): dx = h (u_t - w_t) / 2,
+//   the trapezoid's x += h (u + w) / 2 in the tangent plane, exact for a constant force; and the
+//   turn likewise, dl = I (w_start - w_new) / 2 with I = R I_body R^T, keeping only the part of
+//   the change that moves no point of the manifold along n (the component of w orthogonal to
+//   every r_p x n: a sphere's whole w, a lying capsule's about its axis and n, a face's spin
+//   about n), so that the gaps the solve predicted, s + h w_n, hold.
+// * Stopped inside the step: it slid along u_hat = u_t / |u_t| under kinetic friction,
+//   deceleration d = mu sum(lambda_n) / (m h) - a_t . u_hat (a = g + F/m), which would end the
+//   slide at t* = |u_t| / d < h, and the solve's w_t . u_hat <= |u_t| / 2 says it did (a body
+//   rolling or driven on keeps its speed along u_hat or gains): it went on from rest to w_t at
+//   a constant rate, displacement (u_t t* + w_t (h - t*)) / 2; no turn. An anchored pair stops
+//   so only after a step of sliding (its anchor dropped), and is then re-anchored where it
+//   stopped (MF_AOK = -1: collide takes the pose of the next step's start, and that step is
+//   not a stop), since its anchor, taken at this step's start, would count the slide as slip.
+// The sums over the step telescope: where nothing between steps changes the velocity (u of a
+// step = w of the last), the trapezoid's corrections add up to h (w_first - w_last) / 2, so
+// they cannot accumulate into creep.
+inline void exact_correction(i64 i, i64 m, const Bodies& bd, const Settings& cfg,
+                             const ExactInputs& ex, Scratch& sc, V3<double> rotation, double h,
+                             double* dx, double* dl) {
+    const V2<i64> mi = ex.now.mi;
+    const V2<double> mf = ex.now.mf, pf = ex.now.pf;
+    const double im = bd.inv_mass[i];
+    const V2<double> bv = sc.bv.view(), bv0 = sc.bv0.view(), bw = sc.bw.view(),
+                     bw0 = sc.bw0.view(), bI = sc.bI.view();
+    const double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
+    double u[3], w[3], a[3];
+    for (int k = 0; k < 3; ++k) {
+        a[k] = cfg.do_kick ? bd.accel(i, k) : 0.0;
+        u[k] = bv0(i, k) - h * a[k];
+        w[k] = bv(i, k);
+    }
+    const double un = u[0] * nx + u[1] * ny + u[2] * nz;
+    const double wn = w[0] * nx + w[1] * ny + w[2] * nz;
+    const double an = a[0] * nx + a[1] * ny + a[2] * nz;
+    const double ut[3] = {u[0] - un * nx, u[1] - un * ny, u[2] - un * nz};
+    const double wt[3] = {w[0] - wn * nx, w[1] - wn * ny, w[2] - wn * nz};
+    const double at[3] = {a[0] - an * nx, a[1] - an * ny, a[2] - an * nz};
+    const double uu = std::sqrt(ut[0] * ut[0] + ut[1] * ut[1] + ut[2] * ut[2]);
+    const double uw = ut[0] * wt[0] + ut[1] * wt[1] + ut[2] * wt[2];
+    dx[0] = dx[1] = dx[2] = 0.0;
+    dl[0] = dl[1] = dl[2] = 0.0;
+    const double mu = mf(m, MF_MU);
+    const i64 start = mi(m, MI_START), end = start + mi(m, MI_COUNT);
+    // a rolling pair (a sphere's, a capsule's: collide gives every other pair an anchor) on any
+    // points; any other on a face (3 or 4 points): on an edge or a corner a body is tipping or
+    // rocking, and its contact force varies inside the step
+    if (mf(m, MF_AOK) > 0.0 && mi(m, MI_COUNT) < 3) return;
+    // An anchored pair (collide gives every pair but a rolling one an anchor, MF_AOK > 0) may stop
+    // in this step only if it slid over the last one (warm started from a manifold whose anchor
+    // store_impulses dropped, MF_AOK 0): not if it was held (MF_AOK > 0 then) or stopped in the
+    // last step (MF_AOK -1, below), which the anchor's position loop owns.
+    const bool anchored = cfg.static_friction_anchors && mf(m, MF_AOK) > 0.0;
+    bool may_stop = !anchored;
+    if (anchored && cfg.warm_starting) {
+        const i64 j = find_manifold(ex.prev_keys, ex.prev_idx, ex.prev_n, mi(m, MI_KEY));
+        may_stop = j >= 0 && ex.prev_mf(j, MF_AOK) == 0.0;
+    }
+    if (may_stop && uu > 0.0 && uw <= 0.5 * uu * uu) {
+        double ln = 0.0;
+        for (i64 p = start; p < end; ++p) ln += pf(p, PF_LN);
+        const double d = mu * ln * im / h - (at[0] * ut[0] + at[1] * ut[1] + at[2] * ut[2]) / uu;
+        if (d > 0.0 && uu < d * h) {
+            const double ts = uu / d;
+            for (int k = 0; k < 3; ++k)
+                dx[k] = 0.5 * (ut[k] * ts + wt[k] * (h - ts)) - h * wt[k];
+            if (anchored) mf(m, MF_AOK) = -1.0;
+            return;
+        }
+    }
+    if (anchored) {
+        for (i64 p = start; p < end; ++p)
+            if (pf(p, PF_LN) > 0.0 &&
+                point_sticks(pf(p, PF_L1), pf(p, PF_L2), mu, pf(p, PF_LN),
+                             cfg.friction_anchor_slide_frac))
+                return;
+    }
+    for (int k = 0; k < 3; ++k) dx[k] = 0.5 * h * (ut[k] - wt[k]);
+    // the turn: half the step's change of w (w_start = w0 - h I^-1 tau), less what moves a point
+    const double* bi = bI.row(i);  // world inverse inertia (xx, yy, zz, xy, xz, yz)
+    double tq[3] = {0.0, 0.0, 0.0};
+    if (cfg.do_kick)
+        for (int k = 0; k < 3; ++k) tq[k] = h * bd.torque(i, k);
+    const double iw[3] = {bi[0] * tq[0] + bi[3] * tq[1] + bi[4] * tq[2],
+                          bi[3] * tq[0] + bi[1] * tq[1] + bi[5] * tq[2],
+                          bi[4] * tq[0] + bi[5] * tq[1] + bi[2] * tq[2]};
+    double dw[3];
+    for (int k = 0; k < 3; ++k) dw[k] = 0.5 * (bw0(i, k) - iw[k] - bw(i, k));
+    // Gram-Schmidt over the points' r_p x n (r_p: the point from the body's centre), dropping
+    // those below 1e-9 |r_p| (a sphere's r_p lies along n)
+    double e[3][3];
+    int ne = 0;
+    const i64 off = mi(m, MI_A) == i ? PF_RA : PF_RB;
+    for (i64 p = start; p < end && ne < 3; ++p) {
+        const double rx = pf(p, off), ry = pf(p, off + 1), rz = pf(p, off + 2);
+        double c[3] = {ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx};
+        for (int j = 0; j < ne; ++j) {
+            const double cj = c[0] * e[j][0] + c[1] * e[j][1] + c[2] * e[j][2];
+            for (int k = 0; k < 3; ++k) c[k] -= cj * e[j][k];
+        }
+        const double cc = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        if (cc <= 1e-9 * std::sqrt(rx * rx + ry * ry + rz * rz)) continue;
+        for (int k = 0; k < 3; ++k) e[ne][k] = c[k] / cc;
+        ne += 1;
+    }
+    for (int j = 0; j < ne; ++j) {
+        const double dj = dw[0] * e[j][0] + dw[1] * e[j][1] + dw[2] * e[j][2];
+        for (int k = 0; k < 3; ++k) dw[k] -= dj * e[j][k];
+    }
+    if (cfg.iso_shortcut && bd.iso[i]) {
+        const double s0 = bd.inertia(i, 0);
+        for (int k = 0; k < 3; ++k) dl[k] = s0 * dw[k];
+    } else {
+        Vec3 l = omega_world(load_mat(rotation, i), bd.inertia(i, 0), bd.inertia(i, 1),
+                             bd.inertia(i, 2), dw[0], dw[1], dw[2]);
+        for (int k = 0; k < 3; ++k) dl[k] = l[k];
+    }
+}
+
 // 9 integrate: move every awake body over the step (how: sc.pushed, see mark_pushed). A body
 // that a contact pushed (solve or relax) moves with the solver's velocity, x += h (v + v'), its
 // momenta rebuilt from the solver's velocity changes, and when its island touches no static
@@ -343,8 +530,9 @@ void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
 // with changed).
 void integrate_positions(int method, int ortho, const Bodies& bd, const Settings& cfg,
                          V1<i64> awake, const BodyState& x, Scratch& sc, double h,
-                         const FlowAnchors& an) {
+                         const FlowAnchors& an, const ExactInputs* exact) {
     i64 n = x.position.n0;
+    V1<i64> exact_man = col(sc.exact_man);
     V2<double> l_drift = sc.l_drift.view(), dx_step = sc.dx_step.view();
     V2<double> pv = sc.pv.view(), pw = sc.pw.view();
     V2<double> bv = sc.bv.view(), bw = sc.bw.view(), bv0 = sc.bv0.view(), bw0 = sc.bw0.view();
@@ -364,9 +552,18 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
             double fly = pushed_of[i] == 1 ? 0.5 * h : 0.0;
             for (int k = 0; k < 3; ++k) {
                 dx_step(i, k) = h * (lm(i, k) * im + pv(i, k) - fly * bd.accel(i, k));
-                pos(i, k) += dx_step(i, k);
                 l_drift(i, k) = am(i, k);
             }
+            if (exact && pushed_of[i] == 2 && exact_man[i] >= 0) {
+                // on one static surface: exact under the constant contact force
+                double ex[3], el[3];
+                exact_correction(i, exact_man[i], bd, cfg, *exact, sc, x.rotation, h, ex, el);
+                for (int k = 0; k < 3; ++k) {
+                    dx_step(i, k) += ex[k];
+                    l_drift(i, k) += el[k];
+                }
+            }
+            for (int k = 0; k < 3; ++k) pos(i, k) += dx_step(i, k);
             if (pw(i, 0) != 0.0 || pw(i, 1) != 0.0 || pw(i, 2) != 0.0) {
                 // rotate by L + I_world w' so the pseudo spin goes through the integrator
                 double jx, jy, jz;
@@ -638,8 +835,11 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_SOLVE, t);
             if (cfg.position_iterations > 0) relax_positions(ctx, cons, pseudo);           // 8
             mark_pushed(mi1, pf1, n_man, n, sc);
+            if (cfg.exact_contact_motion) mark_exact(cfg, mi1, mf1, pf1, n_man, n, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
-            integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an);            // 9
+            const ExactInputs exact{cons, c.mf0.view(), col(c.keys0), col(c.idx0), c.n_man0};
+            integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an,             // 9
+                                cfg.exact_contact_motion ? &exact : nullptr);
             if (do_prof) t = lap(prof, P_INTEGRATE, t);
             }
             stats[ST_IMPACTS] += restitution(ctx, cons, bodies, sc.pv.view(), sc.pw.view(), // 10

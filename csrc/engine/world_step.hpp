@@ -39,9 +39,22 @@ CollideCount collide(const Bodies& bd, const Statics& st, const Settings& cfg, V
 void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc, V2<i64> mi,
              V2<double> mf, V2<double> pf, i64 n_man, double h);
 void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc);
+void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, i64 n,
+                Scratch& sc);
+// What stage 9's exact motion reads (world_step.cpp, "Exact motion on one static surface"): this
+// step's manifolds, and the previous step's (sorted by key, ContactCache's mf0, keys0, idx0,
+// n_man0) for whether a pair's anchor was held over from it.
+struct ExactInputs {
+    ContactConstraints now;
+    V2<double> prev_mf;
+    V1<i64> prev_keys, prev_idx;
+    i64 prev_n = 0;
+};
+// exact: when mark_exact sorted the bodies (sc.exact_man), else null (every pushed body by
+// symplectic Euler)
 void integrate_positions(int method, int ortho, const Bodies& bd, const Settings& cfg,
                          V1<i64> awake, const BodyState& x, Scratch& sc, double h,
-                         const FlowAnchors& an);
+                         const FlowAnchors& an, const ExactInputs* exact = nullptr);
 i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Settings& cfg,
             V1<i64> awake, const BodyState& x, Scratch& sc, V2<i64> pairs, i64 n_pairs,
             const FlowAnchors& an);

@@ -48,6 +48,21 @@ of the step as s + h w (w the solved gap rate):
   would change its angular momentum about its centre of mass by O(h^2 |g| |P|) a step (5.6e-6
   relative on samples/mixed.toml; both schemes alone keep it exactly).
 
+Exact motion on one static surface (ContactParams.exact_contact_motion, off by default; the PGS
+solve only). Symplectic Euler's x += h v_new is first order under a constant contact force:
+a box sliding to a stop falls short of v0^2 / (2 mu g) by about h v0 / 2, a ball rolling down
+a slope lags s = a t^2 / 2 by a relative h / t. The trapezoid x += h (v_start + v_new) / 2 is
+exact for constant acceleration, and it is applied where the force is constant over the step
+and the gaps the solve predicted stay as predicted: a body whose one pushing manifold is
+against static geometry, with no point struck this step (mark_exact; an impact's impulse is
+not spread over the step, and bodies pushing each other keep the one-scheme rule above). There
+it is applied to the tangential displacement only (the normal one stays h w_n, the solve's
+s + h w_n) and to the part of the turn that moves no contact point along the normal; a stop or
+reversal of the tangential velocity inside the step gets the kinetic-friction closed form
+(exact_correction). The log's velocities stay the solver's: the step's mean velocity is their
+average, which the consistency analyzer's interval test accepts (it lies on the segment
+between the sampled velocities).
+
 The restitution stage measures and sets bounce speeds with the exact flight's energy
 (restitution.cpp), so a bounce between exact flights keeps apexes at e^(2n) h0. Torques are
 applied as kicks.
@@ -90,6 +105,7 @@ Settings = namedtuple("Settings", "do_kick do_sleep iso_shortcut velocity_iterat
                                   "speculative_distance restitution_threshold "
                                   "friction_anchor_distance sleep_speed sleep_time warm_starting "
                                   "projection_iterations projection_depth static_friction_anchors "
+                                  "exact_contact_motion "
                                   "friction_newton_iters friction_newton_tol block_reg "
                                   "friction_anchor_rate friction_anchor_slide_frac "
                                   "projection_rings soft_step substeps contact_hertz "

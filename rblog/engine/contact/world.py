@@ -172,7 +172,8 @@ class ContactWorld:
             warm_starting=bool(p.warm_starting),
             projection_iterations=int(p.projection_iterations),
             projection_depth=float(p.projection_depth),
-            static_friction_anchors=bool(p.static_friction_anchors), **solver_constants(),
+            static_friction_anchors=bool(p.static_friction_anchors),
+            exact_contact_motion=bool(p.exact_contact_motion), **solver_constants(),
             soft_step=p.solver == "soft_step", substeps=int(p.substeps),
             contact_hertz=float("inf") if p.contact_hertz is None else float(p.contact_hertz),
             contact_damping_ratio=float(p.contact_damping_ratio))
