@@ -67,7 +67,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.analyze import _audit
-from rblog.contract.model import SHAPE_SPHERE
+from rblog.contract.model import SHAPE_NONE, SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
@@ -523,7 +523,14 @@ class MomentumAnalyzer(Analyzer):
         t, step = tr.t, tr.step
         n = tr.n_bodies
         sel = grp.static & (grp.size == 1) & (grp.static_features == 1) & (grp.static_id >= -1)
-        gidx = np.nonzero(sel)[0]
+        # a body without a contract shape (a capsule, cylinder, mesh) against a static box: the
+        # box's normal at the contact is not known from the body's centre (a capsule on a slope
+        # near its lower end is nearest the end face, 78 deg off the face it lies on), so its
+        # cone is not judged; against the ground the normal is the plane's
+        shapeless = np.asarray(model.body_shape)[grp.mem_i[grp.starts]] == SHAPE_NONE
+        skip = sel & shapeless & (grp.static_id >= 0)
+        stats["cone_not_judged_shapeless_on_static_box"] = float(skip.sum())
+        gidx = np.nonzero(sel & ~skip)[0]
         if not len(gidx):
             return
         prox = ctx.proximity(self.tol["contact_distance_m"])

@@ -94,3 +94,47 @@ def test_a_tilted_capsule_is_as_high_as_its_lowest_end(tmp_path):
     prox = Context(traj).proximity(1e-3)
     np.testing.assert_allclose(prox.ground_sep[0, 0], 0.5 - 0.1 * np.cos(np.pi / 6) - 0.05,
                                atol=1e-12)
+
+
+# a capsule (r = 0.05 m, h = 0.1 m) lying on the ground along x, at rest, logged every 10 steps
+LYING = """
+[sim]
+dt = 1e-3
+duration = 0.3
+log_every = 10
+[[body]]
+name = "c"
+shape = "capsule"
+radius = 0.05
+half_length = 0.1
+mass = 1.0
+position = [0.0, 0.0, 0.05]
+axis_angle = { axis = [0.0, 1.0, 0.0], angle_deg = 90.0 }
+friction = 0.5
+"""
+
+
+def _lying(tmp_path):
+    p = tmp_path / "lying.toml"
+    p.write_text(LYING)
+    traj, _ = simulate(load_scene(p))
+    return traj
+
+
+def test_a_capsule_on_the_ground_is_judged(tmp_path):
+    """A shapeless body on the ground stays judged (only its friction cone against a static
+    box, whose face at the contact its centre does not tell, is not): a capsule at rest passes,
+    and a 0.5 m/s sideways kick planted at one sample (0.5 N s that no logged impulse carries)
+    is flagged on that body and interval."""
+    traj = _lying(tmp_path)
+    res = {r.analyzer: r for r in rblog.check(traj, only=["momentum"])}
+    assert res["momentum"].passed and res["momentum"].judged, res["momentum"].findings[:2]
+    k = int(np.searchsorted(traj.t, 0.15 - 1e-9))
+    traj.velocity[k:, 0, 0] += 0.5
+    traj.linear_momentum[k:, 0, 0] += 0.5
+    traj.position[k:, 0, 0] += 0.5 * (traj.t[k:] - traj.t[k])
+    res = {r.analyzer: r for r in rblog.check(traj, only=["momentum"])}
+    hit = [f for f in res["momentum"].findings
+           if f.bodies == [0] and "between t = 0.14 and 0.15 s" in f.message
+           and "linear momentum" in f.message and "by 0.5 kg m/s" in f.message]
+    assert hit, [f.message for f in res["momentum"].findings]
