@@ -17,7 +17,9 @@ Checks:
   must lie in the Coulomb cone about the contact normal, ``|J_t| <= mu J_n`` with J_n >= 0
   (pair materials by the log's combine rules, RunInfo.combine_friction / combine_restitution;
   rblog's, which v1 logs imply: mu = sqrt(mu_a mu_b), e = max(e_a, e_b), Box2D's mixing rules).
-  Logged contact impulses are checked against the cone as well.
+  Logged contact impulses are checked against the cone as well. A body without a contract shape
+  (a capsule, cylinder or mesh: only its geoms say where it touches) against a static box is not
+  judged so (the box's face at the contact is not known from the body's centre).
 * Impact events (rblog.analyze.events: the contact groups of consecutive intervals with the
   same bodies, so that an impact a compliant engine spreads over many steps is one event): the
   effective restitution ``e = -v_n(separation) / v_n(touch)`` of the contact point's normal
