@@ -253,9 +253,11 @@ KNOWN = {
     # space stopped reporting overlapping pairs: test_engine_shapes), creep 0.320 mm
     "pile": {"momentum: cone": 1.0, "penetration: creep": 0.000223},
     "resting_box": {},
-    # measured 2026-12-02 (the capsules' first ODE runs): friction rows with no normal force, and
-    # the gyroscopic step on capsules tumbling between two contacts
-    "shapes": {"momentum: cone": 1.0, "momentum: flight angular": 0.0039},
+    # measured 2026-12-02 21:20 UTC: friction rows with no normal force. No flight finding: the
+    # 0.0039 of |L| read before the audit found capsule contacts from their geoms lay on
+    # stretches in which capsules touched between samples; whether ODE's gyroscopic error on the
+    # flights left is below the tolerance or they are too short to judge is not measured
+    "shapes": {"momentum: cone": 1.0},
     "spinning_bodies": {"momentum: flight angular": 0.0486, "energy: flight energy": 0.0647},
     "tumbling_box": {"momentum: flight angular": 0.00365, "energy: flight energy": 0.00734},
 }
