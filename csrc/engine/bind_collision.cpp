@@ -4,6 +4,7 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <cstddef>  // offsetof
 #include <cstring>
 
 #include "common/py.hpp"
@@ -34,18 +35,37 @@ nb::object pairs_to(nb::handle h, const Buf2<i64>& b, i64 count) {
     return nb::cast(rows_to_numpy(b, b.rows));
 }
 
+// The contact records' fields, in order (manifold.hpp): {"head": ..., "manifold": ...,
+// "point": ...}, each a list of (name, offset, width) in values of 8 bytes, for numpy structured
+// dtypes (rblog/engine/contact/manifold.py).
+nb::dict contact_fields() {
+#define RB_F(R, f) nb::make_tuple(#f, (i64)(offsetof(R, f) / 8), (i64)(sizeof(R::f) / 8))
+    nb::dict d;
+    d["head"] = nb::make_tuple(RB_F(ManifoldHead, key), RB_F(ManifoldHead, a),
+                               RB_F(ManifoldHead, b), RB_F(ManifoldHead, rec_a),
+                               RB_F(ManifoldHead, rec_b), RB_F(ManifoldHead, start),
+                               RB_F(ManifoldHead, count), RB_F(ManifoldHead, active));
+    d["manifold"] = nb::make_tuple(
+        RB_F(Manifold, normal), RB_F(Manifold, t1), RB_F(Manifold, t2), RB_F(Manifold, mu),
+        RB_F(Manifold, e), RB_F(Manifold, acc), RB_F(Manifold, lu), RB_F(Manifold, piv),
+        RB_F(Manifold, lu_ok), RB_F(Manifold, anchor_rot), RB_F(Manifold, anchor_pos),
+        RB_F(Manifold, anchor_ok));
+    d["point"] = nb::make_tuple(
+        RB_F(ContactPoint, point), RB_F(ContactPoint, ra), RB_F(ContactPoint, rb),
+        RB_F(ContactPoint, s), RB_F(ContactPoint, normal_mass), RB_F(ContactPoint, tangent_k),
+        RB_F(ContactPoint, ln), RB_F(ContactPoint, l1), RB_F(ContactPoint, l2),
+        RB_F(ContactPoint, lp), RB_F(ContactPoint, lws), RB_F(ContactPoint, w0),
+        RB_F(ContactPoint, friction), RB_F(ContactPoint, s_end), RB_F(ContactPoint, impact),
+        RB_F(ContactPoint, wt), RB_F(ContactPoint, kn), RB_F(ContactPoint, slip),
+        RB_F(ContactPoint, slip_bias));
+#undef RB_F
+    return d;
+}
+
 nb::dict collision_layout() {
     nb::dict d;
 #define RB_PUT(name) d[#name] = name
-    RB_PUT(MI_KEY); RB_PUT(MI_A); RB_PUT(MI_B); RB_PUT(MI_REC_A); RB_PUT(MI_REC_B);
-    RB_PUT(MI_START); RB_PUT(MI_COUNT); RB_PUT(MI_ACTIVE); RB_PUT(MI_COLS);
-    RB_PUT(MF_N); RB_PUT(MF_T1); RB_PUT(MF_T2); RB_PUT(MF_MU); RB_PUT(MF_E); RB_PUT(MF_ACC);
-    RB_PUT(MF_LU); RB_PUT(MF_PIV); RB_PUT(MF_LUOK); RB_PUT(MF_AR); RB_PUT(MF_AT); RB_PUT(MF_AOK);
-    RB_PUT(MF_COLS);
-    RB_PUT(PF_P); RB_PUT(PF_RA); RB_PUT(PF_RB); RB_PUT(PF_S); RB_PUT(PF_NMASS); RB_PUT(PF_TK);
-    RB_PUT(PF_LN); RB_PUT(PF_L1); RB_PUT(PF_L2); RB_PUT(PF_LP); RB_PUT(PF_LWS); RB_PUT(PF_W0);
-    RB_PUT(PF_F); RB_PUT(PF_SEND); RB_PUT(PF_IMPACT); RB_PUT(PF_WT); RB_PUT(PF_KN); RB_PUT(PF_D);
-    RB_PUT(PF_DB); RB_PUT(PF_COLS);
+    RB_PUT(MI_COLS); RB_PUT(MF_COLS); RB_PUT(PF_COLS);
     RB_PUT(LOG_STEP); RB_PUT(LOG_A); RB_PUT(LOG_B); RB_PUT(LOG_KIND); RB_PUT(LOG_I_COLS);
     RB_PUT(LOG_P); RB_PUT(LOG_N); RB_PUT(LOG_S); RB_PUT(LOG_LN); RB_PUT(LOG_F); RB_PUT(LOG_F_COLS);
     RB_PUT(MAX_CLIP_POINTS); RB_PUT(MAX_MANIFOLD_POINTS);
@@ -109,8 +129,12 @@ void bind_collision(nb::module_& m) {
         },
         "The collision constants as C++ holds them (tests).");
     m.def("collision_layout", &collision_layout,
-          "The C++ mirror of manifold.py's columns, the GEOM_* codes and the narrowphase table's "
-          "keys (a test checks they agree with the Python modules).");
+          "The records' row widths, the contact log's columns, the GEOM_* codes and the "
+          "narrowphase table's keys, as C++ holds them (manifold.py and narrowphase.py read "
+          "them).");
+    m.def("contact_fields", &contact_fields,
+          "The contact records' fields (manifold.hpp): {'head' | 'manifold' | 'point': "
+          "((name, offset, width), ...)}, offsets and widths in 8-byte values.");
 
     m.def(
         "collide_np",
@@ -254,16 +278,15 @@ void bind_collision(nb::module_& m) {
             V3<double> vsr = v3<double>(sb_rot, "sb_rot");
             V1<double> vsbe = v1<double>(sb_e, "sb_e"), vsbmu = v1<double>(sb_mu, "sb_mu");
             V1<double> vgn = v1<double>(gn, "gn");
-            V2<i64> vpmi = v2<i64>(prev_mi, "prev_mi");
-            V2<double> vpmf = v2<double>(prev_mf, "prev_mf"), vppf = v2<double>(prev_pf, "prev_pf");
+            V1<ManifoldHead> vpmi = mi_arg(prev_mi, "prev_mi");
+            V1<Manifold> vpmf = mf_arg(prev_mf, "prev_mf");
+            V1<ContactPoint> vppf = pf_arg(prev_pf, "prev_pf");
             V1<i64> vppid = v1<i64>(prev_pid, "prev_pid"), vpk = v1<i64>(prev_keys, "prev_keys"),
                     vpi = v1<i64>(prev_idx, "prev_idx");
-            V2<i64> vmi = v2<i64>(mi, "mi");
-            V2<double> vmf = v2<double>(mf, "mf"), vpf = v2<double>(pf, "pf");
+            V1<ManifoldHead> vmi = mi_arg(mi);
+            V1<Manifold> vmf = mf_arg(mf);
+            V1<ContactPoint> vpf = pf_arg(pf);
             V1<i64> vpid = v1<i64>(pid, "pid");
-            if (vmi.n1 != MI_COLS || vmf.n1 != MF_COLS || vpf.n1 != PF_COLS ||
-                vpmi.n1 != MI_COLS || vpmf.n1 != MF_COLS || vppf.n1 != PF_COLS)
-                throw nb::value_error("collide_pairs: manifold arrays need MI/MF/PF_COLS columns");
             if (vmi.n0 < 2 * n_pairs || vmf.n0 < 2 * n_pairs || vpf.n0 < 8 * n_pairs ||
                 vpid.n0 < 8 * n_pairs)
                 throw nb::value_error("collide_pairs: room for 2 n_pairs manifolds and 8 n_pairs "
@@ -285,7 +308,7 @@ void bind_collision(nb::module_& m) {
     m.def(
         "sort_manifolds",
         [](nb::handle mi, i64 n_man, nb::handle keys, nb::handle idx) {
-            V2<i64> vmi = v2<i64>(mi, "mi");
+            V1<ManifoldHead> vmi = mi_arg(mi);
             V1<i64> vk = v1<i64>(keys, "sorted_keys"), vi = v1<i64>(idx, "sorted_idx");
             if (vk.n0 < n_man || vi.n0 < n_man || vmi.n0 < n_man)
                 throw nb::value_error("sort_manifolds: arrays shorter than n_man");
@@ -301,7 +324,7 @@ void bind_collision(nb::module_& m) {
            double sleep_time, nb::handle parent, nb::handle island_min_time,
            nb::handle island_supported) {
             return update_sleep(
-                n_dyn, v2<i64>(mi, "mi"), v2<double>(pf, "pf"), n_man, v1<i64>(awake, "awake"),
+                n_dyn, mi_arg(mi), pf_arg(pf), n_man, v1<i64>(awake, "awake"),
                 v1<double>(sleep_timer, "sleep_timer"), v1<i64>(island_of, "island_of"),
                 v1<i64>(island_counter, "island_counter"),
                 v2<double>(linear_momentum, "linear_momentum"),
@@ -318,7 +341,7 @@ void bind_collision(nb::module_& m) {
            nb::handle sleep_timer, nb::handle island_of, nb::handle position,
            nb::handle linear_momentum, nb::handle angular_momentum, nb::handle force,
            nb::handle torque, double h) {
-            return wake_pushed(v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"),
+            return wake_pushed(mi_arg(mi), mf_arg(mf), pf_arg(pf),
                                n_man, n_dyn, v1<i64>(awake, "awake"),
                                v1<double>(sleep_timer, "sleep_timer"),
                                v1<i64>(island_of, "island_of"), v2<double>(position, "position"),

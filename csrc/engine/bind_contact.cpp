@@ -202,10 +202,10 @@ void bind_contact(nb::module_& m) {
     m.def("stage_prepare", [](nb::handle bd, nb::handle cfg, nb::handle x, Scratch& sc,
                               nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man, double h) {
         step::prepare(Bodies::from_py(bd), Settings::from_py(cfg), BodyState::from_py(x), sc,
-                      v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"), n_man, h);
+                      mi_arg(mi), mf_arg(mf), pf_arg(pf), n_man, h);
     });
     m.def("stage_mark_pushed", [](nb::handle mi, nb::handle pf, i64 n_man, i64 n, Scratch& sc) {
-        step::mark_pushed(v2<i64>(mi, "mi"), v2<double>(pf, "pf"), n_man, n, sc);
+        step::mark_pushed(mi_arg(mi), pf_arg(pf), n_man, n, sc);
     });
     m.def("stage_integrate_positions",
           [](int method, int ortho, nb::handle bd, nb::handle cfg, nb::handle awake, nb::handle x,
@@ -227,7 +227,7 @@ void bind_contact(nb::module_& m) {
                             double h, i64 n_awake) {
         return step::sleep_stage(Bodies::from_py(bd), Settings::from_py(cfg),
                                  SleepState::from_py(sl), BodyState::from_py(x), sc,
-                                 v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"),
+                                 mi_arg(mi), mf_arg(mf), pf_arg(pf),
                                  n_man, h, n_awake);
     });
     m.def("stage_first_diverged", [](nb::handle awake, nb::handle x, nb::handle inv_inertia,
@@ -241,8 +241,8 @@ void bind_contact(nb::module_& m) {
                                       i64 n_log) {
         Buf2<i64> log_i = buf_from<i64>(log_i_, "log_i");
         Buf2<double> log_f = buf_from<double>(log_f_, "log_f");
-        n_log = step::record_contacts(s, v2<i64>(mi, "mi"), v2<double>(mf, "mf"),
-                                      v2<double>(pf, "pf"), n_man,
+        n_log = step::record_contacts(s, mi_arg(mi), mf_arg(mf),
+                                      pf_arg(pf), n_man,
                                       v2<double>(position, "position"),
                                       v3<double>(rotation, "rotation"),
                                       v2<double>(pose0, "pose0"), log_i, log_f, n_log);
@@ -256,7 +256,7 @@ void bind_contact(nb::module_& m) {
                             nb::handle bI, nb::handle bv, nb::handle bw, nb::handle bv0,
                             nb::handle bw0, nb::handle pv, nb::handle pw, nb::handle p0,
                             nb::handle l0) {
-        load_bodies(v2<i64>(mi, "mi"), n_man, n_dyn, iso_shortcut, v1<i64>(iso, "iso"),
+        load_bodies(mi_arg(mi), n_man, n_dyn, iso_shortcut, v1<i64>(iso, "iso"),
                     v1<double>(inv_mass, "inv_mass"), v2<double>(inv_inertia, "inv_inertia"),
                     v3<double>(rotation, "rotation"), v2<double>(lm, "linear_momentum"),
                     v2<double>(am, "angular_momentum"), v1<i64>(in_contact, "in_contact"),
@@ -267,8 +267,7 @@ void bind_contact(nb::module_& m) {
     });
     // the stages one by one (the tests): the settings each reads given as arguments
     auto cons_of = [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man) {
-        return ContactConstraints{v2<i64>(mi, "mi"), v2<double>(mf, "mf"), v2<double>(pf, "pf"),
-                                  n_man};
+        return ContactConstraints{mi_arg(mi), mf_arg(mf), pf_arg(pf), n_man};
     };
     auto bodies_of = [](nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw) {
         return SolverBodies{v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),

@@ -8,7 +8,7 @@
 // * otherwise the collider from the narrowphase table runs with a speculative distance of
 //   margin + reach_a + reach_b; each new point takes over the impulses of the previous step's
 //   point with the same feature id (or, failing that, the nearest one within anchor_distance),
-//   normal impulse as is (the velocity solve's, PF_LWS) and friction projected on the new
+//   normal impulse as is (the velocity solve's, lws) and friction projected on the new
 //   tangents;
 // * the manifold keeps its friction anchor, the pose of a in b's frame when the pair started
 //   sticking (contact_solver.cpp, "Friction anchor": A_R = R_b^T R_a, A_t = R_b^T (x_a - x_b), b's frame
@@ -74,7 +74,7 @@ i64 find_manifold(V1<i64> sorted_keys, V1<i64> sorted_idx, i64 n, i64 key) {
     return -1;
 }
 
-void sort_manifolds(V2<i64> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_idx) {
+void sort_manifolds(V1<ManifoldHead> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_idx) {
     // (key, index) pairs in lexicographic order: the order of a stable sort by key
     struct KeyIdx {
         i64 key, idx;
@@ -82,7 +82,7 @@ void sort_manifolds(V2<i64> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_i
     static thread_local std::vector<KeyIdx> kept;
     std::vector<KeyIdx>& order = kept;
     order.resize((size_t)n_man);
-    for (i64 m = 0; m < n_man; ++m) order[(size_t)m] = KeyIdx{mi(m, MI_KEY), m};
+    for (i64 m = 0; m < n_man; ++m) order[(size_t)m] = KeyIdx{mi[m].key, m};
     std::sort(order.begin(), order.end(), [](const KeyIdx& a, const KeyIdx& b) {
         return a.key < b.key || (a.key == b.key && a.idx < b.idx);
     });
@@ -146,38 +146,39 @@ constexpr i64 MIN_PAIRS = 512;
                          V2<double> position, V3<double> rotation, V2<double> sb_pos,
                          V3<double> sb_rot, V1<double> restitution, V1<double> friction,
                          V2<double> accel, V1<double> sb_e, V1<double> sb_mu, double g_e,
-                         double g_mu, V2<i64> prev_mi, V2<double> prev_mf, V2<double> prev_pf,
-                         V1<i64> prev_pid, V1<i64> prev_keys, V1<i64> prev_idx, i64 prev_n,
-                         V2<i64> mi, V2<double> mf, V2<double> pf, V1<i64> pid, i64& n_man,
-                         i64& n_pts, bool warm, double ad2, const PairOut& buf) {
+                         double g_mu, V1<ManifoldHead> prev_mi, V1<Manifold> prev_mf,
+                         V1<ContactPoint> prev_pf, V1<i64> prev_pid, V1<i64> prev_keys,
+                         V1<i64> prev_idx, i64 prev_n, V1<ManifoldHead> mi, V1<Manifold> mf,
+                         V1<ContactPoint> pf, V1<i64> pid, i64& n_man, i64& n_pts, bool warm,
+                         double ad2, const PairOut& buf) {
     static const double IDENTITY[9] = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
     static const double ZERO3[3] = {0.0, 0.0, 0.0};
     const CollisionConstants& cc = collision_constants();
     const double* nrm = buf.nrm;
     const i64 m = n_man;
     n_man += 1;
-    i64* mim = mi.row(m);
-    double* mfm = mf.row(m);
-    mim[MI_KEY] = key;
-    mim[MI_A] = a_awake ? a : n_dyn;
-    mim[MI_B] = b_awake ? b : n_dyn;
-    mim[MI_REC_A] = a;
-    mim[MI_REC_B] = b_dyn ? b : cc.static_body;
-    mim[MI_START] = n_pts;
-    mim[MI_COUNT] = cnt;
-    mim[MI_ACTIVE] = 1;
+    ManifoldHead& mim = mi[m];
+    Manifold& mfm = mf[m];
+    mim.key = key;
+    mim.a = a_awake ? a : n_dyn;
+    mim.b = b_awake ? b : n_dyn;
+    mim.rec_a = a;
+    mim.rec_b = b_dyn ? b : cc.static_body;
+    mim.start = n_pts;
+    mim.count = cnt;
+    mim.active = 1;
     const double nx = nrm[3 * part], ny = nrm[3 * part + 1], nz = nrm[3 * part + 2];
     const std::array<double, 6> tb = tangent_basis(nx, ny, nz);
     const double t1x = tb[0], t1y = tb[1], t1z = tb[2], t2x = tb[3], t2y = tb[4], t2z = tb[5];
-    mfm[MF_N] = nx;
-    mfm[MF_N + 1] = ny;
-    mfm[MF_N + 2] = nz;
-    mfm[MF_T1] = t1x;
-    mfm[MF_T1 + 1] = t1y;
-    mfm[MF_T1 + 2] = t1z;
-    mfm[MF_T2] = t2x;
-    mfm[MF_T2 + 1] = t2y;
-    mfm[MF_T2 + 2] = t2z;
+    mfm.normal[0] = nx;
+    mfm.normal[1] = ny;
+    mfm.normal[2] = nz;
+    mfm.t1[0] = t1x;
+    mfm.t1[1] = t1y;
+    mfm.t1[2] = t1z;
+    mfm.t2[0] = t2x;
+    mfm.t2[1] = t2y;
+    mfm.t2[2] = t2z;
     // materials and the gap acceleration n . (a_a - a_b) from external forces
     double ax = 0.0, ay = 0.0, az = 0.0;
     if (a_awake) {
@@ -201,9 +202,9 @@ constexpr i64 MIN_PAIRS = 512;
         mu = std::sqrt(friction[a] * g_mu);
         e = std::max(restitution[a], g_e);
     }
-    mfm[MF_MU] = mu;
-    mfm[MF_E] = e;
-    mfm[MF_ACC] = nx * ax + ny * ay + nz * az;
+    mfm.mu = mu;
+    mfm.e = e;
+    mfm.acc = nx * ax + ny * ay + nz * az;
     // warm starting from the previous step's manifold of this pair
     i64 j = -1;
     if (warm) j = find_manifold(prev_keys, prev_idx, prev_n, key);
@@ -222,21 +223,21 @@ constexpr i64 MIN_PAIRS = 512;
         xb = ZERO3;
     }
     const M3 ra = rotation.row(a);
-    const bool anchored = j >= 0 && prev_mf(j, MF_AOK) > 0.0 && !rolls;
+    const bool anchored = j >= 0 && prev_mf[j].anchor_ok > 0.0 && !rolls;
     if (anchored) {
-        const double* pm = prev_mf.row(j);
-        for (int c = 0; c < 9; ++c) mfm[MF_AR + c] = pm[MF_AR + c];
-        for (int r = 0; r < 3; ++r) mfm[MF_AT + r] = pm[MF_AT + r];
+        const Manifold& pm = prev_mf[j];
+        for (int c = 0; c < 9; ++c) mfm.anchor_rot[c] = pm.anchor_rot[c];
+        for (int r = 0; r < 3; ++r) mfm.anchor_pos[r] = pm.anchor_pos[r];
     } else {
         for (int r = 0; r < 3; ++r) {
             for (int c = 0; c < 3; ++c)  // R_b^T R_a
-                mfm[MF_AR + 3 * r + c] =
+                mfm.anchor_rot[3 * r + c] =
                     rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) + rb_(2, r) * ra(2, c);
-            mfm[MF_AT + r] = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
+            mfm.anchor_pos[r] = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
                              rb_(2, r) * (pa[2] - xb[2]);
         }
     }
-    mfm[MF_AOK] = rolls ? 0.0 : 1.0;
+    mfm.anchor_ok = rolls ? 0.0 : 1.0;
     // what the points' loop reads, in locals (its stores into pf could alias these arrays for all
     // the compiler knows, and it would load them again for every point): the same values
     const double pa0 = pa[0], pa1 = pa[1], pa2 = pa[2];
@@ -254,40 +255,40 @@ constexpr i64 MIN_PAIRS = 512;
             RA[r][c] = ra(r, c);
             RB[r][c] = rb_(r, c);
         }
-        AT[r] = mfm[MF_AT + r];
+        AT[r] = mfm.anchor_pos[r];
     }
-    for (int c = 0; c < 9; ++c) AR[c] = mfm[MF_AR + c];
+    for (int c = 0; c < 9; ++c) AR[c] = mfm.anchor_rot[c];
     double drift_max = 0.0;
     for (i64 q = 0; q < cnt; ++q) {
         const i64 p = n_pts + q;
-        double* pfp = pf.row(p);
+        ContactPoint& pfp = pf[p];
         const double px = buf.pts[row + q][0], py = buf.pts[row + q][1], pz = buf.pts[row + q][2];
         // p - x_a: the anchor r_a and a's material point's offset
         const double rax = px - pa0, ray = py - pa1, raz = pz - pa2;
-        pfp[PF_P] = px;
-        pfp[PF_P + 1] = py;
-        pfp[PF_P + 2] = pz;
-        pfp[PF_RA] = rax;
-        pfp[PF_RA + 1] = ray;
-        pfp[PF_RA + 2] = raz;
+        pfp.point[0] = px;
+        pfp.point[1] = py;
+        pfp.point[2] = pz;
+        pfp.ra[0] = rax;
+        pfp.ra[1] = ray;
+        pfp.ra[2] = raz;
         if (b_dyn) {
-            pfp[PF_RB] = px - pb0;
-            pfp[PF_RB + 1] = py - pb1;
-            pfp[PF_RB + 2] = pz - pb2;
+            pfp.rb[0] = px - pb0;
+            pfp.rb[1] = py - pb1;
+            pfp.rb[2] = pz - pb2;
         } else {
-            pfp[PF_RB] = 0.0;
-            pfp[PF_RB + 1] = 0.0;
-            pfp[PF_RB + 2] = 0.0;
+            pfp.rb[0] = 0.0;
+            pfp.rb[1] = 0.0;
+            pfp.rb[2] = 0.0;
         }
-        pfp[PF_S] = buf.sep[row + q];
-        pfp[PF_SEND] = buf.sep[row + q];
+        pfp.s = buf.sep[row + q];
+        pfp.s_end = buf.sep[row + q];
         pid[p] = buf.fid[row + q];
         double ln = 0.0;
         double l1 = 0.0;
         double l2 = 0.0;
         if (j >= 0) {
-            const i64 ps = prev_mi(j, MI_START);
-            const i64 pc = prev_mi(j, MI_COUNT);
+            const i64 ps = prev_mi[j].start;
+            const i64 pc = prev_mi[j].count;
             i64 match = -1;
             for (i64 r = ps; r < ps + pc; ++r) {
                 if (prev_pid[r] == buf.fid[row + q]) {
@@ -298,9 +299,9 @@ constexpr i64 MIN_PAIRS = 512;
             if (match < 0) {
                 double best = ad2;
                 for (i64 r = ps; r < ps + pc; ++r) {
-                    double dx = prev_pf(r, PF_P) - px;
-                    double dy = prev_pf(r, PF_P + 1) - py;
-                    double dz = prev_pf(r, PF_P + 2) - pz;
+                    double dx = prev_pf[r].point[0] - px;
+                    double dy = prev_pf[r].point[1] - py;
+                    double dz = prev_pf[r].point[2] - pz;
                     double d2 = dx * dx + dy * dy + dz * dz;
                     if (d2 <= best) {
                         best = d2;
@@ -309,9 +310,9 @@ constexpr i64 MIN_PAIRS = 512;
                 }
             }
             if (match >= 0) {
-                ln = prev_pf(match, PF_LWS);
-                double fx = prev_pf(match, PF_F), fy = prev_pf(match, PF_F + 1),
-                       fz = prev_pf(match, PF_F + 2);
+                ln = prev_pf[match].lws;
+                double fx = prev_pf[match].friction[0], fy = prev_pf[match].friction[1],
+                       fz = prev_pf[match].friction[2];
                 l1 = fx * t1x + fy * t1y + fz * t1z;
                 l2 = fx * t2x + fy * t2y + fz * t2z;
             }
@@ -332,37 +333,37 @@ constexpr i64 MIN_PAIRS = 512;
             dy = 0.0;
             dz = 0.0;
         }
-        pfp[PF_D] = dx;
-        pfp[PF_D + 1] = dy;
-        pfp[PF_D + 2] = dz;
+        pfp.slip[0] = dx;
+        pfp.slip[1] = dy;
+        pfp.slip[2] = dz;
         double dn = dx * nx + dy * ny + dz * nz;
         drift_max = std::max(drift_max, dx * dx + dy * dy + dz * dz - dn * dn);
-        pfp[PF_LN] = ln;
-        pfp[PF_L1] = l1;
-        pfp[PF_L2] = l2;
-        pfp[PF_LWS] = ln;
-        pfp[PF_LP] = 0.0;
-        pfp[PF_W0] = 0.0;
-        pfp[PF_WT] = -1.0;
-        pfp[PF_IMPACT] = 0.0;
-        pfp[PF_F] = 0.0;
-        pfp[PF_F + 1] = 0.0;
-        pfp[PF_F + 2] = 0.0;
+        pfp.ln = ln;
+        pfp.l1 = l1;
+        pfp.l2 = l2;
+        pfp.lws = ln;
+        pfp.lp = 0.0;
+        pfp.w0 = 0.0;
+        pfp.wt = -1.0;
+        pfp.impact = 0.0;
+        pfp.friction[0] = 0.0;
+        pfp.friction[1] = 0.0;
+        pfp.friction[2] = 0.0;
     }
     const double dmax = cc.friction_anchor_max_drift_m;
     if (drift_max > dmax * dmax) {
         // drifted too far to be pulled back (the pair was struck): anchored anew where it is
         for (int r = 0; r < 3; ++r) {
             for (int c = 0; c < 3; ++c)
-                mfm[MF_AR + 3 * r + c] = rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) +
+                mfm.anchor_rot[3 * r + c] = rb_(0, r) * ra(0, c) + rb_(1, r) * ra(1, c) +
                                          rb_(2, r) * ra(2, c);
-            mfm[MF_AT + r] = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
+            mfm.anchor_pos[r] = rb_(0, r) * (pa[0] - xb[0]) + rb_(1, r) * (pa[1] - xb[1]) +
                              rb_(2, r) * (pa[2] - xb[2]);
         }
         for (i64 p = n_pts; p < n_pts + cnt; ++p) {
-            pf(p, PF_D) = 0.0;
-            pf(p, PF_D + 1) = 0.0;
-            pf(p, PF_D + 2) = 0.0;
+            pf[p].slip[0] = 0.0;
+            pf[p].slip[1] = 0.0;
+            pf[p].slip[2] = 0.0;
         }
     }
     n_pts += cnt;
@@ -379,10 +380,10 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                            V1<double> restitution, V1<double> friction, V2<double> accel,
                            V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext,
                            V1<double> sb_e, V1<double> sb_mu, V1<double> gn, double goff,
-                           double g_e, double g_mu, V2<i64> prev_mi, V2<double> prev_mf,
-                           V2<double> prev_pf, V1<i64> prev_pid, V1<i64> prev_keys,
-                           V1<i64> prev_idx, i64 prev_n, V2<i64> mi, V2<double> mf,
-                           V2<double> pf, V1<i64> pid, bool warm, double anchor_distance,
+                           double g_e, double g_mu, V1<ManifoldHead> prev_mi, V1<Manifold> prev_mf,
+                           V1<ContactPoint> prev_pf, V1<i64> prev_pid, V1<i64> prev_keys,
+                           V1<i64> prev_idx, i64 prev_n, V1<ManifoldHead> mi, V1<Manifold> mf,
+                           V1<ContactPoint> pf, V1<i64> pid, bool warm, double anchor_distance,
                            ColliderBuffers& buf) {
     require_collision_constants();
     const i64 n_shapes = n_dyn + n_static + 1;
@@ -415,7 +416,7 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                     i64 j = find_manifold(prev_keys, prev_idx, prev_n, 2 * key + part);
                     if (j < 0) continue;
                     o.n_man += 1;
-                    o.n_pts += prev_mi(j, MI_COUNT);
+                    o.n_pts += prev_mi[j].count;
                 }
                 continue;
             }
@@ -467,16 +468,16 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                 for (i64 part = 0; part < 2; ++part) {
                     i64 j = find_manifold(prev_keys, prev_idx, prev_n, 2 * key + part);
                     if (j < 0) continue;
-                    const i64 cnt = prev_mi(j, MI_COUNT);
-                    for (i64 c = 0; c < MI_COLS; ++c) mi(n_man, c) = prev_mi(j, c);
-                    for (i64 c = 0; c < MF_COLS; ++c) mf(n_man, c) = prev_mf(j, c);
-                    const i64 ps = prev_mi(j, MI_START);
+                    const i64 cnt = prev_mi[j].count;
+                    mi[n_man] = prev_mi[j];
+                    mf[n_man] = prev_mf[j];
+                    const i64 ps = prev_mi[j].start;
                     for (i64 q = 0; q < cnt; ++q) {
-                        for (i64 c = 0; c < PF_COLS; ++c) pf(n_pts + q, c) = prev_pf(ps + q, c);
+                        pf[n_pts + q] = prev_pf[ps + q];
                         pid[n_pts + q] = prev_pid[ps + q];
                     }
-                    mi(n_man, MI_START) = n_pts;
-                    mi(n_man, MI_ACTIVE) = 0;
+                    mi[n_man].start = n_pts;
+                    mi[n_man].active = 0;
                     n_man += 1;
                     n_pts += cnt;
                 }

@@ -197,7 +197,7 @@ std::array<double, 6> tangent_basis(double nx, double ny, double nz);
 // Index of the manifold with `key` among the first n sorted keys, or -1.
 i64 find_manifold(V1<i64> sorted_keys, V1<i64> sorted_idx, i64 n, i64 key);
 // Fill sorted_keys/sorted_idx (length >= n_man) with the manifolds ordered by pair key (stable).
-void sort_manifolds(V2<i64> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_idx);
+void sort_manifolds(V1<ManifoldHead> mi, i64 n_man, V1<i64> sorted_keys, V1<i64> sorted_idx);
 // Room for cap manifolds / points (contents kept).
 void grow_manifolds(Buf2<i64>& mi, Buf2<double>& mf, i64 cap);
 void grow_points(Buf2<double>& pf, Buf2<i64>& pid, i64 cap);
@@ -213,10 +213,10 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                            V1<double> restitution, V1<double> friction, V2<double> accel,
                            V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext,
                            V1<double> sb_e, V1<double> sb_mu, V1<double> gn, double goff,
-                           double g_e, double g_mu, V2<i64> prev_mi, V2<double> prev_mf,
-                           V2<double> prev_pf, V1<i64> prev_pid, V1<i64> prev_keys,
-                           V1<i64> prev_idx, i64 prev_n, V2<i64> mi, V2<double> mf,
-                           V2<double> pf, V1<i64> pid, bool warm, double anchor_distance,
+                           double g_e, double g_mu, V1<ManifoldHead> prev_mi, V1<Manifold> prev_mf,
+                           V1<ContactPoint> prev_pf, V1<i64> prev_pid, V1<i64> prev_keys,
+                           V1<i64> prev_idx, i64 prev_n, V1<ManifoldHead> mi, V1<Manifold> mf,
+                           V1<ContactPoint> pf, V1<i64> pid, bool warm, double anchor_distance,
                            ColliderBuffers& buf);
 
 // ---- islands (island.cpp) -------------------------------------------------------------------
@@ -229,7 +229,7 @@ inline i64 find_root(V1<i64> parent, i64 i) {
     return i;
 }
 // Advance rest timers, build islands, put islands at rest to sleep. Returns bodies put to sleep.
-i64 update_sleep(i64 n_dyn, V2<i64> mi, V2<double> pf, i64 n_man, V1<i64> awake,
+i64 update_sleep(i64 n_dyn, V1<ManifoldHead> mi, V1<ContactPoint> pf, i64 n_man, V1<i64> awake,
                  V1<double> sleep_timer, V1<i64> island_of, V1<i64> island_counter,
                  V2<double> linear_momentum, V2<double> angular_momentum, V1<double> inv_mass,
                  V2<double> inv_inertia, V1<double> radius, double h, double sleep_speed,
@@ -250,7 +250,8 @@ i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> ge
                  V1<double> radius, V2<double> inv_inertia);
 // Wake the sleeping islands an awake body pushed on in this step's solve (their impulses handed
 // to the sleepers). Returns islands woken.
-i64 wake_pushed(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, i64 n_dyn, V1<i64> awake,
+i64 wake_pushed(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man, i64 n_dyn,
+                V1<i64> awake,
                 V1<double> sleep_timer, V1<i64> island_of, V2<double> position,
                 V2<double> linear_momentum, V2<double> angular_momentum, V2<double> force,
                 V2<double> torque, double h);

@@ -6,13 +6,13 @@
 
 namespace rb {
 
-void colour_manifolds(V2<i64> mi, i64 n_man, i64 n_dyn, ConstraintGraph& g) {
+void colour_manifolds(V1<ManifoldHead> mi, i64 n_man, i64 n_dyn, ConstraintGraph& g) {
     g.body_colours.assign(n_dyn + 1, 0u);
     g.colour_of.assign(n_man, -1);
     i64 count[GRAPH_COLOURS] = {0};
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 a = mi(m, MI_A), b = mi(m, MI_B);
+        if (!mi[m].active) continue;
+        i64 a = mi[m].a, b = mi[m].b;
         bool dyn_a = a < n_dyn, dyn_b = b < n_dyn;
         int c = OVERFLOW_COLOUR;
         if (dyn_a && dyn_b) {
@@ -76,7 +76,7 @@ void colour_manifolds(V2<i64> mi, i64 n_man, i64 n_dyn, ConstraintGraph& g) {
     // the overflow set keeps manifold order (it is solved one manifold after another)
     for (i64 s = 1; s < g.n_sets(); ++s)
         std::stable_sort(g.order.begin() + g.set_start[s], g.order.begin() + g.set_start[s + 1],
-                         [&](i64 x, i64 y) { return mi(x, MI_COUNT) > mi(y, MI_COUNT); });
+                         [&](i64 x, i64 y) { return mi[x].count > mi[y].count; });
 }
 
 }  // namespace rb

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "common/array.hpp"
+#include "engine/manifold.hpp"
 
 namespace rb {
 
@@ -50,6 +51,6 @@ struct ConstraintGraph {
 
 // Colour the active manifolds of mi (M, MI_COLS) whose body rows are < n_dyn (dynamic) or
 // n_dyn (the static dummy) into g.
-void colour_manifolds(V2<i64> mi, i64 n_man, i64 n_dyn, ConstraintGraph& g);
+void colour_manifolds(V1<ManifoldHead> mi, i64 n_man, i64 n_dyn, ConstraintGraph& g);
 
 }  // namespace rb

@@ -84,7 +84,7 @@ inline void gap_velocity(const T* va, const T* wa, const T* vb, const T* wb, con
 
 // Solve K x = b in place for a manifold's normal block (x: np values, row i used where pt[i];
 // prepare_contacts' factor_block made the factors): piv(c) the row exchanged with row c
-// (MF_PIV), lu(k) the 4 x 4 row-major factors (MF_LU: the multipliers below the diagonal, U on
+// (piv), lu(k) the 4 x 4 row-major factors (lu: the multipliers below the diagonal, U on
 // and above). Each step acts in the lanes that have its rows.
 template <class T, class Lw, class Lu, class Piv>
 inline void lu_solve_rows(int np, const typename Lw::M* pt, const Lu& lu, const Piv& piv, T* x) {

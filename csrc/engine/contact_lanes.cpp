@@ -63,7 +63,8 @@ void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* 
     solve_groups_scalar(g, g0, g1, cx, change, visits);
 }
 
-void pack_lanes(V2<i64> mi, V2<double> mf, V2<double> pf, const ConstraintGraph& g, V1<double> bm,
+void pack_lanes(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
+                const ConstraintGraph& g, V1<double> bm,
                 V2<double> bI, V1<i64> degree, double inv_h, double sor, SolverLanes& lanes) {
     i64 n_sets = g.n_sets();
     lanes.set_group.assign(n_sets + 1, 0);
@@ -90,8 +91,8 @@ void pack_lanes(V2<i64> mi, V2<double> mf, V2<double> pf, const ConstraintGraph&
                     continue;
                 }
                 i64 m = g.order[k];
-                i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
-                i64 start = mi(m, MI_START), cnt = mi(m, MI_COUNT);
+                i64 ia = mi[m].a, ib = mi[m].b;
+                i64 start = mi[m].start, cnt = mi[m].count;
                 gr.m[j] = m;
                 gr.a[j] = ia;
                 gr.b[j] = ib;
@@ -99,9 +100,9 @@ void pack_lanes(V2<i64> mi, V2<double> mf, V2<double> pf, const ConstraintGraph&
                 double ma = bm[ia], mb = bm[ib];
                 gr.on[j] = 1.0;
                 gr.cnt[j] = (double)cnt;
-                gr.luok[j] = mf(m, MF_LUOK);
+                gr.luok[j] = mf[m].lu_ok;
                 gr.om[j] = ((ma > 0.0 && degree[ia] > 1) || (mb > 0.0 && degree[ib] > 1)) ? sor : 1.0;
-                gr.mu[j] = mf(m, MF_MU);
+                gr.mu[j] = mf[m].mu;
                 gr.ma[j] = ma;
                 gr.mb[j] = mb;
                 for (int c = 0; c < 6; ++c) {
@@ -109,45 +110,45 @@ void pack_lanes(V2<i64> mi, V2<double> mf, V2<double> pf, const ConstraintGraph&
                     gr.b6[c][j] = bI(ib, c);
                 }
                 for (int c = 0; c < 3; ++c) {
-                    gr.n[c][j] = mf(m, MF_N + c);
-                    gr.t1[c][j] = mf(m, MF_T1 + c);
-                    gr.t2[c][j] = mf(m, MF_T2 + c);
+                    gr.n[c][j] = mf[m].normal[c];
+                    gr.t1[c][j] = mf[m].t1[c];
+                    gr.t2[c][j] = mf[m].t2[c];
                 }
-                for (int c = 0; c < 16; ++c) gr.lu[c][j] = mf(m, MF_LU + c);
-                for (int c = 0; c < 4; ++c) gr.piv[c][j] = mf(m, MF_PIV + c);
+                for (int c = 0; c < 16; ++c) gr.lu[c][j] = mf[m].lu[c];
+                for (int c = 0; c < 4; ++c) gr.piv[c][j] = mf[m].piv[c];
                 for (i64 i = 0; i < cnt; ++i) {
-                    const double* q_ = pf.row(start + i);
+                    const ContactPoint& q_ = pf[start + i];
                     for (int c = 0; c < 3; ++c) {
-                        gr.ra[i][c][j] = q_[PF_RA + c];
-                        gr.rb[i][c][j] = q_[PF_RB + c];
-                        gr.tk[i][c][j] = q_[PF_TK + c];
+                        gr.ra[i][c][j] = q_.ra[c];
+                        gr.rb[i][c][j] = q_.rb[c];
+                        gr.tk[i][c][j] = q_.tangent_k[c];
                     }
-                    double sep = q_[PF_S];
+                    double sep = q_.s;
                     // speculative: the gap may close within the step, not more
                     gr.target[i][j] = sep > 0.0 ? -sep * inv_h : 0.0;
-                    gr.nmass[i][j] = q_[PF_NMASS];
-                    gr.ln[i][j] = q_[PF_LN];
-                    gr.l1[i][j] = q_[PF_L1];
-                    gr.l2[i][j] = q_[PF_L2];
+                    gr.nmass[i][j] = q_.normal_mass;
+                    gr.ln[i][j] = q_.ln;
+                    gr.l1[i][j] = q_.l1;
+                    gr.l2[i][j] = q_.l2;
                 }
             }
         }
     }
 }
 
-void unpack_lanes(V2<i64> mi, V2<double> pf, const SolverLanes& lanes) {
+void unpack_lanes(V1<ManifoldHead> mi, V1<ContactPoint> pf, const SolverLanes& lanes) {
     i64 n_groups = lanes.set_group.empty() ? 0 : lanes.set_group.back();
     for (i64 q = 0; q < n_groups; ++q) {
         const WideGroup& gr = lanes.groups[q];
         for (int j = 0; j < 4; ++j) {
             i64 m = gr.m[j];
             if (m < 0) continue;
-            i64 start = mi(m, MI_START), cnt = mi(m, MI_COUNT);
+            i64 start = mi[m].start, cnt = mi[m].count;
             for (i64 i = 0; i < cnt; ++i) {
-                double* q_ = pf.row(start + i);
-                q_[PF_LN] = gr.ln[i][j];
-                q_[PF_L1] = gr.l1[i][j];
-                q_[PF_L2] = gr.l2[i][j];
+                ContactPoint& q_ = pf[start + i];
+                q_.ln = gr.ln[i][j];
+                q_.l1 = gr.l1[i][j];
+                q_.l2 = gr.l2[i][j];
             }
         }
     }

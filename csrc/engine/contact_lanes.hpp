@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "common/array.hpp"
+#include "engine/manifold.hpp"
 
 namespace rb {
 
@@ -43,13 +44,13 @@ struct alignas(32) WideGroup {
     i64 pad_[3];
     double on[4];          // 1: the lane holds a manifold
     double cnt[4];         // its point count
-    double luok[4];        // MF_LUOK
+    double luok[4];        // lu_ok
     double om[4];          // over-relaxation of the normal increments (sor or 1)
     double mu[4];
     double ma[4], mb[4];   // inverse masses
     double a6[6][4], b6[6][4];           // world inverse inertias (xx, yy, zz, xy, xz, yz)
     double n[3][4], t1[3][4], t2[3][4];  // normal (b into a) and tangents, world
-    double lu[16][4], piv[4][4];         // MF_LU, MF_PIV
+    double lu[16][4], piv[4][4];         // lu, piv
     double ra[4][3][4], rb[4][3][4];     // [point][axis][lane] anchors
     double target[4][4];                 // speculative target gap velocity (0 or -s / h)
     double nmass[4][4];
@@ -103,10 +104,11 @@ void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* 
 // start: bm, bI the solver bodies, degree (N+1,) active manifolds per body (over-relaxation where
 // a dynamic body has more than one), inv_h, sor as solve_velocities.
 struct ConstraintGraph;
-void pack_lanes(V2<i64> mi, V2<double> mf, V2<double> pf, const ConstraintGraph& g, V1<double> bm,
+void pack_lanes(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
+                const ConstraintGraph& g, V1<double> bm,
                 V2<double> bI, V1<i64> degree, double inv_h, double sor, SolverLanes& lanes);
-// The accumulated impulses back to the point rows (PF_LN, PF_L1, PF_L2).
-void unpack_lanes(V2<i64> mi, V2<double> pf, const SolverLanes& lanes);
+// The accumulated impulses back to the point rows (ln, l1, l2).
+void unpack_lanes(V1<ManifoldHead> mi, V1<ContactPoint> pf, const SolverLanes& lanes);
 
 // (the AVX2 build of solve_groups_wide, contact_lanes_avx2.cpp; call only with AVX2)
 void solve_groups_avx2(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,

@@ -32,15 +32,16 @@
 // Friction anchor (static friction at the position level, as PhysX's friction anchors, which it
 // breaks when the friction limit is exceeded; ContactParams.static_friction_anchors): a manifold
 // whose pair sticks keeps its anchor, the pose of body a in body b's frame when the pair started
-// sticking (``MF_AR``, ``MF_AT``; b's frame is the world for the ground). The collide stage
-// carries it over with the manifold (matched by pair key, so points that come and go, a one-point
-// contact that becomes a face, keep it) and gives every point its drift ``D``: where a's material
-// point at the contact is now, minus where the anchor pose puts it (collide.py). So D holds the
-// pair's slip and its twist since it stuck, whatever the points did, and counts every move of the
-// bodies (the solve's, the split-impulse and projection shifts). A sphere's pair has no anchor: a
-// rolling sphere brings a new material point to the contact every step, and a pose anchor would
-// pull the contact back against the roll (samples/mixed.toml's balls crept 5 mm). The friction rows of the anchor
-// pass (``anchor_friction``: one sweep after the solve, outside its convergence loop) then target
+// sticking (``anchor_rot``, ``anchor_pos``; b's frame is the world for the ground). The collide
+// stage carries it over with the manifold (matched by pair key, so points that come and go, a
+// one-point contact that becomes a face, keep it) and gives every point its drift ``D``: where a's
+// material point at the contact is now, minus where the anchor pose puts it (collide.py). So D
+// holds the pair's slip and its twist since it stuck, whatever the points did, and counts every
+// move of the bodies (the solve's, the split-impulse and projection shifts). A sphere's pair has no
+// anchor: a rolling sphere brings a new material point to the contact every step, and a pose anchor
+// would pull the contact back against the roll (samples/mixed.toml's balls crept 5 mm). The
+// friction rows of the anchor pass (``anchor_friction``: one sweep after the solve, outside its
+// convergence loop) then target
 // the slip rate ``vt = -FRICTION_ANCHOR_RATE D / h``, so a solve that stops before it converges
 // (residual slip e) cannot add up a drift: D settles at h e / rate and the slip velocity at zero.
 // The bias lives in the friction rows only, which stay clamped to the Coulomb disc. A manifold
@@ -56,6 +57,7 @@
 //
 // Restitution (the bounce after positions moved) is in restitution.cpp.
 #include <cmath>
+#include <cstddef>  // offsetof
 #include <vector>
 
 #include "engine/constraint_graph.hpp"
@@ -85,8 +87,8 @@ inline void cross(double ax, double ay, double az, double bx, double by, double 
 }
 
 // LU-factor manifold m's regularised normal block (K + BLOCK_REG diag(K), n x n, from the points'
-// PF_KN rows) into mf[m, MF_LU:] (U on and above the diagonal, the elimination multipliers below
-// it, each left where it was computed), the pivot rows into mf[m, MF_PIV:] and mf[m, MF_LUOK] =
+// kn rows) into mf[m].lu (U on and above the diagonal, the elimination multipliers below
+// it, each left where it was computed), the pivot rows into mf[m].piv and mf[m].lu_ok =
 // 1.0 if no pivot vanished. The block depends on the geometry and masses only, so it is factored
 // once per step here instead of once per sweep; the sweep (solve_group in contact_lanes.inl)
 // then makes exactly the floating-point operations of Gaussian elimination with partial pivoting
@@ -95,39 +97,41 @@ inline void cross(double ax, double ay, double az, double bx, double by, double 
 // (N: the point count as a template argument, so that the compiler unrolls the short loops;
 // factor_block picks it, N = 0: n_any. The loops and their order are the same for every N.)
 template <i64 N>
-void factor_block_n(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n_any, double block_reg) {
+void factor_block_n(V1<Manifold> mf, i64 m, V1<ContactPoint> pf, i64 start, i64 n_any,
+                    double block_reg) {
     const i64 n = N > 0 ? N : n_any;
-    double* f = mf.row(m);
-    const i64 base = MF_LU;
+    Manifold& f = mf[m];
+    double* lu = f.lu;
     for (i64 i = 0; i < n; ++i) {
         i64 p = start + i;
-        for (i64 j = 0; j < n; ++j) f[base + 4 * i + j] = pf(p, PF_KN + j);
-        f[base + 5 * i] += block_reg * pf(p, PF_KN + i);
+        for (i64 j = 0; j < n; ++j) lu[4 * i + j] = pf[p].kn[j];
+        lu[5 * i] += block_reg * pf[p].kn[i];
     }
-    f[MF_LUOK] = 0.0;
+    f.lu_ok = 0.0;
     for (i64 c = 0; c < n; ++c) {
         i64 piv = c;
         for (i64 r = c + 1; r < n; ++r)
-            if (std::fabs(f[base + 4 * r + c]) > std::fabs(f[base + 4 * piv + c])) piv = r;
-        f[MF_PIV + c] = (double)piv;
-        if (std::fabs(f[base + 4 * piv + c]) <= 0.0) return;
+            if (std::fabs(lu[4 * r + c]) > std::fabs(lu[4 * piv + c])) piv = r;
+        f.piv[c] = (double)piv;
+        if (std::fabs(lu[4 * piv + c]) <= 0.0) return;
         if (piv != c) {
             for (i64 k = c; k < n; ++k) {
-                double t = f[base + 4 * c + k];
-                f[base + 4 * c + k] = f[base + 4 * piv + k];
-                f[base + 4 * piv + k] = t;
+                double t = lu[4 * c + k];
+                lu[4 * c + k] = lu[4 * piv + k];
+                lu[4 * piv + k] = t;
             }
         }
         for (i64 r = c + 1; r < n; ++r) {
-            double fr = f[base + 4 * r + c] / f[base + 5 * c];
-            for (i64 k = c + 1; k < n; ++k) f[base + 4 * r + k] -= fr * f[base + 4 * c + k];
-            f[base + 4 * r + c] = fr;
+            double fr = lu[4 * r + c] / lu[5 * c];
+            for (i64 k = c + 1; k < n; ++k) lu[4 * r + k] -= fr * lu[4 * c + k];
+            lu[4 * r + c] = fr;
         }
     }
-    f[MF_LUOK] = 1.0;
+    f.lu_ok = 1.0;
 }
 
-void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double block_reg) {
+void factor_block(V1<Manifold> mf, i64 m, V1<ContactPoint> pf, i64 start, i64 n,
+                  double block_reg) {
     switch (n) {
         case 2: factor_block_n<2>(mf, m, pf, start, n, block_reg); break;
         case 3: factor_block_n<3>(mf, m, pf, start, n, block_reg); break;
@@ -144,16 +148,16 @@ void factor_block(V2<double> mf, i64 m, V2<double> pf, i64 start, i64 n, double 
 // bm: (N+1,) inverse mass, bI: (N+1, 6) world inverse inertia (xx, yy, zz, xy, xz, yz), bv/bw:
 // (N+1, 3) velocity and angular velocity (world), bv0/bw0 their values before the solve, pv/pw
 // pseudo velocities, p0/l0 momenta before the solve. Row N is the static dummy (all zero).
-void load_bodies(V2<i64> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V1<i64> iso,
+void load_bodies(V1<ManifoldHead> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V1<i64> iso,
                  V1<double> inv_mass, V2<double> inv_inertia, V3<double> rotation,
                  V2<double> linear_momentum, V2<double> angular_momentum, V1<i64> in_contact,
                  V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> bv0,
                  V2<double> bw0, V2<double> pv, V2<double> pw, V2<double> p0, V2<double> l0) {
     for (i64 i = 0; i < n_dyn + 1; ++i) in_contact[i] = 0;
     for (i64 m = 0; m < n_man; ++m) {
-        if (mi(m, MI_ACTIVE)) {
-            in_contact[mi(m, MI_A)] += 1;
-            in_contact[mi(m, MI_B)] += 1;
+        if (mi[m].active) {
+            in_contact[mi[m].a] += 1;
+            in_contact[mi[m].b] += 1;
         }
     }
     for (i64 i = 0; i < n_dyn; ++i) {
@@ -209,42 +213,42 @@ void prepare_contacts(const StepContext& cx, const ContactConstraints& c, const 
     const double h = cx.h, anchor_rate = cx.settings.friction_anchor_rate;
     const double block_reg = cx.settings.block_reg;
     for (i64 m = 0; m < c.n_man; ++m) {
-        if (!c.mi(m, MI_ACTIVE)) continue;
-        i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+        if (!c.mi[m].active) continue;
+        i64 ia = c.mi[m].a, ib = c.mi[m].b;
         BodyPair bp(b, ia, ib);
         const double mab = bp.ma + bp.mb;  // (the first sum of every K entry below)
-        double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
-        double t1x = c.mf(m, MF_T1), t1y = c.mf(m, MF_T1 + 1), t1z = c.mf(m, MF_T1 + 2);
-        double t2x = c.mf(m, MF_T2), t2y = c.mf(m, MF_T2 + 1), t2z = c.mf(m, MF_T2 + 2);
-        double acc = c.mf(m, MF_ACC);
-        i64 start = c.mi(m, MI_START);
-        i64 cnt = c.mi(m, MI_COUNT);
+        double nx = c.mf[m].normal[0], ny = c.mf[m].normal[1], nz = c.mf[m].normal[2];
+        double t1x = c.mf[m].t1[0], t1y = c.mf[m].t1[1], t1z = c.mf[m].t1[2];
+        double t2x = c.mf[m].t2[0], t2y = c.mf[m].t2[1], t2z = c.mf[m].t2[2];
+        double acc = c.mf[m].acc;
+        i64 start = c.mi[m].start;
+        i64 cnt = c.mi[m].count;
         // normal block K_ij = J_i M^-1 J_j^T of the manifold's points (r x n of each point and
         // I^-1 (r x n) once per point, then the products; a manifold has at most 4 points)
         double ca[4][3], cb[4][3], jna[4][3], jnb[4][3];
         for (i64 i = 0; i < cnt; ++i) {
             i64 p = start + i;
-            cross(c.pf(p, PF_RA), c.pf(p, PF_RA + 1), c.pf(p, PF_RA + 2), nx, ny, nz, ca[i][0],
+            cross(c.pf[p].ra[0], c.pf[p].ra[1], c.pf[p].ra[2], nx, ny, nz, ca[i][0],
                   ca[i][1], ca[i][2]);
-            cross(c.pf(p, PF_RB), c.pf(p, PF_RB + 1), c.pf(p, PF_RB + 2), nx, ny, nz, cb[i][0],
+            cross(c.pf[p].rb[0], c.pf[p].rb[1], c.pf[p].rb[2], nx, ny, nz, cb[i][0],
                   cb[i][1], cb[i][2]);
             smul(bp.a6, ca[i][0], ca[i][1], ca[i][2], jna[i][0], jna[i][1], jna[i][2]);
             smul(bp.b6, cb[i][0], cb[i][1], cb[i][2], jnb[i][0], jnb[i][1], jnb[i][2]);
         }
         for (i64 i = 0; i < cnt; ++i) {
-            double* q_ = c.pf.row(start + i);
+            ContactPoint& q_ = c.pf[start + i];
             for (i64 j = 0; j < cnt; ++j)
-                q_[PF_KN + j] = (mab + ca[j][0] * jna[i][0] + ca[j][1] * jna[i][1] +
+                q_.kn[j] = (mab + ca[j][0] * jna[i][0] + ca[j][1] * jna[i][1] +
                                  ca[j][2] * jna[i][2] + cb[j][0] * jnb[i][0] +
                                  cb[j][1] * jnb[i][1] + cb[j][2] * jnb[i][2]);
         }
         if (cnt > 1) factor_block(c.mf, m, c.pf, start, cnt, block_reg);
         for (i64 p = start; p < start + cnt; ++p) {
-            double rax = c.pf(p, PF_RA), ray = c.pf(p, PF_RA + 1), raz = c.pf(p, PF_RA + 2);
-            double rbx = c.pf(p, PF_RB), rby = c.pf(p, PF_RB + 1), rbz = c.pf(p, PF_RB + 2);
+            double rax = c.pf[p].ra[0], ray = c.pf[p].ra[1], raz = c.pf[p].ra[2];
+            double rbx = c.pf[p].rb[0], rby = c.pf[p].rb[1], rbz = c.pf[p].rb[2];
             // normal row: K_pp, the block's diagonal (the same products in the same order)
-            double k = c.pf(p, PF_KN + (p - start));
-            c.pf(p, PF_NMASS) = k > 0.0 ? 1.0 / k : 0.0;
+            double k = c.pf[p].kn[(p - start)];
+            c.pf[p].normal_mass = k > 0.0 ? 1.0 / k : 0.0;
             // tangent block
             double ua1x, ua1y, ua1z, ua2x, ua2y, ua2z, ub1x, ub1y, ub1z, ub2x, ub2y, ub2z;
             cross(rax, ray, raz, t1x, t1y, t1z, ua1x, ua1y, ua1z);
@@ -262,13 +266,13 @@ void prepare_contacts(const StepContext& cx, const ContactConstraints& c, const 
                          ub2y * ib2y + ub2z * ib2z;
             double k12 = ua1x * ia2x + ua1y * ia2y + ua1z * ia2z + ub1x * ib2x + ub1y * ib2y +
                          ub1z * ib2z;
-            c.pf(p, PF_TK) = k11;
-            c.pf(p, PF_TK + 1) = k12;
-            c.pf(p, PF_TK + 2) = k22;
+            c.pf[p].tangent_k[0] = k11;
+            c.pf[p].tangent_k[1] = k12;
+            c.pf[p].tangent_k[2] = k22;
             // friction anchor: the slip rate that takes back FRICTION_ANCHOR_RATE of the drift
-            double dx = c.pf(p, PF_D), dy = c.pf(p, PF_D + 1), dz = c.pf(p, PF_D + 2);
-            c.pf(p, PF_DB) = anchor_rate * (dx * t1x + dy * t1y + dz * t1z) / h;
-            c.pf(p, PF_DB + 1) = anchor_rate * (dx * t2x + dy * t2y + dz * t2z) / h;
+            double dx = c.pf[p].slip[0], dy = c.pf[p].slip[1], dz = c.pf[p].slip[2];
+            c.pf[p].slip_bias[0] = anchor_rate * (dx * t1x + dy * t1y + dz * t1z) / h;
+            c.pf[p].slip_bias[1] = anchor_rate * (dx * t2x + dy * t2y + dz * t2z) / h;
             // gap velocity now (after the force kick), and before the kick
             double wxrax, wxray, wxraz, wxrbx, wxrby, wxrbz;
             cross(bp.wa[0], bp.wa[1], bp.wa[2], rax, ray, raz, wxrax, wxray, wxraz);
@@ -276,45 +280,48 @@ void prepare_contacts(const StepContext& cx, const ContactConstraints& c, const 
             double vn = (nx * (bp.va[0] + wxrax - bp.vb[0] - wxrbx) +
                          ny * (bp.va[1] + wxray - bp.vb[1] - wxrby) +
                          nz * (bp.va[2] + wxraz - bp.vb[2] - wxrbz));
-            c.pf(p, PF_W0) = vn - acc * h;
-            c.pf(p, PF_LP) = 0.0;
-            c.pf(p, PF_IMPACT) = 0.0;
+            c.pf[p].w0 = vn - acc * h;
+            c.pf[p].lp = 0.0;
+            c.pf[p].impact = 0.0;
         }
     }
 }
 
 // Apply each active point's stored impulse (normal, t1, t2 components at lam + lam_stride p) to
 // its manifold's bodies: the velocity solve's warm start (the impulses carried over from the
-// previous step, pf's PF_LN, PF_L1, PF_L2) and the soft step's (the last substep's).
+// previous step, pf[p].ln, l1, l2) and the soft step's (the last substep's).
 void apply_stored_impulses(const ContactConstraints& c, const SolverBodies& b, const double* lam,
                            i64 lam_stride) {
     for (i64 m = 0; m < c.n_man; ++m) {
-        if (!c.mi(m, MI_ACTIVE)) continue;
-        i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+        if (!c.mi[m].active) continue;
+        i64 ia = c.mi[m].a, ib = c.mi[m].b;
         BodyPair bp(b, ia, ib);
-        double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
-        double t1x = c.mf(m, MF_T1), t1y = c.mf(m, MF_T1 + 1), t1z = c.mf(m, MF_T1 + 2);
-        double t2x = c.mf(m, MF_T2), t2y = c.mf(m, MF_T2 + 1), t2z = c.mf(m, MF_T2 + 2);
-        i64 start = c.mi(m, MI_START);
-        for (i64 p = start; p < start + c.mi(m, MI_COUNT); ++p) {
+        double nx = c.mf[m].normal[0], ny = c.mf[m].normal[1], nz = c.mf[m].normal[2];
+        double t1x = c.mf[m].t1[0], t1y = c.mf[m].t1[1], t1z = c.mf[m].t1[2];
+        double t2x = c.mf[m].t2[0], t2y = c.mf[m].t2[1], t2z = c.mf[m].t2[2];
+        i64 start = c.mi[m].start;
+        for (i64 p = start; p < start + c.mi[m].count; ++p) {
             const double* l = lam + lam_stride * p;
             double ln = l[0], l1 = l[1], l2 = l[2];
             if (ln == 0.0 && l1 == 0.0 && l2 == 0.0) continue;
             double px = ln * nx + l1 * t1x + l2 * t2x;
             double py = ln * ny + l1 * t1y + l2 * t2y;
             double pz = ln * nz + l1 * t1z + l2 * t2z;
-            const double* q = c.pf.row(p);
-            bp.apply(q[PF_RA], q[PF_RA + 1], q[PF_RA + 2], q[PF_RB], q[PF_RB + 1], q[PF_RB + 2], px,
+            const ContactPoint& q = c.pf[p];
+            bp.apply(q.ra[0], q.ra[1], q.ra[2], q.rb[0], q.rb[1], q.rb[2], px,
                      py, pz);
         }
         bp.store(b);
     }
 }
 
-// Apply the impulses carried over from the previous step (PF_LN, PF_L1, PF_L2: adjacent columns).
+// Apply the impulses carried over from the previous step (a point's ln, l1, l2: adjacent).
 void warm_start(const ContactConstraints& c, const SolverBodies& b) {
-    static_assert(PF_L1 == PF_LN + 1 && PF_L2 == PF_LN + 2, "warm start reads three adjacent columns");
-    apply_stored_impulses(c, b, c.pf.p + PF_LN, c.pf.n1);
+    constexpr size_t ln_at = offsetof(ContactPoint, ln), d = sizeof(double);
+    static_assert(offsetof(ContactPoint, l1) == ln_at + d &&
+                      offsetof(ContactPoint, l2) == ln_at + 2 * d,
+                  "warm start reads three adjacent fields");
+    apply_stored_impulses(c, b, &c.pf.p[0].ln, PF_COLS);
 }
 
 // Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order), the
@@ -349,7 +356,7 @@ i64 solve_velocities(const StepContext& ctx, const ContactConstraints& c,
     const double newton_tol = cfg.friction_newton_tol;
     for (i64 k = 0; k < hot.n0; ++k) hot[k] = 0;
     i64 active = 0;
-    for (i64 m = 0; m < c.n_man; ++m) active += c.mi(m, MI_ACTIVE);
+    for (i64 m = 0; m < c.n_man; ++m) active += c.mi[m].active;
     pack_lanes(c.mi, c.mf, c.pf, g, bodies.inv_mass, bodies.inv_inertia, degree, inv_h, sor,
                lanes);
     // the velocities in the kernels' layout (contact_lanes.hpp: BodyVel) while the sweeps run
@@ -403,36 +410,36 @@ void anchor_friction(const StepContext& cx, const ContactConstraints& c, const S
     const i64 newton_iters = cx.settings.friction_newton_iters;
     const double newton_tol = cx.settings.friction_newton_tol;
     for (i64 m = 0; m < c.n_man; ++m) {
-        if (!c.mi(m, MI_ACTIVE)) continue;
-        double mu = c.mf(m, MF_MU);
+        if (!c.mi[m].active) continue;
+        double mu = c.mf[m].mu;
         if (mu <= 0.0) continue;
-        i64 start = c.mi(m, MI_START);
-        i64 end = start + c.mi(m, MI_COUNT);
+        i64 start = c.mi[m].start;
+        i64 end = start + c.mi[m].count;
         bool loaded = false;
         for (i64 p = start; p < end; ++p)
-            if (c.pf(p, PF_LN) > 0.0) loaded = true;
+            if (c.pf[p].ln > 0.0) loaded = true;
         if (!loaded) continue;
-        i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+        i64 ia = c.mi[m].a, ib = c.mi[m].b;
         BodyPair bp(b, ia, ib);
-        double t1x = c.mf(m, MF_T1), t1y = c.mf(m, MF_T1 + 1), t1z = c.mf(m, MF_T1 + 2);
-        double t2x = c.mf(m, MF_T2), t2y = c.mf(m, MF_T2 + 1), t2z = c.mf(m, MF_T2 + 2);
+        double t1x = c.mf[m].t1[0], t1y = c.mf[m].t1[1], t1z = c.mf[m].t1[2];
+        double t2x = c.mf[m].t2[0], t2y = c.mf[m].t2[1], t2z = c.mf[m].t2[2];
         for (i64 p = start; p < end; ++p) {
-            double* q = c.pf.row(p);
-            if (q[PF_LN] <= 0.0) continue;
-            double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-            double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+            ContactPoint& q = c.pf[p];
+            if (q.ln <= 0.0) continue;
+            double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+            double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
             double dvx, dvy, dvz;
             bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
             // slip relative to the anchor's target rate -D rate / h
-            double vt1 = dvx * t1x + dvy * t1y + dvz * t1z + q[PF_DB];
-            double vt2 = dvx * t2x + dvy * t2y + dvz * t2z + q[PF_DB + 1];
-            double k11 = q[PF_TK], k12 = q[PF_TK + 1], k22 = q[PF_TK + 2];
-            double o1 = q[PF_L1], o2 = q[PF_L2];
+            double vt1 = dvx * t1x + dvy * t1y + dvz * t1z + q.slip_bias[0];
+            double vt2 = dvx * t2x + dvy * t2y + dvz * t2z + q.slip_bias[1];
+            double k11 = q.tangent_k[0], k12 = q.tangent_k[1], k22 = q.tangent_k[2];
+            double o1 = q.l1, o2 = q.l2;
             double n1, n2;
-            friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, mu * q[PF_LN], newton_iters,
+            friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, mu * q.ln, newton_iters,
                              newton_tol, n1, n2);
-            q[PF_L1] = n1;
-            q[PF_L2] = n2;
+            q.l1 = n1;
+            q.l2 = n2;
             double d1 = n1 - o1;
             double d2 = n2 - o2;
             double px = d1 * t1x + d2 * t2x;
@@ -453,27 +460,27 @@ void anchor_friction(const StepContext& cx, const ContactConstraints& c, const S
 void store_impulses(const StepContext& cx, const ContactConstraints& c) {
     const double slide_frac = cx.settings.friction_anchor_slide_frac;
     for (i64 m = 0; m < c.n_man; ++m) {
-        if (!c.mi(m, MI_ACTIVE)) continue;
-        double t1x = c.mf(m, MF_T1), t1y = c.mf(m, MF_T1 + 1), t1z = c.mf(m, MF_T1 + 2);
-        double t2x = c.mf(m, MF_T2), t2y = c.mf(m, MF_T2 + 1), t2z = c.mf(m, MF_T2 + 2);
-        double mu = c.mf(m, MF_MU);
-        i64 start = c.mi(m, MI_START);
-        i64 cnt = c.mi(m, MI_COUNT);
+        if (!c.mi[m].active) continue;
+        double t1x = c.mf[m].t1[0], t1y = c.mf[m].t1[1], t1z = c.mf[m].t1[2];
+        double t2x = c.mf[m].t2[0], t2y = c.mf[m].t2[1], t2z = c.mf[m].t2[2];
+        double mu = c.mf[m].mu;
+        i64 start = c.mi[m].start;
+        i64 cnt = c.mi[m].count;
         bool stick = false;
         bool struck = false;
         for (i64 p = start; p < start + cnt; ++p) {
-            double* q = c.pf.row(p);
-            double l1 = q[PF_L1], l2 = q[PF_L2];
-            q[PF_F] = l1 * t1x + l2 * t2x;
-            q[PF_F + 1] = l1 * t1y + l2 * t2y;
-            q[PF_F + 2] = l1 * t1z + l2 * t2z;
-            if (q[PF_IMPACT] != 0.0) {
+            ContactPoint& q = c.pf[p];
+            double l1 = q.l1, l2 = q.l2;
+            q.friction[0] = l1 * t1x + l2 * t2x;
+            q.friction[1] = l1 * t1y + l2 * t2y;
+            q.friction[2] = l1 * t1z + l2 * t2z;
+            if (q.impact != 0.0) {
                 struck = true;
-            } else if (point_sticks(l1, l2, mu, q[PF_LN], slide_frac)) {
+            } else if (point_sticks(l1, l2, mu, q.ln, slide_frac)) {
                 stick = true;
             }
         }
-        if (struck || !stick) c.mf(m, MF_AOK) = 0.0;
+        if (struck || !stick) c.mf[m].anchor_ok = 0.0;
     }
 }
 

@@ -74,7 +74,7 @@ struct BodyPair {
 // Each stage reads the step's context (h, 1/h, the settings: step_context.hpp), the contact
 // constraints and the solver's bodies, whose velocities it updates in place.
 
-void load_bodies(V2<i64> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V1<i64> iso,
+void load_bodies(V1<ManifoldHead> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V1<i64> iso,
                  V1<double> inv_mass, V2<double> inv_inertia, V3<double> rotation,
                  V2<double> linear_momentum, V2<double> angular_momentum, V1<i64> in_contact,
                  V1<double> bm, V2<double> bI, V2<double> bv, V2<double> bw, V2<double> bv0,
@@ -121,10 +121,10 @@ inline bool point_sticks(double l1, double l2, double mu, double ln, double slid
 
 // ---- restitution.cpp -----------------------------------------------------------------------
 
-// Whether a point was struck this step (restitution's PF_IMPACT, known once the solve ended):
-// its solve impulse ln is positive, its gap was closing at the start (w0 = PF_W0 < 0) and the
-// approach speed at contact from the flight's energy, u^2 = w0^2 - 2 acc s0 (acc = MF_ACC,
-// s0 = PF_S), exceeds the threshold.
+// Whether a point was struck this step (restitution's impact, known once the solve ended): its
+// solve impulse ln is positive, its gap was closing at the start (its w0 < 0) and the approach
+// speed at contact from the flight's energy, u^2 = w0^2 - 2 acc s0 (the manifold's acc, the
+// point's s as s0), exceeds the threshold.
 inline bool struck(double w0, double ln, double acc, double s0, double threshold) {
     if (w0 >= 0.0 || ln <= 0.0) return false;
     return w0 * w0 - 2.0 * acc * s0 > threshold * threshold;

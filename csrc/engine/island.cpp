@@ -5,7 +5,7 @@
 // A body is resting while its speed (the larger of |v| and |omega|max * bounding radius, with
 // |omega| <= |L| max(1/I)) stays below sleep_speed; its timer counts how long. An island is a
 // connected set of awake bodies linked by touching manifolds (a point with a positive impulse
-// PF_LWS or a closed gap PF_SEND <= 0). An island goes to sleep when every member has rested for
+// lws or a closed gap s_end <= 0). An island goes to sleep when every member has rested for
 // sleep_time and it touches something (the ground, a static box, a sleeping body, or another
 // body): its momenta are zeroed and the step skips it.
 //
@@ -26,7 +26,7 @@
 
 namespace rb {
 
-i64 update_sleep(i64 n_dyn, V2<i64> mi, V2<double> pf, i64 n_man, V1<i64> awake,
+i64 update_sleep(i64 n_dyn, V1<ManifoldHead> mi, V1<ContactPoint> pf, i64 n_man, V1<i64> awake,
                  V1<double> sleep_timer, V1<i64> island_of, V1<i64> island_counter,
                  V2<double> linear_momentum, V2<double> angular_momentum, V1<double> inv_mass,
                  V2<double> inv_inertia, V1<double> radius, double h, double sleep_speed,
@@ -60,18 +60,18 @@ i64 update_sleep(i64 n_dyn, V2<i64> mi, V2<double> pf, i64 n_man, V1<i64> awake,
     }
     if (!any_ready) return 0;
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
+        if (!mi[m].active) continue;
         bool touching = false;
-        const i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            if (pf(p, PF_LWS) > 0.0 || pf(p, PF_SEND) <= 0.0) {
+        const i64 start = mi[m].start;
+        for (i64 p = start; p < start + mi[m].count; ++p) {
+            if (pf[p].lws > 0.0 || pf[p].s_end <= 0.0) {
                 touching = true;
                 break;
             }
         }
         if (!touching) continue;
-        const i64 a = mi(m, MI_A);
-        const i64 b = mi(m, MI_B);
+        const i64 a = mi[m].a;
+        const i64 b = mi[m].b;
         if (a < n_dyn) island_supported[a] = 1;
         if (b < n_dyn) island_supported[b] = 1;
         if (a < n_dyn && b < n_dyn) {
@@ -177,38 +177,39 @@ i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> ge
     return n_woken;
 }
 
-i64 wake_pushed(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, i64 n_dyn, V1<i64> awake,
+i64 wake_pushed(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man, i64 n_dyn,
+                V1<i64> awake,
                 V1<double> sleep_timer, V1<i64> island_of, V2<double> position,
                 V2<double> linear_momentum, V2<double> angular_momentum, V2<double> force,
                 V2<double> torque, double h) {
     i64 n_woken = 0;
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        const i64 a = mi(m, MI_REC_A);
-        const i64 b = mi(m, MI_REC_B);
+        if (!mi[m].active) continue;
+        const i64 a = mi[m].rec_a;
+        const i64 b = mi[m].rec_b;
         i64 sleeper = -1;
         double sign = 0.0;
-        if (mi(m, MI_A) == n_dyn && a >= 0) {
+        if (mi[m].a == n_dyn && a >= 0) {
             sleeper = a;
             sign = 1.0;
-        } else if (b >= 0 && mi(m, MI_B) == n_dyn) {
+        } else if (b >= 0 && mi[m].b == n_dyn) {
             sleeper = b;
             sign = -1.0;
         }
         if (sleeper < 0) continue;
         bool pushed = false;
-        const double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
-        const i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            double ln = pf(p, PF_LN);
+        const double nx = mf[m].normal[0], ny = mf[m].normal[1], nz = mf[m].normal[2];
+        const i64 start = mi[m].start;
+        for (i64 p = start; p < start + mi[m].count; ++p) {
+            double ln = pf[p].ln;
             if (ln <= 0.0) continue;
             pushed = true;
-            double jx = sign * (ln * nx + pf(p, PF_F));
-            double jy = sign * (ln * ny + pf(p, PF_F + 1));
-            double jz = sign * (ln * nz + pf(p, PF_F + 2));
-            double rx = pf(p, PF_P) - position(sleeper, 0);
-            double ry = pf(p, PF_P + 1) - position(sleeper, 1);
-            double rz = pf(p, PF_P + 2) - position(sleeper, 2);
+            double jx = sign * (ln * nx + pf[p].friction[0]);
+            double jy = sign * (ln * ny + pf[p].friction[1]);
+            double jz = sign * (ln * nz + pf[p].friction[2]);
+            double rx = pf[p].point[0] - position(sleeper, 0);
+            double ry = pf[p].point[1] - position(sleeper, 1);
+            double rz = pf[p].point[2] - position(sleeper, 2);
             linear_momentum(sleeper, 0) += jx;
             linear_momentum(sleeper, 1) += jy;
             linear_momentum(sleeper, 2) += jz;

@@ -18,7 +18,7 @@ namespace rb {
 //
 // Three shortcuts that leave every bit as the plain sweeps make it:
 //
-// * the manifolds with a point at s <= 0 (the only ones a sweep touches; PF_S does not change
+// * the manifolds with a point at s <= 0 (the only ones a sweep touches; s does not change
 //   here) are listed once, not found again every sweep;
 // * a point whose accumulated pseudo impulse did not change (d = 0: most points, whose target is
 //   0 and which already separate) applies nothing. Applying d = 0 would add products that are +0
@@ -27,7 +27,7 @@ namespace rb {
 //   when x is -0 already;
 // * a manifold whose last visit applied nothing, and whose two bodies no visit has pushed since,
 //   is not visited again: the visit would read the same velocities and accumulated impulses
-//   (PF_LP: never -0 either, it starts at +0 and only takes sums and the clamp's +0), so it would
+//   (lp: never -0 either, it starts at +0 and only takes sums and the clamp's +0), so it would
 //   compute every nw bitwise as last time, equal to the old value, and write back what is there.
 //   (`pushed`: for each body the count of applies when one last pushed it; `seen`: for each
 //   listed manifold the count when its last visit ended.)
@@ -42,11 +42,11 @@ void relax_positions(const StepContext& ctx, const ContactConstraints& c,
     std::vector<i64>& deep = deep_kept;
     deep.clear();
     for (i64 m = 0; m < c.n_man; ++m) {
-        if (!c.mi(m, MI_ACTIVE)) continue;
-        const i64 start = c.mi(m, MI_START);
-        const i64 end = start + c.mi(m, MI_COUNT);
+        if (!c.mi[m].active) continue;
+        const i64 start = c.mi[m].start;
+        const i64 end = start + c.mi[m].count;
         for (i64 p = start; p < end; ++p) {
-            if (c.pf(p, PF_S) <= 0.0) {
+            if (c.pf[p].s <= 0.0) {
                 deep.push_back(m);
                 break;
             }
@@ -62,20 +62,20 @@ void relax_positions(const StepContext& ctx, const ContactConstraints& c,
     for (i64 it = 0; it < n_iter; ++it) {
         for (i64 k = 0; k < n_deep; ++k) {
             const i64 m = deep[(size_t)k];
-            i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+            i64 ia = c.mi[m].a, ib = c.mi[m].b;
             const i64 last = seen[(size_t)k];
             if (last >= 0 && pushed[(size_t)ia] <= last && pushed[(size_t)ib] <= last) continue;
             const i64 applies0 = applies;
-            i64 start = c.mi(m, MI_START);
-            i64 end = start + c.mi(m, MI_COUNT);
+            i64 start = c.mi[m].start;
+            i64 end = start + c.mi[m].count;
             BodyPair bp(pseudo, ia, ib);
-            double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
+            double nx = c.mf[m].normal[0], ny = c.mf[m].normal[1], nz = c.mf[m].normal[2];
             for (i64 p = start; p < end; ++p) {
-                double* q = c.pf.row(p);
-                double s = q[PF_S];
+                ContactPoint& q = c.pf[p];
+                double s = q.s;
                 if (s > 0.0) continue;
-                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+                double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
                 double dvx, dvy, dvz;
                 bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 double vn = dvx * nx + dvy * ny + dvz * nz;
@@ -85,10 +85,10 @@ void relax_positions(const StepContext& ctx, const ContactConstraints& c,
                 } else if (target > max_speed) {
                     target = max_speed;
                 }
-                double old = q[PF_LP];
-                double nw = old + q[PF_NMASS] * (target - vn);
+                double old = q.lp;
+                double nw = old + q.normal_mass * (target - vn);
                 if (nw < 0.0) nw = 0.0;
-                q[PF_LP] = nw;
+                q.lp = nw;
                 double d = nw - old;
                 if (d == 0.0) continue;  // (see above: applying it would change no bit)
                 bp.apply(rax, ray, raz, rbx, rby, rbz, d * nx, d * ny, d * nz);

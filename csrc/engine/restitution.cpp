@@ -77,38 +77,39 @@ void apply_pair_impulse(const SolverBodies& b, V2<double> linear_momentum,
 // solved against the higher one; the friction impulse is then scaled back onto the cone
 // |lambda_t| <= mu lambda_n and the difference applied, at the same shared anchors as the bounce,
 // so that the pair's momenta stay exactly balanced. targeted: the manifolds with a bouncing point
-// (PF_WT >= 0), in manifold order.
+// (wt >= 0), in manifold order.
 void reclamp_friction(const ContactConstraints& c, const std::vector<i64>& targeted,
                       const SolverBodies& b, V2<double> dx, V2<double> linear_momentum,
                       V2<double> angular_momentum) {
-    V2<i64> mi = c.mi;
-    V2<double> mf = c.mf, pf = c.pf;
+    V1<ManifoldHead> mi = c.mi;
+    V1<Manifold> mf = c.mf;
+    V1<ContactPoint> pf = c.pf;
     for (const i64 m : targeted) {
-        double mu = mf(m, MF_MU);
-        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+        double mu = mf[m].mu;
+        i64 ia = mi[m].a, ib = mi[m].b;
         bool shared = b.inv_mass[ia] > 0.0 && b.inv_mass[ib] > 0.0;
         double hx = 0.5 * (dx(ib, 0) - dx(ia, 0));
         double hy = 0.5 * (dx(ib, 1) - dx(ia, 1));
         double hz = 0.5 * (dx(ib, 2) - dx(ia, 2));
-        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
-        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
-        i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            double* q = pf.row(p);
-            if (q[PF_WT] < 0.0) continue;
-            double l1 = q[PF_L1], l2 = q[PF_L2];
+        double t1x = mf[m].t1[0], t1y = mf[m].t1[1], t1z = mf[m].t1[2];
+        double t2x = mf[m].t2[0], t2y = mf[m].t2[1], t2z = mf[m].t2[2];
+        i64 start = mi[m].start;
+        for (i64 p = start; p < start + mi[m].count; ++p) {
+            ContactPoint& q = pf[p];
+            if (q.wt < 0.0) continue;
+            double l1 = q.l1, l2 = q.l2;
             double nl = std::sqrt(l1 * l1 + l2 * l2);
-            double fmax = mu * q[PF_LN];
+            double fmax = mu * q.ln;
             if (nl <= fmax) continue;
             double scale = fmax / nl;
             double d1 = l1 * scale - l1, d2 = l2 * scale - l2;
-            q[PF_L1] = l1 * scale;
-            q[PF_L2] = l2 * scale;
+            q.l1 = l1 * scale;
+            q.l2 = l2 * scale;
             double px = d1 * t1x + d2 * t2x;
             double py = d1 * t1y + d2 * t2y;
             double pz = d1 * t1z + d2 * t2z;
-            double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-            double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+            double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+            double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
             if (shared) {
                 rax = rax + hx; ray = ray + hy; raz = raz + hz;
                 rbx = rbx - hx; rby = rby - hy; rbz = rbz - hz;
@@ -156,19 +157,19 @@ i64 restitution(const StepContext& ctx, const ContactConstraints& c, const Solve
     pool().run(n_blocks, [&](i64 blk, int) {
     i64 n_impacts = 0;
     for (i64 m = c.n_man * blk / n_blocks; m < c.n_man * (blk + 1) / n_blocks; ++m) {
-        if (!c.mi(m, MI_ACTIVE)) continue;
-        i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
-        double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
-        double e = c.mf(m, MF_E);
-        double acc = c.mf(m, MF_ACC);
+        if (!c.mi[m].active) continue;
+        i64 ia = c.mi[m].a, ib = c.mi[m].b;
+        double nx = c.mf[m].normal[0], ny = c.mf[m].normal[1], nz = c.mf[m].normal[2];
+        double e = c.mf[m].e;
+        double acc = c.mf[m].acc;
         const bool pair_still = still[(size_t)ia] && still[(size_t)ib];
-        i64 start = c.mi(m, MI_START);
-        for (i64 p = start; p < start + c.mi(m, MI_COUNT); ++p) {
-            double* q = c.pf.row(p);
-            double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-            double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+        i64 start = c.mi[m].start;
+        for (i64 p = start; p < start + c.mi[m].count; ++p) {
+            ContactPoint& q = c.pf[p];
+            double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+            double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
             double vn = gap_rate(b.v, b.w, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
-            double s0 = q[PF_S];
+            double s0 = q.s;
             double s1;
             if (pair_still && (vn != 0.0 || s0 != 0.0)) {
                 s1 = s0 + h * vn;
@@ -176,22 +177,22 @@ i64 restitution(const StepContext& ctx, const ContactConstraints& c, const Solve
                 double pn = gap_rate(pv, pw, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
                 s1 = s0 + h * (vn + pn);
             }
-            q[PF_SEND] = s1;
-            q[PF_LWS] = q[PF_LN];
-            q[PF_WT] = -1.0;
-            double w0 = q[PF_W0];
+            q.s_end = s1;
+            q.lws = q.ln;
+            q.wt = -1.0;
+            double w0 = q.w0;
             // approach speed at contact from the flight's energy (see the header comment)
-            if (!struck(w0, q[PF_LN], acc, s0, threshold)) continue;
+            if (!struck(w0, q.ln, acc, s0, threshold)) continue;
             double u2 = w0 * w0 - 2.0 * acc * s0;
-            q[PF_IMPACT] = 1.0;
+            q.impact = 1.0;
             n_impacts += 1;
             if (e <= 0.0) continue;
             // rebound rate whose flight energy at the end-of-step gap s1 is e^2 times the impact's
             double c = e * e * u2 + 2.0 * acc * s1;
             if (c > 0.0) {
-                q[PF_WT] = std::sqrt(c);
+                q.wt = std::sqrt(c);
             } else {
-                q[PF_WT] = e * std::sqrt(u2);
+                q.wt = e * std::sqrt(u2);
             }
         }
     }
@@ -201,15 +202,15 @@ i64 restitution(const StepContext& ctx, const ContactConstraints& c, const Solve
     for (i64 c : blk_impacts) n_impacts += c;
     if (n_impacts == 0) return 0;
     // Gauss-Seidel on the bounce targets of the impact points only (the manifolds with a
-    // target listed once: PF_WT does not change in the sweeps)
+    // target listed once: wt does not change in the sweeps)
     static thread_local std::vector<i64> kept;
     std::vector<i64>& targeted = kept;
     targeted.clear();
     for (i64 m = 0; m < c.n_man; ++m) {
-        if (!c.mi(m, MI_ACTIVE)) continue;
-        const i64 start = c.mi(m, MI_START);
-        for (i64 p = start; p < start + c.mi(m, MI_COUNT); ++p) {
-            if (c.pf(p, PF_WT) >= 0.0) {
+        if (!c.mi[m].active) continue;
+        const i64 start = c.mi[m].start;
+        for (i64 p = start; p < start + c.mi[m].count; ++p) {
+            if (c.pf[p].wt >= 0.0) {
                 targeted.push_back(m);
                 break;
             }
@@ -217,37 +218,37 @@ i64 restitution(const StepContext& ctx, const ContactConstraints& c, const Solve
     }
     for (i64 it = 0; it < n_iter; ++it) {
         for (const i64 m : targeted) {
-            i64 start = c.mi(m, MI_START);
-            i64 end = start + c.mi(m, MI_COUNT);
-            i64 ia = c.mi(m, MI_A), ib = c.mi(m, MI_B);
+            i64 start = c.mi[m].start;
+            i64 end = start + c.mi[m].count;
+            i64 ia = c.mi[m].a, ib = c.mi[m].b;
             double ma = b.inv_mass[ia], mb = b.inv_mass[ib];
-            double nx = c.mf(m, MF_N), ny = c.mf(m, MF_N + 1), nz = c.mf(m, MF_N + 2);
+            double nx = c.mf[m].normal[0], ny = c.mf[m].normal[1], nz = c.mf[m].normal[2];
             bool shared = ma > 0.0 && mb > 0.0;
             double hx = 0.5 * (dx(ib, 0) - dx(ia, 0));
             double hy = 0.5 * (dx(ib, 1) - dx(ia, 1));
             double hz = 0.5 * (dx(ib, 2) - dx(ia, 2));
             for (i64 p = start; p < end; ++p) {
-                double* q = c.pf.row(p);
-                double wt = q[PF_WT];
+                ContactPoint& q = c.pf[p];
+                double wt = q.wt;
                 if (wt < 0.0) continue;
-                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+                double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
                 if (shared) {
                     rax = rax + hx; ray = ray + hy; raz = raz + hz;
                     rbx = rbx - hx; rby = rby - hy; rbz = rbz - hz;
                 }
                 double vn = gap_rate(b.v, b.w, ia, ib, nx, ny, nz, rax, ray, raz, rbx, rby, rbz);
-                double old = q[PF_LN];
-                double nw = old + q[PF_NMASS] * (wt - vn);
+                double old = q.ln;
+                double nw = old + q.normal_mass * (wt - vn);
                 if (nw < 0.0) nw = 0.0;
-                q[PF_LN] = nw;
+                q.ln = nw;
                 double d = nw - old;
                 apply_pair_impulse(b, linear_momentum, angular_momentum, ia, ib, rax, ray, raz,
                                    rbx, rby, rbz, d * nx, d * ny, d * nz);
             }
         }
     }
-    // (only the targeted manifolds hold points with PF_WT >= 0, the ones reclamp_friction acts on)
+    // (only the targeted manifolds hold points with wt >= 0, the ones reclamp_friction acts on)
     reclamp_friction(c, targeted, b, dx, linear_momentum, angular_momentum);
     return n_impacts;
 }

@@ -55,10 +55,10 @@
 // Friction: the Coulomb cone of the PGS solve (friction.hpp: the 2x2 tangent block, maximum
 // dissipation on the circle) against this substep's normal impulse, in both sweeps; with the
 // friction anchors on (ContactParams.static_friction_anchors), the solve sweep's rows aim at
-// the anchor's slip rate -FRICTION_ANCHOR_RATE D / h (PF_DB, as the PGS solve's anchor pass),
+// the anchor's slip rate -FRICTION_ANCHOR_RATE D / h (slip_bias, as the PGS solve's anchor pass),
 // whose displacement the relax sweep then keeps while it takes the velocity back.
 //
-// Bookkeeping with the rest of the step. PF_LN, PF_L1, PF_L2 enter as the warm-start impulses of
+// Bookkeeping with the rest of the step. ln, l1, l2 enter as the warm-start impulses of
 // the step (the last step's totals) and leave as this step's totals (the sum over the substeps),
 // so every later stage (restitution, store_impulses, sleep, the contact log) reads impulses as
 // with the PGS solve; a substep starts from the step's total / substeps. The kick stage put h a
@@ -91,12 +91,11 @@ struct SoftWork {
 thread_local SoftWork g_work;
 
 // Solve K x = b in place (b: x, n <= 4) with manifold f's factors from prepare_contacts'
-// factor_block: the row exchanges MF_PIV, the multipliers below MF_LU's diagonal, U on and above.
-inline void lu_solve(const double* f, i64 n, double* x) {
+// factor_block: the row exchanges piv, the multipliers below lu's diagonal, U on and above.
+inline void lu_solve(const Manifold& f, i64 n, double* x) {
     const bool pt[4] = {true, true, true, true};
     lu_solve_rows<double, ScalarLane>(
-        (int)n, pt, [f](int k) { return f[MF_LU + k]; }, [f](int c) { return f[MF_PIV + c]; },
-        x);
+        (int)n, pt, [&f](int k) { return f.lu[k]; }, [&f](int c) { return f.piv[c]; }, x);
 }
 
 // The impulses x_i n at anchors r_a,i / r_b,i of one manifold at once: D = sum x_i, sa = sum x_i
@@ -128,41 +127,42 @@ inline void apply_moments(double ma, const double* a6, double mb, const double* 
 // One sweep over the manifolds (in manifold order): the normal rows, then friction (Box2D v3's
 // order), with the soft bias when use_bias, rigid otherwise; sum: the relax sweep adds each
 // point's impulses of the substep into it (nullptr: the solve sweep).
-void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V2<double> bI,
+void sweep(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man, V1<double> bm,
+           V2<double> bI,
            V2<double> bv, V2<double> bw, const double* dp, const double* dth, double* lam,
            double inv_hs, bool use_bias, const Softness& soft, const Softness& soft_static,
            double push_max, bool anchors, bool block_rows, i64 newton_iters,
            double newton_tol, double* sum) {
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 ia = mi(m, MI_A), ib = mi(m, MI_B);
+        if (!mi[m].active) continue;
+        i64 ia = mi[m].a, ib = mi[m].b;
         BodyPair bp(SolverBodies{bm, bI, bv, bw}, ia, ib);
         const Softness& sf = (bp.ma == 0.0 || bp.mb == 0.0) ? soft_static : soft;
-        double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
-        double t1x = mf(m, MF_T1), t1y = mf(m, MF_T1 + 1), t1z = mf(m, MF_T1 + 2);
-        double t2x = mf(m, MF_T2), t2y = mf(m, MF_T2 + 1), t2z = mf(m, MF_T2 + 2);
-        double mu = mf(m, MF_MU);
+        double nx = mf[m].normal[0], ny = mf[m].normal[1], nz = mf[m].normal[2];
+        double t1x = mf[m].t1[0], t1y = mf[m].t1[1], t1z = mf[m].t1[2];
+        double t2x = mf[m].t2[0], t2y = mf[m].t2[1], t2z = mf[m].t2[2];
+        double mu = mf[m].mu;
         const double* pa = dp + 3 * ia;
         const double* qa = dth + 3 * ia;
         const double* pb = dp + 3 * ib;
         const double* qb = dth + 3 * ib;
-        i64 start = mi(m, MI_START);
-        i64 end = start + mi(m, MI_COUNT);
+        i64 start = mi[m].start;
+        i64 end = start + mi[m].count;
         // normal rows: each point's target (the soft bias, or the speculative one), then the
-        // manifold's points together through its factored block K (prepare_contacts' MF_LU, as
+        // manifold's points together through its factored block K (prepare_contacts' lu, as
         // the PGS solve), else one by one
         i64 cnt = end - start;
         double rhs[4], ms[4], is[4];
         for (i64 p = start; p < end; ++p) {
-            const double* q = pf.row(p);
+            const ContactPoint& q = pf[p];
             i64 i = p - start;
-            double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-            double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+            double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+            double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
             // current separation: s0 + n . (dp_a + dth_a x r_a - dp_b - dth_b x r_b)
             double dx = pa[0] + qa[1] * raz - qa[2] * ray - pb[0] - qb[1] * rbz + qb[2] * rby;
             double dy = pa[1] + qa[2] * rax - qa[0] * raz - pb[1] - qb[2] * rbx + qb[0] * rbz;
             double dz = pa[2] + qa[0] * ray - qa[1] * rax - pb[2] - qb[0] * rby + qb[1] * rbx;
-            double s = q[PF_S] + nx * dx + ny * dy + nz * dz;
+            double s = q.s + nx * dx + ny * dy + nz * dz;
             double bias = 0.0;
             ms[i] = 1.0;
             is[i] = 0.0;
@@ -176,19 +176,19 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
             }
             rhs[i] = bias;
         }
-        bool block = block_rows && cnt > 1 && mf(m, MF_LUOK) > 0.0;
+        bool block = block_rows && cnt > 1 && mf[m].lu_ok > 0.0;
         if (block) {
             // x = K^-1 (-(v_n + bias)); dlambda_i = mass_scale_i x_i - impulse_scale_i lambda_i
             double x[4];
             for (i64 i = 0; i < cnt; ++i) {
-                const double* q = pf.row(start + i);
-                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                const ContactPoint& q = pf[start + i];
+                double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+                double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
                 double dvx, dvy, dvz;
                 bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 x[i] = -(dvx * nx + dvy * ny + dvz * nz + rhs[i]);
             }
-            lu_solve(mf.row(m), cnt, x);
+            lu_solve(mf[m], cnt, x);
             for (i64 i = 0; i < cnt && block; ++i) {
                 double* l = lam + 3 * (start + i);
                 x[i] = ms[i] * x[i] - is[i] * l[0];
@@ -199,12 +199,12 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
                 // (sum x_i r_i) x n, so one velocity update instead of one per point
                 double dsum = 0.0, sa[3] = {0.0, 0.0, 0.0}, sb[3] = {0.0, 0.0, 0.0};
                 for (i64 i = 0; i < cnt; ++i) {
-                    const double* q = pf.row(start + i);
+                    const ContactPoint& q = pf[start + i];
                     lam[3 * (start + i)] += x[i];
                     dsum += x[i];
                     for (int k = 0; k < 3; ++k) {
-                        sa[k] += x[i] * q[PF_RA + k];
-                        sb[k] += x[i] * q[PF_RB + k];
+                        sa[k] += x[i] * q.ra[k];
+                        sb[k] += x[i] * q.rb[k];
                     }
                 }
                 apply_moments(bp.ma, bp.a6, bp.mb, bp.b6, sa, sb, dsum, nx, ny, nz, bp.va[0],
@@ -214,18 +214,18 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
         }
         if (!block) {
             for (i64 p = start; p < end; ++p) {
-                const double* q = pf.row(p);
+                const ContactPoint& q = pf[p];
                 double* l = lam + 3 * p;
                 i64 i = p - start;
-                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+                double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
                 // relative normal velocity
                 double dvx, dvy, dvz;
                 bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 double vn = dvx * nx + dvy * ny + dvz * nz;
                 // incremental impulse, clamp the accumulated one
                 double old = l[0];
-                double nw = old - q[PF_NMASS] * ms[i] * (vn + rhs[i]) - is[i] * old;
+                double nw = old - q.normal_mass * ms[i] * (vn + rhs[i]) - is[i] * old;
                 if (nw < 0.0) nw = 0.0;
                 l[0] = nw;
                 double d = nw - old;
@@ -236,23 +236,23 @@ void sweep(V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, V1<double> bm, V
         // friction rows: the cone of this substep's normal impulse
         if (mu > 0.0) {
             for (i64 p = start; p < end; ++p) {
-                const double* q = pf.row(p);
+                const ContactPoint& q = pf[p];
                 double* l = lam + 3 * p;
                 // no normal impulse and no friction impulse: the cone is a point, nothing to do
                 if (l[0] == 0.0 && l[1] == 0.0 && l[2] == 0.0) continue;
-                double rax = q[PF_RA], ray = q[PF_RA + 1], raz = q[PF_RA + 2];
-                double rbx = q[PF_RB], rby = q[PF_RB + 1], rbz = q[PF_RB + 2];
+                double rax = q.ra[0], ray = q.ra[1], raz = q.ra[2];
+                double rbx = q.rb[0], rby = q.rb[1], rbz = q.rb[2];
                 double dvx, dvy, dvz;
                 bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 double vt1 = dvx * t1x + dvy * t1y + dvz * t1z;
                 double vt2 = dvx * t2x + dvy * t2y + dvz * t2z;
                 if (use_bias && anchors) {  // slip relative to the anchor's target -D rate / h
-                    vt1 += q[PF_DB];
-                    vt2 += q[PF_DB + 1];
+                    vt1 += q.slip_bias[0];
+                    vt2 += q.slip_bias[1];
                 }
                 double o1 = l[1], o2 = l[2];
                 double n1, n2;
-                friction_impulse(q[PF_TK], q[PF_TK + 1], q[PF_TK + 2], o1, o2, vt1, vt2,
+                friction_impulse(q.tangent_k[0], q.tangent_k[1], q.tangent_k[2], o1, o2, vt1, vt2,
                                  mu * l[0], newton_iters, newton_tol, n1, n2);
                 l[1] = n1;
                 l[2] = n2;
@@ -281,15 +281,16 @@ Softness make_soft(double hertz, double zeta, double h) {
 i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const SolverBodies& b,
                V2<double> pv, V2<double> pw, V1<i64> in_contact, V2<double> accel,
                V2<double> torque, bool do_kick) {
-    const V2<i64> mi = c.mi;
-    const V2<double> mf = c.mf, pf = c.pf;
+    const V1<ManifoldHead> mi = c.mi;
+    const V1<Manifold> mf = c.mf;
+    V1<ContactPoint> pf = c.pf;
     const i64 n_man = c.n_man;
     const V1<double> bm = b.inv_mass;
     const V2<double> bI = b.inv_inertia, bv = b.v, bw = b.w;
     const Settings& cfg = ctx.settings;
     const double h = ctx.h;
     // the sweeps' switches: the soft bias capped at max_correction_speed, the friction rows aimed
-    // at the anchors' slip rate (PF_DB) with static_friction_anchors, a manifold's normal rows
+    // at the anchors' slip rate (slip_bias) with static_friction_anchors, a manifold's normal rows
     // solved together (its factored block K)
     const double push_max = cfg.max_correction_speed;
     const bool anchors = cfg.static_friction_anchors, block = true;
@@ -307,7 +308,7 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
 
     i64 n_pts = 0;
     for (i64 m = 0; m < n_man; ++m) {
-        i64 e = mi(m, MI_START) + mi(m, MI_COUNT);
+        i64 e = mi[m].start + mi[m].count;
         if (e > n_pts) n_pts = e;
     }
     SoftWork& wk = g_work;
@@ -324,12 +325,12 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
     // a substep's share of the step's warm-start impulses
     const double share = 1.0 / double(n_sub);
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            lam[3 * p] = pf(p, PF_LN) * share;
-            lam[3 * p + 1] = pf(p, PF_L1) * share;
-            lam[3 * p + 2] = pf(p, PF_L2) * share;
+        if (!mi[m].active) continue;
+        i64 start = mi[m].start;
+        for (i64 p = start; p < start + mi[m].count; ++p) {
+            lam[3 * p] = pf[p].ln * share;
+            lam[3 * p + 1] = pf[p].l1 * share;
+            lam[3 * p + 2] = pf[p].l2 * share;
             sum[3 * p] = sum[3 * p + 1] = sum[3 * p + 2] = 0.0;
         }
     }
@@ -379,12 +380,12 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
     }
     // the step's impulses, and the pseudo velocities that carry the substeps' displacement
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            pf(p, PF_LN) = sum[3 * p];
-            pf(p, PF_L1) = sum[3 * p + 1];
-            pf(p, PF_L2) = sum[3 * p + 2];
+        if (!mi[m].active) continue;
+        i64 start = mi[m].start;
+        for (i64 p = start; p < start + mi[m].count; ++p) {
+            pf[p].ln = sum[3 * p];
+            pf[p].l1 = sum[3 * p + 1];
+            pf[p].l2 = sum[3 * p + 2];
         }
     }
     const double inv_h = 1.0 / h;

@@ -20,7 +20,7 @@ Softness make_soft(double hertz, double zeta, double h);
 // Stages 6-8 as Box2D v3's b2SolverStage loop over `substeps` substeps of h / substeps: gravity
 // (and the applied forces) are kicked per substep, and per substep the bodies' velocities are
 // warm-started, solved with the soft bias, their positions integrated (into per-body
-// displacements only) and relaxed without bias. On return PF_LN, PF_L1, PF_L2 hold the step's
+// displacements only) and relaxed without bias. On return ln, l1, l2 hold the step's
 // total impulses (the sum over the substeps, as the PGS solve's accumulated impulses), bv/bw the
 // end velocities and pv/pw the difference between the substeps' mean velocity and the end one,
 // so that stage 9's x += h (v + v') moves every pushed body by the substeps' displacement.

@@ -9,6 +9,7 @@
 #include <cstddef>  // size_t, which common/array.hpp uses
 
 #include "common/array.hpp"
+#include "engine/manifold.hpp"
 
 namespace nanobind {
 class handle;
@@ -63,12 +64,14 @@ struct SolverBodies {
     V2<double> w;            // (N+1, 3) angular velocity, rad/s (or its pseudo twin)
 };
 
-// The step's contact constraints (manifold.hpp's columns): mi (M, MI_COLS) int64 per manifold,
-// mf (M, MF_COLS) per manifold, pf (K, PF_COLS) per point; the first n_man manifolds are used.
+// The step's contact constraints (manifold.hpp's records): per manifold its head mi[m] (pair
+// key, bodies, its points pf[start .. start + count)) and its frame and solver data mf[m]
+// (normal, tangents, coefficients, the normal block's factors, the friction anchor); per point
+// pf[p] (anchors, separation, effective masses, impulses). The first n_man manifolds are used.
 struct ContactConstraints {
-    V2<i64> mi;
-    V2<double> mf;
-    V2<double> pf;
+    V1<ManifoldHead> mi;
+    V1<Manifold> mf;
+    V1<ContactPoint> pf;
     i64 n_man = 0;
 };
 

@@ -125,10 +125,10 @@ void par_ranges(i64 n, i64 per_block, const F& fn) {
     pool().run(nb, [&](i64 b, int) { fn(n * b / nb, n * (b + 1) / nb); });
 }
 
-// Rows [r0, r1) of a (M, C) view.
+// Records [r0, r1) of a view.
 template <class T>
-V2<T> rows(V2<T> v, i64 r0, i64 r1) {
-    return V2<T>{v.p + r0 * v.n1, r1 - r0, v.n1};
+V1<T> rows(V1<T> v, i64 r0, i64 r1) {
+    return V1<T>{v.p + r0, r1 - r0};
 }
 
 template <class T>
@@ -280,21 +280,24 @@ CollideCount collide(const Bodies& bd, const Statics& st, const Settings& cfg, V
     return collide_pairs(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, awake,
                          x.position, x.rotation, col(sc.reach), cfg.speculative_distance, bd.restitution,
                          bd.friction, bd.accel, st.pos, st.rot, st.ext, st.e, st.mu, st.gn,
-                         st.goff, st.g_e, st.g_mu, c.mi0.view(), c.mf0.view(), c.pf0.view(),
-                         col(c.pid0), col(c.keys0), col(c.idx0), c.n_man0, c.mi1.view(),
-                         c.mf1.view(), c.pf1.view(), col(c.pid1), cfg.warm_starting, cfg.friction_anchor_distance, sc.cb);
+                         st.goff, st.g_e, st.g_mu, heads(c.mi0.view()), manifolds(c.mf0.view()),
+                                                         points(c.pf0.view()),
+                         col(c.pid0), col(c.keys0), col(c.idx0), c.n_man0, heads(c.mi1.view()),
+                         manifolds(c.mf1.view()), points(c.pf1.view()), col(c.pid1),
+                                   cfg.warm_starting, cfg.friction_anchor_distance, sc.cb);
 }
 
 // 5 prepare: load the bodies in contact into the solver arrays; effective masses and pre-solve
 // gap velocities of every point.
-void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc, V2<i64> mi,
-             V2<double> mf, V2<double> pf, i64 n_man, double h) {
+void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc,
+             V1<ManifoldHead> mi,
+             V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man, double h) {
     load_bodies(mi, n_man, x.position.n0, cfg.iso_shortcut, bd.iso, bd.inv_mass, bd.inv_inertia,
                 x.rotation, x.linear_momentum, x.angular_momentum, col(sc.in_contact),
                 col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view(), sc.bv0.view(),
                 sc.bw0.view(), sc.pv.view(), sc.pw.view(), sc.p0.view(), sc.l0.view());
     // a manifold's preparation writes only its own rows (mf, its points' pf): blocks of
-    // manifolds on the pool (pf stays whole: a manifold's MI_START indexes it)
+    // manifolds on the pool (pf stays whole: a manifold's start indexes it)
     const StepContext ctx{h, 1.0 / h, cfg};
     const SolverBodies b{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()};
     par_ranges(n_man, MANIFOLDS_PER_BLOCK, [&](i64 m0, i64 m1) {
@@ -312,25 +315,25 @@ void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch&
 //   exact-flight term as a free body, so that every body away from static geometry flies alike
 //   (one scheme inside any group of bodies that only push each other);
 // * 2: pushed, in an island that some static contact pushes: symplectic Euler (resting contact).
-void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
+void mark_pushed(V1<ManifoldHead> mi, V1<ContactPoint> pf, i64 n_man, i64 n, Scratch& sc) {
     V1<i64> pushed = col(sc.pushed), root = col(sc.push_root);
     for (i64 i = 0; i < n + 1; ++i) {
         pushed[i] = 0;
         root[i] = i;
     }
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE)) continue;
-        i64 start = mi(m, MI_START);
+        if (!mi[m].active) continue;
+        i64 start = mi[m].start;
         bool push = false;
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
-            if (pf(p, PF_LN) != 0.0 || pf(p, PF_L1) != 0.0 || pf(p, PF_L2) != 0.0 ||
-                pf(p, PF_LP) != 0.0) {
+        for (i64 p = start; p < start + mi[m].count; ++p) {
+            if (pf[p].ln != 0.0 || pf[p].l1 != 0.0 || pf[p].l2 != 0.0 ||
+                pf[p].lp != 0.0) {
                 push = true;
                 break;
             }
         }
         if (!push) continue;
-        i64 a = mi(m, MI_A), b = mi(m, MI_B);
+        i64 a = mi[m].a, b = mi[m].b;
         pushed[a] = 1;
         pushed[b] = 1;
         i64 ra = find_root(root, a), rb_ = find_root(root, b);
@@ -349,11 +352,11 @@ void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc) {
 
 // Whether manifold m pushed in this step's solve or relax (any accumulated normal, friction or
 // pseudo impulse).
-inline bool manifold_pushes(V2<i64> mi, V2<double> pf, i64 m) {
-    i64 start = mi(m, MI_START);
-    for (i64 p = start; p < start + mi(m, MI_COUNT); ++p)
-        if (pf(p, PF_LN) != 0.0 || pf(p, PF_L1) != 0.0 || pf(p, PF_L2) != 0.0 ||
-            pf(p, PF_LP) != 0.0)
+inline bool manifold_pushes(V1<ManifoldHead> mi, V1<ContactPoint> pf, i64 m) {
+    i64 start = mi[m].start;
+    for (i64 p = start; p < start + mi[m].count; ++p)
+        if (pf[p].ln != 0.0 || pf[p].l1 != 0.0 || pf[p].l2 != 0.0 ||
+            pf[p].lp != 0.0)
             return true;
     return false;
 }
@@ -364,22 +367,23 @@ inline bool manifold_pushes(V2<i64> mi, V2<double> pf, i64 m) {
 // none of whose points was struck (restitution's rule, struck()) gets that manifold's index;
 // a body pushed by several manifolds, by another awake body or at an impact gets -2; every
 // other body -1. See "Exact motion on one static surface" in the header comment.
-void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, i64 n,
+void mark_exact(const Settings& cfg, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
+                i64 n_man, i64 n,
                 Scratch& sc) {
     V1<i64> ex = col(sc.exact_man);
     for (i64 i = 0; i < n + 1; ++i) ex[i] = -1;
     for (i64 m = 0; m < n_man; ++m) {
-        if (!mi(m, MI_ACTIVE) || !manifold_pushes(mi, pf, m)) continue;
-        i64 a = mi(m, MI_A), b = mi(m, MI_B);
+        if (!mi[m].active || !manifold_pushes(mi, pf, m)) continue;
+        i64 a = mi[m].a, b = mi[m].b;
         if (a != n && b != n) {
             ex[a] = -2;
             ex[b] = -2;
             continue;
         }
         bool hit = false;
-        i64 start = mi(m, MI_START);
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p)
-            hit = hit || struck(pf(p, PF_W0), pf(p, PF_LN), mf(m, MF_ACC), pf(p, PF_S),
+        i64 start = mi[m].start;
+        for (i64 p = start; p < start + mi[m].count; ++p)
+            hit = hit || struck(pf[p].w0, pf[p].ln, mf[m].acc, pf[p].s,
                                 cfg.restitution_threshold);
         i64 k = a == n ? b : a;
         ex[k] = ex[k] == -1 && !hit ? m : -2;
@@ -394,7 +398,7 @@ void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i
 //
 // * On an edge or a corner (fewer than 3 points) of a pair that does not roll (not a sphere's or a
 //   capsule's): no correction, the body tips or rocks under a varying force.
-// * Stuck (an anchored pair, MF_AOK > 0, whose loaded points stick by the anchor's rule,
+// * Stuck (an anchored pair, anchor_ok > 0, whose loaded points stick by the anchor's rule,
 //   point_sticks) and not stopping: no correction. The anchor pass sets w_t = -rate D / h, a
 //   position loop designed for x += h w_t; a trapezoid inside it (x += h (w_prev + w_t) / 2)
 //   turns its decay into a damped oscillation (roots of z^2 - (1 - rate/2) z + rate/2: |z| =
@@ -411,7 +415,7 @@ void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i
 //   rolling or driven on keeps its speed along u_hat or gains): it went on from rest to w_t at
 //   a constant rate, displacement (u_t t* + w_t (h - t*)) / 2; no turn. An anchored pair stops
 //   so only after a step of sliding (its anchor dropped), and is then re-anchored where it
-//   stopped (MF_AOK = -1: collide takes the pose of the next step's start, and that step is
+//   stopped (anchor_ok = -1: collide takes the pose of the next step's start, and that step is
 //   not a stop), since its anchor, taken at this step's start, would count the slide as slip.
 // The sums over the step telescope: where nothing between steps changes the velocity (u of a
 // step = w of the last), the trapezoid's corrections add up to h (w_first - w_last) / 2, so
@@ -419,12 +423,13 @@ void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i
 inline void exact_correction(i64 i, i64 m, const Bodies& bd, const Settings& cfg,
                              const ExactInputs& ex, Scratch& sc, V3<double> rotation, double h,
                              double* dx, double* dl) {
-    const V2<i64> mi = ex.now.mi;
-    const V2<double> mf = ex.now.mf, pf = ex.now.pf;
+    const V1<ManifoldHead> mi = ex.now.mi;
+    const V1<Manifold> mf = ex.now.mf;
+    V1<ContactPoint> pf = ex.now.pf;
     const double im = bd.inv_mass[i];
     const V2<double> bv = sc.bv.view(), bv0 = sc.bv0.view(), bw = sc.bw.view(),
                      bw0 = sc.bw0.view(), bI = sc.bI.view();
-    const double nx = mf(m, MF_N), ny = mf(m, MF_N + 1), nz = mf(m, MF_N + 2);
+    const double nx = mf[m].normal[0], ny = mf[m].normal[1], nz = mf[m].normal[2];
     double u[3], w[3], a[3];
     for (int k = 0; k < 3; ++k) {
         a[k] = cfg.do_kick ? bd.accel(i, k) : 0.0;
@@ -441,38 +446,38 @@ inline void exact_correction(i64 i, i64 m, const Bodies& bd, const Settings& cfg
     const double uw = ut[0] * wt[0] + ut[1] * wt[1] + ut[2] * wt[2];
     dx[0] = dx[1] = dx[2] = 0.0;
     dl[0] = dl[1] = dl[2] = 0.0;
-    const double mu = mf(m, MF_MU);
-    const i64 start = mi(m, MI_START), end = start + mi(m, MI_COUNT);
+    const double mu = mf[m].mu;
+    const i64 start = mi[m].start, end = start + mi[m].count;
     // a rolling pair (a sphere's, a capsule's: collide gives every other pair an anchor) on any
     // points; any other on a face (3 or 4 points): on an edge or a corner a body is tipping or
     // rocking, and its contact force varies inside the step
-    if (mf(m, MF_AOK) > 0.0 && mi(m, MI_COUNT) < 3) return;
-    // An anchored pair (collide gives every pair but a rolling one an anchor, MF_AOK > 0) may stop
-    // in this step only if it slid over the last one (warm started from a manifold whose anchor
-    // store_impulses dropped, MF_AOK 0): not if it was held (MF_AOK > 0 then) or stopped in the
-    // last step (MF_AOK -1, below), which the anchor's position loop owns.
-    const bool anchored = cfg.static_friction_anchors && mf(m, MF_AOK) > 0.0;
+    if (mf[m].anchor_ok > 0.0 && mi[m].count < 3) return;
+    // An anchored pair (collide gives every pair but a rolling one an anchor, anchor_ok > 0) may
+    // stop in this step only if it slid over the last one (warm started from a manifold whose
+    // anchor store_impulses dropped, anchor_ok 0): not if it was held (anchor_ok > 0 then) or
+    // stopped in the last step (anchor_ok -1, below), which the anchor's position loop owns.
+    const bool anchored = cfg.static_friction_anchors && mf[m].anchor_ok > 0.0;
     bool may_stop = !anchored;
     if (anchored && cfg.warm_starting) {
-        const i64 j = find_manifold(ex.prev_keys, ex.prev_idx, ex.prev_n, mi(m, MI_KEY));
-        may_stop = j >= 0 && ex.prev_mf(j, MF_AOK) == 0.0;
+        const i64 j = find_manifold(ex.prev_keys, ex.prev_idx, ex.prev_n, mi[m].key);
+        may_stop = j >= 0 && ex.prev_mf[j].anchor_ok == 0.0;
     }
     if (may_stop && uu > 0.0 && uw <= 0.5 * uu * uu) {
         double ln = 0.0;
-        for (i64 p = start; p < end; ++p) ln += pf(p, PF_LN);
+        for (i64 p = start; p < end; ++p) ln += pf[p].ln;
         const double d = mu * ln * im / h - (at[0] * ut[0] + at[1] * ut[1] + at[2] * ut[2]) / uu;
         if (d > 0.0 && uu < d * h) {
             const double ts = uu / d;
             for (int k = 0; k < 3; ++k)
                 dx[k] = 0.5 * (ut[k] * ts + wt[k] * (h - ts)) - h * wt[k];
-            if (anchored) mf(m, MF_AOK) = -1.0;
+            if (anchored) mf[m].anchor_ok = -1.0;
             return;
         }
     }
     if (anchored) {
         for (i64 p = start; p < end; ++p)
-            if (pf(p, PF_LN) > 0.0 &&
-                point_sticks(pf(p, PF_L1), pf(p, PF_L2), mu, pf(p, PF_LN),
+            if (pf[p].ln > 0.0 &&
+                point_sticks(pf[p].l1, pf[p].l2, mu, pf[p].ln,
                              cfg.friction_anchor_slide_frac))
                 return;
     }
@@ -491,9 +496,10 @@ inline void exact_correction(i64 i, i64 m, const Bodies& bd, const Settings& cfg
     // those below 1e-9 |r_p| (a sphere's r_p lies along n)
     double e[3][3];
     int ne = 0;
-    const i64 off = mi(m, MI_A) == i ? PF_RA : PF_RB;
+    const bool on_a = mi[m].a == i;
     for (i64 p = start; p < end && ne < 3; ++p) {
-        const double rx = pf(p, off), ry = pf(p, off + 1), rz = pf(p, off + 2);
+        const double* r = on_a ? pf[p].ra : pf[p].rb;
+        const double rx = r[0], ry = r[1], rz = r[2];
         double c[3] = {ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx};
         for (int j = 0; j < ne; ++j) {
             const double cj = c[0] * e[j][0] + c[1] * e[j][1] + c[2] * e[j][2];
@@ -642,8 +648,9 @@ i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Se
 // N), advance rest timers, put resting islands to sleep. Returns (islands woken, bodies put to
 // sleep).
 std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const SleepState& sl,
-                                const BodyState& x, Scratch& sc, V2<i64> mi, V2<double> mf,
-                                V2<double> pf, i64 n_man, double h, i64 n_awake) {
+                                const BodyState& x, Scratch& sc, V1<ManifoldHead> mi,
+                                V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man, double h,
+                                i64 n_awake) {
     i64 n = x.position.n0;
     i64 woken = 0;
     if (n_awake < n)
@@ -661,8 +668,9 @@ std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const Sle
 // made the contacts' part only (soft_island_flight), and stage 9 as ever. Returns the
 // sweeps; t: the profile clock, lapped into P_SOLVE, P_RELAX and P_INTEGRATE.
 i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc,
-                V1<i64> awake, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, int method,
-                int ortho, double h, const FlowAnchors& an, V1<i64> prof, i64& t) {
+                V1<i64> awake, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
+                i64 n_man, int method, int ortho, double h, const FlowAnchors& an, V1<i64> prof,
+                i64& t) {
     bool do_prof = prof.n0 > 0;
     i64 sweeps = soft_solve(StepContext{h, 1.0 / h, cfg}, ContactConstraints{mi, mf, pf, n_man},
                             SolverBodies{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()},
@@ -696,20 +704,20 @@ i64 first_diverged(V1<i64> awake, const BodyState& x, V2<double> inv_inertia, do
 // the manifolds of the last step run (mi, mf, pf), with the separation at the end-of-step poses
 // (the contract's "after the step").
 //
-// A point's two anchors start at the one world point p (PF_RA = p - x_a, PF_RB = p - x_b at the
+// A point's two anchors start at the one world point p (ra = p - x_a, rb = p - x_b at the
 // step's start; pose0: (N, 12) each body's position and row-major rotation then) with the gap
-// PF_S along the normal n. Each anchor moves with its body's whole motion over the step, the
+// s along the normal n. Each anchor moves with its body's whole motion over the step, the
 // project stage's pushes included: a_end = x_a + R_a R0_a^T r_a (b likewise; static geometry
-// does not move), so the end-of-step gap is PF_S + n . (a_end - b_end). The normal is the
+// does not move), so the end-of-step gap is s + n . (a_end - b_end). The normal is the
 // step's: its turn changes the gap only by turn x |a_end - b_end|, second order, since the
-// anchors start together. (PF_SEND, the solver's linear estimate s + h (v_n + v_n pseudo) read by
+// anchors start together. (s_end, the solver's linear estimate s + h (v_n + v_n pseudo) read by
 // the restitution and sleep stages, misses the project stage's pushes: up to 1.3 mm off the
 // poses on samples/pile.toml's rows.) Returns n_log; the log may have grown.
-i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
+i64 record_contacts(i64 s, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man,
                     V2<double> position, V3<double> rotation, V2<double> pose0,
                     Buf2<i64>& log_i, Buf2<double>& log_f, i64 n_log) {
     i64 need = n_log;
-    for (i64 m = 0; m < n_man; ++m) need += mi(m, MI_COUNT);
+    for (i64 m = 0; m < n_man; ++m) need += mi[m].count;
     log_i.grow(need);
     log_f.grow(need);
     // the world displacement of anchor r of body i over the step: x - x0 + (R R0^T - I) r
@@ -724,27 +732,27 @@ i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
                    r[k];
     };
     for (i64 m = 0; m < n_man; ++m) {
-        i64 start = mi(m, MI_START);
-        i64 a = mi(m, MI_REC_A), b = mi(m, MI_REC_B);
-        const double n[3] = {mf(m, MF_N), mf(m, MF_N + 1), mf(m, MF_N + 2)};
-        for (i64 p = start; p < start + mi(m, MI_COUNT); ++p) {
+        i64 start = mi[m].start;
+        i64 a = mi[m].rec_a, b = mi[m].rec_b;
+        const double n[3] = {mf[m].normal[0], mf[m].normal[1], mf[m].normal[2]};
+        for (i64 p = start; p < start + mi[m].count; ++p) {
             double da[3], db[3] = {0.0, 0.0, 0.0};
-            moved(a, pf.row(p) + PF_RA, da);
-            if (b >= 0) moved(b, pf.row(p) + PF_RB, db);
-            double sep = pf(p, PF_S) + n[0] * (da[0] - db[0]) + n[1] * (da[1] - db[1]) +
+            moved(a, pf[p].ra, da);
+            if (b >= 0) moved(b, pf[p].rb, db);
+            double sep = pf[p].s + n[0] * (da[0] - db[0]) + n[1] * (da[1] - db[1]) +
                          n[2] * (da[2] - db[2]);
-            if (pf(p, PF_LN) <= 0.0 && sep > 0.0) continue;
+            if (pf[p].ln <= 0.0 && sep > 0.0) continue;
             log_i(n_log, LOG_STEP) = s;
             log_i(n_log, LOG_A) = a;
             log_i(n_log, LOG_B) = b;
-            log_i(n_log, LOG_KIND) = pf(p, PF_IMPACT) > 0.0 ? CONTACT_IMPACT : CONTACT_RESTING;
+            log_i(n_log, LOG_KIND) = pf[p].impact > 0.0 ? CONTACT_IMPACT : CONTACT_RESTING;
             for (int k = 0; k < 3; ++k) {
-                log_f(n_log, LOG_P + k) = pf(p, PF_P + k);
+                log_f(n_log, LOG_P + k) = pf[p].point[k];
                 log_f(n_log, LOG_N + k) = n[k];
-                log_f(n_log, LOG_F + k) = pf(p, PF_F + k);
+                log_f(n_log, LOG_F + k) = pf[p].friction[k];
             }
             log_f(n_log, LOG_S) = sep;
-            log_f(n_log, LOG_LN) = pf(p, PF_LN);
+            log_f(n_log, LOG_LN) = pf[p].ln;
             n_log += 1;
         }
     }
@@ -816,10 +824,12 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             stats[ST_MANIFOLDS] += n_man;
             stats[ST_POINTS] += cc.n_pts;
             if (do_prof) t = lap(prof, P_COLLIDE, t);
-            colour_manifolds(c.mi1.view(), n_man, n, sc.graph);                          // 4b
+            colour_manifolds(heads(c.mi1.view()), n_man, n,
+                             sc.graph);                          // 4b
             if (do_prof) t = lap(prof, P_COLOUR, t);
-            V2<i64> mi1 = c.mi1.view();
-            V2<double> mf1 = c.mf1.view(), pf1 = c.pf1.view();
+            V1<ManifoldHead> mi1 = heads(c.mi1.view());
+            V1<Manifold> mf1 = manifolds(c.mf1.view());
+    V1<ContactPoint> pf1 = points(c.pf1.view());
             const ContactConstraints cons{mi1, mf1, pf1, n_man};
             const SolverBodies bodies{col(sc.bm), sc.bI.view(), sc.bv.view(), sc.bw.view()};
             const SolverBodies pseudo{col(sc.bm), sc.bI.view(), sc.pv.view(), sc.pw.view()};
@@ -837,7 +847,8 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             mark_pushed(mi1, pf1, n_man, n, sc);
             if (cfg.exact_contact_motion) mark_exact(cfg, mi1, mf1, pf1, n_man, n, sc);
             if (do_prof) t = lap(prof, P_RELAX, t);
-            const ExactInputs exact{cons, c.mf0.view(), col(c.keys0), col(c.idx0), c.n_man0};
+            const ExactInputs exact{cons, manifolds(c.mf0.view()), col(c.keys0), col(c.idx0),
+                                                    c.n_man0};
             integrate_positions(method, ortho, bd, cfg, sl.awake, x, sc, h, an,             // 9
                                 cfg.exact_contact_motion ? &exact : nullptr);
             if (do_prof) t = lap(prof, P_INTEGRATE, t);
@@ -861,8 +872,9 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
                                                n_pairs, an);
             if (do_prof) t = lap(prof, P_PROJECT, t);
             if (cfg.do_sleep) {                                                             // 13
-                std::pair<i64, i64> ws = sleep_stage(bd, cfg, sl, x, sc, c.mi0.view(),
-                                                     c.mf0.view(), c.pf0.view(), c.n_man0, h,
+                std::pair<i64, i64> ws = sleep_stage(bd, cfg, sl, x, sc, heads(c.mi0.view()),
+                                                     manifolds(c.mf0.view()),
+                                                               points(c.pf0.view()), c.n_man0, h,
                                                      n_awake);
                 stats[ST_WOKEN] += ws.first;
                 stats[ST_SLEPT] += ws.second;
@@ -880,7 +892,8 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
                              out.quat_wxyz, out.rotation, out.angular_momentum);
             if (im.on()) impulses_sample(im, n_samples);
             n_samples += 1;
-            n_log = record_contacts(s, c.mi0.view(), c.mf0.view(), c.pf0.view(), c.n_man0,
+            n_log = record_contacts(s, heads(c.mi0.view()), manifolds(c.mf0.view()),
+                                    points(c.pf0.view()), c.n_man0,
                                     x.position, x.rotation, c.pose0.view(), c.log_i, c.log_f,
                                     n_log);
             if (do_prof) t = lap(prof, P_SAMPLE, t);

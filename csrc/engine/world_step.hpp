@@ -36,17 +36,19 @@ i64 wake(const Bodies& bd, const Statics& st, const Settings& cfg, const SleepSt
 CollideCount collide(const Bodies& bd, const Statics& st, const Settings& cfg, V1<i64> awake,
                      const BodyState& x, Scratch& sc, V2<i64> pairs, i64 n_pairs,
                      ContactCache& c);
-void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc, V2<i64> mi,
-             V2<double> mf, V2<double> pf, i64 n_man, double h);
-void mark_pushed(V2<i64> mi, V2<double> pf, i64 n_man, i64 n, Scratch& sc);
-void mark_exact(const Settings& cfg, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, i64 n,
+void prepare(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc,
+             V1<ManifoldHead> mi,
+             V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man, double h);
+void mark_pushed(V1<ManifoldHead> mi, V1<ContactPoint> pf, i64 n_man, i64 n, Scratch& sc);
+void mark_exact(const Settings& cfg, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
+                i64 n_man, i64 n,
                 Scratch& sc);
 // What stage 9's exact motion reads (world_step.cpp, "Exact motion on one static surface"): this
 // step's manifolds, and the previous step's (sorted by key, ContactCache's mf0, keys0, idx0,
 // n_man0) for whether a pair's anchor was held over from it.
 struct ExactInputs {
     ContactConstraints now;
-    V2<double> prev_mf;
+    V1<Manifold> prev_mf;
     V1<i64> prev_keys, prev_idx;
     i64 prev_n = 0;
 };
@@ -59,13 +61,15 @@ i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Se
             V1<i64> awake, const BodyState& x, Scratch& sc, V2<i64> pairs, i64 n_pairs,
             const FlowAnchors& an);
 std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const SleepState& sl,
-                                const BodyState& x, Scratch& sc, V2<i64> mi, V2<double> mf,
-                                V2<double> pf, i64 n_man, double h, i64 n_awake);
+                                const BodyState& x, Scratch& sc, V1<ManifoldHead> mi,
+                                V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man, double h,
+                                i64 n_awake);
 i64 soft_stages(const Bodies& bd, const Settings& cfg, const BodyState& x, Scratch& sc,
-                V1<i64> awake, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man, int method,
-                int ortho, double h, const FlowAnchors& an, V1<i64> prof, i64& t);
+                V1<i64> awake, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
+                i64 n_man, int method, int ortho, double h, const FlowAnchors& an, V1<i64> prof,
+                i64& t);
 i64 first_diverged(V1<i64> awake, const BodyState& x, V2<double> inv_inertia, double h);
-i64 record_contacts(i64 s, V2<i64> mi, V2<double> mf, V2<double> pf, i64 n_man,
+i64 record_contacts(i64 s, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man,
                     V2<double> position, V3<double> rotation, V2<double> pose0,
                     Buf2<i64>& log_i, Buf2<double>& log_f, i64 n_log);
 

@@ -1,24 +1,29 @@
-"""Column layout of the packed contact arrays (Box2D's contact constraints, as SoA rows).
+"""The contact constraints' records as numpy sees them (Box2D's contact constraints).
 
 Three arrays hold the manifolds of one step; a second set holds the previous step's, for warm
 starting and for manifolds of sleeping bodies, which are carried over unchanged.
 
-* ``mi`` (M, MI_COLS) int64 per manifold: pair key, solver body indices, record body indices,
-  first point, point count, active flag.
-* ``mf`` (M, MF_COLS) float64 per manifold: normal and tangent basis (world), friction,
-  restitution, relative normal acceleration from the external forces.
-* ``pf`` (K, PF_COLS) float64 per point, ``pid`` (K,) int64 feature ids.
+* ``mi`` (M, MI_COLS) int64, a manifold's head per row: pair key, solver body indices, record
+  body indices, first point, point count, active flag.
+* ``mf`` (M, MF_COLS) float64, a manifold per row: normal and tangent basis (world), friction,
+  restitution, relative normal acceleration from the external forces, the normal block's
+  factors, the friction anchor.
+* ``pf`` (K, PF_COLS) float64, a contact point per row; ``pid`` (K,) int64 feature ids.
+
+``heads(mi)``, ``manifolds(mf)`` and ``points(pf)`` view the rows as numpy structured arrays
+whose fields are the C++ records' (``points(pf)["ra"][p]``: point p's anchor on a, shape (3,);
+writes go to the same memory).
 
 Frames and signs: the normal points from body b into body a; anchors ``ra``/``rb`` are the world
 offsets of the contact point from the centres of mass at the narrowphase; a positive normal
-impulse pushes a along +normal and b along -normal; the friction impulse ``f`` is the world
-vector applied to a (b gets -f). Solver body index ``n_bodies`` is a static dummy (zero inverse
-mass, zero velocity) standing for the ground, static boxes and sleeping bodies.
+impulse pushes a along +normal and b along -normal; the friction impulse ``friction`` is the
+world vector applied to a (b gets its negative). Solver body index ``n_bodies`` is a static dummy
+(zero inverse mass, zero velocity) standing for the ground, static boxes and sleeping bodies.
 
-The column constants' documented home is csrc/engine/manifold.hpp (each with its width, frame
-and unit); this module reads them from the compiled core, by name. The manifold reduction
-(deepest, farthest, largest triangle, largest quad; touching points first) is
-``reduce_manifold`` in csrc/engine/manifold.cpp.
+The records' documented home is csrc/engine/manifold.hpp (each field with its shape, frame and
+unit); this module builds their dtypes from the compiled core's field table
+(``_core.contact_fields()``). The manifold reduction (deepest, farthest, largest triangle,
+largest quad; touching points first) is ``reduce_manifold`` in csrc/engine/manifold.cpp.
 """
 
 from __future__ import annotations
@@ -34,18 +39,46 @@ def _columns(*names):
     return tuple(int(_LAYOUT[k]) for k in names)
 
 
-# per manifold, int64 (mi); per manifold, float64 (mf); per point, float64 (pf): manifold.hpp
-(MI_KEY, MI_A, MI_B, MI_REC_A, MI_REC_B, MI_START, MI_COUNT, MI_ACTIVE, MI_COLS) = _columns(
-    "MI_KEY", "MI_A", "MI_B", "MI_REC_A", "MI_REC_B", "MI_START", "MI_COUNT", "MI_ACTIVE",
-    "MI_COLS")
-(MF_N, MF_T1, MF_T2, MF_MU, MF_E, MF_ACC, MF_LU, MF_PIV, MF_LUOK, MF_AR, MF_AT, MF_AOK,
- MF_COLS) = _columns("MF_N", "MF_T1", "MF_T2", "MF_MU", "MF_E", "MF_ACC", "MF_LU", "MF_PIV",
-                     "MF_LUOK", "MF_AR", "MF_AT", "MF_AOK", "MF_COLS")
-(PF_P, PF_RA, PF_RB, PF_S, PF_NMASS, PF_TK, PF_LN, PF_L1, PF_L2, PF_LP, PF_LWS, PF_W0, PF_F,
- PF_SEND, PF_IMPACT, PF_WT, PF_KN, PF_D, PF_DB, PF_COLS) = _columns(
-    "PF_P", "PF_RA", "PF_RB", "PF_S", "PF_NMASS", "PF_TK", "PF_LN", "PF_L1", "PF_L2", "PF_LP",
-    "PF_LWS", "PF_W0", "PF_F", "PF_SEND", "PF_IMPACT", "PF_WT", "PF_KN", "PF_D", "PF_DB",
-    "PF_COLS")
+def _dtype(fields, kind):
+    """A structured dtype of 8-byte values from (name, offset, width) triples."""
+    return np.dtype({"names": [f[0] for f in fields],
+                     "formats": [kind if f[2] == 1 else (kind, (f[2],)) for f in fields],
+                     "offsets": [8 * f[1] for f in fields],
+                     "itemsize": 8 * sum(f[2] for f in fields)})
+
+
+#: the rows' widths: mi (M, MI_COLS) int64, mf (M, MF_COLS) and pf (K, PF_COLS) float64
+MI_COLS, MF_COLS, PF_COLS = _columns("MI_COLS", "MF_COLS", "PF_COLS")
+_FIELDS = _core.contact_fields()
+#: the records' dtypes: a row of mi, of mf, of pf
+HEAD_DTYPE = _dtype(_FIELDS["head"], np.int64)
+MANIFOLD_DTYPE = _dtype(_FIELDS["manifold"], np.float64)
+POINT_DTYPE = _dtype(_FIELDS["point"], np.float64)
+
+
+def _records(a: np.ndarray, dtype: np.dtype, cols: int) -> np.ndarray:
+    if a.ndim != 2 or a.shape[1] != cols or not a.flags.c_contiguous:
+        raise ValueError(f"expected a C-contiguous (rows, {cols}) array, got {a.shape}")
+    return a.view(dtype)[:, 0]
+
+
+def heads(mi: np.ndarray) -> np.ndarray:
+    """mi (M, MI_COLS) int64 as (M,) records: key, a, b, rec_a, rec_b, start, count, active."""
+    return _records(mi, HEAD_DTYPE, MI_COLS)
+
+
+def manifolds(mf: np.ndarray) -> np.ndarray:
+    """mf (M, MF_COLS) as (M,) records: normal, t1, t2, mu, e, acc, lu, piv, lu_ok, anchor_rot,
+    anchor_pos, anchor_ok."""
+    return _records(mf, MANIFOLD_DTYPE, MF_COLS)
+
+
+def points(pf: np.ndarray) -> np.ndarray:
+    """pf (K, PF_COLS) as (K,) records: point, ra, rb, s, normal_mass, tangent_k, ln, l1, l2, lp,
+    lws, w0, friction, s_end, impact, wt, kn, slip, slip_bias."""
+    return _records(pf, POINT_DTYPE, PF_COLS)
+
+
 #: contact log columns (the kernels append rows at sampled steps)
 LOG_STEP, LOG_A, LOG_B, LOG_KIND, LOG_I_COLS = _columns(
     "LOG_STEP", "LOG_A", "LOG_B", "LOG_KIND", "LOG_I_COLS")

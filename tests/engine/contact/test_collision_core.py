@@ -1,7 +1,8 @@
 """The C++ collision core (csrc/engine/{manifold,narrowphase,box_box,broad_phase,collide,island,
-measure}.cpp) against its Python homes: the packed columns of manifold.hpp tile their arrays
-(manifold.py reads them from the core), the geometry codes and the narrowphase table's keys agree, and the tolerances C++
-holds are constants.py's. (Before the numba kernels were removed, every stage was checked bitwise
+measure}.cpp) against its Python homes: the fields of manifold.hpp's records tile their rows
+(manifold.py builds its dtypes from the core's table), the contact log's columns tile theirs,
+the geometry codes and the narrowphase table's keys agree, and the tolerances C++ holds are
+constants.py's. (Before the numba kernels were removed, every stage was checked bitwise
 equal to them on a mixed scene in flight, at impact, at rest and asleep, and on 3000 random
 collider calls: commit 7ae5b2e.)"""
 
@@ -15,43 +16,52 @@ from rblog.engine import _core, constants
 from rblog.engine.contact import manifold, narrowphase
 
 
-#: each column group's width, as manifold.hpp documents it (vectors 3, the LU block 16 ...)
-WIDTHS = {
-    "MI": dict(MI_KEY=1, MI_A=1, MI_B=1, MI_REC_A=1, MI_REC_B=1, MI_START=1, MI_COUNT=1,
-               MI_ACTIVE=1),
-    "MF": dict(MF_N=3, MF_T1=3, MF_T2=3, MF_MU=1, MF_E=1, MF_ACC=1, MF_LU=16, MF_PIV=4,
-               MF_LUOK=1, MF_AR=9, MF_AT=3, MF_AOK=1),
-    "PF": dict(PF_P=3, PF_RA=3, PF_RB=3, PF_S=1, PF_NMASS=1, PF_TK=3, PF_LN=1, PF_L1=1, PF_L2=1,
-               PF_LP=1, PF_LWS=1, PF_W0=1, PF_F=3, PF_SEND=1, PF_IMPACT=1, PF_WT=1, PF_KN=4,
-               PF_D=3, PF_DB=2),
+#: each log column group's width, as manifold.hpp documents it (vectors 3)
+LOG_WIDTHS = {
     "LOG_I": dict(LOG_STEP=1, LOG_A=1, LOG_B=1, LOG_KIND=1),
     "LOG_F": dict(LOG_P=3, LOG_N=3, LOG_S=1, LOG_LN=1, LOG_F=3),
 }
 
 
-def _tiling_error(layout, widths, cols):
-    """'' when the groups of ``widths`` at ``layout``'s offsets cover columns 0..cols-1 once
-    each, in order, else what is wrong."""
+def _tiling_error(at_of, widths, cols):
+    """'' when the groups of ``widths`` (name: width) at the offsets ``at_of`` (name: offset)
+    cover columns 0..cols-1 once each, in order, else what is wrong."""
     at = 0
-    for name, w in sorted(widths.items(), key=lambda kv: layout[kv[0]]):
-        if layout[name] != at:
-            return f"{name} at {layout[name]}, expected {at}"
+    for name, w in sorted(widths.items(), key=lambda kv: at_of[kv[0]]):
+        if at_of[name] != at:
+            return f"{name} at {at_of[name]}, expected {at}"
         at += w
     return "" if at == cols else f"the groups end at {at}, the array has {cols} columns"
 
 
-def test_columns_tile_the_packed_arrays():
-    """manifold.hpp's columns (read by manifold.py from the core): each array's groups, at the
-    widths the header documents, cover its columns exactly once, no gap, no overlap."""
+def test_record_fields_tile_the_rows():
+    """manifold.hpp's records as the core lists them (contact_fields: name, offset, width from
+    offsetof and sizeof): each record's fields cover its row exactly once, no gap, no overlap, so
+    a field left out of the table is caught; manifold.py's dtypes are those rows."""
+    layout, fields = _core.collision_layout(), _core.contact_fields()
+    for record, cols, dtype in (("head", "MI_COLS", manifold.HEAD_DTYPE),
+                                ("manifold", "MF_COLS", manifold.MANIFOLD_DTYPE),
+                                ("point", "PF_COLS", manifold.POINT_DTYPE)):
+        at_of = {f[0]: f[1] for f in fields[record]}
+        widths = {f[0]: f[2] for f in fields[record]}
+        assert _tiling_error(at_of, widths, layout[cols]) == "", record
+        assert dtype.itemsize == 8 * layout[cols] and dtype.names == tuple(at_of)
+    # both directions: a field left out of the table is caught
+    pts = {f[0]: f for f in fields["point"] if f[0] != "tangent_k"}
+    assert "ln" in _tiling_error({k: f[1] for k, f in pts.items()},
+                                 {k: f[2] for k, f in pts.items()}, layout["PF_COLS"])
+    # a row's fields are the array's columns: point p's ra is pf[p, 3:6]
+    pf = np.zeros((2, layout["PF_COLS"]))
+    manifold.points(pf)["ra"][1] = (1.0, 2.0, 3.0)
+    assert pf[1, 3:6].tolist() == [1.0, 2.0, 3.0] and pf.sum() == 6.0
+
+
+def test_log_columns_tile_the_log_rows():
     layout = _core.collision_layout()
-    for group, widths in WIDTHS.items():
-        cols = layout[f"{group}_COLS"]
-        assert _tiling_error(layout, widths, cols) == "", group
+    for group, widths in LOG_WIDTHS.items():
+        assert _tiling_error(layout, widths, layout[f"{group}_COLS"]) == "", group
         for name in widths:
             assert getattr(manifold, name) == layout[name], name
-    # both directions: an overlap planted into the layout is caught
-    planted = dict(layout, PF_TK=layout["PF_TK"] - 1)
-    assert "PF_TK" in _tiling_error(planted, WIDTHS["PF"], layout["PF_COLS"])
     assert manifold._AREA_EPS == layout["_AREA_EPS"]
     assert (manifold.MAX_CLIP_POINTS, manifold.MAX_MANIFOLD_POINTS) == (12, 4)
 

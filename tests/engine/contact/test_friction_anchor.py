@@ -95,22 +95,21 @@ def test_sphere_rolls_freely_with_anchors():
 
 def _one_point_on_static(d_world, ln, mu=0.5, h=1e-3):
     """One cube (0.1 kg, half 0.05 m) at rest on static geometry through one point under its
-    centre (normal +z): the packed arrays after prepare, with the anchor drift ``d_world``."""
+    centre (normal +z): the contact arrays after prepare, with the anchor drift ``d_world``."""
     from rblog.engine.contact.collide import tangent_basis
-    from rblog.engine.contact.manifold import (
-        MF_MU, MF_N, MF_T1, MF_T2, MI_A, MI_ACTIVE, MI_B, MI_COUNT, MI_START, PF_D, PF_LN, PF_RA,
-        empty_manifolds)
+    from rblog.engine.contact.manifold import empty_manifolds, heads, manifolds, points
     from rblog.engine import _core
     from rblog.engine.constants import BLOCK_REG, FRICTION_ANCHOR_RATE
     mi, mf, pf, _ = empty_manifolds(1, 1)
-    mi[0, MI_A], mi[0, MI_B], mi[0, MI_START], mi[0, MI_COUNT], mi[0, MI_ACTIVE] = 0, 1, 0, 1, 1
-    mf[0, MF_N:MF_N + 3] = (0.0, 0.0, 1.0)
+    hd, man, pt = heads(mi)[0], manifolds(mf)[0], points(pf)[0]
+    hd["a"], hd["b"], hd["start"], hd["count"], hd["active"] = 0, 1, 0, 1, 1
+    man["normal"] = (0.0, 0.0, 1.0)
     t = tangent_basis(0.0, 0.0, 1.0)
-    mf[0, MF_T1:MF_T1 + 3], mf[0, MF_T2:MF_T2 + 3] = t[:3], t[3:]
-    mf[0, MF_MU] = mu
-    pf[0, PF_RA:PF_RA + 3] = (0.0, 0.0, -0.05)
-    pf[0, PF_LN] = ln
-    pf[0, PF_D:PF_D + 3] = d_world
+    man["t1"], man["t2"] = t[:3], t[3:]
+    man["mu"] = mu
+    pt["ra"] = (0.0, 0.0, -0.05)
+    pt["ln"] = ln
+    pt["slip"] = d_world
     m, inertia = 0.1, 0.1 * (0.1 ** 2 + 0.1 ** 2) / 12.0
     bm = np.array([1.0 / m, 0.0])
     bI = np.zeros((2, 6))
@@ -128,7 +127,7 @@ def test_anchor_pass_takes_back_the_drift_and_a_slide_drops_it():
     from rblog.engine import _core
     from rblog.engine.constants import (FRICTION_ANCHOR_RATE, FRICTION_ANCHOR_SLIDE_FRAC,
                                         FRICTION_NEWTON_ITERS, FRICTION_NEWTON_TOL)
-    from rblog.engine.contact.manifold import MF_AOK, PF_L1, PF_L2
+    from rblog.engine.contact.manifold import manifolds, points
 
     def anchor_friction(mi, mf, pf, n, bm, bI, bv, bw):
         _core.anchor_friction(mi, mf, pf, n, bm, bI, bv, bw, FRICTION_NEWTON_ITERS,
@@ -139,23 +138,25 @@ def test_anchor_pass_takes_back_the_drift_and_a_slide_drops_it():
     h, d0 = 1e-3, np.array([2e-6, -1e-6, 0.0])
     # loaded: the weight's impulse m g h, cone mu m g h = 4.9e-4 N s >> the ~1e-4 N s needed
     mi, mf, pf, bm, bI, bv, bw = _one_point_on_static(d0, 0.1 * G * h)
-    mf[0, MF_AOK] = 1.0
+    man, pt = manifolds(mf)[0], points(pf)[0]
+    man["anchor_ok"] = 1.0
     anchor_friction(mi, mf, pf, 1, bm, bI, bv, bw)
     slip = bv[0] + np.cross(bw[0], [0.0, 0.0, -0.05])
     np.testing.assert_allclose(slip[:2], -FRICTION_ANCHOR_RATE * d0[:2] / h, rtol=1e-12)
     store_impulses(mi, mf, pf, 1)
-    assert mf[0, MF_AOK] == 1.0
+    assert man["anchor_ok"] == 1.0
     # the linear momentum the pass gives the body is the friction impulse (no normal part)
     t1, t2 = _tangents()
-    np.testing.assert_allclose(bv[0] / bm[0], pf[0, PF_L1] * t1 + pf[0, PF_L2] * t2, rtol=1e-12,
+    np.testing.assert_allclose(bv[0] / bm[0], pt["l1"] * t1 + pt["l2"] * t2, rtol=1e-12,
                                atol=1e-20)
     # lightly loaded: the cone (mu 1e-6 N s) cannot take the drift back: slide, anchor dropped
     mi, mf, pf, bm, bI, bv, bw = _one_point_on_static(d0, 1e-6)
-    mf[0, MF_AOK] = 1.0
+    man, pt = manifolds(mf)[0], points(pf)[0]
+    man["anchor_ok"] = 1.0
     anchor_friction(mi, mf, pf, 1, bm, bI, bv, bw)
-    assert math.hypot(pf[0, PF_L1], pf[0, PF_L2]) == pytest.approx(0.5e-6, rel=1e-12)
+    assert math.hypot(pt["l1"], pt["l2"]) == pytest.approx(0.5e-6, rel=1e-12)
     store_impulses(mi, mf, pf, 1)
-    assert mf[0, MF_AOK] == 0.0
+    assert man["anchor_ok"] == 0.0
 
 
 @pytest.mark.parametrize("points_before", [4, 1])
@@ -167,15 +168,16 @@ def test_drift_is_the_pairs_motion_since_it_stuck_whatever_its_points(points_bef
     with the previous step's manifold cut to one point (a point contact that became a face), the
     four new points get the same drifts."""
     from rblog.engine import rotation
-    from rblog.engine.contact.manifold import MF_AOK, MI_COUNT, MI_START, PF_D, PF_P
+    from rblog.engine.contact.manifold import heads, manifolds, points
     model = make_model([SHAPE_BOX], [[0.05, 0.05, 0.05]], [0.1], restitution=0.0, friction=0.6)
     world = ContactWorld(model, ContactParams(sleep=False, static_friction_anchors=True), *SPLIT)
     state = make_state(model, [[0.0, 0.0, 0.05]])
     _, _, bad, _ = simulate(world, state, 1e-3, 200, stride=200)
     assert bad == -1
     c = world._cache
-    assert c.n_man0 == 1 and c.mi0[0, MI_COUNT] == 4 and c.mf0[0, MF_AOK] == 1.0
-    c.mi0[0, MI_COUNT] = points_before
+    assert c.n_man0 == 1 and heads(c.mi0)["count"][0] == 4
+    assert manifolds(c.mf0)["anchor_ok"][0] == 1.0
+    heads(c.mi0)["count"][0] = points_before
     delta, theta = np.array([3e-6, -2e-6, 0.0]), 2e-5
     x = state.position[0] + delta
     state.position[0] = x
@@ -188,13 +190,14 @@ def test_drift_is_the_pairs_motion_since_it_stuck_whatever_its_points(points_bef
     _, _, bad, _ = simulate(world, state, 1e-3, 1, stride=1)
     assert bad == -1
     c = world._cache
-    start, cnt = c.mi0[0, MI_START], c.mi0[0, MI_COUNT]
+    start, cnt = heads(c.mi0)["start"][0], heads(c.mi0)["count"][0]
     assert cnt == 4
+    pt = points(c.pf0)
     for p in range(start, start + cnt):
-        r = c.pf0[p, PF_P:PF_P + 3] - x
+        r = pt["point"][p] - x
         want = delta[:2] + theta * np.array([-r[1], r[0]])
         # off by the settled cube's own drift before the edit: measured 1.0e-11 m
-        np.testing.assert_allclose(c.pf0[p, PF_D:PF_D + 2], want, rtol=0, atol=3e-11)
+        np.testing.assert_allclose(pt["slip"][p][:2], want, rtol=0, atol=3e-11)
 
 
 def _tangents():

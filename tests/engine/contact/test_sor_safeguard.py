@@ -26,8 +26,7 @@ import numpy as np
 from rblog.engine import _core
 from rblog.engine.constants import ContactParams
 from rblog.engine.contact import step as S
-from rblog.engine.contact.manifold import (MF_N, MI_A, MI_B, MI_COUNT, MI_START, PF_LN, PF_RA,
-                                           PF_RB, PF_S)
+from rblog.engine.contact.manifold import heads, manifolds, points
 from rblog.engine.contact.world import ContactWorld
 from rblog.engine.registry import METHOD_CODES, ORTHO_CODES
 from rblog.engine.scene import parse_scene
@@ -102,15 +101,16 @@ def test_solved_contacts_meet_the_complementarity_conditions():
                            scr.hot.reshape(-1), scr.in_contact.reshape(-1), cfg.over_relaxation,
                            cfg.friction_newton_iters, cfg.friction_newton_tol)
     deepest = None
+    hd, man, pt = heads(mi), manifolds(mf), points(pf)
     for m in range(n_man):
-        a, b = mi[m, MI_A], mi[m, MI_B]
-        n = mf[m, MF_N:MF_N + 3]
-        for p in range(mi[m, MI_START], mi[m, MI_START] + mi[m, MI_COUNT]):
-            ra, rb = pf[p, PF_RA:PF_RA + 3], pf[p, PF_RB:PF_RB + 3]
+        a, b = hd["a"][m], hd["b"][m]
+        n = man["normal"][m]
+        for p in range(hd["start"][m], hd["start"][m] + hd["count"][m]):
+            ra, rb = pt["ra"][p], pt["rb"][p]
             vn = n @ (bv[a] + np.cross(bw[a], ra) - bv[b] - np.cross(bw[b], rb))
-            sep = pf[p, PF_S]
+            sep = pt["s"][p]
             target = -sep / H if sep > 0.0 else 0.0
-            lam = pf[p, PF_LN]
+            lam = pt["ln"][p]
             # measured after the fix: the largest violation and the largest |vn - target| at a
             # loaded point are both 1.5e-5 m/s; the solve stops when no sweep changes a velocity
             # by more than velocity_tolerance = 1e-4 m/s, the bound used here
