@@ -275,9 +275,9 @@ void bind_contact(nb::module_& m) {
     };
     m.def("prepare_contacts", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
                                   nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
-                                  double h, double anchor_rate, double block_reg) {
+                                  double h, double friction_anchor_rate, double block_reg) {
         Settings cfg;
-        cfg.friction_anchor_rate = anchor_rate;
+        cfg.friction_anchor_rate = friction_anchor_rate;
         cfg.block_reg = block_reg;
         prepare_contacts(StepContext{h, 1.0 / h, cfg}, cons_of(mi, mf, pf, n_man),
                          bodies_of(bm, bI, bv, bw));
@@ -288,16 +288,17 @@ void bind_contact(nb::module_& m) {
     });
     m.def("solve_velocities", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
                                   nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
-                                  double inv_h, i64 min_iter, i64 max_iter, double tol,
-                                  nb::handle hot, nb::handle degree, double sor,
-                                  i64 newton_iters, double newton_tol) {
+                                  double inv_h, i64 velocity_iterations,
+                                  i64 max_velocity_iterations, double velocity_tolerance,
+                                  nb::handle hot, nb::handle degree, double over_relaxation,
+                                  i64 friction_newton_iters, double friction_newton_tol) {
         Settings cfg;
-        cfg.velocity_iterations = min_iter;
-        cfg.max_velocity_iterations = max_iter;
-        cfg.velocity_tolerance = tol;
-        cfg.over_relaxation = sor;
-        cfg.friction_newton_iters = newton_iters;
-        cfg.friction_newton_tol = newton_tol;
+        cfg.velocity_iterations = velocity_iterations;
+        cfg.max_velocity_iterations = max_velocity_iterations;
+        cfg.velocity_tolerance = velocity_tolerance;
+        cfg.over_relaxation = over_relaxation;
+        cfg.friction_newton_iters = friction_newton_iters;
+        cfg.friction_newton_tol = friction_newton_tol;
         // the world step colours in a stage of its own; a call from Python colours here
         ContactConstraints c = cons_of(mi, mf, pf, n_man);
         SolverBodies b = bodies_of(bm, bI, bv, bw);
@@ -309,38 +310,40 @@ void bind_contact(nb::module_& m) {
     });
     m.def("anchor_friction", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
                                  nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
-                                 i64 newton_iters, double newton_tol) {
+                                 i64 friction_newton_iters, double friction_newton_tol) {
         Settings cfg;
-        cfg.friction_newton_iters = newton_iters;
-        cfg.friction_newton_tol = newton_tol;
+        cfg.friction_newton_iters = friction_newton_iters;
+        cfg.friction_newton_tol = friction_newton_tol;
         anchor_friction(StepContext{0.0, 0.0, cfg}, cons_of(mi, mf, pf, n_man),
                         bodies_of(bm, bI, bv, bw));
     });
     m.def("store_impulses", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
-                                double slide_frac) {
+                                double friction_anchor_slide_frac) {
         Settings cfg;
-        cfg.friction_anchor_slide_frac = slide_frac;
+        cfg.friction_anchor_slide_frac = friction_anchor_slide_frac;
         store_impulses(StepContext{0.0, 0.0, cfg}, cons_of(mi, mf, pf, n_man));
     });
     m.def("relax_positions", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
                                  nb::handle bm, nb::handle bI, nb::handle pv, nb::handle pw,
-                                 double inv_h, i64 n_iter, double slop, double beta,
-                                 double max_speed) {
+                                 double inv_h, i64 position_iterations,
+                                 double allowed_penetration, double position_correction_rate,
+                                 double max_correction_speed) {
         Settings cfg;
-        cfg.position_iterations = n_iter;
-        cfg.allowed_penetration = slop;
-        cfg.position_correction_rate = beta;
-        cfg.max_correction_speed = max_speed;
+        cfg.position_iterations = position_iterations;
+        cfg.allowed_penetration = allowed_penetration;
+        cfg.position_correction_rate = position_correction_rate;
+        cfg.max_correction_speed = max_correction_speed;
         relax_positions(StepContext{1.0 / inv_h, inv_h, cfg}, cons_of(mi, mf, pf, n_man),
                         bodies_of(bm, bI, pv, pw));
     });
     m.def("restitution", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
                              nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,
-                             nb::handle pv, nb::handle pw, double h, double threshold, i64 n_iter,
+                             nb::handle pv, nb::handle pw, double h,
+                             double restitution_threshold, i64 velocity_iterations,
                              nb::handle dx, nb::handle lm, nb::handle am) {
         Settings cfg;
-        cfg.restitution_threshold = threshold;
-        cfg.velocity_iterations = n_iter;
+        cfg.restitution_threshold = restitution_threshold;
+        cfg.velocity_iterations = velocity_iterations;
         return restitution(StepContext{h, 1.0 / h, cfg}, cons_of(mi, mf, pf, n_man),
                            bodies_of(bm, bI, bv, bw), v2<double>(pv, "pv"), v2<double>(pw, "pw"),
                            v2<double>(dx, "dx"), v2<double>(lm, "linear_momentum"),

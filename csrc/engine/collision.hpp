@@ -242,9 +242,10 @@ void wake_island(i64 island, i64 n_dyn, V1<i64> awake, V1<double> sleep_timer,
 // Wake the sleeping islands an awake body will reach within this step. Returns islands woken.
 i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
                  V2<double> size, V1<i64> awake, V1<double> sleep_timer, V1<i64> island_of,
-                 V2<double> position, V3<double> rotation, V1<double> reach, double margin,
-                 double slop, V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext,
-                 V1<double> gn, double goff, V2<double> linear_momentum,
+                 V2<double> position, V3<double> rotation, V1<double> reach,
+                 double speculative_distance, double allowed_penetration, V2<double> sb_pos,
+                 V3<double> sb_rot, V2<double> sb_ext, V1<double> gn, double goff,
+                 V2<double> linear_momentum,
                  V2<double> angular_momentum, V2<double> force, V2<double> torque, double h,
                  bool do_kick, ColliderBuffers& buf, V1<double> inv_mass, V2<double> accel,
                  V1<double> radius, V2<double> inv_inertia);

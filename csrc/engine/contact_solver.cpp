@@ -210,8 +210,8 @@ void load_bodies(V1<ManifoldHead> mi, i64 n_man, i64 n_dyn, bool iso_shortcut, V
 
 // Effective masses, and the gap velocity before the step (for restitution).
 void prepare_contacts(const StepContext& cx, const ContactConstraints& c, const SolverBodies& b) {
-    const double h = cx.h, anchor_rate = cx.settings.friction_anchor_rate;
-    const double block_reg = cx.settings.block_reg;
+    const Settings& cfg = cx.settings;
+    const double h = cx.h;
     for (i64 m = 0; m < c.n_man; ++m) {
         if (!c.mi[m].active) continue;
         i64 ia = c.mi[m].a, ib = c.mi[m].b;
@@ -242,7 +242,7 @@ void prepare_contacts(const StepContext& cx, const ContactConstraints& c, const 
                                  ca[j][2] * jna[i][2] + cb[j][0] * jnb[i][0] +
                                  cb[j][1] * jnb[i][1] + cb[j][2] * jnb[i][2]);
         }
-        if (cnt > 1) factor_block(c.mf, m, c.pf, start, cnt, block_reg);
+        if (cnt > 1) factor_block(c.mf, m, c.pf, start, cnt, cfg.block_reg);
         for (i64 p = start; p < start + cnt; ++p) {
             double rax = c.pf[p].ra[0], ray = c.pf[p].ra[1], raz = c.pf[p].ra[2];
             double rbx = c.pf[p].rb[0], rby = c.pf[p].rb[1], rbz = c.pf[p].rb[2];
@@ -271,8 +271,8 @@ void prepare_contacts(const StepContext& cx, const ContactConstraints& c, const 
             c.pf[p].tangent_k[2] = k22;
             // friction anchor: the slip rate that takes back FRICTION_ANCHOR_RATE of the drift
             double dx = c.pf[p].slip[0], dy = c.pf[p].slip[1], dz = c.pf[p].slip[2];
-            c.pf[p].slip_bias[0] = anchor_rate * (dx * t1x + dy * t1y + dz * t1z) / h;
-            c.pf[p].slip_bias[1] = anchor_rate * (dx * t2x + dy * t2y + dz * t2z) / h;
+            c.pf[p].slip_bias[0] = cfg.friction_anchor_rate * (dx * t1x + dy * t1y + dz * t1z) / h;
+            c.pf[p].slip_bias[1] = cfg.friction_anchor_rate * (dx * t2x + dy * t2y + dz * t2z) / h;
             // gap velocity now (after the force kick), and before the kick
             double wxrax, wxray, wxraz, wxrbx, wxrby, wxrbz;
             cross(bp.wa[0], bp.wa[1], bp.wa[2], rax, ray, raz, wxrax, wxray, wxraz);
@@ -330,18 +330,19 @@ void warm_start(const ContactConstraints& c, const SolverBodies& b) {
 // body and are solved four at a time in the lanes of a vector (contact_lanes.hpp; the kernel's
 // formulas are the ones of the scalar code above and below: solve_group in contact_lanes.inl).
 //
-// Sweeps at least min_iter times, then until the largest velocity change a sweep makes at any
-// point is below tol (m/s), at most max_iter sweeps. Past min_iter a sweep visits only manifolds
-// with a body that a previous sweep changed by more than tol (hot: (N+1,) last sweep that did),
-// so settled regions of a pile cost nothing while an unsettled one converges. Returns the number
-// of manifold visits divided by the manifolds (full-sweep equivalents, at least 1).
+// Sweeps at least velocity_iterations times, then until the largest velocity change a sweep makes
+// at any point is below velocity_tolerance (m/s), at most max_velocity_iterations sweeps. Past
+// velocity_iterations a sweep visits only manifolds with a body that a previous sweep changed by
+// more than velocity_tolerance (hot: (N+1,) last sweep that did), so settled regions of a pile
+// cost nothing while an unsettled one converges. Returns the number of manifold visits divided by
+// the manifolds (full-sweep equivalents, at least 1).
 //
-// Successive over-relaxation (ODE's quickstep; projected SOR converges for 0 < sor < 2 on the
-// normal rows, Cryer 1971): the normal impulse increment of a manifold is scaled by sor before
-// the clamp when one of its dynamic bodies touches something else (degree: (N+1,) active
-// manifolds per body). Plain Gauss-Seidel moves a load through a chain of n bodies in ~n^2
-// sweeps, over-relaxed in ~n. A manifold whose bodies touch nothing else is solved exactly by one
-// update, so it is not relaxed (that would only make it oscillate).
+// Successive over-relaxation (ODE's quickstep; projected SOR converges for 0 < over_relaxation < 2
+// on the normal rows, Cryer 1971): the normal impulse increment of a manifold is scaled by
+// over_relaxation before the clamp when one of its dynamic bodies touches something else
+// (degree: (N+1,) active manifolds per body). Plain Gauss-Seidel moves a load through a chain of
+// n bodies in ~n^2 sweeps, over-relaxed in ~n. A manifold whose bodies touch nothing else is
+// solved exactly by one update, so it is not relaxed (that would only make it oscillate).
 //
 // Nothing in a sweep depends on the order of the manifolds inside a colour (each reads and
 // writes only its own bodies' velocities and hot marks; the largest change is a max and the
@@ -350,15 +351,12 @@ i64 solve_velocities(const StepContext& ctx, const ContactConstraints& c,
                      const SolverBodies& bodies, V1<i64> hot, V1<i64> degree,
                      const ConstraintGraph& g, SolverLanes& lanes) {
     const Settings& cfg = ctx.settings;
-    const double inv_h = ctx.inv_h, tol = cfg.velocity_tolerance, sor = cfg.over_relaxation;
-    const i64 min_iter = cfg.velocity_iterations, max_iter = cfg.max_velocity_iterations;
-    const i64 newton_iters = cfg.friction_newton_iters;
-    const double newton_tol = cfg.friction_newton_tol;
+    const double inv_h = ctx.inv_h;
     for (i64 k = 0; k < hot.n0; ++k) hot[k] = 0;
     i64 active = 0;
     for (i64 m = 0; m < c.n_man; ++m) active += c.mi[m].active;
-    pack_lanes(c.mi, c.mf, c.pf, g, bodies.inv_mass, bodies.inv_inertia, degree, inv_h, sor,
-               lanes);
+    pack_lanes(c.mi, c.mf, c.pf, g, bodies.inv_mass, bodies.inv_inertia, degree, inv_h,
+               cfg.over_relaxation, lanes);
     // the velocities in the kernels' layout (contact_lanes.hpp: BodyVel) while the sweeps run
     const i64 n_rows = bodies.inv_mass.n0;
     lanes.vel.resize(n_rows);
@@ -372,13 +370,15 @@ i64 solve_velocities(const StepContext& ctx, const ContactConstraints& c,
         b.w[3] = 0.0;
     }
     LaneCtx cx{reinterpret_cast<double*>(lanes.vel.data()), hot.p, bodies.inv_mass.n0 - 1, 0,
-               min_iter, tol, newton_iters, newton_tol};
+               cfg.velocity_iterations, cfg.velocity_tolerance, cfg.friction_newton_iters,
+               cfg.friction_newton_tol};
     WideGroup* gr = lanes.groups.data();
     // the sweeps, on the task pool or on this thread (solve_stages.hpp): a set's groups
     // [g0, g1) in sweep `sweep` (set 0, the overflow set, one manifold after another)
     const i64 n_sets = (i64)lanes.set_group.size() - 1;
     const SweepCount sw = run_sweeps(
-        SweepPlan{n_sets, lanes.set_group.data(), min_iter, max_iter, tol},
+        SweepPlan{n_sets, lanes.set_group.data(), cfg.velocity_iterations,
+                  cfg.max_velocity_iterations, cfg.velocity_tolerance},
         [&](i64 sweep, i64 s, i64 g0, i64 g1, double* change, i64* vis) {
             LaneCtx tc = cx;
             tc.it = sweep;
@@ -407,8 +407,7 @@ i64 solve_velocities(const StepContext& ctx, const ContactConstraints& c,
 // the solve's convergence loop, so the bias never keeps the solve's sweeps going; the anchor
 // closes the loop over steps (what one sweep leaves of the target is still in D next step).
 void anchor_friction(const StepContext& cx, const ContactConstraints& c, const SolverBodies& b) {
-    const i64 newton_iters = cx.settings.friction_newton_iters;
-    const double newton_tol = cx.settings.friction_newton_tol;
+    const Settings& cfg = cx.settings;
     for (i64 m = 0; m < c.n_man; ++m) {
         if (!c.mi[m].active) continue;
         double mu = c.mf[m].mu;
@@ -436,8 +435,8 @@ void anchor_friction(const StepContext& cx, const ContactConstraints& c, const S
             double k11 = q.tangent_k[0], k12 = q.tangent_k[1], k22 = q.tangent_k[2];
             double o1 = q.l1, o2 = q.l2;
             double n1, n2;
-            friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, mu * q.ln, newton_iters,
-                             newton_tol, n1, n2);
+            friction_impulse(k11, k12, k22, o1, o2, vt1, vt2, mu * q.ln, cfg.friction_newton_iters,
+                             cfg.friction_newton_tol, n1, n2);
             q.l1 = n1;
             q.l2 = n2;
             double d1 = n1 - o1;
@@ -458,7 +457,7 @@ void anchor_friction(const StepContext& cx, const ContactConstraints& c, const S
 // while others stick just gives what the cone allows; a pair that slides drifts beyond
 // FRICTION_ANCHOR_MAX_DRIFT_M and collide re-anchors it.)
 void store_impulses(const StepContext& cx, const ContactConstraints& c) {
-    const double slide_frac = cx.settings.friction_anchor_slide_frac;
+    const Settings& cfg = cx.settings;
     for (i64 m = 0; m < c.n_man; ++m) {
         if (!c.mi[m].active) continue;
         double t1x = c.mf[m].t1[0], t1y = c.mf[m].t1[1], t1z = c.mf[m].t1[2];
@@ -476,7 +475,7 @@ void store_impulses(const StepContext& cx, const ContactConstraints& c) {
             q.friction[2] = l1 * t1z + l2 * t2z;
             if (q.impact != 0.0) {
                 struck = true;
-            } else if (point_sticks(l1, l2, mu, q.ln, slide_frac)) {
+            } else if (point_sticks(l1, l2, mu, q.ln, cfg.friction_anchor_slide_frac)) {
                 stick = true;
             }
         }

@@ -124,9 +124,10 @@ void wake_island(i64 island, i64 n_dyn, V1<i64> awake, V1<double> sleep_timer,
 
 i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
                  V2<double> size, V1<i64> awake, V1<double> sleep_timer, V1<i64> island_of,
-                 V2<double> position, V3<double> rotation, V1<double> reach, double margin,
-                 double slop, V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext,
-                 V1<double> gn, double goff, V2<double> linear_momentum,
+                 V2<double> position, V3<double> rotation, V1<double> reach,
+                 double speculative_distance, double allowed_penetration, V2<double> sb_pos,
+                 V3<double> sb_rot, V2<double> sb_ext, V1<double> gn, double goff,
+                 V2<double> linear_momentum,
                  V2<double> angular_momentum, V2<double> force, V2<double> torque, double h,
                  bool do_kick, ColliderBuffers& buf, V1<double> inv_mass, V2<double> accel,
                  V1<double> radius, V2<double> inv_inertia) {
@@ -154,14 +155,14 @@ i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> ge
                       std::max(inv_inertia(mover, 0),
                                std::max(inv_inertia(mover, 1), inv_inertia(mover, 2)));
         double close = h * (std::sqrt(vx * vx + vy * vy + vz * vz) + wmax * radius[mover]);
-        if (close <= slop) {
+        if (close <= allowed_penetration) {
             // a (nearly) resting neighbour: if it does push, wake_pushed wakes the island
             continue;
         }
         const PairGeometry g = pair_geometry(a, b, n_dyn, n_static, geom, size, position, rotation,
                                              sb_pos, sb_rot, sb_ext);
         const i64 ga = geom[a];
-        double spec = margin + reach[a] + reach[b];
+        double spec = speculative_distance + reach[a] + reach[b];
         i64 res = collide(ga, g.geom, position.row(a), rotation.row(a), size.row(a), g.centre,
                           g.rotation, g.size, gn.p, goff, spec, buf);
         for (i64 q = 0; q < 8; ++q) {

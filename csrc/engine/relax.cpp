@@ -2,7 +2,8 @@
 //
 // Position correction by split impulses (Catto 2006; Bullet's split impulse): a second Gauss-Seidel
 // pass on *pseudo velocities* (v', w') pushes penetrating points apart with target
-// ``vn' = min(beta * (-(s + slop)) / h, max_speed)``; positions move by h (v + v') and the pseudo
+// ``vn' = min(position_correction_rate (-(s + allowed_penetration)) / h, max_correction_speed)``
+// (ContactParams's names); positions move by h (v + v') and the pseudo
 // velocities are then discarded. Real momenta never see the correction, so it injects neither
 // momentum nor kinetic energy (the pseudo impulses are also equal and opposite, so the pair's
 // centre of mass does not move either).
@@ -14,7 +15,8 @@
 
 namespace rb {
 
-// Split impulses: Gauss-Seidel on pseudo velocities that remove penetration beyond slop.
+// Split impulses: Gauss-Seidel on pseudo velocities that remove penetration beyond
+// allowed_penetration.
 //
 // Three shortcuts that leave every bit as the plain sweeps make it:
 //
@@ -33,11 +35,9 @@ namespace rb {
 //   listed manifold the count when its last visit ended.)
 void relax_positions(const StepContext& ctx, const ContactConstraints& c,
                      const SolverBodies& pseudo) {
-    const double inv_h = ctx.inv_h, slop = ctx.settings.allowed_penetration;
-    const double beta = ctx.settings.position_correction_rate;
-    const double max_speed = ctx.settings.max_correction_speed;
-    const i64 n_iter = ctx.settings.position_iterations;
-    if (n_iter <= 0) return;
+    const Settings& cfg = ctx.settings;
+    const double inv_h = ctx.inv_h;
+    if (cfg.position_iterations <= 0) return;
     static thread_local std::vector<i64> deep_kept;
     std::vector<i64>& deep = deep_kept;
     deep.clear();
@@ -59,7 +59,7 @@ void relax_positions(const StepContext& ctx, const ContactConstraints& c,
     pushed.assign((size_t)pseudo.inv_mass.n0, 0);
     seen.assign((size_t)n_deep, -1);  // -1: visit (the first sweep, or the last visit applied)
     i64 applies = 0;
-    for (i64 it = 0; it < n_iter; ++it) {
+    for (i64 it = 0; it < cfg.position_iterations; ++it) {
         for (i64 k = 0; k < n_deep; ++k) {
             const i64 m = deep[(size_t)k];
             i64 ia = c.mi[m].a, ib = c.mi[m].b;
@@ -79,11 +79,12 @@ void relax_positions(const StepContext& ctx, const ContactConstraints& c,
                 double dvx, dvy, dvz;
                 bp.relative_velocity(rax, ray, raz, rbx, rby, rbz, dvx, dvy, dvz);
                 double vn = dvx * nx + dvy * ny + dvz * nz;
-                double target = -(s + slop) * beta * inv_h;
+                double target =
+                    -(s + cfg.allowed_penetration) * cfg.position_correction_rate * inv_h;
                 if (target < 0.0) {
                     target = 0.0;
-                } else if (target > max_speed) {
-                    target = max_speed;
+                } else if (target > cfg.max_correction_speed) {
+                    target = cfg.max_correction_speed;
                 }
                 double old = q.lp;
                 double nw = old + q.normal_mass * (target - vn);

@@ -136,8 +136,8 @@ void reclamp_friction(const ContactConstraints& c, const std::vector<i64>& targe
 i64 restitution(const StepContext& ctx, const ContactConstraints& c, const SolverBodies& b,
                 V2<double> pv, V2<double> pw, V2<double> dx, V2<double> linear_momentum,
                 V2<double> angular_momentum) {
-    const double h = ctx.h, threshold = ctx.settings.restitution_threshold;
-    const i64 n_iter = ctx.settings.velocity_iterations;
+    const Settings& cfg = ctx.settings;
+    const double h = ctx.h;
     // the end-of-step gaps and the impact points: each manifold writes only its own points'
     // rows, so blocks of manifolds run on the task pool; the impacts are counted per block
     const i64 n_blocks =
@@ -182,7 +182,7 @@ i64 restitution(const StepContext& ctx, const ContactConstraints& c, const Solve
             q.wt = -1.0;
             double w0 = q.w0;
             // approach speed at contact from the flight's energy (see the header comment)
-            if (!struck(w0, q.ln, acc, s0, threshold)) continue;
+            if (!struck(w0, q.ln, acc, s0, cfg.restitution_threshold)) continue;
             double u2 = w0 * w0 - 2.0 * acc * s0;
             q.impact = 1.0;
             n_impacts += 1;
@@ -216,7 +216,7 @@ i64 restitution(const StepContext& ctx, const ContactConstraints& c, const Solve
             }
         }
     }
-    for (i64 it = 0; it < n_iter; ++it) {
+    for (i64 it = 0; it < cfg.velocity_iterations; ++it) {
         for (const i64 m : targeted) {
             i64 start = c.mi[m].start;
             i64 end = start + c.mi[m].count;

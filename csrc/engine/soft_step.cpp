@@ -292,12 +292,8 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
     // the sweeps' switches: the soft bias capped at max_correction_speed, the friction rows aimed
     // at the anchors' slip rate (slip_bias) with static_friction_anchors, a manifold's normal rows
     // solved together (its factored block K)
-    const double push_max = cfg.max_correction_speed;
-    const bool anchors = cfg.static_friction_anchors, block = true;
-    const i64 newton_iters = cfg.friction_newton_iters;
-    const double newton_tol = cfg.friction_newton_tol;
-    const i64 n_sub = cfg.substeps;
-    const double hs = h / double(n_sub);
+    const bool block = true;
+    const double hs = h / double(cfg.substeps);
     const double inv_hs = 1.0 / hs;
     const i64 n_rows = bm.n0;  // N + 1: row N the static dummy
     const i64 n_dyn = n_rows - 1;
@@ -323,7 +319,7 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
     double* lam = wk.lam.data();
     double* sum = wk.sum.data();
     // a substep's share of the step's warm-start impulses
-    const double share = 1.0 / double(n_sub);
+    const double share = 1.0 / double(cfg.substeps);
     for (i64 m = 0; m < n_man; ++m) {
         if (!mi[m].active) continue;
         i64 start = mi[m].start;
@@ -346,7 +342,7 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
             bw(i, 2) -= h * (b[4] * tx + b[5] * ty + b[2] * tz);
         }
     }
-    for (i64 sub = 0; sub < n_sub; ++sub) {
+    for (i64 sub = 0; sub < cfg.substeps; ++sub) {
         // integrate velocities
         if (do_kick) {
             for (i64 i = 0; i < n_dyn; ++i) {
@@ -365,7 +361,8 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
         apply_stored_impulses(c, b, lam, 3);
         // solve, with the soft bias
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, true, soft, soft_static,
-              push_max, anchors, block, newton_iters, newton_tol, nullptr);
+              cfg.max_correction_speed, cfg.static_friction_anchors, block,
+              cfg.friction_newton_iters, cfg.friction_newton_tol, nullptr);
         // integrate positions (into the displacements; the static dummy's stay zero)
         for (i64 i = 0; i < n_dyn; ++i) {
             if (!in_contact[i]) continue;
@@ -376,7 +373,8 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
         }
         // relax, rigid
         sweep(mi, mf, pf, n_man, bm, bI, bv, bw, dp, dth, lam, inv_hs, false, soft, soft_static,
-              push_max, anchors, block, newton_iters, newton_tol, sum);
+              cfg.max_correction_speed, cfg.static_friction_anchors, block,
+              cfg.friction_newton_iters, cfg.friction_newton_tol, sum);
     }
     // the step's impulses, and the pseudo velocities that carry the substeps' displacement
     for (i64 m = 0; m < n_man; ++m) {
@@ -396,7 +394,7 @@ i64 soft_solve(const StepContext& ctx, const ContactConstraints& c, const Solver
             pw(i, k) = dth[3 * i + k] * inv_h - bw(i, k);
         }
     }
-    return 2 * n_sub;
+    return 2 * cfg.substeps;
 }
 
 void soft_island_flight(V1<i64> awake, V1<i64> in_contact, V1<i64> pushed, V2<double> accel,
