@@ -170,15 +170,9 @@ constexpr i64 MIN_PAIRS = 512;
     const double nx = nrm[3 * part], ny = nrm[3 * part + 1], nz = nrm[3 * part + 2];
     const std::array<double, 6> tb = tangent_basis(nx, ny, nz);
     const double t1x = tb[0], t1y = tb[1], t1z = tb[2], t2x = tb[3], t2y = tb[4], t2z = tb[5];
-    mfm.normal[0] = nx;
-    mfm.normal[1] = ny;
-    mfm.normal[2] = nz;
-    mfm.t1[0] = t1x;
-    mfm.t1[1] = t1y;
-    mfm.t1[2] = t1z;
-    mfm.t2[0] = t2x;
-    mfm.t2[1] = t2y;
-    mfm.t2[2] = t2z;
+    set3(mfm.normal, nx, ny, nz);
+    set3(mfm.t1, t1x, t1y, t1z);
+    set3(mfm.t2, t2x, t2y, t2z);
     // materials and the gap acceleration n . (a_a - a_b) from external forces
     double ax = 0.0, ay = 0.0, az = 0.0;
     if (a_awake) {
@@ -265,20 +259,12 @@ constexpr i64 MIN_PAIRS = 512;
         const double px = buf.pts[row + q][0], py = buf.pts[row + q][1], pz = buf.pts[row + q][2];
         // p - x_a: the anchor r_a and a's material point's offset
         const double rax = px - pa0, ray = py - pa1, raz = pz - pa2;
-        pfp.point[0] = px;
-        pfp.point[1] = py;
-        pfp.point[2] = pz;
-        pfp.ra[0] = rax;
-        pfp.ra[1] = ray;
-        pfp.ra[2] = raz;
+        set3(pfp.point, px, py, pz);
+        set3(pfp.ra, rax, ray, raz);
         if (b_dyn) {
-            pfp.rb[0] = px - pb0;
-            pfp.rb[1] = py - pb1;
-            pfp.rb[2] = pz - pb2;
+            set3(pfp.rb, px - pb0, py - pb1, pz - pb2);
         } else {
-            pfp.rb[0] = 0.0;
-            pfp.rb[1] = 0.0;
-            pfp.rb[2] = 0.0;
+            set3(pfp.rb, 0.0, 0.0, 0.0);
         }
         pfp.s = buf.sep[row + q];
         pfp.s_end = buf.sep[row + q];
@@ -333,9 +319,7 @@ constexpr i64 MIN_PAIRS = 512;
             dy = 0.0;
             dz = 0.0;
         }
-        pfp.slip[0] = dx;
-        pfp.slip[1] = dy;
-        pfp.slip[2] = dz;
+        set3(pfp.slip, dx, dy, dz);
         double dn = dx * nx + dy * ny + dz * nz;
         drift_max = std::max(drift_max, dx * dx + dy * dy + dz * dz - dn * dn);
         pfp.ln = ln;
@@ -346,9 +330,7 @@ constexpr i64 MIN_PAIRS = 512;
         pfp.w0 = 0.0;
         pfp.wt = -1.0;
         pfp.impact = 0.0;
-        pfp.friction[0] = 0.0;
-        pfp.friction[1] = 0.0;
-        pfp.friction[2] = 0.0;
+        set3(pfp.friction, 0.0, 0.0, 0.0);
     }
     const double dmax = cc.friction_anchor_max_drift_m;
     if (drift_max > dmax * dmax) {
@@ -361,9 +343,7 @@ constexpr i64 MIN_PAIRS = 512;
                              rb_(2, r) * (pa[2] - xb[2]);
         }
         for (i64 p = n_pts; p < n_pts + cnt; ++p) {
-            pf[p].slip[0] = 0.0;
-            pf[p].slip[1] = 0.0;
-            pf[p].slip[2] = 0.0;
+            set3(pf[p].slip, 0.0, 0.0, 0.0);
         }
     }
     n_pts += cnt;

@@ -95,6 +95,13 @@ struct ContactPoint {
     double slip_bias[2];    // the anchor's bias, FRICTION_ANCHOR_RATE (D.t1, D.t2) / h
 };
 
+// A record's 3-vector field v = (x, y, z).
+inline void set3(double* v, double x, double y, double z) {
+    v[0] = x;
+    v[1] = y;
+    v[2] = z;
+}
+
 // the buffers' row widths
 constexpr i64 MI_COLS = (i64)(sizeof(ManifoldHead) / sizeof(i64));
 constexpr i64 MF_COLS = (i64)(sizeof(Manifold) / sizeof(double));
