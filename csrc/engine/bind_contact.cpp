@@ -249,7 +249,7 @@ void bind_contact(nb::module_& m) {
         return std::make_tuple(copy_out(log_i), copy_out(log_f), n_log);
     });
 
-    // ---- the solver's stages (contact_solver.hpp) and project.py ------------------------------
+    // ---- the solver's stages (contact_solver.hpp) and the project stage (project.hpp) ---------
     m.def("load_bodies", [](nb::handle mi, i64 n_man, i64 n_dyn, bool iso_shortcut, nb::handle iso,
                             nb::handle inv_mass, nb::handle inv_inertia, nb::handle rotation,
                             nb::handle lm, nb::handle am, nb::handle in_contact, nb::handle bm,

@@ -3,7 +3,7 @@
 // Stages, in the order the world step calls them (Box2D v3's ``b2SolverStage``):
 // ``load_bodies`` -> ``prepare_contacts`` -> ``warm_start`` -> ``solve_velocities`` ->
 // ``anchor_friction`` (with ContactParams.static_friction_anchors) -> ``relax_positions`` (split impulses) -> [integrate positions, in step.py] -> ``restitution``
-// -> [project: fresh narrowphase and nonlinear position pass, in project.py].
+// -> [project: fresh narrowphase and nonlinear position pass, in project.cpp].
 //
 // Derivations
 // -----------

@@ -84,7 +84,7 @@ inline Vec3 inv_inertia_times(bool iso_shortcut, V1<i64> iso, V2<double> inv_ine
                        inv_inertia(i, 2), x, y, z);
 }
 
-// Rows of rows/ids for one more point (grown as project.py's _grow: 2 R + 16).
+// Rows of rows/ids for one more point (grown to 2 R + 16).
 inline void ensure_row(Buf2<double>& rows, Buf2<i64>& ids, i64 n_pts) {
     if (n_pts == rows.rows) {
         i64 cap = 2 * rows.rows + 16;

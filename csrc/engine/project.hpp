@@ -1,7 +1,7 @@
-// The project stage (project.cpp; rblog/engine/contact/project.py): a nonlinear position pass on
-// fresh contact geometry after the drift. Parameters mirror the Python functions', in order;
-// project_positions' grown buffers are Buf2& grown in place, its per-call work arrays (ring,
-// done) and PROJECTION_RINGS (rings) come last.
+// The project stage (project.cpp, whose header has the derivation; bound as
+// _core.project_positions and _core.apply_projection): a nonlinear position pass on fresh contact
+// geometry after the drift. project_positions' grown buffers are Buf2& grown in place, its
+// per-call work arrays (ring, done) and PROJECTION_RINGS (rings) come last.
 #pragma once
 
 #include <cstddef>
@@ -14,7 +14,7 @@
 
 namespace rb {
 
-// columns of the projection's point rows (project.py's _PN, _PRA, ...: the same columns)
+// columns of the projection's point rows
 constexpr i64 PJ_N = 0;   // normal from b into a (3)
 constexpr i64 PJ_RA = 3;  // anchor on a (3): point - x_a
 constexpr i64 PJ_RB = 6;  // anchor on b (3): point - x_b (0 for static)

@@ -250,7 +250,7 @@ struct Scratch {
     Buf2<i64> exact_man;                              // (N+1,) mark_exact
     Buf2<double> flow_c;                              // (N, N_FLOW)
     BoolBuf flow_ok;                                  // (N,)
-    // the project stage's own work arrays (project.py allocated them per call)
+    // the project stage's own work arrays
     Buf2<i64> ring;                                   // (N+1,)
     std::vector<char> done;                           // (pairs,)
     Buf2<double> proj_rows;                           // (R, PROJ_COLS), grown

@@ -330,7 +330,7 @@ class ContactParams:
             0.128 mm at seed 4, limit 0.1; at seed 6 two boxes' angular velocity disagrees with
             their orientation's rate by a median 0.142, limit 0.1), where the default is clean
             at all 12 (benchmarks/RESULTS.md, "Contact solver: the loose pile").
-        projection_iterations: Gauss-Seidel sweeps of the project stage (project.py): after the
+        projection_iterations: Gauss-Seidel sweeps of the project stage (project.cpp): after the
             positions moved, the narrowphase runs again at the end-of-step poses and every
             point deeper than ``projection_depth`` is pushed out to that depth by moving
             positions and orientations (no velocity changes). It catches features that were not

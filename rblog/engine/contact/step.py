@@ -24,7 +24,7 @@ One step of ``dt`` (``h``) reads as a flat list of stages (Box2D v3's ``b2World_
     11 store impulses   friction as world vectors for the next step
     12 project          narrowphase again at the end-of-step poses; points deeper than
                         projection_depth are pushed out by nonlinear Gauss-Seidel on positions
-                        and orientations (project.py); the shift's orbital angular momentum
+                        and orientations (project.cpp); the shift's orbital angular momentum
                         dx x P is handed back to the spin, as in 8
     13 sleep            rest timers, islands, put resting islands to sleep (island.py)
 

@@ -1,4 +1,4 @@
-"""The project stage drops a moved body's exact-flow anchor (rblog.engine.contact.project.
+"""The project stage drops a moved body's exact-flow anchor (csrc/engine/project.cpp's
 apply_projection): its attitude changed other than by the torque-free flow, so the next exact step
 must flow from the projected attitude, not from the old anchor (which would undo the projection's
 turn). Independent check: exact.free_flow_quat, the one-step exact map that carries no anchor."""
@@ -8,9 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.contract.model import SHAPE_BOX
-from rblog.engine import free
+from rblog.engine import _core, free
 from rblog.engine.constants import ContactParams
-from rblog.engine.contact.project import apply_projection
 from rblog.engine.contact.world import ContactWorld
 from rblog.engine.exact import free_flow_quat
 from rblog.engine.integrators import METHOD_EXACT, ORTHO_NORMALIZE
@@ -49,9 +48,9 @@ def test_a_projected_body_flows_from_its_new_attitude():
     # the project stage turns the body by 0.02 rad about x and lifts it 1 mm
     dx = np.array([[0.0, 0.0, 1e-3]])
     dth = np.array([[0.02, 0.0, 0.0]])
-    apply_projection(1, np.array([[0, 1]]), dx, dth, 1, METHOD_EXACT, ORTHO_NORMALIZE, bd, False,
-                     state[0], state[3], state[2], state[1], state[4], np.zeros((1, 3)),
-                     an.anchor_steps)
+    _core.apply_projection(1, np.array([[0, 1]]), dx, dth, 1, METHOD_EXACT, ORTHO_NORMALIZE, bd,
+                           False, state[0], state[3], state[2], state[1], state[4],
+                           np.zeros((1, 3)), an.anchor_steps)
     assert an.anchor_steps[0] == -1
     np.testing.assert_array_equal(state[4], l_world)  # L bitwise the same
     q_proj = state[2][0].copy()
