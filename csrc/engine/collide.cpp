@@ -1,4 +1,4 @@
-// Collide stage: narrowphase over the candidate pairs into packed manifolds, with warm starting
+// Collide stage: narrowphase over the candidate pairs into manifold records, with warm starting
 // (rblog/engine/contact/collide.py, the same formulas in the same order).
 //
 // For each candidate pair (lower shape id a, higher id b):

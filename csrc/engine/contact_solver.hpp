@@ -3,7 +3,7 @@
 // comment. The tests call each from Python (bind_contact.cpp); the tolerances they read reach
 // them in the Settings (their one home stays constants.py).
 //
-// Shapes: mi (M, MI_COLS) int64, mf (M, MF_COLS), pf (K, PF_COLS) (manifold.hpp's columns);
+// Records: the constraints' heads, manifolds and points (manifold.hpp, step_context.hpp);
 // per-body solver arrays have N+1 rows, row N the static dummy (zero inverse mass): bm (N+1,),
 // bI (N+1, 6) world inverse inertia (xx, yy, zz, xy, xz, yz), bv/bw (N+1, 3) world velocity and
 // angular velocity.

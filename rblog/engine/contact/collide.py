@@ -1,4 +1,4 @@
-"""Collide stage: narrowphase over the candidate pairs into packed manifolds, with warm starting.
+"""Collide stage: narrowphase over the candidate pairs into manifold records, with warm starting.
 
 For each candidate pair (lower shape id a, higher id b):
 
