@@ -180,3 +180,13 @@ def test_kuka_at_every_tenth_step_balances_to_its_joint_impulses_resolution():
     assert [f.bodies for f in found] == [[b]], [f.message for f in res.findings]
     assert found[0].step == kick_at * 10
     assert f"by {traj.model.body_mass[b] * 0.01:.3g} kg m/s" in found[0].message
+
+
+def test_the_contents_line_counts_the_intervals_left_unknown(r2d2):
+    from rblog.analyze.contents import contents_line, log_contents
+
+    traj, _, on_limit, _ = r2d2
+    c = log_contents(traj)
+    n = sum(len(h) for h in on_limit)
+    assert c["impulse_gaps"] == {"joint": {"intervals": n, "bodies": len(set().union(*on_limit))}}
+    assert f"loads unknown in some intervals (NaN): joint ({n} intervals of" in contents_line(c)
