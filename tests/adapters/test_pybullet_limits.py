@@ -65,8 +65,11 @@ def _momentum(traj):
     return next(r for r in rblog.check(traj, threads=1) if r.analyzer == "momentum")
 
 
-def _with_velocity(traj, velocity):
-    """The log ``traj`` rewritten with another ``velocity`` (T, N, 3): a fault in the log only."""
+def _with_velocity(traj, velocity, angular_velocity=None):
+    """The log ``traj`` rewritten with another ``velocity`` (T, N, 3) (and angular velocity): a
+    fault in the log only."""
+    if angular_velocity is None:
+        angular_velocity = traj.angular_velocity
     info = traj.info
     rec = rblog.Recorder(traj.model, dt=info.dt, log_every=info.log_every, keep=True,
                          writer="kicked", integrator=info.integrator,
@@ -75,7 +78,7 @@ def _with_velocity(traj, velocity):
                          engine_settings=info.engine_settings)
     with rec:
         rec.write(t=traj.t, step=traj.step, position=traj.position, quat_wxyz=traj.quat_wxyz,
-                  velocity=velocity, angular_velocity=traj.angular_velocity,
+                  velocity=velocity, angular_velocity=angular_velocity,
                   contacts=traj.contacts,
                   **{k: getattr(traj, k) for k in INTERVAL_CHANNELS if getattr(traj, k) is not None})
     return rec.trajectory
@@ -190,3 +193,64 @@ def test_the_contents_line_counts_the_intervals_left_unknown(r2d2):
     n = sum(len(h) for h in on_limit)
     assert c["impulse_gaps"] == {"joint": {"intervals": n, "bodies": len(set().union(*on_limit))}}
     assert f"loads unknown in some intervals (NaN): joint ({n} intervals of" in contents_line(c)
+
+
+def test_a_slide_motor_pushes_at_the_centres_of_mass():
+    """r2d2's gripper pole on its slide, its motor driven back and forth (2 m/s targets at up to
+    50 N, switched every 8 steps): Bullet applies the motor's impulse F dt at the pole's and at
+    the base's centre of mass, with no moment. Through the slide's anchor it would leave the base
+    the moment |a x u| |F| dt (a the anchor from the base's centre of mass, u the axis: 0.2 m, the
+    URDF's joint origin 0.2 m above the base's along an axis turned onto the base's y; 0.042 N m s
+    a step at 50 N, measured 0.038 with the anchor); at the centres the base's angular balance
+    closes to a tenth of that in every step after the landing with |F| > 10 N (measured: 0.077 of
+    it at most, 3.2e-3 N m s). An angular kick of 0.1 rad/s written into the base's log is
+    caught there. (Shaken this hard, other links are flagged too, the box on the head worst,
+    0.0042 N s against an allowance of 6e-5: not traced.)"""
+    cid = pb.connect(pb.DIRECT)
+    try:
+        load_shipped("r2d2", cid)
+        names = [pb.getJointInfo(1, j, physicsClientId=cid)[1].decode()
+                 for j in range(pb.getNumJoints(1, physicsClientId=cid))]
+        j = names.index("gripper_extension")
+        pb.resetJointState(1, j, -0.19, physicsClientId=cid)  # mid-range
+        rec = PybulletRecorder(cid, keep=True)
+        force = []
+        for k in range(480):
+            pb.setJointMotorControl2(1, j, pb.VELOCITY_CONTROL,
+                                     targetVelocity=2.0 if (k // 8) % 2 else -2.0, force=50.0,
+                                     physicsClientId=cid)
+            pb.stepSimulation(physicsClientId=cid)
+            rec()
+            force.append(pb.getJointState(1, j, physicsClientId=cid)[3])
+        rec.close()
+    finally:
+        pb.disconnect(physicsClientId=cid)
+    traj = rec.trajectory
+    m = traj.model
+    pole = m.body_name.index("physics/gripper_pole")
+    jj = list(m.joint_body).index(pole)
+    assert m.body_parent[pole] == 0 and m.joint_type[jj] == rblog.contract.model.JOINT_SLIDE
+    # the anchor in the base's inertial frame (its centre of mass), the axis in the pole's frame
+    # turned into the base's by the two logged orientations
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+    rb = quat_wxyz_to_matrix(traj.quat_wxyz[1:, 0])
+    rp = quat_wxyz_to_matrix(traj.quat_wxyz[1:, pole])
+    u = np.einsum("tji,tjk,k->ti", rb, rp, m.joint_axis_body[jj])
+    lever = np.linalg.norm(np.cross(m.joint_anchor_parent[jj], u), axis=1)
+    through_anchor = lever * np.abs(force) * traj.info.dt
+    assert np.median(lever) == pytest.approx(0.2, abs=1e-3)
+    ctx = Context(traj)
+    _, ja = ctx.logged_contact_impulse()
+    res = np.linalg.norm(np.diff(ctx.l_eff, axis=0)[:, 0] - ja[1:, 0], axis=1)
+    gap = ctx.interval_unjudged
+    ok = ~gap[1:, 0] if gap is not None else np.ones(len(res), bool)
+    ok[:40] = False  # the landing
+    strong = ok & (np.abs(force) > 10.0)
+    assert strong.sum() > 100
+    assert (res[strong] <= 0.1 * through_anchor[strong]).all()
+    w = traj.angular_velocity.copy()
+    kick_at = 300
+    w[kick_at:, 0] += np.array([0.0, 0.0, 0.1])
+    res = _momentum(_with_velocity(traj, traj.velocity, w))
+    found = [f for f in res.findings if "angular momentum change" in f.message and f.bodies == [0]]
+    assert found and found[0].step == kick_at, [f.message for f in res.findings]
