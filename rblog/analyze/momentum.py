@@ -237,8 +237,10 @@ class MomentumAnalyzer(Analyzer):
         J_contact,ang + J_other,ang`` (J_other: the logged applied, passive, actuator and joint
         impulses, taken out in Context.p_eff / l_eff), at any stride and for any integrator
         whose writer sums the impulses over every step of the interval. Relative to the
-        interval's scale m (max |v| + |a| dt) + |J_contact| (angular: max |L| + |J_contact,ang|),
-        floored as the flights' are. One finding per body: its worst interval."""
+        interval's scale m (max |v| + |a| dt) + |J_contact| (angular: max |L| + |J_contact,ang| +
+        rho |J_contact|, and rho m |a| dt on logged joints), floored as the flights' are. An
+        interval in which a logged impulse of the body is NaN (its writer did not know it there)
+        is not judged, and the result says how many. One finding per body: its worst interval."""
         ctx, tr, model = self._ctx, self._tr, self._model
         logged = ctx.logged_contact_impulse()
         if logged is None or tr.n_samples < 2:
