@@ -61,10 +61,17 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
     spatial force the parent applies to the child's subtree (``I^A a + p^A`` of the ABA, child
     link frame, about its centre of mass), plus the joint motor's (``appliedJointMotorTorque``:
     Bullet's motor is a constraint, not in the ABA's reaction; a couple along a hinge's axis, a
-    force along a slide's through its anchor); a row's net joint impulse is its own minus those of
+    force along a slide's at the child's centre of mass and its opposite at the parent's, with no
+    moment: Bullet writes a prismatic row's impulse back as link forces at the two centres of mass,
+    its angular part zero; measured on r2d2 with random motor targets: the base's angular residual
+    was 0.038 N m s a step with the slide motor's 50 N x dt through the anchor (0.2 m from the
+    base's centre of mass), and below 1e-2 in every judged step at the centres); a row's net joint impulse is its own minus those of
     its children moved onto it, both in the frames of Bullet's cached link transforms after the
     step. Measured on kuka holding itself up: 2.2e-13 N m s a step with the motor's impulse,
-    6.1e-5 without it. Joint limits are constraints pybullet reports nowhere. Measured on r2d2
+    6.1e-5 without it. Joint limits are constraints pybullet reports nowhere: Bullet makes a
+    limit's constraint row only in a step that begins with the joint at or beyond the limit, so
+    in such a step the joint impulse of the joint's child and parent rows is NaN (not in the
+    log; the analyzers do not judge those rows in that interval). Measured on r2d2
     (falling onto its wheels, motors on): the balance of a link closes to a median 1.7e-7 N s per step, 5.3e-4 N s at most in the steps of the impact (joint
     impulses ~0.4 N s), against ~8 N s without the joint impulses.
   - ``body_impulse_supplied``: logged as above; none for the actuator (the motors act inside
@@ -437,6 +444,11 @@ class Stepper:
         self.pending_any = False
         self.rows_out = None  # the last logged step's contact rows (P, 14)
         self.state = self.read()
+        if self.use_joints and self.limited.any():
+            self.q_start = np.array([s[0] for bid, links, _ in self.calls if links
+                                     for s in self.pb.getJointStates(bid, links,
+                                                                     physicsClientId=self.client)],
+                                    np.float64)
 
     def read(self):
         """The rows' state now; with joints, also ``self.cached``: (x, q_xyzw) of every row as
@@ -526,48 +538,71 @@ class Stepper:
         return out
 
     def _motor_axes(self, world) -> None:
-        """Per jointed row (joint k on row jointed[k]): the joint's axis and anchor in the
-        child's inertial frame, and whether it slides (its motor a force) or turns (a couple)."""
+        """Per jointed row (joint k on row jointed[k]): the joint's axis in the child's inertial
+        frame, whether it slides (its motor a force) or turns (a couple), and its limits."""
         jt = world.joints
         k = len(jt["body"])
         self.motor_axis = np.array(jt["axis_body"], np.float64).reshape(k, 3)
-        self.motor_anchor = np.array(jt["anchor_body"], np.float64).reshape(k, 3)
         self.motor_slide = np.array([t == "slide" for t in jt["type"]], bool).reshape(k)
         self.motor_ok = np.array_equal(np.asarray(jt["body"], np.int64).reshape(k), self.jointed)
+        # joint limits (NaN: none): Bullet's btMultiBodyJointLimitConstraint makes a limit's
+        # row only in a step whose start has the joint at or beyond it (createConstraintRows:
+        # ``if (penetration > 0) continue``), and pybullet reports its impulse nowhere
+        lim = np.array(jt["range"], np.float64).reshape(k, 2)
+        self.limit_lo, self.limit_hi = lim[:, 0], lim[:, 1]
+        self.limited = np.isfinite(self.limit_lo) & self.motor_ok
+        self.q_start = None  # the limited joints' positions at the next step's start
 
     def _joints(self, x, r, n, dt):
         pb, c = self.pb, self.client
-        react, motor = [], []
+        react, motor, pos = [], [], []
         for bid, links, _ in self.calls:
             if links:
                 states = pb.getJointStates(bid, links, physicsClientId=c)
                 react += [s[2] for s in states]
                 motor += [s[3] for s in states]
+                pos += [s[0] for s in states]
         rf = np.array(react, np.float64).reshape(len(react), 6)
         j, p = self.jointed, self.jointed_parent
         # the reaction: force and torque (about the child's centre of mass) in the child's frame
         f = np.einsum("nij,nj->ni", r[j], rf[:, :3]) * dt
         t = np.einsum("nij,nj->ni", r[j], rf[:, 3:]) * dt
+        fm = np.zeros_like(f)
         if self.motor_ok and len(motor):
             # the joint motor's impulse (appliedJointMotorTorque: Bullet's motor constraint, not
-            # in the ABA's reaction): a couple along a hinge's axis, a force along a slide's
-            # through its anchor, on the child; its parent gets the opposite below
+            # in the ABA's reaction): a couple along a hinge's axis on the child; a force along
+            # a slide's at the child's centre of mass (fm, no moment); the parent gets the
+            # opposite below (the slide's force at its own centre of mass, no moment either)
             tau = np.array(motor, np.float64).reshape(len(motor)) * dt
             axis_w = np.einsum("nij,nj->ni", r[j], self.motor_axis) * tau[:, None]
-            arm = np.einsum("nij,nj->ni", r[j], self.motor_anchor)
             sl = self.motor_slide
-            f[sl] += axis_w[sl]
-            t[sl] += np.cross(arm[sl], axis_w[sl])
+            fm[sl] = axis_w[sl]
             t[~sl] += axis_w[~sl]
         lin, ang = self.acc["joint_linear"], self.acc["joint_angular"]
-        lin[j] += f
+        lin[j] += f + fm
         ang[j] += t
         has = p >= 0
         pp, ff, tt = p[has], f[has], t[has]
         back_t = tt + np.cross(x[j[has]] - x[pp], ff)
+        ff = ff + fm[has]
         for k in range(3):
             lin[:, k] -= np.bincount(pp, ff[:, k], minlength=n)
             ang[:, k] -= np.bincount(pp, back_t[:, k], minlength=n)
+        if self.limited.any():
+            # a step that began with a joint at or beyond its limit: the limit's impulse (a
+            # couple about a hinge's axis, a force along a slide's, between child and parent)
+            # is not in the log, so the joint impulse of both rows is NaN for this interval
+            # (measured on r2d2: the right gripper resting on its lower limit leaves 2.3e-8
+            # N m s a step along its axis on it and its parent, 2e-11 with the joints mid-range)
+            q = np.array(pos, np.float64).reshape(len(pos))
+            if self.q_start is not None:
+                q0 = self.q_start
+                hit = self.limited & ((q0 <= self.limit_lo) | (q0 >= self.limit_hi))
+                if hit.any():
+                    rows = np.concatenate([j[hit], p[hit][p[hit] >= 0]])
+                    lin[rows] = np.nan
+                    ang[rows] = np.nan
+            self.q_start = q
 
     def take(self):
         """The impulses accumulated since the last take (dict of (N, 3)), zeroing them."""

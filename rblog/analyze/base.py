@@ -509,6 +509,9 @@ class Context:
             for i in np.flatnonzero(kind == BODY_STATIC):
                 unjudged[int(i)] = "is static"
             lin = ang = None
+            # (T, N): intervals (by the sample ending them) in which a body's logged kind is
+            # NaN: its writer did not know that impulse there (pybullet: a joint limit's)
+            gaps: dict[str, np.ndarray] = {}
             for kk in IMPULSE_KINDS[1:]:
                 col = sup[:, IMPULSE_KINDS.index(kk)]
                 for i in np.flatnonzero(col == SUPPLIED_MISSING):
@@ -518,11 +521,31 @@ class Context:
                 got = tr.impulse(kk)
                 if got is None:
                     continue
+                nan = (np.isnan(got[0]).any(axis=2) | np.isnan(got[1]).any(axis=2)) \
+                    & (col == SUPPLIED_LOGGED)[None, :]
+                if nan.any():
+                    gaps[kk] = nan
                 a, b = (np.nan_to_num(x, nan=0.0) for x in got)
                 lin = a.copy() if lin is None else lin + a
                 ang = b.copy() if ang is None else ang + b
-            return dict(force=force, torque=torque, unjudged=unjudged, ext_lin=lin, ext_ang=ang)
+            return dict(force=force, torque=torque, unjudged=unjudged, ext_lin=lin, ext_ang=ang,
+                        gaps=gaps)
         return self.cached("loads", f)
+
+    @property
+    def impulse_gaps(self) -> dict[str, np.ndarray]:
+        """{kind: (T, N) bool}: the intervals (by the sample ending them) in which a body
+        whose kind is logged has NaN there, the writer not knowing it (pybullet: the impulse of
+        a joint limit); its momentum is not judged in them. Empty when there are none."""
+        return self._loads()["gaps"]
+
+    @property
+    def interval_unjudged(self) -> np.ndarray | None:
+        """(T, N) bool, any kind of :attr:`impulse_gaps`; None when there are none."""
+        g = self.impulse_gaps
+        if not g:
+            return None
+        return self.cached("interval_unjudged", lambda: np.logical_or.reduce(list(g.values())))
 
     @property
     def force_const(self) -> np.ndarray:

@@ -16,7 +16,8 @@ from rblog.contract.trajectory import Trajectory
 def log_contents(traj: Trajectory) -> dict:
     """JSON-able counts: ``bodies`` {kind: n}, ``joints`` {type: n}, ``geoms`` {shape: n} (on
     bodies), ``world_geoms`` {shape: n}, ``impulses`` {kind: {"logged": n, "none": n,
-    "missing": n}} over bodies, ``contact_rows`` (int)."""
+    "missing": n}} over bodies, ``impulse_gaps`` {kind: {"intervals": n, "bodies": n}} for logged
+    kinds left NaN in some intervals, ``contact_rows`` (int)."""
     m = traj.model
     n = m.n_bodies
     kinds = Counter(BODY_KIND_NAMES.get(int(k), str(k)) for k in np.asarray(m.body_kind).reshape(n))
@@ -30,8 +31,21 @@ def log_contents(traj: Trajectory) -> dict:
                "none": int((sup[:, j] == SUPPLIED_NONE).sum()),
                "missing": int((sup[:, j] == SUPPLIED_MISSING).sum())}
            for j, k in enumerate(IMPULSE_KINDS)}
+    # logged kinds the writer left NaN in some intervals (it did not know them there:
+    # pybullet's joint limits): {kind: {"intervals": body-intervals, "bodies": n}}
+    gaps = {}
+    for j, k in enumerate(IMPULSE_KINDS):
+        logged = sup[:, j] == SUPPLIED_LOGGED
+        lin = getattr(traj, f"impulse_{k}_linear", None)
+        if not logged.any() or lin is None or traj.n_samples < 2:
+            continue
+        ang = getattr(traj, f"impulse_{k}_angular")
+        nan = (np.isnan(lin[1:]).any(axis=2) | np.isnan(ang[1:]).any(axis=2)) & logged[None]
+        if nan.any():
+            gaps[k] = {"intervals": int(nan.sum()), "bodies": int(nan.any(axis=0).sum())}
     return {"bodies": dict(kinds), "joints": dict(joints), "geoms": dict(geoms),
-            "world_geoms": dict(world), "impulses": imp, "contact_rows": len(traj.contacts)}
+            "world_geoms": dict(world), "impulses": imp, "impulse_gaps": gaps,
+            "contact_rows": len(traj.contacts)}
 
 
 def _counts(c: dict) -> str:
@@ -56,5 +70,10 @@ def contents_line(c: dict) -> str:
     parts.append("impulses logged: " + (", ".join(logged) if logged else "none"))
     if missing:
         parts.append("loads of unknown size: " + ", ".join(missing))
+    gaps = [f"{k} ({v['intervals']} interval{'s' if v['intervals'] != 1 else ''} of "
+            f"{v['bodies']} bod{'y' if v['bodies'] == 1 else 'ies'})"
+            for k, v in c.get("impulse_gaps", {}).items()]
+    if gaps:
+        parts.append("loads unknown in some intervals (NaN): " + ", ".join(gaps))
     parts.append(f"{c['contact_rows']} contact row{'s' if c['contact_rows'] != 1 else ''}")
     return "; ".join(parts)

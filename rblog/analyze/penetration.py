@@ -74,6 +74,10 @@ pivoting on a corner of another) has no slip there.
   impact too) beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x inner radius), jitter beyond
   JITTER_MPS, creep beyond CREEP_M.
 
+The special cases above are the named rules of :data:`RULES` (one table: each rule's case, what
+the analyzer does, its constants, the measurement that justifies it and the tests that hold it
+both ways).
+
 Why this module is long: depth, jitter, creep and the sliding test are judged over the same
 resting intervals, from the same per-sample supports, witness points, contact velocities and
 poses;
@@ -81,6 +85,8 @@ splitting them would pass those arrays and the interval bookkeeping between modu
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -91,6 +97,107 @@ from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_
                                 combine_friction, shapeless, shapeless_note, static_material)
 from rblog.analyze.momentum import static_feature_of_points
 from rblog.contract.trajectory import STATIC_BODY
+
+
+class Rule(NamedTuple):
+    """One special case of the penetration analyzer."""
+
+    name: str
+    case: str  # when it applies
+    then: str  # what the analyzer does
+    constants: tuple[str, ...]  # names in rblog.analyze.tolerances (or this module)
+    measured: str  # the measurement that justifies it
+    tests: tuple[str, ...]  # "file::test" holding it (the case passes, its fault is flagged)
+
+
+#: The penetration analyzer's special cases, each with its justifying measurement.
+RULES: tuple[Rule, ...] = (
+    Rule("resting", "in contact, the contact point's speed relative to the partner below "
+         "REST_SPEED for REST_MIN_SAMPLES samples",
+         "the pair rests: resting depth, jitter and creep are judged",
+         ("PENETRATION_REST_SPEED_MPS", "PENETRATION_REST_MIN_SAMPLES"),
+         "a sphere rolling without slip has its contact point at rest (slip 0 to round-off); a "
+         "bouncing ball's never is", ("tests/analyze/test_analyze.py::test_rolling_is_not_creep",
+                                      "tests/analyze/test_analyze.py::"
+                                      "test_resting_box_reports_its_rest")),
+    Rule("settling", "the first SETTLE_S of a stay", "jitter is not judged; creep keeps none of "
+         "the arrival's slide and at most the stay's steady slip speed",
+         ("PENETRATION_SETTLE_S", "_STEADY_FRAC"),
+         "a body sliding to a stop from REST_SPEED under mu >= 0.05 takes < 0.1 s; a box swinging "
+         "at 0.05 rad/s changes its slip speed by 5e-5 of itself over two SETTLE_S",
+         ("tests/analyze/test_creep.py::test_a_box_sliding_to_a_stop_does_not_creep",
+          "tests/analyze/test_creep.py::test_a_box_creeping_0_3_mm_reads_0_3_mm")),
+    Rule("jitter_persists", "the alternating part of the contact-point velocity",
+         "is jitter only where it persists over JITTER_PERSIST_SAMPLES samples",
+         ("PENETRATION_JITTER_PERSIST_SAMPLES", "PENETRATION_JITTER_MPS"),
+         "a step change of velocity (a kick) makes two alternating second differences, a "
+         "one-sample spike three; a good engine jitters ~1e-6 m/s",
+         ("tests/analyze/test_analyze.py::test_penetration_single_kick_is_not_jitter",
+          "tests/analyze/test_analyze.py::test_penetration_flags_jitter_and_creep")),
+    Rule("creep_slow_samples", "a sample interval with a sample faster than CREEP_SPEED or "
+         "sliding", "counts half (one such sample) or not at all (both)",
+         ("PENETRATION_CREEP_SPEED_MPS",),
+         "a body that starts to slide away (a ramp steeper than its friction) is not creep",
+         ("tests/analyze/test_engine_creep.py::test_mujoco_creep_down_a_ramp_is_flagged",
+          "tests/analyze/test_engine_creep.py::test_rblog_holds_a_box_on_a_ramp")),
+    Rule("creep_kick_is_a_slide", "an interval that slid faster than CREEP_SPEED on average "
+         "(from the poses), or whose velocity changed by more than CREEP_SPEED beyond its "
+         "neighbours' mean change", "holds a slide or an impact: no creep",
+         ("PENETRATION_CREEP_SPEED_MPS",),
+         "0.2 mm within one 10 ms interval (20 mm/s) is a kick; the same shift over ten "
+         "intervals (2 mm/s) is creep 0.2 mm",
+         ("tests/analyze/test_sliding.py::test_a_kick_between_two_samples_is_a_slide_not_creep",
+          "tests/analyze/test_sliding.py::test_the_same_shift_over_ten_intervals_is_creep")),
+    Rule("witness_band", "logged rows of a pair within WITNESS_BAND_M of each other",
+         "are one loaded point for the patch rules", ("WITNESS_BAND_M",),
+         "a box-box manifold clips two rows to one corner 2.3 nm apart (28,772 of 441,399 rows "
+         "of samples/pile.toml at seed 12); pile seed 12's 0.126 mm 'creep' was box406 "
+         "swinging about that corner",
+         ("tests/analyze/test_witness.py::test_two_rows_at_the_pivot_are_one_loaded_point",
+          "tests/analyze/test_witness.py::"
+          "test_the_same_swing_with_both_ends_of_the_edge_loaded_creeps")),
+    Rule("patch_pivot", "a pair whose logged rows carry load at one point at most",
+         "an edge patch slides by its least-slipping point, a face patch 0 when the pair turns "
+         "about a point on both faces; with more loaded points the witness is judged", (),
+         "a box swinging about one end of its edge, or pivoting on one corner of its face, "
+         "slips 0 there (an every-step log: 0.2 um per 10 ms at the corner)",
+         ("tests/analyze/test_witness.py::"
+          "test_a_box_swinging_about_an_end_of_its_edge_does_not_creep",
+          "tests/analyze/test_witness.py::test_the_same_box_sliding_03_mm_along_its_edge_creeps")),
+    Rule("mutual_support", "a contact two bodies both take as their support",
+         "slides the same for both: counted once, for the body it holds up", (),
+         "the 500-box pile once read one slide between box315 and box317 (0.105 mm) twice",
+         ("tests/analyze/test_creep.py::"
+          "test_a_slide_between_two_bodies_that_support_each_other_is_reported_once",)),
+    Rule("sliding_at_the_cone", "the support's logged rows at their Coulomb limit, all but at "
+         "most one, or its tangential load at that limit",
+         "the contact slides: its slip is not creep, its velocity change not jitter",
+         ("PENETRATION_SLIDE_CONE_FRAC",),
+         "points at the limit are there to round-off (within 1e-9: 62,016 of rblog's 438,425 "
+         "pile rows, 8,769 of MuJoCo's 42,112, 25,824 of pybullet's 60,737); 0.99 .. 1 - 1e-9 "
+         "holds 0.46-4.4 % of rows, so 1 % moves few samples",
+         ("tests/analyze/test_sliding.py::"
+          "test_box_pushed_at_the_friction_limit_slides_and_is_not_creep",
+          "tests/analyze/test_sliding.py::"
+          "test_planted_creep_of_a_box_held_by_static_friction_is_flagged")),
+    Rule("unloaded_support", "no row of the pair carries more than MOMENTUM_CONE_FLOOR_NS (or "
+         "the body has no row while the log carries contacts)", "slides (limit mu x 0)",
+         ("MOMENTUM_CONE_FLOOR_NS",),
+         "rblog's pile at seed 2: box 177 chattering on box 130, loaded between samples; a ball "
+         "struck by another hops 0.2 mm between two samples",
+         ("tests/analyze/test_sliding.py::"
+          "test_a_box_on_an_unloaded_support_slides_and_is_not_creep",
+          "tests/analyze/test_sliding.py::test_the_same_slide_on_a_loaded_support_is_creep")),
+    Rule("depth_limits", "a pair's depth", "resting beyond min(DEPTH_M, DEPTH_FRAC x the inner "
+         "radius), at any sample beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x it)",
+         ("PENETRATION_DEPTH_M", "PENETRATION_DEPTH_FRAC", "PENETRATION_TRANSIENT_DEPTH_M",
+          "PENETRATION_TRANSIENT_FRAC"),
+         "the audit's depth equals MuJoCo's contact.dist to round-off (a capsule limb resting "
+         "in MuJoCo's soft floor < 5 mm; sunk 20 mm it is flagged with MuJoCo's own depth)",
+         ("tests/analyze/test_geometry_penetration.py::"
+          "test_clean_mujoco_log_passes_with_mujocos_depth",
+          "tests/analyze/test_geometry_penetration.py::test_capsule_sunk_20mm_is_flagged")),
+)
 
 
 def _partner_label(model, b: int) -> str:

@@ -191,7 +191,12 @@ def test_momentum_balance(world):
         if imp is not None:
             total += np.nan_to_num(imp[0][1:])
     supplied = (m.body_impulse_supplied != 0).all(axis=1)  # nothing missing (logged or none)
-    res = np.abs(dp - total).max(axis=2)
+    # a step begun on a joint limit: the joint impulse of its two rows is NaN (the limit's
+    # impulse is reported nowhere, tests/adapters/test_pybullet_limits.py): not compared
+    jnt = tr.impulse("joint")
+    unknown = np.zeros(dp.shape[:2], bool) if jnt is None else \
+        np.isnan(jnt[0][1:]).any(axis=2) & (m.body_impulse_supplied[:, 4] == 1)[None]
+    res = np.where(unknown, 0.0, np.abs(dp - total).max(axis=2))
     free = supplied & (m.body_kind == 0) & (m.body_parent < 0)
     has_children = np.isin(np.arange(len(rows)), m.body_parent)
     alone = free & ~has_children
@@ -206,7 +211,7 @@ def test_momentum_balance(world):
         imp = tr.impulse(k)
         if imp is not None:
             total_a += np.nan_to_num(imp[1][1:])
-    res_a = np.abs(np.diff(ang, axis=0) - total_a).max(axis=2)
+    res_a = np.where(unknown, 0.0, np.abs(np.diff(ang, axis=0) - total_a).max(axis=2))
     if alone.any():
         assert (res[:, alone] / scale[:, alone]).max() <= FREE_REL
         assert res_a[:, alone].max() <= FREE_NMS_PER_STEP * stride

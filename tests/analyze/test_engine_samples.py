@@ -128,7 +128,12 @@ KNOWN: dict[tuple[str, str], dict[str, float]] = {
     # impulses by 1.004x the analyzer's step-error allowance (2.31e-5 against 2.30e-5 kg m^2/s, 16
     # intervals): Bullet's explicit rotation step, at the allowance's edge
     # measured 2026-12-02 21:10 UTC (capsule contacts found from their geoms); MuJoCo's
-    # "momentum: restitution" (0.146) is NOT traced and may be the audit's. A capsule's friction
+    # "momentum: restitution" (0.146) is MuJoCo's: its balls rebound at e = 0.195-0.245 for a
+    # configured 0.1, because the translation's damping ratio zeta(e) (rblog/study/engines/
+    # mujoco.py) is the linear oscillator's that returns to r = 0, while MuJoCo's soft contact
+    # lets go when its force vanishes, still r = 0.30 v0/omega0 deep: that oscillator's e is 0.253
+    # (integrated at h = 1e-6/omega0), MuJoCo's impedance 0.99 and omega dt = 0.2 take it to
+    # ~0.2. A capsule's friction
     # cone against the slope (a static box) is not judged: its centre does not tell which face
     # it touches (slider3 near the slope's lower end read a normal 78 deg off the face it slides
     # on, where Bullet's own rows sit on the cone: |f| / J_n = 0.39, mu 0.387)
