@@ -38,12 +38,22 @@
 //   pair's deepest point (the witnesses' midpoint) joins when no clipped point is as deep; more
 //   than four: reduce_manifold.
 //
+// * sphere / box / capsule / cylinder / hull - hull: the same path (collide_convex). A hull
+//   (hull.hpp: body-frame vertices, faces with outward normals, edge directions) is GJK/EPA's
+//   mesh core; its candidate axes are its face normals and, against a box, capsule or cylinder,
+//   its edge directions crossed with the other shape's axes (two hulls: GJK/EPA's normal, exact
+//   for two polytopes, and both hulls' face normals); its supporting feature along d is the face
+//   whose normal is nearest d (a polygon of up to HULL_MAX_FACE_VERTICES), a sphere's is its one
+//   point. Every candidate's g(u) is a lower bound of the signed distance, so the largest is
+//   always safe to take.
+//
 // Why this module is long: the five cylinder pairs share the feature, clipping and reduction
 // helpers, which belong with them (capsule.cpp's split: one file per shape).
 //
 // Feature ids: cap vertex k of cap c (0: -h, 1: +h): 16 c + k; deepest rim point 16 c + 8; side
 // line ends 32, 33; box vertex bits (1: +x, 2: +y, 4: +z) + 64 on a, + 128 on b; capsule ends
-// 256, 257; a clipped intersection mixes the ref side and the edge's ends (+ 2^20); the pair's
+// 256, 257; hull vertex v: 2^16 + v on a, 2^17 + v on b; a sphere's point 0; a clipped
+// intersection mixes the ref side and the edge's ends (+ 2^20); the pair's
 // deepest point 1023.
 #include <algorithm>
 #include <cmath>

@@ -231,3 +231,29 @@ def test_hull_resting_on_each_face_for_10_s(name, sleep):
     # <= 1.1e-16 (from t = 0: placed touching, nothing settles); the bound is 1 um
     assert worst <= 1e-6, worst
     assert worst_turn <= 1e-6, worst_turn
+
+
+def test_hull_table_agrees_with_python_and_finds_the_same_hull():
+    from rblog.engine import _core
+    from rblog.engine.hull import HULL_MAX_FACE_VERTICES
+
+    assert _core.hull_max_face_vertices() == HULL_MAX_FACE_VERTICES
+    v = build_hull(HULLS["hex_prism"], _fail).vertices
+    assert register(v, _fail) == register(v.copy(), _fail)
+    assert register(v, _fail) != register(1.5 * v, _fail)
+
+
+def test_a_hull_body_in_a_contact_world_is_refused_with_its_vertex_inside(tmp_path):
+    # the model's mesh geom must list the hull's own vertices (a scene's always does)
+    from dataclasses import replace
+
+    from rblog.engine.contact import ContactParams, ContactWorld
+    from rblog.engine.scene import parse_scene
+    from rblog.errors import RblogError
+
+    sc = parse_scene(RESTING.format(verts=HULLS["octahedron"].tolist()))
+    mv = np.concatenate([sc.model.mesh_vert[:5], [[0.0, 0.0, 0.0]]])  # a vertex moved inside
+    model = replace(sc.model, mesh_vert=mv)
+    with pytest.raises(RblogError, match=r"body 0 \('body0'\): its mesh geom: 1 of its 6 vertices "
+                                         "lie inside the hull"):
+        ContactWorld(model, ContactParams())
