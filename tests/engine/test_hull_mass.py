@@ -187,3 +187,29 @@ def test_missing_meshes_extra_is_one_line(monkeypatch):
     with pytest.raises(SceneError, match=r"install rblog\[meshes\]"):
         parse_scene('[sim]\ndt = 0.001\nduration = 0.01\n[[body]]\nshape = "hull"\nmass = 1.0\n'
                     'vertices = [[0,0,0],[1,0,0],[0,1,0],[0,0,1]]\n')
+
+
+def test_a_generator_of_hulls_places_their_centres_of_mass():
+    # a tetrahedron off its centre (c = (0.25, 0.25, 0.25) of the unit corner one, scaled 0.1)
+    toml = textwrap.dedent("""
+        [sim]
+        dt = 0.001
+        duration = 0.01
+        [[generator]]
+        layout = "grid"
+        grid = [3, 1, 1]
+        spacing = 0.5
+        random_orientation = true
+        [generator.body]
+        shape = "hull"
+        vertices = [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]]
+        density = 1000
+        """)
+    sc = parse_scene(toml)
+    m = sc.model
+    np.testing.assert_array_equal(sc.state.position, [[0, 0, 0], [0.5, 0, 0], [1.0, 0, 0]])
+    assert m.geom_vert_num[:3].tolist() == [4, 4, 4]
+    assert m.geom_vert_adr[:3].tolist() == [0, 4, 8]
+    for g in range(3):  # each body's vertices centred on its centre of mass
+        np.testing.assert_allclose(m.geom_vertices(g).mean(axis=0), 0.0, atol=1e-16)
+    np.testing.assert_allclose(m.body_mass, 1000 * 0.1 ** 3 / 6, rtol=1e-14)
