@@ -10,6 +10,7 @@
 #include "common/py.hpp"
 #include "engine/bind.hpp"
 #include "engine/collision.hpp"
+#include "engine/hull.hpp"
 
 namespace rb {
 namespace nb = nanobind;
@@ -70,7 +71,7 @@ nb::dict collision_layout() {
     RB_PUT(LOG_P); RB_PUT(LOG_N); RB_PUT(LOG_S); RB_PUT(LOG_LN); RB_PUT(LOG_F); RB_PUT(LOG_F_COLS);
     RB_PUT(MAX_CLIP_POINTS); RB_PUT(MAX_MANIFOLD_POINTS);
     RB_PUT(GEOM_SPHERE); RB_PUT(GEOM_BOX); RB_PUT(GEOM_CAPSULE); RB_PUT(GEOM_CYLINDER);
-    RB_PUT(GEOM_PLANE);
+    RB_PUT(GEOM_HULL); RB_PUT(GEOM_PLANE);
 #undef RB_PUT
     d["_AREA_EPS"] = AREA_EPS;
     nb::list table;  // (lower code, higher code) pairs that have a collider
@@ -135,6 +136,20 @@ void bind_collision(nb::module_& m) {
     m.def("contact_fields", &contact_fields,
           "The contact records' fields (manifold.hpp): {'head' | 'manifold' | 'point': "
           "((name, offset, width), ...)}, offsets and widths in 8-byte values.");
+
+    m.def(
+        "register_hull",
+        [](nb::handle vert, nb::handle fnrm, nb::handle foff, nb::handle fstart,
+           nb::handle fvert) {
+            return register_hull(v2<double>(vert, "vertices"), v2<double>(fnrm, "face_normal"),
+                                 v1<double>(foff, "face_offset"), v1<i64>(fstart, "face_start"),
+                                 v1<i64>(fvert, "face_vertices"));
+        },
+        nb::arg("vertices"), nb::arg("face_normal"), nb::arg("face_offset"),
+        nb::arg("face_start"), nb::arg("face_vertices"),
+        "Add a hull to the process's hull table (hull.hpp), or find the same one: its id, the "
+        "first entry of a hull body's size row.");
+    m.def("hull_max_face_vertices", []() { return HULL_MAX_FACE_VERTICES; });
 
     m.def(
         "collide_np",

@@ -24,6 +24,7 @@
 
 #include "common/task_pool.hpp"
 #include "engine/collision.hpp"
+#include "engine/hull.hpp"
 
 namespace rb {
 
@@ -67,8 +68,10 @@ void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv
             ey = e3[1];
             ez = e3[2];
         } else {
+            // a box's half extents; a hull's body-frame box about its centre (hull.hpp ext)
             M3 r = rotation.row(i);
-            double e0 = size(i, 0), e1 = size(i, 1), e2 = size(i, 2);
+            const double* e = geom[i] == GEOM_HULL ? hull_of(size.row(i)).ext : size.row(i);
+            double e0 = e[0], e1 = e[1], e2 = e[2];
             ex = std::fabs(r(0, 0)) * e0 + std::fabs(r(0, 1)) * e1 + std::fabs(r(0, 2)) * e2;
             ey = std::fabs(r(1, 0)) * e0 + std::fabs(r(1, 1)) * e1 + std::fabs(r(1, 2)) * e2;
             ez = std::fabs(r(2, 0)) * e0 + std::fabs(r(2, 1)) * e1 + std::fabs(r(2, 2)) * e2;

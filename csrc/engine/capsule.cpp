@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "engine/collider_points.hpp"
 #include "engine/collision.hpp"
 
 namespace rb {
@@ -61,18 +62,6 @@ inline V to_world(M3 r, V l) {  // R l
 inline double comp(V a, int j) { return j == 0 ? a.x : (j == 1 ? a.y : a.z); }
 inline void set_comp(V& a, int j, double v) { (j == 0 ? a.x : (j == 1 ? a.y : a.z)) = v; }
 
-inline void put(Pts pts, double* sep, i64* fid, i64 k, V p, double s, i64 f) {
-    pts[k][0] = p.x;
-    pts[k][1] = p.y;
-    pts[k][2] = p.z;
-    sep[k] = s;
-    fid[k] = f;
-}
-inline void put_normal(double* nrm, V n) {
-    nrm[0] = n.x;
-    nrm[1] = n.y;
-    nrm[2] = n.z;
-}
 
 // Closest points c1 = p0 + s d1, c2 = q0 + t d2 of two segments (Ericson 5.1.9); returns (s, t).
 void segment_segment(V p0, V d1, V q0, V d2, double& s, double& t) {

@@ -6,7 +6,9 @@
 //                     collide, the collision constants                   (contact/narrowphase.py)
 //   box_box.cpp       separating axes, clipped face manifold, edge point (contact/box_box.py)
 //   capsule.cpp       the capsule pairs (closed forms)
-//   cylinder.cpp      the cylinder pairs (closed forms; GJK + EPA, common/convex.hpp)
+//   cylinder.cpp      the cylinder pairs (closed forms; GJK + EPA, common/convex.hpp) and
+//                     collide_convex, the GJK + EPA + clipping path of the hull pairs too
+//   hull.cpp          the hull table, hull - plane (closed form)
 //   manifold.cpp      reduce_manifold (manifold.hpp: the packed columns) (contact/manifold.py)
 //   collide.cpp       collide_pairs, warm-start matching, tangent_basis  (contact/collide.py)
 //   island.cpp        update_sleep, wake_touched, wake_pushed            (contact/island.py)
@@ -42,14 +44,16 @@ namespace rb {
 
 // ---- geometry codes (narrowphase.py GEOM_*; the test checks they agree) ---------------------
 // size rows: sphere [r, 0, 0]; box half extents; capsule [r, h, 0] (the segment |z| <= h of the
-// body's z axis grown by r); cylinder [r, h, 0] (radius r, |z| <= h). The plane is the highest
+// body's z axis grown by r); cylinder [r, h, 0] (radius r, |z| <= h); hull [id, 0, 0] (its
+// vertices and faces in the process's hull table, engine/hull.hpp). The plane is the highest
 // code, so it is always shape b.
 constexpr i64 GEOM_SPHERE = 0;
 constexpr i64 GEOM_BOX = 1;
 constexpr i64 GEOM_CAPSULE = 2;
 constexpr i64 GEOM_CYLINDER = 3;
-constexpr i64 GEOM_PLANE = 4;
-constexpr i64 N_GEOM = 5;
+constexpr i64 GEOM_HULL = 4;
+constexpr i64 GEOM_PLANE = 5;
+constexpr i64 N_GEOM = 6;
 
 // ---- constants from Python (set once at import) ---------------------------------------------
 struct CollisionConstants {
@@ -117,7 +121,7 @@ i64 collide_capsule_box(const double* ca, M3 rota, const double* sa, const doubl
                         const double* eb, double spec, double* nrm, Pts pts, double* sep,
                         i64* fid);
 // cylinder.cpp (a: the cylinder, but sphere - cylinder: the sphere; collide_convex: any two of
-// box, capsule, cylinder, by engine geometry code)
+// box, capsule, cylinder, hull, or a sphere and a hull, by engine geometry code)
 i64 collide_cylinder_plane(const double* ca, M3 rota, const double* sa, const double* pn,
                            double poff, double spec, double* nrm, Pts pts, double* sep,
                            i64* fid);
@@ -127,6 +131,9 @@ i64 collide_sphere_cylinder(const double* ca, double ra, const double* cb, M3 ro
 i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
                    const double* cb, M3 rotb, const double* sb, double spec, double* nrm,
                    Pts pts, double* sep, i64* fid);
+// hull.cpp (a: the hull; its pairs with every other shape but the plane are collide_convex's)
+i64 collide_hull_plane(const double* ca, M3 rota, const double* sa, const double* pn,
+                       double poff, double spec, double* nrm, Pts pts, double* sep, i64* fid);
 // Returns n1 + 8 n2 (a second, face manifold of n2 points in rows 4.., normal nrm[3:6]).
 i64 collide_box_box(const double* ca, M3 rota, const double* ea, const double* cb, M3 rotb,
                     const double* eb, double spec, double* nrm, Pts pts, double* sep, i64* fid,

@@ -38,18 +38,30 @@
 //   pair's deepest point (the witnesses' midpoint) joins when no clipped point is as deep; more
 //   than four: reduce_manifold.
 //
+// * sphere / box / capsule / cylinder / hull - hull: the same path (collide_convex). A hull
+//   (hull.hpp: body-frame vertices, faces with outward normals, edge directions) is GJK/EPA's
+//   mesh core; its candidate axes are its face normals and, against a box, capsule or cylinder,
+//   its edge directions crossed with the other shape's axes (two hulls: GJK/EPA's normal, exact
+//   for two polytopes, and both hulls' face normals); its supporting feature along d is the face
+//   whose normal is nearest d (a polygon of up to HULL_MAX_FACE_VERTICES), a sphere's is its one
+//   point. Every candidate's g(u) is a lower bound of the signed distance, so the largest is
+//   always safe to take.
+//
 // Why this module is long: the five cylinder pairs share the feature, clipping and reduction
 // helpers, which belong with them (capsule.cpp's split: one file per shape).
 //
 // Feature ids: cap vertex k of cap c (0: -h, 1: +h): 16 c + k; deepest rim point 16 c + 8; side
 // line ends 32, 33; box vertex bits (1: +x, 2: +y, 4: +z) + 64 on a, + 128 on b; capsule ends
-// 256, 257; a clipped intersection mixes the ref side and the edge's ends (+ 2^20); the pair's
+// 256, 257; hull vertex v: 2^16 + v on a, 2^17 + v on b; a sphere's point 0; a clipped
+// intersection mixes the ref side and the edge's ends (+ 2^20); the pair's
 // deepest point 1023.
 #include <algorithm>
 #include <cmath>
 
 #include "common/convex.hpp"
+#include "engine/collider_points.hpp"
 #include "engine/collision.hpp"
+#include "engine/hull.hpp"
 
 namespace rb {
 
@@ -70,8 +82,11 @@ constexpr i64 FID_DEEPEST = 1023;
 // conditioned in the first run. Larger than any resting contact's depth (allowed_penetration
 // 5e-5 m), small against the shapes (the curvature EPA resolves is the grown one's).
 constexpr double TOUCH_GROW_M = 1e-3;
-constexpr int MAX_FEAT = CAP_VERTS;
-constexpr int MAX_PTS = 32;
+// a supporting feature's most points (a hull face's), and the clipped candidates' (two faces')
+constexpr int MAX_FEAT = HULL_MAX_FACE_VERTICES;
+constexpr int MAX_PTS = 2 * MAX_FEAT + 8;
+// feature ids of a hull's vertex v: HULL_FID + v on a, 2 HULL_FID + v on b
+constexpr i64 HULL_FID = 1 << 16;
 
 inline Vec load(const double* p) { return {p[0], p[1], p[2]}; }
 inline Vec col(M3 r, int j) { return {r(0, j), r(1, j), r(2, j)}; }
@@ -86,18 +101,6 @@ inline Vec to_world(M3 r, Vec l) {  // R l
             r(2, 0) * l.x + r(2, 1) * l.y + r(2, 2) * l.z};
 }
 inline double comp(Vec a, int j) { return j == 0 ? a.x : (j == 1 ? a.y : a.z); }
-inline void put(Pts pts, double* sep, i64* fid, i64 k, Vec p, double s, i64 f) {
-    pts[k][0] = p.x;
-    pts[k][1] = p.y;
-    pts[k][2] = p.z;
-    sep[k] = s;
-    fid[k] = f;
-}
-inline void put_normal(double* nrm, Vec n) {
-    nrm[0] = n.x;
-    nrm[1] = n.y;
-    nrm[2] = n.z;
-}
 // cos, sin of the cap polygon's vertex k (exact at the quarter turns)
 inline void cap_angle(int k, double& c, double& s) {
     static const double q = std::sqrt(0.5);
@@ -112,14 +115,23 @@ struct Shape {
     Vec x;
     M3 r;
     const double* s;
+    const Hull* hull = nullptr;  // a hull's (hull.hpp)
 };
 
 convex::Geom as_convex(const Shape& sh) {
+    if (sh.geom == GEOM_HULL)
+        return convex::Geom{convex::GEOM_MESH, sh.x, sh.r.p, sh.s, sh.hull->vert.data(),
+                            sh.hull->nv};
     i64 t = sh.geom == GEOM_BOX ? convex::GEOM_BOX
             : sh.geom == GEOM_CAPSULE ? convex::GEOM_CAPSULE
             : sh.geom == GEOM_CYLINDER ? convex::GEOM_CYLINDER
                                        : convex::GEOM_SPHERE;
     return convex::Geom{t, sh.x, sh.r.p, sh.s, nullptr, 0};
+}
+
+// A length of the shape's size (m): round-off scales of the pair's tests.
+double shape_scale(const Shape& sh) {
+    return sh.geom == GEOM_HULL ? sh.hull->radius : sh.s[0] + sh.s[1] + sh.s[2];
 }
 
 // g(u): the gap of the projections on the unit u (from b into a), radii subtracted.
@@ -142,6 +154,35 @@ struct Feature {
 Feature supporting_feature(const Shape& sh, Vec d, i64 id_base) {
     Feature f;
     Vec dl = to_local(sh.r, d);
+    if (sh.geom == GEOM_HULL) {  // the face whose normal is nearest d
+        const Hull& hl = *sh.hull;
+        i64 best = 0;
+        double bd = -INFINITY;
+        for (i64 k = 0; k < hl.nf; ++k) {
+            const double* u = &hl.fnrm[3 * k];
+            const double g = u[0] * dl.x + u[1] * dl.y + u[2] * dl.z;
+            if (g > bd) {
+                bd = g;
+                best = k;
+            }
+        }
+        const i64 s0 = hl.fstart[best], m = hl.fstart[best + 1] - s0;
+        for (i64 k = 0; k < m; ++k) {
+            const i64 v = hl.fvert[s0 + k];
+            f.p[k] = sh.x + to_world(sh.r, {hl.vert[3 * v], hl.vert[3 * v + 1], hl.vert[3 * v + 2]});
+            f.id[k] = (id_base == 64 ? 1 : 2) * HULL_FID + v;
+        }
+        f.n = static_cast<int>(m);
+        const double* u = &hl.fnrm[3 * best];
+        f.nf = to_world(sh.r, {u[0], u[1], u[2]});
+        return f;
+    }
+    if (sh.geom == GEOM_SPHERE) {  // its point along d
+        f.p[0] = sh.x + sh.s[0] * d;
+        f.id[0] = 0;
+        f.n = 1;
+        return f;
+    }
     if (sh.geom == GEOM_BOX) {
         const double* e = sh.s;
         int j = 0;
@@ -357,7 +398,7 @@ i64 collide_cylinder_plane(const double* ca, M3 rota, const double* sa, const do
     }
     put_normal(nrm, n);
     count = reduce_stable(nrm, P, S, F, count, r + h);
-    for (i64 k = 0; k < count; ++k) put(pts, sep, fid, k, {P[k][0], P[k][1], P[k][2]}, S[k], F[k]);
+    for (i64 k = 0; k < count; ++k) put(pts, sep, fid, k, Vec{P[k][0], P[k][1], P[k][2]}, S[k], F[k]);
     return count;
 }
 
@@ -401,7 +442,8 @@ i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
                    const double* cb, M3 rotb, const double* sb, double spec, double* nrm,
                    Pts pts, double* sep, i64* fid) {
     const CollisionConstants& cc = collision_constants();
-    const Shape A{ga, load(ca), rota, sa}, B{gb, load(cb), rotb, sb};
+    const Shape A{ga, load(ca), rota, sa, ga == GEOM_HULL ? &hull_of(sa) : nullptr},
+        B{gb, load(cb), rotb, sb, gb == GEOM_HULL ? &hull_of(sb) : nullptr};
     const convex::Geom GA = as_convex(A), GB = as_convex(B);
     const double rA = convex::core_radius(GA), rB = convex::core_radius(GB);
     const convex::ConvexTol tol{cc.convex_gjk_tol_m, cc.convex_epa_tol_m, cc.convex_max_iter};
@@ -419,47 +461,65 @@ i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
             d.pb = d.pb + TOUCH_GROW_M * d.n;  // back onto B's core (+ rB below)
         }
     }
-    const double scale = sa[0] + sa[1] + sa[2] + sb[0] + sb[1] + sb[2];
-    // the separating axis of largest gap (module comment)
+    const double scale = shape_scale(A) + shape_scale(B);
+    // the separating axis of largest gap (module comment); every candidate's g is a lower bound
+    // of the signed distance, so a candidate too many costs time, never correctness
     Vec n = d.n;
     double s0 = axis_gap(GA, GB, n);
     {
-        Vec cand[16];
-        int nc = 0;
-        auto axes_of = [](const Shape& sh, Vec* out, int& k) {
-            if (sh.geom == GEOM_BOX)
-                for (int j = 0; j < 3; ++j) out[k++] = col(sh.r, j);
-            else
-                out[k++] = col(sh.r, 2);
-        };
-        Vec ax_a[3], ax_b[3];
-        int na = 0, nb = 0;
-        axes_of(A, ax_a, na);
-        axes_of(B, ax_b, nb);
-        // face normals: a box's three axes, a cylinder's cap axis (not a capsule's)
-        if (A.geom != GEOM_CAPSULE)
-            for (int i = 0; i < na; ++i) cand[nc++] = ax_a[i];
-        if (B.geom != GEOM_CAPSULE)
-            for (int i = 0; i < nb; ++i) cand[nc++] = ax_b[i];
-        for (int i = 0; i < na; ++i)
-            for (int j = 0; j < nb; ++j) cand[nc++] = cross(ax_a[i], ax_b[j]);
-        // two axis shapes (capsule, cylinder) near parallel: the line between their axes
-        if (na == 1 && nb == 1 && norm(cross(ax_a[0], ax_b[0])) <= SEGMENT_PARALLEL_SIN) {
-            Vec w = A.x - B.x;
-            cand[nc++] = w - dot(w, ax_a[0]) * ax_a[0];
-        }
         Vec best_u = n;
         double best_g = -INFINITY;
-        for (int k = 0; k < nc; ++k) {
-            Vec u = cand[k];
+        auto consider = [&](Vec u) {
             const double lu = norm(u);
-            if (lu <= 1e-9) continue;
+            if (lu <= 1e-9) return;
             u = (dot(u, n) >= 0 ? 1.0 / lu : -1.0 / lu) * u;
             const double g = axis_gap(GA, GB, u);
             if (g > best_g) {
                 best_g = g;
                 best_u = u;
             }
+        };
+        // a shape's axes: a box's three, a capsule's or cylinder's one, a hull's edge
+        // directions (world); none for a sphere
+        auto axes_of = [](const Shape& sh, Vec* out, int& k) {
+            if (sh.geom == GEOM_BOX)
+                for (int j = 0; j < 3; ++j) out[k++] = col(sh.r, j);
+            else if (sh.geom == GEOM_CAPSULE || sh.geom == GEOM_CYLINDER)
+                out[k++] = col(sh.r, 2);
+        };
+        Vec ax_a[3], ax_b[3];
+        int na = 0, nb = 0;
+        axes_of(A, ax_a, na);
+        axes_of(B, ax_b, nb);
+        // face normals: a box's three axes, a cylinder's cap axis (not a capsule's), a hull's
+        // faces' normals
+        if (A.geom != GEOM_CAPSULE)
+            for (int i = 0; i < na; ++i) consider(ax_a[i]);
+        if (B.geom != GEOM_CAPSULE)
+            for (int i = 0; i < nb; ++i) consider(ax_b[i]);
+        for (const Shape* sh : {&A, &B})
+            if (sh->geom == GEOM_HULL)
+                for (i64 k = 0; k < sh->hull->nf; ++k) {
+                    const double* u = &sh->hull->fnrm[3 * k];
+                    consider(to_world(sh->r, {u[0], u[1], u[2]}));
+                }
+        for (int i = 0; i < na; ++i)
+            for (int j = 0; j < nb; ++j) consider(cross(ax_a[i], ax_b[j]));
+        // a hull's edges crossed with the other shape's axes (two hulls: EPA's normal is exact
+        // for two polytopes, their edge pairs are not searched)
+        auto hull_edges_x = [&](const Shape& h, const Vec* ax, int nax) {
+            for (i64 e = 0; e < h.hull->ne; ++e) {
+                const double* u = &h.hull->edir[3 * e];
+                const Vec ew = to_world(h.r, {u[0], u[1], u[2]});
+                for (int j = 0; j < nax; ++j) consider(cross(ew, ax[j]));
+            }
+        };
+        if (A.geom == GEOM_HULL && B.geom != GEOM_HULL) hull_edges_x(A, ax_b, nb);
+        if (B.geom == GEOM_HULL && A.geom != GEOM_HULL) hull_edges_x(B, ax_a, na);
+        // two axis shapes (capsule, cylinder) near parallel: the line between their axes
+        if (na == 1 && nb == 1 && norm(cross(ax_a[0], ax_b[0])) <= SEGMENT_PARALLEL_SIN) {
+            Vec w = A.x - B.x;
+            consider(w - dot(w, ax_a[0]) * ax_a[0]);
         }
         if (best_g >= s0 - 1e-12 * scale) {
             n = best_u;
@@ -534,7 +594,7 @@ i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
         put(P, S, F, count++, 0.5 * (pa + pb), s0, FID_DEEPEST);
     }
     count = reduce_stable(nrm, P, S, F, count, scale);
-    for (i64 k = 0; k < count; ++k) put(pts, sep, fid, k, {P[k][0], P[k][1], P[k][2]}, S[k], F[k]);
+    for (i64 k = 0; k < count; ++k) put(pts, sep, fid, k, Vec{P[k][0], P[k][1], P[k][2]}, S[k], F[k]);
     return count;
 }
 

@@ -14,12 +14,13 @@
 //   solver's impulses from one step to the next (warm starting).
 //
 // Dispatch: geometry codes GEOM_SPHERE, GEOM_BOX (dynamic or static boxes), GEOM_CAPSULE,
-// GEOM_CYLINDER, GEOM_PLANE (the ground). NARROWPHASE_TABLE[lower code][higher code] is the collider; the pair is swapped (and
+// GEOM_CYLINDER, GEOM_HULL, GEOM_PLANE (the ground). NARROWPHASE_TABLE[lower code][higher code] is the collider; the pair is swapped (and
 // the normal negated) when the lower code is on body b. A pair with no entry is refused when the
 // world is built (UnsupportedShapePair, Python), never silently skipped; collide() returns -1.
 //
 // Box-box lives in box_box.cpp (separating axes, clipping, reduction), the capsule pairs in
-// capsule.cpp, the cylinder pairs in cylinder.cpp.
+// capsule.cpp, the cylinder pairs in cylinder.cpp, hull - plane in hull.cpp (every other hull
+// pair is cylinder.cpp's collide_convex).
 #include <algorithm>
 #include <cmath>
 
@@ -278,15 +279,30 @@ static i64 entry_cylinder_plane(const double* ca, M3 rota, const double* sa, con
     return collide_cylinder_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
 }
 
+static i64 entry_hull_plane(const double* ca, M3 rota, const double* sa, const double*, M3,
+                            const double*, const double* pn, double poff, double spec,
+                            ColliderBuffers& b) {
+    return collide_hull_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
+}
+// (X, hull): collide_convex on the pair as it comes (X the lower code)
+template <i64 GA>
+static i64 entry_x_hull(const double* ca, M3 rota, const double* sa, const double* cb, M3 rotb,
+                        const double* sb, const double*, double, double spec,
+                        ColliderBuffers& b) {
+    return collide_convex(GA, ca, rota, sa, GEOM_HULL, cb, rotb, sb, spec, b.nrm, b.pts, b.sep,
+                          b.fid);
+}
+
 // NARROWPHASE_TABLE: [lower geometry code][higher code] (narrowphase.py's NARROWPHASE_TABLE has
 // the same keys; tests/engine/contact/test_collision_core.py checks it)
 static const ColliderFn NARROWPHASE_TABLE[N_GEOM][N_GEOM] = {
-    //             sphere               box               capsule                 cylinder                 plane
-    /* sphere   */ {entry_sphere_sphere, entry_sphere_box, entry_sphere_capsule, entry_sphere_cylinder, entry_sphere_plane},
-    /* box      */ {nullptr, entry_box_box, entry_box_capsule, entry_box_cylinder, entry_box_plane},
-    /* capsule  */ {nullptr, nullptr, entry_capsule_capsule, entry_capsule_cylinder, entry_capsule_plane},
-    /* cylinder */ {nullptr, nullptr, nullptr, entry_cylinder_cylinder, entry_cylinder_plane},
-    /* plane    */ {nullptr, nullptr, nullptr, nullptr, nullptr},
+    //             sphere               box               capsule               cylinder               hull                             plane
+    /* sphere   */ {entry_sphere_sphere, entry_sphere_box, entry_sphere_capsule, entry_sphere_cylinder, entry_x_hull<GEOM_SPHERE>,   entry_sphere_plane},
+    /* box      */ {nullptr, entry_box_box, entry_box_capsule, entry_box_cylinder, entry_x_hull<GEOM_BOX>, entry_box_plane},
+    /* capsule  */ {nullptr, nullptr, entry_capsule_capsule, entry_capsule_cylinder, entry_x_hull<GEOM_CAPSULE>, entry_capsule_plane},
+    /* cylinder */ {nullptr, nullptr, nullptr, entry_cylinder_cylinder, entry_x_hull<GEOM_CYLINDER>, entry_cylinder_plane},
+    /* hull     */ {nullptr, nullptr, nullptr, nullptr, entry_x_hull<GEOM_HULL>, entry_hull_plane},
+    /* plane    */ {nullptr, nullptr, nullptr, nullptr, nullptr, nullptr},
 };
 
 ColliderFn narrowphase_fn(i64 geom_lo, i64 geom_hi) {

@@ -65,3 +65,64 @@ def capsule_inertia(m: float, r: float, h: float) -> np.ndarray:
     m_s = m * v_s / (v_c + v_s)
     ix = m_c * (r * r / 4.0 + h * h / 3.0) + m_s * (0.4 * r * r + h * h + 0.75 * h * r)
     return np.array([ix, ix, 0.5 * m_c * r * r + 0.4 * m_s * r * r])
+
+
+# ---- convex hulls ---------------------------------------------------------------------------
+# A hull is given by its vertices (V, 3) and its boundary as triangles (T, 3) of vertex indices,
+# each counter-clockwise seen from outside (outward normal (b - a) x (c - a)).
+#
+# Derivation (divergence theorem): cut the solid into the tetrahedra (o, a, b, c) of each
+# boundary triangle with a common apex o. A tetrahedron with vertices p0 = o, p1, p2, p3 has the
+# signed volume V_t = det[p1 - o, p2 - o, p3 - o] / 6 (positive when the triangle faces away from
+# o), centroid (p0 + p1 + p2 + p3) / 4 and, with s = sum_k p_k, second moments
+# C_t = int x x^T dV = V_t / 20 (sum_k p_k p_k^T + s s^T) (Tonon 2004, J. Math. Stat. 1(1)). The
+# signed sums over the triangles are the solid's volume V, first moment V c and second moment C
+# (every point outside the solid is counted as often positively as negatively). With o at the
+# vertices' mean (round-off), uniform density m / V: the inertia about the centre of mass c is
+# I = (m / V) (tr(C_c) 1 - C_c) with C_c = C - V c c^T.
+
+def hull_volume_com_second_moment(vertices, triangles) -> tuple[float, np.ndarray, np.ndarray]:
+    """(V m^3, centre of mass c (3,), C_c = int (x - c)(x - c)^T dV (3, 3) m^5) of the solid whose
+    boundary is ``triangles`` (T, 3) over ``vertices`` (V, 3), in the vertices' frame."""
+    v = np.asarray(vertices, np.float64)
+    o = v.mean(axis=0)
+    p = v[np.asarray(triangles, np.int64)] - o  # (T, 3 corners, 3)
+    det = np.einsum("ti,ti->t", p[:, 0], np.cross(p[:, 1], p[:, 2]))
+    vol_t = det / 6.0
+    vol = float(vol_t.sum())
+    s = p.sum(axis=1)  # (T, 3): the apex o is the origin here
+    first = (vol_t[:, None] * s).sum(axis=0) / 4.0
+    pp = np.einsum("tki,tkj->tij", p, p) + np.einsum("ti,tj->tij", s, s)
+    second = (vol_t[:, None, None] * pp).sum(axis=0) / 20.0
+    c = first / vol
+    second_c = second - vol * np.outer(c, c)
+    return vol, c + o, second_c
+
+
+def hull_inertia_tensor(m: float, volume: float, second_c) -> np.ndarray:
+    """(3, 3) inertia about the centre of mass of mass ``m`` spread over the hull (kg m^2)."""
+    cc = np.asarray(second_c, np.float64) * (m / volume)
+    return np.trace(cc) * np.eye(3) - cc
+
+
+#: off-diagonal inertia entries at most this times the largest moment are taken as zero: the
+#: given axes are then principal (a hull of a box's corners keeps the box's axes exactly)
+PRINCIPAL_OFFDIAG_RTOL = 1e-12
+
+
+def principal_axes(inertia) -> tuple[np.ndarray, np.ndarray]:
+    """(moments (3,), Q (3, 3)) with inertia = Q diag(moments) Q^T, Q a rotation (det +1) whose
+    columns are the principal axes in the given frame. Q = 1 when the tensor is diagonal to
+    PRINCIPAL_OFFDIAG_RTOL; else numpy's eigh, each column's largest component made positive
+    (a deterministic choice among the eigenvectors' signs), the third flipped for det +1."""
+    j = np.asarray(inertia, np.float64)
+    off = np.abs(j - np.diag(np.diag(j))).max()
+    if off <= PRINCIPAL_OFFDIAG_RTOL * np.abs(np.diag(j)).max():
+        return np.diag(j).copy(), np.eye(3)
+    w, q = np.linalg.eigh(0.5 * (j + j.T))
+    for k in range(3):
+        if q[np.argmax(np.abs(q[:, k])), k] < 0:
+            q[:, k] = -q[:, k]
+    if np.linalg.det(q) < 0:
+        q[:, 2] = -q[:, 2]
+    return w, q

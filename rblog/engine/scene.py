@@ -45,12 +45,19 @@ ORIENTATION_KEYS = ("quat_wxyz", "quat_xyzw", "axis_angle", "rotvec")
 #: the shapes a [[body]] can have and the size keys each takes (m): a sphere's radius; a box's
 #: half extents; a capsule's radius and half_length (the segment |z| <= half_length of the body's
 #: z axis grown by radius: total length 2 half_length + 2 radius, the contract's and MuJoCo's
-#: convention); a cylinder's radius and half_length (|z| <= half_length)
+#: convention); a cylinder's radius and half_length (|z| <= half_length); a hull's vertices (a
+#: list of [x, y, z], m) or mesh (a mesh file relative to the scene file), one of the two
+#: (rblog.engine.hull: its body frame is its centre of mass and principal axes)
 SHAPE_KEYS = {"sphere": ("radius",), "box": ("half_extents",),
-              "capsule": ("radius", "half_length"), "cylinder": ("radius", "half_length")}
+              "capsule": ("radius", "half_length"), "cylinder": ("radius", "half_length"),
+              "hull": ("vertices", "mesh")}
 SCENE_SHAPES = tuple(SHAPE_KEYS)
-SIZE_KEYS = {"radius", "half_extents", "half_length"}
-BODY_KEYS = {"name", "shape", "radius", "half_extents", "half_length", "mass", "density",
+SIZE_KEYS = {"radius", "half_extents", "half_length", "vertices", "mesh"}
+#: the contract's geom name of each scene shape (a hull is the contract's convex mesh)
+SHAPE_GEOM = {"sphere": "sphere", "box": "box", "capsule": "capsule", "cylinder": "cylinder",
+              "hull": "mesh"}
+BODY_KEYS = {"name", "shape", "radius", "half_extents", "half_length", "vertices", "mesh",
+             "mass", "density",
              "inertia_diag",
              "position", *ORIENTATION_KEYS, "velocity", "angular_velocity",
              "angular_velocity_body", "force", "torque", "restitution", "friction", "group"}
@@ -458,14 +465,21 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
     shape = ctx.string(b["shape"], f"{key}.shape", SCENE_SHAPES)
     # the size keys each shape takes (the others are refused by name)
     takes = SHAPE_KEYS[shape]
+    joined = " or ".join(takes) if shape == "hull" else " and ".join(takes)
     for k in sorted(SIZE_KEYS - set(takes)):
         if k in b:
-            ctx.fail(f"{key}.{k}", f"a {shape} takes {' and '.join(takes)}, not {k}")
-    for k in takes:
+            ctx.fail(f"{key}.{k}", f"a {shape} takes {joined}, not {k}")
+    hull = None
+    if shape == "hull":
+        hull = _hull(ctx, b, key)
+    for k in takes if shape != "hull" else ():
         if k not in b:
             ctx.fail(f"{key}.{k}", "missing (" + ("a list of 3 positive numbers, m)"
                                                   if k == "half_extents" else "a positive number, m)"))
-    if shape == "box":
+    if hull is not None:
+        size = np.zeros(3)
+        volume = hull.volume
+    elif shape == "box":
         size = ctx.vec(b["half_extents"], f"{key}.half_extents", positive=True)
         volume = mp.box_volume(size)
     else:
@@ -492,9 +506,21 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
         inertia = mp.box_inertia(mass, size)
     elif shape == "capsule":
         inertia = mp.capsule_inertia(mass, size[0], size[1])
+    elif shape == "hull":
+        inertia = hull.inertia_diag(mass)
     else:
         inertia = mp.cylinder_inertia(mass, size[0], size[1])
     q = _orientation(ctx, b, key)
+    position = ctx.vec(b.get("position", [0, 0, 0]), f"{key}.position")
+    if hull is not None:
+        # the body frame is the hull's centre of mass and principal axes (rblog.engine.hull)
+        from rblog.contract.orientation import matrix_to_quat, quat_mul
+
+        position = position + quat_to_matrix_np(q[None])[0] @ hull.com
+        q = quat_mul(q, matrix_to_quat(hull.axes))
+        q = q / np.linalg.norm(q)
+        if q[0] < 0:
+            q = -q
     if "angular_velocity" in b and "angular_velocity_body" in b:
         ctx.fail(f"{key}.angular_velocity_body", "give angular_velocity (world) or "
                  "angular_velocity_body, not both")
@@ -504,7 +530,7 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
         "size": size,
         "mass": mass,
         "inertia_diag": inertia,
-        "position": ctx.vec(b.get("position", [0, 0, 0]), f"{key}.position"),
+        "position": position,
         "quat_wxyz": q,
         "velocity": ctx.vec(b.get("velocity", [0, 0, 0]), f"{key}.velocity"),
         "angular_velocity": (ctx.vec(b["angular_velocity"], f"{key}.angular_velocity")
@@ -517,8 +543,31 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
         "friction": ctx.num(b.get("friction", DEFAULT_FRICTION), f"{key}.friction", nonneg=True),
         "group": ctx.integer(b.get("group", 0), f"{key}.group", lo=0),
     }
+    if hull is not None:
+        out["vertices"] = hull.vertices
     scene_checks.check_body(ctx, out, key)
     return out
+
+
+def _hull(ctx: _Ctx, b: dict, key: str):
+    """The rblog.engine.hull.Hull of a hull body's ``vertices`` or ``mesh`` (one of the two)."""
+    from rblog.engine.hull import build_hull, read_mesh_vertices
+
+    if ("vertices" in b) == ("mesh" in b):
+        ctx.fail(f"{key}.vertices", "expected exactly one of vertices (a list of [x, y, z], m) "
+                 "or mesh (a mesh file relative to the scene file)")
+    if "vertices" in b:
+        k = f"{key}.vertices"
+        v = b["vertices"]
+        if not isinstance(v, list):
+            ctx.fail(k, f"expected a list of [x, y, z] points (m), got {_tname(v)}")
+        pts = np.array([ctx.vec(p, f"{k}[{i}]") for i, p in enumerate(v)]).reshape(-1, 3)
+    else:
+        k = f"{key}.mesh"
+        name = ctx.string(b["mesh"], k)
+        base = Path(ctx.path).parent if not ctx.path.startswith("<") else Path(".")
+        pts = read_mesh_vertices(base / name, lambda e: ctx.fail(k, e))
+    return build_hull(pts, lambda e: ctx.fail(k, e))
 
 
 def _check_body_count(ctx: _Ctx, key: str, n: int):
@@ -695,6 +744,7 @@ class _Bodies:
     restitution: np.ndarray  # (n,)
     friction: np.ndarray     # (n,)
     group: np.ndarray        # (n,) int64
+    vertices: list           # (n,) a hull's (V, 3) body-frame vertices, else None
 
     @classmethod
     def from_dicts(cls, bodies: list[dict], repeat: int = 1) -> "_Bodies":
@@ -716,13 +766,14 @@ class _Bodies:
             name=[b["name"] for b in bodies] * repeat,
             shape=np.repeat(np.array([SHAPE_CODES.get(b["shape"], SHAPE_NONE) for b in bodies],
                                      np.int64), repeat),
-            geom_type=np.repeat(np.array([GEOM_CODES[b["shape"]] for b in bodies], np.int64),
-                                repeat),
+            geom_type=np.repeat(np.array([GEOM_CODES[SHAPE_GEOM[b["shape"]]] for b in bodies],
+                                         np.int64), repeat),
             size=col("size"), mass=col("mass"), inertia=col("inertia_diag"),
             position=col("position"), quat=col("quat_wxyz"), velocity=col("velocity"),
             omega=omega, omega_frame=frame, force=col("force"), torque=col("torque"),
             restitution=col("restitution"), friction=col("friction"),
-            group=col("group", np.int64))
+            group=col("group", np.int64),
+            vertices=[b.get("vertices") for b in bodies for _ in range(repeat)])
 
 
 def _range(ctx, g, k, key):
@@ -776,6 +827,14 @@ def _build(blocks: list[_Bodies], statics, gravity, ground, g_normal, g_offset, 
             ground_friction=float(g_fric), ground_restitution=float(g_rest), **statics_kw)
         geoms = geoms_from_v2(world)
         geoms["geom_type"][:len(shape)] = col("geom_type")
+        # a hull's vertices (geom frame = body frame), its size row 0
+        verts = [v for blk in blocks for v in blk.vertices]
+        nv = np.array([0 if v is None else len(v) for v in verts], np.int64)
+        if nv.any():
+            geoms["geom_vert_num"][:len(shape)] = nv
+            geoms["geom_vert_adr"][:len(shape)] = np.cumsum(nv) - nv
+            geoms["geom_size"][:len(shape)][nv > 0] = 0.0
+            geoms["mesh_vert"] = np.concatenate([v for v in verts if v is not None], axis=0)
         size = np.where((shape == SHAPE_NONE)[:, None], 0.0, size)
     model = Model(
         body_name=[name for b in blocks for name in b.name],

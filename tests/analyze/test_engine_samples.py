@@ -144,9 +144,11 @@ KNOWN: dict[tuple[str, str], dict[str, float]] = {
         "penetration: penetration": 0.00733,
         "penetration: sink": 0.00682,
     },
+    # re-measured 2026-12-03 with the hulls and cylinders in shapes.toml: MuJoCo's the same
+    # kinds and values; pybullet's capsule "momentum: momentum" (at 1.004x the allowance's edge)
+    # no longer appears
     ("shapes", "pybullet"): {
         "momentum: flight angular": 0.000461,
-        "momentum: momentum": 4.73e-06,
     },
     ("spinning_bodies", "mujoco"): {
         "energy: flight energy": 0.0789,

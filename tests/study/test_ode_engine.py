@@ -257,7 +257,13 @@ KNOWN = {
     # 0.0039 of |L| read before the audit found capsule contacts from their geoms lay on
     # stretches in which capsules touched between samples; whether ODE's gyroscopic error on the
     # flights left is below the tolerance or they are too short to judge is not measured
-    "shapes": {"momentum: cone": 1.0},
+    # 2026-12-03, with the hulls and cylinders: the wedge falls onto the slope's lower end at 2.8
+    # m/s; ODE's convex-box contact is one point, from the step it overlaps (t = 0.288 s, 0.44 mm
+    # deep), and the impact goes 9.84 mm deep (the audit's geom-pair depth; rblog's narrowphase on
+    # the logged pose the same; ODE's own rows up to 20.8 mm), pushing it out gains 0.24 J
+    # ("contact energy" 0.0847); the nut 5.34 mm into slider1 (ODE's row: 6.08 mm)
+    "shapes": {"momentum: cone": 1.0, "penetration: penetration": 0.00984,
+               "energy: contact energy": 0.0847},
     "spinning_bodies": {"momentum: flight angular": 0.0486, "energy: flight energy": 0.0647},
     "tumbling_box": {"momentum: flight angular": 0.00365, "energy: flight energy": 0.00734},
 }

@@ -12,14 +12,14 @@ Conventions (the :class:`rblog.contract.trajectory.Contacts` record uses the sam
   solver's impulses from one step to the next (warm starting).
 
 Dispatch: geometry types are ``GEOM_SPHERE``, ``GEOM_BOX`` (dynamic or static boxes),
-``GEOM_CAPSULE``, ``GEOM_CYLINDER`` and ``GEOM_PLANE`` (the ground). :data:`COLLIDE_TABLE` maps (lower type, higher type) to a collider
+``GEOM_CAPSULE``, ``GEOM_CYLINDER``, ``GEOM_HULL`` and ``GEOM_PLANE`` (the ground). :data:`COLLIDE_TABLE` maps (lower type, higher type) to a collider
 code; the pair is swapped (and the normal negated) when the lower type is on body b. A pair with
 no entry is an error (:class:`UnsupportedShapePair`), raised when the world is built, never a
 silent skip.
 
 The colliders are C++ (csrc/engine/narrowphase.cpp; box-box in csrc/engine/box_box.cpp, the
-capsule pairs in csrc/engine/capsule.cpp, the cylinder pairs in csrc/engine/cylinder.cpp, each with
-its derivation), dispatched through a table of function pointers with the same keys as
+capsule pairs in csrc/engine/capsule.cpp, the cylinder pairs and every hull pair but hull - plane in
+csrc/engine/cylinder.cpp, hull - plane in csrc/engine/hull.cpp, each with its derivation), dispatched through a table of function pointers with the same keys as
 :data:`NARROWPHASE_TABLE` (a test checks that they agree). This module keeps the registry, the
 codes and the names, and hands the narrowphase tolerances of :mod:`rblog.engine.constants` (their
 one home) to the C++ core at import.
@@ -32,6 +32,7 @@ import numpy as np
 from rblog.contract.model import GEOM_BOX as C_GEOM_BOX
 from rblog.contract.model import GEOM_CAPSULE as C_GEOM_CAPSULE
 from rblog.contract.model import GEOM_CYLINDER as C_GEOM_CYLINDER
+from rblog.contract.model import GEOM_MESH as C_GEOM_MESH
 from rblog.contract.model import GEOM_SPHERE as C_GEOM_SPHERE
 from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
@@ -44,20 +45,23 @@ from rblog.errors import RblogError, UnsupportedShapePair
 
 #: the engine's geometry types; size rows (m): sphere [r, 0, 0], box half extents, capsule
 #: [r, h, 0] (the segment |z| <= h of the body's z axis grown by r), cylinder [r, h, 0] (radius
-#: r, |z| <= h). The plane is the highest code: always shape b.
+#: r, |z| <= h), hull [id, 0, 0] (the C++ core's hull table, rblog.engine.hull.register). The
+#: plane is the highest code: always shape b.
 GEOM_SPHERE = 0
 GEOM_BOX = 1
 GEOM_CAPSULE = 2
 GEOM_CYLINDER = 3
-GEOM_PLANE = 4
-N_GEOM = 5
+GEOM_HULL = 4
+GEOM_PLANE = 5
+N_GEOM = 6
 GEOM_NAMES = {GEOM_SPHERE: "sphere", GEOM_BOX: "box", GEOM_CAPSULE: "capsule",
-              GEOM_CYLINDER: "cylinder", GEOM_PLANE: "plane"}
+              GEOM_CYLINDER: "cylinder", GEOM_HULL: "hull", GEOM_PLANE: "plane"}
 #: Model.body_shape -> geometry type
 SHAPE_TO_GEOM = {SHAPE_SPHERE: GEOM_SPHERE, SHAPE_BOX: GEOM_BOX}
 #: the contract's geom_type of a body's one geom -> the engine's geometry type
 CONTRACT_TO_GEOM = {C_GEOM_SPHERE: GEOM_SPHERE, C_GEOM_BOX: GEOM_BOX,
-                    C_GEOM_CAPSULE: GEOM_CAPSULE, C_GEOM_CYLINDER: GEOM_CYLINDER}
+                    C_GEOM_CAPSULE: GEOM_CAPSULE, C_GEOM_CYLINDER: GEOM_CYLINDER,
+                    C_GEOM_MESH: GEOM_HULL}
 
 COLLIDE_NONE = -1
 COLLIDE_SPHERE_SPHERE = 0
@@ -74,6 +78,12 @@ COLLIDE_BOX_CYLINDER = 10
 COLLIDE_CAPSULE_CYLINDER = 11
 COLLIDE_CYLINDER_CYLINDER = 12
 COLLIDE_CYLINDER_PLANE = 13
+COLLIDE_SPHERE_HULL = 14
+COLLIDE_BOX_HULL = 15
+COLLIDE_CAPSULE_HULL = 16
+COLLIDE_CYLINDER_HULL = 17
+COLLIDE_HULL_HULL = 18
+COLLIDE_HULL_PLANE = 19
 
 #: (lower geometry type, higher geometry type) -> (collider code, collider name)
 NARROWPHASE_TABLE = {
@@ -91,6 +101,12 @@ NARROWPHASE_TABLE = {
     (GEOM_CAPSULE, GEOM_CYLINDER): (COLLIDE_CAPSULE_CYLINDER, "collide_convex"),
     (GEOM_CYLINDER, GEOM_CYLINDER): (COLLIDE_CYLINDER_CYLINDER, "collide_convex"),
     (GEOM_CYLINDER, GEOM_PLANE): (COLLIDE_CYLINDER_PLANE, "collide_cylinder_plane"),
+    (GEOM_SPHERE, GEOM_HULL): (COLLIDE_SPHERE_HULL, "collide_convex"),
+    (GEOM_BOX, GEOM_HULL): (COLLIDE_BOX_HULL, "collide_convex"),
+    (GEOM_CAPSULE, GEOM_HULL): (COLLIDE_CAPSULE_HULL, "collide_convex"),
+    (GEOM_CYLINDER, GEOM_HULL): (COLLIDE_CYLINDER_HULL, "collide_convex"),
+    (GEOM_HULL, GEOM_HULL): (COLLIDE_HULL_HULL, "collide_convex"),
+    (GEOM_HULL, GEOM_PLANE): (COLLIDE_HULL_PLANE, "collide_hull_plane"),
 }
 #: the same table as an array: COLLIDE_TABLE[lo, hi] -> collider code or -1
 COLLIDE_TABLE = np.full((N_GEOM, N_GEOM), COLLIDE_NONE, np.int64)

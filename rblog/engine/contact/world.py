@@ -29,6 +29,8 @@ from typing import NamedTuple
 import numpy as np
 
 from rblog.engine.constants import ISOTROPIC_RTOL, RESTITUTION_THRESHOLD_KICKS
+from rblog.engine import hull
+from rblog.errors import RblogError
 from rblog.engine.free import advance_free
 from rblog.engine.state import new_anchors
 from rblog.contract.model import SHAPE_NONE, Model
@@ -39,7 +41,7 @@ from rblog.engine.contact.manifold import (
     LOG_A, LOG_B, LOG_F, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
 )
 from rblog.engine.contact.narrowphase import (
-    CONTRACT_TO_GEOM, GEOM_BOX, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM,
+    CONTRACT_TO_GEOM, GEOM_BOX, GEOM_HULL, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM,
     UnsupportedShapePair,
 )
 from rblog.engine.constants import ContactParams
@@ -71,6 +73,10 @@ def engine_shapes(model: Model) -> tuple[np.ndarray, np.ndarray]:
             raise UnsupportedShapePair(shape, shape, f"body {i} ({model.body_name[i]!r}: "
                                        f"{len(rows)} geom(s), expected one at its centre of mass)")
         geom[i], size[i] = CONTRACT_TO_GEOM[t], model.geom_size[rows[0]]
+        if geom[i] == GEOM_HULL:  # its id in the C++ core's hull table
+            def fail(e, i=i):
+                raise RblogError(f"body {i} ({model.body_name[i]!r}): its mesh geom: {e}")
+            size[i] = (hull.register(model.geom_vertices(rows[0]), fail), 0.0, 0.0)
     return geom, np.ascontiguousarray(size)
 
 

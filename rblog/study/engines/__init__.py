@@ -23,8 +23,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_NAMES, GEOM_SPHERE, \
-    SHAPE_BOX, SHAPE_SPHERE
+from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_NAMES, \
+    GEOM_SPHERE, SHAPE_BOX, SHAPE_SPHERE
 from rblog.errors import RblogError, EngineUnsupported, EngineMissing
 
 ENGINE_NAMES = ("mujoco", "pybullet", "ode")
@@ -102,6 +102,23 @@ def body_geoms(model, engine: str, takes=(GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, G
             raise EngineUnsupported(engine, f"body {model.body_name[i]!r}: shape "
                                     f"{GEOM_NAMES.get(code, f'code {code}')!r}")
     return out
+
+
+def body_mesh(model, i: int) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+    """(vertices (V, 3) m, faces (index loops, counter-clockwise seen from outside), face normals
+    (F, 3), face offsets (F,): n . x = offset on the face) of body i's mesh geom, in the body
+    frame (a scene's hull: centre of mass, principal axes); its hull's boundary by
+    rblog.engine.hull.hull_boundary (qhull)."""
+    from rblog.engine.hull import hull_boundary
+
+    g = int(np.flatnonzero(np.asarray(model.geom_body) == i)[0])
+    v = np.asarray(model.geom_vertices(g), float)
+
+    def fail(e):
+        raise RblogError(f"body {model.body_name[i]!r}: its mesh: {e}")
+
+    used, _, faces, fn, fo = hull_boundary(v, fail)
+    return v[used], faces, fn, fo
 
 
 def initial_world_omega(scene) -> np.ndarray:

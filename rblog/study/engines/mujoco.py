@@ -32,13 +32,14 @@ import math
 
 import numpy as np
 
-from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, initial_world_omega, \
+from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_SPHERE
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, body_mesh, initial_world_omega, \
     pair_materials, parse_options, z_to
 
 #: MJCF geom type and size of each body geom the translation takes (sizes: rblog.contract.model)
 MJCF_GEOM = {GEOM_SPHERE: ("sphere", lambda s: s[:1]), GEOM_BOX: ("box", lambda s: s),
-             GEOM_CAPSULE: ("capsule", lambda s: s[:2]), GEOM_CYLINDER: ("cylinder", lambda s: s[:2])}
+             GEOM_CAPSULE: ("capsule", lambda s: s[:2]), GEOM_CYLINDER: ("cylinder", lambda s: s[:2]),
+             GEOM_MESH: ("mesh", None)}
 
 #: omega0 dt of the contact spring (explicit stepping is unstable near 2; 0.2 resolves an impact
 #: in ~15 steps; the same value rblog.study.peers uses)
@@ -171,9 +172,17 @@ class MujocoRun:
                 f'<geom name="static{j}" type="box" size="{_f(model.static_box_half_extents[j])}" '
                 f'pos="{_f(model.static_box_position[j])}" quat="{_f(model.static_box_quat_wxyz[j])}"'
                 f'{filt(0)}{self._contact_attrs(model.static_box_restitution[j], model.static_box_friction[j])}/>')
+        assets = []
         for i, (code, size) in enumerate(body_geoms(model, "mujoco", tuple(MJCF_GEOM))):
             kind, sz = MJCF_GEOM[code]
-            geom = f'type="{kind}" size="{_f(sz(size))}"'
+            if code == GEOM_MESH:
+                # the hull of the vertices is MuJoCo's collision shape of a mesh; its compiler
+                # moves the mesh into its own frame and the geom with it (the world shape stays)
+                v = body_mesh(model, i)[0]
+                assets.append(f'<mesh name="mesh{i}" vertex="{_f(v.ravel())}"/>')
+                geom = f'type="mesh" mesh="mesh{i}"'
+            else:
+                geom = f'type="{kind}" size="{_f(sz(size))}"'
             parts.append(
                 f'<body name="b{i}"><freejoint/>'
                 f'<inertial pos="0 0 0" mass="{float(model.body_mass[i])!r}" '
@@ -181,6 +190,8 @@ class MujocoRun:
                 f'<geom name="g{i}" {geom}{filt(int(model.body_group[i]))}'
                 f'{self._contact_attrs(model.body_restitution[i], model.body_friction[i])}/></body>')
         parts.append("</worldbody>")
+        if assets:
+            parts.insert(parts.index("<worldbody>"), "<asset>" + "".join(assets) + "</asset>")
         # explicit pairs where MuJoCo's own mix differs from rblog's effective pair material
         kinds, e_eff, mu_eff, can = pair_materials(model)
         names = [f"g{i}" for i in range(n)]

@@ -6,9 +6,10 @@ Translation (common part: rblog/study/engines/__init__.py):
 * each body: ``dBodyCreate`` with ``dMassSetParameters`` (the scene's mass, centre of mass at the
   body origin as ODE requires, the principal moments on the diagonal: the body frame is the
   contract frame; ODE's ``dMassSetCapsule`` etc. are not used), one ``dCreateSphere``,
-  ``dCreateBox``, ``dCreateCapsule`` or ``dCreateCylinder`` geom on it with no offset (capsule
-  and cylinder: ``radius`` and ``length`` = 2 half_length, the capsule's cylinder part, along the
-  geom's z = the body's z), position,
+  ``dCreateBox``, ``dCreateCapsule``, ``dCreateCylinder`` or ``dCreateConvex`` geom on it with no
+  offset (capsule and cylinder: ``radius`` and ``length`` = 2 half_length, the capsule's cylinder
+  part, along the geom's z = the body's z; a hull: its face planes, vertices and polygons in the
+  body frame), position,
   quaternion (w, x, y, z), velocity and the world-frame angular velocity ODE keeps. ODE's
   defaults otherwise: the gyroscopic torque on, taken semi-implicitly (Lacoursiere 2006, ODE's
   step.cpp: ``(I (I - dt [L]x)^-1 - 1) L / dt`` with ``L = I w`` and the inertia at the step's
@@ -53,8 +54,9 @@ import math
 
 import numpy as np
 
-from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_NAMES, GEOM_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, initial_world_omega, \
+from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_NAMES, \
+    GEOM_SPHERE
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, body_mesh, initial_world_omega, \
     pair_materials, parse_options
 
 #: contact points per geom pair from dCollide (a box on a face needs 4; 8 leaves room for edges)
@@ -87,11 +89,31 @@ def _number(key: str, val: str, kind=float):
 
 
 #: the probe's geoms (m): each overlaps the other at PROBE_POS_A / PROBE_POS_B
+def create_convex(ode, space, vertices, faces, normals, offsets, keep: list):
+    """dCreateConvex of a hull (vertices (V, 3), faces as index loops counter-clockwise about
+    their outward normals (F, 3), n . x = offset on each): ODE keeps pointers to the three
+    arrays, which are appended to ``keep`` (they must outlive the geom)."""
+    planes = (ode.dReal * (4 * len(faces)))(*np.column_stack([normals, offsets]).ravel().tolist())
+    points = (ode.dReal * (3 * len(vertices)))(*np.asarray(vertices, float).ravel().tolist())
+    poly = [x for f in faces for x in (len(f), *map(int, f))]
+    polygons = (ctypes.c_uint * len(poly))(*poly)
+    keep.extend((planes, points, polygons))
+    return ode.dCreateConvex(space, planes, len(faces), points, len(vertices), polygons)
+
+
+#: a 0.2 m cube as a convex hull, for the probe (vertices, faces, normals, offsets)
+_PROBE_HULL = (np.array([[x, y, z] for z in (-0.1, 0.1) for y in (-0.1, 0.1) for x in (-0.1, 0.1)]),
+               [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]],
+               np.array([[0, 0, -1], [0, 0, 1], [0, -1, 0], [0, 1, 0], [-1, 0, 0], [1, 0, 0]], float),
+               np.full(6, 0.1))
+_PROBE_KEEP: list = []
+
 _PROBE_GEOMS = {"sphere": lambda ode, sp: ode.dCreateSphere(sp, 0.1),
                 "box": lambda ode, sp: ode.dCreateBox(sp, 0.2, 0.2, 0.2),
                 "capsule": lambda ode, sp: ode.dCreateCapsule(sp, 0.1, 0.4),
                 "cylinder": lambda ode, sp: ode.dCreateCylinder(sp, 0.1, 0.4),
-                "plane": lambda ode, sp: ode.dCreatePlane(sp, 0.0, 0.0, 1.0, 0.0)}
+                "plane": lambda ode, sp: ode.dCreatePlane(sp, 0.0, 0.0, 1.0, 0.0),
+                "mesh": lambda ode, sp: create_convex(ode, sp, *_PROBE_HULL, _PROBE_KEEP)}
 PROBE_POS_A, PROBE_POS_B = (0.0, 0.0, 0.05), (0.05, 0.0, 0.1)
 
 
@@ -142,7 +164,9 @@ class OdeRun:
             raise EngineUnsupported("ode", "options iterations/w without stepper=quick (dWorldStep has none)")
         model, st = scene.model, scene.state
         n = model.n_bodies
-        shapes = body_geoms(model, "ode")
+        shapes = body_geoms(model, "ode", (GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER,
+                                           GEOM_MESH))
+        self._convex_arrays: list = []  # what ODE's convex geoms point into
         self.max_contacts = int(_number("max_contacts", opts.pop("max_contacts", DEFAULT_MAX_CONTACTS), int))
         accel = float(np.linalg.norm(model.gravity)) + float(np.max(
             np.linalg.norm(model.body_force_world, axis=1) / model.body_mass, initial=0.0))
@@ -187,6 +211,8 @@ class OdeRun:
                 g = ode.dCreateBox(self.space, *(2.0 * float(x) for x in size))
             elif code == GEOM_CAPSULE:  # length: the cylinder part, 2 h, along the geom's z
                 g = ode.dCreateCapsule(self.space, float(size[0]), 2.0 * float(size[1]))
+            elif code == GEOM_MESH:  # dCreateConvex: the hull's planes, points and polygons
+                g = create_convex(ode, self.space, *body_mesh(model, i), self._convex_arrays)
             else:
                 g = ode.dCreateCylinder(self.space, float(size[0]), 2.0 * float(size[1]))
             ode.dGeomSetBody(g, b)

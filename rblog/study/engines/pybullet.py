@@ -2,9 +2,11 @@
 
 Translation (common part: rblog/study/engines/__init__.py):
 
-* each body: ``createMultiBody`` with a sphere, box, capsule or cylinder collision shape
-  (``GEOM_CAPSULE`` / ``GEOM_CYLINDER``: ``radius`` and ``height`` = 2 half_length, the capsule's
-  cylinder part, along the shape's z = the body's z), the scene's mass and
+* each body: ``createMultiBody`` with a sphere, box, capsule, cylinder or convex hull collision
+  shape (``GEOM_CAPSULE`` / ``GEOM_CYLINDER``: ``radius`` and ``height`` = 2 half_length, the
+  capsule's cylinder part, along the shape's z = the body's z; a hull: ``GEOM_MESH`` with the
+  body-frame ``vertices``, Bullet's convex hull of them, its collision margin set to 0: Bullet
+  grows a hull by its margin, 1 mm by default), the scene's mass and
   ``localInertiaDiagonal`` (principal moments, body frame: Bullet's own from the shape is
   replaced), linear/angular damping 0 and
   rolling/spinning friction 0; the ground: a static plane turned so its +z is the ground normal;
@@ -31,8 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, initial_world_omega, \
+from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_SPHERE
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, body_mesh, initial_world_omega, \
     pair_materials, parse_options, z_to
 
 #: relative mismatch of a pair's restitution product r_a r_b from max(e_a, e_b) accepted
@@ -113,7 +115,8 @@ class PybulletRun:
         groups = sorted({int(g) for g in model.body_group if g != 0})
         if len(groups) > MAX_GROUPS:
             raise EngineUnsupported("pybullet", f"{len(groups)} collision groups (body.group)")
-        shapes = body_geoms(model, "pybullet")
+        shapes = body_geoms(model, "pybullet", (GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER,
+                                                GEOM_MESH))
         r_fac = restitution_factors(model)
         mu_fac = np.sqrt(np.concatenate([model.body_friction,
                                          [model.ground_friction] if model.ground else [],
@@ -139,6 +142,10 @@ class PybulletRun:
                 elif code == GEOM_BOX:
                     col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[float(x) for x in size],
                                                   physicsClientId=cid)
+                elif code == GEOM_MESH:  # Bullet's btConvexHullShape of the vertices
+                    col = pb.createCollisionShape(pb.GEOM_MESH,
+                                                  vertices=body_mesh(model, i)[0].tolist(),
+                                                  physicsClientId=cid)
                 else:
                     col = pb.createCollisionShape(pb.GEOM_CAPSULE if code == GEOM_CAPSULE else pb.GEOM_CYLINDER,
                                                   radius=float(size[0]), height=2.0 * float(size[1]),
@@ -148,6 +155,8 @@ class PybulletRun:
                                          basePosition=[float(x) for x in st.position[i]],
                                          baseOrientation=[float(q[1]), float(q[2]), float(q[3]), float(q[0])],
                                          physicsClientId=cid)
+                if code == GEOM_MESH:  # the hull itself: Bullet grows a convex hull by its margin
+                    pb.changeDynamics(bid, -1, collisionMargin=0.0, physicsClientId=cid)
                 pb.changeDynamics(bid, -1, localInertiaDiagonal=[float(x) for x in model.body_inertia_diag[i]],
                                   linearDamping=0.0, angularDamping=0.0, restitution=float(r_fac[i]),
                                   lateralFriction=float(mu_fac[i]), rollingFriction=0.0,
