@@ -406,9 +406,8 @@ class MujocoRecorder(EngineRecorder):
             W, work = W[:, :, ids[0]:ids[0] + len(ids)], work[:, :, ids[0]:ids[0] + len(ids)]
         else:
             W, work = W[:, :, ids], work[:, :, ids]
-        W[:, IMPULSE_KINDS.index("integration")] = self._integration(W, steps=self._steps[:ns],
-                                                                     v=self._v[:ns], r=self._r[:ns],
-                                                                     w=self._w[:ns])
+        W[:, IMPULSE_KINDS.index("integration")], p, L = self._integration(
+            W, steps=self._steps[:ns], v=self._v[:ns], r=self._r[:ns], w=self._w[:ns])
         gap = self._gap[:ns]
         if gap.any():
             W[gap] = np.nan
@@ -417,7 +416,8 @@ class MujocoRecorder(EngineRecorder):
         arrays = dict(t=steps * self.dt, step=steps, position=self._x[:ns].copy(),
                       rotation=self._r[:ns].copy(), quat_wxyz=self._q[:ns].copy(),
                       velocity=self._v[:ns].copy(),
-                      angular_velocity=self._w[:ns].copy())
+                      angular_velocity=self._w[:ns].copy(), linear_momentum=p,
+                      angular_momentum=L)  # the momenta the integration kind is taken from
         for a, kind in enumerate(IMPULSE_KINDS):
             arrays[f"impulse_{kind}_angular"] = W[:, a, :, :3]
             arrays[f"impulse_{kind}_linear"] = W[:, a, :, 3:]
@@ -440,8 +440,9 @@ class MujocoRecorder(EngineRecorder):
         whose joint kind is logged; 0 elsewhere): the momentum change MuJoCo's steps gave each
         body, ``P = m v``, ``L = R diag(I) R^T w`` of the engine's state at the interval's ends,
         less the other kinds' impulses ``W`` (ns, kinds, N, 6) and ``m g dt`` (docs/log-format.md,
-        "The integration kind"). The first sample of the
-        run has no interval: 0. Keeps the last sample's momenta for the next block."""
+        "The integration kind"), and the momenta ``P``, ``L`` (ns, N, 3), logged as the samples'
+        momenta. The first sample of the run has no interval: 0. Keeps the last sample's
+        momenta for the next block."""
         model = self.model
         m = np.asarray(model.body_mass, np.float64)
         inertia = np.asarray(model.body_inertia_diag, np.float64)
@@ -464,7 +465,7 @@ class MujocoRecorder(EngineRecorder):
         logged = np.asarray(model.body_impulse_supplied)[:, IMPULSE_KINDS.index("integration")]
         out[:, logged != SUPPLIED_LOGGED] = 0.0  # none or missing (the Model's table)
         self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())
-        return out
+        return out, p, L
 
     def _captured(self):
         """The compiled capture's steps since the last flush, as _packed_contact_dict, or None."""
