@@ -433,7 +433,7 @@ class MujocoRecorder(EngineRecorder):
         self._raw = []
         self._ns = 0
         self._gap[:] = False
-        self.recorder.write(**arrays)
+        self.recorder.write(owned=True, **arrays)  # W and work are this block's own
 
     def _integration(self, W, steps, v, r, w) -> np.ndarray:
         """(ns, N, 6) [angular; linear] the integration kind of each sample's interval (the bodies
