@@ -210,6 +210,8 @@ class MujocoRecorder(EngineRecorder):
         except ImportError:
             self._capture = None
         self._fast, self._fast_d, self._efc_offset = None, None, None
+        self._prev_momenta = None  # (step, P (N, 3), L (N, 3)) of the last sample written
+        self._integration_fixed = None  # the compiled integration's fixed arrays
         self.step = int(round(float(d.time) / self.dt))
         self._add_sample(d, row=-1, contacts=False)
         self._arm(d)
@@ -401,13 +403,12 @@ class MujocoRecorder(EngineRecorder):
         self.hook.reset()
         if not ns:
             return
+        p, L = self._integration(W, ns)  # into W[:, integration, ids]
         ids = self._ids
         if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
             W, work = W[:, :, ids[0]:ids[0] + len(ids)], work[:, :, ids[0]:ids[0] + len(ids)]
         else:
             W, work = W[:, :, ids], work[:, :, ids]
-        W[:, IMPULSE_KINDS.index("integration")], p, L = self._integration(
-            W, steps=self._steps[:ns], v=self._v[:ns], r=self._r[:ns], w=self._w[:ns])
         gap = self._gap[:ns]
         if gap.any():
             W[gap] = np.nan
@@ -435,28 +436,61 @@ class MujocoRecorder(EngineRecorder):
         self._gap[:] = False
         self.recorder.write(owned=True, **arrays)  # W and work are this block's own
 
-    def _integration(self, W, steps, v, r, w) -> np.ndarray:
-        """(ns, N, 6) [angular; linear] the integration kind of each sample's interval (the bodies
-        whose joint kind is logged; 0 elsewhere): the momentum change MuJoCo's steps gave each
-        body, ``P = m v``, ``L = R diag(I) R^T w`` of the engine's state at the interval's ends,
-        less the other kinds' impulses ``W`` (ns, kinds, N, 6) and ``m g dt`` (docs/log-format.md,
-        "The integration kind"), and the momenta ``P``, ``L`` (ns, N, 3), logged as the samples'
-        momenta. The first sample of the run has no interval: 0. Keeps the last sample's
-        momenta for the next block."""
-        model = self.model
+    def _integration(self, W, ns: int):
+        """The integration kind of each waiting sample's interval, written into ``W`` (ns, kinds,
+        nbody, 6) [angular; linear] at ``W[:, integration, ids]`` (the bodies whose joint kind is
+        logged; 0 elsewhere): the momentum change MuJoCo's steps gave each body, ``P = m v``,
+        ``L = R diag(I) R^T w`` of the engine's state at the interval's ends, less the other kinds'
+        impulses and ``m g dt`` (docs/log-format.md, "The integration kind"). Returns the momenta
+        ``P``, ``L`` (ns, N, 3), logged as the samples' momenta. The first sample of the run has
+        no interval: 0. Keeps the last sample's momenta for the next block. Compiled
+        (``rblog.adapters._hook.integration``) when the build has it, else numpy (the same
+        formulas in the same order: :meth:`_integration_numpy`)."""
+        try:
+            from rblog.adapters._hook import integration
+        except ImportError:
+            return self._integration_numpy(W, ns)
+        model, n = self.model, len(self._ids)
+        if self._integration_fixed is None:
+            c = np.ascontiguousarray
+            logged = np.asarray(model.body_impulse_supplied)[:, IMPULSE_KINDS.index("integration")]
+            self._integration_fixed = (
+                c(self._ids, np.int64), c(model.body_mass, np.float64),
+                c(model.body_inertia_diag, np.float64), c(model.gravity, np.float64),
+                c(logged == SUPPLIED_LOGGED, np.int64))
+        ids, mass, inertia, g, logged = self._integration_fixed
+        prev = self._prev_momenta
+        p, L = np.empty((ns, n, 3)), np.empty((ns, n, 3))
+        zero = np.zeros((n, 3))
+        integration(W, ids, mass, inertia, g, logged, np.ascontiguousarray(self._steps[:ns]),
+                    self.dt, prev is not None, int(prev[0]) if prev else 0,
+                    prev[1] if prev else zero, prev[2] if prev else zero, self._r, self._v,
+                    self._w, p, L)
+        self._prev_momenta = (int(self._steps[ns - 1]), p[-1].copy(), L[-1].copy())
+        return p, L
+
+    def _integration_numpy(self, W, ns: int):
+        """:meth:`_integration` in numpy (the reference of the compiled one)."""
+        model, ids = self.model, self._ids
+        steps, v, r, w = self._steps[:ns], self._v[:ns], self._r[:ns], self._w[:ns]
         m = np.asarray(model.body_mass, np.float64)
         inertia = np.asarray(model.body_inertia_diag, np.float64)
         p = m[None, :, None] * v
-        w_body = np.einsum("snji,snj->sni", r, w)
-        L = np.einsum("snij,snj->sni", r, inertia[None] * w_body)
-        prev = getattr(self, "_prev_momenta", None)
+        # R^T w and R (I w_b), summed j = 0, 1, 2 in order
+        w_body = r[..., 0, :] * w[..., 0:1] + r[..., 1, :] * w[..., 1:2] + r[..., 2, :] * w[..., 2:3]
+        iw = inertia[None] * w_body
+        L = r[..., :, 0] * iw[..., 0:1] + r[..., :, 1] * iw[..., 1:2] + r[..., :, 2] * iw[..., 2:3]
+        prev = self._prev_momenta
         if prev is None:
             prev = (steps[0], p[0], L[0])
         step0 = np.concatenate([[prev[0]], steps[:-1]])
         dt = (steps - step0) * self.dt
         dp = p - np.concatenate([prev[1][None], p[:-1]])
         dl = L - np.concatenate([prev[2][None], L[:-1]])
-        forces = W[:, :IMPULSE_KINDS.index("integration")].sum(axis=1)  # the kinds before it
+        Wb = W[:, :, ids]
+        forces = Wb[:, 0] + Wb[:, 1]  # the kinds before integration, in order
+        for a in range(2, IMPULSE_KINDS.index("integration")):
+            forces += Wb[:, a]
         out = np.empty((len(steps), len(m), 6))
         out[..., 3:] = dp - m[None, :, None] * np.asarray(model.gravity, np.float64) * dt[:, None,
                                                                                            None]
@@ -464,8 +498,9 @@ class MujocoRecorder(EngineRecorder):
         out[..., :3] = dl - forces[..., :3]
         logged = np.asarray(model.body_impulse_supplied)[:, IMPULSE_KINDS.index("integration")]
         out[:, logged != SUPPLIED_LOGGED] = 0.0  # none or missing (the Model's table)
-        self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())
-        return out, p, L
+        W[:, IMPULSE_KINDS.index("integration"), ids] = out
+        self._prev_momenta = (int(steps[-1]), p[-1].copy(), L[-1].copy())
+        return p, L
 
     def _captured(self):
         """The compiled capture's steps since the last flush, as _packed_contact_dict, or None."""
