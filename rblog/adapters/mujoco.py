@@ -110,8 +110,10 @@ sample's state is the next step's row (its start is the sample's state) under Eu
 implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
 the rows are resolved into impulses and the samples' states (compiled: ``_hook.resolve``, with
 the joints' constraint forces, the work's velocity and xfrc_applied's work from numpy;
-``_hook.states``; numpy without them), the contacts copied at each logged step
-(``_hook.ContactCapture``) decoded, and all written as one block. Measured with
+``_hook.states``; the integration kind and the samples' momenta ``_hook.integration``; numpy
+without them), the contacts copied at each logged step (``_hook.ContactCapture``) decoded, and
+all written as one block (``Recorder.write(owned=True)``: the impulse and work arrays are not
+copied again). Measured with
 benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
 """
 
