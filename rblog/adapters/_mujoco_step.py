@@ -56,6 +56,17 @@ class Kinematics:
         return out
 
 
+def momenta(mass, inertia, r, v, w):
+    """(P, L) (..., N, 3) of states ``r`` (..., N, 3, 3), ``v``, ``w`` (..., N, 3) of bodies of
+    ``mass`` (N,), ``inertia`` (N, 3) principal: ``P = m v``, ``L = R (I (R^T w))``, the sums
+    over j = 0, 1, 2 in order (the order of rblog.adapters._hook.integration)."""
+    p = mass[None, :, None] * v
+    w_body = r[..., 0, :] * w[..., 0:1] + r[..., 1, :] * w[..., 1:2] + r[..., 2, :] * w[..., 2:3]
+    iw = inertia[None] * w_body
+    L = r[..., :, 0] * iw[..., 0:1] + r[..., :, 1] * iw[..., 1:2] + r[..., :, 2] * iw[..., 2:3]
+    return p, L
+
+
 def _cross(a, b):
     """a x b over the last axis of (..., 3) arrays (numpy's cross, without its checks)."""
     return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],

@@ -129,7 +129,8 @@ from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _Co
                                           state_offsets, unsupported)
 from rblog.adapters._mujoco_rollout import record_rollout
 from rblog.adapters._mujoco_suite import suite_model
-from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross)
+from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross,
+                                         momenta)
 from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, WORK_KINDS
 
 
@@ -477,11 +478,7 @@ class MujocoRecorder(EngineRecorder):
         steps, v, r, w = self._steps[:ns], self._v[:ns], self._r[:ns], self._w[:ns]
         m = np.asarray(model.body_mass, np.float64)
         inertia = np.asarray(model.body_inertia_diag, np.float64)
-        p = m[None, :, None] * v
-        # R^T w and R (I w_b), summed j = 0, 1, 2 in order
-        w_body = r[..., 0, :] * w[..., 0:1] + r[..., 1, :] * w[..., 1:2] + r[..., 2, :] * w[..., 2:3]
-        iw = inertia[None] * w_body
-        L = r[..., :, 0] * iw[..., 0:1] + r[..., :, 1] * iw[..., 1:2] + r[..., :, 2] * iw[..., 2:3]
+        p, L = momenta(m, inertia, r, v, w)
         prev = self._prev_momenta
         if prev is None:
             prev = (steps[0], p[0], L[0])
