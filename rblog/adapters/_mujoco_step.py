@@ -1,7 +1,10 @@
 """The per-step hook of :mod:`rblog.adapters.mujoco`: each logged body's state from MuJoCo's
 kinematics (:class:`Kinematics`), one row of mjData per step (:class:`Rows`), and the rows of a
 block turned into impulses and work per body (:class:`StepImpulses`; the derivation is in
-:mod:`rblog.adapters.mujoco`'s docstring)."""
+:mod:`rblog.adapters.mujoco`'s docstring).
+
+Why this module is long: each compiled piece (the hook, the block resolve, the momenta) keeps its
+numpy reference here, next to it, so the two can be read and tested side by side."""
 
 from __future__ import annotations
 

@@ -115,6 +115,10 @@ without them), the contacts copied at each logged step (``_hook.ContactCapture``
 all written as one block (``Recorder.write(owned=True)``: the impulse and work arrays are not
 copied again). Measured with
 benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
+
+Why this module is long: the derivation of every impulse kind lives in this docstring, and the
+recorder's per-block steps (states, impulses per interval, integration kind) each keep their
+numpy reference beside the compiled call.
 """
 
 from __future__ import annotations
