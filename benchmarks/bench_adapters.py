@@ -2,6 +2,7 @@
 recording a sample at every step, by CPU time (``time.process_time``), interleaved.
 
     python benchmarks/bench_adapters.py [--pairs N] [--steps N] [--every K] [--case NAME ...]
+        [--mode memory|mcap] [--mcap-compression lz4|zstd|none]
 
 Each case is a row of ``CASES``: a function of the step count and the sample stride (``every``:
 a sample every K steps, the impulses of every step summed into it) that builds its world and
@@ -22,6 +23,8 @@ import time
 from pathlib import Path
 
 MODES = ("memory", "mcap")
+#: the MCAP chunk compression of the recorded runs (Recorder's mcap_compression; --mcap-compression)
+OPTIONS = {"mcap_compression": "lz4"}
 #: name -> builder(steps, every, tmp) -> (bare(mode), recorded(mode))
 CASES: dict = {}
 
@@ -58,7 +61,8 @@ def _mujoco_case(model_name: str):
 
         def recorded(mode):
             d = start()
-            out = {"mcap": str(Path(tmp) / f"{model_name}.mcap")} if mode == "mcap" else {}
+            out = {"mcap": str(Path(tmp) / f"{model_name}.mcap"),
+                   "mcap_compression": OPTIONS["mcap_compression"]} if mode == "mcap" else {}
             rec = adapter.recorder(m, d, every=every, keep=mode == "memory", **out)
             for k in range(steps):
                 d.ctrl[:] = ctrl[k]
@@ -98,7 +102,9 @@ def _pybullet_case(world: str):
             run(None)
 
         def recorded(mode):
-            out = {"mcap": str(Path(tmp) / f"{world}.mcap")} if mode == "mcap" else {"keep": True}
+            out = {"mcap": str(Path(tmp) / f"{world}.mcap"),
+                   "mcap_compression": OPTIONS["mcap_compression"]} if mode == "mcap" else \
+                {"keep": True}
             run(dict(every=every, **out))
 
         return bare, recorded
@@ -115,7 +121,10 @@ def main(argv=None) -> int:
     ap.add_argument("--every", type=int, default=1, help="a sample every K steps (default 1)")
     ap.add_argument("--case", action="append", choices=sorted(CASES), help="default: every case")
     ap.add_argument("--mode", action="append", choices=MODES, help="default: both")
+    ap.add_argument("--mcap-compression", choices=("lz4", "zstd", "none"), default="lz4",
+                    help="the MCAP chunk compression (default lz4, the Recorder's)")
     args = ap.parse_args(argv)
+    OPTIONS["mcap_compression"] = args.mcap_compression
     names = args.case or list(CASES)
     modes = args.mode or list(MODES)
     print(f"CPU seconds of {args.steps} steps, bare loop vs recording (a sample every "

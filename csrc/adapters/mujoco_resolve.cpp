@@ -267,9 +267,86 @@ void states(nb::handle rows_h, nb::handle offsets_h, nb::handle rr_h, nb::handle
     }
 }
 
+// The integration kind of each sample's interval and the samples' momenta, as
+// MujocoRecorder._integration_numpy (rblog/adapters/mujoco.py), same formulas, same order: for
+// sample k and logged body n (MuJoCo body b = ids[n]), R = r[k, n], w = w[k, n]:
+//   p = m v;  w_b = R^T w (sum over j = 0, 1, 2 of R[j][i] w[j]);  L = R (I w_b)
+//   F = (((W_0 + W_1) + W_2) + W_3) + W_4          (the kinds before integration, at body b)
+//   W_5 = [L - L_prev - F_ang;  ((p - p_prev) - (m g) dt) - F_lin]   where `logged[n]`, else 0
+// with dt = (step_k - step_prev) h; the previous sample's (step, p, L) is the last of the block
+// before (prev_*), or sample 0's own when `has_prev` is false (the run's first: no interval).
+void integration(nb::handle w_h, nb::handle ids_h, nb::handle mass_h, nb::handle inertia_h,
+                 nb::handle gravity_h, nb::handle logged_h, nb::handle steps_h, double h,
+                 bool has_prev, i64 prev_step, nb::handle prev_p_h, nb::handle prev_l_h,
+                 nb::handle r_h, nb::handle v_h, nb::handle wv_h, nb::handle p_h, nb::handle l_h) {
+    V4<double> W = v4<double>(w_h, "W");
+    V1<i64> ids = v1<i64>(ids_h, "ids"), logged = v1<i64>(logged_h, "logged");
+    V1<i64> steps = v1<i64>(steps_h, "steps");
+    V1<double> mass = v1<double>(mass_h, "mass"), grav = v1<double>(gravity_h, "gravity");
+    V2<double> inertia = v2<double>(inertia_h, "inertia");
+    V2<double> pp = v2<double>(prev_p_h, "prev_p"), pl = v2<double>(prev_l_h, "prev_L");
+    V4<double> R = v4<double>(r_h, "r");
+    V3<double> V = v3<double>(v_h, "v"), Wv = v3<double>(wv_h, "w");
+    V3<double> P = v3<double>(p_h, "p"), L = v3<double>(l_h, "L");
+    const i64 K = W.n0, NB = W.n2, N = ids.n0;
+    if (W.n1 != N_KINDS || W.n3 != 6 || steps.n0 != K || mass.n0 != N || logged.n0 != N ||
+        inertia.n0 != N || inertia.n1 != 3 || grav.n0 != 3 || pp.n0 != N || pp.n1 != 3 ||
+        pl.n0 != N || pl.n1 != 3)
+        throw nb::value_error("integration: W (K, 6, nbody, 6), steps (K,), ids, mass, logged "
+                              "(N,), inertia, prev_p, prev_L (N, 3), gravity (3,) disagree");
+    if (R.n0 < K || R.n1 != N || R.n2 != 3 || R.n3 != 3 || V.n0 < K || V.n1 != N || V.n2 != 3 ||
+        Wv.n0 < K || Wv.n1 != N || Wv.n2 != 3 || P.n0 != K || P.n1 != N || P.n2 != 3 ||
+        L.n0 != K || L.n1 != N || L.n2 != 3)
+        throw nb::value_error("integration: r (>= K, N, 3, 3), v, w (>= K, N, 3), p, L "
+                              "(K, N, 3) disagree");
+    for (i64 n = 0; n < N; ++n)
+        if (ids(n) < 0 || ids(n) >= NB) throw nb::value_error("integration: ids out of range");
+    constexpr int I_INT = 5;  // IMPULSE_KINDS.index("integration")
+    for (i64 k = 0; k < K; ++k)
+        for (i64 n = 0; n < N; ++n) {
+            const double* r = &R(k, n, 0, 0);
+            const double* w = &Wv(k, n, 0);
+            double* p = &P(k, n, 0);
+            double* l = &L(k, n, 0);
+            double wb[3], iw[3];
+            for (int c = 0; c < 3; ++c) p[c] = mass(n) * V(k, n, c);
+            for (int i = 0; i < 3; ++i) wb[i] = r[i] * w[0] + r[3 + i] * w[1] + r[6 + i] * w[2];
+            for (int i = 0; i < 3; ++i) iw[i] = inertia(n, i) * wb[i];
+            for (int i = 0; i < 3; ++i)
+                l[i] = r[3 * i] * iw[0] + r[3 * i + 1] * iw[1] + r[3 * i + 2] * iw[2];
+        }
+    for (i64 k = 0; k < K; ++k) {
+        const bool first = k == 0;
+        const i64 s0 = first ? (has_prev ? prev_step : steps(0)) : steps(k - 1);
+        const double dt = double(steps(k) - s0) * h;
+        for (i64 n = 0; n < N; ++n) {
+            double* out = &W(k, I_INT, ids(n), 0);
+            if (!logged(n)) {
+                for (int c = 0; c < 6; ++c) out[c] = 0.0;
+                continue;
+            }
+            const double* p0 = first ? (has_prev ? &pp(n, 0) : &P(0, n, 0)) : &P(k - 1, n, 0);
+            const double* l0 = first ? (has_prev ? &pl(n, 0) : &L(0, n, 0)) : &L(k - 1, n, 0);
+            double f[6];
+            for (int c = 0; c < 6; ++c) {
+                f[c] = W(k, 0, ids(n), c) + W(k, 1, ids(n), c);
+                for (int a = 2; a < I_INT; ++a) f[c] += W(k, a, ids(n), c);
+            }
+            for (int c = 0; c < 3; ++c) {
+                out[3 + c] = ((P(k, n, c) - p0[c]) - (mass(n) * grav(c)) * dt) - f[3 + c];
+                out[c] = (L(k, n, c) - l0[c]) - f[c];
+            }
+        }
+    }
+}
+
 }  // namespace
 
 void bind_resolve(nb::module_& m) {
+    m.def("integration", &integration,
+          "integration(W, ids, mass, inertia, gravity, logged, steps, h, has_prev, prev_step, "
+          "prev_p, prev_L, r, v, w, p, L): the integration kind into W[:, 5, ids] and the samples' "
+          "momenta p, L (csrc/adapters/mujoco_resolve.cpp)");
     m.def("states", &states,
           "states(rows, offsets, rr, slot, ids, root, iquat, x, r, q, v, w): the states of the "
           "samples in slots `slot` from the rows `rr` (csrc/adapters/mujoco_resolve.cpp)");

@@ -278,6 +278,17 @@ void encode_contacts(V1<i64> bounds, V1<u8> step8, V1<u8> t8, V1<u8> a4, V1<u8> 
     ends[bounds.n0 - 1] = k;
 }
 
+// Kernel of put_records: record i is head[i] (hw bytes) then data[ends[i]:ends[i + 1]], written
+// at out[start[i]:] (_BlockChunkBuilder.add_messages: MCAP Message records of a run).
+void put_records(V2<u8> head, V1<u8> data, V1<i64> ends, V1<u8> out, V1<i64> start) {
+    const i64 m = head.n0, hw = head.n1;
+    for (i64 i = 0; i < m; ++i) {
+        u8* o = out.p + start[i];
+        std::memcpy(o, head.p + hw * i, hw);
+        std::memcpy(o + hw, data.p + ends[i], ends[i + 1] - ends[i]);
+    }
+}
+
 // --- bindings: argument checks (the kernels index without bounds checks) --------------------
 
 namespace {
@@ -433,6 +444,29 @@ void bind_mcap_encode(nb::module_& m) {
         },
         "The per-sample records straight into a chunk buffer (_BlockChunkBuilder."
         "add_sample_records): returns (next record, new byte count). Releases the GIL.");
+
+    m.def(
+        "put_records",
+        [](nb::handle head_, nb::handle data_, nb::handle ends_, nb::handle out_,
+           nb::handle start_) {
+            auto head = v2<u8>(head_, "head");
+            auto data = v1<u8>(data_, "data");
+            auto ends = v1<i64>(ends_, "ends");
+            auto out = v1<u8>(out_, "out");
+            auto start = v1<i64>(start_, "start");
+            const i64 m_ = head.n0;
+            need(ends.n0 == m_ + 1 && start.n0 == m_, "put_records: ends (M + 1,), start (M,)");
+            for (i64 i = 0; i < m_; ++i) {
+                need(ends[i] >= 0 && ends[i] <= ends[i + 1] && ends[i + 1] <= data.n0,
+                     "put_records: ends must rise within data");
+                need(start[i] >= 0 && start[i] + head.n1 + ends[i + 1] - ends[i] <= out.n0,
+                     "put_records: a record past the end of out");
+            }
+            nb::gil_scoped_release release;
+            put_records(head, data, ends, out, start);
+        },
+        "MCAP records head[i] + data[ends[i]:ends[i + 1]] at out[start[i]:] (_BlockChunkBuilder."
+        "add_messages). Releases the GIL.");
 
     m.def(
         "encode_contacts",

@@ -50,16 +50,21 @@ def _struct_layout(decl, structs):
     return offsets, (pos + align_max - 1) // align_max * align_max, align_max
 
 
+_OFFSETS = []  # offsets(), once a process: the loaded mujoco's layout does not change
+
+
 def offsets():
     """{field: byte offset in mjData} from mujoco.introspect, or None when it is not there or
     holds a type this does not know."""
-    try:
-        from mujoco.introspect import structs
+    if not _OFFSETS:
+        try:
+            from mujoco.introspect import structs
 
-        table = structs.STRUCTS
-        return _struct_layout(table["mjData"], table)[0]
-    except (ImportError, KeyError, AttributeError, ValueError, TypeError):
-        return None
+            table = structs.STRUCTS
+            _OFFSETS.append(_struct_layout(table["mjData"], table)[0])
+        except (ImportError, KeyError, AttributeError, ValueError, TypeError):
+            _OFFSETS.append(None)
+    return _OFFSETS[0]
 
 
 def _addr(a) -> int:

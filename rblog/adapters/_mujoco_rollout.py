@@ -7,7 +7,7 @@ import numpy as np
 
 from rblog.adapters import AdapterError
 from rblog.adapters._mujoco_model import _mj, inspect, settings, state_offsets
-from rblog.adapters._mujoco_step import Kinematics
+from rblog.adapters._mujoco_step import Kinematics, momenta
 
 
 def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batch: int = 0,
@@ -52,11 +52,14 @@ def record_rollout(m, initial_state, state, *, d=None, rrd=None, mcap=None, batc
         kin(rows[i, iq:iq + m.nq], rows[i, iv:iv + m.nv], out=(x[i], r[i], v[i], w[i]))
         q[i] = kin.quat_wxyz()
     step = np.rint(rows[:, it] / dt).astype(np.int64)
+    # the momenta as MujocoRecorder logs them (the states as MuJoCo gives them)
+    p, L = momenta(np.asarray(model.body_mass, np.float64),
+                   np.asarray(model.body_inertia_diag, np.float64), r, v, w)
     rec = Recorder(model, rrd=rrd, mcap=mcap, dt=dt, writer=writer or f"mujoco {mj.__version__} "
                    "rollout via rblog.adapters", integrator=engine["integrator"],
                    combine_friction="max", combine_restitution="max", engine_settings=engine,
                    keep=keep, **recorder_options)
     with rec:
         rec.write(t=step * dt, step=step, position=x, rotation=r, quat_wxyz=q, velocity=v,
-                  angular_velocity=w)
+                  angular_velocity=w, linear_momentum=p, angular_momentum=L)
     return rec.trajectory if rec.keep else None

@@ -110,9 +110,15 @@ sample's state is the next step's row (its start is the sample's state) under Eu
 implicit integrators without mocap bodies, else :class:`Kinematics`. Every BLOCK_STEPS steps
 the rows are resolved into impulses and the samples' states (compiled: ``_hook.resolve``, with
 the joints' constraint forces, the work's velocity and xfrc_applied's work from numpy;
-``_hook.states``; numpy without them), the contacts copied at each logged step
-(``_hook.ContactCapture``) decoded, and all written as one block. Measured with
+``_hook.states``; the integration kind and the samples' momenta ``_hook.integration``; numpy
+without them), the contacts copied at each logged step (``_hook.ContactCapture``) decoded, and
+all written as one block (``Recorder.write(owned=True)``: the impulse and work arrays are not
+copied again). Measured with
 benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
+
+Why this module is long: the derivation of every impulse kind lives in this docstring, and the
+recorder's per-block steps (states, impulses per interval, integration kind) each keep their
+numpy reference beside the compiled call.
 """
 
 from __future__ import annotations
@@ -127,7 +133,8 @@ from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _Co
                                           state_offsets, unsupported)
 from rblog.adapters._mujoco_rollout import record_rollout
 from rblog.adapters._mujoco_suite import suite_model
-from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross)
+from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross,
+                                         momenta)
 from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, WORK_KINDS
 
 
@@ -210,6 +217,8 @@ class MujocoRecorder(EngineRecorder):
         except ImportError:
             self._capture = None
         self._fast, self._fast_d, self._efc_offset = None, None, None
+        self._prev_momenta = None  # (step, P (N, 3), L (N, 3)) of the last sample written
+        self._integration_fixed = None  # the compiled integration's fixed arrays
         self.step = int(round(float(d.time) / self.dt))
         self._add_sample(d, row=-1, contacts=False)
         self._arm(d)
@@ -401,14 +410,12 @@ class MujocoRecorder(EngineRecorder):
         self.hook.reset()
         if not ns:
             return
+        p, L = self._integration(W, ns)  # into W[:, integration, ids]
         ids = self._ids
         if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
             W, work = W[:, :, ids[0]:ids[0] + len(ids)], work[:, :, ids[0]:ids[0] + len(ids)]
         else:
             W, work = W[:, :, ids], work[:, :, ids]
-        W[:, IMPULSE_KINDS.index("integration")] = self._integration(W, steps=self._steps[:ns],
-                                                                     v=self._v[:ns], r=self._r[:ns],
-                                                                     w=self._w[:ns])
         gap = self._gap[:ns]
         if gap.any():
             W[gap] = np.nan
@@ -417,7 +424,8 @@ class MujocoRecorder(EngineRecorder):
         arrays = dict(t=steps * self.dt, step=steps, position=self._x[:ns].copy(),
                       rotation=self._r[:ns].copy(), quat_wxyz=self._q[:ns].copy(),
                       velocity=self._v[:ns].copy(),
-                      angular_velocity=self._w[:ns].copy())
+                      angular_velocity=self._w[:ns].copy(), linear_momentum=p,
+                      angular_momentum=L)  # the momenta the integration kind is taken from
         for a, kind in enumerate(IMPULSE_KINDS):
             arrays[f"impulse_{kind}_angular"] = W[:, a, :, :3]
             arrays[f"impulse_{kind}_linear"] = W[:, a, :, 3:]
@@ -433,29 +441,59 @@ class MujocoRecorder(EngineRecorder):
         self._raw = []
         self._ns = 0
         self._gap[:] = False
-        self.recorder.write(**arrays)
+        self.recorder.write(owned=True, **arrays)  # W and work are this block's own
 
-    def _integration(self, W, steps, v, r, w) -> np.ndarray:
-        """(ns, N, 6) [angular; linear] the integration kind of each sample's interval (the bodies
-        whose joint kind is logged; 0 elsewhere): the momentum change MuJoCo's steps gave each
-        body, ``P = m v``, ``L = R diag(I) R^T w`` of the engine's state at the interval's ends,
-        less the other kinds' impulses ``W`` (ns, kinds, N, 6) and ``m g dt`` (docs/log-format.md,
-        "The integration kind"). The first sample of the
-        run has no interval: 0. Keeps the last sample's momenta for the next block."""
-        model = self.model
+    def _integration(self, W, ns: int):
+        """The integration kind of each waiting sample's interval, written into ``W`` (ns, kinds,
+        nbody, 6) [angular; linear] at ``W[:, integration, ids]`` (the bodies whose joint kind is
+        logged; 0 elsewhere): the momentum change MuJoCo's steps gave each body, ``P = m v``,
+        ``L = R diag(I) R^T w`` of the engine's state at the interval's ends, less the other kinds'
+        impulses and ``m g dt`` (docs/log-format.md, "The integration kind"). Returns the momenta
+        ``P``, ``L`` (ns, N, 3), logged as the samples' momenta. The first sample of the run has
+        no interval: 0. Keeps the last sample's momenta for the next block. Compiled
+        (``rblog.adapters._hook.integration``) when the build has it, else numpy (the same
+        formulas in the same order: :meth:`_integration_numpy`)."""
+        try:
+            from rblog.adapters._hook import integration
+        except ImportError:
+            return self._integration_numpy(W, ns)
+        model, n = self.model, len(self._ids)
+        if self._integration_fixed is None:
+            c = np.ascontiguousarray
+            logged = np.asarray(model.body_impulse_supplied)[:, IMPULSE_KINDS.index("integration")]
+            self._integration_fixed = (
+                c(self._ids, np.int64), c(model.body_mass, np.float64),
+                c(model.body_inertia_diag, np.float64), c(model.gravity, np.float64),
+                c(logged == SUPPLIED_LOGGED, np.int64))
+        ids, mass, inertia, g, logged = self._integration_fixed
+        prev = self._prev_momenta
+        p, L = np.empty((ns, n, 3)), np.empty((ns, n, 3))
+        zero = np.zeros((n, 3))
+        integration(W, ids, mass, inertia, g, logged, np.ascontiguousarray(self._steps[:ns]),
+                    self.dt, prev is not None, int(prev[0]) if prev else 0,
+                    prev[1] if prev else zero, prev[2] if prev else zero, self._r, self._v,
+                    self._w, p, L)
+        self._prev_momenta = (int(self._steps[ns - 1]), p[-1].copy(), L[-1].copy())
+        return p, L
+
+    def _integration_numpy(self, W, ns: int):
+        """:meth:`_integration` in numpy (the reference of the compiled one)."""
+        model, ids = self.model, self._ids
+        steps, v, r, w = self._steps[:ns], self._v[:ns], self._r[:ns], self._w[:ns]
         m = np.asarray(model.body_mass, np.float64)
         inertia = np.asarray(model.body_inertia_diag, np.float64)
-        p = m[None, :, None] * v
-        w_body = np.einsum("snji,snj->sni", r, w)
-        L = np.einsum("snij,snj->sni", r, inertia[None] * w_body)
-        prev = getattr(self, "_prev_momenta", None)
+        p, L = momenta(m, inertia, r, v, w)
+        prev = self._prev_momenta
         if prev is None:
             prev = (steps[0], p[0], L[0])
         step0 = np.concatenate([[prev[0]], steps[:-1]])
         dt = (steps - step0) * self.dt
         dp = p - np.concatenate([prev[1][None], p[:-1]])
         dl = L - np.concatenate([prev[2][None], L[:-1]])
-        forces = W[:, :IMPULSE_KINDS.index("integration")].sum(axis=1)  # the kinds before it
+        Wb = W[:, :, ids]
+        forces = Wb[:, 0] + Wb[:, 1]  # the kinds before integration, in order
+        for a in range(2, IMPULSE_KINDS.index("integration")):
+            forces += Wb[:, a]
         out = np.empty((len(steps), len(m), 6))
         out[..., 3:] = dp - m[None, :, None] * np.asarray(model.gravity, np.float64) * dt[:, None,
                                                                                            None]
@@ -463,8 +501,9 @@ class MujocoRecorder(EngineRecorder):
         out[..., :3] = dl - forces[..., :3]
         logged = np.asarray(model.body_impulse_supplied)[:, IMPULSE_KINDS.index("integration")]
         out[:, logged != SUPPLIED_LOGGED] = 0.0  # none or missing (the Model's table)
-        self._prev_momenta = (steps[-1], p[-1].copy(), L[-1].copy())
-        return out
+        W[:, IMPULSE_KINDS.index("integration"), ids] = out
+        self._prev_momenta = (int(steps[-1]), p[-1].copy(), L[-1].copy())
+        return p, L
 
     def _captured(self):
         """The compiled capture's steps since the last flush, as _packed_contact_dict, or None."""

@@ -33,7 +33,9 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
 * **geoms** (``getCollisionShapeData``): sphere ``[r]``; box half extents; capsule and cylinder
   ``[r, length/2]`` (pybullet's length is the cylinder part); mesh: the vertices of
   ``getMeshData`` (Bullet collides with their convex hull); plane: normal ``dims`` turned onto the
-  geom's +z. Materials per link (``getDynamicsInfo``): lateral friction and restitution, combined by
+  geom's +z; a static box that is a ground slab (GROUND_SLAB_HALF_EXTENT_M, GROUND_SLAB_ASPECT:
+  pybullet_data's ``plane.urdf`` collides as a 200 x 200 x 10 m box) is the plane of its upper
+  face. Materials per link (``getDynamicsInfo``): lateral friction and restitution, combined by
   Bullet's product. Collision filter: Bullet's defaults (dynamic: group 1, mask all; static:
   group 2, mask all but 2; rule "and"); links of one multibody do not collide unless loaded with
   ``URDF_USE_SELF_COLLISION`` (its geoms share a bit of their own in the group, absent from the
@@ -143,6 +145,37 @@ def _mat_xyzw(q: np.ndarray) -> np.ndarray:
                      np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
 
 
+#: a static box whose two larger half extents are both at least GROUND_SLAB_HALF_EXTENT_M and
+#: GROUND_SLAB_ASPECT times its smallest is a ground slab, logged as the plane of its upper face
+#: (pybullet_data's plane.urdf collides as a box of half extents 100, 100, 5 m below z = 0: the
+#: plane z = 0, drawn 100 m x 100 m either way; only a body 10 m under it could tell them apart)
+GROUND_SLAB_HALF_EXTENT_M = 50.0
+GROUND_SLAB_ASPECT = 10.0
+
+
+def _ground_slab(half, pos, q, up):
+    """The plane a static box is logged as when it is a ground slab, else None: the box of half
+    extents ``half`` (3,) centred at ``pos`` with orientation ``q`` (wxyz) in its link's frame,
+    whose world orientation is ``up`` (3, 3). Returns (size [hx, hy, 0], the centre of the upper
+    face (3,), its orientation wxyz (4,)) in the link's frame: +z the face's outward normal (of
+    the two faces across the thin axis i, the one facing most along world +z: pybullet's up),
+    x, y along the box axes i+1, i+2."""
+    i = int(np.argmin(half))
+    others = np.delete(half, i)
+    if not (others.min() >= GROUND_SLAB_HALF_EXTENT_M and
+            others.min() >= GROUND_SLAB_ASPECT * half[i]):
+        return None
+    from rblog.contract.orientation import matrix_to_quat
+
+    R = quat_wxyz_to_matrix(q)
+    s = 1.0 if (up @ R)[2, i] >= 0.0 else -1.0       # the upper face's normal: s e_i (box frame)
+    e = np.eye(3)
+    j, k = (i + 1) % 3, (i + 2) % 3
+    frame = np.stack([e[j], s * e[k], s * e[i]], axis=1)  # the plane's x, y, z in the box frame
+    return ([half[j], half[k], 0.0], np.asarray(pos, np.float64) + R @ (s * half[i] * e[i]),
+            quat_mul(q, matrix_to_quat(frame)))
+
+
 def _z_to(n) -> np.ndarray:
     """(4,) wxyz quaternion turning +z onto the unit vector n."""
     n = np.asarray(n, np.float64) / np.linalg.norm(n)
@@ -234,6 +267,9 @@ def _geoms(call, pb, world: World, bid: int, link: int, row: int, label: str, po
         verts = None
         if gtype == pb.GEOM_SPHERE:
             kind, size = "sphere", [dims[0], 0.0, 0.0]
+        elif gtype == pb.GEOM_BOX and row < 0 and (slab := _ground_slab(
+                dims / 2.0, pos, q, quat_wxyz_to_matrix(pose_world[1]))) is not None:
+            kind, (size, pos, q) = "plane", slab  # plane.urdf: its 200 x 200 x 10 m box's top
         elif gtype == pb.GEOM_BOX:
             kind, size = "box", dims / 2.0
         elif gtype in (pb.GEOM_CAPSULE, pb.GEOM_CYLINDER):

@@ -681,12 +681,7 @@ class _BlockChunkBuilder:
             total = int(rec_size[j:j1].sum())
             if self._count + total > len(self._buf):
                 self._grow(self._count + total)
-            out = self._buf
-            out[(start[:, None] + np.arange(_MESSAGE_HEAD)).reshape(-1)] = head[j:j1].reshape(-1)
-            lo, hi = int(ends[j]), int(ends[j1])
-            # payload byte b of message i lands at its record's start + head + (b - ends[i])
-            out[np.repeat(start + _MESSAGE_HEAD - ends[j:j1], size[j:j1]) + np.arange(lo, hi)] = \
-                data[lo:hi]
+            _encode.put_records(head[j:j1], data, ends[j:j1 + 1], self._buf, start)
             self._count += total
             self._index(np.full(j1 - j, channel), ns[j:j1].astype(np.uint64),
                         start.astype(np.uint64))

@@ -523,7 +523,7 @@ def _arr(v, name, shape):
 def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxyz=None,
                 quat_xyzw=None, rotation=None, velocity=None, linear_momentum=None,
                 angular_velocity=None, angular_momentum=None, contacts=None,
-                **interval) -> Trajectory:
+                owned: bool = False, **interval) -> Trajectory:
     """One block of the contract from the state an engine holds (T samples, N bodies, world frame).
 
     Give the orientation as ``quat_wxyz`` (or ``quat_xyzw``) and/or ``rotation`` (T, N, 3, 3)
@@ -537,7 +537,9 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     ``interval``: the per-interval channels (INTERVAL_CHANNELS: ``impulse_<kind>_linear`` /
     ``_angular`` (T, N, 3), ``work_<kind>`` (T, N)), exactly those of the kinds the model
     declares (``body_impulse_supplied`` / ``body_work_supplied``); a body's values where it does
-    not supply that kind are logged as NaN.
+    not supply that kind are logged as NaN. ``owned``: the ``interval`` arrays are the caller's
+    to give away (float64 views of its own fresh buffers, as an engine adapter's block): the block
+    keeps them as they are, without a copy, and the NaN is written into them.
     """
     t = _float_array(t, "t", "write").reshape(-1)
     if not np.isfinite(t).all():
@@ -608,7 +610,7 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     elif contacts is not None and not isinstance(contacts, Contacts):
         raise RecordError(f"contacts: a {type(contacts).__name__}, expected a dict of arrays "
                           "(see make_contacts) or an rblog.Contacts")
-    chans = _interval_channels(model, interval, T, n)
+    chans = _interval_channels(model, interval, T, n, copy=not owned)
     block = derive(model, info, step, t, position, p, quat_wxyz, rotation, lw, contacts=contacts)
     for name, a in chans.items():
         setattr(block, name, a)
@@ -619,8 +621,9 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     return block
 
 
-def _interval_channels(model: Model, given: dict, T: int, n: int) -> dict:
-    """The block's per-interval channels, checked against what the model declares."""
+def _interval_channels(model: Model, given: dict, T: int, n: int, copy: bool = True) -> dict:
+    """The block's per-interval channels, checked against what the model declares (copies of
+    the given arrays, or with ``copy=False`` the arrays themselves when they are float64)."""
     from rblog.record._common import run_interval_channels
 
     want = run_interval_channels(model)
@@ -640,7 +643,9 @@ def _interval_channels(model: Model, given: dict, T: int, n: int) -> dict:
     out = {}
     for name in want:
         trail = INTERVAL_CHANNELS[name]
-        a = np.array(_arr(given[name], name, (T, n, *trail)), np.float64)
+        a = _arr(given[name], name, (T, n, *trail))
+        if copy:
+            a = np.array(a, np.float64)
         kind = name.split("_")[1]
         sup = (model.body_impulse_supplied[:, IMPULSE_KINDS.index(kind)] if name.startswith("impulse")
                else model.body_work_supplied[:, WORK_KINDS.index(kind)]) == 1  # SUPPLIED_LOGGED

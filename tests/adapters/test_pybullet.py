@@ -438,3 +438,33 @@ def test_a_removed_body_is_one_line(client):
     with pytest.raises(AdapterError, match=r"client \d+ after a step: pybullet: .*a body removed"):
         rec()
     rec.close(truncated=True)
+
+
+@pytest.mark.parametrize("flip", [False, True])
+def test_ground_slab_is_a_plane_and_a_static_box_stays_a_box(client, flip):
+    """pybullet_data's plane.urdf collides as a 200 x 200 x 10 m box whose top face is z = 0
+    (its URDF: box size 200 200 10 at xyz 0 0 -5): logged as the plane of that face, +z up,
+    drawn 100 m x 100 m either way; the same slab loaded upside down (rolled 180 deg about x:
+    the box spans z = 0 .. 10 m) gives the plane of its upper face, normal world +z; a 2 x 2 x 0.2 m static box stays a box."""
+    pb.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=client)
+    orn = [1.0, 0.0, 0.0, 0.0] if flip else [0.0, 0.0, 0.0, 1.0]  # xyzw: 180 deg about x
+    pb.loadURDF("plane.urdf", [0.0, 0.0, 0.0], orn, physicsClientId=client)
+    box = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[1.0, 1.0, 0.1], physicsClientId=client)
+    pb.createMultiBody(0.0, box, basePosition=[0, 0, 3], physicsClientId=client)
+    pb.createMultiBody(1.0, pb.createCollisionShape(pb.GEOM_SPHERE, radius=0.1,
+                                                    physicsClientId=client),
+                       basePosition=[0, 0, 5], physicsClientId=client)
+    rec = PybulletRecorder(client)
+    m = rec.model
+    rec.close()
+    names = ("sphere", "box", "capsule", "cylinder", "ellipsoid", "mesh", "plane")
+    # the fixture's own GEOM_PLANE first
+    assert [names[int(t)] for t in m.geom_type] == ["plane", "plane", "box", "sphere"]
+    assert m.geom_name[1] == "plane/planeLink"
+    np.testing.assert_allclose(m.geom_size[1], [100.0, 100.0, 0.0], rtol=0, atol=0)
+    # the upper face: z = 0 as loaded, z = +10 upside down (the box's centre at +5)
+    np.testing.assert_allclose(m.geom_pos_body[1], [0, 0, 10.0 if flip else 0.0], rtol=0,
+                               atol=1e-12)
+    normal = quat_wxyz_to_matrix(m.geom_quat_wxyz_body[1])[:, 2]
+    np.testing.assert_allclose(normal, [0, 0, 1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(m.geom_size[2], [1.0, 1.0, 0.1], rtol=0, atol=1e-12)

@@ -143,11 +143,22 @@ def test_geoms_equal_pybullets_own_at_every_sample(world):
         sds = shapes[(bid, link)]
         sd = sds[k]
         gtype = PB_TYPES[sd[2]]
-        assert GEOM_NAMES[int(m.geom_type[g])] == gtype
-        np.testing.assert_allclose(m.geom_size[g], _expected_size(gtype, sd[3]), rtol=0, atol=POSE_TOL)
         lp, lr = np.array(sd[5]), _mat(sd[6])
-        if gtype == "plane":  # the plane's normal (pybullet's dims) is the geom's +z
-            normal_local = lr @ np.array(sd[3])
+        if gtype == "box" and b < 0 and min(sd[3][:2]) >= 100.0:
+            # plane.urdf's 200 x 200 x 10 m box is logged as the plane of its top face (+z)
+            assert sd[3][2] < sd[3][0] / 10 and GEOM_NAMES[int(m.geom_type[g])] == "plane"
+            np.testing.assert_allclose(m.geom_size[g], [sd[3][0] / 2, sd[3][1] / 2, 0], rtol=0,
+                                       atol=POSE_TOL)
+            gtype, lp = "plane", lp + lr @ np.array([0.0, 0.0, sd[3][2] / 2])
+            normal_local = lr[:, 2]
+        assert GEOM_NAMES[int(m.geom_type[g])] == gtype
+        if gtype == "plane" and PB_TYPES[sd[2]] == "plane":
+            np.testing.assert_allclose(m.geom_size[g], _expected_size(gtype, sd[3]), rtol=0,
+                                       atol=POSE_TOL)
+            normal_local = lr @ np.array(sd[3])  # the plane's normal (pybullet's dims) is its +z
+        elif gtype != "plane":
+            np.testing.assert_allclose(m.geom_size[g], _expected_size(gtype, sd[3]), rtol=0,
+                                       atol=POSE_TOL)
         for t in range(len(tr.t)):
             if b < 0:
                 pw, rw = p0, r0
