@@ -138,3 +138,45 @@ def test_a_joint_at_bullets_velocity_bound_is_not_judged():
     assert res.passed, [f.message for f in res.findings]
     assert res.stats["balance_intervals_not_judged"] == at[:, 6].sum()
     assert "not judged in" in res.reason and "lbr_iiwa_link_7" in res.reason
+
+
+@pytest.mark.parametrize("mode", ["position", "velocity"])
+def test_a_motor_constraint_is_counted_once(mode):
+    """POSITION_CONTROL holding BENT, and VELOCITY_CONTROL following 0.3 sin(t / 0.083 s) rad/s,
+    both at up to 300 N m: Bullet's motor is a constraint (its impulse appliedJointMotorTorque x
+    dt, not in the reaction), logged once as a couple on the child and the parent; every link's
+    dL equals its logged angular impulses against pybullet's own velocities (measured: 3.9e-7
+    and 3.0e-5 N m s at most, the motors' impulses up to 0.18 and 0.21 N m s)."""
+    cid = pb.connect(pb.DIRECT)
+    try:
+        pb.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=cid)
+        pb.setGravity(0.0, 0.0, -9.81, physicsClientId=cid)
+        b = pb.loadURDF("kuka_iiwa/model.urdf", useFixedBase=True, physicsClientId=cid)
+        js = list(range(pb.getNumJoints(b, physicsClientId=cid)))
+        for j, q in enumerate(BENT):
+            pb.resetJointState(b, j, q, physicsClientId=cid)
+        inertia = np.array([pb.getDynamicsInfo(b, j, physicsClientId=cid)[2] for j in js])
+        rec = PybulletRecorder(cid, keep=True)
+        st, motor = [_state(cid, b, len(js))], []
+        for k in range(240):
+            if mode == "position":
+                pb.setJointMotorControlArray(b, js, pb.POSITION_CONTROL, targetPositions=BENT,
+                                             forces=[300.0] * len(js), physicsClientId=cid)
+            else:
+                pb.setJointMotorControlArray(b, js, pb.VELOCITY_CONTROL,
+                                             targetVelocities=[0.3 * np.sin(k / 20)] * len(js),
+                                             forces=[300.0] * len(js), physicsClientId=cid)
+            pb.stepSimulation(physicsClientId=cid)
+            rec()
+            st.append(_state(cid, b, len(js)))
+            motor.append([s[3] for s in pb.getJointStates(b, js, physicsClientId=cid)])
+        rec.close()
+    finally:
+        pb.disconnect(physicsClientId=cid)
+    tr = rec.trajectory
+    ang = lambda x, i: x[i][1] @ (inertia[i] * (x[i][1].T @ x[i][3]))
+    dl = np.array([[ang(b1, i) - ang(b0, i) for i in js] for b0, b1 in zip(st[:-1], st[1:])])
+    ja = sum(tr.impulse(k)[1][1:] for k in ("contact", "applied", "passive", "joint")
+             if tr.impulse(k) is not None)
+    assert np.abs(motor).max() * tr.info.dt > 0.1  # once more, or missing, would show
+    assert np.linalg.norm(dl - ja, axis=2).max() <= 1e-4  # 3x the velocity case's 3.0e-5
