@@ -918,5 +918,5 @@ def load_shipped(name: str, client: int = 0) -> None:
             load("cube_small.urdf", (0.05 * (k - 2), 0.02 * k, 0.1 + 0.06 * k))
 
 
-__all__ = ["CONTACT_ROWS", "DAMPING_DEFAULT", "IMPULSE_KINDS", "PybulletRecorder",
-           "SHIPPED_WORLDS", "Stepper", "World", "body_table", "inspect", "load_shipped", "settings"]
+__all__ = ["CONTACT_ROWS", "DAMPING_DEFAULT", "IMPULSE_KINDS", "MAX_COORDINATE_VELOCITY",
+           "PybulletRecorder", "SHIPPED_WORLDS", "Stepper", "World", "body_table", "inspect", "load_shipped", "settings"]
