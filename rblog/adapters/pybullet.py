@@ -919,4 +919,5 @@ def load_shipped(name: str, client: int = 0) -> None:
 
 
 __all__ = ["CONTACT_ROWS", "DAMPING_DEFAULT", "IMPULSE_KINDS", "MAX_COORDINATE_VELOCITY",
-           "PybulletRecorder", "SHIPPED_WORLDS", "Stepper", "World", "body_table", "inspect", "load_shipped", "settings"]
+           "PybulletRecorder", "SHIPPED_WORLDS", "Stepper", "World", "body_table", "inspect",
+           "load_shipped", "settings"]
