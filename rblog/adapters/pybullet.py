@@ -76,6 +76,15 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
     log; the analyzers do not judge those rows in that interval). Measured on r2d2
     (falling onto its wheels, motors on): the balance of a link closes to a median 1.7e-7 N s per step, 5.3e-4 N s at most in the steps of the impact (joint
     impulses ~0.4 N s), against ~8 N s without the joint impulses.
+    Under ``TORQUE_CONTROL`` pybullet adds the torque in the ABA (``addJointTorque``): the
+    reaction carries it and ``appliedJointMotorTorque`` is 0, so it is counted once (measured on
+    kuka bent and gravity-compensated, torques up to 0.18 N m s a step: each link's logged
+    impulses + m g dt equal m dv from getLinkState to 9.8e-5 N s, dL to 4.3e-6 N m s; URDF joint
+    damping, applied the same way, likewise). Bullet clamps every generalized velocity of a
+    multibody to +-MAX_COORDINATE_VELOCITY (a joint's, and the world components of a free
+    base's w and v): a step that ends with one there has NaN joint impulses on the rows it moves
+    (the joint's child and its descendants; every row of the multibody for its base), a
+    momentum change reported nowhere (measured: kuka's link 7 at 100 rad/s, 0.0985 N m s a step).
   - ``body_impulse_supplied``: logged as above; none for the actuator (the motors act inside
     the joints), the joint of a body without joints and the damping of a maximal-coordinates body
     (measured: no damping); missing (named in ``engine_settings["missing"]``): contacts and joints
@@ -106,6 +115,12 @@ from rblog.contract.orientation import quat_wxyz_to_matrix
 
 #: pybullet's default linear and angular damping of a multibody (btMultiBody: 0.04f, a float32)
 DAMPING_DEFAULT = float(np.float32(0.04))
+#: Bullet's bound on every generalized velocity of a multibody (btMultiBody's
+#: m_maxCoordinateVelocity, 100 by default; pybullet's changeDynamics(maxJointVelocity=...)
+#: changes it and reports it nowhere): applyDeltaVeeMultiDof clamps each joint velocity and each
+#: world component of the base's angular and linear velocity to +-this, a momentum change no
+#: force accounts for
+MAX_COORDINATE_VELOCITY = 100.0
 #: pybullet.JOINT_* -> the contract's joint type names
 JOINT_TYPES = {0: "hinge", 1: "slide", 2: "ball", 3: "planar", 4: "fixed"}
 #: Bullet's default collision filter (btBroadphaseProxy::DefaultFilter / StaticFilter / AllFilter)
@@ -588,16 +603,31 @@ class Stepper:
         self.limit_lo, self.limit_hi = lim[:, 0], lim[:, 1]
         self.limited = np.isfinite(self.limit_lo) & self.motor_ok
         self.q_start = None  # the limited joints' positions at the next step's start
+        # the rows whose velocity a clamped generalized velocity sets (Bullet's velocity bound):
+        # joint k's child row and its descendants (subtree[k]), and every row of a multibody
+        # whose free base is clamped (free_bases: (base row, its multibody's rows))
+        n, parent = world.n, np.array(world.parent, np.int64).reshape(world.n)
+        self.subtree = np.zeros((k, n), bool)
+        if self.motor_ok:
+            for kk, row in enumerate(np.asarray(jt["body"], np.int64).reshape(k)):
+                for r in range(n):
+                    a = r
+                    while a >= 0 and a != row:
+                        a = int(parent[a])
+                    self.subtree[kk, r] = a == row
+        self.free_bases = [(rows[0], [r for r in rows if r >= 0])
+                           for _, _, rows in world.multibodies if rows[0] >= 0]
 
     def _joints(self, x, r, n, dt):
         pb, c = self.pb, self.client
-        react, motor, pos = [], [], []
+        react, motor, pos, vel = [], [], [], []
         for bid, links, _ in self.calls:
             if links:
                 states = pb.getJointStates(bid, links, physicsClientId=c)
                 react += [s[2] for s in states]
                 motor += [s[3] for s in states]
                 pos += [s[0] for s in states]
+                vel += [s[1] for s in states]
         rf = np.array(react, np.float64).reshape(len(react), 6)
         j, p = self.jointed, self.jointed_parent
         # the reaction: force and torque (about the child's centre of mass) in the child's frame
@@ -639,6 +669,21 @@ class Stepper:
                     lin[rows] = np.nan
                     ang[rows] = np.nan
             self.q_start = q
+        # a generalized velocity at Bullet's bound after the step was clamped there: the
+        # momentum it removed from the rows it moves is reported nowhere, so their joint impulse
+        # is NaN for this interval (measured on kuka under TORQUE_CONTROL, gravity compensated:
+        # joint 7 at 100 rad/s leaves its link 0.0985 N m s a step unexplained; 1e-5..1e-4 on
+        # the other links, which are not clamped)
+        if self.motor_ok and len(vel):
+            lim = MAX_COORDINATE_VELOCITY
+            clamped = self.subtree[np.abs(np.array(vel, np.float64)) >= lim].any(axis=0)
+            v_now, w_now = self.state[2], self.state[3]
+            for base, rows in self.free_bases:
+                if max(np.abs(v_now[base]).max(), np.abs(w_now[base]).max()) >= lim:
+                    clamped[rows] = True
+            if clamped.any():
+                lin[clamped] = np.nan
+                ang[clamped] = np.nan
 
     def take(self):
         """The impulses accumulated since the last take (dict of (N, 3)), zeroing them."""
@@ -909,5 +954,6 @@ def load_shipped(name: str, client: int = 0) -> None:
             load("cube_small.urdf", (0.05 * (k - 2), 0.02 * k, 0.1 + 0.06 * k))
 
 
-__all__ = ["CONTACT_ROWS", "DAMPING_DEFAULT", "IMPULSE_KINDS", "PybulletRecorder",
-           "SHIPPED_WORLDS", "Stepper", "World", "body_table", "inspect", "load_shipped", "settings"]
+__all__ = ["CONTACT_ROWS", "DAMPING_DEFAULT", "IMPULSE_KINDS", "MAX_COORDINATE_VELOCITY",
+           "PybulletRecorder", "SHIPPED_WORLDS", "Stepper", "World", "body_table", "inspect",
+           "load_shipped", "settings"]
