@@ -15,6 +15,13 @@
 // Waking: a worker spins on the call generation for WAKE_SPIN_US after its last block (a step's
 // stages follow each other within microseconds, and a futex wake-up costs tens of them), then
 // sleeps on a condition variable.
+//
+// Resizing keeps the threads: a smaller size parks the workers past it (they sleep until a
+// larger size wakes them), a larger one wakes parked workers and starts new ones only past every
+// thread started so far. So a caller that switches sizes (bench_pile.py's interleaved 1- and
+// 2-thread worlds set theirs before every chunk) meets warm, sleeping workers, not threads that
+// are still starting when the first call's blocks are handed out (which looked like a
+// descheduled worker to the solve's hand-over test, solve_stages.cpp).
 #pragma once
 
 #include <atomic>
@@ -107,7 +114,7 @@ public:
     TaskPool(const TaskPool&) = delete;
     TaskPool& operator=(const TaskPool&) = delete;
 
-    int threads() const { return n_threads_; }
+    int threads() const { return n_threads_.load(std::memory_order_relaxed); }
     // Calls handed to the workers so far (each ends with a wait for its last block), and the
     // blocks of those calls that workers other than the caller ran.
     std::int64_t calls() const { return calls_.load(std::memory_order_relaxed); }
@@ -122,14 +129,18 @@ public:
     bool held() const { return wall_ns() < hold_until_.load(std::memory_order_relaxed); }
 
     // Number of threads, including the caller's; 1 = no workers.
+    // Called between calls (not during one).
     void resize(int n_threads) {
         if (n_threads < 1) n_threads = 1;
-        if (n_threads == n_threads_) return;
-        stop();
-        n_threads_ = n_threads;
-        quit_.store(false);
+        if (n_threads == threads()) return;
+        {
+            std::lock_guard<std::mutex> lk(m_);
+            n_threads_.store(n_threads, std::memory_order_release);
+        }
+        park_cv_.notify_all();
         const std::uint32_t seen = gen_.load();
-        for (int w = 1; w < n_threads_; ++w) workers_.emplace_back([this, w, seen] { loop(w, seen); });
+        for (int w = int(workers_.size()) + 1; w < n_threads; ++w)
+            workers_.emplace_back([this, w, seen] { loop(w, seen); });
     }
 
     // fn(block, worker) for block in [0, n_blocks); returns when all are done. The first
@@ -137,7 +148,7 @@ public:
     // call at a time per pool (others wait).
     void run(std::int64_t n_blocks, const std::function<void(std::int64_t, int)>& fn) {
         if (n_blocks <= 0) return;
-        if (n_threads_ <= 1 || n_blocks == 1 || held()) {
+        if (threads() <= 1 || n_blocks == 1 || held()) {
             for (std::int64_t b = 0; b < n_blocks; ++b) fn(b, 0);
             return;
         }
@@ -184,7 +195,7 @@ private:
             std::uint64_t c = claim_.load(std::memory_order_acquire);
             if (std::uint32_t(c >> 32) != g) return;
             const std::int64_t n = n_blocks_.load(std::memory_order_relaxed);
-            for (std::int64_t b = w; b < n; b += n_threads_) {
+            for (std::int64_t b = w; b < n; b += threads()) {
                 (*fn_.load(std::memory_order_relaxed))(b, w);
                 done_.fetch_add(1, std::memory_order_acq_rel);
             }
@@ -236,6 +247,17 @@ private:
             }
             if (quit_.load()) return;
             seen = gen_.load(std::memory_order_acquire);
+            if (w >= n_threads_.load(std::memory_order_acquire)) {
+                // parked (the pool is smaller than w + 1): asleep until a resize makes it larger;
+                // the call that woke it is then over (resizes come between calls)
+                std::unique_lock<std::mutex> lk(m_);
+                park_cv_.wait(lk, [&] {
+                    return quit_.load() || w < n_threads_.load(std::memory_order_acquire);
+                });
+                if (quit_.load()) return;
+                seen = gen_.load(std::memory_order_acquire);
+                continue;
+            }
             work(seen, w);
         }
     }
@@ -246,15 +268,16 @@ private:
             quit_.store(true);
         }
         cv_.notify_all();
+        park_cv_.notify_all();
         for (auto& t : workers_) t.join();
         workers_.clear();
-        n_threads_ = 1;
+        n_threads_.store(1);
     }
 
-    int n_threads_ = 1;
+    std::atomic<int> n_threads_{1};
     std::vector<std::thread> workers_;
     std::mutex m_, call_;
-    std::condition_variable cv_;
+    std::condition_variable cv_, park_cv_;
     std::atomic<int> sleepers_{0};
     std::atomic<std::int64_t> calls_{0}, worker_blocks_{0};
     std::atomic<std::int64_t> hold_until_{0};

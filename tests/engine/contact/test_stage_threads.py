@@ -173,3 +173,30 @@ def test_dense_cloud_steps_to_the_same_bytes_on_1_2_and_4_threads(threads):
             for k in ("step", "body_a", "body_b", "point", "normal", "separation",
                       "normal_impulse", "friction_impulse", "kind"):
                 assert getattr(a, k).tobytes() == getattr(b, k).tobytes(), (t, k)
+
+
+def test_pool_resized_between_chunks_keeps_the_bytes(threads):
+    """A resize keeps the pool's threads (task_pool.hpp: a smaller size parks the workers past
+    it, a larger one wakes them): the dense cloud stepped in chunks of 5 steps with the pool at
+    4, 2, 1, 3, 2, 4 threads gives the one-thread run's bytes, and the woken workers take part
+    (a parked worker that claimed a block would index per-worker scratch past threads())."""
+    model, state = _dense_cloud()
+    threads(1)
+    one, stats, logs = _step(model, state, 30)
+    world = ContactWorld(model, ContactParams(), rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
+    s = state.copy()
+    n = model.n_bodies
+    outs = [np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros((1, n, 4)), np.zeros((1, n, 3, 3)),
+            np.zeros((1, n, 3))]
+    _core.thread_stats(reset=True)
+    for k, t in enumerate((4, 2, 1, 3, 2, 4)):
+        threads(t)
+        _, bad, _, contacts = world.advance(1e-3, 5, 5, False, s.position, s.linear_momentum,
+                                            s.quat_wxyz, s.rotation, s.angular_momentum_world,
+                                            *outs)
+        assert bad < 0
+        assert contacts.normal_impulse.tobytes() == logs[k].normal_impulse.tobytes(), (k, t)
+    assert _core.thread_stats(reset=True)["pool_worker_blocks"] > 0
+    for k in ("position", "linear_momentum", "quat_wxyz", "rotation", "angular_momentum_world"):
+        assert getattr(one, k).tobytes() == getattr(s, k).tobytes(), k
+    np.testing.assert_array_equal(stats, world.stats)
