@@ -8,9 +8,15 @@
 //
 // * cylinder - plane (closed form): for each cap (c = x -+ h z), its deepest rim point c + r u,
 //   u = -(n - (n.z) z) / |n - (n.z) z| (its gap n.c - off - r |n - (n.z) z|); a level cap (its
-//   rim's heights within r |n - (n.z) z| <= MANIFOLD_TOUCH_BAND_M) also its polygon's vertices,
-//   the rim point then only when deeper than every vertex (a cap within round-off of level has
-//   all its rim at one height: the polygon alone, 4 fixed points after reduction). A tilted cap
+//   rim's heights within r |n - (n.z) z| <= MANIFOLD_TOUCH_BAND_M) or one lying within the
+//   speculative band (its highest rim point's gap, the deepest's + 2 r |n - (n.z) z|, <= spec)
+//   also its polygon's vertices, the rim point then only when deeper than every vertex (a cap
+//   within round-off of level has all its rim at one height: the polygon alone, 4 fixed points
+//   after reduction). A nearly level cap needs the polygon: its one deepest rim point cannot
+//   hold it from tipping about that point, and the far side, inside the band, then sinks into
+//   the plane within the step (a can landing on its rim and settling onto its cap at dt 1e-2
+//   swung between opposite rim points each step, the project stage pushing it out, and its
+//   kinetic energy grew from about 0.13 to 1.1 J while it stayed on its cap). A cap tilted further
 //   keeps only its rim point: the polygon's vertices are material points, and one rolling
 //   towards the bottom approaches the plane at omega r sin(phi), which the solve's linear gap
 //   prediction takes for an impact (a cylinder rolling on its side would be kicked at every
@@ -379,8 +385,10 @@ i64 collide_cylinder_plane(const double* ca, M3 rota, const double* sa, const do
     for (int cap = 0; cap < 2; ++cap) {
         const double zc = cap == 0 ? -h : h;
         double least = INFINITY;
-        // the polygon only for a level cap (module comment): a tilted one rolls on its rim
-        const bool level = r * rho <= cc.manifold_touch_band_m;
+        // the polygon for a level cap or one lying within the speculative band (module
+        // comment): a tilted one rolls on its rim
+        const double s_rim = hc + nl.z * zc - r * rho;
+        const bool level = r * rho <= cc.manifold_touch_band_m || s_rim + 2.0 * r * rho <= spec;
         for (int k = 0; k < CAP_VERTS && level; ++k) {
             double cs, sn;
             cap_angle(k, cs, sn);
@@ -390,7 +398,6 @@ i64 collide_cylinder_plane(const double* ca, M3 rota, const double* sa, const do
             Vec v = c + to_world(rota, {r * cs, r * sn, zc});
             put(P, S, F, count++, v - (0.5 * s) * n, s, 16 * cap + k);
         }
-        const double s_rim = hc + nl.z * zc - r * rho;
         if (rho > 0 && s_rim < least - tie && s_rim <= spec) {
             Vec v = c + zc * z + to_world(rota, {-r * nl.x / rho, -r * nl.y / rho, 0.0});
             put(P, S, F, count++, v - (0.5 * s_rim) * n, s_rim, 16 * cap + 8);
