@@ -11,8 +11,9 @@ engine is given:
   semi-implicit), ``RK4`` and ``implicitfast``. Contacts are off (``<flag contact="disable"/>``)
   in problems without contacts. MuJoCo's contacts are soft and have no coefficient of
   restitution: in the impact problems a restitution e is mapped to the damping ratio of a
-  mass-spring-damper with the same rebound, dampratio = -ln e / sqrt(pi^2 + ln^2 e)
-  (``solref="tc dampratio"``, the spring's omega = 1/(tc dampratio) held at 0.2/dt for stability,
+  spring-damper that lets go when its force vanishes with the same rebound
+  (:func:`rblog.study.engines.mujoco.zeta_of_restitution`; ``solref="tc dampratio"``, the
+  spring's omega = 1/(tc dampratio) held at 0.2/dt for stability,
   impedance near 0.99 by ``solimp``); resting contact keeps MuJoCo's defaults; frictionless
   contacts use ``condim=1``. Free-joint angular velocity (qvel[3:6]) is body frame; rblog's is turned into it.
   A body's constant applied torque (world frame) goes into ``xfrc_applied``.
@@ -40,6 +41,7 @@ import time
 
 import numpy as np
 
+from rblog.study.engines.mujoco import zeta_of_restitution
 from rblog.study.reference import Problem, Samples, quat_to_matrix
 
 PEER_NAMES = ("mujoco", "pybullet", "ode")
@@ -48,15 +50,6 @@ IMPACT_KINDS = ("bounce", "two_sphere")
 #: omega dt of MuJoCo's contact spring in impact problems (explicit stepping is unstable near 2;
 #: 0.2 resolves a contact in ~15 steps)
 MUJOCO_OMEGA_DT = 0.2
-
-
-def _restitution_dampratio(e: float) -> float:
-    if e <= 0:
-        return 1.0
-    if e >= 1:
-        return 0.0
-    le = math.log(e)
-    return -le / math.sqrt(math.pi**2 + le * le)
 
 
 class MujocoPeer:
@@ -101,9 +94,9 @@ class MujocoPeer:
         fr = f' friction="{max(mu, 0.0)!r} 0.005 0.0001"' + ("" if mu > 0 else ' condim="1"')
         if problem.params.get("kind") not in IMPACT_KINDS:
             return fr  # resting contact: MuJoCo's default soft contact
-        # spring-damper with damping ratio z rebounds with e = exp(-pi z / sqrt(1 - z^2)); its
-        # natural frequency is 1 / (tc z): tc = MUJOCO_OMEGA_DT^-1 dt / z keeps omega dt stable
-        z = _restitution_dampratio(e)
+        # the force-released spring-damper with damping ratio z rebounds with e; its natural
+        # frequency is 1 / (tc z): tc = MUJOCO_OMEGA_DT^-1 dt / z keeps omega dt stable
+        z = zeta_of_restitution(e, MUJOCO_OMEGA_DT)
         tc = max(dt / (MUJOCO_OMEGA_DT * max(z, 0.05)), 2.0 * dt, 0.002)
         return f' solref="{tc!r} {z!r}" solimp="0.99 0.99 0.001"' + fr
 

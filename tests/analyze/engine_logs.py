@@ -25,7 +25,7 @@ import pytest
 from rblog.contract.model import SHAPE_SPHERE
 from rblog.contract.trajectory import CONTACT_RESTING, STATIC_BODY, Contacts, RunInfo, derive
 from rblog.engine.scene import load_scene
-from rblog.study.peers import _restitution_dampratio
+from rblog.study.engines.mujoco import zeta_of_restitution
 from rblog.study.reference import quat_to_matrix
 
 #: MuJoCo's contact spring in scenes with restitution: omega dt (rblog.study.peers' choice, stable
@@ -106,7 +106,7 @@ def _mujoco(sc, dt, n_steps, every, info, e_scale=1.0):
         fr = f' friction="{mu!r} 0.005 0.0001"'
         if not bouncy:
             return fr
-        z = max(_restitution_dampratio(e * e_scale), MUJOCO_MIN_DAMPRATIO)
+        z = max(zeta_of_restitution(e * e_scale, MUJOCO_OMEGA_DT), MUJOCO_MIN_DAMPRATIO)
         tc = max(dt / (MUJOCO_OMEGA_DT * z), 2.0 * dt)
         return f' solref="{tc!r} {z!r}" solimp="0.99 0.99 0.001"' + fr
 

@@ -15,7 +15,7 @@ Why each is real (not a false alarm of the check), from the traces in benchmarks
   common centre of mass is not conserved (MuJoCo 4.4e-4, pybullet 3.6e-4 of the scale in mixed;
   one finding per contact event).
 * ``sink`` (any time) and ``resting sink``: MuJoCo's soft contacts (omega dt = 0.2 here) let a
-  ball sink 19 mm at a 4.4 m/s bounce, a 10-box stack at dt = 10 ms 24 mm (7.6 mm at rest), the
+  ball sink 19 mm at a 4.4 m/s bounce, a 10-box stack at dt = 10 ms 6.1 mm at rest, the
   pile 18 mm; pybullet's stack at dt = 10 ms sinks 6 mm, its pile 4.8-5.7 mm (tol 5 mm: marginal, see
   MARGINAL).
 * ``creep``: with the friction inside the Coulomb cone (sliding contacts are not counted):
@@ -72,7 +72,9 @@ def kind(analyzer: str, message: str) -> str:
 KNOWN: dict[tuple[str, str], dict[str, float]] = {
     ("bouncing_ball", "mujoco"): {"penetration: sink": 0.0191},
     ("bouncing_ball", "pybullet"): {"momentum: restitution": 0.59},
-    ("box_stack", "mujoco"): {"penetration: resting sink": 0.00762, "penetration: sink": 0.0239},
+    # measured 2026-12-03 with zeta(e) of the force-released contact (e = 0: zeta 2.5): the stack's
+    # 24 mm landing sink is gone, its resting sink 6.1 mm
+    ("box_stack", "mujoco"): {"penetration: resting sink": 0.00606},
     ("box_stack", "pybullet"): {
         "penetration: creep": 0.00815,
         "penetration: resting sink": 0.0056,
@@ -83,11 +85,6 @@ KNOWN: dict[tuple[str, str], dict[str, float]] = {
     ("mixed", "mujoco"): {
         "momentum: collision angular": 0.000442,
         "momentum: flight angular": 0.00486,
-        # the balls bounce off the 20 deg ramp at e = 0.564 (declared 0.5), hidden before by the
-        # symmetric (1 + e) g D / V term (D = 15.6 ms: 0.094): parabolas fitted to ball0's 22
-        # free-flight samples either side (residual 2e-15 m) touch at 2.4387 m/s and leave at
-        # 1.3683 m/s 15.6 ms later: 0.530..0.620 however gravity during the contact is counted
-        "momentum: restitution": 0.0642,
         # creep from the poses since 7a2eb36 (the velocity trapezoid read 0.975 mm)
         "penetration: creep": 0.000483,
         "penetration: jitter": 0.00382,
@@ -119,31 +116,15 @@ KNOWN: dict[tuple[str, str], dict[str, float]] = {
         # 7.09 mm on 2026-12-01, past the 5 mm tolerance
         "penetration: sink": 0.00709,
     },
-    ("resting_box", "mujoco"): {"penetration: jitter": 0.00203},
     ("resting_box", "pybullet"): {"penetration: creep": 0.000218},
-    # measured 2026-12-02 (translate branch: capsules translated); "penetration: penetration" is
-    # the geom-pair depth of a capsule (no body shape in the contract): MuJoCo's soft contact lets
-    # a capsule dropped on the slope sink 7.3 mm into it at the impact (a sink, as the ball's);
-    # "momentum: momentum": a capsule's angular momentum change in Bullet exceeds its logged
-    # impulses by 1.004x the analyzer's step-error allowance (2.31e-5 against 2.30e-5 kg m^2/s, 16
-    # intervals): Bullet's explicit rotation step, at the allowance's edge
-    # measured 2026-12-02 21:10 UTC (capsule contacts found from their geoms); MuJoCo's
-    # "momentum: restitution" (0.146) is MuJoCo's: its balls rebound at e = 0.195-0.245 for a
-    # configured 0.1, because the translation's damping ratio zeta(e) (rblog/study/engines/
-    # mujoco.py) is the linear oscillator's that returns to r = 0, while MuJoCo's soft contact
-    # lets go when its force vanishes, still r = 0.30 v0/omega0 deep: that oscillator's e is 0.253
-    # (integrated at h = 1e-6/omega0), MuJoCo's impedance 0.99 and omega dt = 0.2 take it to
-    # ~0.2. A capsule's friction
-    # cone against the slope (a static box) is not judged: its centre does not tell which face
-    # it touches (slider3 near the slope's lower end read a normal 78 deg off the face it slides
-    # on, where Bullet's own rows sit on the cone: |f| / J_n = 0.39, mu 0.387)
-    ("shapes", "mujoco"): {
-        "momentum: flight angular": 0.00146,
-        "momentum: restitution": 0.146,
-        "penetration: creep": 0.000153,
-        "penetration: penetration": 0.00733,
-        "penetration: sink": 0.00682,
-    },
+    # measured 2026-12-03 with zeta(e) of the force-released contact (rblog/study/engines/
+    # mujoco.py; tests/study/test_mujoco_restitution.py: MuJoCo's balls rebound at the scene's e):
+    # the restitution, sink and capsule penetration findings are gone; the explicit rotation
+    # step's flight angular drift remains. A capsule's friction cone against the slope (a static
+    # box) is not judged: its centre does not tell which face it touches (slider3 near the slope's
+    # lower end read a normal 78 deg off the face it slides on, where Bullet's own rows sit on
+    # the cone: |f| / J_n = 0.39, mu 0.387)
+    ("shapes", "mujoco"): {"momentum: flight angular": 7.25e-05},
     # re-measured 2026-12-03 with the hulls and cylinders in shapes.toml: MuJoCo's the same
     # kinds and values; pybullet's capsule "momentum: momentum" (at 1.004x the allowance's edge)
     # no longer appears

@@ -421,8 +421,11 @@ def test_hull_rests_on_its_face_at_the_closed_form_less_the_engines_depth(engine
     sunk = HEX_H - x[0, 2]
     # measured (sunk; rows' depths): MuJoCo 1.08e-7 m (1.0e-7 .. 1.14e-7, 4 rows), Bullet 1.0e-5
     # m (9.84e-6 .. 1.02e-5, 4 rows; with Bullet's default 1 mm margin it floated 0.99 mm high),
-    # ODE 1.06e-12 m (6 rows, all 1.06e-12)
-    assert depth.min() - 1e-12 <= sunk <= depth.max() + 1e-12, (sunk, depth)
+    # ODE 1.06e-12 m (6 rows, all 1.06e-12). The rows are the step's start, the centre its end:
+    # they may differ by the step's motion |v| dt (MuJoCo's e = 0 contact, zeta 2.5, jitters at
+    # |v| ~1e-6 m/s: sunk 1.0823e-7 m against rows 1.0551e-7 .. 1.0819e-7)
+    band = float(np.abs(v[0]).max()) * DT + 1e-12
+    assert depth.min() - band <= sunk <= depth.max() + band, (sunk, depth, band)
 
 
 @pytest.mark.parametrize("engine", ENGINES)

@@ -14,10 +14,10 @@ Translation (see rblog/study/engines/__init__.py for the common part):
 * materials: MuJoCo combines two geoms' friction by the max and their ``solref`` by a
   solmix-weighted mean. Each geom gets its own friction (``condim`` 3: sliding only; 1 when
   frictionless) and a restitution through the direct solref form ``solref="-k -b"``: reference
-  acceleration ``-b v - k r`` of a spring-damper with ``omega0 = sqrt(k) = omega_dt / dt`` and
-  damping ratio ``zeta(e) = -ln e / sqrt(pi^2 + ln^2 e)`` (a damped oscillator released at
-  contact rebounds with ``e = exp(-pi zeta / sqrt(1 - zeta^2))``), ``b = 2 zeta omega0``, impedance
-  0.99 (``solimp="0.99 0.99 0.001"``) so the soft constraint follows the reference. Where the
+  acceleration ``-b v - k r`` of a spring-damper with ``omega0 = sqrt(k) = omega_dt / dt``,
+  ``b = 2 zeta omega0`` and the damping ratio ``zeta(e)`` of :func:`zeta_of_restitution` (the
+  spring-damper that lets go when its force vanishes, as MuJoCo's contact does), impedance 0.99
+  (``solimp="0.99 0.99 0.001"``) so the soft constraint follows the reference. Where the
   default combination would differ from rblog's effective pair values (different materials), an
   explicit ``<contact><pair>`` with the effective friction and solref overrides it.
 * state and contacts: read by :mod:`rblog.adapters.mujoco` (the one translation of MuJoCo's
@@ -64,14 +64,65 @@ OPTIONS = {
 }
 
 
-def zeta_of_restitution(e: float) -> float:
-    """Damping ratio of a spring-damper whose release rebounds with coefficient e."""
-    if e <= 0:
+def restitution_of_zeta(zeta: float) -> float:
+    """Rebound of a linear spring-damper contact that lets go when its force vanishes.
+
+    Penetration r >= 0 obeys r'' + 2 zeta w r' + w^2 r = 0 from r = 0, r' = v0; the contact
+    pushes with m (w^2 r + 2 zeta w r') and lets go at the first t_c > 0 where that force is 0
+    (still r > 0 deep: MuJoCo's soft contact, whose force cannot pull). With w = 1 (e does not
+    depend on w) and d = sqrt(|1 - zeta^2|):
+
+    * zeta < 1: r = e^{-zeta t} sin(d t) / d; the force vanishes at d t_c = pi - atan2(2 zeta d,
+      1 - 2 zeta^2), e = -r'(t_c) / v0 = e^{-zeta t_c} (zeta sin(d t_c) / d - cos(d t_c));
+    * zeta > 1: roots s1,2 = -zeta +- d, r = (e^{s1 t} - e^{s2 t}) / (2 d); the force vanishes at
+      e^{2 d t_c} = (1 + 2 zeta s2) / (1 + 2 zeta s1) = (2 zeta^2 - 1 + 2 zeta d)^2 (the two
+      factors multiply to 1), e = -r'(t_c) / v0.
+
+    e falls from 1 (zeta = 0) through e^-2 (zeta = 1) towards 0 as zeta grows; an oscillator
+    released at r = 0 instead rebounds with exp(-pi zeta / d), more than this for every zeta.
+    """
+    z = float(zeta)
+    if z <= 0.0:
         return 1.0
-    if e >= 1:
+    if abs(z - 1.0) < 1e-9:
+        z = 1.0 + 1e-9  # e is continuous through critical damping
+    if z < 1.0:
+        d = math.sqrt(1.0 - z * z)
+        th = math.pi - math.atan2(2.0 * z * d, 1.0 - 2.0 * z * z)
+        return math.exp(-z * th / d) * (z * math.sin(th) / d - math.cos(th))
+    d = math.sqrt(z * z - 1.0)
+    s1, s2 = -z + d, -z - d
+    tc = math.log(2.0 * z * z - 1.0 + 2.0 * z * d) / d
+    return -(s1 * math.exp(s1 * tc) - s2 * math.exp(s2 * tc)) / (2.0 * d)
+
+
+def zeta_max(omega_dt: float) -> float:
+    """Largest damping ratio the translation sets: b dt = 2 zeta omega_dt <= 1 (past b dt ~ 2
+    MuJoCo's step reverses the approach velocity each step and the contact blows up; at
+    omega_dt 0.2 that is zeta 2.5, e 0.033)."""
+    return 0.5 / float(omega_dt)
+
+
+def zeta_of_restitution(e: float, omega_dt: float = None) -> float:
+    """Damping ratio whose force-released contact (:func:`restitution_of_zeta`) rebounds with e,
+    by bisection (e falls monotonically in zeta), capped at :func:`zeta_max` (an e below that
+    cap's rebound, e = 0 among them, gets the cap)."""
+    hi = zeta_max(DEFAULT_OMEGA_DT if omega_dt is None else omega_dt)
+    e = float(e)
+    if e >= 1.0:
         return 0.0
-    le = math.log(e)
-    return -le / math.sqrt(math.pi ** 2 + le * le)
+    if e <= restitution_of_zeta(hi):
+        return hi
+    lo = 0.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if restitution_of_zeta(mid) > e:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-15 * hi:
+            break
+    return 0.5 * (lo + hi)
 
 
 def _f(x) -> str:
@@ -134,7 +185,7 @@ class MujocoRun:
         e = float(e)
         omega0 = self.omega_dt / self.dt
         k = omega0 * omega0
-        b = 2.0 * zeta_of_restitution(e) * omega0
+        b = 2.0 * zeta_of_restitution(e, self.omega_dt) * omega0
         return f"{-k!r} {-b!r}"
 
     def _contact_attrs(self, e: float, mu: float) -> str:
