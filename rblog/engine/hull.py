@@ -13,8 +13,8 @@ the given axes are already principal, e.g. a box's corners). ``velocity`` is the
 mass's. The hull's boundary is qhull's triangles (scipy.spatial.ConvexHull), merged into its
 polygonal faces (coplanar to FACE_COPLANAR_RTOL), each an ordered loop of vertex indices.
 
-Hulling needs the ``meshes`` extra (scipy for qhull, trimesh for mesh files): ``pip install
-rblog[meshes]``; without it a hull scene is refused in one line.
+Hulling uses scipy's qhull (a dependency of rblog); a mesh file needs the ``meshes`` extra
+(trimesh): ``pip install rblog[meshes]``; without it a mesh hull is refused in one line.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ HULL_MAX_FACE_VERTICES = 64
 #: a hull thinner than this times its size in some direction is refused as flat
 HULL_MIN_THICKNESS_RTOL = 1e-9
 
-MESHES_HINT = "install rblog[meshes] (pip install 'rblog[meshes]': scipy and trimesh)"
+MESHES_HINT = "install rblog[meshes] (pip install 'rblog[meshes]': trimesh)"
 
 
 @dataclass
@@ -78,7 +78,8 @@ def hull_boundary(points, fail):
     p = np.asarray(points, np.float64).reshape(-1, 3)
     ConvexHull, QhullError = _scipy_hull(p)
     if ConvexHull is None:
-        fail(f"hull bodies need scipy (qhull): {MESHES_HINT}")
+        fail("hull bodies need scipy (qhull), a dependency of rblog that is not installed: "
+             "reinstall rblog (pip install rblog)")
     if len(p) < 4:
         fail(f"{len(p)} points, expected at least 4 points not all in one plane")
     scale = float(np.abs(p - p.mean(axis=0)).max())

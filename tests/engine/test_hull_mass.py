@@ -11,7 +11,7 @@ import pytest
 
 from rblog.engine import mass_properties as mp
 from rblog.engine.hull import build_hull
-from rblog.engine.scene import parse_scene
+from rblog.engine.scene import load_scene, parse_scene
 from rblog.errors import SceneError
 
 trimesh = pytest.importorskip("trimesh")
@@ -173,18 +173,32 @@ def test_validate_prints_the_hull_error(tmp_path):
                                "plane"), lines
 
 
-def test_missing_meshes_extra_is_one_line(monkeypatch):
+def _without(monkeypatch, package):
     import builtins
 
     real = builtins.__import__
 
-    def no_scipy(name, *a, **k):
-        if name.startswith("scipy"):
+    def blocked(name, *a, **k):
+        if name.startswith(package):
             raise ImportError(name)
         return real(name, *a, **k)
 
-    monkeypatch.setattr(builtins, "__import__", no_scipy)
+    monkeypatch.setattr(builtins, "__import__", blocked)
+
+
+def test_missing_meshes_extra_is_one_line(monkeypatch, tmp_path):
+    (tmp_path / "b.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    scene = tmp_path / "s.toml"
+    scene.write_text('[sim]\ndt = 0.001\nduration = 0.01\n[[body]]\nshape = "hull"\nmass = 1.0\n'
+                     'mesh = "b.obj"\n')
+    _without(monkeypatch, "trimesh")
     with pytest.raises(SceneError, match=r"install rblog\[meshes\]"):
+        load_scene(scene)
+
+
+def test_missing_scipy_is_one_line(monkeypatch):
+    _without(monkeypatch, "scipy")
+    with pytest.raises(SceneError, match=r"scipy \(qhull\), a dependency of rblog"):
         parse_scene('[sim]\ndt = 0.001\nduration = 0.01\n[[body]]\nshape = "hull"\nmass = 1.0\n'
                     'vertices = [[0,0,0],[1,0,0],[0,1,0],[0,0,1]]\n')
 
