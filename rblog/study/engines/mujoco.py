@@ -103,7 +103,7 @@ def zeta_max(omega_dt: float) -> float:
     return 0.5 / float(omega_dt)
 
 
-def zeta_of_restitution(e: float, omega_dt: float = None) -> float:
+def zeta_of_restitution(e: float, omega_dt: float | None = None) -> float:
     """Damping ratio whose force-released contact (:func:`restitution_of_zeta`) rebounds with e,
     by bisection (e falls monotonically in zeta), capped at :func:`zeta_max` (an e below that
     cap's rebound, e = 0 among them, gets the cap)."""
