@@ -3,7 +3,10 @@
 // struct with x, y, z (capsule.cpp's V, convex::Vec).
 #pragma once
 
+#include <cmath>
+
 #include "engine/collision.hpp"
+#include "engine/manifold.hpp"
 
 namespace rb {
 
@@ -22,6 +25,25 @@ inline void put_normal(double* nrm, const P& n) {
     nrm[0] = n.x;
     nrm[1] = n.y;
     nrm[2] = n.z;
+}
+
+// The gaps reduce_manifold compares, rounded to this (the true gaps kept): a level face's points
+// are equally deep to round-off, and which four it keeps must not change from step to step
+// (warm starting).
+constexpr double GAP_QUANTUM_M = 1e-9;
+
+// reduce_manifold over P[0:count) (world, m) with gaps S rounded to GAP_QUANTUM_M, in the given
+// order: ids[0:n) are the kept points' indices into P; returns n. N bounds count.
+template <i64 N>
+inline i64 reduce_quantized(const double* nrm, const double (*P)[3], const double* S, i64 count,
+                            i64* ids) {
+    double Q[N], P2[N][3];
+    for (i64 k = 0; k < count; ++k) {
+        Q[k] = std::round(S[k] / GAP_QUANTUM_M) * GAP_QUANTUM_M;
+        ids[k] = k;
+        for (int c = 0; c < 3; ++c) P2[k][c] = P[k][c];
+    }
+    return reduce_manifold(nrm, P2, Q, ids, count);
 }
 
 }  // namespace rb

@@ -317,7 +317,6 @@ int clip_to_polygon(const Feature& ref, const Feature& inc, Vec* out, i64* out_i
 // (within 1e-9 scale) merged, the rest ordered by feature id, and the gaps the reduction compares
 // rounded to GAP_QUANTUM_M (the true gaps kept): a level face's rim points are equally deep to
 // round-off, and which four it keeps must not change from step to step (warm starting).
-constexpr double GAP_QUANTUM_M = 1e-9;
 i64 reduce_stable(const double* nrm, double (*P)[3], double* S, i64* F, i64 count, double scale) {
     i64 m = 0;
     const double tol2 = (1e-9 * scale) * (1e-9 * scale);
@@ -343,14 +342,8 @@ i64 reduce_stable(const double* nrm, double (*P)[3], double* S, i64* F, i64 coun
     for (i64 k = 1; k < m; ++k)
         for (i64 j = k; j > 0 && F[j] < F[j - 1]; --j) swap_point(P, S, F, j, j - 1);
     if (m <= MAX_MANIFOLD_POINTS) return m;
-    double Q[MAX_PTS];
-    for (i64 k = 0; k < m; ++k) Q[k] = std::round(S[k] / GAP_QUANTUM_M) * GAP_QUANTUM_M;
     i64 ids[MAX_PTS];
-    for (i64 k = 0; k < m; ++k) ids[k] = k;
-    double P2[MAX_PTS][3];
-    for (i64 k = 0; k < m; ++k)
-        for (int c = 0; c < 3; ++c) P2[k][c] = P[k][c];
-    const i64 n = reduce_manifold(nrm, P2, Q, ids, m);
+    const i64 n = reduce_quantized<MAX_PTS>(nrm, P, S, m, ids);
     double P3[MAX_MANIFOLD_POINTS][3], S3[MAX_MANIFOLD_POINTS];
     i64 F3[MAX_MANIFOLD_POINTS];
     for (i64 k = 0; k < n; ++k) {

@@ -25,7 +25,6 @@ std::atomic<const Hull*> g_hulls[MAX_HULLS];
 std::atomic<i64> g_count{0};
 std::mutex g_mutex;                            // registration only
 std::vector<std::unique_ptr<Hull>> g_owned;    // the hulls, never freed
-constexpr double GAP_QUANTUM_M = 1e-9;
 struct Pt {
     double x, y, z;
 };
@@ -134,7 +133,7 @@ i64 collide_hull_plane(const double* ca, M3 rota, const double* sa, const double
     // the candidates: every vertex within spec (at most MAX_CLIP_POINTS kept, deepest first
     // when more: a face at rest has at most HULL_MAX_FACE_VERTICES)
     constexpr i64 CAP = HULL_MAX_FACE_VERTICES;
-    double P[CAP][3], S[CAP], Q[CAP];
+    double P[CAP][3], S[CAP];
     i64 F[CAP];
     for (i64 v = 0; v < hl.nv; ++v) {
         const double* p = &hl.vert[3 * v];
@@ -167,13 +166,8 @@ i64 collide_hull_plane(const double* ca, M3 rota, const double* sa, const double
         }
         return count;
     }
-    for (i64 k = 0; k < count; ++k) Q[k] = std::round(S[k] / GAP_QUANTUM_M) * GAP_QUANTUM_M;
     i64 ids[CAP];
-    for (i64 k = 0; k < count; ++k) ids[k] = k;
-    double P2[CAP][3];
-    for (i64 k = 0; k < count; ++k)
-        for (int c = 0; c < 3; ++c) P2[k][c] = P[k][c];
-    const i64 n = reduce_manifold(nrm, P2, Q, ids, count);
+    const i64 n = reduce_quantized<CAP>(nrm, P, S, count, ids);
     for (i64 k = 0; k < n; ++k) {
         const i64 j = ids[k];
         put(pts, sep, fid, k, Pt{P[j][0], P[j][1], P[j][2]}, S[j], F[j]);
