@@ -85,6 +85,16 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
     base's w and v): a step that ends with one there has NaN joint impulses on the rows it moves
     (the joint's child and its descendants; every row of the multibody for its base), a
     momentum change reported nowhere (measured: kuka's link 7 at 100 rad/s, 0.0985 N m s a step).
+  - integration (every row whose joint impulses are logged: links, and a multibody's base):
+    per interval, the row's momentum change ``m v``, ``L = R I R^T w`` between the two samples
+    less its other kinds and ``m g dt``, taken per block before it is written. Bullet steps a
+    multibody in joint coordinates (``u1 = u0 + h udot``, then ``q1 = q0 + h u1``): this is
+    ``K = m [(J(q1) - J(q0)) u1 - h Jdot(q0, u0) u0]`` (docs/log-format.md, "The integration
+    kind"; a pendulum's equals its closed form to 4e-15 N s, K up to 1.2e-3 N s a step), plus,
+    under damping, a force through the joint that the joint sensor's reaction misses (the
+    pendulum: up to 0.49 of the damping impulse; tests/adapters/test_pybullet_integration.py).
+    Before it r2d2's and kuka's links under random motor targets left up to 1.2e-3 and
+    0.082 N s a step or interval unexplained (truth table's false alarms).
   - ``body_impulse_supplied``: logged as above; none for the actuator (the motors act inside
     the joints), the joint of a body without joints and the damping of a maximal-coordinates body
     (measured: no damping); missing (named in ``engine_settings["missing"]``): contacts and joints
@@ -782,6 +792,13 @@ class PybulletRecorder(EngineRecorder):
                 world.missing.setdefault(k, []).extend(world.name)
             engine["contact_rows"] = {**CONTACT_ROWS, "logged": f"none: numSubSteps {substeps} > 1, "
                                       "pybullet reports the last substep's forces only"}
+        # the integration kind (docs/log-format.md): every row whose joint impulses are logged
+        # (a link, or a multibody's base carrying links: Bullet steps both in joint
+        # coordinates, as MuJoCo's adapter logs it for every body with a joint kind); a lone
+        # body keeps its step's error in the balance. Taken per block from the samples'
+        # momenta (_integration, before each flush)
+        joint_col, integ_col = IMPULSE_KINDS.index("joint"), IMPULSE_KINDS.index("integration")
+        sup[sup[:, joint_col] == LOGGED, integ_col] = LOGGED
         self.supplied = sup
         engine.update(missing={k: sorted(set(v)) for k, v in world.missing.items()},
                       collision_filter="Bullet's defaults (pybullet reports neither "
@@ -800,9 +817,14 @@ class PybulletRecorder(EngineRecorder):
         self.stepper = Stepper(world, self.client, self.dt, contacts=substeps <= 1,
                                joints=joint_sensors and substeps <= 1)
         self.block = self.recorder.sample_block(capacity=int(block))
-        # (channel, accumulator) for every channel the body table logs (actuator: none)
+        # (channel, accumulator) for every channel the body table logs (actuator: none); the
+        # integration kind is no accumulator: _integration fills it per block
         self.channels = [(name, name[len("impulse_"):]) for name in vars(self.block)
-                         if name.startswith("impulse_")]
+                         if name.startswith("impulse_") and "_integration_" not in name]
+        self._integ = np.flatnonzero(sup[:, integ_col] == LOGGED)
+        self._prev_momenta = None  # (t, P, L) of the last sample written, for _integration
+        if len(self._integ):
+            self.block.before_flush = self._integration
         self.step_count = int(start_step)
         self._since = 0
         self._sample(None)
@@ -900,6 +922,42 @@ class PybulletRecorder(EngineRecorder):
     def flush(self) -> None:
         """Write the samples gathered so far."""
         self.block.flush()
+
+    def _integration(self, blk, k: int) -> None:
+        """The integration kind of the block's k rows (SampleBlock.before_flush): per
+        interval, each body's with logged joint impulses momentum change (``P = m v``, ``L = R I R^T w`` of the
+        samples, as the log derives them: rblog.contract.derive.state_from_velocities) less its
+        other logged kinds and ``m g dt``. Bullet steps a multibody in joint coordinates (its
+        velocities ``u`` first, from the forces at the step's start, then ``q += h u1``), and
+        a link's centre of mass moves by ``J(q) u``: this is ``K = m [(J(q1) - J(q0)) u1 - h
+        Jdot(q0, u0) u0]`` and its angular part (docs/log-format.md, "The integration kind";
+        tests/adapters/test_pybullet_integration.py holds it to the closed form of a pendulum).
+        An interval whose other kinds are NaN (a joint limit, a clamped velocity) has NaN."""
+        from rblog.contract.derive import state_from_velocities
+
+        model, ids = self.model, self._integ
+        n = model.n_bodies
+        mass = np.ascontiguousarray(model.body_mass, np.float64)
+        inertia = np.ascontiguousarray(model.body_inertia_diag, np.float64)
+        rot = np.empty((k, n, 3, 3))
+        p, L = np.empty((k, n, 3)), np.empty((k, n, 3))
+        state_from_velocities(mass, inertia, np.ascontiguousarray(blk.quat_wxyz[:k]),
+                              np.ascontiguousarray(blk.velocity[:k]),
+                              np.ascontiguousarray(blk.angular_velocity[:k]), rot, p, L)
+        t = blk.t[:k]
+        prev = self._prev_momenta
+        if prev is None:  # the first sample: its interval is empty
+            prev = (t[0], p[0], L[0])
+        dt = np.diff(np.concatenate([[prev[0]], t]))
+        dp = np.diff(np.concatenate([prev[1][None], p]), axis=0)[:, ids]
+        dl = np.diff(np.concatenate([prev[2][None], L]), axis=0)[:, ids]
+        dp -= mass[ids][None, :, None] * np.asarray(model.gravity, np.float64) * dt[:, None, None]
+        for name, _ in self.channels:
+            dst = dp if name.endswith("_linear") else dl
+            dst -= getattr(blk, name)[:k, ids]
+        blk.impulse_integration_linear[:k, ids] = dp
+        blk.impulse_integration_angular[:k, ids] = dl
+        self._prev_momenta = (t[-1], p[-1].copy(), L[-1].copy())
 
 
 

@@ -919,6 +919,10 @@ class SampleBlock:
         self._n_bodies = rec.model.n_bodies
         self._interval = run_interval_channels(rec.model)
         self.n = 0
+        #: called as ``before_flush(block, k)`` with the k filled rows just before they are
+        #: written: a writer fills channels taken over whole intervals there, once per block
+        #: (pybullet's integration kind)
+        self.before_flush = None
         self._new()
 
     def _new(self):
@@ -996,6 +1000,8 @@ class SampleBlock:
         k = self.n
         if not k:
             return
+        if self.before_flush is not None:
+            self.before_flush(self, k)
         arrays = dict(t=self.t[:k], step=self.step[:k])
         for name in (*self._fields, *self._interval):
             arrays[name] = getattr(self, name)[:k]
