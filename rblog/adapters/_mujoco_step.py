@@ -266,6 +266,9 @@ class StepImpulses:
         # RK4: each step's displacement (q1 - q0) / h (mj_differentiatePos), the velocity its
         # forces' work is taken at (the semi-implicit integrators displace by h v1)
         self.v_disp = np.empty((self.cap, m.nv)) if self.rk4 else None
+        # RK4: whether a joint constraint (limit, friction loss, equality) has rows at the
+        # step's first or last stage: its work is then not known (_unknown_rk4_joint_work)
+        self.stage_constrained = np.zeros(self.cap, bool) if self.rk4 else None
         self.v_start = self.v0.copy()  # v0 of the block's first row
         self._compile()
         self._gap_v0 = {}  # row -> its v0 after steps not seen
@@ -336,6 +339,7 @@ class StepImpulses:
                 src.mocap_quat[:] = d.mocap_quat
             src.qacc_warmstart[:] = d.qacc_warmstart
             mj.mj_forward(m, src)
+            self.stage_constrained[k] = (src.ne + src.nf + src.nl + d.ne + d.nf + d.nl) > 0
             np.subtract(v1, self.v0, out=src.qacc)
             src.qacc *= 1.0 / self.h
             mj.mj_rnePostConstraint(m, src)
@@ -400,6 +404,28 @@ class StepImpulses:
         order) when the build has it; the joints' constraint forces (:meth:`_joint_forces`) and
         the velocity the work is taken at (:meth:`_v_work`) and the work of ``xfrc_applied``
         (:func:`_xfrc_work`) come from numpy either way (einsum's sums, not the kernel's)."""
+        W, work = self._resolve()
+        if self.rk4:
+            self._unknown_rk4_joint_work(work)
+        return W, work
+
+    def _unknown_rk4_joint_work(self, work) -> None:
+        """NaN joint work (WORK_KINDS' joint, on every body with a dof) in the RK4 steps with a
+        joint constraint at their first or last stage. RK4's step changes the energy by ``h
+        sum_i b_i f_i . v_i`` over its four stages, and a limit's force is not smooth across
+        them (dm_control's cartpole: the slider's limit force peaks at 46 N inside a step whose
+        first stage's is a fraction of it); the log holds the first stage's force alone, so the
+        step's work of such a constraint is not known (energy does not judge those intervals).
+        Smooth forces (actuators, springs, damping) keep the first stage's work at the
+        step's displacement, the O(h^2) per step the analyzers allow."""
+        flag = self.stage_constrained[:self.k]
+        if flag.any():
+            bodies = np.asarray(self.lay.own).any(axis=1)
+            rows = work[flag, WORK_KINDS.index("joint")]
+            rows[:, bodies] = np.nan
+            work[flag, WORK_KINDS.index("joint")] = rows
+
+    def _resolve(self):
         try:
             from rblog.adapters._hook import resolve
         except ImportError:

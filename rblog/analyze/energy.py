@@ -79,12 +79,18 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
     wsup = np.asarray(model.body_work_supplied, np.int64).reshape(n, len(WORK_KINDS))
     work_known = np.ones(n, bool)
     work = np.zeros((tr.n_samples, n))
+    # intervals in which a body's logged work is NaN (its writer did not know it there: an
+    # RK4 step with a joint limit, MuJoCo's adapter): a stretch ends before them
+    gap = np.zeros((tr.n_samples - 1, n), bool)
     for j, kk in enumerate(WORK_KINDS):
         acts = isup[:, IMPULSE_KINDS.index(kk)] != SUPPLIED_NONE
         w = tr.work(kk)
         known = wsup[:, j] == SUPPLIED_NONE
         if w is not None:
-            known |= ~np.isnan(w[1:]).any(axis=0)
+            nan = np.isnan(w[1:])
+            logged = ~nan.all(axis=0) if len(nan) else np.zeros(n, bool)
+            known |= logged
+            gap |= nan & logged[None, :]
             work += np.nan_to_num(w)
         work_known &= ~acts | known
     cum = np.concatenate([np.zeros((1, n)), np.cumsum(work[1:], axis=0)])
@@ -109,8 +115,15 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
     f_e, f_ke, f_u, f_sp = (np.zeros((tr.n_samples, c_n)) for _ in range(4))
     f_m, f_a = np.zeros(c_n), np.zeros(c_n)
     labels = []
+    gaps = [int(gap[:, c].any(axis=1).sum()) for c in ok]
+    if any(gaps):
+        who = [repr(model.body_name[c[0]]) for c, g_ in zip(ok, gaps) if g_][:3]
+        not_judged.append(f"energy not judged in {sum(gaps)} interval(s) of "
+                          f"{sum(1 for g_ in gaps if g_)} tree(s) ({', '.join(who)}): the work "
+                          "of a load on them is not in the log there (NaN: the writer did not "
+                          "know it, e.g. a joint limit's inside an RK4 step)")
     for j, c in enumerate(ok):
-        f_free[:, j] = free[:, c].all(axis=1)
+        f_free[:, j] = free[:, c].all(axis=1) & ~gap[:, c].any(axis=1)
         f_e[:, j] = e[:, c].sum(axis=1)
         f_ke[:, j] = ke[:, c].sum(axis=1)
         f_u[:, j] = u[:, c].sum(axis=1)
