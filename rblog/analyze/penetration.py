@@ -1,8 +1,10 @@
 """Penetration during resting contact, with jitter and creep.
 
-Separations are recomputed from the logged poses and the model's shapes (rblog.analyze.geometry),
-never taken from the contacts the simulator reported. Per sample, a body is in contact when a
-separation to the ground, a static box or another body is within CONTACT_DISTANCE_M; its primary
+Separations are recomputed from the logged poses and the model's shapes (rblog.analyze.geometry
+for boxes and spheres, rblog.analyze.shapes for every geom of the contract: rule
+"geom_pair_support"), never taken from the contacts the simulator reported. Per sample, a body is
+in contact when a separation to the ground, a static box, another world geom or another body is
+within CONTACT_DISTANCE_M; its primary
 support is the deepest of those, with a witness point at the centre of the patch where the two
 touch (rblog.analyze.geometry: a corner, the crossing of two edges, the middle of an edge's part
 on a face, the centroid of two faces' overlap), so that a body turning about its contact (a box
@@ -189,6 +191,25 @@ RULES: tuple[Rule, ...] = (
          ("tests/analyze/test_sliding.py::"
           "test_a_box_on_an_unloaded_support_slides_and_is_not_creep",
           "tests/analyze/test_sliding.py::test_the_same_slide_on_a_loaded_support_is_creep")),
+    Rule("geom_pair_support", "a body without a v2 shape (capsule, cylinder, ellipsoid, mesh, "
+         "several geoms), or a contact with a world geom that is neither the ground nor a static "
+         "box (a wall plane: partner N + M + w)",
+         "its supports are its geom pairs within CONTACT_DISTANCE (rblog.analyze.shapes, the "
+         "log's collision filter): the deepest per sample, witness at the midpoint of the two "
+         "witness points, no edge or face patch (span 0: the witness slides as it is), reach for "
+         "the rest test from its geoms, resting depth tol from the pair's thinner geom; its "
+         "any-time depth is judged per geom pair (geom_depths); logged static rows go to the "
+         "nearest world geom",
+         ("CONTACT_DISTANCE_M", "PENETRATION_REST_SPEED_MPS"),
+         "a MuJoCo capsule and cylinder resting on a floor slide < 1e-5 m over 0.6 s; a capsule "
+         "rolling without slip at 0.05 rad/s slides 0 to round-off (closed form: x = r theta); "
+         "0.3 mm written into either log reads 0.3 mm",
+         ("tests/analyze/test_geom_rest.py::"
+          "test_a_mujoco_capsule_and_cylinder_resting_on_a_floor_are_clean",
+          "tests/analyze/test_geom_rest.py::"
+          "test_a_creep_of_03_mm_written_into_the_log_is_flagged_on_the_capsule",
+          "tests/analyze/test_geom_rest.py::test_a_capsule_rolling_without_slip_does_not_creep",
+          "tests/analyze/test_geom_rest.py::test_the_same_roll_slipping_03_mm_creeps_03_mm")),
     Rule("depth_limits", "a pair's depth", "resting beyond min(DEPTH_M, DEPTH_FRAC x the inner "
          "radius), at any sample beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x it)",
          ("PENETRATION_DEPTH_M", "PENETRATION_DEPTH_FRAC", "PENETRATION_TRANSIENT_DEPTH_M",
@@ -473,7 +494,7 @@ class PenetrationAnalyzer(Analyzer):
         cd = self.tol["contact_distance_m"]
 
         def compute():
-            if not getattr(model, "n_geoms", 0):
+            if not getattr(model, "n_geoms", 0) or shapes.contacts_disabled(tr.info):
                 return None
             none = shapeless(model)
             geoms = shapes.model_geoms(model)
@@ -948,8 +969,13 @@ class PenetrationAnalyzer(Analyzer):
         if getattr(model, "n_geoms", 0):
             gb = np.asarray(model.geom_body, np.int64)
             has_geoms[gb[gb >= 0]] = True
-        return res.leave_out(shapeless_note(model, "depth, jitter and creep of their contacts",
-                                            known=has_geoms))
+        off = shapes.contacts_disabled(tr.info)
+        if off:
+            has_geoms[:] = False
+        return res.leave_out(shapeless_note(
+            model, "depth, jitter and creep of their contacts"
+            + (" (the engine's contacts are switched off: disableflags)" if off else ""),
+            known=has_geoms))
 
     def geom_depths(self, ctx: Context, worst: Worst, stats: dict):
         """Penetration depth per geom pair at every sample for the bodies without a v2 shape

@@ -339,3 +339,17 @@ def nearest_static_geom(model, geoms: Geoms, point: np.ndarray) -> np.ndarray:
     i = np.tile(np.arange(w), p)
     d = pair_distance(sub, pos, rot, k, i, np.full(len(k), w), with_points=False)
     return world[np.argmin(np.abs(d["sep"]).reshape(p, w), axis=1)]
+
+
+#: MuJoCo's mjtDisableBit bits that switch every contact off: mjDSBL_CONSTRAINT (1), mjDSBL_CONTACT
+#: (16) (MuJoCo's documentation of mjtDisableBit)
+_MUJOCO_NO_CONTACT_BITS = 1 | 16
+
+
+def contacts_disabled(info) -> bool:
+    """Whether the log's engine settings (RunInfo.engine_settings) say the engine made no contacts
+    at all: MuJoCo with ``disableflags`` holding mjDSBL_CONTACT or mjDSBL_CONSTRAINT (dm_control's
+    cartpole: its cart box runs through its rail capsules by design)."""
+    es = getattr(info, "engine_settings", None) or {}
+    return es.get("engine") == "mujoco" and bool(int(es.get("disableflags", 0))
+                                                 & _MUJOCO_NO_CONTACT_BITS)
