@@ -135,7 +135,11 @@ bool on_face(const double* x, const double* rot, const double* h, double d0, dou
 // Per support row r whose next row r + 1 is the same body on the same partner at the next sample
 // (nxt[r], which the caller sets only then): the tangential slide (m, world) at the contact point
 // over that sample interval, from the poses alone (see the header). is_box/size: the bodies'
-// shapes; s_* the static boxes (partner b = n + m). Rows without such a successor get 0.
+// shapes (is_box true only for a v2 box); s_* the static boxes (partner b = n + m, m < M; a
+// partner b >= n + M is another world geom). A row whose body is not a box, or whose partner
+// is neither a box body nor a static box, has no face patch to test; with span 0 (a geom pair's
+// support, penetration.py rule "geom_pair_support") no edge patch either: its slide is the
+// witness point's as it is.
 void contact_slide(V1<i64> pk, V1<i64> pi_, V1<i64> pb, V2<double> point, V2<double> span,
                    V2<double> normal, V3<double> position, V4<double> rotation, i64 n,
                    V1<bool> nxt, V2<double> disp, V1<bool> is_box, V2<double> size,
@@ -199,8 +203,8 @@ void contact_slide(V1<i64> pk, V1<i64> pi_, V1<i64> pb, V2<double> point, V2<dou
             bool on = on_face(&position(k, i, 0), &rotation(k, i, 0, 0), &size(i, 0), -m0, -m1,
                               -m2, px, py, pz, band);
             if (on && b >= n) {
-                const i64 mm = b - n;
-                on = on_face(&s_pos(mm, 0), &s_rot(mm, 0, 0), &s_half(mm, 0), m0, m1, m2, px, py,
+                const i64 mm = b - n;  // a world geom past the static boxes: no face known
+                on = mm < s_pos.n0 && on_face(&s_pos(mm, 0), &s_rot(mm, 0, 0), &s_half(mm, 0), m0, m1, m2, px, py,
                              pz, band);
             } else if (on && b >= 0) {
                 on = is_box[b] && on_face(&position(k, b, 0), &rotation(k, b, 0, 0), &size(b, 0),

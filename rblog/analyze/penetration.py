@@ -1,8 +1,10 @@
 """Penetration during resting contact, with jitter and creep.
 
-Separations are recomputed from the logged poses and the model's shapes (rblog.analyze.geometry),
-never taken from the contacts the simulator reported. Per sample, a body is in contact when a
-separation to the ground, a static box or another body is within CONTACT_DISTANCE_M; its primary
+Separations are recomputed from the logged poses and the model's shapes (rblog.analyze.geometry
+for boxes and spheres, rblog.analyze.shapes for every geom of the contract: rule
+"geom_pair_support"), never taken from the contacts the simulator reported. Per sample, a body is
+in contact when a separation to the ground, a static box, another world geom or another body is
+within CONTACT_DISTANCE_M; its primary
 support is the deepest of those, with a witness point at the centre of the patch where the two
 touch (rblog.analyze.geometry: a corner, the crossing of two edges, the middle of an edge's part
 on a face, the centroid of two faces' overlap), so that a body turning about its contact (a box
@@ -96,6 +98,7 @@ from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
                                 combine_friction, shapeless, shapeless_note, static_material)
 from rblog.analyze.momentum import static_feature_of_points
+from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
 
 
@@ -188,6 +191,25 @@ RULES: tuple[Rule, ...] = (
          ("tests/analyze/test_sliding.py::"
           "test_a_box_on_an_unloaded_support_slides_and_is_not_creep",
           "tests/analyze/test_sliding.py::test_the_same_slide_on_a_loaded_support_is_creep")),
+    Rule("geom_pair_support", "a body without a v2 shape (capsule, cylinder, ellipsoid, mesh, "
+         "several geoms), or a contact with a world geom that is neither the ground nor a static "
+         "box (a wall plane: partner N + M + w)",
+         "its supports are its geom pairs within CONTACT_DISTANCE (rblog.analyze.shapes, the "
+         "log's collision filter): the deepest per sample, witness at the midpoint of the two "
+         "witness points, no edge or face patch (span 0: the witness slides as it is), reach for "
+         "the rest test from its geoms, resting depth tol from the pair's thinner geom; its "
+         "any-time depth is judged per geom pair (geom_depths); logged static rows go to the "
+         "nearest world geom",
+         ("CONTACT_DISTANCE_M", "PENETRATION_REST_SPEED_MPS"),
+         "a MuJoCo capsule and cylinder resting on a floor slide < 1e-5 m over 0.6 s; a capsule "
+         "rolling without slip at 0.05 rad/s slides 0 to round-off (closed form: x = r theta); "
+         "0.3 mm written into either log reads 0.3 mm",
+         ("tests/analyze/test_geom_rest.py::"
+          "test_a_mujoco_capsule_and_cylinder_resting_on_a_floor_are_clean",
+          "tests/analyze/test_geom_rest.py::"
+          "test_a_creep_of_03_mm_written_into_the_log_is_flagged_on_the_capsule",
+          "tests/analyze/test_geom_rest.py::test_a_capsule_rolling_without_slip_does_not_creep",
+          "tests/analyze/test_geom_rest.py::test_the_same_roll_slipping_03_mm_creeps_03_mm")),
     Rule("depth_limits", "a pair's depth", "resting beyond min(DEPTH_M, DEPTH_FRAC x the inner "
          "radius), at any sample beyond min(TRANSIENT_DEPTH_M, TRANSIENT_FRAC x it)",
          ("PENETRATION_DEPTH_M", "PENETRATION_DEPTH_FRAC", "PENETRATION_TRANSIENT_DEPTH_M",
@@ -200,13 +222,43 @@ RULES: tuple[Rule, ...] = (
 )
 
 
+def _world_geoms(model) -> np.ndarray:
+    """(W,) the world geoms that are neither the ground nor a static box, in the order of their
+    partner codes N + M + w (rblog.analyze.shapes.partner_codes)."""
+    if not getattr(model, "n_geoms", 0):
+        return np.zeros(0, np.int64)
+    codes = shapes.partner_codes(model)
+    first = model.n_bodies + len(model.static_box_position)
+    return np.flatnonzero(codes >= first)[np.argsort(codes[codes >= first])]
+
+
 def _partner_label(model, b: int) -> str:
     n = model.n_bodies
+    m = len(model.static_box_position)
     if b == -1:
         return "the ground"
+    if b >= n + m:
+        g = int(_world_geoms(model)[b - n - m])
+        name = model.geom_name[g] if model.geom_name is not None else ""
+        return f"world geom {g} ({name!r})"
     if b >= n:
         return f"static box {b - n}"
     return body_label(model, b)
+
+
+def _static_friction(model, sid: np.ndarray) -> np.ndarray:
+    """Friction of static partners ``sid`` (-1 ground, m < M static box m, M + w the w-th other
+    world geom (its geom_friction, the static boxes' worst case where NaN), < -1 unknown: the worst
+    case, rblog.analyze.base.static_material)."""
+    sid = np.asarray(sid, np.int64)
+    m = len(model.static_box_position)
+    _, mu = static_material(model, np.where(sid >= m, -2, sid))
+    far = sid >= m
+    if far.any():
+        gf = np.asarray(model.geom_friction, float)[_world_geoms(model)[sid[far] - m]]
+        mu = np.asarray(mu, float).copy()
+        mu[far] = np.where(np.isnan(gf), mu[far], gf)
+    return mu
 
 
 def _mutual_lower(pk, pi_, pb, normal, model, n: int, t_n: int) -> np.ndarray:
@@ -249,6 +301,44 @@ def _main_partner(contrib, run_of, pb, in_run, nr: int, partner_default) -> np.n
     best = order[first]
     out[run_k[best]] = (uk[best] % (int(pb.max()) + 2)) - 1
     return out
+
+
+def _geom_candidates(gp: dict, model, cd: float) -> dict:
+    """Support candidates from geom pairs (:meth:`PenetrationAnalyzer.geom_pairs`): each pair
+    within ``cd`` counts for each of its geoms' bodies, with the other geom's partner code
+    (rblog.analyze.shapes.partner_codes), the normal from the partner into the body, the witness
+    at the midpoint of the two surfaces' witness points (one point for both bodies), no edge
+    patch (span 0) and the pair's thinner geom's smallest half-extent as the inner radius."""
+    code = shapes.partner_codes(model)
+    body = gp["geoms"].body
+    gi, gj = gp["i"], gp["j"]
+    keep = gp["sep"] <= cd
+    gi, gj = gi[keep], gj[keep]
+    mid = 0.5 * (gp["pa"][keep] + gp["pb"][keep])
+    nrm = gp["normal"][keep]
+    inner = np.minimum(gp["inner"][gi], gp["inner"][gj])
+    parts = []
+    for me, other, sign in ((gi, gj, 1.0), (gj, gi, -1.0)):
+        m = body[me] >= 0
+        parts.append(dict(k=gp["k"][keep][m], i=body[me][m], b=code[other][m],
+                          sep=gp["sep"][keep][m], normal=sign * nrm[m], point=mid[m],
+                          inner=inner[m]))
+    out = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    out["span"] = np.zeros((len(out["k"]), 3))
+    out["geom"] = np.ones(len(out["k"]), bool)
+    return out
+
+
+def _merge_supports(a: dict, b: dict) -> dict:
+    """The deepest candidate per (body, sample) of two sets of support rows (``a`` first on a
+    tie), in body-major order (body, then sample)."""
+    both = {key: np.concatenate([a[key], b[key]]) for key in a}
+    r_a = len(a["k"])
+    order = np.lexsort((np.arange(len(both["k"])) >= r_a, both["sep"], both["k"], both["i"]))
+    ik = both["i"][order] * (int(both["k"].max(initial=0)) + 1) + both["k"][order]
+    first = np.r_[True, ik[1:] != ik[:-1]] if len(ik) else np.zeros(0, bool)
+    sel = order[first]
+    return {key: v[sel] for key, v in both.items()}
 
 
 def _distinct_points(inv, point, carry, n_keys: int, band: float) -> np.ndarray:
@@ -385,7 +475,47 @@ class PenetrationAnalyzer(Analyzer):
                 normal[m] = sign * nn
                 point[m] = pp
                 span[m] = ss
-        return dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point, span=span)
+        out = dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point, span=span,
+                   inner=geometry.inner_radius(model)[i], geom=np.zeros(r, bool))
+        gp = self.geom_pairs(ctx)
+        if gp is None:
+            return out
+        return _merge_supports(out, _geom_candidates(gp, model, cd))
+
+    def geom_pairs(self, ctx: Context):
+        """The geom pairs (contract v3 geoms, rblog.analyze.shapes) within the contact distance at
+        each sample that involve a body without a v2 shape or a world geom that is neither the
+        ground nor a static box (a wall plane), by the log's collision filter, with
+        their witness points: dict of k, i, j (geoms), sep, normal (j into i), pa, pb, and
+        ``inner`` (G,) each geom's smallest half-extent; None when there are none to test.
+        Computed once per context."""
+        tr = ctx.traj
+        model = tr.model
+        cd = self.tol["contact_distance_m"]
+
+        def compute():
+            if not getattr(model, "n_geoms", 0) or shapes.contacts_disabled(tr.info):
+                return None
+            none = shapeless(model)
+            geoms = shapes.model_geoms(model)
+            body = geoms.body
+            # world geoms the v2 fields do not describe (a wall plane, a world capsule)
+            unseen = shapes.partner_codes(model) >= model.n_bodies + len(model.static_box_position)
+            if not none[body[body >= 0]].any() and not unseen.any():
+                return None
+            pos, rot = shapes.geom_poses(model, tr.position, tr.rotation)
+            k, i, j = shapes.broadphase(geoms, pos, rot, cd)
+            mine = (none[np.maximum(body[i], 0)] & (body[i] >= 0)) | \
+                (none[np.maximum(body[j], 0)] & (body[j] >= 0)) | unseen[i] | unseen[j]
+            keep = mine & shapes.collide_mask(model, i, j)
+            k, i, j = k[keep], i[keep], j[keep]
+            d = shapes.pair_distance(geoms, pos, rot, k, i, j, with_points=True)
+            near = d["sep"] <= cd
+            return dict(k=k[near], i=i[near], j=j[near], sep=d["sep"][near],
+                        normal=d["normal"][near], pa=d["pa"][near], pb=d["pb"][near],
+                        geoms=geoms, inner=shapes.inner_half_extent(geoms))
+
+        return ctx.cached(("penetration.geom_pairs", cd), compute)
 
     def sliding(self, ctx: Context, sup: dict,
                 cand: np.ndarray) -> tuple[np.ndarray, dict, np.ndarray]:
@@ -419,7 +549,8 @@ class PenetrationAnalyzer(Analyzer):
         pk, pi_, pb = sup["k"][rows_c], sup["i"][rows_c], sup["b"][rows_c]
         pnorm = sup["normal"][rows_c]
         c = tr.contacts
-        e_n = n + len(model.static_box_position) + 1
+        codes = shapes.partner_codes(model) if getattr(model, "n_geoms", 0) else np.zeros(0, int)
+        e_n = max(n + len(model.static_box_position), int(codes.max(initial=-1)) + 1) + 1
         if len(c):
             # rows of logged steps that end at a sample, entered for body_a and (negated) body_b
             kr = np.searchsorted(tr.step, c.step)
@@ -430,8 +561,14 @@ class PenetrationAnalyzer(Analyzer):
             part = cb.copy()
             st = ok & (cb == STATIC_BODY)
             if st.any():
-                fid = static_feature_of_points(model, c.point[st], c.normal[st])
-                part[st] = np.where(fid >= 0, n + fid, -1)
+                if (codes >= n + len(model.static_box_position)).any():
+                    # world geoms the v2 fields do not describe (a wall plane): each row's
+                    # partner is the world geom nearest its point (rule "geom_pair_support")
+                    part[st] = codes[shapes.nearest_static_geom(
+                        model, shapes.model_geoms(model), c.point[st])]
+                else:
+                    fid = static_feature_of_points(model, c.point[st], c.normal[st])
+                    part[st] = np.where(fid >= 0, n + fid, -1)
             dyn = ok & (cb >= 0) & (cb < n)
             key = np.concatenate([(kr[ok] * n + ca[ok]) * e_n + part[ok] + 1,
                                   (kr[dyn] * n + cb[dyn]) * e_n + ca[dyn] + 1])
@@ -475,7 +612,7 @@ class PenetrationAnalyzer(Analyzer):
             # twisting on its support has every point at the limit, each in its own direction,
             # with their vector sum well inside; an edge pivoting about one end has one of two)
             bf = np.asarray(model.body_friction, float)
-            _, smu = static_material(model, np.where(part >= n, part - n, -1))
+            smu = _static_friction(model, np.where(part >= n, part - n, -1))
             mu_row = np.where(cb == STATIC_BODY, smu, 0.0)
             mu_row[dyn] = combine_friction(bf[ca[dyn]], bf[cb[dyn]], tr.info.combine_friction)
             if st.any():
@@ -500,7 +637,7 @@ class PenetrationAnalyzer(Analyzer):
                            pnorm[sel])
             # friction coefficient of each support pair, by the log's combine rule
             sid = np.where(pb == -1, -1, np.where(pb >= n, pb - n, -2))
-            _, s_mu = static_material(model, sid)
+            s_mu = _static_friction(model, sid)
             dynp = (pb >= 0) & (pb < n)
             mu = combine_friction(bf[pi_], np.where(dynp, bf[np.clip(pb, 0, n - 1)], s_mu),
                                   tr.info.combine_friction)
@@ -539,7 +676,7 @@ class PenetrationAnalyzer(Analyzer):
             jn = np.einsum("ij,ij->i", jv, pnorm)
             jt = np.linalg.norm(jv - jn[:, None] * pnorm, axis=1)
             sid = np.where(pb == -1, -1, np.where(pb >= n, pb - n, -2))
-            _, s_mu = static_material(model, sid)
+            s_mu = _static_friction(model, sid)
             bf = np.asarray(model.body_friction, float)
             dynp = (pb >= 0) & (pb < n)
             mu = combine_friction(bf[pi_], np.where(dynp, bf[np.clip(pb, 0, n - 1)], s_mu),
@@ -573,19 +710,26 @@ class PenetrationAnalyzer(Analyzer):
         nrow = len(pk)
         stats["depth_max_m"] = float(depth.max()) if nrow else 0.0
 
-        # ---- any-time depth (impacts included): the deepest sample of each body
+        # per row, the resting depth tolerance: the body's inner radius on its v2 shape, the
+        # thinner geom's smallest half-extent on a geom pair's row (rule "geom_pair_support")
+        row_rest_tol = np.where(sup["geom"], np.minimum(tol["depth_m"],
+                                                        tol["depth_frac"] * sup["inner"]),
+                                rest_tol[pi_])
+        # ---- any-time depth (impacts included): the deepest sample of each body (a geom pair's
+        # rows are judged per pair at every sample: geom_depths)
+        v2_depth = np.where(sup["geom"], 0.0, depth)
         if nrow:
-            worst.offer_array(depth, trans_tol[pi_], "m", step[pk], t[pk], pi_,
+            worst.offer_array(v2_depth, trans_tol[pi_], "m", step[pk], t[pk], pi_,
                               "penetration depth at any time")
             bstart = np.r_[0, np.nonzero(pi_[1:] != pi_[:-1])[0] + 1]
-            bmax = np.maximum.reduceat(depth, bstart)
+            bmax = np.maximum.reduceat(v2_depth, bstart)
             bodies = pi_[bstart]
             bad = np.nonzero(bmax > trans_tol[bodies])[0]
             n_found += len(bad)
             for j in bad:
                 lo = bstart[j]
                 hi = bstart[j + 1] if j + 1 < len(bstart) else nrow
-                r = lo + int(np.argmax(depth[lo:hi]))
+                r = lo + int(np.argmax(v2_depth[lo:hi]))
                 bj = int(bodies[j])
                 findings.append(Finding(
                     self.name,
@@ -609,7 +753,7 @@ class PenetrationAnalyzer(Analyzer):
         # A box rocking on an edge has a resting pivot but is not at rest: for non-spheres, every
         # point of the body (within 2 bounding radii of the contact) must be slow too. A rolling
         # sphere's contact point is at rest, and rolling counts as resting contact.
-        sphere = model.body_shape[pi_] == 0
+        sphere = model.body_shape[pi_] == SHAPE_SPHERE
         reach = 2.0 * geometry.bounding_radius(model)[pi_]
         rest &= sphere | (cspeed + wspeed * reach <= tol["rest_speed_mps"])
         # a contact whose friction is at the Coulomb limit (or whose load reaches it) slides,
@@ -706,7 +850,7 @@ class PenetrationAnalyzer(Analyzer):
                                  c(sup["span"], dtype=np.float64), c(pnorm, dtype=np.float64),
                                  c(tr.position, dtype=np.float64),
                                  c(tr.rotation, dtype=np.float64), n, c(both), contrib,
-                                 c(np.asarray(model.body_shape) != 0),
+                                 c(np.asarray(model.body_shape) == SHAPE_BOX),
                                  c(model.body_size, dtype=np.float64),
                                  c(s_pos, dtype=np.float64), c(s_rot, dtype=np.float64),
                                  c(s_half, dtype=np.float64), T.WITNESS_BAND_M,
@@ -758,7 +902,8 @@ class PenetrationAnalyzer(Analyzer):
             runs_hit, first_hit = np.unique(run_of[at_max], return_index=True)
             kdeep = ks.copy()
             kdeep[runs_hit] = pk[at_max[first_hit]]
-            worst.offer_array(r_max, rest_tol[bs], "m", step[kdeep], t[kdeep], bs,
+            run_tol = red(np.minimum, row_rest_tol)
+            worst.offer_array(r_max, run_tol, "m", step[kdeep], t[kdeep], bs,
                               "resting penetration depth")
             fin = np.isfinite(jit)
             if fin.any():
@@ -772,12 +917,12 @@ class PenetrationAnalyzer(Analyzer):
                         f"{t[ks[r]]:.6g} s for {dur[r]:.3g} s")
 
             checks = (
-                (r_max > rest_tol[bs], lambda r: Finding(
+                (r_max > run_tol, lambda r: Finding(
                     self.name,
                     f"{body_label(model, int(bs[r]))} {what_rest(r)}: sinks "
                     f"{r_max[r] * 1e3:.3g} mm "
-                    f"(mean {r_mean[r] * 1e3:.3g} mm; tol {rest_tol[bs[r]] * 1e3:.3g} mm)",
-                    float(r_max[r]), float(rest_tol[bs[r]]), "m", int(step[kdeep[r]]),
+                    f"(mean {r_mean[r] * 1e3:.3g} mm; tol {run_tol[r] * 1e3:.3g} mm)",
+                    float(r_max[r]), float(run_tol[r]), "m", int(step[kdeep[r]]),
                     float(t[kdeep[r]]), [int(bs[r])])),
                 (fin & (np.nan_to_num(jit) > tol["jitter_mps"]), lambda r: Finding(
                     self.name,
@@ -818,9 +963,19 @@ class PenetrationAnalyzer(Analyzer):
         n_found += len(g_find)
         ok = "" if nr or nrow or g_rows else "no contacts found"
         res = self.result(worst, findings, stats, events, ok_reason=ok, n_findings=n_found)
-        what = "jitter and creep of their contacts (their depth is judged per geom pair)" \
-            if g_rows is not None else "depth, jitter and creep of their contacts"
-        return res.leave_out(shapeless_note(model, what))
+        # a body without a v2 shape is judged on its geoms (rule "geom_pair_support"); one
+        # without geoms either (a v2 log of another engine's capsule) is not
+        has_geoms = np.zeros(n, bool)
+        if getattr(model, "n_geoms", 0):
+            gb = np.asarray(model.geom_body, np.int64)
+            has_geoms[gb[gb >= 0]] = True
+        off = shapes.contacts_disabled(tr.info)
+        if off:
+            has_geoms[:] = False
+        return res.leave_out(shapeless_note(
+            model, "depth, jitter and creep of their contacts"
+            + (" (the engine's contacts are switched off: disableflags)" if off else ""),
+            known=has_geoms))
 
     def geom_depths(self, ctx: Context, worst: Worst, stats: dict):
         """Penetration depth per geom pair at every sample for the bodies without a v2 shape
@@ -831,25 +986,18 @@ class PenetrationAnalyzer(Analyzer):
         no body needs it)."""
         tr = ctx.traj
         model = tr.model
-        none = shapeless(model)
-        if not none.any() or not len(model.geom_type):
+        gp = self.geom_pairs(ctx)
+        if gp is None:
             return [], None
-        geoms = shapes.model_geoms(model)
-        pos, rot = shapes.geom_poses(model, tr.position, tr.rotation)
-        k, i, j = shapes.broadphase(geoms, pos, rot, 0.0)
+        geoms, k, i, j, d = gp["geoms"], gp["k"], gp["i"], gp["j"], gp
         body = geoms.body
-        mine = (none[np.maximum(body[i], 0)] & (body[i] >= 0)) | \
-            (none[np.maximum(body[j], 0)] & (body[j] >= 0))
-        keep = mine & shapes.collide_mask(model, i, j)
-        k, i, j = k[keep], i[keep], j[keep]
-        d = shapes.pair_distance(geoms, pos, rot, k, i, j, with_points=False)
         depth = np.maximum(-d["sep"], 0.0)
         touching = depth > 0
         stats["geom_pairs_touching"] = float(len(np.unique(i[touching] * len(body) + j[touching])))
         stats["geom_depth_max_m"] = float(depth.max()) if len(depth) else 0.0
         if not len(depth):
             return [], 0
-        inner = shapes.inner_half_extent(geoms)
+        inner = gp["inner"]
         tol_ = np.minimum(self.tol["transient_depth_m"],
                           self.tol["transient_frac"] * np.minimum(inner[i], inner[j]))
         bodies = np.stack([body[i], body[j]], 1)

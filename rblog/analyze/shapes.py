@@ -280,3 +280,76 @@ def inner_half_extent(geoms: Geoms) -> np.ndarray:
     out = np.where((t == GEOM_TYPES["box"]) | (t == GEOM_TYPES["ellipsoid"]), s.min(axis=1), out)
     out = np.where(t == GEOM_TYPES["cylinder"], np.minimum(s[:, 0], s[:, 1]), out)
     return out
+
+
+def partner_codes(model) -> np.ndarray:
+    """(G,) each geom as the penetration analyzer names a contact partner: its body's index
+    (>= 0) for a geom on a body; for a world geom, -1 for the ground (the plane the v2 fields take
+    as it, rblog.contract.model: the first world plane most opposed to gravity), N + m for the
+    m-th world box (static box m, in geom order as the v2 fields list them), and N + M + w for the
+    w-th of the other world geoms in geom order (M static boxes: another plane, a wall, a world
+    sphere, capsule or mesh), which the v2 fields do not describe."""
+    gb = np.asarray(model.geom_body, np.int64)
+    gt = _contract_codes()[np.asarray(model.geom_type, np.int64)] if len(gb) else gb
+    n = int(model.n_bodies)
+    out = gb.copy()
+    world = gb < 0
+    boxes = np.flatnonzero(world & (gt == GEOM_TYPES["box"]))
+    out[boxes] = n + np.arange(len(boxes))
+    planes = np.flatnonzero(world & (gt == GEOM_TYPES["plane"]))
+    ground = -1
+    if len(planes) and model.ground:
+        from rblog.contract.orientation import quat_wxyz_to_matrix
+
+        quat = np.asarray(model.geom_quat_wxyz_body, float).reshape(-1, 4)[planes]
+        normals = quat_wxyz_to_matrix(quat)[:, :, 2]
+        g = np.asarray(model.gravity, float)
+        up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else np.array([0.0, 0.0, 1.0])
+        ground = int(planes[int(np.argmax(normals @ up))])
+    other = np.flatnonzero(world & (gt != GEOM_TYPES["box"]) & (np.arange(len(gb)) != ground))
+    out[other] = n + len(boxes) + np.arange(len(other))
+    if ground >= 0:
+        out[ground] = -1
+    return out
+
+
+def nearest_static_geom(model, geoms: Geoms, point: np.ndarray) -> np.ndarray:
+    """(P,) the world geom whose surface is nearest each world point (P, 3), by the audit's own
+    signed distance of a point (a sphere of radius 0) to it: -1 where the model has none."""
+    world = np.flatnonzero(geoms.body < 0)
+    p = len(point)
+    if not len(world) or not p:
+        return np.full(p, -1, np.int64)
+    w = len(world)
+    sub = Geoms(np.r_[geoms.type[world], GEOM_TYPES["sphere"]],
+                np.r_[geoms.size[world], np.zeros((1, 3))], np.r_[geoms.mesh_start[world], 0],
+                np.r_[geoms.mesh_count[world], 0], geoms.verts,
+                np.r_[np.full(w, -1, np.int64), 0])
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    gp = np.asarray(model.geom_pos_body, float).reshape(-1, 3)[world]
+    gr = quat_wxyz_to_matrix(np.asarray(model.geom_quat_wxyz_body, float).reshape(-1, 4)[world])
+    pos = np.empty((p, w + 1, 3))
+    pos[:, :w] = gp
+    pos[:, w] = point
+    rot = np.empty((p, w + 1, 3, 3))
+    rot[:, :w] = gr
+    rot[:, w] = np.eye(3)
+    k = np.repeat(np.arange(p), w)
+    i = np.tile(np.arange(w), p)
+    d = pair_distance(sub, pos, rot, k, i, np.full(len(k), w), with_points=False)
+    return world[np.argmin(np.abs(d["sep"]).reshape(p, w), axis=1)]
+
+
+#: MuJoCo's mjtDisableBit bits that switch every contact off: mjDSBL_CONSTRAINT (1), mjDSBL_CONTACT
+#: (16) (MuJoCo's documentation of mjtDisableBit)
+_MUJOCO_NO_CONTACT_BITS = 1 | 16
+
+
+def contacts_disabled(info) -> bool:
+    """Whether the log's engine settings (RunInfo.engine_settings) say the engine made no contacts
+    at all: MuJoCo with ``disableflags`` holding mjDSBL_CONTACT or mjDSBL_CONSTRAINT (dm_control's
+    cartpole: its cart box runs through its rail capsules by design)."""
+    es = getattr(info, "engine_settings", None) or {}
+    return es.get("engine") == "mujoco" and bool(int(es.get("disableflags", 0))
+                                                 & _MUJOCO_NO_CONTACT_BITS)
