@@ -544,7 +544,7 @@ def main(argv=None):
             for name, sec, share in prof.table():
                 print(f"      {name:<36} {sec:8.3f} s  {100 * share:5.1f} %")
         for name, sps in cpu_of.items():
-            if name.startswith("rblog"):
+            if name.startswith("rblog") and len(rblog_runs) < len(cpu_of):
                 print(f"  {name}: " + "   ".join(f"/ {o} {sps / v:.2f}x" for o, v in cpu_of.items()
                                                if not o.startswith("rblog")))
         for name, nt, nt0, r_wall, r_cpu in thread_ratios(rblog_runs):
