@@ -72,6 +72,8 @@ struct SolverLanes {
     std::vector<WideGroup> groups;
     std::vector<i64> set_group;
     std::vector<BodyVel> vel;
+    std::vector<i64> order;  // the manifolds in lane order, set by set (pack_lanes)
+    std::vector<uint64_t> keys;  // (pack_lanes' sort keys)
 };
 
 // Which kernel the wide sets use (set_solver_path): 0 the best the processor has (AVX2, else
@@ -106,7 +108,8 @@ void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* 
 struct ConstraintGraph;
 void pack_lanes(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
                 const ConstraintGraph& g, V1<double> bm,
-                V2<double> bI, V1<i64> degree, double inv_h, double sor, SolverLanes& lanes);
+                V2<double> bI, V1<i64> degree, V1<i64> last_hot, double inv_h, double sor,
+                SolverLanes& lanes);
 // The accumulated impulses back to the point rows (ln, l1, l2).
 void unpack_lanes(V1<ManifoldHead> mi, V1<ContactPoint> pf, const SolverLanes& lanes);
 
