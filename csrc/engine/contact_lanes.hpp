@@ -2,8 +2,9 @@
 // v3's contact_solver.c: b2ContactConstraintSIMD, b2GatherBodies / b2ScatterBodies).
 //
 // After warm starting, each set of the colouring (constraint_graph.hpp: the overflow set, then
-// the colours) is packed into groups of four manifolds, struct-of-arrays over the four lanes
-// (WideGroup): the per-step constants a sweep reads (normal and tangents, anchors, effective
+// the colours; a colour's manifolds reordered by the last solve's hot marks, so that the lanes
+// a late sweep visits share groups) is packed into groups of four manifolds, struct-of-arrays
+// over the four lanes (WideGroup): the per-step constants a sweep reads (normal and tangents, anchors, effective
 // masses, LU factors of the normal block, the speculative targets, the bodies' inverse masses and
 // world inverse inertias) and the accumulated impulses. A sweep then reads each group with
 // vector loads and gathers only the eight body velocities; the impulses go back to the point

@@ -327,7 +327,8 @@ void warm_start(const ContactConstraints& c, const SolverBodies& b) {
 // Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order), the
 // manifolds in the order of the constraint graph's colouring (constraint_graph.hpp): the
 // overflow set one manifold after another, then each colour, whose manifolds share no dynamic
-// body and are solved four at a time in the lanes of a vector (contact_lanes.hpp; the kernel's
+// body and are solved four at a time in the lanes of a vector, in pack_lanes' order (by the
+// last solve's hot marks: contact_lanes.hpp; the kernel's
 // formulas are the ones of the scalar code above and below: solve_group in contact_lanes.inl).
 //
 // Sweeps at least velocity_iterations times, then until the largest velocity change a sweep makes
