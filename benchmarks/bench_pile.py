@@ -27,7 +27,9 @@ Engines, each stepping the same initial state at the same dt on one thread:
 
 The engines advance ``--chunk`` steps each in turn in this one process (interleaved: whatever
 else the machine runs slows all alike) and are timed by CPU time (``time.process_time``) around
-their stepping calls only. After every chunk one routine measures every engine's poses:
+their stepping calls only; the ratio of rblog's thread counts (``--threads 1,2``) is reported in
+wall time, what a second thread buys, beside the process CPU time's (both threads summed, so at
+most 1.0x when the work is the same). After every chunk one routine measures every engine's poses:
 the deepest box-box overlap (rblog's narrowphase, ``measure.separations``, on a world without
 the ground), the deepest ground overlap (each box's lowest corner below the plane), and over the
 last ``--settle-window`` seconds the boxes that still move more than ``--moving`` m from their
@@ -373,6 +375,19 @@ class Judge:
                     ground_end=ground[-1], moving=int((self.moved > self.moving).sum()))
 
 
+def thread_ratios(runs):
+    """rblog's runs at more than one thread against its first count: runs {name: (threads, steps/s
+    wall, steps/s CPU)} (CPU: the process's, every thread summed), in order; returns [(name,
+    threads, threads of the base, wall ratio, CPU ratio)], a ratio the run's steps/s over the
+    base's (> 1: faster)."""
+    items = list(runs.items())
+    if not items:
+        return []
+    base_name, (nt0, wall0, cpu0) = items[0]
+    return [(name, nt, nt0, wall / wall0, cpu / cpu0)
+            for name, (nt, wall, cpu) in items[1:] if nt != nt0]
+
+
 def recorder_for(path, model, dt, chunk, duration, info):
     from rblog.record import Recorder
 
@@ -499,14 +514,17 @@ def main(argv=None):
                                               "world" if e == "ode-world" else "quick")))
         # from a scratch directory: MuJoCo appends its warnings to MUJOCO_LOG.TXT in the cwd
         res = in_scratch_dir(run_interleaved, engines, model, args.dt, n_steps, args.chunk, args)
-        print(f"\n{nb} boxes\n  {'engine':<46} {'steps/s CPU':>11} {'wall':>9}   deepest "
+        print(f"\n{nb} boxes\n  {'engine':<46} {'steps/s CPU':>11} {'steps/s wall':>12}   deepest "
               "overlap box-box / ground, at the end; boxes moving in the last "
               f"{args.settle_window:g} s")
         cpu_of = {}
+        rblog_runs = {}  # {name: (threads, steps/s wall, steps/s CPU)}
         for name, (cpu, wall, judge, info, _) in res.items():
             s = judge.summary()
             cpu_of[name] = n_steps / cpu
-            print(f"  {info['version']:<46} {n_steps / cpu:11.1f} {n_steps / wall:9.1f}   "
+            if name.startswith("rblog-"):
+                rblog_runs[name] = (int(name[len("rblog-"):-1]), n_steps / wall, n_steps / cpu)
+            print(f"  {info['version']:<46} {n_steps / cpu:11.1f} {n_steps / wall:12.1f}   "
                   f"{1e3 * s['box_max']:.3f} / {1e3 * s['ground_max']:.3f} mm, "
                   f"{1e3 * s['box_end']:.3f} / {1e3 * s['ground_end']:.3f} mm; {s['moving']}")
             if info["detail"]:
@@ -526,9 +544,12 @@ def main(argv=None):
             for name, sec, share in prof.table():
                 print(f"      {name:<36} {sec:8.3f} s  {100 * share:5.1f} %")
         for name, sps in cpu_of.items():
-            if name.startswith("rblog"):
+            if name.startswith("rblog") and len(rblog_runs) < len(cpu_of):
                 print(f"  {name}: " + "   ".join(f"/ {o} {sps / v:.2f}x" for o, v in cpu_of.items()
                                                if not o.startswith("rblog")))
+        for name, nt, nt0, r_wall, r_cpu in thread_ratios(rblog_runs):
+            print(f"  rblog {nt} threads / {nt0}: {r_wall:.2f}x wall time, {r_cpu:.2f}x process "
+                  f"CPU time (the threads' sum)")
         if args.log:
             write_logs(res, model, args.dt, args.chunk, args.duration,
                        os.path.join(args.log, f"{nb}"))

@@ -1,5 +1,6 @@
 // The velocity solve's lanes (contact_lanes.hpp): packing the colouring's sets into groups of
 // four manifolds, the scalar and the portable wide kernels, and the choice between them.
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -65,8 +66,34 @@ void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* 
 
 void pack_lanes(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
                 const ConstraintGraph& g, V1<double> bm,
-                V2<double> bI, V1<i64> degree, double inv_h, double sor, SolverLanes& lanes) {
+                V2<double> bI, V1<i64> degree, V1<i64> last_hot, double inv_h, double sor,
+                SolverLanes& lanes) {
     i64 n_sets = g.n_sets();
+    // each colour's manifolds in lane order (set 0 keeps the graph's order: its manifolds are
+    // solved one after another, so their order is the result's)
+    std::vector<i64>& order = lanes.order;
+    order.assign(g.order.begin(), g.order.end());
+    std::vector<uint64_t>& keys = lanes.keys;
+    for (i64 s = 1; s < n_sets; ++s) {
+        i64 k0 = g.set_start[s], k1 = g.set_start[s + 1];
+        if (k1 - k0 <= 4) continue;
+        // the manifolds whose bodies the last solve kept hot the longest first (the last sweep
+        // that changed one of them, so about the last it would visit them), then by point count,
+        // most first: the lanes a late sweep visits share groups, and lanes of one length do.
+        // Key: the sweep's complement (20 bits) and the count's (12) above the position in the
+        // colour (32 bits): distinct keys, so the order is one (sweeps <= 30, counts <= 4).
+        keys.resize((size_t)(k1 - k0));
+        for (i64 k = k0; k < k1; ++k) {
+            i64 m = g.order[k];
+            i64 ha = last_hot[mi[m].a], hb = last_hot[mi[m].b];
+            uint64_t late = (uint64_t)(ha > hb ? ha : hb), cnt = (uint64_t)mi[m].count;
+            uint64_t hi = (0xfffffu - (late & 0xfffffu)) << 12 | (0xfffu - (cnt & 0xfffu));
+            keys[(size_t)(k - k0)] = hi << 32 | (uint64_t)(k - k0);
+        }
+        std::sort(keys.begin(), keys.end());
+        for (i64 k = k0; k < k1; ++k)
+            order[(size_t)k] = g.order[(size_t)(k0 + (i64)(keys[(size_t)(k - k0)] & 0xffffffffu))];
+    }
     lanes.set_group.assign(n_sets + 1, 0);
     i64 n_groups = 0;
     for (i64 s = 0; s < n_sets; ++s) {
@@ -90,7 +117,7 @@ void pack_lanes(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
                     gr.b[j] = dummy;
                     continue;
                 }
-                i64 m = g.order[k];
+                i64 m = order[k];
                 i64 ia = mi[m].a, ib = mi[m].b;
                 i64 start = mi[m].start, cnt = mi[m].count;
                 gr.m[j] = m;

@@ -2,8 +2,9 @@
 // v3's contact_solver.c: b2ContactConstraintSIMD, b2GatherBodies / b2ScatterBodies).
 //
 // After warm starting, each set of the colouring (constraint_graph.hpp: the overflow set, then
-// the colours) is packed into groups of four manifolds, struct-of-arrays over the four lanes
-// (WideGroup): the per-step constants a sweep reads (normal and tangents, anchors, effective
+// the colours; a colour's manifolds reordered by the last solve's hot marks, so that the lanes
+// a late sweep visits share groups) is packed into groups of four manifolds, struct-of-arrays
+// over the four lanes (WideGroup): the per-step constants a sweep reads (normal and tangents, anchors, effective
 // masses, LU factors of the normal block, the speculative targets, the bodies' inverse masses and
 // world inverse inertias) and the accumulated impulses. A sweep then reads each group with
 // vector loads and gathers only the eight body velocities; the impulses go back to the point
@@ -72,6 +73,8 @@ struct SolverLanes {
     std::vector<WideGroup> groups;
     std::vector<i64> set_group;
     std::vector<BodyVel> vel;
+    std::vector<i64> order;  // the manifolds in lane order, set by set (pack_lanes)
+    std::vector<uint64_t> keys;  // (pack_lanes' sort keys)
 };
 
 // Which kernel the wide sets use (set_solver_path): 0 the best the processor has (AVX2, else
@@ -106,7 +109,8 @@ void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* 
 struct ConstraintGraph;
 void pack_lanes(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
                 const ConstraintGraph& g, V1<double> bm,
-                V2<double> bI, V1<i64> degree, double inv_h, double sor, SolverLanes& lanes);
+                V2<double> bI, V1<i64> degree, V1<i64> last_hot, double inv_h, double sor,
+                SolverLanes& lanes);
 // The accumulated impulses back to the point rows (ln, l1, l2).
 void unpack_lanes(V1<ManifoldHead> mi, V1<ContactPoint> pf, const SolverLanes& lanes);
 

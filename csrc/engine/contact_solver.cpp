@@ -327,7 +327,8 @@ void warm_start(const ContactConstraints& c, const SolverBodies& b) {
 // Sequential impulses: per manifold, the normal rows, then friction (Box2D v3 order), the
 // manifolds in the order of the constraint graph's colouring (constraint_graph.hpp): the
 // overflow set one manifold after another, then each colour, whose manifolds share no dynamic
-// body and are solved four at a time in the lanes of a vector (contact_lanes.hpp; the kernel's
+// body and are solved four at a time in the lanes of a vector, in pack_lanes' order (by the
+// last solve's hot marks: contact_lanes.hpp; the kernel's
 // formulas are the ones of the scalar code above and below: solve_group in contact_lanes.inl).
 //
 // Sweeps at least velocity_iterations times, then until the largest velocity change a sweep makes
@@ -352,11 +353,12 @@ i64 solve_velocities(const StepContext& ctx, const ContactConstraints& c,
                      const ConstraintGraph& g, SolverLanes& lanes) {
     const Settings& cfg = ctx.settings;
     const double inv_h = ctx.inv_h;
-    for (i64 k = 0; k < hot.n0; ++k) hot[k] = 0;
     i64 active = 0;
     for (i64 m = 0; m < c.n_man; ++m) active += c.mi[m].active;
-    pack_lanes(c.mi, c.mf, c.pf, g, bodies.inv_mass, bodies.inv_inertia, degree, inv_h,
+    // (hot still holds the last solve's marks: pack_lanes orders the colours' lanes by them)
+    pack_lanes(c.mi, c.mf, c.pf, g, bodies.inv_mass, bodies.inv_inertia, degree, hot, inv_h,
                cfg.over_relaxation, lanes);
+    for (i64 k = 0; k < hot.n0; ++k) hot[k] = 0;
     // the velocities in the kernels' layout (contact_lanes.hpp: BodyVel) while the sweeps run
     const i64 n_rows = bodies.inv_mass.n0;
     lanes.vel.resize(n_rows);
