@@ -8,7 +8,8 @@ here from Newton's laws, and symplectic Euler's first-order error with the optio
   m a = m g sin(theta) - f, I alpha = f r, a = alpha r, so a = g sin(theta) / (1 + I / (m r^2))
   and s(t) = a t^2 / 2: a sphere's I = 2/5 m r^2 gives 5/7 g sin(theta); a capsule of radius r
   and cylinder length 2 h (uniform density) rolling about its axis has I = m_cyl r^2 / 2 +
-  2/5 m_sph r^2 over m = m_cyl + m_sph, m_cyl ~ 2 pi r^2 h, m_sph ~ 4/3 pi r^3.
+  2/5 m_sph r^2 over m = m_cyl + m_sph, m_cyl ~ 2 pi r^2 h, m_sph ~ 4/3 pi r^3; a solid
+  cylinder on its side has I = m r^2 / 2 about its axis, a = 2/3 g sin(theta).
 """
 
 from __future__ import annotations
@@ -119,6 +120,9 @@ friction = 0.5
 SPHERE = 'shape = "sphere"\nradius = 0.1\nmass = 1.0\nposition = [0, 0, 0.1]'
 CAPSULE = ('shape = "capsule"\nradius = 0.05\nhalf_length = 0.15\ndensity = 1000\n'
            'position = [0, 0, 0.05]\naxis_angle = {axis = [1, 0, 0], angle_deg = 90}')
+# on its side, the axis (body z) along y: rolls down +x about its axis
+CYLINDER_ON_SIDE = ('shape = "cylinder"\nradius = 0.05\nhalf_length = 0.15\ndensity = 1000\n'
+                    'position = [0, 0, 0.05]\naxis_angle = {axis = [1, 0, 0], angle_deg = 90}')
 
 
 def _capsule_ratio(r, h):
@@ -128,20 +132,24 @@ def _capsule_ratio(r, h):
 
 
 @pytest.mark.parametrize("dt", [1e-3, 1e-2])
-@pytest.mark.parametrize("body", ["sphere", "capsule"])
+@pytest.mark.parametrize("body", ["sphere", "capsule", "cylinder"])
 def test_rolling_down_a_slope_covers_a_t2_over_2(body, dt):
     th = math.radians(15.0)
-    k = 0.4 if body == "sphere" else _capsule_ratio(0.05, 0.15)
+    k = {"sphere": 0.4, "capsule": _capsule_ratio(0.05, 0.15), "cylinder": 0.5}[body]
     acc = G * math.sin(th) / (1.0 + k)
     if body == "sphere":
         assert acc == pytest.approx(5.0 / 7.0 * G * math.sin(th), rel=1e-15)
-    t, x, _ = _roll(SPHERE if body == "sphere" else CAPSULE, dt, True, 1.0)
+    if body == "cylinder":
+        assert acc == pytest.approx(2.0 / 3.0 * G * math.sin(th), rel=1e-15)
+    toml = {"sphere": SPHERE, "capsule": CAPSULE, "cylinder": CYLINDER_ON_SIDE}[body]
+    t, x, _ = _roll(toml, dt, True, 1.0)
     s = x[:, 0]  # from x = 0
     exact = 0.5 * acc * t ** 2
-    # measured: sphere 5.6e-15 / 1.8e-15 (dt 1e-3 / 1e-2), capsule 1.8e-14 / 1.2e-15
+    # measured: sphere 5.6e-15 / 1.8e-15 (dt 1e-3 / 1e-2), capsule 1.8e-14 / 1.2e-15,
+    # cylinder 4.0e-15 / 1.0e-15
     assert np.abs(s / exact - 1.0).max() <= 1e-9
     z0 = 0.1 if body == "sphere" else 0.05
-    assert np.abs(x[:, 1]).max() <= 1e-12  # rolls straight (measured 1.5e-17 / 1.4e-16 m)
+    assert np.abs(x[:, 1]).max() <= 1e-12  # rolls straight (measured <= 1.5e-17 / 1.4e-16 m)
     assert np.abs(x[:, 2] - z0).max() <= 1e-12  # neither sinks nor lifts (5.6e-17 / 1.2e-16 m)
 
 
