@@ -10,7 +10,8 @@ MuJoCo's default solver crawls, is measured there.)
 Engines, each stepping the same initial state at the same dt on one thread:
 
 * ``rblog``: ContactWorld with default ContactParams (stages chosen, sleeping on); once per
-  count in ``--threads`` (the core's task pool, as ``rblog run --threads N``);
+  count in ``--threads`` (the core's task pool, as ``rblog run --threads N``), and with
+  ``--exact-motion both`` once more per count with exact_contact_motion on (``rblog-Nt-exact``);
 * ``mujoco``: MuJoCo with its defaults (``--mujoco-config``: a setup of
   bench_contact.MUJOCO_CONFIGS);
 * ``rapier``: Rapier (``rapier3d``, f32) with its defaults, and ``rapier-stiff`` with the
@@ -128,7 +129,8 @@ def rblog_chunks(model, state, dt, n_steps, chunk, threads=1, profile=None, **co
         profile.wall = wall
     st = world.stats
     return dict(version=f"rblog, {threads} thread{'s' if threads > 1 else ''}, "
-                        f"solver kernel {_core.solver_kernel()}",
+                        f"solver kernel {_core.solver_kernel()}"
+                        + (", exact motion" if world.params.exact_contact_motion else ""),
                 detail=f"{st[3] / max(st[0], 1):.0f} contact points, "
                        f"{st[8] / max(st[0], 1):.1f} sweeps, {st[4] / max(st[0], 1):.0f} awake a "
                        f"step; {world.n_awake} awake at the end",
@@ -458,6 +460,9 @@ def main(argv=None):
                     help="the soft step's contact_hertz (default: the substeps' cap)")
     ap.add_argument("--no-anchors", dest="anchors", action="store_false",
                     help="rblog with [contact] static_friction_anchors = false (on by default)")
+    ap.add_argument("--exact-motion", default="off", choices=("off", "on", "both"),
+                    help="rblog with [contact] exact_contact_motion off (the default), on, or "
+                         "both interleaved (engines rblog-Nt and rblog-Nt-exact)")
     ap.add_argument("--settle-window", type=float, default=0.2, help="s at the end of the run")
     ap.add_argument("--moving", type=float, default=1e-4,
                     help="m: a box that moves farther in the settle window is still moving")
@@ -493,11 +498,14 @@ def main(argv=None):
         engines = []
         for e in wanted:
             if e == "rblog":
+                exact = {"off": (False,), "on": (True,), "both": (False, True)}[args.exact_motion]
                 for nt in thread_counts:
-                    profiles[nt] = Profile() if args.profile else None
-                    engines.append((f"rblog-{nt}t", rblog_chunks(model, state, args.dt, n_steps,
-                                                                 args.chunk, nt, profiles[nt],
-                                                                 **contact)))
+                    for ex in exact:
+                        name = f"rblog-{nt}t" + ("-exact" if ex and len(exact) > 1 else "")
+                        profiles[name] = Profile() if args.profile else None
+                        engines.append((name, rblog_chunks(model, state, args.dt, n_steps,
+                                                           args.chunk, nt, profiles[name],
+                                                           exact_contact_motion=ex, **contact)))
             elif e == "mujoco" and have["mujoco"]:
                 engines.append(("mujoco", mujoco_chunks(model, state, args.dt, n_steps,
                                                         args.chunk, args.mujoco_config)))
@@ -522,7 +530,7 @@ def main(argv=None):
         for name, (cpu, wall, judge, info, _) in res.items():
             s = judge.summary()
             cpu_of[name] = n_steps / cpu
-            if name.startswith("rblog-"):
+            if name.startswith("rblog-") and name.endswith("t"):  # rblog-Nt; not rblog-Nt-exact
                 rblog_runs[name] = (int(name[len("rblog-"):-1]), n_steps / wall, n_steps / cpu)
             print(f"  {info['version']:<46} {n_steps / cpu:11.1f} {n_steps / wall:12.1f}   "
                   f"{1e3 * s['box_max']:.3f} / {1e3 * s['ground_max']:.3f} mm, "
@@ -540,13 +548,15 @@ def main(argv=None):
                     print(f"      {name:<36} {prof.get(name, 0.0):8.3f} s  "
                           f"{100 * prof.get(name, 0.0) / max(total, 1e-12):5.1f} %")
                 continue
-            print(f"  rblog {key} thread(s), per stage (wall):")
+            print(f"  {key}, per stage (wall):")
             for name, sec, share in prof.table():
                 print(f"      {name:<36} {sec:8.3f} s  {100 * share:5.1f} %")
         for name, sps in cpu_of.items():
-            if name.startswith("rblog") and len(rblog_runs) < len(cpu_of):
+            if name.startswith("rblog") and any(not o.startswith("rblog") for o in cpu_of):
                 print(f"  {name}: " + "   ".join(f"/ {o} {sps / v:.2f}x" for o, v in cpu_of.items()
                                                if not o.startswith("rblog")))
+            if name.endswith("-exact") and name[:-6] in cpu_of:
+                print(f"  {name}: {cpu_of[name[:-6]] / sps:.3f}x the CPU time of {name[:-6]}")
         for name, nt, nt0, r_wall, r_cpu in thread_ratios(rblog_runs):
             print(f"  rblog {nt} threads / {nt0}: {r_wall:.2f}x wall time, {r_cpu:.2f}x process "
                   f"CPU time (the threads' sum)")

@@ -4,8 +4,11 @@
 // * kinematic_rel: the rotation vector of R(k+1) R(k)^T over dt (the mean angular velocity over
 //   the interval, world frame) against the logged world angular velocity. An integrator's mean
 //   rate over an interval lies between the rates at its ends (explicit, semi-implicit, midpoint
-//   alike) when nothing kicks the body inside it, so the mismatch is the distance of the mean
-//   rate from the segment [w(k), w(k+1)], relative to max(|mean w|, |rate|) + corr / dt.
+//   alike) when nothing kicks the body inside it, so the mismatch is the distance d of the mean
+//   rate from the segment [w(k), w(k+1)]. An engine may turn a body by up to corr (rad) per
+//   interval without a velocity (split impulse, projection): that much of d dt is allowed on
+//   top, rel = max(d dt - corr, 0) / (scale dt) with scale = max(|mean w|, |rate|), and an
+//   interval turning less than corr cannot tell such a correction from a fault (unusable).
 // * linear_rel: the same for (x(k+1) - x(k)) / dt against [v(k), v(k+1)], with an allowance
 //   acc dt for a constant acceleration.
 // * pointwise: per sample, ||R(q/|q|) - R||_F, ||R^T R - I||_F, |p - m v|, |p| and
@@ -19,8 +22,9 @@ namespace rb {
 namespace audit {
 
 // rel[k, n] (T-1, N): distance of the rotation vector of R(k+1) R(k)^T over dt from the segment
-// [w(k), w(k+1)], relative to max(|mean w|, |rate|); NaN where the interval is not usable (turns
-// less than min_angle or more than 1.5 rad, or w jumps by more than smooth_frac of it).
+// [w(k), w(k+1)], less the correction allowance corr / dt, relative to max(|mean w|, |rate|);
+// NaN where the interval is not usable (turns less than max(min_angle, corr) or more than
+// 1.5 rad, or w jumps by more than smooth_frac of it).
 void kinematic_rel(V4<double> rot, V3<double> omega, V1<double> dts, double min_angle,
                    double smooth_frac, double corr, V2<double> rel) {
     const i64 n_k = rel.n0, n_b = rel.n1;
@@ -38,7 +42,8 @@ void kinematic_rel(V4<double> rot, V3<double> omega, V1<double> dts, double min_
             double scale = std::max(std::sqrt(mx * mx + my * my + mz * mz),
                                     std::sqrt(rx * rx + ry * ry + rz * rz));
             double jump = std::sqrt(ux * ux + uy * uy + uz * uz);
-            if (!(scale * h > min_angle && scale * h < 1.5 && jump <= smooth_frac * scale)) {
+            if (!(scale * h > std::max(min_angle, corr) && scale * h < 1.5 &&
+                  jump <= smooth_frac * scale)) {
                 rel(k, b) = std::nan("");
                 continue;
             }
@@ -50,7 +55,7 @@ void kinematic_rel(V4<double> rot, V3<double> omega, V1<double> dts, double min_
             }
             double ex = rx - (w0[0] + t * ux), ey = ry - (w0[1] + t * uy),
                    ez = rz - (w0[2] + t * uz);
-            rel(k, b) = std::sqrt(ex * ex + ey * ey + ez * ez) / (scale + corr / h);
+            rel(k, b) = std::max(std::sqrt(ex * ex + ey * ey + ez * ez) - corr / h, 0.0) / scale;
         }
     }
 }

@@ -20,8 +20,10 @@ Checks (all from logged channels and the body table; tolerances in rblog.analyze
   sample interval the rotation ``dR = R(k+1) R(k)^T`` has rotation vector ``theta`` (world
   frame); ``theta / dt`` must match the mean of ``w(k)`` and ``w(k+1)`` (midpoint rule, error
   ~(|w| dt)^2; the mean rate is compared with the segment between the end rates, which a
-  first-order integrator's rate lies on). Intervals whose w changes by more than a quarter (an
-  impulse: a contact) are left out, and, when a body would fail otherwise, the intervals of the
+  first-order integrator's rate lies on), with CONSISTENCY_CORRECTION (1e-3 rad) of turn per
+  interval allowed on top (an engine's position correction turns a pressed body without a
+  velocity) and intervals turning less than it not used. Intervals whose w changes by more
+  than a quarter (an impulse: a contact) are left out, and, when a body would fail otherwise, the intervals of the
   momentum analyzer's impact events (:func:`impact_intervals`: an impact between samples changes
   w at an unknown moment), and the intervals of several steps of a body driven by a logged
   non-contact load (its net over an interval past SMOOTH_FRAC of the momentum: the load changes

@@ -290,9 +290,14 @@ CONSISTENCY_MIN_ANGLE_RAD = 1e-4
 #: otherwise shows a median mismatch of 0.27 from its collisions alone).
 CONSISTENCY_SMOOTH_FRAC = 0.25
 #: position correction an engine may apply without a velocity (split impulse, projection of
-#: penetrating contacts), per sample interval: 1e-3 rad of turn or 1e-3 m of shift are allowed on
-#: top of the relative mismatch (a box in rblog's 500-box pile turns ~1e-3 rad per 10 ms
-#: interval by projection alone while nearly at rest; the faults above give O(|w| dt)).
+#: penetrating contacts), per sample interval (a box in rblog's 500-box pile turns ~1e-3 rad per
+#: 10 ms interval by projection alone while nearly at rest; the faults above give O(|w| dt)).
+#: Turn: 1e-3 rad is allowed on top of the relative mismatch, rel = max(d dt - corr, 0) /
+#: (|w| dt), and an interval turning less than it is not used (csrc/audit/consistency.cpp,
+#: kinematic_rel; samples/pile.toml's box125 at seed 6 with exact_contact_motion, rocked back by
+#: the split-impulse relax each step, is 2e-4 rad per interval off its logged w of 0.02 rad/s:
+#: tests/analyze/test_consistency.py). Shift: 1e-3 m joins the scale instead, d / (|v| + acc dt
+#: + corr / dt) (linear_rel).
 CONSISTENCY_CORRECTION = 1e-3
 #: a body needs this many usable intervals before its kinematic median is judged (count).
 CONSISTENCY_MIN_INTERVALS_SAMPLES = 5

@@ -317,7 +317,7 @@ class ContactParams:
             0.22-0.26 mm of penetration with it on (seeds 0-2; 0.5 mm allowed).
         exact_contact_motion: move a body whose one pushing contact is static geometry (the
             ground, a static box, a sleeping body) on a face, or rolling on it (a sphere, a
-            capsule), struck by no impact in the step, exactly
+            capsule, a cylinder), struck by no impact in the step, exactly
             under its constant contact force: tangentially by the trapezoid h (v_start + v_end)
             / 2 instead of symplectic Euler's h v_end, its turn likewise about the axes that
             move no contact point along the normal, a stop inside the step by kinetic
@@ -325,11 +325,16 @@ class ContactParams:
             surface"). A pair held by its friction anchor keeps symplectic Euler. Off, a box
             sliding to rest stops about h v0 / 2 short of v0^2 / (2 mu g) (1 mm at 2 m/s, dt
             1e-3) and a ball rolling down a slope is ahead of a t^2 / 2 by h / t relative. The
-            PGS solve only (``solver = "soft_step"`` moves bodies by its substeps). Off by
-            default: on, `rblog check` flags samples/pile.toml at 2 of seeds 1-12 (a creep of
-            0.128 mm at seed 4, limit 0.1; at seed 6 two boxes' angular velocity disagrees with
-            their orientation's rate by a median 0.142, limit 0.1), where the default is clean
-            at all 12 (benchmarks/RESULTS.md, "Contact solver: the loose pile").
+            PGS solve only (``solver = "soft_step"`` moves bodies by its substeps). A body at
+            rest as far as the solve can tell (its speeds within ``velocity_tolerance``) keeps
+            symplectic Euler. Off by default: on, `rblog check` flags samples/pile.toml at 2 of
+            seeds 1-12 (6: a box creeping 0.100 mm on another; 12: a box jittering 2.39 mm/s on
+            the ground), where the default is clean at all 12; at seeds 13-24 on flags 1 (18: a
+            jitter of 4.2 mm/s), off 5 (creeps of 0.101-0.194 mm, a jitter of 2.13 mm/s). The
+            findings at seeds 6 and 12 are not the rule's: no body within two contact rings of
+            the flagged ones is moved by it while they are flagged (it changed the pile's
+            trajectory before); seed 18's box455 is, in 42 of the 180 steps (benchmarks/RESULTS.md, "Contact solver: the loose pile"). The
+            500-box pile of bench_pile.py costs 1.05x the CPU time with it on.
         projection_iterations: Gauss-Seidel sweeps of the project stage (project.cpp): after the
             positions moved, the narrowphase runs again at the end-of-step poses and every
             point deeper than ``projection_depth`` is pushed out to that depth by moving

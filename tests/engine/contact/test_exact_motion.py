@@ -8,7 +8,8 @@ here from Newton's laws, and symplectic Euler's first-order error with the optio
   m a = m g sin(theta) - f, I alpha = f r, a = alpha r, so a = g sin(theta) / (1 + I / (m r^2))
   and s(t) = a t^2 / 2: a sphere's I = 2/5 m r^2 gives 5/7 g sin(theta); a capsule of radius r
   and cylinder length 2 h (uniform density) rolling about its axis has I = m_cyl r^2 / 2 +
-  2/5 m_sph r^2 over m = m_cyl + m_sph, m_cyl ~ 2 pi r^2 h, m_sph ~ 4/3 pi r^3.
+  2/5 m_sph r^2 over m = m_cyl + m_sph, m_cyl ~ 2 pi r^2 h, m_sph ~ 4/3 pi r^3; a solid
+  cylinder on its side has I = m r^2 / 2 about its axis, a = 2/3 g sin(theta).
 """
 
 from __future__ import annotations
@@ -119,6 +120,9 @@ friction = 0.5
 SPHERE = 'shape = "sphere"\nradius = 0.1\nmass = 1.0\nposition = [0, 0, 0.1]'
 CAPSULE = ('shape = "capsule"\nradius = 0.05\nhalf_length = 0.15\ndensity = 1000\n'
            'position = [0, 0, 0.05]\naxis_angle = {axis = [1, 0, 0], angle_deg = 90}')
+# on its side, the axis (body z) along y: rolls down +x about its axis
+CYLINDER_ON_SIDE = ('shape = "cylinder"\nradius = 0.05\nhalf_length = 0.15\ndensity = 1000\n'
+                    'position = [0, 0, 0.05]\naxis_angle = {axis = [1, 0, 0], angle_deg = 90}')
 
 
 def _capsule_ratio(r, h):
@@ -128,20 +132,24 @@ def _capsule_ratio(r, h):
 
 
 @pytest.mark.parametrize("dt", [1e-3, 1e-2])
-@pytest.mark.parametrize("body", ["sphere", "capsule"])
+@pytest.mark.parametrize("body", ["sphere", "capsule", "cylinder"])
 def test_rolling_down_a_slope_covers_a_t2_over_2(body, dt):
     th = math.radians(15.0)
-    k = 0.4 if body == "sphere" else _capsule_ratio(0.05, 0.15)
+    k = {"sphere": 0.4, "capsule": _capsule_ratio(0.05, 0.15), "cylinder": 0.5}[body]
     acc = G * math.sin(th) / (1.0 + k)
     if body == "sphere":
         assert acc == pytest.approx(5.0 / 7.0 * G * math.sin(th), rel=1e-15)
-    t, x, _ = _roll(SPHERE if body == "sphere" else CAPSULE, dt, True, 1.0)
+    if body == "cylinder":
+        assert acc == pytest.approx(2.0 / 3.0 * G * math.sin(th), rel=1e-15)
+    toml = {"sphere": SPHERE, "capsule": CAPSULE, "cylinder": CYLINDER_ON_SIDE}[body]
+    t, x, _ = _roll(toml, dt, True, 1.0)
     s = x[:, 0]  # from x = 0
     exact = 0.5 * acc * t ** 2
-    # measured: sphere 5.6e-15 / 1.8e-15 (dt 1e-3 / 1e-2), capsule 1.8e-14 / 1.2e-15
+    # measured: sphere 5.6e-15 / 1.8e-15 (dt 1e-3 / 1e-2), capsule 1.8e-14 / 1.2e-15,
+    # cylinder 4.0e-15 / 1.0e-15
     assert np.abs(s / exact - 1.0).max() <= 1e-9
     z0 = 0.1 if body == "sphere" else 0.05
-    assert np.abs(x[:, 1]).max() <= 1e-12  # rolls straight (measured 1.5e-17 / 1.4e-16 m)
+    assert np.abs(x[:, 1]).max() <= 1e-12  # rolls straight (measured <= 1.5e-17 / 1.4e-16 m)
     assert np.abs(x[:, 2] - z0).max() <= 1e-12  # neither sinks nor lifts (5.6e-17 / 1.2e-16 m)
 
 
@@ -222,3 +230,43 @@ def test_sliding_on_a_face_stops_at_v2_over_2_mu_g(body, dt):
     assert abs(s[k] - d_stop) <= 1e-9
     # neither sinks nor lifts: measured <= 5.6e-17 m, but the hex prism 8.3e-12 m at dt 1e-2
     assert np.abs(x[:k + 1, 2] - c0[2]).max() <= 2e-11
+
+
+def test_a_cylinder_held_on_a_slope_by_static_friction_stays_still():
+    """A cylinder standing on its cap on a 15 deg slope (mu 0.9 > tan 15 deg): a rolling pair,
+    so no friction anchor holds it, only the velocity solve, whose residual (~1e-4 m/s in the
+    first steps) is no motion under a constant force: the rule leaves such a body to symplectic
+    Euler (velocity_tolerance; world_step.cpp, exact_correction), and it settles as with the
+    option off. The trapezoid on that residual settled it over 0.17 s instead of 0.05 s and
+    moved it 2.7e-7 m after the first 0.1 s sample."""
+    from rblog.engine import integrators as rot
+
+    th = np.radians(15.0)
+    n = np.array([np.sin(th), 0.0, np.cos(th)])
+    r, hl = 0.05, 0.1
+    c = hl * n
+    sc = parse_scene(f"""
+[sim]
+dt = 1e-3
+duration = 3.0
+[ground]
+normal = [{float(n[0])!r}, 0.0, {float(n[2])!r}]
+friction = 0.9
+restitution = 0.0
+[[body]]
+shape = "cylinder"
+radius = {r}
+half_length = {hl}
+density = 1000
+friction = 0.9
+position = [{float(c[0])!r}, 0.0, {float(c[2])!r}]
+axis_angle = {{axis = [0, 1, 0], angle_deg = 15}}
+""")
+    world = ContactWorld(sc.model, ContactParams(sleep=False, exact_contact_motion=True),
+                         rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
+    out, _, bad, _ = simulate(world, sc.state, 1e-3, 3000, stride=100)
+    assert bad == -1
+    pos, quat = out["position"][:, 0], out["quat_wxyz"][:, 0]
+    # measured from the 0.1 s sample: 6.9e-18 m, 3.0e-18 in the quaternion
+    assert np.abs(pos - pos[0]).max() <= 1e-9
+    assert np.abs(quat - quat[0]).max() <= 1e-9
