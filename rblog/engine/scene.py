@@ -116,13 +116,20 @@ class Scene:
     warnings: list[str] = field(default_factory=list)
 
     def shape_counts(self) -> dict[str, int]:
-        """Bodies per shape name (the contract's geom names), in the order first seen."""
+        """Bodies per shape name (the contract's geom names; "compound" for a body of several
+        geoms), in the order first seen."""
         from rblog.contract.model import GEOM_NAMES
 
         m = self.model
+        gb = np.asarray(m.geom_body)
+        parts = np.bincount(gb[gb >= 0], minlength=m.n_bodies)
         out: dict[str, int] = {}
-        for t in np.asarray(m.geom_type)[np.asarray(m.geom_body) >= 0].tolist():
-            out[GEOM_NAMES[t]] = out.get(GEOM_NAMES[t], 0) + 1
+        for g in np.flatnonzero(gb >= 0).tolist():
+            b = int(gb[g])
+            if parts[b] > 1 and g != int(np.flatnonzero(gb == b)[0]):
+                continue  # a compound counts once
+            name = "compound" if parts[b] > 1 else GEOM_NAMES[int(m.geom_type[g])]
+            out[name] = out.get(name, 0) + 1
         return out
 
 
