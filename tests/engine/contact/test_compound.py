@@ -338,3 +338,46 @@ def test_spinning_dumbbell_parts_are_swept_by_the_turn():
                   for k in range(len(out["position"])))
     # measured: 0 m (one strike, at step 143, throws the dumbbell up); the slop is 5e-4 m
     assert deepest <= 5e-4, deepest
+
+
+def test_a_hull_part_sits_where_its_vertices_say():
+    """A compound of a hull (a box's corners, off-centre and turned in the part's frame) and a
+    ball: its mass properties match the same union of a box part and the ball (the box's closed
+    form), and the hull's logged vertices land on the corners' world positions."""
+    e = np.array([0.1, 0.05, 0.03])
+    corners = np.array([[sx * e[0], sy * e[1], sz * e[2]] for sx in (-1, 1) for sy in (-1, 1)
+                        for sz in (-1, 1)]) + [0.02, -0.01, 0.04]
+    verts = "[" + ", ".join(f"[{float(a)!r}, {float(b)!r}, {float(c)!r}]" for a, b, c in corners) + "]"
+    ball = '{shape = "sphere", radius = 0.04, position = [-0.2, 0.05, 0.0]}'
+    turn = 'axis_angle = {axis = [0, 0, 1], angle_deg = 30}'
+    hull = SIM + textwrap.dedent(f"""
+        [[body]]
+        shape = "compound"
+        density = 1000
+        parts = [{{shape = "hull", vertices = {verts}, position = [0.1, 0, 0], {turn}}}, {ball}]
+        """)
+    # the box part at the hull's centre: its corners' mean, turned by the part's rotation
+    c30, s30 = math.cos(math.radians(30)), math.sin(math.radians(30))
+    rz = np.array([[c30, -s30, 0], [s30, c30, 0], [0, 0, 1]])
+    centre = np.array([0.1, 0, 0]) + rz @ np.array([0.02, -0.01, 0.04])
+    box = SIM + textwrap.dedent(f"""
+        [[body]]
+        shape = "compound"
+        density = 1000
+        parts = [{{shape = "box", half_extents = {e.tolist()}, position = {centre.tolist()}, {turn}}}, {ball}]
+        """)
+    a, b = parse_scene(hull), parse_scene(box)
+    # measured: mass 2.2e-16, moments 4.4e-16 relative, centre 1.4e-17 m
+    assert a.model.body_mass[0] == pytest.approx(b.model.body_mass[0], rel=1e-12)
+    np.testing.assert_allclose(a.model.body_inertia_diag[0], b.model.body_inertia_diag[0], rtol=1e-12)
+    np.testing.assert_allclose(a.state.position[0], b.state.position[0], rtol=0, atol=1e-15)
+    m = a.model
+    g = int(np.flatnonzero(np.asarray(m.geom_body) == 0)[0])
+    from rblog.contract.orientation import quat_wxyz_to_matrix
+
+    r_g = a.state.rotation[0] @ quat_wxyz_to_matrix(m.geom_quat_wxyz_body[g])
+    world = a.state.position[0] + (r_g @ m.geom_vertices(g).T).T + a.state.rotation[0] @ m.geom_pos_body[g]
+    want = np.array([0.1, 0, 0]) + corners @ rz.T
+    # every logged vertex is a corner (measured 3.0e-17 m)
+    d = np.linalg.norm(world[:, None, :] - want[None, :, :], axis=2).min(axis=1)
+    assert d.max() <= 1e-12 and len(world) == 8
