@@ -11,6 +11,7 @@
 #include "engine/bind.hpp"
 #include "engine/collision.hpp"
 #include "engine/hull.hpp"
+#include "engine/records.hpp"
 
 namespace rb {
 namespace nb = nanobind;
@@ -203,30 +204,44 @@ void bind_collision(nb::module_& m) {
                 v2<double>(angular_momentum, "angular_momentum"), v2<double>(lo, "lo"),
                 v2<double>(hi, "hi"), v1<double>(reach, "reach"));
             nb::gil_scoped_release r;
-            body_aabbs(std::get<0>(a), std::get<1>(a), std::get<2>(a), std::get<3>(a),
-                       std::get<4>(a), std::get<5>(a), std::get<6>(a), std::get<7>(a),
-                       std::get<8>(a), std::get<9>(a), h, margin, std::get<10>(a),
-                       std::get<11>(a), std::get<12>(a));
+            const IdentityGeoms ig(std::get<0>(a), std::get<1>(a), &std::get<2>(a));
+            body_aabbs(ig.g, std::get<3>(a), std::get<4>(a), std::get<5>(a), std::get<6>(a),
+                       std::get<7>(a), std::get<8>(a), std::get<9>(a), h, margin,
+                       std::get<10>(a), std::get<11>(a), std::get<12>(a));
         },
         "broadphase.body_aabbs, in place (lo, hi, reach).");
 
     m.def(
         "sweep_and_prune",
         [](i64 n_items, i64 n_dyn, nb::handle lo, nb::handle hi, nb::handle group,
-           nb::handle awake, nb::handle pairs) {
+           nb::handle awake, nb::handle pairs, nb::handle body) {
             V2<double> vlo = v2<double>(lo, "lo"), vhi = v2<double>(hi, "hi");
             V1<i64> vg = v1<i64>(group, "group"), va = v1<i64>(awake, "awake");
             if (vlo.n0 < n_items || vhi.n0 < n_items || vlo.n1 != 3 || vhi.n1 != 3)
                 throw nb::value_error("sweep_and_prune: lo, hi must be (>= n_items, 3)");
+            // the items' bodies: given, or item i = body i
+            std::vector<i64> own;
+            V1<i64> vb;
+            if (body.is_none()) {
+                own.resize((size_t)std::max<i64>(n_dyn, 0));
+                for (i64 i = 0; i < n_dyn; ++i) own[(size_t)i] = i;
+                vb = V1<i64>{own.data(), n_dyn};
+            } else {
+                vb = v1<i64>(body, "body");
+                if (vb.n0 < n_dyn) throw nb::value_error("sweep_and_prune: body (>= n_dyn,)");
+            }
             Buf2<i64> b = pairs_from(pairs, 0);
             i64 count;
             {
                 nb::gil_scoped_release r;
-                count = sweep_and_prune(n_items, n_dyn, vlo, vhi, vg, va, b);
+                count = sweep_and_prune(n_items, n_dyn, vlo, vhi, vb, vg, va, b);
             }
             return nb::make_tuple(pairs_to(pairs, b, count), count);
         },
-        "broadphase.sweep_and_prune: (pairs, count); pairs is a new array when it had to grow.");
+        nb::arg("n_items"), nb::arg("n_dyn"), nb::arg("lo"), nb::arg("hi"), nb::arg("group"),
+        nb::arg("awake"), nb::arg("pairs"), nb::arg("body") = nb::none(),
+        "broadphase.sweep_and_prune (body: the items' bodies, None: item i is body i): (pairs, "
+        "count); pairs is a new array when it had to grow.");
 
     m.def(
         "ground_pairs",
@@ -242,27 +257,29 @@ void bind_collision(nb::module_& m) {
 
     m.def(
         "pair_min_separations",
-        [](nb::handle geom, nb::handle size, nb::handle radius, nb::handle inv_mass,
-           nb::handle inv_inertia, nb::handle group, i64 n_static, nb::handle sb_pos,
+        [](nb::handle bodies, i64 n_static, nb::handle sb_pos,
            nb::handle sb_rot, nb::handle sb_ext, nb::handle sb_lo, nb::handle sb_hi, bool ground,
            nb::handle gn, double goff, nb::handle position, nb::handle rotation, double margin) {
-            V1<i64> vgeom = v1<i64>(geom, "geom"), vgroup = v1<i64>(group, "group");
-            V2<double> vsize = v2<double>(size, "size");
-            V2<double> vinvi = v2<double>(inv_inertia, "inv_inertia");
-            V1<double> vrad = v1<double>(radius, "radius"), vim = v1<double>(inv_mass, "inv_mass");
+            const Bodies bd = Bodies::from_py(bodies);
+            V1<i64> vgroup = bd.group;
+            V2<double> vinvi = bd.inv_inertia;
+            V1<double> vim = bd.inv_mass;
             V2<double> vsp = v2<double>(sb_pos, "sb_pos"), vse = v2<double>(sb_ext, "sb_ext");
             V3<double> vsr = v3<double>(sb_rot, "sb_rot");
             V2<double> vsl = v2<double>(sb_lo, "sb_lo"), vsh = v2<double>(sb_hi, "sb_hi");
             V1<double> vgn = v1<double>(gn, "gn");
             V2<double> vpos = v2<double>(position, "position");
             V3<double> vrot = v3<double>(rotation, "rotation");
-            const i64 n = vgeom.n0;
+            const i64 n = vim.n0;
             if (vpos.n0 != n || vpos.n1 != 3 || vrot.n0 != n || vrot.n1 != 3 || vrot.n2 != 3)
                 throw nb::value_error("pair_min_separations: position (N, 3), rotation (N, 3, 3)");
+            for (i64 k = 0; k < bd.geom.n0; ++k)
+                if (bd.geom_body[k] < 0 || bd.geom_body[k] >= n)
+                    throw nb::value_error("pair_min_separations: geom_body in 0..N-1");
             std::vector<double> out;
             {
                 nb::gil_scoped_release r;
-                out = pair_min_separations(vgeom, vsize, vrad, vim, vinvi, vgroup, n_static, vsp,
+                out = pair_min_separations(bd.geoms(), vim, vinvi, vgroup, n_static, vsp,
                                            vsr, vse, vsl, vsh, ground, vgn, goff, vpos, vrot,
                                            margin);
             }
@@ -310,7 +327,8 @@ void bind_collision(nb::module_& m) {
             {
                 nb::gil_scoped_release g;
                 ColliderBuffers buf = collider_buffers();
-                r = collide_pairs(vpairs, n_pairs, n_dyn, n_static, vgeom, vsize, vawake, vpos,
+                const IdentityGeoms ig(vgeom, vsize);
+                r = collide_pairs(vpairs, n_pairs, n_dyn, n_static, ig.g, vawake, vpos,
                                   vrot, vreach, margin, vrest, vfric, vacc, vsp, vsr, vse, vsbe,
                                   vsbmu, vgn, goff, g_e, g_mu, vpmi, vpmf, vppf, vppid, vpk, vpi,
                                   prev_n, vmi, vmf, vpf, vpid, warm, anchor_distance, buf);
@@ -376,9 +394,9 @@ void bind_collision(nb::module_& m) {
            nb::handle force, nb::handle torque, double h, bool do_kick, nb::handle inv_mass,
            nb::handle accel, nb::handle radius, nb::handle inv_inertia) {
             ColliderBuffers buf = collider_buffers();
+            const IdentityGeoms ig(v1<i64>(geom, "geom"), v2<double>(size, "size"));
             return wake_touched(
-                v2<i64>(pairs, "pairs"), n_pairs, n_dyn, n_static, v1<i64>(geom, "geom"),
-                v2<double>(size, "size"), v1<i64>(awake, "awake"),
+                v2<i64>(pairs, "pairs"), n_pairs, n_dyn, n_static, ig.g, v1<i64>(awake, "awake"),
                 v1<double>(sleep_timer, "sleep_timer"), v1<i64>(island_of, "island_of"),
                 v2<double>(position, "position"), v3<double>(rotation, "rotation"),
                 v1<double>(reach, "reach"), speculative_distance, allowed_penetration,

@@ -65,7 +65,13 @@ void check_advance(const Bodies& bd, const BodyState& x, const SampleState& out,
     check(x.position.n1 == 3 && x.linear_momentum.n0 == n && x.quat_wxyz.n0 == n &&
               x.rotation.n0 == n && x.angular_momentum.n0 == n,
           "state arrays: N rows each");
-    check(bd.inv_mass.n0 == n && bd.geom.n0 == n, "Bodies: N rows");
+    check(bd.inv_mass.n0 == n && bd.radius.n0 == n, "Bodies: N rows");
+    const i64 g = bd.geom.n0;
+    check(bd.size.n0 == g && bd.geom_body.n0 == g && bd.geom_offset.n0 == g &&
+              bd.geom_pos.n0 == g && bd.geom_rot.n0 == g && bd.geom_radius.n0 == g,
+          "Bodies: G rows of geoms");
+    for (i64 k = 0; k < g; ++k)
+        check(bd.geom_body[k] >= 0 && bd.geom_body[k] < n, "Bodies: geom_body in 0..N-1");
     check(sl.awake.n0 == n && sl.timer.n0 == n && sl.island_of.n0 == n &&
               sl.island_counter.n0 >= 1,
           "SleepState: N rows");
@@ -168,11 +174,11 @@ void bind_contact(nb::module_& m) {
         "(step.py).");
 
     // ---- the stages on their own (step.py wraps them under their names) ----------------------
-    m.def("make_scratch", [](i64 n, nb::handle st_) {
+    m.def("make_scratch", [](i64 n, nb::handle st_, i64 n_geoms) {
         Scratch sc;
-        sc.make(n, Statics::from_py(st_));
+        sc.make(n, n_geoms < 0 ? n : n_geoms, Statics::from_py(st_));
         return sc;
-    });
+    }, nb::arg("n"), nb::arg("st"), nb::arg("n_geoms") = -1);
     m.def("stage_kick", [](nb::handle bd, nb::handle awake, nb::handle x, double h) {
         step::kick(Bodies::from_py(bd), v1<i64>(awake, "awake"), BodyState::from_py(x), h);
     });
@@ -363,9 +369,10 @@ void bind_contact(nb::module_& m) {
               ColliderBuffers cb = collider_buffers();
               Buf2<i64> ring(n_dyn + 1, 1);
               std::vector<char> done;
+              const IdentityGeoms ig(v1<i64>(geom, "geom"), v2<double>(size, "size"));
               i64 n = project_positions(
-                  v2<i64>(pairs, "pairs"), n_pairs, n_dyn, n_static, v1<i64>(geom, "geom"),
-                  v2<double>(size, "size"), v1<double>(inv_mass, "inv_mass"),
+                  v2<i64>(pairs, "pairs"), n_pairs, n_dyn, n_static, ig.g,
+                  v1<double>(inv_mass, "inv_mass"),
                   v2<double>(inv_inertia, "inv_inertia"), v1<i64>(iso, "iso"), iso_shortcut,
                   v1<i64>(awake, "awake"), v2<double>(position, "position"),
                   v3<double>(rotation, "rotation"), v2<double>(sb_pos, "sb_pos"),

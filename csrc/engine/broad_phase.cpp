@@ -1,10 +1,11 @@
 // Broad phase: swept AABBs and sort-and-sweep, N log N (rblog/engine/contact/broadphase.py, the
 // same formulas in the same order).
 //
-// Shape ids: dynamic bodies 0..N-1, static boxes N..N+M-1, the ground N+M. A pair is always
-// (lower id, higher id), so a dynamic body is a and static geometry is b.
+// Shape ids: the bodies' geoms 0..G-1 (collision.hpp Geoms; G = N, geom i = body i when every
+// body is one shape), static boxes G..G+M-1, the ground G+M. A pair is always (lower id, higher
+// id), so a dynamic geom is a and static geometry is b; two geoms of one body never pair.
 //
-// Each awake body's box is its world AABB grown by half the speculative distance (margin) and
+// Each awake body's geom's box is its world AABB grown by half the speculative distance (margin) and
 // swept along its displacement over the step (h v, and h |omega| rho for rotation, capped at the
 // bounding sphere): two bodies whose boxes do not overlap cannot come within the speculative
 // distance during the step. reach is how far any point of the body can move in the step; the
@@ -40,25 +41,31 @@ constexpr i64 ITEMS_PER_BLOCK = 128;
 constexpr i64 MIN_ITEMS = 256;
 }  // namespace
 
-void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv_mass,
-                V2<double> inv_inertia, V1<i64> awake, V2<double> position,
-                V2<double> linear_momentum, V3<double> rotation, V2<double> angular_momentum,
-                double h, double margin, V2<double> lo, V2<double> hi, V1<double> reach) {
-    const i64 n = position.n0;
+void body_aabbs(const Geoms& gm, V1<double> inv_mass, V2<double> inv_inertia, V1<i64> awake,
+                V2<double> position, V2<double> linear_momentum, V3<double> rotation,
+                V2<double> angular_momentum, double h, double margin, V2<double> lo,
+                V2<double> hi, V1<double> reach) {
+    const i64 n = gm.n();
     const double pad = 0.5 * margin;
-    // each body writes only its own rows: blocks of bodies on the task pool
+    // each geom writes only its own rows: blocks of geoms on the task pool
     const i64 nb = pool().threads() > 1 ? TaskPool::blocks_for(n, BODIES_PER_BLOCK, MIN_BODIES) : 1;
     pool().run(nb, [&](i64 blk, int) {
-    for (i64 i = n * blk / nb; i < n * (blk + 1) / nb; ++i) {
+    for (i64 g = n * blk / nb; g < n * (blk + 1) / nb; ++g) {
+        const i64 i = gm.body[g];
+        const i64 code = gm.code[g];
+        const bool off = gm.offset[g] != 0;
+        double cbuf[3], rbuf[9];
+        const GeomPose pose = geom_pose(gm, g, position, rotation, cbuf, rbuf);
+        const double* sz = gm.size.row(g);
         double ex, ey, ez;
-        if (geom[i] == GEOM_SPHERE) {
-            ex = ey = ez = size(i, 0);
-        } else if (geom[i] == GEOM_CAPSULE || geom[i] == GEOM_CYLINDER) {
+        if (code == GEOM_SPHERE) {
+            ex = ey = ez = sz[0];
+        } else if (code == GEOM_CAPSULE || code == GEOM_CYLINDER) {
             // the axis z_w = R e_z: a capsule's segment +-h z_w grown by r; a cylinder's two
             // discs of radius r normal to z_w, whose extent along e_k is r sqrt(1 - z_k^2)
-            M3 r = rotation.row(i);
-            const double rr = size(i, 0), hh = size(i, 1);
-            const bool cap = geom[i] == GEOM_CAPSULE;
+            M3 r = pose.rotation;
+            const double rr = sz[0], hh = sz[1];
+            const bool cap = code == GEOM_CAPSULE;
             double e3[3];
             for (int k = 0; k < 3; ++k) {
                 const double zk = r(k, 2);
@@ -68,9 +75,9 @@ void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv
             ey = e3[1];
             ez = e3[2];
         } else {
-            // a box's half extents; a hull's body-frame box about its centre (hull.hpp ext)
-            M3 r = rotation.row(i);
-            const double* e = geom[i] == GEOM_HULL ? hull_of(size.row(i)).ext : size.row(i);
+            // a box's half extents; a hull's geom-frame box about its centre (hull.hpp ext)
+            M3 r = pose.rotation;
+            const double* e = code == GEOM_HULL ? hull_of(sz).ext : sz;
             double e0 = e[0], e1 = e[1], e2 = e[2];
             ex = std::fabs(r(0, 0)) * e0 + std::fabs(r(0, 1)) * e1 + std::fabs(r(0, 2)) * e2;
             ey = std::fabs(r(1, 0)) * e0 + std::fabs(r(1, 1)) * e1 + std::fabs(r(1, 2)) * e2;
@@ -78,34 +85,44 @@ void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv
         }
         double dx = 0.0, dy = 0.0, dz = 0.0;
         double rho = 0.0;
+        const double rad = gm.radius[g];
         if (awake[i]) {
             double im = inv_mass[i];
             dx = h * linear_momentum(i, 0) * im;
             dy = h * linear_momentum(i, 1) * im;
             dz = h * linear_momentum(i, 2) * im;
-            if (geom[i] != GEOM_SPHERE) {
-                // |omega| <= |L| max(1/I): a cheap bound; a rotating box stays in its sphere
+            if (code != GEOM_SPHERE || off) {
+                // |omega| <= |L| max(1/I): a cheap bound; a geom at the centre of mass stays in
+                // its sphere of radius rad as it turns; an offset geom's points (within rad of
+                // the centre of mass) move at most h |omega| rad, and at most the diameter 2 rad
                 double lx = angular_momentum(i, 0), ly = angular_momentum(i, 1),
                        lz = angular_momentum(i, 2);
                 double wmax = std::sqrt(lx * lx + ly * ly + lz * lz) *
                               std::max(inv_inertia(i, 0),
                                        std::max(inv_inertia(i, 1), inv_inertia(i, 2)));
-                rho = std::min(h * wmax * radius[i], radius[i]);
-                ex = std::min(ex + rho, radius[i]);
-                ey = std::min(ey + rho, radius[i]);
-                ez = std::min(ez + rho, radius[i]);
+                if (off) {
+                    rho = std::min(h * wmax * rad, 2.0 * rad);
+                    ex += rho;
+                    ey += rho;
+                    ez += rho;
+                } else {
+                    rho = std::min(h * wmax * rad, rad);
+                    ex = std::min(ex + rho, rad);
+                    ey = std::min(ey + rho, rad);
+                    ez = std::min(ez + rho, rad);
+                }
             }
-            reach[i] = std::sqrt(dx * dx + dy * dy + dz * dz) + rho;
+            reach[g] = std::sqrt(dx * dx + dy * dy + dz * dz) + rho;
         } else {
-            reach[i] = 0.0;
+            reach[g] = 0.0;
         }
-        double x = position(i, 0), y = position(i, 1), z = position(i, 2);
-        lo(i, 0) = x - ex - pad + std::min(dx, 0.0);
-        lo(i, 1) = y - ey - pad + std::min(dy, 0.0);
-        lo(i, 2) = z - ez - pad + std::min(dz, 0.0);
-        hi(i, 0) = x + ex + pad + std::max(dx, 0.0);
-        hi(i, 1) = y + ey + pad + std::max(dy, 0.0);
-        hi(i, 2) = z + ez + pad + std::max(dz, 0.0);
+        double x = pose.centre[0], y = pose.centre[1], z = pose.centre[2];
+        lo(g, 0) = x - ex - pad + std::min(dx, 0.0);
+        lo(g, 1) = y - ey - pad + std::min(dy, 0.0);
+        lo(g, 2) = z - ez - pad + std::min(dz, 0.0);
+        hi(g, 0) = x + ex + pad + std::max(dx, 0.0);
+        hi(g, 1) = y + ey + pad + std::max(dy, 0.0);
+        hi(g, 2) = z + ez + pad + std::max(dz, 0.0);
     }
     });
 }
@@ -113,8 +130,8 @@ void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv
 // broadphase.py's _grow_pairs: room for 2 rows + 16 more pairs, contents kept.
 static void grow_pairs(Buf2<i64>& pairs) { pairs.grow(2 * pairs.rows + 16); }
 
-i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64> group,
-                    V1<i64> awake, Buf2<i64>& pairs) {
+i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64> body,
+                    V1<i64> group, V1<i64> awake, Buf2<i64>& pairs) {
     (void)awake;  // pairs of sleeping bodies are emitted too (collide carries them over)
     if (n_items < 2) return 0;
     // sweep axis: largest spread of the centres
@@ -193,7 +210,7 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
         const Item* ord = order.data();
         const double* bx = box.data();
         const i64 n_it = n_items, n_d = n_dyn;
-        const V1<i64> grp = group;
+        const V1<i64> grp = group, own = body;
         for (i64 ii = n_it * blk / nb; ii < n_it * (blk + 1) / nb; ++ii) {
             const i64 i = ord[ii].id;
             const double* bi = bx + 6 * ii;
@@ -211,8 +228,10 @@ i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64
                 const i64 a = std::min(i, j);
                 const i64 b = std::max(i, j);
                 if (b < n_d) {
-                    i64 ga = grp[a];
-                    i64 gb = grp[b];
+                    const i64 ba = own[a], bb = own[b];
+                    if (ba == bb) continue;  // two parts of one body
+                    i64 ga = grp[ba];
+                    i64 gb = grp[bb];
                     if (ga != 0 && gb != 0 && ga != gb) continue;
                 }
                 emit(a, b);

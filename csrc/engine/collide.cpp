@@ -1,7 +1,8 @@
 // Collide stage: narrowphase over the candidate pairs into manifold records, with warm starting
 // (rblog/engine/contact/collide.py, the same formulas in the same order).
 //
-// For each candidate pair (lower shape id a, higher id b):
+// For each candidate pair (lower shape id a, higher id b; shape ids are geoms, then the statics,
+// collision.hpp Geoms; the manifold's a and b are the geoms' bodies):
 //
 // * neither side awake (sleeping or static): the previous step's manifolds of the pair are
 //   carried over unchanged (inactive: not solved, still logged);
@@ -20,7 +21,8 @@
 //   D = 0. A sphere's pair, which rolls, has no anchor (a rolling sphere brings a new material
 //   point to the contact every step; its friction rows target zero slip).
 //
-// Manifold keys are 2 (a n_shapes + b) + part (part 1: a box pair's second manifold); the
+// Manifold keys are 2 (a n_shapes + b) + part (part 1: a box pair's second manifold), a and b
+// shape ids, so a compound body's every pair of parts keeps its own manifold and warm start; the
 // previous step's manifolds are found by binary search in their sorted keys (sort_manifolds).
 // Materials combine as restitution max(e_a, e_b) and friction sqrt(mu_a mu_b) (the analyzers use
 // the same rule).
@@ -142,7 +144,7 @@ constexpr i64 MIN_PAIRS = 512;
 // Append one manifold (points rows row.. of the collider's output) with warm starting. `rolls`:
 // a sphere's pair, which gets no friction anchor.
 [[gnu::always_inline]] static inline void add_manifold(i64 key, i64 a, i64 b, i64 n_dyn, i64 n_static, bool a_awake,
-                         bool b_awake, bool b_dyn, i64 cnt, i64 row, i64 part, bool rolls,
+                         bool b_awake, bool b_dyn, i64 b_shape, i64 n_geom, i64 cnt, i64 row, i64 part, bool rolls,
                          V2<double> position, V3<double> rotation, V2<double> sb_pos,
                          V3<double> sb_rot, V1<double> restitution, V1<double> friction,
                          V2<double> accel, V1<double> sb_e, V1<double> sb_mu, double g_e,
@@ -189,9 +191,9 @@ constexpr i64 MIN_PAIRS = 512;
             ay -= accel(b, 1);
             az -= accel(b, 2);
         }
-    } else if (b < n_dyn + n_static) {
-        mu = std::sqrt(friction[a] * sb_mu[b - n_dyn]);
-        e = std::max(restitution[a], sb_e[b - n_dyn]);
+    } else if (b_shape < n_geom + n_static) {
+        mu = std::sqrt(friction[a] * sb_mu[b_shape - n_geom]);
+        e = std::max(restitution[a], sb_e[b_shape - n_geom]);
     } else {
         mu = std::sqrt(friction[a] * g_mu);
         e = std::max(restitution[a], g_e);
@@ -210,9 +212,9 @@ constexpr i64 MIN_PAIRS = 512;
     if (b_dyn) {
         xb = position.row(b);
         rb_ = rotation.row(b);
-    } else if (b < n_dyn + n_static) {
-        xb = sb_pos.row(b - n_dyn);
-        rb_ = sb_rot.row(b - n_dyn);
+    } else if (b_shape < n_geom + n_static) {
+        xb = sb_pos.row(b_shape - n_geom);
+        rb_ = sb_rot.row(b_shape - n_geom);
     } else {
         xb = ZERO3;
     }
@@ -354,8 +356,8 @@ constexpr i64 MIN_PAIRS = 512;
 // manifolds to carry over) and keeps each pair's output and its manifold and point counts; a
 // prefix sum gives each pair its rows; the second writes the manifolds there with warm
 // starting. The rows are those of one pass in pair order, whichever thread ran which block.
-CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
-                           V2<double> size, V1<i64> awake, V2<double> position,
+CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const Geoms& gm,
+                           V1<i64> awake, V2<double> position,
                            V3<double> rotation, V1<double> reach, double margin,
                            V1<double> restitution, V1<double> friction, V2<double> accel,
                            V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext,
@@ -366,7 +368,9 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                            V1<ContactPoint> pf, V1<i64> pid, bool warm, double anchor_distance,
                            ColliderBuffers& buf) {
     require_collision_constants();
+    // shape ids: n_dyn geoms, then the statics; solver index n_body is the static dummy
     const i64 n_shapes = n_dyn + n_static + 1;
+    const i64 n_body = position.n0;
     const double ad2 = anchor_distance * anchor_distance;
     CollideWork& w = collide_work();
     if ((i64)w.out.size() < n_pairs) w.out.resize((size_t)n_pairs);
@@ -385,8 +389,8 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
             const i64 b = pairs(k, 1);
             const i64 key = a * n_shapes + b;  // manifold keys are 2 key + part
             const bool b_dyn = b < n_dyn;
-            const bool a_awake = awake[a] != 0;
-            const bool b_awake = b_dyn && awake[b] != 0;
+            const bool a_awake = awake[gm.body[a]] != 0;
+            const bool b_awake = b_dyn && awake[gm.body[b]] != 0;
             o.n_man = 0;
             o.n_pts = 0;
             if (!a_awake && !b_awake) {
@@ -400,12 +404,14 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                 }
                 continue;
             }
-            const i64 ga = geom[a];
-            const PairGeometry g = pair_geometry(a, b, n_dyn, n_static, geom, size, position,
-                                                 rotation, sb_pos, sb_rot, sb_ext);
+            const i64 ga = gm.code[a];
+            double pc[2][3], pr[2][9];
+            const GeomPose pa = geom_pose(gm, a, position, rotation, pc[0], pr[0]);
+            const PairGeometry g = pair_geometry(a, b, n_dyn, n_static, gm, pa, position,
+                                                 rotation, sb_pos, sb_rot, sb_ext, pc[1], pr[1]);
             double spec = margin + reach[a];
             if (b_dyn) spec += reach[b];
-            const i64 res = collide(ga, g.geom, position.row(a), rotation.row(a), size.row(a),
+            const i64 res = collide(ga, g.geom, pa.centre, pa.rotation, gm.size.row(a),
                                     g.centre, g.rotation, g.size, gn.p, goff, spec, cb);
             o.res = res;
             if (res <= 0) continue;
@@ -442,8 +448,9 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
             const i64 b = pairs(k, 1);
             const i64 key = a * n_shapes + b;
             const bool b_dyn = b < n_dyn;
-            const bool a_awake = awake[a] != 0;
-            const bool b_awake = b_dyn && awake[b] != 0;
+            const i64 ba = gm.body[a], bb = b_dyn ? gm.body[b] : b;
+            const bool a_awake = awake[ba] != 0;
+            const bool b_awake = b_dyn && awake[bb] != 0;
             if (o.res == -2) {
                 for (i64 part = 0; part < 2; ++part) {
                     i64 j = find_manifold(prev_keys, prev_idx, prev_n, 2 * key + part);
@@ -463,15 +470,15 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                 }
                 continue;
             }
-            const i64 ga = geom[a];
-            const i64 gb = b < n_dyn ? geom[b] : (b < n_dyn + n_static ? GEOM_BOX : GEOM_PLANE);
+            const i64 ga = gm.code[a];
+            const i64 gb = b < n_dyn ? gm.code[b] : (b < n_dyn + n_static ? GEOM_BOX : GEOM_PLANE);
             const bool rolls = ga == GEOM_SPHERE || gb == GEOM_SPHERE || ga == GEOM_CAPSULE ||
                                gb == GEOM_CAPSULE || ga == GEOM_CYLINDER || gb == GEOM_CYLINDER;
             for (i64 part = 0; part < 2; ++part) {
                 const ManifoldPart mp = manifold_part(o.res, part);
                 if (mp.count == 0) continue;
-                add_manifold(2 * key + part, a, b, n_dyn, n_static, a_awake, b_awake, b_dyn,
-                             mp.count, mp.row, part, rolls, position, rotation, sb_pos, sb_rot,
+                add_manifold(2 * key + part, ba, bb, n_body, n_static, a_awake, b_awake, b_dyn,
+                             b, n_dyn, mp.count, mp.row, part, rolls, position, rotation, sb_pos, sb_rot,
                              restitution, friction, accel, sb_e, sb_mu, g_e, g_mu, prev_mi,
                              prev_mf, prev_pf, prev_pid, prev_keys, prev_idx, prev_n, mi, mf, pf,
                              pid, n_man, n_pts, warm, ad2, o);

@@ -164,34 +164,85 @@ inline ManifoldPart manifold_part(i64 res, i64 part) {
     return {res / 8, 4};
 }
 
-// (geom_b, centre_b, rotation_b, size_b) of shape id b (a's data stand in for the plane).
+// ---- the geom table ---------------------------------------------------------------------------
+// The dynamic shapes are geoms, each owned by one body (a compound body owns several): shape ids
+// 0..G-1 are geoms, G..G+S-1 the static boxes, G+S the ground. A geom's frame is its body's
+// (centre of mass, principal axes) when offset[g] == 0; else it sits at pos[g] (body frame, m)
+// turned by rot[g] (geom -> body), and its world pose is x + R pos, R rot. radius[g] bounds the
+// distance of its points from its body's centre of mass (m): the turn bound of its swept AABB.
+// A scene of one-shape bodies has G = N, geom g = body g, offset 0: every stage reads the body
+// rows as it would without the table.
+struct Geoms {
+    V1<i64> code;       // (G,) GEOM_*
+    V2<double> size;    // (G, 3) size rows (above)
+    V1<i64> body;       // (G,) owner body
+    V1<i64> offset;     // (G,) 1: pos / rot below, 0: the body's frame
+    V2<double> pos;     // (G, 3) geom origin in the body frame, m
+    V3<double> rot;     // (G, 3, 3) geom -> body, row-major
+    V1<double> radius;  // (G,) farthest point of the geom from its body's centre of mass, m
+    i64 n() const { return code.n0; }
+};
+
+// A geom's world pose: centre and rotation (9, row-major). For an offset geom they are computed
+// into `c` / `r` (the caller's 3 and 9 values); else they point into the body's state rows.
+struct GeomPose {
+    const double* centre;
+    const double* rotation;
+};
+inline GeomPose geom_pose(const Geoms& gm, i64 g, V2<double> position, V3<double> rotation,
+                          double* c, double* r) {
+    const i64 i = gm.body[g];
+    if (!gm.offset[g]) return {position.row(i), rotation.row(i)};
+    const double* x = position.row(i);
+    const double* R = rotation.row(i);
+    const double* p = gm.pos.row(g);
+    const double* L = gm.rot.row(g);
+    for (int k = 0; k < 3; ++k) {
+        c[k] = x[k] + R[3 * k] * p[0] + R[3 * k + 1] * p[1] + R[3 * k + 2] * p[2];
+        for (int j = 0; j < 3; ++j)
+            r[3 * k + j] = R[3 * k] * L[j] + R[3 * k + 1] * L[3 + j] + R[3 * k + 2] * L[6 + j];
+    }
+    return {c, r};
+}
+
+// (geom_b, centre_b, rotation_b, size_b) of shape id b (a's data stand in for the plane; ca, ra
+// are a's world pose, cb / rb the room for an offset geom b's).
 struct PairGeometry {
     i64 geom;
     const double* centre;
     const double* rotation;  // 9, row-major
     const double* size;
 };
-inline PairGeometry pair_geometry(i64 a, i64 b, i64 n_dyn, i64 n_static, V1<i64> geom,
-                                  V2<double> size, V2<double> position, V3<double> rotation,
-                                  V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext) {
-    if (b < n_dyn) return {geom[b], position.row(b), rotation.row(b), size.row(b)};
-    if (b < n_dyn + n_static) {
-        i64 k = b - n_dyn;
+inline PairGeometry pair_geometry(i64 a, i64 b, i64 n_geom, i64 n_static, const Geoms& gm,
+                                  GeomPose pa, V2<double> position, V3<double> rotation,
+                                  V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext,
+                                  double* cb, double* rb) {
+    if (b < n_geom) {
+        GeomPose q = geom_pose(gm, b, position, rotation, cb, rb);
+        return {gm.code[b], q.centre, q.rotation, gm.size.row(b)};
+    }
+    if (b < n_geom + n_static) {
+        i64 k = b - n_geom;
         return {GEOM_BOX, sb_pos.row(k), sb_rot.row(k), sb_ext.row(k)};
     }
-    return {GEOM_PLANE, position.row(a), rotation.row(a), size.row(a)};
+    return {GEOM_PLANE, pa.centre, pa.rotation, gm.size.row(a)};
 }
 
+// The shape ids' bodies: a geom's owner, -1 for static geometry.
+inline i64 shape_body(const Geoms& gm, i64 s) { return s < gm.n() ? gm.body[s] : -1; }
+
 // ---- broad phase (broad_phase.cpp) ----------------------------------------------------------
-// World AABBs of the dynamic bodies (rows 0..N-1 of lo, hi), swept over the step; reach (N,).
-void body_aabbs(V1<i64> geom, V2<double> size, V1<double> radius, V1<double> inv_mass,
-                V2<double> inv_inertia, V1<i64> awake, V2<double> position,
-                V2<double> linear_momentum, V3<double> rotation, V2<double> angular_momentum,
-                double h, double margin, V2<double> lo, V2<double> hi, V1<double> reach);
+// World AABBs of the geoms (rows 0..G-1 of lo, hi), swept over the step with their bodies;
+// reach (G,).
+void body_aabbs(const Geoms& gm, V1<double> inv_mass, V2<double> inv_inertia, V1<i64> awake,
+                V2<double> position, V2<double> linear_momentum, V3<double> rotation,
+                V2<double> angular_momentum, double h, double margin, V2<double> lo,
+                V2<double> hi, V1<double> reach);
 // Candidate pairs (lo id, hi id) among items 0..n_items-1 whose AABBs overlap, into rows
-// 0..count-1 of `pairs` (2 columns, grown in place). Returns count.
-i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64> group,
-                    V1<i64> awake, Buf2<i64>& pairs);
+// 0..count-1 of `pairs` (2 columns, grown in place): items 0..n_dyn-1 are geoms of the bodies
+// `body` (two geoms of one body never pair), `group` per body. Returns count.
+i64 sweep_and_prune(i64 n_items, i64 n_dyn, V2<double> lo, V2<double> hi, V1<i64> body,
+                    V1<i64> group, V1<i64> awake, Buf2<i64>& pairs);
 // Append (body, ground) for every body whose padded AABB reaches the plane dot(gn, x) = goff
 // (Python: the Statics record st; here its gn, goff). Returns the new pair count.
 i64 ground_pairs(i64 n_dyn, i64 n_static, V1<double> gn, double goff, V2<double> lo,
@@ -214,8 +265,8 @@ struct CollideCount {
 };
 // Manifolds of the candidate pairs into (mi, mf, pf, pid), which must have room for 2 n_pairs
 // manifolds and 8 n_pairs points (grow_manifolds, grow_points). Returns (n_man, n_pts).
-CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
-                           V2<double> size, V1<i64> awake, V2<double> position,
+CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const Geoms& gm,
+                           V1<i64> awake, V2<double> position,
                            V3<double> rotation, V1<double> reach, double margin,
                            V1<double> restitution, V1<double> friction, V2<double> accel,
                            V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext,
@@ -247,8 +298,8 @@ void wake_island(i64 island, i64 n_dyn, V1<i64> awake, V1<double> sleep_timer,
                  V1<i64> island_of, V2<double> linear_momentum, V2<double> angular_momentum,
                  V2<double> force, V2<double> torque, double h, bool do_kick);
 // Wake the sleeping islands an awake body will reach within this step. Returns islands woken.
-i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
-                 V2<double> size, V1<i64> awake, V1<double> sleep_timer, V1<i64> island_of,
+i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const Geoms& gm,
+                 V1<i64> awake, V1<double> sleep_timer, V1<i64> island_of,
                  V2<double> position, V3<double> rotation, V1<double> reach,
                  double speculative_distance, double allowed_penetration, V2<double> sb_pos,
                  V3<double> sb_rot, V2<double> sb_ext, V1<double> gn, double goff,
@@ -267,8 +318,7 @@ i64 wake_pushed(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf, i64 n
 // ---- measure (measure.cpp) ------------------------------------------------------------------
 // Least separation of every touching pair of shapes at this configuration (bodies at rest:
 // unswept boxes padded by margin); measure.separations hands the world's model arrays in.
-std::vector<double> pair_min_separations(V1<i64> geom, V2<double> size, V1<double> radius,
-                                         V1<double> inv_mass, V2<double> inv_inertia,
+std::vector<double> pair_min_separations(const Geoms& gm, V1<double> inv_mass, V2<double> inv_inertia,
                                          V1<i64> group, i64 n_static, V2<double> sb_pos,
                                          V3<double> sb_rot, V2<double> sb_ext, V2<double> sb_lo,
                                          V2<double> sb_hi, bool ground, V1<double> gn,

@@ -122,8 +122,8 @@ void wake_island(i64 island, i64 n_dyn, V1<i64> awake, V1<double> sleep_timer,
     }
 }
 
-i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
-                 V2<double> size, V1<i64> awake, V1<double> sleep_timer, V1<i64> island_of,
+i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const Geoms& gm,
+                 V1<i64> awake, V1<double> sleep_timer, V1<i64> island_of,
                  V2<double> position, V3<double> rotation, V1<double> reach,
                  double speculative_distance, double allowed_penetration, V2<double> sb_pos,
                  V3<double> sb_rot, V2<double> sb_ext, V1<double> gn, double goff,
@@ -132,14 +132,17 @@ i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> ge
                  bool do_kick, ColliderBuffers& buf, V1<double> inv_mass, V2<double> accel,
                  V1<double> radius, V2<double> inv_inertia) {
     require_collision_constants();
+    // shape ids a, b: geoms (n_dyn of them), their bodies ba, bb
+    const i64 n_body = position.n0;
     i64 n_woken = 0;
     for (i64 k = 0; k < n_pairs; ++k) {
         const i64 a = pairs(k, 0);
         const i64 b = pairs(k, 1);
         if (b >= n_dyn) continue;
-        if ((awake[a] != 0) == (awake[b] != 0)) continue;
-        const i64 sleeper = awake[a] ? b : a;
-        const i64 mover = awake[a] ? a : b;
+        const i64 ba = gm.body[a], bb = gm.body[b];
+        if ((awake[ba] != 0) == (awake[bb] != 0)) continue;
+        const i64 sleeper = awake[ba] ? bb : ba;
+        const i64 mover = awake[ba] ? ba : bb;
         double im = inv_mass[mover];
         double vx = linear_momentum(mover, 0) * im;
         double vy = linear_momentum(mover, 1) * im;
@@ -159,17 +162,19 @@ i64 wake_touched(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> ge
             // a (nearly) resting neighbour: if it does push, wake_pushed wakes the island
             continue;
         }
-        const PairGeometry g = pair_geometry(a, b, n_dyn, n_static, geom, size, position, rotation,
-                                             sb_pos, sb_rot, sb_ext);
-        const i64 ga = geom[a];
+        double pc[2][3], pr[2][9];
+        const GeomPose pa = geom_pose(gm, a, position, rotation, pc[0], pr[0]);
+        const PairGeometry g = pair_geometry(a, b, n_dyn, n_static, gm, pa, position, rotation,
+                                             sb_pos, sb_rot, sb_ext, pc[1], pr[1]);
+        const i64 ga = gm.code[a];
         double spec = speculative_distance + reach[a] + reach[b];
-        i64 res = collide(ga, g.geom, position.row(a), rotation.row(a), size.row(a), g.centre,
+        i64 res = collide(ga, g.geom, pa.centre, pa.rotation, gm.size.row(a), g.centre,
                           g.rotation, g.size, gn.p, goff, spec, buf);
         for (i64 q = 0; q < 8; ++q) {
             if ((q < 4 && q >= res % 8) || (q >= 4 && q - 4 >= res / 8)) continue;
             if (buf.sep[q] < close) {
                 n_woken += 1;
-                wake_island(island_of[sleeper], n_dyn, awake, sleep_timer, island_of,
+                wake_island(island_of[sleeper], n_body, awake, sleep_timer, island_of,
                             linear_momentum, angular_momentum, force, torque, h, do_kick);
                 break;
             }

@@ -15,15 +15,16 @@
 
 namespace rb {
 
-std::vector<double> pair_min_separations(V1<i64> geom, V2<double> size, V1<double> radius,
-                                         V1<double> inv_mass, V2<double> inv_inertia,
+std::vector<double> pair_min_separations(const Geoms& gm, V1<double> inv_mass,
+                                         V2<double> inv_inertia,
                                          V1<i64> group, i64 n_static, V2<double> sb_pos,
                                          V3<double> sb_rot, V2<double> sb_ext, V2<double> sb_lo,
                                          V2<double> sb_hi, bool ground, V1<double> gn,
                                          double goff, V2<double> position, V3<double> rotation,
                                          double margin) {
     require_collision_constants();
-    const i64 n = position.n0;
+    const i64 nb = position.n0;  // bodies
+    const i64 n = gm.n();        // geoms: the dynamic shape ids
     const i64 ns = n_static;
     // the step's broadphase with every body asleep and at rest: boxes unswept
     std::vector<double> lo_buf((n + ns) * 3), hi_buf((n + ns) * 3), reach_buf(n + ns);
@@ -33,14 +34,14 @@ std::vector<double> pair_min_separations(V1<i64> geom, V2<double> size, V1<doubl
             lo(n + k, c) = sb_lo(k, c);
             hi(n + k, c) = sb_hi(k, c);
         }
-    std::vector<i64> awake_buf(n, 0);
-    std::vector<double> zeros(n * 3, 0.0);
-    V1<i64> awake{awake_buf.data(), n};
-    V2<double> z3{zeros.data(), n, 3};
-    body_aabbs(geom, size, radius, inv_mass, inv_inertia, awake, position, z3, rotation, z3, 0.0,
-               margin, lo, hi, V1<double>{reach_buf.data(), n + ns});
+    std::vector<i64> awake_buf(nb, 0);
+    std::vector<double> zeros(nb * 3, 0.0);
+    V1<i64> awake{awake_buf.data(), nb};
+    V2<double> z3{zeros.data(), nb, 3};
+    body_aabbs(gm, inv_mass, inv_inertia, awake, position, z3, rotation, z3, 0.0, margin, lo, hi,
+               V1<double>{reach_buf.data(), n + ns});
     Buf2<i64> pairs(std::max<i64>(16, 4 * n), 2);
-    i64 n_pairs = sweep_and_prune(n + ns, n, lo, hi, group, awake, pairs);
+    i64 n_pairs = sweep_and_prune(n + ns, n, lo, hi, gm.body, group, awake, pairs);
     if (ground) n_pairs = ground_pairs(n, ns, gn, goff, lo, hi, pairs, n_pairs);
     std::vector<double> out;
     out.reserve(n_pairs);
@@ -48,9 +49,11 @@ std::vector<double> pair_min_separations(V1<i64> geom, V2<double> size, V1<doubl
     for (i64 k = 0; k < n_pairs; ++k) {
         const i64 a = pairs(k, 0);
         const i64 b = pairs(k, 1);
-        const PairGeometry g = pair_geometry(a, b, n, ns, geom, size, position, rotation, sb_pos,
-                                             sb_rot, sb_ext);
-        const i64 res = collide(geom[a], g.geom, position.row(a), rotation.row(a), size.row(a),
+        double pc[2][3], pr[2][9];
+        const GeomPose pa = geom_pose(gm, a, position, rotation, pc[0], pr[0]);
+        const PairGeometry g = pair_geometry(a, b, n, ns, gm, pa, position, rotation, sb_pos,
+                                             sb_rot, sb_ext, pc[1], pr[1]);
+        const i64 res = collide(gm.code[a], g.geom, pa.centre, pa.rotation, gm.size.row(a),
                                 g.centre, g.rotation, g.size, gn.p, goff, margin, buf);
         const i64 n1 = manifold_part(res, 0).count;
         if (n1 <= 0) continue;

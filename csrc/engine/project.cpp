@@ -160,17 +160,19 @@ i64 add_points(i64 res, i64 a, i64 b, i64 ia, i64 ib, i64 n_dyn, V1<double> inv_
 // receive each body's correction (zeroed here for the bodies of the gathered points; read them
 // only for those). ring (N+1,) and done (pairs) are work arrays. Returns the number of gathered
 // points, 0 when nothing is deeper than depth.
-i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
-                      V2<double> size, V1<double> inv_mass, V2<double> inv_inertia, V1<i64> iso,
+i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const Geoms& gm,
+                      V1<double> inv_mass, V2<double> inv_inertia, V1<i64> iso,
                       bool iso_shortcut, V1<i64> awake, V2<double> position, V3<double> rotation,
                       V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext, V1<double> gn,
                       double goff, double depth, i64 n_iter, Buf2<double>& rows, Buf2<i64>& ids,
                       ColliderBuffers& buf, V2<double> dx, V2<double> dth, i64 rings,
                       Buf2<i64>& ring_buf, std::vector<char>& done) {
+    // shape ids: n_dyn geoms, then the statics; rings, points and corrections are per body
+    const i64 n_body = position.n0;
     double deepest = 0.0;
-    ring_buf.grow(n_dyn + 1);
+    ring_buf.grow(n_body + 1);
     i64* ring = ring_buf.data.data();  // ring of each body (0: not gathered)
-    for (i64 i = 0; i < n_dyn + 1; ++i) ring[i] = 0;
+    for (i64 i = 0; i < n_body + 1; ++i) ring[i] = 0;
     done.assign(static_cast<size_t>(std::max<i64>(n_pairs, 1)), 0);  // pair already gathered
     // the first pass, pairs independent: blocks of pairs on the task pool, each pair's outcome
     // and deepest overlap into its slots, then the marks and the deepest in pair order
@@ -187,15 +189,17 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i6
         for (i64 k = n_pairs * blk / n_blocks; k < n_pairs * (blk + 1) / n_blocks; ++k) {
             i64 a = pairs(k, 0), b = pairs(k, 1);
             bool b_dyn = b < n_dyn;
-            bool a_awake = awake[a] != 0;
-            bool b_awake = b_dyn && awake[b] != 0;
+            bool a_awake = awake[gm.body[a]] != 0;
+            bool b_awake = b_dyn && awake[gm.body[b]] != 0;
             w.what[(size_t)k] = PAIR_STILL;
             if (!a_awake && !b_awake) continue;
             w.what[(size_t)k] = PAIR_APART;
-            i64 ga = geom[a];
-            PairGeometry pg = pair_geometry(a, b, n_dyn, n_static, geom, size, position,
-                                            rotation, sb_pos, sb_rot, sb_ext);
-            i64 res = collide(ga, pg.geom, position.row(a), M3(rotation.row(a)), size.row(a),
+            i64 ga = gm.code[a];
+            double pc[2][3], pr[2][9];
+            GeomPose pa = geom_pose(gm, a, position, rotation, pc[0], pr[0]);
+            PairGeometry pg = pair_geometry(a, b, n_dyn, n_static, gm, pa, position,
+                                            rotation, sb_pos, sb_rot, sb_ext, pc[1], pr[1]);
+            i64 res = collide(ga, pg.geom, pa.centre, M3(pa.rotation), gm.size.row(a),
                               pg.centre, M3(pg.rotation), pg.size, gn.p, goff, -depth, cb);
             if (res <= 0) continue;
             double d = 0.0;
@@ -214,8 +218,9 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i6
         }
         if (w.what[(size_t)k] == PAIR_APART) continue;
         deepest = std::max(deepest, w.deep[(size_t)k]);
-        i64 a = pairs(k, 0), b = pairs(k, 1);
+        i64 a = gm.body[pairs(k, 0)], b = pairs(k, 1);
         bool b_dyn = b < n_dyn;
+        if (b_dyn) b = gm.body[b];
         if (awake[a] != 0) ring[a] = 1;
         if (b_dyn && awake[b] != 0) ring[b] = 1;
     }
@@ -224,21 +229,24 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i6
     for (i64 r = 1; r < rings + 1; ++r) {
         for (i64 k = 0; k < n_pairs; ++k) {
             if (done[k]) continue;
-            i64 a = pairs(k, 0), b = pairs(k, 1);
-            bool b_dyn = b < n_dyn;
+            const i64 sa = pairs(k, 0), sb = pairs(k, 1);  // shape ids
+            bool b_dyn = sb < n_dyn;
+            i64 a = gm.body[sa], b = b_dyn ? gm.body[sb] : n_body;  // bodies
             if (ring[a] != r && !(b_dyn && ring[b] == r)) continue;
             done[k] = 1;
             bool a_awake = awake[a] != 0;
             bool b_awake = b_dyn && awake[b] != 0;
-            i64 ga = geom[a];
-            PairGeometry pg = pair_geometry(a, b, n_dyn, n_static, geom, size, position,
-                                            rotation, sb_pos, sb_rot, sb_ext);
-            i64 res = collide(ga, pg.geom, position.row(a), M3(rotation.row(a)), size.row(a),
+            i64 ga = gm.code[sa];
+            double pc[2][3], pr[2][9];
+            GeomPose pa = geom_pose(gm, sa, position, rotation, pc[0], pr[0]);
+            PairGeometry pg = pair_geometry(sa, sb, n_dyn, n_static, gm, pa, position,
+                                            rotation, sb_pos, sb_rot, sb_ext, pc[1], pr[1]);
+            i64 res = collide(ga, pg.geom, pa.centre, M3(pa.rotation), gm.size.row(sa),
                               pg.centre, M3(pg.rotation), pg.size, gn.p, goff, deepest, buf);
             if (res <= 0) continue;
-            i64 ia = a_awake ? a : n_dyn;
-            i64 ib = b_awake ? b : n_dyn;
-            n_pts = add_points(res, a, b, ia, ib, n_dyn, inv_mass, inv_inertia, iso,
+            i64 ia = a_awake ? a : n_body;
+            i64 ib = b_awake ? b : n_body;
+            n_pts = add_points(res, a, b, ia, ib, n_body, inv_mass, inv_inertia, iso,
                                iso_shortcut, position, rotation, buf, rows, ids, n_pts);
             if (a_awake && ring[a] == 0) ring[a] = r + 1;
             if (b_awake && ring[b] == 0) ring[b] = r + 1;
@@ -273,7 +281,7 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i6
             double d = nw - old;
             if (d == 0.0) continue;
             double px = d * nx, py = d * ny, pz = d * nz;
-            if (ia < n_dyn) {
+            if (ia < n_body) {
                 double ma = inv_mass[ia];
                 dx(ia, 0) += ma * px;
                 dx(ia, 1) += ma * py;
@@ -285,7 +293,7 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i6
                 dth(ia, 1) += e[1];
                 dth(ia, 2) += e[2];
             }
-            if (ib < n_dyn) {
+            if (ib < n_body) {
                 double mb = inv_mass[ib];
                 dx(ib, 0) -= mb * px;
                 dx(ib, 1) -= mb * py;

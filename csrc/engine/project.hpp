@@ -23,8 +23,8 @@ constexpr i64 PJ_K = 10;  // 1 / effective inverse mass along the normal
 constexpr i64 PJ_L = 11;  // accumulated position impulse (kg m)
 constexpr i64 PROJ_COLS = 12;
 
-i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, V1<i64> geom,
-                      V2<double> size, V1<double> inv_mass, V2<double> inv_inertia, V1<i64> iso,
+i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const Geoms& gm,
+                      V1<double> inv_mass, V2<double> inv_inertia, V1<i64> iso,
                       bool iso_shortcut, V1<i64> awake, V2<double> position, V3<double> rotation,
                       V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext, V1<double> gn,
                       double goff, double depth, i64 n_iter, Buf2<double>& rows, Buf2<i64>& ids,

@@ -24,10 +24,17 @@
 
 namespace rb {
 
-// Per-body model arrays the kernel reads (N rows each; iso marks isotropic inertia).
+// Per-body model arrays the kernel reads (N rows each; iso marks isotropic inertia), and the
+// bodies' geoms (G rows each, collision.hpp Geoms: G = N and geom i = body i when every body is
+// one shape at its centre of mass).
 struct Bodies {
-    V1<i64> geom;             // (N,) narrowphase GEOM_* code
-    V2<double> size;          // (N, 3) radius in [0] or half extents, m
+    V1<i64> geom;             // (G,) narrowphase GEOM_* code
+    V2<double> size;          // (G, 3) size row (collision.hpp GEOM_*), m
+    V1<i64> geom_body;        // (G,) owner body
+    V1<i64> geom_offset;      // (G,) 1: the geom sits at geom_pos / geom_rot in its body
+    V2<double> geom_pos;      // (G, 3) body frame, m
+    V3<double> geom_rot;      // (G, 3, 3) geom -> body
+    V1<double> geom_radius;   // (G,) farthest point of the geom from its body's centre, m
     V1<double> radius;        // (N,) bounding radius, m
     V1<double> inv_mass;      // (N,) 1/kg
     V2<double> inertia;       // (N, 3) principal moments, kg m^2
@@ -40,6 +47,9 @@ struct Bodies {
     V1<double> friction;      // (N,)
     V1<i64> group;            // (N,) collision group
     static Bodies from_py(nanobind::handle r);
+    // The geoms as the collision stages read them (views of the fields above).
+    Geoms geoms() const { return Geoms{geom, size, geom_body, geom_offset, geom_pos, geom_rot,
+                                       geom_radius}; }
 };
 
 // Static geometry: static boxes (their AABBs precomputed) and the ground plane.
@@ -103,6 +113,11 @@ inline Bodies Bodies::from_py(nanobind::handle r) {
     Bodies b;
     b.geom = f1<i64>(r, "geom");
     b.size = f2<double>(r, "size");
+    b.geom_body = f1<i64>(r, "geom_body");
+    b.geom_offset = f1<i64>(r, "geom_offset");
+    b.geom_pos = f2<double>(r, "geom_pos");
+    b.geom_rot = f3<double>(r, "geom_rot");
+    b.geom_radius = f1<double>(r, "geom_radius");
     b.radius = f1<double>(r, "radius");
     b.inv_mass = f1<double>(r, "inv_mass");
     b.inertia = f2<double>(r, "inertia");
@@ -229,12 +244,12 @@ struct BoolBuf {
     V1<bool> view() { return V1<bool>{p.get(), n}; }
 };
 
-// The stages' work arrays (step.py's Scratch; make_scratch). Rows N..N+S-1 of lo/hi: the static
+// The stages' work arrays (step.py's Scratch; make_scratch). Rows G..G+S-1 of lo/hi: the static
 // boxes; row N of the solver arrays: the static dummy with zero inverse mass. All zero after
 // reset() but flow_c (filled before read); lo/hi rows of the static boxes copied from Statics.
 struct Scratch {
     i64 n = -1, ns = -1;
-    Buf2<double> lo, hi, reach;                       // (N+S, 3), (N+S, 3), (N+S,)
+    Buf2<double> lo, hi, reach;                       // (G+S, 3), (G+S, 3), (G+S,): geoms
     Buf2<i64> in_contact;                             // (N+1,)
     Buf2<double> bm, bI, bv, bw, bv0, bw0, pv, pw;    // (N+1,), (N+1, 6), (N+1, 3) ...
     Buf2<double> p0, l0, l_drift;                     // (N, 3)
@@ -256,9 +271,9 @@ struct Scratch {
     Buf2<double> proj_rows;                           // (R, PROJ_COLS), grown
     Buf2<i64> proj_ids;                               // (R, 2), grown
 
-    // Work arrays for n bodies and the statics' boxes, all zero (allocation only when the sizes
-    // change).
-    void make(i64 n_bodies, const Statics& st);
+    // Work arrays for n bodies with n_geoms geoms and the statics' boxes, all zero (allocation
+    // only when the sizes change).
+    void make(i64 n_bodies, i64 n_geoms, const Statics& st);
 };
 
 // The contact cache kept between calls (step.py's ContactCache): the previous step's manifolds

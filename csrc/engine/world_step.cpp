@@ -177,16 +177,16 @@ inline double state_sum(i64 i, V2<double> position, V2<double> linear_momentum,
 
 // ---- the records kept between calls -----------------------------------------------------------
 
-void Scratch::make(i64 n_bodies, const Statics& st) {
-    i64 n1 = n_bodies + 1, nn = n_bodies + st.n_static;
+void Scratch::make(i64 n_bodies, i64 n_geoms, const Statics& st) {
+    i64 n1 = n_bodies + 1, nn = n_geoms + st.n_static;
     n = n_bodies;
     ns = st.n_static;
     zeroed(lo, nn, 3);
     zeroed(hi, nn, 3);
     for (i64 k = 0; k < ns; ++k)
         for (int c = 0; c < 3; ++c) {
-            lo(n + k, c) = st.lo(k, c);
-            hi(n + k, c) = st.hi(k, c);
+            lo(n_geoms + k, c) = st.lo(k, c);
+            hi(n_geoms + k, c) = st.hi(k, c);
         }
     zeroed(reach, nn, 1);
     zeroed(in_contact, n1, 1);
@@ -247,12 +247,13 @@ void kick(const Bodies& bd, V1<i64> awake, const BodyState& x, double h) {
 // and (body, ground) pairs into `pairs` (grown in place). Returns n_pairs.
 i64 broadphase(const Bodies& bd, const Statics& st, double margin, V1<i64> awake,
                const BodyState& x, double h, Scratch& sc, Buf2<i64>& pairs) {
-    i64 n = x.position.n0;
-    body_aabbs(bd.geom, bd.size, bd.radius, bd.inv_mass, bd.inv_inertia, awake, x.position,
-               x.linear_momentum, x.rotation, x.angular_momentum, h, margin, sc.lo.view(),
-               sc.hi.view(), col(sc.reach));
-    i64 n_pairs = sweep_and_prune(n + st.n_static, n, sc.lo.view(), sc.hi.view(), bd.group,
-                                  awake, pairs);
+    const Geoms gm = bd.geoms();
+    i64 n = gm.n();  // the dynamic shape ids are geoms
+    body_aabbs(gm, bd.inv_mass, bd.inv_inertia, awake, x.position, x.linear_momentum,
+               x.rotation, x.angular_momentum, h, margin, sc.lo.view(), sc.hi.view(),
+               col(sc.reach));
+    i64 n_pairs = sweep_and_prune(n + st.n_static, n, sc.lo.view(), sc.hi.view(), gm.body,
+                                  bd.group, awake, pairs);
     if (st.ground)
         n_pairs = ground_pairs(n, st.n_static, st.gn, st.goff, sc.lo.view(), sc.hi.view(), pairs,
                                n_pairs);
@@ -262,7 +263,7 @@ i64 broadphase(const Bodies& bd, const Statics& st, double margin, V1<i64> awake
 // 3 wake: sleeping islands that an awake body may touch within the step. Returns islands woken.
 i64 wake(const Bodies& bd, const Statics& st, const Settings& cfg, const SleepState& sl,
          const BodyState& x, double h, Scratch& sc, V2<i64> pairs, i64 n_pairs) {
-    return wake_touched(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, sl.awake,
+    return wake_touched(pairs, n_pairs, bd.geom.n0, st.n_static, bd.geoms(), sl.awake,
                         sl.timer, sl.island_of, x.position, x.rotation, col(sc.reach), cfg.speculative_distance,
                         cfg.allowed_penetration, st.pos, st.rot, st.ext, st.gn, st.goff, x.linear_momentum,
                         x.angular_momentum, bd.force, bd.torque, h, cfg.do_kick, sc.cb,
@@ -277,7 +278,7 @@ CollideCount collide(const Bodies& bd, const Statics& st, const Settings& cfg, V
                      ContactCache& c) {
     grow_manifolds(c.mi1, c.mf1, 2 * n_pairs);
     grow_points(c.pf1, c.pid1, 8 * n_pairs);
-    return collide_pairs(pairs, n_pairs, x.position.n0, st.n_static, bd.geom, bd.size, awake,
+    return collide_pairs(pairs, n_pairs, bd.geom.n0, st.n_static, bd.geoms(), awake,
                          x.position, x.rotation, col(sc.reach), cfg.speculative_distance, bd.restitution,
                          bd.friction, bd.accel, st.pos, st.rot, st.ext, st.e, st.mu, st.gn,
                          st.goff, st.g_e, st.g_mu, heads(c.mi0.view()), manifolds(c.mf0.view()),
@@ -648,7 +649,7 @@ i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Se
             const FlowAnchors& an) {
     i64 n = x.position.n0;
     i64 n_deep = project_positions(
-        pairs, n_pairs, n, st.n_static, bd.geom, bd.size, bd.inv_mass, bd.inv_inertia, bd.iso,
+        pairs, n_pairs, bd.geom.n0, st.n_static, bd.geoms(), bd.inv_mass, bd.inv_inertia, bd.iso,
         cfg.iso_shortcut, awake, x.position, x.rotation, st.pos, st.rot, st.ext, st.gn, st.goff,
         cfg.projection_depth, cfg.projection_iterations, sc.proj_rows, sc.proj_ids, sc.cb, sc.proj_dx.view(),
         sc.proj_dth.view(), cfg.projection_rings, sc.ring, sc.done);
@@ -801,7 +802,7 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
     double h = dt;
     const StepContext ctx{h, 1.0 / dt, cfg};
     Scratch& sc = c.sc;
-    sc.make(n, st);
+    sc.make(n, bd.geom.n0, st);
     if (c.pose0.rows != n || c.pose0.cols != 12) c.pose0 = Buf2<double>(n, 12);
     i64 n_log = 0;
     i64 n_samples = 0;

@@ -126,3 +126,30 @@ def principal_axes(inertia) -> tuple[np.ndarray, np.ndarray]:
     if np.linalg.det(q) < 0:
         q[:, 2] = -q[:, 2]
     return w, q
+
+
+# ---- compound bodies ------------------------------------------------------------------------
+# A compound body is several parts of one uniform density rho, each a shape with its own pose in
+# the body's scene frame: part k has mass m_k = rho V_k, centre of mass c_k and inertia tensor
+# J_k = R_k diag(I_k) R_k^T about c_k (I_k its principal moments, R_k its principal axes in the
+# scene frame). Overlapping parts count twice (MuJoCo's rule for the geoms of one body). The
+# body's mass is M = sum m_k, its centre of mass c = sum m_k c_k / M, and by the parallel-axis
+# theorem its inertia about c is
+#
+#     J = sum_k [J_k + m_k (|d_k|^2 1 - d_k d_k^T)],   d_k = c_k - c,
+#
+# whose principal axes (principal_axes) are the body frame's.
+
+def compound_inertia_tensor(masses, coms, tensors) -> tuple[float, np.ndarray, np.ndarray]:
+    """(M kg, c (3,) m, J (3, 3) kg m^2 about c) of parts of ``masses`` (K,) kg with centres
+    ``coms`` (K, 3) and inertia tensors ``tensors`` (K, 3, 3) about their own centres, all in
+    one frame (the parallel-axis sum above)."""
+    m = np.asarray(masses, np.float64).reshape(-1)
+    x = np.asarray(coms, np.float64).reshape(-1, 3)
+    j = np.asarray(tensors, np.float64).reshape(-1, 3, 3)
+    total = float(m.sum())
+    c = (m[:, None] * x).sum(axis=0) / total
+    d = x - c
+    shift = m[:, None, None] * (np.einsum("ki,ki->k", d, d)[:, None, None] * np.eye(3)
+                                - np.einsum("ki,kj->kij", d, d))
+    return total, c, (j + shift).sum(axis=0)

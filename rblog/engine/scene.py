@@ -51,12 +51,18 @@ ORIENTATION_KEYS = ("quat_wxyz", "quat_xyzw", "axis_angle", "rotvec")
 SHAPE_KEYS = {"sphere": ("radius",), "box": ("half_extents",),
               "capsule": ("radius", "half_length"), "cylinder": ("radius", "half_length"),
               "hull": ("vertices", "mesh")}
-SCENE_SHAPES = tuple(SHAPE_KEYS)
+#: the shapes a compound body's part can have (a compound's ``parts``: a list of tables, each
+#: a shape with its size keys, ``position`` (m) and an orientation in the body's scene frame)
+PART_SHAPES = tuple(SHAPE_KEYS)
+#: a compound body: several parts of one density (``mass`` or ``density``), one rigid body whose
+#: frame is the parts' common centre of mass and principal axes (mass_properties)
+SCENE_SHAPES = (*SHAPE_KEYS, "compound")
 SIZE_KEYS = {"radius", "half_extents", "half_length", "vertices", "mesh"}
+PART_KEYS = {"shape", *SIZE_KEYS, "position", *ORIENTATION_KEYS}
 #: the contract's geom name of each scene shape (a hull is the contract's convex mesh)
 SHAPE_GEOM = {"sphere": "sphere", "box": "box", "capsule": "capsule", "cylinder": "cylinder",
               "hull": "mesh"}
-BODY_KEYS = {"name", "shape", "radius", "half_extents", "half_length", "vertices", "mesh",
+BODY_KEYS = {"name", "shape", "radius", "half_extents", "half_length", "vertices", "mesh", "parts",
              "mass", "density",
              "inertia_diag",
              "position", *ORIENTATION_KEYS, "velocity", "angular_velocity",
@@ -110,13 +116,20 @@ class Scene:
     warnings: list[str] = field(default_factory=list)
 
     def shape_counts(self) -> dict[str, int]:
-        """Bodies per shape name (the contract's geom names), in the order first seen."""
+        """Bodies per shape name (the contract's geom names; "compound" for a body of several
+        geoms), in the order first seen."""
         from rblog.contract.model import GEOM_NAMES
 
         m = self.model
+        gb = np.asarray(m.geom_body)
+        parts = np.bincount(gb[gb >= 0], minlength=m.n_bodies)
         out: dict[str, int] = {}
-        for t in np.asarray(m.geom_type)[np.asarray(m.geom_body) >= 0].tolist():
-            out[GEOM_NAMES[t]] = out.get(GEOM_NAMES[t], 0) + 1
+        for g in np.flatnonzero(gb >= 0).tolist():
+            b = int(gb[g])
+            if parts[b] > 1 and g != int(np.flatnonzero(gb == b)[0]):
+                continue  # a compound counts once
+            name = "compound" if parts[b] > 1 else GEOM_NAMES[int(m.geom_type[g])]
+            out[name] = out.get(name, 0) + 1
         return out
 
 
@@ -458,12 +471,9 @@ def _orientation(ctx: _Ctx, d: dict, key: str) -> np.ndarray:
     return q
 
 
-def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
-    ctx.keys(b, key, BODY_KEYS)
-    if "shape" not in b:
-        ctx.fail(f"{key}.shape", f"missing (one of {', '.join(SCENE_SHAPES)})")
-    shape = ctx.string(b["shape"], f"{key}.shape", SCENE_SHAPES)
-    # the size keys each shape takes (the others are refused by name)
+def _shape_size(ctx: _Ctx, b: dict, key: str, shape: str):
+    """(size (3,) m, volume m^3, the Hull or None) of a body's or part's one shape, from its size
+    keys (the others are refused by name)."""
     takes = SHAPE_KEYS[shape]
     joined = " or ".join(takes) if shape == "hull" else " and ".join(takes)
     for k in sorted(SIZE_KEYS - set(takes)):
@@ -488,6 +498,75 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
         size = np.array([r, h, 0.0])
         volume = {"sphere": lambda: mp.sphere_volume(r), "capsule": lambda: mp.capsule_volume(r, h),
                   "cylinder": lambda: mp.cylinder_volume(r, h)}[shape]()
+    return size, volume, hull
+
+
+def _shape_inertia(shape: str, mass: float, size, hull) -> np.ndarray:
+    """Principal moments (3,) kg m^2 of ``mass`` spread over one shape (mass_properties)."""
+    if shape == "sphere":
+        return mp.sphere_inertia(mass, size[0])
+    if shape == "box":
+        return mp.box_inertia(mass, size)
+    if shape == "capsule":
+        return mp.capsule_inertia(mass, size[0], size[1])
+    if shape == "hull":
+        return hull.inertia_diag(mass)
+    return mp.cylinder_inertia(mass, size[0], size[1])
+
+
+def _compound(ctx: _Ctx, b: dict, key: str):
+    """A compound body's parts: (parts, volume m^3, com (3,), J (3, 3) kg m^2 per kg/m^3 about
+    com, both in the body's scene frame). Each part: {"shape", "size", "hull", "volume",
+    "com" (3,), "rot" (3, 3) its geom frame -> the scene frame, "origin" (3,) its geom origin}
+    (mass_properties.compound_inertia_tensor: the parts' volumes summed, overlaps twice)."""
+    k = f"{key}.parts"
+    if "parts" not in b:
+        ctx.fail(k, "missing (a list of part tables, e.g. parts = [{shape = \"sphere\", "
+                 "radius = 0.1, position = [0, 0, 0.2]}, ...])")
+    plist = b["parts"]
+    if not isinstance(plist, list) or not plist:
+        ctx.fail(k, f"expected a non-empty list of part tables, got {_show(plist)}")
+    parts = []
+    for n, pt in enumerate(plist):
+        pk = f"{k}[{n}]"
+        pt = ctx.table(pt, pk)
+        ctx.keys(pt, pk, PART_KEYS)
+        if "shape" not in pt:
+            ctx.fail(f"{pk}.shape", f"missing (one of {', '.join(PART_SHAPES)})")
+        shape = ctx.string(pt["shape"], f"{pk}.shape", PART_SHAPES)
+        size, volume, hull = _shape_size(ctx, pt, pk, shape)
+        pos = ctx.vec(pt.get("position", [0, 0, 0]), f"{pk}.position")
+        rot = quat_to_matrix_np(_orientation(ctx, pt, pk)[None])[0]
+        com, geom_rot = pos, rot
+        if hull is not None:  # the hull's geom frame: its centre of mass and principal axes
+            com, geom_rot = pos + rot @ hull.com, rot @ hull.axes
+        parts.append({"shape": shape, "size": size, "hull": hull, "volume": volume,
+                      "com": com, "rot": geom_rot})
+    vols = np.array([q["volume"] for q in parts])
+    tensors = [q["rot"] @ np.diag(_shape_inertia(q["shape"], q["volume"], q["size"], q["hull"]))
+               @ q["rot"].T for q in parts]
+    volume, com, tensor = mp.compound_inertia_tensor(vols, [q["com"] for q in parts], tensors)
+    return parts, volume, com, tensor
+
+
+def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
+    ctx.keys(b, key, BODY_KEYS)
+    if "shape" not in b:
+        ctx.fail(f"{key}.shape", f"missing (one of {', '.join(SCENE_SHAPES)})")
+    shape = ctx.string(b["shape"], f"{key}.shape", SCENE_SHAPES)
+    hull = parts = None
+    if shape == "compound":
+        for k in sorted(SIZE_KEYS | {"inertia_diag"}):
+            if k in b:
+                ctx.fail(f"{key}.{k}", f"a compound takes parts (each with its shape and size), "
+                         f"not {k}")
+        parts, volume, com, tensor = _compound(ctx, b, key)
+        size = np.zeros(3)
+    else:
+        if "parts" in b:
+            ctx.fail(f"{key}.parts", f"only a compound takes parts, a {shape} takes "
+                     + " and ".join(SHAPE_KEYS[shape]))
+        size, volume, hull = _shape_size(ctx, b, key, shape)
     if ("mass" in b) == ("density" in b):
         ctx.fail(f"{key}.mass", "expected exactly one of mass (kg) or density (kg/m^3)")
     mass = (ctx.num(b["mass"], f"{key}.mass", positive=True) if "mass" in b
@@ -500,24 +579,24 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
                      f"inequality (each <= sum of the others), got {inertia.tolist()}")
     elif not math.isfinite(mass):
         inertia = np.full(3, math.inf)  # check_body names the mass
-    elif shape == "sphere":
-        inertia = mp.sphere_inertia(mass, size[0])
-    elif shape == "box":
-        inertia = mp.box_inertia(mass, size)
-    elif shape == "capsule":
-        inertia = mp.capsule_inertia(mass, size[0], size[1])
-    elif shape == "hull":
-        inertia = hull.inertia_diag(mass)
+    elif parts is not None:
+        # principal moments of the parallel-axis sum; its axes become the body frame's
+        inertia, axes = mp.principal_axes(tensor * (mass / volume))
     else:
-        inertia = mp.cylinder_inertia(mass, size[0], size[1])
+        inertia = _shape_inertia(shape, mass, size, hull)
     q = _orientation(ctx, b, key)
     position = ctx.vec(b.get("position", [0, 0, 0]), f"{key}.position")
+    frame = None  # (centre of mass, principal axes) in the scene's body frame, when not (0, 1)
     if hull is not None:
         # the body frame is the hull's centre of mass and principal axes (rblog.engine.hull)
+        frame = hull.com, hull.axes
+    elif parts is not None and math.isfinite(mass):
+        frame = com, axes
+    if frame is not None:
         from rblog.contract.orientation import matrix_to_quat, quat_mul
 
-        position = position + quat_to_matrix_np(q[None])[0] @ hull.com
-        q = quat_mul(q, matrix_to_quat(hull.axes))
+        position = position + quat_to_matrix_np(q[None])[0] @ frame[0]
+        q = quat_mul(q, matrix_to_quat(frame[1]))
         q = q / np.linalg.norm(q)
         if q[0] < 0:
             q = -q
@@ -545,7 +624,29 @@ def _body(ctx: _Ctx, b: dict, key: str, default_name: str) -> dict:
     }
     if hull is not None:
         out["vertices"] = hull.vertices
+    if parts is not None:
+        out["parts"] = _part_geoms(parts, *(frame if frame is not None else (np.zeros(3), np.eye(3))))
     scene_checks.check_body(ctx, out, key)
+    return out
+
+
+def _part_geoms(parts, com, axes) -> list[dict]:
+    """A compound's parts as geoms of its body frame (centre of mass ``com``, principal axes
+    ``axes``, both in the scene's body frame): each {"shape", "size", "pos" (3,) m, "quat_wxyz"
+    (4,) geom -> body, "vertices" (a hull's (V, 3) in its geom frame, else None)}:
+    pos = Q^T (c_k - com), R = Q^T R_k."""
+    from rblog.contract.orientation import matrix_to_quat
+
+    out = []
+    for q in parts:
+        rot = axes.T @ q["rot"]
+        quat = np.asarray(matrix_to_quat(rot), float)
+        quat = quat / np.linalg.norm(quat)
+        if quat[0] < 0:
+            quat = -quat
+        out.append({"shape": q["shape"], "size": np.asarray(q["size"], float),
+                    "pos": axes.T @ (q["com"] - com), "quat_wxyz": quat,
+                    "vertices": None if q["hull"] is None else q["hull"].vertices})
     return out
 
 
@@ -715,7 +816,13 @@ def _rotate(rot: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def _jsonable(d: dict) -> dict:
-    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()}
+    def one(v):
+        if isinstance(v, np.ndarray):
+            return v.tolist()
+        if isinstance(v, list) and v and isinstance(v[0], dict):  # a compound's parts
+            return [_jsonable(q) for q in v]
+        return v
+    return {k: one(v) for k, v in d.items()}
 
 
 #: frame of a body's given angular velocity (_Bodies.omega_frame): none given, world, body
@@ -729,8 +836,8 @@ class _Bodies:
     (_OMEGA_*; zero when none was given); the rest as in :class:`Model` and :class:`State`."""
 
     name: list
-    shape: np.ndarray        # (n,) int64 body_shape codes (SHAPE_NONE: capsule, cylinder)
-    geom_type: np.ndarray    # (n,) int64 the contract's GEOM_* code of the body's one geom
+    shape: np.ndarray        # (n,) int64 body_shape codes (SHAPE_NONE: capsule, cylinder,
+                             # hull, compound)
     size: np.ndarray         # (n, 3)
     mass: np.ndarray         # (n,)
     inertia: np.ndarray      # (n, 3)
@@ -744,7 +851,7 @@ class _Bodies:
     restitution: np.ndarray  # (n,)
     friction: np.ndarray     # (n,)
     group: np.ndarray        # (n,) int64
-    vertices: list           # (n,) a hull's (V, 3) body-frame vertices, else None
+    geoms: list              # (n,) a SHAPE_NONE body's geoms (_body_geoms), else None
 
     @classmethod
     def from_dicts(cls, bodies: list[dict], repeat: int = 1) -> "_Bodies":
@@ -766,14 +873,26 @@ class _Bodies:
             name=[b["name"] for b in bodies] * repeat,
             shape=np.repeat(np.array([SHAPE_CODES.get(b["shape"], SHAPE_NONE) for b in bodies],
                                      np.int64), repeat),
-            geom_type=np.repeat(np.array([GEOM_CODES[SHAPE_GEOM[b["shape"]]] for b in bodies],
-                                         np.int64), repeat),
             size=col("size"), mass=col("mass"), inertia=col("inertia_diag"),
             position=col("position"), quat=col("quat_wxyz"), velocity=col("velocity"),
             omega=omega, omega_frame=frame, force=col("force"), torque=col("torque"),
             restitution=col("restitution"), friction=col("friction"),
             group=col("group", np.int64),
-            vertices=[b.get("vertices") for b in bodies for _ in range(repeat)])
+            geoms=[_body_geoms(b) for b in bodies for _ in range(repeat)])
+
+
+def _body_geoms(b: dict) -> list[dict] | None:
+    """The geoms of a body dict from _body whose shape the v2 fields cannot say (None for a
+    sphere or box): a compound's parts, else its one shape in the body frame. Each {"type" the
+    contract's GEOM_* code, "size" (3,), "pos" (3,), "quat_wxyz" (4,), "vertices" or None}."""
+    if b["shape"] in ("sphere", "box"):
+        return None
+    if b["shape"] == "compound":
+        return [{"type": GEOM_CODES[SHAPE_GEOM[q["shape"]]], "size": q["size"], "pos": q["pos"],
+                 "quat_wxyz": q["quat_wxyz"], "vertices": q["vertices"]} for q in b["parts"]]
+    return [{"type": GEOM_CODES[SHAPE_GEOM[b["shape"]]], "size": np.asarray(b["size"], float),
+             "pos": np.zeros(3), "quat_wxyz": np.array([1.0, 0.0, 0.0, 0.0]),
+             "vertices": b.get("vertices")}]
 
 
 def _range(ctx, g, k, key):
@@ -816,25 +935,52 @@ def _build(blocks: list[_Bodies], statics, gravity, ground, g_normal, g_offset, 
     )
     geoms = {}
     if np.any(shape == SHAPE_NONE):
-        # a capsule or cylinder: the v2 fields cannot say what it is (body_shape "none", size
-        # 0), the geom table does: one geom per body at its centre of mass, then the ground and
-        # the static boxes, in the order geoms_from_v2 gives a sphere-and-box scene
+        # a capsule, cylinder, hull or compound: the v2 fields cannot say what it is (body_shape
+        # "none", size 0), the geom table does: each body's geoms (one at the centre of mass, a
+        # compound's parts at their poses), then the ground and the static boxes, in the order
+        # geoms_from_v2 gives a sphere-and-box scene
+        names = [name for b in blocks for name in b.name]
         world = SimpleNamespace(
             body_shape=np.zeros(len(shape), np.int64), body_size=size,
-            body_name=[name for b in blocks for name in b.name], body_group=col("group"),
+            body_name=names, body_group=col("group"),
             body_friction=col("friction"), body_restitution=col("restitution"), ground=ground,
             ground_normal=np.asarray(g_normal, float), ground_offset=float(g_offset),
             ground_friction=float(g_fric), ground_restitution=float(g_rest), **statics_kw)
-        geoms = geoms_from_v2(world)
-        geoms["geom_type"][:len(shape)] = col("geom_type")
-        # a hull's vertices (geom frame = body frame), its size row 0
-        verts = [v for blk in blocks for v in blk.vertices]
-        nv = np.array([0 if v is None else len(v) for v in verts], np.int64)
+        v2 = geoms_from_v2(world)
+        n = len(shape)
+        per_body = [gl for blk in blocks for gl in blk.geoms]
+        src, rows = [], []
+        for i, gl in enumerate(per_body):
+            if gl is None:  # a sphere or box: its v2 geom
+                rows.append({"type": int(GEOM_CODES["sphere" if shape[i] == SHAPE_SPHERE else "box"]),
+                             "size": size[i], "pos": np.zeros(3),
+                             "quat_wxyz": np.array([1.0, 0.0, 0.0, 0.0]), "vertices": None})
+                src.append(i)
+            else:
+                rows.extend(gl)
+                src.extend([i] * len(gl))
+        src = np.asarray(src, np.int64)
+        many = np.bincount(src, minlength=n) > 1
+        geoms = {k: (np.concatenate([np.asarray(v[:n])[src], np.asarray(v[n:])])
+                     if k != "geom_name" else None) for k, v in v2.items()}
+        part = np.zeros(len(src), np.int64)
+        for r in range(1, len(src)):
+            part[r] = part[r - 1] + 1 if src[r] == src[r - 1] else 0
+        geoms["geom_name"] = [f"{names[i]}_part{part[r]}" if many[i] else names[i]
+                              for r, i in enumerate(src.tolist())] + list(v2["geom_name"][n:])
+        G = len(rows)
+        geoms["geom_type"][:G] = [q["type"] for q in rows]
+        geoms["geom_pos_body"][:G] = [q["pos"] for q in rows]
+        geoms["geom_quat_wxyz_body"][:G] = [q["quat_wxyz"] for q in rows]
+        geoms["geom_size"][:G] = [q["size"] for q in rows]
+        # a hull's vertices (its geom frame), its size row 0
+        nv = np.array([0 if q["vertices"] is None else len(q["vertices"]) for q in rows], np.int64)
         if nv.any():
-            geoms["geom_vert_num"][:len(shape)] = nv
-            geoms["geom_vert_adr"][:len(shape)] = np.cumsum(nv) - nv
-            geoms["geom_size"][:len(shape)][nv > 0] = 0.0
-            geoms["mesh_vert"] = np.concatenate([v for v in verts if v is not None], axis=0)
+            geoms["geom_vert_num"][:G] = nv
+            geoms["geom_vert_adr"][:G] = np.cumsum(nv) - nv
+            geoms["geom_size"][:G][nv > 0] = 0.0
+            geoms["mesh_vert"] = np.concatenate([q["vertices"] for q in rows
+                                                 if q["vertices"] is not None], axis=0)
         size = np.where((shape == SHAPE_NONE)[:, None], 0.0, size)
     model = Model(
         body_name=[name for b in blocks for name in b.name],

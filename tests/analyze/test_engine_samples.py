@@ -124,7 +124,9 @@ KNOWN: dict[tuple[str, str], dict[str, float]] = {
     # box) is not judged: its centre does not tell which face it touches (slider3 near the slope's
     # lower end read a normal 78 deg off the face it slides on, where Bullet's own rows sit on
     # the cone: |f| / J_n = 0.39, mu 0.387)
-    ("shapes", "mujoco"): {"momentum: flight angular": 7.25e-05},
+    # the largest flight angular drift: the dumbbell (a compound, spinning as it falls) since it
+    # joined the sample, 8.84e-5 (box3's 7.25e-5 before)
+    ("shapes", "mujoco"): {"momentum: flight angular": 8.84e-05},
     # re-measured 2026-12-03 with the hulls and cylinders in shapes.toml: MuJoCo's the same
     # kinds and values; pybullet's capsule "momentum: momentum" (at 1.004x the allowance's edge)
     # no longer appears

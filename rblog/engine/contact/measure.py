@@ -14,13 +14,13 @@ from rblog.engine.contact import narrowphase as _narrowphase  # noqa: F401  (set
 
 
 def separations(world, position, rotation, margin: float = 0.0) -> np.ndarray:
-    """Least separation (m, < 0 penetration) of every touching pair of shapes (bodies, static
-    boxes, ground) at this configuration, for the model of ``world`` (a ContactWorld)."""
+    """Least separation (m, < 0 penetration) of every touching pair of shapes (the bodies' geoms,
+    static boxes, ground) at this configuration, for the model of ``world`` (a ContactWorld)."""
     position = np.ascontiguousarray(position, float)
     rotation = np.ascontiguousarray(rotation, float)
     bd, st = world._bodies, world._statics
     return _core.pair_min_separations(
-        bd.geom, bd.size, bd.radius, bd.inv_mass, bd.inv_inertia, bd.group, int(st.n_static),
+        bd, int(st.n_static),
         st.pos, st.rot, st.ext, st.lo, st.hi, bool(st.ground), st.gn, float(st.goff), position,
         rotation, float(margin))
 

@@ -86,8 +86,14 @@ from rblog.engine import _core
 from rblog.engine import constants as _constants
 from rblog.engine.contact import narrowphase as _narrowphase  # noqa: F401  (sets the C++ constants)
 
-#: per-body model arrays the kernel reads (N rows each; ``iso`` marks isotropic inertia)
-Bodies = namedtuple("Bodies", "geom size radius inv_mass inertia inv_inertia iso force torque "
+#: per-body model arrays the kernel reads (N rows each; ``iso`` marks isotropic inertia), after
+#: the bodies' geoms (G rows each; csrc/engine/collision.hpp Geoms): ``geom`` (G,) engine GEOM_*
+#: code, ``size`` (G, 3), ``geom_body`` (G,) owner body, ``geom_offset`` (G,) 1 when the geom sits
+#: at ``geom_pos`` (G, 3, body frame, m) turned by ``geom_rot`` (G, 3, 3, geom -> body), 0 when its
+#: frame is the body's; ``geom_radius`` (G,) its farthest point from the body's centre of mass
+#: (m). One-shape bodies: G = N, geom i = body i, offset 0.
+Bodies = namedtuple("Bodies", "geom size geom_body geom_offset geom_pos geom_rot geom_radius "
+                              "radius inv_mass inertia inv_inertia iso force torque "
                               "accel restitution friction group")
 #: static geometry: static boxes (their AABBs precomputed) and the ground plane
 Statics = namedtuple("Statics", "n_static pos rot ext e mu lo hi ground gn goff g_e g_mu")
@@ -152,9 +158,10 @@ if (_core.N_STATS, _core.CONTACT_IMPACT, _core.CONTACT_RESTING) != (
                       "CONTACT_*): rebuild it (pip install -e .)")
 
 
-def make_scratch(n, st):
-    """The stages' work arrays for N bodies and the scene's static boxes."""
-    return _core.make_scratch(int(n), st)
+def make_scratch(n, st, n_geoms=None):
+    """The stages' work arrays for N bodies with ``n_geoms`` geoms (None: one a body) and the
+    scene's static boxes."""
+    return _core.make_scratch(int(n), st, -1 if n_geoms is None else int(n_geoms))
 
 
 # ---- the stages, in step order (world_step.cpp, namespace rb::step) ----------------------------

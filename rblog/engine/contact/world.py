@@ -51,33 +51,79 @@ from rblog.engine.contact.step import (
 )
 
 
-def engine_shapes(model: Model) -> tuple[np.ndarray, np.ndarray]:
-    """(geom (N,) int64 engine geometry types, size (N, 3) m) of the bodies: a sphere or box body
-    from body_shape / body_size; any other from its one geom (the geom table), which must sit at
-    the centre of mass with the body's axes (the engine's bodies are one shape in principal
-    axes). Raises UnsupportedShapePair for a body the engine cannot simulate."""
+class EngineGeoms(NamedTuple):
+    """The bodies' geoms as the engine reads them (G rows each; step.Bodies' geom fields)."""
+
+    code: np.ndarray    # (G,) int64 engine GEOM_* code
+    size: np.ndarray    # (G, 3) m (a hull's row: its id in the C++ core's hull table)
+    body: np.ndarray    # (G,) int64 owner body
+    offset: np.ndarray  # (G,) int64 1: at pos / rot in the body, 0: the body's frame
+    pos: np.ndarray     # (G, 3) body frame, m
+    rot: np.ndarray     # (G, 3, 3) geom -> body
+    radius: np.ndarray  # (G,) farthest point from the body's centre of mass, m
+
+
+#: a geom whose position is zero and whose quaternion is within this of +-1 in w sits in its
+#: body's frame (the engine reads the body's rows for it)
+GEOM_IDENTITY_TOL = 1e-12
+
+
+def engine_geoms(model: Model) -> EngineGeoms:
+    """The engine's geom table of the bodies, body by body: a sphere or box body (body_shape)
+    one geom in its frame; any other (SHAPE_NONE) its geoms of the model's geom table, in table
+    order, each at its pose in the body (a compound body has several; a geom at the centre of
+    mass with the body's axes is in the body's frame). Raises UnsupportedShapePair for a body the
+    engine cannot simulate (no geoms, or a geom type without an engine shape)."""
+    from rblog.contract.model import geom_bounding_radius
+
     n = model.n_bodies
-    geom = np.empty(n, np.int64)
-    size = np.zeros((n, 3))
     body_size = np.asarray(model.body_size, float).reshape(n, 3)
+    bradius = np.asarray(model.body_bounding_radius, float).reshape(n)
     gb = np.asarray(model.geom_body, np.int64)
+    rows_of: dict[int, list[int]] = {}
+    for g in np.flatnonzero(gb >= 0).tolist():
+        rows_of.setdefault(int(gb[g]), []).append(g)
+    code, size, body, offset, pos, rot, radius = [], [], [], [], [], [], []
     for i, shape in enumerate(np.asarray(model.body_shape).tolist()):
         if shape in SHAPE_TO_GEOM:
-            geom[i], size[i] = SHAPE_TO_GEOM[shape], body_size[i]
+            code.append(SHAPE_TO_GEOM[shape])
+            size.append(body_size[i])
+            body.append(i)
+            offset.append(0)
+            pos.append(np.zeros(3))
+            rot.append(np.eye(3))
+            radius.append(bradius[i])
             continue
-        rows = np.flatnonzero(gb == i) if shape == SHAPE_NONE else np.zeros(0, np.int64)
-        t = int(model.geom_type[rows[0]]) if len(rows) == 1 else -1
-        centred = len(rows) == 1 and not np.any(model.geom_pos_body[rows[0]]) and \
-            abs(abs(float(model.geom_quat_wxyz_body[rows[0], 0])) - 1.0) <= 1e-12
-        if t not in CONTRACT_TO_GEOM or not centred:
+        rows = rows_of.get(i, []) if shape == SHAPE_NONE else []
+        if not rows or any(int(model.geom_type[g]) not in CONTRACT_TO_GEOM for g in rows):
             raise UnsupportedShapePair(shape, shape, f"body {i} ({model.body_name[i]!r}: "
-                                       f"{len(rows)} geom(s), expected one at its centre of mass)")
-        geom[i], size[i] = CONTRACT_TO_GEOM[t], model.geom_size[rows[0]]
-        if geom[i] == GEOM_HULL:  # its id in the C++ core's hull table
-            def fail(e, i=i):
-                raise RblogError(f"body {i} ({model.body_name[i]!r}): its mesh geom: {e}")
-            size[i] = (hull.register(model.geom_vertices(rows[0]), fail), 0.0, 0.0)
-    return geom, np.ascontiguousarray(size)
+                                       f"{len(rows)} geom(s), expected one or more of sphere, "
+                                       "box, capsule, cylinder, mesh)")
+        for g in rows:
+            t = CONTRACT_TO_GEOM[int(model.geom_type[g])]
+            p = np.asarray(model.geom_pos_body[g], float)
+            q = np.asarray(model.geom_quat_wxyz_body[g], float)
+            centred = not np.any(p) and abs(abs(float(q[0])) - 1.0) <= GEOM_IDENTITY_TOL
+            sz = np.asarray(model.geom_size[g], float).copy()
+            if t == GEOM_HULL:  # its id in the C++ core's hull table
+                def fail(e, i=i):
+                    raise RblogError(f"body {i} ({model.body_name[i]!r}): its mesh geom: {e}")
+                sz = np.array([hull.register(model.geom_vertices(g), fail), 0.0, 0.0])
+            code.append(t)
+            size.append(sz)
+            body.append(i)
+            offset.append(0 if centred else 1)
+            pos.append(np.zeros(3) if centred else p)
+            rot.append(np.eye(3) if centred else quat_to_matrix_np((q / np.linalg.norm(q))[None])[0])
+            radius.append(float(np.linalg.norm(p)) + geom_bounding_radius(
+                int(model.geom_type[g]), model.geom_size[g], model.geom_vertices(g)))
+    G = len(code)
+    return EngineGeoms(
+        code=np.asarray(code, np.int64).reshape(G), size=np.ascontiguousarray(np.reshape(size, (G, 3)), dtype=float),
+        body=np.asarray(body, np.int64).reshape(G), offset=np.asarray(offset, np.int64).reshape(G),
+        pos=np.ascontiguousarray(np.reshape(pos, (G, 3)), dtype=float),
+        rot=np.ascontiguousarray(np.reshape(rot, (G, 3, 3)), dtype=float),
+        radius=np.ascontiguousarray(np.asarray(radius, float).reshape(G)))
 
 
 class _Impulses(NamedTuple):
@@ -109,7 +155,8 @@ class ContactWorld:
         self.n_bodies = n
         p = self.params
 
-        geom, size = engine_shapes(model)
+        geoms = engine_geoms(model)
+        geom = geoms.code
         mass = np.asarray(model.body_mass, float).reshape(n)
         inertia = np.ascontiguousarray(np.asarray(model.body_inertia_diag, float).reshape(n, 3))
         inv_inertia = 1.0 / inertia
@@ -150,7 +197,8 @@ class ContactWorld:
         self._explain_stages(n, geom, iso, gravity, f_ext, torque, forces, pairs_possible,
                              n_static, group)
 
-        self._bodies = Bodies(geom, size, np.ascontiguousarray(radius), 1.0 / mass, inertia,
+        self._bodies = Bodies(geom, geoms.size, geoms.body, geoms.offset, geoms.pos, geoms.rot,
+                              geoms.radius, np.ascontiguousarray(radius), 1.0 / mass, inertia,
                               inv_inertia, iso.astype(np.int64), force, torque, accel,
                               np.asarray(model.body_restitution, float).reshape(n).copy(),
                               np.asarray(model.body_friction, float).reshape(n).copy(), group)

@@ -3,8 +3,8 @@
 ``rblog run SCENE --engine mujoco|pybullet|ode`` (optional extras ``engines``: ``pip install -e
 ".[engines]"``; ``ode``: Debian's ``libode8`` and ``pip install -e ".[ode]"``). Each engine module
 translates the scene's :class:`~rblog.contract.model.Model` and initial state into the engine's
-model (spheres, boxes, capsules and cylinders (each body's one geom, :func:`body_geoms`), ground
-plane, static boxes, the scene's masses and principal inertias (never the engine's own density
+model (spheres, boxes, capsules, cylinders and hulls: each body's geoms, :func:`body_parts`, one
+for a one-shape body, a compound's parts at their poses in the body frame), ground plane, static boxes, the scene's masses and principal inertias (never the engine's own density
 computation), gravity, constant force/torque, collision groups), translates materials with the
 engine's own combine rule so that every pair gets the scene's effective restitution ``max(e_a,
 e_b)`` and friction ``sqrt(mu_a mu_b)``, steps it at the scene's dt with the engine's integrator,
@@ -102,6 +102,53 @@ def body_geoms(model, engine: str, takes=(GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, G
             raise EngineUnsupported(engine, f"body {model.body_name[i]!r}: shape "
                                     f"{GEOM_NAMES.get(code, f'code {code}')!r}")
     return out
+
+
+def body_parts(model, engine: str, takes=(GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER)):
+    """Each body's geoms: a list over the bodies of lists of (GEOM_* code, size (3,) m, position
+    (3,) m and quaternion wxyz (4,) geom -> body in the body frame (centre of mass, principal
+    axes), geom row or -1), one entry for a one-shape body (at the origin, identity), several for
+    a compound. A geom type outside ``takes`` raises EngineUnsupported naming it."""
+    n = model.n_bodies
+    if model.geom_type is None:
+        return [[(code, size, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), -1)]
+                for code, size in body_geoms(model, engine, takes)]
+    gb = np.asarray(model.geom_body)
+    out = []
+    for i in range(n):
+        gs = np.flatnonzero(gb == i)
+        if not len(gs):
+            raise EngineUnsupported(engine, f"body {model.body_name[i]!r}: no geoms")
+        rows = []
+        for g in gs.tolist():
+            code = int(model.geom_type[g])
+            if code not in takes:
+                raise EngineUnsupported(engine, f"body {model.body_name[i]!r}: shape "
+                                        f"{GEOM_NAMES.get(code, f'code {code}')!r}")
+            q = np.asarray(model.geom_quat_wxyz_body[g], float)
+            rows.append((code, np.asarray(model.geom_size[g], float),
+                         np.asarray(model.geom_pos_body[g], float), q / np.linalg.norm(q), g))
+        out.append(rows)
+    return out
+
+
+def geom_hull(model, g: int, name: str) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:
+    """body_mesh's (vertices, faces, face normals, face offsets) of mesh geom ``g``, in its geom
+    frame (the body ``name`` in the error)."""
+    from rblog.engine.hull import hull_boundary
+
+    v = np.asarray(model.geom_vertices(g), float)
+
+    def fail(e):
+        raise RblogError(f"body {name!r}: its mesh: {e}")
+
+    used, _, faces, fn, fo = hull_boundary(v, fail)
+    return v[used], faces, fn, fo
+
+
+def geom_mesh(model, g: int, name: str) -> np.ndarray:
+    """(V, 3) vertices of mesh geom ``g``'s hull in its geom frame (geom_hull)."""
+    return geom_hull(model, g, name)[0]
 
 
 def body_mesh(model, i: int) -> tuple[np.ndarray, list, np.ndarray, np.ndarray]:

@@ -4,8 +4,9 @@ Translation (see rblog/study/engines/__init__.py for the common part):
 
 * each body: ``<body>`` with a ``<freejoint/>``, an explicit ``<inertial>`` (mass, principal
   moments, at the body origin = centre of mass: MuJoCo's own geom-density inertia is never used)
-  and one sphere, box, capsule or cylinder geom (``size="r h"``: MuJoCo's capsule and cylinder are
-  the scene's, radius and half length along the geom's z = the body's z); the ground: a plane
+  and one sphere, box, capsule, cylinder or mesh geom (``size="r h"``: MuJoCo's capsule and
+  cylinder are the scene's, radius and half length along the geom's z = the body's z), or a
+  compound's parts as several geoms of the body at their ``pos`` / ``quat``; the ground: a plane
   geom turned so that its +z is the scene's ground normal; static boxes: box geoms of the world
   body. Constant forces/torques: ``xfrc_applied`` (world frame, at the centre of mass).
 * collision groups: group 0 touches everything (contype bit 0, conaffinity all bits), group g
@@ -33,8 +34,8 @@ import math
 import numpy as np
 
 from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, body_mesh, initial_world_omega, \
-    pair_materials, parse_options, z_to
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_mesh, body_parts, geom_mesh, \
+    initial_world_omega, pair_materials, parse_options, z_to
 
 #: MJCF geom type and size of each body geom the translation takes (sizes: rblog.contract.model)
 MJCF_GEOM = {GEOM_SPHERE: ("sphere", lambda s: s[:1]), GEOM_BOX: ("box", lambda s: s),
@@ -224,50 +225,64 @@ class MujocoRun:
                 f'pos="{_f(model.static_box_position[j])}" quat="{_f(model.static_box_quat_wxyz[j])}"'
                 f'{filt(0)}{self._contact_attrs(model.static_box_restitution[j], model.static_box_friction[j])}/>')
         assets = []
-        for i, (code, size) in enumerate(body_geoms(model, "mujoco", tuple(MJCF_GEOM))):
-            kind, sz = MJCF_GEOM[code]
-            if code == GEOM_MESH:
-                # the hull of the vertices is MuJoCo's collision shape of a mesh; its compiler
-                # moves the mesh into its own frame and the geom with it (the world shape stays)
-                v = body_mesh(model, i)[0]
-                assets.append(f'<mesh name="mesh{i}" vertex="{_f(v.ravel())}"/>')
-                geom = f'type="mesh" mesh="mesh{i}"'
-            else:
-                geom = f'type="{kind}" size="{_f(sz(size))}"'
+        geom_names = []  # each body's geom names (g{i}; a compound's parts g{i}_{k})
+        for i, body in enumerate(body_parts(model, "mujoco", tuple(MJCF_GEOM))):
+            geoms, names_i = [], []
+            for k, (code, size, pos, quat, g) in enumerate(body):
+                kind, sz = MJCF_GEOM[code]
+                name = f"g{i}" if len(body) == 1 else f"g{i}_{k}"
+                mesh = f"mesh{i}" if len(body) == 1 else f"mesh{i}_{k}"
+                if code == GEOM_MESH:
+                    # the hull of the vertices is MuJoCo's collision shape of a mesh; its compiler
+                    # moves the mesh into its own frame and the geom with it (the world shape
+                    # stays)
+                    v = body_mesh(model, i)[0] if len(body) == 1 else \
+                        geom_mesh(model, g, model.body_name[i])
+                    assets.append(f'<mesh name="{mesh}" vertex="{_f(v.ravel())}"/>')
+                    geom = f'type="mesh" mesh="{mesh}"'
+                else:
+                    geom = f'type="{kind}" size="{_f(sz(size))}"'
+                # a compound's part at its pose in the body frame (MuJoCo's geom pos / quat)
+                pose = "" if len(body) == 1 else f' pos="{_f(pos)}" quat="{_f(quat)}"'
+                geoms.append(f'<geom name="{name}" {geom}{pose}{filt(int(model.body_group[i]))}'
+                             f'{self._contact_attrs(model.body_restitution[i], model.body_friction[i])}/>')
+                names_i.append(name)
+            geom_names.append(names_i)
             parts.append(
                 f'<body name="b{i}"><freejoint/>'
                 f'<inertial pos="0 0 0" mass="{float(model.body_mass[i])!r}" '
-                f'diaginertia="{_f(model.body_inertia_diag[i])}"/>'
-                f'<geom name="g{i}" {geom}{filt(int(model.body_group[i]))}'
-                f'{self._contact_attrs(model.body_restitution[i], model.body_friction[i])}/></body>')
+                f'diaginertia="{_f(model.body_inertia_diag[i])}"/>' + "".join(geoms) + '</body>')
         parts.append("</worldbody>")
         if assets:
             parts.insert(parts.index("<worldbody>"), "<asset>" + "".join(assets) + "</asset>")
         # explicit pairs where MuJoCo's own mix differs from rblog's effective pair material
         kinds, e_eff, mu_eff, can = pair_materials(model)
-        names = [f"g{i}" for i in range(n)]
+        names = list(geom_names)  # per item of pair_materials: its geoms
         if model.ground:
-            names.append("ground")
-        names += [f"static{j}" for j in range(len(model.static_box_position))]
+            names.append(["ground"])
+        names += [[f"static{j}"] for j in range(len(model.static_box_position))]
         e_own = np.concatenate([model.body_restitution, [model.ground_restitution] if model.ground else [],
                                 model.static_box_restitution])
         mu_own = np.concatenate([model.body_friction, [model.ground_friction] if model.ground else [],
                                  model.static_box_friction])
         differ = (e_own[:, None] != e_own[None, :]) | (mu_own[:, None] != mu_own[None, :])
         ii, jj = np.nonzero(np.triu(can & differ, 1))
-        if len(ii) > MAX_EXPLICIT_PAIRS:
-            raise EngineUnsupported("mujoco", f"materials: {len(ii)} geom pairs need an explicit "
-                                    f"<pair> for rblog's combine rule (at most {MAX_EXPLICIT_PAIRS})")
-        if len(ii):
+        geom_pairs = [(ga, gb_, a, b) for a, b in zip(ii.tolist(), jj.tolist())
+                      for ga in names[a] for gb_ in names[b]]
+        if len(geom_pairs) > MAX_EXPLICIT_PAIRS:
+            raise EngineUnsupported("mujoco", f"materials: {len(geom_pairs)} geom pairs need an "
+                                    f"explicit <pair> for rblog's combine rule (at most "
+                                    f"{MAX_EXPLICIT_PAIRS})")
+        if geom_pairs:
             parts.append("<contact>")
-            for a, b in zip(ii.tolist(), jj.tolist()):
+            for g1, g2, a, b in geom_pairs:
                 mu = float(mu_eff[a, b])
-                parts.append(f'<pair geom1="{names[a]}" geom2="{names[b]}" condim="{3 if mu > 0 else 1}" '
+                parts.append(f'<pair geom1="{g1}" geom2="{g2}" condim="{3 if mu > 0 else 1}" '
                              f'friction="{mu!r} {mu!r} 0 0 0" solref="{self._solref(float(e_eff[a, b]))}" '
                              f'solimp="{SOLIMP}"/>')
             parts.append("</contact>")
         parts.append("</mujoco>")
-        return "".join(parts), len(ii)
+        return "".join(parts), len(geom_pairs)
 
     # --- stepping ---------------------------------------------------------------------------
     def step(self, k: int) -> None:

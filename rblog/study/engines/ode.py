@@ -7,7 +7,8 @@ Translation (common part: rblog/study/engines/__init__.py):
   body origin as ODE requires, the principal moments on the diagonal: the body frame is the
   contract frame; ODE's ``dMassSetCapsule`` etc. are not used), one ``dCreateSphere``,
   ``dCreateBox``, ``dCreateCapsule``, ``dCreateCylinder`` or ``dCreateConvex`` geom on it with no
-  offset (capsule and cylinder: ``radius`` and ``length`` = 2 half_length, the capsule's cylinder
+  offset, or a compound's parts, each such a geom at its pose in the body frame
+  (``dGeomSetOffsetPosition`` / ``dGeomSetOffsetQuaternion``) (capsule and cylinder: ``radius`` and ``length`` = 2 half_length, the capsule's cylinder
   part, along the geom's z = the body's z; a hull: its face planes, vertices and polygons in the
   body frame), position,
   quaternion (w, x, y, z), velocity and the world-frame angular velocity ODE keeps. ODE's
@@ -56,8 +57,8 @@ import numpy as np
 
 from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_NAMES, \
     GEOM_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, body_mesh, initial_world_omega, \
-    pair_materials, parse_options
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_mesh, body_parts, geom_hull, \
+    initial_world_omega, pair_materials, parse_options
 
 #: contact points per geom pair from dCollide (a box on a face needs 4; 8 leaves room for edges)
 DEFAULT_MAX_CONTACTS = 8
@@ -164,8 +165,8 @@ class OdeRun:
             raise EngineUnsupported("ode", "options iterations/w without stepper=quick (dWorldStep has none)")
         model, st = scene.model, scene.state
         n = model.n_bodies
-        shapes = body_geoms(model, "ode", (GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER,
-                                           GEOM_MESH))
+        parts = body_parts(model, "ode", (GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER,
+                                          GEOM_MESH))
         self._convex_arrays: list = []  # what ODE's convex geoms point into
         self.max_contacts = int(_number("max_contacts", opts.pop("max_contacts", DEFAULT_MAX_CONTACTS), int))
         accel = float(np.linalg.norm(model.gravity)) + float(np.max(
@@ -204,40 +205,50 @@ class OdeRun:
             ode.dMassSetParameters(ctypes.byref(m), float(model.body_mass[i]), 0.0, 0.0, 0.0,
                                    *map(float, model.body_inertia_diag[i]), 0.0, 0.0, 0.0)
             ode.dBodySetMass(b, ctypes.byref(m))
-            code, size = shapes[i]
-            if code == GEOM_SPHERE:
-                g = ode.dCreateSphere(self.space, float(size[0]))
-            elif code == GEOM_BOX:
-                g = ode.dCreateBox(self.space, *(2.0 * float(x) for x in size))
-            elif code == GEOM_CAPSULE:  # length: the cylinder part, 2 h, along the geom's z
-                g = ode.dCreateCapsule(self.space, float(size[0]), 2.0 * float(size[1]))
-            elif code == GEOM_MESH:  # dCreateConvex: the hull's planes, points and polygons
-                g = create_convex(ode, self.space, *body_mesh(model, i), self._convex_arrays)
-            else:
-                g = ode.dCreateCylinder(self.space, float(size[0]), 2.0 * float(size[1]))
-            ode.dGeomSetBody(g, b)
+            for code, size, pos, quat, gi in parts[i]:
+                if code == GEOM_SPHERE:
+                    g = ode.dCreateSphere(self.space, float(size[0]))
+                elif code == GEOM_BOX:
+                    g = ode.dCreateBox(self.space, *(2.0 * float(x) for x in size))
+                elif code == GEOM_CAPSULE:  # length: the cylinder part, 2 h, along the geom's z
+                    g = ode.dCreateCapsule(self.space, float(size[0]), 2.0 * float(size[1]))
+                elif code == GEOM_MESH:  # dCreateConvex: the hull's planes, points and polygons
+                    mesh = body_mesh(model, i) if len(parts[i]) == 1 else \
+                        geom_hull(model, gi, model.body_name[i])
+                    g = create_convex(ode, self.space, *mesh, self._convex_arrays)
+                else:
+                    g = ode.dCreateCylinder(self.space, float(size[0]), 2.0 * float(size[1]))
+                ode.dGeomSetBody(g, b)
+                if len(parts[i]) > 1:  # a compound's part at its pose in the body frame
+                    ode.dGeomSetOffsetPosition(g, *map(float, pos))
+                    ode.dGeomSetOffsetQuaternion(g, (ode.dQuaternion)(*map(float, quat)))
+                geoms.append((g, i))
             ode.dBodySetPosition(b, *map(float, st.position[i]))
             q = st.quat_wxyz[i] / np.linalg.norm(st.quat_wxyz[i])
             ode.dBodySetQuaternion(b, (ode.dQuaternion)(*map(float, q)))
             ode.dBodySetLinearVel(b, *map(float, st.linear_momentum[i] / model.body_mass[i]))
             ode.dBodySetAngularVel(b, *map(float, w_world[i]))
             self.bodies.append(b)
-            geoms.append(g)
+        k = n  # the statics' feature index (pair_materials' items)
         if model.ground:
             nrm = np.asarray(model.ground_normal, float) / np.linalg.norm(model.ground_normal)
-            geoms.append(ode.dCreatePlane(self.space, *map(float, nrm), float(model.ground_offset)))
+            geoms.append((ode.dCreatePlane(self.space, *map(float, nrm), float(model.ground_offset)), k))
+            k += 1
         for j in range(len(model.static_box_position)):
             g = ode.dCreateBox(self.space, *(2.0 * float(x) for x in model.static_box_half_extents[j]))
             ode.dGeomSetPosition(g, *map(float, model.static_box_position[j]))
             q = model.static_box_quat_wxyz[j] / np.linalg.norm(model.static_box_quat_wxyz[j])
             ode.dGeomSetQuaternion(g, (ode.dQuaternion)(*map(float, q)))
-            geoms.append(g)
+            geoms.append((g, k))
+            k += 1
         kinds, self.e_eff, self.mu_eff, self.can = pair_materials(model)
-        self._check_colliders(kinds, shapes)
-        for k, g in enumerate(geoms):  # each geom's feature index + 1 in its user data
+        self._check_colliders(kinds, [[c for c, *_ in body] for body in parts])
+        # each geom's feature index + 1 in its user data (a compound's parts share their
+        # body's: pair_materials' can[i, i] is false, so they never collide with each other)
+        for g, k in geoms:
             ode.dGeomSetData(g, ctypes.c_void_p(k + 1))
         self._data = ode.dGeomGetData
-        self.body_of = [self.bodies[k] if k < n else None for k in range(len(geoms))]
+        self.body_of = [self.bodies[k] if k < n else None for k in range(len(kinds))]
         self.n = n
         self.loaded = [(self.bodies[i], tuple(map(float, model.body_force_world[i])),
                         tuple(map(float, model.body_torque_world[i]))) for i in range(n)
@@ -267,15 +278,18 @@ class OdeRun:
         }
 
     def _check_colliders(self, kinds, shapes) -> None:
-        """Exit 2 naming the first pair of shapes that can touch and dCollide cannot collide."""
+        """Exit 2 naming the first pair of shapes that can touch and dCollide cannot collide
+        (``shapes``: each body's GEOM_* codes, a compound's several)."""
         model = self.scene.model
-        shape = [GEOM_NAMES[c] for c, _ in shapes] + ["plane" if k == "ground" else "box"
-                                                     for k in kinds[len(shapes):]]
+        shape = [[GEOM_NAMES[c] for c in codes] for codes in shapes] + \
+            [["plane" if k == "ground" else "box"] for k in kinds[len(shapes):]]
         label = [f"body {str(x)!r}" for x in model.body_name] + (["the ground"] if model.ground else []) \
             + [f"static box {j}" for j in range(len(model.static_box_position))]
         first = {}
         for i, j in zip(*np.nonzero(np.triu(self.can, 1))):
-            first.setdefault(tuple(sorted((shape[i], shape[j]))), (int(i), int(j)))
+            for si in shape[i]:
+                for sj in shape[j]:
+                    first.setdefault(tuple(sorted((si, sj))), (int(i), int(j)))
         missing = missing_colliders(self.ode, list(first))
         if missing:
             i, j = first[missing[0]]

@@ -6,7 +6,9 @@ Translation (common part: rblog/study/engines/__init__.py):
   shape (``GEOM_CAPSULE`` / ``GEOM_CYLINDER``: ``radius`` and ``height`` = 2 half_length, the
   capsule's cylinder part, along the shape's z = the body's z; a hull: ``GEOM_MESH`` with the
   body-frame ``vertices``, Bullet's convex hull of them, its collision margin set to 0: Bullet
-  grows a hull by its margin, 1 mm by default), the scene's mass and
+  grows a hull by its margin, 1 mm by default), or a compound's parts as one
+  ``createCollisionShapeArray`` at their poses in the body frame (no hull parts), the scene's
+  mass and
   ``localInertiaDiagonal`` (principal moments, body frame: Bullet's own from the shape is
   replaced), linear/angular damping 0 and
   rolling/spinning friction 0; the ground: a static plane turned so its +z is the ground normal;
@@ -34,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from rblog.contract.model import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_SPHERE
-from rblog.study.engines import EngineMissing, EngineUnsupported, body_geoms, body_mesh, initial_world_omega, \
+from rblog.study.engines import EngineMissing, EngineUnsupported, body_mesh, body_parts, initial_world_omega, \
     pair_materials, parse_options, z_to
 
 #: relative mismatch of a pair's restitution product r_a r_b from max(e_a, e_b) accepted
@@ -115,8 +117,9 @@ class PybulletRun:
         groups = sorted({int(g) for g in model.body_group if g != 0})
         if len(groups) > MAX_GROUPS:
             raise EngineUnsupported("pybullet", f"{len(groups)} collision groups (body.group)")
-        shapes = body_geoms(model, "pybullet", (GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER,
+        bodies = body_parts(model, "pybullet", (GEOM_SPHERE, GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER,
                                                 GEOM_MESH))
+        shapes = [body[0][:2] for body in bodies]
         r_fac = restitution_factors(model)
         mu_fac = np.sqrt(np.concatenate([model.body_friction,
                                          [model.ground_friction] if model.ground else [],
@@ -137,7 +140,9 @@ class PybulletRun:
             bit = {g: 1 << (k + 1) for k, g in enumerate(groups)}
             all_bits = (1 << (len(groups) + 1)) - 1
             for i, (code, size) in enumerate(shapes):
-                if code == GEOM_SPHERE:
+                if len(bodies[i]) > 1:
+                    col = _compound_shape(pb, cid, bodies[i], model.body_name[i])
+                elif code == GEOM_SPHERE:
                     col = pb.createCollisionShape(pb.GEOM_SPHERE, radius=float(size[0]), physicsClientId=cid)
                 elif code == GEOM_BOX:
                     col = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[float(x) for x in size],
@@ -155,7 +160,8 @@ class PybulletRun:
                                          basePosition=[float(x) for x in st.position[i]],
                                          baseOrientation=[float(q[1]), float(q[2]), float(q[3]), float(q[0])],
                                          physicsClientId=cid)
-                if code == GEOM_MESH:  # the hull itself: Bullet grows a convex hull by its margin
+                if code == GEOM_MESH and len(bodies[i]) == 1:  # the hull itself: Bullet grows a
+                    # convex hull by its margin
                     pb.changeDynamics(bid, -1, collisionMargin=0.0, physicsClientId=cid)
                 pb.changeDynamics(bid, -1, localInertiaDiagonal=[float(x) for x in model.body_inertia_diag[i]],
                                   linearDamping=0.0, angularDamping=0.0, restitution=float(r_fac[i]),
@@ -267,3 +273,25 @@ class PybulletRun:
             self.pb.disconnect(physicsClientId=self.cid)
         except Exception:  # noqa: BLE001 - already gone
             pass
+
+
+def _compound_shape(pb, cid, parts, name) -> int:
+    """``createCollisionShapeArray`` of a compound body's parts (a btCompoundShape), each at its
+    pose in the body frame (``collisionFramePositions`` / ``Orientations``, xyzw). A hull part
+    is refused by name: the array call takes mesh files, not vertices."""
+    kinds = {GEOM_SPHERE: pb.GEOM_SPHERE, GEOM_BOX: pb.GEOM_BOX, GEOM_CAPSULE: pb.GEOM_CAPSULE,
+             GEOM_CYLINDER: pb.GEOM_CYLINDER}
+    if any(code not in kinds for code, *_ in parts):
+        raise EngineUnsupported("pybullet", f"body {name!r}: a hull part of a compound "
+                                "(createCollisionShapeArray takes no vertices)")
+    return pb.createCollisionShapeArray(
+        shapeTypes=[kinds[c] for c, *_ in parts],
+        radii=[float(s[0]) for _, s, *_ in parts],
+        halfExtents=[[float(x) for x in s] if c == GEOM_BOX else [0.0, 0.0, 0.0]
+                     for c, s, *_ in parts],
+        lengths=[2.0 * float(s[1]) if c in (GEOM_CAPSULE, GEOM_CYLINDER) else 0.0
+                 for c, s, *_ in parts],
+        collisionFramePositions=[[float(x) for x in p] for _, _, p, _, _ in parts],
+        collisionFrameOrientations=[[float(q[1]), float(q[2]), float(q[3]), float(q[0])]
+                                    for _, _, _, q, _ in parts],
+        physicsClientId=cid)
