@@ -114,6 +114,11 @@ def print_live_report(audit, as_json: bool, paths=()) -> bool:
 REPORT_FINDINGS_SHOWN = 5
 
 
+def _num(x, spec):
+    """x formatted by spec; a non-finite figure arrives from the JSON-safe entry as None."""
+    return "nan" if x is None else format(x, spec)
+
+
 def print_report(entry):
     """One log's report from its entry (rblog.study.bulk_check.check_log): a header, one line
     per analyzer, the findings of each flagged one, and the log's verdict line."""
@@ -129,8 +134,8 @@ def print_report(entry):
         click.echo(f"  {verdict:<4} {r['analyzer']:<12} {_worst_text(r)}")
         for f in r["findings"][:REPORT_FINDINGS_SHOWN]:
             u = _unit(f["unit"])
-            click.echo(f"         t = {f['t']:.4g} s: {f['value']:.3g}{u} (tol "
-                       f"{f['tolerance']:.3g}{u}): {f['message']}")
+            click.echo(f"         t = {_num(f['t'], '.4g')} s: {_num(f['value'], '.3g')}{u} (tol "
+                       f"{_num(f['tolerance'], '.3g')}{u}): {f['message']}")
         more = int(r["stats"].get("findings", len(r["findings"]))) - REPORT_FINDINGS_SHOWN
         if more > 0:
             click.echo(f"         ... and {more} more (all of them: rblog check --json)")
