@@ -25,10 +25,14 @@ The truth, never from the log or from rblog's code:
   potential) plus the first-order step's bias ENERGY_DT_FACTOR h sum_b m_b |g| (|v_b(t)| +
   |v_b(0)|) / 2 (rblog.analyze.energy; the bodies' centre-of-mass speeds from MuJoCo's cvel).
   An engine's integration error beyond that is a finding, as a free body's drift is (a 1 %
-  gain must be caught). Runs with contacts: not judged by this truth (an impact inside a step
-  does work the step's forces do not show); RK4 runs up to the first step that meets a joint
-  limit (its force across RK4's stages does work the step's start does not show: the adapter
-  logs that step's joint work NaN). pybullet: no independent energy.
+  gain must be caught). Runs with contacts: judged on each stretch of samples in which no
+  MuJoCo step had a contact (``ncon`` at its start state), its scale and allowance the
+  stretch's own, whole-model energy (the rotors' 0.5 armature qdot^2 included: the log's
+  bodies lack it); RK4 runs up to the first step that meets a joint limit (its force across
+  RK4's stages does work the step's start does not show: the adapter logs that step's joint
+  work NaN). pybullet: no independent energy (its motors' appliedJointMotorTorque and the
+  URDF damping close 38.98 of kuka's 39.26 J drop over steps 330-530, not to the analyzer's
+  0.1 %: joint limits and velocity clamps act unreported; tests/adapters/test_pybullet_energy.py).
 * momentum: Newton holds inside either engine: each body's momentum change equals its impulses
   + m g dt, measured from qvel / getBaseVelocity to 1e-9 relative by
   tests/adapters/test_mujoco_models.py and test_pybullet_worlds.py; the truth is clean.
