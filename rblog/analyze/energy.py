@@ -38,6 +38,11 @@ from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_
 from rblog.analyze.events import configured_restitution, impact_events
 
 _TINY = 1e-300
+#: the kinds whose nonzero impulse always does work (damping -c v: -c |v|^2 dt; an actuator
+#: driving a joint), so a log that logs their impulse and states their work "none" has not
+#: given it (applied: "none" may be the model's constant, conservative force; joint: an ideal
+#: joint's reactions do no net work on its tree)
+DISSIPATIVE_KINDS = ("passive", "actuator")
 
 
 def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
@@ -61,8 +66,8 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
 
     Returns (free, e, ke, u, sp, m, amag, labels, members) over the columns.
     """
-    from rblog.contract.model import (BODY_KINEMATIC, BODY_STATIC, IMPULSE_KINDS, SUPPLIED_NONE,
-                                      WORK_KINDS)
+    from rblog.contract.model import (BODY_KINEMATIC, BODY_STATIC, IMPULSE_KINDS,
+                                      SUPPLIED_LOGGED, SUPPLIED_NONE, WORK_KINDS)
 
     tr, model = ctx.traj, ctx.model
     loaded = ctx.loaded
@@ -83,6 +88,7 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
     isup = np.asarray(model.body_impulse_supplied, np.int64).reshape(n, len(IMPULSE_KINDS))
     wsup = np.asarray(model.body_work_supplied, np.int64).reshape(n, len(WORK_KINDS))
     work_known = np.ones(n, bool)
+    unstated: dict[str, np.ndarray] = {}  # kind -> bodies whose acting force's work is "none"
     work = np.zeros((tr.n_samples, n))
     # intervals in which a body's logged work is NaN (its writer did not know it there: an
     # RK4 step with a joint limit, MuJoCo's adapter): a stretch ends before them
@@ -91,9 +97,21 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
         acts = isup[:, IMPULSE_KINDS.index(kk)] != SUPPLIED_NONE
         w = tr.work(kk)
         known = wsup[:, j] == SUPPLIED_NONE
+        if kk in DISSIPATIVE_KINDS and (known & acts).any():
+            # work "none" with a nonzero impulse of the kind logged: the force acts (a damping's
+            # impulse -c v dt does the work -c v.v dt != 0), so its work is not known, only
+            # unstated (pybullet's log: its damping impulse logged, every work "none")
+            imp = tr.impulse(kk)
+            if imp is not None:
+                nz = np.zeros(n, bool)
+                for a in imp:
+                    nz |= (np.abs(np.nan_to_num(a[1:])) > 0).any(axis=(0, 2))
+                unstated[kk] = known & acts & nz
+                known = known & ~unstated[kk]
         if w is not None:
             nan = np.isnan(w[1:])
             logged = ~nan.all(axis=0) if len(nan) else np.zeros(n, bool)
+            logged &= wsup[:, j] == SUPPLIED_LOGGED  # "none" reads as zeros, not as logged
             known |= logged
             gap |= nan & logged[None, :]
             work += np.nan_to_num(w)
@@ -111,9 +129,12 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
     if bad:
         names = ", ".join(repr(model.body_name[c[0]]) for c in bad[:3])
         more = f" +{len(bad) - 3} more" if len(bad) > 3 else ""
+        why = [k for k, b in unstated.items() if any(b[c].any() for c in bad)]
+        why = (f" (its {' and '.join(why)} impulse is logged, nonzero, with its work stated "
+               "none)") if why else ""
         not_judged.append(f"energy of {len(bad)} bod{'ies' if len(bad) > 1 else 'y'} or tree(s) "
                           f"({names}{more}) not judged: the work of a load on them is not in "
-                          "the log")
+                          f"the log{why}")
     c_n = len(ok)
     kn = free.shape[0]
     f_free = np.zeros((kn, c_n), bool)
@@ -271,6 +292,9 @@ class EnergyAnalyzer(Analyzer):
                     float(t[ka[j]]), bodies))
         if ctx.has_torque.any():
             stats["bodies_with_torque_skipped"] = float(ctx.has_torque.sum())
+        if not_judged and free.shape[1] == 0 and not stats.get("contact_events"):
+            # every body left out and no contact event checked: nothing was judged
+            return self.not_judged("; ".join(not_judged))
         res = self.result(worst, findings, stats, n_findings=n_found)
         res.leave_out(not_judged)
         return res.leave_out([] if len(tr.contacts) else shapeless_note(
