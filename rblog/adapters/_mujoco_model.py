@@ -44,12 +44,14 @@ def _quat_conj(q):
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
-def _quat_mat(q) -> np.ndarray:
-    """(3, 3) rotation matrix of a unit quaternion (w, x, y, z)."""
+def _quat_mats(q) -> np.ndarray:
+    """(n, 3, 3) rotation matrices of (n, 4) quaternions (w, x, y, z), each normalized by its
+    own ``sqrt(q . q)`` first, then converted in one vectorized call."""
     from rblog.contract.orientation import quat_wxyz_to_matrix
 
-    q = np.asarray(q, np.float64)
-    return quat_wxyz_to_matrix(q / np.linalg.norm(q))
+    q = np.asarray(q, np.float64).reshape(-1, 4)
+    norm = np.array([np.sqrt(r.dot(r)) for r in q]).reshape(len(q), 1)
+    return quat_wxyz_to_matrix(q / norm)
 
 
 def gravity_of(m) -> np.ndarray:
@@ -172,7 +174,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     # frames: MuJoCo body frame -> the log's (inertial) frame
     ipos = np.asarray(m.body_ipos, np.float64)
     iquat = np.asarray(m.body_iquat, np.float64)
-    ri = [_quat_mat(q) for q in iquat]
+    ri = _quat_mats(iquat)  # (nbody, 3, 3) inertial frame -> body frame
 
     def to_inertial(b, p):  # a point in MuJoCo body b's frame -> its inertial frame
         return ri[b].T @ (np.asarray(p, np.float64) - ipos[b]) if b else np.asarray(p, np.float64)
@@ -229,7 +231,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     skipped = [f"{_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')} "
                f"({mj.mjtGeom(int(gtype[g])).name.removeprefix('mjGEOM_').lower()}, no collision)"
                for g in range(mc.ngeom) if int(gtype[g]) not in _GEOM]
-    g_body, g_type, g_pos, g_quat, g_size, g_vert, g_name = [], [], [], [], [], [], []
+    g_body, g_type, g_pos, g_size, g_vert, g_name = [], [], [], [], [], []
     for g in keep:
         b = int(mc.geom_bodyid[g])
         code = _GEOM[int(gtype[g])]
@@ -237,10 +239,6 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
         g_type.append(code)
         g_name.append(mj.mj_id2name(m, mj.mjtObj.mjOBJ_GEOM, g) or "")
         g_pos.append(to_inertial(b, mc.geom_pos[g]))
-        from rblog.adapters._common import quat_mul
-
-        q = np.asarray(mc.geom_quat[g], np.float64)
-        g_quat.append(quat_mul(_quat_conj(iquat[b]), q) if b else q.copy())
         s = np.array(mc.geom_size[g], np.float64)
         if code == GEOM_SPHERE:
             s[1:] = 0.0
@@ -256,11 +254,18 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
         else:
             g_vert.append(None)
     ng = len(keep)
+    # (ng, 4) each geom's orientation in its body's inertial frame: conj(iquat) * geom_quat, one
+    # vectorized product (elementwise, the bits of one product per geom); the world's as given
+    from rblog.adapters._common import quat_mul
+
+    gq = np.asarray(mc.geom_quat, np.float64)[keep].reshape(ng, 4)
+    gb = np.asarray(mc.geom_bodyid, np.int64)[keep]
+    g_quat = np.where((gb > 0)[:, None], quat_mul(_quat_conj(iquat[gb]), gq), gq)
     nan = float("nan")
     rest = np.broadcast_to(np.asarray(nan if restitution is None else restitution, np.float64), (ng,))
     geoms = dict(body=np.array(g_body, np.int64).reshape(ng), type=np.array(g_type, np.int64).reshape(ng),
                  size=np.array(g_size).reshape(ng, 3), pos_body=np.array(g_pos).reshape(ng, 3),
-                 quat_wxyz_body=np.array(g_quat).reshape(ng, 4),
+                 quat_wxyz_body=g_quat,
                  friction=np.array([float(mc.geom_friction[g, 0]) for g in keep]).reshape(ng),
                  restitution=rest.copy(),
                  collide_group=np.array([int(mc.geom_contype[g]) for g in keep], np.int64).reshape(ng),
