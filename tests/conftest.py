@@ -66,3 +66,22 @@ def scene_file(tmp_path):
 @pytest.fixture(scope="session")
 def samples_dir() -> Path:
     return SAMPLES_DIR
+
+
+#: the notes' scheme without orthonormalization at h w = 100: R's first column grows by
+#: sqrt(1 + h^2 w^2) per step, so ortho_error overflows to inf within ~40 steps (a diverging run)
+DIVERGING = """
+[sim]
+dt = 1.0
+duration = 1000.0
+gravity = [0, 0, 0]
+integrator = "seed"
+orthonormalize = "none"
+log_every = 1
+[[body]]
+name = "spinner"
+shape = "sphere"
+radius = 0.1
+mass = 1.0
+angular_velocity = [0.0, 0.0, 100.0]
+"""

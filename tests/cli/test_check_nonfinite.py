@@ -6,24 +6,7 @@ from click.testing import CliRunner
 
 from rblog_cli.main import main
 
-#: the notes' scheme without orthonormalization at h w = 100: R's first column grows by
-#: sqrt(1 + h^2 w^2) per step, so ortho_error overflows to inf within ~40 steps and the state near
-#: step 155 (tests/engine/test_runner.py's diverging run)
-DIVERGING = """
-[sim]
-dt = 1.0
-duration = 1000.0
-gravity = [0, 0, 0]
-integrator = "seed"
-orthonormalize = "none"
-log_every = 1
-[[body]]
-name = "spinner"
-shape = "sphere"
-radius = 0.1
-mass = 1.0
-angular_velocity = [0.0, 0.0, 100.0]
-"""
+from conftest import DIVERGING  # ortho_error overflows to inf, the state near step 155
 
 
 def test_check_reports_a_non_finite_finding(tmp_path):

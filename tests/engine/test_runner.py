@@ -15,6 +15,8 @@ import pytest
 
 import rblog
 
+from conftest import DIVERGING
+
 LONG = """
 [sim]
 dt = 1e-3
@@ -31,21 +33,6 @@ half_extents = [0.3, 0.2, 0.1]
 mass = 1.0
 """
 
-DIVERGING = """
-[sim]
-dt = 1.0
-duration = 1000.0
-gravity = [0, 0, 0]
-integrator = "seed"
-orthonormalize = "none"
-log_every = 1
-[[body]]
-name = "spinner"
-shape = "sphere"
-radius = 0.1
-mass = 1.0
-angular_velocity = [0.0, 0.0, 100.0]
-"""
 
 RBLOG = [sys.executable, "-m", "rblog_cli.main"]
 
