@@ -11,6 +11,8 @@ language says:
   are not run: they install the package under test, and CI runs README's own. ``rerun FILE``
   opens a window: the test asserts the program exists and FILE is a log that reads.
 * ``toml``: a scene; it must load.
+* ``python fragment``: a piece of a program (names defined elsewhere on the page, ``...``): it
+  must compile, not run.
 * ``text`` (output, diagrams) and ``proto`` (a schema) are not run.
 
 A block without a language fails: every block says what it is.
@@ -29,13 +31,10 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 PAGES = ["README.md", *sorted(p.relative_to(REPO).as_posix() for p in (REPO / "docs").glob("*.md"))]
-#: pages whose blocks are not run yet, with why
-NOT_RUN = {
-    "docs/log-format.md": "the log contract's page (rewritten on the v3 branch); its python blocks "
-                          "are fragments of a writer, not programs",
-}
 RUNS = {"python", "sh", "toml"}
 NOT_RUN_LANGS = {"text", "proto"}
+#: compiled, not run
+FRAGMENT = "python fragment"
 #: pages whose blocks take more than ~10 s in all on the 2-core machine (measured at load ~10:
 #: README 16 s, live-audit.md 12 s, cluster.md with its sweeps on 2 workers); the others 0.2-5 s
 SLOW = {"README.md", "docs/live-audit.md", "docs/cluster.md"}
@@ -47,10 +46,15 @@ FENCE = re.compile(r"^```([^\n`]*)\n(.*?)^```[ \t]*$", re.M | re.S)
 
 
 def blocks(page: str) -> list[tuple[int, str, str]]:
-    """(line, language, code) of every fenced block of ``page``."""
+    """(line, language, code) of every fenced block of ``page``; the language of a block fenced
+    ```python fragment``` is ``python fragment``."""
     text = (REPO / page).read_text(encoding="utf-8")
-    return [(text.count("\n", 0, m.start()) + 1, m.group(1).strip().split(" ")[0], m.group(2))
-            for m in FENCE.finditer(text)]
+    out = []
+    for m in FENCE.finditer(text):
+        words = m.group(1).split()
+        lang = " ".join(words[:2]) if words[1:2] == ["fragment"] else (words or [""])[0]
+        out.append((text.count("\n", 0, m.start()) + 1, lang, m.group(2)))
+    return out
 
 
 def _commands(code: str) -> list[str]:
@@ -104,9 +108,11 @@ def _run_page(page: str, tmp_path: Path):
     env = _scratch(tmp_path)
     for k, (line, lang, code) in enumerate(blocks(page)):
         where = f"{page}:{line}"
-        assert lang in RUNS | NOT_RUN_LANGS, \
+        assert lang in RUNS | NOT_RUN_LANGS | {FRAGMENT}, \
             f"{where}: a block with language {lang!r} (expected one of " \
-            f"{', '.join(sorted(RUNS | NOT_RUN_LANGS))}; output is ```text)"
+            f"{', '.join(sorted(RUNS | NOT_RUN_LANGS | {FRAGMENT}))}; output is ```text)"
+        if lang == FRAGMENT:
+            compile(code, where, "exec")
         if lang == "sh":
             for cmd in _commands(code):
                 _run_sh(cmd, tmp_path, env, where)
@@ -121,8 +127,6 @@ def _run_page(page: str, tmp_path: Path):
 def _params():
     for page in PAGES:
         marks = [pytest.mark.slow] if page in SLOW else []
-        if page in NOT_RUN:
-            marks.append(pytest.mark.skip(reason=NOT_RUN[page]))
         yield pytest.param(page, marks=marks, id=page)
 
 
@@ -136,8 +140,8 @@ def test_every_page_is_covered_and_tagged():
     commands are the ones CI runs."""
     for page in PAGES:
         for line, lang, _ in blocks(page):
-            if page not in NOT_RUN:
-                assert lang in RUNS | NOT_RUN_LANGS, f"{page}:{line}: untagged or unknown block"
+            assert lang in RUNS | NOT_RUN_LANGS | {FRAGMENT}, \
+                f"{page}:{line}: untagged or unknown block"
     readme = [c for _, lang, code in blocks("README.md") if lang == "sh"
               for c in _commands(code)]
     assert readme[:2] == [
