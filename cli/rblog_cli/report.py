@@ -115,8 +115,9 @@ REPORT_FINDINGS_SHOWN = 5
 
 
 def _num(x, spec):
-    """x formatted by spec; a non-finite figure arrives from the JSON-safe entry as None."""
-    return "nan" if x is None else format(x, spec)
+    """x formatted by spec; a non-finite figure (inf or NaN) arrives from the JSON-safe entry as
+    None."""
+    return "not finite" if x is None else format(x, spec)
 
 
 def print_report(entry):

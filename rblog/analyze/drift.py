@@ -75,6 +75,8 @@ def _growth(slope: float, log_rate: float, exponential: bool) -> str:
     if exponential:
         return (f"growing exponentially (e-folding rate {log_rate:.3g}/s, doubling every "
                 f"{np.log(2.0) / log_rate:.3g} s)")
+    if not np.isfinite(slope):
+        return "growing (too few finite samples past tolerance to fit a rate)"
     return f"growing linearly, {slope:.3g}/s"
 
 
@@ -119,7 +121,10 @@ class DriftAnalyzer(Analyzer):
         per_body_metric = np.zeros(n, np.int64)
         onset_idx = np.full((len(_METRICS), n), -1)
         for mi, (key, tkey, label) in enumerate(_METRICS):
-            v = mets[key]
+            # a metric that overflows (a rotation grown to ~1e100 has det R = inf, then NaN) is
+            # at its worst: NaN counts as inf for the maximum and the onset
+            v = np.where(np.isnan(mets[key]), np.inf, mets[key])
+            mets[key] = v
             tl = self.tol[tkey]
             vmax = v.max(axis=0)  # (N,)
             stats[f"{key}_max"] = float(vmax.max()) if n else 0.0
@@ -137,8 +142,9 @@ class DriftAnalyzer(Analyzer):
             # a distance d changes by at most distance_rel x d: bound it with the body's diameter
             diam = 2.0 * geometry.bounding_radius(model)
             stats["distance_abs_max_m"] = float((mets["distance_rel"] * diam[None]).max())
-            stats["logged_ortho_error_mismatch_max"] = float(
-                np.abs(np.asarray(tr.ortho_error, float) - mets["ortho_error"]).max())
+            with np.errstate(invalid="ignore"):  # inf - inf where both overflowed
+                stats["logged_ortho_error_mismatch_max"] = float(np.nanmax(
+                    np.abs(np.asarray(tr.ortho_error, float) - mets["ortho_error"]), initial=0.0))
 
         # onset and growth per flagged body, for its worst metric
         flagged = np.nonzero((onset_idx >= 0).any(axis=0))[0]
@@ -147,7 +153,9 @@ class DriftAnalyzer(Analyzer):
             mi = per_body_metric[flagged]
             allm = np.stack([mets[m[0]] for m in _METRICS])  # (4, T, N)
             y = allm[mi, :, flagged].T  # (T, F): each flagged body's worst metric
-            w = (np.arange(t_n)[:, None] >= onset[None, :]).astype(float)
+            # the fits take the finite samples from the onset on
+            w = ((np.arange(t_n)[:, None] >= onset[None, :]) & np.isfinite(y)).astype(float)
+            y = np.where(np.isfinite(y), y, 0.0)
             slope = _fit(t, y, w)
             with np.errstate(divide="ignore", invalid="ignore"):
                 ly = np.log(np.where(y > 0, y, np.nan))
@@ -166,10 +174,12 @@ class DriftAnalyzer(Analyzer):
                 v = mets[key][:, b]
                 kmax = int(v.argmax())
                 k0 = int(onset[j])
+                reach = (f"reaches {v[kmax]:.3g} (tol {self.tol[tkey]:.3g}) at t = {t[kmax]:.6g} s"
+                         if np.isfinite(v[kmax]) else
+                         f"is not finite from t = {t[kmax]:.6g} s (tol {self.tol[tkey]:.3g})")
                 findings.append(Finding(
                     self.name,
-                    f"{body_label(model, b)} not rigid: {label} reaches {v[kmax]:.3g} "
-                    f"(tol {self.tol[tkey]:.3g}) at t = {t[kmax]:.6g} s; past tolerance from "
+                    f"{body_label(model, b)} not rigid: {label} {reach}; past tolerance from "
                     f"t = {t[k0]:.6g} s, {_growth(slope[j], log_rate[j], exponential[j])}",
                     float(v[kmax]), self.tol[tkey], "1", int(tr.step[kmax]), float(t[kmax]),
                     [int(b)], onset_step=int(tr.step[k0]), onset_t=float(t[k0]),
