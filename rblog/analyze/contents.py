@@ -8,7 +8,7 @@ from collections import Counter
 
 import numpy as np
 
-from rblog.contract.model import (BODY_KIND_NAMES, GEOM_NAMES, IMPULSE_KINDS, JOINT_NAMES,
+from rblog.contract.model import (BODY_FREE, BODY_JOINTED, BODY_KIND_NAMES, GEOM_NAMES, IMPULSE_KINDS, JOINT_NAMES,
                                   SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE)
 from rblog.contract.trajectory import Trajectory
 
@@ -16,7 +16,8 @@ from rblog.contract.trajectory import Trajectory
 def log_contents(traj: Trajectory) -> dict:
     """JSON-able counts: ``bodies`` {kind: n}, ``joints`` {type: n}, ``geoms`` {shape: n} (on
     bodies), ``world_geoms`` {shape: n}, ``impulses`` {kind: {"logged": n, "none": n,
-    "missing": n}} over bodies, ``impulse_gaps`` {kind: {"intervals": n, "bodies": n}} for logged
+    "missing": n}} over bodies (missing: on bodies the dynamics move), ``impulse_gaps``
+    {kind: {"intervals": n, "bodies": n}} for logged
     kinds left NaN in some intervals, ``contact_rows`` (int)."""
     m = traj.model
     n = m.n_bodies
@@ -27,9 +28,11 @@ def log_contents(traj: Trajectory) -> dict:
     geoms = Counter(GEOM_NAMES.get(int(t), str(t)) for t in gt[gb >= 0])
     world = Counter(GEOM_NAMES.get(int(t), str(t)) for t in gt[gb < 0])
     sup = np.asarray(m.body_impulse_supplied).reshape(n, len(IMPULSE_KINDS))
+    # a load of unknown size matters only on a body the dynamics move (not static, not kinematic)
+    moving = np.isin(np.asarray(m.body_kind).reshape(n), (BODY_FREE, BODY_JOINTED))
     imp = {k: {"logged": int((sup[:, j] == SUPPLIED_LOGGED).sum()),
                "none": int((sup[:, j] == SUPPLIED_NONE).sum()),
-               "missing": int((sup[:, j] == SUPPLIED_MISSING).sum())}
+               "missing": int(((sup[:, j] == SUPPLIED_MISSING) & moving).sum())}
            for j, k in enumerate(IMPULSE_KINDS)}
     # logged kinds the writer left NaN in some intervals (it did not know them there:
     # pybullet's joint limits): {kind: {"intervals": body-intervals, "bodies": n}}

@@ -362,3 +362,24 @@ def test_jointed_bodies_balance_to_round_off_and_a_kick_on_one_is_caught():
     assert f.bodies == [b] and f.step == kick_at * 10 and f.t == pytest.approx(traj.t[kick_at])
     mdv = traj.model.body_mass[b] * 0.05  # 2.78 kg x 0.05 m/s
     assert f"by {mdv:.3g} kg m/s" in f.message, f.message
+
+
+def test_the_contents_line_counts_unknown_loads_on_moving_bodies_only():
+    """A static body takes no load the audit could judge (MuJoCo's static `target` in stacker is
+    written with every kind missing): "loads of unknown size" counts the free body only."""
+    from rblog.analyze.contents import contents_line, log_contents
+
+    model = rblog.body_table(name=["ball", "post"], mass=[1.0, 1.0],
+                             inertia_diag=[[0.1, 0.1, 0.1]] * 2, kind=["free", "static"],
+                             parent=[-1, -1],
+                             geoms=dict(body=[0, 1], type=["sphere", "box"],
+                                        size=[[0.1, 0, 0], [0.1, 0.1, 0.1]]),
+                             impulses=("contact",), impulses_missing=("applied",))
+    with rblog.Recorder(model, dt=1e-3) as rec:
+        z = np.zeros((2, 2, 3))
+        rec.write(t=[0.0, 1e-3], position=z + [[0, 0, 1], [1, 0, 0]],
+                  quat_wxyz=np.tile([1.0, 0, 0, 0], (2, 2, 1)), velocity=z, angular_velocity=z,
+                  impulse_contact_linear=z, impulse_contact_angular=z)
+    c = log_contents(rec.trajectory)
+    assert c["impulses"]["applied"]["missing"] == 1
+    assert "loads of unknown size: applied (1 body)" in contents_line(c)
