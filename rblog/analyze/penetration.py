@@ -261,6 +261,27 @@ def _static_friction(model, sid: np.ndarray) -> np.ndarray:
     return mu
 
 
+def _sphere_midway(model, i, b, sep, normal, point) -> None:
+    """Move, in place, the witness ``point`` (R, 3) of support rows (body i, partner b; sep (R,),
+    normal (R, 3) partner -> body) that lie on one surface only to the point midway between the
+    two surfaces along the normal (rule "sphere_midway"): a sphere on the ground (the witness
+    kernel gives the sphere's lowest point, sep above the plane: midway is ``point - sep/2 n``),
+    a sphere on a box (the box's surface point: ``point + sep/2 n``), a box on a sphere
+    (``point - sep/2 n``). Box-box and sphere-sphere points are midway already."""
+    shape = np.asarray(model.body_shape)
+    n = len(shape)
+    sph = shape[i] == SHAPE_SPHERE
+    dyn = (b >= 0) & (b < n)
+    part = np.where(dyn, shape[np.clip(b, 0, n - 1)], -2)
+    boxlike = (part == SHAPE_BOX) | ((b >= n) & (b < n + len(model.static_box_position)))
+    half = np.where(sph & (b == -1), -0.5, 0.0)
+    half = np.where(sph & boxlike, 0.5, half)
+    half = np.where((shape[i] == SHAPE_BOX) & (part == SHAPE_SPHERE), -0.5, half)
+    m = half != 0
+    if m.any():
+        point[m] += (half[m] * sep[m])[:, None] * normal[m]
+
+
 def _mutual_lower(pk, pi_, pb, normal, model, n: int, t_n: int) -> np.ndarray:
     """(R,) True at the support rows of a body whose partner (a body) takes it as its own support
     at the same sample, for the one of the two that lies below: normal (partner -> body) less
@@ -411,6 +432,119 @@ def _settling_slide(contrib: np.ndarray, early: np.ndarray, ref: np.ndarray,
     return out
 
 
+def _motion_stretches(an, ctx: Context, sup: dict, rest: np.ndarray, cv: np.ndarray,
+                      slip: np.ndarray, wspeed: np.ndarray, depth: np.ndarray,
+                      stats: dict) -> list[dict]:
+    """Rolling and sliding stretches of the support rows ``sup`` (R rows, body-major) as events
+    (rule "rolling_sliding"), counts and totals into ``stats``.
+
+    A row moves where the pair is not at rest (``rest`` (R,) False) but stays in contact: the
+    contact point's normal speed relative to the partner, ``|cv . n|`` (cv (R, 3) m/s), at most
+    REST_SPEED. It rolls where the point's tangential slip ``|slip|`` ((R, 3) m/s) is at most
+    REST_SPEED (the contact point at rest: rolling, pivoting or spinning on it), else slides. A
+    stretch is a run of REST_MIN_SAMPLES or more consecutive samples of one body on one partner in
+    one class. Per stretch, over its samples by the trapezoid rule: ``slid_m`` = the integral of
+    |slip| dt, ``slip_mps`` its mean (slid_m / duration), the slip at its first and last sample
+    and its largest, ``slip_decel_mps2`` = (first - last) / duration (mu |g| for a box sliding to a
+    stop on a level floor), ``speed_mps`` the mean speed of the body's centre relative to the
+    partner's velocity field there, ``spin_radps`` the mean relative angular speed (wspeed (R,)
+    rad/s), ``depth_max_m``."""
+    tr = ctx.traj
+    model = tr.model
+    n = tr.n_bodies
+    t, step = tr.t, tr.step
+    tol = an.tol
+    pk, pi_, pb, pnorm = sup["k"], sup["i"], sup["b"], sup["normal"]
+    r_n = len(pk)
+    stats["rolling_stretches"] = stats["sliding_stretches"] = 0.0
+    if r_n < 2:
+        return []
+    vs = tol["rest_speed_mps"]
+    vn = np.abs(np.einsum("ij,ij->i", cv, pnorm))
+    s_speed = np.sqrt(np.einsum("ij,ij->i", slip, slip))
+    cls = np.where(rest | (vn > vs), 0, np.where(s_speed <= vs, 1, 2)).astype(np.int8)
+    # runs: consecutive samples of one body on one partner in one class
+    same = np.zeros(r_n, bool)
+    same[:-1] = ((pi_[1:] == pi_[:-1]) & (pk[1:] == pk[:-1] + 1) & (pb[1:] == pb[:-1])
+                 & (cls[1:] == cls[:-1]))
+    on = cls > 0
+    starts = np.nonzero(on & ~np.r_[False, same[:-1]])[0]
+    ends = np.nonzero(on & ~same)[0]
+    long_ = (ends - starts + 1) >= tol["rest_min_samples"]
+    starts, ends = starts[long_], ends[long_]
+    if not len(starts):
+        return []
+    kind = cls[starts]
+    # the centre's velocity relative to the partner's velocity field there (a static partner: 0)
+    vc = tr.velocity[pk, pi_].astype(float)
+    dyn = (pb >= 0) & (pb < n)
+    if dyn.any():
+        kb, bb = pk[dyn], pb[dyn]
+        vc[dyn] -= tr.velocity[kb, bb] + np.cross(tr.angular_velocity[kb, bb],
+                                                  tr.position[kb, pi_[dyn]] - tr.position[kb, bb])
+    c_speed = np.linalg.norm(vc, axis=1)
+    # trapezoid sums over each stretch's intervals (row r to r + 1 inside the stretch)
+    dt = np.zeros(r_n)
+    dt[:-1] = np.where(same[:-1], t[np.minimum(pk[:-1] + 1, len(t) - 1)] - t[pk[:-1]], 0.0)
+    in_run = np.zeros(r_n + 1, np.int64)
+    np.add.at(in_run, starts, 1)
+    np.add.at(in_run, ends, -1)  # the last row's interval leaves the stretch
+    inner = np.cumsum(in_run)[:-1] > 0
+    dt = np.where(inner, dt, 0.0)
+    idx = np.empty(2 * len(starts), np.int64)
+    idx[0::2], idx[1::2] = starts, ends + 1
+
+    def total(x):  # sum over each stretch's intervals of dt (x(r) + x(r + 1)) / 2
+        x_next = np.r_[x[1:], 0.0]
+        return np.add.reduceat(np.r_[dt * 0.5 * (x + x_next), 0.0], idx)[0::2]
+
+    def most(x):
+        return np.maximum.reduceat(np.r_[x, 0.0], idx)[0::2]
+
+    dur = t[pk[ends]] - t[pk[starts]]
+    slid = total(s_speed)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(dur > 0, slid / dur, s_speed[starts])
+        speed = np.where(dur > 0, total(c_speed) / dur, c_speed[starts])
+        spin = np.where(dur > 0, total(wspeed) / dur, wspeed[starts])
+        decel = np.where(dur > 0, (s_speed[starts] - s_speed[ends]) / dur, 0.0)
+    s_max, d_max = most(s_speed), most(depth)
+    for c_, word in ((1, "rolling"), (2, "sliding")):
+        m = kind == c_
+        stats[f"{word}_stretches"] = float(m.sum())
+        if m.any():
+            stats[f"{word}_duration_total_s"] = float(dur[m].sum())
+            stats[f"{word}_slip_max_mps"] = float(s_max[m].max())
+    out = []
+    for r in np.argsort(pk[starts], kind="stable")[: T.MAX_EVENTS]:
+        a, e = int(starts[r]), int(ends[r])
+        word = "rolling" if kind[r] == 1 else "sliding"
+        verb = "rolls" if kind[r] == 1 else "slides"
+        text = (f"{body_label(model, int(pi_[a]))} {verb} on "
+                f"{_partner_label(model, int(pb[a]))} from t = {t[pk[a]]:.6g} s for "
+                f"{dur[r]:.3g} s at {speed[r]:.3g} m/s, slip {_speed_text(mean[r])}")
+        text += (f" (max {_speed_text(s_max[r])})" if kind[r] == 1 else
+                 f" ({_speed_text(s_speed[a])} -> {_speed_text(s_speed[e])}, slid "
+                 f"{slid[r]:.3g} m)")
+        out.append({
+            "kind": word, "body": int(pi_[a]), "partner": int(pb[a]),
+            "t_start": float(t[pk[a]]), "t_end": float(t[pk[e]]),
+            "step_start": int(step[pk[a]]), "step_end": int(step[pk[e]]),
+            "duration_s": float(dur[r]), "samples": e - a + 1,
+            "speed_mps": float(speed[r]), "spin_radps": float(spin[r]),
+            "slip_mps": float(mean[r]), "slip_max_mps": float(s_max[r]),
+            "slip_start_mps": float(s_speed[a]), "slip_end_mps": float(s_speed[e]),
+            "slip_decel_mps2": float(decel[r]), "slid_m": float(slid[r]),
+            "depth_max_m": float(d_max[r]), "text": text,
+        })
+    return out
+
+
+def _speed_text(v: float) -> str:
+    """A speed for a report: mm/s below 0.1 m/s (a slip of 0.71 mm/s), else m/s."""
+    return f"{v * 1e3:.3g} mm/s" if v < 0.1 else f"{v:.3g} m/s"
+
+
 class PenetrationAnalyzer(Analyzer):
     name = "penetration"
     description = ("resting contact: depth recomputed from the poses, duration, jitter and creep; "
@@ -475,6 +609,7 @@ class PenetrationAnalyzer(Analyzer):
                 normal[m] = sign * nn
                 point[m] = pp
                 span[m] = ss
+        _sphere_midway(model, i, b, sep_out, normal, point)
         out = dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point, span=span,
                    inner=geometry.inner_radius(model)[i], geom=np.zeros(r, bool))
         gp = self.geom_pairs(ctx)
@@ -749,13 +884,14 @@ class PenetrationAnalyzer(Analyzer):
                                 c(tr.velocity, dtype=np.float64),
                                 c(tr.angular_velocity, dtype=np.float64), n, cv, slip, cspeed,
                                 wspeed)
-        rest = cspeed <= tol["rest_speed_mps"]
-        # A box rocking on an edge has a resting pivot but is not at rest: for non-spheres, every
-        # point of the body (within 2 bounding radii of the contact) must be slow too. A rolling
-        # sphere's contact point is at rest, and rolling counts as resting contact.
-        sphere = model.body_shape[pi_] == SHAPE_SPHERE
+        # The pair rests where every point of the body (within 2 bounding radii of the contact)
+        # is slow relative to the partner: a box rocking on an edge has a resting pivot but is
+        # not at rest, nor is a sphere rolling without slip (rule "resting"). A pair in contact
+        # that moves is rolling or sliding (rule "rolling_sliding"): reported as events with its
+        # slip, never judged as resting.
         reach = 2.0 * geometry.bounding_radius(model)[pi_]
-        rest &= sphere | (cspeed + wspeed * reach <= tol["rest_speed_mps"])
+        rest = cspeed + wspeed * reach <= tol["rest_speed_mps"]
+        motion = _motion_stretches(self, ctx, sup, rest, cv, slip, wspeed, depth, stats)
         # a contact whose friction is at the Coulomb limit (or whose load reaches it) slides,
         # whatever its speed (a box dragged by a neighbour at a few mm/s): its slip is not creep
         # and its velocity change not jitter. It does not end the resting interval (a box that
@@ -957,6 +1093,8 @@ class PenetrationAnalyzer(Analyzer):
                     else float(speed_settled[r]),
                     "creep_m": None if np.isnan(creep[r]) else float(creep[r]),
                 })
+        # ---- rolling and sliding stretches: events with their slip, after the rests
+        events += motion[: max(T.MAX_EVENTS - len(events), 0)]
         # ---- bodies the v2 shapes leave out: depth per geom pair, at every sample
         g_find, g_rows = self.geom_depths(ctx, worst, stats)
         findings += g_find
