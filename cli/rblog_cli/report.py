@@ -168,7 +168,7 @@ def motion_lines(r: dict) -> list[str]:
         shown = [e for e in r.get("events", ()) if e.get("kind") == kind][:REPORT_MOTION_SHOWN]
         out += [f"  {e['text']}" for e in shown]
         if n > len(shown):
-            out.append(f"  ... and {n - len(shown)} more (all of them: rblog check --json)")
+            out.append(f"  ... and {n - len(shown)} more (rblog check --json lists them)")
     return out
 
 

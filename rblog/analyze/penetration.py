@@ -1118,7 +1118,8 @@ class PenetrationAnalyzer(Analyzer):
                 n_found += len(idx_f)
                 for r in idx_f[: T.MAX_FINDINGS]:
                     findings.append(make(int(r)))
-            for r in range(min(nr, T.MAX_EVENTS)):
+            # (a fifth of the events kept for rolling and sliding stretches, when there are any)
+            for r in range(min(nr, T.MAX_EVENTS - min(len(motion), T.MAX_EVENTS // 5))):
                 events.append({
                     "kind": "rest", "body": int(bs[r]), "partner": int(partner[r]),
                     "t_start": float(t[ks[r]]), "t_end": float(t[ke[r]]),

@@ -84,7 +84,8 @@ CONVEX_MAX_ITER = 1000
 
 #: Most findings kept per analyzer (the worst first); the count of all is in stats.
 MAX_FINDINGS = 200
-#: Most events (impacts, resting intervals) listed per analyzer; all are counted in stats.
+#: Most events (impacts, resting intervals, rolling and sliding stretches: a fifth kept for
+#: these) listed per analyzer; all are counted in stats.
 MAX_EVENTS = 500
 
 # --- joints ----------------------------------------------------------------------------------
