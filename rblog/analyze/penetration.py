@@ -306,16 +306,23 @@ def _sphere_midway(model, i, b, sep, normal, point) -> None:
     (``point - sep/2 n``). Box-box and sphere-sphere points are midway already."""
     shape = np.asarray(model.body_shape)
     n = len(shape)
-    sph = shape[i] == SHAPE_SPHERE
+    sph_body = shape == SHAPE_SPHERE
+    if not len(i) or not sph_body.any():
+        return
     dyn = (b >= 0) & (b < n)
-    part = np.where(dyn, shape[np.clip(b, 0, n - 1)], -2)
+    rows = np.flatnonzero(sph_body[i] | (dyn & sph_body[np.where(dyn, b, 0)]))
+    if not len(rows):
+        return
+    i, b = i[rows], b[rows]
+    part = np.where((b >= 0) & (b < n), shape[np.clip(b, 0, n - 1)], -2)
+    sph = shape[i] == SHAPE_SPHERE
     boxlike = (part == SHAPE_BOX) | ((b >= n) & (b < n + len(model.static_box_position)))
     half = np.where(sph & (b == -1), -0.5, 0.0)
     half = np.where(sph & boxlike, 0.5, half)
     half = np.where((shape[i] == SHAPE_BOX) & (part == SHAPE_SPHERE), -0.5, half)
-    m = half != 0
-    if m.any():
-        point[m] += (half[m] * sep[m])[:, None] * normal[m]
+    m = rows[half != 0]
+    if len(m):
+        point[m] += (half[half != 0] * sep[m])[:, None] * normal[m]
 
 
 def _mutual_lower(pk, pi_, pb, normal, model, n: int, t_n: int) -> np.ndarray:
@@ -490,15 +497,17 @@ def _motion_stretches(an, ctx: Context, sup: dict, rest: np.ndarray, cv: np.ndar
     n = tr.n_bodies
     t, step = tr.t, tr.step
     tol = an.tol
-    pk, pi_, pb, pnorm = sup["k"], sup["i"], sup["b"], sup["normal"]
-    r_n = len(pk)
     stats["rolling_stretches"] = stats["sliding_stretches"] = 0.0
+    mv = np.flatnonzero(~rest)  # only the rows that move (still body-major)
+    r_n = len(mv)
     if r_n < 2:
         return []
+    pk, pi_, pb, pnorm = sup["k"][mv], sup["i"][mv], sup["b"][mv], sup["normal"][mv]
+    cv, slip, wspeed, depth = cv[mv], slip[mv], wspeed[mv], depth[mv]
     vs = tol["rest_speed_mps"]
     vn = np.abs(np.einsum("ij,ij->i", cv, pnorm))
     s_speed = np.sqrt(np.einsum("ij,ij->i", slip, slip))
-    cls = np.where(rest | (vn > vs), 0, np.where(s_speed <= vs, 1, 2)).astype(np.int8)
+    cls = np.where(vn > vs, 0, np.where(s_speed <= vs, 1, 2)).astype(np.int8)
     # runs: consecutive samples of one body on one partner in one class
     same = np.zeros(r_n, bool)
     same[:-1] = ((pi_[1:] == pi_[:-1]) & (pk[1:] == pk[:-1] + 1) & (pb[1:] == pb[:-1])
