@@ -143,7 +143,34 @@ def print_report(entry):
         if r["verdict"] == "pass":
             for line in r["not_judged"]:
                 click.echo(f"         not judged: {line}")
+        for line in motion_lines(r):
+            click.echo(f"         {line}")
     click.echo(f"  verdict: {verdict_line(entry)}")
+
+
+#: rolling and sliding stretches listed per analyzer in a report (the rest counted)
+REPORT_MOTION_SHOWN = 2
+
+
+def motion_lines(r: dict) -> list[str]:
+    """The penetration analyzer's rolling and sliding stretches (events, not findings): per kind
+    a count line, then the first REPORT_MOTION_SHOWN stretches as the analyzer words them."""
+    out = []
+    for kind in ("rolling", "sliding"):
+        n = int(r["stats"].get(f"{kind}_stretches", 0))
+        if not n:
+            continue
+        total = r["stats"].get(f"{kind}_duration_total_s", 0.0)
+        slip = r["stats"].get(f"{kind}_slip_max_mps")
+        up = "nan" if slip is None else (f"{slip * 1e3:.3g} mm/s" if slip < 0.1 else
+                                         f"{slip:.3g} m/s")
+        out.append(f"{kind}: {n} stretch{'es' if n != 1 else ''} ({total:.3g} s, slip up to "
+                   f"{up}): events, not judged as resting")
+        shown = [e for e in r.get("events", ()) if e.get("kind") == kind][:REPORT_MOTION_SHOWN]
+        out += [f"  {e['text']}" for e in shown]
+        if n > len(shown):
+            out.append(f"  ... and {n - len(shown)} more (rblog check --json lists them)")
+    return out
 
 
 def _unit(unit: str) -> str:

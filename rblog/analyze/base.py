@@ -323,6 +323,18 @@ def shapeless_note(model: Model, what: str, known: np.ndarray | None = None) -> 
             f"({names}{more}: a capsule, cylinder or mesh): {what} not judged"]
 
 
+def _has_geoms(model: Model) -> np.ndarray:
+    """(N,) bool: bodies with at least one geom that is not a plane (contract v3)."""
+    out = np.zeros(model.n_bodies, bool)
+    if getattr(model, "n_geoms", 0):
+        from rblog.contract.model import GEOM_PLANE
+
+        gb = np.asarray(model.geom_body, np.int64)
+        solid = (gb >= 0) & (np.asarray(model.geom_type, np.int64) != GEOM_PLANE)
+        out[gb[solid]] = True
+    return out
+
+
 def body_label(model: Model, i: int) -> str:
     return f"body {i} ({model.body_name[i]!r})" if 0 <= i < model.n_bodies else "static geometry"
 
@@ -816,8 +828,11 @@ class Context:
                 # found from the poses. It may touch an unknown static feature at any interval
                 # (so it is never taken for a body in free flight), and any body whose momentum
                 # jumps in an interval where it is (its geometry unknown, it may be the partner)
-                add = none[None, :] & (n_static == 0)
-                n_static = np.where(add, 1, n_static)
+                # A body without geoms either has no separation at all (its centre's height is
+                # none: plane_separation takes it for a point), so the ground or a static box near
+                # its centre is not a contact of its: its static feature is unknown everywhere
+                add = none[None, :] & ((n_static == 0) | ~_has_geoms(self.model)[None, :])
+                n_static = np.where(add, np.maximum(n_static, 1), n_static)
                 static_id = np.where(add, -3, static_id)
                 jump = self.jumps()
                 ek, eb = np.nonzero(jump)

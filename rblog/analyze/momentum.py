@@ -212,8 +212,8 @@ class MomentumAnalyzer(Analyzer):
                           n_findings=self._n_found)
         res.leave_out(self._not_judged)
         return res.leave_out([] if len(tr.contacts) else shapeless_note(
-            tr.model, "their free flights and collisions (the log has no contact rows, and "
-                      "their contacts cannot be told from the poses)",
+            tr.model, "their free flights, collisions and contacts (the log has no contact "
+                      "rows, and their contacts cannot be told from the poses)",
             known=ctx.contact_impulse_known()))
 
     # --- pieces -----------------------------------------------------------------------------

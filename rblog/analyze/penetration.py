@@ -10,10 +10,16 @@ touch (rblog.analyze.geometry: a corner, the crossing of two edges, the middle o
 on a face, the centroid of two faces' overlap), so that a body turning about its contact (a box
 pivoting on a corner of another) has no slip there.
 
-* Resting: in contact, and the contact point's velocity relative to the partner (``v + ω x r``,
-  minus the partner's) below REST_SPEED_MPS for at least REST_MIN_SAMPLES consecutive samples. A
-  sphere rolling without slip, and a box tipping over an edge, have a resting contact point; a
-  bouncing ball does not.
+* Resting: in contact, and every point of the body slow relative to the partner: the contact
+  point's velocity relative to the partner (``v + ω x r``, minus the partner's) plus the relative
+  angular speed times twice the bounding radius below REST_SPEED_MPS, for at least
+  REST_MIN_SAMPLES consecutive samples. A sphere rolling without slip and a box tipping over an
+  edge have a resting contact point but are not at rest: they roll.
+* Rolling and sliding: in contact, not at rest, the contact point's normal speed at most
+  REST_SPEED_MPS: rolling where its tangential slip is at most REST_SPEED_MPS, else sliding;
+  reported as events with their slip (:func:`_motion_stretches`), not judged as resting. A
+  sphere's witness on the ground or a box is midway between the two surfaces (rule
+  "sphere_midway"), where a rolling contact has no slip.
 * Per resting interval: max and mean depth, duration; after SETTLE_S, the largest contact-point
   speed and jitter; creep over the whole interval less its settling slide. Jitter is the
   alternating part of the contact-point velocity,
@@ -115,14 +121,44 @@ class Rule(NamedTuple):
 
 #: The penetration analyzer's special cases, each with its justifying measurement.
 RULES: tuple[Rule, ...] = (
-    Rule("resting", "in contact, the contact point's speed relative to the partner below "
-         "REST_SPEED for REST_MIN_SAMPLES samples",
+    Rule("resting", "in contact, every point of the body (the contact point's speed plus the "
+         "relative angular speed times 2 bounding radii) slower than REST_SPEED relative to the "
+         "partner for REST_MIN_SAMPLES samples, whatever the shape",
          "the pair rests: resting depth, jitter and creep are judged",
          ("PENETRATION_REST_SPEED_MPS", "PENETRATION_REST_MIN_SAMPLES"),
-         "a sphere rolling without slip has its contact point at rest (slip 0 to round-off); a "
-         "bouncing ball's never is", ("tests/analyze/test_analyze.py::test_rolling_is_not_creep",
-                                      "tests/analyze/test_analyze.py::"
-                                      "test_resting_box_reports_its_rest")),
+         "a box at rest moves < 1e-5 m/s (MuJoCo, rblog); a sphere rolling without slip at 1.09 "
+         "m/s has its contact point at rest but not its top (2.2 m/s), and its 'creep' was the "
+         "witness's omega d/2 (MuJoCo 3.95 mm over 2 s, rblog's mixed.toml at dt 1e-2 0.36 mm)",
+         ("tests/analyze/test_analyze.py::test_resting_box_reports_its_rest",
+          "tests/analyze/test_rolling.py::"
+          "test_a_resting_mujoco_box_with_a_planted_03_mm_creep_is_still_flagged")),
+    Rule("rolling_sliding", "in contact and not at rest, the contact point's normal speed "
+         "relative to the partner at most REST_SPEED (neither landing nor leaving)",
+         "rolling where its tangential slip is at most REST_SPEED (rolling, pivoting or spinning "
+         "on the point), else sliding: runs of REST_MIN_SAMPLES samples on one partner are "
+         "events with their slip (mean, largest, first and last, deceleration, distance), "
+         "never findings; only the transient depth is judged there",
+         ("PENETRATION_REST_SPEED_MPS", "PENETRATION_REST_MIN_SAMPLES"),
+         "a MuJoCo ball rolling at 1.09 m/s slips 1e-5 m/s at contact.pos (from qvel), the "
+         "audit's slip equals it to 1e-3; a box sliding to a stop reads v0 .. v(t), mu g, "
+         "v0 t - mu g t^2/2 exactly; a ball launched without spin decelerates its slip at 7/2 mu "
+         "g (MuJoCo 2.6 % below) and rolls on at 5/7 v0",
+         ("tests/analyze/test_analyze.py::test_rolling_is_not_creep",
+          "tests/analyze/test_rolling.py::"
+          "test_a_box_sliding_to_a_stop_slides_with_the_closed_form_slip",
+          "tests/analyze/test_rolling.py::"
+          "test_a_mujoco_ball_rolling_without_slip_reads_rolling_with_mujocos_own_slip",
+          "tests/analyze/test_rolling.py::"
+          "test_the_issues_ball_with_a_steady_071_mm_s_slip_reads_rolling_with_that_slip",
+          "tests/analyze/test_rolling.py::"
+          "test_a_mujoco_ball_launched_without_spin_slides_then_rolls_at_five_sevenths")),
+    Rule("sphere_midway", "a sphere's support on the ground or a box (the witness kernel's "
+         "point lies on one surface)", "the witness moves midway between the two surfaces "
+         "along the normal, as for box-box and sphere-sphere pairs and MuJoCo's contact.pos", (),
+         "a ball sunk d = 0.365 mm into MuJoCo's floor rolling at 10.9 rad/s slips omega d/2 "
+         "= 2.0 mm/s at its lowest point and 1e-5 m/s midway, MuJoCo's own",
+         ("tests/analyze/test_rolling.py::"
+          "test_a_mujoco_ball_rolling_without_slip_reads_rolling_with_mujocos_own_slip",)),
     Rule("settling", "the first SETTLE_S of a stay", "jitter is not judged; creep keeps none of "
          "the arrival's slide and at most the stay's steady slip speed",
          ("PENETRATION_SETTLE_S", "_STEADY_FRAC"),
@@ -259,6 +295,34 @@ def _static_friction(model, sid: np.ndarray) -> np.ndarray:
         mu = np.asarray(mu, float).copy()
         mu[far] = np.where(np.isnan(gf), mu[far], gf)
     return mu
+
+
+def _sphere_midway(model, i, b, sep, normal, point) -> None:
+    """Move, in place, the witness ``point`` (R, 3) of support rows (body i, partner b; sep (R,),
+    normal (R, 3) partner -> body) that lie on one surface only to the point midway between the
+    two surfaces along the normal (rule "sphere_midway"): a sphere on the ground (the witness
+    kernel gives the sphere's lowest point, sep above the plane: midway is ``point - sep/2 n``),
+    a sphere on a box (the box's surface point: ``point + sep/2 n``), a box on a sphere
+    (``point - sep/2 n``). Box-box and sphere-sphere points are midway already."""
+    shape = np.asarray(model.body_shape)
+    n = len(shape)
+    sph_body = shape == SHAPE_SPHERE
+    if not len(i) or not sph_body.any():
+        return
+    dyn = (b >= 0) & (b < n)
+    rows = np.flatnonzero(sph_body[i] | (dyn & sph_body[np.where(dyn, b, 0)]))
+    if not len(rows):
+        return
+    i, b = i[rows], b[rows]
+    part = np.where((b >= 0) & (b < n), shape[np.clip(b, 0, n - 1)], -2)
+    sph = shape[i] == SHAPE_SPHERE
+    boxlike = (part == SHAPE_BOX) | ((b >= n) & (b < n + len(model.static_box_position)))
+    half = np.where(sph & (b == -1), -0.5, 0.0)
+    half = np.where(sph & boxlike, 0.5, half)
+    half = np.where((shape[i] == SHAPE_BOX) & (part == SHAPE_SPHERE), -0.5, half)
+    m = rows[half != 0]
+    if len(m):
+        point[m] += (half[half != 0] * sep[m])[:, None] * normal[m]
 
 
 def _mutual_lower(pk, pi_, pb, normal, model, n: int, t_n: int) -> np.ndarray:
@@ -411,6 +475,121 @@ def _settling_slide(contrib: np.ndarray, early: np.ndarray, ref: np.ndarray,
     return out
 
 
+def _motion_stretches(an, ctx: Context, sup: dict, rest: np.ndarray, cv: np.ndarray,
+                      slip: np.ndarray, wspeed: np.ndarray, depth: np.ndarray,
+                      stats: dict) -> list[dict]:
+    """Rolling and sliding stretches of the support rows ``sup`` (R rows, body-major) as events
+    (rule "rolling_sliding"), counts and totals into ``stats``.
+
+    A row moves where the pair is not at rest (``rest`` (R,) False) but stays in contact: the
+    contact point's normal speed relative to the partner, ``|cv . n|`` (cv (R, 3) m/s), at most
+    REST_SPEED. It rolls where the point's tangential slip ``|slip|`` ((R, 3) m/s) is at most
+    REST_SPEED (the contact point at rest: rolling, pivoting or spinning on it), else slides. A
+    stretch is a run of REST_MIN_SAMPLES or more consecutive samples of one body on one partner in
+    one class. Per stretch, over its samples by the trapezoid rule: ``slid_m`` = the integral of
+    |slip| dt, ``slip_mps`` its mean (slid_m / duration), the slip at its first and last sample
+    and its largest, ``slip_decel_mps2`` = (first - last) / duration (mu |g| for a box sliding to a
+    stop on a level floor), ``speed_mps`` the mean speed of the body's centre relative to the
+    partner's velocity field there, ``spin_radps`` the mean relative angular speed (wspeed (R,)
+    rad/s), ``depth_max_m``."""
+    tr = ctx.traj
+    model = tr.model
+    n = tr.n_bodies
+    t, step = tr.t, tr.step
+    tol = an.tol
+    stats["rolling_stretches"] = stats["sliding_stretches"] = 0.0
+    mv = np.flatnonzero(~rest)  # only the rows that move (still body-major)
+    r_n = len(mv)
+    if r_n < 2:
+        return []
+    pk, pi_, pb, pnorm = sup["k"][mv], sup["i"][mv], sup["b"][mv], sup["normal"][mv]
+    cv, slip, wspeed, depth = cv[mv], slip[mv], wspeed[mv], depth[mv]
+    vs = tol["rest_speed_mps"]
+    vn = np.abs(np.einsum("ij,ij->i", cv, pnorm))
+    s_speed = np.sqrt(np.einsum("ij,ij->i", slip, slip))
+    cls = np.where(vn > vs, 0, np.where(s_speed <= vs, 1, 2)).astype(np.int8)
+    # runs: consecutive samples of one body on one partner in one class
+    same = np.zeros(r_n, bool)
+    same[:-1] = ((pi_[1:] == pi_[:-1]) & (pk[1:] == pk[:-1] + 1) & (pb[1:] == pb[:-1])
+                 & (cls[1:] == cls[:-1]))
+    on = cls > 0
+    starts = np.nonzero(on & ~np.r_[False, same[:-1]])[0]
+    ends = np.nonzero(on & ~same)[0]
+    long_ = (ends - starts + 1) >= tol["rest_min_samples"]
+    starts, ends = starts[long_], ends[long_]
+    if not len(starts):
+        return []
+    kind = cls[starts]
+    # the centre's velocity relative to the partner's velocity field there (a static partner: 0)
+    vc = tr.velocity[pk, pi_].astype(float)
+    dyn = (pb >= 0) & (pb < n)
+    if dyn.any():
+        kb, bb = pk[dyn], pb[dyn]
+        vc[dyn] -= tr.velocity[kb, bb] + np.cross(tr.angular_velocity[kb, bb],
+                                                  tr.position[kb, pi_[dyn]] - tr.position[kb, bb])
+    c_speed = np.linalg.norm(vc, axis=1)
+    # trapezoid sums over each stretch's intervals (row r to r + 1 inside the stretch)
+    dt = np.zeros(r_n)
+    dt[:-1] = np.where(same[:-1], t[np.minimum(pk[:-1] + 1, len(t) - 1)] - t[pk[:-1]], 0.0)
+    in_run = np.zeros(r_n + 1, np.int64)
+    np.add.at(in_run, starts, 1)
+    np.add.at(in_run, ends, -1)  # the last row's interval leaves the stretch
+    inner = np.cumsum(in_run)[:-1] > 0
+    dt = np.where(inner, dt, 0.0)
+    idx = np.empty(2 * len(starts), np.int64)
+    idx[0::2], idx[1::2] = starts, ends + 1
+
+    def total(x):  # sum over each stretch's intervals of dt (x(r) + x(r + 1)) / 2
+        x_next = np.r_[x[1:], 0.0]
+        return np.add.reduceat(np.r_[dt * 0.5 * (x + x_next), 0.0], idx)[0::2]
+
+    def most(x):
+        return np.maximum.reduceat(np.r_[x, 0.0], idx)[0::2]
+
+    dur = t[pk[ends]] - t[pk[starts]]
+    slid = total(s_speed)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(dur > 0, slid / dur, s_speed[starts])
+        speed = np.where(dur > 0, total(c_speed) / dur, c_speed[starts])
+        spin = np.where(dur > 0, total(wspeed) / dur, wspeed[starts])
+        decel = np.where(dur > 0, (s_speed[starts] - s_speed[ends]) / dur, 0.0)
+    s_max, d_max = most(s_speed), most(depth)
+    for c_, word in ((1, "rolling"), (2, "sliding")):
+        m = kind == c_
+        stats[f"{word}_stretches"] = float(m.sum())
+        if m.any():
+            stats[f"{word}_duration_total_s"] = float(dur[m].sum())
+            stats[f"{word}_slip_max_mps"] = float(s_max[m].max())
+    out = []
+    for r in np.argsort(pk[starts], kind="stable")[: T.MAX_EVENTS]:
+        a, e = int(starts[r]), int(ends[r])
+        word = "rolling" if kind[r] == 1 else "sliding"
+        verb = "rolls" if kind[r] == 1 else "slides"
+        text = (f"{body_label(model, int(pi_[a]))} {verb} on "
+                f"{_partner_label(model, int(pb[a]))} from t = {t[pk[a]]:.6g} s for "
+                f"{dur[r]:.3g} s at {speed[r]:.3g} m/s, slip {_speed_text(mean[r])}")
+        text += (f" (max {_speed_text(s_max[r])})" if kind[r] == 1 else
+                 f" ({_speed_text(s_speed[a])} -> {_speed_text(s_speed[e])}, slid "
+                 f"{slid[r]:.3g} m)")
+        out.append({
+            "kind": word, "body": int(pi_[a]), "partner": int(pb[a]),
+            "t_start": float(t[pk[a]]), "t_end": float(t[pk[e]]),
+            "step_start": int(step[pk[a]]), "step_end": int(step[pk[e]]),
+            "duration_s": float(dur[r]), "samples": e - a + 1,
+            "speed_mps": float(speed[r]), "spin_radps": float(spin[r]),
+            "slip_mps": float(mean[r]), "slip_max_mps": float(s_max[r]),
+            "slip_start_mps": float(s_speed[a]), "slip_end_mps": float(s_speed[e]),
+            "slip_decel_mps2": float(decel[r]), "slid_m": float(slid[r]),
+            "depth_max_m": float(d_max[r]), "text": text,
+        })
+    return out
+
+
+def _speed_text(v: float) -> str:
+    """A speed for a report: mm/s below 0.1 m/s (a slip of 0.71 mm/s), else m/s."""
+    return f"{v * 1e3:.3g} mm/s" if v < 0.1 else f"{v:.3g} m/s"
+
+
 class PenetrationAnalyzer(Analyzer):
     name = "penetration"
     description = ("resting contact: depth recomputed from the poses, duration, jitter and creep; "
@@ -475,6 +654,7 @@ class PenetrationAnalyzer(Analyzer):
                 normal[m] = sign * nn
                 point[m] = pp
                 span[m] = ss
+        _sphere_midway(model, i, b, sep_out, normal, point)
         out = dict(k=k, i=i, b=b, sep=sep_out, normal=normal, point=point, span=span,
                    inner=geometry.inner_radius(model)[i], geom=np.zeros(r, bool))
         gp = self.geom_pairs(ctx)
@@ -749,13 +929,14 @@ class PenetrationAnalyzer(Analyzer):
                                 c(tr.velocity, dtype=np.float64),
                                 c(tr.angular_velocity, dtype=np.float64), n, cv, slip, cspeed,
                                 wspeed)
-        rest = cspeed <= tol["rest_speed_mps"]
-        # A box rocking on an edge has a resting pivot but is not at rest: for non-spheres, every
-        # point of the body (within 2 bounding radii of the contact) must be slow too. A rolling
-        # sphere's contact point is at rest, and rolling counts as resting contact.
-        sphere = model.body_shape[pi_] == SHAPE_SPHERE
+        # The pair rests where every point of the body (within 2 bounding radii of the contact)
+        # is slow relative to the partner: a box rocking on an edge has a resting pivot but is
+        # not at rest, nor is a sphere rolling without slip (rule "resting"). A pair in contact
+        # that moves is rolling or sliding (rule "rolling_sliding"): reported as events with its
+        # slip, never judged as resting.
         reach = 2.0 * geometry.bounding_radius(model)[pi_]
-        rest &= sphere | (cspeed + wspeed * reach <= tol["rest_speed_mps"])
+        rest = cspeed + wspeed * reach <= tol["rest_speed_mps"]
+        motion = _motion_stretches(self, ctx, sup, rest, cv, slip, wspeed, depth, stats)
         # a contact whose friction is at the Coulomb limit (or whose load reaches it) slides,
         # whatever its speed (a box dragged by a neighbour at a few mm/s): its slip is not creep
         # and its velocity change not jitter. It does not end the resting interval (a box that
@@ -946,7 +1127,8 @@ class PenetrationAnalyzer(Analyzer):
                 n_found += len(idx_f)
                 for r in idx_f[: T.MAX_FINDINGS]:
                     findings.append(make(int(r)))
-            for r in range(min(nr, T.MAX_EVENTS)):
+            # (a fifth of the events kept for rolling and sliding stretches, when there are any)
+            for r in range(min(nr, T.MAX_EVENTS - min(len(motion), T.MAX_EVENTS // 5))):
                 events.append({
                     "kind": "rest", "body": int(bs[r]), "partner": int(partner[r]),
                     "t_start": float(t[ks[r]]), "t_end": float(t[ke[r]]),
@@ -957,6 +1139,8 @@ class PenetrationAnalyzer(Analyzer):
                     else float(speed_settled[r]),
                     "creep_m": None if np.isnan(creep[r]) else float(creep[r]),
                 })
+        # ---- rolling and sliding stretches: events with their slip, after the rests
+        events += motion[: max(T.MAX_EVENTS - len(events), 0)]
         # ---- bodies the v2 shapes leave out: depth per geom pair, at every sample
         g_find, g_rows = self.geom_depths(ctx, worst, stats)
         findings += g_find

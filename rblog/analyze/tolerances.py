@@ -84,7 +84,8 @@ CONVEX_MAX_ITER = 1000
 
 #: Most findings kept per analyzer (the worst first); the count of all is in stats.
 MAX_FINDINGS = 200
-#: Most events (impacts, resting intervals) listed per analyzer; all are counted in stats.
+#: Most events (impacts, resting intervals, rolling and sliding stretches: a fifth kept for
+#: these) listed per analyzer; all are counted in stats.
 MAX_EVENTS = 500
 
 # --- joints ----------------------------------------------------------------------------------
@@ -189,8 +190,10 @@ PENETRATION_DEPTH_FRAC = 0.05
 #: half-extent: a momentary 5 mm sink at a fast impact is tolerable, 25% of the body is not.
 PENETRATION_TRANSIENT_DEPTH_M = 5e-3
 PENETRATION_TRANSIENT_FRAC = 0.25
-#: Resting: in contact with the contact point's speed (relative to the partner) below this (m/s),
-#: for at least REST_MIN_SAMPLES consecutive samples. A rolling sphere's contact point is at rest.
+#: Resting: in contact with every point's speed relative to the partner (the contact point's plus
+#: the relative angular speed times twice the bounding radius) below this (m/s), for at least
+#: REST_MIN_SAMPLES consecutive samples. A contact that moves with a normal speed at most this
+#: rolls (its slip at most this: the contact point at rest) or slides (rule "rolling_sliding").
 PENETRATION_REST_SPEED_MPS = 0.05
 PENETRATION_REST_MIN_SAMPLES = 3
 #: Jitter is measured after the body has rested this long (s): a body sliding to a stop from

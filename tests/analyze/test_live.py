@@ -83,8 +83,9 @@ def test_live_findings_equal_post_run_findings_on_every_sample(path, duration, t
 
 
 #: runs with findings to announce: the notes' seed integrator without orthonormalization (spinning
-#: bodies drift and gain energy; mixed.toml also collides wrongly and creeps) and the mixed scene
-#: at a 10x coarser step (two boxes creep)
+#: bodies drift and gain energy; mixed.toml also collides wrongly and creeps); and two without: the
+#: box stack, and the mixed scene at a 10x coarser step (its balls 2 and 7 roll on the ground at
+#: 1.4 and 0.8 m/s from t = 2.2 s with a slip of < 1e-6 m over 1.9 s: rolling, not creep)
 FAULTS = [
     pytest.param("tumbling_box", dict(integrator="seed", orthonormalize="none"), id="tumbling-seed"),
     pytest.param("free_fall", dict(integrator="seed", orthonormalize="none"), id="free_fall-seed"),
@@ -100,7 +101,7 @@ FAULTS = [
 def test_live_findings_equal_post_run_findings_with_faults(stem, options, tmp_path):
     audit, traj = live_run(str(REPO / "samples" / f"{stem}.toml"), tmp_path, **options)
     post = assert_live_equals_post(audit, traj)
-    assert sum(len(r.findings) for r in post) >= 1 or stem == "box_stack"
+    assert sum(len(r.findings) for r in post) >= 1 or stem == "box_stack" or "dt" in options
     # (whether a finding is announced before the end depends on how many blocks the pipeline
     # hands over: it joins the blocks of 0.15 s of wall time, and a fast run is one block; the
     # test below feeds fixed blocks)
