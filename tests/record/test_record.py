@@ -291,6 +291,39 @@ def test_mcap_block_records_match_mcaps_own_writer(tmp_path, traj, monkeypatch, 
     assert_same(traj, load(blocks))
 
 
+@pytest.mark.parametrize("chunk_bytes", [2048, 1 << 20])
+def test_mcap_lz4_chunks_are_mcaps_own_at_the_fast_level(tmp_path, traj, monkeypatch, chunk_bytes):
+    """The LZ4 chunks compressed at LZ4_LEVEL give the file mcap's own Writer gives when its
+    lz4.frame.compress runs at that level: byte for byte (chunk records, uncompressed and data
+    section CRCs, chunk indexes); the chunks are standard LZ4 frames, every CRC checks, and the
+    run reads back bit for bit."""
+    import lz4.frame
+    from mcap.stream_reader import StreamReader
+    from mcap.records import Chunk
+
+    monkeypatch.setattr(mcap_writer, "CHUNK_BYTES", chunk_bytes)
+    monkeypatch.setattr(mcap_writer, "FLUSH_EVERY_S", 1e9)
+    assert mcap_writer.LZ4_LEVEL < 0
+    fast = tmp_path / "fast.mcap"
+    write(McapRecorder(str(fast), compression="lz4"), traj, block=7)
+    own = lz4.frame.compress
+    monkeypatch.setattr(lz4.frame, "compress",
+                        lambda data, **kw: own(data, compression_level=mcap_writer.LZ4_LEVEL))
+    monkeypatch.setattr(mcap_writer._Writer, "_Writer__finalize_chunk",
+                        mcap_writer.Writer._Writer__finalize_chunk)
+    mcaps = tmp_path / "mcaps.mcap"
+    write(McapRecorder(str(mcaps), compression="lz4"), traj, block=7)
+    monkeypatch.undo()
+    assert fast.read_bytes() == mcaps.read_bytes()
+    chunks = [r for r in StreamReader(str(fast), emit_chunks=True, validate_crcs=True).records
+              if isinstance(r, Chunk)]
+    assert chunks and all(c.compression == "lz4" for c in chunks)
+    for c in chunks:
+        assert len(lz4.frame.decompress(c.data)) == c.uncompressed_size
+    assert sum(1 for _ in StreamReader(str(fast), validate_crcs=True).records) > len(chunks)
+    assert_same(traj, load(fast))
+
+
 def test_mcap_compressions(tmp_path, traj):
     for comp in ("none", "lz4", "zstd"):
         path = tmp_path / f"{comp}.mcap"
