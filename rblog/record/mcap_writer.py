@@ -136,7 +136,9 @@ class _Writer(Writer):
         builder = self._Writer__chunk_builder
         if not builder or builder.num_messages == 0:
             return
-        from mcap.records import Chunk, ChunkIndex
+        import struct
+
+        from mcap.records import ChunkIndex
         from mcap.writer import IndexType
 
         self._Writer__statistics.chunk_count += 1
@@ -152,21 +154,26 @@ class _Writer(Writer):
             name, compressed = "zstd", zstandard.compress(chunk_data)
         else:
             name, compressed = "", chunk_data
-        chunk = Chunk(compression=name, data=compressed,
-                      message_start_time=builder.message_start_time,
-                      message_end_time=builder.message_end_time,
-                      uncompressed_crc=_crc32(chunk_data) if self._Writer__enable_crcs else 0,
-                      uncompressed_size=len(chunk_data))
+        # the Chunk record (mcap.records.Chunk.write's bytes), written straight to the stream:
+        # opcode, length, start and end time, uncompressed size, CRC, compression, records
+        crc = _crc32(chunk_data) if self._Writer__enable_crcs else 0
+        tag = name.encode()
+        head = struct.pack(f"<BQQQQII{len(tag)}sQ", int(Opcode.CHUNK),
+                           8 + 8 + 8 + 4 + 4 + len(tag) + 8 + len(compressed),
+                           builder.message_start_time, builder.message_end_time, len(chunk_data),
+                           crc, len(tag), tag, len(compressed))
         stream, rb = self._Writer__stream, self._Writer__record_builder
         self._Writer__flush()
         start = stream.tell()
-        chunk.write(rb)
-        index = ChunkIndex(message_start_time=chunk.message_start_time,
-                           message_end_time=chunk.message_end_time, chunk_start_offset=start,
-                           chunk_length=rb.count, message_index_offsets={},
-                           message_index_length=0, compression=chunk.compression,
-                           compressed_size=len(compressed),
-                           uncompressed_size=chunk.uncompressed_size)
+        for part in (head, compressed):
+            if self._Writer__enable_data_crcs:
+                self._Writer__data_section_crc = _crc32(part, self._Writer__data_section_crc)
+            stream.write(part)
+        index = ChunkIndex(message_start_time=builder.message_start_time,
+                           message_end_time=builder.message_end_time, chunk_start_offset=start,
+                           chunk_length=len(head) + len(compressed), message_index_offsets={},
+                           message_index_length=0, compression=name,
+                           compressed_size=len(compressed), uncompressed_size=len(chunk_data))
         self._Writer__flush()
         index_start = stream.tell()
         if self._Writer__index_types & IndexType.MESSAGE:
