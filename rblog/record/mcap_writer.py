@@ -8,7 +8,8 @@ The per-sample messages (State, Metrics, /tf) are encoded a whole block at a tim
 MCAP Message records, by one compiled call (:class:`_SampleRecords`), and added to the mcap
 package's ``Writer`` a chunk at a time through :class:`_BlockChunkBuilder`; the Writer writes
 everything else (header, schemas, channels, compressed chunks with their CRC, message indexes,
-summary, footer). Chunks are finalized every ``CHUNK_BYTES`` of messages or ``FLUSH_EVERY_S`` of
+summary, footer), its chunks and CRCs through :class:`_Writer` (LZ4 at LZ4_LEVEL, libdeflate's
+CRC-32: the bytes mcap's Writer writes at that level). Chunks are finalized every ``CHUNK_BYTES`` of messages or ``FLUSH_EVERY_S`` of
 wall time, whichever comes first, so memory stays bounded and a killed process loses at most
 that much.
 
