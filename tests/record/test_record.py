@@ -291,6 +291,54 @@ def test_mcap_block_records_match_mcaps_own_writer(tmp_path, traj, monkeypatch, 
     assert_same(traj, load(blocks))
 
 
+@pytest.mark.parametrize("compression,chunk_bytes", [("lz4", 2048), ("lz4", 1 << 20),
+                                                     ("zstd", 2048), ("none", 2048)])
+def test_mcap_chunks_are_mcaps_own(tmp_path, traj, monkeypatch, compression, chunk_bytes):
+    """rblog's Writer (LZ4 at LZ4_LEVEL, CRCs by _crc32) gives the file mcap's own Writer gives
+    (its chunk finalize and data-section write, zlib's CRC) when its lz4.frame.compress runs at
+    that level: byte for byte (chunk records, both CRCs, chunk indexes, summary); the LZ4 chunks
+    are standard LZ4 frames, every CRC checks, and the run reads back bit for bit."""
+    import lz4.frame
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+
+    monkeypatch.setattr(mcap_writer, "CHUNK_BYTES", chunk_bytes)
+    monkeypatch.setattr(mcap_writer, "FLUSH_EVERY_S", 1e9)
+    assert mcap_writer.LZ4_LEVEL < 0
+    ours = tmp_path / "ours.mcap"
+    write(McapRecorder(str(ours), compression=compression), traj, block=7)
+    own = lz4.frame.compress
+    monkeypatch.setattr(lz4.frame, "compress",
+                        lambda data, **kw: own(data, compression_level=mcap_writer.LZ4_LEVEL))
+    for name in ("_Writer__finalize_chunk", "_Writer__flush"):
+        monkeypatch.setattr(mcap_writer._Writer, name, getattr(mcap_writer.Writer, name))
+    mcaps = tmp_path / "mcaps.mcap"
+    write(McapRecorder(str(mcaps), compression=compression), traj, block=7)
+    monkeypatch.undo()
+    assert ours.read_bytes() == mcaps.read_bytes()
+    chunks = [r for r in StreamReader(str(ours), emit_chunks=True, validate_crcs=True).records
+              if isinstance(r, Chunk)]
+    assert chunks and all(c.compression == {"none": ""}.get(compression, compression)
+                          for c in chunks)
+    if compression == "lz4":
+        for c in chunks:
+            assert len(lz4.frame.decompress(c.data)) == c.uncompressed_size
+    assert sum(1 for _ in StreamReader(str(ours), validate_crcs=True).records) > len(chunks)
+    assert_same(traj, load(ours))
+
+
+def test_crc32_is_zlibs():
+    """mcap_writer._crc32 (libdeflate's when the system has it) is zlib.crc32: random bytes of
+    sizes around its vector widths, with and without a running value."""
+    import zlib
+
+    rng = np.random.default_rng(5)
+    for n in (0, 1, 7, 15, 16, 63, 64, 255, 4097, 1 << 20):
+        data = rng.integers(0, 256, n, dtype=np.uint8).tobytes()
+        assert mcap_writer._crc32(data) == zlib.crc32(data)
+        assert mcap_writer._crc32(memoryview(data), 0xDEADBEEF) == zlib.crc32(data, 0xDEADBEEF)
+
+
 def test_mcap_compressions(tmp_path, traj):
     for comp in ("none", "lz4", "zstd"):
         path = tmp_path / f"{comp}.mcap"
