@@ -27,8 +27,8 @@ The truth, never from the log or from rblog's code:
   An engine's integration error beyond that is a finding, as a free body's drift is (a 1 %
   gain must be caught). Runs with contacts: judged on each stretch of samples in which no
   MuJoCo step had a contact (``ncon`` at its start state), its scale and allowance the
-  stretch's own, whole-model energy (the rotors' 0.5 armature qdot^2 included: the log's
-  bodies lack it); RK4 runs up to the first step that meets a joint limit (its force across
+  stretch's own, whole-model energy (the rotors' 0.5 armature qdot^2 included, as the log's
+  joint_armature lets the analyzer count them); RK4 runs up to the first step that meets a joint limit (its force across
   RK4's stages does work the step's start does not show: the adapter logs that step's joint
   work NaN). pybullet: no independent energy (its motors' appliedJointMotorTorque and the
   URDF damping close 38.98 of kuka's 39.26 J drop over steps 330-530, not to the analyzer's

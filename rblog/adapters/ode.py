@@ -452,7 +452,8 @@ def joint_tree(bodies, q_frame) -> JointTree:
                 joint_body=np.array(child_rows, np.int64).reshape(k),
                 joint_anchor_body=np.array(ab).reshape(k, 3), joint_anchor_parent=np.array(ap).reshape(k, 3),
                 joint_axis_body=np.array(xb).reshape(k, 3), joint_axis_parent=np.array(xp).reshape(k, 3),
-                joint_range=np.array(rng, float).reshape(k, 2))
+                joint_range=np.array(rng, float).reshape(k, 2),
+                joint_armature=np.zeros(k))  # ODE models no rotor inertia
     return JointTree(joints, np.array(first, np.int64), np.array(second, np.int64), kind, parent, rows)
 
 

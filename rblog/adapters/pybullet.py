@@ -737,6 +737,7 @@ def body_table(world: World, gravity, impulses=None):
         joints = dict(body=jt["body"], type=jt["type"], anchor_body=np.array(jt["anchor_body"]),
                       anchor_parent=np.array(jt["anchor_parent"]), axis_body=np.array(jt["axis_body"]),
                       axis_parent=np.array(jt["axis_parent"]), range=np.array(jt["range"]),
+                      armature=np.zeros(len(jt["name"])),  # Bullet models no rotor inertia
                       name=jt["name"])
     n = world.n
     supplied = np.array(world.supplied, np.int64).reshape(n, len(IMPULSE_KINDS)) if impulses is None \

@@ -45,6 +45,110 @@ _TINY = 1e-300
 DISSIPATIVE_KINDS = ("passive", "actuator")
 
 
+#: |a_i . a_j| below which a middle hinge counts as orthogonal to its neighbours (rotor_energy)
+_ORTHO = 1e-9
+
+
+def rotor_energy(model, tr) -> tuple[np.ndarray, list[str]]:
+    """The kinetic energy of the joints' rotors, ``0.5 joint_armature qdot^2`` per dof, from the
+    logged motion of each joint's two bodies; (T, N) J on each joint's child body, and the lines
+    of what it leaves out (joints whose armature the log does not state, or whose dof rates the
+    rows cannot give).
+
+    Per child body c with parent p (the world for -1; all vectors world frame): the relative
+    angular velocity ``w = w_c - w_p`` and the velocity of c's centre relative to p's frame
+    ``v = v_c - v_p - w_p x (x_c - x_p)``. Its rows (the engine's order, parent side first):
+
+    * rotations: a ball alone, ``w`` itself (its 3 dofs: 0.5 a |w|^2); hinges, ``w = sum_i qdot_i
+      e_i`` solved for qdot (least squares, exact for a consistent w): the first hinge's axis
+      is fixed in the parent (``e_1 = R_p axis_parent``), the last in the child
+      (``e_k = R_c axis_body``); a middle one of three is normal to both (``e_1 x e_3``, its sign
+      free: qdot^2 is what counts), which holds when its axis is orthogonal to its neighbours';
+    * slides before the rotations, their axes fixed in the parent (``R_p axis_parent``):
+      ``v - w x (x_c - a) = sum_s qdot_s e_s``, a the rotations' common anchor
+      (``x_c + R_c anchor_body``).
+
+    This is MuJoCo's qvel of a hinge (the rate about ``xaxis``), a slide and a ball (the relative
+    angular velocity; its norm in any frame). A free body's rotor (MuJoCo's free-joint armature)
+    has no row; the MuJoCo adapter names such bodies.
+    """
+    from rblog.contract.model import JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_SLIDE
+
+    T_, n = tr.n_samples, tr.n_bodies
+    out = np.zeros((T_, n))
+    notes: list[str] = []
+    arm = np.asarray(model.joint_armature, np.float64).reshape(-1)
+    jt = np.asarray(model.joint_type, np.int64).reshape(-1)
+    jb = np.asarray(model.joint_body, np.int64).reshape(-1)
+    moving = jt != JOINT_FIXED
+    unstated = moving & np.isnan(arm)
+    if unstated.any():
+        notes.append(f"the rotor energy of {int(unstated.sum())} joint(s) (bodies "
+                     f"{', '.join(repr(model.body_name[b]) for b in np.unique(jb[unstated])[:3])}"
+                     f"{' ...' if len(np.unique(jb[unstated])) > 3 else ''}): their armature is "
+                     "not stated in the log, so it is not counted")
+    active = np.unique(jb[moving & (np.nan_to_num(arm) > 0)])
+    if not len(active):
+        return out, notes
+    R, x, v, w = tr.rotation, tr.position, tr.velocity, tr.angular_velocity
+    parent = np.asarray(model.body_parent, np.int64).reshape(-1)
+    eye, zero = np.broadcast_to(np.eye(3), (T_, 3, 3)), np.zeros((T_, 3))
+    cant = []
+    for c in active:
+        rows = np.flatnonzero(jb == c)
+        rows = rows[jt[rows] != JOINT_FIXED]
+        if np.isnan(arm[rows]).any():
+            continue  # named above
+        p = int(parent[c])
+        Rp, xp, vp, wp = (eye, zero, zero, zero) if p < 0 else (R[:, p], x[:, p], v[:, p], w[:, p])
+        w_rel = w[:, c] - wp
+        v_rel = v[:, c] - vp - np.cross(wp, x[:, c] - xp)
+        types = jt[rows]
+        rot = rows[types != JOINT_SLIDE]
+        sl = rows[types == JOINT_SLIDE]
+        hinge = rot[jt[rot] == JOINT_HINGE]
+        ok = (np.isin(types, (JOINT_HINGE, JOINT_SLIDE, JOINT_BALL)).all()
+              and (len(sl) == 0 or sl.max() < (rot.min() if len(rot) else np.inf))
+              and (len(hinge) == len(rot) and len(rot) <= 3 or len(rot) == 1))
+        ab, apar = model.joint_axis_body, model.joint_axis_parent
+        if ok and len(hinge) == 3:
+            a1, a2, a3 = (ab[j] for j in hinge)
+            ok = abs(a1 @ a2) < _ORTHO and abs(a2 @ a3) < _ORTHO
+        if ok and len(rot) and len(sl):
+            anc = model.joint_anchor_body[rot]
+            ok = np.allclose(anc, anc[0], rtol=0.0, atol=1e-12)
+        if not ok:
+            cant.append(int(c))
+            continue
+        e_c = lambda j: np.einsum("tij,j->ti", R[:, c], ab[j])  # noqa: E731 (child-fixed axis)
+        e_p = lambda j: np.einsum("tij,j->ti", Rp, apar[j])  # noqa: E731 (parent-fixed axis)
+        if len(rot) == 1 and jt[rot[0]] == JOINT_BALL:
+            out[:, c] += 0.5 * arm[rot[0]] * np.einsum("ti,ti->t", w_rel, w_rel)
+        elif len(rot):
+            axes = [e_c(hinge[-1])] if len(rot) == 1 else [e_p(hinge[0]), e_c(hinge[-1])]
+            if len(rot) == 3:
+                mid = np.cross(axes[0], axes[1])
+                axes.insert(1, mid / np.linalg.norm(mid, axis=1, keepdims=True))
+            E = np.stack(axes, axis=2)  # (T, 3, k)
+            qd = np.einsum("tkj,tj->tk", np.linalg.pinv(E), w_rel)
+            out[:, c] += 0.5 * (qd ** 2) @ arm[hinge]
+        if len(sl):
+            r = v_rel
+            if len(rot):
+                a_w = np.einsum("tij,j->ti", R[:, c], model.joint_anchor_body[rot[0]])
+                r = v_rel + np.cross(w_rel, a_w)  # v - w x (x_c - a), a = x_c + a_w
+            S = np.stack([e_p(j) for j in sl], axis=2)  # (T, 3, s)
+            qd = np.einsum("tkj,tj->tk", np.linalg.pinv(S), r)
+            out[:, c] += 0.5 * (qd ** 2) @ arm[sl]
+    if cant:
+        notes.append(f"the rotor energy of {len(cant)} bod{'ies' if len(cant) > 1 else 'y'} "
+                     f"({', '.join(repr(model.body_name[b]) for b in cant[:3])}"
+                     f"{' ...' if len(cant) > 3 else ''}): their joints' rates cannot be told "
+                     "from the logged motion (rblog.analyze.energy.rotor_energy), so it is not "
+                     "counted")
+    return out, notes
+
+
 def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
     """The energy columns of the drift check with the bodies under logged loads joined into
     articulated trees (``body_parent`` links; a body and its descendants down to free bodies),
@@ -183,12 +287,16 @@ class EnergyAnalyzer(Analyzer):
         stats: dict[str, float] = {}
         n_found = 0
         ke, u = ctx.energies()
+        # + the joints' rotors (MuJoCo's armature), which move with the bodies: part of the
+        # model's kinetic energy that no body's momenta hold
+        rotor, not_judged = rotor_energy(model, tr)
+        if rotor.any():
+            ke = ke + rotor
         e = ke + u
         m = ctx.mass
         amag = np.linalg.norm(ctx.accel, axis=1)
         sp = ctx.speed
         tch = ctx.touches(cd)
-        not_judged: list[str] = []
 
         # ---- drift over contact-free stretches: free bodies under their constant loads one by
         # one; bodies under logged loads (joints, actuators, damping, pushes) as whole

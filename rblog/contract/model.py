@@ -139,7 +139,7 @@ GEOM_FIELDS = {"geom_name": (), "geom_body": (), "geom_type": (), "geom_pos_body
                "geom_collide_group": (), "geom_collide_mask": ()}
 JOINT_FIELDS = {"joint_name": (), "joint_type": (), "joint_body": (), "joint_anchor_body": (3,),
                 "joint_anchor_parent": (3,), "joint_axis_body": (3,), "joint_axis_parent": (3,),
-                "joint_range": (2,), "joint_quat_parent": (4,)}
+                "joint_range": (2,), "joint_quat_parent": (4,), "joint_armature": ()}
 INT_FIELDS = {"geom_body", "geom_type", "geom_vert_adr", "geom_vert_num", "geom_collide_group",
               "geom_collide_mask", "joint_type", "joint_body", "body_kind", "body_parent"}
 
@@ -179,7 +179,11 @@ class Model:
             same point in the parent's frame at the joint's zero position, joint_axis_body /
             joint_axis_parent (J, 3) unit (zeros for ball and fixed), joint_range (J, 2) lower,
             upper (rad or m; NaN = none), joint_quat_parent (J, 4) the child's body frame in the
-            parent's at the joint's zero position (wxyz; NaN = not stated).
+            parent's at the joint's zero position (wxyz; NaN = not stated),
+            joint_armature (J,) the rotor inertia on each of the joint's degrees of freedom
+            (MuJoCo's dof_armature: kg m^2 for a hinge or ball, kg for a slide; its kinetic
+            energy 0.5 armature qdot^2 per dof is part of the model's; 0 for a fixed joint and
+            for an engine without rotor inertia; NaN = not stated).
         geom_name (G,), geom_body (G,) (-1 = world), geom_type (G,) GEOM_*, geom_pos_body (G, 3)
             m, geom_quat_wxyz_body (G, 4) geom -> body, geom_size (G, 3) (see GEOM_*),
             geom_vert_adr / geom_vert_num (G,) rows of mesh_vert (V, 3) (geom frame, m),
@@ -224,6 +228,7 @@ class Model:
     joint_axis_parent: np.ndarray | None = None
     joint_range: np.ndarray | None = None
     joint_quat_parent: np.ndarray | None = None
+    joint_armature: np.ndarray | None = None
     geom_name: list[str] | None = None
     geom_body: np.ndarray | None = None
     geom_type: np.ndarray | None = None

@@ -86,7 +86,8 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
             ``anchor_parent`` (J, 3); ``axis_body``, ``axis_parent`` (J, 3; not for ball and
             fixed); optional ``range`` (J, 2, NaN = none), ``quat_parent`` (J, 4: the body's
             frame in the parent's at the joint's zero position, wxyz; NaN = not stated),
-            ``name``.
+            ``armature`` (J,: the rotor inertia on each of the joint's dofs, kg m^2 or kg for a
+            slide; 0 = none; NaN = not stated, the default), ``name``.
         collide_rule: ``"and"`` (Bullet, rblog) or ``"or"`` (MuJoCo) (COLLIDE_RULES).
         collide_parent: the engine lets a body touch its parent body (default: never).
         impulses: the per-interval impulse kinds this writer logs for every body (a subset of
@@ -275,7 +276,7 @@ def _supplied(v, none, missing, n: int, kinds: tuple, default: tuple, what: str)
 _GEOM_KEYS = ("body", "type", "size", "pos_body", "quat_wxyz_body", "friction", "restitution",
               "collide_group", "collide_mask", "name", "mesh_vert")
 _JOINT_KEYS = ("body", "type", "anchor_body", "anchor_parent", "axis_body", "axis_parent",
-               "range", "quat_parent", "name")
+               "range", "quat_parent", "armature", "name")
 
 
 def _rows(table: dict, keys: tuple, required: tuple, what: str) -> int:
@@ -374,7 +375,14 @@ def _joint_table(joints: dict, n: int) -> dict:
            "joint_axis_body": _col(joints, "axis_body", "joints", J, (3,), 0.0),
            "joint_axis_parent": _col(joints, "axis_parent", "joints", J, (3,), 0.0),
            "joint_range": _col(joints, "range", "joints", J, (2,), np.nan),
-           "joint_quat_parent": _col(joints, "quat_parent", "joints", J, (4,), np.nan)}
+           "joint_quat_parent": _col(joints, "quat_parent", "joints", J, (4,), np.nan),
+           "joint_armature": _col(joints, "armature", "joints", J, (), np.nan)}
+    arm = out["joint_armature"]
+    bad = np.flatnonzero(arm < 0)
+    if len(bad):
+        j = int(bad[0])
+        raise RecordError(f"body_table: joints.armature[{j}] = {arm[j]!r}, expected a rotor "
+                          "inertia >= 0 (kg m^2, kg for a slide) or NaN (not stated)")
     qn = np.linalg.norm(out["joint_quat_parent"], axis=1)
     bad = np.flatnonzero(np.isfinite(qn) & (np.abs(qn - 1.0) > 1e-6))
     if len(bad):

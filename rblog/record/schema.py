@@ -98,6 +98,7 @@ MESSAGES: dict[str, list[tuple[int, str, str, str]]] = {
         (66, "collide_rule", "string", ""),
         (67, "joint_quat_parent", "double", "repeated"),
         (68, "collide_parent", "bool", ""),
+        (69, "joint_armature", "double", "repeated"),
     ],
     "State": [
         (1, "step", "sfixed64", ""),
