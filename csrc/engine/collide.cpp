@@ -321,22 +321,9 @@ constexpr i64 MIN_PAIRS = 512;
             dy = 0.0;
             dz = 0.0;
         }
-        // A point in contact (touching, s <= 0, or loaded in the last step) holds the anchor: its
-        // drift past FRICTION_ANCHOR_MAX_DRIFT_M re-anchors the pair (below). A point apart from
-        // the other body is not held, and the drift it reads is the pair's turn about the points
-        // in contact (a box tipping on a corner: 1.4e-5 m a step at the far corners), which no
-        // friction there can take back: past the bound it gets no anchor bias (slip 0), and the
-        // anchor of the points in contact stays.
-        const double dn = dx * nx + dy * ny + dz * nz;
-        const double d2t = dx * dx + dy * dy + dz * dz - dn * dn;
-        if (pfp.s <= 0.0 || ln > 0.0) {
-            drift_max = std::max(drift_max, d2t);
-        } else if (d2t > cc.friction_anchor_max_drift_m * cc.friction_anchor_max_drift_m) {
-            dx = 0.0;
-            dy = 0.0;
-            dz = 0.0;
-        }
         set3(pfp.slip, dx, dy, dz);
+        double dn = dx * nx + dy * ny + dz * nz;
+        drift_max = std::max(drift_max, dx * dx + dy * dy + dz * dz - dn * dn);
         pfp.ln = ln;
         pfp.l1 = l1;
         pfp.l2 = l2;
