@@ -189,8 +189,8 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
 
     # joints
     mc = Fields(m)  # the bindings' arrays, each fetched once
-    jn, jt, jb, ab, ap, xb, xp, jr, ja = [], [], [], [], [], [], [], [], []
     dof_arm = np.asarray(mc.dof_armature, np.float64)
+    jn, jt, jb, ab, ap, xb, xp, jr, ja = [], [], [], [], [], [], [], [], []
     for b in range(1, m.nbody):
         if lay.kind[b - 1] != BODY_JOINTED:
             continue
@@ -204,8 +204,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
             ap.append(world_to_inertial(pb, d0c.xipos[b]))
             xb.append(np.zeros(3))
             xp.append(np.zeros(3))
-            jr.append([np.nan, np.nan])
-            ja.append(0.0)
+            jr.append([np.nan, np.nan]), ja.append(0.0)
             continue
         for j in range(int(mc.body_jntadr[b]), int(mc.body_jntadr[b]) + nj):
             t = _JOINT[int(mc.jnt_type[j])]
@@ -220,10 +219,8 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
             else:
                 xb.append(ri[b].T @ np.asarray(mc.jnt_axis[j], np.float64))
                 xp.append(world_dir_to_inertial(pb, d0c.xaxis[j]))
-            # the rotor inertia of the joint's dofs (1 for hinge and slide, 3 for a ball: one
-            # value, as MJCF gives it; dofs edited to differ are not stated, NaN)
-            a = dof_arm[int(mc.jnt_dofadr[j]):int(mc.jnt_dofadr[j]) + (3 if t == JOINT_BALL else 1)]
-            ja.append(float(a[0]) if np.all(a == a[0]) else np.nan)
+            a = dof_arm[int(mc.jnt_dofadr[j]):][:3 if t == JOINT_BALL else 1]
+            ja.append(float(a[0]) if np.all(a == a[0]) else np.nan)  # dofs differing: NaN
             lo, hi = (float(v) for v in mc.jnt_range[j])
             if not int(mc.jnt_limited[j]):
                 jr.append([np.nan, np.nan])
@@ -281,8 +278,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     joints = dict(body=np.array(jb, np.int64).reshape(nj), type=np.array(jt, np.int64).reshape(nj),
                   anchor_body=np.array(ab).reshape(nj, 3), anchor_parent=np.array(ap).reshape(nj, 3),
                   axis_body=np.array(xb).reshape(nj, 3), axis_parent=np.array(xp).reshape(nj, 3),
-                  range=np.array(jr, np.float64).reshape(nj, 2),
-                  armature=np.array(ja, np.float64).reshape(nj), name=jn)
+                  range=np.array(jr, np.float64).reshape(nj, 2), armature=np.array(ja).reshape(nj), name=jn)
     from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE
 
     supplied = np.where(np.repeat(lay.dynamic[:, None], len(IMPULSE_KINDS), axis=1),
@@ -320,9 +316,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
                                  "pairs (filterparent) and <exclude> pairs, and <pair> overrides",
              "impulses": "per step from mj_rnePostConstraint at the step's start "
                          "(rblog.adapters.mujoco); RK4: the first stage's forces",
-             "free_bodies_with_armature_not_logged": [
-                 body_name[i] for i in range(n) if lay.kind[i] == BODY_FREE and np.any(
-                     dof_arm[lay.dof_body == lay.body_id[i]] != 0)],
+             "free_bodies_with_armature_not_logged": [body_name[b - 1] for b in set(lay.dof_body[dof_arm > 0]) if lay.kind[b - 1] == BODY_FREE],  # noqa: E501
              "massless_bodies_logged_with_unit_mass": [body_name[i] for i in range(n)
                                                        if not lay.dynamic[i] and not mass[i] > 0]}
     return model, lay, notes
