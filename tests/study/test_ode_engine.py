@@ -246,8 +246,10 @@ KNOWN = {
     "box_stack": {"momentum: cone": 1.0, "penetration: sink": 0.00921,
                   "penetration: resting sink": 0.00167},
     "free_fall": {"momentum: flight angular": 0.00195},
+    # no creep: the balls roll down the ramp and the boxes slide (33 rolling, 53 sliding
+    # stretches, events); the 14 resting stretches creep 1.1e-10 m (2026-12-07)
     "mixed": {"momentum: flight angular": 0.00733, "momentum: cone": 1.0,
-              "momentum: collision angular": 0.000642, "penetration: creep": 0.000647},
+              "momentum: collision angular": 0.000642},
     "newton_pair": {},
     # 2026-12-02, geoms in a dSimpleSpace: the 6.33 mm sink read with dHashSpace is gone (that
     # space stopped reporting overlapping pairs: test_engine_shapes), creep 0.320 mm
