@@ -14,7 +14,7 @@ pivoting on a corner of another) has no slip there.
   point's velocity relative to the partner (``v + ω x r``, minus the partner's) plus the relative
   angular speed times twice the bounding radius below REST_SPEED_MPS, for at least
   REST_MIN_SAMPLES consecutive samples. A sphere rolling without slip and a box tipping over an
-  edge have a resting contact point but are not at rest: they roll.
+  edge have a resting contact point but are not at rest: the sphere rolls, the box pivots.
 * Rolling and sliding: in contact, not at rest, the contact point's normal speed at most
   REST_SPEED_MPS: rolling where its tangential slip is at most REST_SPEED_MPS, else sliding;
   reported as events with their slip (:func:`_motion_stretches`), not judged as resting. A
@@ -104,7 +104,8 @@ from rblog.analyze import tolerances as T
 from rblog.analyze.base import (Analyzer, Context, Finding, Result, Worst, body_label,
                                 combine_friction, shapeless, shapeless_note, static_material)
 from rblog.analyze.momentum import static_feature_of_points
-from rblog.contract.model import SHAPE_BOX, SHAPE_SPHERE
+from rblog.contract.model import (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID, GEOM_SPHERE,
+                                  SHAPE_BOX, SHAPE_SPHERE)
 from rblog.contract.trajectory import STATIC_BODY
 
 
@@ -560,11 +561,12 @@ def _motion_stretches(an, ctx: Context, sup: dict, rest: np.ndarray, cv: np.ndar
         if m.any():
             stats[f"{word}_duration_total_s"] = float(dur[m].sum())
             stats[f"{word}_slip_max_mps"] = float(s_max[m].max())
+    round_ = _round_bodies(model)
     out = []
     for r in np.argsort(pk[starts], kind="stable")[: T.MAX_EVENTS]:
         a, e = int(starts[r]), int(ends[r])
         word = "rolling" if kind[r] == 1 else "sliding"
-        verb = "rolls" if kind[r] == 1 else "slides"
+        verb = ("slides" if kind[r] == 2 else "rolls" if round_[int(pi_[a])] else "pivots")
         text = (f"{body_label(model, int(pi_[a]))} {verb} on "
                 f"{_partner_label(model, int(pb[a]))} from t = {t[pk[a]]:.6g} s for "
                 f"{dur[r]:.3g} s at {speed[r]:.3g} m/s, slip {_speed_text(mean[r])}")
@@ -582,6 +584,21 @@ def _motion_stretches(an, ctx: Context, sup: dict, rest: np.ndarray, cv: np.ndar
             "slip_decel_mps2": float(decel[r]), "slid_m": float(slid[r]),
             "depth_max_m": float(d_max[r]), "text": text,
         })
+    return out
+
+
+#: the geoms a body rolls on; a rolling contact of a body with none of them (a box tipping over
+#: its edge, a hull on a vertex) is the body pivoting on that point
+ROUND_GEOMS = (GEOM_SPHERE, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_ELLIPSOID)
+
+
+def _round_bodies(model) -> np.ndarray:
+    """(N,) bool: the body is a sphere (contract v2) or has a round geom (ROUND_GEOMS)."""
+    out = np.asarray(model.body_shape) == SHAPE_SPHERE
+    if getattr(model, "n_geoms", 0):
+        gb = np.asarray(model.geom_body, np.int64)
+        rnd = np.isin(np.asarray(model.geom_type), ROUND_GEOMS) & (gb >= 0)
+        out[gb[rnd]] = True
     return out
 
 

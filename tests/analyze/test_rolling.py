@@ -226,3 +226,35 @@ def test_the_same_kick_on_a_sphere_resting_on_the_ground_is_flagged():
     res = _kicked("sphere")
     (f,) = res.findings
     assert "friction cone" in f.message and f.bodies == [0]
+
+
+def test_a_mujoco_box_tipping_over_its_edge_pivots_and_a_ball_rolls():
+    """A 0.1 x 0.1 x 0.4 m box stood on its bottom edge 0.35 rad from upright (past its tipping
+    angle) falls over about that edge (mu 1: the edge holds) and lies on its side. The contact
+    point on the edge hardly slips while the centre moves: a rolling contact of a body with no
+    round geom, which the report calls pivoting (a ball rolls: the tests above)."""
+    tip = 0.35  # rad from upright about y (the top towards +x), past atan(hx / hz) = 0.245
+    hx, hz = 0.05, 0.2
+    # the lower edge, x = +hx, z = -hz in the box frame, R_y(tip) of it on the floor at the origin
+    c, s = np.cos(tip), np.sin(tip)
+    centre = -np.array([c * hx - s * hz, 0.0, -s * hx - c * hz])
+    xml = (f'<mujoco><compiler angle="radian"/><option timestep="0.002"/><worldbody>'
+           f'<geom name="floor" type="plane" size="5 5 0.1" friction="1"/>'
+           f'<body name="box" pos="{centre[0]} 0 {centre[2]}" euler="0 {tip} 0"><freejoint/>'
+           f'<geom type="box" size="{hx} 0.05 {hz}" friction="1"/></body></worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    rec = MujocoRecorder(m, d, every=1)
+    for _ in range(400):
+        mujoco.mj_step(m, d)
+        rec(d)
+    rec.close()
+    # MuJoCo's own end pose: the box's long axis horizontal (it fell over, 4 contacts)
+    assert abs(d.xmat[1].reshape(3, 3)[2, 2]) < 1e-3 and d.ncon == 4
+    res = _pen(rec.trajectory)
+    texts = [e["text"] for e in _motion(res, "rolling")]
+    assert texts and all("pivots on the ground" in x for x in texts), texts
+    # the fall about the edge: 0.03 .. 0.47 s (measured; MuJoCo's contacts go from 2 to 4 at
+    # ~0.5 s)
+    assert max(e["duration_s"] for e in _motion(res, "rolling")) > 0.3
+    assert not any(" rolls " in e.get("text", "") for e in res.events)
