@@ -8,7 +8,7 @@ import sys
 import click
 
 from rblog.errors import RblogError
-from rblog_cli.report import program
+from rblog_cli.report import count, program
 
 
 def _fail(err: RblogError):
@@ -41,8 +41,8 @@ def convert(src, dst):
         rec.close(truncated=traj.truncated)
     except RblogError as e:
         _fail(e)
-    click.echo(f"{src} -> {dst}: {traj.n_samples} samples x {traj.n_bodies} bodies, "
-               f"{len(traj.contacts)} contacts")
+    click.echo(f"{src} -> {dst}: {count(traj.n_samples, 'sample')} x "
+               f"{count(traj.n_bodies, 'body')}, {count(len(traj.contacts), 'contact')}")
 
 
 @click.command()

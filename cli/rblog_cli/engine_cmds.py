@@ -8,7 +8,7 @@ import json
 import click
 
 from rblog.errors import RblogError
-from rblog_cli.report import live_audit, live_report, next_commands, print_live_report
+from rblog_cli.report import count, live_audit, live_report, next_commands, print_live_report
 
 
 def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, orthonormalize,
@@ -54,8 +54,9 @@ def run_with_engine(scene_path, engine, options, *, dt, duration, integrator, or
         if audit is not None and d["check"]["flagged"]:
             raise SystemExit(1)
         return
-    click.echo(f"{scene_path}: {engine} {summary.version}, {summary.steps} steps x {summary.bodies} "
-               f"bodies, {summary.sim_time_s:g} s simulated in {summary.wall_time_s:.3f} s wall "
+    click.echo(f"{scene_path}: {engine} {summary.version}, {count(summary.steps, 'step')} x "
+               f"{count(summary.bodies, 'body')}, {summary.sim_time_s:g} s simulated in "
+               f"{summary.wall_time_s:.3f} s wall "
                f"(engine stepping {summary.step_wall_s:.3f} s, recording {summary.record_wall_s:.3f} s)")
     st = summary.settings
     click.echo(f"  integrator {st.get('integrator')}, dt {summary.dt:g} s, logged every "

@@ -16,7 +16,7 @@ import click
 
 from rblog.errors import RblogError
 from rblog_cli import IN_PROGRAM, LOGS_STATE
-from rblog_cli.report import (live_audit, live_report, next_commands, print_live_report,
+from rblog_cli.report import (count, live_audit, live_report, next_commands, print_live_report,
                               print_report, program)
 
 
@@ -89,7 +89,7 @@ def validate(scene):
         _fail(e)
     for w in s.warnings:
         click.echo(f"rblog: warning: {w}", err=True)
-    click.echo(f"{scene}: ok ({s.model.n_bodies} bodies, {s.sim.n_steps} steps of "
+    click.echo(f"{scene}: ok ({count(s.model.n_bodies, 'body')}, {count(s.sim.n_steps, 'step')} of "
                f"{s.sim.dt:g} s, integrator {s.sim.integrator})")
     click.echo("  shapes: " + ", ".join(f"{k} {v}" for k, v in s.shape_counts().items()))
 
@@ -238,7 +238,8 @@ def run(scene, dt, duration, integrator, orthonormalize, rrd, mcap, mcap_compres
             sys.exit(1 if d["check"]["flagged"] else 0)
         return
     click.echo(
-        f"{scene}: {summary.steps} steps x {summary.bodies} bodies, {summary.sim_time_s:g} s "
+        f"{scene}: {count(summary.steps, 'step')} x {count(summary.bodies, 'body')}, "
+        f"{summary.sim_time_s:g} s "
         f"simulated in {summary.wall_time_s:.3f} s wall ({summary.steps_per_s:,.0f} steps/s, "
         f"{summary.body_steps_per_s:,.0f} body-steps/s)")
     click.echo(f"  integrator {summary.integrator} (orthonormalize {summary.orthonormalize}), "

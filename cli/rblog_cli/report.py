@@ -13,6 +13,13 @@ from pathlib import Path
 import click
 
 
+def count(n: int, noun: str) -> str:
+    """``n`` and ``noun`` for a report line: "1 body", "21 bodies", "1 sample", "401 samples"."""
+    if n == 1:
+        return f"1 {noun}"
+    return f"{n} " + (noun[:-1] + "ies" if noun.endswith("y") else noun + "s")
+
+
 def program(name: str) -> str:
     """How to call the program ``name`` from the current folder: its bare name when the shell
     finds this installation's copy on PATH, else its path beside the ``rblog`` that was typed
@@ -124,7 +131,8 @@ def print_report(entry):
     """One log's report from its entry (rblog.study.bulk_check.check_log): a header, one line
     per analyzer, the findings of each flagged one, and the log's verdict line."""
     flag = " (truncated)" if entry["truncated"] else ""
-    click.echo(f"{entry['log']}: {entry['samples']} samples x {entry['bodies']} bodies, "
+    click.echo(f"{entry['log']}: {count(entry['samples'], 'sample')} x "
+               f"{count(entry['bodies'], 'body')}, "
                f"t = 0..{entry['t_end_s']:g} s{flag}")
     if entry.get("contents"):
         from rblog.analyze.contents import contents_line
