@@ -19,9 +19,14 @@ In Rerun (:func:`log_findings`):
 * ``world/findings/impacts`` (``Points3D``): a marker at the deepest point of every impact event
   (the momentum analyzer's events) at the event's end time, labelled with its e_eff.
 
+* ``events/<analyzer>`` (``TextLog``, level INFO): what the analyzers saw that is no finding, one
+  row per event with a text (a body rolling, pivoting or sliding on its partner, with its slip) at
+  the event's start; the time panel marks them on the ``events`` row.
+
 In MCAP (:func:`write_checked_mcap`): ``foxglove.Log`` on FINDINGS_TOPIC (Foxglove's Log panel and
 its timeline) and ``foxglove.SceneUpdate`` on MARKERS_TOPIC: a red sphere on each flagged body
-(locked to the body's /tf frame) with the finding's text, over the same interval as in Rerun.
+(locked to the body's /tf frame) with the finding's text, over the same interval as in Rerun; the
+events as ``foxglove.Log`` at level INFO on EVENTS_TOPIC.
 
 :func:`write_findings_rrd` writes the findings alone, with a given recording id: an overlay for a
 run already open in a viewer (``rerun run.rrd findings.rrd`` merges the two only when the ids
@@ -59,6 +64,9 @@ FINDINGS_TOPIC = "/rblog/findings"
 #: 1600 px layout, ~7.3 px per character of the viewer's font, less the time column
 FINDINGS_WRAP_CHARS = 190
 MARKERS_TOPIC = "/rblog/findings/markers"
+#: the analyzers' events that carry a text (Result.events[i]["text"]): Rerun entity and MCAP topic
+EVENTS_ENTITY = "events"
+EVENTS_TOPIC = "/rblog/events"
 
 
 @dataclass
@@ -104,6 +112,20 @@ def finding_rows(traj: Trajectory, results) -> list[Row]:
                             ", ".join(names) or "-", float(f.value), float(f.tolerance),
                             str(f.unit), f.message))
     rows.sort(key=lambda w: (w.t, w.analyzer))
+    return rows
+
+
+def event_rows(results) -> list[tuple[float, int, str, str]]:
+    """``(t, step, analyzer, text)`` of every event with a text, in time order: the start of a
+    stretch (``t_start``, ``step_start``), else the event's ``t`` and ``step``."""
+    rows = []
+    for r in results:
+        for e in r.events:
+            if e.get("text"):
+                t = e.get("t_start", e.get("t"))
+                step = e.get("step_start", e.get("step", 0))
+                rows.append((float(t), int(step), r.analyzer, str(e["text"])))
+    rows.sort(key=lambda w: (w[0], w[2]))
     return rows
 
 
@@ -170,6 +192,9 @@ def log_findings(rec: rr.RecordingStream, traj: Trajectory, results) -> int:
         _time(rec, int(step[0]), float(t[0]))
         rec.log(f"{FINDINGS_ENTITY}/check", rr.TextLog(f"no findings (analyzers run: {ran})",
                                                        level="INFO"))
+    for t_ev, step_ev, analyzer, text in event_rows(results):
+        _time(rec, step_ev, t_ev)
+        rec.log(f"{EVENTS_ENTITY}/{analyzer}", rr.TextLog(text, level="INFO"))
     events = _impact_events(results)
     spans = _spans(traj, rows, events)
     # highlights: per sample, the union of the bodies flagged then (one row per sample in a span,
@@ -279,6 +304,18 @@ def _log_messages(traj: Trajectory, results) -> list[tuple[int, object]]:
     return out
 
 
+def _event_messages(results) -> list[tuple[int, object]]:
+    from foxglove_schemas_protobuf.Log_pb2 import Log
+
+    out = []
+    for t, _, analyzer, text in event_rows(results):
+        ns = int(C.time_ns(np.array([t]))[0])
+        msg = Log(level=Log.INFO, message=text, name=f"rblog check {analyzer}")
+        msg.timestamp.FromNanoseconds(ns)
+        out.append((ns, msg))
+    return out
+
+
 def _marker_messages(traj: Trajectory, results) -> list[tuple[int, object]]:
     """One SceneUpdate per finding: a red sphere on each flagged body, in the body's frame, from
     the start of its highlight interval for its length, with the finding's text above it."""
@@ -325,7 +362,8 @@ def _marker_messages(traj: Trajectory, results) -> list[tuple[int, object]]:
 
 def write_checked_mcap(path: str, traj: Trajectory, results) -> int:
     """Write one .mcap holding the run ``traj`` (as `rblog run` records it) and its findings as
-    ``foxglove.Log`` messages and ``foxglove.SceneUpdate`` markers; returns how many findings."""
+    ``foxglove.Log`` messages and ``foxglove.SceneUpdate`` markers, and the analyzers' events as
+    ``foxglove.Log`` at level INFO; returns how many findings."""
     from foxglove_schemas_protobuf.Log_pb2 import Log
     from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
@@ -339,6 +377,7 @@ def write_checked_mcap(path: str, traj: Trajectory, results) -> int:
         rec.write(traj)
         rec.write_messages(FINDINGS_TOPIC, Log, logs)
         rec.write_messages(MARKERS_TOPIC, SceneUpdate, markers)
+        rec.write_messages(EVENTS_TOPIC, Log, _event_messages(results))
     except BaseException:
         rec.close(truncated=True, reason="interrupted while writing the findings")
         raise
@@ -378,7 +417,8 @@ def write_findings_mcap(path: str, traj: Trajectory, results) -> int:
     except OSError as e:
         raise LogWriteError(str(path), e.strerror or str(e)) from None
     with fh, Writer(fh) as w:
-        for topic, msgs in ((FINDINGS_TOPIC, logs), (MARKERS_TOPIC, markers)):
+        for topic, msgs in ((FINDINGS_TOPIC, logs), (MARKERS_TOPIC, markers),
+                            (EVENTS_TOPIC, _event_messages(results))):
             for ns, msg in msgs:
                 w.write_message(topic, msg, log_time=ns, publish_time=ns)
     return len(logs)

@@ -258,3 +258,37 @@ def test_a_mujoco_box_tipping_over_its_edge_pivots_and_a_ball_rolls():
     # ~0.5 s)
     assert max(e["duration_s"] for e in _motion(res, "rolling")) > 0.3
     assert not any(" rolls " in e.get("text", "") for e in res.events)
+
+
+def test_the_rolling_event_is_in_the_checked_rrd_and_mcap(tmp_path):
+    """`rblog check --rrd/--mcap` files carry the events beside the findings: the ball's rolling
+    stretch as a Rerun TextLog (INFO) on events/penetration and a foxglove.Log (INFO) on
+    /rblog/events, at the stretch's start, with the report's text."""
+    import warnings
+
+    import rerun as rr
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    from rblog.record.findings import EVENTS_TOPIC, write_checked
+
+    traj, _ = _rolling_ball(seconds=0.5)
+    results = check(traj)
+    (ev,) = _motion(next(r for r in results if r.analyzer == "penetration"), "rolling")
+    write_checked(str(tmp_path / "c.mcap"), traj, results)
+    with open(tmp_path / "c.mcap", "rb") as f:
+        msgs = [(m.log_time, p) for _, c, m, p in make_reader(
+            f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=[EVENTS_TOPIC])]
+    assert [(t, p.message, p.level) for t, p in msgs] == [(0, ev["text"], 2)]  # 2: INFO
+    write_checked(str(tmp_path / "c.rrd"), traj, results)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = rr.chunk.RrdReader(str(tmp_path / "c.rrd"))
+        chunks = [c for c in r.stream(store=r.recordings()[0])
+                  if c.entity_path == "/events/penetration"]
+    (chunk,) = chunks
+    batch = chunk.to_record_batch()
+    cols = {n.split(":")[-1]: batch.column(n) for n in batch.schema.names}
+    assert cols["text"].to_pylist() == [[ev["text"]]], cols
+    assert cols["level"].to_pylist() == [["INFO"]], cols
+    assert cols["sim_time"].cast("int64").to_pylist() == [0], cols
