@@ -176,6 +176,32 @@ def test_a_capsule_is_judged_by_its_geometry(rollout):
         assert res["momentum"].stats["balance_bodies"] == 2
 
 
+def test_a_body_without_geoms_is_left_out_of_the_shapeless_notes():
+    """A massless marker body with no geom (dm_control's 'pinch site': a site and an inertial)
+    on a capsule: in a log with geoms it has no collision geometry, so no analyzer says it is
+    not judged "for lack of a shape" (before, penetration and tunneling named it)."""
+    mujoco = pytest.importorskip("mujoco")
+    from rblog.adapters.mujoco import MujocoRecorder
+
+    xml = CAPSULE_XML.replace(
+        '<geom type="capsule" size="0.05 0.15" mass="1"/></body>',
+        '<geom type="capsule" size="0.05 0.15" mass="1"/><body name="marker" pos="0 0 0.2">'
+        '<site name="tip"/><inertial pos="0 0 0" mass="1e-6" diaginertia="1e-12 1e-12 1e-12"/>'
+        '</body></body>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    rec = MujocoRecorder(m, d)
+    for _ in range(200):
+        mujoco.mj_step(m, d)
+        rec(d)
+    rec.close()
+    traj = rec.trajectory
+    names = list(traj.model.body_name)
+    assert "marker" in names and traj.model.n_geoms
+    notes = [x for r in rblog.check(traj) for x in r.not_judged]
+    assert not any("'marker'" in x for x in notes), notes
+
+
 def test_a_capsule_kicked_in_free_flight_is_still_flagged():
     """The other direction: with contact rows the capsule's free flight is judged; a planted 1 m/s
     horizontal kick at t = 0.1 s (0.9 m above the floor, nothing in reach) is a momentum change no
