@@ -311,16 +311,18 @@ def shapeless(model: Model) -> np.ndarray:
 def shapeless_note(model: Model, what: str, known: np.ndarray | None = None) -> list[str]:
     """``not_judged`` line for the bodies without a shape ([] when there are none), leaving out
     the ``known`` ones ((N,) bool: e.g. those whose logged contact impulses say when they touch)
-    and, in a log with geoms (contract v3), the bodies with none: they have no collision
-    geometry (dm_control's 'pinch site', a massless marker), so there is nothing to judge."""
+    and the bodies with no geom whose contact impulse is known (logged, or none in the engine):
+    the writer says they touch nothing, they have no collision geometry (dm_control's 'pinch
+    site', a massless marker), so there is nothing to judge. A body with no geom whose contact
+    impulse is missing (a v2 log's shape 'none': a geometry the log does not describe) stays."""
     mask = shapeless(model)
     if known is not None:
         mask = mask & ~known
+    has_any = np.zeros(model.n_bodies, bool)
     if getattr(model, "n_geoms", 0):
         gb = np.asarray(model.geom_body, np.int64)
-        has_any = np.zeros(model.n_bodies, bool)
         has_any[gb[gb >= 0]] = True
-        mask = mask & has_any
+    mask = mask & (has_any | ~model.impulse_supplied("contact"))
     idx = np.flatnonzero(mask)
     if not len(idx):
         return []

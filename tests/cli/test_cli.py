@@ -270,7 +270,8 @@ def test_validate_reports_body_count(runner, name):
     _, bodies, steps = _sample_expectations(name)
     result = runner.invoke(main, ["validate", str(SAMPLES_DIR / f"{name}.toml")])
     assert result.exit_code == 0
-    assert f"({bodies} bodies, {steps} steps" in result.stdout
+    noun = "body" if bodies == 1 else "bodies"  # English, as the header prints it
+    assert f"({bodies} {noun}, {steps} steps" in result.stdout
 
 
 REQUIRED_KEYS = {"steps", "bodies", "sim_time_s", "wall_time_s", "energy_drift_rel",

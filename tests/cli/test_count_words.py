@@ -1,4 +1,4 @@
-"""Report lines count in English: "1 body", "21 bodies" (the summary said "x 1 bodies")."""
+"""Report lines count in English: "1 body", "21 bodies"."""
 
 from click.testing import CliRunner
 
