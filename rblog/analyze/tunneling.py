@@ -209,7 +209,7 @@ class TunnelingAnalyzer(Analyzer):
                                 "below it")
                     else:
                         what = (f"passes through {glabel(gb_)}: their paths go {val[j]:.3g} m "
-                                "deeper than half their inner radii allow")
+                                "deeper than (1 - pass_frac) x their inner radii allow")
                     findings.append(Finding(
                         self.name, f"{glabel(ga)} {what} between t = {t[k]:.6g} and "
                                    f"{t[k + 1]:.6g} s",
