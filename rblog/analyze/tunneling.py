@@ -330,7 +330,7 @@ def geom_crossings(model, position, rotation, pass_frac: float, cross: float):
 def _sweep(geoms, gpos, grot, mine, grow):
     """Candidate pairs (k, i < j) of csrc/audit/broadphase.cpp's geom_sweep_broadphase."""
     c = np.ascontiguousarray
-    cap = max(1024, 4 * len(gpos) * len(mine))
+    cap = max(1024, 8 * len(gpos))  # grown to the exact count when short
     while True:
         out = [np.empty(cap, np.int64) for _ in range(3)]
         cnt = _audit.geom_sweep_broadphase(
