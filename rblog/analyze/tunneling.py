@@ -261,7 +261,7 @@ def geom_crossings(model, position, rotation, pass_frac: float, cross: float):
     pair-interval judged (plane: i the body's geom, j the plane; a crossing where value > cross);
     ``stats``."""
     n = model.n_bodies
-    if not getattr(model, "n_geoms", 0) or len(position) < 2:
+    if not n or not getattr(model, "n_geoms", 0) or len(position) < 2:
         return None
     geoms = shapes.model_geoms(model)
     gb = geoms.body
