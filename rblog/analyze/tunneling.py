@@ -86,7 +86,7 @@ class TunnelingAnalyzer(Analyzer):
         closest: list[tuple[float, str]] = []
         # bodies without a v2 shape judged on their geoms (their centres' rows are left out)
         geo = None if shapes.contacts_disabled(tr.info) else geom_crossings(
-            model, tr.position, tr.rotation, self.tol["pass_frac"], cross)
+            model, tr.position, tr.rotation, self.tol["pass_frac"], cross, ctx.geom_poses)
         by_geoms = geo["bodies"] if geo is not None else np.zeros(n, bool)
 
         if prox.ground_height is not None:
@@ -252,8 +252,9 @@ class TunnelingAnalyzer(Analyzer):
             if n > 1 else [])
 
 
-def geom_crossings(model, position, rotation, pass_frac: float, cross: float):
-    """The geom rules of the module docstring over a trajectory's poses (T, N, 3), (T, N, 3, 3).
+def geom_crossings(model, position, rotation, pass_frac: float, cross: float, poses=None):
+    """The geom rules of the module docstring over a trajectory's poses (T, N, 3), (T, N, 3, 3)
+    (``poses``: a callable that returns the geoms' world frames, Context.geom_poses).
 
     Returns None when no geom needs them (every body has a v2 shape and every world geom is the
     ground or a static box), else a dict: ``bodies`` (N,) bool, the bodies judged on their geoms;
@@ -272,7 +273,7 @@ def geom_crossings(model, position, rotation, pass_frac: float, cross: float):
     if not mine.any():
         return None
     t_n = len(position)
-    gpos, grot = shapes.geom_poses(model, position, rotation)
+    gpos, grot = poses() if poses is not None else shapes.geom_poses(model, position, rotation)
     is_plane = geoms.type == shapes.GEOM_TYPES["plane"]
     stats: dict[str, float] = {}
     e = np.zeros(0, np.int64)
