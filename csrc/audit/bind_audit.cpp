@@ -479,6 +479,29 @@ void bind_audit(nb::module_& m) {
         nb::gil_scoped_release r;
         return geom_broadphase(pos, rot, ty, sz, ms, mc, vt, bd, pad, ok, oi, oj);
     });
+    m.def("geom_sweep_broadphase", [](handle position, handle rotation, handle type,
+                                      handle size, handle mesh_start, handle mesh_count,
+                                      handle verts, handle body, handle mine, handle grow,
+                                      handle out_k, handle out_i, handle out_j) {
+        auto pos = in3<double>(position, "position");
+        auto rot = in4<double>(rotation, "rotation");
+        auto ty = in1<i64>(type, "type");
+        auto sz = in2<double>(size, "size");
+        auto ms = in1<i64>(mesh_start, "mesh_start");
+        auto mc = in1<i64>(mesh_count, "mesh_count");
+        auto vt = in2<double>(verts, "verts");
+        auto bd = in1<i64>(body, "body");
+        auto mn = in1<bool>(mine, "mine");
+        auto gr = in2<double>(grow, "grow");
+        auto ok = v1<i64>(out_k, "out_k");
+        auto oi = v1<i64>(out_i, "out_i");
+        auto oj = v1<i64>(out_j, "out_j");
+        if (mn.n0 != pos.n1 || bd.n0 != pos.n1 || gr.n1 != pos.n1 || gr.n0 + 1 < pos.n0)
+            throw nb::value_error("geom_sweep_broadphase: mine, body and grow need one entry "
+                                  "per geom, grow one row per interval");
+        nb::gil_scoped_release r;
+        return geom_sweep_broadphase(pos, rot, ty, sz, ms, mc, vt, bd, mn, gr, ok, oi, oj);
+    });
 }
 
 }  // namespace rb

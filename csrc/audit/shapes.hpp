@@ -73,5 +73,15 @@ i64 geom_broadphase(V3<double> position, V4<double> rotation, V1<i64> type, V2<d
                     V1<i64> mesh_start, V1<i64> mesh_count, V2<double> verts, V1<i64> body,
                     double pad, V1<i64> out_k, V1<i64> out_i, V1<i64> out_j);
 
+// Swept broadphase over sample intervals (broadphase.cpp, for the tunneling analyzer): candidate
+// pairs (k, i < j) whose AABBs united over samples k and k+1 and grown by grow (K, G) (m: how far
+// a geom's points stray outside that union on the interpolated path, its rotation's bulge)
+// overlap; planes left out, and pairs of one body, of two static geoms or where neither geom is
+// ``mine``. Writes up to out_k.n0 rows and returns how many there are.
+i64 geom_sweep_broadphase(V3<double> position, V4<double> rotation, V1<i64> type, V2<double> size,
+                          V1<i64> mesh_start, V1<i64> mesh_count, V2<double> verts, V1<i64> body,
+                          V1<bool> mine, V2<double> grow, V1<i64> out_k, V1<i64> out_i,
+                          V1<i64> out_j);
+
 }  // namespace audit
 }  // namespace rb

@@ -752,6 +752,15 @@ class Context:
         m (|v| + |a| dt) (or |L|)."""
         return self._kin()["jump"]
 
+    def geom_poses(self):
+        """World frames of every geom at every sample, (T, G, 3) and (T, G, 3, 3)
+        (rblog.analyze.shapes.geom_poses), computed once per context."""
+        from rblog.analyze import shapes
+
+        tr = self.traj
+        return self.cached("geom_poses", lambda: shapes.geom_poses(self.model, tr.position,
+                                                                     tr.rotation))
+
     def proximity(self, pad: float) -> geometry.Proximity:
         tr = self.traj
         return self.cached(("prox", pad), lambda: geometry.proximity(

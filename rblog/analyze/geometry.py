@@ -53,17 +53,11 @@ assert (_audit.SHAPE_SPHERE, _audit.SHAPE_BOX) == (SHAPE_SPHERE, SHAPE_BOX)
 quat_to_matrix = quat_wxyz_to_matrix
 
 
-def bounding_radius(model: Model) -> np.ndarray:
-    """(N,) radius of the sphere about the centre that holds the body (m): from its sphere or
-    box, or, for a body without one, from its geoms (contract v3: each geom's own bounding
-    radius about its centre plus its offset; planes left out)."""
-    size = np.asarray(model.body_size, float)
-    rho = np.where(model.body_shape == SHAPE_SPHERE, size[:, 0], np.linalg.norm(size, axis=1))
-    gb = np.asarray(model.geom_body, np.int64)
-    if not len(gb):
-        return rho
-    from rblog.contract.model import (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_PLANE,
-                                      GEOM_SPHERE)
+def geom_bounding_radius(model: Model) -> np.ndarray:
+    """(G,) radius of the sphere about each geom's centre that holds the geom (m): sphere r,
+    capsule r + h, cylinder sqrt(r^2 + h^2), box and ellipsoid |size| (a bound), mesh its farthest
+    vertex; a plane's |size| (meaningless: planes are half-spaces)."""
+    from rblog.contract.model import GEOM_CAPSULE, GEOM_CYLINDER, GEOM_MESH, GEOM_SPHERE
 
     gt = np.asarray(model.geom_type, np.int64)
     gs = np.asarray(model.geom_size, float).reshape(-1, 3)
@@ -75,7 +69,23 @@ def bounding_radius(model: Model) -> np.ndarray:
     for g in np.flatnonzero(gt == GEOM_MESH):
         a, k = int(model.geom_vert_adr[g]), int(model.geom_vert_num[g])
         r[g] = np.linalg.norm(verts[a:a + k], axis=1).max() if k else 0.0
-    r = r + np.linalg.norm(np.asarray(model.geom_pos_body, float).reshape(-1, 3), axis=1)
+    return r
+
+
+def bounding_radius(model: Model) -> np.ndarray:
+    """(N,) radius of the sphere about the centre that holds the body (m): from its sphere or
+    box, or, for a body without one, from its geoms (contract v3: each geom's own bounding
+    radius about its centre plus its offset; planes left out)."""
+    size = np.asarray(model.body_size, float)
+    rho = np.where(model.body_shape == SHAPE_SPHERE, size[:, 0], np.linalg.norm(size, axis=1))
+    gb = np.asarray(model.geom_body, np.int64)
+    if not len(gb):
+        return rho
+    from rblog.contract.model import GEOM_PLANE
+
+    gt = np.asarray(model.geom_type, np.int64)
+    r = geom_bounding_radius(model) + np.linalg.norm(
+        np.asarray(model.geom_pos_body, float).reshape(-1, 3), axis=1)
     keep = (gb >= 0) & (gt != GEOM_PLANE)
     from_geoms = np.zeros(len(rho))
     np.maximum.at(from_geoms, gb[keep], r[keep])

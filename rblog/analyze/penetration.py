@@ -700,7 +700,7 @@ class PenetrationAnalyzer(Analyzer):
             unseen = shapes.partner_codes(model) >= model.n_bodies + len(model.static_box_position)
             if not none[body[body >= 0]].any() and not unseen.any():
                 return None
-            pos, rot = shapes.geom_poses(model, tr.position, tr.rotation)
+            pos, rot = ctx.geom_poses()
             k, i, j = shapes.broadphase(geoms, pos, rot, cd)
             mine = (none[np.maximum(body[i], 0)] & (body[i] >= 0)) | \
                 (none[np.maximum(body[j], 0)] & (body[j] >= 0)) | unseen[i] | unseen[j]

@@ -219,11 +219,40 @@ def geom_poses(model, position: np.ndarray, rotation: np.ndarray):
     return pos, rot
 
 
+def weld_root(model) -> np.ndarray:
+    """(N,) the body each body is welded to (-1: the world): itself for a body that moves on a
+    joint or is free, its parent's weld root for one whose joints are all fixed, -1 for a static
+    body (MuJoCo's body_weldid: a body without joints moves with its parent)."""
+    from rblog.contract.model import BODY_STATIC, JOINT_FIXED
+
+    n = int(model.n_bodies)
+    parent = np.asarray(model.body_parent, np.int64)
+    jb = np.asarray(model.joint_body, np.int64)
+    jt = np.asarray(model.joint_type, np.int64)
+    moving = np.zeros(n, bool)
+    moving[jb[(jt != JOINT_FIXED) & (jb >= 0) & (jb < n)]] = True
+    fixed = np.zeros(n, bool)
+    fixed[jb[(jt == JOINT_FIXED) & (jb >= 0) & (jb < n)]] = True
+    welded = fixed & ~moving
+    static = np.asarray(model.body_kind, np.int64) == BODY_STATIC
+    root = np.where(static, -1, np.arange(n, dtype=np.int64))
+    w = welded & ~static
+    for _ in range(n):  # one level of the tree per pass
+        nxt = root.copy()
+        nxt[w] = np.where(parent[w] >= 0, root[np.maximum(parent[w], 0)], -1)
+        if (nxt == root).all():
+            break
+        root = nxt
+    return root
+
+
 def collide_mask(model, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     """(P,) whether geoms i and j may touch by the model's filter: the collide_rule on their
-    group/mask bits, never two geoms of one body, and never a body and its parent body (the
-    bodies a joint links: MuJoCo's default filterparent, Bullet's default between linked links;
-    a body on the world still touches static geoms)."""
+    group/mask bits, never two geoms of one body or of bodies welded together (a fixed joint, a
+    static body with the world: :func:`weld_root`), and, unless the log's ``collide_parent``
+    says otherwise, never a body and its parent body (the bodies a joint links, through their
+    weld roots: MuJoCo's default filterparent, Bullet's default between linked links; a body on
+    the world still touches static geoms)."""
     g = np.asarray(model.geom_collide_group, np.int64)
     m = np.asarray(model.geom_collide_mask, np.int64)
     a = (g[i] & m[j]) != 0
@@ -231,11 +260,19 @@ def collide_mask(model, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     ok = (a | b) if model.collide_rule == "or" else (a & b)
     body = np.asarray(model.geom_body, np.int64)
     parent = np.asarray(model.body_parent, np.int64)
-    bi, bj = body[i], body[j]
-    pi_ = np.where(bi >= 0, parent[np.maximum(bi, 0)], -2)
-    pj = np.where(bj >= 0, parent[np.maximum(bj, 0)], -2)
-    linked = (bi >= 0) & (bj >= 0) & ((pi_ == bj) | (pj == bi))
-    return ok & (bi != bj) & ~linked
+    n = len(parent)
+    root = np.append(weld_root(model), -1)  # (N + 1,): row N is the world's
+    wi = root[np.where(body[i] >= 0, body[i], n)]
+    wj = root[np.where(body[j] >= 0, body[j], n)]
+    ok &= wi != wj
+    if getattr(model, "collide_parent", False):
+        return ok
+    # the weld root of each body's parent (-1: the world), row N the world's
+    up = np.append(root[np.where(parent >= 0, parent, n)], -1)
+    pi_ = up[np.where(wi >= 0, wi, n)]
+    pj = up[np.where(wj >= 0, wj, n)]
+    linked = (wi >= 0) & (wj >= 0) & ((pi_ == wj) | (pj == wi))
+    return ok & ~linked
 
 
 def bodies_may_touch(model, a: np.ndarray, b: np.ndarray) -> np.ndarray:

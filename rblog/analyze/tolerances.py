@@ -268,6 +268,15 @@ TUNNELING_CROSSING_M = 0.0
 #: centres closer than this fraction of the sum of their inner radii (sphere radius, smallest box
 #: half-extent) while they are apart at both samples.
 TUNNELING_PASS_FRAC = 0.5
+#: Geom pairs (rblog.analyze.tunneling): the pose of each geom is interpolated between two
+#: samples at sub-steps no farther apart than this fraction of the pair's depth threshold in the
+#: displacement of any of their points, so a pass whose deepest point exceeds the threshold by
+#: this half-fraction is never stepped over (signed distance is 1-Lipschitz in displacement).
+TUNNELING_SUBSTEP_FRAC = 0.5
+#: At most this many sub-steps per pair and interval (a pair that moves farther than
+#: TUNNELING_SUBSTEP_FRAC x its threshold x this between two samples is sampled more coarsely; the
+#: stats count them as ``geom_rows_capped``).
+TUNNELING_MAX_SUBSTEPS = 64
 
 # --- consistency (contract checks on read; rblog.analyze.consistency) --------------------------
 #: ||R(q/|q|) - R||_F beyond (this + 2 ||R^T R - I||_F) means quat_wxyz and rotation disagree
