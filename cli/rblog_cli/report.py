@@ -197,8 +197,11 @@ def _worst_text(r: dict) -> str:
     if not what or value is None or r["worst_t"] is None:
         return r["reason"]
     u = _unit(r["unit"])
-    if value <= 0:  # nothing came near: a gain or an excess that never rose above zero
-        return r["reason"] if tol == 0 else f"{what}: none above 0 (tol {tol:.3g}{u})"
+    if value <= 0:  # nothing came near: a residual of exactly 0, or a gain never above zero
+        if tol == 0:
+            return r["reason"]
+        level = f"{what} 0" if value == 0 else f"{what}: none above 0"
+        return f"{level} (tol {tol:.3g}{u})"
     limit = "any above 0 is flagged" if tol == 0 else f"tol {tol:.3g}{u}"
     text = f"{what} {value:.3g}{u} ({limit}) at t = {r['worst_t']:.4g} s"
     bodies = r["worst_bodies"]
