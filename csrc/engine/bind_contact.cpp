@@ -8,6 +8,7 @@
 
 #include <string>
 #include <tuple>
+#include <vector>
 
 #include "common/py.hpp"
 #include "engine/bind.hpp"
@@ -92,7 +93,6 @@ void bind_contact(nb::module_& m) {
     m.attr("N_STATS") = (int)N_STATS;
     m.attr("CONTACT_RESTING") = CONTACT_RESTING;
     m.attr("CONTACT_IMPACT") = CONTACT_IMPACT;
-    m.attr("PROJ_COLS") = PROJ_COLS;
     m.def("ticks", &ticks, "The profile's cycle counter (profile.hpp).");
 
     // ---- the records kept between calls ----------------------------------------------------
@@ -355,43 +355,25 @@ void bind_contact(nb::module_& m) {
                            v2<double>(dx, "dx"), v2<double>(lm, "linear_momentum"),
                            v2<double>(am, "angular_momentum"));
     });
-    m.def("project_positions",
-          [](nb::handle pairs, i64 n_pairs, i64 n_dyn, i64 n_static, nb::handle geom,
-             nb::handle size, nb::handle inv_mass, nb::handle inv_inertia, nb::handle iso,
-             bool iso_shortcut, nb::handle awake, nb::handle position, nb::handle rotation,
-             nb::handle sb_pos, nb::handle sb_rot, nb::handle sb_ext, nb::handle gn, double goff,
-             double depth, i64 n_iter, nb::handle rows_, nb::handle ids_, nb::handle dx,
-             nb::handle dth, i64 rings) {
-              Buf2<double> rows = buf_from<double>(rows_, "rows");
-              Buf2<i64> ids = buf_from<i64>(ids_, "ids");
-              check(rows.cols == PROJ_COLS && ids.cols == 2 && rows.rows == ids.rows,
-                    "rows (R, PROJ_COLS), ids (R, 2)");
-              ColliderBuffers cb = collider_buffers();
-              Buf2<i64> ring(n_dyn + 1, 1);
-              std::vector<char> done;
-              const IdentityGeoms ig(v1<i64>(geom, "geom"), v2<double>(size, "size"));
-              i64 n = project_positions(
-                  v2<i64>(pairs, "pairs"), n_pairs, n_dyn, n_static, ig.g,
-                  v1<double>(inv_mass, "inv_mass"),
-                  v2<double>(inv_inertia, "inv_inertia"), v1<i64>(iso, "iso"), iso_shortcut,
-                  v1<i64>(awake, "awake"), v2<double>(position, "position"),
-                  v3<double>(rotation, "rotation"), v2<double>(sb_pos, "sb_pos"),
-                  v3<double>(sb_rot, "sb_rot"), v2<double>(sb_ext, "sb_ext"),
-                  v1<double>(gn, "gn"), goff, depth, n_iter, rows, ids, cb,
-                  v2<double>(dx, "dx"), v2<double>(dth, "dth"), rings, ring, done);
-              return std::make_tuple(n, copy_out(rows), copy_out(ids));
-          });
+    // the project stage's last part, for the points of bodies ids (K, 2) (solver rows; n: the
+    // static dummy); the state's arrays change in place
     m.def("apply_projection",
-          [](i64 n_deep, nb::handle ids, nb::handle dx, nb::handle dth, i64 n, int method,
-             int ortho, nb::handle bd, bool iso_shortcut, nb::handle position,
-             nb::handle rotation, nb::handle quat_wxyz, nb::handle lm, nb::handle am,
-             nb::handle l_scratch, nb::handle anchor_steps) {
-              apply_projection(n_deep, v2<i64>(ids, "ids"), v2<double>(dx, "dx"),
-                               v2<double>(dth, "dth"), n, method, ortho, Bodies::from_py(bd),
-                               iso_shortcut, v2<double>(position, "position"),
-                               v3<double>(rotation, "rotation"), v2<double>(quat_wxyz, "quat_wxyz"),
-                               v2<double>(lm, "linear_momentum"), v2<double>(am, "angular_momentum"),
-                               v2<double>(l_scratch, "l_scratch"),
+          [](nb::handle ids, nb::handle dx, nb::handle dth, int method, int ortho, nb::handle bd,
+             bool iso_shortcut, nb::handle position, nb::handle rotation, nb::handle quat_wxyz,
+             nb::handle lm, nb::handle am, nb::handle l_scratch, nb::handle anchor_steps) {
+              V2<i64> id = v2<i64>(ids, "ids");
+              check(id.n1 == 2, "ids (K, 2)");
+              std::vector<ProjectPoint> pts((size_t)id.n0);
+              for (i64 k = 0; k < id.n0; ++k) {
+                  pts[(size_t)k].a = id(k, 0);
+                  pts[(size_t)k].b = id(k, 1);
+              }
+              const BodyState x{v2<double>(position, "position"), v2<double>(lm, "linear_momentum"),
+                                v2<double>(quat_wxyz, "quat_wxyz"), v3<double>(rotation, "rotation"),
+                                v2<double>(am, "angular_momentum")};
+              apply_projection(V1<ProjectPoint>{pts.data(), id.n0}, v2<double>(dx, "dx"),
+                               v2<double>(dth, "dth"), method, ortho, Bodies::from_py(bd),
+                               iso_shortcut, x, v2<double>(l_scratch, "l_scratch"),
                                v1<i64>(anchor_steps, "anchor_steps"));
           });
 }

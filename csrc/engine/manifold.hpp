@@ -95,6 +95,18 @@ struct ContactPoint {
     double slip_bias[2];    // the anchor's bias, FRICTION_ANCHOR_RATE (D.t1, D.t2) / h
 };
 
+// per point of the project stage (project.cpp), rebuilt every step from the end-of-step poses
+struct ProjectPoint {
+    i64 a;                // solver index of body a (or the static dummy)
+    i64 b;                // solver index of body b (or the static dummy)
+    double normal[3];     // from b into a, world
+    double ra[3];         // anchor on a: point - x_a
+    double rb[3];         // anchor on b: point - x_b (0 for static)
+    double s;             // separation at the end of the step (m), before the pass
+    double normal_mass;   // 1 / (J M^-1 J^T) along the normal (kg)
+    double lambda;        // accumulated position impulse (kg m), >= 0
+};
+
 // A record's 3-vector field v = (x, y, z).
 inline void set3(double* v, double x, double y, double z) {
     v[0] = x;

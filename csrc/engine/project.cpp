@@ -84,34 +84,24 @@ inline Vec3 inv_inertia_times(bool iso_shortcut, V1<i64> iso, V2<double> inv_ine
                        inv_inertia(i, 2), x, y, z);
 }
 
-// Rows of rows/ids for one more point (grown to 2 R + 16).
-inline void ensure_row(Buf2<double>& rows, Buf2<i64>& ids, i64 n_pts) {
-    if (n_pts == rows.rows) {
-        i64 cap = 2 * rows.rows + 16;
-        rows.grow(cap);
-        ids.grow(cap);
-    }
-}
-
-// Append the collider's points (both manifolds of res) as projection rows.
-i64 add_points(i64 res, i64 a, i64 b, i64 ia, i64 ib, i64 n_dyn, V1<double> inv_mass,
-               V2<double> inv_inertia, V1<i64> iso, bool iso_shortcut, V2<double> position,
-               V3<double> rotation, const ColliderBuffers& buf, Buf2<double>& rows,
-               Buf2<i64>& ids, i64 n_pts) {
-    bool b_dyn = b < n_dyn;
+// Append the collider's points (both manifolds of res) to pts: solver rows ia / ib (the static
+// dummy n_body for a static or sleeping side), anchors from the end-of-step positions of bodies
+// a and b, the effective mass along the normal.
+void add_points(i64 res, i64 a, i64 b, i64 ia, i64 ib, i64 n_body, const Bodies& bd,
+                bool iso_shortcut, const BodyState& x, const ColliderBuffers& buf,
+                std::vector<ProjectPoint>& pts) {
+    V2<double> position = x.position;
+    bool b_dyn = b < n_body;
     for (i64 part = 0; part < 2; ++part) {
         ManifoldPart mp = manifold_part(res, part);
         double nx = buf.nrm[3 * part], ny = buf.nrm[3 * part + 1], nz = buf.nrm[3 * part + 2];
         for (i64 q = 0; q < mp.count; ++q) {
-            ensure_row(rows, ids, n_pts);
-            i64 p = n_pts;
-            n_pts += 1;
-            ids(p, 0) = ia;
-            ids(p, 1) = ib;
+            ProjectPoint& pt = pts.emplace_back();
+            pt.a = ia;
+            pt.b = ib;
             double px = buf.pts[mp.row + q][0], py = buf.pts[mp.row + q][1],
                    pz = buf.pts[mp.row + q][2];
-            double* rw = &rows(p, 0);
-            rw[PJ_N] = nx; rw[PJ_N + 1] = ny; rw[PJ_N + 2] = nz;
+            set3(pt.normal, nx, ny, nz);
             double rax = px - position(a, 0), ray = py - position(a, 1), raz = pz - position(a, 2);
             double rbx, rby, rbz;
             if (b_dyn) {
@@ -119,29 +109,30 @@ i64 add_points(i64 res, i64 a, i64 b, i64 ia, i64 ib, i64 n_dyn, V1<double> inv_
             } else {
                 rbx = 0.0; rby = 0.0; rbz = 0.0;
             }
-            rw[PJ_RA] = rax; rw[PJ_RA + 1] = ray; rw[PJ_RA + 2] = raz;
-            rw[PJ_RB] = rbx; rw[PJ_RB + 1] = rby; rw[PJ_RB + 2] = rbz;
-            rw[PJ_S] = buf.sep[mp.row + q];
-            rw[PJ_L] = 0.0;
+            set3(pt.ra, rax, ray, raz);
+            set3(pt.rb, rbx, rby, rbz);
+            pt.s = buf.sep[mp.row + q];
+            pt.lambda = 0.0;
             double kk = 0.0;
-            if (ia < n_dyn) {
+            if (ia < n_body) {
                 double cx = ray * nz - raz * ny;
                 double cy = raz * nx - rax * nz;
                 double cz = rax * ny - ray * nx;
-                Vec3 v = inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, ia, cx, cy, cz);
-                kk += inv_mass[ia] + cx * v[0] + cy * v[1] + cz * v[2];
+                Vec3 v = inv_inertia_times(iso_shortcut, bd.iso, bd.inv_inertia, x.rotation, ia,
+                                           cx, cy, cz);
+                kk += bd.inv_mass[ia] + cx * v[0] + cy * v[1] + cz * v[2];
             }
-            if (ib < n_dyn) {
+            if (ib < n_body) {
                 double cx = rby * nz - rbz * ny;
                 double cy = rbz * nx - rbx * nz;
                 double cz = rbx * ny - rby * nx;
-                Vec3 v = inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, ib, cx, cy, cz);
-                kk += inv_mass[ib] + cx * v[0] + cy * v[1] + cz * v[2];
+                Vec3 v = inv_inertia_times(iso_shortcut, bd.iso, bd.inv_inertia, x.rotation, ib,
+                                           cx, cy, cz);
+                kk += bd.inv_mass[ib] + cx * v[0] + cy * v[1] + cz * v[2];
             }
-            rw[PJ_K] = kk > 0.0 ? 1.0 / kk : 0.0;
+            pt.normal_mass = kk > 0.0 ? 1.0 / kk : 0.0;
         }
     }
-    return n_pts;
 }
 
 }  // namespace
@@ -151,27 +142,33 @@ i64 add_points(i64 res, i64 a, i64 b, i64 ia, i64 ib, i64 n_dyn, V1<double> inv_
 //
 // Gathering: a first pass over the candidate pairs with speculative distance -depth marks the
 // bodies of deep points (ring 1; nothing else is collided in full). Then, for PROJECTION_RINGS
-// (rings) rings, every pair with a body of the current ring is collided with speculative
+// (cfg.projection_rings) rings, every pair with a body of the current ring is collided with speculative
 // distance equal to the deepest penetration found (no correction can move a point farther than
 // that) and all its points are gathered; its partner joins the next ring. So a body pushed out
 // of one overlap is held by its other contacts instead of being pushed into them.
 //
-// rows (R, PROJ_COLS) / ids (R, 2) are scratch point rows (grown when full); dx/dth (N+1, 3)
-// receive each body's correction (zeroed here for the bodies of the gathered points; read them
-// only for those). ring (N+1,) and done (pairs) are work arrays. Returns the number of gathered
-// points, 0 when nothing is deeper than depth.
-i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const Geoms& gm,
-                      V1<double> inv_mass, V2<double> inv_inertia, V1<i64> iso,
-                      bool iso_shortcut, V1<i64> awake, V2<double> position, V3<double> rotation,
-                      V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext, V1<double> gn,
-                      double goff, double depth, i64 n_iter, Buf2<double>& rows, Buf2<i64>& ids,
-                      ColliderBuffers& buf, V2<double> dx, V2<double> dth, i64 rings,
-                      Buf2<i64>& ring_buf, std::vector<char>& done) {
+// The points go to sc.proj_points; sc.proj_dx / sc.proj_dth (N+1, 3) receive each body's
+// correction (zeroed here for the bodies of the gathered points; read them only for those).
+// sc.ring (N+1,) and sc.done (pairs) are work arrays. Returns the number of gathered points, 0
+// when nothing is deeper than the depth.
+i64 project_positions(const Settings& cfg, const Bodies& bd, const Statics& st, V1<i64> awake,
+                      const BodyState& x, V2<i64> pairs, i64 n_pairs, Scratch& sc) {
+    const Geoms gm = bd.geoms();
+    const i64 n_dyn = gm.code.n0, n_static = st.n_static;
+    const bool iso_shortcut = cfg.iso_shortcut;
+    const double depth = cfg.projection_depth;
+    V2<double> position = x.position;
+    V3<double> rotation = x.rotation;
+    V2<double> dx = sc.proj_dx.view(), dth = sc.proj_dth.view();
+    V1<double> inv_mass = bd.inv_mass;
+    ColliderBuffers& buf = sc.cb;
+    std::vector<ProjectPoint>& pts = sc.proj_points;
+    std::vector<char>& done = sc.done;
     // shape ids: n_dyn geoms, then the statics; rings, points and corrections are per body
     const i64 n_body = position.n0;
     double deepest = 0.0;
-    ring_buf.grow(n_body + 1);
-    i64* ring = ring_buf.data.data();  // ring of each body (0: not gathered)
+    sc.ring.grow(n_body + 1);
+    i64* ring = sc.ring.data.data();  // ring of each body (0: not gathered)
     for (i64 i = 0; i < n_body + 1; ++i) ring[i] = 0;
     done.assign(static_cast<size_t>(std::max<i64>(n_pairs, 1)), 0);  // pair already gathered
     // the first pass, pairs independent: blocks of pairs on the task pool, each pair's outcome
@@ -198,9 +195,9 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const
             double pc[2][3], pr[2][9];
             GeomPose pa = geom_pose(gm, a, position, rotation, pc[0], pr[0]);
             PairGeometry pg = pair_geometry(a, b, n_dyn, n_static, gm, pa, position,
-                                            rotation, sb_pos, sb_rot, sb_ext, pc[1], pr[1]);
+                                            rotation, st.pos, st.rot, st.ext, pc[1], pr[1]);
             i64 res = collide(ga, pg.geom, pa.centre, M3(pa.rotation), gm.size.row(a),
-                              pg.centre, M3(pg.rotation), pg.size, gn.p, goff, -depth, cb);
+                              pg.centre, M3(pg.rotation), pg.size, st.gn.p, st.goff, -depth, cb);
             if (res <= 0) continue;
             double d = 0.0;
             for (i64 part = 0; part < 2; ++part) {
@@ -225,8 +222,8 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const
         if (b_dyn && awake[b] != 0) ring[b] = 1;
     }
     if (deepest <= 0.0) return 0;
-    i64 n_pts = 0;
-    for (i64 r = 1; r < rings + 1; ++r) {
+    pts.clear();
+    for (i64 r = 1; r < cfg.projection_rings + 1; ++r) {
         for (i64 k = 0; k < n_pairs; ++k) {
             if (done[k]) continue;
             const i64 sa = pairs(k, 0), sb = pairs(k, 1);  // shape ids
@@ -240,44 +237,42 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const
             double pc[2][3], pr[2][9];
             GeomPose pa = geom_pose(gm, sa, position, rotation, pc[0], pr[0]);
             PairGeometry pg = pair_geometry(sa, sb, n_dyn, n_static, gm, pa, position,
-                                            rotation, sb_pos, sb_rot, sb_ext, pc[1], pr[1]);
+                                            rotation, st.pos, st.rot, st.ext, pc[1], pr[1]);
             i64 res = collide(ga, pg.geom, pa.centre, M3(pa.rotation), gm.size.row(sa),
-                              pg.centre, M3(pg.rotation), pg.size, gn.p, goff, deepest, buf);
+                              pg.centre, M3(pg.rotation), pg.size, st.gn.p, st.goff, deepest, buf);
             if (res <= 0) continue;
             i64 ia = a_awake ? a : n_body;
             i64 ib = b_awake ? b : n_body;
-            n_pts = add_points(res, a, b, ia, ib, n_body, inv_mass, inv_inertia, iso,
-                               iso_shortcut, position, rotation, buf, rows, ids, n_pts);
+            add_points(res, a, b, ia, ib, n_body, bd, iso_shortcut, x, buf, pts);
             if (a_awake && ring[a] == 0) ring[a] = r + 1;
             if (b_awake && ring[b] == 0) ring[b] = r + 1;
         }
     }
+    const i64 n_pts = (i64)pts.size();
     if (n_pts == 0) return 0;
-    for (i64 p = 0; p < n_pts; ++p) {
-        for (int c = 0; c < 2; ++c) {
-            i64 i = ids(p, c);
+    for (const ProjectPoint& pt : pts) {
+        for (i64 i : {pt.a, pt.b}) {
             for (int k = 0; k < 3; ++k) {
                 dx(i, k) = 0.0;
                 dth(i, k) = 0.0;
             }
         }
     }
-    for (i64 it = 0; it < n_iter; ++it) {
-        for (i64 p = 0; p < n_pts; ++p) {
-            i64 ia = ids(p, 0), ib = ids(p, 1);
-            double* rw = &rows(p, 0);
-            double nx = rw[PJ_N], ny = rw[PJ_N + 1], nz = rw[PJ_N + 2];
-            double rax = rw[PJ_RA], ray = rw[PJ_RA + 1], raz = rw[PJ_RA + 2];
-            double rbx = rw[PJ_RB], rby = rw[PJ_RB + 1], rbz = rw[PJ_RB + 2];
+    for (i64 it = 0; it < cfg.projection_iterations; ++it) {
+        for (ProjectPoint& pt : pts) {
+            const i64 ia = pt.a, ib = pt.b;
+            const double nx = pt.normal[0], ny = pt.normal[1], nz = pt.normal[2];
+            const double rax = pt.ra[0], ray = pt.ra[1], raz = pt.ra[2];
+            const double rbx = pt.rb[0], rby = pt.rb[1], rbz = pt.rb[2];
             // separation now, to first order in this pass's corrections
             double ux = dx(ia, 0) + dth(ia, 1) * raz - dth(ia, 2) * ray - dx(ib, 0) - dth(ib, 1) * rbz + dth(ib, 2) * rby;
             double uy = dx(ia, 1) + dth(ia, 2) * rax - dth(ia, 0) * raz - dx(ib, 1) - dth(ib, 2) * rbx + dth(ib, 0) * rbz;
             double uz = dx(ia, 2) + dth(ia, 0) * ray - dth(ia, 1) * rax - dx(ib, 2) - dth(ib, 0) * rby + dth(ib, 1) * rbx;
-            double s = rw[PJ_S] + ux * nx + uy * ny + uz * nz;
-            double old = rw[PJ_L];
-            double nw = old - (s + depth) * rw[PJ_K];
+            double s = pt.s + ux * nx + uy * ny + uz * nz;
+            double old = pt.lambda;
+            double nw = old - (s + depth) * pt.normal_mass;
             if (nw < 0.0) nw = 0.0;
-            rw[PJ_L] = nw;
+            pt.lambda = nw;
             double d = nw - old;
             if (d == 0.0) continue;
             double px = d * nx, py = d * ny, pz = d * nz;
@@ -286,7 +281,7 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const
                 dx(ia, 0) += ma * px;
                 dx(ia, 1) += ma * py;
                 dx(ia, 2) += ma * pz;
-                Vec3 e = inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, ia,
+                Vec3 e = inv_inertia_times(iso_shortcut, bd.iso, bd.inv_inertia, rotation, ia,
                                            ray * pz - raz * py, raz * px - rax * pz,
                                            rax * py - ray * px);
                 dth(ia, 0) += e[0];
@@ -298,7 +293,7 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const
                 dx(ib, 0) -= mb * px;
                 dx(ib, 1) -= mb * py;
                 dx(ib, 2) -= mb * pz;
-                Vec3 e = inv_inertia_times(iso_shortcut, iso, inv_inertia, rotation, ib,
+                Vec3 e = inv_inertia_times(iso_shortcut, bd.iso, bd.inv_inertia, rotation, ib,
                                            rby * pz - rbz * py, rbz * px - rbx * pz,
                                            rbx * py - rby * px);
                 dth(ib, 0) -= e[0];
@@ -314,14 +309,15 @@ i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const
 // by the rotation vector dth (through the run's integrator: a drift of unit duration with
 // L = I_world dth), and L -= dx x P so that sum(x x P + L) stays exact. A moved body's exact-flow
 // anchor is dropped (anchor_steps -1, see rblog.engine.state.FlowAnchors).
-void apply_projection(i64 n_deep, V2<i64> ids, V2<double> dx, V2<double> dth, i64 n, int method,
-                      int ortho, const Bodies& bd, bool iso_shortcut, V2<double> position,
-                      V3<double> rotation, V2<double> quat_wxyz, V2<double> linear_momentum,
-                      V2<double> angular_momentum, V2<double> l_scratch,
-                      V1<i64> anchor_steps) {
-    for (i64 p = 0; p < n_deep; ++p) {
-        for (int c = 0; c < 2; ++c) {
-            i64 i = ids(p, c);
+void apply_projection(V1<ProjectPoint> points, V2<double> dx, V2<double> dth, int method,
+                      int ortho, const Bodies& bd, bool iso_shortcut, const BodyState& x,
+                      V2<double> l_scratch, V1<i64> anchor_steps) {
+    const i64 n = x.position.n0;
+    V2<double> position = x.position, quat_wxyz = x.quat_wxyz;
+    V2<double> linear_momentum = x.linear_momentum, angular_momentum = x.angular_momentum;
+    V3<double> rotation = x.rotation;
+    for (i64 p = 0; p < points.n0; ++p) {
+        for (i64 i : {points[p].a, points[p].b}) {
             if (i >= n) continue;
             double ux = dx(i, 0), uy = dx(i, 1), uz = dx(i, 2);
             double tx = dth(i, 0), ty = dth(i, 1), tz = dth(i, 2);

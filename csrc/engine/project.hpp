@@ -1,7 +1,7 @@
 // The project stage (project.cpp, whose header has the derivation; bound as
-// _core.project_positions and _core.apply_projection): a nonlinear position pass on fresh contact
-// geometry after the drift. project_positions' grown buffers are Buf2& grown in place, its
-// per-call work arrays (ring, done) and PROJECTION_RINGS (rings) come last.
+// _core.apply_projection): a nonlinear position pass on fresh contact geometry after the drift,
+// stage(settings, bodies, state, scratch) over the world step's records (records.hpp) and the
+// pass's own points (manifold.hpp ProjectPoint).
 #pragma once
 
 #include <cstddef>
@@ -14,26 +14,17 @@
 
 namespace rb {
 
-// columns of the projection's point rows
-constexpr i64 PJ_N = 0;   // normal from b into a (3)
-constexpr i64 PJ_RA = 3;  // anchor on a (3): point - x_a
-constexpr i64 PJ_RB = 6;  // anchor on b (3): point - x_b (0 for static)
-constexpr i64 PJ_S = 9;   // separation at the end of the step (m), before this pass
-constexpr i64 PJ_K = 10;  // 1 / effective inverse mass along the normal
-constexpr i64 PJ_L = 11;  // accumulated position impulse (kg m)
-constexpr i64 PROJ_COLS = 12;
+// Gather the points around those deeper than cfg.projection_depth at the end-of-step poses x and
+// push them out (project.cpp). pairs (K, 2): the broadphase's shape pairs, the first n_pairs
+// used. Fills sc.proj_points and sc.proj_dx / sc.proj_dth (N+1, 3: each gathered body's
+// correction); work arrays sc.ring, sc.done, sc.cb. Returns the number of points, 0 when nothing
+// is deeper than the depth.
+i64 project_positions(const Settings& cfg, const Bodies& bd, const Statics& st, V1<i64> awake,
+                      const BodyState& x, V2<i64> pairs, i64 n_pairs, Scratch& sc);
 
-i64 project_positions(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, const Geoms& gm,
-                      V1<double> inv_mass, V2<double> inv_inertia, V1<i64> iso,
-                      bool iso_shortcut, V1<i64> awake, V2<double> position, V3<double> rotation,
-                      V2<double> sb_pos, V3<double> sb_rot, V2<double> sb_ext, V1<double> gn,
-                      double goff, double depth, i64 n_iter, Buf2<double>& rows, Buf2<i64>& ids,
-                      ColliderBuffers& buf, V2<double> dx, V2<double> dth, i64 rings,
-                      Buf2<i64>& ring, std::vector<char>& done);
-
-void apply_projection(i64 n_deep, V2<i64> ids, V2<double> dx, V2<double> dth, i64 n, int method,
-                      int ortho, const Bodies& bd, bool iso_shortcut, V2<double> position,
-                      V3<double> rotation, V2<double> quat_wxyz, V2<double> linear_momentum,
-                      V2<double> angular_momentum, V2<double> l_scratch, V1<i64> anchor_steps);
+// Move the bodies of points by their corrections dx / dth (N+1, 3); x's rows change in place.
+void apply_projection(V1<ProjectPoint> points, V2<double> dx, V2<double> dth, int method,
+                      int ortho, const Bodies& bd, bool iso_shortcut, const BodyState& x,
+                      V2<double> l_scratch, V1<i64> anchor_steps);
 
 }  // namespace rb

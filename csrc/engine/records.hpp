@@ -268,8 +268,7 @@ struct Scratch {
     // the project stage's own work arrays
     Buf2<i64> ring;                                   // (N+1,)
     std::vector<char> done;                           // (pairs,)
-    Buf2<double> proj_rows;                           // (R, PROJ_COLS), grown
-    Buf2<i64> proj_ids;                               // (R, 2), grown
+    std::vector<ProjectPoint> proj_points;            // the pass's points, grown
 
     // Work arrays for n bodies with n_geoms geoms and the statics' boxes, all zero (allocation
     // only when the sizes change).

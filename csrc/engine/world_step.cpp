@@ -215,10 +215,6 @@ void Scratch::make(i64 n_bodies, i64 n_geoms, const Statics& st) {
     if (flow_c.rows != n || flow_c.cols != N_FLOW) flow_c = Buf2<double>(n, N_FLOW);
     flow_ok.resize(n);
     zeroed(ring, n1, 1);
-    if (proj_rows.cols != PROJ_COLS) {
-        proj_rows = Buf2<double>(64, PROJ_COLS);
-        proj_ids = Buf2<i64>(64, 2);
-    }
 }
 
 ContactCache::ContactCache(i64 cap_manifolds, i64 cap_points)
@@ -647,17 +643,11 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
 i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Settings& cfg,
             V1<i64> awake, const BodyState& x, Scratch& sc, V2<i64> pairs, i64 n_pairs,
             const FlowAnchors& an) {
-    i64 n = x.position.n0;
-    i64 n_deep = project_positions(
-        pairs, n_pairs, bd.geom.n0, st.n_static, bd.geoms(), bd.inv_mass, bd.inv_inertia, bd.iso,
-        cfg.iso_shortcut, awake, x.position, x.rotation, st.pos, st.rot, st.ext, st.gn, st.goff,
-        cfg.projection_depth, cfg.projection_iterations, sc.proj_rows, sc.proj_ids, sc.cb, sc.proj_dx.view(),
-        sc.proj_dth.view(), cfg.projection_rings, sc.ring, sc.done);
+    i64 n_deep = project_positions(cfg, bd, st, awake, x, pairs, n_pairs, sc);
     if (n_deep > 0)
-        apply_projection(n_deep, sc.proj_ids.view(), sc.proj_dx.view(), sc.proj_dth.view(), n,
-                         method, ortho, bd, cfg.iso_shortcut, x.position, x.rotation, x.quat_wxyz,
-                         x.linear_momentum, x.angular_momentum, sc.l_drift.view(),
-                         an.anchor_steps);
+        apply_projection(V1<ProjectPoint>{sc.proj_points.data(), n_deep}, sc.proj_dx.view(),
+                         sc.proj_dth.view(), method, ortho, bd, cfg.iso_shortcut, x,
+                         sc.l_drift.view(), an.anchor_steps);
     return n_deep;
 }
 

@@ -48,7 +48,7 @@ def test_a_projected_body_flows_from_its_new_attitude():
     # the project stage turns the body by 0.02 rad about x and lifts it 1 mm
     dx = np.array([[0.0, 0.0, 1e-3]])
     dth = np.array([[0.02, 0.0, 0.0]])
-    _core.apply_projection(1, np.array([[0, 1]]), dx, dth, 1, METHOD_EXACT, ORTHO_NORMALIZE, bd,
+    _core.apply_projection(np.array([[0, 1]]), dx, dth, METHOD_EXACT, ORTHO_NORMALIZE, bd,
                            False, state[0], state[3], state[2], state[1], state[4],
                            np.zeros((1, 3)), an.anchor_steps)
     assert an.anchor_steps[0] == -1
