@@ -38,7 +38,7 @@ nb::object pairs_to(nb::handle h, const Buf2<i64>& b, i64 count) {
 }
 
 // The contact records' fields, in order (manifold.hpp): {"head": ..., "manifold": ...,
-// "point": ...}, each a list of (name, offset, width) in values of 8 bytes, for numpy structured
+// "point": ..., "log_ids": ..., "log_values": ...}, each a list of (name, offset, width) in values of 8 bytes, for numpy structured
 // dtypes (rblog/engine/contact/manifold.py).
 nb::dict contact_fields() {
 #define RB_F(R, f) nb::make_tuple(#f, (i64)(offsetof(R, f) / 8), (i64)(sizeof(R::f) / 8))
@@ -60,6 +60,12 @@ nb::dict contact_fields() {
         RB_F(ContactPoint, friction), RB_F(ContactPoint, s_end), RB_F(ContactPoint, impact),
         RB_F(ContactPoint, wt), RB_F(ContactPoint, kn), RB_F(ContactPoint, slip),
         RB_F(ContactPoint, slip_bias));
+    d["log_ids"] = nb::make_tuple(RB_F(ContactLogIds, step), RB_F(ContactLogIds, a),
+                                  RB_F(ContactLogIds, b), RB_F(ContactLogIds, kind));
+    d["log_values"] = nb::make_tuple(
+        RB_F(ContactLogValues, point), RB_F(ContactLogValues, normal),
+        RB_F(ContactLogValues, separation), RB_F(ContactLogValues, normal_impulse),
+        RB_F(ContactLogValues, friction));
 #undef RB_F
     return d;
 }
@@ -68,8 +74,7 @@ nb::dict collision_layout() {
     nb::dict d;
 #define RB_PUT(name) d[#name] = name
     RB_PUT(MI_COLS); RB_PUT(MF_COLS); RB_PUT(PF_COLS);
-    RB_PUT(LOG_STEP); RB_PUT(LOG_A); RB_PUT(LOG_B); RB_PUT(LOG_KIND); RB_PUT(LOG_I_COLS);
-    RB_PUT(LOG_P); RB_PUT(LOG_N); RB_PUT(LOG_S); RB_PUT(LOG_LN); RB_PUT(LOG_F); RB_PUT(LOG_F_COLS);
+    RB_PUT(LOG_I_COLS); RB_PUT(LOG_F_COLS);
     RB_PUT(MAX_CLIP_POINTS); RB_PUT(MAX_MANIFOLD_POINTS);
     RB_PUT(GEOM_SPHERE); RB_PUT(GEOM_BOX); RB_PUT(GEOM_CAPSULE); RB_PUT(GEOM_CYLINDER);
     RB_PUT(GEOM_HULL); RB_PUT(GEOM_PLANE);

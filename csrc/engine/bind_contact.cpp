@@ -190,12 +190,6 @@ void bind_contact(nb::module_& m) {
                                        pairs);
         return std::make_pair(copy_out(pairs), n_pairs);
     });
-    m.def("stage_wake", [](nb::handle bd, nb::handle st, nb::handle cfg, nb::handle sl,
-                           nb::handle x, double h, Scratch& sc, nb::handle pairs, i64 n_pairs) {
-        return step::wake(Bodies::from_py(bd), Statics::from_py(st), Settings::from_py(cfg),
-                          SleepState::from_py(sl), BodyState::from_py(x), h, sc,
-                          v2<i64>(pairs, "pairs"), n_pairs);
-    });
     m.def("stage_collide", [](nb::handle bd, nb::handle st, nb::handle cfg, nb::handle awake,
                               nb::handle x, Scratch& sc, nb::handle pairs, i64 n_pairs,
                               ContactCache& c) {
@@ -210,9 +204,6 @@ void bind_contact(nb::module_& m) {
         step::prepare(Bodies::from_py(bd), Settings::from_py(cfg), BodyState::from_py(x), sc,
                       mi_arg(mi), mf_arg(mf), pf_arg(pf), n_man, h);
     });
-    m.def("stage_mark_pushed", [](nb::handle mi, nb::handle pf, i64 n_man, i64 n, Scratch& sc) {
-        step::mark_pushed(mi_arg(mi), pf_arg(pf), n_man, n, sc);
-    });
     m.def("stage_integrate_positions",
           [](int method, int ortho, nb::handle bd, nb::handle cfg, nb::handle awake, nb::handle x,
              Scratch& sc, double h, nb::handle an) {
@@ -220,57 +211,13 @@ void bind_contact(nb::module_& m) {
                                         v1<i64>(awake, "awake"), BodyState::from_py(x), sc, h,
                                         FlowAnchors::from_py(an));
           });
-    m.def("stage_project", [](int method, int ortho, nb::handle bd, nb::handle st, nb::handle cfg,
-                              nb::handle awake, nb::handle x, Scratch& sc, nb::handle pairs,
-                              i64 n_pairs, nb::handle an) {
-        return step::project(method, ortho, Bodies::from_py(bd), Statics::from_py(st),
-                             Settings::from_py(cfg), v1<i64>(awake, "awake"),
-                             BodyState::from_py(x), sc, v2<i64>(pairs, "pairs"), n_pairs,
-                             FlowAnchors::from_py(an));
-    });
-    m.def("stage_sleep", [](nb::handle bd, nb::handle cfg, nb::handle sl, nb::handle x,
-                            Scratch& sc, nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
-                            double h, i64 n_awake) {
-        return step::sleep_stage(Bodies::from_py(bd), Settings::from_py(cfg),
-                                 SleepState::from_py(sl), BodyState::from_py(x), sc,
-                                 mi_arg(mi), mf_arg(mf), pf_arg(pf),
-                                 n_man, h, n_awake);
-    });
     m.def("stage_first_diverged", [](nb::handle awake, nb::handle x, nb::handle inv_inertia,
                                      double h) {
         return step::first_diverged(v1<i64>(awake, "awake"), BodyState::from_py(x),
                                     v2<double>(inv_inertia, "inv_inertia"), h);
     });
-    m.def("stage_record_contacts", [](i64 s, nb::handle mi, nb::handle mf, nb::handle pf,
-                                      i64 n_man, nb::handle position, nb::handle rotation,
-                                      nb::handle pose0, nb::handle log_i_, nb::handle log_f_,
-                                      i64 n_log) {
-        Buf2<i64> log_i = buf_from<i64>(log_i_, "log_i");
-        Buf2<double> log_f = buf_from<double>(log_f_, "log_f");
-        n_log = step::record_contacts(s, mi_arg(mi), mf_arg(mf),
-                                      pf_arg(pf), n_man,
-                                      v2<double>(position, "position"),
-                                      v3<double>(rotation, "rotation"),
-                                      v2<double>(pose0, "pose0"), log_i, log_f, n_log);
-        return std::make_tuple(copy_out(log_i), copy_out(log_f), n_log);
-    });
 
     // ---- the solver's stages (contact_solver.hpp) and the project stage (project.hpp) ---------
-    m.def("load_bodies", [](nb::handle mi, i64 n_man, i64 n_dyn, bool iso_shortcut, nb::handle iso,
-                            nb::handle inv_mass, nb::handle inv_inertia, nb::handle rotation,
-                            nb::handle lm, nb::handle am, nb::handle in_contact, nb::handle bm,
-                            nb::handle bI, nb::handle bv, nb::handle bw, nb::handle bv0,
-                            nb::handle bw0, nb::handle pv, nb::handle pw, nb::handle p0,
-                            nb::handle l0) {
-        load_bodies(mi_arg(mi), n_man, n_dyn, iso_shortcut, v1<i64>(iso, "iso"),
-                    v1<double>(inv_mass, "inv_mass"), v2<double>(inv_inertia, "inv_inertia"),
-                    v3<double>(rotation, "rotation"), v2<double>(lm, "linear_momentum"),
-                    v2<double>(am, "angular_momentum"), v1<i64>(in_contact, "in_contact"),
-                    v1<double>(bm, "bm"), v2<double>(bI, "bI"), v2<double>(bv, "bv"),
-                    v2<double>(bw, "bw"), v2<double>(bv0, "bv0"), v2<double>(bw0, "bw0"),
-                    v2<double>(pv, "pv"), v2<double>(pw, "pw"), v2<double>(p0, "p0"),
-                    v2<double>(l0, "l0"));
-    });
     // the stages one by one (the tests): the settings each reads given as arguments
     auto cons_of = [](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man) {
         return ContactConstraints{mi_arg(mi), mf_arg(mf), pf_arg(pf), n_man};
@@ -328,19 +275,6 @@ void bind_contact(nb::module_& m) {
         Settings cfg;
         cfg.friction_anchor_slide_frac = friction_anchor_slide_frac;
         store_impulses(StepContext{0.0, 0.0, cfg}, cons_of(mi, mf, pf, n_man));
-    });
-    m.def("relax_positions", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
-                                 nb::handle bm, nb::handle bI, nb::handle pv, nb::handle pw,
-                                 double inv_h, i64 position_iterations,
-                                 double allowed_penetration, double position_correction_rate,
-                                 double max_correction_speed) {
-        Settings cfg;
-        cfg.position_iterations = position_iterations;
-        cfg.allowed_penetration = allowed_penetration;
-        cfg.position_correction_rate = position_correction_rate;
-        cfg.max_correction_speed = max_correction_speed;
-        relax_positions(StepContext{1.0 / inv_h, inv_h, cfg}, cons_of(mi, mf, pf, n_man),
-                        bodies_of(bm, bI, pv, pw));
     });
     m.def("restitution", [=](nb::handle mi, nb::handle mf, nb::handle pf, i64 n_man,
                              nb::handle bm, nb::handle bI, nb::handle bv, nb::handle bw,

@@ -140,11 +140,25 @@ inline V1<ContactPoint> points(V2<double> v, const char* name = "pf") {
     return as_records<ContactPoint>(v, name);
 }
 
-// ---- contact log columns (the kernels append rows at sampled steps) ----
-constexpr i64 LOG_STEP = 0, LOG_A = 1, LOG_B = 2, LOG_KIND = 3;
-constexpr i64 LOG_I_COLS = 4;
-constexpr i64 LOG_P = 0, LOG_N = 3, LOG_S = 6, LOG_LN = 7, LOG_F = 8;
-constexpr i64 LOG_F_COLS = 11;
+// ---- the contact log's records (the kernels append a row per point at sampled steps) ----------
+// log_i (K, LOG_I_COLS) int64, a ContactLogIds per row; log_f (K, LOG_F_COLS) float64, a
+// ContactLogValues per row (world frame, the step's end: rblog.contract's contact rows).
+struct ContactLogIds {
+    i64 step;  // the step that made the contact
+    i64 a;     // body index of a
+    i64 b;     // body index of b, or STATIC_BODY (-1)
+    i64 kind;  // CONTACT_IMPACT or CONTACT_RESTING
+};
+struct ContactLogValues {
+    double point[3];        // contact point (midpoint of the surfaces), m
+    double normal[3];       // from b into a
+    double separation;      // gap at the step's end along the normal (m), < 0 penetration
+    double normal_impulse;  // N s
+    double friction[3];     // friction impulse on a (N s)
+};
+constexpr i64 LOG_I_COLS = (i64)(sizeof(ContactLogIds) / sizeof(i64));
+constexpr i64 LOG_F_COLS = (i64)(sizeof(ContactLogValues) / sizeof(double));
+static_assert(LOG_I_COLS == 4 && LOG_F_COLS == 11, "log records without padding");
 
 // ---- collider point buffers ----
 // rows of the collider's point buffer: a first manifold (rows 0..3 after reduction, up to 8 while

@@ -727,6 +727,8 @@ i64 record_contacts(i64 s, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint
     for (i64 m = 0; m < n_man; ++m) need += mi[m].count;
     log_i.grow(need);
     log_f.grow(need);
+    V1<ContactLogIds> ids = as_records<ContactLogIds>(log_i.view(), "log_i");
+    V1<ContactLogValues> values = as_records<ContactLogValues>(log_f.view(), "log_f");
     // the world displacement of anchor r of body i over the step: x - x0 + (R R0^T - I) r
     auto moved = [&](i64 i, const double* r, double* d) {
         const double* q0 = pose0.row(i);
@@ -749,17 +751,19 @@ i64 record_contacts(i64 s, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint
             double sep = pf[p].s + n[0] * (da[0] - db[0]) + n[1] * (da[1] - db[1]) +
                          n[2] * (da[2] - db[2]);
             if (pf[p].ln <= 0.0 && sep > 0.0) continue;
-            log_i(n_log, LOG_STEP) = s;
-            log_i(n_log, LOG_A) = a;
-            log_i(n_log, LOG_B) = b;
-            log_i(n_log, LOG_KIND) = pf[p].impact > 0.0 ? CONTACT_IMPACT : CONTACT_RESTING;
+            ContactLogIds& li = ids[n_log];
+            ContactLogValues& lf = values[n_log];
+            li.step = s;
+            li.a = a;
+            li.b = b;
+            li.kind = pf[p].impact > 0.0 ? CONTACT_IMPACT : CONTACT_RESTING;
             for (int k = 0; k < 3; ++k) {
-                log_f(n_log, LOG_P + k) = pf[p].point[k];
-                log_f(n_log, LOG_N + k) = n[k];
-                log_f(n_log, LOG_F + k) = pf[p].friction[k];
+                lf.point[k] = pf[p].point[k];
+                lf.normal[k] = n[k];
+                lf.friction[k] = pf[p].friction[k];
             }
-            log_f(n_log, LOG_S) = sep;
-            log_f(n_log, LOG_LN) = pf[p].ln;
+            lf.separation = sep;
+            lf.normal_impulse = pf[p].ln;
             n_log += 1;
         }
     }
@@ -776,7 +780,7 @@ i64 record_contacts(i64 s, V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint
 // stride, sample_last: as free.advance_free (a sample after every stride-th step, and after the
 // last one when sample_last). x: BodyState, updated in place; out: the (S, N, ...) sample
 // buffers. sl: SleepState, updated in place. c: the ContactCache (its log receives the contact
-// rows, manifold.hpp's LOG_* columns). stats: (N_STATS,) counters. prof: (N_PROF,) int64 cycle
+// rows, manifold.hpp's ContactLogIds / ContactLogValues). stats: (N_STATS,) counters. prof: (N_PROF,) int64 cycle
 // counts per stage, added to; empty: not profiled. an: the exact integrators' flow anchors,
 // updated in place.
 //

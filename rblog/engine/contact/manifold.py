@@ -79,11 +79,17 @@ def points(pf: np.ndarray) -> np.ndarray:
     return _records(pf, POINT_DTYPE, PF_COLS)
 
 
-#: contact log columns (the kernels append rows at sampled steps)
-LOG_STEP, LOG_A, LOG_B, LOG_KIND, LOG_I_COLS = _columns(
-    "LOG_STEP", "LOG_A", "LOG_B", "LOG_KIND", "LOG_I_COLS")
-LOG_P, LOG_N, LOG_S, LOG_LN, LOG_F, LOG_F_COLS = _columns(
-    "LOG_P", "LOG_N", "LOG_S", "LOG_LN", "LOG_F", "LOG_F_COLS")
+#: the contact log's rows (the kernels append a row per point at sampled steps): log_i (K,
+#: LOG_I_COLS) int64 and log_f (K, LOG_F_COLS) float64
+LOG_I_COLS, LOG_F_COLS = _columns("LOG_I_COLS", "LOG_F_COLS")
+LOG_IDS_DTYPE = _dtype(_FIELDS["log_ids"], np.int64)
+LOG_VALUES_DTYPE = _dtype(_FIELDS["log_values"], np.float64)
+
+
+def log_rows(log_i: np.ndarray, log_f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The contact log as (K,) records: ids (step, a, b, kind) and values (point, normal,
+    separation, normal_impulse, friction)."""
+    return _records(log_i, LOG_IDS_DTYPE, LOG_I_COLS), _records(log_f, LOG_VALUES_DTYPE, LOG_F_COLS)
 
 
 def empty_manifolds(cap_manifolds: int, cap_points: int):

@@ -241,7 +241,7 @@ def world_advance(bd, st, cfg, method, ortho, dt, n_steps, stride, sample_last, 
 
     Returns (n_samples, bad_step, bad_body, log_i, log_f): bad_step is the first local step
     (1-based) at which some body's state became non-finite (-1 if none); log_i (K, LOG_I_COLS)
-    int64 and log_f (K, LOG_F_COLS) float64 are the call's contact rows (manifold.LOG_*).
+    int64 and log_f (K, LOG_F_COLS) float64 are the call's contact rows (manifold.log_rows).
     """
     return _core.world_advance(bd, st, cfg, int(method), int(ortho), float(dt), int(n_steps),
                                int(stride), bool(sample_last), x, out, sl, c, stats, prof, an,

@@ -37,9 +37,7 @@ from rblog.contract.model import SHAPE_NONE, Model
 from rblog.engine.rotation import quat_to_matrix_np
 from rblog.contract.trajectory import Contacts
 from rblog.engine.contact.broadphase import static_box_aabbs
-from rblog.engine.contact.manifold import (
-    LOG_A, LOG_B, LOG_F, LOG_KIND, LOG_LN, LOG_N, LOG_P, LOG_S, LOG_STEP,
-)
+from rblog.engine.contact.manifold import log_rows
 from rblog.engine.contact.narrowphase import (
     CONTRACT_TO_GEOM, GEOM_BOX, GEOM_HULL, GEOM_NAMES, GEOM_PLANE, NARROWPHASE_TABLE, SHAPE_TO_GEOM,
     UnsupportedShapePair,
@@ -435,14 +433,13 @@ class ContactWorld:
                       out_angular_momentum),
             self._sleep, self._cache, self.stats, self.profile_ticks, anchors,
             None if out_impulses is None else self._impulses._replace(out=out_impulses))
-        n_samples, bad_step, bad_body, li, lf = res
-        n_log = li.shape[0]
+        n_samples, bad_step, bad_body, log_i, log_f = res
+        ids, val = log_rows(log_i, log_f)
         contacts = Contacts(
-            step=li[:, LOG_STEP].copy(), t=np.zeros(n_log), body_a=li[:, LOG_A].copy(),
-            body_b=li[:, LOG_B].copy(), point=lf[:, LOG_P:LOG_P + 3].copy(),
-            normal=lf[:, LOG_N:LOG_N + 3].copy(), separation=lf[:, LOG_S].copy(),
-            normal_impulse=lf[:, LOG_LN].copy(), friction_impulse=lf[:, LOG_F:LOG_F + 3].copy(),
-            kind=li[:, LOG_KIND].astype(np.int8))
+            step=ids["step"].copy(), t=np.zeros(len(ids)), body_a=ids["a"].copy(),
+            body_b=ids["b"].copy(), point=val["point"].copy(), normal=val["normal"].copy(),
+            separation=val["separation"].copy(), normal_impulse=val["normal_impulse"].copy(),
+            friction_impulse=val["friction"].copy(), kind=ids["kind"].astype(np.int8))
         return int(n_samples), int(bad_step), int(bad_body), contacts
 
     def restitution_threshold(self, dt: float) -> float:

@@ -1,10 +1,8 @@
 """The C++ collision core (csrc/engine/{manifold,narrowphase,box_box,broad_phase,collide,island,
 measure}.cpp) against its Python homes: the fields of manifold.hpp's records tile their rows
-(manifold.py builds its dtypes from the core's table), the contact log's columns tile theirs,
-the geometry codes and the narrowphase table's keys agree, and the tolerances C++ holds are
-constants.py's. (Before the numba kernels were removed, every stage was checked bitwise
-equal to them on a mixed scene in flight, at impact, at rest and asleep, and on 3000 random
-collider calls: commit 7ae5b2e.)"""
+(manifold.py builds its dtypes from the core's table), the contact log's records too, the
+geometry codes and the narrowphase table's keys agree, and the tolerances C++ holds are
+constants.py's."""
 
 from __future__ import annotations
 
@@ -14,13 +12,6 @@ import pytest
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.engine import _core, constants
 from rblog.engine.contact import manifold, narrowphase
-
-
-#: each log column group's width, as manifold.hpp documents it (vectors 3)
-LOG_WIDTHS = {
-    "LOG_I": dict(LOG_STEP=1, LOG_A=1, LOG_B=1, LOG_KIND=1),
-    "LOG_F": dict(LOG_P=3, LOG_N=3, LOG_S=1, LOG_LN=1, LOG_F=3),
-}
 
 
 def _tiling_error(at_of, widths, cols):
@@ -41,7 +32,9 @@ def test_record_fields_tile_the_rows():
     layout, fields = _core.collision_layout(), _core.contact_fields()
     for record, cols, dtype in (("head", "MI_COLS", manifold.HEAD_DTYPE),
                                 ("manifold", "MF_COLS", manifold.MANIFOLD_DTYPE),
-                                ("point", "PF_COLS", manifold.POINT_DTYPE)):
+                                ("point", "PF_COLS", manifold.POINT_DTYPE),
+                                ("log_ids", "LOG_I_COLS", manifold.LOG_IDS_DTYPE),
+                                ("log_values", "LOG_F_COLS", manifold.LOG_VALUES_DTYPE)):
         at_of = {f[0]: f[1] for f in fields[record]}
         widths = {f[0]: f[2] for f in fields[record]}
         assert _tiling_error(at_of, widths, layout[cols]) == "", record
@@ -56,12 +49,17 @@ def test_record_fields_tile_the_rows():
     assert pf[1, 3:6].tolist() == [1.0, 2.0, 3.0] and pf.sum() == 6.0
 
 
-def test_log_columns_tile_the_log_rows():
+def test_log_rows_read_the_log_by_name():
+    """The contact log's rows as manifold.hpp documents them: ids (step, a, b, kind), values
+    (point 3, normal 3, separation, normal_impulse, friction 3)."""
     layout = _core.collision_layout()
-    for group, widths in LOG_WIDTHS.items():
-        assert _tiling_error(layout, widths, layout[f"{group}_COLS"]) == "", group
-        for name in widths:
-            assert getattr(manifold, name) == layout[name], name
+    assert (layout["LOG_I_COLS"], layout["LOG_F_COLS"]) == (4, 11)
+    li = np.arange(8, dtype=np.int64).reshape(2, 4)
+    lf = np.arange(22, dtype=np.float64).reshape(2, 11)
+    ids, val = manifold.log_rows(li, lf)
+    assert ids["kind"].tolist() == [3, 7] and ids["b"].tolist() == [2, 6]
+    assert val["normal"][1].tolist() == [14.0, 15.0, 16.0]
+    assert val["separation"].tolist() == [6.0, 17.0] and val["friction"][0].tolist() == [8.0, 9.0, 10.0]
     assert manifold._AREA_EPS == layout["_AREA_EPS"]
     assert (manifold.MAX_CLIP_POINTS, manifold.MAX_MANIFOLD_POINTS) == (12, 4)
 
