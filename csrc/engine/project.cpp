@@ -113,23 +113,18 @@ void add_points(i64 res, i64 a, i64 b, i64 ia, i64 ib, i64 n_body, const Bodies&
             set3(pt.rb, rbx, rby, rbz);
             pt.s = buf.sep[mp.row + q];
             pt.lambda = 0.0;
+            // body i's part of J M^-1 J^T along n at anchor r: 1/m + (r x n) . I^-1 (r x n)
+            auto k_part = [&](i64 i, double rx, double ry, double rz) {
+                double cx = ry * nz - rz * ny;
+                double cy = rz * nx - rx * nz;
+                double cz = rx * ny - ry * nx;
+                Vec3 v = inv_inertia_times(iso_shortcut, bd.iso, bd.inv_inertia, x.rotation, i,
+                                           cx, cy, cz);
+                return bd.inv_mass[i] + cx * v[0] + cy * v[1] + cz * v[2];
+            };
             double kk = 0.0;
-            if (ia < n_body) {
-                double cx = ray * nz - raz * ny;
-                double cy = raz * nx - rax * nz;
-                double cz = rax * ny - ray * nx;
-                Vec3 v = inv_inertia_times(iso_shortcut, bd.iso, bd.inv_inertia, x.rotation, ia,
-                                           cx, cy, cz);
-                kk += bd.inv_mass[ia] + cx * v[0] + cy * v[1] + cz * v[2];
-            }
-            if (ib < n_body) {
-                double cx = rby * nz - rbz * ny;
-                double cy = rbz * nx - rbx * nz;
-                double cz = rbx * ny - rby * nx;
-                Vec3 v = inv_inertia_times(iso_shortcut, bd.iso, bd.inv_inertia, x.rotation, ib,
-                                           cx, cy, cz);
-                kk += bd.inv_mass[ib] + cx * v[0] + cy * v[1] + cz * v[2];
-            }
+            if (ia < n_body) kk += k_part(ia, rax, ray, raz);
+            if (ib < n_body) kk += k_part(ib, rbx, rby, rbz);
             pt.normal_mass = kk > 0.0 ? 1.0 / kk : 0.0;
         }
     }
