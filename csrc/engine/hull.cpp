@@ -17,6 +17,7 @@
 #include "common/errors.hpp"
 #include "engine/collider_points.hpp"
 #include "engine/collision.hpp"
+#include "engine/polytope.hpp"
 
 namespace rb {
 
@@ -98,6 +99,8 @@ i64 register_hull(V2<double> vert, V2<double> fnrm, V1<double> foff, V1<i64> fst
             }
         }
     }
+    polytope_edges(nf, h->fstart.data(), h->fvert.data(), h->fnrm.data(), h->edge, h->ecross);
+    h->n_edge = static_cast<i64>(h->edge.size() / 4);
     std::lock_guard<std::mutex> lock(g_mutex);
     const i64 n = g_count.load(std::memory_order_relaxed);
     for (i64 id = 0; id < n; ++id) {

@@ -1,0 +1,420 @@
+// Polytope - polytope contact (hull - hull, box - hull): the separating-axis test of Gregorius
+// (GDC 2013, "The Separating Axis Test between Convex Polyhedra"), Box2D v3's b2CollidePolygons
+// and Jolt's manifold between two faces, in 3-D.
+//
+// Everything is computed in b's frame: a's vertices x = R v + t and face planes (R n, off + R n .
+// t), R = R_b^T R_a, t = R_b^T (c_a - c_b). For a unit axis u the separation of the two convex
+// solids along it is g(u) = min_b u . x_b - max_a u . x_a; the signed distance is max_u g(u),
+// and for two overlapping polytopes the maximum is reached at a face normal of either or at the
+// cross product of an edge of each (the separating-axis theorem), so:
+//
+// * face query: for a's face f (plane n . x = d in b's frame) g = min_v n . x_b,v - d, and the
+//   same for b's faces against a's vertices; the largest of each side is kept.
+// * edge query: only the edge pairs that build a face of the Minkowski difference A - B can
+//   carry the maximum: their arcs on the Gauss map (a's edge between normals a, b; b's edge
+//   between c, d, negated: C = -c, D = -d) cross, Gregorius' IsMinkowskiFace(a, b, C, D):
+//     C.(b x a) D.(b x a) < 0,  a.(D x C) b.(D x C) < 0,  C.(b x a) b.(D x C) > 0,
+//   with b x a and D x C = d x c precomputed per edge (PolytopeView::ecross). For such a pair g is the
+//   gap of the two edge lines along u = e_a x e_b (oriented away from a's centre, which is inside
+//   a): u . (p_b - p_a). Edges within EDGE_PARALLEL_TOL (sin) of parallel are skipped: their
+//   axis is a face normal's too.
+// * Any g above spec ends the pair (g bounds the distance from below: apart by more than spec).
+// * Axis choice as box - box (box_box.cpp, the same tolerances): b's face replaces a's when
+//   g_b > g_a + (1 - FACE_REL_TOL) |g_a| + AXIS_ABS_TOL, an edge pair wins when g_e > g_face +
+//   (1 - EDGE_REL_TOL) |g_face| + AXIS_ABS_TOL, so manifolds do not flip between nearly equal
+//   axes from step to step (a face chosen over a slightly better edge reports that face's gap:
+//   deeper than the true one by at most that band).
+// * Face manifold: the reference face (the chosen face, normal n from its polytope towards the
+//   other) and the incident face (the other polytope's face most anti-parallel to n); the
+//   incident loop clipped to the reference face's side planes (Sutherland - Hodgman: at most the
+//   two loops' vertex counts together), each point's gap z = n . x - d to the reference plane,
+//   kept while z <= spec and moved half its gap back towards the reference face (the midpoint
+//   between the surfaces). When no clipped point is as deep as g (the incident polytope's deepest
+//   vertex lies outside the reference face's prism), an overlapping pair adds that vertex (the
+//   manifold's least gap is then the pair's depth); a pair apart (g > 0) is then apart by more
+//   than g along no axis found here: -1, the caller's GJK (collide_convex). More than four
+//   points: reduce_manifold over gaps rounded to GAP_QUANTUM_M (a face at rest has its points
+//   equally deep to round-off: the same four every step). Normal (from b into a): -n when the
+//   reference face is a's, n when b's.
+// * Edge contact: one point midway between the closest points of the two edges (clamped to the
+//   segments), gap u . (q_b - q_a), normal -u. A pair apart whose closest points are clamped
+//   (an edge end) is apart along no axis found here: -1. When a face is also within reach of
+//   the step (g_face <= spec and g_face >= g_e - spec) its face manifold goes in rows 4.. as the
+//   pair's second manifold (normal nrm[3:6]), as box - box does: a tumbling polytope would swing
+//   that face's corners in.
+//
+// Feature ids (stable per feature pair, for warm starting): a face point
+// ((side 2^16 + ref face) 2^16 + incident face) 2^14 + clip id, side 0 when the reference face is
+// a's; the clip id is the incident loop position k (0..63) of a vertex, 64 + 64 label + p for
+// the point where the polygon edge `label` (incident edge k: k, reference side plane q: 64 + q)
+// crosses reference side plane p, FID_DEEPEST for the added deepest vertex; an edge point
+// 2^50 + 2^20 edge_a + edge_b.
+#include "engine/polytope.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <utility>
+
+#include "engine/collider_points.hpp"
+
+namespace rb {
+
+namespace {
+
+struct V {
+    double x, y, z;
+};
+inline V operator+(V a, V b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline V operator-(V a, V b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline V operator*(double s, V a) { return {s * a.x, s * a.y, s * a.z}; }
+inline double dot(V a, V b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline V cross(V a, V b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline V at(const double* p, i64 k) { return {p[3 * k], p[3 * k + 1], p[3 * k + 2]}; }
+inline V rot(M3 r, V v) {  // r v
+    return {r(0, 0) * v.x + r(0, 1) * v.y + r(0, 2) * v.z,
+            r(1, 0) * v.x + r(1, 1) * v.y + r(1, 2) * v.z,
+            r(2, 0) * v.x + r(2, 1) * v.y + r(2, 2) * v.z};
+}
+
+constexpr i64 FID_DEEPEST = (1 << 14) - 1;
+constexpr i64 FID_EDGE = i64(1) << 50;
+// clipped polygon room: an incident loop clipped by a reference loop (each <=
+// HULL_MAX_FACE_VERTICES) has at most their vertex counts together, and the deepest vertex
+constexpr i64 CAP = 2 * HULL_MAX_FACE_VERTICES + 2;
+
+// the polytopes in b's frame: a's vertices, normals and offsets moved there (b's own arrays)
+struct Frame {
+    const double* vert;
+    const double* fnrm;
+    const double* foff;
+    const PolytopeView* p;
+};
+
+struct Scratch {
+    std::vector<double> va, na, da;
+};
+
+// Face manifold of reference face fr of R against I (both in b's frame); g: the pair's
+// separation along that face's normal. side 0: R is a. Returns the points written (<= 4) or -1
+// (module comment: apart, no clipped point as near as g).
+i64 face_contact(const Frame& R, i64 fr, const Frame& I, int side, double g, double spec,
+                 const double* cb, M3 rotb, double scale, double* nrm, Pts pts, double* sep,
+                 i64* fid) {
+    const V n = at(R.fnrm, fr);
+    const double d = R.foff[fr];
+    // incident face: the most anti-parallel to n
+    i64 fi = 0;
+    double least = INFINITY;
+    for (i64 f = 0; f < I.p->nf; ++f) {
+        const double c = dot(at(I.fnrm, f), n);
+        if (c < least) {
+            least = c;
+            fi = f;
+        }
+    }
+    // the incident loop, (point, id, label of its outgoing edge)
+    double X[2][CAP][3];
+    i64 id[2][CAP], lab[2][CAP];
+    i64 m = 0;
+    {
+        const i64 s0 = I.p->fstart[fi], s1 = I.p->fstart[fi + 1];
+        for (i64 k = s0; k < s1; ++k) {
+            const V x = at(I.vert, I.p->fvert[k]);
+            X[0][m][0] = x.x;
+            X[0][m][1] = x.y;
+            X[0][m][2] = x.z;
+            id[0][m] = k - s0;
+            lab[0][m] = k - s0;
+            ++m;
+        }
+    }
+    int cur = 0;
+    const i64 r0 = R.p->fstart[fr], rm = R.p->fstart[fr + 1] - r0;
+    for (i64 p = 0; p < rm && m > 0; ++p) {
+        const V a = at(R.vert, R.p->fvert[r0 + p]);
+        const V b = at(R.vert, R.p->fvert[r0 + (p + 1) % rm]);
+        const V sp = cross(b - a, n);  // outward side-plane normal (the loop runs ccw about n)
+        const double off = dot(sp, a);
+        const int nx = 1 - cur;
+        i64 k2 = 0;
+        for (i64 i = 0; i < m; ++i) {
+            const i64 j = (i + 1) % m;
+            const V xi{X[cur][i][0], X[cur][i][1], X[cur][i][2]};
+            const V xj{X[cur][j][0], X[cur][j][1], X[cur][j][2]};
+            const double di = dot(sp, xi) - off, dj = dot(sp, xj) - off;
+            if (di <= 0.0) {
+                for (int c = 0; c < 3; ++c) X[nx][k2][c] = X[cur][i][c];
+                id[nx][k2] = id[cur][i];
+                lab[nx][k2] = lab[cur][i];
+                ++k2;
+            }
+            if ((di <= 0.0) != (dj <= 0.0)) {
+                const V x = xi + (di / (di - dj)) * (xj - xi);
+                X[nx][k2][0] = x.x;
+                X[nx][k2][1] = x.y;
+                X[nx][k2][2] = x.z;
+                id[nx][k2] = 64 + 64 * lab[cur][i] + p;
+                // leaving: the new point's edge runs along plane p; entering: along edge i's
+                lab[nx][k2] = di <= 0.0 ? 64 + p : lab[cur][i];
+                ++k2;
+            }
+        }
+        m = k2;
+        cur = nx;
+    }
+    double P[CAP][3], S[CAP];
+    i64 F[CAP];
+    i64 count = 0;
+    double zmin = INFINITY;
+    const i64 base = ((i64(side) * 65536 + (fr & 0xffff)) * 65536 + (fi & 0xffff)) * 16384;
+    auto add = [&](V x, double z, i64 f) {
+        const V w = V{cb[0], cb[1], cb[2]} + rot(rotb, x - (0.5 * z) * n);
+        P[count][0] = w.x;
+        P[count][1] = w.y;
+        P[count][2] = w.z;
+        S[count] = z;
+        F[count] = base + f;
+        ++count;
+    };
+    for (i64 k = 0; k < m; ++k) {
+        const V x{X[cur][k][0], X[cur][k][1], X[cur][k][2]};
+        const double z = dot(n, x) - d;
+        zmin = std::min(zmin, z);
+        if (z <= spec) add(x, z, id[cur][k]);
+    }
+    if (!(zmin <= g + 1e-12 * scale)) {
+        if (g > 0.0) return -1;
+        // overlapping, the incident's deepest vertex outside the reference face's prism
+        i64 vb = 0;
+        double lo = INFINITY;
+        for (i64 v = 0; v < I.p->nv; ++v) {
+            const double z = dot(n, at(I.vert, v));
+            if (z < lo) {
+                lo = z;
+                vb = v;
+            }
+        }
+        add(at(I.vert, vb), lo - d, FID_DEEPEST);
+    }
+    const V nw = rot(rotb, n);
+    const V nm = side == 0 ? -1.0 * nw : nw;
+    put_normal(nrm, nm);
+    if (count <= MAX_MANIFOLD_POINTS) {
+        for (i64 k = 0; k < count; ++k) put(pts, sep, fid, k, V{P[k][0], P[k][1], P[k][2]}, S[k], F[k]);
+        return count;
+    }
+    i64 ids[CAP];
+    const i64 nk = reduce_quantized<CAP>(nrm, P, S, count, ids);
+    for (i64 k = 0; k < nk; ++k) {
+        const i64 j = ids[k];
+        put(pts, sep, fid, k, V{P[j][0], P[j][1], P[j][2]}, S[j], F[j]);
+    }
+    return nk;
+}
+
+}  // namespace
+
+void polytope_edges(i64 nf, const i64* fstart, const i64* fvert, const double* fnrm,
+                    std::vector<i64>& edge, std::vector<double>& ecross) {
+    std::map<std::pair<i64, i64>, std::pair<i64, i64>> seen;  // (v0, v1) -> (f0, row or -1)
+    std::vector<std::array<i64, 4>> rows;
+    for (i64 f = 0; f < nf; ++f) {
+        const i64 s = fstart[f], m = fstart[f + 1] - s;
+        for (i64 k = 0; k < m; ++k) {
+            const i64 a = fvert[s + k], b = fvert[s + (k + 1) % m];
+            auto twin = seen.find({b, a});
+            if (twin != seen.end() && twin->second.second < 0) {
+                rows.push_back({b, a, twin->second.first, f});
+                twin->second.second = static_cast<i64>(rows.size()) - 1;
+            } else {
+                seen[{a, b}] = {f, -1};
+            }
+        }
+    }
+    for (const auto& r : rows) {
+        edge.insert(edge.end(), r.begin(), r.end());
+        const V c = cross(at(fnrm, r[3]), at(fnrm, r[2]));
+        ecross.insert(ecross.end(), {c.x, c.y, c.z});
+    }
+}
+
+PolytopeView hull_view(const Hull& h) {
+    return {h.nv,           h.nf,          h.n_edge,      h.vert.data(),   h.fnrm.data(),
+            h.foff.data(),  h.fstart.data(), h.fvert.data(), h.edge.data(), h.ecross.data(),
+            h.radius};
+}
+
+PolytopeView box_view(const double* e, double* vert, double* foff) {
+    // faces -x, +x, -y, +y, -z, +z, each loop ccw about its outward normal
+    static const double FN[18] = {-1, 0, 0, 1, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, -1, 0, 0, 1};
+    static const i64 FS[7] = {0, 4, 8, 12, 16, 20, 24};
+    static const i64 FV[24] = {0, 4, 6, 2, 1, 3, 7, 5, 0, 1, 5, 4,
+                               2, 6, 7, 3, 0, 2, 3, 1, 4, 5, 7, 6};
+    struct Edges {
+        std::vector<i64> edge;
+        std::vector<double> ecross;
+        Edges() { polytope_edges(6, FS, FV, FN, edge, ecross); }
+    };
+    static const Edges E;
+    for (int k = 0; k < 8; ++k) {
+        vert[3 * k] = (k & 1) ? e[0] : -e[0];
+        vert[3 * k + 1] = (k & 2) ? e[1] : -e[1];
+        vert[3 * k + 2] = (k & 4) ? e[2] : -e[2];
+    }
+    for (int f = 0; f < 6; ++f) foff[f] = e[f / 2];
+    const double r = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    return {8, 6, static_cast<i64>(E.edge.size() / 4), vert, FN, foff, FS, FV, E.edge.data(),
+            E.ecross.data(), r};
+}
+
+i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const PolytopeView& B,
+                      const double* cb, M3 rotb, double spec, double* nrm, Pts pts, double* sep,
+                      i64* fid) {
+    const CollisionConstants& cc = collision_constants();
+    // a in b's frame: t = R_b^T (c_a - c_b), R = R_b^T R_a
+    const V dw{ca[0] - cb[0], ca[1] - cb[1], ca[2] - cb[2]};
+    const V t{rotb(0, 0) * dw.x + rotb(1, 0) * dw.y + rotb(2, 0) * dw.z,
+              rotb(0, 1) * dw.x + rotb(1, 1) * dw.y + rotb(2, 1) * dw.z,
+              rotb(0, 2) * dw.x + rotb(1, 2) * dw.y + rotb(2, 2) * dw.z};
+    if (std::sqrt(dot(t, t)) - A.radius - B.radius > spec) return 0;
+    double Rm[9];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            Rm[3 * i + j] = rotb(0, i) * rota(0, j) + rotb(1, i) * rota(1, j) +
+                            rotb(2, i) * rota(2, j);
+    const M3 R(Rm);
+    thread_local Scratch sc;
+    sc.va.resize(3 * A.nv);
+    sc.na.resize(3 * A.nf);
+    sc.da.resize(A.nf);
+    for (i64 v = 0; v < A.nv; ++v) {
+        const V x = rot(R, at(A.vert, v)) + t;
+        sc.va[3 * v] = x.x;
+        sc.va[3 * v + 1] = x.y;
+        sc.va[3 * v + 2] = x.z;
+    }
+    for (i64 f = 0; f < A.nf; ++f) {
+        const V n = rot(R, at(A.fnrm, f));
+        sc.na[3 * f] = n.x;
+        sc.na[3 * f + 1] = n.y;
+        sc.na[3 * f + 2] = n.z;
+        sc.da[f] = A.foff[f] + dot(n, t);
+    }
+    const Frame FA{sc.va.data(), sc.na.data(), sc.da.data(), &A};
+    const Frame FB{B.vert, B.fnrm, B.foff, &B};
+    // face query of a: g = min over b's vertices of n . x - d
+    double sep_a = -INFINITY;
+    i64 fa = 0;
+    for (i64 f = 0; f < A.nf; ++f) {
+        const V n = at(FA.fnrm, f);
+        double lo = INFINITY;
+        for (i64 v = 0; v < B.nv; ++v) lo = std::min(lo, dot(n, at(B.vert, v)));
+        const double s = lo - FA.foff[f];
+        if (s > spec) return 0;
+        if (s > sep_a) {
+            sep_a = s;
+            fa = f;
+        }
+    }
+    double sep_b = -INFINITY;
+    i64 fb = 0;
+    for (i64 f = 0; f < B.nf; ++f) {
+        const V n = at(B.fnrm, f);
+        double lo = INFINITY;
+        for (i64 v = 0; v < A.nv; ++v) lo = std::min(lo, dot(n, at(FA.vert, v)));
+        const double s = lo - B.foff[f];
+        if (s > spec) return 0;
+        if (s > sep_b) {
+            sep_b = s;
+            fb = f;
+        }
+    }
+    // edge query over the pairs that build a face of the Minkowski difference
+    double sep_e = -INFINITY;
+    i64 eab = -1, ebb = -1;
+    V ue{0, 0, 0};
+    const double ptol = cc.edge_parallel_tol;
+    for (i64 i = 0; i < A.ne; ++i) {
+        const i64* ea = A.edge + 4 * i;
+        const V a = at(FA.fnrm, ea[2]), b = at(FA.fnrm, ea[3]);
+        const V bxa = rot(R, at(A.ecross, i));
+        const V p1 = at(FA.vert, ea[0]);
+        const V e1 = at(FA.vert, ea[1]) - p1;
+        const double l1 = dot(e1, e1);
+        for (i64 j = 0; j < B.ne; ++j) {
+            const i64* eb = B.edge + 4 * j;
+            // IsMinkowskiFace(a, b, -c, -d)
+            const double cba = -dot(at(B.fnrm, eb[2]), bxa);
+            const double dba = -dot(at(B.fnrm, eb[3]), bxa);
+            if (!(cba * dba < 0.0)) continue;
+            const V dxc = at(B.ecross, j);
+            const double adc = dot(a, dxc), bdc = dot(b, dxc);
+            if (!(adc * bdc < 0.0 && cba * bdc > 0.0)) continue;
+            const V p2 = at(B.vert, eb[0]);
+            const V e2 = at(B.vert, eb[1]) - p2;
+            V u = cross(e1, e2);
+            const double lu = std::sqrt(dot(u, u));
+            if (lu < ptol * std::sqrt(l1 * dot(e2, e2))) continue;
+            u = (dot(u, p1 - t) < 0.0 ? -1.0 / lu : 1.0 / lu) * u;
+            const double s = dot(u, p2 - p1);
+            if (s > spec) return 0;
+            if (s > sep_e) {
+                sep_e = s;
+                eab = i;
+                ebb = j;
+                ue = u;
+            }
+        }
+    }
+    const double scale = A.radius + B.radius;
+    auto best_face = [&](double* n_out, Pts p_out, double* s_out, i64* f_out) -> i64 {
+        if (sep_b > sep_a + (1.0 - cc.face_rel_tol) * std::fabs(sep_a) + cc.axis_abs_tol)
+            return face_contact(FB, fb, FA, 1, sep_b, spec, cb, rotb, scale, n_out, p_out, s_out,
+                                f_out);
+        return face_contact(FA, fa, FB, 0, sep_a, spec, cb, rotb, scale, n_out, p_out, s_out,
+                            f_out);
+    };
+    const double face_sep = std::max(sep_a, sep_b);
+    const bool edge_best = eab >= 0 && sep_e > face_sep + (1.0 - cc.edge_rel_tol) *
+                                                              std::fabs(face_sep) +
+                                                              cc.axis_abs_tol;
+    if (!edge_best) return best_face(nrm, pts, sep, fid);
+    // edge contact: closest points of the two segments
+    const i64* ea = A.edge + 4 * eab;
+    const i64* eb = B.edge + 4 * ebb;
+    const V p1 = at(FA.vert, ea[0]), d1 = at(FA.vert, ea[1]) - p1;
+    const V p2 = at(B.vert, eb[0]), d2 = at(B.vert, eb[1]) - p2;
+    const V r = p1 - p2;
+    const double aa = dot(d1, d1), ee = dot(d2, d2), ff = dot(d2, r), cc1 = dot(d1, r),
+                 bb = dot(d1, d2);
+    const double den = aa * ee - bb * bb;
+    bool clamped = false;
+    auto clamp01 = [&](double x) {
+        if (x < 0.0 || x > 1.0) clamped = true;
+        return std::min(std::max(x, 0.0), 1.0);
+    };
+    double s1 = den > 0.0 ? clamp01((bb * ff - cc1 * ee) / den) : 0.0;
+    double s2 = (bb * s1 + ff) / ee;
+    if (s2 < 0.0 || s2 > 1.0) {
+        s2 = clamp01(s2);
+        s1 = clamp01((bb * s2 - cc1) / aa);
+    }
+    const V qa = p1 + s1 * d1, qb = p2 + s2 * d2;
+    const double g = dot(ue, qb - qa);
+    if (clamped && sep_e > 0.0) return -1;
+    if (g > spec) return 0;
+    const V nw = rot(rotb, ue);
+    put_normal(nrm, -1.0 * nw);
+    put(pts, sep, fid, 0, V{cb[0], cb[1], cb[2]} + rot(rotb, 0.5 * (qa + qb)), g,
+        FID_EDGE + (i64(eab) << 20) + ebb);
+    if (face_sep > spec || face_sep < sep_e - spec) return 1;
+    // the edges touch first, but a face is within reach of this step (module comment)
+    const i64 n2 = best_face(nrm + 3, pts + 4, sep + 4, fid + 4);
+    return 1 + 8 * std::max<i64>(n2, 0);
+}
+
+}  // namespace rb

@@ -1,0 +1,56 @@
+// Polytope - polytope contact: hull - hull and box - hull (polytope.cpp; narrowphase.cpp's table
+// calls it, its conventions: normal from b into a, sep < 0 penetration, points midway between
+// the surfaces, feature ids for warm starting).
+#pragma once
+
+#include <cstddef>  // size_t, which common/array.hpp uses
+#include <vector>
+
+#include "common/array.hpp"
+#include "engine/collision.hpp"
+#include "engine/hull.hpp"
+
+namespace rb {
+
+// A convex polytope in its own frame: a hull's arrays (hull.hpp) or a box's (box_view).
+//   vert (nv, 3); fnrm (nf, 3) unit outward normals, foff (nf,): n . x = foff on face f;
+//   face f's loop fvert[fstart[f] .. fstart[f + 1]), counter-clockwise about its normal;
+//   edge (ne, 4) rows (v0, v1, f0, f1): v0 -> v1 along f0's loop, f1 the face across it;
+//   ecross (ne, 3) = fnrm[f1] x fnrm[f0], the edge's arc on the Gauss map (along v0 -> v1's
+//   opposite, of length sin of the dihedral angle's supplement).
+struct PolytopeView {
+    i64 nv, nf, ne;
+    const double* vert;
+    const double* fnrm;
+    const double* foff;
+    const i64* fstart;
+    const i64* fvert;
+    const i64* edge;
+    const double* ecross;
+    double radius;  // max_v |v| (m)
+};
+
+// The edges of a closed polytope from its face loops (each edge once, as f0's loop runs it; an
+// edge without a twin face is left out): appends rows (v0, v1, f0, f1) to edge and
+// fnrm[f1] x fnrm[f0] to ecross.
+void polytope_edges(i64 nf, const i64* fstart, const i64* fvert, const double* fnrm,
+                    std::vector<i64>& edge, std::vector<double>& ecross);
+
+// Contact of polytope a (centre ca, rotation rota body -> world) and polytope b: separating axes
+// (both polytopes' face normals, the edge pairs whose arcs cross on the Gauss map), a clipped
+// face manifold or one edge-edge point (polytope.cpp's derivation). Returns n1 + 8 n2 (a second,
+// face manifold in rows 4.. with its normal in nrm[3:6], as box - box), or -1 when the pair is
+// apart along no axis the test finds exact (its closest features a vertex or an edge end on
+// both): the caller then takes GJK's distance (collide_convex).
+i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const PolytopeView& B,
+                      const double* cb, M3 rotb, double spec, double* nrm, Pts pts, double* sep,
+                      i64* fid);
+
+// A box of half extents e as a polytope: vertex k at ((k & 1) ? +e0 : -e0, (k & 2) ..,
+// (k & 4) ..) (collide_box_plane's vertex ids), face 2 axis + (1 on the + side). vert (24) and
+// foff (6) are the caller's room.
+PolytopeView box_view(const double* e, double* vert, double* foff);
+// A hull as a polytope (its arrays, not copied).
+PolytopeView hull_view(const Hull& h);
+
+}  // namespace rb
