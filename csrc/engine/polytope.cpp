@@ -95,7 +95,7 @@ struct Frame {
 };
 
 struct Scratch {
-    std::vector<double> va, na, da;
+    std::vector<double> va, na, da, cd;  // a's vertices, normals, offsets; b's normals . (b x a)
 };
 
 // Face manifold of reference face fr of R against I (both in b's frame); g: the pair's
@@ -186,8 +186,7 @@ i64 face_contact(const Frame& R, i64 fr, const Frame& I, int side, double g, dou
         zmin = std::min(zmin, z);
         if (z <= spec) add(x, z, id[cur][k]);
     }
-    if (!(zmin <= g + 1e-12 * scale)) {
-        if (g > 0.0) return -1;
+    if (g <= 0.0 && !(zmin <= g + 1e-12 * scale)) {
         // overlapping, the incident's deepest vertex outside the reference face's prism
         i64 vb = 0;
         double lo = INFINITY;
@@ -245,7 +244,7 @@ void polytope_edges(i64 nf, const i64* fstart, const i64* fvert, const double* f
 PolytopeView hull_view(const Hull& h) {
     return {h.nv,           h.nf,          h.n_edge,      h.vert.data(),   h.fnrm.data(),
             h.foff.data(),  h.fstart.data(), h.fvert.data(), h.edge.data(), h.ecross.data(),
-            h.radius};
+            h.radius,       {h.ext[0], h.ext[1], h.ext[2]}};
 }
 
 PolytopeView box_view(const double* e, double* vert, double* foff) {
@@ -268,7 +267,7 @@ PolytopeView box_view(const double* e, double* vert, double* foff) {
     for (int f = 0; f < 6; ++f) foff[f] = e[f / 2];
     const double r = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
     return {8, 6, static_cast<i64>(E.edge.size() / 4), vert, FN, foff, FS, FV, E.edge.data(),
-            E.ecross.data(), r};
+            E.ecross.data(), r, {e[0], e[1], e[2]}};
 }
 
 i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const PolytopeView& B,
@@ -287,10 +286,23 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
             Rm[3 * i + j] = rotb(0, i) * rota(0, j) + rotb(1, i) * rota(1, j) +
                             rotb(2, i) * rota(2, j);
     const M3 R(Rm);
+    // the boxes around them (PolytopeView::ext), their six face axes: cheaper than the
+    // polytopes' and a lower bound of their separation (most candidate pairs end here)
+    for (int i = 0; i < 3; ++i) {
+        const double tb = i == 0 ? t.x : (i == 1 ? t.y : t.z);
+        const double ta = Rm[i] * t.x + Rm[3 + i] * t.y + Rm[6 + i] * t.z;  // (R^T t)_i
+        double rb = B.ext[i], ra = A.ext[i];
+        for (int j = 0; j < 3; ++j) {
+            rb += std::fabs(Rm[3 * i + j]) * A.ext[j];
+            ra += std::fabs(Rm[3 * j + i]) * B.ext[j];
+        }
+        if (std::fabs(tb) - rb > spec || std::fabs(ta) - ra > spec) return 0;
+    }
     thread_local Scratch sc;
     sc.va.resize(3 * A.nv);
     sc.na.resize(3 * A.nf);
     sc.da.resize(A.nf);
+    sc.cd.resize(B.nf);
     for (i64 v = 0; v < A.nv; ++v) {
         const V x = rot(R, at(A.vert, v)) + t;
         sc.va[3 * v] = x.x;
@@ -345,11 +357,12 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
         const V p1 = at(FA.vert, ea[0]);
         const V e1 = at(FA.vert, ea[1]) - p1;
         const double l1 = dot(e1, e1);
+        for (i64 f = 0; f < B.nf; ++f) sc.cd[f] = dot(at(B.fnrm, f), bxa);
         for (i64 j = 0; j < B.ne; ++j) {
             const i64* eb = B.edge + 4 * j;
             // IsMinkowskiFace(a, b, -c, -d)
-            const double cba = -dot(at(B.fnrm, eb[2]), bxa);
-            const double dba = -dot(at(B.fnrm, eb[3]), bxa);
+            const double cba = -sc.cd[eb[2]];
+            const double dba = -sc.cd[eb[3]];
             if (!(cba * dba < 0.0)) continue;
             const V dxc = at(B.ecross, j);
             const double adc = dot(a, dxc), bdc = dot(b, dxc);
@@ -392,11 +405,7 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     const double aa = dot(d1, d1), ee = dot(d2, d2), ff = dot(d2, r), cc1 = dot(d1, r),
                  bb = dot(d1, d2);
     const double den = aa * ee - bb * bb;
-    bool clamped = false;
-    auto clamp01 = [&](double x) {
-        if (x < 0.0 || x > 1.0) clamped = true;
-        return std::min(std::max(x, 0.0), 1.0);
-    };
+    auto clamp01 = [](double x) { return std::min(std::max(x, 0.0), 1.0); };
     double s1 = den > 0.0 ? clamp01((bb * ff - cc1 * ee) / den) : 0.0;
     double s2 = (bb * s1 + ff) / ee;
     if (s2 < 0.0 || s2 > 1.0) {
@@ -405,7 +414,6 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     }
     const V qa = p1 + s1 * d1, qb = p2 + s2 * d2;
     const double g = dot(ue, qb - qa);
-    if (clamped && sep_e > 0.0) return -1;
     if (g > spec) return 0;
     const V nw = rot(rotb, ue);
     put_normal(nrm, -1.0 * nw);

@@ -28,6 +28,7 @@ struct PolytopeView {
     const i64* edge;
     const double* ecross;
     double radius;  // max_v |v| (m)
+    double ext[3];  // max_v |v_k|: the box centred on the origin around it (m)
 };
 
 // The edges of a closed polytope from its face loops (each edge once, as f0's loop runs it; an
