@@ -101,6 +101,9 @@ i64 register_hull(V2<double> vert, V2<double> fnrm, V1<double> foff, V1<i64> fst
     }
     polytope_edges(nf, h->fstart.data(), h->fvert.data(), h->fnrm.data(), h->edge, h->ecross);
     h->n_edge = static_cast<i64>(h->edge.size() / 4);
+    h->vert_soa = by_coordinate(h->vert);
+    h->fnrm_soa = by_coordinate(h->fnrm);
+    h->ecross_soa = by_coordinate(h->ecross);
     std::lock_guard<std::mutex> lock(g_mutex);
     const i64 n = g_count.load(std::memory_order_relaxed);
     for (i64 id = 0; id < n; ++id) {

@@ -28,6 +28,7 @@ struct Hull {
     i64 n_edge = 0;
     std::vector<i64> edge;
     std::vector<double> ecross;
+    std::vector<double> vert_soa, fnrm_soa, ecross_soa;  // vert, fnrm, ecross by coordinate
     double ext[3] = {0, 0, 0};  // max_v |v_k|: the body-frame box centred on the origin around it
     double radius = 0.0;        // max_v |v| (m)
     i64 max_face = 0;           // the most vertices of a face

@@ -291,7 +291,7 @@ static i64 entry_hull_plane(const double* ca, M3 rota, const double* sa, const d
 static i64 entry_box_hull(const double* ca, M3 rota, const double* sa, const double* cb, M3 rotb,
                           const double* sb, const double*, double, double spec,
                           ColliderBuffers& b) {
-    double vert[24], foff[6];
+    double vert[48], foff[6];
     const i64 n = collide_polytopes(box_view(sa, vert, foff), ca, rota, hull_view(hull_of(sb)), cb,
                                     rotb, spec, b.nrm, b.pts, b.sep, b.fid);
     if (n >= 0) return n;

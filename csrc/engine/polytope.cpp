@@ -80,6 +80,24 @@ inline V rot(M3 r, V v) {  // r v
             r(2, 0) * v.x + r(2, 1) * v.y + r(2, 2) * v.z};
 }
 
+// out[k] = n . (x_k, y_k, z_k) over m points by coordinate (soa: (3, m)); an elementwise loop,
+// which vectorizes
+inline void dots(V n, const double* __restrict soa, i64 m, double* __restrict out) {
+    const double *x = soa, *y = soa + m, *z = soa + 2 * m;
+    for (i64 k = 0; k < m; ++k) out[k] = n.x * x[k] + n.y * y[k] + n.z * z[k];
+}
+// min_k d[k] (two running minima, even and odd k: min is exact, so the order is free)
+inline double least(const double* d, i64 m) {
+    double lo0 = INFINITY, lo1 = INFINITY;
+    i64 k = 0;
+    for (; k + 1 < m; k += 2) {
+        lo0 = std::min(lo0, d[k]);
+        lo1 = std::min(lo1, d[k + 1]);
+    }
+    if (k < m) lo0 = std::min(lo0, d[k]);
+    return std::min(lo0, lo1);
+}
+
 constexpr i64 FID_DEEPEST = (1 << 14) - 1;
 constexpr i64 FID_EDGE = i64(1) << 50;
 // clipped polygon room: an incident loop clipped by a reference loop (each <=
@@ -95,7 +113,9 @@ struct Frame {
 };
 
 struct Scratch {
-    std::vector<double> va, na, da, cd;  // a's vertices, normals, offsets; b's normals . (b x a)
+    std::vector<double> va, na, da, cd, ad;  // a's vertices, normals, offsets; the edge query's dots
+    std::vector<double> va_soa, tmp;         // a's vertices by coordinate; dots
+    std::vector<i64> pass;                   // b's edges that pass the Gauss-map test
 };
 
 // Face manifold of reference face fr of R against I (both in b's frame); g: the pair's
@@ -241,10 +261,19 @@ void polytope_edges(i64 nf, const i64* fstart, const i64* fvert, const double* f
     }
 }
 
+std::vector<double> by_coordinate(const std::vector<double>& rows) {
+    const size_t n = rows.size() / 3;
+    std::vector<double> out(rows.size());
+    for (size_t k = 0; k < n; ++k)
+        for (size_t c = 0; c < 3; ++c) out[c * n + k] = rows[3 * k + c];
+    return out;
+}
+
 PolytopeView hull_view(const Hull& h) {
     return {h.nv,           h.nf,          h.n_edge,      h.vert.data(),   h.fnrm.data(),
             h.foff.data(),  h.fstart.data(), h.fvert.data(), h.edge.data(), h.ecross.data(),
-            h.radius,       {h.ext[0], h.ext[1], h.ext[2]}};
+            h.radius,       {h.ext[0], h.ext[1], h.ext[2]}, h.vert_soa.data(), h.fnrm_soa.data(),
+            h.ecross_soa.data()};
 }
 
 PolytopeView box_view(const double* e, double* vert, double* foff) {
@@ -255,8 +284,12 @@ PolytopeView box_view(const double* e, double* vert, double* foff) {
                                2, 6, 7, 3, 0, 2, 3, 1, 4, 5, 7, 6};
     struct Edges {
         std::vector<i64> edge;
-        std::vector<double> ecross;
-        Edges() { polytope_edges(6, FS, FV, FN, edge, ecross); }
+        std::vector<double> ecross, ecross_soa, fnrm_soa;
+        Edges() {
+            polytope_edges(6, FS, FV, FN, edge, ecross);
+            ecross_soa = by_coordinate(ecross);
+            fnrm_soa = by_coordinate(std::vector<double>(FN, FN + 18));
+        }
     };
     static const Edges E;
     for (int k = 0; k < 8; ++k) {
@@ -264,10 +297,15 @@ PolytopeView box_view(const double* e, double* vert, double* foff) {
         vert[3 * k + 1] = (k & 2) ? e[1] : -e[1];
         vert[3 * k + 2] = (k & 4) ? e[2] : -e[2];
     }
+    for (int k = 0; k < 8; ++k)
+        for (int c = 0; c < 3; ++c) vert[24 + 8 * c + k] = vert[3 * k + c];
     for (int f = 0; f < 6; ++f) foff[f] = e[f / 2];
     const double r = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
-    return {8, 6, static_cast<i64>(E.edge.size() / 4), vert, FN, foff, FS, FV, E.edge.data(),
-            E.ecross.data(), r, {e[0], e[1], e[2]}};
+    return {8,         6,           static_cast<i64>(E.edge.size() / 4),
+            vert,      FN,          foff,
+            FS,        FV,          E.edge.data(),
+            E.ecross.data(), r,     {e[0], e[1], e[2]},
+            vert + 24, E.fnrm_soa.data(), E.ecross_soa.data()};
 }
 
 i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const PolytopeView& B,
@@ -300,14 +338,16 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     }
     thread_local Scratch sc;
     sc.va.resize(3 * A.nv);
+    sc.va_soa.resize(3 * A.nv);
     sc.na.resize(3 * A.nf);
     sc.da.resize(A.nf);
     sc.cd.resize(B.nf);
+    sc.tmp.resize(std::max(A.nv, B.nv));
     for (i64 v = 0; v < A.nv; ++v) {
         const V x = rot(R, at(A.vert, v)) + t;
-        sc.va[3 * v] = x.x;
-        sc.va[3 * v + 1] = x.y;
-        sc.va[3 * v + 2] = x.z;
+        sc.va[3 * v] = sc.va_soa[v] = x.x;
+        sc.va[3 * v + 1] = sc.va_soa[A.nv + v] = x.y;
+        sc.va[3 * v + 2] = sc.va_soa[2 * A.nv + v] = x.z;
     }
     for (i64 f = 0; f < A.nf; ++f) {
         const V n = rot(R, at(A.fnrm, f));
@@ -318,14 +358,13 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     }
     const Frame FA{sc.va.data(), sc.na.data(), sc.da.data(), &A};
     const Frame FB{B.vert, B.fnrm, B.foff, &B};
+    double* tmp = sc.tmp.data();
     // face query of a: g = min over b's vertices of n . x - d
     double sep_a = -INFINITY;
     i64 fa = 0;
     for (i64 f = 0; f < A.nf; ++f) {
-        const V n = at(FA.fnrm, f);
-        double lo = INFINITY;
-        for (i64 v = 0; v < B.nv; ++v) lo = std::min(lo, dot(n, at(B.vert, v)));
-        const double s = lo - FA.foff[f];
+        dots(at(FA.fnrm, f), B.vert_soa, B.nv, tmp);
+        const double s = least(tmp, B.nv) - FA.foff[f];
         if (s > spec) return 0;
         if (s > sep_a) {
             sep_a = s;
@@ -335,43 +374,52 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     double sep_b = -INFINITY;
     i64 fb = 0;
     for (i64 f = 0; f < B.nf; ++f) {
-        const V n = at(B.fnrm, f);
-        double lo = INFINITY;
-        for (i64 v = 0; v < A.nv; ++v) lo = std::min(lo, dot(n, at(FA.vert, v)));
-        const double s = lo - B.foff[f];
+        dots(at(B.fnrm, f), sc.va_soa.data(), A.nv, tmp);
+        const double s = least(tmp, A.nv) - B.foff[f];
         if (s > spec) return 0;
         if (s > sep_b) {
             sep_b = s;
             fb = f;
         }
     }
-    // edge query over the pairs that build a face of the Minkowski difference
+    // edge query over the pairs that build a face of the Minkowski difference: ad[f ne_b + j] =
+    // a's normal f . (d x c) of b's edge j, cd[f] = b's normal f . (b x a) of a's edge i
+    sc.ad.resize(A.nf * B.ne);
+    sc.pass.resize(B.ne);
+    for (i64 f = 0; f < A.nf; ++f) dots(at(FA.fnrm, f), B.ecross_soa, B.ne, &sc.ad[f * B.ne]);
     double sep_e = -INFINITY;
     i64 eab = -1, ebb = -1;
     V ue{0, 0, 0};
-    const double ptol = cc.edge_parallel_tol;
+    const double ptol2 = cc.edge_parallel_tol * cc.edge_parallel_tol;
     for (i64 i = 0; i < A.ne; ++i) {
         const i64* ea = A.edge + 4 * i;
-        const V a = at(FA.fnrm, ea[2]), b = at(FA.fnrm, ea[3]);
+        const double* ada = &sc.ad[ea[2] * B.ne];
+        const double* adb = &sc.ad[ea[3] * B.ne];
         const V bxa = rot(R, at(A.ecross, i));
         const V p1 = at(FA.vert, ea[0]);
         const V e1 = at(FA.vert, ea[1]) - p1;
         const double l1 = dot(e1, e1);
-        for (i64 f = 0; f < B.nf; ++f) sc.cd[f] = dot(at(B.fnrm, f), bxa);
+        dots(bxa, B.fnrm_soa, B.nf, sc.cd.data());
+        // IsMinkowskiFace(a, b, -c, -d): (-c.(b x a)) (-d.(b x a)) < 0, a.(d x c) b.(d x c) < 0,
+        // (-c.(b x a)) b.(d x c) > 0; the pairs that pass listed without a branch (about half
+        // pass the first test: a branch on it is mispredicted half the time)
+        i64 n_pass = 0;
         for (i64 j = 0; j < B.ne; ++j) {
             const i64* eb = B.edge + 4 * j;
-            // IsMinkowskiFace(a, b, -c, -d)
-            const double cba = -sc.cd[eb[2]];
-            const double dba = -sc.cd[eb[3]];
-            if (!(cba * dba < 0.0)) continue;
-            const V dxc = at(B.ecross, j);
-            const double adc = dot(a, dxc), bdc = dot(b, dxc);
-            if (!(adc * bdc < 0.0 && cba * bdc > 0.0)) continue;
+            const double cba = sc.cd[eb[2]], dba = sc.cd[eb[3]];
+            const double adc = ada[j], bdc = adb[j];
+            sc.pass[n_pass] = j;
+            n_pass += (cba * dba < 0.0) & (adc * bdc < 0.0) & (cba * bdc < 0.0);
+        }
+        for (i64 k = 0; k < n_pass; ++k) {
+            const i64 j = sc.pass[k];
+            const i64* eb = B.edge + 4 * j;
             const V p2 = at(B.vert, eb[0]);
             const V e2 = at(B.vert, eb[1]) - p2;
             V u = cross(e1, e2);
-            const double lu = std::sqrt(dot(u, u));
-            if (lu < ptol * std::sqrt(l1 * dot(e2, e2))) continue;
+            const double uu = dot(u, u);
+            if (uu < ptol2 * l1 * dot(e2, e2)) continue;
+            const double lu = std::sqrt(uu);
             u = (dot(u, p1 - t) < 0.0 ? -1.0 / lu : 1.0 / lu) * u;
             const double s = dot(u, p2 - p1);
             if (s > spec) return 0;

@@ -29,6 +29,10 @@ struct PolytopeView {
     const double* ecross;
     double radius;  // max_v |v| (m)
     double ext[3];  // max_v |v_k|: the box centred on the origin around it (m)
+    // vert, fnrm and ecross by coordinate: (3, nv), (3, nf), (3, ne) (loops over them vectorize)
+    const double* vert_soa;
+    const double* fnrm_soa;
+    const double* ecross_soa;
 };
 
 // The edges of a closed polytope from its face loops (each edge once, as f0's loop runs it; an
@@ -36,6 +40,8 @@ struct PolytopeView {
 // fnrm[f1] x fnrm[f0] to ecross.
 void polytope_edges(i64 nf, const i64* fstart, const i64* fvert, const double* fnrm,
                     std::vector<i64>& edge, std::vector<double>& ecross);
+// (n, 3) rows as (3, n) columns.
+std::vector<double> by_coordinate(const std::vector<double>& rows);
 
 // Contact of polytope a (centre ca, rotation rota body -> world) and polytope b: separating axes
 // (both polytopes' face normals, the edge pairs whose arcs cross on the Gauss map), a clipped
@@ -48,8 +54,8 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
                       i64* fid);
 
 // A box of half extents e as a polytope: vertex k at ((k & 1) ? +e0 : -e0, (k & 2) ..,
-// (k & 4) ..) (collide_box_plane's vertex ids), face 2 axis + (1 on the + side). vert (24) and
-// foff (6) are the caller's room.
+// (k & 4) ..) (collide_box_plane's vertex ids), face 2 axis + (1 on the + side). vert (48:
+// by vertex, then by coordinate) and foff (6) are the caller's room.
 PolytopeView box_view(const double* e, double* vert, double* foff);
 // A hull as a polytope (its arrays, not copied).
 PolytopeView hull_view(const Hull& h);
