@@ -104,6 +104,14 @@ i64 register_hull(V2<double> vert, V2<double> fnrm, V1<double> foff, V1<i64> fst
     h->vert_soa = by_coordinate(h->vert);
     h->fnrm_soa = by_coordinate(h->fnrm);
     h->ecross_soa = by_coordinate(h->ecross);
+    h->fopp = opposite_faces(nf, h->fnrm.data());
+    {
+        EdgeClasses ec = edge_classes(h->ecross);
+        h->cstart = std::move(ec.cstart);
+        h->cedge = std::move(ec.cedge);
+        h->crep = std::move(ec.crep);
+        h->esign = std::move(ec.esign);
+    }
     std::lock_guard<std::mutex> lock(g_mutex);
     const i64 n = g_count.load(std::memory_order_relaxed);
     for (i64 id = 0; id < n; ++id) {

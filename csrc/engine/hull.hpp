@@ -29,6 +29,9 @@ struct Hull {
     std::vector<i64> edge;
     std::vector<double> ecross;
     std::vector<double> vert_soa, fnrm_soa, ecross_soa;  // vert, fnrm, ecross by coordinate
+    std::vector<i64> fopp;  // (nf,) the face of normal -fnrm[f] exactly, or -1
+    std::vector<i64> cstart, cedge;  // the edges by parallel class (polytope.hpp)
+    std::vector<double> crep, esign;
     double ext[3] = {0, 0, 0};  // max_v |v_k|: the body-frame box centred on the origin around it
     double radius = 0.0;        // max_v |v| (m)
     i64 max_face = 0;           // the most vertices of a face

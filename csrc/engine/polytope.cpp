@@ -86,6 +86,17 @@ inline void dots(V n, const double* __restrict soa, i64 m, double* __restrict ou
     const double *x = soa, *y = soa + m, *z = soa + 2 * m;
     for (i64 k = 0; k < m; ++k) out[k] = n.x * x[k] + n.y * y[k] + n.z * z[k];
 }
+// max_k d[k] (as least)
+inline double most(const double* d, i64 m) {
+    double hi0 = -INFINITY, hi1 = -INFINITY;
+    i64 k = 0;
+    for (; k + 1 < m; k += 2) {
+        hi0 = std::max(hi0, d[k]);
+        hi1 = std::max(hi1, d[k + 1]);
+    }
+    if (k < m) hi0 = std::max(hi0, d[k]);
+    return std::max(hi0, hi1);
+}
 // min_k d[k] (two running minima, even and odd k: min is exact, so the order is free)
 inline double least(const double* d, i64 m) {
     double lo0 = INFINITY, lo1 = INFINITY;
@@ -115,7 +126,7 @@ struct Frame {
 struct Scratch {
     std::vector<double> va, na, da, cd, ad;  // a's vertices, normals, offsets; the edge query's dots
     std::vector<double> va_soa, tmp;         // a's vertices by coordinate; dots
-    std::vector<i64> pass;                   // b's edges that pass the Gauss-map test
+    std::vector<i64> pass, pass2;            // b's edges that pass the Gauss-map tests
 };
 
 // Face manifold of reference face fr of R against I (both in b's frame); g: the pair's
@@ -261,6 +272,51 @@ void polytope_edges(i64 nf, const i64* fstart, const i64* fvert, const double* f
     }
 }
 
+std::vector<i64> opposite_faces(i64 nf, const double* fnrm) {
+    std::vector<i64> opp(nf, -1);
+    for (i64 f = 0; f < nf; ++f)
+        for (i64 g = 0; g < nf && opp[f] < 0; ++g)
+            if (fnrm[3 * g] == -fnrm[3 * f] && fnrm[3 * g + 1] == -fnrm[3 * f + 1] &&
+                fnrm[3 * g + 2] == -fnrm[3 * f + 2])
+                opp[f] = g;
+    return opp;
+}
+
+EdgeClasses edge_classes(const std::vector<double>& ecross) {
+    const i64 ne = static_cast<i64>(ecross.size() / 3);
+    std::vector<i64> cls(ne, -1);
+    std::vector<double> sg(ne, 1.0);
+    std::vector<i64> first;  // each class's first edge
+    for (i64 e = 0; e < ne; ++e) {
+        const V u = at(ecross.data(), e);
+        for (size_t k = 0; k < first.size() && cls[e] < 0; ++k) {
+            const V r = at(ecross.data(), first[k]);
+            const V c = cross(u, r);
+            if (dot(c, c) <= 1e-18 * dot(u, u) * dot(r, r)) {
+                cls[e] = static_cast<i64>(k);
+                sg[e] = dot(u, r) < 0.0 ? -1.0 : 1.0;
+            }
+        }
+        if (cls[e] < 0) {
+            cls[e] = static_cast<i64>(first.size());
+            first.push_back(e);
+        }
+    }
+    EdgeClasses out;
+    out.cstart.push_back(0);
+    for (size_t k = 0; k < first.size(); ++k) {
+        for (i64 e = 0; e < ne; ++e)
+            if (cls[e] == static_cast<i64>(k)) {
+                out.cedge.push_back(e);
+                out.esign.push_back(sg[e]);
+            }
+        out.cstart.push_back(static_cast<i64>(out.cedge.size()));
+        const V r = at(ecross.data(), first[k]);
+        out.crep.insert(out.crep.end(), {r.x, r.y, r.z});
+    }
+    return out;
+}
+
 std::vector<double> by_coordinate(const std::vector<double>& rows) {
     const size_t n = rows.size() / 3;
     std::vector<double> out(rows.size());
@@ -273,20 +329,25 @@ PolytopeView hull_view(const Hull& h) {
     return {h.nv,           h.nf,          h.n_edge,      h.vert.data(),   h.fnrm.data(),
             h.foff.data(),  h.fstart.data(), h.fvert.data(), h.edge.data(), h.ecross.data(),
             h.radius,       {h.ext[0], h.ext[1], h.ext[2]}, h.vert_soa.data(), h.fnrm_soa.data(),
-            h.ecross_soa.data()};
+            h.ecross_soa.data(), h.fopp.data(),
+            static_cast<i64>(h.cstart.size()) - 1, h.cstart.data(), h.cedge.data(),
+            h.crep.data(),  h.esign.data()};
 }
 
 PolytopeView box_view(const double* e, double* vert, double* foff) {
     // faces -x, +x, -y, +y, -z, +z, each loop ccw about its outward normal
     static const double FN[18] = {-1, 0, 0, 1, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, -1, 0, 0, 1};
     static const i64 FS[7] = {0, 4, 8, 12, 16, 20, 24};
+    static const i64 FOPP[6] = {1, 0, 3, 2, 5, 4};
     static const i64 FV[24] = {0, 4, 6, 2, 1, 3, 7, 5, 0, 1, 5, 4,
                                2, 6, 7, 3, 0, 2, 3, 1, 4, 5, 7, 6};
     struct Edges {
         std::vector<i64> edge;
         std::vector<double> ecross, ecross_soa, fnrm_soa;
+        EdgeClasses ec;
         Edges() {
             polytope_edges(6, FS, FV, FN, edge, ecross);
+            ec = edge_classes(ecross);
             ecross_soa = by_coordinate(ecross);
             fnrm_soa = by_coordinate(std::vector<double>(FN, FN + 18));
         }
@@ -305,7 +366,9 @@ PolytopeView box_view(const double* e, double* vert, double* foff) {
             vert,      FN,          foff,
             FS,        FV,          E.edge.data(),
             E.ecross.data(), r,     {e[0], e[1], e[2]},
-            vert + 24, E.fnrm_soa.data(), E.ecross_soa.data()};
+            vert + 24, E.fnrm_soa.data(), E.ecross_soa.data(), FOPP,
+            static_cast<i64>(E.ec.cstart.size()) - 1, E.ec.cstart.data(), E.ec.cedge.data(),
+            E.ec.crep.data(), E.ec.esign.data()};
 }
 
 i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const PolytopeView& B,
@@ -359,31 +422,39 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     const Frame FA{sc.va.data(), sc.na.data(), sc.da.data(), &A};
     const Frame FB{B.vert, B.fnrm, B.foff, &B};
     double* tmp = sc.tmp.data();
-    // face query of a: g = min over b's vertices of n . x - d
-    double sep_a = -INFINITY;
-    i64 fa = 0;
-    for (i64 f = 0; f < A.nf; ++f) {
-        dots(at(FA.fnrm, f), B.vert_soa, B.nv, tmp);
-        const double s = least(tmp, B.nv) - FA.foff[f];
-        if (s > spec) return 0;
-        if (s > sep_a) {
-            sep_a = s;
-            fa = f;
+    // face queries: a's face f (n . x = d in b's frame) g = min over b's vertices of n . x - d,
+    // and b's faces against a's vertices; a face and its exact opposite from one set of dots
+    // (min n . x for n, -max n . x for -n); the largest g, ties to the lower face index
+    auto face_query = [&](const PolytopeView& P, const double* nrm_p, const double* off_p,
+                          const double* soa_q, i64 nv_q, double& best, i64& arg) -> bool {
+        best = -INFINITY;
+        arg = 0;
+        auto take = [&](i64 f, double s) {
+            if (s > best || (s == best && f < arg)) {
+                best = s;
+                arg = f;
+            }
+        };
+        for (i64 f = 0; f < P.nf; ++f) {
+            const i64 o = P.fopp[f];
+            if (o >= 0 && o < f) continue;
+            dots(at(nrm_p, f), soa_q, nv_q, tmp);
+            const double s = least(tmp, nv_q) - off_p[f];
+            if (s > spec) return false;
+            take(f, s);
+            if (o < 0) continue;
+            const double so = -most(tmp, nv_q) - off_p[o];
+            if (so > spec) return false;
+            take(o, so);
         }
-    }
-    double sep_b = -INFINITY;
-    i64 fb = 0;
-    for (i64 f = 0; f < B.nf; ++f) {
-        dots(at(B.fnrm, f), sc.va_soa.data(), A.nv, tmp);
-        const double s = least(tmp, A.nv) - B.foff[f];
-        if (s > spec) return 0;
-        if (s > sep_b) {
-            sep_b = s;
-            fb = f;
-        }
-    }
+        return true;
+    };
+    double sep_a, sep_b;
+    i64 fa, fb;
+    if (!face_query(A, FA.fnrm, FA.foff, B.vert_soa, B.nv, sep_a, fa)) return 0;
+    if (!face_query(B, B.fnrm, B.foff, sc.va_soa.data(), A.nv, sep_b, fb)) return 0;
     // edge query over the pairs that build a face of the Minkowski difference: ad[f ne_b + j] =
-    // a's normal f . (d x c) of b's edge j, cd[f] = b's normal f . (b x a) of a's edge i
+    // a's normal f . (d x c) of b's edge j, cd[f] = b's normal f . (b x a) of a's edge class
     sc.ad.resize(A.nf * B.ne);
     sc.pass.resize(B.ne);
     for (i64 f = 0; f < A.nf; ++f) dots(at(FA.fnrm, f), B.ecross_soa, B.ne, &sc.ad[f * B.ne]);
@@ -391,43 +462,56 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     i64 eab = -1, ebb = -1;
     V ue{0, 0, 0};
     const double ptol2 = cc.edge_parallel_tol * cc.edge_parallel_tol;
-    for (i64 i = 0; i < A.ne; ++i) {
-        const i64* ea = A.edge + 4 * i;
-        const double* ada = &sc.ad[ea[2] * B.ne];
-        const double* adb = &sc.ad[ea[3] * B.ne];
-        const V bxa = rot(R, at(A.ecross, i));
-        const V p1 = at(FA.vert, ea[0]);
-        const V e1 = at(FA.vert, ea[1]) - p1;
-        const double l1 = dot(e1, e1);
-        dots(bxa, B.fnrm_soa, B.nf, sc.cd.data());
-        // IsMinkowskiFace(a, b, -c, -d): (-c.(b x a)) (-d.(b x a)) < 0, a.(d x c) b.(d x c) < 0,
-        // (-c.(b x a)) b.(d x c) > 0; the pairs that pass listed without a branch (about half
-        // pass the first test: a branch on it is mispredicted half the time)
-        i64 n_pass = 0;
+    // IsMinkowskiFace(a, b, -c, -d): (-c.(b x a)) (-d.(b x a)) < 0, a.(d x c) b.(d x c) < 0,
+    // (-c.(b x a)) b.(d x c) > 0. The first test is one per class of a's parallel edges (their
+    // b x a are multiples of one vector: cd = b's normals . R crep, its sign times esign); the
+    // pairs that pass are listed without a branch (about half pass the first test: a branch on
+    // it would be mispredicted half the time)
+    sc.pass2.resize(B.ne);
+    for (i64 c = 0; c < A.nc; ++c) {
+        dots(rot(R, at(A.crep, c)), B.fnrm_soa, B.nf, sc.cd.data());
+        i64 n1 = 0;
         for (i64 j = 0; j < B.ne; ++j) {
             const i64* eb = B.edge + 4 * j;
-            const double cba = sc.cd[eb[2]], dba = sc.cd[eb[3]];
-            const double adc = ada[j], bdc = adb[j];
-            sc.pass[n_pass] = j;
-            n_pass += (cba * dba < 0.0) & (adc * bdc < 0.0) & (cba * bdc < 0.0);
+            sc.pass[n1] = j;
+            n1 += sc.cd[eb[2]] * sc.cd[eb[3]] < 0.0;
         }
-        for (i64 k = 0; k < n_pass; ++k) {
-            const i64 j = sc.pass[k];
-            const i64* eb = B.edge + 4 * j;
-            const V p2 = at(B.vert, eb[0]);
-            const V e2 = at(B.vert, eb[1]) - p2;
-            V u = cross(e1, e2);
-            const double uu = dot(u, u);
-            if (uu < ptol2 * l1 * dot(e2, e2)) continue;
-            const double lu = std::sqrt(uu);
-            u = (dot(u, p1 - t) < 0.0 ? -1.0 / lu : 1.0 / lu) * u;
-            const double s = dot(u, p2 - p1);
-            if (s > spec) return 0;
-            if (s > sep_e) {
-                sep_e = s;
-                eab = i;
-                ebb = j;
-                ue = u;
+        if (n1 == 0) continue;
+        for (i64 m = A.cstart[c]; m < A.cstart[c + 1]; ++m) {
+            const i64 i = A.cedge[m];
+            const double sg = A.esign[m];
+            const i64* ea = A.edge + 4 * i;
+            const double* ada = &sc.ad[ea[2] * B.ne];
+            const double* adb = &sc.ad[ea[3] * B.ne];
+            i64 n2 = 0;
+            for (i64 k = 0; k < n1; ++k) {
+                const i64 j = sc.pass[k];
+                const double cba = sg * sc.cd[B.edge[4 * j + 2]], bdc = adb[j];
+                sc.pass2[n2] = j;
+                n2 += std::max(ada[j] * bdc, cba * bdc) < 0.0;
+            }
+            if (n2 == 0) continue;
+            const V p1 = at(FA.vert, ea[0]);
+            const V e1 = at(FA.vert, ea[1]) - p1;
+            const double l1 = dot(e1, e1);
+            for (i64 k = 0; k < n2; ++k) {
+                const i64 j = sc.pass2[k];
+                const i64* eb = B.edge + 4 * j;
+                const V p2 = at(B.vert, eb[0]);
+                const V e2 = at(B.vert, eb[1]) - p2;
+                V u = cross(e1, e2);
+                const double uu = dot(u, u);
+                if (uu < ptol2 * l1 * dot(e2, e2)) continue;
+                const double lu = std::sqrt(uu);
+                u = (dot(u, p1 - t) < 0.0 ? -1.0 / lu : 1.0 / lu) * u;
+                const double s = dot(u, p2 - p1);
+                if (s > spec) return 0;
+                if (s > sep_e) {
+                    sep_e = s;
+                    eab = i;
+                    ebb = j;
+                    ue = u;
+                }
             }
         }
     }

@@ -33,6 +33,15 @@ struct PolytopeView {
     const double* vert_soa;
     const double* fnrm_soa;
     const double* ecross_soa;
+    const i64* fopp;  // (nf,) the face whose normal is exactly -fnrm[f], or -1
+    // the edges by class of parallel ones: class k's edges cedge[cstart[k] .. cstart[k + 1]),
+    // its direction crep[k] (3; its first edge's ecross), esign[e] = +-1: ecross[e] along
+    // +-crep of its class
+    i64 nc;
+    const i64* cstart;
+    const i64* cedge;
+    const double* crep;
+    const double* esign;
 };
 
 // The edges of a closed polytope from its face loops (each edge once, as f0's loop runs it; an
@@ -40,6 +49,15 @@ struct PolytopeView {
 // fnrm[f1] x fnrm[f0] to ecross.
 void polytope_edges(i64 nf, const i64* fstart, const i64* fvert, const double* fnrm,
                     std::vector<i64>& edge, std::vector<double>& ecross);
+// (nf,) the face whose normal is exactly (bit for bit) the negated normal of face f, or -1.
+std::vector<i64> opposite_faces(i64 nf, const double* fnrm);
+// The edge classes of a polytope (PolytopeView's cstart, cedge, crep, esign) from ecross
+// (ne, 3): edges whose arcs lie on one great circle (ecross parallel to sin 1e-9) share one.
+struct EdgeClasses {
+    std::vector<i64> cstart, cedge;
+    std::vector<double> crep, esign;
+};
+EdgeClasses edge_classes(const std::vector<double>& ecross);
 // (n, 3) rows as (3, n) columns.
 std::vector<double> by_coordinate(const std::vector<double>& rows);
 
