@@ -286,26 +286,19 @@ static i64 entry_hull_plane(const double* ca, M3 rota, const double* sa, const d
                             ColliderBuffers& b) {
     return collide_hull_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
 }
-// box - hull and hull - hull: separating axes and clipping (polytope.cpp); a pair apart whose
-// closest features that test cannot resolve exactly (-1): collide_convex's GJK distance
+// box - hull and hull - hull: separating axes and clipping (polytope.cpp)
 static i64 entry_box_hull(const double* ca, M3 rota, const double* sa, const double* cb, M3 rotb,
                           const double* sb, const double*, double, double spec,
                           ColliderBuffers& b) {
     double vert[48], foff[6];
-    const i64 n = collide_polytopes(box_view(sa, vert, foff), ca, rota, hull_view(hull_of(sb)), cb,
-                                    rotb, spec, b.nrm, b.pts, b.sep, b.fid);
-    if (n >= 0) return n;
-    return collide_convex(GEOM_BOX, ca, rota, sa, GEOM_HULL, cb, rotb, sb, spec, b.nrm, b.pts,
-                          b.sep, b.fid);
+    return collide_polytopes(box_view(sa, vert, foff), ca, rota, hull_view(hull_of(sb)), cb, rotb,
+                             spec, b.nrm, b.pts, b.sep, b.fid);
 }
 static i64 entry_hull_hull(const double* ca, M3 rota, const double* sa, const double* cb,
                            M3 rotb, const double* sb, const double*, double, double spec,
                            ColliderBuffers& b) {
-    const i64 n = collide_polytopes(hull_view(hull_of(sa)), ca, rota, hull_view(hull_of(sb)), cb,
-                                    rotb, spec, b.nrm, b.pts, b.sep, b.fid);
-    if (n >= 0) return n;
-    return collide_convex(GEOM_HULL, ca, rota, sa, GEOM_HULL, cb, rotb, sb, spec, b.nrm, b.pts,
-                          b.sep, b.fid);
+    return collide_polytopes(hull_view(hull_of(sa)), ca, rota, hull_view(hull_of(sb)), cb, rotb,
+                             spec, b.nrm, b.pts, b.sep, b.fid);
 }
 // (X, hull): collide_convex on the pair as it comes (X the lower code)
 template <i64 GA>

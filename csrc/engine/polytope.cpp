@@ -29,16 +29,21 @@
 //   incident loop clipped to the reference face's side planes (Sutherland - Hodgman: at most the
 //   two loops' vertex counts together), each point's gap z = n . x - d to the reference plane,
 //   kept while z <= spec and moved half its gap back towards the reference face (the midpoint
-//   between the surfaces). When no clipped point is as deep as g (the incident polytope's deepest
-//   vertex lies outside the reference face's prism), an overlapping pair adds that vertex (the
-//   manifold's least gap is then the pair's depth); a pair apart (g > 0) is then apart by more
-//   than g along no axis found here: -1, the caller's GJK (collide_convex). More than four
-//   points: reduce_manifold over gaps rounded to GAP_QUANTUM_M (a face at rest has its points
-//   equally deep to round-off: the same four every step). Normal (from b into a): -n when the
-//   reference face is a's, n when b's.
+//   between the surfaces). Every point's gap is at least g. The most anti-parallel face need
+//   not hold the incident polytope's deepest vertex (the face nearest -n on the Gauss map is
+//   not always one of that vertex's faces): when no clipped point is as deep as g, that vertex
+//   joins if it lies in the reference face's prism (always so when the face realizes the
+//   signed distance: the Minkowski difference's face is the reference face minus that vertex),
+//   not when it hangs beside the face (a box over a table's edge: its deepest corner is in the
+//   air, no contact); the least gap is then above g. An apart pair's g is a lower bound of its
+//   distance (its closest features may be a vertex or an edge end on both, as box - box's).
+//   More than four points: reduce_manifold over gaps rounded to GAP_QUANTUM_M (a face at rest
+//   has its points equally deep to round-off: the same four every step). Normal (from b into
+//   a): -n when the reference face is a's, n when b's. A face manifold left empty (a face kept
+//   over a slightly better edge pair, the faces not meeting) gives way to that edge pair's
+//   contact.
 // * Edge contact: one point midway between the closest points of the two edges (clamped to the
-//   segments), gap u . (q_b - q_a), normal -u. A pair apart whose closest points are clamped
-//   (an edge end) is apart along no axis found here: -1. When a face is also within reach of
+//   segments), gap u . (q_b - q_a) (>= g_e), normal -u. When a face is also within reach of
 //   the step (g_face <= spec and g_face >= g_e - spec) its face manifold goes in rows 4.. as the
 //   pair's second manifold (normal nrm[3:6]), as box - box does: a tumbling polytope would swing
 //   that face's corners in.
@@ -47,7 +52,7 @@
 // ((side 2^16 + ref face) 2^16 + incident face) 2^14 + clip id, side 0 when the reference face is
 // a's; the clip id is the incident loop position k (0..63) of a vertex, 64 + 64 label + p for
 // the point where the polygon edge `label` (incident edge k: k, reference side plane q: 64 + q)
-// crosses reference side plane p, FID_DEEPEST for the added deepest vertex; an edge point
+// crosses reference side plane p, FID_DEEPEST for the deepest vertex; an edge point
 // 2^50 + 2^20 edge_a + edge_b.
 #include "engine/polytope.hpp"
 
@@ -113,7 +118,7 @@ constexpr i64 FID_DEEPEST = (1 << 14) - 1;
 constexpr i64 FID_EDGE = i64(1) << 50;
 // clipped polygon room: an incident loop clipped by a reference loop (each <=
 // HULL_MAX_FACE_VERTICES) has at most their vertex counts together, and the deepest vertex
-constexpr i64 CAP = 2 * HULL_MAX_FACE_VERTICES + 2;
+constexpr i64 CAP = 2 * HULL_MAX_FACE_VERTICES + 1;
 
 // the polytopes in b's frame: a's vertices, normals and offsets moved there (b's own arrays)
 struct Frame {
@@ -130,8 +135,8 @@ struct Scratch {
 };
 
 // Face manifold of reference face fr of R against I (both in b's frame); g: the pair's
-// separation along that face's normal. side 0: R is a. Returns the points written (<= 4) or -1
-// (module comment: apart, no clipped point as near as g).
+// separation along that face's normal, scale: a length of the pair (round-off). side 0: R is a.
+// Returns the points written (<= 4).
 i64 face_contact(const Frame& R, i64 fr, const Frame& I, int side, double g, double spec,
                  const double* cb, M3 rotb, double scale, double* nrm, Pts pts, double* sep,
                  i64* fid) {
@@ -200,7 +205,6 @@ i64 face_contact(const Frame& R, i64 fr, const Frame& I, int side, double g, dou
     double P[CAP][3], S[CAP];
     i64 F[CAP];
     i64 count = 0;
-    double zmin = INFINITY;
     const i64 base = ((i64(side) * 65536 + (fr & 0xffff)) * 65536 + (fi & 0xffff)) * 16384;
     auto add = [&](V x, double z, i64 f) {
         const V w = V{cb[0], cb[1], cb[2]} + rot(rotb, x - (0.5 * z) * n);
@@ -211,14 +215,16 @@ i64 face_contact(const Frame& R, i64 fr, const Frame& I, int side, double g, dou
         F[count] = base + f;
         ++count;
     };
+    double zmin = INFINITY;
     for (i64 k = 0; k < m; ++k) {
         const V x{X[cur][k][0], X[cur][k][1], X[cur][k][2]};
         const double z = dot(n, x) - d;
         zmin = std::min(zmin, z);
         if (z <= spec) add(x, z, id[cur][k]);
     }
-    if (g <= 0.0 && !(zmin <= g + 1e-12 * scale)) {
-        // overlapping, the incident's deepest vertex outside the reference face's prism
+    if (!(zmin <= g + 1e-12 * scale)) {
+        // the incident face misses I's deepest vertex: that vertex joins when it lies in the
+        // reference face's prism (module comment), not when it hangs beside the face
         i64 vb = 0;
         double lo = INFINITY;
         for (i64 v = 0; v < I.p->nv; ++v) {
@@ -228,7 +234,14 @@ i64 face_contact(const Frame& R, i64 fr, const Frame& I, int side, double g, dou
                 vb = v;
             }
         }
-        add(at(I.vert, vb), lo - d, FID_DEEPEST);
+        const V x = at(I.vert, vb);
+        bool inside = lo - d <= spec;
+        for (i64 p = 0; p < rm && inside; ++p) {
+            const V a = at(R.vert, R.p->fvert[r0 + p]);
+            const V b = at(R.vert, R.p->fvert[r0 + (p + 1) % rm]);
+            inside = dot(cross(b - a, n), x - a) <= 0.0;
+        }
+        if (inside) add(x, lo - d, FID_DEEPEST);
     }
     const V nw = rot(rotb, n);
     const V nm = side == 0 ? -1.0 * nw : nw;
@@ -527,7 +540,12 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     const bool edge_best = eab >= 0 && sep_e > face_sep + (1.0 - cc.edge_rel_tol) *
                                                               std::fabs(face_sep) +
                                                               cc.axis_abs_tol;
-    if (!edge_best) return best_face(nrm, pts, sep, fid);
+    if (!edge_best) {
+        const i64 n = best_face(nrm, pts, sep, fid);
+        // a face kept over a slightly better edge pair whose faces do not meet (the clipped
+        // polygon empty): the edges' contact
+        if (n > 0 || eab < 0) return n;
+    }
     // edge contact: closest points of the two segments
     const i64* ea = A.edge + 4 * eab;
     const i64* eb = B.edge + 4 * ebb;
@@ -554,7 +572,7 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     if (face_sep > spec || face_sep < sep_e - spec) return 1;
     // the edges touch first, but a face is within reach of this step (module comment)
     const i64 n2 = best_face(nrm + 3, pts + 4, sep + 4, fid + 4);
-    return 1 + 8 * std::max<i64>(n2, 0);
+    return 1 + 8 * n2;
 }
 
 }  // namespace rb

@@ -64,9 +64,7 @@ std::vector<double> by_coordinate(const std::vector<double>& rows);
 // Contact of polytope a (centre ca, rotation rota body -> world) and polytope b: separating axes
 // (both polytopes' face normals, the edge pairs whose arcs cross on the Gauss map), a clipped
 // face manifold or one edge-edge point (polytope.cpp's derivation). Returns n1 + 8 n2 (a second,
-// face manifold in rows 4.. with its normal in nrm[3:6], as box - box), or -1 when the pair is
-// apart along no axis the test finds exact (its closest features a vertex or an edge end on
-// both): the caller then takes GJK's distance (collide_convex).
+// face manifold in rows 4.. with its normal in nrm[3:6], as box - box).
 i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const PolytopeView& B,
                       const double* cb, M3 rotb, double spec, double* nrm, Pts pts, double* sep,
                       i64* fid);

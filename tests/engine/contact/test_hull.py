@@ -203,13 +203,13 @@ def test_polytope_pair_against_coal(ta, tb, n_pose):
     distance d (coal's) and below it by at most the band by which a face axis is kept over a
     slightly better one when they overlap (a's face over b's by at most (1 - FACE_REL_TOL) |g|
     + AXIS_ABS_TOL, then that face over an edge pair by at most (1 - EDGE_REL_TOL) |g| +
-    AXIS_ABS_TOL; apart, g(n) is the axes' lower bound); where g(n) = d the normal is coal's. An overlapping pair's least gap is
-    g(n); an apart pair's gaps are at least g(n) (each is n . (p_a - p_b) of a point of each
-    solid), and a point with both ends on the surfaces is no nearer than d (d itself when it
-    realizes the axis). Every point of an overlapping pair is
-    the midpoint of a point on one surface and a point its gap away along n, which lies in the
-    other solid for every point but the deepest one (a deep pair's deepest vertex outside the
-    reference face's prism joins the clipped ones: at most one point)."""
+    AXIS_ABS_TOL; apart, g(n) is the axes' lower bound); where g(n) = d the normal is coal's.
+    Every gap is at least g(n) (each is n . (p_a - p_b) of a point of each solid): g(n) itself
+    for most overlapping pairs, not when the deepest vertex lies beside the reference face (a
+    box's corner hanging over a table's edge touches nothing). An apart pair's point with both
+    ends on the surfaces is no nearer than d (d itself when it realizes the axis). Every point
+    of an overlapping pair is the midpoint of a point on one surface and a point its gap away
+    along n on or in the other solid."""
     from rblog.engine.constants import AXIS_ABS_TOL, EDGE_REL_TOL, FACE_REL_TOL
 
     tol = 1e-14  # m: round-off of the 0.03 - 0.3 m shapes (measured below)
@@ -242,19 +242,19 @@ def test_polytope_pair_against_coal(ta, tb, n_pose):
             fa = (pa_[:, :3] @ (ra.T @ (qa - xa)) - pa_[:, 3]).max()
             fb = (pb_[:, :3] @ (rb.T @ (qb - xb)) - pb_[:, 3]).max()
             ends.append((fa, fb, s))
+        assert sep.min() >= g - tol, (sep.min(), g)
         if d_ref >= 0.0:
-            assert sep.min() >= g - tol, (sep.min(), g)
             for fa, fb, s in ends:  # a point with both ends on the surfaces: no nearer than d
                 if max(abs(fa), abs(fb)) <= tol:
                     assert s >= d_ref - tol, (s, d_ref)
                     worst["apart"] = max(worst["apart"], abs(s - d_ref) if s - g <= tol else 0)
             continue
-        assert abs(sep.min() - g) <= tol, (sep.min(), g)
-        assert sum(max(fa, fb) > tol for fa, fb, _ in ends) <= 1, ends
-        worst["surface"] = max(min(abs(fa), abs(fb)) for fa, fb, _ in ends)
+        for fa, fb, _ in ends:
+            assert max(fa, fb) <= tol, ends
+            worst["surface"] = max(worst["surface"], min(abs(fa), abs(fb)))
     # measured (300 / 3000 poses of each pair): exact poses' |g - d| <= 4.5e-16 m, normal
     # <= 5.4e-8 rad (coal's own GJK tolerance), d - g <= 0.92 of the preference band, surfaces
-    # <= 1.4e-16 m, apart pairs' realized axes <= 3.6e-15 m; 70-76 % of the poses with points
+    # <= 2.8e-16 m, apart pairs' realized axes <= 3.6e-15 m; 68-74 % of the poses with points
     # exact (the others deep overlaps, where the band is wide, or apart)
     assert worst["exact"] <= tol and worst["apart"] <= tol, worst
     assert worst["angle"] <= 1e-6, worst
