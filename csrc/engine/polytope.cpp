@@ -506,7 +506,9 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
             double r = INFINITY;
             for (i64 f = 0; f < A.nf; ++f) r = std::min(r, FA.foff[f] - dot(at(FA.fnrm, f), x));
             for (i64 f = 0; f < B.nf; ++f) r = std::min(r, FB.foff[f] - dot(at(FB.fnrm, f), x));
-            if (-2.0 * r + 1e-12 * scale < edge_thr) return n_face;
+            // the margin covers the planes' own error: a merged face's vertices lie up to
+            // FACE_COPLANAR_RTOL (1e-9, rblog/engine/hull.py) of the hull's size off its plane
+            if (-2.0 * r + 1e-8 * scale < edge_thr) return n_face;
         }
     }
     // edge query over the pairs that build a face of the Minkowski difference: ad[f ne_b + j] =
