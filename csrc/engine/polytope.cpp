@@ -24,13 +24,14 @@
 //   (1 - EDGE_REL_TOL) |g_face| + AXIS_ABS_TOL, so manifolds do not flip between nearly equal
 //   axes from step to step (a face chosen over a slightly better edge reports that face's gap:
 //   deeper than the true one by at most that band).
-// * Edge query skipped: an overlapping pair's (g_face < 0) face manifold is built first. A ball
-//   of radius r = min over both polytopes' faces of off - n . x about the centroid x of its
-//   touching points (gap <= 0) lies in both solids when r > 0, and no translation shorter
-//   than 2 r parts them: the signed distance, and so every edge pair's g, is at most -2 r.
-//   Below the edge threshold no edge pair can be chosen: the query is skipped and the
-//   manifold is the one it would have kept (a face resting level on another: r is half its
-//   depth).
+// * Edge query skipped: the face manifold is built first, and from it a bound of the signed
+//   distance, which bounds every edge pair's g. Apart (g_face >= 0): each point's ends (an
+//   incident face point, its projection in the reference face) lie on the two surfaces, its
+//   gap apart: the least gap. Overlapping: a ball of radius r = min over both polytopes' faces
+//   of off - n . x about the centroid x of the touching points (gap <= 0) lies in both solids
+//   when r > 0, and no translation shorter than 2 r parts them: -2 r (a face resting level on
+//   another: r is half its depth). Below the edge threshold no edge pair can be chosen: the
+//   query is skipped and the manifold is the one it would have kept.
 // * Face manifold: the reference face (the chosen face, normal n from its polytope towards the
 //   other) and the incident face (the other polytope's face most anti-parallel to n); the
 //   incident loop clipped to the reference face's side planes (Sutherland - Hodgman: at most the
@@ -485,31 +486,40 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     // an edge pair is chosen only when its separation exceeds edge_thr (module comment)
     const double edge_thr = face_sep + (1.0 - cc.edge_rel_tol) * std::fabs(face_sep) +
                             cc.axis_abs_tol;
-    // overlapping: the face manifold first. A ball of radius r about its touching points'
-    // centroid that lies in both polytopes bounds every axis' separation by -2 r (module
-    // comment); at most edge_thr, no edge pair can be chosen and the edge query is skipped
-    i64 n_face = -1;
-    if (face_sep < 0.0) {
-        n_face = best_face(nrm, pts, sep, fid);
-        V xw{0.0, 0.0, 0.0};
-        i64 k = 0;
-        for (i64 q = 0; q < n_face; ++q) {
-            if (!(sep[q] <= 0.0)) continue;
-            xw = xw + V{pts[q][0] - cb[0], pts[q][1] - cb[1], pts[q][2] - cb[2]};
-            ++k;
+    // the face manifold first, and a bound of the signed distance from it (module comment):
+    // at most edge_thr, no edge pair can be chosen and the edge query is skipped. The margin
+    // covers the planes' own error: a merged face's vertices lie up to FACE_COPLANAR_RTOL (1e-9,
+    // rblog/engine/hull.py) of the hull's size off its plane
+    const i64 n_face = best_face(nrm, pts, sep, fid);
+    if (n_face > 0) {
+        double bound = INFINITY;
+        if (face_sep >= 0.0) {
+            // apart: each point's ends lie on the two surfaces, its gap apart
+            for (i64 q = 0; q < n_face; ++q) bound = std::min(bound, sep[q]);
+        } else {
+            // overlapping: -2 r, r the radius of a ball about the touching points' centroid
+            // that lies in both polytopes
+            V xw{0.0, 0.0, 0.0};
+            i64 k = 0;
+            for (i64 q = 0; q < n_face; ++q) {
+                if (!(sep[q] <= 0.0)) continue;
+                xw = xw + V{pts[q][0] - cb[0], pts[q][1] - cb[1], pts[q][2] - cb[2]};
+                ++k;
+            }
+            if (k > 0) {
+                xw = (1.0 / double(k)) * xw;
+                const V x{rotb(0, 0) * xw.x + rotb(1, 0) * xw.y + rotb(2, 0) * xw.z,
+                          rotb(0, 1) * xw.x + rotb(1, 1) * xw.y + rotb(2, 1) * xw.z,
+                          rotb(0, 2) * xw.x + rotb(1, 2) * xw.y + rotb(2, 2) * xw.z};
+                double r = INFINITY;
+                for (i64 f = 0; f < A.nf; ++f)
+                    r = std::min(r, FA.foff[f] - dot(at(FA.fnrm, f), x));
+                for (i64 f = 0; f < B.nf; ++f)
+                    r = std::min(r, FB.foff[f] - dot(at(FB.fnrm, f), x));
+                bound = -2.0 * r;
+            }
         }
-        if (k > 0) {
-            xw = (1.0 / double(k)) * xw;
-            const V x{rotb(0, 0) * xw.x + rotb(1, 0) * xw.y + rotb(2, 0) * xw.z,
-                      rotb(0, 1) * xw.x + rotb(1, 1) * xw.y + rotb(2, 1) * xw.z,
-                      rotb(0, 2) * xw.x + rotb(1, 2) * xw.y + rotb(2, 2) * xw.z};
-            double r = INFINITY;
-            for (i64 f = 0; f < A.nf; ++f) r = std::min(r, FA.foff[f] - dot(at(FA.fnrm, f), x));
-            for (i64 f = 0; f < B.nf; ++f) r = std::min(r, FB.foff[f] - dot(at(FB.fnrm, f), x));
-            // the margin covers the planes' own error: a merged face's vertices lie up to
-            // FACE_COPLANAR_RTOL (1e-9, rblog/engine/hull.py) of the hull's size off its plane
-            if (-2.0 * r + 1e-8 * scale < edge_thr) return n_face;
-        }
+        if (bound + 1e-8 * scale < edge_thr) return n_face;
     }
     // edge query over the pairs that build a face of the Minkowski difference: ad[f ne_b + j] =
     // a's normal f . (d x c) of b's edge j, cd[f] = b's normal f . (b x a) of a's edge class
@@ -575,7 +585,7 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     }
     const bool edge_best = eab >= 0 && sep_e > edge_thr;
     if (!edge_best) {
-        const i64 n = n_face >= 0 ? n_face : best_face(nrm, pts, sep, fid);
+        const i64 n = n_face;
         // a face kept over a slightly better edge pair whose faces do not meet (the clipped
         // polygon empty): the edges' contact
         if (n > 0 || eab < 0) return n;
