@@ -24,10 +24,10 @@
 //   (1 - EDGE_REL_TOL) |g_face| + AXIS_ABS_TOL, so manifolds do not flip between nearly equal
 //   axes from step to step (a face chosen over a slightly better edge reports that face's gap:
 //   deeper than the true one by at most that band).
-// * Edge query skipped: the face manifold is built first, and from it a bound of the signed
-//   distance, which bounds every edge pair's g. Apart (g_face >= 0): each point's ends (an
-//   incident face point, its projection in the reference face) lie on the two surfaces, its
-//   gap apart: the least gap. Overlapping: a ball of radius r = min over both polytopes' faces
+// * Edge query skipped: the face manifold is built first (spec >= 0), and from it a bound of
+//   the signed distance, which bounds every edge pair's g. Apart (g_face >= 0): each point's
+//   ends (an incident face point, its projection in the reference face) lie on the two
+//   surfaces, its gap apart: the least gap. Overlapping: a ball of radius r = min over both polytopes' faces
 //   of off - n . x about the centroid x of the touching points (gap <= 0) lies in both solids
 //   when r > 0, and no translation shorter than 2 r parts them: -2 r (a face resting level on
 //   another: r is half its depth). Below the edge threshold no edge pair can be chosen: the
@@ -490,7 +490,9 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     // at most edge_thr, no edge pair can be chosen and the edge query is skipped. The margin
     // covers the planes' own error: a merged face's vertices lie up to FACE_COPLANAR_RTOL (1e-9,
     // rblog/engine/hull.py) of the hull's size off its plane
-    const i64 n_face = best_face(nrm, pts, sep, fid);
+    // (not in the project stage's pass, spec < 0: a pair that reaches here is mostly parted by
+    // an edge pair, which the edge query finds without the manifold)
+    i64 n_face = spec >= 0.0 ? best_face(nrm, pts, sep, fid) : -1;
     if (n_face > 0) {
         double bound = INFINITY;
         if (face_sep >= 0.0) {
@@ -585,7 +587,7 @@ i64 collide_polytopes(const PolytopeView& A, const double* ca, M3 rota, const Po
     }
     const bool edge_best = eab >= 0 && sep_e > edge_thr;
     if (!edge_best) {
-        const i64 n = n_face;
+        const i64 n = n_face >= 0 ? n_face : best_face(nrm, pts, sep, fid);
         // a face kept over a slightly better edge pair whose faces do not meet (the clipped
         // polygon empty): the edges' contact
         if (n > 0 || eab < 0) return n;
