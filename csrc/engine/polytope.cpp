@@ -27,11 +27,11 @@
 // * Edge query skipped: the face manifold is built first (spec >= 0), and from it a bound of
 //   the signed distance, which bounds every edge pair's g. Apart (g_face >= 0): each point's
 //   ends (an incident face point, its projection in the reference face) lie on the two
-//   surfaces, its gap apart: the least gap. Overlapping: a ball of radius r = min over both polytopes' faces
-//   of off - n . x about the centroid x of the touching points (gap <= 0) lies in both solids
-//   when r > 0, and no translation shorter than 2 r parts them: -2 r (a face resting level on
-//   another: r is half its depth). Below the edge threshold no edge pair can be chosen: the
-//   query is skipped and the manifold is the one it would have kept.
+//   surfaces, its gap apart: the least gap. Overlapping: a ball of radius r = min over both
+//   polytopes' faces of off - n . x about the centroid x of the touching points (gap <= 0)
+//   lies in both solids when r > 0, and no translation shorter than 2 r parts them: -2 r (a
+//   face resting level on another: r is half its depth). Below the edge threshold no edge
+//   pair can be chosen: the query is skipped and the manifold is the one it would have kept.
 // * Face manifold: the reference face (the chosen face, normal n from its polytope towards the
 //   other) and the incident face (the other polytope's face most anti-parallel to n); the
 //   incident loop clipped to the reference face's side planes (Sutherland - Hodgman: at most the
