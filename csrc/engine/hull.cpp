@@ -17,6 +17,7 @@
 #include "common/errors.hpp"
 #include "engine/collider_points.hpp"
 #include "engine/collision.hpp"
+#include "engine/polytope.hpp"
 
 namespace rb {
 
@@ -97,6 +98,19 @@ i64 register_hull(V2<double> vert, V2<double> fnrm, V1<double> foff, V1<i64> fst
                 h->ne += 1;
             }
         }
+    }
+    polytope_edges(nf, h->fstart.data(), h->fvert.data(), h->fnrm.data(), h->edge, h->ecross);
+    h->n_edge = static_cast<i64>(h->edge.size() / 4);
+    h->vert_soa = by_coordinate(h->vert);
+    h->fnrm_soa = by_coordinate(h->fnrm);
+    h->ecross_soa = by_coordinate(h->ecross);
+    h->fopp = opposite_faces(nf, h->fnrm.data());
+    {
+        EdgeClasses ec = edge_classes(h->ecross);
+        h->cstart = std::move(ec.cstart);
+        h->cedge = std::move(ec.cedge);
+        h->crep = std::move(ec.crep);
+        h->esign = std::move(ec.esign);
     }
     std::lock_guard<std::mutex> lock(g_mutex);
     const i64 n = g_count.load(std::memory_order_relaxed);

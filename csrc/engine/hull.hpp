@@ -22,6 +22,16 @@ struct Hull {
     std::vector<i64> fstart;    // (nf + 1,) face f's loop is fvert[fstart[f] .. fstart[f + 1])
     std::vector<i64> fvert;     // vertex indices, counter-clockwise about the face's normal
     std::vector<double> edir;   // (ne, 3) unit edge directions, one per class of parallel edges
+    // the edges (polytope.hpp: PolytopeView's conventions): (n_edge, 4) rows (v0, v1, f0, f1),
+    // v0 -> v1 along face f0's loop, f1 the face across the edge; (n_edge, 3) ecross[k] =
+    // fnrm[f1] x fnrm[f0] (the edge's arc on the Gauss map)
+    i64 n_edge = 0;
+    std::vector<i64> edge;
+    std::vector<double> ecross;
+    std::vector<double> vert_soa, fnrm_soa, ecross_soa;  // vert, fnrm, ecross by coordinate
+    std::vector<i64> fopp;  // (nf,) the face of normal -fnrm[f] exactly, or -1
+    std::vector<i64> cstart, cedge;  // the edges by parallel class (polytope.hpp)
+    std::vector<double> crep, esign;
     double ext[3] = {0, 0, 0};  // max_v |v_k|: the body-frame box centred on the origin around it
     double radius = 0.0;        // max_v |v| (m)
     i64 max_face = 0;           // the most vertices of a face

@@ -19,13 +19,15 @@
 // world is built (UnsupportedShapePair, Python), never silently skipped; collide() returns -1.
 //
 // Box-box lives in box_box.cpp (separating axes, clipping, reduction), the capsule pairs in
-// capsule.cpp, the cylinder pairs in cylinder.cpp, hull - plane in hull.cpp (every other hull
-// pair is cylinder.cpp's collide_convex).
+// capsule.cpp, the cylinder pairs in cylinder.cpp, hull - plane in hull.cpp, box - hull and
+// hull - hull in polytope.cpp (every other hull pair is cylinder.cpp's collide_convex).
 #include <algorithm>
 #include <cmath>
 
 #include "common/errors.hpp"
 #include "engine/collision.hpp"
+#include "engine/hull.hpp"
+#include "engine/polytope.hpp"
 
 namespace rb {
 
@@ -284,6 +286,20 @@ static i64 entry_hull_plane(const double* ca, M3 rota, const double* sa, const d
                             ColliderBuffers& b) {
     return collide_hull_plane(ca, rota, sa, pn, poff, spec, b.nrm, b.pts, b.sep, b.fid);
 }
+// box - hull and hull - hull: separating axes and clipping (polytope.cpp)
+static i64 entry_box_hull(const double* ca, M3 rota, const double* sa, const double* cb, M3 rotb,
+                          const double* sb, const double*, double, double spec,
+                          ColliderBuffers& b) {
+    double vert[48], foff[6];
+    return collide_polytopes(box_view(sa, vert, foff), ca, rota, hull_view(hull_of(sb)), cb, rotb,
+                             spec, b.nrm, b.pts, b.sep, b.fid);
+}
+static i64 entry_hull_hull(const double* ca, M3 rota, const double* sa, const double* cb,
+                           M3 rotb, const double* sb, const double*, double, double spec,
+                           ColliderBuffers& b) {
+    return collide_polytopes(hull_view(hull_of(sa)), ca, rota, hull_view(hull_of(sb)), cb, rotb,
+                             spec, b.nrm, b.pts, b.sep, b.fid);
+}
 // (X, hull): collide_convex on the pair as it comes (X the lower code)
 template <i64 GA>
 static i64 entry_x_hull(const double* ca, M3 rota, const double* sa, const double* cb, M3 rotb,
@@ -298,10 +314,10 @@ static i64 entry_x_hull(const double* ca, M3 rota, const double* sa, const doubl
 static const ColliderFn NARROWPHASE_TABLE[N_GEOM][N_GEOM] = {
     //             sphere               box               capsule               cylinder               hull                             plane
     /* sphere   */ {entry_sphere_sphere, entry_sphere_box, entry_sphere_capsule, entry_sphere_cylinder, entry_x_hull<GEOM_SPHERE>,   entry_sphere_plane},
-    /* box      */ {nullptr, entry_box_box, entry_box_capsule, entry_box_cylinder, entry_x_hull<GEOM_BOX>, entry_box_plane},
+    /* box      */ {nullptr, entry_box_box, entry_box_capsule, entry_box_cylinder, entry_box_hull, entry_box_plane},
     /* capsule  */ {nullptr, nullptr, entry_capsule_capsule, entry_capsule_cylinder, entry_x_hull<GEOM_CAPSULE>, entry_capsule_plane},
     /* cylinder */ {nullptr, nullptr, nullptr, entry_cylinder_cylinder, entry_x_hull<GEOM_CYLINDER>, entry_cylinder_plane},
-    /* hull     */ {nullptr, nullptr, nullptr, nullptr, entry_x_hull<GEOM_HULL>, entry_hull_plane},
+    /* hull     */ {nullptr, nullptr, nullptr, nullptr, entry_hull_hull, entry_hull_plane},
     /* plane    */ {nullptr, nullptr, nullptr, nullptr, nullptr, nullptr},
 };
 
