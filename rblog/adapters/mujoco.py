@@ -216,6 +216,7 @@ class MujocoRecorder(EngineRecorder):
             self._capture = ContactCapture()
         except ImportError:
             self._capture = None
+        self._decoding = False  # the compiled capture decodes the contacts (_decode_in_capture)
         self._fast, self._fast_d, self._efc_offset = None, None, None
         self._prev_momenta = None  # (step, P (N, 3), L (N, 3)) of the last sample written
         self._integration_fixed = None  # the compiled integration's fixed arrays
@@ -277,6 +278,7 @@ class MujocoRecorder(EngineRecorder):
                     self._capture.contacts_at(self._carray.base, self._carray.dtype.itemsize,
                                               self._carray.count)
                     self._capture_dtype = self._carray.dtype
+                    self._decode_in_capture(self._carray.dtype)
                 if self._fast_d is d and not (self._carray and self._efc_ok(d)):
                     self._fast, self._fast_d = None, None  # the compiled call cannot read them
             if self._carray and self._capture is not None:
@@ -435,7 +437,7 @@ class MujocoRecorder(EngineRecorder):
         for name in [k for k in arrays if k.startswith(("impulse_", "work_"))]:
             if name not in self._channels:
                 del arrays[name]
-        rows = decode_contacts(self.m, self.layout, self._raw, packed=self._captured())
+        rows = self._contact_rows()
         if rows is not None:
             arrays["contacts"] = rows
         self._raw = []
@@ -504,6 +506,41 @@ class MujocoRecorder(EngineRecorder):
         W[:, IMPULSE_KINDS.index("integration"), ids] = out
         self._prev_momenta = (int(steps[-1]), p[-1].copy(), L[-1].copy())
         return p, L
+
+    def _contact_rows(self):
+        """The contact rows of the samples since the last flush: those the compiled capture
+        decoded (``ContactCapture.rows``, decode_contacts' formulas), with those of the Python
+        captures (decode_contacts) merged in step order; all from decode_contacts when the
+        capture keeps raw structs."""
+        if not self._decoding:
+            return decode_contacts(self.m, self.layout, self._raw, packed=self._captured())
+        rows = self._capture.rows()
+        if not self._raw:
+            return rows
+        py = decode_contacts(self.m, self.layout, self._raw)
+        if rows is None or py is None:
+            return py if rows is None else rows
+        order = np.argsort(np.concatenate([py["step"], rows["step"]]), kind="stable")
+        return {k: np.concatenate([py[k], rows[k]])[order] for k in py}
+
+    def _decode_in_capture(self, dtype) -> None:
+        """Have the compiled capture decode each logged step's contacts (ContactCapture.
+        decode_with) when the mjContact fields are of the types it reads (float64 dist, pos,
+        frame, friction; int32 dim, geom, exclude, efc_address); else it keeps raw structs."""
+        if self._decoding:
+            return
+        want = dict(dist=("<f8", ()), pos=("<f8", (3,)), frame=("<f8", (9,)),
+                    friction=("<f8", (5,)), dim=("<i4", ()), geom=("<i4", (2,)),
+                    exclude=("<i4", ()), efc_address=("<i4", ()))
+        if list(dtype.names) != list(want) or not all(
+                dtype.fields[f][0].base == np.dtype(t) and dtype.fields[f][0].shape == sh
+                for f, (t, sh) in want.items()):
+            return
+        pyramidal = int(self.m.opt.cone) == int(_mj().mjtCone.mjCONE_PYRAMIDAL)
+        self._capture.decode_with([int(dtype.fields[f][1]) for f in want],
+                                  self.layout.geom_index.tolist(), pyramidal,
+                                  float(self.m.opt.timestep))
+        self._decoding = True
 
     def _captured(self):
         """The compiled capture's steps since the last flush, as _packed_contact_dict, or None."""
