@@ -294,9 +294,9 @@ def test_mcap_block_records_match_mcaps_own_writer(tmp_path, traj, monkeypatch, 
 @pytest.mark.parametrize("compression,chunk_bytes", [("lz4", 2048), ("lz4", 1 << 20),
                                                      ("zstd", 2048), ("none", 2048)])
 def test_mcap_chunks_are_mcaps_own(tmp_path, traj, monkeypatch, compression, chunk_bytes):
-    """rblog's Writer (LZ4 at LZ4_LEVEL, CRCs by _crc32) gives the file mcap's own Writer gives
-    (its chunk finalize and data-section write, zlib's CRC) when its lz4.frame.compress runs at
-    that level: byte for byte (chunk records, both CRCs, chunk indexes, summary); the LZ4 chunks
+    """rblog's Writer (LZ4 at LZ4_LEVEL in LZ4_BLOCK_LINKED blocks, CRCs by _crc32) gives the file
+    mcap's own Writer gives (its chunk finalize and data-section write, zlib's CRC) when its
+    lz4.frame.compress runs with those settings: byte for byte (chunk records, both CRCs, chunk indexes, summary); the LZ4 chunks
     are standard LZ4 frames, every CRC checks, and the run reads back bit for bit."""
     import lz4.frame
     from mcap.records import Chunk
@@ -309,7 +309,8 @@ def test_mcap_chunks_are_mcaps_own(tmp_path, traj, monkeypatch, compression, chu
     write(McapRecorder(str(ours), compression=compression), traj, block=7)
     own = lz4.frame.compress
     monkeypatch.setattr(lz4.frame, "compress",
-                        lambda data, **kw: own(data, compression_level=mcap_writer.LZ4_LEVEL))
+                        lambda data, **kw: own(data, compression_level=mcap_writer.LZ4_LEVEL,
+                                               block_linked=mcap_writer.LZ4_BLOCK_LINKED))
     for name in ("_Writer__finalize_chunk", "_Writer__flush"):
         monkeypatch.setattr(mcap_writer._Writer, name, getattr(mcap_writer.Writer, name))
     mcaps = tmp_path / "mcaps.mcap"
