@@ -127,7 +127,11 @@ class _Writer(Writer):
     runs mcap's own methods."""
 
     def _known(self) -> bool:
-        return all(hasattr(self, "_Writer__" + a) for a in _WRITER_ATTRS)
+        known = self.__dict__.get("_rblog_known")
+        if known is None:  # once per writer: the attributes are set in Writer.__init__
+            known = self.__dict__["_rblog_known"] = all(hasattr(self, "_Writer__" + a)
+                                                        for a in _WRITER_ATTRS)
+        return known
 
     def _Writer__flush(self):
         if not self._known():
