@@ -497,6 +497,7 @@ class Stepper:
         for r, (b, l) in enumerate(world.rows):
             self.row_of[b, l + 1] = r
         self.calls = [(b, links, rows[0] >= 0) for b, links, rows in world.multibodies]
+        self._bases = None  # the body ids when read() is one compiled call, False when not
         self.acc = {k: np.zeros((n, 3)) for k in ("contact_linear", "contact_angular",
                                                   "passive_linear", "passive_angular",
                                                   "joint_linear", "joint_angular",
@@ -513,8 +514,20 @@ class Stepper:
 
     def read(self):
         """The rows' state now; with joints, also ``self.cached``: (x, q_xyzw) of every row as
-        Bullet's cached link transforms hold them (the frames of its joint reactions)."""
+        Bullet's cached link transforms hold them (the frames of its joint reactions). A world
+        of bases alone (no links, no joints) is read in one compiled call
+        (``_gather.pybullet_read_bases``: the same pybullet calls, the same numbers)."""
         pb, c = self.pb, self.client
+        if self._bases is None:
+            self._bases = (np.array([bid for bid, _, base in self.calls if base], np.int64)
+                           if not self.use_joints and not any(links for _, links, _ in self.calls)
+                           and hasattr(_gather, "pybullet_read_bases") else False)
+        if self._bases is not False:
+            n = len(self._bases)
+            out = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3)))
+            _gather.pybullet_read_bases(pb.getBasePositionAndOrientation, pb.getBaseVelocity,
+                                        self._bases, {"physicsClientId": c}, *out)
+            return out
         out, cached = [], []
         for bid, links, base in self.calls:
             if base:
