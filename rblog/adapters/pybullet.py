@@ -498,10 +498,11 @@ class Stepper:
             self.row_of[b, l + 1] = r
         self.calls = [(b, links, rows[0] >= 0) for b, links, rows in world.multibodies]
         self._bases = None  # the body ids when read() is one compiled call, False when not
-        self.acc = {k: np.zeros((n, 3)) for k in ("contact_linear", "contact_angular",
-                                                  "passive_linear", "passive_angular",
-                                                  "joint_linear", "joint_angular",
-                                                  "applied_linear", "applied_angular")}
+        kinds = ("contact_linear", "contact_angular", "passive_linear", "passive_angular",
+                 "joint_linear", "joint_angular", "applied_linear", "applied_angular")
+        # the accumulators, views of one array (zeroed in one call: zero_acc)
+        self.acc_all = np.zeros((len(kinds), n, 3))
+        self.acc = {k: self.acc_all[i] for i, k in enumerate(kinds)}
         self.pending = (np.zeros((n, 3)), np.zeros((n, 3)))  # applied before the next step
         self.pending_any = False
         self.rows_out = None  # the last logged step's contact rows (P, 14)
@@ -920,8 +921,7 @@ class PybulletRecorder(EngineRecorder):
         acc = self.stepper.acc
         for name, key in self.channels:
             np.copyto(getattr(blk, name)[r], acc[key])
-        for a in acc.values():
-            a[:] = 0.0
+        self.stepper.acc_all[...] = 0.0  # every accumulator (acc's arrays are its views)
         if rows is not None:  # into the block's own contact arrays (views)
             c = blk.contact_rows(len(rows))
             c.body_a[:] = rows[:, 0]
