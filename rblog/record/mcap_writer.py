@@ -63,15 +63,17 @@ FLUSH_EVERY_S = 0.5
 DEFAULT_COMPRESSION = "lz4"
 #: the LZ4 frame compression level of the chunks (LZ4F: below 0 is the fast mode with
 #: acceleration -level; the frame is a standard LZ4 frame whatever the level, every reader
-#: decodes it). Per 1 MiB chunk of MuJoCo adapter logs (benchmarks/bench_adapters.py's worlds,
-#: a sample every step; ms of CPU, compressed / raw bytes): humanoid level 0 1.48 ms 0.691,
-#: -16 0.97 ms 0.739, -32 0.46 ms 0.761, -64 0.58 ms 0.777; stacker level 0 1.6-2.1 ms 0.38-0.41,
-#: -32 1.1 ms 0.54, -64 0.6-0.8 ms 0.58-0.64. -32 takes about a third of level 0's time for
-#: 10-40 % more bytes (``lz4.frame.compress`` of lz4 4.4.5 over the chunks of a 2000-step
-#: log of each world).
-LZ4_LEVEL = -32
+#: decodes it). Over the chunks of a 2000-step log of benchmarks/bench_adapters.py's MuJoCo
+#: worlds (a sample every step; ``lz4.frame.compress`` of lz4 4.4.5 in unlinked 64 KiB blocks;
+#: ms of CPU for all chunks, compressed / raw bytes): stacker (22.6 MB) -32 10.3 ms 0.608,
+#: -64 7.1 ms 0.667, -128 4.8 ms 0.733, -256 4.0 ms 0.798; humanoid (23.2 MB) -32 7.1 ms 0.764,
+#: -64 4.8 ms 0.789, -128 4.0 ms 0.813, -256 3.7 ms 0.834. Writing the bytes costs ~0.17 ms of
+#: CPU per MiB (page cache), so -128 saves ~5 ms (stacker) and ~2.5 ms (humanoid) of the
+#: recording's CPU against -32 for 10-20 % more bytes; below -128 the bytes grow faster than the
+#: time falls.
+LZ4_LEVEL = -128
 #: whether the chunk's LZ4 blocks (64 KiB) may refer back to the previous one (LZ4F linked
-#: blocks). Unlinked, over the 23-24 chunks of a 2000-step log at LZ4_LEVEL (ms of CPU for all,
+#: blocks). Unlinked, over the 23-24 chunks of a 2000-step log at level -32 (ms of CPU for all,
 #: compressed / raw bytes): stacker 22.6 -> 16.1 ms, 0.541 -> 0.557; humanoid 14.1 -> 9.1 ms,
 #: 0.725 -> 0.733 (a standard LZ4 frame either way).
 LZ4_BLOCK_LINKED = False
