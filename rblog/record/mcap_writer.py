@@ -396,7 +396,7 @@ class McapRecorder:
 
     def _write_samples(self, block: Trajectory):
         T, n = len(block.t), self._n
-        a = C.block_arrays(block, n, self._interval)
+        a = C.block_arrays(block, n, self._interval, copy=False)
         step = np.ascontiguousarray(block.step, np.int64)
         t = np.ascontiguousarray(block.t, np.float64)
         ns = C.time_ns(t)
@@ -633,15 +633,18 @@ def _headers(parts: list[bytes]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _byte_rows(cols: list, T: int) -> tuple:
-    """Each (T,) or (T, k) little-endian 8-byte column as its (T, 8k) bytes (views, no copy)."""
+    """Each (T,) or (T, k) little-endian 8-byte column as its (T, 8k) bytes, and a (T, k) or
+    (T, N, k) one whose last axis is contiguous (a view of a wider array: an engine's impulses)
+    as its (T, 8k) or (T, N, 8k) bytes; views, no copy (other layouts are copied)."""
     out = []
     for c in cols:
-        c = np.ascontiguousarray(c)
-        if c.dtype.kind == "f":
-            c = c.astype("<f8", copy=False)
-        else:
-            c = c.astype("<i8", copy=False)
-        out.append(c.reshape(T, -1).view(np.uint8))
+        c = np.asarray(c)
+        c = c.astype("<f8" if c.dtype.kind == "f" else "<i8", copy=False)
+        if c.flags.c_contiguous:
+            c = c.reshape(T, -1)
+        elif c.ndim not in (2, 3) or c.strides[-1] != 8:
+            c = np.ascontiguousarray(c).reshape(T, -1)
+        out.append(c.view(np.uint8))
     return tuple(out)
 
 
