@@ -8,6 +8,8 @@ numpy reference here, next to it, so the two can be read and tested side by side
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rblog.adapters._mujoco_model import BLOCK_STEPS, Layout, _mj
@@ -236,7 +238,7 @@ class Rows:
     def field(self, rows, f):
         """(K, *shape) the field ``f`` of ``rows`` (K, width)."""
         o, shape = self.offset[f], self.shape[f]
-        size = int(np.prod(shape))
+        size = math.prod(shape)
         return rows[:, o:o + size].reshape(len(rows), *shape)
 
 

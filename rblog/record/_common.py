@@ -4,6 +4,7 @@ names, and simulated time in nanoseconds. See docs/log-format.md."""
 from __future__ import annotations
 
 import json
+import math
 import re
 
 import numpy as np
@@ -247,7 +248,7 @@ def block_arrays(block, n: int, interval: tuple = (), copy: bool = True) -> dict
         if copy or a.flags.c_contiguous or a.ndim not in (2, 3) or len(a) != T or \
                 a.strides[-1] != 8:
             a = np.ascontiguousarray(a).reshape(T, -1)
-        width = int(np.prod(a.shape[1:]))
+        width = math.prod(a.shape[1:])
         if width != expected_width(name, n):
             raise ValueError(f"{name}: {width} values per sample, expected "
                              f"{expected_width(name, n)} for {n} bodies")
@@ -257,7 +258,7 @@ def block_arrays(block, n: int, interval: tuple = (), copy: bool = True) -> dict
 
 def expected_width(name: str, n: int) -> int:
     shape = SAMPLE_CHANNELS[name]
-    k = int(np.prod(shape)) if shape else 1
+    k = math.prod(shape)
     return k if name in TOTAL_CHANNELS else k * n
 
 

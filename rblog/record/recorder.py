@@ -304,7 +304,7 @@ def _col(table, key, what, rows, trail=(), default=None, dtype=np.float64):
     want = (rows, *trail)
     if not given:
         return np.broadcast_to(a, want).copy()
-    if a.size == int(np.prod(want)) and (a.ndim <= 1 or a.shape[0] == rows):
+    if a.size == math.prod(want) and (a.ndim <= 1 or a.shape[0] == rows):
         return a.reshape(want).copy()
     raise RecordError(f"body_table: {what}.{key}: shape {a.shape}, expected {want} ({rows} rows)")
 
@@ -489,7 +489,7 @@ def make_contacts(n_bodies: int, *, step, body_a, body_b, point, normal, separat
             raise RecordError(f"contacts.{name} = {_short(v)}, expected numbers") from None
         want = (k, *trail)
         # the shape itself, or the same values flattened ((3K,) for a point, as the MCAP rows)
-        if a.size != int(np.prod(want)) or (a.ndim > 1 and a.shape[0] != k):
+        if a.size != math.prod(want) or (a.ndim > 1 and a.shape[0] != k):
             raise RecordError(f"contacts.{name}: shape {a.shape}, expected {want} "
                               f"(K = {k} rows, one per value of contacts.step)")
         return a.reshape(want)
