@@ -196,13 +196,10 @@ class MujocoRecorder(EngineRecorder):
         self.hook = StepImpulses(m, self.layout, d, block=block)
         self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
         cap = self.hook.cap + 1
-        n = len(self.layout)
         self._ids = self.layout.body_id
-        # samples waiting for their interval's impulses (and, deferred, their kinematics)
-        self._x, self._r = np.empty((cap, n, 3)), np.empty((cap, n, 3, 3))
-        self._q = np.empty((cap, n, 4))
-        self._v, self._w = np.empty((cap, n, 3)), np.empty((cap, n, 3))
         self._steps = np.empty(cap, np.int64)
+        # samples waiting for their interval's impulses (and, deferred, their kinematics)
+        self._new_state_buffers()
         self._row = np.full(cap, -1, np.int64)  # the hook row of the sample's own step, -1: state known
         self._gap = np.zeros(cap, bool)
         self._raw = []
@@ -423,11 +420,11 @@ class MujocoRecorder(EngineRecorder):
             W[gap] = np.nan
             work[gap] = np.nan
         steps = self._steps[:ns].copy()
-        arrays = dict(t=steps * self.dt, step=steps, position=self._x[:ns].copy(),
-                      rotation=self._r[:ns].copy(), quat_wxyz=self._q[:ns].copy(),
-                      velocity=self._v[:ns].copy(),
-                      angular_velocity=self._w[:ns].copy(), linear_momentum=p,
+        arrays = dict(t=steps * self.dt, step=steps, position=self._x[:ns],
+                      rotation=self._r[:ns], quat_wxyz=self._q[:ns], velocity=self._v[:ns],
+                      angular_velocity=self._w[:ns], linear_momentum=p,
                       angular_momentum=L)  # the momenta the integration kind is taken from
+        self._new_state_buffers()  # the block keeps these (no copy); the next samples go to new ones
         for a, kind in enumerate(IMPULSE_KINDS):
             arrays[f"impulse_{kind}_angular"] = W[:, a, :, :3]
             arrays[f"impulse_{kind}_linear"] = W[:, a, :, 3:]
@@ -444,6 +441,14 @@ class MujocoRecorder(EngineRecorder):
         self._ns = 0
         self._gap[:] = False
         self.recorder.write(owned=True, **arrays)  # W and work are this block's own
+
+    def _new_state_buffers(self) -> None:
+        """Fresh (cap, N, ...) buffers for the waiting samples' states (position, rotation,
+        quaternion, velocity, angular velocity)."""
+        cap, n = len(self._steps), len(self.layout)
+        self._x, self._r = np.empty((cap, n, 3)), np.empty((cap, n, 3, 3))
+        self._q = np.empty((cap, n, 4))
+        self._v, self._w = np.empty((cap, n, 3)), np.empty((cap, n, 3))
 
     def _integration(self, W, ns: int):
         """The integration kind of each waiting sample's interval, written into ``W`` (ns, kinds,
