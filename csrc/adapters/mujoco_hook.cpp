@@ -7,7 +7,7 @@
 //      integrators), and puts qvel and qacc back;
 //   2. copies the pieces of mjData's buffer that hold the row's fields into row k (Rows in
 //      Python decides the pieces), and v1 into its row; v0 = v1.
-// ContactCapture copies the raw contacts of the logged steps (below); mujoco_resolve.cpp turns a
+// ContactCapture copies (or decodes) the contacts of the logged steps (below); mujoco_resolve.cpp turns a
 // block's rows into impulses and states.
 // It holds raw addresses: of d's arrays (mjData's buffer stays where it is for d's life), of the
 // Python-owned buffers (never reallocated while the hook lives), and of MuJoCo's two functions
@@ -24,6 +24,8 @@
 #include <tuple>
 #include <utility>
 #include <vector>
+
+#include "common/py.hpp"
 
 namespace nb = nanobind;
 
@@ -92,22 +94,48 @@ struct StepHook {
     }
 };
 
-// ContactCapture: at a logged step, the raw contacts of an MjData: its first ncon mjContact
-// structs (at `base`, `stride` bytes each: the start of mjData's arena, which stays where it is)
-// and its efc_force, appended to the block's capture; decoded a block at a time in Python
-// (rblog/adapters/_mujoco_model.py, decode_contacts).
+// ContactCapture: at a logged step, the contacts of an MjData: its first ncon mjContact structs
+// (at `base`, `stride` bytes each: the start of mjData's arena, which stays where it is) and its
+// efc_force. Raw (copied as they are, decoded a block at a time in Python: decode_contacts in
+// rblog/adapters/_mujoco_model.py), or, once decode_with() is set, decoded right there into the
+// contract's contact rows (rows()), the formulas of decode_contacts in the same order.
 struct ContactCapture {
     const std::uint8_t* con_base = nullptr;
     long con_stride = 0, con_count = 0;
     std::vector<std::int64_t> cap_step, cap_ncon, cap_nefc;
     std::vector<std::uint8_t> cap_raw;
     std::vector<double> cap_efc;
+    // the decoder: byte offsets of the mjContact fields dist, pos, frame, friction, dim, geom,
+    // exclude, efc_address (float64, int32), the log body of each geom (-1: static), the cone
+    bool decoding = false, pyramidal = false;
+    double dt = 0.0;
+    long off[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    std::vector<std::int64_t> geom_index;
+    // the decoded rows since the last rows()
+    std::vector<std::int64_t> o_step, o_a, o_b;
+    std::vector<double> o_point, o_normal, o_sep, o_ni, o_fi;
 
     void contacts_at(std::uintptr_t base, long stride, long count) {
         if (!base || stride <= 0 || count <= 0) throw std::invalid_argument("contacts_at: bad view");
         con_base = reinterpret_cast<const std::uint8_t*>(base);
         con_stride = stride;
         con_count = count;
+    }
+
+    void decode_with(std::vector<long> offsets, std::vector<std::int64_t> gi, bool pyramidal_,
+                     double dt_) {
+        if (offsets.size() != 8) throw std::invalid_argument("decode_with: 8 field offsets");
+        if (!con_base) throw std::logic_error("decode_with: contacts_at first");
+        for (size_t i = 0; i < 8; ++i) {
+            if (offsets[i] < 0 || offsets[i] + 8 > con_stride)
+                throw std::invalid_argument("decode_with: a field outside the struct");
+            off[i] = offsets[i];
+        }
+        if (!cap_step.empty()) throw std::logic_error("decode_with: raw captures pending");
+        geom_index = std::move(gi);
+        pyramidal = pyramidal_;
+        dt = dt_;
+        decoding = true;
     }
 
     void capture(std::int64_t step, long ncon,
@@ -118,6 +146,10 @@ struct ContactCapture {
     }
 
     void append(std::int64_t step, long ncon, const double* efc, long nefc) {
+        if (decoding) {
+            decode_step(step, ncon, efc, nefc);
+            return;
+        }
         cap_step.push_back(step);
         cap_ncon.push_back(ncon);
         cap_nefc.push_back((std::int64_t)nefc);
@@ -125,8 +157,113 @@ struct ContactCapture {
         if (nefc > 0) cap_efc.insert(cap_efc.end(), efc, efc + nefc);
     }
 
-    // the captures so far, as (step, ncon, nefc (S,) int64, raw bytes, efc_force), then cleared
+    static double rd(const std::uint8_t* p, long o) {
+        double v;
+        std::memcpy(&v, p + o, 8);
+        return v;
+    }
+    static std::int32_t ri(const std::uint8_t* p, long o) {
+        std::int32_t v;
+        std::memcpy(&v, p + o, 4);
+        return v;
+    }
+
+    // decode_contacts on one step's contacts: local (normal, tangent 1, tangent 2) force on geom2
+    // in the contact frame from efc_force (pyramidal: the sum of the 2 (dim - 1) edges, numpy's
+    // pairwise order over the 10 gathered rows, zeros past the edges; tangent j = mu_j (f_2j -
+    // f_2j+1); elliptic: the first three rows), the static geometry as body_b (normal and friction
+    // flipped), kept when in the constraint, not excluded, on a logged body and not a separated
+    // contact without push; impulses = force dt
+    void decode_step(std::int64_t step, long ncon, const double* efc, long nefc) {
+        constexpr int W = 10;  // _EFC_WIDTH
+        const long ngeom = (long)geom_index.size();
+        const std::uint8_t* rec = con_base;
+        for (long c = 0; c < ncon; ++c, rec += con_stride) {
+            const std::int64_t adr = ri(rec, off[7]);
+            if (adr < 0 || ri(rec, off[6]) != 0) continue;
+            const int dim = ri(rec, off[4]);
+            auto f = [&](int j) { return adr + j < nefc ? efc[adr + j] : 0.0; };
+            double local[3] = {0.0, 0.0, 0.0};
+            if (dim == 1) {
+                local[0] = f(0);
+            } else if (dim > 1) {
+                if (pyramidal) {
+                    const long width = 2L * (dim - 1);
+                    double e[W];
+                    for (int j = 0; j < W; ++j) e[j] = j < width ? f(j) : 0.0;
+                    local[0] = ((((e[0] + e[1]) + (e[2] + e[3])) + ((e[4] + e[5]) + (e[6] + e[7]))) +
+                                e[8]) + e[9];
+                    local[1] = rd(rec, off[3]) * (e[0] - e[1]);
+                    local[2] = rd(rec, off[3] + 8) * (e[2] - e[3]);
+                } else {
+                    local[0] = f(0);
+                    local[1] = f(1);
+                    local[2] = f(2);
+                }
+            }
+            const int g0 = ri(rec, off[5]), g1 = ri(rec, off[5] + 4);
+            if (g0 < 0 || g0 >= ngeom || g1 < 0 || g1 >= ngeom)
+                throw std::out_of_range("ContactCapture: a contact's geom outside the model");
+            std::int64_t a = geom_index[g1], b = geom_index[g0];
+            double normal[3], fric[3];
+            for (int i = 0; i < 3; ++i) {
+                normal[i] = rd(rec, off[2] + 8 * i);
+                fric[i] = local[1] * rd(rec, off[2] + 8 * (3 + i)) +
+                          local[2] * rd(rec, off[2] + 8 * (6 + i));
+            }
+            if (a < 0) {
+                std::swap(a, b);
+                for (int i = 0; i < 3; ++i) {
+                    normal[i] *= -1.0;
+                    fric[i] *= -1.0;
+                }
+            }
+            const double dist = rd(rec, off[0]);
+            if (a < 0 || (local[0] <= 0.0 && dist > 0.0)) continue;
+            o_step.push_back(step);
+            o_a.push_back(a);
+            o_b.push_back(b);
+            for (int i = 0; i < 3; ++i) {
+                o_point.push_back(rd(rec, off[1] + 8 * i));
+                o_normal.push_back(normal[i]);
+                o_fi.push_back(fric[i] * dt);
+            }
+            o_sep.push_back(dist);
+            o_ni.push_back(local[0] * dt);
+        }
+    }
+
+    // the decoded rows since the last call, as a dict for Recorder.write (None: no rows); cleared
+    nb::object rows() {
+        const size_t n = o_step.size();
+        if (!n) return nb::none();
+        nb::dict out;
+        out["step"] = rb::to_numpy(std::move(o_step), {n});
+        out["body_a"] = rb::to_numpy(std::move(o_a), {n});
+        out["body_b"] = rb::to_numpy(std::move(o_b), {n});
+        out["point"] = rb::to_numpy(std::move(o_point), {n, 3});
+        out["normal"] = rb::to_numpy(std::move(o_normal), {n, 3});
+        out["separation"] = rb::to_numpy(std::move(o_sep), {n});
+        out["normal_impulse"] = rb::to_numpy(std::move(o_ni), {n});
+        out["friction_impulse"] = rb::to_numpy(std::move(o_fi), {n, 3});
+        for (auto* v : {&o_step, &o_a, &o_b}) {
+            v->clear();
+            v->reserve(n);
+        }
+        for (auto* v : {&o_sep, &o_ni}) {
+            v->clear();
+            v->reserve(n);
+        }
+        for (auto* v : {&o_point, &o_normal, &o_fi}) {
+            v->clear();
+            v->reserve(3 * n);
+        }
+        return out;
+    }
+
+    // the raw captures so far, as (step, ncon, nefc (S,) int64, raw bytes, efc_force), then cleared
     nb::tuple take() {
+
         return nb::make_tuple(to_numpy(cap_step), to_numpy(cap_ncon), to_numpy(cap_nefc),
                               to_numpy(cap_raw), to_numpy(cap_efc));
     }
@@ -235,6 +372,11 @@ NB_MODULE(_hook, mod) {
              "contacts_at(base, stride, count): where d's mjContact structs are")
         .def("capture", &ContactCapture::capture,
              "capture(step, ncon, efc_force): append the logged step's raw contacts")
+        .def("decode_with", &ContactCapture::decode_with,
+             "decode_with(offsets, geom_index, pyramidal, dt): decode each capture into contact "
+             "rows from now on (decode_contacts' formulas)")
+        .def("rows", &ContactCapture::rows,
+             "rows() -> dict | None: the decoded contact rows since the last call, then cleared")
         .def("take", &ContactCapture::take,
              "take() -> (step, ncon, nefc, raw bytes, efc_force): the captures, then cleared");
     nb::class_<StepRecord>(mod, "StepRecord")

@@ -340,9 +340,79 @@ void integration(nb::handle w_h, nb::handle ids_h, nb::handle mass_h, nb::handle
     }
 }
 
+// The generalized force of the joints' non-ideal constraints, StepImpulses._joint_forces:
+// q_joint[k, j] = qfrc_constraint[k, j] - sum_s cdof[k, j, s] below[k, j, s], below[k, j] the
+// contact wrenches (K, nbody, 6) summed over the subtree of dof j's body. numpy's
+// matmul(subtree, contact) (a 0/1 matrix) sums the subtree's bodies in ascending order from
+// +0.0; `mode` 0: the whole q_joint (the cdof sum in einsum's order, below); 1: `below` alone,
+// written into below (K, nv, 6) (the caller takes the einsum). `members` (CSR over bodies:
+// start (nbody + 1,), body (M,) ascending) are the subtree's bodies; contact (K, nbody, 6), or
+// empty: the rows' cfrc_ext.
+void joint_forces(nb::handle rows_h, nb::handle offsets_h, nb::handle contact_h,
+                  nb::handle start_h, nb::handle members_h, nb::handle dof_body_h, int mode,
+                  nb::handle below_h, nb::handle q_h) {
+    V2<double> rows = v2<double>(rows_h, "rows");
+    V1<i64> off = v1<i64>(offsets_h, "offsets");
+    V3<double> con = v3<double>(contact_h, "contact");
+    V1<i64> start = v1<i64>(start_h, "start"), mem = v1<i64>(members_h, "members");
+    V1<i64> dof_body = v1<i64>(dof_body_h, "dof_body");
+    V3<double> below = v3<double>(below_h, "below");
+    V2<double> q = v2<double>(q_h, "q_joint");
+    const i64 K = rows.n0, nv = dof_body.n0, nb_ = start.n0 - 1;
+    if (off.n0 != N_ROW_FIELDS) throw nb::value_error("joint_forces: offsets must hold 17 fields");
+    for (i64 f = 0; f < N_ROW_FIELDS; ++f)
+        if (off(f) < 0 || off(f) > rows.n1) throw nb::value_error("joint_forces: offset outside the row");
+    const bool own = con.n0 > 0;
+    if (own && (con.n0 != K || con.n1 != nb_ || con.n2 != 6))
+        throw nb::value_error("joint_forces: contact must be (K, nbody, 6) or empty");
+    if (nb_ < 0 || start(0) != 0 || start(nb_) != mem.n0)
+        throw nb::value_error("joint_forces: bad subtree lists");
+    for (i64 b = 0; b < nb_; ++b)
+        if (start(b) > start(b + 1)) throw nb::value_error("joint_forces: bad subtree lists");
+    for (i64 i = 0; i < mem.n0; ++i)
+        if (mem(i) < 0 || mem(i) >= nb_) throw nb::value_error("joint_forces: member out of range");
+    for (i64 j = 0; j < nv; ++j)
+        if (dof_body(j) < 0 || dof_body(j) >= nb_) throw nb::value_error("joint_forces: dof_body out of range");
+    if (off(F_CFRC_EXT) + 6 * nb_ > rows.n1 || off(F_CDOF) + 6 * nv > rows.n1 ||
+        off(F_QFRC_CONSTRAINT) + nv > rows.n1)
+        throw nb::value_error("joint_forces: a field outside the row");
+    if (mode == 1 ? (below.n0 != K || below.n1 != nv || below.n2 != 6)
+                  : (q.n0 != K || q.n1 != nv))
+        throw nb::value_error("joint_forces: below (K, nv, 6) or q_joint (K, nv) disagree");
+    for (i64 k = 0; k < K; ++k) {
+        const double* row = &rows(k, 0);
+        const double* c = own ? &con(k, 0, 0) : row + off(F_CFRC_EXT);
+        const double* cdof = row + off(F_CDOF);
+        const double* qc = row + off(F_QFRC_CONSTRAINT);
+        for (i64 j = 0; j < nv; ++j) {
+            const i64 b = dof_body(j);
+            double acc[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+            for (i64 i = start(b); i < start(b + 1); ++i)
+                for (int e = 0; e < 6; ++e) acc[e] = acc[e] + c[6 * mem(i) + e];
+            if (mode == 1) {
+                for (int e = 0; e < 6; ++e) below(k, j, e) = acc[e];
+            } else {
+                // numpy's einsum order on x86-64 (its baseline, two float64 lanes): the even
+                // and the odd products each summed from +0.0, then the two sums
+                const double* u = cdof + 6 * j;
+                double lane0 = 0.0, lane1 = 0.0;
+                for (int e = 0; e < 6; e += 2) {
+                    lane0 = lane0 + u[e] * acc[e];
+                    lane1 = lane1 + u[e + 1] * acc[e + 1];
+                }
+                q(k, j) = qc[j] - (lane0 + lane1);
+            }
+        }
+    }
+}
+
 }  // namespace
 
 void bind_resolve(nb::module_& m) {
+    m.def("joint_forces", &joint_forces,
+          "joint_forces(rows, offsets, contact, start, members, dof_body, mode, below, q_joint): "
+          "StepImpulses._joint_forces (mode 0: q_joint; 1: the subtree sums `below` alone) "
+          "(csrc/adapters/mujoco_resolve.cpp)");
     m.def("integration", &integration,
           "integration(W, ids, mass, inertia, gravity, logged, steps, h, has_prev, prev_step, "
           "prev_p, prev_L, r, v, w, p, L): the integration kind into W[:, 5, ids] and the samples' "

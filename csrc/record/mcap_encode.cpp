@@ -129,17 +129,29 @@ i64 put_frame_transforms_pq(u8* out, i64 k, i64 ns, const double* pos, const dou
     return k;
 }
 
+// One column of a block's samples as bytes: sample t's are `runs` runs of `run_bytes`
+// contiguous bytes each, at p + t * row_stride + j * run_stride (a C-contiguous (T, bytes)
+// column, or a row-contiguous one, is one run per sample; a (T, N, 3) view of a wider array,
+// N runs).
+struct ByteCol {
+    const u8* p = nullptr;
+    i64 n0 = 0, row_stride = 0, runs = 1, run_stride = 0, run_bytes = 0;
+    i64 bytes() const { return runs * run_bytes; }
+};
+
 // Message of sample t whose every field is a header (tag, and length if packed) and that
-// sample's row of bytes of one column (cols: (T, bytes) arrays).
-i64 put_fields(u8* out, i64 k, i64 t, V1<u8> hdr, V1<i64> hdr_off, const std::vector<V2<u8>>& cols) {
+// sample's bytes of one column.
+i64 put_fields(u8* out, i64 k, i64 t, V1<u8> hdr, V1<i64> hdr_off, const std::vector<ByteCol>& cols) {
     for (size_t f = 0; f < cols.size(); ++f) {
         const i64 h0 = hdr_off[f], h1 = hdr_off[f + 1];
         std::memcpy(out + k, hdr.p + h0, static_cast<size_t>(h1 - h0));
         k += h1 - h0;
-        const V2<u8>& c = cols[f];
-        const i64 nb = c.n1;
-        std::memcpy(out + k, c.p + t * nb, static_cast<size_t>(nb));
-        k += nb;
+        const ByteCol& c = cols[f];
+        const u8* src = c.p + t * c.row_stride;
+        for (i64 j = 0; j < c.runs; ++j) {
+            std::memcpy(out + k, src + j * c.run_stride, static_cast<size_t>(c.run_bytes));
+            k += c.run_bytes;
+        }
     }
     return k;
 }
@@ -175,8 +187,8 @@ void encode_frame_transforms(V1<i64> ns, V1<u8> dbl8, V1<u8> rest, V1<i64> rest_
 // records (opcode 0x05, length, channel, sequence 0, log time = publish time); record r ends at
 // ends[r].
 void encode_sample_records(V1<i64> ns, V1<i64> channels, V1<u8> st_hdr, V1<i64> st_off,
-                           const std::vector<V2<u8>>& st_cols, V1<u8> mt_hdr, V1<i64> mt_off,
-                           const std::vector<V2<u8>>& mt_cols, V1<u8> dbl8, V1<u8> rest,
+                           const std::vector<ByteCol>& st_cols, V1<u8> mt_hdr, V1<i64> mt_off,
+                           const std::vector<ByteCol>& mt_cols, V1<u8> dbl8, V1<u8> rest,
                            V1<i64> rest_start, V2<i64> dbl_off, V1<u8> out, V1<i64> ends) {
     u8 ts[24];
     u8* o = out.p;
@@ -216,8 +228,8 @@ void encode_sample_records(V1<i64> ns, V1<i64> channels, V1<u8> st_hdr, V1<i64> 
 // first record not written, the chunk's new byte count).
 std::pair<i64, i64> encode_sample_records_into(
     i64 r0, V1<u8> chunk, i64 count, i64 chunk_size, i64 rec_max, V1<i64> ns, V1<i64> channels,
-    V1<u8> st_hdr, V1<i64> st_off, const std::vector<V2<u8>>& st_cols, V1<u8> mt_hdr,
-    V1<i64> mt_off, const std::vector<V2<u8>>& mt_cols, V3<double> position,
+    V1<u8> st_hdr, V1<i64> st_off, const std::vector<ByteCol>& st_cols, V1<u8> mt_hdr,
+    V1<i64> mt_off, const std::vector<ByteCol>& mt_cols, V3<double> position,
     V3<double> quat_wxyz, V1<u8> rest, V1<i64> rest_start, V2<i64> dbl_off, V1<i64> offsets) {
     u8 ts[24];
     u8* o = chunk.p;
@@ -325,13 +337,35 @@ i64 check_hdr(V1<u8> hdr, V1<i64> off, size_t n_fields, const char* what) {
     return off.n0 ? off[off.n0 - 1] - off[0] : 0;
 }
 
-std::vector<V2<u8>> byte_cols(nb::handle seq, i64 T, const char* what, i64& row_bytes) {
-    std::vector<V2<u8>> cols;
+// The columns of `seq`: uint8 arrays (T, bytes) or (T, runs, run bytes), each sample's bytes
+// contiguous along the last axis, any strides before it (views, not copies).
+std::vector<ByteCol> byte_cols(nb::handle seq, i64 T, const char* what, i64& row_bytes) {
+    std::vector<ByteCol> cols;
     row_bytes = 0;
     for (nb::handle h : seq) {
-        cols.push_back(v2<u8>(h, what));
-        need(cols.back().n0 == T, std::string(what) + ": a column of another number of samples");
-        row_bytes += cols.back().n1;
+        nb::ndarray<u8, nb::device::cpu> a;
+        if (!nb::try_cast(h, a, false) || (a.ndim() != 2 && a.ndim() != 3) ||
+            (a.shape(a.ndim() - 1) > 1 && a.stride(a.ndim() - 1) != 1))
+            throw nb::type_error((std::string(what) + ": expected uint8 columns (T, bytes) or "
+                                  "(T, runs, bytes), contiguous along the last axis").c_str());
+        ByteCol c;
+        c.p = a.data();
+        c.n0 = static_cast<i64>(a.shape(0));
+        c.row_stride = static_cast<i64>(a.stride(0));
+        if (a.ndim() == 2) {
+            c.run_bytes = static_cast<i64>(a.shape(1));
+        } else {
+            c.runs = static_cast<i64>(a.shape(1));
+            c.run_stride = static_cast<i64>(a.stride(1));
+            c.run_bytes = static_cast<i64>(a.shape(2));
+            if (c.runs <= 1 || c.run_stride == c.run_bytes) {  // the runs are back to back
+                c.run_bytes *= c.runs;
+                c.runs = 1;
+            }
+        }
+        need(c.n0 == T, std::string(what) + ": a column of another number of samples");
+        cols.push_back(c);
+        row_bytes += c.bytes();
     }
     return cols;
 }

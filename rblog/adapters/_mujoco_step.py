@@ -8,6 +8,8 @@ numpy reference here, next to it, so the two can be read and tested side by side
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rblog.adapters._mujoco_model import BLOCK_STEPS, Layout, _mj
@@ -94,6 +96,22 @@ def _xfrc_work(F, xf, r, h):
 
 
 _FUNCTIONS = []
+_EINSUM_PAIRS = []
+
+
+def _einsum_pairs() -> bool:
+    """Whether numpy's ``einsum("kjs,kjs->kj")`` over s = 0..5 sums the products as two lanes,
+    the even and the odd ones each from +0.0, then the two (its x86-64 baseline, two float64
+    lanes): the order of the compiled joint forces' cdof sum. Probed once on random numbers."""
+    if not _EINSUM_PAIRS:
+        rng = np.random.default_rng(36)
+        a = rng.standard_normal((64, 3, 6)) * 10.0 ** rng.integers(-6, 7, (64, 3, 6))
+        b = rng.standard_normal((64, 3, 6)) * 10.0 ** rng.integers(-6, 7, (64, 3, 6))
+        p = a * b
+        pairs = ((p[..., 0] + p[..., 2]) + p[..., 4]) + ((p[..., 1] + p[..., 3]) + p[..., 5])
+        ein = np.einsum("kjs,kjs->kj", a, b)
+        _EINSUM_PAIRS.append(bool(np.array_equal(pairs.view(np.int64), ein.view(np.int64))))
+    return _EINSUM_PAIRS[0]
 
 
 def _hook_built() -> bool:
@@ -220,7 +238,7 @@ class Rows:
     def field(self, rows, f):
         """(K, *shape) the field ``f`` of ``rows`` (K, width)."""
         o, shape = self.offset[f], self.shape[f]
-        size = int(np.prod(shape))
+        size = math.prod(shape)
         return rows[:, o:o + size].reshape(len(rows), *shape)
 
 
@@ -273,6 +291,7 @@ class StepImpulses:
         self._compile()
         self._gap_v0 = {}  # row -> its v0 after steps not seen
         self._fixed = None  # the compiled resolve's fixed arrays (row offsets, layout maps)
+        self._subtree_lists = None  # the compiled joint forces' subtree members (CSR)
         self.k = 0
 
     def bind(self, d) -> None:
@@ -401,9 +420,10 @@ class StepImpulses:
         and N m s, in IMPULSE_KINDS order, integration 0 (per interval, MujocoRecorder); work
         (K, 4, nbody) J, WORK_KINDS order). The rows stay until :meth:`reset`. Compiled
         (``rblog.adapters._hook.resolve``: the formulas of :meth:`resolve_numpy` in the same
-        order) when the build has it; the joints' constraint forces (:meth:`_joint_forces`) and
-        the velocity the work is taken at (:meth:`_v_work`) and the work of ``xfrc_applied``
-        (:func:`_xfrc_work`) come from numpy either way (einsum's sums, not the kernel's)."""
+        order) when the build has it, the joints' constraint forces too
+        (:meth:`_joint_forces_compiled`: numpy's sums in numpy's order); the velocity the work is
+        taken at (:meth:`_v_work`) and the work of ``xfrc_applied`` (:func:`_xfrc_work`) come
+        from numpy either way (einsum's sums, not the kernel's)."""
         W, work = self._resolve()
         if self.rk4:
             self._unknown_rk4_joint_work(work)
@@ -442,7 +462,7 @@ class StepImpulses:
         if pushed:
             r = F("xipos") - F("subtree_com")[:, lay.root]
             contact_c = contact_c - _xfrc_about_c(xf, r)
-        q_joint = np.ascontiguousarray(self._joint_forces(F, contact_c))
+        q_joint = self._joint_forces_compiled(R, off, None if not pushed else contact_c, F)
         v_work = np.ascontiguousarray(self._v_work(v0, v1))
         W = np.empty((k, len(IMPULSE_KINDS), nb, 6))
         work = np.empty((k, len(WORK_KINDS), nb))
@@ -514,6 +534,33 @@ class StepImpulses:
         if pushed:
             work[:, 0] += _xfrc_work(F, xf, r, h)
         return W, work
+
+    def _joint_forces_compiled(self, R, off, contact_c, F):
+        """:meth:`_joint_forces` by ``rblog.adapters._hook.joint_forces``: the subtree sums in
+        matmul's order (ascending bodies from +0.0: ``subtree`` is 0/1) and, when this numpy's
+        einsum sums six products as the kernel does (:func:`_einsum_pairs`), the cdof products
+        too; else numpy's einsum over the kernel's subtree sums. ``contact_c`` None: the rows'
+        cfrc_ext."""
+        from rblog.adapters._hook import joint_forces
+
+        if self._subtree_lists is None:
+            S = np.asarray(self.lay.subtree) != 0
+            self._subtree_lists = (
+                np.concatenate([[0], np.cumsum(S.sum(axis=1))]).astype(np.int64),
+                np.concatenate([np.flatnonzero(row) for row in S] or [np.zeros(0)]).astype(np.int64),
+                np.ascontiguousarray(self.lay.dof_body, np.int64))
+        start, members, dof_body = self._subtree_lists
+        k, nv = len(R), int(self.m.nv)
+        con = np.empty((0, 0, 0)) if contact_c is None else np.ascontiguousarray(contact_c,
+                                                                                 np.float64)
+        if _einsum_pairs():
+            q = np.empty((k, nv))
+            joint_forces(R, off, con, start, members, dof_body, 0, np.empty((0, 0, 0)), q)
+            return q
+        below = np.empty((k, nv, 6))
+        joint_forces(R, off, con, start, members, dof_body, 1, below, np.empty((0, 0)))
+        return np.ascontiguousarray(F("qfrc_constraint") - np.einsum("kjs,kjs->kj", F("cdof"),
+                                                                      below))
 
     def _joint_forces(self, F, contact_c):
         """(K, nv) the generalized force of the joints' non-ideal constraints (limits, friction

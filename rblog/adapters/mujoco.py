@@ -196,13 +196,10 @@ class MujocoRecorder(EngineRecorder):
         self.hook = StepImpulses(m, self.layout, d, block=block)
         self.deferred = not self.hook.rk4 and int(m.nmocap) == 0
         cap = self.hook.cap + 1
-        n = len(self.layout)
         self._ids = self.layout.body_id
-        # samples waiting for their interval's impulses (and, deferred, their kinematics)
-        self._x, self._r = np.empty((cap, n, 3)), np.empty((cap, n, 3, 3))
-        self._q = np.empty((cap, n, 4))
-        self._v, self._w = np.empty((cap, n, 3)), np.empty((cap, n, 3))
         self._steps = np.empty(cap, np.int64)
+        # samples waiting for their interval's impulses (and, deferred, their kinematics)
+        self._new_state_buffers()
         self._row = np.full(cap, -1, np.int64)  # the hook row of the sample's own step, -1: state known
         self._gap = np.zeros(cap, bool)
         self._raw = []
@@ -216,6 +213,7 @@ class MujocoRecorder(EngineRecorder):
             self._capture = ContactCapture()
         except ImportError:
             self._capture = None
+        self._decoding = False  # the compiled capture decodes the contacts (_decode_in_capture)
         self._fast, self._fast_d, self._efc_offset = None, None, None
         self._prev_momenta = None  # (step, P (N, 3), L (N, 3)) of the last sample written
         self._integration_fixed = None  # the compiled integration's fixed arrays
@@ -277,6 +275,7 @@ class MujocoRecorder(EngineRecorder):
                     self._capture.contacts_at(self._carray.base, self._carray.dtype.itemsize,
                                               self._carray.count)
                     self._capture_dtype = self._carray.dtype
+                    self._decode_in_capture(self._carray.dtype)
                 if self._fast_d is d and not (self._carray and self._efc_ok(d)):
                     self._fast, self._fast_d = None, None  # the compiled call cannot read them
             if self._carray and self._capture is not None:
@@ -421,11 +420,11 @@ class MujocoRecorder(EngineRecorder):
             W[gap] = np.nan
             work[gap] = np.nan
         steps = self._steps[:ns].copy()
-        arrays = dict(t=steps * self.dt, step=steps, position=self._x[:ns].copy(),
-                      rotation=self._r[:ns].copy(), quat_wxyz=self._q[:ns].copy(),
-                      velocity=self._v[:ns].copy(),
-                      angular_velocity=self._w[:ns].copy(), linear_momentum=p,
+        arrays = dict(t=steps * self.dt, step=steps, position=self._x[:ns],
+                      rotation=self._r[:ns], quat_wxyz=self._q[:ns], velocity=self._v[:ns],
+                      angular_velocity=self._w[:ns], linear_momentum=p,
                       angular_momentum=L)  # the momenta the integration kind is taken from
+        self._new_state_buffers()  # the block keeps these (no copy); the next samples go to new ones
         for a, kind in enumerate(IMPULSE_KINDS):
             arrays[f"impulse_{kind}_angular"] = W[:, a, :, :3]
             arrays[f"impulse_{kind}_linear"] = W[:, a, :, 3:]
@@ -435,13 +434,21 @@ class MujocoRecorder(EngineRecorder):
         for name in [k for k in arrays if k.startswith(("impulse_", "work_"))]:
             if name not in self._channels:
                 del arrays[name]
-        rows = decode_contacts(self.m, self.layout, self._raw, packed=self._captured())
+        rows = self._contact_rows()
         if rows is not None:
             arrays["contacts"] = rows
         self._raw = []
         self._ns = 0
         self._gap[:] = False
         self.recorder.write(owned=True, **arrays)  # W and work are this block's own
+
+    def _new_state_buffers(self) -> None:
+        """Fresh (cap, N, ...) buffers for the waiting samples' states (position, rotation,
+        quaternion, velocity, angular velocity)."""
+        cap, n = len(self._steps), len(self.layout)
+        self._x, self._r = np.empty((cap, n, 3)), np.empty((cap, n, 3, 3))
+        self._q = np.empty((cap, n, 4))
+        self._v, self._w = np.empty((cap, n, 3)), np.empty((cap, n, 3))
 
     def _integration(self, W, ns: int):
         """The integration kind of each waiting sample's interval, written into ``W`` (ns, kinds,
@@ -504,6 +511,41 @@ class MujocoRecorder(EngineRecorder):
         W[:, IMPULSE_KINDS.index("integration"), ids] = out
         self._prev_momenta = (int(steps[-1]), p[-1].copy(), L[-1].copy())
         return p, L
+
+    def _contact_rows(self):
+        """The contact rows of the samples since the last flush: those the compiled capture
+        decoded (``ContactCapture.rows``, decode_contacts' formulas), with those of the Python
+        captures (decode_contacts) merged in step order; all from decode_contacts when the
+        capture keeps raw structs."""
+        if not self._decoding:
+            return decode_contacts(self.m, self.layout, self._raw, packed=self._captured())
+        rows = self._capture.rows()
+        if not self._raw:
+            return rows
+        py = decode_contacts(self.m, self.layout, self._raw)
+        if rows is None or py is None:
+            return py if rows is None else rows
+        order = np.argsort(np.concatenate([py["step"], rows["step"]]), kind="stable")
+        return {k: np.concatenate([py[k], rows[k]])[order] for k in py}
+
+    def _decode_in_capture(self, dtype) -> None:
+        """Have the compiled capture decode each logged step's contacts (ContactCapture.
+        decode_with) when the mjContact fields are of the types it reads (float64 dist, pos,
+        frame, friction; int32 dim, geom, exclude, efc_address); else it keeps raw structs."""
+        if self._decoding:
+            return
+        want = dict(dist=("<f8", ()), pos=("<f8", (3,)), frame=("<f8", (9,)),
+                    friction=("<f8", (5,)), dim=("<i4", ()), geom=("<i4", (2,)),
+                    exclude=("<i4", ()), efc_address=("<i4", ()))
+        if list(dtype.names) != list(want) or not all(
+                dtype.fields[f][0].base == np.dtype(t) and dtype.fields[f][0].shape == sh
+                for f, (t, sh) in want.items()):
+            return
+        pyramidal = int(self.m.opt.cone) == int(_mj().mjtCone.mjCONE_PYRAMIDAL)
+        self._capture.decode_with([int(dtype.fields[f][1]) for f in want],
+                                  self.layout.geom_index.tolist(), pyramidal,
+                                  float(self.m.opt.timestep))
+        self._decoding = True
 
     def _captured(self):
         """The compiled capture's steps since the last flush, as _packed_contact_dict, or None."""

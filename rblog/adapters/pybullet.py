@@ -497,10 +497,12 @@ class Stepper:
         for r, (b, l) in enumerate(world.rows):
             self.row_of[b, l + 1] = r
         self.calls = [(b, links, rows[0] >= 0) for b, links, rows in world.multibodies]
-        self.acc = {k: np.zeros((n, 3)) for k in ("contact_linear", "contact_angular",
-                                                  "passive_linear", "passive_angular",
-                                                  "joint_linear", "joint_angular",
-                                                  "applied_linear", "applied_angular")}
+        self._bases = None  # the body ids when read() is one compiled call, False when not
+        kinds = ("contact_linear", "contact_angular", "passive_linear", "passive_angular",
+                 "joint_linear", "joint_angular", "applied_linear", "applied_angular")
+        # the accumulators, views of one array (zeroed in one call: zero_acc)
+        self.acc_all = np.zeros((len(kinds), n, 3))
+        self.acc = {k: self.acc_all[i] for i, k in enumerate(kinds)}
         self.pending = (np.zeros((n, 3)), np.zeros((n, 3)))  # applied before the next step
         self.pending_any = False
         self.rows_out = None  # the last logged step's contact rows (P, 14)
@@ -513,8 +515,20 @@ class Stepper:
 
     def read(self):
         """The rows' state now; with joints, also ``self.cached``: (x, q_xyzw) of every row as
-        Bullet's cached link transforms hold them (the frames of its joint reactions)."""
+        Bullet's cached link transforms hold them (the frames of its joint reactions). A world
+        of bases alone (no links, no joints) is read in one compiled call
+        (``_gather.pybullet_read_bases``: the same pybullet calls, the same numbers)."""
         pb, c = self.pb, self.client
+        if self._bases is None:
+            self._bases = (np.array([bid for bid, _, base in self.calls if base], np.int64)
+                           if not self.use_joints and not any(links for _, links, _ in self.calls)
+                           and hasattr(_gather, "pybullet_read_bases") else False)
+        if self._bases is not False:
+            n = len(self._bases)
+            out = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3)))
+            _gather.pybullet_read_bases(pb.getBasePositionAndOrientation, pb.getBaseVelocity,
+                                        self._bases, {"physicsClientId": c}, *out)
+            return out
         out, cached = [], []
         for bid, links, base in self.calls:
             if base:
@@ -907,8 +921,7 @@ class PybulletRecorder(EngineRecorder):
         acc = self.stepper.acc
         for name, key in self.channels:
             np.copyto(getattr(blk, name)[r], acc[key])
-        for a in acc.values():
-            a[:] = 0.0
+        self.stepper.acc_all[...] = 0.0  # every accumulator (acc's arrays are its views)
         if rows is not None:  # into the block's own contact arrays (views)
             c = blk.contact_rows(len(rows))
             c.body_a[:] = rows[:, 0]

@@ -4,6 +4,7 @@ names, and simulated time in nanoseconds. See docs/log-format.md."""
 from __future__ import annotations
 
 import json
+import math
 import re
 
 import numpy as np
@@ -230,10 +231,11 @@ def time_ns(t: np.ndarray) -> np.ndarray:
     return np.clip(ns, 0, 2**62).astype(np.int64)
 
 
-def block_arrays(block, n: int, interval: tuple = ()) -> dict[str, np.ndarray]:
+def block_arrays(block, n: int, interval: tuple = (), copy: bool = True) -> dict[str, np.ndarray]:
     """The block's state channels, then its ``interval`` channels (the run's, in
     INTERVAL_CHANNELS order; NaN where the block lacks one), as contiguous float64 (T, k)
-    arrays, k values per sample.
+    arrays, k values per sample. ``copy=False``: a (T, k) or (T, N, m) float64 channel whose
+    last axis is contiguous (a view of a wider array) is returned as it is, not copied.
 
     Raises ValueError when a channel does not hold the values ``n`` bodies need."""
     T = len(block.t)
@@ -242,9 +244,13 @@ def block_arrays(block, n: int, interval: tuple = ()) -> dict[str, np.ndarray]:
         v = getattr(block, name)
         if v is None:
             v = np.full((T, expected_width(name, n)), np.nan)
-        a = np.ascontiguousarray(v, np.float64).reshape(T, -1)
-        if a.shape[1] != expected_width(name, n):
-            raise ValueError(f"{name}: {a.shape[1]} values per sample, expected "
+        a = np.asarray(v, np.float64)
+        if copy or a.flags.c_contiguous or a.ndim not in (2, 3) or len(a) != T or \
+                a.strides[-1] != 8:
+            a = np.ascontiguousarray(a).reshape(T, -1)
+        width = math.prod(a.shape[1:])
+        if width != expected_width(name, n):
+            raise ValueError(f"{name}: {width} values per sample, expected "
                              f"{expected_width(name, n)} for {n} bodies")
         out[name] = a
     return out
@@ -252,7 +258,7 @@ def block_arrays(block, n: int, interval: tuple = ()) -> dict[str, np.ndarray]:
 
 def expected_width(name: str, n: int) -> int:
     shape = SAMPLE_CHANNELS[name]
-    k = int(np.prod(shape)) if shape else 1
+    k = math.prod(shape)
     return k if name in TOTAL_CHANNELS else k * n
 
 

@@ -63,13 +63,20 @@ FLUSH_EVERY_S = 0.5
 DEFAULT_COMPRESSION = "lz4"
 #: the LZ4 frame compression level of the chunks (LZ4F: below 0 is the fast mode with
 #: acceleration -level; the frame is a standard LZ4 frame whatever the level, every reader
-#: decodes it). Per 1 MiB chunk of MuJoCo adapter logs (benchmarks/bench_adapters.py's worlds,
-#: a sample every step; ms of CPU, compressed / raw bytes): humanoid level 0 1.48 ms 0.691,
-#: -16 0.97 ms 0.739, -32 0.46 ms 0.761, -64 0.58 ms 0.777; stacker level 0 1.6-2.1 ms 0.38-0.41,
-#: -32 1.1 ms 0.54, -64 0.6-0.8 ms 0.58-0.64. -32 takes about a third of level 0's time for
-#: 10-40 % more bytes (``lz4.frame.compress`` of lz4 4.4.5 over the chunks of a 2000-step
-#: log of each world).
-LZ4_LEVEL = -32
+#: decodes it). Over the chunks of a 2000-step log of benchmarks/bench_adapters.py's MuJoCo
+#: worlds (a sample every step; ``lz4.frame.compress`` of lz4 4.4.5 in unlinked 64 KiB blocks;
+#: ms of CPU for all chunks, compressed / raw bytes): stacker (22.6 MB) -32 10.3 ms 0.608,
+#: -64 7.1 ms 0.667, -128 4.8 ms 0.733, -256 4.0 ms 0.798; humanoid (23.2 MB) -32 7.1 ms 0.764,
+#: -64 4.8 ms 0.789, -128 4.0 ms 0.813, -256 3.7 ms 0.834. Writing the bytes costs ~0.17 ms of
+#: CPU per MiB (page cache), so -128 saves ~5 ms (stacker) and ~2.5 ms (humanoid) of the
+#: recording's CPU against -32 for 10-20 % more bytes; below -128 the bytes grow faster than the
+#: time falls.
+LZ4_LEVEL = -128
+#: whether the chunk's LZ4 blocks (64 KiB) may refer back to the previous one (LZ4F linked
+#: blocks). Unlinked, over the 23-24 chunks of a 2000-step log at level -32 (ms of CPU for all,
+#: compressed / raw bytes): stacker 22.6 -> 16.1 ms, 0.541 -> 0.557; humanoid 14.1 -> 9.1 ms,
+#: 0.725 -> 0.733 (a standard LZ4 frame either way).
+LZ4_BLOCK_LINKED = False
 
 TOPIC_RUN = "/rblog/run"
 TOPIC_STATE = "/rblog/state"
@@ -115,14 +122,18 @@ _crc32 = _crc32_function()
 class _Writer(Writer):
     """mcap's Writer with its chunk finalize and its data-section write (``__finalize_chunk``,
     ``__flush`` of mcap 1.x, whose private attributes these read) doing what mcap's do, two
-    costs changed: LZ4 chunks are compressed at LZ4_LEVEL (mcap's own calls
-    ``lz4.frame.compress`` at level 0) and the CRCs are :data:`_crc32`'s (the same values). The
+    costs changed: LZ4 chunks are compressed at LZ4_LEVEL in unlinked blocks (LZ4_BLOCK_LINKED;
+    mcap's own calls ``lz4.frame.compress`` at level 0, linked) and the CRCs are :data:`_crc32`'s (the same values). The
     records, both CRCs (a chunk's uncompressed bytes, the data section) and the chunk indexes are
     the bytes mcap's Writer writes with that compression level. A Writer without those attributes
     runs mcap's own methods."""
 
     def _known(self) -> bool:
-        return all(hasattr(self, "_Writer__" + a) for a in _WRITER_ATTRS)
+        known = self.__dict__.get("_rblog_known")
+        if known is None:  # once per writer: the attributes are set in Writer.__init__
+            known = self.__dict__["_rblog_known"] = all(hasattr(self, "_Writer__" + a)
+                                                        for a in _WRITER_ATTRS)
+        return known
 
     def _Writer__flush(self):
         if not self._known():
@@ -149,7 +160,8 @@ class _Writer(Writer):
         if comp == CompressionType.LZ4:
             import lz4.frame
 
-            name, compressed = "lz4", lz4.frame.compress(chunk_data, compression_level=LZ4_LEVEL)
+            name, compressed = "lz4", lz4.frame.compress(chunk_data, compression_level=LZ4_LEVEL,
+                                                         block_linked=LZ4_BLOCK_LINKED)
         elif comp == CompressionType.ZSTD:
             import zstandard
 
@@ -384,7 +396,7 @@ class McapRecorder:
 
     def _write_samples(self, block: Trajectory):
         T, n = len(block.t), self._n
-        a = C.block_arrays(block, n, self._interval)
+        a = C.block_arrays(block, n, self._interval, copy=False)
         step = np.ascontiguousarray(block.step, np.int64)
         t = np.ascontiguousarray(block.t, np.float64)
         ns = C.time_ns(t)
@@ -621,15 +633,18 @@ def _headers(parts: list[bytes]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _byte_rows(cols: list, T: int) -> tuple:
-    """Each (T,) or (T, k) little-endian 8-byte column as its (T, 8k) bytes (views, no copy)."""
+    """Each (T,) or (T, k) little-endian 8-byte column as its (T, 8k) bytes, and a (T, k) or
+    (T, N, k) one whose last axis is contiguous (a view of a wider array: an engine's impulses)
+    as its (T, 8k) or (T, N, 8k) bytes; views, no copy (other layouts are copied)."""
     out = []
     for c in cols:
-        c = np.ascontiguousarray(c)
-        if c.dtype.kind == "f":
-            c = c.astype("<f8", copy=False)
-        else:
-            c = c.astype("<i8", copy=False)
-        out.append(c.reshape(T, -1).view(np.uint8))
+        c = np.asarray(c)
+        c = c.astype("<f8" if c.dtype.kind == "f" else "<i8", copy=False)
+        if c.flags.c_contiguous:
+            c = c.reshape(T, -1)
+        elif c.ndim not in (2, 3) or c.strides[-1] != 8:
+            c = np.ascontiguousarray(c).reshape(T, -1)
+        out.append(c.view(np.uint8))
     return tuple(out)
 
 

@@ -304,7 +304,7 @@ def _col(table, key, what, rows, trail=(), default=None, dtype=np.float64):
     want = (rows, *trail)
     if not given:
         return np.broadcast_to(a, want).copy()
-    if a.size == int(np.prod(want)) and (a.ndim <= 1 or a.shape[0] == rows):
+    if a.size == math.prod(want) and (a.ndim <= 1 or a.shape[0] == rows):
         return a.reshape(want).copy()
     raise RecordError(f"body_table: {what}.{key}: shape {a.shape}, expected {want} ({rows} rows)")
 
@@ -489,7 +489,7 @@ def make_contacts(n_bodies: int, *, step, body_a, body_b, point, normal, separat
             raise RecordError(f"contacts.{name} = {_short(v)}, expected numbers") from None
         want = (k, *trail)
         # the shape itself, or the same values flattened ((3K,) for a point, as the MCAP rows)
-        if a.size != int(np.prod(want)) or (a.ndim > 1 and a.shape[0] != k):
+        if a.size != math.prod(want) or (a.ndim > 1 and a.shape[0] != k):
             raise RecordError(f"contacts.{name}: shape {a.shape}, expected {want} "
                               f"(K = {k} rows, one per value of contacts.step)")
         return a.reshape(want)
@@ -649,16 +649,23 @@ def _interval_channels(model: Model, given: dict, T: int, n: int, copy: bool = T
             raise RecordError(f"write: {name} given, but the body table does not declare {decl} "
                               f"{kind!r}: add it to body_table({decl}=...)")
     out = {}
+    sup_imp = np.asarray(model.body_impulse_supplied) == 1  # SUPPLIED_LOGGED
+    sup_work = np.asarray(model.body_work_supplied) == 1
+    full_imp, full_work = sup_imp.all(axis=0).tolist(), sup_work.all(axis=0).tolist()
     for name in want:
         trail = INTERVAL_CHANNELS[name]
         a = _arr(given[name], name, (T, n, *trail))
         if copy:
             a = np.array(a, np.float64)
         kind = name.split("_")[1]
-        sup = (model.body_impulse_supplied[:, IMPULSE_KINDS.index(kind)] if name.startswith("impulse")
-               else model.body_work_supplied[:, WORK_KINDS.index(kind)]) == 1  # SUPPLIED_LOGGED
-        if not sup.all():
-            a[:, ~sup] = np.nan
+        if name.startswith("impulse"):
+            j = IMPULSE_KINDS.index(kind)
+            if not full_imp[j]:
+                a[:, ~sup_imp[:, j]] = np.nan
+        else:
+            j = WORK_KINDS.index(kind)
+            if not full_work[j]:
+                a[:, ~sup_work[:, j]] = np.nan
         out[name] = a
     return out
 

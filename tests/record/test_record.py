@@ -294,9 +294,9 @@ def test_mcap_block_records_match_mcaps_own_writer(tmp_path, traj, monkeypatch, 
 @pytest.mark.parametrize("compression,chunk_bytes", [("lz4", 2048), ("lz4", 1 << 20),
                                                      ("zstd", 2048), ("none", 2048)])
 def test_mcap_chunks_are_mcaps_own(tmp_path, traj, monkeypatch, compression, chunk_bytes):
-    """rblog's Writer (LZ4 at LZ4_LEVEL, CRCs by _crc32) gives the file mcap's own Writer gives
-    (its chunk finalize and data-section write, zlib's CRC) when its lz4.frame.compress runs at
-    that level: byte for byte (chunk records, both CRCs, chunk indexes, summary); the LZ4 chunks
+    """rblog's Writer (LZ4 at LZ4_LEVEL in LZ4_BLOCK_LINKED blocks, CRCs by _crc32) gives the file
+    mcap's own Writer gives (its chunk finalize and data-section write, zlib's CRC) when its
+    lz4.frame.compress runs with those settings: byte for byte (chunk records, both CRCs, chunk indexes, summary); the LZ4 chunks
     are standard LZ4 frames, every CRC checks, and the run reads back bit for bit."""
     import lz4.frame
     from mcap.records import Chunk
@@ -309,7 +309,8 @@ def test_mcap_chunks_are_mcaps_own(tmp_path, traj, monkeypatch, compression, chu
     write(McapRecorder(str(ours), compression=compression), traj, block=7)
     own = lz4.frame.compress
     monkeypatch.setattr(lz4.frame, "compress",
-                        lambda data, **kw: own(data, compression_level=mcap_writer.LZ4_LEVEL))
+                        lambda data, **kw: own(data, compression_level=mcap_writer.LZ4_LEVEL,
+                                               block_linked=mcap_writer.LZ4_BLOCK_LINKED))
     for name in ("_Writer__finalize_chunk", "_Writer__flush"):
         monkeypatch.setattr(mcap_writer._Writer, name, getattr(mcap_writer.Writer, name))
     mcaps = tmp_path / "mcaps.mcap"
@@ -809,3 +810,41 @@ def test_contacts_encoder_decodes_to_the_contacts():
         for name in ("point", "normal", "friction_impulse", "separation", "normal_impulse"):
             assert list(getattr(d, name)) == getattr(c, name)[sl].reshape(-1).tolist(), name
         lo += n
+
+
+def test_state_records_from_strided_channels():
+    """State records encoded from per-interval channels that are views of wider arrays (an
+    engine's (T, kinds, N, 6) impulses and (T, kinds, N) work, as rblog.adapters hands them
+    over, not copied) decode, with protobuf's own parser and rblog's schema, to exactly those
+    values; the records are the bytes encoded from contiguous copies of the same channels."""
+    from rblog.record import _common as C
+    from rblog.record.mcap_writer import _MESSAGE_HEAD, _SampleRecords
+
+    rng = np.random.default_rng(3)
+    T, n = 9, 4
+    interval = ("impulse_contact_linear", "impulse_contact_angular", "work_applied")
+    records = _SampleRecords([f"b{i}" for i in range(n)], [1, 2, 3], interval)
+    W, work = rng.normal(size=(T, 6, n + 1, 6)), rng.normal(size=(T, 4, n + 1))
+    views = {"impulse_contact_linear": W[:, 0, 1:, 3:], "impulse_contact_angular": W[:, 0, 1:, :3],
+             "work_applied": work[:, 0, 1:]}
+    assert not any(v.flags.c_contiguous for v in views.values())
+    cols = {name: rng.normal(size=(T, C.expected_width(name, n)))
+            for _, name, _, _ in records.state_fields[2:] if name not in views}
+    cols.update(views)
+    step, t = np.arange(T, dtype=np.int64), 0.01 * np.arange(T)
+    metrics = [step, t] + [rng.normal(size=T) for _ in range(4)] + \
+        [rng.normal(size=(T, 3)) for _ in range(2)] + [rng.normal(size=T) for _ in range(2)]
+    pos, quat = rng.normal(size=(T, n, 3)), rng.normal(size=(T, n, 4))
+    names = [name for _, name, _, _ in records.state_fields[2:]]
+    ns = np.arange(T, dtype=np.int64) * 10**7
+    buf, ends = records.encode(ns, [step, t, *(cols[k] for k in names)], metrics, pos, quat)
+    ref, ref_ends = records.encode(ns, [step, t, *(np.ascontiguousarray(cols[k]) for k in names)],
+                                   metrics, pos, quat)
+    assert bytes(buf) == bytes(ref) and ends.tolist() == ref_ends.tolist()
+    cls = S.message_class("State")
+    e = [0, *ends.tolist()]
+    for k in range(T):
+        msg = cls()
+        msg.ParseFromString(bytes(buf[e[3 * k] + _MESSAGE_HEAD:e[3 * k + 1]]))
+        for name, v in views.items():
+            assert list(getattr(msg, name)) == v[k].reshape(-1).tolist(), (name, k)

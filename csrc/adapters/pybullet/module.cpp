@@ -1,5 +1,6 @@
 // rblog.adapters._gather: the pybullet adapter's per-step reading of pybullet's Python results
-// into arrays (its contact points: contacts.cpp; Bullet's damping: damping.cpp).
+// into arrays (its contact points: contacts.cpp; Bullet's damping: damping.cpp; the bases' states:
+// bases.cpp).
 #include <nanobind/nanobind.h>
 
 #include "common/errors.hpp"
@@ -7,6 +8,7 @@
 namespace rb {
 void bind_pybullet_contacts(nanobind::module_& m);
 void bind_pybullet_damping(nanobind::module_& m);
+void bind_pybullet_bases(nanobind::module_& m);
 }
 
 NB_MODULE(_gather, m) {
@@ -14,4 +16,5 @@ NB_MODULE(_gather, m) {
     rb::register_errors();
     rb::bind_pybullet_contacts(m);
     rb::bind_pybullet_damping(m);
+    rb::bind_pybullet_bases(m);
 }
