@@ -581,8 +581,9 @@ class MomentumAnalyzer(Analyzer):
         # box's normal at the contact is not known from the body's centre (a capsule on a slope
         # near its lower end is nearest the end face, 78 deg off the face it lies on), so its
         # cone is not judged; against the ground the normal is the plane's
-        shapeless = np.asarray(model.body_shape)[grp.mem_i[grp.starts]] == SHAPE_NONE
-        skip = sel & shapeless & (grp.static_id >= 0)
+        shapeless = np.asarray(model.body_shape) == SHAPE_NONE
+        skip = (sel & shapeless[grp.mem_i[grp.starts]] & (grp.static_id >= 0) if shapeless.any()
+                else np.zeros(len(sel), bool))
         stats["cone_not_judged_shapeless_on_static_box"] = float(skip.sum())
         gap = ctx.interval_unjudged
         if gap is not None:

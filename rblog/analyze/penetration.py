@@ -909,12 +909,13 @@ class PenetrationAnalyzer(Analyzer):
 
         # per row, the resting depth tolerance: the body's inner radius on its v2 shape, the
         # thinner geom's smallest half-extent on a geom pair's row (rule "geom_pair_support")
+        on_geoms = sup["geom"].any()
         row_rest_tol = np.where(sup["geom"], np.minimum(tol["depth_m"],
                                                         tol["depth_frac"] * sup["inner"]),
-                                rest_tol[pi_])
+                                rest_tol[pi_]) if on_geoms else rest_tol[pi_]
         # ---- any-time depth (impacts included): the deepest sample of each body (a geom pair's
         # rows are judged per pair at every sample: geom_depths)
-        v2_depth = np.where(sup["geom"], 0.0, depth)
+        v2_depth = np.where(sup["geom"], 0.0, depth) if on_geoms else depth
         if nrow:
             worst.offer_array(v2_depth, trans_tol[pi_], "m", step[pk], t[pk], pi_,
                               "penetration depth at any time")
