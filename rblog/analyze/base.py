@@ -408,7 +408,7 @@ class Groups:
         """Body indices of group j."""
         lo = self.starts[j]
         hi = self.starts[j + 1] if j + 1 < len(self.k) else len(self.mem_i)
-        return [int(b) for b in self.mem_i[lo:hi]]
+        return self.mem_i[lo:hi].tolist()
 
 
 _STATE_CHANNELS = ("position", "rotation", "quat_wxyz", "velocity", "linear_momentum",
