@@ -377,7 +377,13 @@ class Groups:
     def starts(self) -> np.ndarray:
         """(C,) index of each group's first member."""
         if not hasattr(self, "_starts"):
-            self._starts = np.searchsorted(self.mem_group, np.arange(len(self.k)))
+            # members of the groups before each (mem_group is sorted, >= 0): the index where
+            # np.searchsorted(mem_group, arange(C)) puts each group, in one counting pass
+            c_n = len(self.k)
+            before = np.zeros(c_n, np.int64)
+            if c_n > 1:
+                np.cumsum(np.bincount(self.mem_group, minlength=c_n)[:c_n - 1], out=before[1:])
+            self._starts = before
         return self._starts
 
     def sum(self, per_member: np.ndarray) -> np.ndarray:
