@@ -13,6 +13,7 @@ Bodies stand on a 10 x 10 grid, 1.5 m apart, as in a typical scene. The log is c
 analyzers run their full paths without building findings.
 
     python benchmarks/bench_check.py [--samples 10001] [--bodies 100] [--repeat 3] [--threads 2]
+    python benchmarks/bench_check.py --against DIR [--require RATIO] [--samples 2001] [--repeat 7]
 
 What is timed: ``rblog.analyze.check`` on the trajectory in memory (the shared Context and every
 analyzer, up to the Result objects); not reading a log, not formatting the report. Each analyzer
@@ -23,11 +24,20 @@ time, so there is no first-run compile figure any more (the numba version printe
 
 Targets: >= 1e6 body-samples per second for all analyzers together on one thread (issue 16),
 >= 3e6 on two cores (issue 18).
+
+``--against DIR``: this tree side by side with another checkout of rblog (DIR, built, with its
+venv at DIR/.venv unless ``--against-python``; e.g. a worktree of the commit that filed issue
+37, 258af21). Each tree checks the same log in a process of its own; the two take turns
+(ABBA order), ``--repeat`` checks each, all analyzers on one thread, and the best CPU time of
+each is compared. ``--require RATIO`` exits 1 when this tree's body-samples per second are
+below RATIO times the other's (issue 37: "as fast as today per body-sample").
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -35,6 +45,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+if "--worker" in sys.argv:  # a side of --against: the rblog of the tree named after --worker
+    ROOT = Path(sys.argv[sys.argv.index("--worker") + 1]).resolve()
 sys.path.insert(0, str(ROOT))
 
 from rblog.analyze import ANALYZERS, check  # noqa: E402
@@ -118,13 +130,90 @@ def synthetic(n_samples: int = 10_001, n_bodies: int = 100, dt: float = 1e-3, lo
     return derive(model, info, step, t, pos, vel * mass[None, :, None], quat, rot, lmom, contacts)
 
 
+def worker(samples: int, bodies: int):
+    """One side of --against: build the log, then one timed check (one thread) per line read;
+    prints "cpu_s wall_s" per check."""
+    traj = synthetic(samples, bodies)
+    check(traj.slice(slice(0, 50)), threads=1)
+    check(traj, threads=1)  # warm: the timed checks are the steady state
+    print("ready", flush=True)
+    for _ in sys.stdin:
+        c0, w0 = time.process_time(), time.perf_counter()
+        check(traj, threads=1)
+        print(f"{time.process_time() - c0:.6f} {time.perf_counter() - w0:.6f}", flush=True)
+
+
+def _commit(root: Path) -> str:
+    out = subprocess.run(["git", "-C", str(root), "log", "-1", "--format=%h"],
+                         capture_output=True, text=True)
+    return out.stdout.strip() or "?"
+
+
+def against(args) -> int:
+    """This tree and ``args.against`` in turns on the same log; 1 if below ``args.require``."""
+    other = Path(args.against).resolve()
+    other_py = args.against_python or str(other / ".venv" / "bin" / "python")
+    if not (other / "rblog").is_dir() or not Path(other_py).exists():
+        sys.exit(f"bench_check: --against {other}: no rblog/ there or no {other_py}")
+    sides = {}
+    for name, py, root in (("this tree", sys.executable, ROOT), ("against", other_py, other)):
+        proc = subprocess.Popen(
+            [py, str(Path(__file__).resolve()), "--worker", str(root),
+             "--samples", str(args.samples), "--bodies", str(args.bodies)],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=str(root),
+            env={**os.environ, "SKBUILD_EDITABLE_VERBOSE": "0"})
+        if proc.stdout.readline().strip() != "ready":
+            sys.exit(f"bench_check: the worker of {root} did not start")
+        sides[name] = (proc, root, [])
+    order = ["this tree", "against"]
+    for r in range(args.repeat):
+        for name in (order if r % 2 == 0 else order[::-1]):
+            proc, _, times = sides[name]
+            proc.stdin.write("run\n")
+            proc.stdin.flush()
+            times.append(tuple(float(x) for x in proc.stdout.readline().split()))
+    for proc, _, _ in sides.values():
+        proc.stdin.close()
+        proc.wait()
+    work = args.samples * args.bodies
+    print(f"synthetic log: {args.samples} samples x {args.bodies} bodies = {work:,} body-samples; "
+          f"all analyzers, one thread, {args.repeat} checks each in turns")
+    print(f"{'tree':<10} {'commit':<9} {'best CPU (s)':>12} {'M body-samples/s':>17} "
+          f"{'median CPU (s)':>15}  root")
+    rate = {}
+    for name, (_, root, times) in sides.items():
+        cpu = sorted(c for c, _ in times)
+        rate[name] = work / cpu[0]
+        print(f"{name:<10} {_commit(root):<9} {cpu[0]:12.4f} {rate[name] / 1e6:17.3f} "
+              f"{cpu[len(cpu) // 2]:15.4f}  {root}")
+    ratio = rate["this tree"] / rate["against"]
+    verdict = "" if args.require is None else (
+        f" (required >= {args.require:.2f}: {'met' if ratio >= args.require else 'NOT met'})")
+    print(f"this tree / against, body-samples per second: {ratio:.3f}{verdict}")
+    return 1 if args.require is not None and ratio < args.require else 0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--samples", type=int, default=10_001)
+    ap.add_argument("--samples", type=int, default=None,
+                    help="samples of the log (10001; 2001 with --against)")
     ap.add_argument("--bodies", type=int, default=100)
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=None, help="timed runs (3; 7 with --against)")
     ap.add_argument("--threads", type=int, default=2, help="the parallel column's thread count")
+    ap.add_argument("--against", metavar="DIR", help="another rblog checkout to time side by side")
+    ap.add_argument("--against-python", metavar="PY", help="its python (DIR/.venv/bin/python)")
+    ap.add_argument("--require", type=float, metavar="RATIO",
+                    help="with --against: exit 1 below RATIO x the other tree's body-samples/s")
+    ap.add_argument("--worker", metavar="DIR", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.samples is None:
+        args.samples = 2001 if args.against else 10_001
+    if args.repeat is None:
+        args.repeat = 7 if args.against else 3
+    if args.worker:
+        return worker(args.samples, args.bodies)
+    if args.against:
+        sys.exit(against(args))
     traj = synthetic(args.samples, args.bodies)
     work = traj.n_samples * traj.n_bodies
     print(f"synthetic log: {traj.n_samples} samples x {traj.n_bodies} bodies = {work:,} "

@@ -377,7 +377,13 @@ class Groups:
     def starts(self) -> np.ndarray:
         """(C,) index of each group's first member."""
         if not hasattr(self, "_starts"):
-            self._starts = np.searchsorted(self.mem_group, np.arange(len(self.k)))
+            # members of the groups before each (mem_group is sorted, >= 0): the index where
+            # np.searchsorted(mem_group, arange(C)) puts each group, in one counting pass
+            c_n = len(self.k)
+            before = np.zeros(c_n, np.int64)
+            if c_n > 1:
+                np.cumsum(np.bincount(self.mem_group, minlength=c_n)[:c_n - 1], out=before[1:])
+            self._starts = before
         return self._starts
 
     def sum(self, per_member: np.ndarray) -> np.ndarray:
@@ -408,7 +414,7 @@ class Groups:
         """Body indices of group j."""
         lo = self.starts[j]
         hi = self.starts[j + 1] if j + 1 < len(self.k) else len(self.mem_i)
-        return [int(b) for b in self.mem_i[lo:hi]]
+        return self.mem_i[lo:hi].tolist()
 
 
 _STATE_CHANNELS = ("position", "rotation", "quat_wxyz", "velocity", "linear_momentum",
@@ -637,22 +643,24 @@ class Context:
             out[list(self.momentum_unjudged)] = True
             if tr.n_samples < 2:
                 return out
-            p_scale = self.mass * (self.speed.max(axis=0) + np.linalg.norm(self.accel, axis=1)
-                                   * self.dt_step + tol.MOMENTUM_SPEED_FLOOR_MPS)
-            i_max = np.asarray(self.model.body_inertia_diag, float).max(axis=1)
-            l_scale = np.linalg.norm(tr.angular_momentum, axis=2).max(axis=0) \
-                + i_max * tol.MOMENTUM_SPIN_FLOOR_RADPS
-            for ext, scale in ((self.ext_linear, p_scale), (self.ext_angular, l_scale)):
-                if ext is not None:
-                    out |= np.linalg.norm(ext[1:], axis=2).max(axis=0) > \
-                        tol.MOMENTUM_JUMP_REL * scale
+            if self.ext_linear is not None:
+                p_scale = self.mass * (self.speed.max(axis=0) + np.linalg.norm(self.accel, axis=1)
+                                       * self.dt_step + tol.MOMENTUM_SPEED_FLOOR_MPS)
+                out |= np.linalg.norm(self.ext_linear[1:], axis=2).max(axis=0) > \
+                    tol.MOMENTUM_JUMP_REL * p_scale
+            if self.ext_angular is not None:
+                i_max = np.asarray(self.model.body_inertia_diag, float).max(axis=1)
+                l_scale = np.linalg.norm(tr.angular_momentum, axis=2).max(axis=0) \
+                    + i_max * tol.MOMENTUM_SPIN_FLOOR_RADPS
+                out |= np.linalg.norm(self.ext_angular[1:], axis=2).max(axis=0) > \
+                    tol.MOMENTUM_JUMP_REL * l_scale
             return out
         return self.cached("loaded", f)
 
     def groups_with(self, grp: "Groups", bodies: np.ndarray) -> np.ndarray:
         """(C,) bool: the groups of ``grp`` with a member among ``bodies`` ((N,) bool)."""
-        if not len(grp):
-            return np.zeros(0, bool)
+        if not len(grp) or not bodies.any():
+            return np.zeros(len(grp), bool)
         return np.bincount(grp.mem_group, weights=bodies[grp.mem_i].astype(float),
                            minlength=len(grp)) > 0
 

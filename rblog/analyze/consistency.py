@@ -138,14 +138,16 @@ def _median(rel, skip=None):
     intervals."""
     if skip is not None:
         rel = np.where(skip, np.nan, rel)
-    use = ~np.isnan(rel)
-    count = use.sum(axis=0)
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(rel, axis=0) if rel.shape[0] else np.full(rel.shape[1], np.nan)
+    # np.nanmedian's value, from one sort of every column (NaN sorts last): the middle one of a
+    # column's c values, or the mean of the middle two (np.nanmedian goes column by column)
+    s = np.array(rel.T, np.float64, order="C")
+    s.sort(axis=1)
+    count = rel.shape[0] - np.isnan(s).sum(axis=1)
+    med = np.full(rel.shape[1], np.nan)
+    cols = np.flatnonzero(count > 0)
+    c = count[cols]
+    lo, hi = s[cols, (c - 1) // 2], s[cols, c // 2]
+    med[cols] = np.where(c % 2 == 1, lo, (lo + hi) / 2)
     return med, count
 
 

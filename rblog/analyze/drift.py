@@ -121,12 +121,15 @@ class DriftAnalyzer(Analyzer):
         per_body_metric = np.zeros(n, np.int64)
         onset_idx = np.full((len(_METRICS), n), -1)
         for mi, (key, tkey, label) in enumerate(_METRICS):
-            # a metric that overflows (a rotation grown to ~1e100 has det R = inf, then NaN) is
-            # at its worst: NaN counts as inf for the maximum and the onset
-            v = np.where(np.isnan(mets[key]), np.inf, mets[key])
-            mets[key] = v
+            v = mets[key]
+            vmax = v.max(axis=0)  # (N,); NaN where a body's metric is NaN at some sample
+            if np.isnan(vmax).any():
+                # a metric that overflows (a rotation grown to ~1e100 has det R = inf, then NaN)
+                # is at its worst: NaN counts as inf for the maximum and the onset
+                v = np.where(np.isnan(v), np.inf, v)
+                mets[key] = v
+                vmax = v.max(axis=0)
             tl = self.tol[tkey]
-            vmax = v.max(axis=0)  # (N,)
             stats[f"{key}_max"] = float(vmax.max()) if n else 0.0
             kmax = v.argmax(axis=0)
             worst.offer_array(vmax, tl, "1", tr.step[kmax], t[kmax], np.arange(n), label)

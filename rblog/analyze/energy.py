@@ -49,10 +49,10 @@ DISSIPATIVE_KINDS = ("passive", "actuator")
 _ORTHO = 1e-9
 
 
-def rotor_energy(model, tr) -> tuple[np.ndarray, list[str]]:
+def rotor_energy(model, tr) -> tuple[np.ndarray | None, list[str]]:
     """The kinetic energy of the joints' rotors, ``0.5 joint_armature qdot^2`` per dof, from the
-    logged motion of each joint's two bodies; (T, N) J on each joint's child body, and the lines
-    of what it leaves out (joints whose armature the log does not state, or whose dof rates the
+    logged motion of each joint's two bodies; (T, N) J on each joint's child body (None when no
+    moving joint has an armature above 0), and the lines of what it leaves out (joints whose armature the log does not state, or whose dof rates the
     rows cannot give).
 
     Per child body c with parent p (the world for -1; all vectors world frame): the relative
@@ -75,7 +75,6 @@ def rotor_energy(model, tr) -> tuple[np.ndarray, list[str]]:
     from rblog.contract.model import JOINT_BALL, JOINT_FIXED, JOINT_HINGE, JOINT_SLIDE
 
     T_, n = tr.n_samples, tr.n_bodies
-    out = np.zeros((T_, n))
     notes: list[str] = []
     arm = np.asarray(model.joint_armature, np.float64).reshape(-1)
     jt = np.asarray(model.joint_type, np.int64).reshape(-1)
@@ -89,7 +88,8 @@ def rotor_energy(model, tr) -> tuple[np.ndarray, list[str]]:
                      "not stated in the log, so it is not counted")
     active = np.unique(jb[moving & (np.nan_to_num(arm) > 0)])
     if not len(active):
-        return out, notes
+        return None, notes
+    out = np.zeros((T_, n))
     R, x, v, w = tr.rotation, tr.position, tr.velocity, tr.angular_velocity
     parent = np.asarray(model.body_parent, np.int64).reshape(-1)
     eye, zero = np.broadcast_to(np.eye(3), (T_, 3, 3)), np.zeros((T_, 3))
@@ -290,7 +290,7 @@ class EnergyAnalyzer(Analyzer):
         # + the joints' rotors (MuJoCo's armature), which move with the bodies: part of the
         # model's kinetic energy that no body's momenta hold
         rotor, not_judged = rotor_energy(model, tr)
-        if rotor.any():
+        if rotor is not None and rotor.any():
             ke = ke + rotor
         e = ke + u
         m = ctx.mass

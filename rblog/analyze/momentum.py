@@ -66,6 +66,8 @@ scale in words; splitting them would pass the same half-dozen arrays between mod
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rblog.analyze import _audit
@@ -581,8 +583,9 @@ class MomentumAnalyzer(Analyzer):
         # box's normal at the contact is not known from the body's centre (a capsule on a slope
         # near its lower end is nearest the end face, 78 deg off the face it lies on), so its
         # cone is not judged; against the ground the normal is the plane's
-        shapeless = np.asarray(model.body_shape)[grp.mem_i[grp.starts]] == SHAPE_NONE
-        skip = sel & shapeless & (grp.static_id >= 0)
+        shapeless = np.asarray(model.body_shape) == SHAPE_NONE
+        skip = (sel & shapeless[grp.mem_i[grp.starts]] & (grp.static_id >= 0) if shapeless.any()
+                else np.zeros(len(sel), bool))
         stats["cone_not_judged_shapeless_on_static_box"] = float(skip.sum())
         gap = ctx.interval_unjudged
         if gap is not None:
@@ -791,24 +794,31 @@ class MomentumAnalyzer(Analyzer):
                       float(loss[j] / ke0[j]), float(elastic_allow[j] / ke0[j]), "1",
                       int(step[ka[j]]), float(t[ka[j]]), ev.members(j)))
         out = []
-        for j in range(min(e_n, T.MAX_EVENTS)):
-            if not impact[j]:
-                continue
-            fin = lambda x: None if not np.isfinite(x) else float(x)
+        js = np.flatnonzero(impact[:T.MAX_EVENTS])
+        # the events' columns as Python lists, read once (not one numpy scalar per field)
+        col = lambda a: np.asarray(a)[js].tolist()  # noqa: E731
+        fin = lambda x: x if math.isfinite(x) else None  # noqa: E731
+        for j, (st_, t_, tb_, t0_, t1_, stat_, ap_, vp_, ee_, ec_, elo_, ehi_, imp_, dur_, pen_,
+                pt_, sep_, de_) in zip(js.tolist(), zip(
+                    col(step[ka]), col(t[ka]), col(t[kb]), col(ev.t0), col(ev.t1),
+                    col(ev.static_id != -2), col(approach), col(ev.v_plus), col(ev.e_eff),
+                    col(e_cfg), col(ev.e_lo), col(ev.e_hi), col(ev.impulse_ns),
+                    col(ev.duration_s), col(ev.peak_penetration_m), col(ev.peak_point),
+                    col(ev.separated), col(d_e))):
             out.append({
-                "kind": "impact", "step": int(step[ka[j]]), "t": float(t[ka[j]]),
-                "t_before": float(t[kb[j]]), "t_start": float(ev.t0[j]), "t_end": float(ev.t1[j]),
-                "bodies": ev.members(j), "static": bool(ev.static_id[j] != -2),
-                "approach_speed_mps": fin(approach[j]),
-                "separation_speed_mps": fin(ev.v_plus[j]),
-                "restitution_effective": fin(ev.e_eff[j]),
-                "restitution_configured": fin(e_cfg[j]),
-                "restitution_range": [fin(ev.e_lo[j]), fin(ev.e_hi[j])],
-                "impulse_ns": float(ev.impulse_ns[j]), "duration_s": float(ev.duration_s[j]),
-                "peak_penetration_m": float(ev.peak_penetration_m[j]),
-                "point": [fin(x) for x in ev.peak_point[j]],
-                "separated": bool(ev.separated[j]),
-                "energy_change_J": float(d_e[j]),
+                "kind": "impact", "step": int(st_), "t": float(t_),
+                "t_before": float(tb_), "t_start": float(t0_), "t_end": float(t1_),
+                "bodies": ev.members(j), "static": bool(stat_),
+                "approach_speed_mps": fin(ap_),
+                "separation_speed_mps": fin(vp_),
+                "restitution_effective": fin(ee_),
+                "restitution_configured": fin(ec_),
+                "restitution_range": [fin(elo_), fin(ehi_)],
+                "impulse_ns": float(imp_), "duration_s": float(dur_),
+                "peak_penetration_m": float(pen_),
+                "point": [fin(x) for x in pt_],
+                "separated": bool(sep_),
+                "energy_change_J": float(de_),
             })
         fe = np.isfinite(ev.e_eff) & impact
         if fe.any():

@@ -771,8 +771,16 @@ class PenetrationAnalyzer(Analyzer):
                                   (kr[dyn] * n + cb[dyn]) * e_n + ca[dyn] + 1])
             uk, inv = np.unique(key, return_inverse=True)
             skey = (pk * n + pi_) * e_n + pb + 1
-            pos = np.clip(np.searchsorted(uk, skey), 0, len(uk) - 1)
-            found = uk[pos] == skey
+            ks = np.unique(kr[ok])
+            # only rows at a sample with logged rows can have rows or be airborne: the searches
+            # below go over those (the rest: not found, not airborne)
+            at = np.zeros(tr.n_samples, bool)
+            at[ks] = True
+            q = np.flatnonzero(at[pk]) if len(uk) else np.arange(len(pk))
+            pos = np.zeros(len(pk), np.int64)
+            pos[q] = np.clip(np.searchsorted(uk, skey[q]), 0, len(uk) - 1)
+            found = np.zeros(len(pk), bool)
+            found[q] = uk[pos[q]] == skey[q]
             # a body the log gives no row at all at a sample that has rows (the engine logs
             # every point that pushes or touches): it touches nothing there, in the air between
             # two landings (a ball struck by another hops 0.2 mm and lands within 25 ms), so its
@@ -781,11 +789,10 @@ class PenetrationAnalyzer(Analyzer):
             # so that a partner the rows name differently (a static box's feature) is never
             # taken for one without rows.
             kb = np.unique(np.concatenate([kr[ok] * n + ca[ok], kr[dyn] * n + cb[dyn]]))
-            ks = np.unique(kr[ok])
-            kb_pos = np.clip(np.searchsorted(kb, pk * n + pi_), 0, max(len(kb) - 1, 0))
-            ks_pos = np.clip(np.searchsorted(ks, pk), 0, max(len(ks) - 1, 0))
-            airborne = (~found & (ks[ks_pos] == pk) & (kb[kb_pos] != pk * n + pi_)
-                        if len(ks) else np.zeros(len(pk), bool))
+            airborne = np.zeros(len(pk), bool)
+            if len(ks):
+                kb_pos = np.clip(np.searchsorted(kb, pk[q] * n + pi_[q]), 0, len(kb) - 1)
+                airborne[q] = ~found[q] & (kb[kb_pos] != pk[q] * n + pi_[q])
             out[rows_c[airborne]] = True
             why["sliding_unloaded"] += int(airborne.sum())
             if not found.any():
@@ -909,12 +916,13 @@ class PenetrationAnalyzer(Analyzer):
 
         # per row, the resting depth tolerance: the body's inner radius on its v2 shape, the
         # thinner geom's smallest half-extent on a geom pair's row (rule "geom_pair_support")
+        on_geoms = sup["geom"].any()
         row_rest_tol = np.where(sup["geom"], np.minimum(tol["depth_m"],
                                                         tol["depth_frac"] * sup["inner"]),
-                                rest_tol[pi_])
+                                rest_tol[pi_]) if on_geoms else rest_tol[pi_]
         # ---- any-time depth (impacts included): the deepest sample of each body (a geom pair's
         # rows are judged per pair at every sample: geom_depths)
-        v2_depth = np.where(sup["geom"], 0.0, depth)
+        v2_depth = np.where(sup["geom"], 0.0, depth) if on_geoms else depth
         if nrow:
             worst.offer_array(v2_depth, trans_tol[pi_], "m", step[pk], t[pk], pi_,
                               "penetration depth at any time")

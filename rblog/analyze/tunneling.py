@@ -90,7 +90,8 @@ class TunnelingAnalyzer(Analyzer):
         by_geoms = geo["bodies"] if geo is not None else np.zeros(n, bool)
 
         if prox.ground_height is not None:
-            h = np.where(by_geoms[None, :], -np.inf, prox.ground_height)
+            h = (np.where(by_geoms[None, :], -np.inf, prox.ground_height) if by_geoms.any()
+                 else prox.ground_height)
             depth = -h[1:]  # how far below the plane the centre ends up
             above = h[:-1] >= 0
             kk, ii = np.nonzero(above)
