@@ -30,6 +30,7 @@
 
 #include "engine/collider_points.hpp"
 #include "engine/collision.hpp"
+#include "engine/vec3.hpp"
 
 namespace rb {
 
@@ -40,14 +41,7 @@ namespace {
 // prediction, which the next step's manifold corrects.
 constexpr double CAPSULE_PARALLEL_SIN = 1e-3;
 
-struct V {
-    double x, y, z;
-};
-inline V operator+(V a, V b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline V operator-(V a, V b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline V operator*(double s, V a) { return {s * a.x, s * a.y, s * a.z}; }
-inline double dot(V a, V b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline V cross(V a, V b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+using vec::V;
 inline double len(V a) { return std::sqrt(dot(a, a)); }
 inline V load(const double* p) { return {p[0], p[1], p[2]}; }
 inline V col(M3 r, int j) { return {r(0, j), r(1, j), r(2, j)}; }

@@ -71,21 +71,13 @@
 #include <utility>
 
 #include "engine/collider_points.hpp"
+#include "engine/vec3.hpp"
 
 namespace rb {
 
 namespace {
 
-struct V {
-    double x, y, z;
-};
-inline V operator+(V a, V b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline V operator-(V a, V b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline V operator*(double s, V a) { return {s * a.x, s * a.y, s * a.z}; }
-inline double dot(V a, V b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline V cross(V a, V b) {
-    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
+using vec::V;
 inline V at(const double* p, i64 k) { return {p[3 * k], p[3 * k + 1], p[3 * k + 2]}; }
 inline V rot(M3 r, V v) {  // r v
     return {r(0, 0) * v.x + r(0, 1) * v.y + r(0, 2) * v.z,
