@@ -14,6 +14,7 @@ analyzers run their full paths without building findings.
 
     python benchmarks/bench_check.py [--samples 10001] [--bodies 100] [--repeat 3] [--threads 2]
     python benchmarks/bench_check.py --against DIR [--require RATIO] [--samples 2001] [--repeat 7]
+    python benchmarks/bench_check.py --against DIR --instructions [--require RATIO]
 
 What is timed: ``rblog.analyze.check`` on the trajectory in memory (the shared Context and every
 analyzer, up to the Result objects); not reading a log, not formatting the report. Each analyzer
@@ -31,6 +32,12 @@ venv at DIR/.venv unless ``--against-python``; e.g. a worktree of the commit tha
 (ABBA order), ``--repeat`` checks each, all analyzers on one thread, and the best CPU time of
 each is compared. ``--require RATIO`` exits 1 when this tree's body-samples per second are
 below RATIO times the other's (issue 37: "as fast as today per body-sample").
+
+``--against DIR --instructions``: the same comparison in instructions (valgrind's callgrind)
+instead of CPU time, which a shared machine's load does not move: each tree's worker runs under
+``valgrind --tool=callgrind`` twice, once with one steady-state check and once with two, and the
+difference is that tree's instructions per check. ``--require RATIO`` then exits 1 when the other
+tree's instructions per check are below RATIO times this tree's.
 """
 
 from __future__ import annotations
@@ -130,12 +137,17 @@ def synthetic(n_samples: int = 10_001, n_bodies: int = 100, dt: float = 1e-3, lo
     return derive(model, info, step, t, pos, vel * mass[None, :, None], quat, rot, lmom, contacts)
 
 
-def worker(samples: int, bodies: int):
+def worker(samples: int, bodies: int, checks: int | None = None):
     """One side of --against: build the log, then one timed check (one thread) per line read;
-    prints "cpu_s wall_s" per check."""
+    prints "cpu_s wall_s" per check. With ``checks``: that many checks after the warm-up, then
+    exit (a run under callgrind for --instructions)."""
     traj = synthetic(samples, bodies)
     check(traj.slice(slice(0, 50)), threads=1)
     check(traj, threads=1)  # warm: the timed checks are the steady state
+    if checks is not None:
+        for _ in range(checks):
+            check(traj, threads=1)
+        return
     print("ready", flush=True)
     for _ in sys.stdin:
         c0, w0 = time.process_time(), time.perf_counter()
@@ -149,12 +161,59 @@ def _commit(root: Path) -> str:
     return out.stdout.strip() or "?"
 
 
+def _callgrind_total(py: str, root: Path, args, checks: int, out: Path) -> int:
+    """Instructions of one worker process (``checks`` checks after the warm-up) under callgrind."""
+    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", py,
+           str(Path(__file__).resolve()), "--worker", str(root), "--samples", str(args.samples),
+           "--bodies", str(args.bodies), "--checks", str(checks)]
+    env = {**os.environ, "SKBUILD_EDITABLE_VERBOSE": "0", "OMP_NUM_THREADS": "1",
+           "OPENBLAS_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}
+    run = subprocess.run(cmd, cwd=str(root), env=env, capture_output=True, text=True)
+    if run.returncode != 0:
+        sys.exit(f"bench_check: callgrind of {root} failed:\n{run.stderr[-2000:]}")
+    for line in out.read_text().splitlines():
+        if line.startswith(("summary:", "totals:")):
+            return int(line.split()[1])
+    sys.exit(f"bench_check: no totals in {out}")
+
+
+def instructions(args, other: Path, other_py: str) -> int:
+    """--against --instructions: instructions per check of both trees; 1 if below --require."""
+    import shutil
+    import tempfile
+    from concurrent.futures import ThreadPoolExecutor
+
+    if shutil.which("valgrind") is None:
+        sys.exit("bench_check: --instructions needs valgrind (apt-get install valgrind)")
+    sides = (("this tree", sys.executable, ROOT), ("against", other_py, other))
+    with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(2) as pool:
+        jobs = {(name, k): pool.submit(_callgrind_total, py, root, args, k,
+                                       Path(tmp) / f"cg.{i}.{k}")
+                for i, (name, py, root) in enumerate(sides) for k in (1, 2)}
+        total = {key: job.result() for key, job in jobs.items()}
+    print(f"synthetic log: {args.samples} samples x {args.bodies} bodies; all analyzers, one "
+          f"thread; instructions of one steady-state check (callgrind, 2 checks less 1)")
+    print(f"{'tree':<10} {'commit':<9} {'M instr/check':>13} {'M instr, 1 check':>17}  root")
+    per = {}
+    for name, _, root in sides:
+        per[name] = total[name, 2] - total[name, 1]
+        print(f"{name:<10} {_commit(root):<9} {per[name] / 1e6:13.1f} "
+              f"{total[name, 1] / 1e6:17.1f}  {root}")
+    ratio = per["against"] / per["this tree"]
+    verdict = "" if args.require is None else (
+        f" (required >= {args.require:.2f}: {'met' if ratio >= args.require else 'NOT met'})")
+    print(f"against / this tree, instructions per check: {ratio:.3f}{verdict}")
+    return 1 if args.require is not None and ratio < args.require else 0
+
+
 def against(args) -> int:
     """This tree and ``args.against`` in turns on the same log; 1 if below ``args.require``."""
     other = Path(args.against).resolve()
     other_py = args.against_python or str(other / ".venv" / "bin" / "python")
     if not (other / "rblog").is_dir() or not Path(other_py).exists():
         sys.exit(f"bench_check: --against {other}: no rblog/ there or no {other_py}")
+    if args.instructions:
+        return instructions(args, other, other_py)
     sides = {}
     for name, py, root in (("this tree", sys.executable, ROOT), ("against", other_py, other)):
         proc = subprocess.Popen(
@@ -204,14 +263,17 @@ def main():
     ap.add_argument("--against-python", metavar="PY", help="its python (DIR/.venv/bin/python)")
     ap.add_argument("--require", type=float, metavar="RATIO",
                     help="with --against: exit 1 below RATIO x the other tree's body-samples/s")
+    ap.add_argument("--instructions", action="store_true",
+                    help="with --against: compare callgrind instructions per check, not CPU time")
     ap.add_argument("--worker", metavar="DIR", help=argparse.SUPPRESS)
+    ap.add_argument("--checks", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.samples is None:
         args.samples = 2001 if args.against else 10_001
     if args.repeat is None:
         args.repeat = 7 if args.against else 3
     if args.worker:
-        return worker(args.samples, args.bodies)
+        return worker(args.samples, args.bodies, args.checks)
     if args.against:
         sys.exit(against(args))
     traj = synthetic(args.samples, args.bodies)

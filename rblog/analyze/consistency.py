@@ -179,9 +179,9 @@ def inspect(traj: Trajectory, tol: dict | None = None, finite=(), ctx: Context |
     t, step = np.asarray(traj.t, float), np.asarray(traj.step)
 
     # finite values
-    finite = np.ones(n_t, bool)
+    known_finite, finite = finite, np.ones(n_t, bool)
     for name in BODY_CHANNELS:
-        if name in finite or all_finite(getattr(traj, name)):
+        if name in known_finite or all_finite(getattr(traj, name)):
             continue
         a = np.asarray(getattr(traj, name), float).reshape(n_t, n, -1)
         bad = ~np.isfinite(a).all(axis=-1)
