@@ -32,14 +32,21 @@ inline void put_normal(double* nrm, const P& n) {
 // (warm starting).
 constexpr double GAP_QUANTUM_M = 1e-9;
 
-// reduce_manifold over P[0:count) (world, m) with gaps S rounded to GAP_QUANTUM_M, in the given
-// order: ids[0:n) are the kept points' indices into P; returns n. N bounds count.
+// reduce_manifold over P[0:count) (world, m) in the given order, with gaps S rounded to
+// GAP_QUANTUM_M and every touching point's (within the touch band of the deepest) set to the
+// deepest's: the first point kept is the first touching one in that order, not whichever the
+// rocking of a face at rest makes nanometres deeper this step (the same four from step to step).
+// ids[0:n) are the kept points' indices into P; returns n. N bounds count.
 template <i64 N>
 inline i64 reduce_quantized(const double* nrm, const double (*P)[3], const double* S, i64 count,
                             i64* ids) {
     double Q[N], P2[N][3];
+    double lo = INFINITY;
+    for (i64 k = 0; k < count; ++k) lo = std::fmin(lo, S[k]);
+    const double touch = lo + collision_constants().manifold_touch_band_m;
+    const double lo_q = std::round(lo / GAP_QUANTUM_M) * GAP_QUANTUM_M;
     for (i64 k = 0; k < count; ++k) {
-        Q[k] = std::round(S[k] / GAP_QUANTUM_M) * GAP_QUANTUM_M;
+        Q[k] = S[k] <= touch ? lo_q : std::round(S[k] / GAP_QUANTUM_M) * GAP_QUANTUM_M;
         ids[k] = k;
         for (int c = 0; c < 3; ++c) P2[k][c] = P[k][c];
     }

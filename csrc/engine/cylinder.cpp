@@ -314,9 +314,9 @@ int clip_to_polygon(const Feature& ref, const Feature& inc, Vec* out, i64* out_i
 }
 
 // reduce_manifold over points whose order and gaps do not depend on round-off: coincident points
-// (within 1e-9 scale) merged, the rest ordered by feature id, and the gaps the reduction compares
-// rounded to GAP_QUANTUM_M (the true gaps kept): a level face's rim points are equally deep to
-// round-off, and which four it keeps must not change from step to step (warm starting).
+// (within 1e-9 scale) merged, the rest ordered by feature id, then reduce_quantized
+// (collider_points.hpp: the touching points count as equally deep): which four a level face's
+// rim keeps must not change from step to step (warm starting).
 i64 reduce_stable(const double* nrm, double (*P)[3], double* S, i64* F, i64 count, double scale) {
     i64 m = 0;
     const double tol2 = (1e-9 * scale) * (1e-9 * scale);

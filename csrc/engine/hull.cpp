@@ -4,8 +4,8 @@
 // * hull - plane (closed form): the hull's lowest points along the plane normal are among its
 //   vertices, and every vertex's gap n . (x + R v) - off is exact; the vertices within spec are
 //   the manifold (feature id: the vertex index, a material point, so warm starting follows it),
-//   more than four reduced by reduce_manifold over gaps rounded to GAP_QUANTUM_M in vertex order
-//   (a face at rest has all its vertices equally deep to round-off: the same four every step).
+//   more than four reduced in vertex order by reduce_quantized (collider_points.hpp: the
+//   touching vertices count as equally deep, so a face at rest keeps the same four every step).
 #include "engine/hull.hpp"
 
 #include <algorithm>

@@ -45,8 +45,8 @@
 //   not when it hangs beside the face (a box over a table's edge: its deepest corner is in the
 //   air, no contact); the least gap is then above g. An apart pair's g is a lower bound of its
 //   distance (its closest features may be a vertex or an edge end on both, as box - box's).
-//   More than four points: reduce_manifold over gaps rounded to GAP_QUANTUM_M (a face at rest
-//   has its points equally deep to round-off: the same four every step). Normal (from b into
+//   More than four points: reduce_quantized (collider_points.hpp: the touching points count as
+//   equally deep, so a face at rest keeps the same four every step). Normal (from b into
 //   a): -n when the reference face is a's, n when b's. A face manifold left empty (a face kept
 //   over a slightly better edge pair, the faces not meeting) gives way to that edge pair's
 //   contact.
