@@ -199,11 +199,16 @@ def instructions(args, other: Path, other_py: str) -> int:
         per[name] = total[name, 2] - total[name, 1]
         print(f"{name:<10} {_commit(root):<9} {per[name] / 1e6:13.1f} "
               f"{total[name, 1] / 1e6:17.1f}  {root}")
-    ratio = per["against"] / per["this tree"]
-    verdict = "" if args.require is None else (
-        f" (required >= {args.require:.2f}: {'met' if ratio >= args.require else 'NOT met'})")
-    print(f"against / this tree, instructions per check: {ratio:.3f}{verdict}")
-    return 1 if args.require is not None and ratio < args.require else 0
+    return _verdict("against / this tree, instructions per check",
+                    per["against"] / per["this tree"], args.require)
+
+
+def _verdict(what: str, ratio: float, require: float | None) -> int:
+    """Print ``what: ratio`` (and whether it meets ``require``); 1 if below ``require``."""
+    met = require is None or ratio >= require
+    note = "" if require is None else f" (required >= {require:.2f}: {'met' if met else 'NOT met'})"
+    print(f"{what}: {ratio:.3f}{note}")
+    return 0 if met else 1
 
 
 def against(args) -> int:
@@ -245,11 +250,8 @@ def against(args) -> int:
         rate[name] = work / cpu[0]
         print(f"{name:<10} {_commit(root):<9} {cpu[0]:12.4f} {rate[name] / 1e6:17.3f} "
               f"{cpu[len(cpu) // 2]:15.4f}  {root}")
-    ratio = rate["this tree"] / rate["against"]
-    verdict = "" if args.require is None else (
-        f" (required >= {args.require:.2f}: {'met' if ratio >= args.require else 'NOT met'})")
-    print(f"this tree / against, body-samples per second: {ratio:.3f}{verdict}")
-    return 1 if args.require is not None and ratio < args.require else 0
+    return _verdict("this tree / against, body-samples per second",
+                    rate["this tree"] / rate["against"], args.require)
 
 
 def main():
