@@ -6,6 +6,7 @@ input); anything else is a bug and keeps its traceback.
 
 from __future__ import annotations
 
+import faulthandler
 import json
 import os
 import sys
@@ -75,6 +76,9 @@ class _Progress:
 @click.version_option(package_name="rblog")
 def main():
     """rblog: simulate rigid bodies, record what happened, audit the recording."""
+    # a crash in native code (the core, an engine, an SDK) prints every thread's Python stack
+    # to stderr instead of ending the process without a word
+    faulthandler.enable()
 
 
 @main.command()

@@ -238,9 +238,15 @@ SweepCount run_sweeps(const SweepPlan& p, const VisitFn& visit) {
             }
             claim.v.store(FINISH << 24, std::memory_order_release);
         };
+        // nt blocks: the caller's first is the driver, the others (and any the caller claims
+        // after the drive, when a worker never woke up for its own) help until FINISH
+        bool driven = false;  // (the caller's thread alone reads and writes it)
         pool().run(nt, [&](i64, int w) {
             if (w == 0) {
-                drive();
+                if (!driven) {
+                    driven = true;
+                    drive();
+                }
                 return;
             }
             i64 exhausted = -1;
