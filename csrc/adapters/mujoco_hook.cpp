@@ -178,6 +178,15 @@ struct ContactCapture {
         constexpr int W = 10;  // _EFC_WIDTH
         const long ngeom = (long)geom_index.size();
         const std::uint8_t* rec = con_base;
+        // room for every contact of the step, written in place; cut to the rows kept at the end
+        const size_t n0 = o_step.size();
+        size_t n = n0;
+        auto size_to = [this](size_t rows) {
+            for (auto* v : {&o_step, &o_a, &o_b}) v->resize(rows);
+            for (auto* v : {&o_sep, &o_ni}) v->resize(rows);
+            for (auto* v : {&o_point, &o_normal, &o_fi}) v->resize(3 * rows);
+        };
+        size_to(n0 + (size_t)ncon);
         for (long c = 0; c < ncon; ++c, rec += con_stride) {
             const std::int64_t adr = ri(rec, off[7]);
             if (adr < 0 || ri(rec, off[6]) != 0) continue;
@@ -202,8 +211,10 @@ struct ContactCapture {
                 }
             }
             const int g0 = ri(rec, off[5]), g1 = ri(rec, off[5] + 4);
-            if (g0 < 0 || g0 >= ngeom || g1 < 0 || g1 >= ngeom)
+            if (g0 < 0 || g0 >= ngeom || g1 < 0 || g1 >= ngeom) {
+                size_to(n);  // the rows decoded before it stay
                 throw std::out_of_range("ContactCapture: a contact's geom outside the model");
+            }
             std::int64_t a = geom_index[g1], b = geom_index[g0];
             double normal[3], fric[3];
             for (int i = 0; i < 3; ++i) {
@@ -220,17 +231,19 @@ struct ContactCapture {
             }
             const double dist = rd(rec, off[0]);
             if (a < 0 || (local[0] <= 0.0 && dist > 0.0)) continue;
-            o_step.push_back(step);
-            o_a.push_back(a);
-            o_b.push_back(b);
+            o_step[n] = step;
+            o_a[n] = a;
+            o_b[n] = b;
             for (int i = 0; i < 3; ++i) {
-                o_point.push_back(rd(rec, off[1] + 8 * i));
-                o_normal.push_back(normal[i]);
-                o_fi.push_back(fric[i] * dt);
+                o_point[3 * n + i] = rd(rec, off[1] + 8 * i);
+                o_normal[3 * n + i] = normal[i];
+                o_fi[3 * n + i] = fric[i] * dt;
             }
-            o_sep.push_back(dist);
-            o_ni.push_back(local[0] * dt);
+            o_sep[n] = dist;
+            o_ni[n] = local[0] * dt;
+            ++n;
         }
+        size_to(n);
     }
 
     // the decoded rows since the last call, as a dict for Recorder.write (None: no rows); cleared
