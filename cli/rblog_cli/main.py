@@ -77,8 +77,12 @@ class _Progress:
 def main():
     """rblog: simulate rigid bodies, record what happened, audit the recording."""
     # a crash in native code (the core, an engine, an SDK) prints every thread's Python stack
-    # to stderr instead of ending the process without a word
-    faulthandler.enable()
+    # to stderr instead of ending the process without a word (not when stderr has no file
+    # descriptor: click's CliRunner, an embedding host)
+    try:
+        faulthandler.enable()
+    except (OSError, ValueError, AttributeError):  # io.UnsupportedOperation is both
+        pass
 
 
 @main.command()
