@@ -449,10 +449,11 @@ i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
     const convex::ConvexTol tol{cc.convex_gjk_tol_m, cc.convex_epa_tol_m, cc.convex_max_iter};
     convex::Dist d = convex::convex_distance(GA, GB, tol);
     if (d.sep - rA - rB > spec) return 0;
-    {
+    if (d.sep < TOUCH_GROW_M) {
         // within round-off of touching GJK/EPA's normal is ill-conditioned (its simplex passes
         // through the origin): B grown by TOUCH_GROW_M is the same pair TOUCH_GROW_M deeper,
-        // with the same normal; the better of the two axes is kept
+        // with the same normal; the better of the two axes is kept. Cores TOUCH_GROW_M apart
+        // or more (a capsule's segment above a cylinder, say) are conditioned in the first run.
         convex::Geom GB2 = GB;
         GB2.grow = TOUCH_GROW_M;
         convex::Dist e = convex::convex_distance(GA, GB2, tol);
