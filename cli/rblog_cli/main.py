@@ -77,8 +77,12 @@ class _Progress:
 def main():
     """rblog: simulate rigid bodies, record what happened, audit the recording."""
     # a crash in native code (the core, an engine, an SDK) prints every thread's Python stack
-    # to stderr instead of ending the process without a word
-    faulthandler.enable()
+    # to stderr instead of ending the process without a word; not where sys.stderr has no file
+    # descriptor (click's CliRunner, a host that replaced it): faulthandler writes to an fd
+    try:
+        faulthandler.enable()
+    except (OSError, ValueError, AttributeError):  # io.UnsupportedOperation('fileno') among them
+        pass
 
 
 @main.command()
