@@ -169,14 +169,12 @@ public:
         work(g, 0);
         // the blocks others claimed: they take microseconds
         spin_until([&] { return done_.load(std::memory_order_acquire) >= n_blocks; });
-        // Close the call before the next one rewrites n_blocks_: otherwise the claim word keeps
-        // (g, n_blocks), and a worker still in work(g) that reads the next call's larger
-        // n_blocks_ before the next call's claim word is stored takes block n_blocks, n_blocks+1,
-        // ... of the next call under g's claims: those blocks then run twice, and its done_
-        // counts let the next call return while blocks still run (through a dangling or null
-        // fn_: a SIGSEGV). Measured before this: 1 block run twice in 100,000 calls of 2 to 56
-        // blocks at 8 threads on 2 cores; with the caller paused 50 us after done_.store(0), a
-        // SIGSEGV in work() within seconds.
+        // Close the call before the next one rewrites n_blocks_: an open word would stay
+        // (g, n_blocks), and a worker still in work(g) (descheduled after its last block) that
+        // read the next call's larger count before the next call's word is stored would claim
+        // blocks n_blocks, n_blocks + 1, ... of the next call under g's word. Those blocks would
+        // run twice, and its done_ counts would let the next call return while a block still
+        // runs (through a dangling or null fn_: a SIGSEGV).
         claim_.store((std::uint64_t(g) << 32) | CLOSED, std::memory_order_release);
         fn_.store(nullptr, std::memory_order_relaxed);
         if (error_) std::rethrow_exception(error_);
