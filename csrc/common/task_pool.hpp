@@ -156,7 +156,8 @@ public:
         calls_.fetch_add(1, std::memory_order_relaxed);
         const std::uint32_t g = gen_.load(std::memory_order_relaxed) + 1;
         fn_.store(&fn, std::memory_order_relaxed);
-        n_blocks_.store(n_blocks, std::memory_order_relaxed);
+        // release: a worker that reads this count sees the previous call closed (below)
+        n_blocks_.store(n_blocks, std::memory_order_release);
         error_ = nullptr;
         done_.store(0, std::memory_order_relaxed);
         claim_.store(std::uint64_t(g) << 32, std::memory_order_release);
@@ -168,6 +169,13 @@ public:
         work(g, 0);
         // the blocks others claimed: they take microseconds
         spin_until([&] { return done_.load(std::memory_order_acquire) >= n_blocks; });
+        // Close the call before the next one rewrites n_blocks_: an open word would stay
+        // (g, n_blocks), and a worker still in work(g) (descheduled after its last block) that
+        // read the next call's larger count before the next call's word is stored would claim
+        // blocks n_blocks, n_blocks + 1, ... of the next call under g's word. Those blocks would
+        // run twice, and its done_ counts would let the next call return while a block still
+        // runs (through a dangling or null fn_: a SIGSEGV).
+        claim_.store((std::uint64_t(g) << 32) | CLOSED, std::memory_order_release);
         fn_.store(nullptr, std::memory_order_relaxed);
         if (error_) std::rethrow_exception(error_);
     }
@@ -189,12 +197,18 @@ public:
     }
 
 private:
+    // The claim word's block field once a call is over (run() closes it): above any count.
+    static constexpr std::uint64_t CLOSED = 0xffffffffu;
+
     // Claim and run blocks of call generation g until none is left.
     void work(std::uint32_t g, int w) {
         if (static_blocks()) {  // (measurements: block b on worker b % threads)
             std::uint64_t c = claim_.load(std::memory_order_acquire);
-            if (std::uint32_t(c >> 32) != g) return;
-            const std::int64_t n = n_blocks_.load(std::memory_order_relaxed);
+            if (std::uint32_t(c >> 32) != g || (c & 0xffffffffu) == CLOSED) return;
+            const std::int64_t n = n_blocks_.load(std::memory_order_acquire);
+            // g still open after the count was read: the count is g's (a later call's count is
+            // stored after g's close)
+            if (claim_.load(std::memory_order_acquire) != c) return;
             for (std::int64_t b = w; b < n; b += threads()) {
                 (*fn_.load(std::memory_order_relaxed))(b, w);
                 done_.fetch_add(1, std::memory_order_acq_rel);
@@ -205,7 +219,9 @@ private:
             std::uint64_t c = claim_.load(std::memory_order_acquire);
             if (std::uint32_t(c >> 32) != g) return;  // a later call: this one is over
             const std::int64_t b = std::int64_t(c & 0xffffffffu);
-            if (b >= n_blocks_.load(std::memory_order_relaxed)) return;
+            // (a closed call's b is CLOSED, above any count; acquire: a count of a later call
+            // makes g's close visible, and the exchange below then fails)
+            if (b >= n_blocks_.load(std::memory_order_acquire)) return;
             if (!claim_.compare_exchange_weak(c, c + 1, std::memory_order_acq_rel)) continue;
             // a block of g was claimed, so g is not over and fn_ is still g's (the caller
             // rewrites it only after all of g's blocks are done)
