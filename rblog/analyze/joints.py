@@ -30,10 +30,20 @@ body; contract v3 lists them in the order the engine applies them, parent side f
 compound joint: each row's axis and anchor are fixed in the frame *between* its neighbours'
 motions, which the log does not carry, so a row's own check would flag the others' motion. The
 compound is judged for what all its rows together forbid, where that is known from the rows
-alone (rule table ``_compound_rule``): rows that only turn (hinge, ball) about one anchor point
-keep that point together (its separation judged once, on the first row); their axes are not
-judged. Any other compound (a slide among them, or turns about different points) is not judged,
-and the result says which bodies.
+alone (rule table ``_compound_rule``):
+
+* rows that only turn (hinge, ball) about one anchor point keep that point together (its
+  separation judged once, on the first row); their axes are not judged, except a lone hinge's;
+* slides first, then turns about one anchor point (none, or hinges and balls: dm_control's
+  planar stacker boxes, slide x, slide z, hinge y): no rotation comes before the slides, so their
+  axes stay fixed in the parent's frame (``u_p``), and the turns' anchor moves by the slides
+  only: its separation ``e`` is judged for its part outside the span of the slides' ``u_p``
+  (on the first turn row; on the first slide row, a body point, when there are no turns). A lone
+  hinge after the slides keeps its axis aligned (its own angle check); slides alone allow no
+  rotation (the first row's relative rotation against the first sample);
+
+any other compound (a slide after a turn, or turns about different points) is not judged, and
+the result says which bodies.
 
 A joint past tolerance is reported with its onset (first sample past tolerance), its worst
 value and its growth after the onset (the better of a line and an exponential, as the drift
@@ -84,11 +94,12 @@ def _poses(tr, body: np.ndarray):
 _SAME_ANCHOR_REL = 1e-9
 
 
-def _compound_rule(model) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def _compound_rule(model) -> tuple[np.ndarray, np.ndarray, list[str], list[tuple[int, np.ndarray]]]:
     """Which rows keep their own checks, for bodies with several joint rows (module docstring).
 
-    Returns (gap_judged (J,) bool, angle_judged (J,) bool, notes): one note per compound body
-    left out, naming it and why."""
+    Returns (gap_judged (J,) bool, angle_judged (J,) bool, notes, planar): one note per
+    compound body left out, naming it and why; ``planar`` the compounds of slides then turns:
+    (the row whose anchor separation is judged outside the slides' span, the slide rows)."""
     jt = np.asarray(model.joint_type, np.int64)
     child = np.asarray(model.joint_body, np.int64)
     ab = np.asarray(model.joint_anchor_body, float).reshape(-1, 3)
@@ -96,25 +107,40 @@ def _compound_rule(model) -> tuple[np.ndarray, np.ndarray, list[str]]:
     gap_ok = np.ones(len(jt), bool)
     angle_ok = np.ones(len(jt), bool)
     left_out = []
+    planar: list[tuple[int, np.ndarray]] = []
+
+    def one_point(rows) -> bool:  # the rows' anchors one point, in both bodies
+        return all(np.linalg.norm(a[rows] - a[rows[0]], axis=-1).max()
+                   <= _SAME_ANCHOR_REL * (1.0 + np.linalg.norm(a[rows[0]])) for a in (ab, ap))
+
     for b in np.unique(child):
         rows = np.flatnonzero(child == b)
         if len(rows) < 2:
             continue
         angle_ok[rows] = False
-        gap_ok[rows[1:]] = False
-        turns = np.isin(jt[rows], (JOINT_HINGE, JOINT_BALL)).all()
-        same = all(np.linalg.norm(a[rows] - a[rows[0]], axis=-1).max()
-                   <= _SAME_ANCHOR_REL * (1.0 + np.linalg.norm(a[rows[0]])) for a in (ab, ap))
-        if not (turns and same):
-            gap_ok[rows[0]] = False
+        gap_ok[rows] = False
+        turn = np.isin(jt[rows], (JOINT_HINGE, JOINT_BALL))
+        n_slide = int(np.argmax(turn)) if turn.any() else len(rows)  # the leading slides
+        slides, turns = rows[:n_slide], rows[n_slide:]
+        if not ((jt[slides] == JOINT_SLIDE).all() and turn[n_slide:].all()
+                and (len(turns) < 2 or one_point(turns))):
             left_out.append(body_label(model, int(b)))
+            continue
+        first = int(turns[0]) if len(turns) else int(slides[0])
+        gap_ok[first] = True
+        if len(turns) == 1 and jt[turns[0]] == JOINT_HINGE:
+            angle_ok[turns[0]] = True  # its axis, fixed in both frames
+        elif not len(turns):
+            angle_ok[first] = True  # no rotation at all
+        if len(slides):
+            planar.append((first, slides))
     notes = []
     if left_out:
         more = f" +{len(left_out) - 3} more" if len(left_out) > 3 else ""
         notes.append(f"{len(left_out)} bodies on compound joints with a slide or turns about "
                      f"different points ({', '.join(left_out[:3])}{more}): not judged (their "
                      "rows' intermediate frames are not in the log)")
-    return gap_ok, angle_ok, notes
+    return gap_ok, angle_ok, notes, planar
 
 
 def joint_errors(tr) -> dict[str, np.ndarray]:
@@ -169,7 +195,14 @@ def joint_errors(tr) -> dict[str, np.ndarray]:
     r_anchor = np.linalg.norm(ab, axis=-1)[None]
     gap_tol = ulps * eps * size + 0.5 * r_anchor * theta ** 2
     angle_tol = np.where((axial | rigid)[None], ulps * eps + 0.5 * theta ** 2, np.inf)
-    gap_ok, angle_ok, notes = _compound_rule(model)
+    gap_ok, angle_ok, notes, planar = _compound_rule(model)
+    for row, slides in planar:
+        # e of `row` less its part in the span of the slides' parent-frame axes (an orthonormal
+        # basis per sample: QR of the (T, 3, k) axes)
+        basis = np.linalg.qr(np.swapaxes(u_p[:, slides], -1, -2))[0]  # (T, 3, k)
+        er = e[:, row]
+        inside = np.einsum("tak,tk->ta", basis, np.einsum("tak,ta->tk", basis, er))
+        gap[:, row] = np.linalg.norm(er - inside, axis=-1)
     gap_tol = np.where(gap_ok[None], gap_tol, np.inf)
     angle_tol = np.where(angle_ok[None], angle_tol, np.inf)
     return dict(gap=gap, gap_tol=gap_tol, angle=angle, angle_tol=angle_tol, notes=notes)

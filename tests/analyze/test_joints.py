@@ -356,18 +356,50 @@ def _compound(pull=None):
 def test_compound_joints_judged_for_what_they_forbid():
     """A universal joint's two rows each turn the other's axis (row by row: 1.97 and 1.18 rad
     "misaligned", the slab's rows 1.7 m "apart", measured): judged as one fixed point (its
-    anchors 2.2e-16 m apart, measured), it passes; the planar body's rows
-    cannot be judged one by one and are left out by name; a planted 5 mm pull of the arm is
-    still caught on its joint, at its time, with its size."""
+    anchors 2.2e-16 m apart, measured), it passes; the planar body is judged on its hinge row
+    for what the three rows forbid together (its anchor off the x-z plane: 0 m measured, tol
+    2.5e-6 m; the hinge axis off y: 0 rad), so nothing is left out; a planted 5 mm pull of the
+    arm is still caught on its joint, at its time, with its size."""
     res = _joints(_compound())
     assert res.judged and res.passed, res.reason
-    assert any("'slab'" in x and "compound" in x for x in res.not_judged), res.not_judged
+    assert not any("compound" in x for x in res.not_judged), res.not_judged
     pulled = _joints(_compound(pull=150))
     assert {f.bodies[0] for f in pulled.findings} == {0}
     f = pulled.findings[0]
     assert "'ux'" in f.message and "anchor separation" in f.message
     assert abs(f.value - 0.005) < 1e-9
     assert f.step == 150
+
+
+def _slab_moved(step, shift=None, tilt=None):
+    """The compound log with the slab (body 1) moved in the log only from sample ``step`` on:
+    shifted by ``shift`` (m, world) or turned by ``tilt`` rad about the world x axis."""
+    traj = _compound()
+    pos, rot = traj.position.copy(), traj.rotation.copy()
+    if shift is not None:
+        pos[step:, 1] += shift
+    if tilt is not None:
+        c, s = np.cos(tilt), np.sin(tilt)
+        rot[step:, 1] = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]) @ rot[step:, 1]
+    traj.position, traj.rotation = pos, rot
+    return traj
+
+
+def test_planar_compound_flags_what_its_slides_and_hinge_forbid():
+    """Slide x, slide z, hinge y (dm_control's stacker boxes): the body may move in the x-z plane
+    and turn about y, nothing else. In the log only, from sample 150: 5 mm along y (off the plane)
+    is flagged on the hinge row with 5 mm at that sample; 5 mm along x (in the plane) is allowed;
+    a 0.05 rad turn about x is flagged as the hinge axis 0.05 rad off y, at that sample."""
+    off = _joints(_slab_moved(150, shift=[0.0, 0.005, 0.0]))
+    assert {f.bodies[0] for f in off.findings} == {1}
+    f = off.findings[0]
+    assert "'py'" in f.message and "anchor separation" in f.message
+    assert abs(f.value - 0.005) < 1e-9 and f.step == 150
+    assert _joints(_slab_moved(150, shift=[0.005, 0.0, 0.0])).passed
+    tilted = _joints(_slab_moved(150, tilt=0.05))
+    axis = [f for f in tilted.findings if "axis misalignment" in f.message]
+    assert len(axis) == 1 and "'py'" in axis[0].message
+    assert abs(axis[0].value - 0.05) < 1e-12 and axis[0].step == 150
 
 
 def _anchor_gap(traj, child, parent, anchor_child, anchor_parent):
