@@ -33,7 +33,7 @@ compound is judged for what all its rows together forbid, where that is known fr
 alone (rule table ``_compound_rule``):
 
 * rows that only turn (hinge, ball) about one anchor point keep that point together (its
-  separation judged once, on the first row); their axes are not judged, except a lone hinge's;
+  separation judged once, on the first row); their axes are not judged;
 * slides first, then turns about one anchor point (none, or hinges and balls: dm_control's
   planar stacker boxes, slide x, slide z, hinge y): no rotation comes before the slides, so their
   axes stay fixed in the parent's frame (``u_p``), and the turns' anchor moves by the slides
@@ -137,8 +137,8 @@ def _compound_rule(model) -> tuple[np.ndarray, np.ndarray, list[str], list[tuple
     notes = []
     if left_out:
         more = f" +{len(left_out) - 3} more" if len(left_out) > 3 else ""
-        notes.append(f"{len(left_out)} bodies on compound joints with a slide or turns about "
-                     f"different points ({', '.join(left_out[:3])}{more}): not judged (their "
+        notes.append(f"{len(left_out)} bodies on compound joints other than slides then turns "
+                     f"about one point ({', '.join(left_out[:3])}{more}): not judged (their "
                      "rows' intermediate frames are not in the log)")
     return gap_ok, angle_ok, notes, planar
 

@@ -402,6 +402,40 @@ def test_planar_compound_flags_what_its_slides_and_hinge_forbid():
     assert abs(axis[0].value - 0.05) < 1e-12 and axis[0].step == 150
 
 
+TELESCOPE_XML = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="boom" pos="0 0 1">
+      <joint name="swing" type="hinge" axis="0 1 0"/>
+      <joint name="reach" type="slide" axis="1 0 0"/>
+      <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.03"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_slide_after_a_turn_is_left_out_by_name():
+    """A hinge then a slide (a telescoping boom): the slide's axis turns with the hinge, which the
+    log's two frames cannot separate, so the body is named as not judged and nothing passes or
+    fails on it."""
+    from rblog.adapters import mujoco as adapter
+
+    m = mujoco.MjModel.from_xml_string(TELESCOPE_XML)
+    d = mujoco.MjData(m)
+    d.qvel[:] = [1.5, 0.3]
+    mujoco.mj_forward(m, d)
+    rec = adapter.recorder(m, d)
+    for _ in range(100):
+        mujoco.mj_step(m, d)
+        rec(d)
+    rec.close()
+    res = _joints(rec.trajectory)
+    assert not res.judged, res.reason
+    assert "'boom'" in res.reason and "slides then turns" in res.reason, res.reason
+
+
 def _anchor_gap(traj, child, parent, anchor_child, anchor_parent):
     """(T,) |world anchor in the child - world anchor in the parent| from the logged poses."""
     a = traj.position[:, child] + traj.rotation[:, child] @ np.asarray(anchor_child, float)
