@@ -333,19 +333,25 @@ COMPOUND_XML = """
 """
 
 
-def _compound(pull=None):
+def _recorded(xml, qvel, steps):
+    """The trajectory of the MJCF ``xml`` started at ``qvel``, recorded every step for ``steps``."""
     from rblog.adapters import mujoco as adapter
 
-    m = mujoco.MjModel.from_xml_string(COMPOUND_XML)
+    m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
-    d.qvel[:] = [2.0, -3.0, 0.5, 0.4, 5.0]  # both hinges and the planar body all move
+    d.qvel[:] = qvel
     mujoco.mj_forward(m, d)
     rec = adapter.recorder(m, d)
-    for _ in range(300):
+    for _ in range(steps):
         mujoco.mj_step(m, d)
         rec(d)
     rec.close()
-    traj = rec.trajectory
+    return rec.trajectory
+
+
+def _compound(pull=None):
+    # both hinges and the planar body all move
+    traj = _recorded(COMPOUND_XML, [2.0, -3.0, 0.5, 0.4, 5.0], 300)
     if pull is not None:
         pos = traj.position.copy()
         pos[pull:, 0] += [0.0, 0.0, 0.005]  # the arm, 5 mm up, in the log only
@@ -420,18 +426,7 @@ def test_slide_after_a_turn_is_left_out_by_name():
     """A hinge then a slide (a telescoping boom): the slide's axis turns with the hinge, which the
     log's two frames cannot separate, so the body is named as not judged and nothing passes or
     fails on it."""
-    from rblog.adapters import mujoco as adapter
-
-    m = mujoco.MjModel.from_xml_string(TELESCOPE_XML)
-    d = mujoco.MjData(m)
-    d.qvel[:] = [1.5, 0.3]
-    mujoco.mj_forward(m, d)
-    rec = adapter.recorder(m, d)
-    for _ in range(100):
-        mujoco.mj_step(m, d)
-        rec(d)
-    rec.close()
-    res = _joints(rec.trajectory)
+    res = _joints(_recorded(TELESCOPE_XML, [1.5, 0.3], 100))
     assert not res.judged, res.reason
     assert "'boom'" in res.reason and "slides then turns" in res.reason, res.reason
 
