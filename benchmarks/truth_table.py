@@ -30,9 +30,12 @@ The truth, never from the log or from rblog's code:
   stretch's own, whole-model energy (the rotors' 0.5 armature qdot^2 included, as the log's
   joint_armature lets the analyzer count them); RK4 runs up to the first step that meets a joint limit (its force across
   RK4's stages does work the step's start does not show: the adapter logs that step's joint
-  work NaN). pybullet: no independent energy (its motors' appliedJointMotorTorque and the
-  URDF damping close 38.98 of kuka's 39.26 J drop over steps 330-530, not to the analyzer's
-  0.1 %: joint limits and velocity clamps act unreported; tests/adapters/test_pybullet_energy.py).
+  work NaN). pybullet (PybulletEnergy): each multibody's energy from pybullet's link states
+  less the work of Bullet's damping, the URDF joint damping (getJointInfo) and the motors
+  (appliedJointMotorTorque), each at the step's mean velocity, on the stretches whose steps
+  have no contact point of the body, no joint starting at a limit and no clamped velocity
+  (the adapter takes the joints' forces from the joint sensors' reactions instead); r2d2 in
+  maximal coordinates: none (pybullet shows only its base).
 * momentum: Newton holds inside either engine: each body's momentum change equals its impulses
   + m g dt, measured from qvel / getBaseVelocity to 1e-9 relative by
   tests/adapters/test_mujoco_models.py and test_pybullet_worlds.py; the truth is clean.
@@ -195,6 +198,132 @@ def mujoco_truth(m, traj, qpos, qvel, work, ctrl, rk4_limit=None, touching=None)
     return depth, segs, passive
 
 
+class PybulletEnergy:
+    """pybullet's energy per multibody from its own numbers, for the energy truth.
+
+    At each step's start and end: every dynamic link's and free base's mass, principal inertia
+    (``getDynamicsInfo``), centre-of-mass pose and velocities (``getBasePositionAndOrientation``
+    / ``getBaseVelocity``, ``getLinkState`` with ``computeLinkVelocity``); E = sum m v.v / 2 +
+    w.R I R^T w / 2 - m g.x. The work of every force but gravity over a step, at its mean
+    velocity (a semi-implicit step changes the kinetic energy by (u0 + u1)/2 . M (u1 - u0)):
+    Bullet's multibody damping, the force -m v k (1 + |v|) and torque -R I R^T w k (1 + |w|) at the
+    start velocities (k = 0.04, btMultiBody's default, as pybullet sets it); each joint's URDF
+    damping (``getJointInfo``'s jointDamping: the torque -c qdot0 pybullet adds before the step)
+    and its motor (``getJointState``'s appliedJointMotorTorque) at the joint's mean velocity.
+    A step is left out of the stretches (touching) when the body has a contact point after it
+    (``getContactPoints``), a joint begins it at or beyond its limit (a constraint pybullet
+    reports nowhere) or a joint velocity reaches Bullet's bound (100)."""
+
+    K_DAMP = float(np.float32(0.04))
+    V_MAX = 100.0
+
+    def __init__(self, pb, cid):
+        self.pb, self.cid = pb, cid
+        self.bodies = []
+        for k in range(pb.getNumBodies(physicsClientId=cid)):
+            b = pb.getBodyUniqueId(k, physicsClientId=cid)
+            info = pb.getDynamicsInfo(b, -1, physicsClientId=cid)
+            if info[10] != 2:  # a btRigidBody (maximal coordinates): pybullet shows no links
+                continue
+            links = [(-1, info)] if info[0] > 0 else []
+            joints = []
+            for j in range(pb.getNumJoints(b, physicsClientId=cid)):
+                ji = pb.getJointInfo(b, j, physicsClientId=cid)
+                links.append((j, pb.getDynamicsInfo(b, j, physicsClientId=cid)))
+                if ji[2] in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC):
+                    joints.append((j, float(ji[6]), float(ji[8]), float(ji[9])))
+            if links:
+                self.bodies.append((b, links, joints))
+        g = pb.getPhysicsEngineParameters(physicsClientId=cid)
+        self.g = np.array([g["gravityAccelerationX"], g["gravityAccelerationY"],
+                           g["gravityAccelerationZ"]])
+        self.h = g["fixedTimeStep"]
+        self.prev = self._read()
+        self.work = [np.zeros(len(self.bodies))]
+        self.bad = []  # per step: (n_bodies,) bool
+        self.series = [self._energy(self.prev)]
+
+    def _read(self):
+        pb, c = self.pb, self.cid
+        out = []
+        for b, links, joints in self.bodies:
+            rows = []
+            for j, info in links:
+                if j < 0:
+                    x, q = pb.getBasePositionAndOrientation(b, physicsClientId=c)
+                    v, w = pb.getBaseVelocity(b, physicsClientId=c)
+                else:
+                    st = pb.getLinkState(b, j, computeLinkVelocity=1, computeForwardKinematics=1,
+                                         physicsClientId=c)
+                    x, q, v, w = st[0], st[1], st[6], st[7]
+                r = np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3)
+                rows.append((info[0], r @ np.diag(info[2]) @ r.T, np.array(x), np.array(v),
+                             np.array(w)))
+            js = [pb.getJointState(b, j, physicsClientId=c) for j, *_ in joints]
+            out.append((rows, js))
+        return out
+
+    def _energy(self, state):
+        """(E, kinetic, potential, sum m |g| |v|) per body."""
+        e = np.zeros((4, len(self.bodies)))
+        gn = float(np.linalg.norm(self.g))
+        for i, (rows, _) in enumerate(state):
+            for m, inertia, x, v, w in rows:
+                ke = 0.5 * m * v @ v + 0.5 * w @ inertia @ w
+                e[1, i] += ke
+                e[2, i] -= m * self.g @ x
+                e[3, i] += m * gn * np.linalg.norm(v)
+        e[0] = e[1] + e[2]
+        return e
+
+    def after_step(self):
+        pb, c, h = self.pb, self.cid, self.h
+        now = self._read()
+        work = np.zeros(len(self.bodies))
+        bad = np.zeros(len(self.bodies), bool)
+        for i, ((b, links, joints), (r0, j0), (r1, j1)) in enumerate(zip(self.bodies, self.prev,
+                                                                          now)):
+            for (m, inertia, _, v0, w0), (_, _, _, v1, w1) in zip(r0, r1):
+                f = -m * self.K_DAMP * (1 + np.linalg.norm(v0)) * v0 * h
+                t = -self.K_DAMP * (1 + np.linalg.norm(w0)) * (inertia @ w0) * h
+                work[i] += f @ (v0 + v1) / 2 + t @ (w0 + w1) / 2
+            for (j, damp, lo, hi), s0, s1 in zip(joints, j0, j1):
+                tau = (s1[3] - damp * s0[1]) * h
+                work[i] += tau * (s0[1] + s1[1]) / 2
+                if lo <= hi and (s0[0] <= lo or s0[0] >= hi):
+                    bad[i] = True
+                if abs(s1[1]) >= self.V_MAX:
+                    bad[i] = True
+            if pb.getContactPoints(bodyA=b, physicsClientId=c):
+                bad[i] = True
+        self.prev = now
+        self.work.append(self.work[-1] + work)
+        self.bad.append(bad)
+        self.series.append(self._energy(now))
+
+    def segments(self, steps):
+        """[(E - W at the stretch's samples, scale, allowance, (first step, last step))] for
+        every body's stretches of logged samples with no left-out step between them; the
+        analyzer's definition (rblog.analyze.energy's drift check)."""
+        from rblog.analyze import tolerances as T
+
+        steps = np.asarray(steps)
+        ser, work, bad = np.array(self.series), np.array(self.work), np.array(self.bad)
+        segs = []
+        for i, (b, links, _) in enumerate(self.bodies):
+            mass = sum(info[0] for _, info in links)
+            e = ser[steps, 0, i] - work[steps, i]
+            ke, pe, gs = ser[steps, 1, i], ser[steps, 2, i], ser[steps, 3, i]
+            for a, z in stretches(steps, bad[:, i]):
+                sl = slice(a, z + 1)
+                scale = max(float(ke[sl].max()), float(np.ptp(pe[sl])),
+                            T.ENERGY_FLOOR_J_PER_KG * mass)
+                allow = T.ENERGY_DRIFT_REL * scale + T.ENERGY_DT_FACTOR * self.h * 0.5 * (
+                    gs[sl] + gs[a])
+                segs.append((e[sl], scale, allow, (int(steps[a]), int(steps[z]))))
+        return segs
+
+
 def record_pybullet(name, every, ctrl, steps):
     import pybullet as pb
 
@@ -239,6 +368,7 @@ def record_pybullet(name, every, ctrl, steps):
 
     closest(0)
     pose()
+    energy = PybulletEnergy(pb, cid)
     for k in range(steps):
         if ctrl == "random" and motors:
             for b, j in motors:
@@ -247,6 +377,7 @@ def record_pybullet(name, every, ctrl, steps):
                                          force=50.0, physicsClientId=cid)
         pb.stepSimulation(physicsClientId=cid)
         rec()
+        energy.after_step()
         if (k + 1) % every == 0:
             closest(k + 1)
             pose()
@@ -254,7 +385,8 @@ def record_pybullet(name, every, ctrl, steps):
     traj = rec.trajectory
     rows = list(rec.world.rows)
     pb.disconnect(physicsClientId=cid)
-    return traj, depth, (poses, rows)
+    passive = ["damping", "motors"] + (["motors driven"] if ctrl == "random" else [])
+    return traj, depth, (poses, rows), energy.segments(traj.step), passive
 
 
 def row_truths(engine, traj, results, depth, energy, passive):
@@ -274,9 +406,11 @@ def row_truths(engine, traj, results, depth, energy, passive):
     else:
         out["penetration"] = ("pass", f"{d * 1e3:.2f} mm {worst[0]}", "")
     if energy is None:
-        out["energy"] = ("n/a", "", "no independent energy from pybullet")
+        out["energy"] = ("n/a", "", "pybullet shows only the base of a body in maximal "
+                         "coordinates: no energy of the whole body")
     elif not energy:
-        out["energy"] = ("n/a", "", "no contact-free stretch of two samples in MuJoCo's steps")
+        out["energy"] = ("n/a", "", "no stretch of two samples whose engine steps are free of contacts"
+                         " (and, in pybullet, of joint limits)")
     else:
         # the worst sample of any stretch, by its ratio to the allowance
         worst = None
@@ -366,8 +500,9 @@ def main(argv=None):
             depth, energy, passive = mujoco_truth(m, traj, qpos, qvel, work, ctrl, rk4_limit,
                                                   touching)
         else:
-            traj, depth, own = record_pybullet(name, every, ctrl, steps)
-            energy, passive = None, []
+            traj, depth, own, energy, passive = record_pybullet(name, every, ctrl, steps)
+            if name == "r2d2_maximal":
+                energy = None  # pybullet shows only its base: no energy of the whole body
         results = rblog.check(traj, threads=1)
         truths = row_truths(engine, traj, results, depth, energy, passive)
         if engine == "pybullet":

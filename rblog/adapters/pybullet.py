@@ -100,6 +100,26 @@ pybullet's conventions and how they become the contract's (docs/log-format.md):
     (measured: no damping); missing (named in ``engine_settings["missing"]``): contacts and joints
     of a maximal-coordinates body (pybullet exposes only its base and reports the contacts of its
     hidden links on it), joints without ``joint_sensors``, applied loads with ``applied=False``.
+* **work** per step, summed over each interval, at the step's mean velocity (a semi-implicit
+  step changes the kinetic energy by ``(u0 + u1)/2 . M (u1 - u0)``, and ``M (u1 - u0)`` is the
+  sum of its generalized impulses; docs/log-format.md, "Work and the discrete energy"):
+
+  - passive: the multibody damping's impulses above . the row's mean velocities ``(v0 + v1)/2``,
+    ``(w0 + w1)/2``; applied likewise, from the loads given through the recorder.
+  - joint, on the joint's child row: its generalized force, the reaction's component along the
+    joint's dof (``S^T f``, S = (a, a x (centre - anchor)) for a hinge, (0, a) for a slide: the
+    torque the ABA applies at the joint, i.e. the URDF joint damping ``-c qdot0`` and any
+    TORQUE_CONTROL torque) plus the motor's ``appliedJointMotorTorque``, times dt and the
+    joint's mean velocity (``getJointState``). Measured: a free cube's damping work equals its
+    kinetic energy's change to 2.5e-15 J over 280 steps, a motor-driven rod's (URDF damping 0.3)
+    to 8.4e-16 J (tests/adapters/test_pybullet_energy.py); on kuka under random motor targets
+    the energy less this work is the one pybullet's own joint damping and motor torques give,
+    0.0281 J both (benchmarks/truth_table.py). NaN where the joint impulses are (a step that
+    begins at a limit: the limit's work is unknown; a clamped velocity: the energy it removed),
+    and for ball and planar joints (their dofs are not read).
+  - ``body_work_supplied``: applied as its impulse; passive logged where a row has damping
+    (none on a maximal-coordinates body); joint logged on every row with a joint of its own,
+    missing without ``joint_sensors`` or with substeps.
 * **sleeping** (``URDF_ENABLE_SLEEPING``, off by default): Bullet zeroes the velocities of a body
   that falls asleep, with no impulse pybullet reports; such a log shows that change unexplained.
 * **substeps**: with ``numSubSteps`` > 1 pybullet reports the last substep's contact forces only:
@@ -120,7 +140,8 @@ import numpy as np
 
 from rblog.adapters import AdapterError, _gather, require
 from rblog.adapters._common import EngineRecorder, quat_mul
-from rblog.contract.model import IMPULSE_KINDS, SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE
+from rblog.contract.model import (IMPULSE_KINDS, SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE,
+                                  WORK_KINDS)
 from rblog.contract.orientation import quat_wxyz_to_matrix
 
 #: pybullet's default linear and angular damping of a multibody (btMultiBody: 0.04f, a float32)
@@ -131,6 +152,9 @@ DAMPING_DEFAULT = float(np.float32(0.04))
 #: world component of the base's angular and linear velocity to +-this, a momentum change no
 #: force accounts for
 MAX_COORDINATE_VELOCITY = 100.0
+#: the work kinds the adapter accumulates per row (actuator: none, pybullet's motors act inside
+#: the joints, and the joint kind carries their work)
+WORK_ACCUMULATED = ("applied", "passive", "joint")
 #: pybullet.JOINT_* -> the contract's joint type names
 JOINT_TYPES = {0: "hinge", 1: "slide", 2: "ball", 3: "planar", 4: "fixed"}
 #: Bullet's default collision filter (btBroadphaseProxy::DefaultFilter / StaticFilter / AllFilter)
@@ -503,15 +527,19 @@ class Stepper:
         # the accumulators, views of one array (zeroed in one call: zero_acc)
         self.acc_all = np.zeros((len(kinds), n, 3))
         self.acc = {k: self.acc_all[i] for i, k in enumerate(kinds)}
+        # the work accumulators (J per row), views of one array zeroed with the impulses'
+        self.work_all = np.zeros((len(WORK_ACCUMULATED), n))
+        self.work = {k: self.work_all[i] for i, k in enumerate(WORK_ACCUMULATED)}
         self.pending = (np.zeros((n, 3)), np.zeros((n, 3)))  # applied before the next step
         self.pending_any = False
         self.rows_out = None  # the last logged step's contact rows (P, 14)
         self.state = self.read()
-        if self.use_joints and self.limited.any():
-            self.q_start = np.array([s[0] for bid, links, _ in self.calls if links
-                                     for s in self.pb.getJointStates(bid, links,
-                                                                     physicsClientId=self.client)],
-                                    np.float64)
+        if self.use_joints:
+            start = [s[:2] for bid, links, _ in self.calls if links
+                     for s in self.pb.getJointStates(bid, links, physicsClientId=self.client)]
+            start = np.array(start, np.float64).reshape(len(start), 2)
+            self.q_start = start[:, 0].copy() if self.limited.any() else None
+            self.qd_start = start[:, 1].copy()
 
     def read(self):
         """The rows' state now; with joints, also ``self.cached``: (x, q_xyzw) of every row as
@@ -562,20 +590,26 @@ class Stepper:
     def _after_step(self, rows: bool) -> None:
         x0, q0, v0, w0 = self.state
         dt, acc, n = self.dt, self.acc, self.world.n
-        # passive: Bullet's multibody damping at the step's initial velocities (compiled)
-        _gather.pybullet_damping(q0, v0, w0, self.inertia, self.c_lin, self.c_ang,
-                                 acc["passive_linear"], acc["passive_angular"])
-        if self.pending_any:
-            fl, fa = self.pending
-            acc["applied_linear"] += fl
-            acc["applied_angular"] += fa
-            fl[:] = 0.0
-            fa[:] = 0.0
-            self.pending_any = False
         self.rows_out = None
         if self.use_contacts:
             self._contacts(x0, n, dt, rows)
         self.state = self.read()
+        v1, w1 = self.state[2], self.state[3]
+        # passive: Bullet's multibody damping at the step's initial velocities, and its work at
+        # the step's mean velocity (compiled)
+        _gather.pybullet_damping(q0, v0, w0, v1, w1, self.inertia, self.c_lin, self.c_ang,
+                                 acc["passive_linear"], acc["passive_angular"], self.work["passive"])
+        if self.pending_any:
+            # the loads applied before the step, and their work at its mean velocity (an
+            # impulse J at the centre of mass and the angular impulse about it, as the damping's)
+            fl, fa = self.pending
+            acc["applied_linear"] += fl
+            acc["applied_angular"] += fa
+            self.work["applied"] += 0.5 * (np.einsum("ij,ij->i", fl, v0 + v1)
+                                           + np.einsum("ij,ij->i", fa, w0 + w1))
+            fl[:] = 0.0
+            fa[:] = 0.0
+            self.pending_any = False
         if self.use_joints:
             # the reactions are in the child's frame of Bullet's cached link transforms at the
             # step's end (measured on r2d2: median residual 1.7e-7 N s per step; 2e-5 with the
@@ -619,6 +653,15 @@ class Stepper:
         k = len(jt["body"])
         self.motor_axis = np.array(jt["axis_body"], np.float64).reshape(k, 3)
         self.motor_slide = np.array([t == "slide" for t in jt["type"]], bool).reshape(k)
+        # the dof's motion subspace S about the child's centre of mass, child frame (the frame
+        # of the reactions): a hinge turns about its axis a through its anchor c, so S = (a,
+        # a x (0 - c)); a slide S = (0, a); a fixed joint none
+        anchor = np.array(jt["anchor_body"], np.float64).reshape(k, 3)
+        hinge = np.array([t == "hinge" for t in jt["type"]], bool).reshape(k)
+        self.dof_ang = np.where(hinge[:, None], self.motor_axis, 0.0)
+        self.dof_lin = np.where(hinge[:, None], np.cross(self.motor_axis, -anchor),
+                                np.where(self.motor_slide[:, None], self.motor_axis, 0.0))
+        self.multi_dof = np.array([t in ("ball", "planar") for t in jt["type"]], bool).reshape(k)
         self.motor_ok = np.array_equal(np.asarray(jt["body"], np.int64).reshape(k), self.jointed)
         # joint limits (NaN: none): Bullet's btMultiBodyJointLimitConstraint makes a limit's
         # row only in a step whose start has the joint at or beyond it (createConstraintRows:
@@ -671,6 +714,21 @@ class Stepper:
         lin, ang = self.acc["joint_linear"], self.acc["joint_angular"]
         lin[j] += f + fm
         ang[j] += t
+        # the joint's work, on its child row: its generalized force over the step (the
+        # reaction's component along the joint's dof, S^T f, which is the torque the ABA applies
+        # at the joint: URDF joint damping, TORQUE_CONTROL torques; plus the motor's) at the
+        # step's mean joint velocity (measured on kuka: S^T f equals -0.5 qdot0, its URDF damping,
+        # to 1e-5 N m under velocity control). A ball or planar joint's dofs are not read: NaN
+        if self.motor_ok and len(vel):
+            qd1 = np.array(vel, np.float64).reshape(len(vel))
+            gen = (np.einsum("ij,ij->i", self.dof_ang, rf[:, 3:])
+                   + np.einsum("ij,ij->i", self.dof_lin, rf[:, :3]) + np.asarray(motor, np.float64))
+            wj = gen * dt * 0.5 * (self.qd_start + qd1)
+            wj[self.multi_dof] = np.nan
+            self.work["joint"][j] += wj
+            self.qd_start = qd1
+        else:
+            self.work["joint"][j] = np.nan
         has = p >= 0
         pp, ff, tt = p[has], f[has], t[has]
         back_t = tt + np.cross(x[j[has]] - x[pp], ff)
@@ -692,6 +750,7 @@ class Stepper:
                     rows = np.concatenate([j[hit], p[hit][p[hit] >= 0]])
                     lin[rows] = np.nan
                     ang[rows] = np.nan
+                    self.work["joint"][j[hit]] = np.nan  # the limit's work, likewise
             self.q_start = q
         # a generalized velocity at Bullet's bound after the step was clamped there: the
         # momentum it removed from the rows it moves is reported nowhere, so their joint impulse
@@ -708,12 +767,14 @@ class Stepper:
             if clamped.any():
                 lin[clamped] = np.nan
                 ang[clamped] = np.nan
+                self.work["joint"][clamped] = np.nan  # the energy the clamp removed
 
     def take(self):
-        """The impulses accumulated since the last take (dict of (N, 3)), zeroing them."""
+        """The impulses accumulated since the last take (dict of (N, 3)), zeroing them and the
+        works."""
         out = {k: v.copy() for k, v in self.acc.items()}
-        for v in self.acc.values():
-            v[:] = 0.0
+        self.acc_all[...] = 0.0
+        self.work_all[...] = 0.0
         return out
 
 
@@ -734,7 +795,24 @@ def settings(client: int = 0) -> dict:
             "contact_rows": dict(CONTACT_ROWS)}
 
 
-def body_table(world: World, gravity, impulses=None):
+def work_supplied(world: World, impulses, joints: bool) -> np.ndarray:
+    """(N, len(WORK_KINDS)) SUPPLIED_* codes: applied as its impulse; passive logged where a
+    row has damping (missing where its impulse is); joint logged on the rows with a joint of
+    their own when the joints are read (``joints``), missing when not; the rest none."""
+    n = world.n
+    sup = np.asarray(impulses, np.int64).reshape(n, len(IMPULSE_KINDS))
+    out = np.full((n, len(WORK_KINDS)), NONE, np.int64)
+    out[:, WORK_KINDS.index("applied")] = sup[:, IMPULSE_KINDS.index("applied")]
+    passive = sup[:, IMPULSE_KINDS.index("passive")]
+    damped = (np.array(world.damping, np.float64).reshape(n, 2) > 0).any(axis=1)
+    out[:, WORK_KINDS.index("passive")] = np.where(passive == MISSING, MISSING,
+                                                   np.where(damped, passive, NONE))
+    own = np.array([k == "joints" for k in world.kind], bool).reshape(n)
+    out[own, WORK_KINDS.index("joint")] = LOGGED if joints else MISSING
+    return out
+
+
+def body_table(world: World, gravity, impulses=None, work=()):
     """The contract's Model of a :class:`World` (rblog.body_table with geoms and joints)."""
     from rblog.record.recorder import body_table as table
 
@@ -759,7 +837,7 @@ def body_table(world: World, gravity, impulses=None):
     return table(name=list(world.name), mass=np.array(world.mass, float).reshape(n),
                  inertia_diag=np.array(world.inertia, float).reshape(n, 3), kind=list(world.kind),
                  parent=list(world.parent), geoms=geoms, collide_rule="and", joints=joints,
-                 impulses=supplied, work=(), gravity=tuple(float(x) for x in gravity))
+                 impulses=supplied, work=work, gravity=tuple(float(x) for x in gravity))
 
 
 class PybulletRecorder(EngineRecorder):
@@ -822,7 +900,8 @@ class PybulletRecorder(EngineRecorder):
                       **world.notes)
         params = self.pb.getPhysicsEngineParameters(physicsClientId=self.client)
         gravity = [params.get(f"gravityAcceleration{c}", 0.0) for c in "XYZ"]
-        self.model = body_table(world, gravity, sup)
+        self.model = body_table(world, gravity, sup,
+                                work_supplied(world, sup, joint_sensors and substeps <= 1))
         self.recorder = Recorder(self.model, rrd=rrd, mcap=mcap, dt=self.dt,
                                  writer=writer or f"pybullet {engine['version']} via rblog.adapters",
                                  integrator="default", log_every=self.every,
@@ -836,6 +915,8 @@ class PybulletRecorder(EngineRecorder):
         # integration kind is no accumulator: _integration fills it per block
         self.channels = [(name, name[len("impulse_"):]) for name in vars(self.block)
                          if name.startswith("impulse_") and "_integration_" not in name]
+        self.work_channels = [(name, name[len("work_"):]) for name in vars(self.block)
+                              if name.startswith("work_")]
         self._integ = np.flatnonzero(sup[:, integ_col] == LOGGED)
         self._prev_momenta = None  # (t, P, L) of the last sample written, for _integration
         if len(self._integ):
@@ -921,7 +1002,11 @@ class PybulletRecorder(EngineRecorder):
         acc = self.stepper.acc
         for name, key in self.channels:
             np.copyto(getattr(blk, name)[r], acc[key])
+        work = self.stepper.work
+        for name, key in self.work_channels:
+            np.copyto(getattr(blk, name)[r], work[key])
         self.stepper.acc_all[...] = 0.0  # every accumulator (acc's arrays are its views)
+        self.stepper.work_all[...] = 0.0
         if rows is not None:  # into the block's own contact arrays (views)
             c = blk.contact_rows(len(rows))
             c.body_a[:] = rows[:, 0]

@@ -156,8 +156,9 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
 
     A tree's column: touching nothing when none of its members does; its energy is the sum of
     its members' less the logged work of their loads since the first sample (``work_applied``,
-    ``work_passive``, ``work_actuator``); its mass, speed and acceleration the sum, the largest
-    and the largest of its members'. Ideal joints (no friction in them, no limit violated) pass
+    ``work_passive``, ``work_actuator``, ``work_joint``); its mass the sum, its acceleration the
+    largest of its members' and its speed such that the dt allowance's m |a| v is the members'
+    sum of m_b |a_b| |v_b| (the bias of each member's first-order step). Ideal joints (no friction in them, no limit violated) pass
     energy between a tree's bodies and do no net work on it, so this sum is conserved up to
     the integrator's error, the same dt allowance as a free body's; an engine's step error
     beyond it is a finding, as a free body's drift is (dm_control's fish, Euler without gravity,
@@ -251,15 +252,20 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
         not_judged.append(f"energy not judged in {sum(gaps)} interval(s) of "
                           f"{sum(1 for g_ in gaps if g_)} tree(s) ({', '.join(who)}): the work "
                           "of a load on them is not in the log there (NaN: the writer did not "
-                          "know it, e.g. a joint limit's inside an RK4 step)")
+                          "know it: a joint limit's force inside an RK4 step, or in a pybullet "
+                          "step that begins at the limit)")
     for j, c in enumerate(ok):
         f_free[:, j] = free[:, c].all(axis=1) & ~gap[:, c].any(axis=1)
         f_e[:, j] = e[:, c].sum(axis=1)
         f_ke[:, j] = ke[:, c].sum(axis=1)
         f_u[:, j] = u[:, c].sum(axis=1)
-        f_sp[:, j] = sp[:, c].max(axis=1)
         f_m[j] = m[c].sum()
         f_a[j] = amag[c].max()
+        # the speed that makes the allowance's m |a| v the members' sum of m_b |a_b| |v_b|:
+        # each member's first-order step moves its energy by up to m_b |a_b| dt |v_b| / 2
+        ma = m[c] * amag[c]
+        f_sp[:, j] = (sp[:, c] @ ma) / (f_m[j] * f_a[j]) if f_m[j] * f_a[j] > 0 \
+            else sp[:, c].max(axis=1)
         lab = body_label(model, int(c[0]))
         labels.append(lab if len(c) == 1 else f"the tree of {lab} ({len(c)} bodies)")
     return f_free, f_e, f_ke, f_u, f_sp, f_m, f_a, labels, [list(map(int, c)) for c in ok]
@@ -400,9 +406,10 @@ class EnergyAnalyzer(Analyzer):
                     float(t[ka[j]]), bodies))
         if ctx.has_torque.any():
             stats["bodies_with_torque_skipped"] = float(ctx.has_torque.sum())
-        if not_judged and free.shape[1] == 0 and not stats.get("contact_events"):
-            # every body left out and no contact event checked: nothing was judged
-            return self.not_judged("; ".join(not_judged))
+        if not cnt and not stats.get("contact_events"):
+            # no contact-free stretch and no contact event checked: nothing was judged
+            return self.not_judged("; ".join(not_judged or [
+                "no stretch of two samples touching nothing and no contact event to judge"]))
         res = self.result(worst, findings, stats, n_findings=n_found)
         res.leave_out(not_judged)
         return res.leave_out([] if len(tr.contacts) else shapeless_note(

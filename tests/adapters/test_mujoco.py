@@ -92,7 +92,9 @@ def test_box_on_a_plane_sinks_as_numpy_says(solref):
     assert (sink > pen.tolerance) == (not pen.passed) == bool(solref)
     assert pen.worst_value == pytest.approx(sink, rel=1e-9)
     assert balance_residual(traj, m, qvel) < BALANCE_NS
-    assert all(r.passed for r in res if r.analyzer != "penetration"), [r.reason for r in res]
+    # energy: the box touches the plane in every interval and never strikes it, nothing to judge
+    assert all(r.passed or (r.analyzer, r.verdict) == ("energy", "not judged")
+               for r in res if r.analyzer != "penetration"), [r.reason for r in res]
 
 
 BALL = ('<body name="ball" pos="0 0 1"><freejoint/>'
@@ -159,7 +161,9 @@ def test_two_stacked_boxes():
     c = traj.contacts
     assert set(zip(c.body_a.tolist(), c.body_b.tolist())) == {(0, -1), (1, 0)}
     assert balance_residual(traj, m, qvel) < BALANCE_NS
-    assert all(r.passed for r in res), [r.reason for r in res if not r.passed]
+    # energy: both boxes touch in every interval and nothing strikes, nothing to judge
+    assert all(r.passed or (r.analyzer, r.verdict) == ("energy", "not judged")
+               for r in res), [r.reason for r in res if not r.passed]
 
 
 TUMBLE = '<body name="tumbler" pos="0 0 1"><freejoint/><geom type="box" size="0.3 0.2 0.1" mass="1"/></body>'

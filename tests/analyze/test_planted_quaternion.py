@@ -40,7 +40,10 @@ def test_a_quaternion_turned_in_the_log_only_is_one_pair_at_its_depth():
         rec(d)
     rec.close()
     tr = rec.trajectory
-    assert all(r.verdict in ("pass", "skip") for r in rblog.check(tr, threads=1))
+    # clean: nothing flagged; energy has nothing to judge (the boxes touch in every interval,
+    # and a resting contact is no event), so it says so
+    assert all(r.verdict in ("pass", "skip") or (r.analyzer, r.verdict) == ("energy", "not judged")
+               for r in rblog.check(tr, threads=1))
     k, a = 100, 0.05
     q = tr.quat_wxyz.copy()
     turn = np.array([np.cos(a / 2), np.sin(a / 2), 0.0, 0.0])
