@@ -33,7 +33,7 @@ The truth, never from the log or from rblog's code:
   work NaN). pybullet (PybulletEnergy): each multibody's energy from pybullet's link states
   less the work of Bullet's damping, the URDF joint damping (getJointInfo) and the motors
   (appliedJointMotorTorque), each at the step's mean velocity, on the stretches whose steps
-  have no contact point of the body, no joint starting at a limit and no clamped velocity
+  have no contact pushing the body, no joint starting at a limit and no clamped velocity
   (the adapter takes the joints' forces from the joint sensors' reactions instead); r2d2 in
   maximal coordinates: none (pybullet shows only its base).
 * momentum: Newton holds inside either engine: each body's momentum change equals its impulses
@@ -210,8 +210,8 @@ class PybulletEnergy:
     start velocities (k = 0.04, btMultiBody's default, as pybullet sets it); each joint's URDF
     damping (``getJointInfo``'s jointDamping: the torque -c qdot0 pybullet adds before the step)
     and its motor (``getJointState``'s appliedJointMotorTorque) at the joint's mean velocity.
-    A step is left out of the stretches (touching) when the body has a contact point after it
-    (``getContactPoints``), a joint begins it at or beyond its limit (a constraint pybullet
+    A step is left out of the stretches (touching) when a contact point after it pushes the body
+    (``getContactPoints``' normal or friction force), a joint begins it at or beyond its limit (a constraint pybullet
     reports nowhere) or a joint velocity reaches Bullet's bound (100)."""
 
     K_DAMP = float(np.float32(0.04))
@@ -294,8 +294,8 @@ class PybulletEnergy:
                     bad[i] = True
                 if abs(s1[1]) >= self.V_MAX:
                     bad[i] = True
-            if pb.getContactPoints(bodyA=b, physicsClientId=c):
-                bad[i] = True
+            if any(p[9] or p[10] or p[12] for p in pb.getContactPoints(bodyA=b, physicsClientId=c)):
+                bad[i] = True  # a contact pushed it (normal or friction force)
         self.prev = now
         self.work.append(self.work[-1] + work)
         self.bad.append(bad)

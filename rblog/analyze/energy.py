@@ -7,7 +7,8 @@ not (its work depends on the path of the rotation), so bodies with one are left 
 a reason when that is every body).
 
 * Drift: over every stretch of samples in which a body cannot touch anything (recomputed geometry,
-  swept over each interval, and the logged contacts), ``|E(t) - E(start)|`` must stay within
+  swept over each interval, and the logged contacts; where the log carries the body's contact
+  impulses, the intervals in which they are zero: touched), ``|E(t) - E(start)|`` must stay within
   ``DRIFT_REL x scale + DT_FACTOR x m |a| dt (|v(t)| + |v(start)|) / 2``. The scale is the
   energy that moves: ``max(max kinetic energy, range of potential energy)`` over the stretch
   (floor: ENERGY_FLOOR per kg). Total energy |E0| is no scale: the potential's zero (the world
@@ -147,6 +148,22 @@ def rotor_energy(model, tr) -> tuple[np.ndarray | None, list[str]]:
                      "from the logged motion (rblog.analyze.energy.rotor_energy), so it is not "
                      "counted")
     return out, notes
+
+
+def touched(ctx: Context, tch) -> np.ndarray:
+    """(T-1, N) bool: the intervals in which a contact may have done work on each body. Where the
+    log carries a body's contact impulses at every interval (contact_impulse_known), what the
+    engine applied: a nonzero impulse, linear or angular, summed over the interval's steps (a
+    contact that pushed with no force did no work); elsewhere the geometric reach of
+    Context.touches (swept bounds, conservative: at a stride of 10 MuJoCo's humanoid reads
+    touching the floor in steps 0-40 that MuJoCo ran without a contact)."""
+    reach = tch["any"]
+    known = ctx.contact_impulse_known()
+    if not known.any():
+        return reach
+    lin, ang = ctx.logged_contact_impulse()
+    pushed = (np.abs(lin[1:]).max(axis=2) > 0) | (np.abs(ang[1:]).max(axis=2) > 0)
+    return np.where(known[None, :], pushed, reach)
 
 
 def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
@@ -308,7 +325,7 @@ class EnergyAnalyzer(Analyzer):
         # one; bodies under logged loads (joints, actuators, damping, pushes) as whole
         # articulated trees, whose energy less the logged work of those loads is conserved
         # (ideal joints do no net work on a tree; rblog.analyze.energy.trees)
-        free = ~tch["any"] & ~ctx.has_torque[None, :]  # (T-1, N)
+        free = ~touched(ctx, tch) & ~ctx.has_torque[None, :]  # (T-1, N)
         tr_cols = trees(ctx, free, e, ke, u, sp, m, amag, not_judged)
         if tr_cols is not None:
             free, e, ke, u, sp, m, amag, labels, _ = tr_cols
