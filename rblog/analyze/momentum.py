@@ -71,7 +71,7 @@ import math
 import numpy as np
 
 from rblog.analyze import _audit
-from rblog.contract.model import SHAPE_NONE, SHAPE_SPHERE
+from rblog.contract.model import BODY_STATIC, SHAPE_NONE, SHAPE_SPHERE
 from rblog.contract.trajectory import STATIC_BODY
 from rblog.analyze import geometry
 from rblog.analyze import tolerances as T
@@ -194,8 +194,17 @@ class MomentumAnalyzer(Analyzer):
         if unjudged:
             bad = np.zeros(tr.n_bodies, bool)
             bad[list(unjudged)] = True
+            # a static body has no momentum to judge: it is named only where a group it is in
+            # has other members, left out with it (dm_control's 'target', welded and touching
+            # nothing, reads as a group of its own at every interval: no gap in the verdict)
+            static = np.asarray(tr.model.body_kind, np.int64).reshape(-1) == BODY_STATIC
+            size = np.bincount(grp.mem_group, minlength=len(grp))
+            shared = np.zeros(tr.n_bodies, bool)
+            shared[grp.mem_i[size[grp.mem_group] > 1]] = True
+            named = {b: w for b, w in unjudged.items() if not static[b] or shared[b]}
             grp = grp.subset(~ctx.groups_with(grp, bad))
-            self._not_judged.append(_unjudged_line(tr.model, unjudged))
+            if named:
+                self._not_judged.append(_unjudged_line(tr.model, named))
         self._ctx, self._grp, self._tr, self._model = ctx, grp, tr, tr.model
         self._worst = Worst("1", self.tol["linear_rel"])
         self._findings: list[Finding] = []
