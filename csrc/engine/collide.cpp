@@ -411,6 +411,19 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                                                  rotation, sb_pos, sb_rot, sb_ext, pc[1], pr[1]);
             double spec = margin + reach[a];
             if (b_dyn) spec += reach[b];
+            // a pair new to the contact (no manifold last step) parted along the line of
+            // centres: collide() would return no point (parted_along, with its proof)
+            if (axis_parts(ga, g.geom) &&
+                find_manifold(prev_keys, prev_idx, prev_n, 2 * key) < 0) {
+                const double u[3] = {pa.centre[0] - g.centre[0], pa.centre[1] - g.centre[1],
+                                     pa.centre[2] - g.centre[2]};
+                if ((u[0] != 0.0 || u[1] != 0.0 || u[2] != 0.0) &&
+                    parted_along(ga, g.geom, pa.centre, pa.rotation, gm.size.row(a), g.centre,
+                                 g.rotation, g.size, u, spec)) {
+                    o.res = 0;
+                    continue;
+                }
+            }
             const i64 res = collide(ga, g.geom, pa.centre, pa.rotation, gm.size.row(a),
                                     g.centre, g.rotation, g.size, gn.p, goff, spec, cb);
             o.res = res;
