@@ -35,6 +35,7 @@
 #include <cstddef>  // size_t, which common/array.hpp uses
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "common/array.hpp"
@@ -165,12 +166,23 @@ i64 collide(i64 ga, i64 gb, const double* ca, M3 rota, const double* sa, const d
 // whose colliders never report a gap below the signed distance (collide_convex's, capsule -
 // box, for which axis_parts(ga, gb) holds); false for every other pair. Proof in
 // narrowphase.cpp.
-inline bool axis_parts(i64 ga, i64 gb) {
+constexpr bool axis_parts_rule(i64 ga, i64 gb) {
     const i64 lo = ga < gb ? ga : gb, hi = ga < gb ? gb : ga;
     const bool convex_pair = (hi == GEOM_CYLINDER && lo != GEOM_SPHERE) ||
                              (hi == GEOM_HULL && lo != GEOM_BOX && lo != GEOM_HULL);
     return convex_pair || (lo == GEOM_BOX && hi == GEOM_CAPSULE);
 }
+// axis_parts_rule as bits N_GEOM ga + gb of one word: every pair asks it (collide, project)
+constexpr std::uint64_t axis_parts_bits() {
+    std::uint64_t m = 0;
+    for (i64 a = 0; a < N_GEOM; ++a)
+        for (i64 b = 0; b < N_GEOM; ++b)
+            if (axis_parts_rule(a, b)) m |= std::uint64_t{1} << (N_GEOM * a + b);
+    return m;
+}
+static_assert(N_GEOM * N_GEOM <= 64, "axis_parts_bits: one bit a pair of codes");
+constexpr std::uint64_t AXIS_PARTS_BITS = axis_parts_bits();
+inline bool axis_parts(i64 ga, i64 gb) { return (AXIS_PARTS_BITS >> (N_GEOM * ga + gb)) & 1; }
 bool parted_along(i64 ga, i64 gb, const double* ca, M3 rota, const double* sa, const double* cb,
                   M3 rotb, const double* sb, const double* u, double spec);
 
