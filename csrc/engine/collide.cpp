@@ -7,7 +7,9 @@
 // * neither side awake (sleeping or static): the previous step's manifolds of the pair are
 //   carried over unchanged (inactive: not solved, still logged);
 // * otherwise the collider from the narrowphase table runs with a speculative distance of
-//   margin + reach_a + reach_b; each new point takes over the impulses of the previous step's
+//   margin + reach_a + reach_b (a GJK or capsule - box pair with no manifold last step is first
+//   tried along its line of centres: parted by more than that, the collider would return no
+//   point, narrowphase.cpp parted_along); each new point takes over the impulses of the previous step's
 //   point with the same feature id (or, failing that, the nearest one within anchor_distance),
 //   normal impulse as is (the velocity solve's, lws) and friction projected on the new
 //   tangents;

@@ -10,7 +10,10 @@
 //
 // This stage runs the narrowphase again at the end-of-step configuration, first with a *negative*
 // speculative distance ``-depth``, so only points deeper than ``depth`` come back (the separating
-// axis test rejects every other pair on its first axis, which keeps the pass cheap). Around the
+// axis test rejects every other pair on its first axis, which keeps the pass cheap; a GJK pair or
+// capsule - box, whose colliders have no such axis, is passed over when it is parted by more
+// than -depth along the normal this step's collide stage found, or the line of centres: the
+// collider would return nothing, narrowphase.cpp parted_along). Around the
 // bodies of those points it gathers every contact of the bodies and of their neighbours (two
 // rings, see project_positions), and pushes all gathered points to ``s >= -depth`` by
 // Gauss-Seidel on position-level impulses (Box2D v2's ``SolvePositionConstraints``, Catto's
