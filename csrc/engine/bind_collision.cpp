@@ -188,6 +188,26 @@ void bind_collision(nb::module_& m) {
         "fid (12,)), the collider buffers after the call.");
 
     m.def(
+        "parted_along_np",
+        [](i64 ga, i64 gb, nb::handle ca, nb::handle ra, nb::handle sa, nb::handle cb,
+           nb::handle rb_, nb::handle sb, nb::handle u, double spec) {
+            require_collision_constants();
+            V1<double> vca = v1<double>(ca, "a_center"), vsa = v1<double>(sa, "a_size");
+            V1<double> vcb = v1<double>(cb, "b_center"), vsb = v1<double>(sb, "b_size");
+            V1<double> vu = v1<double>(u, "axis");
+            V2<double> vra = v2<double>(ra, "a_rot"), vrb = v2<double>(rb_, "b_rot");
+            if (vca.n0 != 3 || vcb.n0 != 3 || vsa.n0 != 3 || vsb.n0 != 3 || vu.n0 != 3 ||
+                vra.n0 != 3 || vra.n1 != 3 || vrb.n0 != 3 || vrb.n1 != 3)
+                throw nb::value_error("parted_along_np: centres, sizes, axis (3,), rotations (3, 3)");
+            return parted_along(ga, gb, vca.p, vra.p, vsa.p, vcb.p, vrb.p, vsb.p, vu.p, spec);
+        },
+        nb::arg("geom_a"), nb::arg("geom_b"), nb::arg("a_center"), nb::arg("a_rot"),
+        nb::arg("a_size"), nb::arg("b_center"), nb::arg("b_rot"), nb::arg("b_size"),
+        nb::arg("axis"), nb::arg("spec"),
+        "parted_along() on one pair: True when collide() at spec provably returns no point, "
+        "from the gap along the axis (from b into a).");
+
+    m.def(
         "tangent_basis",
         [](double nx, double ny, double nz) {
             std::array<double, 6> t = tangent_basis(nx, ny, nz);

@@ -7,7 +7,9 @@
 // * neither side awake (sleeping or static): the previous step's manifolds of the pair are
 //   carried over unchanged (inactive: not solved, still logged);
 // * otherwise the collider from the narrowphase table runs with a speculative distance of
-//   margin + reach_a + reach_b; each new point takes over the impulses of the previous step's
+//   margin + reach_a + reach_b (a GJK or capsule - box pair with no manifold last step is first
+//   tried along its line of centres: parted by more than that, the collider would return no
+//   point, narrowphase.cpp parted_along); each new point takes over the impulses of the previous step's
 //   point with the same feature id (or, failing that, the nearest one within anchor_distance),
 //   normal impulse as is (the velocity solve's, lws) and friction projected on the new
 //   tangents;
@@ -411,6 +413,19 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
                                                  rotation, sb_pos, sb_rot, sb_ext, pc[1], pr[1]);
             double spec = margin + reach[a];
             if (b_dyn) spec += reach[b];
+            // a pair new to the contact (no manifold last step) parted along the line of
+            // centres: collide() would return no point (parted_along, with its proof)
+            if (axis_parts(ga, g.geom) &&
+                find_manifold(prev_keys, prev_idx, prev_n, 2 * key) < 0) {
+                const double u[3] = {pa.centre[0] - g.centre[0], pa.centre[1] - g.centre[1],
+                                     pa.centre[2] - g.centre[2]};
+                if ((u[0] != 0.0 || u[1] != 0.0 || u[2] != 0.0) &&
+                    parted_along(ga, g.geom, pa.centre, pa.rotation, gm.size.row(a), g.centre,
+                                 g.rotation, g.size, u, spec)) {
+                    o.res = 0;
+                    continue;
+                }
+            }
             const i64 res = collide(ga, g.geom, pa.centre, pa.rotation, gm.size.row(a),
                                     g.centre, g.rotation, g.size, gn.p, goff, spec, cb);
             o.res = res;

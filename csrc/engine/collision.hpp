@@ -35,6 +35,7 @@
 #include <cstddef>  // size_t, which common/array.hpp uses
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "common/array.hpp"
@@ -131,6 +132,11 @@ i64 collide_sphere_cylinder(const double* ca, double ra, const double* cb, M3 ro
 i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
                    const double* cb, M3 rotb, const double* sb, double spec, double* nrm,
                    Pts pts, double* sep, i64* fid);
+// g(u) of any two of sphere, box, capsule, cylinder, hull (engine codes): the gap of the two
+// solids' projections on the unit u (normalized here; from b into a), radii included:
+// u . s_a(-u) - u . s_b(u), at most the pair's signed distance (the separating-axis theorem).
+double convex_axis_gap(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
+                       const double* cb, M3 rotb, const double* sb, const double* u);
 // hull.cpp (a: the hull; its pairs with every other shape but the plane are collide_convex's)
 i64 collide_hull_plane(const double* ca, M3 rota, const double* sa, const double* pn,
                        double poff, double spec, double* nrm, Pts pts, double* sep, i64* fid);
@@ -154,6 +160,31 @@ ColliderFn narrowphase_fn(i64 geom_lo, i64 geom_hi);
 i64 collide(i64 ga, i64 gb, const double* ca, M3 rota, const double* sa, const double* cb,
             M3 rotb, const double* sb, const double* pn, double poff, double spec,
             ColliderBuffers& buf);
+
+// True when collide() of the same arguments at speculative distance spec provably returns no
+// point, decided from the gap along the one axis u (any world vector, from b into a): the pairs
+// whose colliders never report a gap below the signed distance (collide_convex's, capsule -
+// box, for which axis_parts(ga, gb) holds); false for every other pair. Proof in
+// narrowphase.cpp.
+constexpr bool axis_parts_rule(i64 ga, i64 gb) {
+    const i64 lo = ga < gb ? ga : gb, hi = ga < gb ? gb : ga;
+    const bool convex_pair = (hi == GEOM_CYLINDER && lo != GEOM_SPHERE) ||
+                             (hi == GEOM_HULL && lo != GEOM_BOX && lo != GEOM_HULL);
+    return convex_pair || (lo == GEOM_BOX && hi == GEOM_CAPSULE);
+}
+// axis_parts_rule as bits N_GEOM ga + gb of one word: every pair asks it (collide, project)
+constexpr std::uint64_t axis_parts_bits() {
+    std::uint64_t m = 0;
+    for (i64 a = 0; a < N_GEOM; ++a)
+        for (i64 b = 0; b < N_GEOM; ++b)
+            if (axis_parts_rule(a, b)) m |= std::uint64_t{1} << (N_GEOM * a + b);
+    return m;
+}
+static_assert(N_GEOM * N_GEOM <= 64, "axis_parts_bits: one bit a pair of codes");
+constexpr std::uint64_t AXIS_PARTS_BITS = axis_parts_bits();
+inline bool axis_parts(i64 ga, i64 gb) { return (AXIS_PARTS_BITS >> (N_GEOM * ga + gb)) & 1; }
+bool parted_along(i64 ga, i64 gb, const double* ca, M3 rota, const double* sa, const double* cb,
+                  M3 rotb, const double* sb, const double* u, double spec);
 
 // (point count, first row) of manifold `part` (0 or 1) in a result of collide.
 struct ManifoldPart {

@@ -438,6 +438,14 @@ i64 collide_sphere_cylinder(const double* ca, double ra, const double* cb, M3 ro
     return 1;
 }
 
+double convex_axis_gap(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
+                       const double* cb, M3 rotb, const double* sb, const double* u) {
+    const Shape A{ga, load(ca), rota, sa, ga == GEOM_HULL ? &hull_of(sa) : nullptr},
+        B{gb, load(cb), rotb, sb, gb == GEOM_HULL ? &hull_of(sb) : nullptr};
+    Vec d = load(u);
+    return axis_gap(as_convex(A), as_convex(B), (1.0 / norm(d)) * d);
+}
+
 i64 collide_convex(i64 ga, const double* ca, M3 rota, const double* sa, i64 gb,
                    const double* cb, M3 rotb, const double* sb, double spec, double* nrm,
                    Pts pts, double* sep, i64* fid) {

@@ -326,6 +326,43 @@ ColliderFn narrowphase_fn(i64 geom_lo, i64 geom_hi) {
     return NARROWPHASE_TABLE[geom_lo][geom_hi];
 }
 
+// parted_along: whether collide() at speculative distance spec provably returns no point, from
+// the gap g(u) of one axis u (collision.hpp convex_axis_gap), without running the collider.
+//
+// Proof. Let D be the pair's signed distance and D_c = D + r_a + r_b that of its cores (radii
+// r: a sphere's or capsule's, else 0). g(u) <= D for every unit u (the separating-axis theorem,
+// apart or overlapping), so g(u) > spec + PARTED_MARGIN_M gives D_c > spec + r_a + r_b +
+// PARTED_MARGIN_M. The colliders below return no point when the core gap c they compute
+// satisfies c - r_a - r_b > spec, and each c is at least D_c, less round-off:
+// * collide_convex: c is convex_distance's sep (csrc/common/convex.hpp). Apart, it is |v| for a
+//   point v of the Minkowski difference (GJK's simplex lies in it): >= D_c. Overlapping, it is
+//   -d for the nearest face (distance d) of EPA's polytope, whose vertices are points of the
+//   difference, so the polytope lies inside it: with the origin inside the polytope, d is at
+//   most the depth, -d >= D_c; a stalled GJK keeps EPA's answer with the origin outside only
+//   when d u lies in the nearest face (a point of the difference at distance -d: -d >= D_c),
+//   else its own |v|; a flat difference or no face: 0, with the origin on it (D_c <= 0). The
+//   origin is taken as on GJK's simplex when |v| <= 1e-14 of the difference's extent, which
+//   moves every case above by at most that much.
+// * capsule - box: c is the distance of an actual point of the segment (segment_box_closest's
+//   least over its candidates) from the box: >= D_c, when c > 1e-12 of the pair's size (below,
+//   the collider takes the segment as meeting the box); so the pair also needs g(u) + r_capsule
+//   > PARTED_MARGIN_M, which is above that.
+// The round-off of g(u), of GJK's and EPA's sums and of the 1e-14 extent are below 1e-12 m for
+// shapes and coordinates below 1e2 m, and PARTED_MARGIN_M is 1e3 times that: c - r_a - r_b >=
+// D - 1e-12 m > spec, so the collider would have returned 0. Any u will do (a poor one only
+// fails the test); a caller passes the pair's last normal.
+constexpr double PARTED_MARGIN_M = 1e-9;
+
+bool parted_along(i64 ga, i64 gb, const double* ca, M3 rota, const double* sa, const double* cb,
+                  M3 rotb, const double* sb, const double* u, double spec) {
+    if (!axis_parts(ga, gb)) return false;
+    const bool capsule_box = std::min(ga, gb) == GEOM_BOX;
+    const double g = convex_axis_gap(ga, ca, rota, sa, gb, cb, rotb, sb, u);
+    if (!(g > spec + PARTED_MARGIN_M)) return false;
+    if (capsule_box) return g + (ga == GEOM_CAPSULE ? sa[0] : sb[0]) > PARTED_MARGIN_M;
+    return true;
+}
+
 i64 collide(i64 ga, i64 gb, const double* ca, M3 rota, const double* sa, const double* cb,
             M3 rotb, const double* sb, const double* pn, double poff, double spec,
             ColliderBuffers& buf) {

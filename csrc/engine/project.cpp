@@ -10,7 +10,10 @@
 //
 // This stage runs the narrowphase again at the end-of-step configuration, first with a *negative*
 // speculative distance ``-depth``, so only points deeper than ``depth`` come back (the separating
-// axis test rejects every other pair on its first axis, which keeps the pass cheap). Around the
+// axis test rejects every other pair on its first axis, which keeps the pass cheap; a GJK pair or
+// capsule - box, whose colliders have no such axis, is passed over when it is parted by more
+// than -depth along the normal this step's collide stage found, or the line of centres: the
+// collider would return nothing, narrowphase.cpp parted_along). Around the
 // bodies of those points it gathers every contact of the bodies and of their neighbours (two
 // rings, see project_positions), and pushes all gathered points to ``s >= -depth`` by
 // Gauss-Seidel on position-level impulses (Box2D v2's ``SolvePositionConstraints``, Catto's
@@ -147,9 +150,11 @@ void add_points(i64 res, i64 a, i64 b, i64 ia, i64 ib, i64 n_body, const Bodies&
 // sc.ring (N+1,) and sc.done (pairs) are work arrays. Returns the number of gathered points, 0
 // when nothing is deeper than the depth.
 i64 project_positions(const Settings& cfg, const Bodies& bd, const Statics& st, V1<i64> awake,
-                      const BodyState& x, V2<i64> pairs, i64 n_pairs, Scratch& sc) {
+                      const BodyState& x, V2<i64> pairs, i64 n_pairs, V1<Manifold> mf,
+                      V1<i64> keys, V1<i64> idx, i64 n_man, Scratch& sc) {
     const Geoms gm = bd.geoms();
     const i64 n_dyn = gm.code.n0, n_static = st.n_static;
+    const i64 n_shapes = n_dyn + n_static + 1;  // manifold keys: 2 (a n_shapes + b) + part
     const bool iso_shortcut = cfg.iso_shortcut;
     const double depth = cfg.projection_depth;
     V2<double> position = x.position;
@@ -191,6 +196,19 @@ i64 project_positions(const Settings& cfg, const Bodies& bd, const Statics& st, 
             GeomPose pa = geom_pose(gm, a, position, rotation, pc[0], pr[0]);
             PairGeometry pg = pair_geometry(a, b, n_dyn, n_static, gm, pa, position,
                                             rotation, st.pos, st.rot, st.ext, pc[1], pr[1]);
+            // parted along the normal this step's collide stage found (or, with none, the line
+            // of centres): collide() below would return no point (parted_along, with its
+            // proof), so the pair stays apart
+            if (axis_parts(ga, pg.geom)) {
+                const i64 j = find_manifold(keys, idx, n_man, 2 * (a * n_shapes + b));
+                double u[3] = {pa.centre[0] - pg.centre[0], pa.centre[1] - pg.centre[1],
+                               pa.centre[2] - pg.centre[2]};
+                const double* axis = j >= 0 ? mf[j].normal : u;
+                if ((j >= 0 || u[0] != 0.0 || u[1] != 0.0 || u[2] != 0.0) &&
+                    parted_along(ga, pg.geom, pa.centre, M3(pa.rotation), gm.size.row(a),
+                                 pg.centre, M3(pg.rotation), pg.size, axis, -depth))
+                    continue;
+            }
             i64 res = collide(ga, pg.geom, pa.centre, M3(pa.rotation), gm.size.row(a),
                               pg.centre, M3(pg.rotation), pg.size, st.gn.p, st.goff, -depth, cb);
             if (res <= 0) continue;

@@ -642,8 +642,9 @@ void integrate_positions(int method, int ortho, const Bodies& bd, const Settings
 // attitude changed other than by the flow). Returns n_deep.
 i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Settings& cfg,
             V1<i64> awake, const BodyState& x, Scratch& sc, V2<i64> pairs, i64 n_pairs,
-            const FlowAnchors& an) {
-    i64 n_deep = project_positions(cfg, bd, st, awake, x, pairs, n_pairs, sc);
+            V1<Manifold> mf, V1<i64> keys, V1<i64> idx, i64 n_man, const FlowAnchors& an) {
+    i64 n_deep = project_positions(cfg, bd, st, awake, x, pairs, n_pairs, mf, keys, idx, n_man,
+                                   sc);
     if (n_deep > 0)
         apply_projection(V1<ProjectPoint>{sc.proj_points.data(), n_deep}, sc.proj_dx.view(),
                          sc.proj_dth.view(), method, ortho, bd, cfg.iso_shortcut, x,
@@ -880,7 +881,8 @@ AdvanceResult world_advance(const Bodies& bd, const Statics& st, const Settings&
             if (do_prof) t = lap(prof, P_RESTITUTION, t);
             if (cfg.projection_iterations > 0)                                                             // 12
                 stats[ST_PROJECTED] += project(method, ortho, bd, st, cfg, sl.awake, x, sc, pairs,
-                                               n_pairs, an);
+                                               n_pairs, manifolds(c.mf0.view()), col(c.keys0),
+                                               col(c.idx0), c.n_man0, an);
             if (do_prof) t = lap(prof, P_PROJECT, t);
             if (cfg.do_sleep) {                                                             // 13
                 std::pair<i64, i64> ws = sleep_stage(bd, cfg, sl, x, sc, heads(c.mi0.view()),

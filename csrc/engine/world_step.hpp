@@ -57,9 +57,10 @@ struct ExactInputs {
 void integrate_positions(int method, int ortho, const Bodies& bd, const Settings& cfg,
                          V1<i64> awake, const BodyState& x, Scratch& sc, double h,
                          const FlowAnchors& an, const ExactInputs* exact = nullptr);
+// mf, keys, idx, n_man: this step's manifolds, sorted by key (project_positions)
 i64 project(int method, int ortho, const Bodies& bd, const Statics& st, const Settings& cfg,
             V1<i64> awake, const BodyState& x, Scratch& sc, V2<i64> pairs, i64 n_pairs,
-            const FlowAnchors& an);
+            V1<Manifold> mf, V1<i64> keys, V1<i64> idx, i64 n_man, const FlowAnchors& an);
 std::pair<i64, i64> sleep_stage(const Bodies& bd, const Settings& cfg, const SleepState& sl,
                                 const BodyState& x, Scratch& sc, V1<ManifoldHead> mi,
                                 V1<Manifold> mf, V1<ContactPoint> pf, i64 n_man, double h,

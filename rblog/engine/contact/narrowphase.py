@@ -132,6 +132,18 @@ def collider_for(geom_a: int, geom_b: int) -> tuple[int, str]:
     return NARROWPHASE_TABLE[key]
 
 
+def parted_along_np(geom_a, a_center, a_rot, a_size, geom_b, b_center, b_rot, b_size, axis, spec):
+    """Python entry for tests: True when ``collide_np`` of the same pair at ``spec`` provably
+    returns no point, decided from the gap along ``axis`` (from b into a) alone; False for the
+    pairs whose colliders the proof does not cover (csrc/engine/narrowphase.cpp, parted_along)."""
+    f = lambda v: np.ascontiguousarray(np.asarray(v, float))
+    sa, sb = np.zeros(3), np.zeros(3)
+    sa[: np.size(a_size)] = np.ravel(a_size)
+    sb[: np.size(b_size)] = np.ravel(b_size)
+    return bool(_core.parted_along_np(int(geom_a), int(geom_b), f(a_center), f(a_rot), sa,
+                                      f(b_center), f(b_rot), sb, f(axis), float(spec)))
+
+
 def collide_np(geom_a, a_center, a_rot, a_size, geom_b, b_center=None, b_rot=None, b_size=None,
                plane_normal=(0.0, 0.0, 1.0), plane_offset=0.0, spec=0.0, second=False):
     """Python entry for tests and tools: the manifold of shape a vs shape b (or the plane).
