@@ -20,6 +20,7 @@ _API = {
     "RerunRecorder": "rblog.record.rerun_writer",
     "body_table": "rblog.record.recorder",
     "load": "rblog.record.reader",
+    "rewritten": "rblog.record.recorder",
     "trajectory_from_arrays": "rblog.record.recorder",
 }
 

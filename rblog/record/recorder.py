@@ -1045,10 +1045,34 @@ def trajectory_from_arrays(model: Model, *, dt: float = 0.0, writer: str = "",
     return traj
 
 
+def rewritten(traj: Trajectory, *, writer: str = "rewritten", **arrays) -> Trajectory:
+    """``traj`` recorded again in memory with some of its arrays replaced (``position``,
+    ``quat_wxyz``, ``velocity``, ``angular_velocity``, ``contacts`` or an interval channel such
+    as ``work_passive``; the others as logged): a fault planted in the log only, or a log
+    mended, with every check :class:`Recorder` makes run again. The body table, time step,
+    stride, integrator, combine rules and engine settings stay the log's."""
+    info = traj.info
+    given = dict(t=traj.t, step=traj.step, position=traj.position, quat_wxyz=traj.quat_wxyz,
+                 velocity=traj.velocity, angular_velocity=traj.angular_velocity,
+                 contacts=traj.contacts, **{k: getattr(traj, k) for k in traj.interval_channels})
+    unknown = sorted(set(arrays) - set(given) - set(INTERVAL_CHANNELS))
+    if unknown:
+        raise RecordError(f"rewritten: {', '.join(unknown)}: not arrays of a log (expected "
+                          f"{', '.join(sorted(set(given) | set(INTERVAL_CHANNELS)))})")
+    given.update(arrays)
+    rec = Recorder(traj.model, dt=info.dt, log_every=info.log_every, keep=True, writer=writer,
+                   integrator=info.integrator, combine_friction=info.combine_friction,
+                   combine_restitution=info.combine_restitution,
+                   engine_settings=info.engine_settings)
+    with rec:
+        rec.write(**given)
+    return rec.trajectory
+
+
 #: scalar-first quaternions -> body->world matrices (re-exported for writers)
 quat_to_matrix = quat_wxyz_to_matrix
 
 __all__ = ["CONTACT_ROWS_SEPARATION", "ContactRows", "KIND_VALUES", "Recorder", "RecordError",
            "SampleBlock",
-           "body_table", "build_block", "make_contacts",
+           "body_table", "build_block", "make_contacts", "rewritten",
            "trajectory_from_arrays", "matrix_to_quat", "quat_to_matrix"]

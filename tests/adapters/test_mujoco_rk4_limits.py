@@ -18,7 +18,7 @@ pytest.importorskip("dm_control")
 
 import rblog  # noqa: E402
 from rblog.adapters import mujoco as adapter  # noqa: E402
-from rblog.contract.trajectory import INTERVAL_CHANNELS  # noqa: E402
+from rblog.record import rewritten  # noqa: E402
 
 
 def _record(every):
@@ -76,17 +76,7 @@ def test_a_gain_off_the_limit_is_caught(every):
     v, w = traj.velocity.copy(), traj.angular_velocity.copy()
     v[at:] *= np.sqrt(2.0)
     w[at:] *= np.sqrt(2.0)
-    info = traj.info
-    rec = rblog.Recorder(traj.model, dt=info.dt, log_every=info.log_every, keep=True,
-                         writer="scaled", integrator=info.integrator,
-                         combine_friction=info.combine_friction,
-                         combine_restitution=info.combine_restitution,
-                         engine_settings=info.engine_settings)
-    with rec:
-        rec.write(t=traj.t, step=traj.step, position=traj.position, quat_wxyz=traj.quat_wxyz,
-                  velocity=v, angular_velocity=w, contacts=traj.contacts,
-                  **{k: getattr(traj, k) for k in INTERVAL_CHANNELS if getattr(traj, k) is not None})
-    res = _energy(rec.trajectory)
+    res = _energy(rewritten(traj, writer="scaled", velocity=v, angular_velocity=w))
     assert not res.passed
     assert all("the tree of body 0 ('cart')" in f.message for f in res.findings)
     assert min(f.t for f in res.findings) >= traj.t[at]

@@ -20,7 +20,7 @@ pytest.importorskip("pybullet_data")
 
 import rblog  # noqa: E402
 from rblog.adapters.pybullet import PybulletRecorder, load_shipped  # noqa: E402
-from rblog.contract.trajectory import INTERVAL_CHANNELS  # noqa: E402
+from rblog.record import rewritten  # noqa: E402
 
 PENDULUM_URDF = """<robot name="pendulum">
   <link name="base"><inertial><mass value="0"/>
@@ -141,17 +141,7 @@ def _kicked(traj, b, at, dv):
     the log only (the integration kind stays the engine's)."""
     v = traj.velocity.copy()
     v[at:, b] += dv
-    info = traj.info
-    rec = rblog.Recorder(traj.model, dt=info.dt, log_every=info.log_every, keep=True,
-                         writer="kicked", integrator=info.integrator,
-                         combine_friction=info.combine_friction,
-                         combine_restitution=info.combine_restitution,
-                         engine_settings=info.engine_settings)
-    with rec:
-        rec.write(t=traj.t, step=traj.step, position=traj.position, quat_wxyz=traj.quat_wxyz,
-                  velocity=v, angular_velocity=traj.angular_velocity, contacts=traj.contacts,
-                  **{k: getattr(traj, k) for k in INTERVAL_CHANNELS if getattr(traj, k) is not None})
-    return rec.trajectory
+    return rewritten(traj, writer="kicked", velocity=v)
 
 
 def _momentum(traj):

@@ -18,7 +18,7 @@ pytest.importorskip("pybullet_data")
 import rblog  # noqa: E402
 from rblog.adapters.pybullet import PybulletRecorder, load_shipped  # noqa: E402
 from rblog.analyze.base import Context  # noqa: E402
-from rblog.contract.trajectory import INTERVAL_CHANNELS  # noqa: E402
+from rblog.record import rewritten  # noqa: E402
 
 
 def _record(name, steps, every=1, mid_range=False):
@@ -70,18 +70,7 @@ def _with_velocity(traj, velocity, angular_velocity=None):
     fault in the log only."""
     if angular_velocity is None:
         angular_velocity = traj.angular_velocity
-    info = traj.info
-    rec = rblog.Recorder(traj.model, dt=info.dt, log_every=info.log_every, keep=True,
-                         writer="kicked", integrator=info.integrator,
-                         combine_friction=info.combine_friction,
-                         combine_restitution=info.combine_restitution,
-                         engine_settings=info.engine_settings)
-    with rec:
-        rec.write(t=traj.t, step=traj.step, position=traj.position, quat_wxyz=traj.quat_wxyz,
-                  velocity=velocity, angular_velocity=angular_velocity,
-                  contacts=traj.contacts,
-                  **{k: getattr(traj, k) for k in INTERVAL_CHANNELS if getattr(traj, k) is not None})
-    return rec.trajectory
+    return rewritten(traj, writer="kicked", velocity=velocity, angular_velocity=angular_velocity)
 
 
 @pytest.fixture(scope="module")

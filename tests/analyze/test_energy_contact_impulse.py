@@ -16,7 +16,7 @@ mujoco = pytest.importorskip("mujoco")
 
 import rblog  # noqa: E402
 from rblog.adapters import mujoco as adapter  # noqa: E402
-from rblog.contract.trajectory import INTERVAL_CHANNELS  # noqa: E402
+from rblog.record import rewritten  # noqa: E402
 
 XML = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" size="2 2 0.1"/>
 <geom name="wall" type="box" pos="0.11 0 1" size="0.05 0.5 1"/>
@@ -42,20 +42,6 @@ def _energy(tr):
     return next(r for r in rblog.check(tr, threads=1, only=["energy"]) if r.analyzer == "energy")
 
 
-def _rewritten(tr, velocity):
-    info = tr.info
-    out = rblog.Recorder(tr.model, dt=info.dt, log_every=info.log_every, keep=True,
-                         writer="kicked", integrator=info.integrator,
-                         combine_friction=info.combine_friction,
-                         combine_restitution=info.combine_restitution,
-                         engine_settings=info.engine_settings)
-    with out:
-        out.write(t=tr.t, step=tr.step, position=tr.position, quat_wxyz=tr.quat_wxyz,
-                  velocity=velocity, angular_velocity=tr.angular_velocity, contacts=tr.contacts,
-                  **{n: getattr(tr, n) for n in INTERVAL_CHANNELS if getattr(tr, n) is not None})
-    return out.trajectory
-
-
 def test_a_ball_beside_a_wall_is_judged_and_a_planted_gain_is_caught():
     tr, ncon = _record(400)  # 0.8 s: it reaches the floor at 0.44 s
     falls_free = np.flatnonzero(ncon)[0] if ncon.any() else len(ncon)
@@ -65,7 +51,7 @@ def test_a_ball_beside_a_wall_is_judged_and_a_planted_gain_is_caught():
     k = 15  # step 150, mid-fall at 2.9 m/s
     v = tr.velocity.copy()
     v[k:] *= np.sqrt(1.05)
-    kicked = _energy(_rewritten(tr, v))
+    kicked = _energy(rewritten(tr, velocity=v))
     assert kicked.verdict == "FAIL"
     f = kicked.findings[0]
     # the worst sample is the stretch's last before the floor, where the planted gain is

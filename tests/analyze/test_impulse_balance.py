@@ -316,20 +316,9 @@ def _walker_log(every=10, steps=500):
 
 def _with_velocity(traj, velocity):
     """The log ``traj`` rewritten with another ``velocity`` (T, N, 3): a fault in the log only."""
-    from rblog.contract.trajectory import INTERVAL_CHANNELS
+    from rblog.record import rewritten
 
-    info = traj.info
-    rec = rblog.Recorder(traj.model, dt=info.dt, log_every=info.log_every, keep=True,
-                         writer="kicked", integrator=info.integrator,
-                         combine_friction=info.combine_friction,
-                         combine_restitution=info.combine_restitution,
-                         engine_settings=info.engine_settings)
-    with rec:
-        rec.write(t=traj.t, step=traj.step, position=traj.position, quat_wxyz=traj.quat_wxyz,
-                  velocity=velocity, angular_velocity=traj.angular_velocity,
-                  contacts=traj.contacts,
-                  **{k: getattr(traj, k) for k in INTERVAL_CHANNELS if getattr(traj, k) is not None})
-    return rec.trajectory
+    return rewritten(traj, writer="kicked", velocity=velocity)
 
 
 def test_jointed_bodies_balance_to_round_off_and_a_kick_on_one_is_caught():

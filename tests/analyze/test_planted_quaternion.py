@@ -15,7 +15,7 @@ mujoco = pytest.importorskip("mujoco")
 
 import rblog  # noqa: E402
 from rblog.adapters import mujoco as adapter  # noqa: E402
-from rblog.contract.trajectory import INTERVAL_CHANNELS  # noqa: E402
+from rblog.record import rewritten  # noqa: E402
 
 XML = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" size="2 2 0.1"/>
 <body name="lower" pos="0 0 0.05"><freejoint/><geom type="box" size="0.1 0.1 0.05" mass="1"/></body>
@@ -49,17 +49,7 @@ def test_a_quaternion_turned_in_the_log_only_is_one_pair_at_its_depth():
     turn = np.array([np.cos(a / 2), np.sin(a / 2), 0.0, 0.0])
     for i in range(k, len(q)):
         q[i, 1] = _quat_mul(turn, q[i, 1])
-    info = tr.info
-    out = rblog.Recorder(tr.model, dt=info.dt, log_every=info.log_every, keep=True,
-                         writer="turned", integrator=info.integrator,
-                         combine_friction=info.combine_friction,
-                         combine_restitution=info.combine_restitution,
-                         engine_settings=info.engine_settings)
-    with out:
-        out.write(t=tr.t, step=tr.step, position=tr.position, quat_wxyz=q, velocity=tr.velocity,
-                  angular_velocity=tr.angular_velocity, contacts=tr.contacts,
-                  **{n: getattr(tr, n) for n in INTERVAL_CHANNELS if getattr(tr, n) is not None})
-    results = rblog.check(out.trajectory, threads=1)
+    results = rblog.check(rewritten(tr, writer="turned", quat_wxyz=q), threads=1)
     flagged = [r for r in results if r.verdict == "FAIL"]
     assert [r.analyzer for r in flagged] == ["penetration"], [(r.analyzer, r.reason) for r in flagged]
     pen = flagged[0]
