@@ -129,8 +129,8 @@ from rblog.adapters import AdapterError
 from rblog.adapters._common import EngineRecorder
 from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _ContactArray, _is_model,
                                           _mj, _packed_contact_dict, capture_contacts, contacts,
-                                          decode_contacts, gravity_of, inspect, settings,
-                                          state_offsets, unsupported)
+                                          decode_contacts, give_back, gravity_of, inspect,
+                                          settings, state_offsets, take_scratch, unsupported)
 from rblog.adapters._mujoco_rollout import record_rollout
 from rblog.adapters._mujoco_suite import suite_model
 from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross,
@@ -175,7 +175,7 @@ class MujocoRecorder(EngineRecorder):
         if d is None:
             d = mj.MjData(m)
             mj.mj_forward(m, d)
-        scratch = mj.MjData(m)  # inspect's kinematics at qpos0, then Kinematics' own
+        scratch = take_scratch(m)  # inspect's kinematics at qpos0, then Kinematics' own
         self.model, self.layout, notes = inspect(m, d, restitution=restitution, scratch=scratch)
         self.dt = float(m.opt.timestep)
         if not (np.isfinite(self.dt) and self.dt > 0):  # the samples' steps are time / dt
@@ -315,6 +315,14 @@ class MujocoRecorder(EngineRecorder):
             self.flush()
 
     record = __call__
+
+    def close(self, truncated: bool = False, reason: str | None = None) -> None:
+        try:
+            super().close(truncated=truncated, reason=reason)
+        finally:  # the model's idle MjData again (Kinematics makes a new one if called after)
+            if self.kin.d is not None:
+                give_back(self.m, self.kin.d)
+                self.kin.d = None
 
     def _efc_ok(self, d) -> bool:
         from rblog.adapters._mjdata_offsets import efc_force_matches
