@@ -65,6 +65,12 @@ def give_back(m, d) -> None:
         pass
 
 
+def _one_of(a, values) -> np.ndarray:
+    """``np.isin(a, values)`` for a few values (without isin's sort)."""
+    a = np.asarray(a)
+    return (a[..., None] == np.asarray(values)).any(axis=-1)
+
+
 def _is_model(m) -> bool:
     return type(m).__name__ == "MjModel"
 
@@ -159,11 +165,11 @@ def unsupported(m) -> list[str]:
     """The elements of ``m`` the log cannot hold: colliding heightfield and SDF geoms, flexes."""
     mj = _mj()
     bad = []
-    for g in range(int(m.ngeom)):
-        t = int(m.geom_type[g])
-        if t not in _GEOM and (int(m.geom_contype[g]) or int(m.geom_conaffinity[g])):
-            kind = mj.mjtGeom(t).name.removeprefix("mjGEOM_").lower()
-            bad.append(f"geom {_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')!r} ({kind})")
+    t = np.asarray(m.geom_type, np.int64)
+    colliding = (np.asarray(m.geom_contype) != 0) | (np.asarray(m.geom_conaffinity) != 0)
+    for g in np.flatnonzero(~_one_of(t, list(_GEOM)) & colliding).tolist():
+        kind = mj.mjtGeom(int(t[g])).name.removeprefix("mjGEOM_").lower()
+        bad.append(f"geom {_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')!r} ({kind})")
     for f in range(int(getattr(m, "nflex", 0))):
         bad.append(f"flex {_name(mj, m, mj.mjtObj.mjOBJ_FLEX, f, 'flex')!r}")
     return bad
@@ -268,7 +274,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     jb = jbody - 1
     # geoms
     gtype = np.asarray(mc.geom_type, np.int64)
-    kept = np.isin(gtype, list(_GEOM))
+    kept = _one_of(gtype, list(_GEOM))
     keep = np.flatnonzero(kept)
     skipped = [f"{_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')} "
                f"({mj.mjtGeom(int(gtype[g])).name.removeprefix('mjGEOM_').lower()}, no collision)"
@@ -280,7 +286,7 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     g_pos = to_inertial(gb, np.asarray(mc.geom_pos, np.float64)[keep])
     g_size = np.array(np.asarray(mc.geom_size, np.float64)[keep]).reshape(ng, 3)
     g_size[g_type == GEOM_SPHERE, 1:] = 0.0
-    g_size[np.isin(g_type, (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_PLANE)), 2] = 0.0
+    g_size[_one_of(g_type, (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_PLANE)), 2] = 0.0
     g_size[g_type == GEOM_MESH] = 0.0
     g_vert = [None] * ng
     for i in np.flatnonzero(g_type == GEOM_MESH).tolist():
@@ -314,7 +320,8 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     # residual the hook computes is the step's integration error (round-off under Euler, RK4's
     # stage differences under RK4), not a load. (A free body with children gets their joints'
     # reactions.)
-    has_children = np.isin(np.arange(len(parent)), parent[parent >= 0])
+    has_children = np.zeros(len(parent), bool)
+    has_children[parent[parent >= 0]] = True
     supplied[(lay.kind == BODY_FREE) & ~has_children, IMPULSE_KINDS.index("joint")] = \
         SUPPLIED_NONE
     # the integration kind (MujocoRecorder._integration) and the joint work (limits, friction

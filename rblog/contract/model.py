@@ -444,7 +444,7 @@ def v2_from_geoms(n_bodies: int, geom_body, geom_type, geom_pos_body, geom_quat_
     bfric[bodies], brest[bodies] = fric[stated[first]], rest[stated[first]]
     # a body's only geom, a sphere or a box at its centre of mass (box: along the body's axes)
     centred = ~pos.any(axis=1) & ((np.abs(np.abs(quat[:, 0]) - 1.0) <= 1e-12) | (gt == GEOM_SPHERE))
-    one = np.flatnonzero((gb >= 0) & centred & np.isin(gt, (GEOM_SPHERE, GEOM_BOX)))
+    one = np.flatnonzero((gb >= 0) & centred & ((gt == GEOM_SPHERE) | (gt == GEOM_BOX)))
     one = one[counts[gb[one]] == 1]
     shape[gb[one]] = gt[one]
     radius = np.zeros((len(one), 3))

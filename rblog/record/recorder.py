@@ -227,8 +227,8 @@ def _codes(v, count: int, names: dict, what: str, valid) -> np.ndarray:
     RecordError naming ``what`` for anything else."""
     if isinstance(v, np.ndarray) and v.dtype.kind in "iu" and v.shape == (count,):
         out = v.astype(np.int64)
-        if np.isin(out, list(valid)).all():  # integer codes, all valid (else the loop names one)
-            return out
+        if (out[:, None] == np.array(list(valid))).any(axis=1).all():  # all valid (else the
+            return out  # loop below names the first that is not)
     vals = [v] * count if isinstance(v, (str, int, np.integer)) else list(v)
     if len(vals) != count:
         raise RecordError(f"body_table: {what} has {len(vals)} entries, expected {count}")
@@ -372,7 +372,7 @@ def _joint_table(joints: dict, n: int) -> dict:
         raise RecordError(f"body_table: joints.body = {_short(joints['body'])}, expected ({J},) "
                           f"body indices 0..{n - 1} (the body each joint moves)")
     jt = _codes(joints["type"], J, JOINT_CODES, "joints.type", JOINT_CODES.values())
-    axisless = np.isin(jt, (JOINT_BALL, JOINT_FIXED))
+    axisless = (jt == JOINT_BALL) | (jt == JOINT_FIXED)
     out = {"joint_body": jb.astype(np.int64), "joint_type": jt,
            "joint_anchor_body": _col(joints, "anchor_body", "joints", J, (3,)),
            "joint_anchor_parent": _col(joints, "anchor_parent", "joints", J, (3,)),
