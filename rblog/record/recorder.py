@@ -633,21 +633,22 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     return block
 
 
-#: the last body table's per-interval plan (_interval_plan), keyed by its supplied codes
-_PLAN: list = []
+#: the per-interval plans (_interval_plan) of the body tables seen, keyed by their supplied codes
+_PLANS: dict = {}
 
 
 def _interval_plan(model: Model):
     """(the channels a run of ``model`` logs, the same as a set, {channel: (trailing shape, the
     bodies that do not supply its kind, or None when every body does)}): a function of the model's
-    ``body_impulse_supplied`` / ``body_work_supplied`` alone, kept for the last codes seen."""
+    ``body_impulse_supplied`` / ``body_work_supplied`` alone, kept per codes (up to 16 tables)."""
     from rblog.record._common import run_interval_channels
 
     imp = np.asarray(model.body_impulse_supplied)
     work = np.asarray(model.body_work_supplied)
     key = (imp.shape, imp.dtype.str, imp.tobytes(), work.shape, work.dtype.str, work.tobytes())
-    if _PLAN and _PLAN[0] == key:
-        return _PLAN[1]
+    plan = _PLANS.get(key)
+    if plan is not None:
+        return plan
     want = run_interval_channels(model)
     sup_imp, sup_work = imp == 1, work == 1  # SUPPLIED_LOGGED
     nan_at = {}
@@ -660,7 +661,9 @@ def _interval_plan(model: Model):
             at = slice(int(at[0]), int(at[-1]) + 1)
         nan_at[name] = (INTERVAL_CHANNELS[name], None if sup.all() else at)
     plan = (want, frozenset(want), nan_at)
-    _PLAN[:] = [key, plan]
+    if len(_PLANS) >= 16:
+        _PLANS.clear()
+    _PLANS[key] = plan
     return plan
 
 
