@@ -113,8 +113,11 @@ the joints' constraint forces, the work's velocity and xfrc_applied's work from 
 ``_hook.states``; the integration kind and the samples' momenta ``_hook.integration``; numpy
 without them), the contacts copied at each logged step (``_hook.ContactCapture``) decoded, and
 all written as one block (``Recorder.write(owned=True)``: the impulse and work arrays are not
-copied again). Measured with
-benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
+copied again). Per run, the body table is built from MjModel's arrays in numpy, and the
+recorder's own ``MjData`` (inspect's and :class:`Kinematics`' kinematics) is the model's idle one
+once a recorder of that model has closed (``take_scratch``: an ``MjData`` of dm_control's models
+costs ~0.8 ms). Measured with benchmarks/bench_adapters.py (CPU time against the bare
+``mj_step`` loop; RESULTS.md).
 
 Why this module is long: the derivation of every impulse kind lives in this docstring, and the
 recorder's per-block steps (states, impulses per interval, integration kind) each keep their
