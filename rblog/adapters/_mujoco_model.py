@@ -145,9 +145,9 @@ class Layout:
         first = np.asarray(m.body_jntadr, np.int64)[1:]
         jtype = np.asarray(m.jnt_type, np.int64)
         free = (nj == 1) & (jtype[np.where(nj == 1, first, 0)] == 0) if len(jtype) else nj < 0
-        self.kind = np.select([np.asarray(m.body_mocapid)[1:] >= 0,
-                               np.asarray(m.body_weldid)[1:] == 0, free],
-                              [BODY_KINEMATIC, BODY_STATIC, BODY_FREE], BODY_JOINTED).astype(np.int64)
+        self.kind = np.select(
+            [np.asarray(m.body_mocapid)[1:] >= 0, np.asarray(m.body_weldid)[1:] == 0, free],
+            [BODY_KINEMATIC, BODY_STATIC, BODY_FREE], BODY_JOINTED).astype(np.int64)
         body_of = np.asarray(m.geom_bodyid, np.int64)
         moving = np.concatenate([[False], self.kind != BODY_STATIC])
         self.geom_index = np.where(moving[body_of], body_of - 1, -1).astype(np.int64)
@@ -236,7 +236,8 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     jbody = np.repeat(bodies, rows)  # the MuJoCo body of each row
     within = np.arange(len(jbody)) - np.repeat(np.cumsum(rows) - rows, rows)
     welded = np.repeat(count, rows) == 0
-    jid = np.where(welded, -1, np.repeat(np.asarray(mc.body_jntadr, np.int64)[bodies], rows) + within)
+    first = np.repeat(np.asarray(mc.body_jntadr, np.int64)[bodies], rows)
+    jid = np.where(welded, -1, first + within)  # the MuJoCo joint of each row, -1: welded
     jpar = np.asarray(mc.body_parentid, np.int64)[jbody]
     hinged = jid[~welded]
     raw = np.asarray(mc.jnt_type, np.int64)[hinged]
@@ -265,12 +266,11 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     jr = np.full((nj, 2), np.nan)
     lim = np.asarray(mc.jnt_range, np.float64)[hinged]
     limited = np.asarray(mc.jnt_limited)[hinged] != 0
-    lim = np.where((codes == JOINT_BALL)[:, None],
-                   np.stack([np.zeros(len(lim)), np.where(lim[:, 1] > lim[:, 0], lim[:, 1], lim[:, 0])],
-                            axis=1), lim)
+    top = np.where(lim[:, 1] > lim[:, 0], lim[:, 1], lim[:, 0])  # max(lo, hi), as Python's
+    lim = np.where((codes == JOINT_BALL)[:, None], np.stack([np.zeros(len(lim)), top], axis=1), lim)
     jr[~welded] = np.where(limited[:, None], lim, np.nan)
-    jn = [f"{body_name[b - 1]} (welded)" if j < 0 else
-          _name(mj, m, mj.mjtObj.mjOBJ_JOINT, j, "joint") for b, j in zip(jbody.tolist(), jid.tolist())]
+    jn = [f"{body_name[b - 1]} (welded)" if j < 0 else _name(mj, m, mj.mjtObj.mjOBJ_JOINT, j, "joint")
+          for b, j in zip(jbody.tolist(), jid.tolist())]
     jb = jbody - 1
     # geoms
     gtype = np.asarray(mc.geom_type, np.int64)
