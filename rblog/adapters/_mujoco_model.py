@@ -4,6 +4,8 @@ contact rows (dm_control's suite models: _mujoco_suite)."""
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from rblog.adapters import AdapterError, require
@@ -33,6 +35,40 @@ _JOINT = {1: JOINT_BALL, 2: JOINT_SLIDE, 3: JOINT_HINGE}
 
 def _mj():
     return require("mujoco")
+
+
+#: one idle MjData per model, for the recorders' own kinematics (``MjData(m)`` allocates the
+#: model's arena and buffer: ~0.8 ms for dm_control's models, 28 MB): :func:`take_scratch` takes
+#: it, :func:`give_back` returns it; it lives as long as the model
+_SCRATCH = weakref.WeakKeyDictionary()
+
+
+def take_scratch(m):
+    """An ``MjData(m)`` to use alone until :func:`give_back`: the idle one of ``m`` after
+    ``mj_resetData`` (the state of a new one), or a new one."""
+    mj = _mj()
+    try:
+        d = _SCRATCH.pop(m, None)
+    except TypeError:  # a model a weak reference cannot hold
+        d = None
+    if d is None:
+        return mj.MjData(m)
+    mj.mj_resetData(m, d)
+    return d
+
+
+def give_back(m, d) -> None:
+    """Make ``d`` (from :func:`take_scratch`, no longer used) the idle MjData of ``m``."""
+    try:
+        _SCRATCH.setdefault(m, d)
+    except TypeError:
+        pass
+
+
+def _one_of(a, values) -> np.ndarray:
+    """``np.isin(a, values)`` for a few values (without isin's sort)."""
+    a = np.asarray(a)
+    return (a[..., None] == np.asarray(values)).any(axis=-1)
 
 
 def _is_model(m) -> bool:
@@ -92,29 +128,26 @@ class Layout:
         sel = p > 0
         self.pair[p[sel], np.arange(nv)[sel]] -= 1.0
         self.net = np.eye(nb)
-        for b in range(1, nb):
-            if parent[b] > 0:
-                self.net[parent[b], b] -= 1.0
+        child = np.flatnonzero(parent > 0)
+        child = child[child > 0]
+        self.net[parent[child], child] -= 1.0
         self.net[0] = 0.0
         self.subtree = np.eye(nb)  # (nbody, nbody): 1 at (a, b), b a or a descendant of a
-        for b in range(1, nb):
-            a = parent[b]
-            while a > 0:
-                self.subtree[a, b], a = 1.0, parent[a]
+        below = np.arange(1, nb)
+        above = parent[below]
+        while len(below):  # one generation of ancestors at a time
+            up = above > 0
+            below, above = below[up], above[up]
+            self.subtree[above, below] = 1.0
+            above = parent[above]
         self.damping = np.array(m.dof_damping, np.float64)
-        self.kind = np.full(nb - 1, BODY_FREE, np.int64)
-        weld = np.asarray(m.body_weldid)
-        m = Fields(m)
-        for b in range(1, nb):
-            nj = int(m.body_jntnum[b])
-            if int(m.body_mocapid[b]) >= 0:
-                self.kind[b - 1] = BODY_KINEMATIC
-            elif int(weld[b]) == 0:
-                self.kind[b - 1] = BODY_STATIC
-            elif nj == 1 and int(m.jnt_type[m.body_jntadr[b]]) == 0:
-                self.kind[b - 1] = BODY_FREE
-            else:
-                self.kind[b - 1] = BODY_JOINTED
+        nj = np.asarray(m.body_jntnum, np.int64)[1:]
+        first = np.asarray(m.body_jntadr, np.int64)[1:]
+        jtype = np.asarray(m.jnt_type, np.int64)
+        free = (nj == 1) & (jtype[np.where(nj == 1, first, 0)] == 0) if len(jtype) else nj < 0
+        self.kind = np.select(
+            [np.asarray(m.body_mocapid)[1:] >= 0, np.asarray(m.body_weldid)[1:] == 0, free],
+            [BODY_KINEMATIC, BODY_STATIC, BODY_FREE], BODY_JOINTED).astype(np.int64)
         body_of = np.asarray(m.geom_bodyid, np.int64)
         moving = np.concatenate([[False], self.kind != BODY_STATIC])
         self.geom_index = np.where(moving[body_of], body_of - 1, -1).astype(np.int64)
@@ -132,11 +165,11 @@ def unsupported(m) -> list[str]:
     """The elements of ``m`` the log cannot hold: colliding heightfield and SDF geoms, flexes."""
     mj = _mj()
     bad = []
-    for g in range(int(m.ngeom)):
-        t = int(m.geom_type[g])
-        if t not in _GEOM and (int(m.geom_contype[g]) or int(m.geom_conaffinity[g])):
-            kind = mj.mjtGeom(t).name.removeprefix("mjGEOM_").lower()
-            bad.append(f"geom {_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')!r} ({kind})")
+    t = np.asarray(m.geom_type, np.int64)
+    colliding = (np.asarray(m.geom_contype) != 0) | (np.asarray(m.geom_conaffinity) != 0)
+    for g in np.flatnonzero(~_one_of(t, list(_GEOM)) & colliding).tolist():
+        kind = mj.mjtGeom(int(t[g])).name.removeprefix("mjGEOM_").lower()
+        bad.append(f"geom {_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')!r} ({kind})")
     for f in range(int(getattr(m, "nflex", 0))):
         bad.append(f"flex {_name(mj, m, mj.mjtObj.mjOBJ_FLEX, f, 'flex')!r}")
     return bad
@@ -174,111 +207,111 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     # frames: MuJoCo body frame -> the log's (inertial) frame
     ipos = np.asarray(m.body_ipos, np.float64)
     iquat = np.asarray(m.body_iquat, np.float64)
-    ri = _quat_mats(iquat)  # (nbody, 3, 3) inertial frame -> body frame
+    ri_t = _quat_mats(iquat).transpose(0, 2, 1)  # (nbody, 3, 3) body frame -> inertial frame
+    ximat_t = np.asarray(d0c.ximat, np.float64).reshape(-1, 3, 3).transpose(0, 2, 1)
+    xipos = np.asarray(d0c.xipos, np.float64)
 
-    def to_inertial(b, p):  # a point in MuJoCo body b's frame -> its inertial frame
-        return ri[b].T @ (np.asarray(p, np.float64) - ipos[b]) if b else np.asarray(p, np.float64)
+    def rotate(r, v):  # (k, 3, 3) @ (k, 3): each row's product, as r[i] @ v[i]
+        return np.matmul(r, v[:, :, None])[:, :, 0]
 
-    def world_to_inertial(b, p):  # a world point at qpos0 -> body b's inertial frame
-        if b == 0:
-            return np.asarray(p, np.float64).copy()
-        return d0c.ximat[b].reshape(3, 3).T @ (np.asarray(p, np.float64) - d0c.xipos[b])
+    def to_inertial(b, p):  # points in MuJoCo bodies b's frames -> their inertial frames
+        p = np.asarray(p, np.float64).reshape(-1, 3)
+        return np.where((b > 0)[:, None], rotate(ri_t[b], p - ipos[b]), p)
+
+    def world_to_inertial(b, p):  # world points at qpos0 -> bodies b's inertial frames
+        p = np.asarray(p, np.float64).reshape(-1, 3)
+        return np.where((b > 0)[:, None], rotate(ximat_t[b], p - xipos[b]), p)
 
     def world_dir_to_inertial(b, v):
-        return np.asarray(v, np.float64).copy() if b == 0 else d0c.ximat[b].reshape(3, 3).T @ v
+        v = np.asarray(v, np.float64).reshape(-1, 3)
+        return np.where((b > 0)[:, None], rotate(ximat_t[b], v), v)
 
-    # joints
+    # joints: each jointed body's joints in MuJoCo's order, or one fixed row when it has none
+    # (welded to a moving parent: a fixed joint at the centre of mass)
     mc = Fields(m)  # the bindings' arrays, each fetched once
     dof_arm = np.asarray(mc.dof_armature, np.float64)
-    jn, jt, jb, ab, ap, xb, xp, jr, ja = [], [], [], [], [], [], [], [], []
-    for b in range(1, m.nbody):
-        if lay.kind[b - 1] != BODY_JOINTED:
-            continue
-        pb = int(mc.body_parentid[b])
-        nj = int(mc.body_jntnum[b])
-        if nj == 0:  # welded to a moving parent: a fixed joint at the centre of mass
-            jn.append(f"{body_name[b - 1]} (welded)")
-            jt.append(JOINT_FIXED)
-            jb.append(b - 1)
-            ab.append(np.zeros(3))
-            ap.append(world_to_inertial(pb, d0c.xipos[b]))
-            xb.append(np.zeros(3))
-            xp.append(np.zeros(3))
-            jr.append([np.nan, np.nan]), ja.append(0.0)
-            continue
-        for j in range(int(mc.body_jntadr[b]), int(mc.body_jntadr[b]) + nj):
-            t = _JOINT[int(mc.jnt_type[j])]
-            jn.append(_name(mj, m, mj.mjtObj.mjOBJ_JOINT, j, "joint"))
-            jt.append(t)
-            jb.append(b - 1)
-            ab.append(to_inertial(b, mc.jnt_pos[j]))
-            ap.append(world_to_inertial(pb, d0c.xanchor[j]))
-            if t == JOINT_BALL:
-                xb.append(np.zeros(3))
-                xp.append(np.zeros(3))
-            else:
-                xb.append(ri[b].T @ np.asarray(mc.jnt_axis[j], np.float64))
-                xp.append(world_dir_to_inertial(pb, d0c.xaxis[j]))
-            a = dof_arm[int(mc.jnt_dofadr[j]):][:3 if t == JOINT_BALL else 1]
-            ja.append(float(a[0]) if np.all(a == a[0]) else np.nan)  # dofs differing: NaN
-            lo, hi = (float(v) for v in mc.jnt_range[j])
-            if not int(mc.jnt_limited[j]):
-                jr.append([np.nan, np.nan])
-            elif t == JOINT_BALL:
-                jr.append([0.0, max(lo, hi)])
-            else:
-                jr.append([lo, hi])
+    bodies = np.flatnonzero(lay.kind == BODY_JOINTED) + 1
+    count = np.asarray(mc.body_jntnum, np.int64)[bodies]
+    rows = np.maximum(count, 1)
+    jbody = np.repeat(bodies, rows)  # the MuJoCo body of each row
+    within = np.arange(len(jbody)) - np.repeat(np.cumsum(rows) - rows, rows)
+    welded = np.repeat(count, rows) == 0
+    first = np.repeat(np.asarray(mc.body_jntadr, np.int64)[bodies], rows)
+    jid = np.where(welded, -1, first + within)  # the MuJoCo joint of each row, -1: welded
+    jpar = np.asarray(mc.body_parentid, np.int64)[jbody]
+    hinged = jid[~welded]
+    raw = np.asarray(mc.jnt_type, np.int64)[hinged]
+    codes = np.array([_JOINT[t] for t in raw.tolist()], np.int64)
+    nj = len(jbody)
+    jt = np.full(nj, JOINT_FIXED, np.int64)
+    jt[~welded] = codes
+    ball = jt == JOINT_BALL
+    ab, xb, xp = np.zeros((nj, 3)), np.zeros((nj, 3)), np.zeros((nj, 3))
+    ab[~welded] = to_inertial(jbody[~welded], np.asarray(mc.jnt_pos, np.float64)[hinged])
+    anchor = np.asarray(d0c.xanchor, np.float64)
+    ap = world_to_inertial(jpar, np.where(welded[:, None], xipos[jbody],
+                                          anchor[np.maximum(jid, 0)] if len(anchor) else 0.0))
+    axial = ~welded & ~ball
+    jx = jid[axial]
+    xb[axial] = rotate(ri_t[jbody[axial]], np.asarray(mc.jnt_axis, np.float64)[jx])
+    xp[axial] = world_dir_to_inertial(jpar[axial], np.asarray(d0c.xaxis, np.float64)[jx])
+    # armature: the dofs' common value (a ball's three), NaN when they differ
+    ja = np.zeros(nj)
+    adr = np.asarray(mc.jnt_dofadr, np.int64)[hinged]
+    ndof = np.where(codes == JOINT_BALL, 3, 1)
+    arm = dof_arm[np.minimum(adr[:, None] + np.arange(3), max(len(dof_arm) - 1, 0))] \
+        if len(adr) else np.zeros((0, 3))
+    same = np.all((arm == arm[:, :1]) | (np.arange(3) >= ndof[:, None]), axis=1)
+    ja[~welded] = np.where(same, arm[:, 0] if len(adr) else np.zeros(0), np.nan)
+    jr = np.full((nj, 2), np.nan)
+    lim = np.asarray(mc.jnt_range, np.float64)[hinged]
+    limited = np.asarray(mc.jnt_limited)[hinged] != 0
+    top = np.where(lim[:, 1] > lim[:, 0], lim[:, 1], lim[:, 0])  # max(lo, hi), as Python's
+    lim = np.where((codes == JOINT_BALL)[:, None], np.stack([np.zeros(len(lim)), top], axis=1), lim)
+    jr[~welded] = np.where(limited[:, None], lim, np.nan)
+    jn = [f"{body_name[b - 1]} (welded)" if j < 0 else _name(mj, m, mj.mjtObj.mjOBJ_JOINT, j, "joint")
+          for b, j in zip(jbody.tolist(), jid.tolist())]
+    jb = jbody - 1
     # geoms
     gtype = np.asarray(mc.geom_type, np.int64)
-    keep = [g for g in range(mc.ngeom) if int(gtype[g]) in _GEOM]
+    kept = _one_of(gtype, list(_GEOM))
+    keep = np.flatnonzero(kept)
     skipped = [f"{_name(mj, m, mj.mjtObj.mjOBJ_GEOM, g, 'geom')} "
                f"({mj.mjtGeom(int(gtype[g])).name.removeprefix('mjGEOM_').lower()}, no collision)"
-               for g in range(mc.ngeom) if int(gtype[g]) not in _GEOM]
-    g_body, g_type, g_pos, g_size, g_vert, g_name = [], [], [], [], [], []
-    for g in keep:
-        b = int(mc.geom_bodyid[g])
-        code = _GEOM[int(gtype[g])]
-        g_body.append(b - 1)
-        g_type.append(code)
-        g_name.append(mj.mj_id2name(m, mj.mjtObj.mjOBJ_GEOM, g) or "")
-        g_pos.append(to_inertial(b, mc.geom_pos[g]))
-        s = np.array(mc.geom_size[g], np.float64)
-        if code == GEOM_SPHERE:
-            s[1:] = 0.0
-        elif code in (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_PLANE):
-            s[2] = 0.0
-        elif code == GEOM_MESH:
-            s[:] = 0.0
-        g_size.append(s)
-        if code == GEOM_MESH:
-            mesh = int(mc.geom_dataid[g])
-            a, k = int(mc.mesh_vertadr[mesh]), int(mc.mesh_vertnum[mesh])
-            g_vert.append(np.array(mc.mesh_vert[a:a + k], np.float64))
-        else:
-            g_vert.append(None)
+               for g in np.flatnonzero(~kept).tolist()]
     ng = len(keep)
+    gb = np.asarray(mc.geom_bodyid, np.int64)[keep]
+    g_type = np.array([_GEOM[t] for t in gtype[keep].tolist()], np.int64).reshape(ng)
+    g_name = [mj.mj_id2name(m, mj.mjtObj.mjOBJ_GEOM, g) or "" for g in keep.tolist()]
+    g_pos = to_inertial(gb, np.asarray(mc.geom_pos, np.float64)[keep])
+    g_size = np.array(np.asarray(mc.geom_size, np.float64)[keep]).reshape(ng, 3)
+    g_size[g_type == GEOM_SPHERE, 1:] = 0.0
+    g_size[_one_of(g_type, (GEOM_CAPSULE, GEOM_CYLINDER, GEOM_PLANE)), 2] = 0.0
+    g_size[g_type == GEOM_MESH] = 0.0
+    g_vert = [None] * ng
+    for i in np.flatnonzero(g_type == GEOM_MESH).tolist():
+        mesh = int(mc.geom_dataid[keep[i]])
+        a, k = int(mc.mesh_vertadr[mesh]), int(mc.mesh_vertnum[mesh])
+        g_vert[i] = np.array(mc.mesh_vert[a:a + k], np.float64)
     # (ng, 4) each geom's orientation in its body's inertial frame: conj(iquat) * geom_quat, one
     # vectorized product (elementwise, the bits of one product per geom); the world's as given
     from rblog.adapters._common import quat_mul
 
     gq = np.asarray(mc.geom_quat, np.float64)[keep].reshape(ng, 4)
-    gb = np.asarray(mc.geom_bodyid, np.int64)[keep]
     g_quat = np.where((gb > 0)[:, None], quat_mul(_quat_conj(iquat[gb]), gq), gq)
     nan = float("nan")
     rest = np.broadcast_to(np.asarray(nan if restitution is None else restitution, np.float64), (ng,))
-    geoms = dict(body=np.array(g_body, np.int64).reshape(ng), type=np.array(g_type, np.int64).reshape(ng),
-                 size=np.array(g_size).reshape(ng, 3), pos_body=np.array(g_pos).reshape(ng, 3),
+    geoms = dict(body=(gb - 1).reshape(ng), type=g_type, size=g_size, pos_body=g_pos.reshape(ng, 3),
                  quat_wxyz_body=g_quat,
-                 friction=np.array([float(mc.geom_friction[g, 0]) for g in keep]).reshape(ng),
+                 friction=np.array(np.asarray(mc.geom_friction, np.float64)[keep, 0]).reshape(ng),
                  restitution=rest.copy(),
-                 collide_group=np.array([int(mc.geom_contype[g]) for g in keep], np.int64).reshape(ng),
-                 collide_mask=np.array([int(mc.geom_conaffinity[g]) for g in keep], np.int64).reshape(ng),
+                 collide_group=np.asarray(mc.geom_contype, np.int64)[keep].reshape(ng),
+                 collide_mask=np.asarray(mc.geom_conaffinity, np.int64)[keep].reshape(ng),
                  name=g_name, mesh_vert=g_vert)
-    nj = len(jt)
-    joints = dict(body=np.array(jb, np.int64).reshape(nj), type=np.array(jt, np.int64).reshape(nj),
-                  anchor_body=np.array(ab).reshape(nj, 3), anchor_parent=np.array(ap).reshape(nj, 3),
-                  axis_body=np.array(xb).reshape(nj, 3), axis_parent=np.array(xp).reshape(nj, 3),
-                  range=np.array(jr, np.float64).reshape(nj, 2), armature=np.array(ja).reshape(nj), name=jn)
+    joints = dict(body=jb.reshape(nj), type=jt.reshape(nj),
+                  anchor_body=ab.reshape(nj, 3), anchor_parent=ap.reshape(nj, 3),
+                  axis_body=xb.reshape(nj, 3), axis_parent=xp.reshape(nj, 3),
+                  range=jr.reshape(nj, 2), armature=ja.reshape(nj), name=jn)
     from rblog.contract.model import SUPPLIED_LOGGED, SUPPLIED_MISSING, SUPPLIED_NONE
 
     supplied = np.where(np.repeat(lay.dynamic[:, None], len(IMPULSE_KINDS), axis=1),
@@ -287,7 +320,8 @@ def inspect(m, d=None, *, restitution=None, scratch=None):
     # residual the hook computes is the step's integration error (round-off under Euler, RK4's
     # stage differences under RK4), not a load. (A free body with children gets their joints'
     # reactions.)
-    has_children = np.isin(np.arange(len(parent)), parent[parent >= 0])
+    has_children = np.zeros(len(parent), bool)
+    has_children[parent[parent >= 0]] = True
     supplied[(lay.kind == BODY_FREE) & ~has_children, IMPULSE_KINDS.index("joint")] = \
         SUPPLIED_NONE
     # the integration kind (MujocoRecorder._integration) and the joint work (limits, friction

@@ -38,6 +38,8 @@ class Kinematics:
         """(position (N, 3), rotation (N, 3, 3), velocity (N, 3), angular velocity (N, 3)),
         world frame, centre of mass and principal axes; written into ``out`` when given."""
         d, m, mj = self.d, self.m, self.mj
+        if d is None:  # the recorder gave its MjData back (closed): a new one
+            d = self.d = mj.MjData(m)
         d.qpos[:] = qpos
         d.qvel[:] = qvel
         if mocap_pos is not None and m.nmocap:
@@ -57,7 +59,7 @@ class Kinematics:
         np.take(cvel[:, :3], ids, axis=0, out=pw)
         arm = px - d.subtree_com[self.c_of]
         np.take(cvel[:, 3:], ids, axis=0, out=pv)
-        pv += np.cross(pw, arm)
+        pv += _cross(pw, arm)
         return out
 
 

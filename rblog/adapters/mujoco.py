@@ -113,8 +113,11 @@ the joints' constraint forces, the work's velocity and xfrc_applied's work from 
 ``_hook.states``; the integration kind and the samples' momenta ``_hook.integration``; numpy
 without them), the contacts copied at each logged step (``_hook.ContactCapture``) decoded, and
 all written as one block (``Recorder.write(owned=True)``: the impulse and work arrays are not
-copied again). Measured with
-benchmarks/bench_adapters.py (CPU time against the bare ``mj_step`` loop; RESULTS.md).
+copied again). Per run, the body table is built from MjModel's arrays in numpy, and the
+recorder's own ``MjData`` (inspect's and :class:`Kinematics`' kinematics) is the model's idle one
+once a recorder of that model has closed (``take_scratch``: an ``MjData`` of dm_control's models
+costs ~0.8 ms). Measured with benchmarks/bench_adapters.py (CPU time against the bare
+``mj_step`` loop; RESULTS.md).
 
 Why this module is long: the derivation of every impulse kind lives in this docstring, and the
 recorder's per-block steps (states, impulses per interval, integration kind) each keep their
@@ -129,8 +132,8 @@ from rblog.adapters import AdapterError
 from rblog.adapters._common import EngineRecorder
 from rblog.adapters._mujoco_model import (BLOCK_STEPS, CONTACT_ROWS, Layout, _ContactArray, _is_model,
                                           _mj, _packed_contact_dict, capture_contacts, contacts,
-                                          decode_contacts, gravity_of, inspect, settings,
-                                          state_offsets, unsupported)
+                                          decode_contacts, give_back, gravity_of, inspect,
+                                          settings, state_offsets, take_scratch, unsupported)
 from rblog.adapters._mujoco_rollout import record_rollout
 from rblog.adapters._mujoco_suite import suite_model
 from rblog.adapters._mujoco_step import (ROW_FIELDS, Kinematics, Rows, StepImpulses, _cross,
@@ -175,7 +178,7 @@ class MujocoRecorder(EngineRecorder):
         if d is None:
             d = mj.MjData(m)
             mj.mj_forward(m, d)
-        scratch = mj.MjData(m)  # inspect's kinematics at qpos0, then Kinematics' own
+        scratch = take_scratch(m)  # inspect's kinematics at qpos0, then Kinematics' own
         self.model, self.layout, notes = inspect(m, d, restitution=restitution, scratch=scratch)
         self.dt = float(m.opt.timestep)
         if not (np.isfinite(self.dt) and self.dt > 0):  # the samples' steps are time / dt
@@ -315,6 +318,14 @@ class MujocoRecorder(EngineRecorder):
             self.flush()
 
     record = __call__
+
+    def close(self, truncated: bool = False, reason: str | None = None) -> None:
+        try:
+            super().close(truncated=truncated, reason=reason)
+        finally:  # the model's idle MjData again (Kinematics makes a new one if called after)
+            if self.kin.d is not None:
+                give_back(self.m, self.kin.d)
+                self.kin.d = None
 
     def _efc_ok(self, d) -> bool:
         from rblog.adapters._mjdata_offsets import efc_force_matches

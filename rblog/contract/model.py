@@ -438,17 +438,18 @@ def v2_from_geoms(n_bodies: int, geom_body, geom_type, geom_pos_body, geom_quat_
     bfric = np.full(n, np.nan)
     brest = np.full(n, np.nan)
     counts = np.bincount(gb[gb >= 0], minlength=n)
-    for g in range(len(gb)):
-        b = int(gb[g])
-        if b < 0:
-            continue
-        if np.isnan(bfric[b]) and np.isnan(brest[b]):
-            bfric[b], brest[b] = fric[g], rest[g]
-        centred = not np.any(pos[g]) and (abs(abs(quat[g, 0]) - 1.0) <= 1e-12
-                                          or gt[g] == GEOM_SPHERE)
-        if counts[b] == 1 and gt[g] in (GEOM_SPHERE, GEOM_BOX) and centred:
-            shape[b] = gt[g]
-            bsize[b] = size[g] if gt[g] == GEOM_BOX else [size[g, 0], 0.0, 0.0]
+    # each body's first geom with a friction or a restitution stated (NaN and NaN: the next)
+    stated = np.flatnonzero((gb >= 0) & ~(np.isnan(fric) & np.isnan(rest)))
+    bodies, first = np.unique(gb[stated], return_index=True)
+    bfric[bodies], brest[bodies] = fric[stated[first]], rest[stated[first]]
+    # a body's only geom, a sphere or a box at its centre of mass (box: along the body's axes)
+    centred = ~pos.any(axis=1) & ((np.abs(np.abs(quat[:, 0]) - 1.0) <= 1e-12) | (gt == GEOM_SPHERE))
+    one = np.flatnonzero((gb >= 0) & centred & ((gt == GEOM_SPHERE) | (gt == GEOM_BOX)))
+    one = one[counts[gb[one]] == 1]
+    shape[gb[one]] = gt[one]
+    radius = np.zeros((len(one), 3))
+    radius[:, 0] = size[one, 0]
+    bsize[gb[one]] = np.where((gt[one] == GEOM_BOX)[:, None], size[one], radius)
     out = {"body_shape": shape, "body_size": bsize, "body_friction": bfric,
            "body_restitution": brest}
     world = gb < 0

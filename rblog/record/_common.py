@@ -3,6 +3,7 @@ names, and simulated time in nanoseconds. See docs/log-format.md."""
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import re
@@ -227,8 +228,10 @@ def view_names(names: list[str]) -> list[str]:
 def time_ns(t: np.ndarray) -> np.ndarray:
     """Simulated time (s) as int64 nanoseconds for viewer timelines (rounded, clamped at 0)."""
     ns = np.rint(np.asarray(t, np.float64) * 1e9)
-    ns = np.nan_to_num(ns, nan=0.0, posinf=2**62, neginf=0.0)
-    return np.clip(ns, 0, 2**62).astype(np.int64)
+    nan = np.isnan(ns)
+    if nan.any():
+        ns = np.where(nan, 0.0, ns)
+    return np.clip(ns, 0, 2**62).astype(np.int64)  # -inf -> 0, inf -> 2**62
 
 
 def block_arrays(block, n: int, interval: tuple = (), copy: bool = True) -> dict[str, np.ndarray]:
@@ -241,21 +244,22 @@ def block_arrays(block, n: int, interval: tuple = (), copy: bool = True) -> dict
     T = len(block.t)
     out = {}
     for name in (*STATE_CHANNELS, *interval):
+        want = expected_width(name, n)
         v = getattr(block, name)
         if v is None:
-            v = np.full((T, expected_width(name, n)), np.nan)
+            v = np.full((T, want), np.nan)
         a = np.asarray(v, np.float64)
         if copy or a.flags.c_contiguous or a.ndim not in (2, 3) or len(a) != T or \
                 a.strides[-1] != 8:
             a = np.ascontiguousarray(a).reshape(T, -1)
         width = math.prod(a.shape[1:])
-        if width != expected_width(name, n):
-            raise ValueError(f"{name}: {width} values per sample, expected "
-                             f"{expected_width(name, n)} for {n} bodies")
+        if width != want:
+            raise ValueError(f"{name}: {width} values per sample, expected {want} for {n} bodies")
         out[name] = a
     return out
 
 
+@functools.lru_cache(maxsize=4096)
 def expected_width(name: str, n: int) -> int:
     shape = SAMPLE_CHANNELS[name]
     k = math.prod(shape)

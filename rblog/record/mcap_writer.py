@@ -632,6 +632,9 @@ def _headers(parts: list[bytes]) -> tuple[np.ndarray, np.ndarray]:
     return np.frombuffer(b"".join(parts), np.uint8).copy(), off
 
 
+_LE_F8, _LE_I8 = np.dtype("<f8"), np.dtype("<i8")
+
+
 def _byte_rows(cols: list, T: int) -> tuple:
     """Each (T,) or (T, k) little-endian 8-byte column as its (T, 8k) bytes, and a (T, k) or
     (T, N, k) one whose last axis is contiguous (a view of a wider array: an engine's impulses)
@@ -639,7 +642,7 @@ def _byte_rows(cols: list, T: int) -> tuple:
     out = []
     for c in cols:
         c = np.asarray(c)
-        c = c.astype("<f8" if c.dtype.kind == "f" else "<i8", copy=False)
+        c = c.astype(_LE_F8 if c.dtype.kind == "f" else _LE_I8, copy=False)
         if c.flags.c_contiguous:
             c = c.reshape(T, -1)
         elif c.ndim not in (2, 3) or c.strides[-1] != 8:

@@ -225,6 +225,10 @@ def body_table(*, name, mass, shape=None, size=None, inertia_diag=None, restitut
 def _codes(v, count: int, names: dict, what: str, valid) -> np.ndarray:
     """Names or integer codes (one for all, or ``count``) -> (count,) int64; a one-line
     RecordError naming ``what`` for anything else."""
+    if isinstance(v, np.ndarray) and v.dtype.kind in "iu" and v.shape == (count,):
+        out = v.astype(np.int64)
+        if (out[:, None] == np.array(list(valid))).any(axis=1).all():  # all valid (else the
+            return out  # loop below names the first that is not)
     vals = [v] * count if isinstance(v, (str, int, np.integer)) else list(v)
     if len(vals) != count:
         raise RecordError(f"body_table: {what} has {len(vals)} entries, expected {count}")
@@ -368,7 +372,7 @@ def _joint_table(joints: dict, n: int) -> dict:
         raise RecordError(f"body_table: joints.body = {_short(joints['body'])}, expected ({J},) "
                           f"body indices 0..{n - 1} (the body each joint moves)")
     jt = _codes(joints["type"], J, JOINT_CODES, "joints.type", JOINT_CODES.values())
-    axisless = np.isin(jt, (JOINT_BALL, JOINT_FIXED))
+    axisless = (jt == JOINT_BALL) | (jt == JOINT_FIXED)
     out = {"joint_body": jb.astype(np.int64), "joint_type": jt,
            "joint_anchor_body": _col(joints, "anchor_body", "joints", J, (3,)),
            "joint_anchor_parent": _col(joints, "anchor_parent", "joints", J, (3,)),
@@ -629,18 +633,51 @@ def build_block(model: Model, info: RunInfo, *, t, step=None, position, quat_wxy
     return block
 
 
+#: the per-interval plans (_interval_plan) of the body tables seen, keyed by their supplied codes
+_PLANS: dict = {}
+
+
+def _interval_plan(model: Model):
+    """(the channels a run of ``model`` logs, the same as a set, {channel: (trailing shape, the
+    bodies that do not supply its kind, or None when every body does)}): a function of the model's
+    ``body_impulse_supplied`` / ``body_work_supplied`` alone, kept per codes (up to 16 tables)."""
+    from rblog.record._common import run_interval_channels
+
+    imp = np.asarray(model.body_impulse_supplied)
+    work = np.asarray(model.body_work_supplied)
+    key = (imp.shape, imp.dtype.str, imp.tobytes(), work.shape, work.dtype.str, work.tobytes())
+    plan = _PLANS.get(key)
+    if plan is not None:
+        return plan
+    want = run_interval_channels(model)
+    sup_imp, sup_work = imp == 1, work == 1  # SUPPLIED_LOGGED
+    nan_at = {}
+    for name in want:
+        kind = name.split("_")[1]
+        sup = sup_imp[:, IMPULSE_KINDS.index(kind)] if name.startswith("impulse") else \
+            sup_work[:, WORK_KINDS.index(kind)]
+        at = np.flatnonzero(~sup)
+        if len(at) and at[-1] - at[0] == len(at) - 1:  # contiguous: a slice
+            at = slice(int(at[0]), int(at[-1]) + 1)
+        nan_at[name] = (INTERVAL_CHANNELS[name], None if sup.all() else at)
+    plan = (want, frozenset(want), nan_at)
+    if len(_PLANS) >= 16:
+        _PLANS.clear()
+    _PLANS[key] = plan
+    return plan
+
+
 def _interval_channels(model: Model, given: dict, T: int, n: int, copy: bool = True) -> dict:
     """The block's per-interval channels, checked against what the model declares (copies of
     the given arrays, or with ``copy=False`` the arrays themselves when they are float64)."""
-    from rblog.record._common import run_interval_channels
-
-    want = run_interval_channels(model)
-    unknown = sorted(set(given) - set(INTERVAL_CHANNELS))
+    want, wanted, nan_at = _interval_plan(model)
+    exact = given.keys() == wanted and not any(v is None for v in given.values())
+    unknown = [] if exact else sorted(set(given) - set(INTERVAL_CHANNELS))
     if unknown:
         raise RecordError(f"write: unknown argument {unknown[0]!r}; the per-interval channels "
                           f"are {', '.join(INTERVAL_CHANNELS)}")
-    for name in INTERVAL_CHANNELS:
-        if (name in want) != (given.get(name) is not None):
+    for name in () if exact else INTERVAL_CHANNELS:
+        if (name in wanted) != (given.get(name) is not None):
             kind = name.split("_")[1]
             decl = "impulses" if name.startswith("impulse") else "work"
             if name in want:
@@ -649,23 +686,13 @@ def _interval_channels(model: Model, given: dict, T: int, n: int, copy: bool = T
             raise RecordError(f"write: {name} given, but the body table does not declare {decl} "
                               f"{kind!r}: add it to body_table({decl}=...)")
     out = {}
-    sup_imp = np.asarray(model.body_impulse_supplied) == 1  # SUPPLIED_LOGGED
-    sup_work = np.asarray(model.body_work_supplied) == 1
-    full_imp, full_work = sup_imp.all(axis=0).tolist(), sup_work.all(axis=0).tolist()
     for name in want:
-        trail = INTERVAL_CHANNELS[name]
+        trail, missing = nan_at[name]
         a = _arr(given[name], name, (T, n, *trail))
         if copy:
             a = np.array(a, np.float64)
-        kind = name.split("_")[1]
-        if name.startswith("impulse"):
-            j = IMPULSE_KINDS.index(kind)
-            if not full_imp[j]:
-                a[:, ~sup_imp[:, j]] = np.nan
-        else:
-            j = WORK_KINDS.index(kind)
-            if not full_work[j]:
-                a[:, ~sup_work[:, j]] = np.nan
+        if missing is not None:  # the bodies that do not supply this kind: NaN
+            a[:, missing] = np.nan
         out[name] = a
     return out
 

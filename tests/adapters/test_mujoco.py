@@ -311,3 +311,35 @@ def test_welded_bodies_sum_to_mujocos_subtree():
     np.testing.assert_allclose(p.sum(axis=0), mass * d.subtree_linvel[1], atol=1e-12)
     angmom = traj.angular_momentum[-1].sum(axis=0) + np.cross(x - com, p).sum(axis=0)
     np.testing.assert_allclose(angmom, d.subtree_angmom[1], atol=1e-12)
+
+
+def test_a_recording_after_another_logs_the_same_bits():
+    """A recorder takes its model's idle MjData (rblog.adapters._mujoco_model.take_scratch,
+    reset) for its own kinematics and gives it back on close: a second recording of the same
+    model, from the same state, reuses the MjData the first one left at its last sample and logs
+    the same bits (the body table at qpos0, every state and impulse); two recorders open at once
+    each have their own."""
+    xml = ('<body name="arm" pos="0 0 1"><joint name="shoulder" type="hinge" axis="0 1 0"/>'
+           '<geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>'
+           '<body name="forearm" pos="0.3 0 0" euler="0 20 0"><joint name="elbow" type="hinge" '
+           'axis="0 0.6 0.8" range="-1 1"/><geom type="box" size="0.1 0.02 0.02" pos="0.1 0 0"/>'
+           '</body></body>'
+           '<body name="cube" pos="0.5 0 0.3" euler="10 20 30"><freejoint/>'
+           '<geom type="box" size="0.05 0.05 0.05"/></body>')
+    m = model(xml)
+    logs = []
+    for _ in range(2):
+        traj, _, _ = run(m, 300, qvel=[2.0, -3.0, 0.5, 0, 0, 1, 2, 3])
+        logs.append(traj)
+    first, second = logs
+    for f in ("joint_anchor_body", "joint_anchor_parent", "joint_axis_body", "joint_axis_parent",
+              "geom_pos_body", "geom_quat_wxyz_body"):
+        assert getattr(first.model, f).tobytes() == getattr(second.model, f).tobytes(), f
+    for f in ("position", "rotation", "quat_wxyz", "velocity", "angular_velocity",
+              "impulse_contact_linear", "impulse_joint_angular", "work_joint"):
+        assert getattr(first, f).tobytes() == getattr(second, f).tobytes(), f
+    d = mujoco.MjData(m)
+    a, b = MujocoRecorder(m, d), MujocoRecorder(m, d)
+    assert a.kin.d is not b.kin.d
+    a.close()
+    b.close()
