@@ -294,7 +294,8 @@ class PybulletEnergy:
                     bad[i] = True
                 if abs(s1[1]) >= self.V_MAX:
                     bad[i] = True
-            if any(p[9] or p[10] or p[12] for p in pb.getContactPoints(bodyA=b, physicsClientId=c)):
+            pts = pb.getContactPoints(bodyA=b, physicsClientId=c)
+            if any(p[9] or p[10] or p[12] for p in pts):
                 bad[i] = True  # a contact pushed it (normal or friction force)
         self.prev = now
         self.work.append(self.work[-1] + work)

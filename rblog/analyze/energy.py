@@ -175,9 +175,9 @@ def trees(ctx: Context, free, e, ke, u, sp, m, amag, not_judged: list[str]):
     its members' less the logged work of their loads since the first sample (``work_applied``,
     ``work_passive``, ``work_actuator``, ``work_joint``); its mass the sum, its acceleration the
     largest of its members' and its speed such that the dt allowance's m |a| v is the members'
-    sum of m_b |a_b| |v_b| (the bias of each member's first-order step). Ideal joints (no friction in them, no limit violated) pass
-    energy between a tree's bodies and do no net work on it, so this sum is conserved up to
-    the integrator's error, the same dt allowance as a free body's; an engine's step error
+    sum of m_b |a_b| |v_b| (the bias of each member's first-order step). Ideal joints (no
+    friction in them, no limit violated) pass energy between a tree's bodies and do no net work
+    on it, so this sum is conserved up to the integrator's error, the same dt allowance as a free body's; an engine's step error
     beyond it is a finding, as a free body's drift is (dm_control's fish, Euler without gravity,
     its passive work logged: 3.8 % of its largest kinetic energy lost in 4 s, 2.0 % at half the
     step; tests/adapters/test_mujoco_fish_energy.py). An interval whose logged work is NaN ends

@@ -30,7 +30,8 @@ static void damping(nb::handle q_h, nb::handle v_h, nb::handle w_h, nb::handle v
     const i64 n = v.n0;
     if (q.n0 != n || q.n1 != 4 || w.n0 != n || inertia.n0 != n || c_lin.n0 != n || c_ang.n0 != n ||
         lin.n0 != n || ang.n0 != n || v.n1 != 3 || w.n1 != 3 || inertia.n1 != 3 || lin.n1 != 3 ||
-        ang.n1 != 3 || v_end.n0 != n || v_end.n1 != 3 || w_end.n0 != n || w_end.n1 != 3 || work.n0 != n)
+        ang.n1 != 3 || v_end.n0 != n || v_end.n1 != 3 || w_end.n0 != n || w_end.n1 != 3 ||
+        work.n0 != n)
         throw nb::type_error("damping: q (N, 4), v, w, v1, w1, inertia, lin, ang (N, 3), c_lin, "
                              "c_ang, work (N,)");
     for (i64 i = 0; i < n; ++i) {
