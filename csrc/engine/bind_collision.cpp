@@ -6,6 +6,7 @@
 
 #include <cstddef>  // offsetof
 #include <cstring>
+#include <string>
 
 #include "common/py.hpp"
 #include "engine/bind.hpp"
@@ -88,7 +89,29 @@ nb::dict collision_layout() {
     return d;
 }
 
+
+// One pair's arguments from numpy for the single-pair bindings (collide_np, parted_along_np):
+// centres and sizes (3,), rotations (3, 3), and one more (3,) vector (`w_name`: the plane's
+// normal, an axis), checked; `fn` names the binding in the error.
+struct PairNp {
+    V1<double> ca, sa, cb, sb, w;
+    V2<double> ra, rb;
+};
+PairNp pair_np(const char* fn, nb::handle ca, nb::handle ra, nb::handle sa, nb::handle cb,
+               nb::handle rb, nb::handle sb, nb::handle w, const char* w_name) {
+    require_collision_constants();
+    PairNp q{v1<double>(ca, "a_center"), v1<double>(sa, "a_size"), v1<double>(cb, "b_center"),
+             v1<double>(sb, "b_size"),   v1<double>(w, w_name),    v2<double>(ra, "a_rot"),
+             v2<double>(rb, "b_rot")};
+    if (q.ca.n0 != 3 || q.cb.n0 != 3 || q.sa.n0 != 3 || q.sb.n0 != 3 || q.w.n0 != 3 ||
+        q.ra.n0 != 3 || q.ra.n1 != 3 || q.rb.n0 != 3 || q.rb.n1 != 3)
+        throw nb::value_error((std::string(fn) + ": centres, sizes, " + w_name +
+                               " (3,), rotations (3, 3)").c_str());
+    return q;
+}
+
 }  // namespace
+
 
 void bind_collision(nb::module_& m) {
     m.def(
@@ -161,17 +184,10 @@ void bind_collision(nb::module_& m) {
         "collide_np",
         [](i64 ga, i64 gb, nb::handle ca, nb::handle ra, nb::handle sa, nb::handle cb,
            nb::handle rb_, nb::handle sb, nb::handle pn, double poff, double spec) {
-            require_collision_constants();
-            V1<double> vca = v1<double>(ca, "a_center"), vsa = v1<double>(sa, "a_size");
-            V1<double> vcb = v1<double>(cb, "b_center"), vsb = v1<double>(sb, "b_size");
-            V1<double> vpn = v1<double>(pn, "plane_normal");
-            V2<double> vra = v2<double>(ra, "a_rot"), vrb = v2<double>(rb_, "b_rot");
-            if (vca.n0 != 3 || vcb.n0 != 3 || vsa.n0 != 3 || vsb.n0 != 3 || vpn.n0 != 3 ||
-                vra.n0 != 3 || vra.n1 != 3 || vrb.n0 != 3 || vrb.n1 != 3)
-                throw nb::value_error("collide_np: centres, sizes, normal (3,), rotations (3, 3)");
+            const PairNp q = pair_np("collide_np", ca, ra, sa, cb, rb_, sb, pn, "plane_normal");
             ColliderBuffers buf = collider_buffers();
-            i64 res = collide(ga, gb, vca.p, vra.p, vsa.p, vcb.p, vrb.p, vsb.p, vpn.p, poff, spec,
-                              buf);
+            i64 res = collide(ga, gb, q.ca.p, q.ra.p, q.sa.p, q.cb.p, q.rb.p, q.sb.p, q.w.p, poff,
+                              spec, buf);
             std::vector<double> nrm(buf.nrm, buf.nrm + 6);
             std::vector<double> pts(&buf.pts[0][0], &buf.pts[0][0] + 3 * MAX_CLIP_POINTS);
             std::vector<double> sep(buf.sep, buf.sep + MAX_CLIP_POINTS);
@@ -191,15 +207,9 @@ void bind_collision(nb::module_& m) {
         "parted_along_np",
         [](i64 ga, i64 gb, nb::handle ca, nb::handle ra, nb::handle sa, nb::handle cb,
            nb::handle rb_, nb::handle sb, nb::handle u, double spec) {
-            require_collision_constants();
-            V1<double> vca = v1<double>(ca, "a_center"), vsa = v1<double>(sa, "a_size");
-            V1<double> vcb = v1<double>(cb, "b_center"), vsb = v1<double>(sb, "b_size");
-            V1<double> vu = v1<double>(u, "axis");
-            V2<double> vra = v2<double>(ra, "a_rot"), vrb = v2<double>(rb_, "b_rot");
-            if (vca.n0 != 3 || vcb.n0 != 3 || vsa.n0 != 3 || vsb.n0 != 3 || vu.n0 != 3 ||
-                vra.n0 != 3 || vra.n1 != 3 || vrb.n0 != 3 || vrb.n1 != 3)
-                throw nb::value_error("parted_along_np: centres, sizes, axis (3,), rotations (3, 3)");
-            return parted_along(ga, gb, vca.p, vra.p, vsa.p, vcb.p, vrb.p, vsb.p, vu.p, spec);
+            const PairNp q = pair_np("parted_along_np", ca, ra, sa, cb, rb_, sb, u, "axis");
+            return parted_along(ga, gb, q.ca.p, q.ra.p, q.sa.p, q.cb.p, q.rb.p, q.sb.p, q.w.p,
+                                spec);
         },
         nb::arg("geom_a"), nb::arg("geom_b"), nb::arg("a_center"), nb::arg("a_rot"),
         nb::arg("a_size"), nb::arg("b_center"), nb::arg("b_rot"), nb::arg("b_size"),
