@@ -1,6 +1,11 @@
 """MuJoCo's model in log contract v3: the bodies, joints and geoms of an ``MjModel`` (the
 frames and conventions are in :mod:`rblog.adapters.mujoco`'s docstring), MuJoCo's settings and the
-contact rows (dm_control's suite models: _mujoco_suite)."""
+contact rows (dm_control's suite models: _mujoco_suite).
+
+Why this module is long: it is the one reading of an MjModel's arrays into the contract's
+tables (the layout of bodies and their kinds, joints with their anchors, axes and limits, geoms
+with their shapes, materials and filters), each done with numpy over the model's arrays, not a
+loop per element; apart, the body, joint and geom readers would each restate the layout."""
 
 from __future__ import annotations
 
