@@ -19,6 +19,10 @@
 // states() reads the logged states of samples out of the same rows (below).
 #include <nanobind/nanobind.h>
 
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <utility>
 #include <vector>
 
 #include "common/py.hpp"
@@ -39,6 +43,34 @@ inline void cross(const double* a, const double* b, double* out) {
     out[0] = a[1] * b[2] - a[2] * b[1];
     out[1] = a[2] * b[0] - a[0] * b[2];
     out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+// whether the six values at w are all +0.0 (bitwise: -0.0 is not)
+inline bool positive_zeros(const double* w) {
+    std::uint64_t u[6];
+    std::memcpy(u, w, sizeof u);
+    return (u[0] | u[1] | u[2] | u[3] | u[4] | u[5]) == 0;
+}
+
+// whether the n values at x are finite: x 0 is a zero for a finite x and NaN otherwise, so the
+// sum of them is zero exactly when all are (four independent sums, which the compiler vectorizes)
+inline bool all_finite(const double* x, i64 n) {
+    double z[4] = {0.0, 0.0, 0.0, 0.0};
+    i64 i = 0;
+    for (; i + 4 <= n; i += 4)
+        for (int c = 0; c < 4; ++c) z[c] += x[i + c] * 0.0;
+    for (; i < n; ++i) z[0] += x[i] * 0.0;
+    return (z[0] + z[1]) + (z[2] + z[3]) == 0.0;
+}
+// whether any of the n values at x is nonzero (a bit besides the sign's)
+inline bool any_nonzero(const double* x, i64 n) {
+    std::uint64_t bits = 0;
+    for (i64 i = 0; i < n; ++i) {
+        std::uint64_t u;
+        std::memcpy(&u, x + i, 8);
+        bits |= u << 1;
+    }
+    return bits != 0;
 }
 
 // IMPULSE_KINDS: contact, applied, passive, actuator, joint, integration
@@ -84,12 +116,25 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
 
     // xfrc_applied anywhere in the block (numpy's `pushed`: the xfrc terms only then)
     bool pushed = false;
-    for (i64 k = 0; k < K && !pushed; ++k) {
-        const double* xf = &rows(k, off(F_XFRC_APPLIED));
-        for (i64 i = 0; i < 6 * nb_; ++i)
-            if (xf[i] != 0.0) { pushed = true; break; }
+    for (i64 k = 0; k < K && !pushed; ++k) pushed = any_nonzero(&rows(k, off(F_XFRC_APPLIED)), 6 * nb_);
+    std::vector<double> S(6 * nv), tau(3 * nv), r(3 * nb_), xfc(6 * nb_);
+    // each body's gen terms, j ascending: +1 for its own dofs, -1 for its children's (CSR)
+    std::vector<i64> term_start(nb_ + 1, 0), term_dof, term_sign;
+    {
+        std::vector<std::vector<std::pair<i64, i64>>> terms(nb_);
+        for (i64 j = 0; j < nv; ++j) {
+            const i64 b = dof_body(j), p = parent(b);
+            terms[b].push_back({j, 1});
+            if (p > 0) terms[p].push_back({j, -1});
+        }
+        for (i64 b = 0; b < nb_; ++b) {
+            for (auto& [j, sg] : terms[b]) {
+                term_dof.push_back(j);
+                term_sign.push_back(sg);
+            }
+            term_start[b + 1] = (i64)term_dof.size();
+        }
     }
-    std::vector<double> S(6 * nv), tau(3 * nv), gen(3 * nb_ * 6), r(3 * nb_), xfc(6 * nb_);
     for (i64 k = 0; k < K; ++k) {
         const double* row = &rows(k, 0);
         const double* com = row + off(F_SUBTREE_COM);
@@ -106,6 +151,7 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
         double* Wk = &W(k, 0, 0, 0);  // (6, nbody, 6)
         for (i64 b = 0; b < nb_; ++b)
             for (int c = 0; c < 3; ++c) r[3 * b + c] = xipos[3 * b + c] - com[3 * root(b) + c];
+        const bool r_finite = all_finite(r.data(), 3 * nb_);
         // contact
         if (pushed) {
             for (i64 b = 0; b < nb_; ++b) {
@@ -153,24 +199,30 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
                 tau[correction_kind * nv + j] +=
                     mak[j] - sm[j] - cn[j] + damping(j) * (v1[j] - v0[j]);
         }
-        // gen (3, nbody, 6): each dof's wrench on its body, the opposite on its parent
-        std::fill(gen.begin(), gen.end(), 0.0);
+        // gen (3, nbody, 6), each dof's wrench on its body and the opposite on its parent, written
+        // straight into W[1..3]: body b's sum over `terms` (its dofs and its children's, j
+        // ascending: the order of numpy's sum over dofs) from +0.0. A term whose tau is zero is
+        // left out when every S is finite: t S is then a zero, and adding or subtracting a zero
+        // leaves a sum that starts at +0.0 as it is (such a sum is never -0.0).
+        const bool finite = all_finite(S.data(), 6 * nv);
         for (int a = 0; a < 3; ++a) {
-            double* g = &gen[a * nb_ * 6];
-            for (i64 j = 0; j < nv; ++j) {
-                const i64 b = dof_body(j), p = parent(b);
-                const double t = tau[a * nv + j];
-                for (int c = 0; c < 6; ++c) {
-                    const double ts = t * S[6 * j + c];
-                    g[6 * b + c] += ts;
-                    if (p > 0) g[6 * p + c] -= ts;
+            double* g = Wk + (1 + a) * nb_ * 6;
+            const double* ta = &tau[a * nv];
+            for (i64 b = 0; b < nb_; ++b) {
+                double acc[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+                for (i64 e = term_start[b]; e < term_start[b + 1]; ++e) {
+                    const i64 j = term_dof[e];
+                    const double t = ta[j];
+                    if (finite && t == 0.0) continue;
+                    const double* sj = &S[6 * j];
+                    if (term_sign[e] > 0)
+                        for (int c = 0; c < 6; ++c) acc[c] += t * sj[c];
+                    else
+                        for (int c = 0; c < 6; ++c) acc[c] -= t * sj[c];
                 }
+                for (int c = 0; c < 6; ++c) g[6 * b + c] = acc[c];
             }
         }
-        for (int a = 0; a < 3; ++a)
-            for (i64 i = 0; i < 6 * nb_; ++i) Wk[(1 + a) * nb_ * 6 + i] = gen[a * nb_ * 6 + i];
-        if (pushed)
-            for (i64 i = 0; i < 6 * nb_; ++i) Wk[nb_ * 6 + i] += xfc[i];
         // joint: the net of cfrc_int (the body's own minus its children's), minus gen
         double* Wj = Wk + 4 * nb_ * 6;
         for (i64 i = 0; i < 6; ++i) Wj[i] = 0.0;  // the world's row of numpy's `net` is zero
@@ -181,13 +233,22 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
             if (p > 0)
                 for (int c = 0; c < 6; ++c) Wj[6 * p + c] -= cfrc_int[6 * b + c];
         }
-        for (i64 i = 0; i < 6 * nb_; ++i)
-            Wj[i] -= gen[i] + gen[nb_ * 6 + i] + gen[2 * nb_ * 6 + i];
+        {
+            const double* g0 = Wk + nb_ * 6;
+            const double* g1 = Wk + 2 * nb_ * 6;
+            const double* g2 = Wk + 3 * nb_ * 6;
+            for (i64 i = 0; i < 6 * nb_; ++i) Wj[i] -= g0[i] + g1[i] + g2[i];
+        }
+        if (pushed)
+            for (i64 i = 0; i < 6 * nb_; ++i) Wk[nb_ * 6 + i] += xfc[i];
         // torques about the centre of mass, then impulses; the integration kind 0
         for (i64 i = 0; i < 6 * nb_; ++i) Wk[5 * nb_ * 6 + i] = 0.0;
+        // (a row of six +0.0 at a finite r stays six +0.0: r x 0 is a zero, +0.0 minus a zero is
+        // +0.0, times h > 0 too; such rows are left as they are)
         for (int a = 0; a < 5; ++a)
             for (i64 b = 0; b < nb_; ++b) {
                 double* w = Wk + (a * nb_ + b) * 6;
+                if (r_finite && positive_zeros(w)) continue;
                 double rf[3];
                 cross(&r[3 * b], w + 3, rf);
                 for (int c = 0; c < 3; ++c) w[c] -= rf[c];
@@ -196,8 +257,13 @@ void resolve(nb::handle rows_h, nb::handle offsets_h, nb::handle v1_h, nb::handl
         // work (4, nbody)
         double* wk = &work(k, 0, 0);
         for (i64 i = 0; i < N_WORK * nb_; ++i) wk[i] = 0.0;
+        // (a zero tau at a finite u adds a zero to a sum from +0.0: left out, as in gen)
+        const bool u_finite = all_finite(u, nv);
         for (int a = 0; a < 3; ++a)
-            for (i64 j = 0; j < nv; ++j) wk[a * nb_ + dof_body(j)] += tau[a * nv + j] * u[j];
+            for (i64 j = 0; j < nv; ++j) {
+                const double t = tau[a * nv + j];
+                if (!(u_finite && t == 0.0)) wk[a * nb_ + dof_body(j)] += t * u[j];
+            }
         for (i64 j = 0; j < nv; ++j) wk[3 * nb_ + dof_body(j)] += qjk[j] * u[j];
         for (i64 i = 0; i < N_WORK * nb_; ++i) wk[i] *= h;
     }
