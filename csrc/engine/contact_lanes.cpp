@@ -150,6 +150,8 @@ void pack_lanes(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
                         gr.rb[i][c][j] = q_.rb[c];
                         gr.tk[i][c][j] = q_.tangent_k[c];
                     }
+                    gr.det[i][j] = q_.tangent_k[0] * q_.tangent_k[2] -
+                                   q_.tangent_k[1] * q_.tangent_k[1];
                     double sep = q_.s;
                     // speculative: the gap may close within the step, not more
                     gr.target[i][j] = sep > 0.0 ? -sep * inv_h : 0.0;

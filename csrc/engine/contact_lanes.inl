@@ -159,6 +159,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     const M vis = w::from(vb_, l);
     const T zero = w::splat(0.0);
     const T tol = w::splat(cx.tol);
+    const T tol1 = w::splat(cx.tol1);
     T chg = zero;
     M mark = vis & w::mnot(vis);  // all false
     const T om = w::ld(gr.om, l);
@@ -278,8 +279,8 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             T k11 = w::ld(gr.tk[i][0], l), k12 = w::ld(gr.tk[i][1], l), k22 = w::ld(gr.tk[i][2], l);
             T o1 = w::ld(gr.l1[i], l), o2 = w::ld(gr.l2[i], l);
             T n1, n2;
-            friction_update<T, W<T>>(on, k11, k12, k22, o1, o2, vt1, vt2, mu * w::ld(gr.ln[i], l),
-                                     cx.newton_iters, cx.newton_tol, n1, n2);
+            friction_update_k<T, W<T>>(on, k11, k12, k22, w::ld(gr.det[i], l), o1, o2, vt1, vt2,
+                                       mu * w::ld(gr.ln[i], l), cx.newton_iters, tol1, n1, n2);
             w::st(gr.l1[i], l, w::sel(on, n1, o1));
             w::st(gr.l2[i], l, w::sel(on, n2, o2));
             T d1 = n1 - o1;
