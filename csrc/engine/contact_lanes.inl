@@ -137,8 +137,10 @@ inline void lane_impulse(typename W<T>::M on, const WideGroup& gr, int l, const 
 }
 
 // One sweep's visit of group gr (solve_velocities' loop body for its four manifolds): lane l for
-// T = double, all four for T = d4.
-template <class T>
+// T = double, all four for T = d4. NP > 0: the group's n_pts as a constant, so that the compiler
+// unrolls the loops over the points (the AVX2 kernel's instances, solve_groups_avx2; the
+// operations and their order are those of NP = 0, the count read from the group).
+template <class T, int NP = 0>
 inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change, i64* visits) {
     typedef W<T> w;
     typedef typename W<T>::M M;
@@ -175,7 +177,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     w::gather3(cx.vel, gr.a, 4, l, wa);
     w::gather3(cx.vel, gr.b, 0, l, vb);
     w::gather3(cx.vel, gr.b, 4, l, wb);
-    const int np = (int)gr.n_pts;
+    const int np = NP > 0 ? NP : (int)gr.n_pts;
     M pt[4];  // point slot i exists in the lane
     for (int i = 0; i < 4; ++i) pt[i] = w::splat((double)i) < cnt;
     // non-penetration: the manifold's points together (block), else one by one
