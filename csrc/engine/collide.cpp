@@ -120,7 +120,6 @@ struct PairOut {
     i64 fid[2 * MAX_MANIFOLD_POINTS];
     i64 res;
     i64 n_man, n_pts;  // manifolds and points the pair adds
-    i64 prev0;         // find_manifold of part 0 when the first pass looked it up, else -2
 };
 
 // The per-call work of collide_pairs, kept by the calling thread (worlds may step on several
@@ -206,9 +205,7 @@ constexpr i64 MIN_PAIRS = 512;
     mfm.acc = nx * ax + ny * ay + nz * az;
     // warm starting from the previous step's manifold of this pair
     i64 j = -1;
-    if (warm)
-        j = part == 0 && buf.prev0 != -2 ? buf.prev0
-                                         : find_manifold(prev_keys, prev_idx, prev_n, key);
+    if (warm) j = find_manifold(prev_keys, prev_idx, prev_n, key);
     const double* pa = position.row(a);
     // the friction anchor: b's frame (the world for the ground), a's pose in it now, and the
     // pose it had when the pair started sticking (carried over while store_impulses keeps it)
@@ -398,7 +395,6 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
             const bool b_awake = b_dyn && awake[gm.body[b]] != 0;
             o.n_man = 0;
             o.n_pts = 0;
-            o.prev0 = -2;
             if (!a_awake && !b_awake) {
                 // both sides still: the manifolds are carried over as they were (pass 2)
                 o.res = -2;
@@ -419,10 +415,8 @@ CollideCount collide_pairs(V2<i64> pairs, i64 n_pairs, i64 n_dyn, i64 n_static, 
             if (b_dyn) spec += reach[b];
             // a pair new to the contact (no manifold last step) parted along the line of
             // centres: collide() would return no point (parted_along, with its proof)
-            // (the lookup is kept for add_manifold's warm start of part 0)
-            if (axis_parts(ga, g.geom))
-                o.prev0 = find_manifold(prev_keys, prev_idx, prev_n, 2 * key);
-            if (o.prev0 == -1) {
+            if (axis_parts(ga, g.geom) &&
+                find_manifold(prev_keys, prev_idx, prev_n, 2 * key) < 0) {
                 const double u[3] = {pa.centre[0] - g.centre[0], pa.centre[1] - g.centre[1],
                                      pa.centre[2] - g.centre[2]};
                 if ((u[0] != 0.0 || u[1] != 0.0 || u[2] != 0.0) &&
