@@ -25,6 +25,12 @@ int initial_path() {
 
 int g_path = initial_path();
 
+// the scalar kernel on a group's four lanes, one after another (NP: solve_group's)
+template <int NP>
+void solve_lanes_scalar(WideGroup& g, const LaneCtx& cx, double* change, i64* visits) {
+    for (int l = 0; l < 4; ++l) solve_group<double, NP>(g, l, cx, change, visits);
+}
+
 bool has_avx2() {
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
     static const bool yes = __builtin_cpu_supports("avx2");
@@ -47,8 +53,16 @@ const char* solver_kernel() {
 
 void solve_groups_scalar(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,
                          i64* visits) {
-    for (i64 k = g0; k < g1; ++k)
-        for (int l = 0; l < 4; ++l) solve_group<double>(g[k], l, cx, change, visits);
+    // (a group's point count as a constant, as solve_groups_avx2)
+    for (i64 k = g0; k < g1; ++k) {
+        switch (g[k].n_pts) {
+            case 1: solve_lanes_scalar<1>(g[k], cx, change, visits); break;
+            case 2: solve_lanes_scalar<2>(g[k], cx, change, visits); break;
+            case 3: solve_lanes_scalar<3>(g[k], cx, change, visits); break;
+            case 4: solve_lanes_scalar<4>(g[k], cx, change, visits); break;
+            default: solve_lanes_scalar<0>(g[k], cx, change, visits); break;
+        }
+    }
 }
 
 void solve_groups_wide(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,
@@ -150,6 +164,8 @@ void pack_lanes(V1<ManifoldHead> mi, V1<Manifold> mf, V1<ContactPoint> pf,
                         gr.rb[i][c][j] = q_.rb[c];
                         gr.tk[i][c][j] = q_.tangent_k[c];
                     }
+                    gr.det[i][j] = q_.tangent_k[0] * q_.tangent_k[2] -
+                                   q_.tangent_k[1] * q_.tangent_k[1];
                     double sep = q_.s;
                     // speculative: the gap may close within the step, not more
                     gr.target[i][j] = sep > 0.0 ? -sep * inv_h : 0.0;

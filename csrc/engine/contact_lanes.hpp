@@ -56,6 +56,7 @@ struct alignas(32) WideGroup {
     double target[4][4];                 // speculative target gap velocity (0 or -s / h)
     double nmass[4][4];
     double tk[4][3][4];                  // k11, k12, k22
+    double det[4][4];                    // k11 k22 - k12^2 (friction_update_k's det0)
     double ln[4][4], l1[4][4], l2[4][4]; // accumulated impulses
 };
 
@@ -94,6 +95,7 @@ struct LaneCtx {
     double tol;
     i64 newton_iters;
     double newton_tol;
+    double tol1;  // 1 + newton_tol
 };
 
 // Solve groups [g0, g1) once (one sweep's visit), the scalar kernel (lanes one after another) or

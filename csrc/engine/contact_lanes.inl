@@ -137,8 +137,10 @@ inline void lane_impulse(typename W<T>::M on, const WideGroup& gr, int l, const 
 }
 
 // One sweep's visit of group gr (solve_velocities' loop body for its four manifolds): lane l for
-// T = double, all four for T = d4.
-template <class T>
+// T = double, all four for T = d4. NP > 0: the group's n_pts as a constant, so that the compiler
+// unrolls the loops over the points (the AVX2 kernel's instances, solve_groups_avx2; the
+// operations and their order are those of NP = 0, the count read from the group).
+template <class T, int NP = 0>
 inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change, i64* visits) {
     typedef W<T> w;
     typedef typename W<T>::M M;
@@ -159,6 +161,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     const M vis = w::from(vb_, l);
     const T zero = w::splat(0.0);
     const T tol = w::splat(cx.tol);
+    const T tol1 = w::splat(cx.tol1);
     T chg = zero;
     M mark = vis & w::mnot(vis);  // all false
     const T om = w::ld(gr.om, l);
@@ -174,7 +177,7 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
     w::gather3(cx.vel, gr.a, 4, l, wa);
     w::gather3(cx.vel, gr.b, 0, l, vb);
     w::gather3(cx.vel, gr.b, 4, l, wb);
-    const int np = (int)gr.n_pts;
+    const int np = NP > 0 ? NP : (int)gr.n_pts;
     M pt[4];  // point slot i exists in the lane
     for (int i = 0; i < 4; ++i) pt[i] = w::splat((double)i) < cnt;
     // non-penetration: the manifold's points together (block), else one by one
@@ -278,8 +281,8 @@ inline void solve_group(WideGroup& gr, int l, const LaneCtx& cx, double* change,
             T k11 = w::ld(gr.tk[i][0], l), k12 = w::ld(gr.tk[i][1], l), k22 = w::ld(gr.tk[i][2], l);
             T o1 = w::ld(gr.l1[i], l), o2 = w::ld(gr.l2[i], l);
             T n1, n2;
-            friction_update<T, W<T>>(on, k11, k12, k22, o1, o2, vt1, vt2, mu * w::ld(gr.ln[i], l),
-                                     cx.newton_iters, cx.newton_tol, n1, n2);
+            friction_update_k<T, W<T>>(on, k11, k12, k22, w::ld(gr.det[i], l), o1, o2, vt1, vt2,
+                                       mu * w::ld(gr.ln[i], l), cx.newton_iters, tol1, n1, n2);
             w::st(gr.l1[i], l, w::sel(on, n1, o1));
             w::st(gr.l2[i], l, w::sel(on, n2, o2));
             T d1 = n1 - o1;

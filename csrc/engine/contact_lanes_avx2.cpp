@@ -16,7 +16,15 @@ namespace {
 
 void solve_groups_avx2(WideGroup* g, i64 g0, i64 g1, const LaneCtx& cx, double* change,
                        i64* visits) {
-    for (i64 k = g0; k < g1; ++k) solve_group<d4>(g[k], 0, cx, change, visits);
+    for (i64 k = g0; k < g1; ++k) {
+        switch (g[k].n_pts) {
+            case 1: solve_group<d4, 1>(g[k], 0, cx, change, visits); break;
+            case 2: solve_group<d4, 2>(g[k], 0, cx, change, visits); break;
+            case 3: solve_group<d4, 3>(g[k], 0, cx, change, visits); break;
+            case 4: solve_group<d4, 4>(g[k], 0, cx, change, visits); break;
+            default: solve_group<d4>(g[k], 0, cx, change, visits); break;
+        }
+    }
 }
 
 }  // namespace rb

@@ -373,7 +373,7 @@ i64 solve_velocities(const StepContext& ctx, const ContactConstraints& c,
     }
     LaneCtx cx{reinterpret_cast<double*>(lanes.vel.data()), hot.p, bodies.inv_mass.n0 - 1, 0,
                cfg.velocity_iterations, cfg.velocity_tolerance, cfg.friction_newton_iters,
-               cfg.friction_newton_tol};
+               cfg.friction_newton_tol, 1.0 + cfg.friction_newton_tol};
     WideGroup* gr = lanes.groups.data();
     // the sweeps, on the task pool or on this thread (solve_stages.hpp): a set's groups
     // [g0, g1) in sweep `sweep` (set 0, the overflow set, one manifold after another)

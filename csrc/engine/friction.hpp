@@ -23,13 +23,16 @@ namespace rb {
 // does not do when K couples the two tangents (off-centre points). A singular K or fmax <= 0
 // gives zero. Lane-wise, each `if` on a value is a select and the Newton loop runs while some
 // lane has not met its bound (a lane that has keeps its values).
+//
+// friction_update_k takes the point's constants of the step from the caller: det0 = k11 k22 -
+// k12^2 (the tangent block's determinant, by the same operations) and tol1 = 1 + newton_tol, so
+// that the velocity solve computes them once a step instead of once a sweep (same bits).
 template <class T, class Lw>
-inline void friction_update(typename Lw::M on, const T& k11, const T& k12, const T& k22,
-                            const T& o1, const T& o2, const T& vt1, const T& vt2, const T& fmax,
-                            i64 newton_iters, double newton_tol, T& out1, T& out2) {
+inline void friction_update_k(typename Lw::M on, const T& k11, const T& k12, const T& k22,
+                              const T& det0, const T& o1, const T& o2, const T& vt1, const T& vt2,
+                              const T& fmax, i64 newton_iters, const T& tol1, T& out1, T& out2) {
     typedef typename Lw::M M;
     const T zero = Lw::splat(0.0);
-    T det0 = k11 * k22 - k12 * k12;
     M none = Lw::mor(det0 <= zero, fmax <= zero);
     // K c = K o - vt  (c: the sticking impulse)
     T kc1 = k11 * o1 + k12 * o2 - vt1;
@@ -41,7 +44,9 @@ inline void friction_update(typename Lw::M on, const T& k11, const T& k12, const
     M inside = nl <= fmax;
     M act = Lw::mand(on, Lw::mnot(Lw::mor(none, inside)));
     const T one = Lw::splat(1.0);
-    const T bound = fmax * (one + Lw::splat(newton_tol));
+    const T bound = fmax * tol1;
+    T inv_fmax = zero;  // (f below: constant over the Newton steps)
+    if (Lw::any(act)) inv_fmax = one / fmax;
     for (i64 it = 0; it < newton_iters && Lw::any(act); ++it) {
         T a = k11 + g;
         T d = k22 + g;
@@ -59,7 +64,7 @@ inline void friction_update(typename Lw::M on, const T& k11, const T& k12, const
         T m1 = (d * n1 - k12 * n2) / det;
         T m2 = (a * n2 - k12 * n1) / det;
         // f(g) = 1/fmax - 1/|l|,  f'(g) = -(l . (K + g I)^-1 l) / |l|^3
-        T f = one / fmax - one / nn;
+        T f = inv_fmax - one / nn;
         T fp = -(n1 * m1 + n2 * m2) / (nn * nn * nn);
         g = Lw::sel(act, g - f / fp, g);
     }
@@ -67,6 +72,15 @@ inline void friction_update(typename Lw::M on, const T& k11, const T& k12, const
     T s1 = l1 * sc, s2 = l2 * sc;
     out1 = Lw::sel(none, zero, Lw::sel(inside, l1, s1));
     out2 = Lw::sel(none, zero, Lw::sel(inside, l2, s2));
+}
+
+template <class T, class Lw>
+inline void friction_update(typename Lw::M on, const T& k11, const T& k12, const T& k22,
+                            const T& o1, const T& o2, const T& vt1, const T& vt2, const T& fmax,
+                            i64 newton_iters, double newton_tol, T& out1, T& out2) {
+    const T det0 = k11 * k22 - k12 * k12;
+    friction_update_k<T, Lw>(on, k11, k12, k22, det0, o1, o2, vt1, vt2, fmax, newton_iters,
+                             Lw::splat(1.0 + newton_tol), out1, out2);
 }
 
 // friction_update of one point.
