@@ -8,7 +8,12 @@ builds can be compared stage by stage without the wall-clock noise of a shared m
 
 ``--save`` steps the pile from its drop (bench_pile's scene) and stores the state; ``--load``
 steps on from a stored state (the contact cache starts cold: the first step has no warm start,
-alike for every build). One thread unless ``--threads``.
+alike for every build). ``--scene FILE`` steps a scene file from its start instead (its own
+contact settings), e.g. samples/shapes.toml (run with RBLOG_THREAD_HANDOVER=0 under valgrind).
+One thread unless ``--threads``. The installed module is stripped; for the stages' names build
+it with symbols (pip install -e . with -Ccmake.build-type=RelWithDebInfo
+"-Ccmake.define.CMAKE_CXX_FLAGS=-g -fno-stack-protector" -Cinstall.strip=false: the Release
+build's code, nanobind's strip flag off).
 """
 
 from __future__ import annotations
@@ -16,12 +21,14 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from rblog.engine import _core
 from rblog.engine import integrators as rot
 from rblog.engine.contact import ContactParams, ContactWorld
+from rblog.engine.scene import parse_scene
 from rblog.study.scenes import loose_pile
 
 FIELDS = ("position", "linear_momentum", "quat_wxyz", "rotation", "angular_momentum_world")
@@ -33,6 +40,7 @@ def main(argv=None):
     ap.add_argument("--dt", type=float, default=1e-3)
     ap.add_argument("--save", help="step --steps from the drop and store the state here")
     ap.add_argument("--load", help="step --steps on from this stored state")
+    ap.add_argument("--scene", help="step this scene file (.toml) from its start instead")
     ap.add_argument("--steps", type=int, default=1000)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--solver", default="pgs", help="ContactParams.solver: pgs or soft_step")
@@ -41,13 +49,17 @@ def main(argv=None):
                     help="the soft step's contact_hertz (default: the substeps' cap)")
     args = ap.parse_args(argv)
     _core.set_threads(args.threads)
-    model, state = loose_pile(args.boxes)
+    if args.scene:
+        sc = parse_scene(Path(args.scene).read_text(), args.scene)
+        model, state, params = sc.model, sc.state.copy(), ContactParams.from_dict(sc.contact)
+    else:
+        model, state = loose_pile(args.boxes)
+        params = ContactParams(solver=args.solver, substeps=args.substeps,
+                               contact_hertz=args.contact_hertz)
     if args.load:
         z = np.load(args.load)
         for f in FIELDS:
             getattr(state, f)[...] = z[f]
-    params = ContactParams(solver=args.solver, substeps=args.substeps,
-                           contact_hertz=args.contact_hertz)
     world = ContactWorld(model, params, rot.METHOD_SPLITTING, rot.ORTHO_NORMALIZE)
     n = model.n_bodies
     outs = [np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros((1, n, 4)), np.zeros((1, n, 3, 3)),
