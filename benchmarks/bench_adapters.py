@@ -3,6 +3,8 @@ recording a sample at every step, by CPU time (``time.process_time``), interleav
 
     python benchmarks/bench_adapters.py [--pairs N] [--steps N] [--every K] [--case NAME ...]
         [--mode memory|mcap] [--mcap-compression lz4|zstd|none]
+    python benchmarks/bench_adapters.py --instructions [--case NAME ...] [--mode ...]
+        [--require-at-most RATIO]
 
 Each case is a row of ``CASES``: a function of the step count and the sample stride (``every``:
 a sample every K steps, the impulses of every step summed into it) that builds its world and
@@ -11,6 +13,12 @@ no file; ``"mcap"``: an MCAP file written) that each run the step loop once and 
 A pair is one bare run and one recorded run in alternating order (A B, B A, ...), so the load
 of a shared machine hits both alike; the table gives each pair's CPU seconds and ratio, then the
 median ratio per case and mode. Add a row with ``@case("engine/world")``.
+
+``--instructions``: the same ratio in instructions, which a shared machine's load does not move
+(valgrind's callgrind; CI's guard of the recording cost, .ci/run). Each of the bare and the
+recorded loop runs in a worker process under callgrind, once with one run after a warm-up run and
+once with two; the difference is one steady-state run (setup and ``close()`` counted).
+``--require-at-most RATIO`` then exits 1 when a case's recorded / bare ratio is above RATIO.
 """
 
 from __future__ import annotations
@@ -114,6 +122,69 @@ def _pybullet_case(world: str):
 case("pybullet/jenga")(_pybullet_case("jenga"))
 
 
+def worker(name: str, mode: str, which: str, runs: int, steps: int, every: int) -> None:
+    """One process of --instructions: a warm-up run of the bare or the recorded loop, then
+    ``runs`` more."""
+    with tempfile.TemporaryDirectory() as tmp:
+        bare, recorded = CASES[name](steps, every, tmp)
+        fn = recorded if which == "recorded" else bare
+        for _ in range(1 + runs):
+            fn(mode)
+
+
+def _callgrind_total(args, name: str, mode: str, which: str, runs: int, out: Path) -> int:
+    """Instructions of one worker process under callgrind."""
+    import os
+    import subprocess
+
+    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable,
+           str(Path(__file__).resolve()), "--worker", name, mode, which, str(runs),
+           "--steps", str(args.steps), "--every", str(args.every)]
+    env = {**os.environ, "SKBUILD_EDITABLE_VERBOSE": "0", "OMP_NUM_THREADS": "1",
+           "OPENBLAS_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}
+    run = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    if run.returncode != 0:
+        sys.exit(f"bench_adapters: callgrind of {name} {mode} {which} failed:\n"
+                 f"{run.stderr[-2000:]}")
+    for line in out.read_text().splitlines():
+        if line.startswith(("summary:", "totals:")):
+            return int(line.split()[1])
+    sys.exit(f"bench_adapters: no totals in {out}")
+
+
+def instructions(args, names, modes) -> int:
+    """--instructions: recorded / bare instructions of one steady-state run per case and mode;
+    1 if a ratio is above --require-at-most."""
+    import shutil
+    from concurrent.futures import ThreadPoolExecutor
+
+    if shutil.which("valgrind") is None:
+        sys.exit("bench_adapters: --instructions needs valgrind (apt-get install valgrind)")
+    print(f"instructions of one run of {args.steps} steps (callgrind, 2 runs less 1 after a "
+          f"warm-up; a sample every {args.every} steps)")
+    print(f"  {'case':<20} {'mode':<7} {'bare M':>9} {'recorded M':>11} {'ratio':>7}")
+    worst = 0.0
+    with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(2) as pool:
+        for name in names:
+            for mode in modes:
+                jobs = {(w, k): pool.submit(_callgrind_total, args, name, mode, w, k,
+                                            Path(tmp) / f"cg.{w}.{k}")
+                        for w in ("bare", "recorded") for k in (1, 2)}
+                t = {key: job.result() for key, job in jobs.items()}
+                bare = t["bare", 2] - t["bare", 1]
+                rec = t["recorded", 2] - t["recorded", 1]
+                worst = max(worst, rec / bare)
+                print(f"  {name:<20} {mode:<7} {bare / 1e6:9.1f} {rec / 1e6:11.1f} "
+                      f"{rec / bare:6.3f}x")
+                sys.stdout.flush()
+    if args.require_at_most is None:
+        return 0
+    met = worst <= args.require_at_most
+    print(f"worst recorded / bare: {worst:.3f}x (required <= {args.require_at_most:.3f}: "
+          f"{'met' if met else 'NOT met'})")
+    return 0 if met else 1
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pairs", type=int, default=5)
@@ -123,10 +194,22 @@ def main(argv=None) -> int:
     ap.add_argument("--mode", action="append", choices=MODES, help="default: both")
     ap.add_argument("--mcap-compression", choices=("lz4", "zstd", "none"), default="lz4",
                     help="the MCAP chunk compression (default lz4, the Recorder's)")
+    ap.add_argument("--instructions", action="store_true",
+                    help="compare callgrind instructions, not CPU time")
+    ap.add_argument("--require-at-most", type=float, default=None, metavar="RATIO",
+                    help="with --instructions: exit 1 when a recorded / bare ratio is above RATIO")
+    ap.add_argument("--worker", nargs=4, metavar=("CASE", "MODE", "WHICH", "RUNS"),
+                    help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     OPTIONS["mcap_compression"] = args.mcap_compression
+    if args.worker:
+        name, mode, which, runs = args.worker
+        worker(name, mode, which, int(runs), args.steps, args.every)
+        return 0
     names = args.case or list(CASES)
     modes = args.mode or list(MODES)
+    if args.instructions:
+        return instructions(args, names, modes)
     print(f"CPU seconds of {args.steps} steps, bare loop vs recording (a sample every "
           f"{args.every} steps); {args.pairs} interleaved pairs")
     print(f"  {'case':<20} {'mode':<7} {'pair':>4} {'bare s':>8} {'recorded s':>10} {'ratio':>6}")
