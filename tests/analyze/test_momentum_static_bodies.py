@@ -26,9 +26,7 @@ def _momentum(slab):
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     rec = adapter.recorder(m, d, every=1)
-    for _ in range(300):
-        mujoco.mj_step(m, d)
-        rec(d)
+    rec.step_and_record(d, 300)  # mj_step, then the recorder, 300 times
     rec.close()
     tr = rec.trajectory
     assert "marker" in tr.model.body_name

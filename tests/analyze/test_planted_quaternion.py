@@ -35,9 +35,7 @@ def test_a_quaternion_turned_in_the_log_only_is_one_pair_at_its_depth():
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     rec = adapter.recorder(m, d, every=10)
-    for _ in range(1500):
-        mujoco.mj_step(m, d)
-        rec(d)
+    rec.step_and_record(d, 1500)  # mj_step, then the recorder, 1500 times
     rec.close()
     tr = rec.trajectory
     # clean: nothing flagged; energy has nothing to judge (the boxes touch in every interval,
