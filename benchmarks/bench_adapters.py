@@ -14,6 +14,10 @@ A pair is one bare run and one recorded run in alternating order (A B, B A, ...)
 of a shared machine hits both alike; the table gives each pair's CPU seconds and ratio, then the
 median ratio per case and mode. Add a row with ``@case("engine/world")``.
 
+In MCAP mode the table also gives the CPU time spent inside the MCAP writer (``McapRecorder``'s
+``open``, ``write`` and ``close``: encoding, compression, CRCs, the file's writes), so a run shows
+how much of the recording is the log's bytes and how much is the adapter.
+
 ``--instructions``: the same ratio in instructions, which a shared machine's load does not move
 (valgrind's callgrind; CI's guard of the recording cost, .ci/run). Each of the bare and the
 recorded loop runs in a worker process under callgrind, once with one run after a warm-up run and
@@ -122,6 +126,30 @@ def _pybullet_case(world: str):
 case("pybullet/jenga")(_pybullet_case("jenga"))
 
 
+#: CPU seconds spent inside McapRecorder's open, write and close since the last reset
+WRITER_CPU = [0.0]
+
+
+def _time_mcap_writer() -> None:
+    """Wrap McapRecorder's open, write and close so that each adds its CPU time to WRITER_CPU."""
+    from rblog.record.mcap_writer import McapRecorder
+
+    def timed(fn):
+        def wrapper(*args, **kwargs):
+            c0 = time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                WRITER_CPU[0] += time.process_time() - c0
+        wrapper.__wrapped__ = fn
+        return wrapper
+
+    for name in ("open", "write", "close"):
+        fn = getattr(McapRecorder, name)
+        if not hasattr(fn, "__wrapped__"):
+            setattr(McapRecorder, name, timed(fn))
+
+
 def worker(name: str, mode: str, which: str, runs: int, steps: int, every: int) -> None:
     """One process of --instructions: a warm-up run of the bare or the recorded loop, then
     ``runs`` more."""
@@ -212,7 +240,9 @@ def main(argv=None) -> int:
         return instructions(args, names, modes)
     print(f"CPU seconds of {args.steps} steps, bare loop vs recording (a sample every "
           f"{args.every} steps); {args.pairs} interleaved pairs")
-    print(f"  {'case':<20} {'mode':<7} {'pair':>4} {'bare s':>8} {'recorded s':>10} {'ratio':>6}")
+    print(f"  {'case':<20} {'mode':<7} {'pair':>4} {'bare s':>8} {'recorded s':>10} {'ratio':>6}"
+          f" {'in MCAP writer s':>17}")
+    _time_mcap_writer()
     summary = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
@@ -220,22 +250,31 @@ def main(argv=None) -> int:
             for mode in modes:
                 recorded(mode)  # warm: imports, first-call costs
                 bare(mode)
-                ratios = []
+                ratios, shares = [], []
                 for k in range(args.pairs):
                     order = (bare, recorded) if k % 2 == 0 else (recorded, bare)
                     cpu = {}
                     for fn in order:
+                        WRITER_CPU[0] = 0.0
                         c0 = time.process_time()
                         fn(mode)
                         cpu[fn] = time.process_time() - c0
+                        if fn is recorded:
+                            writer = WRITER_CPU[0]
                     ratios.append(cpu[recorded] / cpu[bare])
+                    shares.append(writer / cpu[bare])
                     print(f"  {name:<20} {mode:<7} {k:>4} {cpu[bare]:>8.3f} {cpu[recorded]:>10.3f} "
+                          f"{ratios[-1]:>6.2f} {writer:>17.3f}" if mode == "mcap" else
+                          f"  {name:<20} {mode:<7} {k:>4} {cpu[bare]:>8.3f} {cpu[recorded]:>10.3f} "
                           f"{ratios[-1]:>6.2f}")
                     sys.stdout.flush()
-                summary.append((name, mode, statistics.median(ratios), min(ratios), max(ratios)))
-    print("median ratio (recorded / bare CPU), [min, max]:")
-    for name, mode, med, lo, hi in summary:
-        print(f"  {name:<20} {mode:<7} {med:.2f}x  [{lo:.2f}, {hi:.2f}]")
+                summary.append((name, mode, statistics.median(ratios), min(ratios), max(ratios),
+                                statistics.median(shares)))
+    print("median ratio (recorded / bare CPU), [min, max]; MCAP: the writer's median share of the "
+          "bare loop's CPU:")
+    for name, mode, med, lo, hi, share in summary:
+        print(f"  {name:<20} {mode:<7} {med:.2f}x  [{lo:.2f}, {hi:.2f}]"
+              + (f"  writer {share:.2f}x of bare" if mode == "mcap" else ""))
     return 0
 
 
