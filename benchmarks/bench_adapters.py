@@ -264,9 +264,7 @@ def main(argv=None) -> int:
                     ratios.append(cpu[recorded] / cpu[bare])
                     shares.append(writer / cpu[bare])
                     print(f"  {name:<20} {mode:<7} {k:>4} {cpu[bare]:>8.3f} {cpu[recorded]:>10.3f} "
-                          f"{ratios[-1]:>6.2f} {writer:>17.3f}" if mode == "mcap" else
-                          f"  {name:<20} {mode:<7} {k:>4} {cpu[bare]:>8.3f} {cpu[recorded]:>10.3f} "
-                          f"{ratios[-1]:>6.2f}")
+                          f"{ratios[-1]:>6.2f}" + (f" {writer:>17.3f}" if mode == "mcap" else ""))
                     sys.stdout.flush()
                 summary.append((name, mode, statistics.median(ratios), min(ratios), max(ratios),
                                 statistics.median(shares)))
