@@ -162,22 +162,12 @@ def worker(name: str, mode: str, which: str, runs: int, steps: int, every: int) 
 
 def _callgrind_total(args, name: str, mode: str, which: str, runs: int, out: Path) -> int:
     """Instructions of one worker process under callgrind."""
-    import os
-    import subprocess
+    from _callgrind import total_instructions
 
-    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable,
-           str(Path(__file__).resolve()), "--worker", name, mode, which, str(runs),
-           "--steps", str(args.steps), "--every", str(args.every)]
-    env = {**os.environ, "SKBUILD_EDITABLE_VERBOSE": "0", "OMP_NUM_THREADS": "1",
-           "OPENBLAS_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}
-    run = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    if run.returncode != 0:
-        sys.exit(f"bench_adapters: callgrind of {name} {mode} {which} failed:\n"
-                 f"{run.stderr[-2000:]}")
-    for line in out.read_text().splitlines():
-        if line.startswith(("summary:", "totals:")):
-            return int(line.split()[1])
-    sys.exit(f"bench_adapters: no totals in {out}")
+    return total_instructions([sys.executable, str(Path(__file__).resolve()), "--worker", name,
+                               mode, which, str(runs), "--steps", str(args.steps), "--every",
+                               str(args.every)], out,
+                              f"bench_adapters: callgrind of {name} {mode} {which}")
 
 
 def instructions(args, names, modes) -> int:

@@ -163,18 +163,12 @@ def _commit(root: Path) -> str:
 
 def _callgrind_total(py: str, root: Path, args, checks: int, out: Path) -> int:
     """Instructions of one worker process (``checks`` checks after the warm-up) under callgrind."""
-    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", py,
-           str(Path(__file__).resolve()), "--worker", str(root), "--samples", str(args.samples),
-           "--bodies", str(args.bodies), "--checks", str(checks)]
-    env = {**os.environ, "SKBUILD_EDITABLE_VERBOSE": "0", "OMP_NUM_THREADS": "1",
-           "OPENBLAS_NUM_THREADS": "1", "PYTHONHASHSEED": "0"}
-    run = subprocess.run(cmd, cwd=str(root), env=env, capture_output=True, text=True)
-    if run.returncode != 0:
-        sys.exit(f"bench_check: callgrind of {root} failed:\n{run.stderr[-2000:]}")
-    for line in out.read_text().splitlines():
-        if line.startswith(("summary:", "totals:")):
-            return int(line.split()[1])
-    sys.exit(f"bench_check: no totals in {out}")
+    from _callgrind import total_instructions
+
+    return total_instructions([py, str(Path(__file__).resolve()), "--worker", str(root),
+                               "--samples", str(args.samples), "--bodies", str(args.bodies),
+                               "--checks", str(checks)], out, f"bench_check: callgrind of {root}",
+                              cwd=str(root))
 
 
 def instructions(args, other: Path, other_py: str) -> int:
